@@ -1,0 +1,11 @@
+"""adm-sim: modal railway-bridge dynamics under moving loads (MLM) and detailed
+vehicle-bridge interaction (DIM).
+
+The numerical core (``bridge``, ``trains``, ``dim``, ``stepping``, ``sweep``) imports numpy and
+scipy only; the ROS 2 nodes live in :mod:`adm_sim.nodes` and are a thin layer on top.
+"""
+
+from adm_sim.errors import AdmSimError, InputError
+
+__all__ = ["AdmSimError", "InputError"]
+__version__ = "0.1.0"

@@ -1,0 +1,353 @@
+"""Simply supported Bernoulli-Euler beam by modal superposition (paper Section 2.1, 3.1).
+
+Deflection ``w(x, t) = sum_j q_j(t) phi_j(x)`` with the eigenfunctions
+``phi_j(x) = sin(j pi x / L)`` (Eq. 4), so the modal matrices of Eq. (5) are diagonal:
+
+* modal mass      ``M_j = mu L / 2``
+* circular freq.  ``omega_j = (j pi / L)^2 sqrt(EJ / mu)``; ``n0 = omega_1 / 2 pi`` (Eq. 18)
+* modal stiffness ``K_j = M_j omega_j^2``
+* modal damping   ``Z_j = 2 zeta_j M_j omega_j``.
+
+Damping: the paper composes Z by Rayleigh damping (Section 2.1) without naming the anchor modes.
+We anchor the Rayleigh curve ``zeta_j = a / (2 omega_j) + b omega_j / 2`` at modes 1 and 3,
+the two lowest modes that move midspan (mode 2 has a node there), so every mode that contributes
+to the midspan response carries exactly ``zeta + delta_zeta``; mode 2 gets ``0.625 (zeta +
+delta_zeta)``. ``damping_model="modal"`` gives every mode the same ratio instead.
+
+Limits: linear elastic, simply supported, no shear deformation or rotary inertia, rigid
+supports; valid while the retained modes resolve the loading (3 modes by default, Section 2.3).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from adm_sim.errors import InputError, check_range
+
+#: Allowed input ranges (SI): span, first frequency, mass per length, damping (fraction).
+SPAN_RANGE_M = (1.0, 150.0)
+N0_RANGE_HZ = (0.5, 100.0)
+MU_RANGE_KG_M = (100.0, 1.0e6)
+ZETA_RANGE = (0.0, 0.20)
+N_MODES_RANGE = (1, 20)
+
+BRIDGE_TYPES = ("cfb", "sc")
+
+
+@dataclass(frozen=True)
+class Bridge:
+    """A simply supported modal beam.
+
+    Parameters
+    ----------
+    span_m : float
+        Span L (m).
+    EJ_Nm2 : float
+        Bending stiffness EJ (N m^2).
+    mass_per_length_kg_m : float
+        Mass per unit length mu (kg/m).
+    damping_ratio : float
+        Structural damping zeta as a fraction of critical (0.0185 for 1.85 %).
+    n_modes : int
+        Number of retained modes (paper: 3).
+    damping_model : {"rayleigh", "modal"}
+        Rayleigh anchored at modes 1 and 3 (default) or equal modal damping.
+    name : str
+        Label used in outputs.
+    bridge_type : {"cfb", "sc", ""}
+        Concrete/filler-beam or steel/composite (Table 2); empty if unknown.
+    """
+
+    span_m: float
+    EJ_Nm2: float
+    mass_per_length_kg_m: float
+    damping_ratio: float
+    n_modes: int = 3
+    damping_model: str = "rayleigh"
+    name: str = ""
+    bridge_type: str = ""
+
+    def __post_init__(self):
+        check_range("span_m", self.span_m, "m", *SPAN_RANGE_M)
+        check_range("EJ_Nm2", self.EJ_Nm2, "N m^2", 0.0, None, lo_open=True)
+        check_range("mass_per_length_kg_m", self.mass_per_length_kg_m, "kg/m", *MU_RANGE_KG_M)
+        check_range("damping_ratio", self.damping_ratio, "- (fraction)", *ZETA_RANGE)
+        if int(self.n_modes) != self.n_modes or not (N_MODES_RANGE[0] <= self.n_modes <= N_MODES_RANGE[1]):
+            raise InputError(f"n_modes: {self.n_modes!r} is out of range; allowed integer in "
+                             f"[{N_MODES_RANGE[0]}, {N_MODES_RANGE[1]}]")
+        if self.damping_model not in ("rayleigh", "modal"):
+            raise InputError(f"damping_model: {self.damping_model!r} is not allowed; "
+                             f"allowed 'rayleigh' or 'modal'")
+        if self.bridge_type not in BRIDGE_TYPES + ("",):
+            raise InputError(f"bridge_type: {self.bridge_type!r} is not allowed; allowed 'cfb' or 'sc'")
+        check_range("n0_hz", self.n0_hz, "Hz", *N0_RANGE_HZ)
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def from_frequency(cls, span_m, n0_hz, mass_per_length_kg_m, damping_ratio, **kw):
+        """Bridge from (L, n0, mu, zeta); EJ from Eq. (18): ``EJ = mu (2 L^2 n0 / pi)^2``."""
+        L = check_range("span_m", span_m, "m", *SPAN_RANGE_M)
+        n0 = check_range("n0_hz", n0_hz, "Hz", *N0_RANGE_HZ)
+        mu = check_range("mass_per_length_kg_m", mass_per_length_kg_m, "kg/m", *MU_RANGE_KG_M)
+        EJ = mu * (2.0 * L**2 * n0 / math.pi) ** 2
+        return cls(span_m=L, EJ_Nm2=EJ, mass_per_length_kg_m=mu, damping_ratio=damping_ratio, **kw)
+
+    def with_damping(self, damping_ratio):
+        """Copy with another structural damping ratio (fraction)."""
+        return dataclasses.replace(self, damping_ratio=damping_ratio)
+
+    # ------------------------------------------------------------------ modal data
+    @property
+    def n0_hz(self):
+        """First natural frequency (Hz), Eq. (18)."""
+        return math.pi / (2.0 * self.span_m**2) * math.sqrt(self.EJ_Nm2 / self.mass_per_length_kg_m)
+
+    @property
+    def mode_numbers(self):
+        return np.arange(1, self.n_modes + 1, dtype=float)
+
+    @property
+    def omega_rad_s(self):
+        """Circular frequencies omega_j (rad/s), shape (n_modes,)."""
+        j = self.mode_numbers
+        return (j * math.pi / self.span_m) ** 2 * math.sqrt(self.EJ_Nm2 / self.mass_per_length_kg_m)
+
+    @property
+    def modal_mass_kg(self):
+        """Modal masses M_j = mu L / 2 (kg), shape (n_modes,)."""
+        return np.full(self.n_modes, 0.5 * self.mass_per_length_kg_m * self.span_m)
+
+    @property
+    def modal_stiffness_N_m(self):
+        return self.modal_mass_kg * self.omega_rad_s**2
+
+    def modal_damping_ratios(self, delta_zeta=0.0):
+        """Damping ratio of every mode for total damping ``zeta + delta_zeta`` (fractions).
+
+        Rayleigh: ``zeta_j = a / (2 omega_j) + b omega_j / 2`` with ``zeta_1 = zeta_3 = zeta_tot``
+        (modes 1 and 2 when only two modes are kept; all modes equal with one mode).
+        Parameters may be arrays (one value per speed lane); the result then has shape
+        ``(n_lanes, n_modes)``.
+        """
+        zt = np.asarray(self.damping_ratio + np.asarray(delta_zeta, dtype=float), dtype=float)
+        w = self.omega_rad_s
+        if self.damping_model == "modal" or self.n_modes == 1:
+            return zt[..., None] * np.ones_like(w)
+        r2 = 2 if self.n_modes >= 3 else 1
+        w1, w2 = w[0], w[r2]
+        a = 2.0 * w1 * w2 / (w1 + w2)
+        b = 2.0 / (w1 + w2)
+        return zt[..., None] * (a / (2.0 * w) + b * w / 2.0)
+
+    def modal_damping_Ns_m(self, delta_zeta=0.0):
+        """Modal damping coefficients Z_j = 2 zeta_j M_j omega_j (N s/m)."""
+        return 2.0 * self.modal_damping_ratios(delta_zeta) * self.modal_mass_kg * self.omega_rad_s
+
+    def shapes(self, x_m):
+        """Mode shapes and their x-derivatives at positions ``x_m``.
+
+        Returns ``(phi, phi_x, phi_xx)``, each of shape ``x_m.shape + (n_modes,)``; zero outside
+        ``[0, L]`` (the rectangle function Gamma of Eq. 6).
+        """
+        x = np.asarray(x_m, dtype=float)[..., None]
+        k = self.mode_numbers * math.pi / self.span_m
+        on = (x >= 0.0) & (x <= self.span_m)
+        s = np.where(on, np.sin(k * x), 0.0)
+        c = np.where(on, np.cos(k * x), 0.0)
+        return s, k * c, -(k**2) * s
+
+    def describe(self):
+        zeta_pct = 100.0 * self.damping_ratio
+        return (f"{self.name or 'bridge'}: L={self.span_m:g} m, n0={self.n0_hz:.3f} Hz, "
+                f"mu={self.mass_per_length_kg_m / 1000:.3f} t/m, EJ={self.EJ_Nm2:.4g} N m^2, "
+                f"zeta={zeta_pct:.3g} %, {self.n_modes} modes ({self.damping_model})")
+
+
+# ---------------------------------------------------------------------- Eurocode damping
+def eurocode_damping_pct(span_m, bridge_type):
+    """Lower-limit structural damping (%) of EN 1991-2 Table 6.6 (paper Table 2).
+
+    Steel and composite (``"sc"``): ``0.5 + 0.125 (20 - L)`` for L < 20 m, else 0.5.
+    Filler beam and reinforced concrete (``"cfb"``): ``1.5 + 0.07 (20 - L)`` for L < 20 m, else 1.5.
+    """
+    L = check_range("span_m", span_m, "m", *SPAN_RANGE_M)
+    if bridge_type == "sc":
+        return 0.5 + 0.125 * (20.0 - L) if L < 20.0 else 0.5
+    if bridge_type == "cfb":
+        return 1.5 + 0.07 * (20.0 - L) if L < 20.0 else 1.5
+    raise InputError(f"bridge_type: {bridge_type!r} is not allowed; allowed 'cfb' or 'sc'")
+
+
+# ---------------------------------------------------------------------- named bridges (Table 3)
+#: Table 3: L (m), n0 (Hz), mu (t/m), EJ (N m^2), zeta (%), type.
+TABLE3 = {
+    "B1": (15.0, 8.26, 19.042, 2.667e10, 1.85, "cfb"),
+    "B2": (30.0, 3.60, 29.545, 1.256e11, 1.50, "cfb"),
+    "B3": (15.0, 8.26, 7.739, 1.084e10, 1.13, "sc"),
+    "B4": (30.0, 3.60, 9.560, 4.064e10, 0.50, "sc"),
+}
+
+
+def named_bridge(name, **kw):
+    """Bridge B1-B4 of Table 3 (EJ and mu as printed; n0 follows from Eq. 18)."""
+    key = name.upper()
+    if key not in TABLE3:
+        raise InputError(f"bridge: {name!r} is not a named bridge; allowed {', '.join(TABLE3)}")
+    L, _n0, mu_t, EJ, zeta_pct, btype = TABLE3[key]
+    return Bridge(span_m=L, EJ_Nm2=EJ, mass_per_length_kg_m=mu_t * 1000.0,
+                  damping_ratio=zeta_pct / 100.0, name=key, bridge_type=btype, **kw)
+
+
+# ---------------------------------------------------------------------- parametric field
+#: n0 = a L^b power laws of Section 3.1.1 (fit, upper bound, lower bound).
+N0_FIT = (97.76, -0.9124)
+N0_UB = (113.1, -0.8312)
+N0_LB = (82.43, -0.9937)
+#: Table 1 mass functions mu = k L + d (t/m, Eq. 19); mu1-mu3 CFB, mu4-mu6 SC.
+MASS_FUNCTIONS = {
+    "mu1": (0.843, 10.45, "cfb"),
+    "mu2": (0.7002, 8.539, "cfb"),
+    "mu3": (0.5584, 6.627, "cfb"),
+    "mu4": (0.1214, 9.5174, "sc"),
+    "mu5": (0.1214, 5.918, "sc"),
+    "mu6": (0.1214, 2.1691, "sc"),
+}
+FIELD_SPANS_M = tuple(float(L) for L in range(4, 41))
+
+
+def field_frequencies_hz(span_m):
+    """The five n0 of one span (Section 3.1.1): LB, mid(LB, fit), fit, mid(fit, UB), UB."""
+    lb = N0_LB[0] * span_m ** N0_LB[1]
+    fit = N0_FIT[0] * span_m ** N0_FIT[1]
+    ub = N0_UB[0] * span_m ** N0_UB[1]
+    return (lb, 0.5 * (lb + fit), fit, 0.5 * (fit + ub), ub)
+
+
+def mass_function_t_m(name, span_m):
+    """Mass per length (t/m) of mass function ``name`` (Eq. 19, Table 1)."""
+    if name not in MASS_FUNCTIONS:
+        raise InputError(f"mass_function: {name!r} unknown; allowed {', '.join(MASS_FUNCTIONS)}")
+    k, d, _ = MASS_FUNCTIONS[name]
+    return k * span_m + d
+
+
+def parametric_field(n_modes=3, damping_model="rayleigh"):
+    """The 1110 bridges of Section 3.3: 185 (L, n0) pairs x 6 mass functions.
+
+    Each bridge carries its Table 2 damping and a name ``"L15-f3-mu2"`` (span, frequency index
+    1..5 from LB to UB, mass function). Returns a list of :class:`Bridge`.
+    """
+    out = []
+    for L in FIELD_SPANS_M:
+        for fi, n0 in enumerate(field_frequencies_hz(L), start=1):
+            for mname, (k, d, btype) in MASS_FUNCTIONS.items():
+                mu = (k * L + d) * 1000.0
+                zeta = eurocode_damping_pct(L, btype) / 100.0
+                out.append(Bridge.from_frequency(
+                    L, n0, mu, zeta, n_modes=n_modes, damping_model=damping_model,
+                    name=f"L{L:g}-f{fi}-{mname}", bridge_type=btype))
+    return out
+
+
+# ---------------------------------------------------------------------- user input
+_SPEC_KEYS = {
+    "L": "span_m", "span_m": "span_m",
+    "n0": "n0_hz", "n0_hz": "n0_hz",
+    "EJ": "EJ_Nm2", "EJ_Nm2": "EJ_Nm2",
+    "mu": "mass_per_length_kg_m", "mu_kg_m": "mass_per_length_kg_m",
+    "mass_per_length_kg_m": "mass_per_length_kg_m",
+    "zeta_pct": "zeta_pct", "zeta": "damping_ratio", "damping_ratio": "damping_ratio",
+    "type": "bridge_type", "bridge_type": "bridge_type",
+    "n_modes": "n_modes", "damping_model": "damping_model", "name": "name",
+}
+
+
+def bridge_from_mapping(data, source="bridge"):
+    """Build a bridge from a mapping of spec keys (SI units).
+
+    Keys: ``L`` (m), ``n0`` (Hz) or ``EJ`` (N m^2), ``mu`` (kg/m), ``zeta_pct`` (%) or ``zeta``
+    (fraction); optional ``type`` (cfb|sc: Table 2 damping when zeta is omitted), ``n_modes``,
+    ``damping_model``, ``name``.
+    """
+    vals = {}
+    for key, value in data.items():
+        if key not in _SPEC_KEYS:
+            raise InputError(f"{source}: unknown field {key!r}; allowed {', '.join(sorted(_SPEC_KEYS))}")
+        vals[_SPEC_KEYS[key]] = value
+    for need in ("span_m", "mass_per_length_kg_m"):
+        if need not in vals:
+            raise InputError(f"{source}: missing field {need!r} (L in m, mu in kg/m)")
+    L = check_range(f"{source}.L", vals["span_m"], "m", *SPAN_RANGE_M)
+    mu = check_range(f"{source}.mu", vals["mass_per_length_kg_m"], "kg/m", *MU_RANGE_KG_M)
+    btype = str(vals.get("bridge_type", ""))
+    if "zeta_pct" in vals:
+        zeta = check_range(f"{source}.zeta_pct", vals["zeta_pct"], "%", 0.0, 100 * ZETA_RANGE[1]) / 100.0
+    elif "damping_ratio" in vals:
+        zeta = check_range(f"{source}.zeta", vals["damping_ratio"], "- (fraction)", *ZETA_RANGE)
+    elif btype:
+        zeta = eurocode_damping_pct(L, btype) / 100.0
+    else:
+        raise InputError(f"{source}: missing damping: give zeta_pct (%, 0..20) or type=cfb|sc")
+    kw = dict(name=str(vals.get("name", "")), bridge_type=btype)
+    if "n_modes" in vals:
+        try:
+            kw["n_modes"] = int(vals["n_modes"])
+        except ValueError:
+            raise InputError(f"{source}.n_modes: {vals['n_modes']!r} is not an integer; allowed 1..20") from None
+    if "damping_model" in vals:
+        kw["damping_model"] = str(vals["damping_model"])
+    if "n0_hz" in vals and "EJ_Nm2" in vals:
+        raise InputError(f"{source}: give either n0 (Hz) or EJ (N m^2), not both")
+    if "n0_hz" in vals:
+        n0 = check_range(f"{source}.n0", vals["n0_hz"], "Hz", *N0_RANGE_HZ)
+        return Bridge.from_frequency(L, n0, mu, zeta, **kw)
+    if "EJ_Nm2" in vals:
+        EJ = check_range(f"{source}.EJ", vals["EJ_Nm2"], "N m^2", 0.0, None, lo_open=True)
+        return Bridge(span_m=L, EJ_Nm2=EJ, mass_per_length_kg_m=mu, damping_ratio=zeta, **kw)
+    raise InputError(f"{source}: missing stiffness: give n0 (Hz, 0.5..100) or EJ (N m^2, > 0)")
+
+
+def parse_bridge_spec(spec):
+    """Parse ``"L=15,n0=8.26,mu=19042,zeta_pct=1.85"`` into a :class:`Bridge`."""
+    data = {}
+    for part in spec.split(","):
+        if not part.strip():
+            continue
+        if "=" not in part:
+            raise InputError(f"bridge spec: {part!r} is not key=value (e.g. L=15,n0=8.26,mu=19042,zeta_pct=1.85)")
+        k, v = part.split("=", 1)
+        data[k.strip()] = v.strip()
+    if "name" not in data:
+        data["name"] = "custom"
+    return bridge_from_mapping(data, source="bridge spec")
+
+
+def load_bridge_file(path):
+    """Read a bridge from a TOML file with the keys of :func:`bridge_from_mapping`."""
+    p = Path(path)
+    try:
+        data = tomllib.loads(p.read_text())
+    except OSError as exc:
+        raise InputError(f"bridge file {str(p)!r}: cannot read ({exc.strerror})") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"bridge file {str(p)!r}: not valid TOML ({exc})") from None
+    data.setdefault("name", p.stem)
+    return bridge_from_mapping(data, source=f"bridge file {p.name}")
+
+
+def resolve_bridge(text):
+    """A bridge from a CLI/parameter string: a Table 3 name, a ``key=value`` spec or a file."""
+    if text.upper() in TABLE3:
+        return named_bridge(text)
+    if "=" in text:
+        return parse_bridge_spec(text)
+    if Path(text).is_file():
+        return load_bridge_file(text)
+    raise InputError(f"bridge: {text!r} is neither a named bridge ({', '.join(TABLE3)}), "
+                     f"a spec like L=15,n0=8.26,mu=19042,zeta_pct=1.85, nor a file")
