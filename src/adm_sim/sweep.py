@@ -1,0 +1,198 @@
+"""Whole speed sweeps in one call: every speed is a lane of one vectorised lockstep run.
+
+``run_sweep`` drives :class:`adm_sim.stepping.BridgeSide` and :class:`~adm_sim.stepping.TrainSide`
+exactly as the ROS bridge and train nodes do (one exchange per RK4 stage), so a co-simulation
+reproduces these numbers.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from adm_sim.errors import InputError, check_range
+from adm_sim.stepping import (BridgeSide, StepOptions, TrainSide, make_grid,
+                              mlm_modal_load_table, speeds_to_m_s)
+
+MODELS = ("mlm", "dim")
+DEFAULT_SPEEDS = "160:350:1"
+MAX_HISTORY_VALUES = 300_000_000
+
+
+def parse_speeds(text):
+    """Speeds (km/h) from ``"160:350:1"`` (start:stop:step, stop included) or ``"200,250"``."""
+    text = str(text).strip()
+    try:
+        if ":" in text:
+            parts = [float(p) for p in text.split(":")]
+            if len(parts) == 2:
+                parts.append(1.0)
+            if len(parts) != 3:
+                raise ValueError
+            a, b, st = parts
+            if st <= 0 or b < a:
+                raise InputError(f"speeds: {text!r} needs start <= stop and step > 0 (km/h)")
+            n = int(math.floor((b - a) / st + 1e-9)) + 1
+            v = a + st * np.arange(n)
+        else:
+            v = np.array([float(p) for p in text.split(",") if p.strip()])
+    except ValueError:
+        raise InputError(f"speeds: {text!r} is not start:stop:step or a comma list (km/h)") from None
+    speeds_to_m_s(v)  # range check
+    return v
+
+
+def largest_interior_peak(values):
+    """Index of the largest local maximum that is not an end point, or ``None``.
+
+    A local maximum is a sample strictly greater than its left neighbour and not smaller than
+    its right one (plateaus count once).
+    """
+    y = np.asarray(values, dtype=float)
+    if y.size < 3:
+        return None
+    inner = np.flatnonzero((y[1:-1] > y[:-2]) & (y[1:-1] >= y[2:])) + 1
+    if inner.size == 0:
+        return None
+    return int(inner[np.argmax(y[inner])])
+
+
+@dataclass(frozen=True, repr=False)
+class SweepResult:
+    """Result of a speed sweep.
+
+    Attributes
+    ----------
+    speeds_kmh : ndarray (n_lanes,)
+    max_acc_m_s2 : ndarray (n_lanes,)
+        Max |midspan acceleration| over the crossing and the free vibration.
+    max_disp_m : ndarray (n_lanes,)
+        Max |midspan deflection|.
+    time_s, midspan_disp_m, midspan_acc_m_s2 : ndarray (n_lanes, n_steps) or None
+        Histories (``histories=True``).
+    contact_force_n : ndarray (n_lanes, n_steps, n_axles) or None
+        DIM wheel-rail contact forces (Eq. 7; zero off the bridge), with histories.
+    """
+
+    model: str
+    bridge: object
+    train_name: str
+    speeds_kmh: np.ndarray
+    max_acc_m_s2: np.ndarray
+    max_disp_m: np.ndarray
+    delta_zeta: np.ndarray
+    ds_m: float
+    n_steps: int
+    time_s: np.ndarray | None = field(default=None)
+    midspan_disp_m: np.ndarray | None = field(default=None)
+    midspan_acc_m_s2: np.ndarray | None = field(default=None)
+    contact_force_n: np.ndarray | None = field(default=None)
+
+    def peak(self):
+        """``{"speed_kmh", "acc_m_s2", "index"}`` of the largest interior local maximum, or None."""
+        i = largest_interior_peak(self.max_acc_m_s2)
+        if i is None:
+            return None
+        return {"speed_kmh": float(self.speeds_kmh[i]), "acc_m_s2": float(self.max_acc_m_s2[i]), "index": i}
+
+    def to_dict(self):
+        pk = self.peak()
+        return {
+            "model": self.model,
+            "bridge": self.bridge.describe(),
+            "train": self.train_name,
+            "delta_zeta_pct": (100.0 * self.delta_zeta).tolist() if np.ndim(self.delta_zeta) else 100.0 * float(self.delta_zeta),
+            "ds_m": self.ds_m,
+            "n_steps": self.n_steps,
+            "speeds_kmh": self.speeds_kmh.tolist(),
+            "max_acc_m_s2": self.max_acc_m_s2.tolist(),
+            "max_disp_m": self.max_disp_m.tolist(),
+            "peak": None if pk is None else {"speed_kmh": pk["speed_kmh"], "acc_m_s2": pk["acc_m_s2"]},
+        }
+
+    def __repr__(self):
+        pk = self.peak()
+        where = "no interior peak" if pk is None else f"peak {pk['acc_m_s2']:.4f} m/s2 at {pk['speed_kmh']:g} km/h"
+        return (f"SweepResult({self.model.upper()}, {self.bridge.name or 'bridge'} x {self.train_name}, "
+                f"{len(self.speeds_kmh)} speeds {self.speeds_kmh.min():g}..{self.speeds_kmh.max():g} km/h, "
+                f"{where}, {self.n_steps} steps of {self.ds_m * 1000:.2f} mm)")
+
+
+def run_sweep(bridge, train, model, speeds_kmh, delta_zeta=0.0, options=None, histories=False,
+              progress=None):
+    """Max midspan acceleration of a bridge under a train for every speed, in one vectorised run.
+
+    Parameters
+    ----------
+    bridge : adm_sim.bridge.Bridge
+    train : adm_sim.trains.Train
+    model : {"mlm", "dim"}
+        Moving Load Model (Eqs. 5, 6, 12) or Detailed Interaction Model (Eqs. 7-17).
+    speeds_kmh : array_like (n_lanes,)
+    delta_zeta : float or array_like (n_lanes,)
+        Additional damping (fraction) on top of ``bridge.damping_ratio``.
+    options : StepOptions, optional
+    histories : bool
+        Keep time histories (memory: ``n_lanes * n_steps`` per quantity).
+    progress : callable(done_steps, n_steps) or None
+        Called about 100 times during the run.
+
+    Returns
+    -------
+    SweepResult
+    """
+    if model not in MODELS:
+        raise InputError(f"model: {model!r} is not allowed; allowed 'mlm' or 'dim'")
+    v = speeds_to_m_s(speeds_kmh)
+    dz = np.broadcast_to(np.asarray(delta_zeta, dtype=float), v.shape)
+    for x in np.unique(dz):
+        check_range("delta_zeta_pct", 100 * x, "%", -100 * bridge.damping_ratio, 20.0)
+    grid = make_grid(bridge, train.length_m, v, options or StepOptions())
+    n, nl = grid.n_steps, grid.n_lanes
+    dim = model == "dim"
+    if histories and nl * n * (1 + (train.n_axles if dim else 0)) > MAX_HISTORY_VALUES:
+        raise InputError(f"histories: {nl} speeds x {n} steps is too much to keep; "
+                         f"ask histories for at most a few speeds")
+    b = BridgeSide(bridge, grid, train.axle_offsets_m, train.wheel_mass_kg if dim else None, dz)
+    acc = np.empty((n, nl))
+    disp = np.empty((n, nl))
+    forces = np.zeros((n, nl, train.n_axles), dtype=np.float64) if (histories and dim) else None
+    tick = max(1, n // 100)
+    if dim:
+        t = TrainSide(train, grid, bridge.span_m)
+        for k in range(n):
+            disp[k] = b.midspan_displacement()
+            for stage in range(4):
+                idx, w, wd = b.rail_state()
+                G = t.take_rail_state(idx, w, wd)
+                if stage == 0 and forces is not None and len(idx):
+                    forces[k][:, idx] = G
+                b.take_forces(G)
+                if stage == 0:
+                    acc[k] = b.last_acc
+                    if forces is not None and len(idx):
+                        forces[k][:, idx] -= train.wheel_mass_kg[idx] * b.last_wheel_acc
+            if progress is not None and (k % tick == 0 or k == n - 1):
+                progress(k + 1, n)
+    else:
+        P = mlm_modal_load_table(bridge, grid, train.axle_offsets_m, train.axle_loads_n)
+        for k in range(n):
+            disp[k] = b.midspan_displacement()
+            b.step_mlm(P[2 * k], P[2 * k + 1], P[2 * k + 2])
+            acc[k] = b.last_acc
+            if progress is not None and (k % tick == 0 or k == n - 1):
+                progress(k + 1, n)
+    if not np.all(np.isfinite(acc)):
+        raise InputError("solution is not finite: the step is too large for this bridge/train "
+                         "(raise steps_per_period)")
+    kw = {}
+    if histories:
+        kw = dict(time_s=np.outer(1.0 / v, np.arange(n) * grid.ds_m), midspan_disp_m=disp.T.copy(),
+                  midspan_acc_m_s2=acc.T.copy(),
+                  contact_force_n=None if forces is None else forces.transpose(1, 0, 2).copy())
+    return SweepResult(model=model, bridge=bridge, train_name=train.name,
+                       speeds_kmh=np.atleast_1d(np.asarray(speeds_kmh, dtype=float)).copy(), max_acc_m_s2=np.abs(acc).max(axis=0),
+                       max_disp_m=np.abs(disp).max(axis=0), delta_zeta=np.asarray(delta_zeta, dtype=float),
+                       ds_m=grid.ds_m, n_steps=n, **kw)
