@@ -1,0 +1,13 @@
+"""adm-calib: calibration of the additional damping of the Moving Load Model (paper Section 4).
+
+Analysis only (numpy/scipy on top of :mod:`adm_sim`); no ROS import here.
+
+* :mod:`adm_calib.peaks`      peak identification over speed, MLM/DIM peak association
+* :mod:`adm_calib.calibrate`  Δζ_VBI by a bracketing root finder
+* :mod:`adm_calib.reference`  Eurocode ADM, EADA (Yau et al.), lower-bound functions (Tables B1-B4)
+* :mod:`adm_calib.table4`     the comparison of Section 4.4 (Table 4, Fig. 19)
+* :mod:`adm_calib.plots`      matplotlib figures (Agg), outside the analysis
+* :mod:`adm_calib.cli`        the ``adm-calib`` command
+"""
+
+__version__ = "0.1.0"

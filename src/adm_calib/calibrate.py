@@ -1,0 +1,473 @@
+"""Calibration of the additional damping Δζ_VBI for one bridge and one train (paper Section 4).
+
+Steps (Section 4, steps 1-3):
+
+1. Maximum midspan acceleration against speed for the MLM (every speed of the range, default
+   160..350 km/h at 1 km/h) and the DIM.
+2. The MLM peak (highest interior local maximum) and the associated DIM peak, by the rules of
+   :mod:`adm_calib.peaks`. No MLM peak, or no DIM value near it, is a reported outcome
+   (``status``), never a silent number.
+3. Δζ_VBI solves ``f(dz) = peak_MLM(zeta + dz) / peak_DIM - 1 = 0``. The MLM peak is re-located
+   at every trial damping as the largest MLM value within ``relocation_window_kmh`` of the MLM
+   peak speed (a max over a fixed window is continuous in ``dz``). The root is bracketed by one
+   vectorised MLM run over a ladder of trial dampings (negative down to ``-0.95 zeta``, positive
+   up to 20 %), then found by :func:`scipy.optimize.brentq` to ``xtol`` (1e-8 = 1e-6 %), well
+   inside the paper's acceptance of 0.1 % in the peak value, which is checked.
+
+DIM speeds (``dim_grid="paper"``, Section 3.3): 5 km/h steps over the range plus the MLM step
+(1 km/h) on ``[v_max - 20, v_max + 5]`` around the MLM peak, all in one run; if the associated DIM
+value lies where only the coarse grid was run, the DIM is run again at the fine step on
+``+-5 km/h`` around it (``dim_refined``). ``dim_grid="full"`` runs the DIM at every MLM speed.
+
+All runs of one calibration share one space step ``ds`` (the one the full MLM speed range needs),
+so the MLM curves at different dampings and the DIM curve are discretised alike.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from scipy.optimize import brentq
+
+from adm_sim.errors import InputError, check_range
+from adm_sim.stepping import StepOptions, make_grid, speeds_to_m_s
+
+from adm_calib import peaks as pk
+from adm_calib.reference import adm_delta_zeta_pct, eada_for, lower_bound_for
+
+#: Default speed range (km/h), Section 3.3.
+DEFAULT_SPEEDS_KMH = np.arange(160.0, 351.0, 1.0)
+#: Largest total damping the solver may try (fraction); the core accepts up to 20 % extra.
+MAX_DELTA_ZETA = 0.20
+STATUSES = ("ok", "no_mlm_peak", "no_dim_peak", "not_bracketed", "no_match")
+
+
+@dataclass(frozen=True)
+class CalibrationOptions:
+    """Settings of one calibration (speeds in km/h, damping as fractions).
+
+    Parameters
+    ----------
+    dim_grid : {"paper", "full"}
+        DIM speeds as in Section 3.3 (coarse + refined) or at every MLM speed.
+    dim_coarse_step_kmh : float
+        Coarse DIM step (paper: 5 km/h).
+    dim_refine_kmh : (float, float)
+        Fine DIM interval ``[v_max - below, v_max + above]`` around the MLM peak (paper: 20, 5).
+    association_window_kmh : (float, float)
+        DIM peak association window below/above the MLM peak speed (see :mod:`adm_calib.peaks`).
+    relocation_window_kmh : float
+        Half width of the window in which the MLM peak is re-located at trial dampings.
+    xtol : float
+        Absolute tolerance of the root in Δζ (fraction).
+    match_rtol : float
+        Acceptance of the peak match (paper: 0.1 %).
+    min_prominence_rel : float
+        Smallest relative prominence of a peak.
+    step : adm_sim.stepping.StepOptions or None
+        Time-integration settings of the core (``None``: its defaults).
+    """
+
+    dim_grid: str = "paper"
+    dim_coarse_step_kmh: float = 5.0
+    dim_refine_kmh: tuple = (20.0, 5.0)
+    association_window_kmh: tuple = pk.ASSOCIATION_WINDOW_KMH
+    relocation_window_kmh: float = 5.0
+    xtol: float = 1e-8
+    match_rtol: float = 1e-3
+    min_prominence_rel: float = pk.MIN_PROMINENCE_REL
+    step: StepOptions | None = None
+
+    def __post_init__(self):
+        if self.dim_grid not in ("paper", "full"):
+            raise InputError(f"dim_grid: {self.dim_grid!r} is not allowed; allowed 'paper' or 'full'")
+        check_range("dim_coarse_step_kmh", self.dim_coarse_step_kmh, "km/h", 0.0, 100.0, lo_open=True)
+        check_range("relocation_window_kmh", self.relocation_window_kmh, "km/h", 0.0, 100.0, lo_open=True)
+        check_range("xtol", self.xtol, "- (fraction)", 0.0, 1e-4, lo_open=True)
+        check_range("match_rtol", self.match_rtol, "-", 0.0, 0.1, lo_open=True)
+
+
+@dataclass(frozen=True, repr=False)
+class DampingSolve:
+    """Outcome of the root finding for Δζ (fractions)."""
+
+    status: str
+    message: str
+    delta_zeta: float | None = None
+    bracket: tuple | None = None
+    iterations: int = 0
+    function_calls: int = 0
+    ladder_runs: int = 0
+    residual_rel: float | None = None
+    adapted_peak: pk.Peak = field(default_factory=lambda: pk.Peak(found=False))
+
+    def __repr__(self):
+        if self.delta_zeta is None:
+            return f"DampingSolve({self.status}: {self.message})"
+        return (f"DampingSolve(dz={100 * self.delta_zeta:.4f} %, {self.iterations} iterations, "
+                f"{self.function_calls} calls, residual {self.residual_rel:.2e})")
+
+
+def _ladder(zeta):
+    neg = [-f * zeta for f in (0.95, 0.75, 0.5, 0.25)] if zeta > 0 else []
+    pos = [0.0, 0.001, 0.002, 0.004, 0.007, 0.01, 0.015, 0.02, 0.03, 0.05, 0.08, 0.12, MAX_DELTA_ZETA]
+    return np.array(neg + pos)
+
+
+def solve_delta_zeta(mlm_eval, peak_speed_kmh, speed_window_kmh, target_acc_m_s2, zeta, options=None):
+    """Δζ such that the re-located MLM peak equals ``target_acc_m_s2``.
+
+    Parameters
+    ----------
+    mlm_eval : callable(speeds_kmh (n,), delta_zeta (n,)) -> ndarray (n,)
+        Maximum MLM acceleration (m/s^2) at each (speed, extra damping) lane.
+    peak_speed_kmh : float
+        Speed of the MLM peak at the structural damping.
+    speed_window_kmh : ndarray (m,)
+        Speeds re-evaluated at each trial damping (around the peak).
+    target_acc_m_s2 : float
+        DIM peak value.
+    zeta : float
+        Structural damping (fraction); trial values stay ``>= -0.95 zeta``.
+    options : CalibrationOptions, optional
+
+    Returns
+    -------
+    DampingSolve
+    """
+    opt = options or CalibrationOptions()
+    w = np.asarray(speed_window_kmh, dtype=float)
+    half = opt.relocation_window_kmh
+    win = (half, half)
+
+    def peak_at(dz):
+        acc = mlm_eval(w, np.full(w.shape, dz))
+        return pk.window_max(w, acc, peak_speed_kmh, win)[1]
+
+    calls = 0
+
+    def f(dz):
+        nonlocal calls
+        calls += 1
+        return peak_at(dz) / target_acc_m_s2 - 1.0
+
+    ladder = _ladder(zeta)
+    acc = mlm_eval(np.tile(w, ladder.size), np.repeat(ladder, w.size)).reshape(ladder.size, w.size)
+    fl = np.array([pk.window_max(w, row, peak_speed_kmh, win)[1] for row in acc]) / target_acc_m_s2 - 1.0
+    sign = np.sign(fl)
+    change = np.flatnonzero(sign[:-1] * sign[1:] <= 0)
+    if change.size == 0:
+        if fl[-1] > 0:
+            msg = (f"the MLM peak stays above the DIM peak up to dz={100 * ladder[-1]:g} % "
+                   f"(ratio {fl[-1] + 1:.4f})")
+        else:
+            msg = (f"the MLM peak stays below the DIM peak down to dz={100 * ladder[0]:g} % "
+                   f"(ratio {fl[0] + 1:.4f})")
+        return DampingSolve(status="not_bracketed", message=msg, ladder_runs=1)
+    i = int(change[0])
+    a, b = float(ladder[i]), float(ladder[i + 1])
+    if fl[i] == 0.0:
+        root, it = a, 0
+    elif fl[i + 1] == 0.0:
+        root, it = b, 0
+    else:
+        root, res = brentq(f, a, b, xtol=opt.xtol, rtol=4 * np.finfo(float).eps, full_output=True)
+        it = res.iterations
+    acc_root = mlm_eval(w, np.full(w.shape, root))
+    j, value = pk.window_max(w, acc_root, peak_speed_kmh, win)
+    resid = value / target_acc_m_s2 - 1.0
+    local = pk.local_maxima(acc_root, opt.min_prominence_rel)
+    adapted = pk.Peak(found=True, index=j, speed_kmh=float(w[j]), acc_m_s2=value, is_local_max=bool(j in local),
+                      reason="re-located MLM peak at zeta + dz")
+    if abs(resid) > opt.match_rtol:
+        return DampingSolve(status="no_match", delta_zeta=None, bracket=(a, b), iterations=it,
+                            function_calls=calls, ladder_runs=1, residual_rel=resid, adapted_peak=adapted,
+                            message=(f"the MLM peak jumps across the DIM peak near dz={100 * root:.4f} %: "
+                                     f"mismatch {100 * resid:.3f} % > {100 * opt.match_rtol:g} %"))
+    return DampingSolve(status="ok", message="peaks matched", delta_zeta=float(root), bracket=(a, b),
+                        iterations=it, function_calls=calls, ladder_runs=1, residual_rel=resid,
+                        adapted_peak=adapted)
+
+
+# ---------------------------------------------------------------------- result
+def _f(x):
+    return None if x is None or (isinstance(x, float) and math.isnan(x)) else float(x)
+
+
+@dataclass(frozen=True, repr=False)
+class CalibrationResult:
+    """Δζ_VBI of one bridge and train with the peaks, flags, curves and reference methods.
+
+    Damping values are fractions (``delta_zeta_vbi``) and percent in :meth:`to_dict`.
+    Curves: ``mlm_speeds_kmh``/``mlm_acc_m_s2`` (n_mlm,), ``dim_*`` (n_dim,), ``adapted_*``
+    (n_mlm,) for the MLM at ``zeta + Δζ_VBI`` (empty when there is no Δζ_VBI).
+    """
+
+    bridge: object
+    train_name: str
+    status: str
+    message: str
+    delta_zeta_vbi: float | None
+    mlm_peak: pk.Peak
+    dim_peak: pk.Peak
+    adapted_peak: pk.Peak
+    solve: DampingSolve | None
+    delta_zeta_adm_pct: float
+    delta_zeta_eada_pct: float | None
+    eada_note: str
+    delta_zeta_lb_pct: float | None
+    lb_note: str
+    mlm_speeds_kmh: np.ndarray
+    mlm_acc_m_s2: np.ndarray
+    dim_speeds_kmh: np.ndarray
+    dim_acc_m_s2: np.ndarray
+    adapted_speeds_kmh: np.ndarray
+    adapted_acc_m_s2: np.ndarray
+    dim_grid: str = "paper"
+    dim_refined: bool = False
+    ds_m: float = float("nan")
+    timings_s: dict = field(default_factory=dict)
+
+    @property
+    def delta_zeta_vbi_pct(self):
+        return None if self.delta_zeta_vbi is None else 100.0 * self.delta_zeta_vbi
+
+    @property
+    def zeta_pct(self):
+        return 100.0 * self.bridge.damping_ratio
+
+    def to_dict(self, curves=True):
+        """JSON-ready mapping; damping in percent (``*_pct``)."""
+        s = self.solve
+        d = {
+            "bridge": self.bridge.name or self.bridge.describe(),
+            "bridge_description": self.bridge.describe(),
+            "train": self.train_name,
+            "status": self.status,
+            "message": self.message,
+            "zeta_pct": self.zeta_pct,
+            "delta_zeta_vbi_pct": _f(self.delta_zeta_vbi_pct),
+            "delta_zeta_adm_pct": _f(self.delta_zeta_adm_pct),
+            "delta_zeta_eada_pct": _f(self.delta_zeta_eada_pct),
+            "eada_note": self.eada_note,
+            "delta_zeta_lb_pct": _f(self.delta_zeta_lb_pct),
+            "lb_note": self.lb_note,
+            "mlm_peak": self.mlm_peak.to_dict(),
+            "dim_peak": self.dim_peak.to_dict(),
+            "adapted_mlm_peak": self.adapted_peak.to_dict(),
+            "mlm_max_at_range_end": bool(self.mlm_peak.max_at_range_end),
+            "dim_is_local_max": bool(self.dim_peak.found and self.dim_peak.is_local_max),
+            "dim_speed_shift_kmh": (_f(self.dim_peak.speed_kmh - self.mlm_peak.speed_kmh)
+                                    if self.mlm_peak.found and self.dim_peak.found else None),
+            "adapted_is_local_max": bool(self.adapted_peak.found and self.adapted_peak.is_local_max),
+            "association_rule": self.dim_peak.reason,
+            "solver": None if s is None else {
+                "method": "brentq", "iterations": s.iterations, "function_calls": s.function_calls,
+                "ladder_runs": s.ladder_runs,
+                "bracket_pct": None if s.bracket is None else [100 * s.bracket[0], 100 * s.bracket[1]],
+                "residual_rel": _f(s.residual_rel), "status": s.status, "message": s.message},
+            "dim_grid": self.dim_grid,
+            "dim_refined": self.dim_refined,
+            "ds_m": self.ds_m,
+            "timings_s": dict(self.timings_s),
+        }
+        if curves:
+            d["curves"] = {
+                "mlm": {"speeds_kmh": self.mlm_speeds_kmh.tolist(), "max_acc_m_s2": self.mlm_acc_m_s2.tolist()},
+                "dim": {"speeds_kmh": self.dim_speeds_kmh.tolist(), "max_acc_m_s2": self.dim_acc_m_s2.tolist()},
+                "mlm_adapted": {"speeds_kmh": self.adapted_speeds_kmh.tolist(),
+                                "max_acc_m_s2": self.adapted_acc_m_s2.tolist()},
+            }
+        return d
+
+    def to_json(self, curves=True, **kw):
+        return json.dumps(self.to_dict(curves=curves), indent=kw.pop("indent", 2), **kw)
+
+    def summary(self):
+        """Readable multi-line report."""
+        def pct(x):
+            return "n/a" if x is None else f"{x:.3f} %"
+
+        def peak(p):
+            return "none" if not p.found else f"{p.acc_m_s2:.4f} m/s^2 at {p.speed_kmh:g} km/h"
+
+        lines = [f"{self.bridge.describe()}", f"train {self.train_name}; status {self.status}: {self.message}",
+                 f"MLM peak       {peak(self.mlm_peak)}"
+                 f"{'  (largest MLM value at an end of the speed range)' if self.mlm_peak.max_at_range_end else ''}",
+                 f"DIM peak       {peak(self.dim_peak)}"
+                 f"{'' if self.dim_peak.is_local_max or not self.dim_peak.found else '  (not a local maximum)'}",
+                 f"adapted MLM    {peak(self.adapted_peak)}"]
+        if self.solve is not None and self.solve.delta_zeta is not None:
+            lines.append(f"dz_VBI         {pct(self.delta_zeta_vbi_pct)}  (brentq, {self.solve.iterations} iterations, "
+                         f"peak mismatch {100 * self.solve.residual_rel:.2e} %)")
+        else:
+            lines.append("dz_VBI         n/a")
+        lines += [f"dz_ADM         {pct(self.delta_zeta_adm_pct)}  (EN 1991-2 6.4.6.3.1)",
+                  f"dz_EADA        {pct(self.delta_zeta_eada_pct)}  ({self.eada_note})",
+                  f"dz_LB          {pct(self.delta_zeta_lb_pct)}  ({self.lb_note})",
+                  f"zeta           {self.zeta_pct:.3f} %"]
+        return "\n".join(lines)
+
+    def __repr__(self):
+        dz = "n/a" if self.delta_zeta_vbi is None else f"{100 * self.delta_zeta_vbi:.4f} %"
+        return (f"CalibrationResult({self.bridge.name or 'bridge'} x {self.train_name}, {self.status}, "
+                f"dz_VBI={dz}, MLM {self.mlm_peak!r}, DIM {self.dim_peak!r})")
+
+
+# ---------------------------------------------------------------------- driver
+def _fine_step(speeds):
+    d = np.diff(speeds)
+    return float(np.median(d)) if d.size else 1.0
+
+
+def _grid_between(lo, hi, step, vmin, vmax):
+    lo, hi = max(lo, vmin), min(hi, vmax)
+    if hi < lo:
+        return np.zeros(0)
+    n = int(math.floor((hi - lo) / step + 1e-9)) + 1
+    return lo + step * np.arange(n)
+
+
+def _merge(*arrays):
+    return np.unique(np.round(np.concatenate([np.asarray(a, float) for a in arrays]), 9))
+
+
+def dim_speeds_paper(speeds_kmh, mlm_peak_kmh, options=None):
+    """DIM speeds of Section 3.3 (km/h): coarse over the range plus fine around the MLM peak."""
+    opt = options or CalibrationOptions()
+    v = np.asarray(speeds_kmh, dtype=float)
+    vmin, vmax, fine = float(v.min()), float(v.max()), _fine_step(v)
+    coarse = _grid_between(vmin, vmax, max(opt.dim_coarse_step_kmh, fine), vmin, vmax)
+    parts = [coarse, [vmax]]
+    if mlm_peak_kmh is not None:
+        parts.append(_grid_between(mlm_peak_kmh - opt.dim_refine_kmh[0], mlm_peak_kmh + opt.dim_refine_kmh[1],
+                                   fine, vmin, vmax))
+    return _merge(*parts)
+
+
+def _progress_bar(enabled, label):
+    if not enabled:
+        return None, None
+    from tqdm import tqdm
+
+    bar = tqdm(total=100, desc=label, unit="%", leave=False)
+
+    def cb(done, total):
+        bar.n = int(100 * done / total)
+        bar.refresh()
+
+    return bar, cb
+
+
+def _speeds(speeds_kmh):
+    v = DEFAULT_SPEEDS_KMH if speeds_kmh is None else np.asarray(speeds_kmh, dtype=float)
+    if v.ndim != 1 or v.size < 3:
+        raise InputError(f"speeds: need at least 3 speeds (km/h), got {v.size}")
+    v = np.unique(v)
+    speeds_to_m_s(v)
+    return v
+
+
+def calibrate(bridge, train, speeds_kmh=None, options=None, progress=False, adapted_curve=True):
+    """Calibrate Δζ_VBI for a bridge and a train and evaluate the reference methods.
+
+    Parameters
+    ----------
+    bridge : adm_sim.bridge.Bridge
+    train : adm_sim.trains.Train
+    speeds_kmh : array_like (n_speeds,), optional
+        MLM speeds (km/h); default 160..350 at 1 km/h.
+    options : CalibrationOptions, optional
+    progress : bool
+        Show tqdm progress bars (stderr) for the sweeps.
+    adapted_curve : bool
+        Also run the MLM at ``zeta + Δζ_VBI`` over all speeds (for the plot, Fig. 15).
+
+    Returns
+    -------
+    CalibrationResult
+    """
+    from adm_sim.sweep import run_sweep
+
+    opt = options or CalibrationOptions()
+    v = _speeds(speeds_kmh)
+    base_step = opt.step or StepOptions()
+    ds = make_grid(bridge, train.length_m, speeds_to_m_s(v), base_step).ds_m
+    step = replace(base_step, ds_m=ds)
+    timings = {}
+
+    def sweep(model, speeds, dz=0.0, label=None):
+        bar, cb = _progress_bar(progress and label is not None, label or "")
+        try:
+            r = run_sweep(bridge, train, model, np.asarray(speeds, float), delta_zeta=dz, options=step, progress=cb)
+        finally:
+            if bar is not None:
+                bar.close()
+        return np.asarray(r.max_acc_m_s2, dtype=float)
+
+    t0 = time.perf_counter()
+    mlm = sweep("mlm", v, label="MLM")
+    timings["mlm_sweep"] = time.perf_counter() - t0
+    mlm_peak = pk.find_peak(v, mlm, opt.min_prominence_rel)
+
+    t0 = time.perf_counter()
+    vd = v if opt.dim_grid == "full" else dim_speeds_paper(v, mlm_peak.speed_kmh if mlm_peak.found else None, opt)
+    dim = sweep("dim", vd, label="DIM")
+    refined = False
+    dim_peak = pk.Peak(found=False, reason="no MLM peak to associate with")
+    if mlm_peak.found:
+        dim_peak = pk.associate_peak(vd, dim, mlm_peak.speed_kmh, opt.association_window_kmh, opt.min_prominence_rel)
+        fine = _fine_step(v)
+        for _ in range(2):
+            if not dim_peak.found or opt.dim_grid == "full":
+                break
+            i = dim_peak.index
+            gaps = [vd[i] - vd[i - 1] if i > 0 else 0.0, vd[i + 1] - vd[i] if i + 1 < vd.size else 0.0]
+            if max(gaps) <= fine + 1e-9:
+                break
+            extra = _grid_between(dim_peak.speed_kmh - 5.0, dim_peak.speed_kmh + 5.0, fine, v.min(), v.max())
+            extra = np.setdiff1d(np.round(extra, 9), vd)
+            if extra.size == 0:
+                break
+            acc_extra = sweep("dim", extra, label="DIM refine")
+            all_v, all_a = np.concatenate([vd, extra]), np.concatenate([dim, acc_extra])
+            order = np.argsort(all_v)
+            vd, dim = all_v[order], all_a[order]
+            refined = True
+            dim_peak = pk.associate_peak(vd, dim, mlm_peak.speed_kmh, opt.association_window_kmh,
+                                         opt.min_prominence_rel)
+    timings["dim_sweep"] = time.perf_counter() - t0
+
+    solve = None
+    adapted = pk.Peak(found=False)
+    v_ad, a_ad = np.zeros(0), np.zeros(0)
+    t0 = time.perf_counter()
+    if not mlm_peak.found:
+        status, message = "no_mlm_peak", mlm_peak.reason
+    elif not dim_peak.found:
+        status, message = "no_dim_peak", dim_peak.reason
+    else:
+        h = opt.relocation_window_kmh
+        w = v[(v >= mlm_peak.speed_kmh - h - 1e-9) & (v <= mlm_peak.speed_kmh + h + 1e-9)]
+        solve = solve_delta_zeta(lambda s, dz: sweep("mlm", s, dz), mlm_peak.speed_kmh, w, dim_peak.acc_m_s2,
+                                 bridge.damping_ratio, opt)
+        status, message = solve.status, solve.message
+        adapted = solve.adapted_peak
+        if solve.delta_zeta is not None and adapted_curve:
+            v_ad, a_ad = v, sweep("mlm", v, solve.delta_zeta)
+    timings["solve"] = time.perf_counter() - t0
+
+    eada, eada_note = eada_for(bridge, train)
+    lb, lb_note = lower_bound_for(bridge, train)
+    return CalibrationResult(
+        bridge=bridge, train_name=train.name, status=status, message=message,
+        delta_zeta_vbi=None if solve is None else solve.delta_zeta, mlm_peak=mlm_peak, dim_peak=dim_peak,
+        adapted_peak=adapted, solve=solve, delta_zeta_adm_pct=adm_delta_zeta_pct(bridge.span_m),
+        delta_zeta_eada_pct=eada, eada_note=eada_note, delta_zeta_lb_pct=lb, lb_note=lb_note,
+        mlm_speeds_kmh=v, mlm_acc_m_s2=mlm, dim_speeds_kmh=np.asarray(vd, float), dim_acc_m_s2=dim,
+        adapted_speeds_kmh=v_ad, adapted_acc_m_s2=a_ad, dim_grid=opt.dim_grid, dim_refined=refined, ds_m=ds,
+        timings_s=timings)
