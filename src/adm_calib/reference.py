@@ -358,7 +358,11 @@ def recommend(train, n0_hz, mu_t_m, bridge_type, span_m=None, interpolate=False)
     if bridge_type not in TYPE_MASS_FUNCTIONS:
         raise InputError(f"bridge_type: {bridge_type!r} is not allowed; allowed 'cfb' or 'sc'")
     lo_hz = lower_bound_table()[t]["mu1"].lower_limit_hz
-    n0 = check_range("n0_hz", n0_hz, "Hz", lo_hz, STUDY_N0_MAX_HZ)
+    try:
+        n0 = check_range("n0_hz", n0_hz, "Hz", lo_hz, STUDY_N0_MAX_HZ)
+    except InputError as exc:
+        raise InputError(f"{exc} (validity of the lower-bound functions: {lo_hz:g} Hz up to the highest "
+                         f"frequency of the studied bridges, Section 4.2.2)") from None
     mu = check_range("mu", mu_t_m, "t/m", 0.5, 100.0)
     estimated = span_m is None
     if estimated:

@@ -1,0 +1,199 @@
+"""``adm-calib``: additional-damping calibration and comparison from the command line.
+
+Subcommands::
+
+    adm-calib calibrate --bridge B1 --train ICE-2 [--speeds 160:350:1] [--json FILE] [--plot FILE.png]
+    adm-calib table4 [--out DIR] [--bridges B1,B2,B3,B4] [--trains ICE-2,...] [--jobs N]
+    adm-calib recommend --train T --n0 HZ --mu T_PER_M --type cfb|sc [--span M] [--interpolate]
+
+Bad input prints one line ``error: ...`` on stderr and exits with code 2. Output files are never
+overwritten unless ``--force`` is given.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+from adm_sim.errors import InputError, check_range
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):
+        raise InputError(message)
+
+
+def _out_path(text, force, suffix=None):
+    p = Path(text)
+    if suffix and p.suffix.lower() != suffix:
+        raise InputError(f"{text!r}: the file name must end in {suffix}")
+    if p.exists() and not force:
+        raise InputError(f"{str(p)!r} exists; use --force to overwrite it")
+    if not p.parent.exists():
+        raise InputError(f"{str(p)!r}: directory {str(p.parent)!r} does not exist")
+    return p
+
+
+def _list(text, field):
+    items = [s.strip() for s in text.split(",") if s.strip()]
+    if not items:
+        raise InputError(f"{field}: {text!r} is empty; give a comma-separated list")
+    return items
+
+
+def _options(args):
+    from adm_sim.stepping import StepOptions
+
+    from adm_calib.calibrate import CalibrationOptions
+
+    step = None
+    if args.steps_per_period is not None:
+        step = StepOptions(steps_per_period=check_range("--steps-per-period", args.steps_per_period, "steps", 4, 10000))
+    return CalibrationOptions(dim_grid=args.dim_grid, step=step)
+
+
+def _speeds(text):
+    from adm_sim.sweep import parse_speeds
+
+    return parse_speeds(text)
+
+
+def cmd_calibrate(args):
+    from adm_sim.bridge import resolve_bridge
+    from adm_sim.trains import load_train
+
+    from adm_calib.calibrate import calibrate
+
+    bridge = resolve_bridge(args.bridge)
+    train = load_train(args.train)
+    speeds = _speeds(args.speeds)
+    json_path = _out_path(args.json, args.force, ".json") if args.json else None
+    plot_path = _out_path(args.plot, args.force, ".png") if args.plot else None
+    t0 = time.perf_counter()
+    res = calibrate(bridge, train, speeds_kmh=speeds, options=_options(args), progress=args.progress)
+    wall = time.perf_counter() - t0
+    print(res.summary())
+    print(f"wall time      {wall:.2f} s")
+    if json_path:
+        json_path.write_text(res.to_json() + "\n")
+        print(f"wrote {json_path}")
+    if plot_path:
+        from adm_calib.plots import plot_calibration
+
+        plot_calibration(res, plot_path)
+        print(f"wrote {plot_path}")
+    return 0
+
+
+def cmd_table4(args):
+    from adm_sim.bridge import named_bridge
+    from adm_sim.trains import load_train
+
+    from adm_calib.plots import plot_total_damping
+    from adm_calib.reference import canonical_train_name
+    from adm_calib.table4 import run_table4
+
+    bridges = [named_bridge(b).name for b in _list(args.bridges, "--bridges")]
+    trains = [canonical_train_name(t) for t in _list(args.trains, "--trains")]
+    for t in trains:
+        load_train(t)
+    jobs = int(check_range("--jobs", args.jobs, "processes", 1, 64))
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out: {str(out)!r} is not a directory")
+    out.mkdir(parents=True, exist_ok=True)
+    names = ("table4.csv", "table4.txt", "table4.json", "fig19_total_damping.png")
+    paths = [_out_path(str(out / n), args.force) for n in names]
+    t0 = time.perf_counter()
+    table = run_table4(bridges, trains, speeds_kmh=_speeds(args.speeds), options=_options(args), jobs=jobs,
+                       progress=args.progress)
+    text = table.to_text()
+    print(text)
+    paths[0].write_text(table.to_csv())
+    paths[1].write_text(text + "\n")
+    paths[2].write_text(table.to_json() + "\n")
+    plot_total_damping(table, paths[3])
+    print(f"wrote {', '.join(str(p) for p in paths)} ({time.perf_counter() - t0:.1f} s)")
+    return 0
+
+
+def cmd_recommend(args):
+    from adm_calib.reference import recommend
+
+    rec = recommend(args.train, args.n0, args.mu, args.type, span_m=args.span, interpolate=args.interpolate)
+    if args.json:
+        print(json.dumps(rec.to_dict(), indent=2))
+    else:
+        print(f"dz_LB = {rec.delta_zeta_pct:.4f} %")
+        print(f"rule: {rec.rule}")
+        print("mass functions: " + ", ".join(
+            f"{m} (mu={rec.mass_function_t_m[m]:.3f} t/m, weight {w:.3f}, dz={v:.4f} %)"
+            for m, w, v in zip(rec.mass_functions, rec.weights, rec.function_values_pct)))
+        if rec.span_estimated:
+            print(f"span: {rec.span_m:.2f} m estimated from n0 by n0 = 97.76 L^-0.9124 (give --span to set it)")
+        if rec.beyond_root:
+            print("n0 lies beyond the first root of the lower-bound function: dz = 0 (paper Section 4.2.1)")
+    return 0
+
+
+def build_parser():
+    p = _Parser(prog="adm-calib", description="Additional-damping calibration (MLM vs DIM) and comparison "
+                                               "with the Eurocode ADM, EADA and the lower-bound functions.")
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    def common(sp):
+        sp.add_argument("--speeds", default="160:350:1", help="MLM speeds in km/h, start:stop:step (default 160:350:1)")
+        sp.add_argument("--dim-grid", choices=("paper", "full"), default="paper",
+                        help="DIM speeds: paper = 5 km/h plus 1 km/h near the MLM peak (Section 3.3); full = all")
+        sp.add_argument("--steps-per-period", type=float, default=None,
+                        help="integration steps per period of the highest mode (core default 16)")
+        sp.add_argument("--progress", action="store_true", help="show progress bars on stderr")
+        sp.add_argument("--force", action="store_true", help="overwrite existing output files")
+
+    c = sub.add_parser("calibrate", help="calibrate dz_VBI for one bridge and one train")
+    c.add_argument("--bridge", required=True, help="B1..B4, a spec L=15,n0=8.26,mu=19042,zeta_pct=1.85,type=cfb, "
+                                                   "or a TOML file")
+    c.add_argument("--train", required=True, help="ICE-2, Eurostar, Railjet, ICE-4 or a TOML train file")
+    c.add_argument("--json", help="write the result as JSON to this file")
+    c.add_argument("--plot", help="write the Fig. 15 analogue to this PNG file")
+    common(c)
+    c.set_defaults(func=cmd_calibrate)
+
+    t = sub.add_parser("table4", help="Table 4 and Fig. 19 for the bridges B1-B4 and the four trains")
+    t.add_argument("--out", default="table4_out", help="output directory (default table4_out)")
+    t.add_argument("--bridges", default="B1,B2,B3,B4")
+    t.add_argument("--trains", default="ICE-2,Eurostar,Railjet,ICE-4")
+    t.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
+    common(t)
+    t.set_defaults(func=cmd_table4)
+
+    r = sub.add_parser("recommend", help="dz from the lower-bound functions by the rules of Section 4.3")
+    r.add_argument("--train", required=True, help="ICE-2, Eurostar, Railjet or ICE-4")
+    r.add_argument("--n0", type=float, required=True, help="first natural frequency (Hz)")
+    r.add_argument("--mu", type=float, required=True, help="mass per length (t/m)")
+    r.add_argument("--type", required=True, choices=("cfb", "sc"), help="cfb: concrete/filler beam, sc: steel/composite")
+    r.add_argument("--span", type=float, default=None, help="span (m); estimated from n0 when omitted")
+    r.add_argument("--interpolate", action="store_true",
+                   help="interpolate linearly between the adjacent mass functions instead of the safe side")
+    r.add_argument("--json", action="store_true", help="print JSON")
+    r.set_defaults(func=cmd_recommend)
+    return p
+
+
+def main(argv=None):
+    try:
+        args = build_parser().parse_args(argv)
+        return args.func(args)
+    except InputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:
+        print(f"error: {exc.strerror or exc}: {exc.filename or ''}".rstrip(": "), file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())
