@@ -25,21 +25,20 @@ def parse_speeds(text):
     """Speeds (km/h) from ``"160:350:1"`` (start:stop:step, stop included) or ``"200,250"``."""
     text = str(text).strip()
     try:
-        if ":" in text:
-            parts = [float(p) for p in text.split(":")]
-            if len(parts) == 2:
-                parts.append(1.0)
-            if len(parts) != 3:
-                raise ValueError
-            a, b, st = parts
-            if st <= 0 or b < a:
-                raise InputError(f"speeds: {text!r} needs start <= stop and step > 0 (km/h)")
-            n = int(math.floor((b - a) / st + 1e-9)) + 1
-            v = a + st * np.arange(n)
-        else:
-            v = np.array([float(p) for p in text.split(",") if p.strip()])
+        parts = [float(p) for p in text.replace(":", ",").split(",") if p.strip()]
     except ValueError:
-        raise InputError(f"speeds: {text!r} is not start:stop:step or a comma list (km/h)") from None
+        parts = None
+    if not parts or (":" in text and len(parts) not in (2, 3)):
+        raise InputError(f"speeds: {text!r} is not start:stop:step or a comma list (km/h)")
+    if ":" in text:
+        a, b, st = parts if len(parts) == 3 else parts + [1.0]
+        if st <= 0 or b < a:
+            raise InputError(f"speeds: {text!r} needs start <= stop and step > 0 (km/h)")
+        if (b - a) / st > 100_000:
+            raise InputError(f"speeds: {text!r} gives more than 100000 speeds")
+        v = a + st * np.arange(int(math.floor((b - a) / st + 1e-9)) + 1)
+    else:
+        v = np.array(parts)
     speeds_to_m_s(v)  # range check
     return v
 
@@ -145,6 +144,8 @@ def run_sweep(bridge, train, model, speeds_kmh, delta_zeta=0.0, options=None, hi
     """
     if model not in MODELS:
         raise InputError(f"model: {model!r} is not allowed; allowed 'mlm' or 'dim'")
+    if model == "dim" and not train.units:
+        raise InputError(f"model: 'dim' needs a train with vehicles; {train.name!r} is a load train (MLM only)")
     v = speeds_to_m_s(speeds_kmh)
     dz = np.broadcast_to(np.asarray(delta_zeta, dtype=float), v.shape)
     for x in np.unique(dz):

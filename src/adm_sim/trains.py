@@ -207,6 +207,21 @@ class Train:
                 f"{self.axle_loads_n.sum() / 1000:.1f} kN total")
 
 
+def moving_loads(axle_offsets_m, axle_loads_n, name="load train"):
+    """A load-only train (MLM): axle offsets behind the first axle (m) and loads (N).
+
+    It has no vehicle units, so only ``model="mlm"`` can run it.
+    """
+    offs = np.asarray(axle_offsets_m, dtype=float)
+    loads = np.asarray(axle_loads_n, dtype=float)
+    if offs.ndim != 1 or offs.shape != loads.shape or offs.size == 0:
+        raise InputError("moving_loads: offsets (m) and loads (N) need the same non-zero length")
+    if offs[0] != 0.0 or np.any(np.diff(offs) < 0):
+        raise InputError("moving_loads: offsets must start at 0 m and not decrease")
+    return Train(name=name, vehicle_types={}, units=(), axle_offsets_m=offs, axle_loads_n=loads,
+                 wheel_mass_kg=np.zeros_like(offs), unit_of_axle=np.full(offs.shape, -1))
+
+
 # ---------------------------------------------------------------------- loading
 def available_trains():
     return TRAIN_NAMES

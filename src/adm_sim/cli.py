@@ -1,0 +1,212 @@
+"""``adm-sim``: speed sweeps, train data checks and MCAP salvage from the command line.
+
+Errors on bad input are one line ``error: ...`` on stderr with exit code 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+from adm_sim.errors import AdmSimError, InputError
+
+EXIT_INPUT = 2
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """argparse that reports usage errors as one line and exit code 2."""
+
+    def error(self, message):
+        self.exit(EXIT_INPUT, f"error: {self.prog}: {message}\n")
+
+
+def tqdm_progress(desc, enabled=None):
+    """A ``progress(done, total)`` callback drawing a tqdm bar (None if tqdm is missing)."""
+    try:
+        from tqdm import tqdm
+    except ImportError:  # pragma: no cover - tqdm is a declared dependency
+        return None, lambda: None
+    disable = None if enabled is None else not enabled  # None: only on a terminal
+    bar = tqdm(total=0, desc=desc, unit="step", disable=disable, leave=False, mininterval=0.2)
+
+    def cb(done, total):
+        if bar.total != total:
+            bar.total = total
+        bar.n = done
+        bar.refresh()
+
+    return cb, bar.close
+
+
+def _plot_sweep(result, path, limit=3.5):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4))
+    ax.plot(result.speeds_kmh, result.max_acc_m_s2, lw=1.5, label=result.model.upper())
+    pk = result.peak()
+    if pk is not None:
+        ax.plot([pk["speed_kmh"]], [pk["acc_m_s2"]], "o", color="C3",
+                label=f"peak {pk['acc_m_s2']:.3f} m/s² at {pk['speed_kmh']:g} km/h")
+    ax.axhline(limit, color="0.5", ls="--", lw=1, label=f"EN 1990 A2 ballasted limit {limit} m/s²")
+    ax.set_xlabel("speed (km/h)")
+    ax.set_ylabel("max |midspan acceleration| (m/s²)")
+    ax.set_title(f"{result.bridge.name or 'bridge'} x {result.train_name} ({result.model.upper()})")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def cmd_sweep(args):
+    from adm_sim.bridge import resolve_bridge
+    from adm_sim.stepping import StepOptions
+    from adm_sim.sweep import parse_speeds, run_sweep
+    from adm_sim.trains import load_train
+    from adm_sim.errors import check_range
+
+    bridge = resolve_bridge(args.bridge)
+    train = load_train(args.train)
+    speeds = parse_speeds(args.speeds)
+    dz = check_range("--delta-zeta-pct", args.delta_zeta_pct, "%", -100 * bridge.damping_ratio, 20.0) / 100
+    opts = StepOptions(steps_per_period=args.steps_per_period)
+    print(bridge.describe())
+    print(train.describe())
+    cb, close = tqdm_progress(f"{args.model.upper()} sweep", None if args.progress is None else args.progress)
+    t0 = time.perf_counter()
+    try:
+        res = run_sweep(bridge, train, args.model, speeds, delta_zeta=dz, options=opts, progress=cb)
+    finally:
+        close()
+    wall = time.perf_counter() - t0
+    pk = res.peak()
+    print(f"{args.model.upper()} sweep: {len(speeds)} speeds {speeds.min():g}..{speeds.max():g} km/h, "
+          f"{res.n_steps} steps of {res.ds_m * 1000:.2f} mm, {wall:.2f} s")
+    if pk is None:
+        i = int(res.max_acc_m_s2.argmax())
+        print(f"no interior peak: the largest value {res.max_acc_m_s2[i]:.4f} m/s2 lies at the end "
+              f"of the speed range ({res.speeds_kmh[i]:g} km/h)")
+    else:
+        print(f"peak: {pk['acc_m_s2']:.4f} m/s2 at {pk['speed_kmh']:g} km/h")
+        top = float(res.max_acc_m_s2.max())
+        if top > pk["acc_m_s2"]:
+            i = int(res.max_acc_m_s2.argmax())
+            print(f"note: the largest value {top:.4f} m/s2 lies at the end of the range ({res.speeds_kmh[i]:g} km/h)")
+    if args.json:
+        out = res.to_dict()
+        out["wall_time_s"] = wall
+        Path(args.json).write_text(json.dumps(out, indent=1))
+        print(f"wrote {args.json}")
+    if args.plot:
+        _plot_sweep(res, args.plot)
+        print(f"wrote {args.plot}")
+    return 0
+
+
+def cmd_trains(args):
+    from adm_sim.trains import TRAIN_NAMES, check_train, load_train
+
+    names = [args.train] if args.train else list(TRAIN_NAMES) + ["Eurostar-table"]
+    bad = 0
+    for name in names:
+        t = load_train(name)
+        print(t.describe())
+        if t.description:
+            print(f"  {t.description}")
+        if args.check:
+            for r in check_train(t):
+                flag = "ok " if r.ok else "MISMATCH"
+                print(f"  {flag:8s} {r.item:42s} table {r.table_value:9.3f} {r.unit:3s} "
+                      f"computed {r.computed_value:9.3f} {r.unit:3s}  ({r.note})")
+                bad += not r.ok
+    if args.check:
+        print("MLM axle loads: the F column of Table A1 (per bogie for Jacobs sets), the same static "
+              "loads the DIM carries; see the train files for choices made.")
+        if bad:
+            print(f"{bad} check(s) disagree with the paper's numbers (documented in the train files).")
+    return 0
+
+
+def cmd_bridges(args):
+    from adm_sim.bridge import TABLE3, named_bridge, parametric_field
+
+    if args.field:
+        field = parametric_field()
+        print(f"parametric field: {len(field)} bridges (Section 3.3)")
+        print("name,span_m,n0_hz,mu_t_m,EJ_Nm2,zeta_pct,type")
+        for b in field:
+            print(f"{b.name},{b.span_m:g},{b.n0_hz:.4f},{b.mass_per_length_kg_m / 1000:.4f},"
+                  f"{b.EJ_Nm2:.5g},{b.damping_ratio * 100:.4g},{b.bridge_type}")
+    else:
+        for name in TABLE3:
+            print(named_bridge(name).describe())
+    return 0
+
+
+def cmd_salvage(args):
+    try:
+        from adm_sim.ros.mcap_log import salvage
+    except ImportError as exc:
+        raise InputError(f"salvage needs the ROS/MCAP extras ({exc})") from None
+    n = salvage(args.src, args.dst)
+    print(f"recovered {n} messages into {args.dst}")
+    return 0
+
+
+def build_parser():
+    p = OneLineParser(prog="adm-sim", description=__doc__.splitlines()[0])
+    sub = p.add_subparsers(dest="cmd", required=True, parser_class=OneLineParser)
+
+    s = sub.add_parser("sweep", help="max midspan acceleration over a speed range")
+    s.add_argument("--bridge", default="B1", help="B1..B4, a spec L=15,n0=8.26,mu=19042,zeta_pct=1.85, or a TOML file")
+    s.add_argument("--train", default="ICE-2", help="ICE-2, Eurostar, Railjet, ICE-4, Eurostar-table, or a TOML file")
+    s.add_argument("--model", choices=("mlm", "dim"), default="mlm")
+    s.add_argument("--speeds", default="160:350:1", help="km/h, start:stop:step or a comma list")
+    s.add_argument("--delta-zeta-pct", type=float, default=0.0, help="additional damping (%%)")
+    s.add_argument("--steps-per-period", type=float, default=16.0,
+                   help="RK4 steps per period of the highest bridge mode (4..10000)")
+    s.add_argument("--json", help="write results as JSON")
+    s.add_argument("--plot", help="write max acceleration vs speed as PNG")
+    s.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
+                   help="progress bar (default: when stderr is a terminal)")
+    s.set_defaults(func=cmd_sweep)
+
+    t = sub.add_parser("trains", help="list trains; --check compares axle loads and bogie frequencies")
+    t.add_argument("--train")
+    t.add_argument("--check", action="store_true")
+    t.set_defaults(func=cmd_trains)
+
+    b = sub.add_parser("bridges", help="list bridges B1-B4 or (--field) the 1110-bridge parametric field")
+    b.add_argument("--field", action="store_true")
+    b.set_defaults(func=cmd_bridges)
+
+    v = sub.add_parser("salvage", help="recover a killed run's MCAP log")
+    v.add_argument("src")
+    v.add_argument("dst")
+    v.set_defaults(func=cmd_salvage)
+    return p
+
+
+def main(argv=None):
+    args = build_parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except InputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_INPUT
+    except AdmSimError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())
