@@ -61,7 +61,7 @@ def test_resonance_speeds_of_a_regular_train():
         j = win[np.argmax(acc[win])]
         assert win[0] < j < win[-1], f"no resonance peak near {v_res:.1f} km/h"
         assert speeds[j] == pytest.approx(v_res, rel=0.01)
-        assert acc[j] > 2.0 * np.median(acc)  # a real resonance, well above the background
+        assert acc[j] > 1.5 * acc[win].min()  # a real resonance, well above its surroundings
 
 
 def test_zero_damping_and_no_load_limits():
