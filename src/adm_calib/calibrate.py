@@ -372,7 +372,15 @@ def _speeds(speeds_kmh):
     return v
 
 
-def calibrate(bridge, train, speeds_kmh=None, options=None, progress=False, adapted_curve=True):
+def calibration_step(bridge, train, speeds_kmh=None, options=None):
+    """The core's step settings shared by every run of one calibration (fixed ``ds_m``)."""
+    opt = options or CalibrationOptions()
+    v = _speeds(speeds_kmh)
+    base = opt.step or StepOptions()
+    return replace(base, ds_m=make_grid(bridge, train.length_m, speeds_to_m_s(v), base).ds_m)
+
+
+def calibrate(bridge, train, speeds_kmh=None, options=None, progress=False, adapted_curve=True, dim_curve=None):
     """Calibrate Δζ_VBI for a bridge and a train and evaluate the reference methods.
 
     Parameters
@@ -386,6 +394,10 @@ def calibrate(bridge, train, speeds_kmh=None, options=None, progress=False, adap
         Show tqdm progress bars (stderr) for the sweeps.
     adapted_curve : bool
         Also run the MLM at ``zeta + Δζ_VBI`` over all speeds (for the plot, Fig. 15).
+    dim_curve : (ndarray (m,), ndarray (m,)), optional
+        Target curve ``(speeds_kmh, max_acc_m_s2)`` used instead of running the DIM (a cached DIM
+        sweep, or an MLM at ``zeta + x`` for the round-trip check); it should be computed with
+        :func:`calibration_step` so that it is discretised as the MLM runs.
 
     Returns
     -------
@@ -395,9 +407,8 @@ def calibrate(bridge, train, speeds_kmh=None, options=None, progress=False, adap
 
     opt = options or CalibrationOptions()
     v = _speeds(speeds_kmh)
-    base_step = opt.step or StepOptions()
-    ds = make_grid(bridge, train.length_m, speeds_to_m_s(v), base_step).ds_m
-    step = replace(base_step, ds_m=ds)
+    step = calibration_step(bridge, train, v, opt)
+    ds = step.ds_m
     timings = {}
 
     def sweep(model, speeds, dz=0.0, label=None):
@@ -415,15 +426,20 @@ def calibrate(bridge, train, speeds_kmh=None, options=None, progress=False, adap
     mlm_peak = pk.find_peak(v, mlm, opt.min_prominence_rel)
 
     t0 = time.perf_counter()
-    vd = v if opt.dim_grid == "full" else dim_speeds_paper(v, mlm_peak.speed_kmh if mlm_peak.found else None, opt)
-    dim = sweep("dim", vd, label="DIM")
+    if dim_curve is not None:
+        vd, dim = (np.asarray(a, dtype=float) for a in dim_curve)
+        order = np.argsort(vd)
+        vd, dim = vd[order], dim[order]
+    else:
+        vd = v if opt.dim_grid == "full" else dim_speeds_paper(v, mlm_peak.speed_kmh if mlm_peak.found else None, opt)
+        dim = sweep("dim", vd, label="DIM")
     refined = False
     dim_peak = pk.Peak(found=False, reason="no MLM peak to associate with")
     if mlm_peak.found:
         dim_peak = pk.associate_peak(vd, dim, mlm_peak.speed_kmh, opt.association_window_kmh, opt.min_prominence_rel)
         fine = _fine_step(v)
         for _ in range(2):
-            if not dim_peak.found or opt.dim_grid == "full":
+            if not dim_peak.found or opt.dim_grid == "full" or dim_curve is not None:
                 break
             i = dim_peak.index
             gaps = [vd[i] - vd[i - 1] if i > 0 else 0.0, vd[i + 1] - vd[i] if i + 1 < vd.size else 0.0]
@@ -469,5 +485,5 @@ def calibrate(bridge, train, speeds_kmh=None, options=None, progress=False, adap
         adapted_peak=adapted, solve=solve, delta_zeta_adm_pct=adm_delta_zeta_pct(bridge.span_m),
         delta_zeta_eada_pct=eada, eada_note=eada_note, delta_zeta_lb_pct=lb, lb_note=lb_note,
         mlm_speeds_kmh=v, mlm_acc_m_s2=mlm, dim_speeds_kmh=np.asarray(vd, float), dim_acc_m_s2=dim,
-        adapted_speeds_kmh=v_ad, adapted_acc_m_s2=a_ad, dim_grid=opt.dim_grid, dim_refined=refined, ds_m=ds,
+        adapted_speeds_kmh=v_ad, adapted_acc_m_s2=a_ad, dim_grid="given" if dim_curve is not None else opt.dim_grid, dim_refined=refined, ds_m=ds,
         timings_s=timings)

@@ -1,0 +1,102 @@
+"""Δζ_VBI calibration on the real MLM/DIM solvers: round trip, convergence, outcomes and JSON."""
+
+import json
+
+import numpy as np
+import pytest
+
+from adm_sim.bridge import named_bridge
+from adm_sim.stepping import StepOptions
+from adm_sim.sweep import run_sweep
+from adm_sim.trains import load_train
+from adm_calib.calibrate import CalibrationOptions, calibrate, calibration_step
+
+V = np.arange(160.0, 351.0, 1.0)
+
+
+@pytest.fixture(scope="module")
+def b1_ice2():
+    return calibrate(named_bridge("B1"), load_train("ICE-2"))
+
+
+def test_b1_ice2_matches_dim_peak(b1_ice2):
+    r = b1_ice2
+    assert r.status == "ok", r.message
+    assert r.mlm_peak.found and r.dim_peak.found and r.dim_peak.is_local_max
+    assert not r.mlm_peak.max_at_range_end
+    # resonance of the 26.4 m passenger cars: v = n0 * d = 8.26 Hz * 26.4 m = 785 km/h / 3 = 262 km/h
+    assert abs(r.mlm_peak.speed_kmh - 262.0) <= 5.0
+    assert abs(r.dim_peak.speed_kmh - r.mlm_peak.speed_kmh) <= 5.0
+    # interaction lowers the peak, so the extra damping is positive
+    assert r.dim_peak.acc_m_s2 < r.mlm_peak.acc_m_s2
+    assert r.delta_zeta_vbi > 0.0
+    # the adapted MLM peak equals the DIM peak within the paper's 0.1 %
+    assert r.adapted_peak.acc_m_s2 == pytest.approx(r.dim_peak.acc_m_s2, rel=1e-3)
+    assert r.solve.iterations >= 1
+    # the adapted curve is the MLM at zeta + dz everywhere below the plain MLM
+    assert r.adapted_acc_m_s2.shape == r.mlm_acc_m_s2.shape
+    assert np.all(r.adapted_acc_m_s2 <= r.mlm_acc_m_s2 * (1 + 1e-9))
+
+
+def test_b1_ice2_json(b1_ice2):
+    d = json.loads(b1_ice2.to_json())
+    for key in ("delta_zeta_vbi_pct", "delta_zeta_adm_pct", "delta_zeta_eada_pct", "delta_zeta_lb_pct",
+                "mlm_peak", "dim_peak", "adapted_mlm_peak", "mlm_max_at_range_end", "dim_is_local_max", "solver"):
+        assert key in d
+    assert d["delta_zeta_vbi_pct"] == pytest.approx(100 * b1_ice2.delta_zeta_vbi, rel=1e-12)
+    assert d["delta_zeta_adm_pct"] == pytest.approx(0.6527, abs=1e-4)
+    assert set(d["mlm_peak"]) == {"speed_kmh", "acc_m_s2"}
+    assert d["solver"]["iterations"] == b1_ice2.solve.iterations
+    assert len(d["curves"]["dim"]["speeds_kmh"]) == len(d["curves"]["dim"]["max_acc_m_s2"])
+
+
+@pytest.mark.parametrize("bridge, train, x", [
+    ("B1", "ICE-2", 0.0030),
+    ("B1", "ICE-2", -0.0050),
+    ("B3", "Railjet", 0.0012),
+    ("B4", "Eurostar", 0.0040),
+    ("B2", "ICE-4", -0.0020),      # chosen peak is a lesser interior maximum (largest value at 350 km/h)
+])
+def test_round_trip(bridge, train, x):
+    """An MLM with zeta + x as target must give back x within 0.005 %."""
+    b, t = named_bridge(bridge), load_train(train)
+    step = calibration_step(b, t, V)
+    target = run_sweep(b, t, "mlm", V, delta_zeta=x, options=step).max_acc_m_s2
+    r = calibrate(b, t, V, dim_curve=(V, target), adapted_curve=False)
+    assert r.status == "ok", r.message
+    assert r.delta_zeta_vbi == pytest.approx(x, abs=0.005e-2)
+    assert r.dim_grid == "given"
+
+
+def test_flag_lesser_interior_peak_ice4_b2():
+    b, t = named_bridge("B2"), load_train("ICE-4")
+    mlm = run_sweep(b, t, "mlm", V).max_acc_m_s2
+    r = calibrate(b, t, V, dim_curve=(V, mlm), adapted_curve=False)
+    assert r.mlm_peak.max_at_range_end and r.to_dict()["mlm_max_at_range_end"] is True
+    assert r.mlm_peak.acc_m_s2 < mlm[-1]
+    assert r.delta_zeta_vbi == pytest.approx(0.0, abs=0.005e-2)
+
+
+def test_time_step_halving_changes_dz_less_than_001_pct(b1_ice2):
+    halved = calibrate(named_bridge("B1"), load_train("ICE-2"),
+                       options=CalibrationOptions(step=StepOptions().halved()), adapted_curve=False)
+    assert halved.status == "ok"
+    assert halved.delta_zeta_vbi_pct == pytest.approx(b1_ice2.delta_zeta_vbi_pct, abs=0.01)
+
+
+def test_speed_step_halving_changes_dz_less_than_001_pct(b1_ice2):
+    fine = calibrate(named_bridge("B1"), load_train("ICE-2"), speeds_kmh=np.arange(160.0, 350.01, 0.5),
+                     adapted_curve=False)
+    assert fine.status == "ok"
+    assert fine.delta_zeta_vbi_pct == pytest.approx(b1_ice2.delta_zeta_vbi_pct, abs=0.01)
+
+
+def test_no_reasonable_peak_is_reported():
+    # B1 x ICE-2 between 230 and 255 km/h: the curve climbs towards the 263 km/h resonance.
+    r = calibrate(named_bridge("B1"), load_train("ICE-2"), speeds_kmh=np.arange(230.0, 256.0, 1.0))
+    assert r.status == "no_mlm_peak"
+    assert r.delta_zeta_vbi is None and r.mlm_peak.max_at_range_end
+    d = r.to_dict()
+    assert d["delta_zeta_vbi_pct"] is None and d["mlm_peak"] is None
+    assert "no reasonable peak" in d["message"]
+    assert d["delta_zeta_adm_pct"] == pytest.approx(0.6527, abs=1e-4)

@@ -1,0 +1,63 @@
+"""The adm-sim command line: outputs, JSON keys and one-line errors with exit code 2."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+CLI = [sys.executable, "-m", "adm_sim.cli"]
+
+
+def run(*args):
+    return subprocess.run(CLI + list(args), capture_output=True, text=True, timeout=300)
+
+
+def test_sweep_json_and_plot(tmp_path):
+    js, png = tmp_path / "s.json", tmp_path / "s.png"
+    r = run("sweep", "--bridge", "B1", "--train", "ICE-2", "--model", "mlm", "--speeds", "240:290:1",
+            "--json", str(js), "--plot", str(png))
+    assert r.returncode == 0, r.stderr
+    assert "peak:" in r.stdout
+    d = json.loads(js.read_text())
+    assert len(d["speeds_kmh"]) == 51 == len(d["max_acc_m_s2"])
+    pk = d["peak"]
+    assert 240 < pk["speed_kmh"] < 290  # an interior maximum, not an end point
+    i = d["speeds_kmh"].index(pk["speed_kmh"])
+    assert pk["acc_m_s2"] == d["max_acc_m_s2"][i] == max(d["max_acc_m_s2"])
+    assert png.stat().st_size > 10_000
+
+
+def test_sweep_reports_missing_interior_peak(tmp_path):
+    js = tmp_path / "s.json"
+    # 250..260 km/h climbs towards the 263 km/h resonance of B1 x ICE-2: no interior maximum
+    r = run("sweep", "--bridge", "B1", "--speeds", "250:260:2", "--json", str(js))
+    assert r.returncode == 0
+    d = json.loads(js.read_text())
+    assert d["peak"] is None
+    assert "no interior peak" in r.stdout and "260 km/h" in r.stdout
+
+
+@pytest.mark.parametrize("args,match", [
+    (["sweep", "--bridge", "L=-3,n0=8,mu=1000,zeta_pct=1"], "L: -3 m is out of range; allowed [1, 150] m"),
+    (["sweep", "--train", "TGV"], "train: 'TGV' is unknown"),
+    (["sweep", "--model", "fem"], "invalid choice: 'fem'"),
+    (["sweep", "--speeds", "100:50"], "needs start <= stop"),
+    (["sweep", "--speeds", "100:900:10"], "speed_kmh: 610 km/h is out of range; allowed [1, 600] km/h"),
+    (["sweep", "--delta-zeta-pct", "-5"], "--delta-zeta-pct: -5 % is out of range"),
+    (["sweep", "--steps-per-period", "1"], "steps_per_period: 1 steps is out of range"),
+])
+def test_bad_input_is_one_line_exit_2(args, match):
+    r = run(*args)
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error:")
+    assert match in lines[0]
+    assert "Traceback" not in r.stderr
+
+
+def test_trains_check_prints_the_checks():
+    r = run("trains", "--check")
+    assert r.returncode == 0
+    assert "n_p PC 2-8 (Eq. 1)" in r.stdout and "MISMATCH" in r.stdout  # Eurostar-table
+    assert r.stdout.count("ok ") >= 12
