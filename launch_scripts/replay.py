@@ -1,0 +1,273 @@
+#!/usr/bin/env python3
+"""Show a recorded adm-sim run (MCAP) in rerun, or republish it on ROS 2 in simulated time.
+
+Usage::
+
+    replay.py RUN.mcap --rrd OUT.rrd            # write a rerun recording
+    replay.py RUN.mcap --spawn                  # open a native viewer (bound to 127.0.0.1)
+    replay.py RUN.mcap --connect rerun+http://127.0.0.1:9876/proxy
+    replay.py RUN.mcap --rrd OUT.rrd --via-convert   # rerun's own MCAP importer instead
+    replay.py RUN.mcap --republish [--domain-id N] [--rate X] [--topics /adm/midspan/accel ...]
+
+The recording is decoded with mcap-ros2-support and drawn with :mod:`adm_sim.ros.rerun_log`:
+``geometry_msgs/AccelStamped`` as mid-span acceleration of the lane named by ``header.frame_id``
+(or the topic), ``diagnostic_msgs/DiagnosticArray`` as text log, ``JointState``,
+``Float64MultiArray`` and ``Float64`` as scalar series, metadata records as the run table. Time is
+the recorded sim time (``header.stamp`` when present, else the record's log time).
+
+``--republish`` publishes every recorded topic (raw CDR, so any type) except ``/clock``, plus a
+``rosgraph_msgs/Clock`` on ``/clock`` ahead of each new time stamp, paced at ``--rate`` times
+simulated time (0: as fast as possible). DDS stays on this machine: ``FASTDDS_BUILTIN_TRANSPORTS=SHM``
+unless already set, ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, and ``--domain-id`` or a free,
+locked ROS_DOMAIN_ID (printed on the first line).
+
+Exit status 0 on success, 2 with one line ``error: ...`` on bad input.
+"""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+import time
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+from adm_sim.errors import InputError
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):
+        self.exit(2, f"error: {message}\n")
+
+
+def parse_args(argv=None):
+    p = _Parser(prog="replay.py", description=__doc__.split("\n\n")[0])
+    p.add_argument("mcap", metavar="RUN.mcap", type=Path)
+    out = p.add_mutually_exclusive_group()
+    out.add_argument("--rrd", type=Path, metavar="OUT.rrd", help="write a rerun recording")
+    out.add_argument("--spawn", action="store_true", help="open a native rerun viewer")
+    out.add_argument("--connect", metavar="URL", help="stream to a running viewer (loopback)")
+    p.add_argument("--via-convert", action="store_true",
+                   help="with --rrd: use 'rerun mcap convert' instead of the adm-sim views")
+    p.add_argument("--overwrite", action="store_true", help="replace OUT.rrd if it exists")
+    p.add_argument("--exaggeration", type=float, default=1.0,
+                   help="display factor on beam deflections (default 1)")
+    p.add_argument("--republish", action="store_true", help="republish the run on ROS 2")
+    p.add_argument("--domain-id", type=int, default=None, help="ROS_DOMAIN_ID (default: free one)")
+    p.add_argument("--rate", type=float, default=1.0,
+                   help="republish speed, multiples of simulated time; 0 = as fast as possible")
+    p.add_argument("--topics", nargs="+", default=None, help="republish only these topics")
+    p.add_argument("--wait-subscribers", type=float, default=2.0, metavar="S",
+                   help="wait up to S s until every republished topic has a subscriber")
+    args = p.parse_args(argv)
+    if args.via_convert and args.rrd is None:
+        p.error("--via-convert needs --rrd OUT.rrd")
+    if not (args.rrd or args.spawn or args.connect or args.republish):
+        p.error("nothing to do: give --rrd, --spawn, --connect and/or --republish")
+    if args.rate < 0:
+        p.error(f"--rate: {args.rate:g} is out of range; allowed >= 0 (0 = as fast as possible)")
+    return args
+
+
+# ---------------------------------------------------------------- rerun
+
+
+def _stamp_ns(msg, log_time_ns: int) -> int:
+    header = getattr(msg, "header", None)
+    if header is not None:
+        return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
+    return int(log_time_ns)
+
+
+def show_in_rerun(args) -> dict[str, int]:
+    """Decode the MCAP and log it with the adm-sim views; returns message counts per topic."""
+    import rerun as rr
+
+    from adm_sim.ros import rerun_log as rl
+    from adm_sim.ros.mcap_log import read_messages
+
+    rl.init_rerun("adm_sim_replay", spawn=args.spawn, connect_url=args.connect,
+                  save_path=args.rrd, overwrite=args.overwrite)
+    _log_metadata(args.mcap, rl)
+    accel = defaultdict(lambda: ([], []))  # lane -> (t_s list, acc list)
+    series = defaultdict(lambda: defaultdict(lambda: ([], [])))  # topic -> name -> (t, v)
+    counts: dict[str, int] = defaultdict(int)
+    for topic, log_time_ns, msg in read_messages(args.mcap):
+        counts[topic] += 1
+        t_s = _stamp_ns(msg, log_time_ns) * 1e-9
+        if hasattr(msg, "accel") and hasattr(msg, "header"):  # AccelStamped
+            lane = msg.header.frame_id or topic
+            accel[lane][0].append(t_s)
+            accel[lane][1].append(msg.accel.linear.z)
+        elif hasattr(msg, "status") and hasattr(msg, "header"):  # DiagnosticArray
+            rr.set_time(rl.SIM_TIME, duration=t_s)
+            for st in msg.status:
+                level = {0: "INFO", 1: "WARN", 2: "ERROR", 3: "WARN"}.get(_level(st.level), "INFO")
+                values = ", ".join(f"{kv.key}={kv.value}" for kv in st.values)
+                rr.log(f"diagnostics/{rl._part(st.name or 'status')}",
+                       rr.TextLog(f"{st.message} {values}".strip(), level=level))
+        elif hasattr(msg, "position") and hasattr(msg, "name"):  # JointState
+            for i, name in enumerate(msg.name):
+                for field in ("position", "velocity", "effort"):
+                    vals = getattr(msg, field)
+                    if i < len(vals):
+                        s = series[f"{topic}/{field}"][name]
+                        s[0].append(t_s)
+                        s[1].append(vals[i])
+        elif hasattr(msg, "data") and hasattr(msg, "layout"):  # Float64MultiArray
+            for i, v in enumerate(msg.data):
+                s = series[topic][str(i)]
+                s[0].append(t_s)
+                s[1].append(v)
+        elif hasattr(msg, "data") and isinstance(getattr(msg, "data"), float):  # Float64
+            s = series[topic]["value"]
+            s[0].append(t_s)
+            s[1].append(msg.data)
+    for lane, (t, a) in accel.items():
+        rl.log_midspan(np.asarray(t), None, np.asarray(a), lane)
+    for topic, named in series.items():
+        for name, (t, v) in named.items():
+            rr.send_columns(f"topics{topic}/{rl._part(name)}",
+                            indexes=[rr.TimeColumn(rl.SIM_TIME, duration=np.asarray(t))],
+                            columns=rr.Scalars.columns(scalars=np.asarray(v, dtype=float)))
+    rl.close_rerun()
+    return dict(counts)
+
+
+def _level(level) -> int:
+    return level[0] if isinstance(level, (bytes, bytearray)) else int(level)
+
+
+def _log_metadata(path: Path, rl) -> None:
+    from mcap.reader import make_reader
+
+    info = {}
+    with open(path, "rb") as f:
+        try:
+            for meta in make_reader(f).iter_metadata():
+                for k, v in meta.metadata.items():
+                    info[f"{meta.name}.{k}"] = v
+        except Exception:  # metadata are optional decoration
+            return
+    if info:
+        rl.log_run_info(info)
+
+
+def convert(args) -> None:
+    from adm_sim.ros.rerun_log import ensure_analytics_disabled, rerun_cli, rerun_cli_env
+
+    if args.rrd.exists() and not args.overwrite:
+        raise InputError(f"--rrd: '{args.rrd}' already exists; refusing to overwrite it")
+    ensure_analytics_disabled()
+    proc = subprocess.run(
+        [rerun_cli(), "mcap", "convert", str(args.mcap), "-o", str(args.rrd),
+         "--application-id", "adm_sim_replay"],
+        env=rerun_cli_env(), capture_output=True, text=True, timeout=600)
+    if proc.returncode != 0:
+        last = (proc.stderr.strip().splitlines() or ["no message"])[-1]
+        raise InputError(f"rerun mcap convert failed on '{args.mcap}': {last}")
+
+
+# ---------------------------------------------------------------- ROS 2 republish
+
+
+def republish(args, env) -> int:
+    """Publish the recorded topics and /clock in simulated time; returns messages published."""
+    import importlib
+
+    import rclpy
+    from mcap.reader import make_reader
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from rosgraph_msgs.msg import Clock
+
+    def msg_class(schema_name: str):
+        pkg, _, name = schema_name.partition("/msg/")
+        if not name:
+            pkg, _, name = schema_name.partition("/")
+        return getattr(importlib.import_module(f"{pkg}.msg"), name)
+
+    context = rclpy.context.Context()
+    rclpy.init(context=context)
+    node = rclpy.create_node("adm_replay", context=context)
+    qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+    clock_pub = node.create_publisher(Clock, "/clock", 10)
+    pubs = {}
+    sent = 0
+    try:
+        with open(args.mcap, "rb") as f:
+            reader = make_reader(f)
+            summary = reader.get_summary()
+            if summary is None:
+                raise InputError(f"{args.mcap}: no summary; salvage the file first")
+            for ch in summary.channels.values():
+                if ch.topic == "/clock" or (args.topics and ch.topic not in args.topics):
+                    continue
+                schema = summary.schemas[ch.schema_id]
+                pubs[ch.id] = node.create_publisher(msg_class(schema.name), ch.topic, qos)
+            if not pubs:
+                raise InputError(f"--topics: none of {args.topics} is in '{args.mcap}'")
+            deadline = time.monotonic() + args.wait_subscribers
+            while time.monotonic() < deadline and any(
+                    p.get_subscription_count() == 0 for p in pubs.values()):
+                time.sleep(0.05)
+            start_wall = time.monotonic()
+            start_sim = None
+            last_clock = None
+            for _schema, channel, message in reader.iter_messages(log_time_order=True):
+                pub = pubs.get(channel.id)
+                if pub is None:
+                    continue
+                t_ns = message.log_time
+                if start_sim is None:
+                    start_sim = t_ns
+                if args.rate > 0:
+                    due = start_wall + (t_ns - start_sim) * 1e-9 / args.rate
+                    pause = due - time.monotonic()
+                    if pause > 0:
+                        time.sleep(pause)
+                if t_ns != last_clock:
+                    clock = Clock()
+                    clock.clock.sec, clock.clock.nanosec = divmod(t_ns, 1_000_000_000)
+                    clock_pub.publish(clock)
+                    last_clock = t_ns
+                pub.publish(bytes(message.data))
+                sent += 1
+        time.sleep(0.2)  # let reliable late packets drain before the participant goes away
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
+    return sent
+
+
+def main(argv=None) -> int:
+    args = parse_args(argv)
+    try:
+        if not args.mcap.is_file():
+            raise InputError(f"RUN.mcap: '{args.mcap}' does not exist")
+        env = None
+        if args.republish:
+            from adm_sim.ros.env import apply_local_ros_env
+
+            env = apply_local_ros_env(args.domain_id)  # before rclpy creates a participant
+            print(f"ROS_DOMAIN_ID={env.domain_id}", flush=True)
+        if args.rrd and args.via_convert:
+            convert(args)
+            print(f"wrote {args.rrd} (rerun mcap convert)")
+        elif args.rrd or args.spawn or args.connect:
+            counts = show_in_rerun(args)
+            where = args.rrd or args.connect or "the spawned viewer"
+            print(f"logged {sum(counts.values())} messages on {len(counts)} topics to {where}")
+        if args.republish:
+            n = republish(args, env)
+            print(f"republished {n} messages on domain {env.domain_id}")
+    except InputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
