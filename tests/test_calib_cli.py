@@ -1,0 +1,120 @@
+"""The adm-calib command: outputs, exit codes and one-line errors; no ROS in the analysis package."""
+
+import csv
+import json
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from adm_calib import reference as ref
+from adm_calib.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def run_cli(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "adm_calib.cli", *args], capture_output=True, text=True,
+                          cwd=cwd, timeout=300)
+
+
+def test_calibrate_writes_json_and_plot(tmp_path):
+    js, png = tmp_path / "b1.json", tmp_path / "b1.png"
+    p = run_cli("calibrate", "--bridge", "B1", "--train", "ice2", "--speeds", "240:290:1",
+                "--json", str(js), "--plot", str(png))
+    assert p.returncode == 0, p.stderr
+    assert "dz_VBI" in p.stdout and "MLM peak" in p.stdout and "DIM peak" in p.stdout
+    d = json.loads(js.read_text())
+    assert d["status"] == "ok" and d["train"] == "ICE-2"
+    for key in ("delta_zeta_vbi_pct", "delta_zeta_adm_pct", "delta_zeta_eada_pct", "delta_zeta_lb_pct"):
+        assert isinstance(d[key], float)
+    assert d["adapted_mlm_peak"]["acc_m_s2"] == pytest.approx(d["dim_peak"]["acc_m_s2"], rel=1e-3)
+    assert 240 < d["mlm_peak"]["speed_kmh"] < 290
+    assert d["delta_zeta_lb_pct"] == pytest.approx(ref.lower_bound("ICE-2", "mu2").delta_zeta_pct(8.262), abs=1e-3)
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # never overwrite silently
+    p2 = run_cli("calibrate", "--bridge", "B1", "--train", "ICE-2", "--json", str(js))
+    assert p2.returncode == 2
+    assert p2.stderr.strip().splitlines() == [f"error: '{js}' exists; use --force to overwrite it"]
+
+
+def test_table4_subset_eurostar_has_no_eada(tmp_path):
+    p = run_cli("table4", "--out", str(tmp_path), "--bridges", "B3", "--trains", "Eurostar", "--speeds", "250:300:1")
+    assert p.returncode == 0, p.stderr
+    rows = list(csv.reader((tmp_path / "table4.csv").open()))
+    assert rows[0] == ["approach", "Eurostar B3"]
+    assert [r[0] for r in rows[1:]] == ["VBI", "LB", "ADM", "EADA"]
+    assert rows[4][1] == ""                                          # EADA undefined
+    assert float(rows[3][1]) == pytest.approx(0.6527, abs=1e-4)      # ADM at 15 m
+    assert float(rows[2][1]) == pytest.approx(ref.lower_bound("Eurostar", "mu5").delta_zeta_pct(8.262), abs=1e-3)
+    text = (tmp_path / "table4.txt").read_text()
+    assert "n/a" in text and "Jacobs" in text
+    assert (tmp_path / "fig19_total_damping.png").stat().st_size > 1000
+    assert json.loads((tmp_path / "table4.json").read_text())["Eurostar B3"]["delta_zeta_eada_pct"] is None
+
+
+def test_recommend_prints_rule_and_functions(capsys):
+    assert main(["recommend", "--train", "ICE-2", "--n0", "5", "--mu", "25", "--type", "cfb", "--span", "20"]) == 0
+    out = capsys.readouterr().out
+    # mu2(20) = 22.543 < 25 < mu1(20) = 27.31 t/m: safe side = mu1
+    assert "next heavier function mu1" in out
+    expected = ref.lower_bound("ICE-2", "mu1").delta_zeta_pct(5.0)
+    assert f"dz_LB = {expected:.4f} %" in out
+    assert main(["recommend", "--train", "ICE-2", "--n0", "5", "--mu", "25", "--type", "cfb", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["span_estimated"] is True and d["mass_functions"]
+
+
+@pytest.mark.parametrize("argv, match", [
+    (["recommend", "--train", "TGV", "--n0", "5", "--mu", "20", "--type", "cfb"], r"train: 'TGV' was not studied"),
+    (["recommend", "--train", "ICE-2", "--n0", "1.5", "--mu", "20", "--type", "cfb"],
+     r"n0_hz: 1.5 Hz is out of range; allowed \[2.1, 35.\d+\] Hz"),
+    (["recommend", "--train", "ICE-2", "--n0", "5", "--mu", "20", "--type", "cfb", "--span", "-10"],
+     r"span_m: -10 m is out of range"),
+    (["recommend", "--train", "ICE-2", "--n0", "5", "--mu", "20", "--type", "concrete"], r"argument --type: invalid choice"),
+    (["recommend", "--train", "ICE-2", "--n0", "five", "--mu", "20", "--type", "cfb"], r"argument --n0: invalid float"),
+    (["calibrate", "--bridge", "B1", "--train", "TGV"], r"train: 'TGV' is unknown"),
+    (["calibrate", "--bridge", "L=-15,n0=8,mu=19000,zeta_pct=1.8", "--train", "ICE-2"], r"L: -15 m is out of range"),
+    (["calibrate", "--bridge", "B1", "--train", "ICE-2", "--speeds", "350:160:1"], r"speeds: '350:160:1' needs start <= stop"),
+    (["calibrate", "--bridge", "B1", "--train", "ICE-2", "--plot", "out.jpg"], r"must end in .png"),
+    (["table4", "--trains", "TGV"], r"train: 'TGV' was not studied"),
+    (["table4", "--bridges", "B7"], r"bridge: 'B7' is not a named bridge"),
+    (["frobnicate"], r"invalid choice"),
+])
+def test_bad_input_one_line_exit_2(argv, match, capsys):
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: ")
+    assert re.search(match, err[0]), err[0]
+
+
+def test_bad_input_exit_code_of_the_process():
+    p = run_cli("recommend", "--train", "ICE-2", "--n0", "1.0", "--mu", "20", "--type", "sc")
+    assert p.returncode == 2
+    assert p.stderr.startswith("error: n0_hz: 1 Hz is out of range") and "Traceback" not in p.stderr
+    p = run_cli("calibrate", "--bridge", "B1", "--train", "unknown-train")
+    assert p.returncode == 2 and p.stderr.count("\n") == 1 and "unknown-train" in p.stderr
+
+
+def test_console_script_installed():
+    exe = Path(sys.executable).with_name("adm-calib")
+    if not exe.exists():
+        pytest.skip("console script not installed in this environment")
+    p = subprocess.run([str(exe), "recommend", "--train", "Railjet", "--n0", "3.6", "--mu", "9.56", "--type", "sc",
+                        "--span", "30"], capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, p.stderr
+    assert "mu lies on mass function mu5" in p.stdout
+
+
+def test_analysis_package_does_not_import_rclpy():
+    code = ("import sys, adm_calib, adm_calib.cli, adm_calib.calibrate, adm_calib.peaks, adm_calib.reference, "
+            "adm_calib.table4, adm_calib.plots; print('rclpy' in sys.modules)")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, p.stderr
+    assert p.stdout.strip() == "False"
+    for f in (ROOT / "src" / "adm_calib").rglob("*.py"):
+        if "nodes" in f.relative_to(ROOT / "src" / "adm_calib").parts:
+            continue
+        assert "rclpy" not in f.read_text(), f
