@@ -1,0 +1,372 @@
+"""Bridge node: the modal beam (:class:`adm_sim.stepping.BridgeSide`) in lockstep with the train node.
+
+Per run (requested by the train node on ``/adm/run/setup``) the node builds the bridge from its
+parameters, the shared space grid (:func:`adm_sim.stepping.make_grid`) and a ``BridgeSide`` for
+all speed lanes, then
+
+* DIM: for every RK4 stage publishes the rail displacement/velocity under the axles on the bridge
+  (``/adm/exchange/rail``) and advances the stage with the train's interaction forces
+  (``/adm/exchange/forces``): the calls and their order are those of :func:`adm_sim.sweep.run_sweep`.
+* MLM: asks for a block of steps (``/adm/exchange/rail`` with no axles) and advances it with the
+  axle positions and loads of ``/adm/exchange/axle_block`` (modal loads at the stage points).
+
+It publishes sim time on ``/clock``, the midspan acceleration/state, the deflected beam, progress,
+``/diagnostics`` against the EN 1990 A2.4.4.2.1 deck acceleration limit and, at the end, the
+per-lane maxima on ``/adm/run/result``. Topics, layouts and QoS: ``ros_ws/README-topics.md``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import sys
+import time
+
+import numpy as np
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import AccelStamped
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import Float64MultiArray, String
+
+from adm_sim.bridge import N0_RANGE_HZ, SPAN_RANGE_M, MU_RANGE_KG_M, Bridge, resolve_bridge
+from adm_sim.errors import InputError, check_range
+from adm_sim.nodes import common as c
+from adm_sim.stepping import BridgeSide, StepOptions, make_grid
+
+TRACK_TYPES = tuple(c.ACC_LIMITS_M_S2)
+
+
+def bridge_specs(preset):
+    """Parameter specs of the bridge node; numeric defaults from the preset bridge."""
+    S = c.ParamSpec
+    return [
+        S("span_m", float(preset.span_m), "m", "span L", *SPAN_RANGE_M),
+        S("EJ_Nm2", float(preset.EJ_Nm2), "N m^2", "bending stiffness EJ (used when n0_hz is 0)", 1.0, 1.0e14),
+        S("n0_hz", 0.0, "Hz", "first natural frequency n0; 0 = from EJ_Nm2, else EJ from Eq. (18)", 0.0, N0_RANGE_HZ[1]),
+        S("mu_kg_m", float(preset.mass_per_length_kg_m), "kg/m", "mass per length mu", *MU_RANGE_KG_M),
+        S("zeta_pct", 100.0 * preset.damping_ratio, "%", "structural damping zeta", 0.0, 20.0),
+        S("n_modes", int(preset.n_modes), "-", "retained modes", 1, 20),
+        S("damping_model", preset.damping_model, "", "rayleigh (modes 1 and 3) | modal"),
+        S("delta_zeta", 0.0, "- (fraction)", "additional damping for every lane (fraction; zeta + delta_zeta >= 0)",
+          -0.2, 0.2),
+        S("delta_zeta_lanes", "", "- (fraction)",
+          "per-lane additional damping, comma list with one value per speed lane; empty = delta_zeta"),
+        S("steps_per_period", 16.0, "steps", "RK4 steps per period of the highest mode at the slowest lane", 4.0, 10000.0),
+        S("free_vibration_periods", 2.0, "periods", "fundamental periods simulated after the last axle left", 0.0, 100.0),
+        S("ds_m", 0.0, "m", "train advance per step; 0 = from steps_per_period", 0.0, 10.0),
+        S("track_type", "ballasted", "", "ballasted (3.5 m/s^2) | direct_fastening (5 m/s^2), EN 1990 A2.4.4.2.1"),
+        S("warn_fraction", 0.8, "-", "/diagnostics WARN above this fraction of the acceleration limit", 0.0, 1.0),
+        S("monitor_speed_kmh", 0.0, "km/h", "lane shown on /adm/midspan/accel and /adm/beam/*: nearest speed; 0 = first lane",
+          0.0, 600.0),
+        S("monitor_every_steps", 8, "steps", "decimation of /clock, /adm/midspan/* (every n-th step)", 1, 1_000_000),
+        S("beam_every_steps", 32, "steps", "decimation of /adm/beam/*", 1, 1_000_000),
+        S("beam_points", 21, "-", "points along the span on /adm/beam/deflection", 2, 1000),
+        S("partner_timeout_s", 5.0, "s", "error when the train node sends nothing for this long during a run", 0.5, 600.0),
+    ]
+
+
+class BridgeNode(c.ParamNodeMixin, Node):
+    """Owns the modal beam; see the module docstring."""
+
+    def __init__(self, **kw):
+        super().__init__(c.BRIDGE_NODE, **kw)
+        from rcl_interfaces.msg import ParameterDescriptor
+
+        self.declare_parameter("bridge", "B1", ParameterDescriptor(
+            description="preset (B1..B4, spec 'L=15,n0=8.26,mu=19042,zeta_pct=1.85' or TOML file) giving the "
+                        "defaults of the numeric parameters", read_only=True))
+        self.preset = resolve_bridge(self.get_parameter("bridge").value)
+        specs = bridge_specs(self.preset)
+        self._preset_defaults = {s.name: s.default for s in specs}
+        self.declare_specs(specs)
+        self.bridge = self.build_bridge(self.param_values())  # validates the startup values
+        self.add_on_set_parameters_callback(self._on_set)
+        self.add_post_set_parameters_callback(lambda _p: self._publish_description())
+
+        self.pub_rail = self.create_publisher(Float64MultiArray, c.TOPIC_RAIL, c.QOS_EXCHANGE)
+        self.pub_ready = self.create_publisher(String, c.TOPIC_READY, c.QOS_CONTROL)
+        self.pub_result = self.create_publisher(Float64MultiArray, c.TOPIC_RESULT, c.QOS_CONTROL)
+        self.pub_status = self.create_publisher(String, c.TOPIC_STATUS, c.QOS_CONTROL)
+        self.pub_clock = self.create_publisher(Clock, c.TOPIC_CLOCK, c.QOS_MONITOR)
+        self.pub_accel = self.create_publisher(AccelStamped, c.TOPIC_ACCEL, c.QOS_MONITOR)
+        self.pub_state = self.create_publisher(Float64MultiArray, c.TOPIC_STATE, c.QOS_MONITOR)
+        self.pub_beam = self.create_publisher(Float64MultiArray, c.TOPIC_BEAM, c.QOS_MONITOR)
+        self.pub_axles = self.create_publisher(Float64MultiArray, c.TOPIC_AXLES, c.QOS_MONITOR)
+        self.pub_progress = self.create_publisher(String, c.TOPIC_PROGRESS, c.QOS_MONITOR)
+        self.pub_diag = self.create_publisher(DiagnosticArray, c.TOPIC_DIAGNOSTICS, c.QOS_CONTROL)
+        self.pub_desc = self.create_publisher(String, c.TOPIC_BRIDGE_DESC, c.QOS_LATCHED)
+        self.create_subscription(String, c.TOPIC_SETUP, self._on_setup, c.QOS_CONTROL)
+        self.fast_subscriptions = [
+            self.create_subscription(Float64MultiArray, c.TOPIC_FORCES, self._on_forces, c.QOS_EXCHANGE),
+            self.create_subscription(Float64MultiArray, c.TOPIC_AXLE_BLOCK, self._on_axle_block, c.QOS_EXCHANGE)]
+
+        self.run = None  # the active run (dict) or None
+        self.t_offset_s = 0.0  # sim time continues across runs
+        self.partner = c.PartnerWatch(self, c.TRAIN_NODE, c.TOPIC_FORCES,
+                                      self.get_parameter("partner_timeout_s").value)
+        self._publish_description()
+
+    # ------------------------------------------------------------------ parameters
+    def build_bridge(self, p):
+        """The :class:`Bridge` of the parameter values ``p``: the preset with the changed fields.
+
+        Raises :class:`InputError` naming the parameter, value, unit and range.
+        """
+        d = self._preset_defaults
+        kw = {}
+        if p["span_m"] != d["span_m"]:
+            kw["span_m"] = check_range("span_m", p["span_m"], "m", *SPAN_RANGE_M)
+        if p["EJ_Nm2"] != d["EJ_Nm2"]:
+            kw["EJ_Nm2"] = check_range("EJ_Nm2", p["EJ_Nm2"], "N m^2", 0.0, None, lo_open=True)
+        if p["mu_kg_m"] != d["mu_kg_m"]:
+            kw["mass_per_length_kg_m"] = check_range("mu_kg_m", p["mu_kg_m"], "kg/m", *MU_RANGE_KG_M)
+        if p["zeta_pct"] != d["zeta_pct"]:
+            kw["damping_ratio"] = check_range("zeta_pct", p["zeta_pct"], "%", 0.0, 20.0) / 100.0
+        if p["n_modes"] != d["n_modes"]:
+            kw["n_modes"] = int(p["n_modes"])
+        if p["damping_model"] not in ("rayleigh", "modal"):
+            raise InputError(f"damping_model: {p['damping_model']!r} is not allowed; allowed 'rayleigh' or 'modal'")
+        kw["damping_model"] = p["damping_model"]
+        b = dataclasses.replace(self.preset, **kw)
+        if p["n0_hz"] != 0.0:
+            n0 = check_range("n0_hz", p["n0_hz"], "Hz", *N0_RANGE_HZ)
+            b = Bridge.from_frequency(b.span_m, n0, b.mass_per_length_kg_m, b.damping_ratio, n_modes=b.n_modes,
+                                      damping_model=b.damping_model, name=b.name, bridge_type=b.bridge_type)
+        check_range("delta_zeta", p["delta_zeta"], "- (fraction)", -b.damping_ratio, 0.2)
+        for x in c.parse_float_list("delta_zeta_lanes", p["delta_zeta_lanes"], "- (fraction)"):
+            check_range("delta_zeta_lanes", x, "- (fraction)", -b.damping_ratio, 0.2)
+        if p["track_type"] not in TRACK_TYPES:
+            raise InputError(f"track_type: {p['track_type']!r} is not allowed; allowed {' or '.join(TRACK_TYPES)}")
+        self.step_options(p)
+        return b
+
+    @staticmethod
+    def step_options(p):
+        return StepOptions(steps_per_period=p["steps_per_period"], free_vibration_periods=p["free_vibration_periods"],
+                           ds_m=p["ds_m"] if p["ds_m"] > 0.0 else None)
+
+    def _on_set(self, params):
+        if self.run is not None:
+            return SetParametersResult(successful=False, reason=(
+                f"bridge: parameters are locked while run {self.run['id']} is in progress "
+                f"(step {self.run['side'].k} of {self.run['grid'].n_steps})"))
+        values = self.param_values()
+        values.update({p.name: p.value for p in params})
+        try:
+            self.bridge = self.build_bridge(values)
+        except InputError as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
+        if any(p.name == "partner_timeout_s" for p in params):
+            self.partner.timeout_s = float(values["partner_timeout_s"])
+        return SetParametersResult(successful=True)
+
+    def _publish_description(self):
+        b, p = self.bridge, self.param_values()
+        self.pub_desc.publish(c.json_msg({
+            "bridge": {"span_m": b.span_m, "EJ_Nm2": b.EJ_Nm2, "mass_per_length_kg_m": b.mass_per_length_kg_m,
+                       "damping_ratio": b.damping_ratio, "n_modes": b.n_modes, "damping_model": b.damping_model,
+                       "name": b.name, "bridge_type": b.bridge_type},
+            "description": b.describe(), "n0_hz": b.n0_hz,
+            "step": {"steps_per_period": p["steps_per_period"], "free_vibration_periods": p["free_vibration_periods"],
+                     "ds_m": p["ds_m"]},
+            "delta_zeta": p["delta_zeta"], "delta_zeta_lanes": p["delta_zeta_lanes"],
+            "track_type": p["track_type"], "acc_limit_m_s2": c.ACC_LIMITS_M_S2[p["track_type"]]}))
+
+    # ------------------------------------------------------------------ run set-up
+    def _on_setup(self, msg):
+        cfg = json.loads(msg.data)
+        if self.run is not None:
+            raise c.ExchangeError(f"bridge: run {cfg.get('run_id')} requested while run {self.run['id']} is active")
+        p = self.param_values()
+        try:
+            bridge = self.build_bridge(p)
+            v = np.asarray(cfg["speeds_m_s"], dtype=float)
+            grid = make_grid(bridge, float(cfg["train_length_m"]), v, self.step_options(p))
+            lanes = c.parse_float_list("delta_zeta_lanes", p["delta_zeta_lanes"], "- (fraction)")
+            if lanes.size and lanes.size != grid.n_lanes:
+                raise InputError(f"delta_zeta_lanes: {lanes.size} values for {grid.n_lanes} speed lanes; "
+                                 f"give one per lane or none")
+            dz = lanes if lanes.size else p["delta_zeta"]
+            dim = cfg["model"] == "dim"
+            side = BridgeSide(bridge, grid, np.asarray(cfg["axle_offsets_m"], dtype=float),
+                              np.asarray(cfg["wheel_mass_kg"], dtype=float) if dim else None, dz)
+        except (InputError, KeyError, ValueError) as exc:
+            self.pub_ready.publish(c.json_msg({"run_id": cfg.get("run_id"), "error": str(exc)}))
+            self._status(cfg.get("run_id"), "failed", message=str(exc))
+            self.get_logger().error(f"run {cfg.get('run_id')} rejected: {exc}")
+            return
+        speeds_kmh = np.asarray(cfg["speeds_kmh"], dtype=float)
+        mon = 0 if p["monitor_speed_kmh"] <= 0.0 else int(np.argmin(np.abs(speeds_kmh - p["monitor_speed_kmh"])))
+        xb = np.linspace(0.0, bridge.span_m, int(p["beam_points"]))
+        self.run = dict(
+            id=int(cfg["run_id"]), model=cfg["model"], grid=grid, side=side, bridge=bridge, speeds_kmh=speeds_kmh,
+            dz=np.broadcast_to(np.asarray(dz, dtype=float), (grid.n_lanes,)).copy(), lane=mon,
+            max_acc=np.zeros(grid.n_lanes), max_disp=np.zeros(grid.n_lanes), disp=None,
+            every=int(p["monitor_every_steps"]), beam_every=int(p["beam_every_steps"]),
+            x_beam=xb, phi_beam=bridge.shapes(xb)[0], limit=c.ACC_LIMITS_M_S2[p["track_type"]],
+            track=p["track_type"], warn=float(p["warn_fraction"]), tick=max(1, grid.n_steps // 100),
+            t0=self.t_offset_s, wall0=time.perf_counter())
+        self.pub_ready.publish(c.json_msg({
+            "run_id": self.run["id"], "ds_m": grid.ds_m, "n_steps": grid.n_steps, "span_m": bridge.span_m,
+            "n_lanes": grid.n_lanes, "t0_s": self.t_offset_s}))
+        self._status(self.run["id"], "started", model=cfg["model"], n_steps=grid.n_steps, n_lanes=grid.n_lanes,
+                     ds_m=grid.ds_m, bridge=bridge.describe(), train=cfg.get("train", ""))
+        self.get_logger().info(f"run {self.run['id']}: {cfg['model'].upper()} {bridge.describe()}, "
+                               f"{grid.n_lanes} lanes, {grid.n_steps} steps of {grid.ds_m * 1000:.2f} mm")
+        self._ask_partner()
+
+    # ------------------------------------------------------------------ lockstep
+    def _ask_partner(self):
+        """Publish the rail state for the current (step, stage) (MLM: a token for the next block)."""
+        r, side = self.run, self.run["side"]
+        k, stage = side.k, side.rk.stage
+        if r["model"] == "dim":
+            if stage == 0:
+                r["disp"] = side.midspan_displacement()
+            idx, w, wd = side.rail_state()
+            self.pub_rail.publish(c.pack(r["id"], k, stage, np.stack([w, wd]), ("field", "lane", "axle_on"), idx))
+            self.partner.waiting(f"at step {k} stage {stage} of run {r['id']}", c.TOPIC_FORCES)
+        else:
+            self.pub_rail.publish(c.pack(r["id"], k, 0, np.zeros((r["grid"].n_lanes, 0)), ("lane", "axle_on")))
+            self.partner.waiting(f"at step {k} of run {r['id']}", c.TOPIC_AXLE_BLOCK)
+
+    def _on_forces(self, msg):
+        r = self.run
+        if r is None or r["model"] != "dim":
+            raise c.ExchangeError("bridge: interaction forces received with no DIM run active")
+        side = r["side"]
+        run_id, k, stage, idx, G = c.unpack(msg)
+        c.check_step("bridge", (run_id, k, stage), (r["id"], side.k, side.rk.stage))
+        self.partner.clear()
+        side.take_forces(G)
+        if stage == 0:
+            self._step_done(k, r["disp"], side.last_acc)
+        if side.k >= r["grid"].n_steps:
+            self._finish()
+        else:
+            self._ask_partner()
+
+    def _on_axle_block(self, msg):
+        r = self.run
+        if r is None or r["model"] != "mlm":
+            raise c.ExchangeError("bridge: axle block received with no MLM run active")
+        side = r["side"]
+        run_id, k0, stage, _, block = c.unpack(msg)
+        c.check_step("bridge", (run_id, k0, stage), (r["id"], side.k, 0))
+        self.partner.clear()
+        n = (block.shape[0] - 2) // 2
+        P = c.modal_loads_from_positions(r["bridge"], block[:-1], block[-1])
+        for j in range(n):
+            k = side.k
+            disp = side.midspan_displacement()
+            side.step_mlm(P[2 * j], P[2 * j + 1], P[2 * j + 2])
+            self._step_done(k, disp, side.last_acc)
+        if side.k >= r["grid"].n_steps:
+            self._finish()
+        else:
+            self._ask_partner()
+
+    # ------------------------------------------------------------------ outputs
+    def _step_done(self, k, disp, acc):
+        """Bookkeeping after step ``k`` produced its midspan displacement and acceleration."""
+        r = self.run
+        np.maximum(r["max_acc"], np.abs(acc), out=r["max_acc"])
+        np.maximum(r["max_disp"], np.abs(disp), out=r["max_disp"])
+        if k % r["every"] == 0:
+            self._monitor(k, disp, acc)
+        if k % r["beam_every"] == 0:
+            self._beam(k)
+        if k % r["tick"] == 0:
+            self._progress(k + 1)
+
+    def _sim_time(self, k):
+        return self.t_offset_s + self.run["grid"].clock_time_s(k)
+
+    def _monitor(self, k, disp, acc):
+        r = self.run
+        t = self._sim_time(k)
+        stamp = c.to_time_msg(t)
+        self.pub_clock.publish(Clock(clock=stamp))
+        a = AccelStamped()
+        a.header.stamp = stamp
+        a.header.frame_id = "midspan"
+        a.accel.linear.z = float(acc[r["lane"]])
+        self.pub_accel.publish(a)
+        m = c.matrix_msg(None, ("lane", "quantity:disp_m,acc_m_s2"), np.column_stack([disp, acc]))
+        self.pub_state.publish(m)
+
+    def _beam(self, k):
+        r, side = self.run, self.run["side"]
+        q = side.q[r["lane"]]
+        w = r["phi_beam"] @ q
+        _, xa = side.axles_on(k, 0)
+        wa = r["bridge"].shapes(xa)[0] @ q if xa.size else np.zeros(0)
+        self.pub_beam.publish(c.matrix_msg(None, ("row:x_m,w_m", "point"), np.vstack([r["x_beam"], w])))
+        self.pub_axles.publish(c.matrix_msg(None, ("row:x_m,w_m", "axle_on"), np.vstack([xa, wa])))
+
+    def _progress(self, done):
+        r = self.run
+        n = r["grid"].n_steps
+        self.pub_progress.publish(c.json_msg({"run_id": r["id"], "model": r["model"], "step": done, "n_steps": n,
+                                              "sim_time_s": self._sim_time(min(done, n))}))
+        self._diagnostics(done, final=False)
+
+    def _diagnostics(self, done, final):
+        r = self.run
+        i = int(np.argmax(r["max_acc"]))
+        peak = float(r["max_acc"][i])
+        level = c.acc_level(peak, r["limit"], r["warn"])
+        word = {0: "within", 1: "near", 2: "above"}[level]
+        st = DiagnosticStatus(level=bytes([level]), name="adm_sim/bridge: deck acceleration",
+                              hardware_id=r["bridge"].name or "bridge",
+                              message=(f"max |a| {peak:.3f} m/s^2 at {r['speeds_kmh'][i]:g} km/h {word} the "
+                                       f"{r['limit']:g} m/s^2 limit ({r['track']} track, EN 1990 A2.4.4.2.1)"
+                                       f"{'' if final else ' so far'}"))
+        vals = {"run_id": r["id"], "model": r["model"], "max_acc_m_s2": peak, "speed_kmh": float(r["speeds_kmh"][i]),
+                "limit_m_s2": r["limit"], "track_type": r["track"], "step": done, "n_steps": r["grid"].n_steps,
+                "final": final}
+        st.values = [KeyValue(key=k, value=str(v)) for k, v in vals.items()]
+        arr = DiagnosticArray(status=[st])
+        arr.header.stamp = c.to_time_msg(self._sim_time(min(done, r["grid"].n_steps)))
+        self.pub_diag.publish(arr)
+
+    def _status(self, run_id, state, **extra):
+        self.pub_status.publish(c.json_msg({"node": "bridge", "run_id": run_id, "state": state, **extra}))
+
+    def _finish(self):
+        r = self.run
+        n = r["grid"].n_steps
+        self._progress(n)
+        self._diagnostics(n, final=True)
+        t1 = self._sim_time(n)
+        self.pub_clock.publish(Clock(clock=c.to_time_msg(t1)))
+        ok = bool(np.all(np.isfinite(r["max_acc"])))
+        res = np.vstack([r["speeds_kmh"], r["max_acc"], r["max_disp"], r["dz"]])
+        self.pub_result.publish(c.matrix_msg(None, ("quantity:" + ",".join(c.RESULT_ROWS), "lane"), res))
+        wall = time.perf_counter() - r["wall0"]
+        self._status(r["id"], "done" if ok else "failed", model=r["model"], n_steps=n, n_lanes=r["grid"].n_lanes,
+                     ds_m=r["grid"].ds_m, wall_s=wall, t0_s=r["t0"], t1_s=t1,
+                     message="" if ok else "solution is not finite: raise steps_per_period")
+        self.get_logger().info(f"run {r['id']} done in {wall:.2f} s: max |a| {np.max(r['max_acc']):.4f} m/s^2")
+        self.t_offset_s = t1
+        self.run = None
+        self.partner.clear()
+
+    # ------------------------------------------------------------------ supervision
+    def watch(self):
+        self.partner.check()
+
+    def report_failure(self, message):
+        rid = None if self.run is None else self.run["id"]
+        self._status(rid, "failed", message=message)
+
+
+def main(args=None):
+    return c.run_node(BridgeNode, args=args, name="bridge")
+
+
+if __name__ == "__main__":
+    sys.exit(main())

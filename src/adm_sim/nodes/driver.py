@@ -1,0 +1,364 @@
+"""Run driver node: requests runs of the bridge/train pair, records them (MCAP, rerun).
+
+:class:`RunDriver` is the client side of the node graph. From a worker thread (never inside a
+callback) :meth:`RunDriver.request_run` sets parameters on the bridge and train nodes through their
+parameter services, calls ``/train/start_run`` and blocks until ``/adm/run/result`` arrives; the
+executor keeps spinning in the main thread. While it runs it records every monitoring topic to
+an MCAP file (``record_path``) and logs the midspan histories, the deflected beam and the sweep
+curves to rerun (``rrd_path``, ``rerun_spawn``, ``rerun_connect``).
+
+``python -m adm_sim.nodes.driver --ros-args -p summary_path:=run.json`` runs one crossing or sweep
+with the train node's current parameters (``launch_scripts/crossing.py`` starts it).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import threading
+import time
+
+import numpy as np
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import AccelStamped
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import Float64MultiArray, String
+from std_srvs.srv import Trigger
+
+from adm_sim.errors import AdmSimError, InputError
+from adm_sim.nodes import common as c
+
+
+class RunError(AdmSimError):
+    """A requested run failed or its partner nodes went away."""
+
+
+#: Topics the driver records (topic, type); its own publications are recorded as it publishes.
+RECORDED = [(c.TOPIC_CLOCK, Clock), (c.TOPIC_ACCEL, AccelStamped), (c.TOPIC_STATE, Float64MultiArray),
+            (c.TOPIC_BEAM, Float64MultiArray), (c.TOPIC_AXLES, Float64MultiArray), (c.TOPIC_PROGRESS, String),
+            (c.TOPIC_DIAGNOSTICS, DiagnosticArray), (c.TOPIC_RESULT, Float64MultiArray), (c.TOPIC_STATUS, String),
+            (c.TOPIC_BRIDGE_DESC, String), (c.TOPIC_TRAIN_DESC, String)]
+
+DRIVER_SPECS = [
+    c.ParamSpec("record_path", "", "", "MCAP file to record to; empty = no recording"),
+    c.ParamSpec("rrd_path", "", "", "rerun .rrd file to write; empty = none"),
+    c.ParamSpec("rerun_spawn", False, "", "spawn a rerun viewer bound to 127.0.0.1"),
+    c.ParamSpec("rerun_connect", "", "", "stream to a rerun viewer at this loopback URL"),
+    c.ParamSpec("summary_path", "", "", "JSON summary of the run(s); empty = none"),
+    c.ParamSpec("run_timeout_s", 900.0, "s", "longest a single run may take", 1.0, 86400.0),
+    c.ParamSpec("chunk_size", 65536, "B", "MCAP chunk size (loss bound of a killed recorder)", 1024, 1 << 26),
+]
+
+
+def say(kind, **payload):
+    """One machine-readable progress line on stdout (``@kind {json}``) for launch scripts."""
+    print(f"@{kind} {json.dumps(payload)}", flush=True)
+
+
+class RunDriver(c.ParamNodeMixin, Node):
+    """Requests runs and records them; see the module docstring."""
+
+    def __init__(self, name="driver", extra_specs=(), **kw):
+        super().__init__(name, **kw)
+        self.declare_specs(list(DRIVER_SPECS) + list(extra_specs))
+        p = self.param_values()
+        self.finished = False
+        self.error = None
+        self.run = None  # the driver has no lockstep exchange of its own
+        self._lock = threading.Lock()
+        self._rec_lock = threading.Lock()
+        self._result = None
+        self._status = {}
+        self._event = threading.Event()
+        self._clock_ns = 0
+        self._desc = {}
+        self._beam = None
+        self._hist = {"t": [], "d": [], "a": []}
+        self._current = None  # (run_id, model, lane label)
+        self.recorder = None
+        if p["record_path"]:
+            from adm_sim.ros.mcap_log import McapRecorder
+
+            self.recorder = McapRecorder(p["record_path"], chunk_size=int(p["chunk_size"]), overwrite=True)
+        self.rerun = False
+        if p["rrd_path"] or p["rerun_spawn"] or p["rerun_connect"]:
+            from adm_sim.ros import rerun_log
+
+            rerun_log.init_rerun("adm_sim", spawn=bool(p["rerun_spawn"]), connect_url=p["rerun_connect"] or None,
+                                 save_path=p["rrd_path"] or None, overwrite=True)
+            self.rerun = True
+        for topic, typ in RECORDED:
+            qos = c.QOS_LATCHED if topic.endswith("description") else (
+                c.QOS_CONTROL if topic in (c.TOPIC_RESULT, c.TOPIC_STATUS, c.TOPIC_DIAGNOSTICS) else c.QOS_MONITOR)
+            self.create_subscription(typ, topic, self._make_cb(topic), qos)
+        self.cli_start = self.create_client(Trigger, f"/{c.TRAIN_NODE}/start_run")
+        self.params = {n: AsyncParameterClient(self, n) for n in (c.BRIDGE_NODE, c.TRAIN_NODE)}
+
+    # ------------------------------------------------------------------ subscriptions
+    def _make_cb(self, topic):
+        handler = getattr(self, "_on_" + topic.strip("/").replace("/", "_"), None)
+
+        def cb(msg):
+            stamp = getattr(getattr(msg, "header", None), "stamp", None)
+            if isinstance(msg, Clock):
+                self._clock_ns = msg.clock.sec * 1_000_000_000 + msg.clock.nanosec
+            t_ns = self._clock_ns if stamp is None else stamp.sec * 1_000_000_000 + stamp.nanosec
+            if self.recorder is not None:
+                with self._rec_lock:
+                    self.recorder.write(topic, msg, t_ns)
+            if handler is not None:
+                handler(msg, t_ns)
+
+        return cb
+
+    def publish_recorded(self, pub, topic, msg):
+        """Publish and record one of the driver's own messages at the current sim time."""
+        pub.publish(msg)
+        if self.recorder is not None:
+            with self._rec_lock:
+                self.recorder.write(topic, msg, self._clock_ns)
+
+    def _on_adm_run_result(self, msg, t_ns):
+        with self._lock:
+            self._result = c.matrix_from_msg(msg)
+        self._event.set()
+
+    def _on_adm_run_status(self, msg, t_ns):
+        st = json.loads(msg.data)
+        with self._lock:
+            self._status[(st.get("node"), st.get("run_id"))] = st
+        if st.get("state") == "failed":
+            self._event.set()
+
+    def _on_adm_bridge_description(self, msg, t_ns):
+        self._desc["bridge"] = json.loads(msg.data)
+
+    def _on_adm_train_description(self, msg, t_ns):
+        self._desc["train"] = json.loads(msg.data)
+
+    def _on_adm_progress(self, msg, t_ns):
+        pr = json.loads(msg.data)
+        say("progress", **pr)
+        if self.rerun:
+            self._flush_midspan()
+
+    def _on_adm_midspan_accel(self, msg, t_ns):
+        if self.rerun and self._current is not None:
+            h = self._hist
+            h["t"].append(t_ns * 1e-9)
+            h["a"].append(msg.accel.linear.z)
+
+    def _on_adm_beam_deflection(self, msg, t_ns):
+        self._beam = c.matrix_from_msg(msg)
+
+    def _on_adm_beam_axles(self, msg, t_ns):
+        if self.rerun and self._beam is not None:
+            from adm_sim.ros import rerun_log
+
+            ax = c.matrix_from_msg(msg)
+            rerun_log.log_beam(self._clock_ns * 1e-9, self._beam[0], self._beam[1], ax[0], ax[1], exaggeration=500.0)
+
+    def _flush_midspan(self):
+        h = self._hist
+        if not h["t"] or self._current is None:
+            return
+        from adm_sim.ros import rerun_log
+
+        rerun_log.log_midspan(np.array(h["t"]), None, np.array(h["a"]), self._current[2])
+        h["t"].clear()
+        h["a"].clear()
+
+    # ------------------------------------------------------------------ descriptions
+    def description(self, which, timeout_s=10.0):
+        """Latched description of the bridge or train node (JSON dict)."""
+        t_end = time.monotonic() + timeout_s
+        while which not in self._desc:
+            if time.monotonic() > t_end:
+                raise RunError(f"no {which} description on /adm/{which}/description after {timeout_s:g} s: "
+                               f"is the {which} node running?")
+            self._event.wait(0.05)
+        return self._desc[which]
+
+    # ------------------------------------------------------------------ blocking calls (worker thread)
+    def _wait_future(self, fut, what, timeout_s=10.0):
+        done = threading.Event()
+        fut.add_done_callback(lambda _f: done.set())
+        if not done.wait(timeout_s):
+            raise RunError(f"{what}: no answer after {timeout_s:g} s")
+        return fut.result()
+
+    def set_params(self, node_name, **values):
+        """Set parameters on ``bridge`` or ``train``; raises :class:`InputError` with the node's reason."""
+        if not values:
+            return
+        cli = self.params[node_name]
+        if not cli.wait_for_services(timeout_sec=10.0):
+            raise RunError(f"parameter services of node '{node_name}' not available")
+        plist = [Parameter(k, value=v) for k, v in values.items()]
+        res = self._wait_future(cli.set_parameters(plist), f"set parameters on '{node_name}'")
+        for p, r in zip(plist, res.results):
+            if not r.successful:
+                raise InputError(f"{node_name}: {r.reason}")
+
+    def wait_for_graph(self, timeout_s=30.0):
+        """Block until both nodes, their services and the result topic are there."""
+        t_end = time.monotonic() + timeout_s
+        while not (self.cli_start.service_is_ready() and self.count_publishers(c.TOPIC_RESULT) > 0):
+            if time.monotonic() > t_end:
+                raise RunError(f"bridge/train nodes not found after {timeout_s:g} s")
+            self._event.wait(0.05)
+
+    def _check_alive(self):
+        names = set(self.get_node_names())
+        for n in (c.BRIDGE_NODE, c.TRAIN_NODE):
+            if n not in names:
+                raise RunError(f"node '{n}' vanished during run {self._current[0] if self._current else '?'}")
+
+    def request_run(self, model=None, speeds_kmh=None, delta_zeta=None, delta_zeta_lanes=None, label=None):
+        """One co-simulated run; returns ``{"speeds_kmh", "max_acc_m_s2", "max_disp_m", "delta_zeta", ...}``.
+
+        ``None`` leaves the node's current parameter; ``speeds_kmh`` may be an array (sent as an
+        exact comma list), ``delta_zeta_lanes`` an array with one value per lane.
+        """
+        tp, bp = {}, {}
+        if model is not None:
+            tp["model"] = model
+        if speeds_kmh is not None:
+            tp["speeds_kmh"] = speeds_kmh if isinstance(speeds_kmh, str) else c.format_float_list(speeds_kmh)
+        if delta_zeta is not None:
+            bp["delta_zeta"] = float(delta_zeta)
+        if delta_zeta_lanes is not None:
+            bp["delta_zeta_lanes"] = "" if len(delta_zeta_lanes) == 0 else c.format_float_list(delta_zeta_lanes)
+        self.set_params(c.TRAIN_NODE, **tp)
+        self.set_params(c.BRIDGE_NODE, **bp)
+        with self._lock:
+            self._result = None
+        self._event.clear()
+        t_end = time.monotonic() + 15.0
+        while True:
+            resp = self._wait_future(self.cli_start.call_async(Trigger.Request()), "/train/start_run")
+            if resp.success:
+                break
+            if "retry" not in resp.message or time.monotonic() > t_end:
+                raise RunError(f"/train/start_run refused: {resp.message}")
+            self._event.wait(0.1)
+        info = dict(kv.split("=", 1) for kv in resp.message.split())
+        run_id, model = int(info["run_id"]), info["model"]
+        t0 = time.perf_counter()
+        timeout = self.get_parameter("run_timeout_s").value
+        lab = label or model.upper()
+        self._current = (run_id, model, f"{lab} run {run_id}")
+        say("run", run_id=run_id, model=model, lanes=int(info["lanes"]), state="started", label=lab)
+        last_check = time.monotonic()
+        while True:
+            self._event.wait(0.2)
+            with self._lock:
+                res = self._result
+                failed = [s for (n, rid), s in self._status.items() if rid == run_id and s.get("state") == "failed"]
+            if failed:
+                raise RunError(f"run {run_id} failed on node '{failed[0]['node']}': {failed[0].get('message', '')}")
+            if res is not None:
+                break
+            self._event.clear()
+            if time.monotonic() - last_check > 1.0:
+                self._check_alive()
+                last_check = time.monotonic()
+            if time.perf_counter() - t0 > timeout:
+                raise RunError(f"run {run_id} took longer than run_timeout_s = {timeout:g} s")
+        wall = time.perf_counter() - t0
+        if self.rerun:
+            from adm_sim.ros import rerun_log
+
+            self._flush_midspan()
+            rerun_log.log_sweep_curve(lab, res[0], res[1])
+        self._current = None
+        out = {"run_id": run_id, "model": model, "speeds_kmh": res[0], "max_acc_m_s2": res[1],
+               "max_disp_m": res[2], "delta_zeta": res[3], "wall_s": wall}
+        i = int(np.argmax(res[1]))
+        say("run", run_id=run_id, model=model, state="done", wall_s=round(wall, 3),
+            max_acc_m_s2=float(res[1][i]), speed_kmh=float(res[0][i]), label=lab)
+        return out
+
+    # ------------------------------------------------------------------ the driver's own job
+    def job(self):
+        """One run with the train node's current parameters; writes ``summary_path``."""
+        self.wait_for_graph()
+        r = self.request_run()
+        summary = {"run_id": r["run_id"], "model": r["model"], "bridge": self.description("bridge")["description"],
+                   "train": self.description("train")["name"], "speeds_kmh": r["speeds_kmh"].tolist(),
+                   "max_acc_m_s2": r["max_acc_m_s2"].tolist(), "max_disp_m": r["max_disp_m"].tolist(),
+                   "wall_s": r["wall_s"]}
+        return summary
+
+    def write_summary(self, summary):
+        path = self.get_parameter("summary_path").value
+        if path:
+            with open(path, "w") as f:
+                json.dump(summary, f, indent=2)
+        say("result", **{k: v for k, v in summary.items() if k != "curves"})
+
+    def start_job(self):
+        """Run :meth:`job` in a worker thread; the node finishes when it returns."""
+        def work():
+            try:
+                self.write_summary(self.job())
+            except Exception as exc:  # reported by main(); the process exits non-zero
+                self.error = exc
+            finally:
+                self.finished = True
+
+        threading.Thread(target=work, name="driver-job", daemon=True).start()
+
+    def watch(self):
+        pass
+
+    def close(self):
+        if self.recorder is not None:
+            with self._rec_lock:
+                self.recorder.finish()
+        if self.rerun:
+            from adm_sim.ros import rerun_log
+
+            rerun_log.close_rerun()
+
+
+def run_driver(make_node, args=None, name="driver"):
+    """``main`` of a driver: spin in the main thread, the job in a worker thread."""
+    import rclpy
+    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+
+    rclpy.init(args=args)
+    node = None
+    code = 0
+    try:
+        node = make_node()
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        node.start_job()
+        while rclpy.ok() and not node.finished:
+            executor.spin_once(timeout_sec=0.1)
+        if node.error is not None:
+            print(f"error: {name}: {node.error}", file=sys.stderr, flush=True)
+            code = 2
+    except (KeyboardInterrupt, ExternalShutdownException):
+        code = 130
+    except AdmSimError as exc:
+        print(f"error: {name}: {exc}", file=sys.stderr, flush=True)
+        code = 2
+    finally:
+        if node is not None:
+            node.close()
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return code
+
+
+def main(args=None):
+    return run_driver(RunDriver, args=args, name="driver")
+
+
+if __name__ == "__main__":
+    sys.exit(main())

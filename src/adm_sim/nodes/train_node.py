@@ -1,0 +1,194 @@
+"""Train node: the vehicles (:class:`adm_sim.stepping.TrainSide`) in lockstep with the bridge node.
+
+A run starts with the ``~/start_run`` service (std_srvs/Trigger): the node validates its
+parameters, publishes the run set-up (``/adm/run/setup``: speeds, axle offsets, loads and wheelset
+masses) and waits for the bridge's grid (``/adm/run/ready``). Then
+
+* DIM: for every RK4 stage it answers the rail state under its axles (``/adm/exchange/rail``)
+  with the interaction forces ``G = F - F_k1 - F_c1`` (``/adm/exchange/forces``);
+* MLM: it answers each request of the bridge with the axle positions at the half-step points of
+  a block of ``mlm_block_steps`` steps and the axle loads (``/adm/exchange/axle_block``); the
+  MLM needs no feedback from the bridge.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+
+import numpy as np
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.node import Node
+from std_msgs.msg import Float64MultiArray, String
+from std_srvs.srv import Trigger
+
+from adm_sim.errors import InputError
+from adm_sim.nodes import common as c
+from adm_sim.stepping import Grid, TrainSide, speeds_to_m_s
+from adm_sim.sweep import MODELS, parse_speeds
+from adm_sim.trains import load_train
+
+TRAIN_SPECS = [
+    c.ParamSpec("train", "ICE-2", "", "train name (ICE-2, Eurostar, Railjet, ICE-4, Eurostar-table) or TOML file"),
+    c.ParamSpec("model", "dim", "", "dim (Detailed Interaction Model) | mlm (Moving Load Model)"),
+    c.ParamSpec("speeds_kmh", "160:350:1", "km/h", "speed lanes: start:stop:step (stop included) or a comma list"),
+    c.ParamSpec("mlm_block_steps", 2048, "steps", "MLM: steps per axle-position block", 1, 10_000_000),
+    c.ParamSpec("partner_timeout_s", 5.0, "s", "error when the bridge node sends nothing for this long during a run",
+                0.5, 600.0),
+]
+
+
+class TrainNode(c.ParamNodeMixin, Node):
+    """Owns the vehicles; see the module docstring."""
+
+    def __init__(self, **kw):
+        super().__init__(c.TRAIN_NODE, **kw)
+        self.declare_specs(TRAIN_SPECS)
+        self.train = self._validate(self.param_values())[0]
+        self.add_on_set_parameters_callback(self._on_set)
+        self.add_post_set_parameters_callback(lambda _p: self._publish_description())
+        self.pub_setup = self.create_publisher(String, c.TOPIC_SETUP, c.QOS_CONTROL)
+        self.pub_forces = self.create_publisher(Float64MultiArray, c.TOPIC_FORCES, c.QOS_EXCHANGE)
+        self.pub_block = self.create_publisher(Float64MultiArray, c.TOPIC_AXLE_BLOCK, c.QOS_EXCHANGE)
+        self.pub_status = self.create_publisher(String, c.TOPIC_STATUS, c.QOS_CONTROL)
+        self.pub_desc = self.create_publisher(String, c.TOPIC_TRAIN_DESC, c.QOS_LATCHED)
+        self.create_subscription(String, c.TOPIC_READY, self._on_ready, c.QOS_CONTROL)
+        self.fast_subscriptions = [
+            self.create_subscription(Float64MultiArray, c.TOPIC_RAIL, self._on_rail, c.QOS_EXCHANGE)]
+        self.create_service(Trigger, "~/start_run", self._on_start)
+        self.run = None
+        self._pending = []  # rail messages that arrived before /adm/run/ready
+        self.next_run_id = 1
+        self.partner = c.PartnerWatch(self, c.BRIDGE_NODE, c.TOPIC_RAIL, self.get_parameter("partner_timeout_s").value)
+        self._publish_description()
+
+    # ------------------------------------------------------------------ parameters
+    @staticmethod
+    def _validate(p):
+        train = load_train(p["train"])
+        if p["model"] not in MODELS:
+            raise InputError(f"model: {p['model']!r} is not allowed; allowed 'mlm' or 'dim'")
+        if p["model"] == "dim" and not train.units:
+            raise InputError(f"model: 'dim' needs vehicles; train {train.name!r} is a load train (use 'mlm')")
+        speeds = parse_speeds(p["speeds_kmh"])
+        return train, speeds
+
+    def _on_set(self, params):
+        if self.run is not None:
+            return SetParametersResult(successful=False, reason=(
+                f"train: parameters are locked while run {self.run['id']} is in progress"))
+        values = self.param_values()
+        values.update({p.name: p.value for p in params})
+        try:
+            self.train = self._validate(values)[0]
+        except InputError as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
+        if any(p.name == "partner_timeout_s" for p in params):
+            self.partner.timeout_s = float(values["partner_timeout_s"])
+        return SetParametersResult(successful=True)
+
+    def _publish_description(self):
+        t = self.train
+        self.pub_desc.publish(c.json_msg({"train": self.get_parameter("train").value, "name": t.name,
+                                          "description": t.describe(), "length_m": t.length_m,
+                                          "n_axles": t.n_axles, "model": self.get_parameter("model").value,
+                                          "speeds_kmh": self.get_parameter("speeds_kmh").value}))
+
+    # ------------------------------------------------------------------ run control
+    def _on_start(self, request, response):
+        if self.run is not None:
+            response.success, response.message = False, f"run {self.run['id']} is in progress"
+            return response
+        missing = [t for t, n in ((c.TOPIC_SETUP, self.count_subscribers(c.TOPIC_SETUP)),
+                                  (c.TOPIC_RAIL, self.count_publishers(c.TOPIC_RAIL))) if n == 0]
+        if missing:
+            response.success = False
+            response.message = f"bridge node not connected yet (nothing on {', '.join(missing)}); retry"
+            return response
+        p = self.param_values()
+        try:
+            train, speeds = self._validate(p)
+        except InputError as exc:
+            response.success, response.message = False, str(exc)
+            return response
+        run_id = self.next_run_id
+        self.next_run_id += 1
+        v = speeds_to_m_s(speeds)
+        dim = p["model"] == "dim"
+        self.run = dict(id=run_id, model=p["model"], train=train, v=v, side=None, grid=None,
+                        block=int(p["mlm_block_steps"]), k=0, stage=0)
+        self._pending = []
+        self.pub_setup.publish(c.json_msg({
+            "run_id": run_id, "model": p["model"], "train": train.name, "speeds_kmh": speeds.tolist(),
+            "speeds_m_s": v.tolist(), "train_length_m": train.length_m, "axle_offsets_m": train.axle_offsets_m.tolist(),
+            "axle_loads_n": train.axle_loads_n.tolist(),
+            "wheel_mass_kg": train.wheel_mass_kg.tolist() if dim else None}))
+        self.partner.waiting(f"before run {run_id} started", c.TOPIC_READY)
+        response.success = True
+        response.message = f"run_id={run_id} model={p['model']} lanes={v.size} train={train.name}"
+        return response
+
+    def _on_ready(self, msg):
+        cfg = json.loads(msg.data)
+        r = self.run
+        if r is None or cfg.get("run_id") != r["id"]:
+            return  # another run's answer (e.g. a rejected request)
+        if "error" in cfg:
+            self.get_logger().error(f"run {r['id']} rejected by the bridge: {cfg['error']}")
+            self.pub_status.publish(c.json_msg({"node": "train", "run_id": r["id"], "state": "failed",
+                                                "message": cfg["error"]}))
+            self.run = None
+            self.partner.clear()
+            return
+        r["grid"] = Grid(speeds_m_s=r["v"], ds_m=float(cfg["ds_m"]), n_steps=int(cfg["n_steps"]))
+        if r["model"] == "dim":
+            r["side"] = TrainSide(r["train"], r["grid"], float(cfg["span_m"]))
+        self.partner.waiting(f"at step 0 of run {r['id']}", c.TOPIC_RAIL)
+        pending, self._pending = self._pending, []
+        for m in pending:
+            self._on_rail(m)
+
+    def _on_rail(self, msg):
+        r = self.run
+        if r is None:
+            raise c.ExchangeError("train: rail state received with no run active")
+        if r["grid"] is None:
+            self._pending.append(msg)
+            return
+        run_id, k, stage, idx, payload = c.unpack(msg)
+        c.check_step("train", (run_id, k, stage), (r["id"], r["k"], r["stage"]))
+        self.partner.clear()
+        n = r["grid"].n_steps
+        if r["model"] == "dim":
+            G = r["side"].take_rail_state(idx, payload[0], payload[1])
+            self.pub_forces.publish(c.pack(run_id, k, stage, G, ("lane", "axle_on"), idx))
+            r["stage"] = (stage + 1) % 4
+            r["k"] = k + (stage == 3)
+        else:
+            b = min(r["block"], n - k)
+            x = c.axle_positions(r["grid"].ds_m, r["train"].axle_offsets_m, k, b)
+            block = np.vstack([x, r["train"].axle_loads_n[None, :]])
+            self.pub_block.publish(c.pack(run_id, k, 0, block, ("row:positions_m(2n+1),loads_n", "axle")))
+            r["k"] = k + b
+        if r["k"] >= n:
+            self.pub_status.publish(c.json_msg({"node": "train", "run_id": r["id"], "state": "done"}))
+            self.run = None
+            self.partner.clear()
+        else:
+            self.partner.waiting(f"at step {r['k']} stage {r['stage']} of run {r['id']}", c.TOPIC_RAIL)
+
+    # ------------------------------------------------------------------ supervision
+    def watch(self):
+        self.partner.check()
+
+    def report_failure(self, message):
+        rid = None if self.run is None else self.run["id"]
+        self.pub_status.publish(c.json_msg({"node": "train", "run_id": rid, "state": "failed", "message": message}))
+
+
+def main(args=None):
+    return c.run_node(TrainNode, args=args, name="train")
+
+
+if __name__ == "__main__":
+    sys.exit(main())
