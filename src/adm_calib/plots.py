@@ -74,6 +74,9 @@ def plot_total_damping(table, path):
                 else:
                     ax.bar(x, dz, bottom=zeta, width=width, color=COLOURS[approach], edgecolor="0.3", lw=0.4,
                            label=approach if j == 0 else None)
+        tops = [table.zeta_pct[b] + max([0.0] + [table.value(a, train, b) or 0.0 for a in APPROACHES])
+                for b in bridges]
+        ax.set_ylim(0.0, 1.3 * max(tops))
         ax.set_xticks(range(len(bridges)), bridges)
         ax.set_ylabel("zeta_tot = zeta + dz (%)")
         ax.set_title(train)

@@ -159,6 +159,12 @@ class _Rk4State:
         self._sx = self.x
         self._sxd = self.xd
 
+    def reset(self, x, xd):
+        """Start a step from the given state (copies)."""
+        self.x, self.xd = np.array(x), np.array(xd)
+        self._sx, self._sxd = self.x, self.xd
+        self.stage = 0
+
     def stage_state(self):
         """``(x, xd)`` at the current stage."""
         return self._sx, self._sxd
@@ -246,7 +252,7 @@ class BridgeSide:
         return idx, x[idx]
 
     def _shapes(self):
-        key = (self.k, RK4_C[self.rk.stage])
+        key = 2 * self.k + int(2 * RK4_C[self.rk.stage])  # half-step index: end of k = start of k+1
         hit = self._stage_cache.get(key)
         if hit is None:
             idx, x = self.axles_on()
@@ -373,17 +379,25 @@ class TrainSide:
             self._units.append((slice(start, start + len(m.M)), axles, m))
             start += len(m.M)
         self.n_dof = start
-        self.rk = _Rk4State(grid.dt_s, grid.n_lanes, self.n_dof)
+        # offsets of each unit's first and last axle: the unit acts on the bridge while
+        # front - last_offset <= L and front - first_offset >= 0
+        self._first = np.array([self.offsets[ax].min() for _, ax, _ in self._units])
+        self._last = np.array([self.offsets[ax].max() for _, ax, _ in self._units])
+        self.x = np.zeros((grid.n_lanes, self.n_dof))  # displacements (m, rad)
+        self.xd = np.zeros((grid.n_lanes, self.n_dof))  # velocities
+        self.rk = None  # RK4 state of the active DOFs during the current step
         self.k = 0
         self._active_cache = {}
+        self._step_active = None
         self.last_forces = None
 
     def _active(self):
         """Assembled matrices of the units active during step k (cached by unit set)."""
-        lo = self.grid.front_m(self.k) - self.offsets
-        hi = self.grid.front_m(self.k, 3) - self.offsets
-        on = (hi >= 0.0) & (lo <= self.span)
-        units = tuple(i for i, (_, ax, _) in enumerate(self._units) if on[ax].any())
+        if self._step_active is not None:
+            return self._step_active
+        lo = self.grid.front_m(self.k)
+        hi = self.grid.front_m(self.k, 3)
+        units = tuple(np.flatnonzero((hi - self._first >= 0.0) & (lo - self._last <= self.span)).tolist())
         hit = self._active_cache.get(units)
         if hit is None:
             dofs = np.concatenate([np.arange(self.n_dof)[self._units[i][0]] for i in units]) if units else np.zeros(0, int)
@@ -404,6 +418,9 @@ class TrainSide:
                 a += nax
             hit = (dofs, axles, Ks.T.copy(), Cs.T.copy(), Lw, Lw.T.copy(), kp, cp, minv)
             self._active_cache[units] = hit
+        self._step_active = hit
+        self.rk = _Rk4State(self.grid.dt_s, self.grid.n_lanes, len(hit[0]))
+        self.rk.reset(self.x[:, hit[0]], self.xd[:, hit[0]])
         return hit
 
     def take_rail_state(self, idx_on, w, wd):
@@ -422,8 +439,7 @@ class TrainSide:
             Interaction forces ``F_i - F_k1,i - F_c1,i`` (N) for the bridge.
         """
         dofs, axles, KsT, CsT, Lw, LwT, kp, cp, minv = self._active()
-        x, xd = self.rk.stage_state()
-        u, ud = x[:, dofs], xd[:, dofs]
+        u, ud = self.rk.stage_state()
         # rail state under every axle of the active units (rigid track off the bridge)
         pos = np.searchsorted(axles, idx_on)
         W = np.zeros((self.grid.n_lanes, len(axles)))
@@ -433,13 +449,12 @@ class TrainSide:
         zb, zbd = u @ LwT, ud @ LwT
         f = kp * (W - zb) + cp * (Wd - zbd)  # primary stage force on the bogies (Eq. 7 terms)
         udd = (f @ Lw - u @ KsT - ud @ CsT) * minv
-        dx = np.zeros_like(x)
-        dxd = np.zeros_like(xd)
-        dx[:, dofs] = ud
-        dxd[:, dofs] = udd
         G = self.train.axle_loads_n[idx_on] - f[:, pos]
         self.last_forces = G
-        if self.rk.push(dx, dxd):
+        if self.rk.push(ud, udd):
+            self.x[:, dofs] = self.rk.x
+            self.xd[:, dofs] = self.rk.xd
+            self._step_active = None
             self.k += 1
         return G
 

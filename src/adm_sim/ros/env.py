@@ -288,50 +288,79 @@ def _in_use() -> set[str]:
     return used
 
 
+def _base(name: str) -> str:
+    """Segment a Fast DDS /dev/shm file belongs to: ``sem.X_mutex``, ``X_el``, ``X_sl`` -> ``X``."""
+    if name.startswith("sem.") and name.endswith("_mutex"):
+        return name[4:-6]
+    if name.endswith(("_el", "_sl")):
+        return name[:-3]
+    return name
+
+
+def _live_segments(present: dict, locked: set[int], mapped: set[str]) -> set[str]:
+    """Segments whose owner is alive: Fast DDS holds an ``flock`` on ``<segment>_el`` (data and
+    port segments) or ``<segment>_sl`` (shared port) for the owner's lifetime; a segment without
+    any lock file counts as alive while some live process maps it."""
+    live, has_lock_file = set(), set()
+    for name, entry in present.items():
+        if name.endswith(("_el", "_sl")):
+            has_lock_file.add(name[:-3])
+            try:
+                if entry.inode() in locked:
+                    live.add(name[:-3])
+            except OSError:
+                continue
+    for name in mapped:
+        if _base(name) not in has_lock_file:
+            live.add(_base(name))
+    return live
+
+
 def cleanup_shm(pids, owned: dict[int, set[str]] | None = None) -> list[str]:
     """Remove Fast DDS shared-memory files left in /dev/shm by killed processes.
 
-    A process killed with SIGKILL leaves its data segment ``fastrtps_<hex>`` (about 0.5 MB) and its
-    lock file ``..._el``; port segments are cleaned by the next participant that starts.
+    A process killed with SIGKILL leaves its data segment ``fastrtps_<hex>`` (about 0.5 MB) with
+    its lock file ``..._el``, and may leave port segments ``fastrtps_port<N>`` that the next
+    participant cleans. A segment is alive while its owner holds the ``flock`` on
+    ``<segment>_el`` / ``_sl`` (listed in /proc/locks); such a segment, and everything of it, is
+    never removed. Unlinking a dead segment that a live peer still maps is safe: the mapping stays
+    valid until the peer drops it.
 
     Parameters
     ----------
     pids : iterable of int
-        Ids of the processes that were killed. Ids of processes still alive are ignored.
+        Ids of the processes that were killed. Processes still alive are ignored.
     owned : dict or None
-        ``pid -> names`` recorded with :func:`shm_files_of` while the processes ran. Without it
-        (Fast DDS names carry no pid), the files taken as theirs are the data segments
-        ``fastrtps_<16 hex>`` (with ``_el``/``_sl``) and ``fast_datasharing_*`` that no live
-        process maps, holds open or locks.
+        ``pid -> names`` recorded with :func:`shm_files_of` while the processes ran: then only
+        the dead segments among those (data and port segments, with their lock and mutex files)
+        are removed. Without it (Fast DDS names carry no pid), the data segments
+        ``fastrtps_<16 hex>`` and ``fast_datasharing_*`` whose owner is dead are removed, with
+        their lock files; port segments are left to Fast DDS.
 
     Returns
     -------
     list of str
-        Names of the removed files, sorted. A file mapped, open or locked by any live process is
-        never removed, so another live run's segments are safe.
+        Names of the removed files, sorted.
     """
     dead = [int(p) for p in pids if not _pid_alive(int(p))]
     if not dead or not SHM_DIR.is_dir():
         return []
     present = {e.name: e for e in os.scandir(SHM_DIR) if _FASTDDS_SHM.match(e.name)}
     if owned is not None:
-        candidates = set()
+        bases = set()
         for pid in dead:
-            candidates |= set(owned.get(pid, ()))
-        candidates &= present.keys()
+            bases |= {_base(n) for n in owned.get(pid, ())}
     else:
-        candidates = {n for n in present if _DATA_SEGMENT.match(n)}
-    if not candidates:
+        bases = {_base(n) for n in present if _DATA_SEGMENT.match(n)}
+    if not bases:
         return []
-    used = _in_use()
-    locked = _locked_inodes()
+    live = _live_segments(present, _locked_inodes(), _in_use())
     removed = []
-    for name in sorted(candidates - used):
-        try:
-            if present[name].inode() in locked:
+    for name in sorted(present):
+        if _base(name) in bases and _base(name) not in live:
+            try:
+                os.unlink(SHM_DIR / name)
+                removed.append(name)
+            except FileNotFoundError:
                 continue
-            os.unlink(SHM_DIR / name)
-            removed.append(name)
-        except FileNotFoundError:
-            continue
     return removed

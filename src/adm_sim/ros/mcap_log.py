@@ -29,6 +29,7 @@ from adm_sim.errors import InputError
 
 __all__ = [
     "McapRecorder",
+    "exact_cdr",
     "main",
     "message_definition",
     "read_messages",
@@ -127,6 +128,95 @@ def message_definition(msg_type) -> tuple[str, str]:
     return f"{pkg}/msg/{name}", _DEFINITIONS[key]
 
 
+# ---------------------------------------------------------------- exact CDR length
+#
+# rmw_fastrtps' rmw_serialize reports the *estimated* size as the buffer length. For an empty
+# sequence of 8-byte elements (e.g. JointState.velocity = []) the estimate exceeds the payload by
+# up to 8 bytes of uninitialised memory, which strict readers (rosbags: "CDR message size
+# mismatch") reject. Types that can carry such a sequence get their payload trimmed to the exact
+# XCDR1 length computed here (OMG DDS-XTypes 7.4.1: primitives aligned to their size, at most 8;
+# strings and sequences prefixed by a 4-byte-aligned uint32 length).
+
+_PRIM_SIZE = {
+    "boolean": 1, "octet": 1, "char": 1, "int8": 1, "uint8": 1, "int16": 2, "uint16": 2,
+    "wchar": 2, "int32": 4, "uint32": 4, "float": 4, "int64": 8, "uint64": 8, "double": 8,
+}
+
+
+def _align(pos: int, n: int) -> int:
+    return (pos + n - 1) & ~(n - 1)
+
+
+def _nested_class(t):
+    import importlib
+
+    return getattr(importlib.import_module(".".join(t.namespaces)), t.name)
+
+
+def _size_of(t, value, pos: int) -> int:
+    from rosidl_parser import definition as d
+
+    if isinstance(t, d.BasicType):
+        n = _PRIM_SIZE[t.typename]
+        return _align(pos, n) + n
+    if isinstance(t, d.AbstractString):
+        return _align(pos, 4) + 4 + len(value.encode()) + 1
+    if isinstance(t, d.NamespacedType):
+        return _body_size(value, pos)
+    if isinstance(t, d.AbstractNestedType):  # Array, UnboundedSequence, BoundedSequence
+        if not isinstance(t, d.Array):
+            pos = _align(pos, 4) + 4
+        vt = t.value_type
+        count = len(value)
+        if isinstance(vt, d.BasicType):
+            if count:
+                n = _PRIM_SIZE[vt.typename]
+                pos = _align(pos, n) + n * count
+            return pos
+        for item in value:
+            pos = _size_of(vt, item, pos)
+        return pos
+    raise TypeError(f"no CDR size rule for {t!r}")
+
+
+def _body_size(msg, pos: int) -> int:
+    for field, ft in zip(msg.__slots__, msg.SLOT_TYPES):
+        pos = _size_of(ft, getattr(msg, field), pos)
+    return pos
+
+
+def _needs_trim(msg_type, _seen=None) -> bool:
+    """Whether ``msg_type`` has (at any depth) a sequence of 8-byte or nested elements."""
+    from rosidl_parser import definition as d
+
+    seen = set() if _seen is None else _seen
+    if msg_type in seen:
+        return False
+    seen.add(msg_type)
+    for t in msg_type.SLOT_TYPES:
+        while isinstance(t, d.AbstractNestedType):
+            if isinstance(t, d.AbstractSequence):
+                vt = t.value_type
+                if isinstance(vt, d.NamespacedType) or (
+                        isinstance(vt, d.BasicType) and _PRIM_SIZE[vt.typename] == 8):
+                    return True
+            t = t.value_type
+        if isinstance(t, d.AbstractWString):
+            return False  # no exact rule; keep rclpy's buffer as it is
+        if isinstance(t, d.NamespacedType) and _needs_trim(_nested_class(t), seen):
+            return True
+    return False
+
+
+def exact_cdr(msg, data: bytes) -> bytes:
+    """``data`` (rclpy-serialised ``msg``) cut to its exact CDR length (4-byte header + body)."""
+    try:
+        n = 4 + _body_size(msg, 0)
+    except (TypeError, KeyError, AttributeError):
+        return data
+    return data[:n] if n <= len(data) else data
+
+
 # ---------------------------------------------------------------- writing
 
 
@@ -209,6 +299,7 @@ class McapRecorder:
         self._writer.start(profile="ros2", library="adm-sim mcap_log")
         self._schemas: dict[type, int] = {}
         self._channels: dict[str, tuple[int, type]] = {}
+        self._trim: dict[type, bool] = {}
         self._sequence: dict[int, int] = {}
         self._finished = False
         self.message_count = 0
@@ -277,7 +368,13 @@ class McapRecorder:
         else:
             self._check_open()
             channel_id = known[0]
-        self._add(channel_id, self._serialize(msg), log_time_ns, publish_time_ns)
+        data = self._serialize(msg)
+        trim = self._trim.get(type(msg))
+        if trim is None:
+            trim = self._trim[type(msg)] = _needs_trim(type(msg))
+        if trim:
+            data = exact_cdr(msg, data)
+        self._add(channel_id, data, log_time_ns, publish_time_ns)
 
     def write_serialized(self, topic: str, data: bytes, log_time_ns: int,
                          publish_time_ns: int | None = None) -> None:
