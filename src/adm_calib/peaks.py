@@ -100,8 +100,8 @@ def local_maxima(acc_m_s2, min_prominence_rel=MIN_PROMINENCE_REL):
 def max_at_range_end(acc_m_s2):
     """Whether the largest value of the curve is at its first or last sample."""
     a = np.asarray(acc_m_s2, dtype=float)
-    i = int(np.argmax(a))
-    return i == 0 or i == a.size - 1 or a[0] >= a.max() or a[-1] >= a.max()
+    top = a.max()
+    return bool(a[0] >= top or a[-1] >= top)
 
 
 def find_peak(speeds_kmh, acc_m_s2, min_prominence_rel=MIN_PROMINENCE_REL):
