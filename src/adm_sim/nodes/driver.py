@@ -53,9 +53,15 @@ DRIVER_SPECS = [
 ]
 
 
+_SAY_LOCK = threading.Lock()
+
+
 def say(kind, **payload):
     """One machine-readable progress line on stdout (``@kind {json}``) for launch scripts."""
-    print(f"@{kind} {json.dumps(payload)}", flush=True)
+    line = f"@{kind} {json.dumps(payload)}\n"
+    with _SAY_LOCK:
+        sys.stdout.write(line)
+        sys.stdout.flush()
 
 
 class RunDriver(c.ParamNodeMixin, Node):
@@ -78,6 +84,7 @@ class RunDriver(c.ParamNodeMixin, Node):
         self._beam = None
         self._hist = {"t": [], "d": [], "a": []}
         self._current = None  # (run_id, model, lane label)
+        self.n_runs = 0
         self.recorder = None
         if p["record_path"]:
             from adm_sim.ros.mcap_log import McapRecorder
@@ -141,6 +148,8 @@ class RunDriver(c.ParamNodeMixin, Node):
 
     def _on_adm_progress(self, msg, t_ns):
         pr = json.loads(msg.data)
+        if self._current is None or pr.get("run_id") != self._current[0]:
+            return  # a late tick of a finished run
         say("progress", **pr)
         if self.rerun:
             self._flush_midspan()
@@ -275,6 +284,7 @@ class RunDriver(c.ParamNodeMixin, Node):
             self._flush_midspan()
             rerun_log.log_sweep_curve(lab, res[0], res[1])
         self._current = None
+        self.n_runs += 1
         out = {"run_id": run_id, "model": model, "speeds_kmh": res[0], "max_acc_m_s2": res[1],
                "max_disp_m": res[2], "delta_zeta": res[3], "wall_s": wall}
         i = int(np.argmax(res[1]))

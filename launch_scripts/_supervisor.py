@@ -1,0 +1,148 @@
+"""Start, watch and stop the node processes of one launch (no ``launch``/``ros2`` CLI here).
+
+Every node runs as ``python -m <module> --ros-args ...`` in its own process group, under an
+environment of :func:`adm_sim.ros.env.local_ros_env` (shared memory only, a ROS_DOMAIN_ID of its
+own). :class:`Supervisor` reports the first node that dies, stops all of them on exit, Ctrl-C or
+SIGTERM (SIGINT first so the nodes finish their files, SIGKILL after a grace period) and removes
+the Fast DDS shared-memory files of the processes it had to kill.
+"""
+
+from __future__ import annotations
+
+import os
+import queue
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+from adm_sim.ros.env import cleanup_shm, local_ros_env, shm_files_of
+
+ROOT = Path(__file__).resolve().parents[1]
+PARAMS_DIR = ROOT / "ros_ws" / "params"
+
+
+class NodeDied(RuntimeError):
+    """A supervised node exited before its job was done."""
+
+
+def ros_args(params_file=None, params=None, log_level=None):
+    """``--ros-args`` list: a params file first, then ``-p name:=value`` overrides."""
+    out = ["--ros-args"]
+    if params_file:
+        out += ["--params-file", str(params_file)]
+    for k, v in (params or {}).items():
+        if isinstance(v, bool):
+            v = "true" if v else "false"
+        elif isinstance(v, str) and (v == "" or any(ch in v for ch in ",:[]{}#")):
+            v = "'" + v.replace("'", "") + "'"
+        out += ["-p", f"{k}:={v}"]
+    if log_level:
+        out += ["--log-level", log_level]
+    return out
+
+
+class Supervisor:
+    """The processes of one launch.
+
+    Parameters
+    ----------
+    log_dir : path
+        Each node's stderr goes to ``<log_dir>/<name>.log``.
+    domain_id : int or None
+        ROS_DOMAIN_ID; ``None`` reserves a free one for the life of the supervisor.
+    """
+
+    def __init__(self, log_dir, domain_id=None):
+        self.log_dir = Path(log_dir)
+        self.log_dir.mkdir(parents=True, exist_ok=True)
+        self.env = local_ros_env(domain_id)
+        self.env.setdefault("OPENBLAS_NUM_THREADS", "1")
+        self.env["PYTHONUNBUFFERED"] = "1"
+        self.procs = {}
+        self.lines = queue.Queue()
+        self._shm = {}
+        self._old = {}
+
+    @property
+    def domain_id(self):
+        return self.env.domain_id
+
+    def start(self, name, module, args, capture=False):
+        """Start ``python -m module args``; with ``capture`` its stdout lines go to :attr:`lines`."""
+        err = open(self.log_dir / f"{name}.log", "w")
+        cmd = [sys.executable, "-m", module] + list(args)
+        p = subprocess.Popen(cmd, env=self.env, cwd=ROOT, start_new_session=True, stderr=err,
+                             stdout=subprocess.PIPE if capture else err, text=True, bufsize=1)
+        self.procs[name] = p
+        if capture:
+            def pump():
+                for line in p.stdout:
+                    self.lines.put((name, line.rstrip("\n")))
+                self.lines.put((name, None))
+
+            threading.Thread(target=pump, name=f"stdout-{name}", daemon=True).start()
+        return p
+
+    def note_shm(self):
+        """Remember which Fast DDS files each live node maps (exact clean-up after a kill)."""
+        for p in self.procs.values():
+            if p.poll() is None:
+                self._shm[p.pid] = shm_files_of(p.pid) | self._shm.get(p.pid, set())
+
+    def dead(self, names=None):
+        """``(name, returncode)`` of the first supervised process that has exited, or None."""
+        for name, p in self.procs.items():
+            if (names is None or name in names) and p.poll() is not None:
+                return name, p.returncode
+        return None
+
+    def log_tail(self, name, n=5):
+        try:
+            lines = (self.log_dir / f"{name}.log").read_text().strip().splitlines()
+        except OSError:
+            return ""
+        err = [ln for ln in lines if ln.startswith("error:")]
+        return "\n".join((err or lines)[-n:])
+
+    def stop(self, grace_s=5.0):
+        """Stop every process (SIGINT, then SIGKILL after ``grace_s``); clean their shm files."""
+        self.note_shm()
+        live = [p for p in self.procs.values() if p.poll() is None]
+        for p in live:
+            try:
+                os.killpg(p.pid, signal.SIGINT)
+            except ProcessLookupError:
+                pass
+        t_end = time.monotonic() + grace_s
+        killed = []
+        for p in live:
+            try:
+                p.wait(max(0.05, t_end - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                try:
+                    os.killpg(p.pid, signal.SIGKILL)
+                except ProcessLookupError:
+                    pass
+                p.wait(5)
+                killed.append(p.pid)
+        dead_abnormally = [p.pid for p in self.procs.values() if p.returncode is not None and p.returncode < 0]
+        cleanup_shm(set(killed) | set(dead_abnormally), owned=self._shm or None)
+        self.env.release()
+
+    # -- signals: SIGTERM behaves like Ctrl-C
+    def __enter__(self):
+        def on_term(signum, frame):
+            raise KeyboardInterrupt
+
+        self._old[signal.SIGTERM] = signal.signal(signal.SIGTERM, on_term)
+        return self
+
+    def __exit__(self, *exc):
+        try:
+            self.stop()
+        finally:
+            for s, h in self._old.items():
+                signal.signal(s, h)

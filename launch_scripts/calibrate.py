@@ -1,0 +1,174 @@
+#!/usr/bin/env python
+"""Δζ calibration over ROS 2: bridge, train and calibration nodes as separate processes.
+
+    .venv/bin/python launch_scripts/calibrate.py [--bridge B1 --train ICE-2] [--out DIR]
+        [--params-file ros_ws/params/b1_ice2.yaml] [--speeds 160:350:1] [--spawn | --connect URL]
+
+Writes into ``DIR`` (default ``runs/calibrate_<bridge>_<train>_<time>``): ``run.mcap`` (every
+monitoring topic, ROS 2 profile), ``run.rrd`` (rerun), ``summary.json`` (the keys of
+``adm-calib calibrate --json``) and ``logs/<node>.log``. Shows the progress of every run and each
+Δζ iteration, prints the result, and stops every process it started, also on Ctrl-C, SIGTERM or
+when a node dies (exit status 1, naming the node). Exit status 0 on success, 2 on bad input.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import queue
+import sys
+import time
+from pathlib import Path
+
+from _supervisor import PARAMS_DIR, ROOT, NodeDied, Supervisor, ros_args
+
+
+def parse_args(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--bridge", help="bridge preset for the bridge node (B1..B4, spec or TOML file)")
+    ap.add_argument("--train", help="train name or TOML file for the train node")
+    ap.add_argument("--speeds", help="MLM speed range, start:stop:step (km/h)")
+    ap.add_argument("--params-file", default=str(PARAMS_DIR / "b1_ice2.yaml"),
+                    help="ROS 2 params YAML applied to every node (default ros_ws/params/b1_ice2.yaml)")
+    ap.add_argument("--out", help="output folder")
+    ap.add_argument("--spawn", action="store_true", help="spawn a live rerun viewer (127.0.0.1)")
+    ap.add_argument("--connect", help="stream to a running rerun viewer (loopback URL)")
+    ap.add_argument("--no-rrd", action="store_true", help="do not write run.rrd")
+    ap.add_argument("--domain-id", type=int, help="ROS_DOMAIN_ID (default: a free one, reserved)")
+    ap.add_argument("--quiet", action="store_true", help="no progress bars")
+    return ap.parse_args(argv)
+
+
+def node_params(args, out):
+    bridge = {} if not args.bridge else {"bridge": args.bridge}
+    train = {} if not args.train else {"train": args.train}
+    cal = {"record_path": str(out / "run.mcap"), "summary_path": str(out / "summary.json")}
+    if not args.no_rrd:
+        cal["rrd_path"] = str(out / "run.rrd")
+    if args.spawn:
+        cal["rerun_spawn"] = True
+    if args.connect:
+        cal["rerun_connect"] = args.connect
+    if args.speeds:
+        cal["speeds_kmh"] = args.speeds
+    return bridge, train, cal
+
+
+class Progress:
+    """tqdm bar of the current run's steps and lines for runs and Δζ iterations."""
+
+    def __init__(self, quiet):
+        self.quiet = quiet
+        self.bar = None
+
+    def write(self, text):
+        if self.bar is not None:
+            self.bar.write(text)
+        else:
+            print(text, flush=True)
+
+    def handle(self, line):
+        if not line.startswith("@"):
+            self.write(line)
+            return
+        kind, _, payload = line[1:].partition(" ")
+        d = json.loads(payload)
+        if kind == "progress" and not self.quiet and d["run_id"] == getattr(self, "_run", None):
+            if self.bar is None or self.bar.total != d["n_steps"]:
+                self._new_bar(d)
+            self.bar.n = d["step"]
+            self.bar.refresh()
+        elif kind == "run" and d["state"] == "started":
+            self._close_bar()
+            self._run = d["run_id"]
+            self._label = f"run {d['run_id']} {d['label']} ({d['lanes']} lanes)"
+        elif kind == "run" and d["state"] == "done":
+            self._close_bar()
+            self.write(f"run {d['run_id']:>3} {d['label']:<12} {d['wall_s']:7.2f} s   max |a| "
+                       f"{d['max_acc_m_s2']:.4f} m/s^2 at {d['speed_kmh']:g} km/h")
+        elif kind == "iteration":
+            self.write(f"    dz iteration {d['i']:>2}: dz = {d['delta_zeta_pct']:+.5f} %  MLM peak "
+                       f"{d['mlm_peak_m_s2']:.5f}  DIM peak {d['dim_peak_m_s2']:.5f}  ratio {d['ratio']:.5f}")
+        elif kind == "calibration":
+            self.write(f"calibrating {d['bridge']} x {d['train']}: {d['speeds']} speeds, ds = {1000 * d['ds_m']:.2f} mm")
+
+    def _new_bar(self, d):
+        from tqdm import tqdm
+
+        self._close_bar()
+        self.bar = tqdm(total=d["n_steps"], desc=getattr(self, "_label", f"run {d['run_id']}"), unit="step",
+                        leave=False, file=sys.stderr, dynamic_ncols=True, disable=None, mininterval=0.2)
+
+    def _close_bar(self):
+        if self.bar is not None:
+            self.bar.close()
+            self.bar = None
+
+
+def print_result(summary):
+    def peak(p):
+        return "none" if not p else f"{p['acc_m_s2']:.4f} m/s^2 at {p['speed_kmh']:g} km/h"
+
+    def pct(x):
+        return "n/a" if x is None else f"{x:.3f} %"
+
+    print(f"\n{summary['bridge_description']}\ntrain {summary['train']}: {summary['status']} ({summary['message']})")
+    print(f"  MLM peak    {peak(summary['mlm_peak'])}\n  DIM peak    {peak(summary['dim_peak'])}")
+    print(f"  dz_VBI      {pct(summary['delta_zeta_vbi_pct'])}\n  dz_ADM      {pct(summary['delta_zeta_adm_pct'])}")
+    print(f"  dz_EADA     {pct(summary['delta_zeta_eada_pct'])}\n  dz_LB       {pct(summary['delta_zeta_lb_pct'])}")
+
+
+def main(argv=None):
+    args = parse_args(argv)
+    t_start = time.perf_counter()
+    tag = f"{(args.bridge or 'B1')}_{(args.train or 'ICE-2')}".replace("/", "_").replace("=", "").replace(",", "_")
+    out = Path(args.out) if args.out else ROOT / "runs" / f"calibrate_{tag}_{time.strftime('%Y%m%d-%H%M%S')}"
+    out.mkdir(parents=True, exist_ok=True)
+    for f in ("run.mcap", "run.rrd", "summary.json"):
+        (out / f).unlink(missing_ok=True)
+    pb, pt, pc = node_params(args, out)
+    prog = Progress(args.quiet)
+    code = 0
+    try:
+        with Supervisor(out / "logs", args.domain_id) as sup:
+            print(f"ROS_DOMAIN_ID={sup.domain_id} (shared memory only); output in {out}", flush=True)
+            sup.start("bridge", "adm_sim.nodes.bridge_node", ros_args(args.params_file, pb))
+            sup.start("train", "adm_sim.nodes.train_node", ros_args(args.params_file, pt))
+            sup.start("calibration", "adm_calib.nodes.calibration_node", ros_args(args.params_file, pc), capture=True)
+            while True:
+                try:
+                    name, line = sup.lines.get(timeout=0.2)
+                    if line is not None:
+                        prog.handle(line)
+                except queue.Empty:
+                    pass
+                sup.note_shm() if time.perf_counter() - t_start < 5 else None
+                died = sup.dead(("bridge", "train"))
+                if died:
+                    raise NodeDied(f"node '{died[0]}' died (exit status {died[1]}): {sup.log_tail(died[0])}")
+                done = sup.dead(("calibration",))
+                if done and sup.lines.empty():
+                    if done[1] != 0:
+                        raise NodeDied(f"node 'calibration' failed (exit status {done[1]}): "
+                                       f"{sup.log_tail('calibration')}")
+                    break
+    except KeyboardInterrupt:
+        prog._close_bar()
+        print("interrupted: stopped every node", file=sys.stderr)
+        return 130
+    except NodeDied as exc:
+        prog._close_bar()
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
+    prog._close_bar()
+    summary = json.loads((out / "summary.json").read_text())
+    summary["wall_s"] = time.perf_counter() - t_start
+    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    print_result(summary)
+    print(f"\nwrote {out / 'summary.json'}, {out / 'run.mcap'}" + ("" if args.no_rrd else f", {out / 'run.rrd'}"))
+    print(f"wall time {summary['wall_s']:.1f} s (processes started and stopped included)")
+    return code
+
+
+if __name__ == "__main__":
+    sys.exit(main())
