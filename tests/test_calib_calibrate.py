@@ -105,3 +105,20 @@ def test_no_reasonable_peak_is_reported():
     assert d["delta_zeta_vbi_pct"] is None and d["mlm_peak"] is None
     assert "no reasonable peak" in d["message"]
     assert d["delta_zeta_adm_pct"] == pytest.approx(0.6527, abs=1e-4)
+
+
+def test_external_sweep_hook_is_used_for_every_run():
+    """The ``sweep`` hook replaces every in-process run (here: a counting wrapper of run_sweep)."""
+    b, t = named_bridge("B1"), load_train("ICE-2")
+    calls = []
+
+    def counted(model, speeds, dz, step):
+        calls.append(model)
+        return run_sweep(b, t, model, speeds, delta_zeta=dz, options=step).max_acc_m_s2
+
+    step = calibration_step(b, t, V_B1)
+    target = run_sweep(b, t, "mlm", V_B1, delta_zeta=0.002, options=step).max_acc_m_s2
+    r = calibrate(b, t, V_B1, dim_curve=(V_B1, target), sweep=counted)
+    assert r.delta_zeta_vbi == pytest.approx(0.002, abs=0.005e-2)
+    # full MLM + ladder + brentq calls + re-evaluation at the root + adapted curve
+    assert calls == ["mlm"] * (1 + 1 + r.solve.function_calls + 1 + 1)

@@ -381,7 +381,8 @@ def calibration_step(bridge, train, speeds_kmh=None, options=None):
     return replace(base, ds_m=make_grid(bridge, train.length_m, speeds_to_m_s(v), base).ds_m)
 
 
-def calibrate(bridge, train, speeds_kmh=None, options=None, progress=False, adapted_curve=True, dim_curve=None):
+def calibrate(bridge, train, speeds_kmh=None, options=None, progress=False, adapted_curve=True, dim_curve=None,
+              sweep=None):
     """Calibrate Δζ_VBI for a bridge and a train and evaluate the reference methods.
 
     Parameters
@@ -399,6 +400,10 @@ def calibrate(bridge, train, speeds_kmh=None, options=None, progress=False, adap
         Target curve ``(speeds_kmh, max_acc_m_s2)`` used instead of running the DIM (a cached DIM
         sweep, or an MLM at ``zeta + x`` for the round-trip check); it should be computed with
         :func:`calibration_step` so that it is discretised as the MLM runs.
+    sweep : callable(model, speeds_kmh (n,), delta_zeta (n,) or float, step) -> ndarray (n,), optional
+        Runs one speed sweep and returns the maximum midspan accelerations (m/s^2); default
+        :func:`adm_sim.sweep.run_sweep` in this process. A hook for sweeps run elsewhere
+        (co-simulation, a cluster); ``step`` is the shared :class:`~adm_sim.stepping.StepOptions`.
 
     Returns
     -------
@@ -412,7 +417,11 @@ def calibrate(bridge, train, speeds_kmh=None, options=None, progress=False, adap
     ds = step.ds_m
     timings = {}
 
+    external = sweep
+
     def sweep(model, speeds, dz=0.0, label=None):
+        if external is not None:
+            return np.asarray(external(model, np.asarray(speeds, float), dz, step), dtype=float)
         bar, cb = _progress_bar(progress and label is not None, label or "")
         try:
             r = run_sweep(bridge, train, model, np.asarray(speeds, float), delta_zeta=dz, options=step, progress=cb)
