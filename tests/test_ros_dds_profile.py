@@ -6,6 +6,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from adm_sim.ros.env import reserve_domain_id
+
 PROFILE = Path(__file__).resolve().parents[1] / "ros_ws" / "dds" / "fastdds_shm_only.xml"
 
 SUB = r"""
@@ -46,7 +48,8 @@ def test_shm_only_profile_delivers_between_processes():
     # the profile alone (ROS_AUTOMATIC_DISCOVERY_RANGE would make rmw add its own transports)
     drop = ("FASTDDS_BUILTIN_TRANSPORTS", "ROS_AUTOMATIC_DISCOVERY_RANGE")
     env = {k: v for k, v in os.environ.items() if k not in drop}
-    env.update(FASTRTPS_DEFAULT_PROFILES_FILE=str(PROFILE), ROS_DOMAIN_ID="97")
+    lock = reserve_domain_id()  # a domain id no concurrent run uses
+    env.update(FASTRTPS_DEFAULT_PROFILES_FILE=str(PROFILE), ROS_DOMAIN_ID=str(lock.domain_id))
     sub = subprocess.Popen([sys.executable, "-c", SUB], env=env, stdout=subprocess.PIPE, text=True)
     try:
         assert sub.stdout.readline().strip() == "ready"
@@ -65,4 +68,5 @@ def test_shm_only_profile_delivers_between_processes():
     finally:
         if sub.poll() is None:
             sub.kill()
+        lock.release()
     assert "sum 499500.0" in out
