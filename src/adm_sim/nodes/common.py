@@ -229,8 +229,8 @@ class ParamNodeMixin:
         if s is None or s.lo is None:
             return None
         unit = f" {s.unit}" if s.unit else ""
-        return (f"{s.name}: {parameter.value!r}{unit} is out of range; "
-                f"allowed [{s.lo:g}, {s.hi:g}]{unit}; keeping {self.get_parameter(s.name).value!r}")
+        return (f"{s.name}: {parameter.value:g}{unit} is out of range; "
+                f"allowed [{s.lo:g}, {s.hi:g}]{unit}; keeping {self.get_parameter(s.name).value:g}{unit}")
 
     def _apply_floating_point_range(self, parameter, floating_point_range):  # rclpy Node hook
         res = super()._apply_floating_point_range(parameter, floating_point_range)

@@ -85,6 +85,7 @@ class RunDriver(c.ParamNodeMixin, Node):
         self._hist = {"t": [], "d": [], "a": []}
         self._current = None  # (run_id, model, lane label)
         self.n_runs = 0
+        self._last_rx = time.monotonic()
         self.recorder = None
         if p["record_path"]:
             from adm_sim.ros.mcap_log import McapRecorder
@@ -109,6 +110,7 @@ class RunDriver(c.ParamNodeMixin, Node):
         handler = getattr(self, "_on_" + topic.strip("/").replace("/", "_"), None)
 
         def cb(msg):
+            self._last_rx = time.monotonic()
             stamp = getattr(getattr(msg, "header", None), "stamp", None)
             if isinstance(msg, Clock):
                 self._clock_ns = msg.clock.sec * 1_000_000_000 + msg.clock.nanosec
@@ -350,6 +352,9 @@ def run_driver(make_node, args=None, name="driver"):
         node.start_job()
         while rclpy.ok() and not node.finished:
             executor.spin_once(timeout_sec=0.1)
+        t_end = time.monotonic() + 3.0  # drain what the nodes published last (recorder, rerun)
+        while rclpy.ok() and time.monotonic() - node._last_rx < 0.3 and time.monotonic() < t_end:
+            executor.spin_once(timeout_sec=0.05)
         if node.error is not None:
             print(f"error: {name}: {node.error}", file=sys.stderr, flush=True)
             code = 2
