@@ -22,13 +22,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from adm_sim.errors import InputError, check_range
+from adm_sim.errors import InputError, check_range, read_toml
 
 #: Allowed input ranges (SI): span, first frequency, mass per length, damping (fraction).
 SPAN_RANGE_M = (1.0, 150.0)
@@ -331,12 +330,7 @@ def parse_bridge_spec(spec):
 def load_bridge_file(path):
     """Read a bridge from a TOML file with the keys of :func:`bridge_from_mapping`."""
     p = Path(path)
-    try:
-        data = tomllib.loads(p.read_text())
-    except OSError as exc:
-        raise InputError(f"bridge file {str(p)!r}: cannot read ({exc.strerror})") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"bridge file {str(p)!r}: not valid TOML ({exc})") from None
+    data = read_toml(p, "bridge file")
     data.setdefault("name", p.stem)
     return bridge_from_mapping(data, source=f"bridge file {p.name}")
 

@@ -56,3 +56,20 @@ def _range_text(lo, hi, lo_open, hi_open, unit):
     left = "(" if lo_open else "["
     right = ")" if hi_open else "]"
     return f"{left}{lo:g}, {hi:g}{right} {unit}"
+
+
+def read_toml(path, what):
+    """Parse a TOML input file; unreadable or invalid files raise :class:`InputError`.
+
+    ``what`` names the file's role in the message (``"bridge file"``, ``"train file"``).
+    """
+    import tomllib
+    from pathlib import Path
+
+    p = Path(path)
+    try:
+        return tomllib.loads(p.read_text())
+    except OSError as exc:
+        raise InputError(f"{what} {str(p)!r}: cannot read ({exc.strerror})") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(f"{what} {str(p)!r}: not valid TOML ({exc})") from None

@@ -45,7 +45,7 @@ from pathlib import Path
 
 import numpy as np
 
-from adm_sim.errors import InputError, check_range
+from adm_sim.errors import InputError, check_range, read_toml
 
 G_M_S2 = 9.81  # gravitational acceleration used by the paper (Section 3.2.2)
 
@@ -240,13 +240,7 @@ def load_train(name_or_path):
         return train_from_mapping(data, source=_FILES[key])
     p = Path(text)
     if p.suffix == ".toml" or p.is_file():
-        try:
-            data = tomllib.loads(p.read_text())
-        except OSError as exc:
-            raise InputError(f"train file {text!r}: cannot read ({exc.strerror})") from None
-        except tomllib.TOMLDecodeError as exc:
-            raise InputError(f"train file {text!r}: not valid TOML ({exc})") from None
-        return train_from_mapping(data, source=p.name)
+        return train_from_mapping(read_toml(p, "train file"), source=p.name)
     raise InputError(f"train: {text!r} is unknown; allowed {', '.join(TRAIN_NAMES)}, "
                      f"Eurostar-table, or a .toml train file")
 
