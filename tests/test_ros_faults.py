@@ -1,0 +1,184 @@
+"""Faults: a node killed mid-run, the salvage of its recording, concurrent launches.
+
+Stated timeout: a node notices a vanished partner within ``partner_timeout_s`` (here 2 s; the
+graph check catches a clean exit after 0.5 s) plus one executor turn; the tests allow 2 s on top.
+"""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("rclpy")
+from ros_fixtures import ROOT, NodeProcs, driver_node, node_procs, ros_domain  # noqa: E402,F401
+
+from adm_sim.bridge import resolve_bridge  # noqa: E402
+from adm_sim.ros.env import local_ros_env  # noqa: E402
+from adm_sim.ros.mcap_log import salvage  # noqa: E402
+from adm_sim.stepping import StepOptions  # noqa: E402
+from adm_sim.sweep import run_sweep  # noqa: E402
+from adm_sim.trains import load_train  # noqa: E402
+
+TIMEOUT_S = 2.0
+SLACK_S = 2.0
+DIM_CASE = {"bridge": "B3", "steps_per_period": 8.0, "partner_timeout_s": TIMEOUT_S}
+TRAIN = {"speeds_kmh": "200,250,300", "model": "dim", "partner_timeout_s": TIMEOUT_S}
+
+
+def wait_for_progress(procs, name, min_step=300, timeout_s=20.0):
+    t_end = time.monotonic() + timeout_s
+    while time.monotonic() < t_end:
+        for line in procs.stdout(name).splitlines():
+            if line.startswith("@progress") and json.loads(line.split(" ", 1)[1])["step"] >= min_step:
+                return
+        time.sleep(0.05)
+    raise AssertionError(f"no progress from {name}: {procs.stderr(name)}")
+
+
+def wait_exit(p, timeout_s):
+    t0 = time.monotonic()
+    p.wait(timeout_s)
+    return time.monotonic() - t0
+
+
+def group_gone(pid):
+    try:
+        os.killpg(pid, 0)
+    except ProcessLookupError:
+        return True
+    return False
+
+
+def test_train_killed_mid_run(node_procs, tmp_path):
+    mcap = tmp_path / "run.mcap"
+    b = node_procs.start("bridge", "adm_sim.nodes.bridge_node", DIM_CASE)
+    node_procs.start("train", "adm_sim.nodes.train_node", TRAIN)
+    node_procs.start("driver", "adm_sim.nodes.driver", {"record_path": str(mcap), "chunk_size": 4096})
+    wait_for_progress(node_procs, "driver")
+    node_procs.note_shm()
+    node_procs.kill("train")
+    node_procs.kill("driver")  # the recorder dies too: its file must be salvageable
+    dt = wait_exit(b, TIMEOUT_S + SLACK_S + 1.0)
+    assert dt <= TIMEOUT_S + SLACK_S
+    assert b.returncode == 2
+    assert "partner node 'train' vanished at step" in node_procs.stderr("bridge")
+    assert all(group_gone(p.pid) for p in node_procs.procs.values())
+    out = tmp_path / "salvaged.mcap"
+    n = salvage(mcap, out)
+    assert n > 50
+    from rosbags.highlevel import AnyReader
+
+    with AnyReader([out]) as reader:
+        topics = {c.topic for c in reader.connections}
+        assert {"/clock", "/adm/midspan/accel"} <= topics
+        assert sum(1 for _ in reader.messages()) == n
+
+
+def test_bridge_killed_mid_run(node_procs, tmp_path):
+    node_procs.start("bridge", "adm_sim.nodes.bridge_node", DIM_CASE)
+    t = node_procs.start("train", "adm_sim.nodes.train_node", TRAIN)
+    d = node_procs.start("driver", "adm_sim.nodes.driver", {"record_path": str(tmp_path / "run.mcap")})
+    wait_for_progress(node_procs, "driver")
+    node_procs.kill("bridge")
+    assert wait_exit(t, TIMEOUT_S + SLACK_S + 1.0) <= TIMEOUT_S + SLACK_S
+    assert t.returncode == 2
+    assert "partner node 'bridge' vanished at step" in node_procs.stderr("train")
+    d.wait(10)
+    assert d.returncode == 2 and "'bridge'" in node_procs.stderr("driver")
+    # the driver was not killed: its file is complete
+    from rosbags.highlevel import AnyReader
+
+    with AnyReader([tmp_path / "run.mcap"]) as reader:
+        assert sum(1 for _ in reader.messages()) > 50
+
+
+def _children(pid):
+    out = []
+    for e in os.scandir("/proc"):
+        if e.name.isdigit():
+            try:
+                stat = Path(f"/proc/{e.name}/stat").read_text()
+            except OSError:
+                continue
+            if int(stat.rsplit(")", 1)[1].split()[1]) == pid:
+                out.append(int(e.name))
+    return out
+
+
+def test_launch_script_stops_everything_when_a_node_dies(tmp_path, ros_domain):
+    env = dict(ros_domain)
+    p = subprocess.Popen([sys.executable, str(ROOT / "launch_scripts" / "calibrate.py"), "--bridge", "B3",
+                          "--speeds", "240:300:2", "--out", str(tmp_path), "--no-rrd", "--quiet",
+                          "--domain-id", str(ros_domain.domain_id)],
+                         env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+    try:
+        t_end = time.monotonic() + 30
+        kids = []
+        while len(kids) < 3 and time.monotonic() < t_end:
+            kids = _children(p.pid)
+            time.sleep(0.1)
+        assert len(kids) == 3
+        line = ""
+        while not line.startswith("calibrating"):
+            line = p.stdout.readline()
+            assert line, p.stderr.read()
+        train = [k for k in kids if "train_node" in Path(f"/proc/{k}/cmdline").read_text()][0]
+        os.kill(train, signal.SIGKILL)
+        _, err = p.communicate(timeout=15)
+    finally:
+        if p.poll() is None:
+            p.kill()
+    assert p.returncode == 1
+    assert "node 'train' died (exit status -9)" in err
+    assert all(group_gone(k) for k in kids)
+    assert salvage(tmp_path / "run.mcap", tmp_path / "salvaged.mcap") >= 0
+
+
+def test_two_launches_do_not_cross_talk(tmp_path):
+    """Two bridge/train pairs on their own domains, run at the same time, each gets its result."""
+    cases = [("B1", "200,250,263"), ("B3", "200,250,263")]
+    results, errors, launches = {}, [], []
+    try:
+        for bridge, speeds in cases:
+            env = local_ros_env()
+            env["OPENBLAS_NUM_THREADS"] = "1"
+            procs = NodeProcs(env, tmp_path / bridge)
+            (tmp_path / bridge).mkdir()
+            procs.start("bridge", "adm_sim.nodes.bridge_node", {"bridge": bridge, "steps_per_period": 8.0})
+            procs.start("train", "adm_sim.nodes.train_node", {"speeds_kmh": speeds, "model": "mlm"})
+            launches.append((bridge, env, procs))
+        assert launches[0][1].domain_id != launches[1][1].domain_id
+
+        def run(bridge, env):
+            try:
+                with driver_node(env.domain_id) as d:
+                    d.wait_for_graph()
+                    results[bridge] = [d.request_run() for _ in range(3)]
+            except Exception as exc:  # reported below
+                errors.append(exc)
+
+        threads = [threading.Thread(target=run, args=(b, e)) for b, e, _ in launches]
+        for th in threads:
+            th.start()
+        for th in threads:
+            th.join(60)
+    finally:
+        for _, env, procs in launches:
+            procs.stop_all()
+            env.release()
+    assert not errors, errors
+    train = load_train("ICE-2")
+    for bridge, speeds in cases:
+        ref = run_sweep(resolve_bridge(bridge), train, "mlm", [float(v) for v in speeds.split(",")],
+                        options=StepOptions(steps_per_period=8.0))
+        runs = results[bridge]
+        assert [r["run_id"] for r in runs] == [1, 2, 3]  # no foreign run ids
+        for r in runs:
+            np.testing.assert_array_equal(r["max_acc_m_s2"], ref.max_acc_m_s2)
