@@ -54,10 +54,14 @@ DRIVER_SPECS = [
 
 
 _SAY_LOCK = threading.Lock()
+#: Set True to silence the ``@kind`` progress lines (benchmarks, tests).
+QUIET = False
 
 
 def say(kind, **payload):
     """One machine-readable progress line on stdout (``@kind {json}``) for launch scripts."""
+    if QUIET:
+        return
     line = f"@{kind} {json.dumps(payload)}\n"
     with _SAY_LOCK:
         sys.stdout.write(line)

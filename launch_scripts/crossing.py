@@ -1,0 +1,94 @@
+#!/usr/bin/env python
+"""One crossing (or one speed sweep) over ROS 2, published live.
+
+    .venv/bin/python launch_scripts/crossing.py [--params-file ros_ws/params/crossing_b3_300.yaml]
+        [--bridge B3] [--train ICE-2] [--model dim|mlm] [--speeds 300] [--out DIR] [--spawn | --connect URL]
+
+Starts the bridge and train nodes and a driver node (records ``run.mcap`` and ``run.rrd`` in
+``DIR``, writes ``summary.json``) as separate processes; every topic of the graph is live while it
+runs (``/adm/midspan/accel``, ``/diagnostics``, ``/clock``...), so a monitoring client on the same
+``ROS_DOMAIN_ID`` (printed; ``--domain-id`` to choose it) sees the crossing. Stops every process on
+exit, Ctrl-C, SIGTERM or when a node dies.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import queue
+import sys
+import time
+from pathlib import Path
+
+from _supervisor import PARAMS_DIR, ROOT, NodeDied, Supervisor, ros_args
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--params-file", default=str(PARAMS_DIR / "crossing_b3_300.yaml"))
+    ap.add_argument("--bridge")
+    ap.add_argument("--train")
+    ap.add_argument("--model", choices=("dim", "mlm"))
+    ap.add_argument("--speeds", help="km/h: one speed, a comma list or start:stop:step")
+    ap.add_argument("--out")
+    ap.add_argument("--spawn", action="store_true")
+    ap.add_argument("--connect")
+    ap.add_argument("--domain-id", type=int)
+    args = ap.parse_args(argv)
+    out = Path(args.out) if args.out else ROOT / "runs" / f"crossing_{time.strftime('%Y%m%d-%H%M%S')}"
+    out.mkdir(parents=True, exist_ok=True)
+    for f in ("run.mcap", "run.rrd", "summary.json"):
+        (out / f).unlink(missing_ok=True)
+    pb = {"bridge": args.bridge} if args.bridge else {}
+    pt = {k: v for k, v in (("train", args.train), ("model", args.model), ("speeds_kmh", args.speeds)) if v}
+    pd = {"record_path": str(out / "run.mcap"), "rrd_path": str(out / "run.rrd"),
+          "summary_path": str(out / "summary.json"), "rerun_spawn": args.spawn}
+    if args.connect:
+        pd["rerun_connect"] = args.connect
+    t0 = time.perf_counter()
+    try:
+        with Supervisor(out / "logs", args.domain_id) as sup:
+            print(f"ROS_DOMAIN_ID={sup.domain_id} (shared memory only); output in {out}", flush=True)
+            sup.start("bridge", "adm_sim.nodes.bridge_node", ros_args(args.params_file, pb))
+            sup.start("train", "adm_sim.nodes.train_node", ros_args(args.params_file, pt))
+            sup.start("driver", "adm_sim.nodes.driver", ros_args(args.params_file, pd), capture=True)
+            last = -1
+            while True:
+                try:
+                    _, line = sup.lines.get(timeout=0.2)
+                except queue.Empty:
+                    line = None
+                if line and line.startswith("@progress"):
+                    d = json.loads(line.split(" ", 1)[1])
+                    pct = int(100 * d["step"] / d["n_steps"])
+                    if pct >= last + 10:
+                        print(f"  step {d['step']:>7} / {d['n_steps']}  sim time {d['sim_time_s']:.3f} s", flush=True)
+                        last = pct
+                elif line and not line.startswith("@"):
+                    print(line, flush=True)
+                died = sup.dead(("bridge", "train"))
+                if died:
+                    raise NodeDied(f"node '{died[0]}' died (exit status {died[1]}): {sup.log_tail(died[0])}")
+                done = sup.dead(("driver",))
+                if done and sup.lines.empty():
+                    if done[1] != 0:
+                        raise NodeDied(f"node 'driver' failed (exit status {done[1]}): {sup.log_tail('driver')}")
+                    break
+    except KeyboardInterrupt:
+        print("interrupted: stopped every node", file=sys.stderr)
+        return 130
+    except NodeDied as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
+    s = json.loads((out / "summary.json").read_text())
+    print(f"{s['bridge']}\ntrain {s['train']}, {s['model'].upper()}: run {s['run_id']} in {s['wall_s']:.2f} s")
+    for v, a in zip(s["speeds_kmh"][:20], s["max_acc_m_s2"][:20]):
+        print(f"  {v:7.1f} km/h   max |a| {a:.4f} m/s^2")
+    if len(s["speeds_kmh"]) > 20:
+        print(f"  ... {len(s['speeds_kmh'])} speeds, max {max(s['max_acc_m_s2']):.4f} m/s^2")
+    print(f"wrote {out}/summary.json, run.mcap, run.rrd; wall time {time.perf_counter() - t0:.1f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
