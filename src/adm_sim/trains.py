@@ -60,7 +60,7 @@ _TYPE_FIELDS = {
     "m_b_kg": ("kg", 1.0, 1.0e5, True),
     "J_b_kgm2": ("kg m^2", 1.0, 1.0e6, True),
     "m_w_kg": ("kg", 0.0, 1.0e4, True),
-    "k_s_N_m": ("N/m", 1.0, 1.0e9, True),
+    "k_s_N_m": ("N/m", 1.0, 1.0e10, True),
     "c_s_Ns_m": ("N s/m", 0.0, 1.0e8, True),
     "k_p_N_m": ("N/m", 1.0, 1.0e10, True),
     "c_p_Ns_m": ("N s/m", 0.0, 1.0e8, True),
