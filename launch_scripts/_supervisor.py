@@ -24,6 +24,12 @@ ROOT = Path(__file__).resolve().parents[1]
 PARAMS_DIR = ROOT / "ros_ws" / "params"
 
 
+def _default_signals():
+    """In the child before exec: SIGINT/SIGTERM back to their defaults (not inherited as ignored)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
 class NodeDied(RuntimeError):
     """A supervised node exited before its job was done."""
 
@@ -75,7 +81,8 @@ class Supervisor:
         err = open(self.log_dir / f"{name}.log", "w")
         cmd = [sys.executable, "-m", module] + list(args)
         p = subprocess.Popen(cmd, env=self.env, cwd=ROOT, start_new_session=True, stderr=err,
-                             stdout=subprocess.PIPE if capture else err, text=True, bufsize=1)
+                             stdout=subprocess.PIPE if capture else err, text=True, bufsize=1,
+                             preexec_fn=_default_signals)
         self.procs[name] = p
         if capture:
             def pump():
@@ -108,12 +115,16 @@ class Supervisor:
         return "\n".join((err or lines)[-n:])
 
     def stop(self, grace_s=5.0):
-        """Stop every process (SIGINT, then SIGKILL after ``grace_s``); clean their shm files."""
+        """Stop every process (SIGTERM, then SIGKILL after ``grace_s``); clean their shm files.
+
+        SIGTERM rather than SIGINT: a launcher started in the background of a non-interactive
+        shell passes SIGINT on as ignored, and rclpy handles both the same way.
+        """
         self.note_shm()
         live = [p for p in self.procs.values() if p.poll() is None]
         for p in live:
             try:
-                os.killpg(p.pid, signal.SIGINT)
+                os.killpg(p.pid, signal.SIGTERM)
             except ProcessLookupError:
                 pass
         t_end = time.monotonic() + grace_s
@@ -138,6 +149,7 @@ class Supervisor:
             raise KeyboardInterrupt
 
         self._old[signal.SIGTERM] = signal.signal(signal.SIGTERM, on_term)
+        self._old[signal.SIGINT] = signal.signal(signal.SIGINT, signal.default_int_handler)
         return self
 
     def __exit__(self, *exc):

@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 import sys
 import time
 
@@ -295,7 +294,7 @@ class BridgeNode(c.ParamNodeMixin, Node):
         a.header.frame_id = "midspan"
         a.accel.linear.z = float(acc[r["lane"]])
         self.pub_accel.publish(a)
-        m = c.matrix_msg(None, ("lane", "quantity:disp_m,acc_m_s2"), np.column_stack([disp, acc]))
+        m = c.matrix_msg(("lane", "quantity:disp_m,acc_m_s2"), np.column_stack([disp, acc]))
         self.pub_state.publish(m)
 
     def _beam(self, k):
@@ -304,8 +303,8 @@ class BridgeNode(c.ParamNodeMixin, Node):
         w = r["phi_beam"] @ q
         _, xa = side.axles_on(k, 0)
         wa = r["bridge"].shapes(xa)[0] @ q if xa.size else np.zeros(0)
-        self.pub_beam.publish(c.matrix_msg(None, ("row:x_m,w_m", "point"), np.vstack([r["x_beam"], w])))
-        self.pub_axles.publish(c.matrix_msg(None, ("row:x_m,w_m", "axle_on"), np.vstack([xa, wa])))
+        self.pub_beam.publish(c.matrix_msg(("row:x_m,w_m", "point"), np.vstack([r["x_beam"], w])))
+        self.pub_axles.publish(c.matrix_msg(("row:x_m,w_m", "axle_on"), np.vstack([xa, wa])))
 
     def _progress(self, done):
         r = self.run
@@ -345,7 +344,7 @@ class BridgeNode(c.ParamNodeMixin, Node):
         self.pub_clock.publish(Clock(clock=c.to_time_msg(t1)))
         ok = bool(np.all(np.isfinite(r["max_acc"])))
         res = np.vstack([r["speeds_kmh"], r["max_acc"], r["max_disp"], r["dz"]])
-        self.pub_result.publish(c.matrix_msg(None, ("quantity:" + ",".join(c.RESULT_ROWS), "lane"), res))
+        self.pub_result.publish(c.matrix_msg(("quantity:" + ",".join(c.RESULT_ROWS), "lane"), res))
         wall = time.perf_counter() - r["wall0"]
         self._status(r["id"], "done" if ok else "failed", model=r["model"], n_steps=n, n_lanes=r["grid"].n_lanes,
                      ds_m=r["grid"].ds_m, wall_s=wall, t0_s=r["t0"], t1_s=t1,

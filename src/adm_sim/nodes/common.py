@@ -135,7 +135,7 @@ def check_step(who, got, expected):
                             f"got {tuple(got)}")
 
 
-def matrix_msg(rows, dims, array):
+def matrix_msg(dims, array):
     """Plain 2-D ``Float64MultiArray`` (no header) with labelled dimensions."""
     a = np.ascontiguousarray(array, dtype=np.float64)
     msg = Float64MultiArray()
@@ -392,6 +392,10 @@ def run_node(make_node, args=None, name="node"):
                 node.report_failure(str(exc))
             except Exception:
                 pass
+    except Exception:
+        if rclpy.ok():
+            raise
+        code = 130  # shut down (SIGINT/SIGTERM) while a callback was publishing
     finally:
         if node is not None:
             node.destroy_node()
