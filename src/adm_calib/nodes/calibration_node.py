@@ -77,7 +77,7 @@ class CalibrationNode(RunDriver):
         self.iteration += 1
         i = self.iteration
         self.publish_recorded(self.pub_iter, c.TOPIC_CAL_ITERATION, c.matrix_msg(
-            None, ("quantity:iteration,delta_zeta_pct,mlm_peak_m_s2,dim_peak_m_s2",), [i, 100 * dz, mlm_peak, dim_peak]))
+            ("quantity:iteration,delta_zeta_pct,mlm_peak_m_s2,dim_peak_m_s2",), [i, 100 * dz, mlm_peak, dim_peak]))
         say("iteration", i=i, delta_zeta_pct=100 * dz, mlm_peak_m_s2=mlm_peak, dim_peak_m_s2=dim_peak,
             ratio=mlm_peak / dim_peak)
         if self.rerun:
