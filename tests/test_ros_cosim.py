@@ -57,3 +57,32 @@ def test_wrong_lane_count_is_reported(node_procs, ros_domain):
         r = d.request_run(delta_zeta_lanes=[])
         assert r["max_acc_m_s2"].shape == (2,)
     assert all(p.poll() is None for p in node_procs.procs.values())
+
+
+def test_calibrate_launch_matches_in_process_calibration(tmp_path, ros_domain):
+    """launch_scripts/calibrate.py (three processes) gives the Δζ of adm_calib.calibrate."""
+    import json
+    import subprocess
+    import sys
+
+    from ros_fixtures import ROOT
+
+    from adm_calib.calibrate import CalibrationOptions, calibrate
+
+    params = tmp_path / "case.yaml"
+    params.write_text("bridge:\n  ros__parameters:\n    bridge: B3\n    steps_per_period: 4.0\n"
+                      "    free_vibration_periods: 1.0\ntrain:\n  ros__parameters:\n    train: ICE-2\n")
+    out = tmp_path / "out"
+    p = subprocess.run([sys.executable, str(ROOT / "launch_scripts" / "calibrate.py"), "--params-file", str(params),
+                        "--speeds", "230:290:2", "--out", str(out), "--quiet", "--domain-id", str(ros_domain.domain_id)],
+                       env=dict(ros_domain), capture_output=True, text=True, timeout=240, cwd=ROOT)
+    assert p.returncode == 0, p.stderr
+    assert "dz iteration" in p.stdout and "dz_VBI" in p.stdout
+    got = json.loads((out / "summary.json").read_text())
+    ref = calibrate(resolve_bridge("B3"), load_train("ICE-2"), np.arange(230.0, 291.0, 2.0),
+                    CalibrationOptions(step=StepOptions(**STEP))).to_dict()
+    assert got["status"] == ref["status"]
+    for key in ("delta_zeta_vbi_pct", "delta_zeta_adm_pct", "delta_zeta_eada_pct", "delta_zeta_lb_pct"):
+        assert got[key] == pytest.approx(ref[key], rel=1e-9, abs=0) if ref[key] is not None else got[key] is None
+    assert got["mlm_peak"] == ref["mlm_peak"] and got["dim_peak"] == ref["dim_peak"]
+    assert (out / "run.mcap").stat().st_size > 0 and (out / "run.rrd").stat().st_size > 0
