@@ -5,6 +5,9 @@ Subcommands::
     adm-calib calibrate --bridge B1 --train ICE-2 [--speeds 160:350:1] [--json FILE] [--plot FILE.png]
     adm-calib table4 [--out DIR] [--bridges B1,B2,B3,B4] [--trains ICE-2,...] [--jobs N]
     adm-calib recommend --train T --n0 HZ --mu T_PER_M --type cfb|sc [--span M] [--interpolate]
+    adm-calib study --out DIR [--trains ...] [--mass-functions mu1,...] [--spans 4:40] [--freq-index 1,...]
+                    [--limit N] [--workers 2 | --scheduler tcp://127.0.0.1:PORT]
+    adm-calib study-fit --results DIR/results.jsonl [--out DIR] [--exclude-flagged]
 
 Bad input prints one line ``error: ...`` on stderr and exits with code 2. Output files are never
 overwritten unless ``--force`` is given.
@@ -14,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import time
 from pathlib import Path
@@ -139,6 +143,151 @@ def cmd_recommend(args):
     return 0
 
 
+# ---------------------------------------------------------------------- parametric study
+def _study_trains(text):
+    from adm_calib.reference import STUDY_TRAINS, canonical_train_name
+
+    out = []
+    for t in _list(text, "--trains"):
+        try:
+            name = canonical_train_name(t)
+        except InputError:
+            raise InputError(f"--trains: {t!r} is not a study train; allowed {', '.join(STUDY_TRAINS)}") from None
+        if name not in out:
+            out.append(name)
+    return out
+
+
+def _mass_functions(text):
+    from adm_calib.study import MASS_FUNCTION_NAMES
+
+    out = []
+    for m in _list(text, "--mass-functions"):
+        if m.lower() not in MASS_FUNCTION_NAMES:
+            raise InputError(f"--mass-functions: {m!r} is unknown; allowed {', '.join(MASS_FUNCTION_NAMES)}")
+        out.append(m.lower())
+    return out
+
+
+def _int_in(field, text, unit, lo, hi):
+    u = f" {unit}" if unit else ""
+    try:
+        x = float(text)
+    except (TypeError, ValueError):
+        x = math.nan
+    if not math.isfinite(x) or x != int(x):
+        raise InputError(f"{field}: {text!r} is not an integer; allowed integer in [{lo}, {hi}]{u}")
+    if not lo <= x <= hi:
+        raise InputError(f"{field}: {int(x)}{u} is out of range; allowed integer in [{lo}, {hi}]{u}")
+    return int(x)
+
+
+def _spans(text):
+    from adm_calib.study import SPAN_RANGE_M
+
+    parts = [p.strip() for p in str(text).split(":")]
+    if len(parts) not in (1, 2) or not all(parts):
+        raise InputError(f"--spans: {text!r} is not lo:hi in m (e.g. 4:40)")
+    lo, hi = (check_range("--spans", p, "m", *SPAN_RANGE_M) for p in (parts[0], parts[-1]))
+    if lo > hi:
+        raise InputError(f"--spans: {text!r} is empty; allowed lo:hi with lo <= hi in [4, 40] m")
+    return lo, hi
+
+
+def _freq_indices(text):
+    return sorted({_int_in("--freq-index", p, "", 1, 5) for p in _list(text, "--freq-index")})
+
+
+def _scheduler(text):
+    import re
+
+    if not re.fullmatch(r"tcp://[A-Za-z0-9_.\-]+:\d{1,5}", text or ""):
+        raise InputError(f"--scheduler: {text!r} is not an address like tcp://127.0.0.1:8786")
+    return text
+
+
+def cmd_study(args):
+    import signal
+
+    from adm_calib.study import StudySettings, run_study, select_cases
+
+    trains = _study_trains(args.trains)
+    mfs = _mass_functions(args.mass_functions)
+    spans = _spans(args.spans)
+    fis = _freq_indices(args.freq_index)
+    workers = _int_in("--workers", args.workers, "processes", 1, 64)
+    limit = None if args.limit is None else _int_in("--limit", args.limit, "cases", 1, 1_000_000)
+    scheduler = None if args.scheduler is None else _scheduler(args.scheduler)
+    spp = None if args.steps_per_period is None else check_range("--steps-per-period", args.steps_per_period,
+                                                                   "steps", 4, 10000)
+    _speeds(args.speeds)
+    settings = StudySettings(speeds=args.speeds, dim_grid=args.dim_grid, steps_per_period=spp)
+    cases = select_cases(trains, mfs, spans, fis)
+    if not cases:
+        raise InputError("study: the options select no case")
+    options = {"trains": trains, "mass_functions": mfs, "spans_m": list(spans), "freq_index": fis,
+               "limit": limit, "workers": workers, "scheduler": scheduler, "retry_errors": args.retry_errors,
+               "argv": sys.argv[1:]}
+    print(f"study: {len(cases)} cases selected ({len(trains)} trains); results in {Path(args.out) / 'results.jsonl'}",
+          flush=True)
+
+    def on_term(signum, frame):
+        raise KeyboardInterrupt
+
+    old = signal.signal(signal.SIGTERM, on_term)
+    try:
+        run = run_study(args.out, cases, settings, workers=workers, scheduler=scheduler, limit=limit,
+                        progress=None, retry_errors=args.retry_errors, options=options)
+    except KeyboardInterrupt:
+        print("error: interrupted while closing the cluster; rerun the same command to resume", file=sys.stderr)
+        return 130
+    except (InputError, OSError):
+        raise
+    except Exception as exc:  # cluster failures: one line, results so far are kept
+        msg = " ".join(str(exc).split())
+        print(f"error: study stopped by {type(exc).__name__}: {msg}; rerun the same command to resume",
+              file=sys.stderr)
+        return 1
+    finally:
+        signal.signal(signal.SIGTERM, old)
+    print(run.summary())
+    return 130 if run.interrupted else 0
+
+
+def cmd_study_fit(args):
+    from adm_calib import study as st
+
+    res = Path(args.results)
+    if not res.is_file():
+        raise InputError(f"--results: {str(res)!r} is not a file")
+    content = st.read_results(res)
+    if not content.records:
+        raise InputError(f"--results: {str(res)!r} holds no complete result line")
+    out = Path(args.out) if args.out else res.parent
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out: {str(out)!r} is not a directory")
+    out.mkdir(parents=True, exist_ok=True)
+    tag = "_flagged_excluded" if args.exclude_flagged else ""
+    names = [f"lower_bounds_fit{tag}.csv", f"interval_minima{tag}.csv", f"lower_bounds_fit{tag}.txt",
+             f"fig16_dz_vs_span{tag}.png", f"fig18_lower_bounds{tag}.png"]
+    names += [f"fig17_lower_bound_{t}{tag}.png" for t in st.STUDY_TRAINS]
+    paths = {n: _out_path(str(out / n), args.force) for n in names}
+    fit = st.fit_study(content.records, exclude_flagged=args.exclude_flagged)
+    text = fit.to_text()
+    if content.truncated_tail:
+        text += "\n(a truncated last line of the results file was ignored)"
+    print(text)
+    paths[names[0]].write_text(fit.to_csv())
+    paths[names[1]].write_text(fit.minima_csv())
+    paths[names[2]].write_text(text + "\n")
+    st.plot_dz_vs_span(fit.records_used, paths[names[3]])
+    st.plot_lower_bounds(fit, paths[names[4]])
+    for t, n in zip(st.STUDY_TRAINS, names[5:]):
+        st.plot_lower_bounds_train(fit, t, paths[n])
+    print(f"wrote {len(names)} files to {out}")
+    return 0
+
+
 def build_parser():
     p = _Parser(prog="adm-calib", description="Additional-damping calibration (MLM vs DIM) and comparison "
                                                "with the Eurocode ADM, EADA and the lower-bound functions.")
@@ -180,6 +329,33 @@ def build_parser():
                    help="interpolate linearly between the adjacent mass functions instead of the safe side")
     r.add_argument("--json", action="store_true", help="print JSON")
     r.set_defaults(func=cmd_recommend)
+
+    s = sub.add_parser("study", help="the parametric study (Section 3.3) on a dask cluster, resumable")
+    s.add_argument("--out", required=True, help="study directory: results.jsonl (one line per case) and study.json; "
+                                                "rerun with the same --out to resume")
+    s.add_argument("--trains", default="ICE-2,Eurostar,Railjet,ICE-4")
+    s.add_argument("--mass-functions", default="mu1,mu2,mu3,mu4,mu5,mu6", help="Table 1 mass functions")
+    s.add_argument("--spans", default="4:40", help="span range lo:hi in m, within 4:40 (integer spans of the field)")
+    s.add_argument("--freq-index", default="1,2,3,4,5", help="n0 per span: 1 = LB ... 3 = fit ... 5 = UB power law")
+    s.add_argument("--limit", default=None, help="run at most N of the pending cases")
+    s.add_argument("--workers", default="2", help="worker processes of the local cluster (default 2)")
+    s.add_argument("--scheduler", default=None, help="address of a running dask scheduler, e.g. "
+                                                     "tcp://127.0.0.1:8786 (instead of a local cluster)")
+    s.add_argument("--retry-errors", action="store_true", help="run the cases recorded with status error again")
+    s.add_argument("--speeds", default="160:350:1", help="MLM speeds in km/h, start:stop:step (default 160:350:1)")
+    s.add_argument("--dim-grid", choices=("paper", "full"), default="paper")
+    s.add_argument("--steps-per-period", type=float, default=None,
+                   help="integration steps per period of the highest mode (core default 16)")
+    s.set_defaults(func=cmd_study)
+
+    f = sub.add_parser("study-fit", help="lower-bound functions (Section 4.2.1, Tables B1-B4) from study results")
+    f.add_argument("--results", required=True, help="results.jsonl of a study")
+    f.add_argument("--out", default=None, help="output directory (default: the results' directory)")
+    f.add_argument("--exclude-flagged", action="store_true",
+                   help="also leave out cases with the MLM maximum at a range end or a DIM value that is not a "
+                        "local maximum (the paper settled them by eye)")
+    f.add_argument("--force", action="store_true", help="overwrite existing output files")
+    f.set_defaults(func=cmd_study_fit)
     return p
 
 
