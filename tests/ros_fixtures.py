@@ -86,13 +86,19 @@ class NodeProcs:
         cleanup_shm([p.pid for p in self.procs.values()], owned=self.shm or None)
 
 
+#: Domain reservations are kept for the whole session: a process killed with SIGKILL stays in
+#: Fast DDS discovery until its lease expires, so a domain id must not be handed to the next test.
+_HELD = []
+
+
 @pytest.fixture
 def ros_domain():
-    """A reserved ROS_DOMAIN_ID and the environment for child processes."""
-    with local_ros_env() as env:
-        env["OPENBLAS_NUM_THREADS"] = "1"
-        env["PYTHONUNBUFFERED"] = "1"
-        yield env
+    """A ROS_DOMAIN_ID no other test of this session used, and the environment for child processes."""
+    env = local_ros_env()
+    _HELD.append(env)
+    env["OPENBLAS_NUM_THREADS"] = "1"
+    env["PYTHONUNBUFFERED"] = "1"
+    yield env
 
 
 @pytest.fixture

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 pytest.importorskip("rclpy")
-from ros_fixtures import ROOT, NodeProcs, driver_node, node_procs, ros_domain  # noqa: E402,F401
+from ros_fixtures import _HELD, ROOT, NodeProcs, driver_node, node_procs, ros_domain  # noqa: E402,F401
 
 from adm_sim.bridge import resolve_bridge  # noqa: E402
 from adm_sim.ros.env import local_ros_env  # noqa: E402
@@ -148,6 +148,7 @@ def test_two_launches_do_not_cross_talk(tmp_path):
     try:
         for bridge, speeds in cases:
             env = local_ros_env()
+            _HELD.append(env)  # never reused by a later test of the session
             env["OPENBLAS_NUM_THREADS"] = "1"
             procs = NodeProcs(env, tmp_path / bridge)
             (tmp_path / bridge).mkdir()
@@ -172,7 +173,6 @@ def test_two_launches_do_not_cross_talk(tmp_path):
     finally:
         for _, env, procs in launches:
             procs.stop_all()
-            env.release()
     assert not errors, errors
     train = load_train("ICE-2")
     for bridge, speeds in cases:
