@@ -478,7 +478,7 @@ def local_cluster(workers=2):
     env.update(WORKER_ENV)
     with dask.config.set({"distributed.nanny.pre-spawn-environ": env}), _workers_ignore_sigint():
         return LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True, host="127.0.0.1",
-                            dashboard_address=None, worker_dashboard_address=None, silence_logs=logging.ERROR,
+                            dashboard_address=None, worker_dashboard_address=None, silence_logs=logging.CRITICAL,
                             env=dict(WORKER_ENV),
                             # the scheduler's health/metrics HTTP routes: loopback, any free port
                             scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
@@ -608,7 +608,7 @@ def _run_on_dask(pending, settings, writer, run, workers, scheduler, progress, e
             by_future[fut] = c
             futures.append(fut)
         bar = tqdm(total=run.selected, initial=run.already_done, unit="case", desc="study", file=sys.stderr,
-                   disable=(None if progress is None else not progress), dynamic_ncols=True)
+                   disable=not (sys.stderr.isatty() if progress is None else progress), dynamic_ncols=True)
         for fut in as_completed(futures, loop=client.loop):
             case = by_future.pop(fut)
             try:
@@ -932,11 +932,16 @@ def plot_dz_vs_span(records, path):
         ax.grid(alpha=0.3)
     for ax in axes[-1]:
         ax.set_xlabel("span L (m)")
-    axes[0, 0].legend(fontsize=7, ncol=2)
+    _legend(axes[0, 0], fontsize=7, ncol=2)
     fig.suptitle("Computed additional damping vs the Eurocode ADM (Fig. 16 analogue)")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def _legend(ax, **kw):
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(**kw)
 
 
 def _lb_curve(coefficients, root, n0):
@@ -974,7 +979,7 @@ def plot_lower_bounds_train(study_fit, train, path):
         ax.axhline(0.0, color="k", lw=0.5)
         ax.set_title(f"{train}, {m}")
         ax.grid(alpha=0.2)
-        ax.legend(fontsize=6)
+        _legend(ax, fontsize=6)
     for ax in axes[-1]:
         ax.set_xlabel("n0 (Hz)")
     for ax in axes[:, 0]:
@@ -1007,7 +1012,7 @@ def plot_lower_bounds(study_fit, path):
         ax.set_ylabel("dz (%)")
     for ax in axes[-1]:
         ax.set_xlabel("n0 (Hz)")
-    axes[0, 0].legend(fontsize=7, ncol=2)
+    _legend(axes[0, 0], fontsize=7, ncol=2)
     fig.suptitle("Lower bounds of the additional damping for each train (Fig. 18 analogue)")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
