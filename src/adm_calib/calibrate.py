@@ -382,7 +382,7 @@ def calibration_step(bridge, train, speeds_kmh=None, options=None):
 
 
 def calibrate(bridge, train, speeds_kmh=None, options=None, progress=False, adapted_curve=True, dim_curve=None,
-              sweep=None):
+              sweep=None, on_trial=None):
     """Calibrate Δζ_VBI for a bridge and a train and evaluate the reference methods.
 
     Parameters
@@ -404,6 +404,9 @@ def calibrate(bridge, train, speeds_kmh=None, options=None, progress=False, adap
         Runs one speed sweep and returns the maximum midspan accelerations (m/s^2); default
         :func:`adm_sim.sweep.run_sweep` in this process. A hook for sweeps run elsewhere
         (co-simulation, a cluster); ``step`` is the shared :class:`~adm_sim.stepping.StepOptions`.
+    on_trial : callable(delta_zeta, mlm_peak_m_s2, dim_peak_m_s2), optional
+        Called for every trial damping of the root finder (fraction, re-located MLM peak, target):
+        progress displays and logs of the iterations.
 
     Returns
     -------
@@ -479,8 +482,17 @@ def calibrate(bridge, train, speeds_kmh=None, options=None, progress=False, adap
     else:
         h = opt.relocation_window_kmh
         w = v[(v >= mlm_peak.speed_kmh - h - 1e-9) & (v <= mlm_peak.speed_kmh + h + 1e-9)]
-        solve = solve_delta_zeta(lambda s, dz: sweep("mlm", s, dz), mlm_peak.speed_kmh, w, dim_peak.acc_m_s2,
-                                 bridge.damping_ratio, opt)
+        def trial(s, dz):
+            acc = sweep("mlm", s, dz)
+            if on_trial is not None:
+                dzs = np.broadcast_to(np.asarray(dz, dtype=float), np.shape(s))
+                for value in np.unique(dzs):  # the bracketing ladder carries several dampings
+                    lanes = dzs == value
+                    peak = pk.window_max(np.asarray(s)[lanes], acc[lanes], mlm_peak.speed_kmh, (h, h))[1]
+                    on_trial(float(value), float(peak), float(dim_peak.acc_m_s2))
+            return acc
+
+        solve = solve_delta_zeta(trial, mlm_peak.speed_kmh, w, dim_peak.acc_m_s2, bridge.damping_ratio, opt)
         status, message = solve.status, solve.message
         adapted = solve.adapted_peak
         if solve.delta_zeta is not None and adapted_curve:

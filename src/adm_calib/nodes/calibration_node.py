@@ -1,41 +1,35 @@
 """Calibration node: Δζ_VBI of one bridge and train from co-simulated runs (paper Section 4).
 
 The node is a :class:`adm_sim.nodes.driver.RunDriver` (it records the run to MCAP and rerun)
-that follows :func:`adm_calib.calibrate.calibrate` step by step, with every speed sweep replaced
-by a co-simulated run of the bridge and train nodes:
+that runs :func:`adm_calib.calibrate.calibrate` with every speed sweep replaced by a
+co-simulated run of the bridge and train nodes (its ``sweep`` hook):
 
 1. MLM over the speed range (``speeds_kmh``), all runs on the one space step that the full range
-   needs (:func:`adm_calib.calibrate.calibration_step`, set as ``ds_m`` on the bridge node);
-2. DIM on the paper's speed grid (:func:`adm_calib.calibrate.dim_speeds_paper`), refined around the
-   associated DIM peak as ``calibrate`` does; MLM/DIM peaks by :mod:`adm_calib.peaks`;
-3. Δζ by :func:`adm_calib.calibrate.solve_delta_zeta` whose MLM evaluator sets ``delta_zeta``
-   (or ``delta_zeta_lanes`` for the vectorised bracketing ladder) on the bridge node through its
-   parameter service and runs the MLM; every evaluation is one iteration on
-   ``/adm/calibration/iteration`` and in rerun.
+   needs (set as ``ds_m`` on the bridge node);
+2. DIM on the paper's speed grid, refined around the associated DIM peak;
+3. Δζ by the bracketing root finder, whose MLM evaluations set ``delta_zeta`` (or
+   ``delta_zeta_lanes`` for the vectorised bracketing ladder) on the bridge node through its
+   parameter service; every trial damping is one iteration on ``/adm/calibration/iteration`` and
+   in rerun.
 
-``adm_calib.calibrate.calibrate`` runs its sweeps in-process and has no hook for an external
-evaluator, so steps 1-3 are repeated here (same functions, same order); the result is the same
-:class:`adm_calib.calibrate.CalibrationResult`, published as JSON on ``/adm/calibration/result``
-and written to ``summary_path`` with the keys of ``adm-calib calibrate --json``.
+The result is the same :class:`adm_calib.calibrate.CalibrationResult` as in-process, published
+as JSON on ``/adm/calibration/result`` and written to ``summary_path`` with the keys of
+``adm-calib calibrate --json``.
 """
 
 from __future__ import annotations
 
 import sys
-import time
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from std_msgs.msg import Float64MultiArray, String
 
-from adm_calib import peaks as pk
-from adm_calib.calibrate import (CalibrationOptions, CalibrationResult, _fine_step, _grid_between, _speeds,
-                                 dim_speeds_paper, solve_delta_zeta)
-from adm_calib.reference import adm_delta_zeta_pct, eada_for, lower_bound_for
+from adm_calib.calibrate import CalibrationOptions, calibrate, calibration_step
 from adm_sim.bridge import Bridge
 from adm_sim.nodes import common as c
 from adm_sim.nodes.driver import RunDriver, run_driver, say
-from adm_sim.stepping import StepOptions, make_grid, speeds_to_m_s
+from adm_sim.stepping import StepOptions
 from adm_sim.sweep import parse_speeds
 from adm_sim.trains import load_train
 
@@ -43,13 +37,6 @@ CALIBRATION_SPECS = [
     c.ParamSpec("speeds_kmh", "160:350:1", "km/h", "MLM speed range: start:stop:step or a comma list"),
     c.ParamSpec("dim_grid", "paper", "", "paper (5 km/h + fine around the MLM peak) | full (every MLM speed)"),
 ]
-
-
-def calibration_step(bridge, train, speeds_kmh, options):
-    """Step settings shared by every run of one calibration (fixed ``ds_m``), as ``calibrate``."""
-    base = options.step or StepOptions()
-    ds = make_grid(bridge, train.length_m, speeds_to_m_s(speeds_kmh), base).ds_m
-    return StepOptions(base.steps_per_period, base.free_vibration_periods, ds)
 
 
 class CalibrationNode(RunDriver):
@@ -74,6 +61,7 @@ class CalibrationNode(RunDriver):
         return np.asarray(r["max_acc_m_s2"], dtype=float)
 
     def _iteration(self, dz, mlm_peak, dim_peak):
+        """One trial damping: publish, print and log it (``calibrate``'s ``on_trial``)."""
         self.iteration += 1
         i = self.iteration
         self.publish_recorded(self.pub_iter, c.TOPIC_CAL_ITERATION, c.matrix_msg(
@@ -84,6 +72,20 @@ class CalibrationNode(RunDriver):
             from adm_sim.ros import rerun_log
 
             rerun_log.log_delta_zeta_iteration(i, 100 * dz, mlm_peak, dim_peak)
+
+    def _hook(self, model, speeds, dz, step):
+        """``calibrate``'s sweep hook: one co-simulated run on the calibration's space step."""
+        if self._ds_m != step.ds_m:
+            self.set_params(c.BRIDGE_NODE, ds_m=step.ds_m, delta_zeta=0.0, delta_zeta_lanes="")
+            self._ds_m = step.ds_m
+        dzs = np.asarray(dz, dtype=float)
+        if model == "dim":
+            label = "DIM"
+        elif np.size(speeds) < self._n_speeds or dzs.size > 1:
+            label = "MLM trial"
+        else:
+            label = "MLM zeta" if np.all(dzs == 0.0) else "MLM zeta+dz"
+        return self.sweep(model, speeds, dz, label=label)
 
     # ------------------------------------------------------------------ the job
     def job(self):
@@ -96,85 +98,11 @@ class CalibrationNode(RunDriver):
         base = StepOptions(st["steps_per_period"], st["free_vibration_periods"], st["ds_m"] or None)
         p = self.param_values()
         opt = CalibrationOptions(dim_grid=p["dim_grid"], step=base)
-        v = _speeds(parse_speeds(p["speeds_kmh"]))
-        step = calibration_step(bridge, train, v, opt)
-        self.set_params(c.BRIDGE_NODE, ds_m=step.ds_m, delta_zeta=0.0, delta_zeta_lanes="")
-        say("calibration", bridge=bridge.describe(), train=train.name, speeds=len(v), ds_m=step.ds_m)
-        timings = {}
-
-        t0 = time.perf_counter()
-        mlm = self.sweep("mlm", v, label="MLM zeta")
-        timings["mlm_sweep"] = time.perf_counter() - t0
-        mlm_peak = pk.find_peak(v, mlm, opt.min_prominence_rel)
-
-        t0 = time.perf_counter()
-        vd = v if opt.dim_grid == "full" else dim_speeds_paper(v, mlm_peak.speed_kmh if mlm_peak.found else None, opt)
-        dim = self.sweep("dim", vd, label="DIM")
-        refined = False
-        dim_peak = pk.Peak(found=False, reason="no MLM peak to associate with")
-        if mlm_peak.found:
-            dim_peak = pk.associate_peak(vd, dim, mlm_peak.speed_kmh, opt.association_window_kmh,
-                                         opt.min_prominence_rel)
-            fine = _fine_step(v)
-            for _ in range(2):
-                if not dim_peak.found or opt.dim_grid == "full":
-                    break
-                i = dim_peak.index
-                gaps = [vd[i] - vd[i - 1] if i > 0 else 0.0, vd[i + 1] - vd[i] if i + 1 < vd.size else 0.0]
-                if max(gaps) <= fine + 1e-9:
-                    break
-                extra = _grid_between(dim_peak.speed_kmh - 5.0, dim_peak.speed_kmh + 5.0, fine, v.min(), v.max())
-                extra = np.setdiff1d(np.round(extra, 9), vd)
-                if extra.size == 0:
-                    break
-                acc_extra = self.sweep("dim", extra, label="DIM refine")
-                all_v, all_a = np.concatenate([vd, extra]), np.concatenate([dim, acc_extra])
-                order = np.argsort(all_v)
-                vd, dim = all_v[order], all_a[order]
-                refined = True
-                dim_peak = pk.associate_peak(vd, dim, mlm_peak.speed_kmh, opt.association_window_kmh,
-                                             opt.min_prominence_rel)
-        timings["dim_sweep"] = time.perf_counter() - t0
-
-        solve = None
-        adapted = pk.Peak(found=False)
-        v_ad, a_ad = np.zeros(0), np.zeros(0)
-        t0 = time.perf_counter()
-        if not mlm_peak.found:
-            status, message = "no_mlm_peak", mlm_peak.reason
-        elif not dim_peak.found:
-            status, message = "no_dim_peak", dim_peak.reason
-        else:
-            h = opt.relocation_window_kmh
-            w = v[(v >= mlm_peak.speed_kmh - h - 1e-9) & (v <= mlm_peak.speed_kmh + h + 1e-9)]
-            target = dim_peak.acc_m_s2
-
-            def mlm_eval(s, dz):
-                acc = self.sweep("mlm", s, dz, label="MLM trial")
-                dzs = np.asarray(dz, dtype=float)
-                for value in np.unique(dzs):  # one iteration per trial damping (the ladder has several)
-                    lanes = dzs == value
-                    peak = pk.window_max(np.asarray(s)[lanes], acc[lanes], mlm_peak.speed_kmh, (h, h))[1]
-                    self._iteration(float(value), float(peak), float(target))
-                return acc
-
-            solve = solve_delta_zeta(mlm_eval, mlm_peak.speed_kmh, w, target, bridge.damping_ratio, opt)
-            status, message = solve.status, solve.message
-            adapted = solve.adapted_peak
-            if solve.delta_zeta is not None:
-                v_ad, a_ad = v, self.sweep("mlm", v, solve.delta_zeta, label="MLM zeta+dz")
-        timings["solve"] = time.perf_counter() - t0
-
-        eada, eada_note = eada_for(bridge, train)
-        lb, lb_note = lower_bound_for(bridge, train)
-        res = CalibrationResult(
-            bridge=bridge, train_name=train.name, status=status, message=message,
-            delta_zeta_vbi=None if solve is None else solve.delta_zeta, mlm_peak=mlm_peak, dim_peak=dim_peak,
-            adapted_peak=adapted, solve=solve, delta_zeta_adm_pct=adm_delta_zeta_pct(bridge.span_m),
-            delta_zeta_eada_pct=eada, eada_note=eada_note, delta_zeta_lb_pct=lb, lb_note=lb_note,
-            mlm_speeds_kmh=v, mlm_acc_m_s2=mlm, dim_speeds_kmh=np.asarray(vd, float), dim_acc_m_s2=dim,
-            adapted_speeds_kmh=v_ad, adapted_acc_m_s2=a_ad, dim_grid=opt.dim_grid, dim_refined=refined,
-            ds_m=step.ds_m, timings_s=timings)
+        v = parse_speeds(p["speeds_kmh"])
+        self._n_speeds, self._ds_m = v.size, None
+        say("calibration", bridge=bridge.describe(), train=train.name, speeds=len(v),
+            ds_m=calibration_step(bridge, train, v, opt).ds_m)
+        res = calibrate(bridge, train, v, opt, sweep=self._hook, on_trial=self._iteration)
         self._publish_result(res)
         summary = res.to_dict(curves=True)
         summary["co_simulation"] = {"runs": self.n_runs, "delta_zeta_trials": self.iteration}
