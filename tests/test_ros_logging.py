@@ -496,3 +496,19 @@ def test_core_does_not_import_rclpy():
     code = ("import sys, adm_sim.bridge, adm_sim.trains, adm_sim.stepping, adm_sim.sweep, "
             "adm_sim.ros.env; assert 'rclpy' not in sys.modules, 'rclpy imported'")
     assert subprocess.run([PY, "-c", code], timeout=60).returncode == 0
+
+
+def test_domain_ids_are_not_reused_straight_away():
+    # A freed id goes to the back of the queue: DDS may still see a killed run on it.
+    from adm_sim.ros.env import reserve_domain_id
+
+    first = reserve_domain_id()
+    used = first.domain_id
+    first.release()
+    again = [reserve_domain_id() for _ in range(5)]
+    try:
+        assert used not in [lock.domain_id for lock in again]
+        assert len({lock.domain_id for lock in again}) == 5
+    finally:
+        for lock in again:
+            lock.release()

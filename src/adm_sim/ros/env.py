@@ -133,7 +133,8 @@ def _try_lock(domain_id: int) -> DomainLock | None:
 
 
 def reserve_domain_id() -> DomainLock:
-    """Reserve a free ROS_DOMAIN_ID in ``[1, DOMAIN_ID_MAX]`` (0, the ROS default, is left alone).
+    """Reserve a free ROS_DOMAIN_ID in ``[1, DOMAIN_ID_MAX]`` (0, the ROS default, is left alone),
+    the least recently used first.
 
     Raises
     ------
@@ -142,8 +143,17 @@ def reserve_domain_id() -> DomainLock:
     """
     n = DOMAIN_ID_MAX
     start = os.getpid() % n  # spread concurrent starters over the range
-    for k in range(n):
-        domain_id = 1 + (start + k) % n
+
+    def last_used(domain_id):
+        try:
+            return (LOCK_DIR / f"domain_{domain_id:03d}.lock").stat().st_mtime
+        except OSError:
+            return 0.0
+
+    # Least recently used first: a run killed with SIGKILL stays visible to DDS discovery until
+    # its lease expires, so its id should not be handed to the next run straight away.
+    order = sorted((1 + (start + k) % n for k in range(n)), key=last_used)
+    for domain_id in order:
         lock = _try_lock(domain_id)
         if lock is not None:
             return lock
