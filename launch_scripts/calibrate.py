@@ -8,7 +8,8 @@ Writes into ``DIR`` (default ``runs/calibrate_<bridge>_<train>_<time>``): ``run.
 monitoring topic, ROS 2 profile), ``run.rrd`` (rerun), ``summary.json`` (the keys of
 ``adm-calib calibrate --json``) and ``logs/<node>.log``. Shows the progress of every run and each
 Δζ iteration, prints the result, and stops every process it started, also on Ctrl-C, SIGTERM or
-when a node dies (exit status 1, naming the node). Exit status 0 on success, 2 on bad input.
+when a node dies (exit status 1, naming the node). Exit status 0 on success, 2 on bad input
+(checked before any process starts); an earlier run in ``--out`` is kept unless ``--overwrite``.
 """
 
 from __future__ import annotations
@@ -36,7 +37,26 @@ def parse_args(argv=None):
     ap.add_argument("--no-rrd", action="store_true", help="do not write run.rrd")
     ap.add_argument("--domain-id", type=int, help="ROS_DOMAIN_ID (default: a free one, reserved)")
     ap.add_argument("--quiet", action="store_true", help="no progress bars")
+    ap.add_argument("--overwrite", action="store_true", help="replace the outputs of an earlier run in --out")
     return ap.parse_args(argv)
+
+
+def check_inputs(args):
+    """Validate the user's bridge, train and speeds before any process starts (InputError)."""
+    from adm_sim.bridge import resolve_bridge
+    from adm_sim.sweep import parse_speeds
+    from adm_sim.trains import load_train
+
+    if args.bridge:
+        resolve_bridge(args.bridge)
+    if args.train:
+        load_train(args.train)
+    if args.speeds:
+        parse_speeds(args.speeds)
+    if not Path(args.params_file).is_file():
+        from adm_sim.errors import InputError
+
+        raise InputError(f"--params-file: {args.params_file!r} does not exist")
 
 
 def node_params(args, out):
@@ -119,13 +139,25 @@ def print_result(summary):
 
 
 def main(argv=None):
+    from adm_sim.errors import InputError
+
     args = parse_args(argv)
+    try:
+        check_inputs(args)
+    except InputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     t_start = time.perf_counter()
     tag = f"{(args.bridge or 'B1')}_{(args.train or 'ICE-2')}".replace("/", "_").replace("=", "").replace(",", "_")
     out = Path(args.out) if args.out else ROOT / "runs" / f"calibrate_{tag}_{time.strftime('%Y%m%d-%H%M%S')}"
     out.mkdir(parents=True, exist_ok=True)
-    for f in ("run.mcap", "run.rrd", "summary.json"):
-        (out / f).unlink(missing_ok=True)
+    old = [f for f in ("run.mcap", "run.rrd", "summary.json") if (out / f).exists()]
+    if old and not args.overwrite:
+        print(f"error: --out: {str(out)!r} holds an earlier run ({', '.join(old)}); "
+              f"choose another folder or pass --overwrite", file=sys.stderr)
+        return 2
+    for f in old:
+        (out / f).unlink()
     pb, pt, pc = node_params(args, out)
     prog = Progress(args.quiet)
     code = 0
