@@ -36,6 +36,7 @@ import math
 import os
 import platform
 import re
+import signal
 import sys
 import time
 from collections import Counter
@@ -351,12 +352,20 @@ class ResultsWriter:
         self.appended = 0
 
     def append(self, rec):
-        """Append one record and make it durable before returning."""
-        self._f.write(_line(rec))
-        self._f.flush()
-        os.fsync(self._f.fileno())
-        self.records[record_key(rec)] = rec
-        self.appended += 1
+        """Append one record and make it durable before returning.
+
+        Ctrl-C and SIGTERM are held back while the line is written and counted, so an interrupt
+        never leaves a written line uncounted (or a counted line unwritten).
+        """
+        held = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+        try:
+            self._f.write(_line(rec))
+            self._f.flush()
+            os.fsync(self._f.fileno())
+            self.records[record_key(rec)] = rec
+            self.appended += 1
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, held)
 
     def finish(self):
         if self._f is not None and not self._f.closed:
@@ -570,6 +579,7 @@ def run_study(out_dir, cases, settings=StudySettings(), workers=2, scheduler=Non
                 run.interrupted = True
             finally:
                 run.wall_s = time.perf_counter() - t0
+                run.completed = writer.appended  # the lines this run wrote, whatever interrupted it
                 entry.update({"finished": _now(), "completed": run.completed, "statuses": dict(run.statuses),
                               "interrupted": run.interrupted, "wall_s": round(run.wall_s, 3),
                               "dropped_truncated_line": run.dropped_truncated_line,

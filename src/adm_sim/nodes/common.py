@@ -390,6 +390,10 @@ def run_node(make_node, args=None, name="node"):
         if node is not None:
             try:
                 node.report_failure(str(exc))
+                # let the failure reach the other nodes before this process leaves the graph
+                from rclpy.duration import Duration
+
+                node.pub_status.wait_for_all_acked(Duration(seconds=1.0))
             except Exception:
                 pass
     except Exception:

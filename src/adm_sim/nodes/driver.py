@@ -228,9 +228,21 @@ class RunDriver(c.ParamNodeMixin, Node):
 
     def _check_alive(self):
         names = set(self.get_node_names())
-        for n in (c.BRIDGE_NODE, c.TRAIN_NODE):
-            if n not in names:
-                raise RunError(f"node '{n}' vanished during run {self._current[0] if self._current else '?'}")
+        missing = [n for n in (c.BRIDGE_NODE, c.TRAIN_NODE) if n not in names]
+        if not missing:
+            return
+        run = self._current[0] if self._current else None
+        # a node that stopped because its partner died says so on /adm/run/status before it goes
+        t_end = time.monotonic() + 1.0
+        while True:
+            with self._lock:
+                failed = [s for (_n, rid), s in self._status.items() if rid == run and s.get("state") == "failed"]
+            if failed or time.monotonic() > t_end:
+                break
+            self._event.wait(0.05)
+        which = " and ".join(f"'{n}'" for n in missing)
+        why = f" ({failed[0]['node']}: {failed[0].get('message', '')})" if failed else ""
+        raise RunError(f"node {which} vanished during run {'?' if run is None else run}{why}")
 
     def request_run(self, model=None, speeds_kmh=None, delta_zeta=None, delta_zeta_lanes=None, label=None):
         """One co-simulated run; returns ``{"speeds_kmh", "max_acc_m_s2", "max_disp_m", "delta_zeta", ...}``.
