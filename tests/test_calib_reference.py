@@ -24,6 +24,14 @@ def test_adm_zero_from_30m(span):
     assert ref.adm_delta_zeta_pct(span) == 0.0
 
 
+def test_adm_never_negative_just_below_30m():
+    # the rational function itself is -0.0024 % at 29.8 m; the ADM gives no negative damping
+    L = 29.8
+    raw = (0.0187 * L - 0.00064 * L**2) / (1 - 0.0441 * L - 0.0044 * L**2 + 0.000255 * L**3)
+    assert raw < 0.0
+    assert ref.adm_delta_zeta_pct(L) == 0.0
+
+
 def test_adm_positive_below_30m_and_rejects_bad_span():
     for L in (2.0, 5.0, 10.0, 20.0, 25.0, 29.0):
         assert ref.adm_delta_zeta_pct(L) > 0.0

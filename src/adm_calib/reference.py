@@ -108,7 +108,9 @@ def adm_delta_zeta_pct(span_m):
     L = check_range("span_m", span_m, "m", 0.0, None, lo_open=True)
     if L >= 30.0:
         return 0.0
-    return (0.0187 * L - 0.00064 * L**2) / (1.0 - 0.0441 * L - 0.0044 * L**2 + 0.000255 * L**3)
+    # The rational function dips below zero (by at most 0.003 %) for 29.2 m < L < 30 m; the
+    # standard's Fig. 6.15 ends at zero there, and additional damping is never negative.
+    return max(0.0, (0.0187 * L - 0.00064 * L**2) / (1.0 - 0.0441 * L - 0.0044 * L**2 + 0.000255 * L**3))
 
 
 # ---------------------------------------------------------------------- EADA
