@@ -62,10 +62,13 @@ def test_rigid_primary_stage_equals_masses_carried_by_the_wheels(train_name):
     assert np.max(np.abs(a_lumped / a_mlm - 1)) > 0.01
 
 
-def test_dim_step_convergence_b1_ice2():
-    # Halving the step moves the DIM peak by < 0.1 % (speeds around the resonance).
-    b, t = named_bridge("B1"), load_train("ICE-2")
-    speeds = np.arange(250.0, 276.0, 1.0)
+@pytest.mark.parametrize("bridge_name,train_name,lo,hi", [("B1", "ICE-2", 250.0, 276.0),
+                                                         ("B3", "Eurostar", 258.0, 284.0)])
+def test_dim_step_convergence(bridge_name, train_name, lo, hi):
+    # Halving the step moves the DIM peak by < 0.1 % (speeds around the resonance);
+    # conventional and Jacobs trains.
+    b, t = named_bridge(bridge_name), load_train(train_name)
+    speeds = np.arange(lo, hi, 1.0)
     opts = StepOptions()
     p1 = run_sweep(b, t, "dim", speeds, options=opts).peak()
     p2 = run_sweep(b, t, "dim", speeds, options=opts.halved()).peak()
