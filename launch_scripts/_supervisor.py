@@ -42,7 +42,7 @@ def ros_args(params_file=None, params=None, log_level=None):
     for k, v in (params or {}).items():
         if isinstance(v, bool):
             v = "true" if v else "false"
-        elif isinstance(v, str) and (v == "" or any(ch in v for ch in ",:[]{}#")):
+        elif isinstance(v, str):  # quoted: '280' or 'true' stay strings, not YAML numbers/bools
             v = "'" + v.replace("'", "") + "'"
         out += ["-p", f"{k}:={v}"]
     if log_level:

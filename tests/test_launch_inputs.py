@@ -30,3 +30,16 @@ def test_refuses_to_overwrite_an_earlier_run(tmp_path):
                        timeout=60)
     assert r.returncode == 2 and "holds an earlier run (summary.json)" in r.stderr
     assert (tmp_path / "summary.json").read_text() == "{}"
+
+
+def test_node_rejects_a_wrongly_typed_startup_parameter():
+    # -p speeds_kmh:=280 is a YAML integer; the node names the parameter and exits 2, no traceback
+    from adm_sim.ros.env import local_ros_env
+
+    with local_ros_env() as env:
+        r = subprocess.run([sys.executable, "-m", "adm_sim.nodes.train_node", "--ros-args", "-p", "speeds_kmh:=280"],
+                           capture_output=True, text=True, timeout=60, env=env)
+    assert r.returncode == 2
+    assert "Traceback" not in r.stderr
+    assert "error: train: speeds_kmh: the given value has the wrong type" in r.stderr
+    assert "expected a str (km/h)" in r.stderr

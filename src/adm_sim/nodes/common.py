@@ -220,9 +220,17 @@ class ParamNodeMixin:
     _specs: dict
 
     def declare_specs(self, specs):
+        from rclpy.exceptions import InvalidParameterTypeException
+
         self._specs = {s.name: s for s in specs}
         for s in specs:
-            self.declare_parameter(s.name, s.default, s.descriptor())
+            try:
+                self.declare_parameter(s.name, s.default, s.descriptor())
+            except InvalidParameterTypeException as exc:  # e.g. -p speeds_kmh:=280 (a YAML integer)
+                unit = f" ({s.unit})" if s.unit else ""
+                raise InputError(f"{s.name}: the given value has the wrong type ({exc}); expected a "
+                                 f"{type(s.default).__name__}{unit}, e.g. {s.default!r}: quote text values "
+                                 f"in YAML and -p overrides") from None
 
     def _range_reason(self, parameter):
         s = self._specs.get(parameter.name)

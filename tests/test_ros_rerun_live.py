@@ -1,0 +1,60 @@
+"""A live rerun viewer on 127.0.0.1 receives a crossing streamed with ``--connect``.
+
+The "viewer" is rerun's own headless receiver (``rerun --bind 127.0.0.1 --port P --save F``), which
+writes whatever a connected SDK sends; its file must hold the midspan and beam views.
+"""
+
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+RERUN = Path(sys.executable).with_name("rerun")
+
+
+def _free_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _wait_port(port, timeout_s=20.0):
+    end = time.monotonic() + timeout_s
+    while time.monotonic() < end:
+        try:
+            with socket.create_connection(("127.0.0.1", port), timeout=0.2):
+                return True
+        except OSError:
+            time.sleep(0.1)
+    return False
+
+
+def test_crossing_streams_to_a_live_viewer(tmp_path):
+    port = _free_port()
+    recv = tmp_path / "received.rrd"
+    env = dict(os.environ, CI="1")  # no analytics from the receiver
+    viewer = subprocess.Popen([str(RERUN), "--bind", "127.0.0.1", "--port", str(port), "--save", str(recv)],
+                              env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        assert _wait_port(port), "rerun receiver did not start"
+        r = subprocess.run([sys.executable, str(ROOT / "launch_scripts" / "crossing.py"), "--model", "mlm",
+                            "--speeds", "280", "--out", str(tmp_path / "run"),
+                            "--connect", f"rerun+http://127.0.0.1:{port}/proxy"],
+                           capture_output=True, text=True, timeout=180, cwd=ROOT)
+        assert r.returncode == 0, r.stderr
+    finally:
+        viewer.send_signal(signal.SIGINT)
+        try:
+            viewer.wait(20)
+        except subprocess.TimeoutExpired:
+            viewer.kill()
+    stats = subprocess.run([str(RERUN), "rrd", "stats", str(recv)], capture_output=True, text=True, env=env,
+                           timeout=60)
+    assert stats.returncode == 0, stats.stderr
+    out = stats.stdout
+    assert "/beam/deflection" in out and "/beam/axles" in out
+    assert "/midspan/acceleration_m_s2/MLM" in out and "/sweep/MLM" in out
