@@ -6,31 +6,14 @@ writes whatever a connected SDK sends; its file must hold the midspan and beam v
 
 import os
 import signal
-import socket
 import subprocess
 import sys
-import time
 from pathlib import Path
+
+from adm_sim.ros.rerun_log import _free_port, _wait_for_port
 
 ROOT = Path(__file__).resolve().parents[1]
 RERUN = Path(sys.executable).with_name("rerun")
-
-
-def _free_port():
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def _wait_port(port, timeout_s=20.0):
-    end = time.monotonic() + timeout_s
-    while time.monotonic() < end:
-        try:
-            with socket.create_connection(("127.0.0.1", port), timeout=0.2):
-                return True
-        except OSError:
-            time.sleep(0.1)
-    return False
 
 
 def test_crossing_streams_to_a_live_viewer(tmp_path):
@@ -40,7 +23,7 @@ def test_crossing_streams_to_a_live_viewer(tmp_path):
     viewer = subprocess.Popen([str(RERUN), "--bind", "127.0.0.1", "--port", str(port), "--save", str(recv)],
                               env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     try:
-        assert _wait_port(port), "rerun receiver did not start"
+        assert _wait_for_port(port, 20.0), "rerun receiver did not start"
         r = subprocess.run([sys.executable, str(ROOT / "launch_scripts" / "crossing.py"), "--model", "mlm",
                             "--speeds", "280", "--out", str(tmp_path / "run"),
                             "--connect", f"rerun+http://127.0.0.1:{port}/proxy"],
