@@ -144,20 +144,6 @@ def cmd_recommend(args):
 
 
 # ---------------------------------------------------------------------- parametric study
-def _study_trains(text):
-    from adm_calib.reference import STUDY_TRAINS, canonical_train_name
-
-    out = []
-    for t in _list(text, "--trains"):
-        try:
-            name = canonical_train_name(t)
-        except InputError:
-            raise InputError(f"--trains: {t!r} is not a study train; allowed {', '.join(STUDY_TRAINS)}") from None
-        if name not in out:
-            out.append(name)
-    return out
-
-
 def _mass_functions(text):
     from adm_calib.study import MASS_FUNCTION_NAMES
 
@@ -209,9 +195,9 @@ def _scheduler(text):
 def cmd_study(args):
     import signal
 
-    from adm_calib.study import StudySettings, run_study, select_cases
+    from adm_calib.study import StudySettings, canonical_trains, run_study, select_cases
 
-    trains = _study_trains(args.trains)
+    trains = canonical_trains(_list(args.trains, "--trains"), field="--trains")
     mfs = _mass_functions(args.mass_functions)
     spans = _spans(args.spans)
     fis = _freq_indices(args.freq_index)

@@ -96,6 +96,19 @@ def parse_bridge_name(name):
     return float(m["span"]), int(m["fi"]), m["mf"]
 
 
+def canonical_trains(names, field="trains"):
+    """Study train names for ``names`` (duplicates dropped, order kept); ``field`` names the input."""
+    out = []
+    for t in names:
+        try:
+            name = canonical_train_name(t)
+        except InputError:
+            raise InputError(f"{field}: {t!r} is not a study train; allowed {', '.join(STUDY_TRAINS)}") from None
+        if name not in out:
+            out.append(name)
+    return out
+
+
 def select_cases(trains=STUDY_TRAINS, mass_functions=MASS_FUNCTION_NAMES, spans_m=SPAN_RANGE_M,
                  freq_indices=FREQ_INDICES):
     """The study cases of the field filtered by the arguments, in a fixed order.
@@ -116,14 +129,7 @@ def select_cases(trains=STUDY_TRAINS, mass_functions=MASS_FUNCTION_NAMES, spans_
     list of StudyCase
         Field order (span, frequency index, mass function), the trains innermost.
     """
-    tr = []
-    for t in trains:
-        try:
-            name = canonical_train_name(t)
-        except InputError:
-            raise InputError(f"trains: {t!r} is not a study train; allowed {', '.join(STUDY_TRAINS)}") from None
-        if name not in tr:
-            tr.append(name)
+    tr = canonical_trains(trains)
     for m in mass_functions:
         if m not in MASS_FUNCTION_NAMES:
             raise InputError(f"mass_functions: {m!r} is unknown; allowed {', '.join(MASS_FUNCTION_NAMES)}")
