@@ -16,12 +16,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import queue
 import sys
 import time
 from pathlib import Path
 
-from _supervisor import PARAMS_DIR, ROOT, NodeDied, Supervisor, ros_args
+from _supervisor import PARAMS_DIR, ROOT, NodeDied, Supervisor, check_inputs, prepare_out, run_graph
 
 
 def parse_args(argv=None):
@@ -39,24 +38,6 @@ def parse_args(argv=None):
     ap.add_argument("--quiet", action="store_true", help="no progress bars")
     ap.add_argument("--overwrite", action="store_true", help="replace the outputs of an earlier run in --out")
     return ap.parse_args(argv)
-
-
-def check_inputs(args):
-    """Validate the user's bridge, train and speeds before any process starts (InputError)."""
-    from adm_sim.bridge import resolve_bridge
-    from adm_sim.sweep import parse_speeds
-    from adm_sim.trains import load_train
-
-    if args.bridge:
-        resolve_bridge(args.bridge)
-    if args.train:
-        load_train(args.train)
-    if args.speeds:
-        parse_speeds(args.speeds)
-    if not Path(args.params_file).is_file():
-        from adm_sim.errors import InputError
-
-        raise InputError(f"--params-file: {args.params_file!r} does not exist")
 
 
 def node_params(args, out):
@@ -142,48 +123,22 @@ def main(argv=None):
     from adm_sim.errors import InputError
 
     args = parse_args(argv)
-    try:
-        check_inputs(args)
-    except InputError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
     t_start = time.perf_counter()
     tag = f"{(args.bridge or 'B1')}_{(args.train or 'ICE-2')}".replace("/", "_").replace("=", "").replace(",", "_")
     out = Path(args.out) if args.out else ROOT / "runs" / f"calibrate_{tag}_{time.strftime('%Y%m%d-%H%M%S')}"
-    out.mkdir(parents=True, exist_ok=True)
-    old = [f for f in ("run.mcap", "run.rrd", "summary.json") if (out / f).exists()]
-    if old and not args.overwrite:
-        print(f"error: --out: {str(out)!r} holds an earlier run ({', '.join(old)}); "
-              f"choose another folder or pass --overwrite", file=sys.stderr)
+    try:
+        check_inputs(args.bridge, args.train, args.speeds, args.params_file)
+        prepare_out(out, args.overwrite)
+    except InputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
         return 2
-    for f in old:
-        (out / f).unlink()
     pb, pt, pc = node_params(args, out)
     prog = Progress(args.quiet)
-    code = 0
     try:
         with Supervisor(out / "logs", args.domain_id) as sup:
             print(f"ROS_DOMAIN_ID={sup.domain_id} (shared memory only); output in {out}", flush=True)
-            sup.start("bridge", "adm_sim.nodes.bridge_node", ros_args(args.params_file, pb))
-            sup.start("train", "adm_sim.nodes.train_node", ros_args(args.params_file, pt))
-            sup.start("calibration", "adm_calib.nodes.calibration_node", ros_args(args.params_file, pc), capture=True)
-            while True:
-                try:
-                    name, line = sup.lines.get(timeout=0.2)
-                    if line is not None:
-                        prog.handle(line)
-                except queue.Empty:
-                    pass
-                sup.note_shm() if time.perf_counter() - t_start < 5 else None
-                died = sup.dead(("bridge", "train"))
-                if died:
-                    raise NodeDied(f"node '{died[0]}' died (exit status {died[1]}): {sup.log_tail(died[0])}")
-                done = sup.dead(("calibration",))
-                if done and sup.lines.empty():
-                    if done[1] != 0:
-                        raise NodeDied(f"node 'calibration' failed (exit status {done[1]}): "
-                                       f"{sup.log_tail('calibration')}")
-                    break
+            run_graph(sup, args.params_file, pb, pt, "calibration", "adm_calib.nodes.calibration_node", pc,
+                      prog.handle)
     except KeyboardInterrupt:
         prog._close_bar()
         print("interrupted: stopped every node", file=sys.stderr)
@@ -199,7 +154,7 @@ def main(argv=None):
     print_result(summary)
     print(f"\nwrote {out / 'summary.json'}, {out / 'run.mcap'}" + ("" if args.no_rrd else f", {out / 'run.rrd'}"))
     print(f"wall time {summary['wall_s']:.1f} s (processes started and stopped included)")
-    return code
+    return 0
 
 
 if __name__ == "__main__":

@@ -2,25 +2,28 @@
 """One crossing (or one speed sweep) over ROS 2, published live.
 
     .venv/bin/python launch_scripts/crossing.py [--params-file ros_ws/params/crossing_b3_300.yaml]
-        [--bridge B3] [--train ICE-2] [--model dim|mlm] [--speeds 300] [--out DIR] [--spawn | --connect URL]
+        [--bridge B3] [--train ICE-2] [--model dim|mlm] [--speeds 300] [--out DIR] [--overwrite]
+        [--spawn | --connect URL]
 
 Starts the bridge and train nodes and a driver node (records ``run.mcap`` and ``run.rrd`` in
 ``DIR``, writes ``summary.json``) as separate processes; every topic of the graph is live while it
 runs (``/adm/midspan/accel``, ``/diagnostics``, ``/clock``...), so a monitoring client on the same
 ``ROS_DOMAIN_ID`` (printed; ``--domain-id`` to choose it) sees the crossing. Stops every process on
-exit, Ctrl-C, SIGTERM or when a node dies.
+exit, Ctrl-C, SIGTERM or when a node dies. Bad input is refused before anything starts (exit 2);
+an earlier run in ``--out`` is kept unless ``--overwrite``.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import queue
 import sys
 import time
 from pathlib import Path
 
-from _supervisor import PARAMS_DIR, ROOT, NodeDied, Supervisor, ros_args
+from _supervisor import PARAMS_DIR, ROOT, NodeDied, Supervisor, check_inputs, prepare_out, run_graph
+
+from adm_sim.errors import InputError
 
 
 def main(argv=None):
@@ -34,11 +37,15 @@ def main(argv=None):
     ap.add_argument("--spawn", action="store_true")
     ap.add_argument("--connect")
     ap.add_argument("--domain-id", type=int)
+    ap.add_argument("--overwrite", action="store_true", help="replace the outputs of an earlier run in --out")
     args = ap.parse_args(argv)
     out = Path(args.out) if args.out else ROOT / "runs" / f"crossing_{time.strftime('%Y%m%d-%H%M%S')}"
-    out.mkdir(parents=True, exist_ok=True)
-    for f in ("run.mcap", "run.rrd", "summary.json"):
-        (out / f).unlink(missing_ok=True)
+    try:
+        check_inputs(args.bridge, args.train, args.speeds, args.params_file)
+        prepare_out(out, args.overwrite)
+    except InputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     pb = {"bridge": args.bridge} if args.bridge else {}
     pt = {k: v for k, v in (("train", args.train), ("model", args.model), ("speeds_kmh", args.speeds)) if v}
     pd = {"record_path": str(out / "run.mcap"), "rrd_path": str(out / "run.rrd"),
@@ -49,31 +56,20 @@ def main(argv=None):
     try:
         with Supervisor(out / "logs", args.domain_id) as sup:
             print(f"ROS_DOMAIN_ID={sup.domain_id} (shared memory only); output in {out}", flush=True)
-            sup.start("bridge", "adm_sim.nodes.bridge_node", ros_args(args.params_file, pb))
-            sup.start("train", "adm_sim.nodes.train_node", ros_args(args.params_file, pt))
-            sup.start("driver", "adm_sim.nodes.driver", ros_args(args.params_file, pd), capture=True)
             last = -1
-            while True:
-                try:
-                    _, line = sup.lines.get(timeout=0.2)
-                except queue.Empty:
-                    line = None
-                if line and line.startswith("@progress"):
+
+            def on_line(line):
+                nonlocal last
+                if line.startswith("@progress"):
                     d = json.loads(line.split(" ", 1)[1])
                     pct = int(100 * d["step"] / d["n_steps"])
                     if pct >= last + 10:
                         print(f"  step {d['step']:>7} / {d['n_steps']}  sim time {d['sim_time_s']:.3f} s", flush=True)
                         last = pct
-                elif line and not line.startswith("@"):
+                elif not line.startswith("@"):
                     print(line, flush=True)
-                died = sup.dead(("bridge", "train"))
-                if died:
-                    raise NodeDied(f"node '{died[0]}' died (exit status {died[1]}): {sup.log_tail(died[0])}")
-                done = sup.dead(("driver",))
-                if done and sup.lines.empty():
-                    if done[1] != 0:
-                        raise NodeDied(f"node 'driver' failed (exit status {done[1]}): {sup.log_tail('driver')}")
-                    break
+
+            run_graph(sup, args.params_file, pb, pt, "driver", "adm_sim.nodes.driver", pd, on_line)
     except KeyboardInterrupt:
         print("interrupted: stopped every node", file=sys.stderr)
         return 130

@@ -6,17 +6,18 @@ from pathlib import Path
 
 import pytest
 
-SCRIPT = Path(__file__).resolve().parents[1] / "launch_scripts" / "calibrate.py"
+SCRIPTS = Path(__file__).resolve().parents[1] / "launch_scripts"
 
 
+@pytest.mark.parametrize("script", ["calibrate.py", "crossing.py"])
 @pytest.mark.parametrize("args,match", [
     (["--train", "TGV"], "train: 'TGV' is unknown; allowed ICE-2"),
     (["--bridge", "L=-3,n0=8,mu=1000,zeta_pct=1"], "L: -3 m is out of range; allowed [1, 150] m"),
     (["--speeds", "100:50"], "needs start <= stop"),
     (["--params-file", "nope.yaml"], "--params-file: 'nope.yaml' does not exist"),
 ])
-def test_bad_input_exit_2(args, match, tmp_path):
-    r = subprocess.run([sys.executable, str(SCRIPT), "--out", str(tmp_path / "o")] + args,
+def test_bad_input_exit_2(script, args, match, tmp_path):
+    r = subprocess.run([sys.executable, str(SCRIPTS / script), "--out", str(tmp_path / "o")] + args,
                        capture_output=True, text=True, timeout=60)
     assert r.returncode == 2
     lines = r.stderr.strip().splitlines()
@@ -24,9 +25,10 @@ def test_bad_input_exit_2(args, match, tmp_path):
     assert "ROS_DOMAIN_ID" not in r.stdout  # nothing was started
 
 
-def test_refuses_to_overwrite_an_earlier_run(tmp_path):
+@pytest.mark.parametrize("script", ["calibrate.py", "crossing.py"])
+def test_refuses_to_overwrite_an_earlier_run(script, tmp_path):
     (tmp_path / "summary.json").write_text("{}")
-    r = subprocess.run([sys.executable, str(SCRIPT), "--out", str(tmp_path)], capture_output=True, text=True,
+    r = subprocess.run([sys.executable, str(SCRIPTS / script), "--out", str(tmp_path)], capture_output=True, text=True,
                        timeout=60)
     assert r.returncode == 2 and "holds an earlier run (summary.json)" in r.stderr
     assert (tmp_path / "summary.json").read_text() == "{}"
