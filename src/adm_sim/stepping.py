@@ -308,12 +308,6 @@ class BridgeSide:
         return done
 
     # ------------------------------------------------------------------ MLM
-    def modal_loads(self, loads_n, k=None, stage=None):
-        """Modal load vector of Eq. (6) for constant axle loads, shape (n_modes,)."""
-        idx, x = self.axles_on(k, stage)
-        phi, _, _ = self.bridge.shapes(x)
-        return np.asarray(loads_n, dtype=float)[idx] @ phi
-
     def _coeffs(self):
         """Exact RK4 recurrence of each lane-mode oscillator: y+ = A y + B0 p0 + Bh ph + B1 p1."""
         if self._mlm_coeffs is None:
@@ -389,7 +383,6 @@ class TrainSide:
         self.k = 0
         self._active_cache = {}
         self._step_active = None
-        self.last_forces = None
 
     def _active(self):
         """Assembled matrices of the units active during step k (cached by unit set)."""
@@ -450,7 +443,6 @@ class TrainSide:
         f = kp * (W - zb) + cp * (Wd - zbd)  # primary stage force on the bogies (Eq. 7 terms)
         udd = (f @ Lw - u @ KsT - ud @ CsT) * minv
         G = self.train.axle_loads_n[idx_on] - f[:, pos]
-        self.last_forces = G
         if self.rk.push(ud, udd):
             self.x[:, dofs] = self.rk.x
             self.xd[:, dofs] = self.rk.xd
@@ -459,20 +451,37 @@ class TrainSide:
         return G
 
 
+def half_step_positions(ds_m, axle_offsets_m, k0, n_steps):
+    """Axle positions (m from the left support) at the RK4 stage points of steps ``k0..k0+n``.
+
+    Row ``r`` is the first axle at ``s = r ds / 2``, ``r = 2 k0 .. 2 (k0 + n)``; shape
+    ``(2 n + 1, n_axles)``. Rows ``2k`` are steps, rows ``2k + 1`` the RK midpoints.
+    """
+    s = 0.5 * ds_m * np.arange(2 * k0, 2 * (k0 + n_steps) + 1)
+    return s[:, None] - np.asarray(axle_offsets_m, dtype=float)[None, :]
+
+
+def modal_loads_at(bridge, x_m, loads_n):
+    """Modal loads of Eq. (6) for axle positions ``x_m`` (rows, n_axles), shape (rows, n_modes).
+
+    One pass per axle over the rows with that axle on the bridge (positions increase along the
+    rows); the rectangle function Gamma is the closed span ``[0, L]``.
+    """
+    out = np.zeros((x_m.shape[0], bridge.n_modes))
+    j = bridge.mode_numbers * math.pi / bridge.span_m
+    for i in range(x_m.shape[1]):
+        x = x_m[:, i]
+        on = np.flatnonzero((x >= 0.0) & (x <= bridge.span_m))
+        if on.size:
+            lo, hi = on[0], on[-1] + 1
+            out[lo:hi] += loads_n[i] * np.sin(np.outer(x[lo:hi], j))
+    return out
+
+
 def mlm_modal_load_table(bridge, grid, axle_offsets_m, axle_loads_n):
     """Modal loads of Eq. (6) on the half-step grid, shape (2 n_steps + 1, n_modes).
 
     Row ``2k`` is step k, row ``2k + 1`` the RK midpoint; shared by all lanes.
     """
-    s = 0.5 * grid.ds_m * np.arange(2 * grid.n_steps + 1)
-    out = np.zeros((len(s), bridge.n_modes))
-    offs = np.asarray(axle_offsets_m, dtype=float)
-    loads = np.asarray(axle_loads_n, dtype=float)
-    j = bridge.mode_numbers * math.pi / bridge.span_m
-    for i in range(len(offs)):  # one pass per axle: only the samples with the axle on the bridge
-        x = s - offs[i]
-        lo = np.searchsorted(x, 0.0, side="left")
-        hi = np.searchsorted(x, bridge.span_m, side="right")
-        if hi > lo:
-            out[lo:hi] += loads[i] * np.sin(np.outer(x[lo:hi], j))
-    return out
+    x = half_step_positions(grid.ds_m, axle_offsets_m, 0, grid.n_steps)
+    return modal_loads_at(bridge, x, np.asarray(axle_loads_n, dtype=float))

@@ -223,10 +223,6 @@ def moving_loads(axle_offsets_m, axle_loads_n, name="load train"):
 
 
 # ---------------------------------------------------------------------- loading
-def available_trains():
-    return TRAIN_NAMES
-
-
 def _normalise(name):
     return "".join(ch for ch in name.lower() if ch.isalnum())
 

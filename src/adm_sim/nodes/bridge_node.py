@@ -33,7 +33,7 @@ from std_msgs.msg import Float64MultiArray, String
 from adm_sim.bridge import N0_RANGE_HZ, SPAN_RANGE_M, MU_RANGE_KG_M, Bridge, resolve_bridge
 from adm_sim.errors import InputError, check_range
 from adm_sim.nodes import common as c
-from adm_sim.stepping import BridgeSide, StepOptions, make_grid
+from adm_sim.stepping import BridgeSide, StepOptions, make_grid, modal_loads_at
 
 TRACK_TYPES = tuple(c.ACC_LIMITS_M_S2)
 
@@ -257,7 +257,7 @@ class BridgeNode(c.ParamNodeMixin, Node):
         c.check_step("bridge", (run_id, k0, stage), (r["id"], side.k, 0))
         self.partner.clear()
         n = (block.shape[0] - 2) // 2
-        P = c.modal_loads_from_positions(r["bridge"], block[:-1], block[-1])
+        P = modal_loads_at(r["bridge"], block[:-1], block[-1])
         for j in range(n):
             k = side.k
             disp = side.midspan_displacement()

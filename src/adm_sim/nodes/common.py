@@ -157,34 +157,6 @@ def json_msg(obj):
     return String(data=json.dumps(obj))
 
 
-# ---------------------------------------------------------------------- MLM loads on a block
-def axle_positions(ds_m, offsets_m, k0, n_steps):
-    """Axle positions (m from the left support) at the half-step points of steps ``k0..k0+n``.
-
-    Row ``r`` is ``s = r ds / 2`` with ``r = 2 k0 .. 2 (k0 + n)``, shape ``(2 n + 1, n_axles)``;
-    computed as :func:`adm_sim.stepping.mlm_modal_load_table` does, so the loads agree bitwise.
-    """
-    s = 0.5 * ds_m * np.arange(2 * k0, 2 * (k0 + n_steps) + 1)
-    return s[:, None] - np.asarray(offsets_m, dtype=float)[None, :]
-
-
-def modal_loads_from_positions(bridge, x_m, loads_n):
-    """Modal loads of Eq. (6) for axle positions ``x_m`` (rows, n_axles), shape (rows, n_modes).
-
-    The same operations, in the same order, as :func:`adm_sim.stepping.mlm_modal_load_table`
-    (one pass per axle over the rows with that axle on the bridge).
-    """
-    out = np.zeros((x_m.shape[0], bridge.n_modes))
-    j = bridge.mode_numbers * math.pi / bridge.span_m
-    for i in range(x_m.shape[1]):
-        x = x_m[:, i]
-        on = np.flatnonzero((x >= 0.0) & (x <= bridge.span_m))
-        if on.size:
-            lo, hi = on[0], on[-1] + 1
-            out[lo:hi] += loads_n[i] * np.sin(np.outer(x[lo:hi], j))
-    return out
-
-
 # ---------------------------------------------------------------------- parameters
 _TYPES = {float: ParameterType.PARAMETER_DOUBLE, int: ParameterType.PARAMETER_INTEGER,
           str: ParameterType.PARAMETER_STRING, bool: ParameterType.PARAMETER_BOOL}

@@ -24,7 +24,7 @@ from std_srvs.srv import Trigger
 
 from adm_sim.errors import InputError
 from adm_sim.nodes import common as c
-from adm_sim.stepping import Grid, TrainSide, speeds_to_m_s
+from adm_sim.stepping import Grid, TrainSide, half_step_positions, speeds_to_m_s
 from adm_sim.sweep import MODELS, parse_speeds
 from adm_sim.trains import load_train
 
@@ -166,7 +166,7 @@ class TrainNode(c.ParamNodeMixin, Node):
             r["k"] = k + (stage == 3)
         else:
             b = min(r["block"], n - k)
-            x = c.axle_positions(r["grid"].ds_m, r["train"].axle_offsets_m, k, b)
+            x = half_step_positions(r["grid"].ds_m, r["train"].axle_offsets_m, k, b)
             block = np.vstack([x, r["train"].axle_loads_n[None, :]])
             self.pub_block.publish(c.pack(run_id, k, 0, block, ("row:positions_m(2n+1),loads_n", "axle")))
             r["k"] = k + b
