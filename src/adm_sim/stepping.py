@@ -160,8 +160,8 @@ class _Rk4State:
         self._sxd = self.xd
 
     def reset(self, x, xd):
-        """Start a step from the given state (copies)."""
-        self.x, self.xd = np.array(x), np.array(xd)
+        """Start a step from the given state (taken over, not copied)."""
+        self.x, self.xd = x, xd
         self._sx, self._sxd = self.x, self.xd
         self.stage = 0
 
@@ -341,9 +341,8 @@ class BridgeSide:
         (ax, axd), (bx, bxd), (c0, c0d), (ch, chd), (c1, c1d) = self._coeffs()
         q, qd = self.rk.x, self.rk.xd
         self.last_acc = ((p0 - self.Z * qd - self.K * q) / self.M) @ self.phi_mid
-        self.rk.x = ax * q + bx * qd + c0 * p0 + ch * ph + c1 * p1
-        self.rk.xd = axd * q + bxd * qd + c0d * p0 + chd * ph + c1d * p1
-        self.rk._sx, self.rk._sxd = self.rk.x, self.rk.xd
+        self.rk.reset(ax * q + bx * qd + c0 * p0 + ch * ph + c1 * p1,
+                      axd * q + bxd * qd + c0d * p0 + chd * ph + c1d * p1)
         self.k += 1
 
     # ------------------------------------------------------------------ outputs
