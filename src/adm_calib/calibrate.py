@@ -104,6 +104,7 @@ class DampingSolve:
     ladder_runs: int = 0
     residual_rel: float | None = None
     adapted_peak: pk.Peak = field(default_factory=lambda: pk.Peak(found=False))
+    method: str = "brentq"
 
     def __repr__(self):
         if self.delta_zeta is None:
@@ -158,6 +159,23 @@ def solve_delta_zeta(mlm_eval, peak_speed_kmh, speed_window_kmh, target_acc_m_s2
     ladder = _ladder(zeta)
     acc = mlm_eval(np.tile(w, ladder.size), np.repeat(ladder, w.size)).reshape(ladder.size, w.size)
     fl = np.array([pk.window_max(w, row, peak_speed_kmh, win)[1] for row in acc]) / target_acc_m_s2 - 1.0
+    bracket = ladder_bracket(ladder, fl)
+    if isinstance(bracket, DampingSolve):
+        return bracket
+    i, a, b = bracket
+    if fl[i] == 0.0:
+        root, it = a, 0
+    elif fl[i + 1] == 0.0:
+        root, it = b, 0
+    else:
+        root, res = brentq(f, a, b, xtol=opt.xtol, rtol=4 * np.finfo(float).eps, full_output=True)
+        it = res.iterations
+    acc_root = mlm_eval(w, np.full(w.shape, root))
+    return finish_solve(root, w, acc_root, peak_speed_kmh, target_acc_m_s2, (a, b), it, calls, opt)
+
+
+def ladder_bracket(ladder, fl):
+    """The first sign change of ``fl`` over the damping ladder: ``(i, a, b)``, or a failed solve."""
     sign = np.sign(fl)
     change = np.flatnonzero(sign[:-1] * sign[1:] <= 0)
     if change.size == 0:
@@ -169,28 +187,29 @@ def solve_delta_zeta(mlm_eval, peak_speed_kmh, speed_window_kmh, target_acc_m_s2
                    f"(ratio {fl[0] + 1:.4f})")
         return DampingSolve(status="not_bracketed", message=msg, ladder_runs=1)
     i = int(change[0])
-    a, b = float(ladder[i]), float(ladder[i + 1])
-    if fl[i] == 0.0:
-        root, it = a, 0
-    elif fl[i + 1] == 0.0:
-        root, it = b, 0
-    else:
-        root, res = brentq(f, a, b, xtol=opt.xtol, rtol=4 * np.finfo(float).eps, full_output=True)
-        it = res.iterations
-    acc_root = mlm_eval(w, np.full(w.shape, root))
-    j, value = pk.window_max(w, acc_root, peak_speed_kmh, win)
+    return i, float(ladder[i]), float(ladder[i + 1])
+
+
+def finish_solve(root, w, acc_root, peak_speed_kmh, target_acc_m_s2, bracket, iterations, calls, options,
+                 method="brentq"):
+    """Check the root: re-located MLM peak at ``zeta + root`` against the target (Step 3's 0.1 %)."""
+    opt = options
+    half = opt.relocation_window_kmh
+    a, b = bracket
+    j, value = pk.window_max(w, acc_root, peak_speed_kmh, (half, half))
     resid = value / target_acc_m_s2 - 1.0
     local = pk.local_maxima(acc_root, opt.min_prominence_rel)
     adapted = pk.Peak(found=True, index=j, speed_kmh=float(w[j]), acc_m_s2=value, is_local_max=bool(j in local),
                       reason="re-located MLM peak at zeta + dz")
     if abs(resid) > opt.match_rtol:
-        return DampingSolve(status="no_match", delta_zeta=None, bracket=(a, b), iterations=it,
+        return DampingSolve(status="no_match", delta_zeta=None, bracket=(a, b), iterations=iterations,
                             function_calls=calls, ladder_runs=1, residual_rel=resid, adapted_peak=adapted,
+                            method=method,
                             message=(f"the MLM peak jumps across the DIM peak near dz={100 * root:.4f} %: "
                                      f"mismatch {100 * resid:.3f} % > {100 * opt.match_rtol:g} %"))
     return DampingSolve(status="ok", message="peaks matched", delta_zeta=float(root), bracket=(a, b),
-                        iterations=it, function_calls=calls, ladder_runs=1, residual_rel=resid,
-                        adapted_peak=adapted)
+                        iterations=iterations, function_calls=calls, ladder_runs=1, residual_rel=resid,
+                        adapted_peak=adapted, method=method)
 
 
 # ---------------------------------------------------------------------- result
@@ -267,7 +286,7 @@ class CalibrationResult:
             "adapted_is_local_max": bool(self.adapted_peak.found and self.adapted_peak.is_local_max),
             "association_rule": self.dim_peak.reason,
             "solver": None if s is None else {
-                "method": "brentq", "iterations": s.iterations, "function_calls": s.function_calls,
+                "method": s.method, "iterations": s.iterations, "function_calls": s.function_calls,
                 "ladder_runs": s.ladder_runs,
                 "bracket_pct": None if s.bracket is None else [100 * s.bracket[0], 100 * s.bracket[1]],
                 "residual_rel": _f(s.residual_rel), "status": s.status, "message": s.message},
@@ -303,7 +322,7 @@ class CalibrationResult:
                  f"{'' if self.dim_peak.is_local_max or not self.dim_peak.found else '  (not a local maximum)'}",
                  f"adapted MLM    {peak(self.adapted_peak)}"]
         if self.solve is not None and self.solve.delta_zeta is not None:
-            lines.append(f"dz_VBI         {pct(self.delta_zeta_vbi_pct)}  (brentq, {self.solve.iterations} iterations, "
+            lines.append(f"dz_VBI         {pct(self.delta_zeta_vbi_pct)}  ({self.solve.method}, {self.solve.iterations} iterations, "
                          f"peak mismatch {100 * self.solve.residual_rel:.2e} %)")
         else:
             lines.append("dz_VBI         n/a")
@@ -348,6 +367,53 @@ def dim_speeds_paper(speeds_kmh, mlm_peak_kmh, options=None):
         parts.append(_grid_between(mlm_peak_kmh - opt.dim_refine_kmh[0], mlm_peak_kmh + opt.dim_refine_kmh[1],
                                    fine, vmin, vmax))
     return _merge(*parts)
+
+
+def dim_refinement(v, vd, dim_peak):
+    """Extra DIM speeds when the associated DIM value lies where only the coarse grid ran, or None.
+
+    The fine step of the MLM grid on +-5 km/h around the DIM value (Section 3.3's "minor
+    refinements of the DIM speed steps where necessary").
+    """
+    if not dim_peak.found:
+        return None
+    fine = _fine_step(v)
+    i = dim_peak.index
+    gaps = [vd[i] - vd[i - 1] if i > 0 else 0.0, vd[i + 1] - vd[i] if i + 1 < vd.size else 0.0]
+    if max(gaps) <= fine + 1e-9:
+        return None
+    extra = _grid_between(dim_peak.speed_kmh - 5.0, dim_peak.speed_kmh + 5.0, fine, v.min(), v.max())
+    extra = np.setdiff1d(np.round(extra, 9), vd)
+    return extra if extra.size else None
+
+
+def merge_curve(vd, dim, extra, acc_extra):
+    """The DIM curve with the extra speeds merged in speed order."""
+    all_v, all_a = np.concatenate([vd, extra]), np.concatenate([dim, acc_extra])
+    order = np.argsort(all_v)
+    return all_v[order], all_a[order]
+
+
+def relocation_speeds(v, mlm_peak, options):
+    """MLM speeds re-evaluated at every trial damping: the window around the MLM peak."""
+    h = options.relocation_window_kmh
+    return v[(v >= mlm_peak.speed_kmh - h - 1e-9) & (v <= mlm_peak.speed_kmh + h + 1e-9)]
+
+
+def make_result(bridge, train, status, message, solve, mlm_peak, dim_peak, v, mlm, vd, dim, v_ad, a_ad,
+                dim_grid, refined, ds, timings):
+    """The :class:`CalibrationResult` with the reference methods evaluated."""
+    adapted = pk.Peak(found=False) if solve is None else solve.adapted_peak
+    eada, eada_note = eada_for(bridge, train)
+    lb, lb_note = lower_bound_for(bridge, train)
+    return CalibrationResult(
+        bridge=bridge, train_name=train.name, status=status, message=message,
+        delta_zeta_vbi=None if solve is None else solve.delta_zeta, mlm_peak=mlm_peak, dim_peak=dim_peak,
+        adapted_peak=adapted, solve=solve, delta_zeta_adm_pct=adm_delta_zeta_pct(bridge.span_m),
+        delta_zeta_eada_pct=eada, eada_note=eada_note, delta_zeta_lb_pct=lb, lb_note=lb_note,
+        mlm_speeds_kmh=v, mlm_acc_m_s2=mlm, dim_speeds_kmh=np.asarray(vd, float), dim_acc_m_s2=dim,
+        adapted_speeds_kmh=v_ad, adapted_acc_m_s2=a_ad, dim_grid=dim_grid, dim_refined=refined, ds_m=ds,
+        timings_s=timings)
 
 
 def _progress_bar(enabled, label):
@@ -450,29 +516,19 @@ def calibrate(bridge, train, speeds_kmh=None, options=None, progress=False, adap
     dim_peak = pk.Peak(found=False, reason="no MLM peak to associate with")
     if mlm_peak.found:
         dim_peak = pk.associate_peak(vd, dim, mlm_peak.speed_kmh, opt.association_window_kmh, opt.min_prominence_rel)
-        fine = _fine_step(v)
         for _ in range(2):
-            if not dim_peak.found or opt.dim_grid == "full" or dim_curve is not None:
+            if opt.dim_grid == "full" or dim_curve is not None:
                 break
-            i = dim_peak.index
-            gaps = [vd[i] - vd[i - 1] if i > 0 else 0.0, vd[i + 1] - vd[i] if i + 1 < vd.size else 0.0]
-            if max(gaps) <= fine + 1e-9:
+            extra = dim_refinement(v, vd, dim_peak)
+            if extra is None:
                 break
-            extra = _grid_between(dim_peak.speed_kmh - 5.0, dim_peak.speed_kmh + 5.0, fine, v.min(), v.max())
-            extra = np.setdiff1d(np.round(extra, 9), vd)
-            if extra.size == 0:
-                break
-            acc_extra = sweep("dim", extra, label="DIM refine")
-            all_v, all_a = np.concatenate([vd, extra]), np.concatenate([dim, acc_extra])
-            order = np.argsort(all_v)
-            vd, dim = all_v[order], all_a[order]
+            vd, dim = merge_curve(vd, dim, extra, sweep("dim", extra, label="DIM refine"))
             refined = True
             dim_peak = pk.associate_peak(vd, dim, mlm_peak.speed_kmh, opt.association_window_kmh,
                                          opt.min_prominence_rel)
     timings["dim_sweep"] = time.perf_counter() - t0
 
     solve = None
-    adapted = pk.Peak(found=False)
     v_ad, a_ad = np.zeros(0), np.zeros(0)
     t0 = time.perf_counter()
     if not mlm_peak.found:
@@ -481,7 +537,8 @@ def calibrate(bridge, train, speeds_kmh=None, options=None, progress=False, adap
         status, message = "no_dim_peak", dim_peak.reason
     else:
         h = opt.relocation_window_kmh
-        w = v[(v >= mlm_peak.speed_kmh - h - 1e-9) & (v <= mlm_peak.speed_kmh + h + 1e-9)]
+        w = relocation_speeds(v, mlm_peak, opt)
+
         def trial(s, dz):
             acc = sweep("mlm", s, dz)
             if on_trial is not None:
@@ -494,18 +551,9 @@ def calibrate(bridge, train, speeds_kmh=None, options=None, progress=False, adap
 
         solve = solve_delta_zeta(trial, mlm_peak.speed_kmh, w, dim_peak.acc_m_s2, bridge.damping_ratio, opt)
         status, message = solve.status, solve.message
-        adapted = solve.adapted_peak
         if solve.delta_zeta is not None and adapted_curve:
             v_ad, a_ad = v, sweep("mlm", v, solve.delta_zeta)
     timings["solve"] = time.perf_counter() - t0
 
-    eada, eada_note = eada_for(bridge, train)
-    lb, lb_note = lower_bound_for(bridge, train)
-    return CalibrationResult(
-        bridge=bridge, train_name=train.name, status=status, message=message,
-        delta_zeta_vbi=None if solve is None else solve.delta_zeta, mlm_peak=mlm_peak, dim_peak=dim_peak,
-        adapted_peak=adapted, solve=solve, delta_zeta_adm_pct=adm_delta_zeta_pct(bridge.span_m),
-        delta_zeta_eada_pct=eada, eada_note=eada_note, delta_zeta_lb_pct=lb, lb_note=lb_note,
-        mlm_speeds_kmh=v, mlm_acc_m_s2=mlm, dim_speeds_kmh=np.asarray(vd, float), dim_acc_m_s2=dim,
-        adapted_speeds_kmh=v_ad, adapted_acc_m_s2=a_ad, dim_grid="given" if dim_curve is not None else opt.dim_grid, dim_refined=refined, ds_m=ds,
-        timings_s=timings)
+    return make_result(bridge, train, status, message, solve, mlm_peak, dim_peak, v, mlm, vd, dim, v_ad, a_ad,
+                       "given" if dim_curve is not None else opt.dim_grid, refined, ds, timings)

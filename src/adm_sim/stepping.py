@@ -309,27 +309,9 @@ class BridgeSide:
 
     # ------------------------------------------------------------------ MLM
     def _coeffs(self):
-        """Exact RK4 recurrence of each lane-mode oscillator: y+ = A y + B0 p0 + Bh ph + B1 p1."""
+        """Exact RK4 recurrence of each lane-mode oscillator (see :func:`mlm_rk4_coefficients`)."""
         if self._mlm_coeffs is None:
-            h = self.rk.h
-            m, c, kk = self.M, self.Z, self.K
-
-            def f(x, xd, p):
-                return xd, (p - c * xd - kk * x) / m
-
-            def rk4(x, xd, p0, ph, p1):
-                k1 = f(x, xd, p0)
-                k2 = f(x + 0.5 * h * k1[0], xd + 0.5 * h * k1[1], ph)
-                k3 = f(x + 0.5 * h * k2[0], xd + 0.5 * h * k2[1], ph)
-                k4 = f(x + h * k3[0], xd + h * k3[1], p1)
-                return (x + h / 6.0 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0]),
-                        xd + h / 6.0 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1]))
-
-            one = np.ones_like(c)
-            zero = np.zeros_like(c)
-            self._mlm_coeffs = (rk4(one, zero, 0, 0, 0), rk4(zero, one, 0, 0, 0),
-                                rk4(zero, zero, 1, 0, 0), rk4(zero, zero, 0, 1, 0),
-                                rk4(zero, zero, 0, 0, 1))
+            self._mlm_coeffs = mlm_rk4_coefficients(self.rk.h, self.M, self.Z, self.K)
         return self._mlm_coeffs
 
     def step_mlm(self, p0, ph, p1):
@@ -448,6 +430,33 @@ class TrainSide:
             self._step_active = None
             self.k += 1
         return G
+
+
+def mlm_rk4_coefficients(h, m, c, kk):
+    """Exact RK4 recurrence of linear oscillators ``m x'' + c x' + kk x = p`` over one step ``h``.
+
+    One classical RK4 step (stage loads ``p0`` at the start, ``ph`` at the midpoint, ``p1`` at
+    the end) is linear in the state and the loads: ``x+ = ax x + bx xd + c0 p0 + ch ph + c1 p1``
+    and the same for ``xd+``. Returns ``((ax, axd), (bx, bxd), (c0, c0d), (ch, chd), (c1, c1d))``,
+    each broadcast of ``h`` (n_lanes, 1) with ``m``, ``c``, ``kk`` (n_lanes or 1, n_modes).
+    """
+
+    def f(x, xd, p):
+        return xd, (p - c * xd - kk * x) / m
+
+    def rk4(x, xd, p0, ph, p1):
+        k1 = f(x, xd, p0)
+        k2 = f(x + 0.5 * h * k1[0], xd + 0.5 * h * k1[1], ph)
+        k3 = f(x + 0.5 * h * k2[0], xd + 0.5 * h * k2[1], ph)
+        k4 = f(x + h * k3[0], xd + h * k3[1], p1)
+        return (x + h / 6.0 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0]),
+                xd + h / 6.0 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1]))
+
+    one = np.ones_like(c)
+    zero = np.zeros_like(c)
+    return (rk4(one, zero, 0, 0, 0), rk4(zero, one, 0, 0, 0),
+            rk4(zero, zero, 1, 0, 0), rk4(zero, zero, 0, 1, 0),
+            rk4(zero, zero, 0, 0, 1))
 
 
 def half_step_positions(ds_m, axle_offsets_m, k0, n_steps):
