@@ -127,11 +127,13 @@ def cmd_table4(args):
 def cmd_recommend(args):
     from adm_calib.reference import recommend
 
-    rec = recommend(args.train, args.n0, args.mu, args.type, span_m=args.span, interpolate=args.interpolate)
+    rec = recommend(args.train, args.n0, args.mu, args.type, span_m=args.span, interpolate=args.interpolate,
+                    functions=args.functions)
     if args.json:
         print(json.dumps(rec.to_dict(), indent=2))
     else:
         print(f"dz_LB = {rec.delta_zeta_pct:.4f} %")
+        print(f"functions: {'Tables B1-B4 (paper)' if rec.functions == 'paper' else 're-derived from the shipped study (ours)'}")
         print(f"rule: {rec.rule}")
         print("mass functions: " + ", ".join(
             f"{m} (mu={rec.mass_function_t_m[m]:.3f} t/m, weight {w:.3f}, dz={v:.4f} %)"
@@ -241,6 +243,7 @@ def cmd_study(args):
 
 
 def cmd_study_fit(args):
+    from adm_calib import plots
     from adm_calib import study as st
 
     res = Path(args.results)
@@ -253,12 +256,16 @@ def cmd_study_fit(args):
     if out.exists() and not out.is_dir():
         raise InputError(f"--out: {str(out)!r} is not a directory")
     out.mkdir(parents=True, exist_ok=True)
-    tag = "_flagged_excluded" if args.exclude_flagged else ""
+    rule = "strict" if args.exclude_flagged else args.exclude
+    if args.exclude_flagged and args.exclude not in ("strict", st.DEFAULT_RULE):
+        raise InputError(f"--exclude-flagged means --exclude strict; it conflicts with --exclude {args.exclude}")
+    tag = "" if rule == st.DEFAULT_RULE else f"_{rule}"
     names = [f"lower_bounds_fit{tag}.csv", f"interval_minima{tag}.csv", f"lower_bounds_fit{tag}.txt",
-             f"fig16_dz_vs_span{tag}.png", f"fig18_lower_bounds{tag}.png"]
+             f"fig16_dz_vs_span{tag}.png", f"fig18_lower_bounds{tag}.png", f"lower_bounds_study{tag}.toml",
+             f"appendix_b_comparison{tag}.md"]
     names += [f"fig17_lower_bound_{t}{tag}.png" for t in st.STUDY_TRAINS]
     paths = {n: _out_path(str(out / n), args.force) for n in names}
-    fit = st.fit_study(content.records, exclude_flagged=args.exclude_flagged)
+    fit = st.fit_study(content.records, rule=rule)
     text = fit.to_text()
     if content.truncated_tail:
         text += "\n(a truncated last line of the results file was ignored)"
@@ -266,10 +273,12 @@ def cmd_study_fit(args):
     paths[names[0]].write_text(fit.to_csv())
     paths[names[1]].write_text(fit.minima_csv())
     paths[names[2]].write_text(text + "\n")
-    st.plot_dz_vs_span(fit.records_used, paths[names[3]])
-    st.plot_lower_bounds(fit, paths[names[4]])
-    for t, n in zip(st.STUDY_TRAINS, names[5:]):
-        st.plot_lower_bounds_train(fit, t, paths[n])
+    plots.plot_dz_vs_span(fit.records_used, paths[names[3]])
+    plots.plot_lower_bounds(fit, paths[names[4]])
+    paths[names[5]].write_text(fit.to_toml(command=f"adm-calib study-fit --results {res} --exclude {rule}"))
+    paths[names[6]].write_text(st.comparison_markdown(content.records, rule=rule))
+    for t, n in zip(st.STUDY_TRAINS, names[7:]):
+        plots.plot_lower_bounds_train(fit, t, paths[n])
     print(f"wrote {len(names)} files to {out}")
     return 0
 
@@ -313,6 +322,9 @@ def build_parser():
     r.add_argument("--span", type=float, default=None, help="span (m); estimated from n0 when omitted")
     r.add_argument("--interpolate", action="store_true",
                    help="interpolate linearly between the adjacent mass functions instead of the safe side")
+    r.add_argument("--functions", choices=("paper", "ours"), default="paper",
+                   help="lower-bound functions: paper = Tables B1-B4 (default); ours = re-derived from the "
+                        "study shipped in results/study (adm-calib study-fit)")
     r.add_argument("--json", action="store_true", help="print JSON")
     r.set_defaults(func=cmd_recommend)
 
@@ -337,9 +349,11 @@ def build_parser():
     f = sub.add_parser("study-fit", help="lower-bound functions (Section 4.2.1, Tables B1-B4) from study results")
     f.add_argument("--results", required=True, help="results.jsonl of a study")
     f.add_argument("--out", default=None, help="output directory (default: the results' directory)")
-    f.add_argument("--exclude-flagged", action="store_true",
-                   help="also leave out cases with the MLM maximum at a range end or a DIM value that is not a "
-                        "local maximum (the paper settled them by eye)")
+    f.add_argument("--exclude", choices=("none", "step2", "strict"), default="step2",
+                   help="exclusion rule: none = only cases without dz_VBI; step2 (default) = also cases whose "
+                        "DIM value is not a local maximum (Section 4, Step 2); strict = also cases whose largest "
+                        "MLM value lies at an end of the speed range")
+    f.add_argument("--exclude-flagged", action="store_true", help="the same as --exclude strict")
     f.add_argument("--force", action="store_true", help="overwrite existing output files")
     f.set_defaults(func=cmd_study_fit)
     return p

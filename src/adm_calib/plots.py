@@ -10,6 +10,10 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
+from adm_calib.study.cases import INTERVAL_EDGES_HZ, LOWER_LIMIT_HZ, MASS_FUNCTION_NAMES, STUDY_TRAINS
+
 APPROACHES = ("VBI", "LB", "ADM", "EADA")
 COLOURS = {"VBI": "tab:blue", "LB": "tab:orange", "ADM": "gold", "EADA": "tab:purple"}
 
@@ -87,4 +91,117 @@ def plot_total_damping(table, path):
     fig.suptitle("Total damping for different approaches (grey: structural zeta)")
     fig.tight_layout()
     fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+# ---------------------------------------------------------------------- study figures (Figs. 16-18)
+_MF_COLOURS = {"mu1": "#4b0082", "mu2": "#8a2be2", "mu3": "#c39bd3",
+               "mu4": "#b35900", "mu5": "#ff8c00", "mu6": "#ffc266"}
+
+
+def plot_dz_vs_span(records, path):
+    """Analogue of Fig. 16: Δζ_VBI against span per train with the Eurocode ADM curve."""
+    from adm_calib.reference import adm_delta_zeta_pct
+
+    plt = _pyplot()
+    fig, axes = plt.subplots(2, 2, figsize=(11, 7.5), sharex=True, squeeze=False)
+    L = np.linspace(4.0, 40.0, 361)
+    adm = [adm_delta_zeta_pct(x) for x in L]
+    for ax, t in zip(axes.flat, STUDY_TRAINS):
+        for m in MASS_FUNCTION_NAMES:
+            pts = [(r["span_m"], r["delta_zeta_vbi_pct"]) for r in records if r["train"] == t and r["mass_function"] == m]
+            if pts:
+                a = np.array(pts)
+                ax.plot(a[:, 0], a[:, 1], ls="none", marker="o", ms=3, color=_MF_COLOURS[m], label=m)
+        ax.plot(L, adm, color="grey", lw=2, label="ADM (EN 1991-2)")
+        ax.axhline(0.0, color="k", lw=0.5)
+        ax.set_title(t)
+        ax.set_ylabel("dz (%)")
+        ax.grid(alpha=0.3)
+    for ax in axes[-1]:
+        ax.set_xlabel("span L (m)")
+    _legend(axes[0, 0], fontsize=7, ncol=2)
+    fig.suptitle("Computed additional damping vs the Eurocode ADM (Fig. 16 analogue)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _legend(ax, **kw):
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(**kw)
+
+
+def _lb_curve(coefficients, root, n0):
+    return np.where(n0 >= root, 0.0, np.polyval(coefficients, n0))
+
+
+def plot_lower_bounds_train(study_fit, train, path):
+    """Analogue of Fig. 17 for one train: Δζ against n0 per mass function, the interval minima,
+    the fitted and the published lower bound."""
+    plt = _pyplot()
+    fig, axes = plt.subplots(2, 3, figsize=(13, 7.5), sharex=True, squeeze=False)
+    n0 = np.linspace(LOWER_LIMIT_HZ, 21.0, 400)
+    for ax, m in zip(axes.flat, MASS_FUNCTION_NAMES):
+        recs = [r for r in study_fit.records_used if r["train"] == train and r["mass_function"] == m]
+        if recs:
+            ax.plot([r["n0_hz"] for r in recs], [r["delta_zeta_vbi_pct"] for r in recs], ls="none", marker=".",
+                    color="grey", ms=4, label="dz_VBI")
+        f = study_fit.fits.get((train, m))
+        if f is not None and f.minima:
+            ax.plot([p.n0_hz for p in f.minima], [p.delta_zeta_pct for p in f.minima], ls="none", marker="o",
+                    mfc="gold", mec="k", ms=6, label="interval minima")
+        if f is not None and f.fit is not None:
+            ax.plot(n0, f.fit.value_pct(n0), color="tab:blue", lw=1.5,
+                    label=f"fit (R2 {f.fit.r2:.3f}, root {f.fit.upper_limit_hz:.2f} Hz)")
+        p = f.published if f is not None else None
+        if p is None:
+            from adm_calib.reference import lower_bound_table
+
+            p = lower_bound_table().get(train, {}).get(m)
+        if p is not None:
+            ax.plot(n0, _lb_curve(p.coefficients, p.first_root_hz, n0), color="tab:red", lw=1.2, ls="--",
+                    label=f"paper (root {p.upper_limit_hz:.2f} Hz)")
+        for e in INTERVAL_EDGES_HZ:
+            ax.axvline(e, color="k", lw=0.3, alpha=0.25)
+        ax.axhline(0.0, color="k", lw=0.5)
+        ax.set_title(f"{train}, {m}")
+        ax.grid(alpha=0.2)
+        _legend(ax, fontsize=6)
+    for ax in axes[-1]:
+        ax.set_xlabel("n0 (Hz)")
+    for ax in axes[:, 0]:
+        ax.set_ylabel("dz (%)")
+    fig.suptitle(f"Lower bound of the additional damping, {train} (Fig. 17 analogue)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_lower_bounds(study_fit, path):
+    """Analogue of Fig. 18: fitted (solid) and published (dashed) lower bounds per train."""
+    from adm_calib.reference import lower_bound_table
+
+    plt = _pyplot()
+    fig, axes = plt.subplots(2, 2, figsize=(11, 7.5), sharex=True, squeeze=False)
+    n0 = np.linspace(LOWER_LIMIT_HZ, 21.0, 400)
+    pub = lower_bound_table()
+    for ax, t in zip(axes.flat, STUDY_TRAINS):
+        for m in MASS_FUNCTION_NAMES:
+            f = study_fit.fits.get((t, m))
+            if f is not None and f.fit is not None:
+                ax.plot(n0, f.fit.value_pct(n0), color=_MF_COLOURS[m], lw=1.6, label=f"{m} fit")
+            p = pub.get(t, {}).get(m)
+            if p is not None:
+                ax.plot(n0, _lb_curve(p.coefficients, p.first_root_hz, n0), color=_MF_COLOURS[m], lw=1.0, ls="--")
+        ax.set_title(f"{t} (dashed: paper)")
+        ax.axhline(0.0, color="k", lw=0.5)
+        ax.grid(alpha=0.3)
+        ax.set_ylabel("dz (%)")
+    for ax in axes[-1]:
+        ax.set_xlabel("n0 (Hz)")
+    _legend(axes[0, 0], fontsize=7, ncol=2)
+    fig.suptitle("Lower bounds of the additional damping for each train (Fig. 18 analogue)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
     plt.close(fig)

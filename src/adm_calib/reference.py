@@ -223,6 +223,16 @@ def eada_for(bridge, train):
 
 
 # ---------------------------------------------------------------------- lower bounds
+def first_root_hz(coefficients, lower_limit_hz=2.1):
+    """First real root of the cubic Eq. (20) above ``lower_limit_hz`` (Hz); ``inf`` if none.
+
+    Section 4.2.1: the lower bound is set to zero from the first intersection with the abscissa.
+    """
+    roots = np.roots(np.asarray(coefficients, dtype=float))
+    real = sorted(r.real for r in roots if abs(r.imag) < 1e-9 * max(1.0, abs(r)) and r.real > lower_limit_hz)
+    return float(real[0]) if real else math.inf
+
+
 @dataclass(frozen=True)
 class LowerBound:
     """One lower-bound function of Tables B1-B4 (Eq. 20): dz in %, n0 in Hz."""
@@ -251,9 +261,7 @@ class LowerBound:
     @property
     def first_root_hz(self):
         """First real root of Eq. (20) above the lower limit (Hz), computed."""
-        roots = np.roots(self.coefficients)
-        real = sorted(r.real for r in roots if abs(r.imag) < 1e-9 * max(1.0, abs(r)) and r.real > self.lower_limit_hz)
-        return real[0] if real else math.inf
+        return first_root_hz(self.coefficients, self.lower_limit_hz)
 
     def delta_zeta_pct(self, n0_hz):
         """Lower bound (%) at ``n0_hz``: Eq. (20) up to the first root, 0 beyond.
@@ -269,10 +277,20 @@ class LowerBound:
         return float(self.polynomial_pct(n0))
 
 
-@lru_cache(maxsize=1)
-def lower_bound_table():
-    """All functions of Tables B1-B4: ``{train: {mass_function: LowerBound}}``."""
-    text = resources.files("adm_calib").joinpath("data/lower_bounds.toml").read_text()
+#: Sets of lower-bound functions: the published ones and the ones re-derived from the shipped study.
+LOWER_BOUND_FILES = {"paper": "data/lower_bounds.toml", "ours": "data/lower_bounds_study.toml"}
+
+
+@lru_cache(maxsize=4)
+def lower_bound_table(functions="paper"):
+    """Lower-bound functions ``{train: {mass_function: LowerBound}}``.
+
+    ``functions="paper"``: Tables B1-B4 as printed; ``"ours"``: the functions fitted by
+    ``adm-calib study-fit`` to the study shipped in ``results/study`` (same rules, Section 4.2.1).
+    """
+    if functions not in LOWER_BOUND_FILES:
+        raise InputError(f"functions: {functions!r} is not allowed; allowed 'paper' or 'ours'")
+    text = resources.files("adm_calib").joinpath(LOWER_BOUND_FILES[functions]).read_text()
     data = tomllib.loads(text)
     cols = data["columns"]
     out = {}
@@ -319,6 +337,7 @@ class Recommendation:
     delta_zeta_pct: float
     beyond_root: bool
     explanation: str = field(default="")
+    functions: str = "paper"
 
     def to_dict(self):
         return {
@@ -328,11 +347,11 @@ class Recommendation:
             "function_values_pct": list(self.function_values_pct),
             "mass_function_t_m": dict(self.mass_function_t_m),
             "delta_zeta_lb_pct": self.delta_zeta_pct, "beyond_root": self.beyond_root,
-            "explanation": self.explanation,
+            "explanation": self.explanation, "functions": self.functions,
         }
 
 
-def recommend(train, n0_hz, mu_t_m, bridge_type, span_m=None, interpolate=False):
+def recommend(train, n0_hz, mu_t_m, bridge_type, span_m=None, interpolate=False, functions="paper"):
     """Additional damping (%) from the lower-bound functions by the rules of Section 4.3.
 
     Parameters
@@ -350,6 +369,8 @@ def recommend(train, n0_hz, mu_t_m, bridge_type, span_m=None, interpolate=False)
         power law when omitted.
     interpolate : bool
         Linear interpolation in mu between the adjacent functions instead of the safe-side rule.
+    functions : {"paper", "ours"}
+        Published functions (Tables B1-B4) or the ones re-derived from the shipped study.
 
     Raises
     ------
@@ -359,7 +380,7 @@ def recommend(train, n0_hz, mu_t_m, bridge_type, span_m=None, interpolate=False)
     t = canonical_train_name(train)
     if bridge_type not in TYPE_MASS_FUNCTIONS:
         raise InputError(f"bridge_type: {bridge_type!r} is not allowed; allowed 'cfb' or 'sc'")
-    lo_hz = lower_bound_table()[t]["mu1"].lower_limit_hz
+    lo_hz = lower_bound_table(functions)[t]["mu1"].lower_limit_hz
     try:
         n0 = check_range("n0_hz", n0_hz, "Hz", lo_hz, STUDY_N0_MAX_HZ)
     except InputError as exc:
@@ -397,18 +418,22 @@ def recommend(train, n0_hz, mu_t_m, bridge_type, span_m=None, interpolate=False)
         else:
             used, weights = (up,), (1.0,)
             rule = f"mu between {up} and {lo}: next heavier function {up}, safe side (Section 4.3)"
-    table = lower_bound_table()[t]
+    table = lower_bound_table(functions)[t]
+    if any(m not in table for m in used):
+        raise InputError(f"functions: {functions!r} has no lower-bound function for {t} "
+                         f"{', '.join(m for m in used if m not in table)}")
     values = tuple(table[m].delta_zeta_pct(n0) for m in used)
     dz = float(sum(w * v for w, v in zip(weights, values)))
     beyond = all(n0 >= table[m].first_root_hz for m in used)
     funcs = ", ".join(f"{m} ({mus[m]:.3f} t/m at L={L:g} m): {v:.4f} %" for m, v in zip(used, values))
-    expl = (f"{t}, {bridge_type.upper()}, n0={n0:g} Hz, mu={mu:g} t/m, L={L:.3g} m"
+    source = "Tables B1-B4 (paper)" if functions == "paper" else "re-derived from the shipped study (ours)"
+    expl = (f"{source}; {t}, {bridge_type.upper()}, n0={n0:g} Hz, mu={mu:g} t/m, L={L:.3g} m"
             f"{' (estimated from n0 = 97.76 L^-0.9124)' if estimated else ''}; {rule}; {funcs}"
             f"{'; n0 beyond the first root: 0' if beyond else ''}")
     return Recommendation(train=t, n0_hz=n0, mu_t_m=mu, bridge_type=bridge_type, span_m=L,
                           span_estimated=estimated, rule=rule, mass_functions=used, weights=weights,
                           function_values_pct=values, mass_function_t_m=mus, delta_zeta_pct=dz,
-                          beyond_root=beyond, explanation=expl)
+                          beyond_root=beyond, explanation=expl, functions=functions)
 
 
 def lower_bound_for(bridge, train):

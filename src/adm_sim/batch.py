@@ -164,6 +164,15 @@ class BatchRunner:
         return self._train_tables
 
     # ------------------------------------------------------------------ run
+    @staticmethod
+    def _blocks(case, sweep, n_steps):
+        """Lane order and blocks of one bridge and one step count (they advance together, SIMD)."""
+        order = np.lexsort((sweep, case))
+        key = np.stack([case[order], n_steps[order]], axis=1)
+        starts = np.flatnonzero(np.r_[True, np.any(key[1:] != key[:-1], axis=1)])
+        block_ptr = np.r_[starts, order.size].astype(np.int64)
+        return order, block_ptr, key[starts, 0].copy(), key[starts, 1].copy()
+
     def run(self, model, case, speeds_kmh, delta_zeta=0.0, sweep=None):
         """Max |midspan acceleration| (m/s^2) and |deflection| (m) of every lane.
 
@@ -204,21 +213,28 @@ class BatchRunner:
             P = self._mlm_table(int(n_steps.max()))
             (ax, axd), (bx, bxd), (c0, c0d), (ch, chd), (c1, c1d) = mlm_rk4_coefficients(
                 h[:, None], self.M[case], Z, self.K[case])
-            bad = kernels.mlm_lanes(P, self.phi_mid, self.M, self.K, Z, case, n_steps,
-                                    ax, axd, bx, bxd, c0, c0d, ch, chd, c1, c1d, acc, disp)
+            order, block_ptr, bcase, bsteps = self._blocks(case, sweep, n_steps)
+            T = [np.ascontiguousarray(a[order].T) for a in (Z, ax, axd, bx, bxd, c0, c0d, ch, chd, c1, c1d)]
+            acc_o, disp_o = np.empty(n_l), np.empty(n_l)
+            bad = kernels.mlm_blocks(block_ptr, bcase, bsteps, P, self.phi_mid, self.M, self.K, *T, acc_o, disp_o)
+            acc[order], disp[order] = acc_o, disp_o
         elif model == "dim":
             if not self.train.units:
                 raise InputError(f"model: 'dim' needs a train with vehicles; {self.train.name!r} is a load train")
             self._dim_tables(int(n_steps.max()))
             t, d = self._trains(), self._dim
-            bad = kernels.dim_lanes(
-                v, h, case, n_steps, self.K, Z, d["minv"], self.phi_mid,
+            order, block_ptr, bcase, bsteps = self._blocks(case, sweep, n_steps)
+            acc_o, disp_o = np.empty(n_l), np.empty(n_l)
+            bad = kernels.dim_blocks(
+                block_ptr, bcase, bsteps, v[order], h[order], self.K,
+                np.ascontiguousarray(Z[order]), d["minv"], self.phi_mid,
                 d["row_ptr"], d["ent_axle"], d["ent_phi"], d["ent_phx"], d["ent_phxx"],
                 self.train.axle_loads_n, self.train.wheel_mass_kg,
                 d["act_ptr"], d["act_units"], t["unit_dof0"], t["unit_ndof"], t["unit_ax0"], t["unit_nax"],
                 t["ks_ptr"], t["ks_col"], t["ks_val"], t["cs_ptr"], t["cs_col"], t["cs_val"],
                 t["lw_ptr"], t["lw_col"], t["lw_val"], t["lwt_ptr"], t["lwt_col"], t["lwt_val"],
-                t["kp"], t["cp"], t["minv_dof"], acc, disp)
+                t["kp"], t["cp"], t["minv_dof"], acc_o, disp_o)
+            acc[order], disp[order] = acc_o, disp_o
         else:
             raise InputError(f"model: {model!r} is not allowed; allowed 'mlm' or 'dim'")
         if bad:

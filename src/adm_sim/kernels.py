@@ -267,3 +267,297 @@ def dim_lanes(v, h, case, n_steps, K, Z, minv, phi_mid,
         if not finite:
             bad += 1
     return bad
+
+
+@njit(cache=True, nogil=True)
+def dim_blocks(block_ptr, block_case, block_steps, v, h, K, Z, minv, phi_mid,
+               row_ptr, ent_axle, ent_phi, ent_phx, ent_phxx,
+               axle_load, wheel_mass,
+               act_ptr, act_units, unit_dof0, unit_ndof, unit_ax0, unit_nax,
+               ks_ptr, ks_col, ks_val, cs_ptr, cs_col, cs_val,
+               lw_ptr, lw_col, lw_val, lwt_ptr, lwt_col, lwt_val, kp, cp, minv_dof,
+               max_acc, max_disp):
+    """:func:`dim_lanes` with the lanes of one block (one bridge, one step count) innermost.
+
+    The arithmetic of every lane is that of :func:`dim_lanes`, operation for operation; only the
+    loop order differs: lanes ``block_ptr[i]..block_ptr[i+1]`` (same bridge ``block_case[i]``,
+    same ``block_steps[i]``) advance together, so every inner loop runs over contiguous lanes and
+    compiles to SIMD instructions. ``v``, ``h``, ``Z`` are indexed by lane, ``Z`` as (n_lanes,
+    n_modes). Returns the number of non-finite lanes.
+    """
+    nm = K.shape[1]
+    n_dof = minv_dof.shape[0]
+    n_axles = axle_load.shape[0]
+    bad = 0
+    for bi in range(block_ptr.shape[0] - 1):
+        l0 = block_ptr[bi]
+        nb = block_ptr[bi + 1] - l0
+        c = block_case[bi]
+        vl = v[l0:l0 + nb].copy()
+        hl = h[l0:l0 + nb].copy()
+        Zb = np.empty((nm, nb))
+        for j in range(nm):
+            for b in range(nb):
+                Zb[j, b] = Z[l0 + b, j]
+        q = np.zeros((nm, nb))
+        qd = np.zeros((nm, nb))
+        sq = np.zeros((nm, nb))
+        sqd = np.zeros((nm, nb))
+        aq = np.zeros((nm, nb))
+        aqd = np.zeros((nm, nb))
+        qdd = np.zeros((nm, nb))
+        p = np.zeros((nm, nb))
+        rhs = np.zeros((nm, nb))
+        u = np.zeros((n_dof, nb))
+        ud = np.zeros((n_dof, nb))
+        su = np.zeros((n_dof, nb))
+        sud = np.zeros((n_dof, nb))
+        au = np.zeros((n_dof, nb))
+        aud = np.zeros((n_dof, nb))
+        udd = np.zeros((n_dof, nb))
+        W = np.zeros((n_axles, nb))
+        Wd = np.zeros((n_axles, nb))
+        f = np.zeros((n_axles, nb))
+        t1 = np.zeros(nb)
+        t2 = np.zeros(nb)
+        t3 = np.zeros(nb)
+        acc0 = np.zeros(nb)
+        d = np.zeros(nb)
+        amax = np.zeros(nb)
+        dmax = np.zeros(nb)
+        finite = True
+        for k in range(block_steps[bi]):
+            d[:] = 0.0
+            for j in range(nm):
+                for b in range(nb):
+                    d[b] += q[j, b] * phi_mid[j]
+                    sq[j, b] = q[j, b]
+                    sqd[j, b] = qd[j, b]
+            a0 = act_ptr[k]
+            a1 = act_ptr[k + 1]
+            for ia in range(a0, a1):
+                un = act_units[ia]
+                for dd in range(unit_dof0[un], unit_dof0[un] + unit_ndof[un]):
+                    for b in range(nb):
+                        su[dd, b] = u[dd, b]
+                        sud[dd, b] = ud[dd, b]
+            acc0[:] = 0.0
+            for st in range(4):
+                r = 2 * k + STAGE_ROW[st]
+                e0 = row_ptr[r]
+                e1 = row_ptr[r + 1]
+                # 1. bridge -> train: rail displacement and velocity under the axles (Eqs. 4, 9)
+                for e in range(e0, e1):
+                    a = ent_axle[e]
+                    t1[:] = 0.0
+                    t2[:] = 0.0
+                    t3[:] = 0.0
+                    for j in range(nm):
+                        pj = ent_phi[e, j]
+                        xj = ent_phx[e, j]
+                        for b in range(nb):
+                            t1[b] += sq[j, b] * pj
+                            t2[b] += sqd[j, b] * pj
+                            t3[b] += sq[j, b] * xj
+                    for b in range(nb):
+                        W[a, b] = t1[b]
+                        Wd[a, b] = t2[b] + vl[b] * t3[b]
+                # 2. train: primary stage forces and vehicle accelerations (Eq. 11)
+                for ia in range(a0, a1):
+                    un = act_units[ia]
+                    for ax_ in range(unit_ax0[un], unit_ax0[un] + unit_nax[un]):
+                        t1[:] = 0.0
+                        t2[:] = 0.0
+                        for t in range(lw_ptr[ax_], lw_ptr[ax_ + 1]):
+                            col = lw_col[t]
+                            val = lw_val[t]
+                            for b in range(nb):
+                                t1[b] += su[col, b] * val
+                                t2[b] += sud[col, b] * val
+                        kpa = kp[ax_]
+                        cpa = cp[ax_]
+                        for b in range(nb):
+                            f[ax_, b] = kpa * (W[ax_, b] - t1[b]) + cpa * (Wd[ax_, b] - t2[b])
+                    for dd in range(unit_dof0[un], unit_dof0[un] + unit_ndof[un]):
+                        t1[:] = 0.0
+                        t2[:] = 0.0
+                        t3[:] = 0.0
+                        for t in range(lwt_ptr[dd], lwt_ptr[dd + 1]):
+                            col = lwt_col[t]
+                            val = lwt_val[t]
+                            for b in range(nb):
+                                t1[b] += f[col, b] * val
+                        for t in range(ks_ptr[dd], ks_ptr[dd + 1]):
+                            col = ks_col[t]
+                            val = ks_val[t]
+                            for b in range(nb):
+                                t2[b] += su[col, b] * val
+                        for t in range(cs_ptr[dd], cs_ptr[dd + 1]):
+                            col = cs_col[t]
+                            val = cs_val[t]
+                            for b in range(nb):
+                                t3[b] += sud[col, b] * val
+                        md = minv_dof[dd]
+                        for b in range(nb):
+                            udd[dd, b] = (t1[b] - t2[b] - t3[b]) * md
+                # 3. train -> bridge: G = F - F_k1 - F_c1 (Eq. 7), modified load (Eq. 14)
+                p[:, :] = 0.0
+                for e in range(e0, e1):
+                    a = ent_axle[e]
+                    t1[:] = 0.0
+                    t2[:] = 0.0
+                    for j in range(nm):
+                        xj = ent_phx[e, j]
+                        xxj = ent_phxx[e, j]
+                        for b in range(nb):
+                            t1[b] += sqd[j, b] * xj
+                            t2[b] += sq[j, b] * xxj
+                    fa = axle_load[a]
+                    mwa = wheel_mass[a]
+                    for b in range(nb):
+                        t3[b] = (fa - f[a, b]) - mwa * (2.0 * vl[b] * t1[b] + vl[b] * vl[b] * t2[b])
+                    for j in range(nm):
+                        pj = ent_phi[e, j]
+                        for b in range(nb):
+                            p[j, b] += t3[b] * pj
+                    for b in range(nb):
+                        W[a, b] = 0.0
+                        Wd[a, b] = 0.0
+                for j in range(nm):
+                    kj = K[c, j]
+                    for b in range(nb):
+                        rhs[j, b] = p[j, b] - Zb[j, b] * sqd[j, b] - kj * sq[j, b]
+                for i in range(nm):
+                    for b in range(nb):
+                        qdd[i, b] = 0.0
+                    for j in range(nm):
+                        mji = minv[c, r, j, i]
+                        for b in range(nb):
+                            qdd[i, b] += rhs[j, b] * mji
+                if st == 0:
+                    for j in range(nm):
+                        pm = phi_mid[j]
+                        for b in range(nb):
+                            acc0[b] += qdd[j, b] * pm
+                # 4. RK4 bookkeeping of both subsystems (as stepping._Rk4State.push)
+                wgt = RK4_W[st]
+                for j in range(nm):
+                    for b in range(nb):
+                        if st == 0:
+                            aq[j, b] = wgt * sqd[j, b]
+                            aqd[j, b] = wgt * qdd[j, b]
+                        else:
+                            aq[j, b] = aq[j, b] + wgt * sqd[j, b]
+                            aqd[j, b] = aqd[j, b] + wgt * qdd[j, b]
+                for ia in range(a0, a1):
+                    un = act_units[ia]
+                    for dd in range(unit_dof0[un], unit_dof0[un] + unit_ndof[un]):
+                        for b in range(nb):
+                            if st == 0:
+                                au[dd, b] = wgt * sud[dd, b]
+                                aud[dd, b] = wgt * udd[dd, b]
+                            else:
+                                au[dd, b] = au[dd, b] + wgt * sud[dd, b]
+                                aud[dd, b] = aud[dd, b] + wgt * udd[dd, b]
+                if st < 3:
+                    cst = RK4_C[st + 1]
+                    for j in range(nm):
+                        for b in range(nb):
+                            cc = cst * hl[b]
+                            x_new = q[j, b] + cc * sqd[j, b]
+                            sqd[j, b] = qd[j, b] + cc * qdd[j, b]
+                            sq[j, b] = x_new
+                    for ia in range(a0, a1):
+                        un = act_units[ia]
+                        for dd in range(unit_dof0[un], unit_dof0[un] + unit_ndof[un]):
+                            for b in range(nb):
+                                cc = cst * hl[b]
+                                x_new = u[dd, b] + cc * sud[dd, b]
+                                sud[dd, b] = ud[dd, b] + cc * udd[dd, b]
+                                su[dd, b] = x_new
+                else:
+                    for j in range(nm):
+                        for b in range(nb):
+                            q[j, b] = q[j, b] + hl[b] * aq[j, b]
+                            qd[j, b] = qd[j, b] + hl[b] * aqd[j, b]
+                    for ia in range(a0, a1):
+                        un = act_units[ia]
+                        for dd in range(unit_dof0[un], unit_dof0[un] + unit_ndof[un]):
+                            for b in range(nb):
+                                u[dd, b] = u[dd, b] + hl[b] * au[dd, b]
+                                ud[dd, b] = ud[dd, b] + hl[b] * aud[dd, b]
+            for b in range(nb):
+                if abs(acc0[b]) > amax[b]:
+                    amax[b] = abs(acc0[b])
+                if abs(d[b]) > dmax[b]:
+                    dmax[b] = abs(d[b])
+            if (k & 255) == 0:
+                for b in range(nb):
+                    if not (abs(acc0[b]) < np.inf and abs(d[b]) < np.inf):
+                        finite = False
+                if not finite:
+                    break
+        for j in range(nm):
+            for b in range(nb):
+                if not (abs(q[j, b]) < np.inf and abs(qd[j, b]) < np.inf):
+                    finite = False
+        for b in range(nb):
+            max_acc[l0 + b] = amax[b] if finite else np.nan
+            max_disp[l0 + b] = dmax[b] if finite else np.nan
+        if not finite:
+            bad += nb
+    return bad
+
+
+@njit(cache=True, nogil=True)
+def mlm_blocks(block_ptr, block_case, block_steps, P, phi_mid, M, K, Z, ax, axd, bx, bxd, c0, c0d, ch, chd,
+               c1, c1d, max_acc, max_disp):
+    """:func:`mlm_lanes` with the lanes of one block (one bridge, one step count) innermost.
+
+    Same arithmetic per lane, operation for operation; the per-lane arrays (``Z`` and the
+    recurrence coefficients) are given transposed, shape (n_modes, n_lanes), so that the inner
+    loops over lanes are contiguous. Returns the number of non-finite lanes.
+    """
+    nm = P.shape[1]
+    bad = 0
+    for bi in range(block_ptr.shape[0] - 1):
+        l0 = block_ptr[bi]
+        l1 = block_ptr[bi + 1]
+        nb = l1 - l0
+        c = block_case[bi]
+        q = np.zeros((nm, nb))
+        qd = np.zeros((nm, nb))
+        d = np.zeros(nb)
+        a = np.zeros(nb)
+        amax = np.zeros(nb)
+        dmax = np.zeros(nb)
+        for k in range(block_steps[bi]):
+            d[:] = 0.0
+            a[:] = 0.0
+            for j in range(nm):
+                p0, ph, p1 = P[2 * k, j], P[2 * k + 1, j], P[2 * k + 2, j]
+                kj, mj, pm = K[c, j], M[c, j], phi_mid[j]
+                for b in range(nb):
+                    lb = l0 + b
+                    x = q[j, b]
+                    xd = qd[j, b]
+                    d[b] += x * pm
+                    a[b] += ((p0 - Z[j, lb] * xd - kj * x) / mj) * pm
+                    q[j, b] = ax[j, lb] * x + bx[j, lb] * xd + c0[j, lb] * p0 + ch[j, lb] * ph + c1[j, lb] * p1
+                    qd[j, b] = axd[j, lb] * x + bxd[j, lb] * xd + c0d[j, lb] * p0 + chd[j, lb] * ph + c1d[j, lb] * p1
+            for b in range(nb):
+                if abs(a[b]) > amax[b]:
+                    amax[b] = abs(a[b])
+                if abs(d[b]) > dmax[b]:
+                    dmax[b] = abs(d[b])
+        finite = True
+        for j in range(nm):
+            for b in range(nb):
+                if not (abs(q[j, b]) < np.inf and abs(qd[j, b]) < np.inf):
+                    finite = False
+        for b in range(nb):
+            max_acc[l0 + b] = amax[b] if finite else np.nan
+            max_disp[l0 + b] = dmax[b] if finite else np.nan
+        if not finite:
+            bad += nb
+    return bad

@@ -1,0 +1,173 @@
+"""Study cases: the (bridge, train) pairs of the field (paper Section 3.3) and the study settings.
+
+A case carries its identity as fields (train, span, frequency index, mass function) next to its
+:class:`adm_sim.bridge.Bridge`; nothing is parsed back out of bridge names.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from adm_sim.errors import InputError, check_range
+
+from adm_calib.reference import STUDY_TRAINS, canonical_train_name
+
+#: Frequency indices of the field: 1 = LB power law ... 5 = UB power law (Section 3.1.1).
+FREQ_INDICES = (1, 2, 3, 4, 5)
+#: Spans of the field (m).
+SPAN_RANGE_M = (4, 40)
+#: Mass functions of Table 1.
+MASS_FUNCTION_NAMES = ("mu1", "mu2", "mu3", "mu4", "mu5", "mu6")
+#: Interval boundaries of Section 4.2.1 (Hz): 0.5 Hz from 2 to 8 Hz, then 9, 10, 11, 13, 16, 21.
+INTERVAL_EDGES_HZ = tuple(float(x) for x in np.arange(2.0, 8.0 + 1e-9, 0.5)) + (9.0, 10.0, 11.0, 13.0, 16.0, 21.0)
+#: Lower validity limit of the lower-bound functions (Hz), Section 4.2.2.
+LOWER_LIMIT_HZ = 2.1
+#: Environment of the worker processes: one BLAS/OpenMP thread each (one case per core).
+WORKER_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+
+
+# ====================================================================== cases
+@dataclass(frozen=True)
+class StudyCase:
+    """One (bridge, train) pair of the study; ``bridge`` is an :class:`adm_sim.bridge.Bridge`.
+
+    The identity is carried as fields: ``train``, ``span_m``, ``freq_index`` (1..5, LB to UB power
+    law of n0) and ``mass_function`` (mu1..mu6, Table 1).
+    """
+
+    bridge: object
+    train: str
+    mass_function: str
+    freq_index: int
+    span_m: float = float("nan")
+
+    def __post_init__(self):
+        if self.span_m != self.span_m:  # not given: the bridge's span
+            object.__setattr__(self, "span_m", float(self.bridge.span_m))
+
+    @property
+    def key(self):
+        return (self.bridge.name, self.train)
+
+    @property
+    def batch_key(self):
+        """Cases that share a batch: one train and one (span, frequency) pair, so one space step."""
+        return (self.train, self.span_m, self.freq_index)
+
+    def __repr__(self):
+        return f"StudyCase({self.bridge.name} x {self.train}, n0={self.bridge.n0_hz:.3f} Hz)"
+
+
+def canonical_trains(names, field="trains"):
+    """Study train names for ``names`` (duplicates dropped, order kept); ``field`` names the input."""
+    out = []
+    for t in names:
+        try:
+            name = canonical_train_name(t)
+        except InputError:
+            raise InputError(f"{field}: {t!r} is not a study train; allowed {', '.join(STUDY_TRAINS)}") from None
+        if name not in out:
+            out.append(name)
+    return out
+
+
+def select_cases(trains=STUDY_TRAINS, mass_functions=MASS_FUNCTION_NAMES, spans_m=SPAN_RANGE_M,
+                 freq_indices=FREQ_INDICES):
+    """The study cases of the field filtered by the arguments, in a fixed order.
+
+    Parameters
+    ----------
+    trains : sequence of str
+        Study trains (ICE-2, Eurostar, Railjet, ICE-4; case and dashes ignored).
+    mass_functions : sequence of str
+        Subset of ``mu1``..``mu6`` (Table 1).
+    spans_m : (float, float)
+        Inclusive span range (m), within [4, 40].
+    freq_indices : sequence of int
+        Subset of 1..5 (LB, mid, fit, mid, UB power law of n0, Section 3.1.1).
+
+    Returns
+    -------
+    list of StudyCase
+        Field order (span, frequency index, mass function), the trains innermost.
+    """
+    tr = canonical_trains(trains)
+    for m in mass_functions:
+        if m not in MASS_FUNCTION_NAMES:
+            raise InputError(f"mass_functions: {m!r} is unknown; allowed {', '.join(MASS_FUNCTION_NAMES)}")
+    lo, hi = (check_range("spans", s, "m", *SPAN_RANGE_M) for s in spans_m)
+    if lo > hi:
+        raise InputError(f"spans: {lo:g}:{hi:g} m is empty; give lo:hi with lo <= hi in [4, 40] m")
+    for fi in freq_indices:
+        if fi not in FREQ_INDICES:
+            raise InputError(f"freq_index: {fi!r} is out of range; allowed integer in [1, 5]")
+    mfs, fis = set(mass_functions), set(freq_indices)
+    cases = []
+    for L, fi, mf, b in _field():
+        if mf in mfs and fi in fis and lo <= L <= hi:
+            cases.extend(StudyCase(bridge=b, train=t, mass_function=mf, freq_index=fi, span_m=L) for t in tr)
+    return cases
+
+
+@lru_cache(maxsize=1)
+def _field():
+    """The field as ``(span_m, freq_index, mass_function, bridge)``, in the order of
+    :func:`adm_sim.bridge.parametric_field` (span, frequency index, mass function)."""
+    from adm_sim.bridge import FIELD_SPANS_M, MASS_FUNCTIONS, parametric_field
+
+    ids = [(float(L), fi, m) for L in FIELD_SPANS_M for fi in FREQ_INDICES for m in MASS_FUNCTIONS]
+    field = parametric_field()
+    if len(ids) != len(field):
+        raise RuntimeError("the parametric field and its identities disagree")
+    return tuple((L, fi, m, b) for (L, fi, m), b in zip(ids, field))
+
+
+@lru_cache(maxsize=8)
+def _train(name):
+    from adm_sim.trains import load_train
+
+    return load_train(name)
+
+
+# ====================================================================== settings and one case
+@dataclass(frozen=True)
+class StudySettings:
+    """Calibration settings shared by every case of one study (all runs into one results file).
+
+    ``speeds`` is the MLM speed grid ``start:stop:step`` in km/h (Section 3.3: 160:350:1),
+    ``dim_grid`` and ``steps_per_period`` as for :class:`~adm_calib.calibrate.CalibrationOptions`
+    (``None``: the core's default). The adapted MLM curve is never computed (not needed here).
+    """
+
+    speeds: str = "160:350:1"
+    dim_grid: str = "paper"
+    steps_per_period: float | None = None
+
+    def speeds_kmh(self):
+        from adm_sim.sweep import parse_speeds
+
+        return parse_speeds(self.speeds)
+
+    def calibration_options(self):
+        from adm_sim.stepping import StepOptions
+
+        from adm_calib.calibrate import CalibrationOptions
+
+        step = None if self.steps_per_period is None else StepOptions(steps_per_period=self.steps_per_period)
+        return CalibrationOptions(dim_grid=self.dim_grid, step=step)
+
+    def to_dict(self):
+        return asdict(self)
+
+
+def case_identity(bridge, train, mass_function, freq_index):
+    """The identity fields of a result line (SI except ``mu_t_m`` in t/m and ``zeta_pct`` in %)."""
+    return {
+        "bridge": bridge.name, "train": train, "span_m": float(bridge.span_m), "n0_hz": float(bridge.n0_hz),
+        "mu_t_m": float(bridge.mass_per_length_kg_m) / 1000.0, "mass_function": mass_function,
+        "freq_index": int(freq_index), "bridge_type": bridge.bridge_type,
+        "zeta_pct": 100.0 * float(bridge.damping_ratio),
+    }

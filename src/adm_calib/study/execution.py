@@ -1,0 +1,283 @@
+"""Running the study: cases grouped in batches, the batches as tasks on a dask.distributed cluster.
+
+A loopback-only :class:`~distributed.LocalCluster` by default, or an existing scheduler
+(``--scheduler``). The client appends every finished case to the result store at once.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import platform
+import sys
+import time
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from adm_sim.errors import InputError
+
+from adm_calib.study.cases import WORKER_ENV, StudySettings, _train
+from adm_calib.study.store import (META_FORMAT, RESULTS_NAME, ResultsWriter, _exclusive, _now, _write_meta,
+                                   error_record, read_meta, result_record, versions)
+
+def run_case(case, settings=StudySettings()):
+    """Calibrate one case alone (a batch of one); never raises for errors of the case itself."""
+    return run_batch([case], settings)[0]
+
+
+def batch_key(case):
+    """Cases that share a batch: one train, one (span, frequency) pair, so one space step."""
+    return case.batch_key
+
+
+def make_batches(cases):
+    """The cases grouped by :func:`batch_key` (up to the six mass functions), in first-seen order."""
+    groups = {}
+    for c in cases:
+        groups.setdefault(batch_key(c), []).append(c)
+    return list(groups.values())
+
+
+def run_batch(cases, settings=StudySettings()):
+    """Calibrate cases of one batch key in lockstep (:func:`adm_calib.batch.calibrate_batch`).
+
+    The task run on the workers. Never raises for errors of the cases themselves: if the batch
+    fails, every case is tried alone so that only the failing ones become error records.
+    """
+    from adm_calib.batch import calibrate_batch
+
+    t0 = time.perf_counter()
+    try:
+        train = _train(cases[0].train)
+        res = calibrate_batch([c.bridge for c in cases], train, speeds_kmh=settings.speeds_kmh(),
+                              options=settings.calibration_options())
+        wall = (time.perf_counter() - t0) / len(cases)
+        recs = [result_record(c, r, wall) for c, r in zip(cases, res)]
+        for rec in recs:
+            rec["batch_size"] = len(cases)
+    except Exception as exc:
+        if len(cases) == 1:
+            recs = [error_record(cases[0], exc, time.perf_counter() - t0)]
+        else:
+            recs = [run_batch([c], settings)[0] for c in cases]
+    for rec in recs:
+        rec["host"] = platform.node()
+        rec["pid"] = os.getpid()
+    return recs
+
+
+# ====================================================================== the study on dask
+@dataclass(repr=False)
+class StudyRun:
+    """Outcome of one :func:`run_study` call (one run into a results file)."""
+
+    out_dir: Path
+    selected: int
+    already_done: int
+    submitted: int = 0
+    completed: int = 0
+    statuses: Counter = field(default_factory=Counter)
+    interrupted: bool = False
+    dropped_truncated_line: bool = False
+    dropped_error_lines: int = 0
+    wall_s: float = 0.0
+    scheduler: str = ""
+    workers: list = field(default_factory=list)
+
+    @property
+    def errors(self):
+        return self.statuses.get("error", 0)
+
+    def summary(self):
+        st = ", ".join(f"{k} {v}" for k, v in sorted(self.statuses.items())) or "none"
+        lines = [f"study: {self.completed} of {self.submitted} submitted cases finished in {self.wall_s:.1f} s "
+                 f"({st}); {self.already_done} of {self.selected} selected were already done"]
+        if self.dropped_truncated_line:
+            lines.append("study: dropped a truncated last line of results.jsonl (that case ran again)")
+        if self.dropped_error_lines:
+            lines.append(f"study: dropped {self.dropped_error_lines} error lines to run those cases again")
+        done = self.already_done + self.completed
+        lines.append(f"study: {done} of {self.selected} selected cases in {self.out_dir / RESULTS_NAME}")
+        if self.interrupted:
+            lines.append("study: interrupted; rerun the same command to resume")
+        return "\n".join(lines)
+
+    def __repr__(self):
+        return (f"StudyRun({self.completed}/{self.submitted} cases, {self.already_done} skipped, "
+                f"interrupted={self.interrupted})")
+
+
+def local_cluster(workers=2):
+    """A loopback-only :class:`distributed.LocalCluster`: ``workers`` processes of one thread each.
+
+    Scheduler, nannies and workers listen on 127.0.0.1 only (also their small HTTP servers for
+    health and metrics, on free ports); no dashboard; one BLAS thread per worker (set in the
+    environment before the worker process starts).
+    """
+    import logging
+
+    import dask
+    from distributed import LocalCluster
+
+    env = dict(dask.config.get("distributed.nanny.pre-spawn-environ", {}) or {})
+    env.update(WORKER_ENV)
+    with dask.config.set({"distributed.nanny.pre-spawn-environ": env}), _workers_ignore_sigint():
+        return LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True, host="127.0.0.1",
+                            dashboard_address=None, worker_dashboard_address=None, silence_logs=logging.CRITICAL,
+                            env=dict(WORKER_ENV),
+                            # the scheduler's health/metrics HTTP routes: loopback, any free port
+                            scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
+
+
+@contextlib.contextmanager
+def _workers_ignore_sigint():
+    """Spawn the worker processes with SIGINT ignored (the disposition survives ``exec``).
+
+    Ctrl-C on a terminal reaches the whole process group; the client alone then stops the
+    study and closes the cluster, instead of every worker printing a KeyboardInterrupt trace.
+    """
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
+
+
+def _worker_env():
+    return {k: os.environ.get(k) for k in WORKER_ENV}
+
+
+def run_study(out_dir, cases, settings=StudySettings(), workers=2, scheduler=None, limit=None, progress=None,
+              retry_errors=False, options=None):
+    """Run the study cases not yet in ``out_dir/results.jsonl`` on a dask cluster.
+
+    Parameters
+    ----------
+    out_dir : path
+        Study directory (created); holds ``results.jsonl`` and ``study.json``.
+    cases : list of StudyCase
+        Selected cases (:func:`select_cases`); those already in the results file are skipped.
+    settings : StudySettings
+        Must equal the settings of earlier runs into ``out_dir``.
+    workers : int
+        Worker processes of the local cluster (ignored with ``scheduler``).
+    scheduler : str, optional
+        Address of a running scheduler (``tcp://127.0.0.1:8786``) instead of a local cluster.
+    limit : int, optional
+        Run at most this many of the pending cases (the first ones in the order of ``cases``).
+    progress : bool or None
+        tqdm bar on stderr; ``None``: only on a terminal.
+    retry_errors : bool
+        Drop earlier ``status: "error"`` lines and run those cases again.
+    options : dict, optional
+        Command-line options recorded in ``study.json``.
+
+    Returns
+    -------
+    StudyRun
+        ``interrupted`` is True after Ctrl-C or SIGTERM (everything finished is kept).
+    """
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"out: {str(out)!r} is not a directory")
+    out.mkdir(parents=True, exist_ok=True)
+    with _exclusive(out):
+        meta = read_meta(out)
+        if meta is not None and meta.get("settings") != settings.to_dict():
+            old, new = meta.get("settings"), settings.to_dict()
+            diff = ", ".join(f"{k} {old.get(k)!r} -> {new[k]!r}" for k in new if old.get(k) != new[k])
+            raise InputError(f"settings: the study in {str(out)!r} was computed with other settings ({diff}); "
+                             f"use another --out")
+        if meta is None:
+            meta = {"format": META_FORMAT, "created": _now(), "settings": settings.to_dict(), "runs": []}
+        with ResultsWriter(out / RESULTS_NAME, drop_errors=retry_errors) as writer:
+            pending = [c for c in cases if c.key not in writer.records]
+            if limit is not None:
+                pending = pending[:int(limit)]
+            run = StudyRun(out_dir=out, selected=len(cases), already_done=len(cases) - len(
+                [c for c in cases if c.key not in writer.records]), submitted=len(pending),
+                dropped_truncated_line=writer.dropped_truncated, dropped_error_lines=writer.dropped_errors)
+            entry = {"started": _now(), "finished": None, "options": dict(options or {}), "versions": versions(),
+                     "selected": run.selected, "already_done": run.already_done, "submitted": run.submitted}
+            meta["runs"].append(entry)
+            _write_meta(out, meta)
+            t0 = time.perf_counter()
+            try:
+                if pending:
+                    _run_on_dask(pending, settings, writer, run, workers, scheduler, progress, entry)
+            except KeyboardInterrupt:
+                run.interrupted = True
+            finally:
+                run.wall_s = time.perf_counter() - t0
+                run.completed = writer.appended  # the lines this run wrote, whatever interrupted it
+                entry.update({"finished": _now(), "completed": run.completed, "statuses": dict(run.statuses),
+                              "interrupted": run.interrupted, "wall_s": round(run.wall_s, 3),
+                              "dropped_truncated_line": run.dropped_truncated_line,
+                              "dropped_error_lines": run.dropped_error_lines})
+                _write_meta(out, meta)
+    return run
+
+
+def _run_on_dask(pending, settings, writer, run, workers, scheduler, progress, entry):
+    from distributed import Client, as_completed
+    from tqdm import tqdm
+
+    cluster = client = bar = None
+    futures = []
+    try:
+        if scheduler is None:
+            cluster = local_cluster(workers)
+            client = Client(cluster, set_as_default=False)
+        else:
+            try:
+                client = Client(scheduler, timeout="10s", set_as_default=False)
+            except (OSError, TimeoutError) as exc:
+                raise InputError(f"scheduler: cannot connect to {scheduler!r} ({exc})") from None
+        info = client.scheduler_info()
+        run.scheduler = info.get("address", "")
+        run.workers = sorted(info.get("workers", {}))
+        entry["cluster"] = {"scheduler": run.scheduler, "local": cluster is not None,
+                            "workers": {a: {"nanny": w.get("nanny"), "nthreads": w.get("nthreads")}
+                                        for a, w in info.get("workers", {}).items()},
+                            "worker_env": client.run(_worker_env)}
+        # longest batches first (cost grows with n0: the time step follows the highest mode)
+        batches = sorted(make_batches(pending), key=lambda b: -b[0].bridge.n0_hz)
+        by_future = {}
+        for b in batches:
+            L, fi = batch_key(b[0])[1:]
+            fut = client.submit(run_batch, b, settings, pure=False,
+                                key=f"batch-{b[0].train}-L{L:g}-f{fi}-{os.getpid()}")
+            by_future[fut] = b
+            futures.append(fut)
+        bar = tqdm(total=run.selected, initial=run.already_done, unit="case", desc="study", file=sys.stderr,
+                   disable=not (sys.stderr.isatty() if progress is None else progress), dynamic_ncols=True)
+        for fut in as_completed(futures, loop=client.loop):
+            batch = by_future.pop(fut)
+            try:
+                recs = fut.result()
+            except Exception as exc:  # the task never returned (worker died, cancelled)
+                recs = [error_record(case, exc) for case in batch]
+            for rec in recs:
+                writer.append(rec)
+                run.completed += 1
+                run.statuses[rec["status"]] += 1
+                bar.update(1)
+            fut.release()
+    finally:
+        if bar is not None:
+            bar.close()
+        if client is not None:
+            with contextlib.suppress(Exception):
+                client.cancel([f for f in futures if not f.done()])
+            with contextlib.suppress(Exception):
+                client.close(timeout=10)
+        if cluster is not None:
+            with contextlib.suppress(Exception):
+                cluster.close(timeout=20)

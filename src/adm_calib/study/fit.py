@@ -1,0 +1,399 @@
+"""The lower-bound fit of paper Section 4.2.1 (Eq. 20) over study results, next to Tables B1-B4."""
+
+from __future__ import annotations
+
+import csv
+import io
+from collections import Counter
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from adm_sim.errors import InputError
+
+from adm_calib.reference import STUDY_TRAINS, first_root_hz
+from adm_calib.study.cases import INTERVAL_EDGES_HZ, LOWER_LIMIT_HZ
+from adm_calib.study.store import record_key
+
+# ====================================================================== lower-bound fit
+@dataclass(frozen=True)
+class IntervalMinimum:
+    """Smallest Δζ (%) in one n0 interval ``[lo_hz, hi_hz)`` and the case that has it."""
+
+    lo_hz: float
+    hi_hz: float
+    n_cases: int
+    n0_hz: float
+    delta_zeta_pct: float
+    bridge: str = ""
+
+
+def interval_minima(n0_hz, delta_zeta_pct, names=None, edges_hz=INTERVAL_EDGES_HZ):
+    """Data points of Section 4.2.1: the minimum Δζ of each n0 interval.
+
+    Intervals are ``[e_k, e_k+1)``, the last one closed; empty intervals give no point; n0
+    outside ``[edges_hz[0], edges_hz[-1]]`` is not used. Ties go to the lowest n0.
+
+    Parameters
+    ----------
+    n0_hz, delta_zeta_pct : array_like (n,)
+    names : sequence of str (n,), optional
+        Bridge names carried into the result.
+
+    Returns
+    -------
+    list of IntervalMinimum
+    """
+    x = np.asarray(n0_hz, dtype=float)
+    y = np.asarray(delta_zeta_pct, dtype=float)
+    names = list(names) if names is not None else [""] * x.size
+    out = []
+    e = np.asarray(edges_hz, dtype=float)
+    for k in range(e.size - 1):
+        last = k == e.size - 2
+        sel = np.flatnonzero((x >= e[k]) & ((x <= e[k + 1]) if last else (x < e[k + 1])))
+        if sel.size == 0:
+            continue
+        sel = sel[np.lexsort((x[sel], y[sel]))]
+        i = int(sel[0])
+        out.append(IntervalMinimum(lo_hz=float(e[k]), hi_hz=float(e[k + 1]), n_cases=int(sel.size),
+                                   n0_hz=float(x[i]), delta_zeta_pct=float(y[i]), bridge=str(names[i])))
+    return out
+
+
+@dataclass(frozen=True, repr=False)
+class CubicFit:
+    """Least-squares cubic of Eq. (20) through the interval minima (Δζ in %, n0 in Hz).
+
+    ``residuals_pct`` (n_points,) are ``data - fit``; ``upper_limit_hz`` is the first root above
+    2.1 Hz.
+    """
+
+    coefficients: tuple
+    r2: float
+    n0_hz: np.ndarray
+    delta_zeta_pct: np.ndarray
+    residuals_pct: np.ndarray
+    upper_limit_hz: float
+
+    @property
+    def max_res_pct(self):
+        return float(self.residuals_pct.max())
+
+    @property
+    def min_res_pct(self):
+        return float(self.residuals_pct.min())
+
+    def value_pct(self, n0_hz):
+        """The lower bound: Eq. (20) up to the upper limit, 0 beyond."""
+        n0 = np.asarray(n0_hz, dtype=float)
+        return np.where(n0 >= self.upper_limit_hz, 0.0, np.polyval(self.coefficients, n0))
+
+    def __repr__(self):
+        a, b, c, d = self.coefficients
+        return (f"CubicFit(a={a:.4g}, b={b:.4g}, c={c:.4g}, d={d:.4g}, R2={self.r2:.4f}, "
+                f"upper limit {self.upper_limit_hz:.2f} Hz)")
+
+
+def fit_cubic(n0_hz, delta_zeta_pct, lower_limit_hz=LOWER_LIMIT_HZ):
+    """Fit Eq. (20) to data points by linear least squares (:func:`numpy.polyfit`, degree 3).
+
+    ``R² = 1 - SS_res / SS_tot`` about the data points. Needs at least 4 points.
+    """
+    x = np.asarray(n0_hz, dtype=float)
+    y = np.asarray(delta_zeta_pct, dtype=float)
+    if x.size < 4:
+        raise InputError(f"fit: {x.size} data points; a cubic needs at least 4")
+    coef = np.polyfit(x, y, 3)
+    res = y - np.polyval(coef, x)
+    ss_tot = float(np.sum((y - y.mean()) ** 2))
+    r2 = 1.0 - float(np.sum(res**2)) / ss_tot if ss_tot > 0 else float("nan")
+    return CubicFit(coefficients=tuple(float(c) for c in coef), r2=r2, n0_hz=x, delta_zeta_pct=y,
+                    residuals_pct=res, upper_limit_hz=first_root_hz(coef, lower_limit_hz))
+
+
+@dataclass(frozen=True, repr=False)
+class LowerBoundFit:
+    """Fit of one train and mass function, next to the published function (Tables B1-B4)."""
+
+    train: str
+    mass_function: str
+    n_cases: int
+    minima: list
+    fit: CubicFit | None
+    published: object = None
+    note: str = ""
+
+    def __repr__(self):
+        return f"LowerBoundFit({self.train} {self.mass_function}: {self.n_cases} cases, {self.fit!r})"
+
+
+#: Exclusion reasons used by :func:`fit_study` (key -> text).
+EXCLUSIONS = {
+    "error": "status error (the case raised)",
+    "no_dz": "no dz_VBI (no reasonable peak, not bracketed or no match)",
+    "dim_not_local_max": "associated DIM value not a local maximum (rules step2, strict)",
+    "mlm_max_at_range_end": "largest MLM value at an end of the speed range (rule strict)",
+    "above_21hz": "n0 above 21 Hz (not fitted, Section 4.2.1)",
+    "other_train": "not a study train",
+}
+
+#: Exclusion rules, chosen before looking at any comparison (README "Exclusion rules"):
+#:
+#: * ``none``: only cases without a Δζ_VBI (no reasonable peak, no bracket, no match, errors);
+#: * ``step2`` (default): also cases whose associated DIM value is not a local maximum: Step 2 of
+#:   Section 4 "considered only peaks that are also local maxima", for the MLM and the DIM alike
+#:   (our MLM peak is an interior local maximum by construction, so the rule acts on the DIM);
+#: * ``strict``: also cases whose largest MLM value lies at an end of the speed range (the chosen
+#:   MLM peak is then a lesser interior maximum), reading Step 2's "maximum accelerations at
+#:   350 km/h were excluded from the further investigations" as excluding the whole case.
+EXCLUSION_RULES = {
+    "none": (),
+    "step2": ("dim_not_local_max",),
+    "strict": ("dim_not_local_max", "mlm_max_at_range_end"),
+}
+DEFAULT_RULE = "step2"
+
+#: n0 values (Hz) at which fitted and published lower bounds are compared (README).
+COMPARE_N0_HZ = (2.5, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, 10.0, 11.0, 12.0, 13.0)
+
+
+def case_flags(rec):
+    """The exclusion reasons that apply to one result line (all of them, in rule order)."""
+    if rec.get("status") == "error":
+        return ["error"]
+    if rec.get("status") != "ok" or rec.get("delta_zeta_vbi_pct") is None:
+        return ["no_dz"]
+    out = []
+    if rec.get("dim_is_local_max") is False:
+        out.append("dim_not_local_max")
+    if rec.get("mlm_max_at_range_end"):
+        out.append("mlm_max_at_range_end")
+    return out
+
+
+@dataclass(repr=False)
+class StudyFit:
+    """Lower-bound fits of a study, ``fits[(train, mass_function)]``, with the excluded cases counted."""
+
+    fits: dict
+    records_used: list
+    n_records: int
+    excluded: Counter
+    rule: str
+    duplicates: int = 0
+    flags_by_set: dict = field(default_factory=dict)
+
+    def difference_pct(self, key, n0_hz=COMPARE_N0_HZ):
+        """Fitted minus published lower bound (% Δζ) at ``n0_hz`` for set ``key`` (as applied:
+        Eq. 20 up to the first root, 0 beyond); None when either is missing."""
+        f = self.fits.get(key)
+        if f is None or f.fit is None or f.published is None:
+            return None
+        n0 = np.asarray(n0_hz, dtype=float)
+        p = f.published
+        pub = np.where(n0 >= p.first_root_hz, 0.0, np.polyval(p.coefficients, n0))
+        return f.fit.value_pct(n0) - pub
+
+    def to_toml(self, command=""):
+        """The fitted functions in the format of ``data/lower_bounds.toml`` (for ``--functions ours``)."""
+        lines = ["# Lower-bound functions re-derived from the parametric study (adm-calib study-fit).",
+                 "#   delta_zeta(n0) = a n0^3 + b n0^2 + c n0 + d   Eq. (20); delta_zeta in %, n0 in Hz",
+                 f"# exclusion rule: {self.rule}; cases read {self.n_records}, used {len(self.records_used)}",
+                 *( [f"# command: {command}"] if command else []),
+                 "", f"lower_limit_hz = {LOWER_LIMIT_HZ}",
+                 'columns = ["a", "b", "c", "d", "upper_limit_hz", "r2", "max_res_pct", "min_res_pct"]']
+        trains = []
+        for (t, m), f in self.fits.items():
+            if f.fit is None:
+                continue
+            if t not in trains:
+                trains.append(t)
+                lines += ["", f"[tables.{t}]", f'source = "study fit, rule {self.rule}"']
+            c = f.fit
+            vals = [*c.coefficients, c.upper_limit_hz, c.r2, c.max_res_pct, c.min_res_pct]
+            lines.append(f"{m} = [{', '.join(repr(float(v)) for v in vals)}]")
+        return "\n".join(lines) + "\n"
+
+    def to_text(self):
+        head = (f"{'train':9}{'mass':5}{'':6}{'cases':>6}{'pts':>4}{'a':>11}{'b':>11}{'c':>11}{'d':>11}"
+                f"{'upper Hz':>9}{'R2':>8}{'max res':>9}{'min res':>9}")
+        lines = ["Lower-bound functions, Eq. (20): dz = a n0^3 + b n0^2 + c n0 + d (dz in %, n0 in Hz), "
+                 "Section 4.2.1; 'paper' = Tables B1-B4", head, "-" * len(head)]
+
+        def nums(a, b, c, d, up, r2, mx, mn):
+            return f"{a:11.4g}{b:11.4g}{c:11.4g}{d:11.4g}{up:9.2f}{r2:8.4f}{mx:9.4f}{mn:9.4f}"
+
+        for (t, m), f in self.fits.items():
+            pre = f"{t:9}{m:5}{'fit':6}{f.n_cases:6d}{len(f.minima):4d}"
+            if f.fit is None:
+                lines.append(f"{pre}  {f.note}")
+            else:
+                c = f.fit
+                lines.append(pre + nums(*c.coefficients, c.upper_limit_hz, c.r2, c.max_res_pct, c.min_res_pct))
+            p = f.published
+            if p is not None:
+                lines.append(f"{'':14}{'paper':6}{'':10}" + nums(p.a, p.b, p.c, p.d, p.upper_limit_hz, p.r2,
+                                                                   p.max_res_pct, p.min_res_pct))
+        used = len(self.records_used)
+        lines.append(f"cases: {self.n_records} read, {used} used"
+                     + (f", {self.duplicates} duplicate lines (last kept)" if self.duplicates else ""))
+        for k, n in self.excluded.items():
+            lines.append(f"  excluded {n:5d}: {EXCLUSIONS.get(k, k)}")
+        return "\n".join(lines)
+
+    def to_csv(self):
+        buf = io.StringIO()
+        w = csv.writer(buf, lineterminator="\n")
+        cols = ["a", "b", "c", "d", "upper_limit_hz", "r2", "max_res_pct", "min_res_pct"]
+        w.writerow(["train", "mass_function", "n_cases", "n_points"] + cols + [f"paper_{c}" for c in cols] + ["note"])
+        for (t, m), f in self.fits.items():
+            if f.fit is None:
+                fit = [""] * len(cols)
+            else:
+                c = f.fit
+                fit = [*(f"{v:.6g}" for v in c.coefficients), f"{c.upper_limit_hz:.4f}", f"{c.r2:.4f}",
+                       f"{c.max_res_pct:.5f}", f"{c.min_res_pct:.5f}"]
+            p = f.published
+            pub = [""] * len(cols) if p is None else [f"{getattr(p, c):.6g}" for c in cols]
+            w.writerow([t, m, f.n_cases, len(f.minima)] + fit + pub + [f.note])
+        return buf.getvalue()
+
+    def minima_csv(self):
+        buf = io.StringIO()
+        w = csv.writer(buf, lineterminator="\n")
+        w.writerow(["train", "mass_function", "lo_hz", "hi_hz", "n_cases", "n0_hz", "delta_zeta_pct", "bridge",
+                    "fit_pct", "residual_pct"])
+        for (t, m), f in self.fits.items():
+            for p in f.minima:
+                fv = "" if f.fit is None else float(np.polyval(f.fit.coefficients, p.n0_hz))
+                w.writerow([t, m, f"{p.lo_hz:g}", f"{p.hi_hz:g}", p.n_cases, f"{p.n0_hz:.4f}",
+                            f"{p.delta_zeta_pct:.5f}", p.bridge, "" if fv == "" else f"{fv:.5f}",
+                            "" if fv == "" else f"{p.delta_zeta_pct - fv:.5f}"])
+        return buf.getvalue()
+
+
+def _exclusion(rec, rule):
+    flags = case_flags(rec)
+    if flags and flags[0] in ("error", "no_dz"):
+        return flags[0]
+    for f in EXCLUSION_RULES[rule]:
+        if f in flags:
+            return f
+    return None
+
+
+def fit_study(records, rule=DEFAULT_RULE, edges_hz=INTERVAL_EDGES_HZ):
+    """Lower-bound functions per train and mass function from study records (Section 4.2.1).
+
+    Parameters
+    ----------
+    records : iterable of dict
+        Result lines (``train``, ``mass_function``, ``n0_hz``, ``status``, ``delta_zeta_vbi_pct``,
+        flags); for a repeated (bridge, train) key the last line counts.
+    rule : {"none", "step2", "strict"}
+        Exclusion rule (:data:`EXCLUSION_RULES`); default ``step2``.
+
+    Returns
+    -------
+    StudyFit
+    """
+    from adm_calib.reference import lower_bound_table
+
+    if rule not in EXCLUSION_RULES:
+        raise InputError(f"exclude: {rule!r} is not a rule; allowed {', '.join(EXCLUSION_RULES)}")
+    records = list(records)
+    by_key = {record_key(r): r for r in records}
+    dup = len(records) - len(by_key)
+    excluded = Counter()
+    flags_by_set = {}
+    used = []
+    groups = {}
+    for rec in by_key.values():
+        cnt = flags_by_set.setdefault((rec.get("train"), rec.get("mass_function")), Counter())
+        cnt["cases"] += 1
+        for f in case_flags(rec):
+            cnt[f] += 1
+        why = _exclusion(rec, rule)
+        if why is None and rec["train"] not in STUDY_TRAINS:
+            why = "other_train"
+        if why is not None:
+            excluded[why] += 1
+            continue
+        used.append(rec)
+        groups.setdefault((rec["train"], rec["mass_function"]), []).append(rec)
+    table = lower_bound_table()
+    fits = {}
+    order = {t: i for i, t in enumerate(STUDY_TRAINS)}
+    for key in sorted(groups, key=lambda k: (order[k[0]], k[1])):
+        t, m = key
+        recs = groups[key]
+        x = np.array([r["n0_hz"] for r in recs], dtype=float)
+        y = np.array([r["delta_zeta_vbi_pct"] for r in recs], dtype=float)
+        over = int(np.count_nonzero(x > edges_hz[-1]))
+        if over:
+            excluded["above_21hz"] += over
+        minima = interval_minima(x, y, [r["bridge"] for r in recs], edges_hz)
+        fit, note = None, ""
+        if len(minima) >= 4:
+            fit = fit_cubic([p.n0_hz for p in minima], [p.delta_zeta_pct for p in minima])
+        else:
+            note = f"only {len(minima)} interval minima; a cubic needs 4"
+        fits[key] = LowerBoundFit(train=t, mass_function=m, n_cases=len(recs), minima=minima, fit=fit,
+                                  published=table.get(t, {}).get(m), note=note)
+    return StudyFit(fits=fits, records_used=used, n_records=len(by_key), excluded=excluded,
+                    rule=rule, duplicates=dup, flags_by_set=flags_by_set)
+
+
+def _g(x, fmt="{:.4g}"):
+    return "-" if x is None or (isinstance(x, float) and not math.isfinite(x)) else fmt.format(x)
+
+
+def comparison_markdown(records, rule=DEFAULT_RULE):
+    """Markdown tables: our fit next to Tables B1-B4 per train, the differences of the lower bounds
+    at :data:`COMPARE_N0_HZ`, the cases each flag excludes per set and the effect of each rule."""
+    records = list(records)
+    fits = {r: fit_study(records, rule=r) for r in EXCLUSION_RULES}
+    main = fits[rule]
+    out = [f"Exclusion rule of the fits below: **{rule}**. Differences are ours minus the paper's lower bound "
+           f"(Eq. 20 up to the first root, 0 beyond), in % of critical damping.", ""]
+    for t in STUDY_TRAINS:
+        rows = [(m, f) for (tt, m), f in main.fits.items() if tt == t]
+        if not rows:
+            continue
+        out += [f"**{t}**", "",
+                "| set | | a | b | c | d | upper limit (Hz) | R² | max res (%) | min res (%) | points |",
+                "|---|---|---|---|---|---|---|---|---|---|---|"]
+        for m, f in rows:
+            c, p = f.fit, f.published
+            if c is not None:
+                out.append(f"| {m} | ours | {_g(c.coefficients[0])} | {_g(c.coefficients[1])} | "
+                           f"{_g(c.coefficients[2])} | {_g(c.coefficients[3])} | {_g(c.upper_limit_hz, '{:.2f}')} | "
+                           f"{c.r2:.3f} | {c.max_res_pct:.4f} | {c.min_res_pct:.4f} | {len(f.minima)} |")
+            if p is not None:
+                out.append(f"| | paper | {_g(p.a)} | {_g(p.b)} | {_g(p.c)} | {_g(p.d)} | {p.upper_limit_hz:.2f} | "
+                           f"{p.r2:.3f} | {p.max_res_pct:.4f} | {p.min_res_pct:.4f} | |")
+        out += ["", "| set | " + " | ".join(f"{x:g} Hz" for x in COMPARE_N0_HZ) + " | max abs |",
+                "|---|" + "---|" * (len(COMPARE_N0_HZ) + 1)]
+        for m, f in rows:
+            d = main.difference_pct((t, m))
+            if d is None:
+                continue
+            out.append(f"| {m} | " + " | ".join(f"{x:+.3f}" for x in d) + f" | {np.max(np.abs(d)):.3f} |")
+        out.append("")
+    out += ["Cases per set and what each flag concerns (a case can carry both flags); then the largest "
+            "|ours - paper| over 2.5-13 Hz under each rule:", "",
+            "| set | cases | no dz_VBI | DIM value not a local max | MLM max at range end | "
+            + " | ".join(f"max diff, {r}" for r in EXCLUSION_RULES) + " |",
+            "|---|---|---|---|---|" + "---|" * len(EXCLUSION_RULES)]
+    for t in STUDY_TRAINS:
+        for m in sorted({k[1] for k in main.flags_by_set if k[0] == t}):
+            cnt = main.flags_by_set[(t, m)]
+            diffs = []
+            for r in EXCLUSION_RULES:
+                d = fits[r].difference_pct((t, m))
+                diffs.append("-" if d is None else f"{np.max(np.abs(d)):.3f}")
+            out.append(f"| {t} {m} | {cnt['cases']} | {cnt['no_dz'] + cnt['error']} | {cnt['dim_not_local_max']} | "
+                       f"{cnt['mlm_max_at_range_end']} | " + " | ".join(diffs) + " |")
+    return "\n".join(out) + "\n"
