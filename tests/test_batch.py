@@ -1,0 +1,105 @@
+"""Batched runs and batched calibration against the single-case paths.
+
+* :class:`adm_sim.batch.BatchRunner` lanes equal :func:`adm_sim.sweep.run_sweep` (numpy stepper)
+  with the same ``ds`` to 1e-12 relative, MLM and DIM, conventional and Jacobs trains;
+* the lane-blocked kernels equal the lane-by-lane kernels bit for bit (one source of arithmetic);
+* :func:`adm_calib.batch.calibrate_batch` reproduces :func:`adm_calib.calibrate.calibrate` to
+  1e-9 relative on its peaks and 1e-5 % on Δζ_VBI (spans 4, 20 and 40 m; ICE-2, ICE-4, Eurostar);
+* the batch's shared step equals every case's own step within one (span, frequency) pair.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from adm_calib.batch import batch_step, calibrate_batch
+from adm_calib.calibrate import CalibrationOptions, calibrate, calibration_step
+from adm_calib.study import select_cases
+from adm_sim import kernels
+from adm_sim.batch import BatchRunner
+from adm_sim.stepping import StepOptions
+from adm_sim.sweep import run_sweep
+from adm_sim.trains import load_train
+
+
+def _group(span, fi, mfs=("mu1", "mu2", "mu3", "mu4", "mu5", "mu6"), train="ICE-2"):
+    return [c.bridge for c in select_cases([train], list(mfs), (span, span), [fi])]
+
+
+@pytest.mark.parametrize("train,span,fi", [("ICE-2", 10, 5), ("Eurostar", 25, 2)])
+def test_batch_lanes_equal_run_sweep(train, span, fi):
+    bridges = _group(span, fi, ("mu1", "mu4", "mu6"))
+    tr = load_train(train)
+    ds = batch_step(bridges, tr).ds_m
+    runner = BatchRunner(bridges, tr, ds)
+    speeds = np.array([170.0, 230.0, 290.0, 345.0])
+    case = np.repeat(np.arange(3), speeds.size)
+    dz = np.tile([0.0, 0.002, -0.001, 0.01], 3)  # a different additional damping per lane
+    for model in ("mlm", "dim"):
+        acc, disp = runner.run(model, case, np.tile(speeds, 3), dz)
+        for c, b in enumerate(bridges):
+            ref = run_sweep(b, tr, model, speeds, delta_zeta=dz[case == c], options=StepOptions(ds_m=ds))
+            np.testing.assert_allclose(acc[case == c], ref.max_acc_m_s2, rtol=1e-12, atol=0)
+            np.testing.assert_allclose(disp[case == c], ref.max_disp_m, rtol=1e-12, atol=0)
+
+
+def test_blocked_kernels_equal_lane_kernels_bitwise():
+    bridges = _group(12, 3, ("mu2", "mu5"))
+    tr = load_train("ICE-4")
+    runner = BatchRunner(bridges, tr, batch_step(bridges, tr).ds_m)
+    speeds = np.array([180.0, 250.0, 330.0])
+    case = np.repeat(np.arange(2), speeds.size)
+    sp = np.tile(speeds, 2)
+    acc_b, disp_b = runner.run("dim", case, sp)
+    n = runner._lane_steps(case, sp, np.zeros(case.size, dtype=np.int64))
+    v = sp / 3.6
+    Z = np.concatenate([b.modal_damping_Ns_m(np.zeros(speeds.size)) for b in bridges])
+    t, d = runner._trains(), runner._dim
+    acc_l, disp_l = np.empty(case.size), np.empty(case.size)
+    kernels.dim_lanes(v, runner.ds_m / v, case, n, runner.K, Z, d["minv"], runner.phi_mid, d["row_ptr"],
+                      d["ent_axle"], d["ent_phi"], d["ent_phx"], d["ent_phxx"], tr.axle_loads_n, tr.wheel_mass_kg,
+                      d["act_ptr"], d["act_units"], t["unit_dof0"], t["unit_ndof"], t["unit_ax0"], t["unit_nax"],
+                      t["ks_ptr"], t["ks_col"], t["ks_val"], t["cs_ptr"], t["cs_col"], t["cs_val"], t["lw_ptr"],
+                      t["lw_col"], t["lw_val"], t["lwt_ptr"], t["lwt_col"], t["lwt_val"], t["kp"], t["cp"],
+                      t["minv_dof"], acc_l, disp_l)
+    assert np.array_equal(acc_b, acc_l) and np.array_equal(disp_b, disp_l)
+
+
+def test_group_shares_the_step_of_every_case():
+    """Within one (span, frequency) pair the cases' own calibration steps agree to rounding, so
+    a batch runs every case on its own grid (the rule: the smallest step of the batch)."""
+    for span, fi in [(4, 5), (17, 3), (40, 1)]:
+        bridges = _group(span, fi)
+        tr = load_train("Railjet")
+        own = np.array([calibration_step(b, tr).ds_m for b in bridges])
+        assert batch_step(bridges, tr).ds_m == own.min()
+        assert np.ptp(own) <= 4e-16 * own.min()
+
+
+@pytest.mark.parametrize("train,span,fi,mfs", [
+    ("ICE-2", 40, 1, ("mu1", "mu3", "mu6")),
+    ("ICE-4", 4, 1, ("mu2", "mu5")),
+    ("Eurostar", 20, 3, ("mu1", "mu4")),
+])
+def test_calibrate_batch_reproduces_calibrate(train, span, fi, mfs):
+    bridges = _group(span, fi, mfs, train)
+    tr = load_train(train)
+    step = batch_step(bridges, tr)
+    batch = calibrate_batch(bridges, tr, step=step)
+    for b, r in zip(bridges, batch):
+        ref = calibrate(b, tr, options=CalibrationOptions(step=step), adapted_curve=False)
+        assert r.status == ref.status
+        for p, q in ((r.mlm_peak, ref.mlm_peak), (r.dim_peak, ref.dim_peak)):
+            assert p.found == q.found
+            if p.found:
+                assert p.speed_kmh == q.speed_kmh
+                assert p.acc_m_s2 == pytest.approx(q.acc_m_s2, rel=1e-9)
+        np.testing.assert_allclose(r.mlm_acc_m_s2, ref.mlm_acc_m_s2, rtol=1e-9)
+        np.testing.assert_array_equal(r.dim_speeds_kmh, ref.dim_speeds_kmh)
+        np.testing.assert_allclose(r.dim_acc_m_s2, ref.dim_acc_m_s2, rtol=1e-9)
+        if ref.delta_zeta_vbi_pct is None:
+            assert r.delta_zeta_vbi_pct is None
+        else:
+            assert abs(r.delta_zeta_vbi_pct - ref.delta_zeta_vbi_pct) <= 1e-5
+            assert abs(r.solve.residual_rel) <= 1e-3 and r.solve.method in ("find_root", "exact")
