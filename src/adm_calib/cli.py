@@ -262,7 +262,7 @@ def cmd_study_fit(args):
     tag = "" if rule == st.DEFAULT_RULE else f"_{rule}"
     names = [f"lower_bounds_fit{tag}.csv", f"interval_minima{tag}.csv", f"lower_bounds_fit{tag}.txt",
              f"fig16_dz_vs_span{tag}.png", f"fig18_lower_bounds{tag}.png", f"lower_bounds_study{tag}.toml",
-             f"appendix_b_comparison{tag}.md"]
+             f"appendix_b_comparison{tag}.md", f"fig17_lower_bound_ICE-2_mu3{tag}.png"]
     names += [f"fig17_lower_bound_{t}{tag}.png" for t in st.STUDY_TRAINS]
     paths = {n: _out_path(str(out / n), args.force) for n in names}
     fit = st.fit_study(content.records, rule=rule)
@@ -277,7 +277,9 @@ def cmd_study_fit(args):
     plots.plot_lower_bounds(fit, paths[names[4]])
     paths[names[5]].write_text(fit.to_toml(command=f"adm-calib study-fit --results {res} --exclude {rule}"))
     paths[names[6]].write_text(st.comparison_markdown(content.records, rule=rule))
-    for t, n in zip(st.STUDY_TRAINS, names[7:]):
+    if ("ICE-2", "mu3") in fit.fits:
+        plots.plot_lower_bound_set(fit, "ICE-2", "mu3", paths[names[7]])
+    for t, n in zip(st.STUDY_TRAINS, names[8:]):
         plots.plot_lower_bounds_train(fit, t, paths[n])
     print(f"wrote {len(names)} files to {out}")
     return 0

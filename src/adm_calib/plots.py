@@ -136,38 +136,54 @@ def _lb_curve(coefficients, root, n0):
     return np.where(n0 >= root, 0.0, np.polyval(coefficients, n0))
 
 
+def _draw_set(ax, study_fit, train, m, n0):
+    """One (train, mass function) set: Δζ_VBI against n0, interval minima, our fit, the paper's."""
+    recs = [r for r in study_fit.records_used if r["train"] == train and r["mass_function"] == m]
+    if recs:
+        ax.plot([r["n0_hz"] for r in recs], [r["delta_zeta_vbi_pct"] for r in recs], ls="none", marker=".",
+                color="grey", ms=4, label="dz_VBI")
+    f = study_fit.fits.get((train, m))
+    if f is not None and f.minima:
+        ax.plot([p.n0_hz for p in f.minima], [p.delta_zeta_pct for p in f.minima], ls="none", marker="o",
+                mfc="gold", mec="k", ms=6, label="interval minima")
+    if f is not None and f.fit is not None:
+        ax.plot(n0, f.fit.value_pct(n0), color="tab:blue", lw=1.5,
+                label=f"our fit (R2 {f.fit.r2:.3f}, root {f.fit.upper_limit_hz:.2f} Hz)")
+    p = f.published if f is not None else None
+    if p is None:
+        from adm_calib.reference import lower_bound_table
+
+        p = lower_bound_table().get(train, {}).get(m)
+    if p is not None:
+        ax.plot(n0, _lb_curve(p.coefficients, p.first_root_hz, n0), color="tab:red", lw=1.2, ls="--",
+                label=f"paper (root {p.upper_limit_hz:.2f} Hz)")
+    for e in INTERVAL_EDGES_HZ:
+        ax.axvline(e, color="k", lw=0.3, alpha=0.25)
+    ax.axhline(0.0, color="k", lw=0.5)
+    ax.set_title(f"{train}, {m} (rule {study_fit.rule})")
+    ax.grid(alpha=0.2)
+    _legend(ax, fontsize=6)
+
+
+def plot_lower_bound_set(study_fit, train, mass_function, path):
+    """Analogue of Fig. 17: one set with its interval minima, our fit and the published function."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    _draw_set(ax, study_fit, train, mass_function, np.linspace(LOWER_LIMIT_HZ, 21.0, 400))
+    ax.set_xlabel("n0 (Hz)")
+    ax.set_ylabel("dz (%)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 def plot_lower_bounds_train(study_fit, train, path):
-    """Analogue of Fig. 17 for one train: Δζ against n0 per mass function, the interval minima,
-    the fitted and the published lower bound."""
+    """Fig. 17 analogue for the six mass functions of one train."""
     plt = _pyplot()
     fig, axes = plt.subplots(2, 3, figsize=(13, 7.5), sharex=True, squeeze=False)
     n0 = np.linspace(LOWER_LIMIT_HZ, 21.0, 400)
     for ax, m in zip(axes.flat, MASS_FUNCTION_NAMES):
-        recs = [r for r in study_fit.records_used if r["train"] == train and r["mass_function"] == m]
-        if recs:
-            ax.plot([r["n0_hz"] for r in recs], [r["delta_zeta_vbi_pct"] for r in recs], ls="none", marker=".",
-                    color="grey", ms=4, label="dz_VBI")
-        f = study_fit.fits.get((train, m))
-        if f is not None and f.minima:
-            ax.plot([p.n0_hz for p in f.minima], [p.delta_zeta_pct for p in f.minima], ls="none", marker="o",
-                    mfc="gold", mec="k", ms=6, label="interval minima")
-        if f is not None and f.fit is not None:
-            ax.plot(n0, f.fit.value_pct(n0), color="tab:blue", lw=1.5,
-                    label=f"fit (R2 {f.fit.r2:.3f}, root {f.fit.upper_limit_hz:.2f} Hz)")
-        p = f.published if f is not None else None
-        if p is None:
-            from adm_calib.reference import lower_bound_table
-
-            p = lower_bound_table().get(train, {}).get(m)
-        if p is not None:
-            ax.plot(n0, _lb_curve(p.coefficients, p.first_root_hz, n0), color="tab:red", lw=1.2, ls="--",
-                    label=f"paper (root {p.upper_limit_hz:.2f} Hz)")
-        for e in INTERVAL_EDGES_HZ:
-            ax.axvline(e, color="k", lw=0.3, alpha=0.25)
-        ax.axhline(0.0, color="k", lw=0.5)
-        ax.set_title(f"{train}, {m}")
-        ax.grid(alpha=0.2)
-        _legend(ax, fontsize=6)
+        _draw_set(ax, study_fit, train, m, n0)
     for ax in axes[-1]:
         ax.set_xlabel("n0 (Hz)")
     for ax in axes[:, 0]:

@@ -9,11 +9,11 @@ from __future__ import annotations
 
 import contextlib
 import datetime as _dt
+import gzip
 import json
 import os
 import platform
 import signal
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -79,7 +79,8 @@ class ResultsContent:
 
 
 def read_results(path):
-    """Read a ``results.jsonl``; a last line without its newline (a write cut short) is ignored.
+    """Read a ``results.jsonl`` (or a gzip-compressed ``results.jsonl.gz``, as shipped in
+    ``results/study``); a last line without its newline (a write cut short) is ignored.
 
     Raises
     ------
@@ -89,10 +90,12 @@ def read_results(path):
     p = Path(path)
     try:
         data = p.read_bytes()
+        if p.suffix == ".gz":
+            data = gzip.decompress(data)
     except FileNotFoundError:
         return ResultsContent(records=[], valid_bytes=0)
-    except OSError as exc:
-        raise InputError(f"results {str(p)!r}: cannot read ({exc.strerror})") from None
+    except (OSError, EOFError) as exc:
+        raise InputError(f"results {str(p)!r}: cannot read ({getattr(exc, 'strerror', None) or exc})") from None
     end = data.rfind(b"\n") + 1
     body, tail = data[:end], data[end:]
     records, seen, dup = [], set(), 0
