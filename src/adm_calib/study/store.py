@@ -218,7 +218,7 @@ def versions():
     from importlib import metadata
 
     out = {"python": platform.python_version(), "platform": platform.platform()}
-    for dist in ("adm-sim", "numpy", "scipy", "dask", "distributed"):
+    for dist in ("adm-sim", "numpy", "scipy", "numba", "dask", "distributed"):
         try:
             out[dist] = metadata.version(dist)
         except metadata.PackageNotFoundError:
