@@ -249,6 +249,13 @@ class LowerBound:
     min_res_pct: float
     lower_limit_hz: float = 2.1
     source: str = ""
+    fit_range_max_hz: float = math.inf
+
+    @property
+    def zero_from_hz(self):
+        """0 from here on: the first root (Section 4.2.1), or the end of the fitted n0 range where
+        the cubic has no root there (re-derived functions; no extrapolation above 21 Hz)."""
+        return min(self.first_root_hz, self.fit_range_max_hz)
 
     @property
     def coefficients(self):
@@ -272,7 +279,7 @@ class LowerBound:
             Below the lower limit (2.1 Hz).
         """
         n0 = check_range("n0_hz", n0_hz, "Hz", self.lower_limit_hz, None)
-        if n0 >= self.first_root_hz:
+        if n0 >= self.zero_from_hz:
             return 0.0
         return float(self.polynomial_pct(n0))
 
@@ -301,7 +308,8 @@ def lower_bound_table(functions="paper"):
                 continue
             vals = dict(zip(cols, row))
             out[train][mf] = LowerBound(train=train, mass_function=mf, lower_limit_hz=data["lower_limit_hz"],
-                                        source=tab.get("source", ""), **vals)
+                                        source=tab.get("source", ""),
+                                        fit_range_max_hz=data.get("fit_range_max_hz", math.inf), **vals)
     return out
 
 
@@ -424,7 +432,7 @@ def recommend(train, n0_hz, mu_t_m, bridge_type, span_m=None, interpolate=False,
                          f"{', '.join(m for m in used if m not in table)}")
     values = tuple(table[m].delta_zeta_pct(n0) for m in used)
     dz = float(sum(w * v for w, v in zip(weights, values)))
-    beyond = all(n0 >= table[m].first_root_hz for m in used)
+    beyond = all(n0 >= table[m].zero_from_hz for m in used)
     funcs = ", ".join(f"{m} ({mus[m]:.3f} t/m at L={L:g} m): {v:.4f} %" for m, v in zip(used, values))
     source = "Tables B1-B4 (paper)" if functions == "paper" else "re-derived from the shipped study (ours)"
     expl = (f"{source}; {t}, {bridge_type.upper()}, n0={n0:g} Hz, mu={mu:g} t/m, L={L:.3g} m"

@@ -204,7 +204,8 @@ class StudyFit:
                  "#   delta_zeta(n0) = a n0^3 + b n0^2 + c n0 + d   Eq. (20); delta_zeta in %, n0 in Hz",
                  f"# exclusion rule: {self.rule}; cases read {self.n_records}, used {len(self.records_used)}",
                  *( [f"# command: {command}"] if command else []),
-                 "", f"lower_limit_hz = {LOWER_LIMIT_HZ}",
+                 "# zero from the first root, or from the end of the fitted range (21 Hz) where there is none",
+                 "", f"lower_limit_hz = {LOWER_LIMIT_HZ}", f"fit_range_max_hz = {INTERVAL_EDGES_HZ[-1]}",
                  'columns = ["a", "b", "c", "d", "upper_limit_hz", "r2", "max_res_pct", "min_res_pct"]']
         trains = []
         for (t, m), f in self.fits.items():
