@@ -2,7 +2,6 @@
 
 * :class:`adm_sim.batch.BatchRunner` lanes equal :func:`adm_sim.sweep.run_sweep` (numpy stepper)
   with the same ``ds`` to 1e-12 relative, MLM and DIM, conventional and Jacobs trains;
-* the lane-blocked kernels equal the lane-by-lane kernels bit for bit (one source of arithmetic);
 * :func:`adm_calib.batch.calibrate_batch` reproduces :func:`adm_calib.calibrate.calibrate` to
   1e-9 relative on its peaks and 1e-5 % on Δζ_VBI (spans 4, 20 and 40 m; ICE-2, ICE-4, Eurostar);
 * the batch's shared step equals every case's own step within one (span, frequency) pair.
@@ -16,7 +15,6 @@ import pytest
 from adm_calib.batch import batch_step, calibrate_batch
 from adm_calib.calibrate import CalibrationOptions, calibrate, calibration_step
 from adm_calib.study import select_cases
-from adm_sim import kernels
 from adm_sim.batch import BatchRunner
 from adm_sim.stepping import StepOptions
 from adm_sim.sweep import run_sweep
@@ -42,28 +40,6 @@ def test_batch_lanes_equal_run_sweep(train, span, fi):
             ref = run_sweep(b, tr, model, speeds, delta_zeta=dz[case == c], options=StepOptions(ds_m=ds))
             np.testing.assert_allclose(acc[case == c], ref.max_acc_m_s2, rtol=1e-12, atol=0)
             np.testing.assert_allclose(disp[case == c], ref.max_disp_m, rtol=1e-12, atol=0)
-
-
-def test_blocked_kernels_equal_lane_kernels_bitwise():
-    bridges = _group(12, 3, ("mu2", "mu5"))
-    tr = load_train("ICE-4")
-    runner = BatchRunner(bridges, tr, batch_step(bridges, tr).ds_m)
-    speeds = np.array([180.0, 250.0, 330.0])
-    case = np.repeat(np.arange(2), speeds.size)
-    sp = np.tile(speeds, 2)
-    acc_b, disp_b = runner.run("dim", case, sp)
-    n = runner._lane_steps(case, sp, np.zeros(case.size, dtype=np.int64))
-    v = sp / 3.6
-    Z = np.concatenate([b.modal_damping_Ns_m(np.zeros(speeds.size)) for b in bridges])
-    t, d = runner._trains(), runner._dim
-    acc_l, disp_l = np.empty(case.size), np.empty(case.size)
-    kernels.dim_lanes(v, runner.ds_m / v, case, n, runner.K, Z, d["minv"], runner.phi_mid, d["row_ptr"],
-                      d["ent_axle"], d["ent_phi"], d["ent_phx"], d["ent_phxx"], tr.axle_loads_n, tr.wheel_mass_kg,
-                      d["act_ptr"], d["act_units"], t["unit_dof0"], t["unit_ndof"], t["unit_ax0"], t["unit_nax"],
-                      t["ks_ptr"], t["ks_col"], t["ks_val"], t["cs_ptr"], t["cs_col"], t["cs_val"], t["lw_ptr"],
-                      t["lw_col"], t["lw_val"], t["lwt_ptr"], t["lwt_col"], t["lwt_val"], t["kp"], t["cp"],
-                      t["minv_dof"], acc_l, disp_l)
-    assert np.array_equal(acc_b, acc_l) and np.array_equal(disp_b, disp_l)
 
 
 def test_group_shares_the_step_of_every_case():
