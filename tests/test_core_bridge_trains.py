@@ -130,7 +130,7 @@ def test_vehicle_matrices_rigid_body_modes(name):
 def _minimal(**over):
     vt = dict(m_c_kg=30000, J_c_kgm2=1e6, m_b_kg=2000, J_b_kgm2=2000, m_w_kg=1500,
               k_s_N_m=3e5, c_s_Ns_m=6e3, k_p_N_m=1.6e6, c_p_Ns_m=2e4, d_m=26, r_m=19, b_m=2.5,
-              axle_load_kN=110)
+              axle_load_kN=98.1)  # (m_c + 2 m_b + 4 m_w) g / 4
     vt.update(over)
     return {"name": "mine", "vehicle_types": {"PC": vt}, "composition": [{"vehicle": "PC", "count": 3}]}
 
@@ -152,6 +152,60 @@ def test_user_train_file(tmp_path):
 def test_train_file_errors(over, match):
     with pytest.raises(InputError, match=match):
         train_from_mapping(_minimal(**over))
+
+
+def _eurostar():
+    import tomllib
+    from importlib import resources
+
+    return tomllib.loads(resources.files("adm_sim").joinpath("data/trains/eurostar.toml").read_text())
+
+
+def test_train_file_keys_strict():
+    """Typos and conflicts in a train file are refused, never silently resolved."""
+    data = _minimal()
+    data["composition"] = [{"vehicle": "PC", "cout": 8}]
+    with pytest.raises(InputError, match=r"train: composition\[0\]: unknown key\(s\) 'cout'; allowed vehicle, count"):
+        train_from_mapping(data)
+    data = _minimal()
+    data["colour"] = "red"
+    with pytest.raises(InputError, match=r"train: unknown key\(s\) 'colour'; allowed name, description"):
+        train_from_mapping(data)
+    data = _minimal()
+    data["composition"][0]["count"] = True
+    with pytest.raises(InputError, match=r"composition\[0\].count: True out of range; allowed 1..100"):
+        train_from_mapping(data)
+    e = _eurostar()
+    jac = next(i for i, c in enumerate(e["composition"]) if "jacobs_set" in c)
+    e["composition"][jac]["reversed"] = "false"
+    with pytest.raises(InputError, match=rf"composition\[{jac}\].reversed: 'false' must be true or false"):
+        train_from_mapping(e, source="eurostar.toml")
+    e = _eurostar()
+    e["composition"][jac]["vehicle"] = "Loc"
+    with pytest.raises(InputError, match=rf"composition\[{jac}\]: has both 'vehicle' and 'jacobs_set'"):
+        train_from_mapping(e)
+    e = _eurostar()
+    e["composition"][jac]["axle_load_kN"] = [1, 2]
+    with pytest.raises(InputError, match=r"unknown key\(s\) 'axle_load_kN'; allowed jacobs_set, bogies, axle_loads_kN, reversed"):
+        train_from_mapping(e)
+
+
+def test_axle_loads_must_match_masses_unless_declared():
+    with pytest.raises(InputError, match=r"mine.toml: F PC \(per axle\): axle load 300 kN disagrees with the masses, "
+                                         r"\(m_c \+ 2 m_b \+ 4 m_w\) g / 4 = 98.1 kN \(allowed within 0.5 %\)"):
+        train_from_mapping(_minimal(axle_load_kN=300), source="mine.toml")
+    data = _minimal(axle_load_kN=300)
+    data["loads_differ_from_masses"] = True
+    t = train_from_mapping(data)
+    assert t.axle_loads_n == pytest.approx(np.full(12, 300e3), rel=0)
+    data["loads_differ_from_masses"] = "yes"
+    with pytest.raises(InputError, match="loads_differ_from_masses: 'yes' must be true or false"):
+        train_from_mapping(data)
+    e = _eurostar()
+    jac = next(i for i, c in enumerate(e["composition"]) if "jacobs_set" in c)
+    e["composition"][jac]["axle_loads_kN"] = [200.0] * len(e["composition"][jac]["axle_loads_kN"])
+    with pytest.raises(InputError, match=r"F Jacobs set of 9 cars \(sum of axles\): axle load 4000 kN disagrees"):
+        train_from_mapping(e)
 
 
 def test_train_file_missing_and_unknown(tmp_path):

@@ -268,10 +268,49 @@ def _vehicle_type(name, d, source):
     return VehicleType(name=name, axle_load_n=loads, **vals)
 
 
+#: Keys of a train file and of its composition entries.
+_TRAIN_KEYS = ("name", "description", "source", "paper_train", "vehicle_types", "composition",
+               "loads_differ_from_masses")
+_VEHICLE_ENTRY_KEYS = ("vehicle", "count")
+_JACOBS_ENTRY_KEYS = ("jacobs_set", "bogies", "axle_loads_kN", "reversed")
+#: Largest relative difference between an axle load and the masses it carries times g.
+AXLE_LOAD_REL_TOL = 0.005
+
+
+def _unknown(keys, allowed, where):
+    extra = [k for k in keys if k not in allowed]
+    if extra:
+        raise InputError(f"{where}: unknown key(s) {', '.join(repr(k) for k in extra)}; "
+                         f"allowed {', '.join(allowed)}")
+
+
+def _check_loads(train, source):
+    """Refuse axle loads that disagree with the vehicle masses (the MLM and the DIM would carry
+    different trains) beyond :data:`AXLE_LOAD_REL_TOL`."""
+    for row in check_train(train, rel_tol=AXLE_LOAD_REL_TOL):
+        if row.item.startswith("F ") and not row.ok:
+            raise InputError(
+                f"{source}: {row.item}: axle load {row.table_value:.4g} kN disagrees with the masses, "
+                f"{row.note} = {row.computed_value:.4g} kN (allowed within {100 * AXLE_LOAD_REL_TOL:g} %); "
+                f"fix the loads or masses, or set loads_differ_from_masses = true if this is meant")
+
+
 def train_from_mapping(data, source="train"):
-    """Build and validate a :class:`Train` from a parsed TOML mapping."""
+    """Build and validate a :class:`Train` from a parsed TOML mapping.
+
+    Unknown, misspelt and conflicting keys are refused; booleans must be booleans; axle loads must
+    agree with the masses within 0.5 % unless ``loads_differ_from_masses = true``.
+    """
+    if not isinstance(data, dict):
+        raise InputError(f"{source}: not a table of train fields")
+    _unknown(data, _TRAIN_KEYS, source)
     if "name" not in data:
         raise InputError(f"{source}: missing field 'name'")
+    if not isinstance(data["name"], str) or not data["name"].strip():
+        raise InputError(f"{source}: name: {data['name']!r} must be a non-empty string")
+    differ = data.get("loads_differ_from_masses", False)
+    if not isinstance(differ, bool):
+        raise InputError(f"{source}: loads_differ_from_masses: {differ!r} must be true or false")
     vt_raw = data.get("vehicle_types")
     if not isinstance(vt_raw, dict) or not vt_raw:
         raise InputError(f"{source}: missing table [vehicle_types.<NAME>]")
@@ -290,13 +329,18 @@ def train_from_mapping(data, source="train"):
     jacobs = False
     for n, entry in enumerate(comp):
         where = f"composition[{n}]"
+        if not isinstance(entry, dict):
+            raise InputError(f"{source}: {where}: not a table")
+        if "vehicle" in entry and "jacobs_set" in entry:
+            raise InputError(f"{source}: {where}: has both 'vehicle' and 'jacobs_set'; give one per entry")
         if "vehicle" in entry:
+            _unknown(entry, _VEHICLE_ENTRY_KEYS, f"{source}: {where}")
             vt = _type(entry["vehicle"], where)
             if math.isnan(vt.r_m):
                 raise InputError(f"{source}: {where}: vehicle type {vt.name!r} has no r_m (m) "
                                  f"and cannot run as a conventional vehicle")
             count = entry.get("count", 1)
-            if not isinstance(count, int) or count < 1 or count > 100:
+            if isinstance(count, bool) or not isinstance(count, int) or count < 1 or count > 100:
                 raise InputError(f"{source}: {where}.count: {count!r} out of range; allowed 1..100")
             for _ in range(count):
                 p1 = front + 0.5 * (vt.d_m - vt.r_m)
@@ -307,6 +351,9 @@ def train_from_mapping(data, source="train"):
                                   car_bogies=[(0, 1)]))
                 front += vt.d_m
         elif "jacobs_set" in entry:
+            _unknown(entry, _JACOBS_ENTRY_KEYS, f"{source}: {where}")
+            if not isinstance(entry["jacobs_set"], list) or not isinstance(entry.get("bogies", []), list):
+                raise InputError(f"{source}: {where}: 'jacobs_set' and 'bogies' must be lists of vehicle types")
             jacobs = True
             cars = [_type(c, where) for c in entry["jacobs_set"]]
             bogie_types = [_type(b, where) for b in entry.get("bogies", [])]
@@ -318,7 +365,9 @@ def train_from_mapping(data, source="train"):
                                  f"len(jacobs_set) + 1 = {len(cars) + 1} entries")
             loads = [1000.0 * check_range(f"{source}: {where}.axle_loads_kN", v, "kN", 1.0, 500.0)
                      for v in loads_kn]
-            rev = bool(entry.get("reversed", False))
+            rev = entry.get("reversed", False)
+            if not isinstance(rev, bool):
+                raise InputError(f"{source}: {where}.reversed: {rev!r} must be true or false")
             if rev:
                 cars, bogie_types, loads = cars[::-1], bogie_types[::-1], loads[::-1]
             for end in (cars[0], cars[-1]):
@@ -336,7 +385,8 @@ def train_from_mapping(data, source="train"):
                               bogies=[Bogie(bt.name, pv, ld) for bt, pv, ld in zip(bogie_types, pivots, loads)],
                               car_bogies=[(i, i + 1) for i in range(len(cars))]))
         else:
-            raise InputError(f"{source}: {where}: needs 'vehicle' or 'jacobs_set'")
+            raise InputError(f"{source}: {where}: needs 'vehicle' or 'jacobs_set' (keys given: "
+                             f"{', '.join(repr(k) for k in entry) or 'none'})")
 
     offs, loads, mw, owner = [], [], [], []
     for ui, u in enumerate(units):
@@ -350,12 +400,15 @@ def train_from_mapping(data, source="train"):
     offs = np.asarray(offs)
     first = offs.min()
     order = np.argsort(offs, kind="stable")
-    return Train(name=str(data["name"]), vehicle_types=types, units=tuple(units),
+    train = Train(name=str(data["name"]), vehicle_types=types, units=tuple(units),
                  description=str(data.get("description", "")), source=str(data.get("source", source)),
                  jacobs=jacobs, paper_train=str(data.get("paper_train", "")),
                  axle_offsets_m=offs[order] - first,
                  axle_loads_n=np.asarray(loads)[order], wheel_mass_kg=np.asarray(mw)[order],
                  unit_of_axle=np.asarray(owner)[order])
+    if not differ:
+        _check_loads(train, source)
+    return train
 
 
 # ---------------------------------------------------------------------- vehicle matrices
