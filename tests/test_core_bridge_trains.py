@@ -80,6 +80,10 @@ def test_bridge_spec_and_file(tmp_path):
     ("L=15,n0=8,mu=19000", r"missing damping"),
     ("L=15,n0=8,mu=19000,zeta_pct=1,foo=3", r"unknown field 'foo'"),
     ("nonsense", r"neither a named bridge"),
+    ("L=15,L=20,n0=8,mu=19000,zeta_pct=1", r"bridge spec: 'L' is given twice \('15' and '20'\); give it once"),
+    ("L=15,span_m=20,n0=8,mu=19000,zeta_pct=1", r"'L' and 'span_m' give the same quantity twice"),
+    ("L=15,n0=8,mu=19000,zeta_pct=1,zeta=0.02", r"'zeta_pct' and 'zeta' both give the damping; give one"),
+    ("L=15,n0=8,EJ=1e10,mu=19000,zeta_pct=1", r"give either n0 \(Hz\) or EJ \(N m\^2\), not both"),
 ])
 def test_bridge_input_errors(spec, match):
     with pytest.raises(InputError, match=match):

@@ -271,14 +271,23 @@ def bridge_from_mapping(data, source="bridge"):
     """Build a bridge from a mapping of spec keys (SI units).
 
     Keys: ``L`` (m), ``n0`` (Hz) or ``EJ`` (N m^2), ``mu`` (kg/m), ``zeta_pct`` (%) or ``zeta``
-    (fraction); optional ``type`` (cfb|sc: Table 2 damping when zeta is omitted), ``n_modes``,
-    ``damping_model``, ``name``.
+    (fraction); optional ``type`` (cfb|sc: Table 2 damping when zeta is omitted; with a zeta it
+    only classes the bridge for the lower-bound functions), ``n_modes``, ``damping_model``,
+    ``name``. A quantity given twice (``L=15,L=20``, ``L`` and ``span_m``, ``zeta_pct`` and
+    ``zeta``) is refused.
     """
-    vals = {}
+    vals, given = {}, {}
     for key, value in data.items():
         if key not in _SPEC_KEYS:
             raise InputError(f"{source}: unknown field {key!r}; allowed {', '.join(sorted(_SPEC_KEYS))}")
-        vals[_SPEC_KEYS[key]] = value
+        field_ = _SPEC_KEYS[key]
+        if field_ in vals:
+            raise InputError(f"{source}: {given[field_]!r} and {key!r} give the same quantity twice; give it once")
+        vals[field_], given[field_] = value, key
+    damping = [given[f] for f in ("zeta_pct", "damping_ratio") if f in vals]
+    if len(damping) == 2:
+        raise InputError(f"{source}: {damping[0]!r} and {damping[1]!r} both give the damping; give one")
+
     for need in ("span_m", "mass_per_length_kg_m"):
         if need not in vals:
             raise InputError(f"{source}: missing field {need!r} (L in m, mu in kg/m)")
@@ -321,6 +330,9 @@ def parse_bridge_spec(spec):
         if "=" not in part:
             raise InputError(f"bridge spec: {part!r} is not key=value (e.g. L=15,n0=8.26,mu=19042,zeta_pct=1.85)")
         k, v = part.split("=", 1)
+        if k.strip() in data:
+            raise InputError(f"bridge spec: {k.strip()!r} is given twice ({data[k.strip()]!r} and {v.strip()!r}); "
+                             f"give it once")
         data[k.strip()] = v.strip()
     if "name" not in data:
         data["name"] = "custom"
