@@ -86,3 +86,26 @@ def test_calibrate_launch_matches_in_process_calibration(tmp_path, ros_domain):
         assert got[key] == pytest.approx(ref[key], rel=1e-9, abs=0) if ref[key] is not None else got[key] is None
     assert got["mlm_peak"] == ref["mlm_peak"] and got["dim_peak"] == ref["dim_peak"]
     assert (out / "run.mcap").stat().st_size > 0 and (out / "run.rrd").stat().st_size > 0
+
+
+def test_non_finite_run_fails_with_the_message_and_nodes_stay_up(node_procs, ros_domain):
+    """ds = 5 m makes the DIM blow up: the run fails at that step with the core's message (as
+    run_sweep raises it), no result is taken, and the next run of the same nodes works."""
+    from adm_sim.errors import InputError
+    from adm_sim.nodes.driver import RunError
+
+    node_procs.start("bridge", "adm_sim.nodes.bridge_node", {"bridge": "B1", "ds_m": 5.0})
+    node_procs.start("train", "adm_sim.nodes.train_node", {"speeds_kmh": "160,250,350"})
+    bridge, train = resolve_bridge("B1"), load_train("ICE-2")
+    with np.errstate(all="ignore"), pytest.raises(InputError) as ref:
+        run_sweep(bridge, train, "dim", [160.0, 250.0, 350.0], options=StepOptions(ds_m=5.0))
+    with driver_node(ros_domain.domain_id) as d:
+        d.wait_for_graph()
+        with pytest.raises(RunError, match="failed on node 'bridge'") as exc:
+            d.request_run(model="dim")
+        assert str(ref.value) in str(exc.value) and "solution is not finite at step" in str(exc.value)
+        d.set_params("bridge", ds_m=0.0, **STEP)
+        r = d.request_run(model="mlm")
+        ref_ok = run_sweep(bridge, train, "mlm", r["speeds_kmh"], options=StepOptions(**STEP))
+        np.testing.assert_array_equal(r["max_acc_m_s2"], ref_ok.max_acc_m_s2)
+    assert all(p.poll() is None for p in node_procs.procs.values())

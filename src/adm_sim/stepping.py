@@ -36,6 +36,14 @@ exact RK4 recurrence of a linear oscillator (:meth:`BridgeSide.step_mlm`).
 Free vibration: the run continues after the last axle has left the bridge for at least
 ``free_vibration_periods`` (default 2) fundamental periods in every lane, because the largest
 acceleration of a resonant crossing can occur up to one period after the train has left.
+
+One stepper
+-----------
+:class:`LockstepRun` owns the bookkeeping of a run: step ``k``, RK4 stage, status, the running
+maxima and the finite-value check. The in-process sweep advances it a whole step at a time
+(:meth:`LockstepRun.step`); the bridge and train nodes each drive their own half of the same
+object stage by stage. Every path calls the same :class:`BridgeSide` / :class:`TrainSide`
+methods in the same order, so the co-simulated runs equal the in-process ones bit for bit.
 """
 
 from __future__ import annotations
@@ -430,6 +438,248 @@ class TrainSide:
             self._step_active = None
             self.k += 1
         return G
+
+
+RUNNING, FINISHED, FAILED = "running", "finished", "failed"  # LockstepRun.status
+MODELS = ("mlm", "dim")
+
+
+def _all_finite(a):
+    """True when every value of ``a`` is finite.
+
+    ``a @ a`` is NaN or inf for a non-finite entry: one cheap call per step; only when it is not
+    finite (also for finite values beyond 1e154) the exact element-wise check decides.
+    """
+    return math.isfinite(a @ a) or bool(np.isfinite(a).all())
+
+
+class LockstepRun:
+    """One lockstep run: step ``k``, RK4 stage, status, running maxima and the finite-value check.
+
+    The contract follows :class:`scipy.integrate.OdeSolver`: a run is ``'running'`` until its
+    last step is done (``'finished'``) or a midspan deflection or acceleration is not finite
+    (``'failed'``, with a one-line :attr:`message`); stepping a run that is not running raises
+    ``RuntimeError``. Which sides a run holds decides what it can do:
+
+    * **in process** (:func:`adm_sim.sweep.run_sweep`): a :class:`BridgeSide` and a
+      :class:`TrainSide` (DIM) or a :class:`BridgeSide` and the modal-load table (MLM);
+      :meth:`step` advances one whole step including the per-stage exchange;
+    * **bridge half** (bridge node): a :class:`BridgeSide` alone. DIM: per RK4 stage
+      :meth:`rail_state`, then :meth:`take_forces` with the partner's forces; MLM:
+      :meth:`step_mlm` per step with the modal loads of the stage points;
+    * **train half** (train node): DIM: a :class:`TrainSide` alone, :meth:`take_rail_state`
+      per RK4 stage; MLM: no side, :meth:`advance_block` books the steps of each axle block.
+
+    A DIM stage is ``rail_state`` -> ``take_rail_state`` -> ``take_forces``; the stage advances
+    with the last call of the stage this run makes (``take_forces`` when it holds the bridge,
+    ``take_rail_state`` when it holds only the train). :meth:`step` makes exactly these calls, so
+    the two halves in two processes compute what the in-process run computes, bit for bit.
+
+    Parameters
+    ----------
+    model : {"mlm", "dim"}
+    grid : Grid
+    bridge_side : BridgeSide or None
+        Fresh (at step 0); makes the run keep the maxima and check for finite values.
+    train_side : TrainSide or None
+        Fresh (at step 0); DIM only.
+    modal_loads : ndarray (2 n_steps + 1, n_modes) or None
+        MLM modal loads of Eq. (6) on the half-step grid (:func:`mlm_modal_load_table`), for
+        :meth:`step`.
+
+    Attributes
+    ----------
+    k : int
+        Current step, ``0 .. n_steps``: the first axle stands at ``s_k = k ds``.
+    stage : int
+        RK4 stage ``0 .. 3`` of step ``k`` that the next call works on.
+    n_steps : int
+    status : {"running", "finished", "failed"}
+    message : str
+        Empty, or one line saying what was not finite, where.
+    max_acc_m_s2 : ndarray (n_lanes,) or None
+        Max |midspan acceleration| at stage 0 of every step done so far (DIM Eq. 15, MLM Eq. 12);
+        with a bridge side only.
+    max_disp_m : ndarray (n_lanes,) or None
+        Max |midspan deflection| at the start of every step ``0 .. min(k, n_steps - 1)``.
+    disp_m : ndarray (n_lanes,) or None
+        Midspan deflection at the start of step ``k``.
+    acc_m_s2 : ndarray (n_lanes,) or None
+        Midspan acceleration at stage 0 of the step in progress (or of the last step done).
+    """
+
+    def __init__(self, model, grid, bridge_side=None, train_side=None, modal_loads=None):
+        if model not in MODELS:
+            raise InputError(f"model: {model!r} is not allowed; allowed 'mlm' or 'dim'")
+        if model == "mlm" and train_side is not None:
+            raise ValueError("LockstepRun: the MLM has no train side (its loads need no state)")
+        for side in (bridge_side, train_side):
+            if side is not None and side.k != 0:
+                raise ValueError(f"LockstepRun: {type(side).__name__} is at step {side.k}, not at step 0")
+        self.model = model
+        self.grid = grid
+        self.bridge_side = bridge_side
+        self.train_side = train_side
+        self.modal_loads = modal_loads
+        self.n_steps = int(grid.n_steps)
+        self.k = 0
+        self.stage = 0
+        self.status = RUNNING if self.n_steps > 0 else FINISHED
+        self.message = ""
+        self.max_acc_m_s2 = self.max_disp_m = self.disp_m = self.acc_m_s2 = None
+        self.axles0 = self.interaction0_n = None  # stage-0 exchange of the step in progress
+        if bridge_side is not None:
+            self.max_acc_m_s2 = np.zeros(grid.n_lanes)
+            self.max_disp_m = np.zeros(grid.n_lanes)
+            self._start_step()
+
+    # ------------------------------------------------------------------ bookkeeping
+    def _require(self, what, ok, need):
+        if not ok:
+            raise RuntimeError(f"LockstepRun.{what}: needs {need}")
+        if self.status != RUNNING:
+            why = f": {self.message}" if self.message else ""
+            raise RuntimeError(f"LockstepRun.{what}: the run is {self.status} at step {self.k} of "
+                               f"{self.n_steps}{why}")
+
+    def _fail(self, what, values):
+        bad = np.flatnonzero(~np.isfinite(values))
+        v = float(self.grid.speeds_m_s[bad[0]]) * 3.6
+        self.status = FAILED
+        self.message = (f"solution is not finite at step {self.k} of {self.n_steps} (stage {self.stage}): "
+                        f"{what} in {bad.size} of {values.size} lanes (first at {v:.6g} km/h); the step "
+                        f"ds = {self.grid.ds_m:.4g} m is too large for this bridge/train "
+                        f"(raise steps_per_period or lower ds_m)")
+
+    def _start_step(self):
+        """Deflection at the start of step ``k``: check, and fold into the maxima (k < n_steps)."""
+        d = self.bridge_side.midspan_displacement()
+        self.disp_m = d
+        if not _all_finite(d):
+            self._fail("midspan deflection", d)
+            return
+        if self.k < self.n_steps:
+            np.maximum(self.max_disp_m, np.abs(d), out=self.max_disp_m)
+
+    def _take_acc(self):
+        """Acceleration at stage 0 of step ``k``: check, and fold into the maxima."""
+        a = self.bridge_side.last_acc
+        self.acc_m_s2 = a
+        if not _all_finite(a):
+            self._fail("midspan acceleration", a)
+            return
+        np.maximum(self.max_acc_m_s2, np.abs(a), out=self.max_acc_m_s2)
+
+    def _next_step(self):
+        self.stage = 0
+        self.k += 1
+        if self.bridge_side is not None:
+            self._start_step()
+        if self.status == RUNNING and self.k >= self.n_steps:
+            self.status = FINISHED
+
+    def _next_stage(self):
+        if self.stage < 3:
+            self.stage += 1
+        else:
+            self._next_step()
+
+    # ------------------------------------------------------------------ in process
+    def step(self):
+        """Advance one whole step ``k`` in process (both halves, with the per-stage exchange).
+
+        Returns
+        -------
+        message : str or None
+            ``None`` on success, else :attr:`message` (the run is then ``'failed'``).
+        """
+        self._require("step", self.bridge_side is not None and (
+            self.train_side is not None if self.model == "dim" else self.modal_loads is not None),
+            "a bridge side and a train side (DIM) or the modal-load table (MLM)")
+        if self.model == "dim":
+            for _ in range(4):
+                idx, w, wd = self.rail_state()
+                G = self.take_rail_state(idx, w, wd)
+                self.take_forces(G)
+                if self.status == FAILED:
+                    break
+        else:
+            P, k = self.modal_loads, self.k
+            self.step_mlm(P[2 * k], P[2 * k + 1], P[2 * k + 2])
+        return self.message if self.status == FAILED else None
+
+    def contact_forces_n(self):
+        """Wheel-rail contact forces (Eq. 7) at stage 0 of the step in progress or last done.
+
+        ``F_i = G_i - m_w,i w''(x_i)`` with the rail acceleration under the axle (Eq. 9); needs
+        both sides. Returns ``(idx, F)``: axle indices (n_on,) and forces (n_lanes, n_on) in N.
+        """
+        b = self.bridge_side
+        idx = self.axles0
+        return idx, self.interaction0_n - b.m_w[idx] * b.last_wheel_acc
+
+    # ------------------------------------------------------------------ bridge half
+    def rail_state(self):
+        """Bridge half, DIM: rail state under the axles at (k, stage); see :meth:`BridgeSide.rail_state`."""
+        self._require("rail_state", self.model == "dim" and self.bridge_side is not None, "a DIM bridge side")
+        return self.bridge_side.rail_state()
+
+    def take_forces(self, interaction_n):
+        """Bridge half, DIM: advance stage (k, stage) with the interaction forces (n_lanes, n_on).
+
+        At stage 0 the midspan acceleration is checked and folded into the maxima; at the end of
+        the step the deflection of the next one. Check :attr:`status` afterwards.
+        """
+        self._require("take_forces", self.model == "dim" and self.bridge_side is not None, "a DIM bridge side")
+        self.bridge_side.take_forces(interaction_n)
+        if self.stage == 0:
+            self._take_acc()
+            if self.status == FAILED:
+                return
+        self._next_stage()
+
+    def step_mlm(self, p0, ph, p1):
+        """Bridge half, MLM: one step with the modal loads at ``s_k``, ``s_k + ds/2``, ``s_k + ds``.
+
+        See :meth:`BridgeSide.step_mlm` (Eq. 12). Check :attr:`status` afterwards.
+        """
+        self._require("step_mlm", self.model == "mlm" and self.bridge_side is not None, "an MLM bridge side")
+        self.bridge_side.step_mlm(p0, ph, p1)
+        self._take_acc()
+        if self.status == FAILED:
+            return
+        self._next_step()
+
+    # ------------------------------------------------------------------ train half
+    def take_rail_state(self, idx_on, w, wd):
+        """Train half, DIM: the interaction forces for the rail state at (k, stage).
+
+        See :meth:`TrainSide.take_rail_state`; returns ``G`` (n_lanes, n_on) in N.
+        """
+        self._require("take_rail_state", self.train_side is not None, "a train side")
+        G = self.train_side.take_rail_state(idx_on, w, wd)
+        if self.stage == 0:
+            self.axles0, self.interaction0_n = idx_on, G
+        if self.bridge_side is None:
+            self._next_stage()
+        return G
+
+    def advance_block(self, max_steps):
+        """Train half, MLM: book the next block of steps (its axle positions are being sent).
+
+        Returns ``(k0, n)``: the block's first step and its number of steps,
+        ``n = min(max_steps, n_steps - k0)``.
+        """
+        self._require("advance_block", self.model == "mlm" and self.bridge_side is None,
+                      "an MLM run without a bridge side")
+        k0 = self.k
+        n = min(int(max_steps), self.n_steps - k0)
+        if n < 1:
+            raise ValueError(f"LockstepRun.advance_block: max_steps = {max_steps} must be >= 1")
+        self.k = k0 + n
+        if self.k >= self.n_steps:
+            self.status = FINISHED
+        return k0, n
 
 
 def mlm_rk4_coefficients(h, m, c, kk):

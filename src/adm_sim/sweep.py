@@ -1,8 +1,8 @@
 """Whole speed sweeps in one call: every speed is a lane of one vectorised lockstep run.
 
-``run_sweep`` drives :class:`adm_sim.stepping.BridgeSide` and :class:`~adm_sim.stepping.TrainSide`
-exactly as the ROS bridge and train nodes do (one exchange per RK4 stage), so a co-simulation
-reproduces these numbers.
+``run_sweep`` advances one :class:`adm_sim.stepping.LockstepRun` a whole step at a time; the ROS
+bridge and train nodes each drive their half of the same object stage by stage (one exchange per
+RK4 stage), so a co-simulation reproduces these numbers bit for bit.
 """
 
 from __future__ import annotations
@@ -13,10 +13,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from adm_sim.errors import InputError, check_range
-from adm_sim.stepping import (BridgeSide, StepOptions, TrainSide, make_grid,
+from adm_sim.stepping import (MODELS, BridgeSide, LockstepRun, StepOptions, TrainSide, make_grid,
                               mlm_modal_load_table, speeds_to_m_s)
 
-MODELS = ("mlm", "dim")
 DEFAULT_SPEEDS = "160:350:1"
 MAX_HISTORY_VALUES = 300_000_000
 
@@ -157,43 +156,34 @@ def run_sweep(bridge, train, model, speeds_kmh, delta_zeta=0.0, options=None, hi
         raise InputError(f"histories: {nl} speeds x {n} steps is too much to keep; "
                          f"ask histories for at most a few speeds")
     b = BridgeSide(bridge, grid, train.axle_offsets_m, train.wheel_mass_kg if dim else None, dz)
-    acc = np.empty((n, nl))
-    disp = np.empty((n, nl))
+    if dim:
+        run = LockstepRun(model, grid, bridge_side=b, train_side=TrainSide(train, grid, bridge.span_m))
+    else:
+        run = LockstepRun(model, grid, bridge_side=b,
+                          modal_loads=mlm_modal_load_table(bridge, grid, train.axle_offsets_m, train.axle_loads_n))
+    acc = np.empty((n, nl)) if histories else None
+    disp = np.empty((n, nl)) if histories else None
     forces = np.zeros((n, nl, train.n_axles), dtype=np.float64) if (histories and dim) else None
     tick = max(1, n // 100)
-    if dim:
-        t = TrainSide(train, grid, bridge.span_m)
-        for k in range(n):
-            disp[k] = b.midspan_displacement()
-            for stage in range(4):
-                idx, w, wd = b.rail_state()
-                G = t.take_rail_state(idx, w, wd)
-                if stage == 0 and forces is not None and len(idx):
-                    forces[k][:, idx] = G
-                b.take_forces(G)
-                if stage == 0:
-                    acc[k] = b.last_acc
-                    if forces is not None and len(idx):
-                        forces[k][:, idx] -= train.wheel_mass_kg[idx] * b.last_wheel_acc
-            if progress is not None and (k % tick == 0 or k == n - 1):
-                progress(k + 1, n)
-    else:
-        P = mlm_modal_load_table(bridge, grid, train.axle_offsets_m, train.axle_loads_n)
-        for k in range(n):
-            disp[k] = b.midspan_displacement()
-            b.step_mlm(P[2 * k], P[2 * k + 1], P[2 * k + 2])
-            acc[k] = b.last_acc
-            if progress is not None and (k % tick == 0 or k == n - 1):
-                progress(k + 1, n)
-    if not np.all(np.isfinite(acc)):
-        raise InputError("solution is not finite: the step is too large for this bridge/train "
-                         "(raise steps_per_period)")
+    for k in range(n):
+        if disp is not None:
+            disp[k] = run.disp_m
+        if run.step() is not None:
+            raise InputError(run.message)
+        if acc is not None:
+            acc[k] = run.acc_m_s2
+        if forces is not None:
+            idx, f = run.contact_forces_n()
+            if len(idx):
+                forces[k][:, idx] = f
+        if progress is not None and (k % tick == 0 or k == n - 1):
+            progress(k + 1, n)
     kw = {}
     if histories:
         kw = dict(time_s=np.outer(1.0 / v, np.arange(n) * grid.ds_m), midspan_disp_m=disp.T.copy(),
                   midspan_acc_m_s2=acc.T.copy(),
                   contact_force_n=None if forces is None else forces.transpose(1, 0, 2).copy())
     return SweepResult(model=model, bridge=bridge, train_name=train.name,
-                       speeds_kmh=np.atleast_1d(np.asarray(speeds_kmh, dtype=float)).copy(), max_acc_m_s2=np.abs(acc).max(axis=0),
-                       max_disp_m=np.abs(disp).max(axis=0), delta_zeta=np.asarray(delta_zeta, dtype=float),
+                       speeds_kmh=np.atleast_1d(np.asarray(speeds_kmh, dtype=float)).copy(), max_acc_m_s2=run.max_acc_m_s2,
+                       max_disp_m=run.max_disp_m, delta_zeta=np.asarray(delta_zeta, dtype=float),
                        ds_m=grid.ds_m, n_steps=n, **kw)

@@ -2,13 +2,17 @@
 
 Per run (requested by the train node on ``/adm/run/setup``) the node builds the bridge from its
 parameters, the shared space grid (:func:`adm_sim.stepping.make_grid`) and a ``BridgeSide`` for
-all speed lanes, then
+all speed lanes, held by the bridge half of a :class:`adm_sim.stepping.LockstepRun` (step, stage,
+status, maxima, finite-value check), then
 
 * DIM: for every RK4 stage publishes the rail displacement/velocity under the axles on the bridge
   (``/adm/exchange/rail``) and advances the stage with the train's interaction forces
   (``/adm/exchange/forces``): the calls and their order are those of :func:`adm_sim.sweep.run_sweep`.
 * MLM: asks for a block of steps (``/adm/exchange/rail`` with no axles) and advances it with the
   axle positions and loads of ``/adm/exchange/axle_block`` (modal loads at the stage points).
+
+A solution that stops being finite ends the run at that step: ``/adm/run/status`` ``failed`` with
+the run's one-line message and no result (the train node ends its run on that status).
 
 It publishes sim time on ``/clock``, the midspan acceleration/state, the deflected beam, progress,
 ``/diagnostics`` against the EN 1990 A2.4.4.2.1 deck acceleration limit and, at the end, the
@@ -33,7 +37,7 @@ from std_msgs.msg import Float64MultiArray, String
 from adm_sim.bridge import N0_RANGE_HZ, SPAN_RANGE_M, MU_RANGE_KG_M, Bridge, resolve_bridge
 from adm_sim.errors import InputError, check_range
 from adm_sim.nodes import common as c
-from adm_sim.stepping import BridgeSide, StepOptions, make_grid, modal_loads_at
+from adm_sim.stepping import BridgeSide, LockstepRun, StepOptions, make_grid, modal_loads_at
 
 TRACK_TYPES = tuple(c.ACC_LIMITS_M_S2)
 
@@ -151,7 +155,7 @@ class BridgeNode(c.ParamNodeMixin, Node):
         if self.run is not None:
             return SetParametersResult(successful=False, reason=(
                 f"bridge: parameters are locked while run {self.run['id']} is in progress "
-                f"(step {self.run['side'].k} of {self.run['grid'].n_steps})"))
+                f"(step {self.run['run'].k} of {self.run['grid'].n_steps})"))
         values = self.param_values()
         values.update({p.name: p.value for p in params})
         try:
@@ -192,6 +196,7 @@ class BridgeNode(c.ParamNodeMixin, Node):
             dim = cfg["model"] == "dim"
             side = BridgeSide(bridge, grid, np.asarray(cfg["axle_offsets_m"], dtype=float),
                               np.asarray(cfg["wheel_mass_kg"], dtype=float) if dim else None, dz)
+            run = LockstepRun(cfg["model"], grid, bridge_side=side)
         except (InputError, KeyError, ValueError) as exc:
             self.pub_ready.publish(c.json_msg({"run_id": cfg.get("run_id"), "error": str(exc)}))
             self._status(cfg.get("run_id"), "failed", message=str(exc))
@@ -201,9 +206,8 @@ class BridgeNode(c.ParamNodeMixin, Node):
         mon = 0 if p["monitor_speed_kmh"] <= 0.0 else int(np.argmin(np.abs(speeds_kmh - p["monitor_speed_kmh"])))
         xb = np.linspace(0.0, bridge.span_m, int(p["beam_points"]))
         self.run = dict(
-            id=int(cfg["run_id"]), model=cfg["model"], grid=grid, side=side, bridge=bridge, speeds_kmh=speeds_kmh,
-            dz=np.broadcast_to(np.asarray(dz, dtype=float), (grid.n_lanes,)).copy(), lane=mon,
-            max_acc=np.zeros(grid.n_lanes), max_disp=np.zeros(grid.n_lanes), disp=None,
+            id=int(cfg["run_id"]), model=cfg["model"], grid=grid, run=run, bridge=bridge, speeds_kmh=speeds_kmh,
+            dz=np.broadcast_to(np.asarray(dz, dtype=float), (grid.n_lanes,)).copy(), lane=mon, disp=None,
             every=int(p["monitor_every_steps"]), beam_every=int(p["beam_every_steps"]),
             x_beam=xb, phi_beam=bridge.shapes(xb)[0], limit=c.ACC_LIMITS_M_S2[p["track_type"]],
             track=p["track_type"], warn=float(p["warn_fraction"]), tick=max(1, grid.n_steps // 100),
@@ -220,12 +224,12 @@ class BridgeNode(c.ParamNodeMixin, Node):
     # ------------------------------------------------------------------ lockstep
     def _ask_partner(self):
         """Publish the rail state for the current (step, stage) (MLM: a token for the next block)."""
-        r, side = self.run, self.run["side"]
-        k, stage = side.k, side.rk.stage
+        r, run = self.run, self.run["run"]
+        k, stage = run.k, run.stage
         if r["model"] == "dim":
             if stage == 0:
-                r["disp"] = side.midspan_displacement()
-            idx, w, wd = side.rail_state()
+                r["disp"] = run.disp_m
+            idx, w, wd = run.rail_state()
             self.pub_rail.publish(c.pack(r["id"], k, stage, np.stack([w, wd]), ("field", "lane", "axle_on"), idx))
             self.partner.waiting(f"at step {k} stage {stage} of run {r['id']}", c.TOPIC_FORCES)
         else:
@@ -236,14 +240,14 @@ class BridgeNode(c.ParamNodeMixin, Node):
         r = self.run
         if r is None or r["model"] != "dim":
             raise c.ExchangeError("bridge: interaction forces received with no DIM run active")
-        side = r["side"]
+        run = r["run"]
         run_id, k, stage, idx, G = c.unpack(msg)
-        c.check_step("bridge", (run_id, k, stage), (r["id"], side.k, side.rk.stage))
+        c.check_step("bridge", (run_id, k, stage), (r["id"], run.k, run.stage))
         self.partner.clear()
-        side.take_forces(G)
-        if stage == 0:
-            self._step_done(k, r["disp"], side.last_acc)
-        if side.k >= r["grid"].n_steps:
+        run.take_forces(G)
+        if stage == 0 and run.status != "failed":
+            self._step_done(k, r["disp"], run.acc_m_s2)
+        if run.status != "running":
             self._finish()
         else:
             self._ask_partner()
@@ -252,28 +256,27 @@ class BridgeNode(c.ParamNodeMixin, Node):
         r = self.run
         if r is None or r["model"] != "mlm":
             raise c.ExchangeError("bridge: axle block received with no MLM run active")
-        side = r["side"]
+        run = r["run"]
         run_id, k0, stage, _, block = c.unpack(msg)
-        c.check_step("bridge", (run_id, k0, stage), (r["id"], side.k, 0))
+        c.check_step("bridge", (run_id, k0, stage), (r["id"], run.k, 0))
         self.partner.clear()
         n = (block.shape[0] - 2) // 2
         P = modal_loads_at(r["bridge"], block[:-1], block[-1])
         for j in range(n):
-            k = side.k
-            disp = side.midspan_displacement()
-            side.step_mlm(P[2 * j], P[2 * j + 1], P[2 * j + 2])
-            self._step_done(k, disp, side.last_acc)
-        if side.k >= r["grid"].n_steps:
+            k, disp = run.k, run.disp_m
+            run.step_mlm(P[2 * j], P[2 * j + 1], P[2 * j + 2])
+            if run.status == "failed":
+                break
+            self._step_done(k, disp, run.acc_m_s2)
+        if run.status != "running":
             self._finish()
         else:
             self._ask_partner()
 
     # ------------------------------------------------------------------ outputs
     def _step_done(self, k, disp, acc):
-        """Bookkeeping after step ``k`` produced its midspan displacement and acceleration."""
+        """Monitoring after step ``k`` produced its midspan displacement and acceleration."""
         r = self.run
-        np.maximum(r["max_acc"], np.abs(acc), out=r["max_acc"])
-        np.maximum(r["max_disp"], np.abs(disp), out=r["max_disp"])
         if k % r["every"] == 0:
             self._monitor(k, disp, acc)
         if k % r["beam_every"] == 0:
@@ -298,7 +301,7 @@ class BridgeNode(c.ParamNodeMixin, Node):
         self.pub_state.publish(m)
 
     def _beam(self, k):
-        r, side = self.run, self.run["side"]
+        r, side = self.run, self.run["run"].bridge_side
         q = side.q[r["lane"]]
         w = r["phi_beam"] @ q
         _, xa = side.axles_on(k, 0)
@@ -315,8 +318,9 @@ class BridgeNode(c.ParamNodeMixin, Node):
 
     def _diagnostics(self, done, final):
         r = self.run
-        i = int(np.argmax(r["max_acc"]))
-        peak = float(r["max_acc"][i])
+        max_acc = r["run"].max_acc_m_s2
+        i = int(np.argmax(max_acc))
+        peak = float(max_acc[i])
         level = c.acc_level(peak, r["limit"], r["warn"])
         word = {0: "within", 1: "near", 2: "above"}[level]
         st = DiagnosticStatus(level=bytes([level]), name="adm_sim/bridge: deck acceleration",
@@ -336,20 +340,26 @@ class BridgeNode(c.ParamNodeMixin, Node):
         self.pub_status.publish(c.json_msg({"node": "bridge", "run_id": run_id, "state": state, **extra}))
 
     def _finish(self):
-        r = self.run
+        """End of the run: finished (result, status ``done``) or failed (status ``failed``, no result)."""
+        r, run = self.run, self.run["run"]
         n = r["grid"].n_steps
-        self._progress(n)
-        self._diagnostics(n, final=True)
-        t1 = self._sim_time(n)
+        ok = run.status == "finished"
+        done = n if ok else run.k
+        self._progress(done)
+        self._diagnostics(done, final=True)
+        t1 = self._sim_time(done)
         self.pub_clock.publish(Clock(clock=c.to_time_msg(t1)))
-        ok = bool(np.all(np.isfinite(r["max_acc"])))
-        res = np.vstack([r["speeds_kmh"], r["max_acc"], r["max_disp"], r["dz"]])
-        self.pub_result.publish(c.matrix_msg(("quantity:" + ",".join(c.RESULT_ROWS), "lane"), res))
+        if ok:
+            res = np.vstack([r["speeds_kmh"], run.max_acc_m_s2, run.max_disp_m, r["dz"]])
+            self.pub_result.publish(c.matrix_msg(("quantity:" + ",".join(c.RESULT_ROWS), "lane"), res))
         wall = time.perf_counter() - r["wall0"]
         self._status(r["id"], "done" if ok else "failed", model=r["model"], n_steps=n, n_lanes=r["grid"].n_lanes,
-                     ds_m=r["grid"].ds_m, wall_s=wall, t0_s=r["t0"], t1_s=t1,
-                     message="" if ok else "solution is not finite: raise steps_per_period")
-        self.get_logger().info(f"run {r['id']} done in {wall:.2f} s: max |a| {np.max(r['max_acc']):.4f} m/s^2")
+                     ds_m=r["grid"].ds_m, wall_s=wall, t0_s=r["t0"], t1_s=t1, message=run.message)
+        if ok:
+            self.get_logger().info(f"run {r['id']} done in {wall:.2f} s: "
+                                   f"max |a| {np.max(run.max_acc_m_s2):.4f} m/s^2")
+        else:
+            self.get_logger().error(f"run {r['id']} failed: {run.message}")
         self.t_offset_s = t1
         self.run = None
         self.partner.clear()

@@ -9,6 +9,10 @@ masses) and waits for the bridge's grid (``/adm/run/ready``). Then
 * MLM: it answers each request of the bridge with the axle positions at the half-step points of
   a block of ``mlm_block_steps`` steps and the axle loads (``/adm/exchange/axle_block``); the
   MLM needs no feedback from the bridge.
+
+Step and stage are kept by the train half of a :class:`adm_sim.stepping.LockstepRun`. A run that
+the bridge reports ``failed`` on ``/adm/run/status`` (e.g. a solution that is not finite) ends
+here too.
 """
 
 from __future__ import annotations
@@ -24,7 +28,7 @@ from std_srvs.srv import Trigger
 
 from adm_sim.errors import InputError
 from adm_sim.nodes import common as c
-from adm_sim.stepping import Grid, TrainSide, half_step_positions, speeds_to_m_s
+from adm_sim.stepping import Grid, LockstepRun, TrainSide, half_step_positions, speeds_to_m_s
 from adm_sim.sweep import MODELS, parse_speeds
 from adm_sim.trains import load_train
 
@@ -53,6 +57,7 @@ class TrainNode(c.ParamNodeMixin, Node):
         self.pub_status = self.create_publisher(String, c.TOPIC_STATUS, c.QOS_CONTROL)
         self.pub_desc = self.create_publisher(String, c.TOPIC_TRAIN_DESC, c.QOS_LATCHED)
         self.create_subscription(String, c.TOPIC_READY, self._on_ready, c.QOS_CONTROL)
+        self.create_subscription(String, c.TOPIC_STATUS, self._on_status, c.QOS_CONTROL)
         self.fast_subscriptions = [
             self.create_subscription(Float64MultiArray, c.TOPIC_RAIL, self._on_rail, c.QOS_EXCHANGE)]
         self.create_service(Trigger, "~/start_run", self._on_start)
@@ -115,8 +120,8 @@ class TrainNode(c.ParamNodeMixin, Node):
         self.next_run_id += 1
         v = speeds_to_m_s(speeds)
         dim = p["model"] == "dim"
-        self.run = dict(id=run_id, model=p["model"], train=train, v=v, side=None, grid=None,
-                        block=int(p["mlm_block_steps"]), k=0, stage=0)
+        self.run = dict(id=run_id, model=p["model"], train=train, v=v, run=None, grid=None,
+                        block=int(p["mlm_block_steps"]))
         self._pending = []
         self.pub_setup.publish(c.json_msg({
             "run_id": run_id, "model": p["model"], "train": train.name, "speeds_kmh": speeds.tolist(),
@@ -141,8 +146,8 @@ class TrainNode(c.ParamNodeMixin, Node):
             self.partner.clear()
             return
         r["grid"] = Grid(speeds_m_s=r["v"], ds_m=float(cfg["ds_m"]), n_steps=int(cfg["n_steps"]))
-        if r["model"] == "dim":
-            r["side"] = TrainSide(r["train"], r["grid"], float(cfg["span_m"]))
+        side = TrainSide(r["train"], r["grid"], float(cfg["span_m"])) if r["model"] == "dim" else None
+        r["run"] = LockstepRun(r["model"], r["grid"], train_side=side)
         self.partner.waiting(f"at step 0 of run {r['id']}", c.TOPIC_RAIL)
         pending, self._pending = self._pending, []
         for m in pending:
@@ -155,27 +160,37 @@ class TrainNode(c.ParamNodeMixin, Node):
         if r["grid"] is None:
             self._pending.append(msg)
             return
+        run = r["run"]
         run_id, k, stage, idx, payload = c.unpack(msg)
-        c.check_step("train", (run_id, k, stage), (r["id"], r["k"], r["stage"]))
+        c.check_step("train", (run_id, k, stage), (r["id"], run.k, run.stage))
         self.partner.clear()
-        n = r["grid"].n_steps
         if r["model"] == "dim":
-            G = r["side"].take_rail_state(idx, payload[0], payload[1])
+            G = run.take_rail_state(idx, payload[0], payload[1])
             self.pub_forces.publish(c.pack(run_id, k, stage, G, ("lane", "axle_on"), idx))
-            r["stage"] = (stage + 1) % 4
-            r["k"] = k + (stage == 3)
         else:
-            b = min(r["block"], n - k)
-            x = half_step_positions(r["grid"].ds_m, r["train"].axle_offsets_m, k, b)
+            k0, b = run.advance_block(r["block"])
+            x = half_step_positions(r["grid"].ds_m, r["train"].axle_offsets_m, k0, b)
             block = np.vstack([x, r["train"].axle_loads_n[None, :]])
-            self.pub_block.publish(c.pack(run_id, k, 0, block, ("row:positions_m(2n+1),loads_n", "axle")))
-            r["k"] = k + b
-        if r["k"] >= n:
+            self.pub_block.publish(c.pack(run_id, k0, 0, block, ("row:positions_m(2n+1),loads_n", "axle")))
+        if run.status == "finished":
             self.pub_status.publish(c.json_msg({"node": "train", "run_id": r["id"], "state": "done"}))
             self.run = None
             self.partner.clear()
         else:
-            self.partner.waiting(f"at step {r['k']} stage {r['stage']} of run {r['id']}", c.TOPIC_RAIL)
+            self.partner.waiting(f"at step {run.k} stage {run.stage} of run {r['id']}", c.TOPIC_RAIL)
+
+    def _on_status(self, msg):
+        """End the exchanging run when the bridge reports it failed (its message is passed on)."""
+        st = json.loads(msg.data)
+        r = self.run
+        if (r is None or r["run"] is None or st.get("node") != "bridge" or st.get("state") != "failed"
+                or st.get("run_id") != r["id"]):
+            return
+        self.get_logger().error(f"run {r['id']} failed on the bridge at step {r['run'].k}: {st.get('message', '')}")
+        self.pub_status.publish(c.json_msg({"node": "train", "run_id": r["id"], "state": "failed",
+                                            "message": st.get("message", "")}))
+        self.run = None
+        self.partner.clear()
 
     # ------------------------------------------------------------------ supervision
     def watch(self):

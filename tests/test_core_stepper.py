@@ -1,0 +1,222 @@
+"""The lockstep run (stepping.LockstepRun): status, step/stage bookkeeping, maxima, finite check.
+
+Short case: bridge B1 x ICE-2 at 160, 250 and 350 km/h; the DIM on a coarse grid (4 steps per
+period of mode 3, one period of free vibration) to keep it quick. Maxima are compared with
+``run_sweep`` bit for bit (tolerance 0), as the co-simulation promises.
+"""
+
+import numpy as np
+import pytest
+
+from adm_sim.bridge import named_bridge
+from adm_sim.errors import InputError
+from adm_sim.stepping import (BridgeSide, LockstepRun, StepOptions, TrainSide, half_step_positions, make_grid,
+                              mlm_modal_load_table, modal_loads_at, speeds_to_m_s)
+from adm_sim.sweep import run_sweep
+from adm_sim.trains import load_train
+
+SPEEDS_KMH = [160.0, 250.0, 350.0]
+DIM_OPTIONS = StepOptions(steps_per_period=4.0, free_vibration_periods=1.0)
+MLM_OPTIONS = StepOptions()
+BRIDGE, TRAIN = named_bridge("B1"), load_train("ICE-2")
+
+
+def grid_of(options):
+    return make_grid(BRIDGE, TRAIN.length_m, speeds_to_m_s(SPEEDS_KMH), options)
+
+
+def bridge_side(grid, model):
+    return BridgeSide(BRIDGE, grid, TRAIN.axle_offsets_m, TRAIN.wheel_mass_kg if model == "dim" else None)
+
+
+def in_process(model, options):
+    """A run holding both halves, as run_sweep builds it."""
+    grid = grid_of(options)
+    if model == "dim":
+        return LockstepRun("dim", grid, bridge_side=bridge_side(grid, "dim"),
+                           train_side=TrainSide(TRAIN, grid, BRIDGE.span_m))
+    table = mlm_modal_load_table(BRIDGE, grid, TRAIN.axle_offsets_m, TRAIN.axle_loads_n)
+    return LockstepRun("mlm", grid, bridge_side=bridge_side(grid, "mlm"), modal_loads=table)
+
+
+@pytest.fixture(scope="module")
+def reference():
+    """run_sweep with histories, per model."""
+    return {"mlm": run_sweep(BRIDGE, TRAIN, "mlm", SPEEDS_KMH, options=MLM_OPTIONS, histories=True),
+            "dim": run_sweep(BRIDGE, TRAIN, "dim", SPEEDS_KMH, options=DIM_OPTIONS, histories=True)}
+
+
+def assert_bitwise(a, b):
+    a, b = np.asarray(a), np.asarray(b)
+    assert a.shape == b.shape and a.dtype == b.dtype
+    assert a.tobytes() == b.tobytes(), np.max(np.abs(a - b))
+
+
+def test_mlm_status_bookkeeping_and_maxima(reference):
+    run = in_process("mlm", MLM_OPTIONS)
+    n = run.n_steps
+    assert n > 100
+    assert (run.k, run.stage, run.status, run.message) == (0, 0, "running", "")
+    np.testing.assert_array_equal(run.max_acc_m_s2, 0.0)
+    np.testing.assert_array_equal(run.max_disp_m, 0.0)  # the bridge starts at rest
+    for k in range(n):
+        assert (run.k, run.stage, run.status) == (k, 0, "running")
+        assert run.step() is None
+    assert (run.k, run.stage, run.status, run.message) == (n, 0, "finished", "")
+    with pytest.raises(RuntimeError, match=f"the run is finished at step {n} of {n}"):
+        run.step()
+    ref = reference["mlm"]
+    assert ref.n_steps == n
+    assert_bitwise(run.max_acc_m_s2, ref.max_acc_m_s2)
+    assert_bitwise(run.max_disp_m, ref.max_disp_m)
+    # and the maxima are those of the histories (acceleration at stage 0, deflection at step start)
+    assert_bitwise(run.max_acc_m_s2, np.abs(ref.midspan_acc_m_s2).max(axis=1))
+    assert_bitwise(run.max_disp_m, np.abs(ref.midspan_disp_m).max(axis=1))
+    assert np.all(run.max_acc_m_s2 > 0.3)  # m/s^2: a real response (B1 x ICE-2 peaks ~0.4..2.2)
+
+
+def test_dim_stage_bookkeeping_and_maxima(reference):
+    run = in_process("dim", DIM_OPTIONS)
+    n = run.n_steps
+    # the first two steps call by call: the stage advances with take_forces (the last call of a stage)
+    for k in range(2):
+        for stage in range(4):
+            assert (run.k, run.stage) == (k, stage)
+            idx, w, wd = run.rail_state()
+            assert (run.k, run.stage) == (k, stage)
+            G = run.take_rail_state(idx, w, wd)
+            assert (run.k, run.stage) == (k, stage)
+            run.take_forces(G)
+    assert (run.k, run.stage, run.status) == (2, 0, "running")
+    while run.status == "running":
+        k = run.k
+        assert run.step() is None
+        assert (run.k, run.stage) == (k + 1, 0)
+    assert (run.k, run.status, run.message) == (n, "finished", "")
+    ref = reference["dim"]
+    assert_bitwise(run.max_acc_m_s2, ref.max_acc_m_s2)
+    assert_bitwise(run.max_disp_m, ref.max_disp_m)
+    assert_bitwise(run.max_acc_m_s2, np.abs(ref.midspan_acc_m_s2).max(axis=1))
+    assert_bitwise(run.max_disp_m, np.abs(ref.midspan_disp_m).max(axis=1))
+    # contact forces of the last step: no axle on the bridge in the free vibration
+    idx, f = run.contact_forces_n()
+    assert idx.size == 0 and f.shape == (3, 0)
+
+
+def test_dim_halves_reproduce_in_process(reference):
+    """Bridge half and train half driven as the two nodes drive them (copies = the exchange)."""
+    grid = grid_of(DIM_OPTIONS)
+    bh = LockstepRun("dim", grid, bridge_side=bridge_side(grid, "dim"))
+    th = LockstepRun("dim", grid, train_side=TrainSide(TRAIN, grid, BRIDGE.span_m))
+    assert th.max_acc_m_s2 is None and th.max_disp_m is None  # no bridge, no maxima
+    with pytest.raises(RuntimeError, match="rail_state: needs a DIM bridge side"):
+        th.rail_state()
+    with pytest.raises(RuntimeError, match="step: needs a bridge side and a train side"):
+        bh.step()
+    while bh.status == "running":
+        assert (th.k, th.stage, th.status) == (bh.k, bh.stage, "running")
+        k, stage = bh.k, bh.stage
+        idx, w, wd = bh.rail_state()
+        G = th.take_rail_state(idx.copy(), w.copy(), wd.copy())
+        assert (th.k, th.stage) == ((k, stage + 1) if stage < 3 else (k + 1, 0))  # train half: stage done
+        bh.take_forces(G.copy())
+    assert bh.status == th.status == "finished" and bh.k == th.k == grid.n_steps
+    ref = reference["dim"]
+    assert_bitwise(bh.max_acc_m_s2, ref.max_acc_m_s2)
+    assert_bitwise(bh.max_disp_m, ref.max_disp_m)
+
+
+@pytest.mark.parametrize("block", [1, 37, 10**7])
+def test_mlm_halves_reproduce_in_process(reference, block):
+    """Train half books blocks of axle positions, bridge half steps them (as the two nodes)."""
+    grid = grid_of(MLM_OPTIONS)
+    bh = LockstepRun("mlm", grid, bridge_side=bridge_side(grid, "mlm"))
+    th = LockstepRun("mlm", grid)
+    while th.status == "running":
+        assert (th.k, th.stage) == (bh.k, 0)
+        k0, nb = th.advance_block(block)
+        assert k0 == bh.k and nb == min(block, grid.n_steps - k0) and th.k == k0 + nb
+        P = modal_loads_at(BRIDGE, half_step_positions(grid.ds_m, TRAIN.axle_offsets_m, k0, nb), TRAIN.axle_loads_n)
+        for j in range(nb):
+            bh.step_mlm(P[2 * j], P[2 * j + 1], P[2 * j + 2])
+    assert bh.status == "finished" and bh.k == th.k == grid.n_steps
+    with pytest.raises(RuntimeError, match="advance_block: the run is finished"):
+        th.advance_block(block)
+    ref = reference["mlm"]
+    assert_bitwise(bh.max_acc_m_s2, ref.max_acc_m_s2)
+    assert_bitwise(bh.max_disp_m, ref.max_disp_m)
+
+
+def test_unstable_step_fails_with_a_message():
+    """ds = 5 m is far beyond the RK4 stability limit of mode 3 at 160 km/h: the run fails."""
+    opts = StepOptions(ds_m=5.0)
+    with np.errstate(all="ignore"):
+        with pytest.raises(InputError, match=r"^solution is not finite at step \d+ of \d+ \(stage 0\): midspan "):
+            run_sweep(BRIDGE, TRAIN, "dim", SPEEDS_KMH, options=opts)
+        run = in_process("dim", opts)
+        while run.status == "running":
+            msg = run.step()
+    assert run.status == "failed" and msg == run.message
+    assert "\n" not in run.message and "(first at 160 km/h)" in run.message
+    assert "ds = 5 m is too large" in run.message
+    assert 0 < run.k < run.n_steps and run.message.startswith(f"solution is not finite at step {run.k} of ")
+    assert np.all(np.isfinite(run.max_acc_m_s2)) and np.all(np.isfinite(run.max_disp_m))
+    with pytest.raises(RuntimeError, match="the run is failed at step"):
+        run.step()
+
+
+def test_injected_nan_fails_and_keeps_the_maxima():
+    run = in_process("mlm", MLM_OPTIONS)
+    for _ in range(400):
+        run.step()
+    before_acc, before_disp = run.max_acc_m_s2.copy(), run.max_disp_m.copy()
+    assert np.all(before_disp > 0.0)
+    run.bridge_side.rk.x[1, 0] = np.nan  # mode 1 of the 250 km/h lane
+    msg = run.step()
+    assert run.status == "failed" and run.k == 400
+    assert msg == (f"solution is not finite at step 400 of {run.n_steps} (stage 0): midspan acceleration in 1 of "
+                   f"3 lanes (first at 250 km/h); the step ds = {run.grid.ds_m:.4g} m is too large for this "
+                   f"bridge/train (raise steps_per_period or lower ds_m)")
+    assert_bitwise(run.max_acc_m_s2, before_acc)
+    assert_bitwise(run.max_disp_m, before_disp)
+
+
+def test_nan_force_on_the_bridge_half_fails_at_the_next_step():
+    """A non-finite interaction force at stage 1 shows in the deflection at the start of k + 1."""
+    grid = grid_of(DIM_OPTIONS)
+    bh = LockstepRun("dim", grid, bridge_side=bridge_side(grid, "dim"))
+    th = LockstepRun("dim", grid, train_side=TrainSide(TRAIN, grid, BRIDGE.span_m))
+    while bh.k < 300:  # the first axles are on the bridge by then
+        idx, w, wd = bh.rail_state()
+        bh.take_forces(th.take_rail_state(idx, w, wd))
+    for stage in range(4):
+        idx, w, wd = bh.rail_state()
+        G = th.take_rail_state(idx, w, wd)
+        assert idx.size > 0
+        if stage == 1:
+            G = G.copy()
+            G[2, 0] = np.nan  # 350 km/h lane
+        bh.take_forces(G)
+    assert bh.status == "failed" and (bh.k, bh.stage) == (301, 0)
+    assert "at step 301 of" in bh.message and "midspan deflection in 1 of 3 lanes (first at 350 km/h)" in bh.message
+    assert np.all(np.isfinite(bh.max_disp_m)) and np.all(np.isfinite(bh.max_acc_m_s2))
+    with pytest.raises(RuntimeError, match="take_forces: the run is failed at step 301"):
+        bh.take_forces(G)
+
+
+def test_contract_refuses_misuse():
+    grid = grid_of(MLM_OPTIONS)
+    with pytest.raises(InputError, match="model: 'xyz' is not allowed"):
+        LockstepRun("xyz", grid)
+    with pytest.raises(ValueError, match="the MLM has no train side"):
+        LockstepRun("mlm", grid, train_side=TrainSide(TRAIN, grid, BRIDGE.span_m))
+    side = bridge_side(grid, "mlm")
+    run = LockstepRun("mlm", grid, bridge_side=side)
+    with pytest.raises(RuntimeError, match="step: needs a bridge side and a train side \\(DIM\\) or the modal-load"):
+        run.step()  # a bridge half has no modal-load table
+    with pytest.raises(RuntimeError, match="take_forces: needs a DIM bridge side"):
+        run.take_forces(np.zeros((3, 0)))
+    P = mlm_modal_load_table(BRIDGE, grid, TRAIN.axle_offsets_m, TRAIN.axle_loads_n)
+    run.step_mlm(P[0], P[1], P[2])
+    with pytest.raises(ValueError, match="BridgeSide is at step 1, not at step 0"):
+        LockstepRun("mlm", grid, bridge_side=side)
