@@ -21,7 +21,11 @@ MAX_HISTORY_VALUES = 300_000_000
 
 
 def parse_speeds(text):
-    """Speeds (km/h) from ``"160:350:1"`` (start:stop:step, stop included) or ``"200,250"``."""
+    """Speeds (km/h) from ``"160:350:1"`` (start:stop:step, stop included) or ``"200,250"``.
+
+    Every number must be finite; a comma list must increase strictly (a peak over speed is only
+    meaningful on an ordered grid); each speed lies in [1, 600] km/h.
+    """
     text = str(text).strip()
     try:
         parts = [float(p) for p in text.replace(":", ",").split(",") if p.strip()]
@@ -29,6 +33,9 @@ def parse_speeds(text):
         parts = None
     if not parts or (":" in text and len(parts) not in (2, 3)):
         raise InputError(f"speeds: {text!r} is not start:stop:step or a comma list (km/h)")
+    bad = [p for p in parts if not math.isfinite(p)]
+    if bad:
+        raise InputError(f"speeds: {text!r} holds {bad[0]!r}; every speed and step must be a finite number (km/h)")
     if ":" in text:
         a, b, st = parts if len(parts) == 3 else parts + [1.0]
         if st <= 0 or b < a:
@@ -38,6 +45,8 @@ def parse_speeds(text):
         v = a + st * np.arange(int(math.floor((b - a) / st + 1e-9)) + 1)
     else:
         v = np.array(parts)
+        if np.any(np.diff(v) <= 0):
+            raise InputError(f"speeds: {text!r} must increase strictly (km/h), e.g. 200,250,263")
     speeds_to_m_s(v)  # range check
     return v
 
