@@ -61,3 +61,39 @@ def test_trains_check_prints_the_checks():
     assert r.returncode == 0
     assert "n_p PC 2-8 (Eq. 1)" in r.stdout and "MISMATCH" in r.stdout  # Eurostar-table
     assert r.stdout.count("ok ") >= 12
+
+
+def test_sweep_outputs_checked_before_the_run(tmp_path, capsys):
+    from adm_sim.cli import main
+
+    base = ["sweep", "--bridge", "B4", "--model", "mlm", "--speeds", "200,260"]
+    j = tmp_path / "r.json"
+    cases = [
+        (["--json", str(tmp_path / "no" / "r.json")], f"error: --json: '{tmp_path}/no/r.json': the directory '{tmp_path}/no' does not exist"),
+        (["--json", str(tmp_path)], f"error: --json: '{tmp_path}' is a directory; give a file name"),
+        (["--plot", str(tmp_path / "p.jpg")], f"error: --plot: '{tmp_path}/p.jpg' must end in .png"),
+        (["--json", str(tmp_path / "same.png"), "--plot", str(tmp_path / "same.png")],
+         f"error: --plot: '{tmp_path}/same.png' is the --json file; give two different files"),
+    ]
+    for extra, line in cases:
+        assert main(base + extra) == 2
+        out = capsys.readouterr()
+        assert out.err == line + "\n" and "MLM sweep" not in out.out  # refused before any computation
+    assert main(base + ["--json", str(j)]) == 0
+    first = j.read_text()
+    assert main(base + ["--json", str(j), "--speeds", "200,300"]) == 2
+    assert capsys.readouterr().err == f"error: --json: '{j}' exists; use --overwrite to replace it\n"
+    assert j.read_text() == first                       # untouched
+    assert main(base + ["--json", str(j), "--overwrite", "--speeds", "200,300"]) == 0
+    assert json.loads(j.read_text())["speeds_kmh"] == [200.0, 300.0]
+    assert [p.name for p in tmp_path.iterdir()] == ["r.json"]   # no temporary files left
+
+
+def test_bridges_field_is_pure_csv(capsys):
+    from adm_sim.cli import main
+
+    assert main(["bridges", "--field"]) == 0
+    out = capsys.readouterr()
+    rows = out.out.splitlines()
+    assert rows[0] == "name,span_m,n0_hz,mu_t_m,EJ_Nm2,zeta_pct,type" and len(rows) == 1111
+    assert rows[1].startswith("L4-f1-mu1,4,20.7883,13.8220,") and "1110 bridges" in out.err

@@ -41,6 +41,35 @@ def tqdm_progress(desc, enabled=None):
     return cb, bar.close
 
 
+def output_path(text, option, overwrite=False, suffix=None):
+    """Check an output path before any computation: its folder exists, it is not a folder, it
+    does not exist unless ``overwrite``; with ``suffix`` the name must end in it."""
+    p = Path(text)
+    if suffix and p.suffix.lower() != suffix:
+        raise InputError(f"{option}: {text!r} must end in {suffix}")
+    if p.is_dir():
+        raise InputError(f"{option}: {text!r} is a directory; give a file name")
+    parent = p.parent if str(p.parent) else Path(".")
+    if not parent.is_dir():
+        raise InputError(f"{option}: {text!r}: the directory {str(parent)!r} does not exist")
+    if p.exists() and not overwrite:
+        raise InputError(f"{option}: {text!r} exists; use --overwrite to replace it")
+    return p
+
+
+def write_atomic(path, write):
+    """``write(tmp_path)`` beside ``path``, then rename: an earlier file is replaced only by a complete one."""
+    import os
+
+    tmp = path.with_name(f".{path.stem}.tmp-{os.getpid()}{path.suffix}")
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+
+
 def _plot_sweep(result, path, limit=3.5):
     import matplotlib
 
@@ -71,6 +100,10 @@ def cmd_sweep(args):
     from adm_sim.trains import load_train
     from adm_sim.errors import check_range
 
+    json_path = None if args.json is None else output_path(args.json, "--json", args.overwrite)
+    plot_path = None if args.plot is None else output_path(args.plot, "--plot", args.overwrite, ".png")
+    if json_path is not None and plot_path is not None and json_path.resolve() == plot_path.resolve():
+        raise InputError(f"--plot: {args.plot!r} is the --json file; give two different files")
     bridge = resolve_bridge(args.bridge)
     train = load_train(args.train)
     speeds = parse_speeds(args.speeds)
@@ -98,13 +131,13 @@ def cmd_sweep(args):
         if top > pk["acc_m_s2"]:
             i = int(res.max_acc_m_s2.argmax())
             print(f"note: the largest value {top:.4f} m/s2 lies at the end of the range ({res.speeds_kmh[i]:g} km/h)")
-    if args.json:
+    if json_path is not None:
         out = res.to_dict()
         out["wall_time_s"] = wall
-        Path(args.json).write_text(json.dumps(out, indent=1))
+        write_atomic(json_path, lambda p: p.write_text(json.dumps(out, indent=1)))
         print(f"wrote {args.json}")
-    if args.plot:
-        _plot_sweep(res, args.plot)
+    if plot_path is not None:
+        write_atomic(plot_path, lambda p: _plot_sweep(res, p))
         print(f"wrote {args.plot}")
     return 0
 
@@ -138,7 +171,7 @@ def cmd_bridges(args):
 
     if args.field:
         field = parametric_field()
-        print(f"parametric field: {len(field)} bridges (Section 3.3)")
+        print(f"parametric field: {len(field)} bridges (Section 3.3); mu in t/m (x1000 = kg/m)", file=sys.stderr)
         print("name,span_m,n0_hz,mu_t_m,EJ_Nm2,zeta_pct,type")
         for b in field:
             print(f"{b.name},{b.span_m:g},{b.n0_hz:.4f},{b.mass_per_length_kg_m / 1000:.4f},"
@@ -154,6 +187,10 @@ def cmd_salvage(args):
         from adm_sim.ros.mcap_log import salvage
     except ImportError as exc:
         raise InputError(f"salvage needs the ROS/MCAP extras ({exc})") from None
+    src = Path(args.src)
+    if not src.is_file():
+        raise InputError(f"salvage: {args.src!r} is not a file")
+    output_path(args.dst, "salvage DST", args.overwrite, ".mcap")
     n = salvage(args.src, args.dst)
     print(f"recovered {n} messages into {args.dst}")
     return 0
@@ -173,6 +210,7 @@ def build_parser():
                    help="RK4 steps per period of the highest bridge mode (4..10000)")
     s.add_argument("--json", help="write results as JSON")
     s.add_argument("--plot", help="write max acceleration vs speed as PNG")
+    s.add_argument("--overwrite", action="store_true", help="replace existing --json/--plot files (once the run has finished)")
     s.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
                    help="progress bar (default: when stderr is a terminal)")
     s.set_defaults(func=cmd_sweep)
@@ -189,6 +227,7 @@ def build_parser():
     v = sub.add_parser("salvage", help="recover a killed run's MCAP log")
     v.add_argument("src")
     v.add_argument("dst")
+    v.add_argument("--overwrite", action="store_true", help="replace an existing DST")
     v.set_defaults(func=cmd_salvage)
     return p
 
@@ -197,6 +236,11 @@ def main(argv=None):
     args = build_parser().parse_args(argv)
     try:
         return args.func(args)
+    except BrokenPipeError:  # e.g. `adm-sim bridges --field | head`: the reader has enough
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_INPUT
