@@ -319,7 +319,7 @@ def build_parser():
     r = sub.add_parser("recommend", help="dz from the lower-bound functions by the rules of Section 4.3")
     r.add_argument("--train", required=True, help="ICE-2, Eurostar, Railjet or ICE-4")
     r.add_argument("--n0", type=float, required=True, help="first natural frequency (Hz)")
-    r.add_argument("--mu", type=float, required=True, help="mass per length (t/m)")
+    r.add_argument("--mu", type=float, required=True, help="mass per length in t/m (1 t/m = 1000 kg/m; the bridge specs take kg/m), as Table 1 / Eq. 19")
     r.add_argument("--type", required=True, choices=("cfb", "sc"), help="cfb: concrete/filler beam, sc: steel/composite")
     r.add_argument("--span", type=float, default=None, help="span (m); estimated from n0 when omitted")
     r.add_argument("--interpolate", action="store_true",

@@ -164,7 +164,7 @@ class Bridge:
     def describe(self):
         zeta_pct = 100.0 * self.damping_ratio
         return (f"{self.name or 'bridge'}: L={self.span_m:g} m, n0={self.n0_hz:.3f} Hz, "
-                f"mu={self.mass_per_length_kg_m / 1000:.3f} t/m, EJ={self.EJ_Nm2:.4g} N m^2, "
+                f"mu={self.mass_per_length_kg_m:.6g} kg/m ({self.mass_per_length_kg_m / 1000:.3f} t/m), EJ={self.EJ_Nm2:.4g} N m^2, "
                 f"zeta={zeta_pct:.3g} %, {self.n_modes} modes ({self.damping_model})")
 
 
