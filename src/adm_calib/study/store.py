@@ -141,6 +141,34 @@ def _line(rec):
     return (json.dumps(rec, allow_nan=False, separators=(",", ":")) + "\n").encode()
 
 
+@contextlib.contextmanager
+def _signals_deferred():
+    """Hold Ctrl-C and SIGTERM back for the block, then act on them.
+
+    The Python handlers run in the main thread but the signal may arrive in any thread (dask's
+    event loop runs in another one), so blocking the signal in this thread is not enough: the
+    handlers themselves are replaced for the block, and a signal that came is re-delivered after.
+    """
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        held = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+        try:
+            yield
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, held)
+        return
+    came = []
+    old = {sig: signal.signal(sig, lambda s, f: came.append(s)) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for sig, h in old.items():
+            signal.signal(sig, h)
+        for sig in came[:1]:
+            signal.raise_signal(sig)
+
+
 class ResultsWriter:
     """Append-only writer of ``results.jsonl``: one line per record, flushed and fsynced.
 
@@ -170,15 +198,12 @@ class ResultsWriter:
         Ctrl-C and SIGTERM are held back while the line is written and counted, so an interrupt
         never leaves a written line uncounted (or a counted line unwritten).
         """
-        held = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
-        try:
+        with _signals_deferred():
             self._f.write(_line(rec))
             self._f.flush()
             os.fsync(self._f.fileno())
             self.records[record_key(rec)] = rec
             self.appended += 1
-        finally:
-            signal.pthread_sigmask(signal.SIG_SETMASK, held)
 
     def finish(self):
         if self._f is not None and not self._f.closed:
