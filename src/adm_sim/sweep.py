@@ -20,11 +20,13 @@ DEFAULT_SPEEDS = "160:350:1"
 MAX_HISTORY_VALUES = 300_000_000
 
 
-def parse_speeds(text):
+def parse_speeds(text, ordered=True):
     """Speeds (km/h) from ``"160:350:1"`` (start:stop:step, stop included) or ``"200,250"``.
 
-    Every number must be finite; a comma list must increase strictly (a peak over speed is only
-    meaningful on an ordered grid); each speed lies in [1, 600] km/h.
+    Every number must be finite; each speed lies in [1, 600] km/h. With ``ordered`` (every user
+    input) a comma list must increase strictly, because a peak over speed is only meaningful on an
+    ordered grid; lanes of a run (the train node's ``speeds_kmh``, e.g. a damping ladder that
+    repeats its speeds) take ``ordered=False``.
     """
     text = str(text).strip()
     try:
@@ -45,7 +47,7 @@ def parse_speeds(text):
         v = a + st * np.arange(int(math.floor((b - a) / st + 1e-9)) + 1)
     else:
         v = np.array(parts)
-        if np.any(np.diff(v) <= 0):
+        if ordered and np.any(np.diff(v) <= 0):
             raise InputError(f"speeds: {text!r} must increase strictly (km/h), e.g. 200,250,263")
     speeds_to_m_s(v)  # range check
     return v
