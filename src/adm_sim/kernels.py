@@ -32,6 +32,21 @@ STAGE_ROW = np.array([0, 1, 1, 2])
 
 
 @njit(cache=True, nogil=True)
+def _finish_block(q, qd, amax, dmax, finite, l0, max_acc, max_disp):
+    """Write a block's maxima (NaN for all its lanes if its final state is not finite); returns the
+    number of non-finite lanes."""
+    nm, nb = q.shape
+    for j in range(nm):
+        for b in range(nb):
+            if not (abs(q[j, b]) < np.inf and abs(qd[j, b]) < np.inf):
+                finite = False
+    for b in range(nb):
+        max_acc[l0 + b] = amax[b] if finite else np.nan
+        max_disp[l0 + b] = dmax[b] if finite else np.nan
+    return 0 if finite else nb
+
+
+@njit(cache=True, nogil=True)
 def dim_blocks(block_ptr, block_case, block_steps, v, h, K, Z, minv, phi_mid,
                row_ptr, ent_axle, ent_phi, ent_phx, ent_phxx,
                axle_load, wheel_mass,
@@ -266,15 +281,7 @@ def dim_blocks(block_ptr, block_case, block_steps, v, h, K, Z, minv, phi_mid,
                         finite = False
                 if not finite:
                     break
-        for j in range(nm):
-            for b in range(nb):
-                if not (abs(q[j, b]) < np.inf and abs(qd[j, b]) < np.inf):
-                    finite = False
-        for b in range(nb):
-            max_acc[l0 + b] = amax[b] if finite else np.nan
-            max_disp[l0 + b] = dmax[b] if finite else np.nan
-        if not finite:
-            bad += nb
+        bad += _finish_block(q, qd, amax, dmax, finite, l0, max_acc, max_disp)
     return bad
 
 
@@ -323,14 +330,5 @@ def mlm_blocks(block_ptr, block_case, block_steps, P, phi_mid, M, K, Z, ax, axd,
                     amax[b] = abs(a[b])
                 if abs(d[b]) > dmax[b]:
                     dmax[b] = abs(d[b])
-        finite = True
-        for j in range(nm):
-            for b in range(nb):
-                if not (abs(q[j, b]) < np.inf and abs(qd[j, b]) < np.inf):
-                    finite = False
-        for b in range(nb):
-            max_acc[l0 + b] = amax[b] if finite else np.nan
-            max_disp[l0 + b] = dmax[b] if finite else np.nan
-        if not finite:
-            bad += nb
+        bad += _finish_block(q, qd, amax, dmax, True, l0, max_acc, max_disp)
     return bad
