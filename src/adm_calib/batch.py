@@ -31,7 +31,7 @@ from adm_sim.batch import BatchRunner
 from adm_sim.stepping import StepOptions
 
 from adm_calib import peaks as pk
-from adm_calib.calibrate import (CalibrationOptions, _ladder, _speeds, calibration_step, dim_refinement,
+from adm_calib.calibrate import (CalibrationOptions, DampingSolve, _ladder, _speeds, calibration_step, dim_refinement,
                                  dim_speeds_paper, finish_solve, ladder_bracket, make_result, merge_curve,
                                  relocation_speeds)
 
@@ -162,7 +162,7 @@ def calibrate_batch(bridges, train, speeds_kmh=None, options=None, step=None):
         rows = acc.reshape(lad.size, w.size)
         fl = np.array([window_peak(c, row) for row in rows]) / dim_peaks[c].acc_m_s2 - 1.0
         b = ladder_bracket(lad, fl)
-        if b is None or not isinstance(b, tuple):
+        if isinstance(b, DampingSolve):  # not bracketed
             solves[c] = b
             continue
         i, lo, hi = b

@@ -20,16 +20,19 @@ import numpy as np
 
 from adm_sim import kernels
 from adm_sim.errors import InputError, check_range
-from adm_sim.stepping import (StepOptions, make_grid, mlm_modal_load_table, mlm_rk4_coefficients,
+from adm_sim.stepping import (StepOptions, half_step_positions, make_grid, mlm_rk4_coefficients, modal_loads_at,
                               speeds_to_m_s)
+
+
+def _row_ptr(rows, n_rows):
+    """CSR row pointers (n_rows + 1,) of sorted row indices: entries of row r are ptr[r]:ptr[r+1]."""
+    return np.searchsorted(rows, np.arange(n_rows + 1)).astype(np.int64)
 
 
 def _csr(dense):
     """Row-compressed nonzeros of a dense matrix: ``(ptr, col, val)``."""
     rows, cols = np.nonzero(dense)
-    ptr = np.zeros(dense.shape[0] + 1, dtype=np.int64)
-    np.add.at(ptr, rows + 1, 1)
-    return np.cumsum(ptr), cols.astype(np.int64), dense[rows, cols].astype(float)
+    return _row_ptr(rows, dense.shape[0]), cols.astype(np.int64), dense[rows, cols].astype(float)
 
 
 class BatchRunner:
@@ -84,13 +87,9 @@ class BatchRunner:
 
     # ------------------------------------------------------------------ tables
     def _mlm_table(self, n_steps):
-        if n_steps > self._mlm_rows:
-            grid = make_grid(self.bridges[0], self.train.length_m, np.array([1.0]), self.options)
-            from dataclasses import replace
-
-            grid = replace(grid, n_steps=int(n_steps))
-            self._P = mlm_modal_load_table(self.bridges[0], grid, self.train.axle_offsets_m,
-                                           self.train.axle_loads_n)
+        if n_steps > self._mlm_rows:  # as mlm_modal_load_table on a grid of n_steps steps
+            x = half_step_positions(self.ds_m, self.train.axle_offsets_m, 0, int(n_steps))
+            self._P = modal_loads_at(self.bridges[0], x, np.asarray(self.train.axle_loads_n, dtype=float))
             self._mlm_rows = int(n_steps)
         return self._P
 
@@ -103,9 +102,7 @@ class BatchRunner:
         x = front[:, None] - tr.axle_offsets_m[None, :]
         on = (x >= 0.0) & (x <= self.span_m)
         rows, axles = np.nonzero(on)
-        ptr = np.zeros(r.size + 1, dtype=np.int64)
-        np.add.at(ptr, rows + 1, 1)
-        ptr = np.cumsum(ptr)
+        ptr = _row_ptr(rows, r.size)
         phi, phx, phxx = b0.shapes(x[rows, axles])
         mw = tr.wheel_mass_kg[axles]
         outer = (phi * mw[:, None])[:, :, None] * phi[:, None, :]  # Eq. (13) terms per axle
@@ -122,9 +119,7 @@ class BatchRunner:
         lo, hi = (k + 0.0) * ds, (k + 1.0) * ds
         act = (hi[:, None] - t["first"][None, :] >= 0.0) & (lo[:, None] - t["last"][None, :] <= self.span_m)
         krow, units = np.nonzero(act)
-        aptr = np.zeros(n_steps + 1, dtype=np.int64)
-        np.add.at(aptr, krow + 1, 1)
-        self._dim.update(act_ptr=np.cumsum(aptr), act_units=units.astype(np.int64))
+        self._dim.update(act_ptr=_row_ptr(krow, n_steps), act_units=units.astype(np.int64))
         self._rows = int(n_steps)
 
     def _trains(self):

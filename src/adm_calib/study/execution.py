@@ -26,16 +26,11 @@ def run_case(case, settings=StudySettings()):
     return run_batch([case], settings)[0]
 
 
-def batch_key(case):
-    """Cases that share a batch: one train, one (span, frequency) pair, so one space step."""
-    return case.batch_key
-
-
 def make_batches(cases):
-    """The cases grouped by :func:`batch_key` (up to the six mass functions), in first-seen order."""
+    """The cases grouped by :attr:`StudyCase.batch_key` (up to the six mass functions), in first-seen order."""
     groups = {}
     for c in cases:
-        groups.setdefault(batch_key(c), []).append(c)
+        groups.setdefault(c.batch_key, []).append(c)
     return list(groups.values())
 
 
@@ -251,7 +246,7 @@ def _run_on_dask(pending, settings, writer, run, workers, scheduler, progress, e
         batches = sorted(make_batches(pending), key=lambda b: -b[0].bridge.n0_hz)
         by_future = {}
         for b in batches:
-            L, fi = batch_key(b[0])[1:]
+            L, fi = b[0].batch_key[1:]
             fut = client.submit(run_batch, b, settings, pure=False,
                                 key=f"batch-{b[0].train}-L{L:g}-f{fi}-{os.getpid()}")
             by_future[fut] = b
