@@ -16,6 +16,7 @@ from adm_calib.batch import batch_step, calibrate_batch
 from adm_calib.calibrate import CalibrationOptions, calibrate, calibration_step
 from adm_calib.study import select_cases
 from adm_sim.batch import BatchRunner
+from adm_sim.errors import InputError
 from adm_sim.stepping import StepOptions
 from adm_sim.sweep import run_sweep
 from adm_sim.trains import load_train
@@ -79,3 +80,57 @@ def test_calibrate_batch_reproduces_calibrate(train, span, fi, mfs):
         else:
             assert abs(r.delta_zeta_vbi_pct - ref.delta_zeta_vbi_pct) <= 1e-5
             assert abs(r.solve.residual_rel) <= 1e-3 and r.solve.method in ("find_root", "exact")
+
+
+# ---------------------------------------------------------------------- the BatchRun contract
+def _small_batch(train="Eurostar"):
+    bridges = _group(25, 2, ("mu1", "mu6"), train)
+    tr = load_train(train)
+    runner = BatchRunner(bridges, tr, batch_step(bridges, tr).ds_m)
+    case = np.repeat([0, 1], 3)
+    speeds = np.tile([180.0, 250.0, 320.0], 2)
+    sweep = np.array([0, 0, 1, 0, 1, 1])  # two sweeps per bridge: lanes of different step counts
+    return runner, case, speeds, sweep
+
+
+@pytest.mark.parametrize("model", ["mlm", "dim"])
+def test_batch_run_in_blocks_equals_one_call_bit_for_bit(model):
+    """Advancing 1, 7 and 1000 steps at a time gives exactly what one call over all steps gives;
+    the run keeps the SteppedRun contract (k, status, maxima in the caller's lane order)."""
+    runner, case, speeds, sweep = _small_batch()
+    whole = runner.start(model, case, speeds, 0.003, sweep)
+    assert whole.status == "running" and whole.k == 0 and whole.n_steps == whole.lane_steps.max()
+    assert whole.advance(10 ** 9) is None
+    assert whole.status == "finished" and whole.k == whole.n_steps
+    for block in (1, 7, 1000):
+        run = runner.start(model, case, speeds, 0.003, sweep)
+        while run.status == "running":
+            k0 = run.k
+            run.advance(block)
+            assert run.k == min(k0 + block, run.n_steps)
+        np.testing.assert_array_equal(run.max_acc_m_s2, whole.max_acc_m_s2)
+        np.testing.assert_array_equal(run.max_disp_m, whole.max_disp_m)
+    # the lane order is the caller's: each lane equals its own run_sweep (1e-12, see above)
+    for lane in (0, 4):
+        ref = run_sweep(runner.bridges[case[lane]], runner.train, model, [speeds[lane]], delta_zeta=0.003,
+                        options=StepOptions(ds_m=runner.ds_m))
+        assert whole.max_acc_m_s2[lane] == pytest.approx(ref.max_acc_m_s2[0], rel=1e-12)
+    with pytest.raises(RuntimeError, match=r"^BatchRun.advance: the run is finished at step \d+ of \d+$"):
+        whole.advance()
+
+
+def test_batch_run_fails_on_a_non_finite_lane_with_one_line():
+    """A step far beyond RK4's stability limit: the run fails in the first block where the state is
+    not finite, naming the steps, the bridge and the speed of the first bad lane."""
+    bridges = _group(4, 5, ("mu1",))
+    tr = load_train("ICE-2")
+    runner = BatchRunner(bridges, tr, 2.0)  # ds = 2 m: h = ds / v >> 2.8 / omega of every mode
+    run = runner.start("mlm", [0, 0], [200.0, 300.0])
+    while run.status == "running":
+        run.advance(64)
+    assert run.status == "failed" and run.k < run.n_steps
+    assert run.message.startswith(f"solution is not finite in steps {run.k - 64}..{run.k} of {run.n_steps}: "
+                                  f"MLM state in 2 of 2 lanes (first at {bridges[0].name or bridges[0].describe()} "
+                                  f"at 200 km/h); the step ds = 2 m is too large")
+    with pytest.raises(InputError, match=r"^solution is not finite in steps \d+\.\.\d+ of \d+: MLM state"):
+        runner.run("mlm", [0, 0], [200.0, 300.0])

@@ -32,28 +32,13 @@ STAGE_ROW = np.array([0, 1, 1, 2])
 
 
 @njit(cache=True, nogil=True)
-def _finish_block(q, qd, amax, dmax, finite, l0, max_acc, max_disp):
-    """Write a block's maxima (NaN for all its lanes if its final state is not finite); returns the
-    number of non-finite lanes."""
-    nm, nb = q.shape
-    for j in range(nm):
-        for b in range(nb):
-            if not (abs(q[j, b]) < np.inf and abs(qd[j, b]) < np.inf):
-                finite = False
-    for b in range(nb):
-        max_acc[l0 + b] = amax[b] if finite else np.nan
-        max_disp[l0 + b] = dmax[b] if finite else np.nan
-    return 0 if finite else nb
-
-
-@njit(cache=True, nogil=True)
-def dim_blocks(block_ptr, block_case, block_steps, v, h, K, Z, minv, phi_mid,
+def dim_blocks(block_ptr, block_case, block_steps, k0, k1, v, h, K, Z, minv, phi_mid,
                row_ptr, ent_axle, ent_phi, ent_phx, ent_phxx,
                axle_load, wheel_mass,
                act_ptr, act_units, unit_dof0, unit_ndof, unit_ax0, unit_nax,
                ks_ptr, ks_col, ks_val, cs_ptr, cs_col, cs_val,
                lw_ptr, lw_col, lw_val, lwt_ptr, lwt_col, lwt_val, kp, cp, minv_dof,
-               max_acc, max_disp):
+               q_s, qd_s, u_s, ud_s, max_acc, max_disp):
     """DIM (Eqs. 7-17) with one exchange per RK stage, every lane over all its steps.
 
     Lanes ``block_ptr[i]..block_ptr[i+1]`` (same bridge ``block_case[i]``, same number of steps
@@ -65,14 +50,17 @@ def dim_blocks(block_ptr, block_case, block_steps, v, h, K, Z, minv, phi_mid,
     ``ent_phi``, ``ent_phx``, ``ent_phxx`` (n_ent, n_modes). Train: units active per step as CSR
     (``act_ptr``, ``act_units``), unit DOF/axle ranges, the secondary stage ``K_s``, ``C_s``, the
     DOF-to-bogie-point map ``Lw`` and its transpose as CSR, primary ``kp``, ``cp`` per axle,
-    ``minv_dof`` the inverse diagonal vehicle masses. Writes the maxima of |midspan acceleration|
-    (stage 0 of every step) and |deflection| (start of every step). Returns the number of
-    non-finite lanes.
+    ``minv_dof`` the inverse diagonal vehicle masses.
+
+    Resumable: advances every lane from step ``k0`` to ``min(k1, its block's steps)``. The state
+    lives in the caller's arrays, lanes in block order: modal ``q_s``, ``qd_s`` (n_modes,
+    n_lanes), vehicle ``u_s``, ``ud_s`` (n_dof, n_lanes), and the running maxima of |midspan
+    acceleration| (stage 0 of every step) ``max_acc`` and |deflection| (start of every step)
+    ``max_disp`` (n_lanes,), updated in place. Chunks give bit for bit what one call gives.
     """
     nm = K.shape[1]
     n_dof = minv_dof.shape[0]
     n_axles = axle_load.shape[0]
-    bad = 0
     for bi in range(block_ptr.shape[0] - 1):
         l0 = block_ptr[bi]
         nb = block_ptr[bi + 1] - l0
@@ -83,8 +71,11 @@ def dim_blocks(block_ptr, block_case, block_steps, v, h, K, Z, minv, phi_mid,
         for j in range(nm):
             for b in range(nb):
                 Zb[j, b] = Z[l0 + b, j]
-        q = np.zeros((nm, nb))
-        qd = np.zeros((nm, nb))
+        k_end = min(k1, block_steps[bi])
+        if k0 >= k_end:
+            continue
+        q = q_s[:, l0:l0 + nb].copy()
+        qd = qd_s[:, l0:l0 + nb].copy()
         sq = np.zeros((nm, nb))
         sqd = np.zeros((nm, nb))
         aq = np.zeros((nm, nb))
@@ -92,8 +83,8 @@ def dim_blocks(block_ptr, block_case, block_steps, v, h, K, Z, minv, phi_mid,
         qdd = np.zeros((nm, nb))
         p = np.zeros((nm, nb))
         rhs = np.zeros((nm, nb))
-        u = np.zeros((n_dof, nb))
-        ud = np.zeros((n_dof, nb))
+        u = u_s[:, l0:l0 + nb].copy()
+        ud = ud_s[:, l0:l0 + nb].copy()
         su = np.zeros((n_dof, nb))
         sud = np.zeros((n_dof, nb))
         au = np.zeros((n_dof, nb))
@@ -107,10 +98,9 @@ def dim_blocks(block_ptr, block_case, block_steps, v, h, K, Z, minv, phi_mid,
         t3 = np.zeros(nb)
         acc0 = np.zeros(nb)
         d = np.zeros(nb)
-        amax = np.zeros(nb)
-        dmax = np.zeros(nb)
-        finite = True
-        for k in range(block_steps[bi]):
+        amax = max_acc[l0:l0 + nb].copy()
+        dmax = max_disp[l0:l0 + nb].copy()
+        for k in range(k0, k_end):
             d[:] = 0.0
             for j in range(nm):
                 for b in range(nb):
@@ -275,43 +265,43 @@ def dim_blocks(block_ptr, block_case, block_steps, v, h, K, Z, minv, phi_mid,
                     amax[b] = abs(acc0[b])
                 if abs(d[b]) > dmax[b]:
                     dmax[b] = abs(d[b])
-            if (k & 255) == 0:
-                for b in range(nb):
-                    if not (abs(acc0[b]) < np.inf and abs(d[b]) < np.inf):
-                        finite = False
-                if not finite:
-                    break
-        bad += _finish_block(q, qd, amax, dmax, finite, l0, max_acc, max_disp)
-    return bad
+        q_s[:, l0:l0 + nb] = q
+        qd_s[:, l0:l0 + nb] = qd
+        u_s[:, l0:l0 + nb] = u
+        ud_s[:, l0:l0 + nb] = ud
+        max_acc[l0:l0 + nb] = amax
+        max_disp[l0:l0 + nb] = dmax
 
 
 @njit(cache=True, nogil=True)
-def mlm_blocks(block_ptr, block_case, block_steps, P, phi_mid, M, K, Z, ax, axd, bx, bxd, c0, c0d, ch, chd,
-               c1, c1d, max_acc, max_disp):
+def mlm_blocks(block_ptr, block_case, block_steps, k0, k1, P, phi_mid, M, K, Z, ax, axd, bx, bxd, c0, c0d,
+               ch, chd, c1, c1d, q_s, qd_s, max_acc, max_disp):
     """MLM (Eq. 12) by the exact RK4 recurrence of every lane-mode oscillator.
 
     ``P`` (2 n + 1, n_modes) modal loads on the half-step grid (shared); ``M``, ``K`` (n_cases,
     n_modes); ``Z`` and the recurrence coefficients of
     :func:`adm_sim.stepping.mlm_rk4_coefficients` per lane, transposed to (n_modes, n_lanes) so
     that the inner loops over the lanes of a block (one bridge, one step count) are contiguous.
-    Same arithmetic as :meth:`BridgeSide.step_mlm`, operation for operation. Writes the maxima of
-    |midspan acceleration| and |deflection| over the block's steps; returns the number of
-    non-finite lanes.
+    Same arithmetic as :meth:`BridgeSide.step_mlm`, operation for operation. Resumable as
+    :func:`dim_blocks`: steps ``k0 .. min(k1, block steps) - 1``, state ``q_s``, ``qd_s``
+    (n_modes, n_lanes) and the running maxima ``max_acc``, ``max_disp`` updated in place.
     """
     nm = P.shape[1]
-    bad = 0
     for bi in range(block_ptr.shape[0] - 1):
         l0 = block_ptr[bi]
         l1 = block_ptr[bi + 1]
         nb = l1 - l0
         c = block_case[bi]
-        q = np.zeros((nm, nb))
-        qd = np.zeros((nm, nb))
+        k_end = min(k1, block_steps[bi])
+        if k0 >= k_end:
+            continue
+        q = q_s[:, l0:l1].copy()
+        qd = qd_s[:, l0:l1].copy()
         d = np.zeros(nb)
         a = np.zeros(nb)
-        amax = np.zeros(nb)
-        dmax = np.zeros(nb)
-        for k in range(block_steps[bi]):
+        amax = max_acc[l0:l1].copy()
+        dmax = max_disp[l0:l1].copy()
+        for k in range(k0, k_end):
             d[:] = 0.0
             a[:] = 0.0
             for j in range(nm):
@@ -330,5 +320,7 @@ def mlm_blocks(block_ptr, block_case, block_steps, P, phi_mid, M, K, Z, ax, axd,
                     amax[b] = abs(a[b])
                 if abs(d[b]) > dmax[b]:
                     dmax[b] = abs(d[b])
-        bad += _finish_block(q, qd, amax, dmax, True, l0, max_acc, max_disp)
-    return bad
+        q_s[:, l0:l1] = q
+        qd_s[:, l0:l1] = qd
+        max_acc[l0:l1] = amax
+        max_disp[l0:l1] = dmax

@@ -39,8 +39,9 @@ acceleration of a resonant crossing can occur up to one period after the train h
 
 One stepper
 -----------
-:class:`LockstepRun` owns the bookkeeping of a run: step ``k``, RK4 stage, status, the running
-maxima and the finite-value check. The in-process sweep advances it a whole step at a time
+:class:`SteppedRun` is the contract of every run (step ``k``, status, message, the finite-value
+check); :class:`LockstepRun` keeps it for the numpy stepper and adds the RK4 stage and the
+running maxima, :class:`adm_sim.batch.BatchRun` keeps it for the compiled batched kernels. The in-process sweep advances it a whole step at a time
 (:meth:`LockstepRun.step`); the bridge and train nodes each drive their own half of the same
 object stage by stage. Every path calls the same :class:`BridgeSide` / :class:`TrainSide`
 methods in the same order, so the co-simulated runs equal the in-process ones bit for bit.
@@ -453,13 +454,70 @@ def _all_finite(a):
     return math.isfinite(a @ a) or bool(np.isfinite(a).all())
 
 
-class LockstepRun:
+class SteppedRun:
+    """The contract every run of the project keeps, in-process, co-simulated or compiled.
+
+    Modelled on :class:`scipy.integrate.OdeSolver`: a run is ``'running'`` until its last step is
+    done (``'finished'``) or its solution is not finite (``'failed'``, with a one-line
+    :attr:`message` saying what, where and for which lane); stepping a run that is not running
+    raises ``RuntimeError``. Subclasses: :class:`LockstepRun` (the numpy stepper, stage by stage,
+    driven by :func:`adm_sim.sweep.run_sweep` and by the two nodes) and
+    :class:`adm_sim.batch.BatchRun` (the compiled kernels, block of steps by block of steps,
+    driven by the batched study).
+
+    Attributes
+    ----------
+    k : int
+        Steps done, ``0 .. n_steps``.
+    n_steps : int
+    status : {"running", "finished", "failed"}
+    message : str
+        Empty, or one line saying what was not finite, where.
+    """
+
+    k: int = 0
+    n_steps: int = 0
+    status: str = RUNNING
+    message: str = ""
+
+    def _start_contract(self, n_steps):
+        self.n_steps = int(n_steps)
+        self.k = 0
+        self.status = RUNNING if self.n_steps > 0 else FINISHED
+        self.message = ""
+
+    def _require(self, what, ok, need):
+        name = type(self).__name__
+        if not ok:
+            raise RuntimeError(f"{name}.{what}: needs {need}")
+        if self.status != RUNNING:
+            why = f": {self.message}" if self.message else ""
+            raise RuntimeError(f"{name}.{what}: the run is {self.status} at step {self.k} of "
+                               f"{self.n_steps}{why}")
+
+    def _fail(self, what, finite, where, lane_speeds_m_s, ds_m, lane_names=None):
+        """Fail the run: ``finite`` (n_lanes,) says which lanes are still finite."""
+        bad = np.flatnonzero(~np.asarray(finite, dtype=bool))
+        first = f"{float(lane_speeds_m_s[bad[0]]) * 3.6:.6g} km/h"
+        if lane_names is not None:
+            first = f"{lane_names[bad[0]]} at {first}"
+        self.status = FAILED
+        self.message = (f"solution is not finite {where}: {what} in {bad.size} of {np.size(finite)} lanes "
+                        f"(first at {first}); the step ds = {ds_m:.4g} m is too large for this bridge/train "
+                        f"(raise steps_per_period or lower ds_m)")
+
+    def _finish_if_done(self):
+        if self.status == RUNNING and self.k >= self.n_steps:
+            self.status = FINISHED
+
+
+class LockstepRun(SteppedRun):
     """One lockstep run: step ``k``, RK4 stage, status, running maxima and the finite-value check.
 
-    The contract follows :class:`scipy.integrate.OdeSolver`: a run is ``'running'`` until its
-    last step is done (``'finished'``) or a midspan deflection or acceleration is not finite
-    (``'failed'``, with a one-line :attr:`message`); stepping a run that is not running raises
-    ``RuntimeError``. Which sides a run holds decides what it can do:
+    The contract of :class:`SteppedRun`: a run is ``'running'`` until its last step is done
+    (``'finished'``) or a midspan deflection or acceleration is not finite (``'failed'``, with a
+    one-line :attr:`message`); stepping a run that is not running raises ``RuntimeError``. Which
+    sides a run holds decides what it can do:
 
     * **in process** (:func:`adm_sim.sweep.run_sweep`): a :class:`BridgeSide` and a
       :class:`TrainSide` (DIM) or a :class:`BridgeSide` and the modal-load table (MLM);
@@ -521,11 +579,8 @@ class LockstepRun:
         self.bridge_side = bridge_side
         self.train_side = train_side
         self.modal_loads = modal_loads
-        self.n_steps = int(grid.n_steps)
-        self.k = 0
+        self._start_contract(grid.n_steps)
         self.stage = 0
-        self.status = RUNNING if self.n_steps > 0 else FINISHED
-        self.message = ""
         self.max_acc_m_s2 = self.max_disp_m = self.disp_m = self.acc_m_s2 = None
         self.axles0 = self.interaction0_n = None  # stage-0 exchange of the step in progress
         if bridge_side is not None:
@@ -534,29 +589,16 @@ class LockstepRun:
             self._start_step()
 
     # ------------------------------------------------------------------ bookkeeping
-    def _require(self, what, ok, need):
-        if not ok:
-            raise RuntimeError(f"LockstepRun.{what}: needs {need}")
-        if self.status != RUNNING:
-            why = f": {self.message}" if self.message else ""
-            raise RuntimeError(f"LockstepRun.{what}: the run is {self.status} at step {self.k} of "
-                               f"{self.n_steps}{why}")
-
-    def _fail(self, what, values):
-        bad = np.flatnonzero(~np.isfinite(values))
-        v = float(self.grid.speeds_m_s[bad[0]]) * 3.6
-        self.status = FAILED
-        self.message = (f"solution is not finite at step {self.k} of {self.n_steps} (stage {self.stage}): "
-                        f"{what} in {bad.size} of {values.size} lanes (first at {v:.6g} km/h); the step "
-                        f"ds = {self.grid.ds_m:.4g} m is too large for this bridge/train "
-                        f"(raise steps_per_period or lower ds_m)")
+    def _fail_at(self, what, values):
+        self._fail(what, np.isfinite(values), f"at step {self.k} of {self.n_steps} (stage {self.stage})",
+                   self.grid.speeds_m_s, self.grid.ds_m)
 
     def _start_step(self):
         """Deflection at the start of step ``k``: check, and fold into the maxima (k < n_steps)."""
         d = self.bridge_side.midspan_displacement()
         self.disp_m = d
         if not _all_finite(d):
-            self._fail("midspan deflection", d)
+            self._fail_at("midspan deflection", d)
             return
         if self.k < self.n_steps:
             np.maximum(self.max_disp_m, np.abs(d), out=self.max_disp_m)
@@ -566,7 +608,7 @@ class LockstepRun:
         a = self.bridge_side.last_acc
         self.acc_m_s2 = a
         if not _all_finite(a):
-            self._fail("midspan acceleration", a)
+            self._fail_at("midspan acceleration", a)
             return
         np.maximum(self.max_acc_m_s2, np.abs(a), out=self.max_acc_m_s2)
 
@@ -575,8 +617,7 @@ class LockstepRun:
         self.k += 1
         if self.bridge_side is not None:
             self._start_step()
-        if self.status == RUNNING and self.k >= self.n_steps:
-            self.status = FINISHED
+        self._finish_if_done()
 
     def _next_stage(self):
         if self.stage < 3:
@@ -677,8 +718,7 @@ class LockstepRun:
         if n < 1:
             raise ValueError(f"LockstepRun.advance_block: max_steps = {max_steps} must be >= 1")
         self.k = k0 + n
-        if self.k >= self.n_steps:
-            self.status = FINISHED
+        self._finish_if_done()
         return k0, n
 
 
