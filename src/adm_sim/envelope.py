@@ -40,10 +40,10 @@ from adm_sim.errors import InputError, check_range
 
 #: Longest free vibration followed after the last axle has left, in fundamental periods.
 MAX_FREE_PERIODS = 30.0
+#: Samples evaluated together (the remaining intervals are pruned again after each chunk).
+CHUNK_SAMPLES = 200_000
 #: Newton iterations of the refinement (quadratic convergence from within a quarter period).
 NEWTON_ITERATIONS = 8
-#: Lanes processed together (sorted by speed, so a block samples for its own slowest lane).
-LANE_BLOCK = 48
 
 
 def check_frequency_limit_hz(bridge):
@@ -100,7 +100,7 @@ def _value(P, H, Om, lam, s, tau, order):
 
 
 def moving_load_envelope(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, delta_zeta=0.0,
-                         samples_per_period=6.0):
+                         samples_per_period=4.0):
     """Exact max |midspan acceleration| and |deflection| of the MLM at every speed.
 
     Parameters
@@ -140,23 +140,18 @@ def moving_load_envelope(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, delta
     bps, G = _events(offs, loads, L, jj, mass[0])  # equal modal masses mu L / 2
     G = G * (mass[0] / mass)
 
-    n = v_all.size
-    out = {k: np.zeros(n) for k in ("acc", "disp", "tacc", "tdisp")}
-    refined = 0
-    order = np.argsort(v_all, kind="stable")
-    for b0 in range(0, n, LANE_BLOCK):
-        lanes = order[b0:b0 + LANE_BLOCK]
-        res, nref = _block(v_all[lanes], L, jj, s, om, zeta, lam, bps, G, ppp)
-        refined += nref
-        for k in out:
-            out[k][lanes] = res[k]
+    res = _all_lanes(v_all, L, jj, s, om, zeta, lam, bps, G, ppp)
     return Envelope(speeds_kmh=np.atleast_1d(np.asarray(speeds_kmh, dtype=float)).copy(),
-                    max_acc_m_s2=out["acc"], max_disp_m=out["disp"], t_acc_s=out["tacc"],
-                    t_disp_s=out["tdisp"], modes=tuple(int(j) for j in jall), refined=refined)
+                    max_acc_m_s2=res["acc"], max_disp_m=res["disp"], t_acc_s=res["tacc"],
+                    t_disp_s=res["tdisp"], modes=tuple(int(j) for j in jall), refined=res["refined"])
 
 
-def _block(v, L, jj, s, om, zeta, lam, bps, G, ppp):
-    """Envelope of one block of lanes (speeds ``v`` in m/s)."""
+#: The two searched quantities: name -> derivative order of q (acceleration 2, deflection 0).
+_ORDERS = {"acc": 2, "disp": 0}
+
+
+def _all_lanes(v, L, jj, s, om, zeta, lam, bps, G, ppp):
+    """Propagate every lane from event to event, then search the maxima (see the module doc)."""
     nl = v.size
     Om = jj[None, :] * np.pi * v[:, None] / L  # (lanes, modes)
     dyn = 1.0 / (om**2 - Om**2 + 2j * zeta * om * Om)
@@ -165,78 +160,99 @@ def _block(v, L, jj, s, om, zeta, lam, bps, G, ppp):
     H = np.empty_like(P)
     T = np.empty((K, nl))
     T[:-1] = np.diff(bps)[:, None] / v[None, :]
+    t0 = bps[:, None] / v[None, :]  # (K, lanes) start time of every interval
     q = np.zeros((nl, jj.size))
     dq = np.zeros((nl, jj.size))
-    best = {"acc": np.zeros(nl), "disp": np.zeros(nl)}
-    when = {"acc": np.zeros(nl), "disp": np.zeros(nl)}
-    t0 = bps[:, None] / v[None, :]  # (K, lanes) start time of every interval
+    best = {name: np.zeros(nl) for name in _ORDERS}
+    when = {name: np.zeros(nl) for name in _ORDERS}
     for k in range(K):
         p = P[k]
         hi = q - p.imag
-        hr = (dq - Om * p.real - lam.real * hi) / lam.imag
-        H[k] = hr + 1j * hi
-        for name, order in (("acc", 2), ("disp", 0)):
+        H[k] = (dq - Om * p.real - lam.real * hi) / lam.imag + 1j * hi
+        for name, order in _ORDERS.items():  # exact values at the event instants
             val = np.abs(_value(p, H[k], Om, lam, s, np.zeros(nl), order))
             better = val > best[name]
             best[name] = np.where(better, val, best[name])
             when[name] = np.where(better, t0[k], when[name])
-        if k == K - 1:
-            break
-        eW = np.exp(1j * Om * T[k][:, None])
-        eL = np.exp(lam * T[k][:, None])
-        q = (p * eW).imag + (H[k] * eL).imag
-        dq = (1j * Om * p * eW).imag + (lam * H[k] * eL).imag
-    # free vibration: follow it until its bound falls below the best event value
-    sigma = -lam.real
-    bound_acc = (np.abs(s) * np.abs(lam) ** 2 * np.abs(H[-1])).sum(-1)
-    bound_disp = (np.abs(s) * np.abs(H[-1])).sum(-1)
-    with np.errstate(divide="ignore"):
-        t_free = np.maximum(np.log(np.maximum(bound_acc, 1e-300) / np.maximum(best["acc"], 1e-300)),
-                            np.log(np.maximum(bound_disp, 1e-300) / np.maximum(best["disp"], 1e-300))) / sigma.min()
+        if k < K - 1:
+            eW = np.exp(1j * Om * T[k][:, None])
+            eL = np.exp(lam * T[k][:, None])
+            q = (p * eW).imag + (H[k] * eL).imag
+            dq = (1j * Om * p * eW).imag + (lam * H[k] * eL).imag
+    # free vibration: follow it until its decaying bound falls below the best event value
+    t_free = np.zeros(nl)
+    for name, order in _ORDERS.items():
+        b = (np.abs(s) * np.abs(lam) ** order * np.abs(H[-1])).sum(-1)
+        with np.errstate(divide="ignore"):
+            t_free = np.maximum(t_free, np.log(np.maximum(b, 1e-300) / np.maximum(best[name], 1e-300)) / (-lam.real).min())
     T[-1] = np.clip(t_free, 0.0, MAX_FREE_PERIODS * 2.0 * np.pi / om[0])
-    f_max = max(np.abs(lam).max(), Om.max()) / (2.0 * np.pi)
-    nref = 0
-    for name, order in (("acc", 2), ("disp", 0)):
-        nref += _search(name, order, P, H, T, t0, Om, lam, s, best, when, f_max, ppp)
-    return {"acc": best["acc"], "disp": best["disp"], "tacc": when["acc"], "tdisp": when["disp"]}, nref
+    # intervals that can hold a larger value than the event instants
+    coef = {name: np.abs(s) * (np.abs(P) * Om**o + np.abs(H) * np.abs(lam) ** o) for name, o in _ORDERS.items()}
+    curv = {name: (np.abs(s) * (np.abs(P) * Om ** (o + 2) + np.abs(H) * np.abs(lam) ** (o + 2))).sum(-1)
+            for name, o in _ORDERS.items()}
+    bounds = {name: coef[name].sum(-1) for name in _ORDERS}
+    alive = np.zeros((K, nl), dtype=bool)
+    ratio = np.zeros((K, nl))
+    for name in _ORDERS:
+        r = bounds[name] / np.maximum(best[name], 1e-300)[None, :]
+        alive |= r > 1.0
+        ratio = np.maximum(ratio, r)
+    kk, ll = np.nonzero(alive & (T > 0.0))
+    order = np.argsort(-ratio[kk, ll], kind="stable")  # largest bound first: the floor rises fast
+    kk, ll = kk[order], ll[order]
+    f_lane = np.maximum(np.abs(lam).max(), Om.max(1)) / (2.0 * np.pi)  # fastest component per lane
+    cands = {name: [] for name in _ORDERS}
+    while kk.size:  # chunks of about CHUNK_SAMPLES samples; re-prune against the risen floor
+        m = np.ceil(T[kk, ll] * f_lane[ll] * ppp).astype(np.int64) + 1  # steps per interval
+        stop = max(1, int(np.searchsorted(np.cumsum(m + 1), CHUNK_SAMPLES)))
+        _sample(kk[:stop], ll[:stop], m[:stop], P, H, T, t0, Om, lam, s, curv, best, when, cands)
+        kk, ll = kk[stop:], ll[stop:]
+        still = np.zeros(kk.size, dtype=bool)
+        for name in _ORDERS:
+            still |= bounds[name][kk, ll] > best[name][ll]
+        kk, ll = kk[still], ll[still]
+    refined = 0
+    for name, order in _ORDERS.items():
+        refined += _refine(name, order, cands[name], P, H, T, t0, Om, lam, s, best, when)
+    return {"acc": best["acc"], "disp": best["disp"], "tacc": when["acc"], "tdisp": when["disp"],
+            "refined": refined}
 
 
-def _search(name, order, P, H, T, t0, Om, lam, s, best, when, f_max, ppp):
-    """Sample the intervals that can hold the maximum, then refine the candidates (in place)."""
-    K, nl = T.shape
-    coef = np.abs(s) * (np.abs(P) * Om ** order + np.abs(H) * np.abs(lam) ** order)  # (K, lanes, modes)
-    bound = coef.sum(-1)
-    curv = (np.abs(s) * (np.abs(P) * Om ** (order + 2) + np.abs(H) * np.abs(lam) ** (order + 2))).sum(-1)
-    floor = best[name].copy()  # exact values at event instants: a lower bound of the maximum
-    cands = []  # (k, lane index array, tau array, h array, value array)
-    for k in range(K):
-        lanes = np.flatnonzero((bound[k] > floor) & (T[k] > 0.0))
-        if lanes.size == 0:
-            continue
-        m = int(math.ceil(T[k, lanes].max() * f_max * ppp)) + 1
-        u = np.linspace(0.0, 1.0, m + 1)
-        tau = u[None, :] * T[k, lanes][:, None]  # (A, m+1)
-        y = np.abs(_value(P[k, lanes][:, None, :], H[k, lanes][:, None, :], Om[lanes][:, None, :],
-                          lam, s, tau, order))
-        i_best = y.argmax(1)
-        top = y[np.arange(lanes.size), i_best]
-        better = top > best[name][lanes]
-        best[name][lanes[better]] = top[better]
-        when[name][lanes[better]] = t0[k, lanes[better]] + tau[better, i_best[better]]
-        # sampled local maxima (ends compare with their single neighbour)
-        left = np.concatenate([np.full((lanes.size, 1), -np.inf), y[:, :-1]], 1)
-        right = np.concatenate([y[:, 1:], np.full((lanes.size, 1), -np.inf)], 1)
-        loc = (y >= left) & (y >= right)
-        h = T[k, lanes] / m
-        li, ii = np.nonzero(loc)
-        if li.size:
-            cands.append((k, lanes[li], tau[li, ii], h[li], y[li, ii], curv[k, lanes[li]] * h[li] ** 2 / 4.0))
+def _sample(kk, ll, m, P, H, T, t0, Om, lam, s, curv, best, when, cands):
+    """Sample the (interval, lane) pairs ``kk, ll`` at ``m + 1`` points each (flat, no loops)."""
+    c = m + 1
+    pair = np.repeat(np.arange(kk.size), c)
+    first = np.cumsum(c) - c
+    i = np.arange(pair.size) - first[pair]
+    h = T[kk, ll] / m
+    tau = i * h[pair]
+    E1 = np.exp(1j * Om[ll][pair] * tau[:, None])
+    E2 = np.exp(lam * tau[:, None])
+    p, hh, om_p = s * P[kk, ll], s * H[kk, ll], Om[ll]
+    is_first = i == 0
+    is_last = i == m[pair]
+    for name, order in _ORDERS.items():
+        c1 = (p * (1j * om_p) ** order)[pair]
+        c2 = (hh * lam**order)[pair]
+        y = np.abs((c1.real * E1.imag + c1.imag * E1.real + c2.real * E2.imag + c2.imag * E2.real).sum(-1))
+        lane = ll[pair]
+        _update(best[name], when[name], lane, y, t0[kk[pair], lane] + tau)
+        left = np.where(is_first, -np.inf, np.roll(y, 1))
+        right = np.where(is_last, -np.inf, np.roll(y, -1))
+        loc = np.flatnonzero((y >= left) & (y >= right))
+        slack = curv[name][kk[pair[loc]], lane[loc]] * h[pair[loc]] ** 2 / 4.0
+        cands[name].append((kk[pair[loc]], lane[loc], tau[loc], h[pair[loc]], y[loc] + slack))
+
+
+def _refine(name, order, cands, P, H, T, t0, Om, lam, s, best, when):
+    """Newton on the derivative inside each candidate's two-sample bracket (in place)."""
     if not cands:
         return 0
-    k_c = np.concatenate([np.full(c[1].size, c[0]) for c in cands])
-    lane_c, tau_c, h_c, y_c, slack = (np.concatenate([c[i] for c in cands]) for i in range(1, 6))
-    keep = y_c + slack >= best[name][lane_c]
+    k_c, lane_c, tau_c, h_c, reach = (np.concatenate([c[i] for c in cands]) for i in range(5))
+    keep = reach >= best[name][lane_c]
     k_c, lane_c, tau_c, h_c = k_c[keep], lane_c[keep], tau_c[keep], h_c[keep]
+    if k_c.size == 0:
+        return 0
     p, hh, om_c = P[k_c, lane_c], H[k_c, lane_c], Om[lane_c]
     lo = np.maximum(tau_c - h_c, 0.0)
     hi = np.minimum(tau_c + h_c, T[k_c, lane_c])
@@ -248,14 +264,21 @@ def _search(name, order, P, H, T, t0, Om, lam, s, best, when, f_max, ppp):
             step = np.where(g2 != 0.0, g1 / g2, 0.0)
         x = np.clip(x - step, lo, hi)
     val = np.abs(_value(p, hh, om_c, lam, s, x, order))
-    top = np.full(best[name].size, -np.inf)
-    np.maximum.at(top, lane_c, val)
-    better = top > best[name]
-    for ln in np.flatnonzero(better):
-        i = np.flatnonzero((lane_c == ln) & (val == top[ln]))[0]
-        when[name][ln] = t0[k_c[i], ln] + x[i]
-    best[name] = np.where(better, top, best[name])
+    _update(best[name], when[name], lane_c, val, t0[k_c, lane_c] + x)
     return int(k_c.size)
+
+
+def _update(best, when, lane, y, t):
+    """In place: ``best[l] = max(best[l], y[lane == l])`` and the time ``t`` of a new maximum."""
+    top = np.full(best.size, -np.inf)
+    np.maximum.at(top, lane, y)
+    better = top > best
+    if not better.any():
+        return
+    hit = np.flatnonzero(better[lane] & (y == top[lane]))
+    lanes, first = np.unique(lane[hit], return_index=True)
+    best[lanes] = top[lanes]
+    when[lanes] = t[hit[first]]
 
 
 __all__ = ["Envelope", "moving_load_envelope", "check_mode_count", "check_frequency_limit_hz",
