@@ -31,6 +31,7 @@ mode's frequency (:func:`check_mode_count`).
 
 from __future__ import annotations
 
+import cmath
 import math
 from dataclasses import dataclass
 
@@ -38,10 +39,16 @@ import numpy as np
 
 from adm_sim.errors import InputError, check_range
 
+try:  # numba compiles the search loop; without it the same source runs as plain Python (slow)
+    from numba import njit
+except ImportError:  # pragma: no cover - numba is in requirements.txt
+    def njit(*args, **kwargs):
+        if args and callable(args[0]):
+            return args[0]
+        return lambda f: f
+
 #: Longest free vibration followed after the last axle has left, in fundamental periods.
 MAX_FREE_PERIODS = 30.0
-#: Samples evaluated together (the remaining intervals are pruned again after each chunk).
-CHUNK_SAMPLES = 200_000
 #: Newton iterations of the refinement (quadratic convergence from within a quarter period).
 NEWTON_ITERATIONS = 8
 
@@ -93,12 +100,6 @@ def _events(offsets, loads, span, jj, mass):
     return bps, G
 
 
-def _value(P, H, Om, lam, s, tau, order):
-    """sum_j s_j Im[P (i Om)^n e^(i Om tau) + H lam^n e^(lam tau)]; tau broadcasts on axis -2."""
-    t = tau[..., None]
-    return (s * (P * (1j * Om) ** order * np.exp(1j * Om * t) + H * lam**order * np.exp(lam * t)).imag).sum(-1)
-
-
 def moving_load_envelope(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, delta_zeta=0.0,
                          samples_per_period=4.0):
     """Exact max |midspan acceleration| and |deflection| of the MLM at every speed.
@@ -146,10 +147,6 @@ def moving_load_envelope(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, delta
                     t_disp_s=res["tdisp"], modes=tuple(int(j) for j in jall), refined=res["refined"])
 
 
-#: The two searched quantities: name -> derivative order of q (acceleration 2, deflection 0).
-_ORDERS = {"acc": 2, "disp": 0}
-
-
 def _all_lanes(v, L, jj, s, om, zeta, lam, bps, G, ppp):
     """Propagate every lane from event to event, then search the maxima (see the module doc)."""
     nl = v.size
@@ -163,122 +160,121 @@ def _all_lanes(v, L, jj, s, om, zeta, lam, bps, G, ppp):
     t0 = bps[:, None] / v[None, :]  # (K, lanes) start time of every interval
     q = np.zeros((nl, jj.size))
     dq = np.zeros((nl, jj.size))
-    best = {name: np.zeros(nl) for name in _ORDERS}
-    when = {name: np.zeros(nl) for name in _ORDERS}
     for k in range(K):
         p = P[k]
         hi = q - p.imag
         H[k] = (dq - Om * p.real - lam.real * hi) / lam.imag + 1j * hi
-        for name, order in _ORDERS.items():  # exact values at the event instants
-            val = np.abs(_value(p, H[k], Om, lam, s, np.zeros(nl), order))
-            better = val > best[name]
-            best[name] = np.where(better, val, best[name])
-            when[name] = np.where(better, t0[k], when[name])
         if k < K - 1:
             eW = np.exp(1j * Om * T[k][:, None])
             eL = np.exp(lam * T[k][:, None])
             q = (p * eW).imag + (H[k] * eL).imag
             dq = (1j * Om * p * eW).imag + (lam * H[k] * eL).imag
+    # midspan acceleration (2nd derivative) and deflection as sum_j Im[c1 e^(i Om tau) + c2 e^(lam tau)]
+    coef_a1, coef_a2 = s * P * (1j * Om) ** 2, s * H * lam**2
+    coef_d1, coef_d2 = s * P, s * H
+    best2 = np.empty((2, nl))
+    when2 = np.empty((2, nl))
+    for q_, (c1, c2) in enumerate(((coef_a1, coef_a2), (coef_d1, coef_d2))):  # exact values at the events
+        at_event = np.abs((c1 + c2).imag.sum(-1))  # (K, lanes)
+        i = at_event.argmax(0)
+        best2[q_] = at_event[i, np.arange(nl)]
+        when2[q_] = t0[i, np.arange(nl)]
     # free vibration: follow it until its decaying bound falls below the best event value
     t_free = np.zeros(nl)
-    for name, order in _ORDERS.items():
-        b = (np.abs(s) * np.abs(lam) ** order * np.abs(H[-1])).sum(-1)
+    for q_, c2 in enumerate((coef_a2, coef_d2)):
+        b = np.abs(c2[-1]).sum(-1)
         with np.errstate(divide="ignore"):
-            t_free = np.maximum(t_free, np.log(np.maximum(b, 1e-300) / np.maximum(best[name], 1e-300)) / (-lam.real).min())
+            t_free = np.maximum(t_free, np.log(np.maximum(b, 1e-300) / np.maximum(best2[q_], 1e-300)) / (-lam.real).min())
     T[-1] = np.clip(t_free, 0.0, MAX_FREE_PERIODS * 2.0 * np.pi / om[0])
-    # intervals that can hold a larger value than the event instants
-    coef = {name: np.abs(s) * (np.abs(P) * Om**o + np.abs(H) * np.abs(lam) ** o) for name, o in _ORDERS.items()}
-    curv = {name: (np.abs(s) * (np.abs(P) * Om ** (o + 2) + np.abs(H) * np.abs(lam) ** (o + 2))).sum(-1)
-            for name, o in _ORDERS.items()}
-    bounds = {name: coef[name].sum(-1) for name in _ORDERS}
-    alive = np.zeros((K, nl), dtype=bool)
-    ratio = np.zeros((K, nl))
-    for name in _ORDERS:
-        r = bounds[name] / np.maximum(best[name], 1e-300)[None, :]
-        alive |= r > 1.0
-        ratio = np.maximum(ratio, r)
-    kk, ll = np.nonzero(alive & (T > 0.0))
-    order = np.argsort(-ratio[kk, ll], kind="stable")  # largest bound first: the floor rises fast
-    kk, ll = kk[order], ll[order]
+    # intervals that can hold a larger value than the event instants, largest bound first
+    bound = np.stack([(np.abs(coef_a1) + np.abs(coef_a2)).sum(-1), (np.abs(coef_d1) + np.abs(coef_d2)).sum(-1)])
+    curv = np.stack([(np.abs(coef_a1) * Om**2 + np.abs(coef_a2) * np.abs(lam) ** 2).sum(-1),
+                     (np.abs(coef_d1) * Om**2 + np.abs(coef_d2) * np.abs(lam) ** 2).sum(-1)])
+    ratio = (bound / np.maximum(best2, 1e-300)[:, None, :]).max(0)
+    kk, ll = np.nonzero((ratio > 1.0) & (T > 0.0))
+    order = np.argsort(-ratio[kk, ll], kind="stable")
     f_lane = np.maximum(np.abs(lam).max(), Om.max(1)) / (2.0 * np.pi)  # fastest component per lane
-    cands = {name: [] for name in _ORDERS}
-    while kk.size:  # chunks of about CHUNK_SAMPLES samples; re-prune against the risen floor
-        m = np.ceil(T[kk, ll] * f_lane[ll] * ppp).astype(np.int64) + 1  # steps per interval
-        stop = max(1, int(np.searchsorted(np.cumsum(m + 1), CHUNK_SAMPLES)))
-        _sample(kk[:stop], ll[:stop], m[:stop], P, H, T, t0, Om, lam, s, curv, best, when, cands)
-        kk, ll = kk[stop:], ll[stop:]
-        still = np.zeros(kk.size, dtype=bool)
-        for name in _ORDERS:
-            still |= bounds[name][kk, ll] > best[name][ll]
-        kk, ll = kk[still], ll[still]
-    refined = 0
-    for name, order in _ORDERS.items():
-        refined += _refine(name, order, cands[name], P, H, T, t0, Om, lam, s, best, when)
-    return {"acc": best["acc"], "disp": best["disp"], "tacc": when["acc"], "tdisp": when["disp"],
-            "refined": refined}
+    m = np.ceil(T[kk[order], ll[order]] * f_lane[ll[order]] * ppp).astype(np.int64) + 1
+    refined = _search_kernel(kk[order], ll[order], m, coef_a1, coef_a2, coef_d1, coef_d2, Om, lam, T, t0,
+                             bound, curv, best2, when2)
+    return {"acc": best2[0], "disp": best2[1], "tacc": when2[0], "tdisp": when2[1], "refined": int(refined)}
 
 
-def _sample(kk, ll, m, P, H, T, t0, Om, lam, s, curv, best, when, cands):
-    """Sample the (interval, lane) pairs ``kk, ll`` at ``m + 1`` points each (flat, no loops)."""
-    c = m + 1
-    pair = np.repeat(np.arange(kk.size), c)
-    first = np.cumsum(c) - c
-    i = np.arange(pair.size) - first[pair]
-    h = T[kk, ll] / m
-    tau = i * h[pair]
-    E1 = np.exp(1j * Om[ll][pair] * tau[:, None])
-    E2 = np.exp(lam * tau[:, None])
-    p, hh, om_p = s * P[kk, ll], s * H[kk, ll], Om[ll]
-    is_first = i == 0
-    is_last = i == m[pair]
-    for name, order in _ORDERS.items():
-        c1 = (p * (1j * om_p) ** order)[pair]
-        c2 = (hh * lam**order)[pair]
-        y = np.abs((c1.real * E1.imag + c1.imag * E1.real + c2.real * E2.imag + c2.imag * E2.real).sum(-1))
-        lane = ll[pair]
-        _update(best[name], when[name], lane, y, t0[kk[pair], lane] + tau)
-        left = np.where(is_first, -np.inf, np.roll(y, 1))
-        right = np.where(is_last, -np.inf, np.roll(y, -1))
-        loc = np.flatnonzero((y >= left) & (y >= right))
-        slack = curv[name][kk[pair[loc]], lane[loc]] * h[pair[loc]] ** 2 / 4.0
-        cands[name].append((kk[pair[loc]], lane[loc], tau[loc], h[pair[loc]], y[loc] + slack))
+@njit(cache=True, nogil=True)
+def _eval(c1, c2, om, lam, tau, n):
+    """sum_j Im[c1_j (i om_j)^n e^(i om_j tau) + c2_j lam_j^n e^(lam_j tau)] (n-th derivative)."""
+    y = 0.0
+    for j in range(c1.size):
+        w = 1j * om[j]
+        y += (c1[j] * w**n * cmath.exp(w * tau) + c2[j] * lam[j] ** n * cmath.exp(lam[j] * tau)).imag
+    return y
 
 
-def _refine(name, order, cands, P, H, T, t0, Om, lam, s, best, when):
-    """Newton on the derivative inside each candidate's two-sample bracket (in place)."""
-    if not cands:
-        return 0
-    k_c, lane_c, tau_c, h_c, reach = (np.concatenate([c[i] for c in cands]) for i in range(5))
-    keep = reach >= best[name][lane_c]
-    k_c, lane_c, tau_c, h_c = k_c[keep], lane_c[keep], tau_c[keep], h_c[keep]
-    if k_c.size == 0:
-        return 0
-    p, hh, om_c = P[k_c, lane_c], H[k_c, lane_c], Om[lane_c]
-    lo = np.maximum(tau_c - h_c, 0.0)
-    hi = np.minimum(tau_c + h_c, T[k_c, lane_c])
-    x = tau_c.copy()
+@njit(cache=True, nogil=True)
+def _newton(c1, c2, om, lam, x, lo, hi):
+    """Local extremum of the function of (c1, c2) near x inside [lo, hi] (Newton on its derivative)."""
     for _ in range(NEWTON_ITERATIONS):
-        g1 = _value(p, hh, om_c, lam, s, x, order + 1)
-        g2 = _value(p, hh, om_c, lam, s, x, order + 2)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            step = np.where(g2 != 0.0, g1 / g2, 0.0)
-        x = np.clip(x - step, lo, hi)
-    val = np.abs(_value(p, hh, om_c, lam, s, x, order))
-    _update(best[name], when[name], lane_c, val, t0[k_c, lane_c] + x)
-    return int(k_c.size)
+        g2 = _eval(c1, c2, om, lam, x, 2)
+        if g2 == 0.0:
+            break
+        x = min(hi, max(lo, x - _eval(c1, c2, om, lam, x, 1) / g2))
+    return x, abs(_eval(c1, c2, om, lam, x, 0))
 
 
-def _update(best, when, lane, y, t):
-    """In place: ``best[l] = max(best[l], y[lane == l])`` and the time ``t`` of a new maximum."""
-    top = np.full(best.size, -np.inf)
-    np.maximum.at(top, lane, y)
-    better = top > best
-    if not better.any():
-        return
-    hit = np.flatnonzero(better[lane] & (y == top[lane]))
-    lanes, first = np.unique(lane[hit], return_index=True)
-    best[lanes] = top[lanes]
-    when[lanes] = t[hit[first]]
+@njit(cache=True, nogil=True)
+def _search_kernel(kk, ll, m, ca1, ca2, cd1, cd2, Om, lam, T, t0, bound, curv, best, when):
+    """Sample every (interval, lane) pair that can still hold a maximum (pruned again against the
+    risen best before each pair), refine every sampled local maximum of |a| and |w| that can reach
+    the best by Newton inside its two-sample bracket; ``best`` and ``when`` (2, lanes) in place."""
+    nm = lam.size
+    refined = 0
+    ya = np.empty(3)
+    for p in range(kk.size):
+        k, l = kk[p], ll[p]
+        if bound[0, k, l] <= best[0, l] and bound[1, k, l] <= best[1, l]:
+            continue
+        T_ = T[k, l]
+        h = T_ / m[p]
+        om = Om[l]
+        for q in range(2):  # 0: acceleration, 1: deflection
+            if bound[q, k, l] <= best[q, l]:
+                continue
+            c1 = ca1[k, l] if q == 0 else cd1[k, l]
+            c2 = ca2[k, l] if q == 0 else cd2[k, l]
+            slack = curv[q, k, l] * h * h / 4.0
+            r1 = np.empty(nm, dtype=np.complex128)
+            r2 = np.empty(nm, dtype=np.complex128)
+            e1 = np.ones(nm, dtype=np.complex128)
+            e2 = np.ones(nm, dtype=np.complex128)
+            for j in range(nm):
+                r1[j] = cmath.exp(1j * om[j] * h)
+                r2[j] = cmath.exp(lam[j] * h)
+            for i in range(m[p] + 1):
+                y = 0.0
+                for j in range(nm):
+                    y += (c1[j] * e1[j] + c2[j] * e2[j]).imag
+                    e1[j] *= r1[j]
+                    e2[j] *= r2[j]
+                y = abs(y)
+                ya[0], ya[1], ya[2] = ya[1], ya[2], y
+                if y > best[q, l]:
+                    best[q, l] = y
+                    when[q, l] = t0[k, l] + i * h
+                # sample i-1 is a local maximum (the first sample compares with its right side only)
+                if i >= 1 and ya[1] >= ya[2] and (i == 1 or ya[1] >= ya[0]) and ya[1] + slack >= best[q, l]:
+                    refined += _refine_at(c1, c2, om, lam, (i - 1) * h, h, T_, t0[k, l], best, when, q, l)
+            if ya[2] >= ya[1] and ya[2] + slack >= best[q, l]:  # the last sample
+                refined += _refine_at(c1, c2, om, lam, m[p] * h, h, T_, t0[k, l], best, when, q, l)
+    return refined
+
+
+@njit(cache=True, nogil=True)
+def _refine_at(c1, c2, om, lam, x, h, T_, t_start, best, when, q, l):
+    x, y = _newton(c1, c2, om, lam, x, max(0.0, x - h), min(T_, x + h))
+    if y > best[q, l]:
+        best[q, l] = y
+        when[q, l] = t_start + x
+    return 1
 
 
 __all__ = ["Envelope", "moving_load_envelope", "check_mode_count", "check_frequency_limit_hz",
