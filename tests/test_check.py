@@ -154,3 +154,23 @@ def test_cli_outputs_and_no_overwrite(tmp_path):
     assert js.read_text() == before
     r = run("check", "--max-line-speed", "250", "--trains", "HSLM-A1", "--csv", str(tmp_path / "x.txt"))
     assert r.returncode == 2 and "must end in .csv" in r.stderr
+
+
+def test_comfort_b_v_limits_and_convergence():
+    """Passenger comfort b_v from the DIM: step-converged, ~0 on a rigid bridge, larger on a light
+    bridge (B3 weighs 0.41 of B1 at the same n0), level by EN 1990 A2.4.4.3 Table A2.9."""
+    from adm_calib.check import comfort_b_v, comfort_level
+    from adm_sim.stepping import StepOptions
+
+    t = load_train("ICE-2")
+    v = np.array([200.0, 263.0])
+    b1 = comfort_b_v(named_bridge("B1"), t, v)
+    fine = comfort_b_v(named_bridge("B1"), t, v, options=StepOptions(steps_per_period=32))
+    np.testing.assert_allclose(b1, fine, rtol=1e-2)
+    assert 0.05 < b1.max() < 1.0
+    rigid = Bridge.from_frequency(15.0, 80.0, 1e6, 0.02, n_modes=1)  # 80 Hz, 1000 t/m: deflections ~1e-4 of B1
+    assert comfort_b_v(rigid, t, v).max() < 1e-3 * b1.max()
+    assert comfort_b_v(named_bridge("B3"), t, v).max() > b1.max()
+    assert [comfort_level(x) for x in (0.5, 1.2, 1.9, 2.5)] == ["very good", "good", "acceptable", "beyond acceptable"]
+    with pytest.raises(InputError, match=r"comfort: 'HSLM-A1' has no vehicles; b_v needs the DIM"):
+        comfort_b_v(named_bridge("B1"), load_train("HSLM-A1"), v)

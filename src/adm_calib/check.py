@@ -48,6 +48,8 @@ DAMPING_METHODS = ("none", "adm", "lb", "vbi")
 #: Refinement around every resonance: half-width and step (km/h).
 REFINE_HALF_WIDTH_KMH = 1.0
 REFINE_STEP_KMH = 0.1
+#: Passenger comfort: vertical car-body acceleration b_v (m/s^2) per level, EN 1990 A2.4.4.3.2 Table A2.9.
+COMFORT_LEVELS_M_S2 = (("very good", 1.0), ("good", 1.3), ("acceptable", 2.0))
 #: Spans below which HSLM-B applies instead of HSLM-A for simply supported bridges (EN 1991-2 6.4.6.1.1(5)).
 HSLM_B_SPAN_M = 7.0
 
@@ -64,6 +66,7 @@ class TrainCheck:
     delta_zeta_pct: float
     damping_note: str
     static_disp_m: float
+    comfort_b_v_m_s2: np.ndarray | None = None  # per speed of the base grid (DIM), or None
 
     @property
     def i_max(self):
@@ -74,13 +77,21 @@ class TrainCheck:
         """phi'_dyn = max y_dyn / y_stat (EN 1991-2 6.4.6.5(3))."""
         return float(self.max_disp_m.max() / self.static_disp_m)
 
+    def comfort_dict(self):
+        """Largest b_v and the EN 1990 A2.4.4.3 level it reaches, or None (no DIM run)."""
+        if self.comfort_b_v_m_s2 is None:
+            return None
+        bv = float(self.comfort_b_v_m_s2.max())
+        return {"b_v_m_s2": bv, "level": comfort_level(bv),
+                "b_v_curve_m_s2": self.comfort_b_v_m_s2.tolist()}
+
     def to_dict(self):
         i = self.i_max
         return {"train": self.name, "kind": self.kind, "delta_zeta_pct": self.delta_zeta_pct,
                 "damping_note": self.damping_note,
                 "max_acc_m_s2": float(self.max_acc_m_s2[i]), "at_speed_kmh": float(self.speeds_kmh[i]),
                 "max_disp_m": float(self.max_disp_m.max()), "static_disp_m": self.static_disp_m,
-                "phi_dyn": self.phi_dyn,
+                "phi_dyn": self.phi_dyn, "comfort": self.comfort_dict(),
                 "curve": {"speeds_kmh": self.speeds_kmh.tolist(), "max_acc_m_s2": self.max_acc_m_s2.tolist(),
                           "max_disp_m": self.max_disp_m.tolist()}}
 
@@ -131,6 +142,12 @@ class CheckResult:
             i = c.i_max
             lines.append(f"{c.name:14s} {c.max_acc_m_s2[i]:9.4f} {c.speeds_kmh[i]:8.1f} "
                          f"{1000 * c.max_disp_m.max():9.3f} {c.phi_dyn:8.3f} {c.delta_zeta_pct:7.3f}")
+        for c in self.trains:
+            cd = c.comfort_dict()
+            if cd is not None:
+                lines.append(f"passenger comfort {c.name}: largest vertical car-body acceleration b_v = "
+                             f"{cd['b_v_m_s2']:.3f} m/s2 (DIM): {cd['level']} (EN 1990 A2.4.4.3: 1.0 very good, "
+                             f"1.3 good, 2.0 acceptable)")
         t, sp, acc = self.governing
         margin = self.limit_m_s2 - acc
         lines.append(f"governing: {t.name} at {sp:g} km/h, max deck acceleration {acc:.4f} m/s2; limit "
@@ -279,6 +296,53 @@ def static_midspan_max_m(bridge, offsets, loads, n_per_span=2000):
     return float(np.abs(w).max())
 
 
+def comfort_level(b_v_m_s2):
+    """EN 1990 A2.4.4.3.2 Table A2.9 level reached by ``b_v`` (m/s^2)."""
+    for name, lim in COMFORT_LEVELS_M_S2:
+        if b_v_m_s2 <= lim:
+            return name
+    return "beyond acceptable"
+
+
+def comfort_b_v(bridge, train, speeds_kmh, options=None):
+    """Largest vertical car-body acceleration b_v (m/s^2) per speed from the DIM (bridge ζ only).
+
+    Every car body's acceleration at its two pivot points (bounce plus pitch; the body's extremes,
+    since the motion is linear along the body) by differencing the DIM velocities over each step,
+    maximum over the crossing. A vehicle is integrated while an axle is on the bridge (the core's
+    rule on a rigid track), so its motion after leaving the bridge is not followed.
+    """
+    from adm_sim.stepping import BridgeSide, LockstepRun, StepOptions, TrainSide, make_grid, speeds_to_m_s
+
+    if not train.units:
+        raise InputError(f"comfort: {train.name!r} has no vehicles; b_v needs the DIM")
+    v = speeds_to_m_s(speeds_kmh)
+    grid = make_grid(bridge, train.length_m, v, options or StepOptions())
+    side = TrainSide(train, grid, bridge.span_m)
+    run = LockstepRun("dim", grid, bridge_side=BridgeSide(bridge, grid, train.axle_offsets_m, train.wheel_mass_kg,
+                                                          np.zeros(v.shape)), train_side=side)
+    iz, ith, half = [], [], []
+    start = 0
+    for unit in train.units:  # DOFs per unit: [z, theta] of its cars, then of its bogies (trains.py)
+        for ci, (_, (p1, p2)) in enumerate(unit.cars):
+            iz.append(start + 2 * ci)
+            ith.append(start + 2 * ci + 1)
+            half.append(0.5 * (p2 - p1))
+        start += unit.n_dof
+    iz, ith, half = np.array(iz), np.array(ith), np.array(half)
+    dt = grid.dt_s[:, None]
+    prev_z, prev_th = side.xd[:, iz].copy(), side.xd[:, ith].copy()
+    b_v = np.zeros(v.size)
+    for _ in range(grid.n_steps):
+        if run.step() is not None:
+            raise InputError(run.message)
+        z, th = side.xd[:, iz], side.xd[:, ith]
+        az, ath = (z - prev_z) / dt, (th - prev_th) / dt
+        b_v = np.maximum(b_v, np.maximum(np.abs(az + half * ath), np.abs(az - half * ath)).max(1))
+        prev_z, prev_th = z.copy(), th.copy()
+    return b_v
+
+
 def screening(bridge, max_line_speed_kmh):
     """EN 1991-2 6.4.4 (Figs. 6.9, 6.10): is a dynamic analysis required? One sentence."""
     L, n0 = bridge.span_m, bridge.n0_hz
@@ -309,7 +373,7 @@ def _refinement(speeds, acc, extra, vmin, vmax):
 
 
 def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="none", step_kmh=1.0,
-              progress=None, calibrate_options=None):
+              progress=None, calibrate_options=None, comfort=False):
     """The dynamic check of ``bridge`` for ``trains`` (see the module doc).
 
     Parameters
@@ -325,6 +389,9 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
         Speed step (km/h), (0, 1].
     progress : callable(done, total), optional
         Called once per train.
+    comfort : bool
+        Also run the DIM of every train with vehicles over the speeds for the passenger comfort
+        b_v (EN 1990 A2.4.4.3); HSLM trains have no car bodies.
 
     Returns
     -------
@@ -365,9 +432,11 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
             v_all = v_all[order]
             acc = np.concatenate([acc, ef.max_acc_m_s2])[order]
             disp = np.concatenate([disp, ef.max_disp_m])[order]
+        b_v = comfort_b_v(b, t, speeds) if comfort and t.units else None
         out.append(TrainCheck(name=t.name, kind="hslm" if _is_hslm(t) else "train", speeds_kmh=v_all,
                               max_acc_m_s2=acc, max_disp_m=disp, delta_zeta_pct=float(dz_pct),
-                              damping_note=note, static_disp_m=static_midspan_max_m(b, t.axle_offsets_m, t.axle_loads_n)))
+                              damping_note=note, static_disp_m=static_midspan_max_m(b, t.axle_offsets_m, t.axle_loads_n),
+                              comfort_b_v_m_s2=b_v))
         if progress is not None:
             progress(n + 1, len(trains))
     return CheckResult(bridge=b, max_line_speed_kmh=float(max_line_speed_kmh), track=track, damping=damping,
