@@ -113,7 +113,9 @@ def test_bad_trains():
 
 
 @pytest.mark.parametrize("args,line", [
-    (["--max-line-speed", "140"], "error: --max-line-speed: 140 km/h is out of range; allowed (144, 500] km/h\n"),
+    (["--max-line-speed", "140"], "error: --max-line-speed: 140 km/h is out of range; allowed (144, 500] km/h "
+                                  "(the check runs from 40 m/s = 144 km/h up to 1.2 V, EN 1991-2 6.4.6.2; 1.2 V at "
+                                  "most 600 km/h)\n"),
     (["--max-line-speed", "300", "--trains", "hslm,Thalys"],
      "error: train: 'Thalys' is unknown; allowed ICE-2, Eurostar, Railjet, ICE-4, Eurostar-table, "
      "HSLM-A1 .. HSLM-A10, or a .toml train file\n"),

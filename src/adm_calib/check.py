@@ -206,7 +206,11 @@ class CheckResult:
 def check_speeds_kmh(max_line_speed_kmh, step_kmh=1.0):
     """The speeds of the check (km/h): 40 m/s .. 1.2 V at ``step_kmh``, both ends included."""
     lo = MIN_SPEED_M_S * 3.6
-    V = check_range("--max-line-speed", max_line_speed_kmh, "km/h", lo, 500.0, lo_open=True)
+    try:
+        V = check_range("--max-line-speed", max_line_speed_kmh, "km/h", lo, 500.0, lo_open=True)
+    except InputError as exc:
+        raise InputError(f"{exc} (the check runs from 40 m/s = 144 km/h up to 1.2 V, EN 1991-2 6.4.6.2; "
+                         f"1.2 V at most 600 km/h)") from None
     step = check_range("--speed-step", step_kmh, "km/h", 0.0, 1.0, lo_open=True)
     hi = DESIGN_SPEED_FACTOR * V
     n = int(math.floor((hi - lo) / step + 1e-9))

@@ -245,7 +245,7 @@ def build_parser():
 
     s = sub.add_parser("sweep", help="max midspan acceleration over a speed range")
     s.add_argument("--bridge", default="B1", help="B1..B4, a spec L=15,n0=8.26,mu=19042,zeta_pct=1.85, or a TOML file")
-    s.add_argument("--train", default="ICE-2", help="ICE-2, Eurostar, Railjet, ICE-4, Eurostar-table, or a TOML file")
+    s.add_argument("--train", default="ICE-2", help="ICE-2, Eurostar, Railjet, ICE-4, Eurostar-table, HSLM-A1..A10 (MLM only), or a TOML file")
     s.add_argument("--model", choices=("mlm", "dim"), default="mlm")
     s.add_argument("--speeds", default="160:350:1", help="km/h, start:stop:step or a comma list")
     s.add_argument("--delta-zeta-pct", type=float, default=0.0, help="additional damping (%%)")
