@@ -126,3 +126,5 @@ def test_envelope_bad_input():
         moving_load_envelope(bridge, [0.0], [1e5], [200.0], samples_per_period=2)
     with pytest.raises(InputError, match=r"speed_kmh: 700 km/h is out of range"):
         moving_load_envelope(bridge, [0.0], [1e5], [700.0])
+    with pytest.raises(InputError, match=r"damping: zeta \+ delta_zeta = 0 %; the exact envelope needs damping > 0 %"):
+        moving_load_envelope(bridge.with_damping(0.0), [0.0], [1e5], [200.0])

@@ -22,8 +22,11 @@ maximum (its value plus the curvature bound ``max|a''| h^2 / 4`` reaches the bes
 refined by Newton's method on ``a'(tau) = 0`` inside its two-sample bracket, with the analytic
 derivatives. Event instants, where ``a'`` has kinks, are candidates too. Intervals whose
 amplitude bound ``sum |coefficients|`` cannot reach the largest value at the event instants are
-not sampled at all. The free vibration is followed until its decaying bound drops below the
-largest value found at an event instant (at most :data:`MAX_FREE_PERIODS` fundamental periods).
+not sampled at all, and every interval is pruned again against the maximum found so far before
+it is sampled (largest bounds first). The free vibration is followed until its decaying bound drops
+below the largest value found at an event instant (at most :data:`MAX_FREE_PERIODS` fundamental
+periods). The search loop is compiled with numba (the same search in numpy, per-interval array
+operations, cost 2.6-5 s for the 14-train bench case instead of 0.4 s CPU).
 
 Modes: EN 1990 A2.4.4.2.1 asks for every mode up to the larger of 30 Hz, 1.5 n0 and the third
 mode's frequency (:func:`check_mode_count`).
@@ -136,6 +139,9 @@ def moving_load_envelope(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, delta
     jj, s = jall[keep], s_all[keep]
     om = bridge.omega_rad_s[keep]
     zeta = np.asarray(bridge.modal_damping_ratios(dz))[keep]
+    if np.any(zeta <= 0.0):  # the closed form divides by the damping at resonance
+        raise InputError(f"damping: zeta + delta_zeta = {100 * (bridge.damping_ratio + dz):g} %; the exact envelope "
+                         f"needs damping > 0 % (allowed (0, 40] %)")
     mass = bridge.modal_mass_kg[keep]
     lam = -zeta * om + 1j * om * np.sqrt(1.0 - zeta**2)
     bps, G = _events(offs, loads, L, jj, mass[0])  # equal modal masses mu L / 2
