@@ -8,8 +8,9 @@ train and speed found and the deck acceleration compared with the limit of EN 19
 Rules (each with its clause):
 
 * speeds: 40 m/s up to the maximum design speed 1.2 V (EN 1991-2 6.4.6.2(1)), V the maximum line
-  speed, at ``step_kmh`` <= 1 km/h; every interior local maximum of every envelope and every
-  predicted HSLM resonance ``v = n0 D / i`` is refined at 0.1 km/h over +-1 km/h;
+  speed, at ``step_kmh`` <= 1 km/h; every interior local maximum of every envelope of at least a
+  quarter of its largest value and every predicted HSLM resonance ``v = n0 D / i`` is refined at
+  0.1 km/h over +-1 km/h;
 * modes: every mode up to max(30 Hz, 1.5 n0, n3) (EN 1990 A2.4.4.2.1);
 * damping: the bridge's ζ (Table 2 / EN 1991-2 Table 6.6 when given by type) plus Δζ by method:
   ``none``; ``adm`` the Eurocode ADM (EN 1991-2 6.4.6.3.1, spans < 30 m; refused for L >= 30 m);
@@ -48,6 +49,8 @@ DAMPING_METHODS = ("none", "adm", "lb", "vbi")
 #: Refinement around every resonance: half-width and step (km/h).
 REFINE_HALF_WIDTH_KMH = 1.0
 REFINE_STEP_KMH = 0.1
+#: Interior maxima below this fraction of the train's largest value are ripples, not refined.
+REFINE_MIN_FRACTION = 0.25
 #: Passenger comfort: vertical car-body acceleration b_v (m/s^2) per level, EN 1990 A2.4.4.3.2 Table A2.9.
 COMFORT_LEVELS_M_S2 = (("very good", 1.0), ("good", 1.3), ("acceptable", 2.0))
 #: Spans below which HSLM-B applies instead of HSLM-A for simply supported bridges (EN 1991-2 6.4.6.1.1(5)).
@@ -369,6 +372,7 @@ def screening(bridge, max_line_speed_kmh):
 def _refinement(speeds, acc, extra, vmin, vmax):
     """Speeds at REFINE_STEP_KMH over +-REFINE_HALF_WIDTH_KMH around interior maxima and ``extra``."""
     i = np.flatnonzero((acc[1:-1] > acc[:-2]) & (acc[1:-1] >= acc[2:])) + 1
+    i = i[acc[i] >= REFINE_MIN_FRACTION * acc.max()]  # resonance peaks, not ripples of a low plateau
     centres = np.concatenate([speeds[i], extra])
     off = np.arange(-REFINE_HALF_WIDTH_KMH, REFINE_HALF_WIDTH_KMH + 1e-9, REFINE_STEP_KMH)
     fine = (np.round(centres[:, None] / REFINE_STEP_KMH) * REFINE_STEP_KMH + off[None, :]).ravel()
