@@ -176,3 +176,25 @@ def test_comfort_b_v_limits_and_convergence():
     assert [comfort_level(x) for x in (0.5, 1.2, 1.9, 2.5)] == ["very good", "good", "acceptable", "beyond acceptable"]
     with pytest.raises(InputError, match=r"comfort: 'HSLM-A1' has no vehicles; b_v needs the DIM"):
         comfort_b_v(named_bridge("B1"), load_train("HSLM-A1"), v)
+
+
+def test_more_modes_on_request():
+    b = named_bridge("B4")
+    t = [load_train("ICE-2")]
+    res = run_check(b, 250.0, t, n_modes=5)
+    assert res.modes == (1, 2, 3, 4, 5)
+    env = moving_load_envelope(named_bridge("B4", n_modes=5), t[0].axle_offsets_m, t[0].axle_loads_n, res.speeds_kmh)
+    np.testing.assert_allclose(res.trains[0].max_acc_m_s2[np.isin(res.trains[0].speeds_kmh, res.speeds_kmh)],
+                               env.max_acc_m_s2, rtol=1e-12)
+    with pytest.raises(InputError, match=r"--modes: 2 - is out of range; allowed \[3, 20\] - \(EN 1990 A2\.4\.4\.2\.1 "
+                                         r"asks for every mode up to 32\.4 Hz: 3 modes\)"):
+        run_check(b, 250.0, t, n_modes=2)
+    with pytest.raises(InputError, match=r"--modes: 4\.5 is not an integer; allowed \[3, 20\]"):
+        run_check(b, 250.0, t, n_modes=4.5)
+
+
+def test_core_does_not_import_adm_calib():
+    """The check is registered in adm_sim.cli but imports adm_calib only when it runs."""
+    code = "import sys, adm_sim.cli, adm_sim.envelope, adm_sim.hslm, adm_sim.trains; print('adm_calib' in sys.modules)"
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert r.stdout.strip() == "False", r.stderr

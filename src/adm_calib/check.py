@@ -134,8 +134,8 @@ class CheckResult:
                  f"speeds: {v.min():g} .. {v.max():g} km/h (40 m/s .. 1.2 x {self.max_line_speed_kmh:g} km/h, "
                  f"EN 1991-2 6.4.6.2), {v.size} speeds at <= 1 km/h, refined at {REFINE_STEP_KMH:g} km/h "
                  f"around every resonance",
-                 f"modes: {', '.join(str(j) for j in self.modes)} (all modes up to max(30 Hz, 1.5 n0, n3) = "
-                 f"{self.f_limit_hz:.1f} Hz, EN 1990 A2.4.4.2.1; even modes do not move midspan)",
+                 f"modes: {', '.join(str(j) for j in self.modes)} (EN 1990 A2.4.4.2.1: at least all modes up to "
+                 f"max(30 Hz, 1.5 n0, n3) = {self.f_limit_hz:.1f} Hz; even modes do not move midspan)",
                  f"damping: zeta = {100 * b.damping_ratio:.3g} % plus, per train:"]
         for note in dict.fromkeys(f"  {c.damping_note}" for c in self.trains):
             lines.append(note)
@@ -381,7 +381,7 @@ def _refinement(speeds, acc, extra, vmin, vmax):
 
 
 def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="none", step_kmh=1.0,
-              progress=None, calibrate_options=None, comfort=False):
+              progress=None, calibrate_options=None, comfort=False, n_modes=None):
     """The dynamic check of ``bridge`` for ``trains`` (see the module doc).
 
     Parameters
@@ -397,6 +397,8 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
         Speed step (km/h), (0, 1].
     progress : callable(done, total), optional
         Called once per train.
+    n_modes : int, optional
+        More modes than EN 1990 A2.4.4.2.1 asks for (at least that many, at most 20).
     comfort : bool
         Also run the DIM of every train with vehicles over the speeds for the passenger comfort
         b_v (EN 1990 A2.4.4.3); HSLM trains have no car bodies.
@@ -418,7 +420,16 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
                          f"{bridge.span_m:g} m, where EN 1991-2 6.4.6.1.1(5) asks for HSLM-B, which adm-sim "
                          f"does not include (see the README); check real trains only")
     f_lim = check_frequency_limit_hz(bridge)
-    b = dataclasses.replace(bridge, n_modes=min(20, check_mode_count(bridge)))
+    need = min(20, check_mode_count(bridge))
+    if n_modes is not None:
+        try:
+            x = check_range("--modes", n_modes, "-", need, 20)
+        except InputError as exc:
+            raise InputError(f"{exc} (EN 1990 A2.4.4.2.1 asks for every mode up to {f_lim:.1f} Hz: {need} modes)") from None
+        if x != int(x):
+            raise InputError(f"--modes: {x:g} is not an integer; allowed [{need}, 20]")
+        n_modes = int(x)
+    b = dataclasses.replace(bridge, n_modes=need if n_modes is None else n_modes)
     t_start = time.perf_counter()
     dz = [delta_zeta_for(b, t, damping, calibrate_options) for t in trains]  # all refusals before any sweep
     t_damp = time.perf_counter() - t_start

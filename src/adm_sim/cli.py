@@ -165,7 +165,7 @@ def cmd_check(args):
     t0 = time.perf_counter()
     try:
         res = run_check(bridge, args.max_line_speed, trains, track=args.track, damping=args.damping,
-                        step_kmh=args.speed_step, progress=cb, comfort=args.comfort)
+                        step_kmh=args.speed_step, progress=cb, comfort=args.comfort, n_modes=args.modes)
     finally:
         close()
     wall = time.perf_counter() - t0
@@ -269,6 +269,7 @@ def build_parser():
     c.add_argument("--damping", choices=("none", "adm", "lb", "vbi"), default="none",
                    help="additional damping: none, Eurocode ADM, the paper's lower bounds, calibrated VBI")
     c.add_argument("--speed-step", type=float, default=1.0, help="speed step (km/h, at most 1)")
+    c.add_argument("--modes", type=float, help="more modes than EN 1990 A2.4.4.2.1 asks for (default: exactly those)")
     c.add_argument("--comfort", action="store_true",
                    help="also run the DIM of the real trains: passenger comfort b_v (EN 1990 A2.4.4.3)")
     c.add_argument("--json", help="write the verdict and every curve as JSON")
