@@ -198,3 +198,15 @@ def test_core_does_not_import_adm_calib():
     code = "import sys, adm_sim.cli, adm_sim.envelope, adm_sim.hslm, adm_sim.trains; print('adm_calib' in sys.modules)"
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert r.stdout.strip() == "False", r.stderr
+
+
+def test_refusal_comes_before_any_calibration(monkeypatch):
+    """`--damping vbi` with an HSLM train listed last is refused before ICE-2's calibration runs."""
+    import adm_calib.calibrate
+
+    def no_calibration(*a, **k):
+        raise AssertionError("the calibration ran before the refusal")
+
+    monkeypatch.setattr(adm_calib.calibrate, "calibrate", no_calibration)
+    with pytest.raises(InputError, match=r"--damping vbi: HSLM-A2 is an HSLM load train"):
+        run_check(named_bridge("B1"), 300.0, resolve_trains("ICE-2,HSLM-A2"), damping="vbi")

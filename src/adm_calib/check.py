@@ -431,7 +431,9 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
         n_modes = int(x)
     b = dataclasses.replace(bridge, n_modes=need if n_modes is None else n_modes)
     t_start = time.perf_counter()
-    dz = [delta_zeta_for(b, t, damping, calibrate_options) for t in trains]  # all refusals before any sweep
+    dz = [None] * len(trains)  # every refusal before any sweep: load trains (cheap refusals) first
+    for i in sorted(range(len(trains)), key=lambda i: bool(trains[i].units)):
+        dz[i] = delta_zeta_for(b, trains[i], damping, calibrate_options)
     t_damp = time.perf_counter() - t_start
     out = []
     vmin, vmax = speeds[0], speeds[-1]
