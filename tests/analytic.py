@@ -12,8 +12,17 @@ def moving_force_midspan_deflection(bridge, force_n, speed_m_s, t_s):
     is on the span (Fryba, Vibration of solids and structures under moving loads, ch. 1), with
     zero initial conditions, followed by free vibration. Solved in closed form mode by mode.
     """
+    q, _, _ = moving_force_modal(bridge, force_n, speed_m_s, t_s)
+    return (q * np.sin(bridge.mode_numbers * math.pi / 2)[:, None]).sum(0)
+
+
+def moving_force_modal(bridge, force_n, speed_m_s, t_s):
+    """Modal coordinates q_j, velocities q_j' and modal forces per modal mass F_j / M_j, each of
+    shape (n_modes, len(t)), of one force entering the span at t = 0 (zero before), in closed form
+    (see :func:`moving_force_midspan_deflection`). ``q_j'' = F_j/M_j - 2 zeta_j omega_j q_j' - omega_j^2 q_j``.
+    """
     t = np.asarray(t_s, dtype=float)
-    w = np.zeros_like(t)
+    out = np.zeros((3, bridge.n_modes) + t.shape)
     zetas = bridge.modal_damping_ratios(0.0)
     t_exit = bridge.span_m / speed_m_s
     for j, (om, m, zeta) in enumerate(zip(bridge.omega_rad_s, bridge.modal_mass_kg, zetas), start=1):
@@ -34,14 +43,18 @@ def moving_force_midspan_deflection(bridge, force_n, speed_m_s, t_s):
                   + e * ((-zeta * om * C1 + wd * C2) * np.cos(wd * tt) + (-zeta * om * C2 - wd * C1) * np.sin(wd * tt)))
             return q, qd
 
-        q = np.empty_like(t)
-        on = t <= t_exit
-        q[on] = forced(t[on])[0]
+        q, qd, f = out[0, j - 1], out[1, j - 1], out[2, j - 1]
+        on = (t >= 0) & (t <= t_exit)
+        q[on], qd[on] = forced(t[on])
+        f[on] = force_n / m * np.sin(Om * t[on])
         qe, qde = forced(np.array(t_exit))
-        tau = t[~on] - t_exit
-        q[~on] = np.exp(-zeta * om * tau) * (qe * np.cos(wd * tau) + (qde + zeta * om * qe) / wd * np.sin(wd * tau))
-        w += q * math.sin(j * math.pi / 2)
-    return w
+        off = t > t_exit
+        tau = t[off] - t_exit
+        e = np.exp(-zeta * om * tau)
+        c1, c2 = qe, (qde + zeta * om * qe) / wd
+        q[off] = e * (c1 * np.cos(wd * tau) + c2 * np.sin(wd * tau))
+        qd[off] = e * ((-zeta * om * c1 + wd * c2) * np.cos(wd * tau) + (-zeta * om * c2 - wd * c1) * np.sin(wd * tau))
+    return out[0], out[1], out[2]
 
 
 def static_midspan_deflection(bridge, force_n, x_m):

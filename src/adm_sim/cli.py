@@ -142,6 +142,49 @@ def cmd_sweep(args):
     return 0
 
 
+def cmd_check(args):
+    """EN 1991-2 dynamic check; the logic lives in adm_calib.check (imported here, lazily, because
+    the Eurocode ADM, the lower bounds and the calibration belong to adm_calib)."""
+    from adm_sim.bridge import resolve_bridge
+
+    from adm_calib.check import resolve_trains, run_check
+
+    outs = {}
+    for opt, suffix in (("json", None), ("csv", ".csv"), ("plot", ".png")):
+        text = getattr(args, opt)
+        if text is not None:
+            outs[opt] = output_path(text, f"--{opt}", args.overwrite, suffix)
+    seen = {}
+    for opt, p in outs.items():
+        if p.resolve() in seen:
+            raise InputError(f"--{opt}: {getattr(args, opt)!r} is the --{seen[p.resolve()]} file; give different files")
+        seen[p.resolve()] = opt
+    bridge = resolve_bridge(args.bridge)
+    trains = resolve_trains(args.trains)
+    cb, close = tqdm_progress("check", None if args.progress is None else args.progress)
+    t0 = time.perf_counter()
+    try:
+        res = run_check(bridge, args.max_line_speed, trains, track=args.track, damping=args.damping,
+                        step_kmh=args.speed_step, progress=cb, comfort=args.comfort, n_modes=args.modes)
+    finally:
+        close()
+    wall = time.perf_counter() - t0
+    print(res.summary())
+    print(f"{len(trains)} trains, {wall:.2f} s")
+    if "json" in outs:
+        d = res.to_dict()
+        d["wall_time_s"] = wall
+        write_atomic(outs["json"], lambda p: p.write_text(json.dumps(d, indent=1)))
+        print(f"wrote {args.json}")
+    if "csv" in outs:
+        write_atomic(outs["csv"], res.write_csv)
+        print(f"wrote {args.csv}")
+    if "plot" in outs:
+        write_atomic(outs["plot"], res.plot)
+        print(f"wrote {args.plot}")
+    return 0
+
+
 def cmd_trains(args):
     from adm_sim.trains import TRAIN_NAMES, check_train, load_train
 
@@ -202,7 +245,7 @@ def build_parser():
 
     s = sub.add_parser("sweep", help="max midspan acceleration over a speed range")
     s.add_argument("--bridge", default="B1", help="B1..B4, a spec L=15,n0=8.26,mu=19042,zeta_pct=1.85, or a TOML file")
-    s.add_argument("--train", default="ICE-2", help="ICE-2, Eurostar, Railjet, ICE-4, Eurostar-table, or a TOML file")
+    s.add_argument("--train", default="ICE-2", help="ICE-2, Eurostar, Railjet, ICE-4, Eurostar-table, HSLM-A1..A10 (MLM only), or a TOML file")
     s.add_argument("--model", choices=("mlm", "dim"), default="mlm")
     s.add_argument("--speeds", default="160:350:1", help="km/h, start:stop:step or a comma list")
     s.add_argument("--delta-zeta-pct", type=float, default=0.0, help="additional damping (%%)")
@@ -214,6 +257,28 @@ def build_parser():
     s.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
                    help="progress bar (default: when stderr is a terminal)")
     s.set_defaults(func=cmd_sweep)
+
+    c = sub.add_parser("check", help="EN 1991-2 dynamic check: envelopes of HSLM-A and real trains, verdict")
+    c.add_argument("--bridge", default="B1", help="B1..B4, a spec L=15,n0=8.26,mu=19042,zeta_pct=1.85, or a TOML file")
+    c.add_argument("--max-line-speed", type=float, required=True,
+                   help="maximum line speed V (km/h, > 144); speeds 40 m/s .. 1.2 V are checked")
+    c.add_argument("--trains", default="hslm",
+                   help="comma list: hslm (HSLM-A1..A10), HSLM-Ak, ICE-2, Eurostar, Railjet, ICE-4, .toml files")
+    c.add_argument("--track", choices=("ballasted", "direct"), default="ballasted",
+                   help="deck acceleration limit 3.5 (ballasted) or 5 m/s2 (direct fastened), EN 1990 A2.4.4.2.1")
+    c.add_argument("--damping", choices=("none", "adm", "lb", "vbi"), default="none",
+                   help="additional damping: none, Eurocode ADM, the paper's lower bounds, calibrated VBI")
+    c.add_argument("--speed-step", type=float, default=1.0, help="speed step (km/h, at most 1)")
+    c.add_argument("--modes", type=float, help="more modes than EN 1990 A2.4.4.2.1 asks for (default: exactly those)")
+    c.add_argument("--comfort", action="store_true",
+                   help="also run the DIM of the real trains: passenger comfort b_v (EN 1990 A2.4.4.3)")
+    c.add_argument("--json", help="write the verdict and every curve as JSON")
+    c.add_argument("--csv", help="write every curve as CSV (train, speed, acc, disp)")
+    c.add_argument("--plot", help="write the acceleration envelopes as PNG")
+    c.add_argument("--overwrite", action="store_true", help="replace existing output files (once the check has finished)")
+    c.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
+                   help="progress bar (default: when stderr is a terminal)")
+    c.set_defaults(func=cmd_check)
 
     t = sub.add_parser("trains", help="list trains; --check compares axle loads and bogie frequencies")
     t.add_argument("--train")

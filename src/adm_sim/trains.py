@@ -228,9 +228,13 @@ def _normalise(name):
 
 
 def load_train(name_or_path):
-    """Load a train by name (ICE-2, Eurostar, Railjet, ICE-4, Eurostar-table) or TOML path."""
+    """Load a train by name (ICE-2, Eurostar, Railjet, ICE-4, Eurostar-table, HSLM-A1 .. HSLM-A10) or TOML path."""
     text = str(name_or_path)
     key = _normalise(text)
+    from adm_sim.hslm import hslm_name, hslm_train
+
+    if hslm_name(text) is not None:  # EN 1991-2 universal trains HSLM-A1 .. A10 (load trains)
+        return hslm_train(text)
     if key in _FILES:
         data = tomllib.loads(resources.files("adm_sim").joinpath("data/trains", _FILES[key]).read_text())
         return train_from_mapping(data, source=_FILES[key])
@@ -238,7 +242,7 @@ def load_train(name_or_path):
     if p.suffix == ".toml" or p.is_file():
         return train_from_mapping(read_toml(p, "train file"), source=p.name)
     raise InputError(f"train: {text!r} is unknown; allowed {', '.join(TRAIN_NAMES)}, "
-                     f"Eurostar-table, or a .toml train file")
+                     f"Eurostar-table, HSLM-A1 .. HSLM-A10, or a .toml train file")
 
 
 def _vehicle_type(name, d, source):

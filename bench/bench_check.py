@@ -1,0 +1,77 @@
+"""Speed of the EN 1991-2 dynamic check: B1 with HSLM-A1..A10 and the four real trains, 144 to 420
+km/h at 1 km/h, 3 modes, against a per-speed, per-train loop (the way a user would script a peer
+tool: one time integration per train and speed, here the core's RK4 MLM run lane by lane).
+
+Prints times and ratios measured in this run; asserts nothing about time. The loop baseline runs on
+every ``--every``-th speed for all trains and is scaled to all speeds (said in the output).
+Run: .venv/bin/python bench/bench_check.py [--every 12]
+"""
+
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import argparse  # noqa: E402
+import math  # noqa: E402
+import time  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from adm_calib.check import resolve_trains, run_check  # noqa: E402
+from adm_sim.bridge import named_bridge  # noqa: E402
+from adm_sim.envelope import moving_load_envelope  # noqa: E402
+from adm_sim.sweep import run_sweep  # noqa: E402
+
+TRAINS = "hslm,ICE-2,Eurostar,Railjet,ICE-4"
+V_LINE_KMH = 350.0  # 1.2 x 350 = 420 km/h
+
+
+def timed(fn, repeat=1):
+    """Best wall time and best CPU time of this process (the machine is shared: CPU time is what the
+    work costs, wall time what the user waits) over ``repeat`` runs."""
+    best, cpu, out = math.inf, math.inf, None
+    for _ in range(repeat):
+        t0, c0 = time.perf_counter(), time.process_time()
+        out = fn()
+        best = min(best, time.perf_counter() - t0)
+        cpu = min(cpu, time.process_time() - c0)
+    return best, cpu, out
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--every", type=int, default=12, help="loop baseline on every n-th speed (scaled to all)")
+    ap.add_argument("--repeat", type=int, default=3)
+    args = ap.parse_args()
+    bridge = named_bridge("B1")
+    trains = resolve_trains(TRAINS)
+    speeds = np.arange(144.0, 421.0, 1.0)
+    moving_load_envelope(bridge, trains[0].axle_offsets_m, trains[0].axle_loads_n, speeds[:3])  # warm-up
+
+    t_env, c_env, envs = timed(lambda: [moving_load_envelope(bridge, t.axle_offsets_m, t.axle_loads_n, speeds)
+                                 for t in trains], args.repeat)
+    t_check, c_check, res = timed(lambda: run_check(bridge, V_LINE_KMH, trains), args.repeat)
+    n_fine = sum(c.speeds_kmh.size for c in res.trains) - len(trains) * res.speeds_kmh.size
+
+    sub = speeds[:: args.every]
+    t_loop_sub, c_loop_sub, loop = timed(
+        lambda: {t.name: [run_sweep(bridge, t, "mlm", [v]).max_acc_m_s2[0] for v in sub] for t in trains})
+    t_loop = t_loop_sub * speeds.size / sub.size
+    c_loop = c_loop_sub * speeds.size / sub.size
+
+    rel = np.concatenate([np.asarray(loop[t.name]) / e.max_acc_m_s2[:: args.every] - 1 for t, e in zip(trains, envs)])
+    g, v, acc = res.governing
+    print(f"B1, {len(trains)} trains ({TRAINS}), {speeds.size} speeds 144..420 km/h, modes {res.modes}")
+    print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores; times: wall / CPU of this process")
+    print(f"exact envelopes, 14 trains x {speeds.size} speeds:      {t_env:7.3f} / {c_env:7.3f} s (best of {args.repeat})")
+    print(f"whole check (+ {n_fine} refinement speeds, phi'_dyn): {t_check:7.3f} / {c_check:7.3f} s (target <= 2 s)")
+    print(f"per-speed per-train RK4 loop:                         {t_loop:7.1f} / {c_loop:7.1f} s "
+          f"({sub.size * len(trains)} runs measured, {t_loop_sub:.1f} s wall, scaled to {speeds.size * len(trains)} runs)")
+    print(f"ratio loop / envelopes: {t_loop / t_env:.0f}x wall, {c_loop / c_env:.0f}x CPU; "
+          f"loop / whole check: {t_loop / t_check:.0f}x wall, {c_loop / c_check:.0f}x CPU")
+    print(f"loop (RK4, 16 steps per period) vs exact envelope: {100 * rel.min():+.3f} % .. {100 * rel.max():+.4f} %")
+    print(f"governing: {g.name} {acc:.4f} m/s2 at {v:g} km/h; {'PASS' if res.passed else 'FAIL'} vs 3.5 m/s2")
+
+
+if __name__ == "__main__":
+    main()

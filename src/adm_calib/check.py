@@ -1,0 +1,466 @@
+"""EN 1991-2 dynamic design check of a simply supported bridge (``adm-sim check``).
+
+For every load train (HSLM-A1 .. A10, real trains by their static axle loads, user TOML trains)
+the exact moving-load envelopes (:mod:`adm_sim.envelope`) of the maximum deck acceleration and of
+the maximum midspan deflection are computed over the speeds the standard asks for, the governing
+train and speed found and the deck acceleration compared with the limit of EN 1990 A2.4.4.2.1.
+
+Rules (each with its clause):
+
+* speeds: 40 m/s up to the maximum design speed 1.2 V (EN 1991-2 6.4.6.2(1)), V the maximum line
+  speed, at ``step_kmh`` <= 1 km/h; every interior local maximum of every envelope of at least a
+  quarter of its largest value and every predicted HSLM resonance ``v = n0 D / i`` is refined at
+  0.1 km/h over +-1 km/h;
+* modes: every mode up to max(30 Hz, 1.5 n0, n3) (EN 1990 A2.4.4.2.1);
+* damping: the bridge's ζ (Table 2 / EN 1991-2 Table 6.6 when given by type) plus Δζ by method:
+  ``none``; ``adm`` the Eurocode ADM (EN 1991-2 6.4.6.3.1, spans < 30 m; refused for L >= 30 m);
+  ``lb`` the paper's lower-bound functions (Section 4.3; only the four trains of the study and
+  bridges inside the studied field); ``vbi`` Δζ_VBI calibrated for the real train (Section 4,
+  runs the DIM). HSLM trains are loads, not vehicles: they get only what the standard allows
+  (the ADM), so ``lb`` and ``vbi`` refuse them;
+* limits: 3.5 m/s² ballasted, 5 m/s² direct fastened deck (EN 1990 A2.4.4.2.1(4));
+* dynamic enhancement of the midspan deflection phi'_dyn = max y_dyn / y_stat per train
+  (EN 1991-2 6.4.6.5(3)), y_stat the largest static midspan deflection of the same train on the
+  same modes;
+* screening, printed beside the result: EN 1991-2 6.4.4 (Fig. 6.9 flow chart, Fig. 6.10 limits
+  of n0: upper 94.76 L^-0.748, lower 80 / L for 4 m <= L <= 20 m and 23.58 L^-0.592 for
+  20 m < L <= 100 m); a dynamic analysis is required above 200 km/h or outside the limits.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from adm_sim.errors import InputError, check_range
+
+#: Lowest speed of the check (m/s), EN 1991-2 6.4.6.2(1).
+MIN_SPEED_M_S = 40.0
+#: Maximum design speed = this factor x maximum line speed, EN 1991-2 6.4.6.2(1).
+DESIGN_SPEED_FACTOR = 1.2
+#: Deck acceleration limits (m/s^2), EN 1990 A2.4.4.2.1(4).
+ACC_LIMITS_M_S2 = {"ballasted": 3.5, "direct": 5.0}
+DAMPING_METHODS = ("none", "adm", "lb", "vbi")
+#: Refinement around every resonance: half-width and step (km/h).
+REFINE_HALF_WIDTH_KMH = 1.0
+REFINE_STEP_KMH = 0.1
+#: Interior maxima below this fraction of the train's largest value are ripples, not refined.
+REFINE_MIN_FRACTION = 0.25
+#: Passenger comfort: vertical car-body acceleration b_v (m/s^2) per level, EN 1990 A2.4.4.3.2 Table A2.9.
+COMFORT_LEVELS_M_S2 = (("very good", 1.0), ("good", 1.3), ("acceptable", 2.0))
+#: Spans below which HSLM-B applies instead of HSLM-A for simply supported bridges (EN 1991-2 6.4.6.1.1(5)).
+HSLM_B_SPAN_M = 7.0
+
+
+@dataclass
+class TrainCheck:
+    """The envelopes of one train and the damping it was given."""
+
+    name: str
+    kind: str  # "hslm" or "train"
+    speeds_kmh: np.ndarray
+    max_acc_m_s2: np.ndarray
+    max_disp_m: np.ndarray
+    delta_zeta_pct: float
+    damping_note: str
+    static_disp_m: float
+    comfort_b_v_m_s2: np.ndarray | None = None  # per speed of the base grid (DIM), or None
+
+    @property
+    def i_max(self):
+        return int(np.argmax(self.max_acc_m_s2))
+
+    @property
+    def phi_dyn(self):
+        """phi'_dyn = max y_dyn / y_stat (EN 1991-2 6.4.6.5(3))."""
+        return float(self.max_disp_m.max() / self.static_disp_m)
+
+    def comfort_dict(self):
+        """Largest b_v and the EN 1990 A2.4.4.3 level it reaches, or None (no DIM run)."""
+        if self.comfort_b_v_m_s2 is None:
+            return None
+        bv = float(self.comfort_b_v_m_s2.max())
+        return {"b_v_m_s2": bv, "level": comfort_level(bv),
+                "b_v_curve_m_s2": self.comfort_b_v_m_s2.tolist()}
+
+    def to_dict(self):
+        i = self.i_max
+        return {"train": self.name, "kind": self.kind, "delta_zeta_pct": self.delta_zeta_pct,
+                "damping_note": self.damping_note,
+                "max_acc_m_s2": float(self.max_acc_m_s2[i]), "at_speed_kmh": float(self.speeds_kmh[i]),
+                "max_disp_m": float(self.max_disp_m.max()), "static_disp_m": self.static_disp_m,
+                "phi_dyn": self.phi_dyn, "comfort": self.comfort_dict(),
+                "curve": {"speeds_kmh": self.speeds_kmh.tolist(), "max_acc_m_s2": self.max_acc_m_s2.tolist(),
+                          "max_disp_m": self.max_disp_m.tolist()}}
+
+
+@dataclass
+class CheckResult:
+    """Verdict of the dynamic check and every curve behind it."""
+
+    bridge: object
+    max_line_speed_kmh: float
+    track: str
+    damping: str
+    speeds_kmh: np.ndarray
+    trains: list
+    modes: tuple
+    f_limit_hz: float
+    screening: str
+    timings_s: dict = field(default_factory=dict)
+
+    @property
+    def limit_m_s2(self):
+        return ACC_LIMITS_M_S2[self.track]
+
+    @property
+    def governing(self):
+        t = max(self.trains, key=lambda c: c.max_acc_m_s2.max())
+        return t, float(t.speeds_kmh[t.i_max]), float(t.max_acc_m_s2.max())
+
+    @property
+    def passed(self):
+        return self.governing[2] <= self.limit_m_s2
+
+    def summary(self):
+        b = self.bridge
+        v = self.speeds_kmh
+        lines = [b.describe(),
+                 f"speeds: {v.min():g} .. {v.max():g} km/h (40 m/s .. 1.2 x {self.max_line_speed_kmh:g} km/h, "
+                 f"EN 1991-2 6.4.6.2), {v.size} speeds at <= 1 km/h, refined at {REFINE_STEP_KMH:g} km/h "
+                 f"around every resonance",
+                 f"modes: {', '.join(str(j) for j in self.modes)} (EN 1990 A2.4.4.2.1: at least all modes up to "
+                 f"max(30 Hz, 1.5 n0, n3) = {self.f_limit_hz:.1f} Hz; even modes do not move midspan)",
+                 f"damping: zeta = {100 * b.damping_ratio:.3g} % plus, per train:"]
+        for note in dict.fromkeys(f"  {c.damping_note}" for c in self.trains):
+            lines.append(note)
+        lines.append(f"{'train':14s} {'max acc':>9s} {'at':>8s} {'max disp':>9s} {'phi_dyn':>8s} {'dzeta':>7s}")
+        lines.append(f"{'':14s} {'(m/s2)':>9s} {'(km/h)':>8s} {'(mm)':>9s} {'(-)':>8s} {'(%)':>7s}")
+        for c in self.trains:
+            i = c.i_max
+            lines.append(f"{c.name:14s} {c.max_acc_m_s2[i]:9.4f} {c.speeds_kmh[i]:8.1f} "
+                         f"{1000 * c.max_disp_m.max():9.3f} {c.phi_dyn:8.3f} {c.delta_zeta_pct:7.3f}")
+        for c in self.trains:
+            cd = c.comfort_dict()
+            if cd is not None:
+                lines.append(f"passenger comfort {c.name}: largest vertical car-body acceleration b_v = "
+                             f"{cd['b_v_m_s2']:.3f} m/s2 (DIM): {cd['level']} (EN 1990 A2.4.4.3: 1.0 very good, "
+                             f"1.3 good, 2.0 acceptable)")
+        t, sp, acc = self.governing
+        margin = self.limit_m_s2 - acc
+        lines.append(f"governing: {t.name} at {sp:g} km/h, max deck acceleration {acc:.4f} m/s2; limit "
+                     f"{self.limit_m_s2:g} m/s2 ({self.track} track, EN 1990 A2.4.4.2.1): "
+                     f"{'PASS' if self.passed else 'FAIL'}, margin {margin:+.4f} m/s2 "
+                     f"({100 * margin / self.limit_m_s2:+.1f} % of the limit)")
+        lines.append(self.screening)
+        return "\n".join(lines)
+
+    def to_dict(self):
+        t, sp, acc = self.governing
+        return {"bridge": self.bridge.describe(), "max_line_speed_kmh": self.max_line_speed_kmh,
+                "design_speed_kmh": DESIGN_SPEED_FACTOR * self.max_line_speed_kmh, "track": self.track,
+                "damping": self.damping, "limit_m_s2": self.limit_m_s2, "modes": list(self.modes),
+                "f_limit_hz": self.f_limit_hz,
+                "governing": {"train": t.name, "speed_kmh": sp, "acc_m_s2": acc},
+                "verdict": "pass" if self.passed else "fail", "margin_m_s2": self.limit_m_s2 - acc,
+                "screening": self.screening, "timings_s": self.timings_s,
+                "trains": [c.to_dict() for c in self.trains]}
+
+    def write_csv(self, path):
+        """Every curve in long format: train, speed_kmh, max_acc_m_s2, max_disp_m."""
+        with open(path, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["train", "speed_kmh", "max_acc_m_s2", "max_disp_m", "delta_zeta_pct"])
+            for c in self.trains:
+                for v, a, d in zip(c.speeds_kmh, c.max_acc_m_s2, c.max_disp_m):
+                    w.writerow([c.name, f"{v:.3f}", f"{a:.8g}", f"{d:.8g}", f"{c.delta_zeta_pct:.6g}"])
+
+    def plot(self, path):
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        fig, ax = plt.subplots(figsize=(9, 5))
+        for i, c in enumerate(self.trains):
+            ls = "-" if c.kind == "hslm" else "--"
+            ax.plot(c.speeds_kmh, c.max_acc_m_s2, ls, lw=1.1, color=plt.cm.tab20(i % 20), label=c.name)
+        t, sp, acc = self.governing
+        ax.axhline(self.limit_m_s2, color="C3", lw=1.5, label=f"limit {self.limit_m_s2:g} m/s² ({self.track})")
+        ax.plot([sp], [acc], "o", ms=9, mfc="none", mec="k", mew=1.8,
+                label=f"governing: {t.name}, {acc:.3f} m/s² at {sp:g} km/h")
+        ax.set_xlabel("speed (km/h)")
+        ax.set_ylabel("max deck acceleration (m/s²)")
+        ax.set_title(f"{self.bridge.name or 'bridge'}: EN 1991-2 dynamic check, V = {self.max_line_speed_kmh:g} km/h, "
+                     f"damping {self.damping}: {'PASS' if self.passed else 'FAIL'}")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, ncol=2)
+        fig.tight_layout()
+        fig.savefig(path, dpi=120)
+        plt.close(fig)
+
+
+# ---------------------------------------------------------------------- inputs
+def check_speeds_kmh(max_line_speed_kmh, step_kmh=1.0):
+    """The speeds of the check (km/h): 40 m/s .. 1.2 V at ``step_kmh``, both ends included."""
+    lo = MIN_SPEED_M_S * 3.6
+    try:
+        V = check_range("--max-line-speed", max_line_speed_kmh, "km/h", lo, 500.0, lo_open=True)
+    except InputError as exc:
+        raise InputError(f"{exc} (the check runs from 40 m/s = 144 km/h up to 1.2 V, EN 1991-2 6.4.6.2; "
+                         f"1.2 V at most 600 km/h)") from None
+    step = check_range("--speed-step", step_kmh, "km/h", 0.0, 1.0, lo_open=True)
+    hi = DESIGN_SPEED_FACTOR * V
+    n = int(math.floor((hi - lo) / step + 1e-9))
+    v = lo + step * np.arange(n + 1)
+    if hi - v[-1] > 1e-9:
+        v = np.append(v, hi)
+    return v
+
+
+def resolve_trains(spec):
+    """Trains from ``"hslm,ICE-2,my.toml"``: ``hslm`` is HSLM-A1 .. A10; duplicates refused."""
+    from adm_sim.hslm import HSLM_A_NAMES
+    from adm_sim.trains import load_train
+
+    names = []
+    for part in str(spec).split(","):
+        part = part.strip()
+        if not part:
+            continue
+        names.extend(HSLM_A_NAMES if part.lower() == "hslm" else [part])
+    if not names:
+        raise InputError(f"--trains: {spec!r} names no train; allowed hslm, HSLM-A1 .. HSLM-A10, ICE-2, Eurostar, "
+                         f"Railjet, ICE-4, Eurostar-table or .toml train files, comma separated")
+    trains = [load_train(n) for n in names]
+    seen = set()
+    for t in trains:
+        if t.name in seen:
+            raise InputError(f"--trains: {t.name!r} is given twice in {spec!r}; give every train once")
+        seen.add(t.name)
+    return trains
+
+
+def _is_hslm(train):
+    from adm_sim.hslm import HSLM_A_TABLE
+
+    return train.name in HSLM_A_TABLE and not train.units
+
+
+def delta_zeta_for(bridge, train, method, calibrate_options=None):
+    """Δζ (%) and the sentence saying why, for one train; refuses a method that does not apply."""
+    from adm_calib.reference import adm_delta_zeta_pct, lower_bound_for
+
+    L = bridge.span_m
+    if method == "none":
+        return 0.0, f"{train.name}: no additional damping (--damping none)"
+    if method == "adm":
+        if L >= 30.0:
+            raise InputError(f"--damping adm: the Eurocode ADM applies to spans < 30 m (EN 1991-2 6.4.6.3.1); "
+                             f"this bridge spans {L:g} m; allowed --damping none")
+        return adm_delta_zeta_pct(L), (f"Eurocode ADM, L = {L:g} m < 30 m (EN 1991-2 6.4.6.3.1): "
+                                       f"{adm_delta_zeta_pct(L):.3f} % for every train")
+    if _is_hslm(train):
+        raise InputError(f"--damping {method}: {train.name} is an HSLM load train, not a vehicle; the "
+                         f"{'lower-bound functions' if method == 'lb' else 'calibrated Δζ_VBI'} apply only to the "
+                         f"real trains of the study; allowed for HSLM: --damping none or adm")
+    if method == "lb":
+        pct, note = lower_bound_for(bridge, train)
+        if pct is None:
+            raise InputError(f"--damping lb: {train.name} on {bridge.name or 'this bridge'}: {note}")
+        return pct, f"{train.name}: lower bound {pct:.3f} % ({note})"
+    if method == "vbi":
+        if not train.units:
+            raise InputError(f"--damping vbi: {train.name!r} has no vehicles; Δζ_VBI needs the DIM")
+        from adm_calib.calibrate import calibrate
+
+        res = calibrate(bridge, train, options=calibrate_options, adapted_curve=False)
+        if res.delta_zeta_vbi is None:
+            raise InputError(f"--damping vbi: {train.name} on {bridge.name or 'this bridge'}: no Δζ_VBI "
+                             f"({res.status}: {res.message}); use --damping none")
+        pct = res.delta_zeta_vbi_pct
+        return pct, (f"{train.name}: calibrated Δζ_VBI = {pct:.3f} % (MLM peak {res.mlm_peak.acc_m_s2:.4f} m/s2 "
+                     f"matched to the DIM peak {res.dim_peak.acc_m_s2:.4f} m/s2, Section 4)")
+    raise InputError(f"--damping: {method!r} is not allowed; allowed {', '.join(DAMPING_METHODS)}")
+
+
+def static_midspan_max_m(bridge, offsets, loads, n_per_span=2000):
+    """Largest static midspan deflection (m) of the axles as they cross, on the bridge's modes."""
+    L = bridge.span_m
+    s = np.arange(0.0, offsets[-1] + L, L / n_per_span)
+    j = bridge.mode_numbers
+    gain = np.sin(j * np.pi / 2) / bridge.modal_stiffness_N_m  # midspan per unit modal force
+    w = np.zeros_like(s)
+    for a, F in zip(offsets, loads):
+        x = s - a
+        on = (x >= 0) & (x <= L)
+        w[on] += F * (np.sin(np.outer(x[on], j) * np.pi / L) * gain).sum(-1)
+    return float(np.abs(w).max())
+
+
+def comfort_level(b_v_m_s2):
+    """EN 1990 A2.4.4.3.2 Table A2.9 level reached by ``b_v`` (m/s^2)."""
+    for name, lim in COMFORT_LEVELS_M_S2:
+        if b_v_m_s2 <= lim:
+            return name
+    return "beyond acceptable"
+
+
+def comfort_b_v(bridge, train, speeds_kmh, options=None):
+    """Largest vertical car-body acceleration b_v (m/s^2) per speed from the DIM (bridge ζ only).
+
+    Every car body's acceleration at its two pivot points (bounce plus pitch; the body's extremes,
+    since the motion is linear along the body) by differencing the DIM velocities over each step,
+    maximum over the crossing. A vehicle is integrated while an axle is on the bridge (the core's
+    rule on a rigid track), so its motion after leaving the bridge is not followed.
+    """
+    from adm_sim.stepping import BridgeSide, LockstepRun, StepOptions, TrainSide, make_grid, speeds_to_m_s
+
+    if not train.units:
+        raise InputError(f"comfort: {train.name!r} has no vehicles; b_v needs the DIM")
+    v = speeds_to_m_s(speeds_kmh)
+    grid = make_grid(bridge, train.length_m, v, options or StepOptions())
+    side = TrainSide(train, grid, bridge.span_m)
+    run = LockstepRun("dim", grid, bridge_side=BridgeSide(bridge, grid, train.axle_offsets_m, train.wheel_mass_kg,
+                                                          np.zeros(v.shape)), train_side=side)
+    iz, ith, half = [], [], []
+    start = 0
+    for unit in train.units:  # DOFs per unit: [z, theta] of its cars, then of its bogies (trains.py)
+        for ci, (_, (p1, p2)) in enumerate(unit.cars):
+            iz.append(start + 2 * ci)
+            ith.append(start + 2 * ci + 1)
+            half.append(0.5 * (p2 - p1))
+        start += unit.n_dof
+    iz, ith, half = np.array(iz), np.array(ith), np.array(half)
+    dt = grid.dt_s[:, None]
+    prev_z, prev_th = side.xd[:, iz].copy(), side.xd[:, ith].copy()
+    b_v = np.zeros(v.size)
+    for _ in range(grid.n_steps):
+        if run.step() is not None:
+            raise InputError(run.message)
+        z, th = side.xd[:, iz], side.xd[:, ith]
+        az, ath = (z - prev_z) / dt, (th - prev_th) / dt
+        b_v = np.maximum(b_v, np.maximum(np.abs(az + half * ath), np.abs(az - half * ath)).max(1))
+        prev_z, prev_th = z.copy(), th.copy()
+    return b_v
+
+
+def screening(bridge, max_line_speed_kmh):
+    """EN 1991-2 6.4.4 (Figs. 6.9, 6.10): is a dynamic analysis required? One sentence."""
+    L, n0 = bridge.span_m, bridge.n0_hz
+    if not 4.0 <= L <= 100.0:
+        return (f"screening (EN 1991-2 6.4.4, Fig. 6.10): L = {L:g} m is outside 4..100 m of Fig. 6.10: "
+                f"dynamic analysis required")
+    upper = 94.76 * L ** -0.748
+    lower = 80.0 / L if L <= 20.0 else 23.58 * L ** -0.592
+    inside = lower <= n0 <= upper
+    fast = max_line_speed_kmh > 200.0
+    need = fast or not inside
+    why = []
+    if fast:
+        why.append(f"V = {max_line_speed_kmh:g} km/h > 200 km/h")
+    why.append(f"n0 = {n0:.3f} Hz {'within' if inside else 'outside'} the limits [{lower:.3f}, {upper:.3f}] Hz for L = {L:g} m")
+    return (f"screening (EN 1991-2 6.4.4, Figs. 6.9/6.10): {'; '.join(why)}: dynamic analysis "
+            f"{'required' if need else 'not required by Fig. 6.10 (check v/n0 against Annex F before relying on it)'}")
+
+
+def _refinement(speeds, acc, extra, vmin, vmax):
+    """Speeds at REFINE_STEP_KMH over +-REFINE_HALF_WIDTH_KMH around interior maxima and ``extra``."""
+    i = np.flatnonzero((acc[1:-1] > acc[:-2]) & (acc[1:-1] >= acc[2:])) + 1
+    i = i[acc[i] >= REFINE_MIN_FRACTION * acc.max()]  # resonance peaks, not ripples of a low plateau
+    centres = np.concatenate([speeds[i], extra])
+    off = np.arange(-REFINE_HALF_WIDTH_KMH, REFINE_HALF_WIDTH_KMH + 1e-9, REFINE_STEP_KMH)
+    fine = (np.round(centres[:, None] / REFINE_STEP_KMH) * REFINE_STEP_KMH + off[None, :]).ravel()
+    fine = fine[(fine >= vmin) & (fine <= vmax)]
+    return np.setdiff1d(np.round(fine, 6), np.round(speeds, 6))
+
+
+def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="none", step_kmh=1.0,
+              progress=None, calibrate_options=None, comfort=False, n_modes=None):
+    """The dynamic check of ``bridge`` for ``trains`` (see the module doc).
+
+    Parameters
+    ----------
+    bridge : adm_sim.bridge.Bridge
+        Its ``n_modes`` is replaced by the modes EN 1990 A2.4.4.2.1 asks for.
+    max_line_speed_kmh : float
+        Maximum line speed V (km/h), > 144 km/h (40 m/s).
+    trains : list of adm_sim.trains.Train
+    track : {"ballasted", "direct"}
+    damping : {"none", "adm", "lb", "vbi"}
+    step_kmh : float
+        Speed step (km/h), (0, 1].
+    progress : callable(done, total), optional
+        Called once per train.
+    n_modes : int, optional
+        More modes than EN 1990 A2.4.4.2.1 asks for (at least that many, at most 20).
+    comfort : bool
+        Also run the DIM of every train with vehicles over the speeds for the passenger comfort
+        b_v (EN 1990 A2.4.4.3); HSLM trains have no car bodies.
+
+    Returns
+    -------
+    CheckResult
+    """
+    from adm_sim.envelope import check_frequency_limit_hz, check_mode_count, moving_load_envelope
+    from adm_sim.hslm import regular_coach_length_m
+
+    if track not in ACC_LIMITS_M_S2:
+        raise InputError(f"--track: {track!r} is not allowed; allowed {', '.join(ACC_LIMITS_M_S2)}")
+    if damping not in DAMPING_METHODS:
+        raise InputError(f"--damping: {damping!r} is not allowed; allowed {', '.join(DAMPING_METHODS)}")
+    speeds = check_speeds_kmh(max_line_speed_kmh, step_kmh)
+    if bridge.span_m < HSLM_B_SPAN_M and any(_is_hslm(t) for t in trains):
+        raise InputError(f"--trains: HSLM-A applies to spans >= {HSLM_B_SPAN_M:g} m; this bridge spans "
+                         f"{bridge.span_m:g} m, where EN 1991-2 6.4.6.1.1(5) asks for HSLM-B, which adm-sim "
+                         f"does not include (see the README); check real trains only")
+    f_lim = check_frequency_limit_hz(bridge)
+    need = min(20, check_mode_count(bridge))
+    if n_modes is not None:
+        try:
+            x = check_range("--modes", n_modes, "-", need, 20)
+        except InputError as exc:
+            raise InputError(f"{exc} (EN 1990 A2.4.4.2.1 asks for every mode up to {f_lim:.1f} Hz: {need} modes)") from None
+        if x != int(x):
+            raise InputError(f"--modes: {x:g} is not an integer; allowed [{need}, 20]")
+        n_modes = int(x)
+    b = dataclasses.replace(bridge, n_modes=need if n_modes is None else n_modes)
+    t_start = time.perf_counter()
+    dz = [None] * len(trains)  # every refusal before any sweep: load trains (cheap refusals) first
+    for i in sorted(range(len(trains)), key=lambda i: bool(trains[i].units)):
+        dz[i] = delta_zeta_for(b, trains[i], damping, calibrate_options)
+    t_damp = time.perf_counter() - t_start
+    out = []
+    vmin, vmax = speeds[0], speeds[-1]
+    for n, (t, (dz_pct, note)) in enumerate(zip(trains, dz)):
+        env = moving_load_envelope(b, t.axle_offsets_m, t.axle_loads_n, speeds, delta_zeta=dz_pct / 100.0)
+        extra = np.array([])
+        if _is_hslm(t):
+            D = regular_coach_length_m(t.name)
+            i = np.arange(1, 50)
+            extra = 3.6 * b.n0_hz * D / i
+        fine = _refinement(speeds, env.max_acc_m_s2, extra, vmin, vmax)
+        v_all, acc, disp = speeds, env.max_acc_m_s2, env.max_disp_m
+        if fine.size:
+            ef = moving_load_envelope(b, t.axle_offsets_m, t.axle_loads_n, fine, delta_zeta=dz_pct / 100.0)
+            v_all = np.concatenate([speeds, fine])
+            order = np.argsort(v_all, kind="stable")
+            v_all = v_all[order]
+            acc = np.concatenate([acc, ef.max_acc_m_s2])[order]
+            disp = np.concatenate([disp, ef.max_disp_m])[order]
+        b_v = comfort_b_v(b, t, speeds) if comfort and t.units else None
+        out.append(TrainCheck(name=t.name, kind="hslm" if _is_hslm(t) else "train", speeds_kmh=v_all,
+                              max_acc_m_s2=acc, max_disp_m=disp, delta_zeta_pct=float(dz_pct),
+                              damping_note=note, static_disp_m=static_midspan_max_m(b, t.axle_offsets_m, t.axle_loads_n),
+                              comfort_b_v_m_s2=b_v))
+        if progress is not None:
+            progress(n + 1, len(trains))
+    return CheckResult(bridge=b, max_line_speed_kmh=float(max_line_speed_kmh), track=track, damping=damping,
+                       speeds_kmh=speeds, trains=out, modes=tuple(int(j) for j in b.mode_numbers),
+                       f_limit_hz=f_lim, screening=screening(b, float(max_line_speed_kmh)),
+                       timings_s={"damping": t_damp, "envelopes": time.perf_counter() - t_start - t_damp})

@@ -1,0 +1,212 @@
+"""`adm-sim check`: the EN 1991-2 dynamic check, its numbers, outputs and refusals."""
+
+import csv
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from adm_calib.check import (check_speeds_kmh, delta_zeta_for, resolve_trains, run_check, screening,
+                             static_midspan_max_m)
+from adm_sim.bridge import Bridge, named_bridge
+from adm_sim.envelope import moving_load_envelope
+from adm_sim.errors import InputError
+from adm_sim.trains import load_train
+
+CLI = [sys.executable, "-m", "adm_sim.cli"]
+
+
+def run(*args):
+    return subprocess.run(CLI + list(args), capture_output=True, text=True, timeout=600)
+
+
+def test_speeds_from_40_m_s_to_1_2_v():
+    v = check_speeds_kmh(300.0)
+    assert v[0] == 144.0 and v[-1] == 360.0 and v.size == 217
+    np.testing.assert_allclose(np.diff(v), 1.0)
+    v = check_speeds_kmh(250.0, 0.5)
+    assert v[0] == 144.0 and v[-1] == 300.0 and v.size == 313
+
+
+def test_check_numbers_b1():
+    bridge = named_bridge("B1")
+    trains = resolve_trains("HSLM-A1,HSLM-A7,ICE-2")
+    res = run_check(bridge, 300.0, trains)
+    assert res.modes == (1, 2, 3)
+    t, v, acc = res.governing
+    # governing = the largest value of every curve; equals the exact envelope at that speed
+    assert acc == max(c.max_acc_m_s2.max() for c in res.trains)
+    env = moving_load_envelope(bridge, load_train(t.name).axle_offsets_m, load_train(t.name).axle_loads_n, [v])
+    assert acc == pytest.approx(env.max_acc_m_s2[0], rel=1e-12)
+    assert t.name == "HSLM-A7" and abs(v - 3.6 * bridge.n0_hz * 24.0 / 2) < 5.0  # resonance n0 D / 2
+    assert res.passed == (acc <= 3.5)
+    # refinement: 0.1 km/h points around the peak of every train
+    for c in res.trains:
+        i = c.i_max
+        if 0 < i < c.speeds_kmh.size - 1:
+            assert c.speeds_kmh[i + 1] - c.speeds_kmh[i] == pytest.approx(0.1, abs=1e-6)
+        assert c.phi_dyn == pytest.approx(c.max_disp_m.max() / c.static_disp_m)
+        assert 1.0 < c.phi_dyn < 3.0
+
+
+def test_static_deflection_against_beam_formula():
+    """One axle: the 3-mode static maximum equals F L^3 / (48 EJ) within 0.3 % (truncation)."""
+    b = named_bridge("B1")
+    w = static_midspan_max_m(b, np.array([0.0]), np.array([1e5]))
+    assert w == pytest.approx(1e5 * b.span_m**3 / (48 * b.EJ_Nm2), rel=3e-3)
+
+
+def test_damping_methods():
+    b1, b2 = named_bridge("B1"), named_bridge("B2")
+    ice2, a1 = load_train("ICE-2"), load_train("HSLM-A1")
+    assert delta_zeta_for(b1, a1, "adm")[0] == pytest.approx(0.653, abs=5e-4)  # README: 0.653 % at 15 m
+    assert delta_zeta_for(b1, ice2, "lb")[0] == pytest.approx(0.323, abs=5e-4)  # README Table 4: LB B1 ICE-2
+    assert delta_zeta_for(b1, ice2, "none")[0] == 0.0
+    with pytest.raises(InputError, match=r"--damping adm: the Eurocode ADM applies to spans < 30 m .* spans 30 m"):
+        delta_zeta_for(b2, ice2, "adm")
+    with pytest.raises(InputError, match=r"--damping lb: HSLM-A1 is an HSLM load train, not a vehicle"):
+        delta_zeta_for(b1, a1, "lb")
+    with pytest.raises(InputError, match=r"--damping vbi: HSLM-A1 is an HSLM load train"):
+        delta_zeta_for(b1, a1, "vbi")
+    with pytest.raises(InputError, match=r"--damping lb: my train on B1: lower bound not defined: train: .my train. was not studied by the paper"):
+        delta_zeta_for(b1, load_train("src/adm_sim/data/examples/my_train.toml"), "lb")
+    res = run_check(b1, 300.0, [ice2], damping="adm")
+    plain = run_check(b1, 300.0, [ice2])
+    assert res.trains[0].max_acc_m_s2.max() < plain.trains[0].max_acc_m_s2.max()
+
+
+def test_screening_fig_6_10():
+    s = screening(named_bridge("B1"), 160.0)
+    assert "within the limits [5.333, 12.500] Hz" in s and "not required" in s
+    s = screening(named_bridge("B2"), 300.0)
+    assert "V = 300 km/h > 200 km/h" in s and "[3.148, 7.443] Hz" in s and "required" in s
+    low = Bridge.from_frequency(15.0, 4.0, 15000.0, 0.02)
+    assert "outside the limits" in screening(low, 160.0)
+
+
+@pytest.mark.parametrize("kw,msg", [
+    (dict(max_line_speed_kmh=144.0), r"--max-line-speed: 144 km/h is out of range; allowed \(144, 500\] km/h"),
+    (dict(max_line_speed_kmh=120.0), r"--max-line-speed: 120 km/h is out of range; allowed \(144, 500\] km/h"),
+    (dict(max_line_speed_kmh=520.0), r"--max-line-speed: 520 km/h is out of range"),
+    (dict(max_line_speed_kmh=300.0, step_kmh=2.0), r"--speed-step: 2 km/h is out of range; allowed \(0, 1\] km/h"),
+    (dict(max_line_speed_kmh=300.0, track="slab"), r"--track: 'slab' is not allowed; allowed ballasted, direct"),
+    (dict(max_line_speed_kmh=300.0, damping="eada"), r"--damping: 'eada' is not allowed"),
+])
+def test_bad_input_api(kw, msg):
+    with pytest.raises(InputError, match=msg):
+        run_check(named_bridge("B1"), trains=[load_train("ICE-2")], **kw)
+
+
+def test_bad_trains():
+    with pytest.raises(InputError, match=r"train: 'TGV' is unknown; allowed ICE-2, Eurostar, Railjet, ICE-4, "
+                                         r"Eurostar-table, HSLM-A1 \.\. HSLM-A10, or a \.toml train file"):
+        resolve_trains("hslm,TGV")
+    with pytest.raises(InputError, match=r"--trains: 'HSLM-A3' is given twice"):
+        resolve_trains("hslm,HSLM-A3")
+    with pytest.raises(InputError, match=r"--trains: ' , ' names no train"):
+        resolve_trains(" , ")
+    short = Bridge.from_frequency(5.0, 20.0, 10000.0, 0.02)
+    with pytest.raises(InputError, match=r"HSLM-A applies to spans >= 7 m; this bridge spans 5 m.*HSLM-B"):
+        run_check(short, 300.0, resolve_trains("hslm"))
+
+
+@pytest.mark.parametrize("args,line", [
+    (["--max-line-speed", "140"], "error: --max-line-speed: 140 km/h is out of range; allowed (144, 500] km/h "
+                                  "(the check runs from 40 m/s = 144 km/h up to 1.2 V, EN 1991-2 6.4.6.2; 1.2 V at "
+                                  "most 600 km/h)\n"),
+    (["--max-line-speed", "300", "--trains", "hslm,Thalys"],
+     "error: train: 'Thalys' is unknown; allowed ICE-2, Eurostar, Railjet, ICE-4, Eurostar-table, "
+     "HSLM-A1 .. HSLM-A10, or a .toml train file\n"),
+    (["--bridge", "B2", "--max-line-speed", "300", "--damping", "adm"],
+     "error: --damping adm: the Eurocode ADM applies to spans < 30 m (EN 1991-2 6.4.6.3.1); this bridge "
+     "spans 30 m; allowed --damping none\n"),
+    (["--max-line-speed", "300", "--damping", "lb"],
+     "error: --damping lb: HSLM-A1 is an HSLM load train, not a vehicle; the lower-bound functions apply only "
+     "to the real trains of the study; allowed for HSLM: --damping none or adm\n"),
+    (["--max-line-speed", "300", "--speed-step", "5"], "error: --speed-step: 5 km/h is out of range; allowed (0, 1] km/h\n"),
+])
+def test_bad_input_cli_lines(args, line):
+    r = run("check", *args)
+    assert r.returncode == 2
+    assert r.stderr == line
+
+
+def test_cli_outputs_and_no_overwrite(tmp_path):
+    js, cs, png = tmp_path / "c.json", tmp_path / "c.csv", tmp_path / "c.png"
+    r = run("check", "--bridge", "B1", "--max-line-speed", "250", "--trains", "HSLM-A1,ICE-2", "--damping", "adm",
+            "--json", str(js), "--csv", str(cs), "--plot", str(png))
+    assert r.returncode == 0, r.stderr
+    assert "governing:" in r.stdout and "screening (EN 1991-2 6.4.4" in r.stdout
+    assert "Eurocode ADM, L = 15 m < 30 m" in r.stdout
+    d = json.loads(js.read_text())
+    assert d["verdict"] in ("pass", "fail") and d["limit_m_s2"] == 3.5 and d["modes"] == [1, 2, 3]
+    assert [t["train"] for t in d["trains"]] == ["HSLM-A1", "ICE-2"]
+    g = d["governing"]
+    curve = next(t for t in d["trains"] if t["train"] == g["train"])["curve"]
+    assert g["acc_m_s2"] == max(curve["max_acc_m_s2"])
+    assert d["margin_m_s2"] == pytest.approx(3.5 - g["acc_m_s2"])
+    rows = list(csv.DictReader(cs.open()))
+    assert len(rows) == sum(len(t["curve"]["speeds_kmh"]) for t in d["trains"])
+    assert png.stat().st_size > 20_000
+    before = js.read_text()
+    r = run("check", "--max-line-speed", "250", "--trains", "HSLM-A1", "--json", str(js))
+    assert r.returncode == 2 and r.stderr == f"error: --json: {str(js)!r} exists; use --overwrite to replace it\n"
+    assert js.read_text() == before
+    r = run("check", "--max-line-speed", "250", "--trains", "HSLM-A1", "--csv", str(tmp_path / "x.txt"))
+    assert r.returncode == 2 and "must end in .csv" in r.stderr
+
+
+def test_comfort_b_v_limits_and_convergence():
+    """Passenger comfort b_v from the DIM: step-converged, ~0 on a rigid bridge, larger on a light
+    bridge (B3 weighs 0.41 of B1 at the same n0), level by EN 1990 A2.4.4.3 Table A2.9."""
+    from adm_calib.check import comfort_b_v, comfort_level
+    from adm_sim.stepping import StepOptions
+
+    t = load_train("ICE-2")
+    v = np.array([200.0, 263.0])
+    b1 = comfort_b_v(named_bridge("B1"), t, v)
+    fine = comfort_b_v(named_bridge("B1"), t, v, options=StepOptions(steps_per_period=32))
+    np.testing.assert_allclose(b1, fine, rtol=1e-2)
+    assert 0.05 < b1.max() < 1.0
+    rigid = Bridge.from_frequency(15.0, 80.0, 1e6, 0.02, n_modes=1)  # 80 Hz, 1000 t/m: deflections ~1e-4 of B1
+    assert comfort_b_v(rigid, t, v).max() < 1e-3 * b1.max()
+    assert comfort_b_v(named_bridge("B3"), t, v).max() > b1.max()
+    assert [comfort_level(x) for x in (0.5, 1.2, 1.9, 2.5)] == ["very good", "good", "acceptable", "beyond acceptable"]
+    with pytest.raises(InputError, match=r"comfort: 'HSLM-A1' has no vehicles; b_v needs the DIM"):
+        comfort_b_v(named_bridge("B1"), load_train("HSLM-A1"), v)
+
+
+def test_more_modes_on_request():
+    b = named_bridge("B4")
+    t = [load_train("ICE-2")]
+    res = run_check(b, 250.0, t, n_modes=5)
+    assert res.modes == (1, 2, 3, 4, 5)
+    env = moving_load_envelope(named_bridge("B4", n_modes=5), t[0].axle_offsets_m, t[0].axle_loads_n, res.speeds_kmh)
+    np.testing.assert_allclose(res.trains[0].max_acc_m_s2[np.isin(res.trains[0].speeds_kmh, res.speeds_kmh)],
+                               env.max_acc_m_s2, rtol=1e-12)
+    with pytest.raises(InputError, match=r"--modes: 2 - is out of range; allowed \[3, 20\] - \(EN 1990 A2\.4\.4\.2\.1 "
+                                         r"asks for every mode up to 32\.4 Hz: 3 modes\)"):
+        run_check(b, 250.0, t, n_modes=2)
+    with pytest.raises(InputError, match=r"--modes: 4\.5 is not an integer; allowed \[3, 20\]"):
+        run_check(b, 250.0, t, n_modes=4.5)
+
+
+def test_core_does_not_import_adm_calib():
+    """The check is registered in adm_sim.cli but imports adm_calib only when it runs."""
+    code = "import sys, adm_sim.cli, adm_sim.envelope, adm_sim.hslm, adm_sim.trains; print('adm_calib' in sys.modules)"
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert r.stdout.strip() == "False", r.stderr
+
+
+def test_refusal_comes_before_any_calibration(monkeypatch):
+    """`--damping vbi` with an HSLM train listed last is refused before ICE-2's calibration runs."""
+    import adm_calib.calibrate
+
+    def no_calibration(*a, **k):
+        raise AssertionError("the calibration ran before the refusal")
+
+    monkeypatch.setattr(adm_calib.calibrate, "calibrate", no_calibration)
+    with pytest.raises(InputError, match=r"--damping vbi: HSLM-A2 is an HSLM load train"):
+        run_check(named_bridge("B1"), 300.0, resolve_trains("ICE-2,HSLM-A2"), damping="vbi")
