@@ -57,7 +57,7 @@ def check_args(args):
             ("rerun+http://127.0.0.1:", "rerun+http://localhost:", "rerun+http://[::1]:")):
         raise InputError(f"--connect: {args.connect!r} is not a loopback rerun URL; allowed "
                          f"rerun+http://127.0.0.1:PORT/proxy (the viewer must run on this machine)")
-    args.exaggeration = check_range("--exaggeration", args.exaggeration, "-", 0.0, 1e6, lo_open=True)
+    args.exaggeration = check_range("--exaggeration", args.exaggeration, "x", 0.0, 1e6, lo_open=True)
     args.rate = check_range("--rate", args.rate, "x simulated time", 0.0, 1e6)
     args.wait_subscribers = check_range("--wait-subscribers", args.wait_subscribers, "s", 0.0, 3600.0)
     if args.domain_id is not None:
@@ -117,7 +117,7 @@ def show_in_rerun(args, save_path=None) -> dict[str, int]:
     accel = defaultdict(lambda: ([], []))  # lane -> (t_s list, acc list)
     series = defaultdict(lambda: defaultdict(lambda: ([], [])))  # topic -> name -> (t, v)
     counts: dict[str, int] = defaultdict(int)
-    for topic, log_time_ns, msg in read_messages(args.mcap):
+    for topic, log_time_ns, msg in _guarded(read_messages(args.mcap), args.mcap):
         counts[topic] += 1
         t_s = _stamp_ns(msg, log_time_ns) * 1e-9
         if hasattr(msg, "accel") and hasattr(msg, "header"):  # AccelStamped
@@ -157,6 +157,19 @@ def show_in_rerun(args, save_path=None) -> dict[str, int]:
                             columns=rr.Scalars.columns(scalars=np.asarray(v, dtype=float)))
     rl.close_rerun()
     return dict(counts)
+
+
+def _incomplete(path, exc) -> InputError:
+    return InputError(f"RUN.mcap: '{path}' is not a complete MCAP file ({type(exc).__name__}); "
+                      f"recover it with: adm-sim salvage {path} OUT.mcap")
+
+
+def _guarded(messages, path):
+    """``messages`` with the reader's low-level failures on a cut-short file as one :class:`InputError`."""
+    try:
+        yield from messages
+    except OSError as exc:  # e.g. seeking to a footer before the start of a file of a few bytes
+        raise _incomplete(path, exc) from None
 
 
 def _level(level) -> int:
@@ -222,9 +235,8 @@ def republish(args, env) -> int:
             reader = make_reader(f)
             try:
                 summary = reader.get_summary()
-            except McapError as exc:
-                raise InputError(f"RUN.mcap: '{args.mcap}' is not a complete MCAP file ({type(exc).__name__}); "
-                                 f"recover it with: adm-sim salvage {args.mcap} OUT.mcap") from None
+            except (McapError, OSError) as exc:
+                raise _incomplete(args.mcap, exc) from None
             if summary is None:
                 raise InputError(f"{args.mcap}: no summary; salvage the file first")
             for ch in summary.channels.values():

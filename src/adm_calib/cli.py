@@ -119,15 +119,14 @@ def cmd_table4(args):
     from adm_sim.trains import load_train
 
     from adm_calib.plots import plot_total_damping
-    from adm_calib.reference import canonical_train_name
     from adm_calib.table4 import run_table4
 
     names = ("table4.csv", "table4.txt", "table4.json", "fig19_total_damping.png")
     out, paths = _out_dir(args.out, "--out", names, args.force)
-    bridges = [named_bridge(b).name for b in _list(args.bridges, "--bridges")]
+    bridges = [_as_option("--bridges", "bridge", named_bridge, b).name for b in _list(args.bridges, "--bridges")]
     if len(set(bridges)) != len(bridges):
         raise InputError(f"--bridges: {args.bridges!r} names a bridge twice; give each once")
-    trains = [canonical_train_name(t) for t in _list(args.trains, "--trains")]
+    trains = [_study_train(t, "--trains") for t in _list(args.trains, "--trains")]
     if len(set(trains)) != len(trains):
         raise InputError(f"--trains: {args.trains!r} names a train twice; give each once")
     for t in trains:
@@ -163,10 +162,26 @@ def _recommend_mu_kg_m(text):
         raise
 
 
-def cmd_recommend(args):
-    from adm_calib.reference import STUDY_N0_MAX_HZ, STUDY_SPAN_RANGE_M, canonical_train_name, lower_bound_table, recommend
+def _as_option(option, label, fn, *args):
+    """``fn(*args)``; an :class:`InputError` labelled ``label`` is relabelled with the ``option`` typed."""
+    try:
+        return fn(*args)
+    except InputError as exc:
+        raise InputError(f"{option}: {str(exc).removeprefix(label + ': ')}") from None
 
-    train = canonical_train_name(args.train)
+
+def _study_train(text, option):
+    """A study train's canonical name; the error names ``option`` as typed."""
+    from adm_calib.reference import canonical_train_name
+
+    return _as_option(option, "train", canonical_train_name, text)
+
+
+def cmd_recommend(args):
+    from adm_calib.reference import (STUDY_N0_MAX_HZ, STUDY_SPAN_RANGE_M, lower_bound_table, recommend,
+                                     span_from_frequency_m)
+
+    train = _study_train(args.train, "--train")
     lo_hz = lower_bound_table(args.functions)[train]["mu1"].lower_limit_hz
     try:
         n0 = check_range("--n0", args.n0, "Hz", lo_hz, STUDY_N0_MAX_HZ)
@@ -175,6 +190,10 @@ def cmd_recommend(args):
                          f"frequency of the studied bridges, Section 4.2.2)") from None
     mu_kg_m = _recommend_mu_kg_m(args.mu)
     span = None if args.span is None else check_range("--span", args.span, "m", *STUDY_SPAN_RANGE_M)
+    if span is None and not STUDY_SPAN_RANGE_M[0] <= span_from_frequency_m(n0) <= STUDY_SPAN_RANGE_M[1]:
+        raise InputError(f"--n0: {n0:g} Hz gives an estimated span of {span_from_frequency_m(n0):.3g} m "
+                         f"(n0 = 97.76 L^-0.9124), outside the studied spans [{STUDY_SPAN_RANGE_M[0]:g}, "
+                         f"{STUDY_SPAN_RANGE_M[1]:g}] m; give --span")
     rec = recommend(train, n0, mu_kg_m / 1000.0, args.type, span_m=span, interpolate=args.interpolate,
                     functions=args.functions)
     if args.json:
