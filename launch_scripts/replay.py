@@ -21,7 +21,10 @@ simulated time (0: as fast as possible). DDS stays on this machine: ``FASTDDS_BU
 unless already set, ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, and ``--domain-id`` or a free,
 locked ROS_DOMAIN_ID (printed on the first line).
 
-Exit status 0 on success, 2 with one line ``error: ...`` on bad input.
+Exit status 0 on success, 2 with one line ``error: ...`` on bad input (checked before anything is
+read, written or started: RUN.mcap must be an MCAP file, OUT.rrd a new ``.rrd`` file in an existing
+folder unless ``--overwrite``, every number finite and in range), 1 with one line when the replay
+itself fails (:func:`adm_sim.errors.run_cli`).
 """
 
 from __future__ import annotations
@@ -35,12 +38,33 @@ from pathlib import Path
 
 import numpy as np
 
-from adm_sim.errors import InputError
+from adm_sim.errors import EXIT_INPUT, InputError, RunError, check_int, check_range, run_cli
 
 
 class _Parser(argparse.ArgumentParser):
     def error(self, message):
-        self.exit(2, f"error: {message}\n")
+        self.exit(EXIT_INPUT, f"error: {message}\n")
+
+
+def check_args(args):
+    """Check every option before anything is read, written or started; raises :class:`InputError`."""
+    from adm_sim.cli import mcap_input, output_path
+
+    mcap_input(str(args.mcap), "RUN.mcap")
+    if args.rrd is not None:
+        output_path(str(args.rrd), "--rrd", args.overwrite, ".rrd")
+    if args.connect is not None and not args.connect.startswith(
+            ("rerun+http://127.0.0.1:", "rerun+http://localhost:", "rerun+http://[::1]:")):
+        raise InputError(f"--connect: {args.connect!r} is not a loopback rerun URL; allowed "
+                         f"rerun+http://127.0.0.1:PORT/proxy (the viewer must run on this machine)")
+    args.exaggeration = check_range("--exaggeration", args.exaggeration, "x", 0.0, 1e6, lo_open=True)
+    args.rate = check_range("--rate", args.rate, "x simulated time", 0.0, 1e6)
+    args.wait_subscribers = check_range("--wait-subscribers", args.wait_subscribers, "s", 0.0, 3600.0)
+    if args.domain_id is not None:
+        args.domain_id = check_int("--domain-id", args.domain_id, 0, 101)
+    if args.topics is not None and not args.republish:
+        raise InputError("--topics: only used with --republish; add --republish or drop --topics")
+    return args
 
 
 def parse_args(argv=None):
@@ -53,22 +77,20 @@ def parse_args(argv=None):
     p.add_argument("--via-convert", action="store_true",
                    help="with --rrd: use 'rerun mcap convert' instead of the adm-sim views")
     p.add_argument("--overwrite", action="store_true", help="replace OUT.rrd if it exists")
-    p.add_argument("--exaggeration", type=float, default=1.0,
-                   help="display factor on beam deflections (default 1)")
+    p.add_argument("--exaggeration", default="1",
+                   help="display factor on beam deflections, > 0 (default 1)")
     p.add_argument("--republish", action="store_true", help="republish the run on ROS 2")
-    p.add_argument("--domain-id", type=int, default=None, help="ROS_DOMAIN_ID (default: free one)")
-    p.add_argument("--rate", type=float, default=1.0,
-                   help="republish speed, multiples of simulated time; 0 = as fast as possible")
+    p.add_argument("--domain-id", default=None, help="ROS_DOMAIN_ID, 0..101 (default: a free one)")
+    p.add_argument("--rate", default="1",
+                   help="republish speed, multiples of simulated time, >= 0; 0 = as fast as possible")
     p.add_argument("--topics", nargs="+", default=None, help="republish only these topics")
-    p.add_argument("--wait-subscribers", type=float, default=2.0, metavar="S",
-                   help="wait up to S s until every republished topic has a subscriber")
+    p.add_argument("--wait-subscribers", default="2", metavar="S",
+                   help="wait up to S s (0..3600) until every republished topic has a subscriber")
     args = p.parse_args(argv)
     if args.via_convert and args.rrd is None:
         p.error("--via-convert needs --rrd OUT.rrd")
     if not (args.rrd or args.spawn or args.connect or args.republish):
         p.error("nothing to do: give --rrd, --spawn, --connect and/or --republish")
-    if args.rate < 0:
-        p.error(f"--rate: {args.rate:g} is out of range; allowed >= 0 (0 = as fast as possible)")
     return args
 
 
@@ -82,20 +104,20 @@ def _stamp_ns(msg, log_time_ns: int) -> int:
     return int(log_time_ns)
 
 
-def show_in_rerun(args) -> dict[str, int]:
-    """Decode the MCAP and log it with the adm-sim views; returns message counts per topic."""
+def show_in_rerun(args, save_path=None) -> dict[str, int]:
+    """Decode the MCAP and log it with the adm-sim views (into ``save_path``, a new ``.rrd``, if
+    given); returns message counts per topic."""
     import rerun as rr
 
     from adm_sim.ros import rerun_log as rl
     from adm_sim.ros.mcap_log import read_messages
 
-    rl.init_rerun("adm_sim_replay", spawn=args.spawn, connect_url=args.connect,
-                  save_path=args.rrd, overwrite=args.overwrite)
+    rl.init_rerun("adm_sim_replay", spawn=args.spawn, connect_url=args.connect, save_path=save_path)
     _log_metadata(args.mcap, rl)
     accel = defaultdict(lambda: ([], []))  # lane -> (t_s list, acc list)
     series = defaultdict(lambda: defaultdict(lambda: ([], [])))  # topic -> name -> (t, v)
     counts: dict[str, int] = defaultdict(int)
-    for topic, log_time_ns, msg in read_messages(args.mcap):
+    for topic, log_time_ns, msg in _guarded(read_messages(args.mcap), args.mcap):
         counts[topic] += 1
         t_s = _stamp_ns(msg, log_time_ns) * 1e-9
         if hasattr(msg, "accel") and hasattr(msg, "header"):  # AccelStamped
@@ -137,6 +159,19 @@ def show_in_rerun(args) -> dict[str, int]:
     return dict(counts)
 
 
+def _incomplete(path, exc) -> InputError:
+    return InputError(f"RUN.mcap: '{path}' is not a complete MCAP file ({type(exc).__name__}); "
+                      f"recover it with: adm-sim salvage {path} OUT.mcap")
+
+
+def _guarded(messages, path):
+    """``messages`` with the reader's low-level failures on a cut-short file as one :class:`InputError`."""
+    try:
+        yield from messages
+    except OSError as exc:  # e.g. seeking to a footer before the start of a file of a few bytes
+        raise _incomplete(path, exc) from None
+
+
 def _level(level) -> int:
     return level[0] if isinstance(level, (bytes, bytearray)) else int(level)
 
@@ -156,19 +191,17 @@ def _log_metadata(path: Path, rl) -> None:
         rl.log_run_info(info)
 
 
-def convert(args) -> None:
+def convert(args, save_path) -> None:
     from adm_sim.ros.rerun_log import ensure_analytics_disabled, rerun_cli, rerun_cli_env
 
-    if args.rrd.exists() and not args.overwrite:
-        raise InputError(f"--rrd: '{args.rrd}' already exists; refusing to overwrite it")
     ensure_analytics_disabled()
     proc = subprocess.run(
-        [rerun_cli(), "mcap", "convert", str(args.mcap), "-o", str(args.rrd),
+        [rerun_cli(), "mcap", "convert", str(args.mcap), "-o", str(save_path),
          "--application-id", "adm_sim_replay"],
         env=rerun_cli_env(), capture_output=True, text=True, timeout=600)
     if proc.returncode != 0:
         last = (proc.stderr.strip().splitlines() or ["no message"])[-1]
-        raise InputError(f"rerun mcap convert failed on '{args.mcap}': {last}")
+        raise RunError(f"rerun mcap convert failed on '{args.mcap}': {last}")
 
 
 # ---------------------------------------------------------------- ROS 2 republish
@@ -179,6 +212,7 @@ def republish(args, env) -> int:
     import importlib
 
     import rclpy
+    from mcap.exceptions import McapError
     from mcap.reader import make_reader
     from rclpy.qos import QoSProfile, ReliabilityPolicy
     from rosgraph_msgs.msg import Clock
@@ -199,7 +233,10 @@ def republish(args, env) -> int:
     try:
         with open(args.mcap, "rb") as f:
             reader = make_reader(f)
-            summary = reader.get_summary()
+            try:
+                summary = reader.get_summary()
+            except (McapError, OSError) as exc:
+                raise _incomplete(args.mcap, exc) from None
             if summary is None:
                 raise InputError(f"{args.mcap}: no summary; salvage the file first")
             for ch in summary.channels.values():
@@ -244,28 +281,33 @@ def republish(args, env) -> int:
 
 def main(argv=None) -> int:
     args = parse_args(argv)
-    try:
-        if not args.mcap.is_file():
-            raise InputError(f"RUN.mcap: '{args.mcap}' does not exist")
-        env = None
-        if args.republish:
-            from adm_sim.ros.env import apply_local_ros_env
+    return run_cli(lambda: _run(args))
 
-            env = apply_local_ros_env(args.domain_id)  # before rclpy creates a participant
-            print(f"ROS_DOMAIN_ID={env.domain_id}", flush=True)
-        if args.rrd and args.via_convert:
-            convert(args)
-            print(f"wrote {args.rrd} (rerun mcap convert)")
-        elif args.rrd or args.spawn or args.connect:
-            counts = show_in_rerun(args)
-            where = args.rrd or args.connect or "the spawned viewer"
-            print(f"logged {sum(counts.values())} messages on {len(counts)} topics to {where}")
-        if args.republish:
-            n = republish(args, env)
-            print(f"republished {n} messages on domain {env.domain_id}")
-    except InputError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+
+def _run(args) -> int:
+    from adm_sim.cli import write_atomic
+
+    check_args(args)
+    env = None
+    if args.republish:
+        from adm_sim.ros.env import apply_local_ros_env
+
+        env = apply_local_ros_env(args.domain_id)  # before rclpy creates a participant
+        print(f"ROS_DOMAIN_ID={env.domain_id}", flush=True)
+    if args.rrd and args.via_convert:
+        write_atomic(args.rrd, lambda tmp: convert(args, tmp))  # a failed replay leaves no stub
+        print(f"wrote {args.rrd} (rerun mcap convert)")
+    elif args.rrd:
+        counts = {}
+        write_atomic(args.rrd, lambda tmp: counts.update(show_in_rerun(args, tmp)))
+        print(f"logged {sum(counts.values())} messages on {len(counts)} topics to {args.rrd}")
+    elif args.spawn or args.connect:
+        counts = show_in_rerun(args)
+        where = args.rrd or args.connect or "the spawned viewer"
+        print(f"logged {sum(counts.values())} messages on {len(counts)} topics to {where}")
+    if args.republish:
+        n = republish(args, env)
+        print(f"republished {n} messages on domain {env.domain_id}")
     return 0
 
 

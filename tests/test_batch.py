@@ -16,7 +16,7 @@ from adm_calib.batch import batch_step, calibrate_batch
 from adm_calib.calibrate import CalibrationOptions, calibrate, calibration_step
 from adm_calib.study import select_cases
 from adm_sim.batch import BatchRunner
-from adm_sim.errors import InputError
+from adm_sim.errors import RunError
 from adm_sim.stepping import StepOptions
 from adm_sim.sweep import run_sweep
 from adm_sim.trains import load_train
@@ -132,5 +132,5 @@ def test_batch_run_fails_on_a_non_finite_lane_with_one_line():
     assert run.message.startswith(f"solution is not finite in steps {run.k - 64}..{run.k} of {run.n_steps}: "
                                   f"MLM state in 2 of 2 lanes (first at {bridges[0].name or bridges[0].describe()} "
                                   f"at 200 km/h); the step ds = 2 m is too large")
-    with pytest.raises(InputError, match=r"^solution is not finite in steps \d+\.\.\d+ of \d+: MLM state"):
+    with pytest.raises(RunError, match=r"^solution is not finite in steps \d+\.\.\d+ of \d+: MLM state"):
         runner.run("mlm", [0, 0], [200.0, 300.0])

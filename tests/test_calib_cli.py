@@ -37,7 +37,7 @@ def test_calibrate_writes_json_and_plot(tmp_path):
     # never overwrite silently
     p2 = run_cli("calibrate", "--bridge", "B1", "--train", "ICE-2", "--json", str(js))
     assert p2.returncode == 2
-    assert p2.stderr.strip().splitlines() == [f"error: '{js}' exists; use --force to overwrite it"]
+    assert p2.stderr.strip().splitlines() == [f"error: --json: '{js}' exists; use --overwrite to replace it"]
 
 
 def test_table4_subset_eurostar_has_no_eada(tmp_path):
@@ -56,25 +56,29 @@ def test_table4_subset_eurostar_has_no_eada(tmp_path):
 
 
 def test_recommend_prints_rule_and_functions(capsys):
-    assert main(["recommend", "--train", "ICE-2", "--n0", "5", "--mu", "25", "--type", "cfb", "--span", "20"]) == 0
+    assert main(["recommend", "--train", "ICE-2", "--n0", "5", "--mu", "25000", "--type", "cfb", "--span", "20"]) == 0
     out = capsys.readouterr().out
     # mu2(20) = 22.543 < 25 < mu1(20) = 27.31 t/m: safe side = mu1
     assert "next heavier function mu1" in out
     expected = ref.lower_bound("ICE-2", "mu1").delta_zeta_pct(5.0)
     assert f"dz_LB = {expected:.4f} %" in out
-    assert main(["recommend", "--train", "ICE-2", "--n0", "5", "--mu", "25", "--type", "cfb", "--json"]) == 0
+    assert main(["recommend", "--train", "ICE-2", "--n0", "5", "--mu", "25000", "--type", "cfb", "--json"]) == 0
     d = json.loads(capsys.readouterr().out)
     assert d["span_estimated"] is True and d["mass_functions"]
+    assert d["mu_kg_m"] == 25000.0 and d["mu_t_m"] == 25.0
 
 
 @pytest.mark.parametrize("argv, match", [
-    (["recommend", "--train", "TGV", "--n0", "5", "--mu", "20", "--type", "cfb"], r"train: 'TGV' was not studied"),
-    (["recommend", "--train", "ICE-2", "--n0", "1.5", "--mu", "20", "--type", "cfb"],
-     r"n0_hz: 1.5 Hz is out of range; allowed \[2.1, 35.\d+\] Hz"),
-    (["recommend", "--train", "ICE-2", "--n0", "5", "--mu", "20", "--type", "cfb", "--span", "-10"],
-     r"span_m: -10 m is out of range"),
-    (["recommend", "--train", "ICE-2", "--n0", "5", "--mu", "20", "--type", "concrete"], r"argument --type: invalid choice"),
-    (["recommend", "--train", "ICE-2", "--n0", "five", "--mu", "20", "--type", "cfb"], r"argument --n0: invalid float"),
+    (["recommend", "--train", "TGV", "--n0", "5", "--mu", "20000", "--type", "cfb"], r"train: 'TGV' was not studied"),
+    (["recommend", "--train", "ICE-2", "--n0", "1.5", "--mu", "20000", "--type", "cfb"],
+     r"--n0: 1.5 Hz is out of range; allowed \[2.1, 35.\d+\] Hz"),
+    (["recommend", "--train", "ICE-2", "--n0", "5", "--mu", "20000", "--type", "cfb", "--span", "-10"],
+     r"^error: --span: -10 m is out of range; allowed \[4, 40\] m$"),
+    (["recommend", "--train", "ICE-2", "--n0", "5", "--mu", "20000", "--type", "concrete"], r"argument --type: invalid choice"),
+    (["recommend", "--train", "ICE-2", "--n0", "five", "--mu", "20000", "--type", "cfb"], r"--n0: 'five' is not a number"),
+    (["recommend", "--train", "ICE-2", "--n0", "5", "--mu", "20", "--type", "cfb"],
+     r"^error: --mu: 20 kg/m is out of range; allowed \[500, 100000\] kg/m \(--mu is in kg/m like the bridge "
+     r"specs: 20 t/m = 20000 kg/m\)$"),
     (["calibrate", "--bridge", "B1", "--train", "TGV"], r"train: 'TGV' is unknown"),
     (["calibrate", "--bridge", "L=-15,n0=8,mu=19000,zeta_pct=1.8", "--train", "ICE-2"], r"L: -15 m is out of range"),
     (["calibrate", "--bridge", "B1", "--train", "ICE-2", "--speeds", "350:160:1"], r"speeds: '350:160:1' needs start <= stop"),
@@ -91,9 +95,9 @@ def test_bad_input_one_line_exit_2(argv, match, capsys):
 
 
 def test_bad_input_exit_code_of_the_process():
-    p = run_cli("recommend", "--train", "ICE-2", "--n0", "1.0", "--mu", "20", "--type", "sc")
+    p = run_cli("recommend", "--train", "ICE-2", "--n0", "1.0", "--mu", "20000", "--type", "sc")
     assert p.returncode == 2
-    assert p.stderr.startswith("error: n0_hz: 1 Hz is out of range") and "Traceback" not in p.stderr
+    assert p.stderr.startswith("error: --n0: 1 Hz is out of range") and "Traceback" not in p.stderr
     p = run_cli("calibrate", "--bridge", "B1", "--train", "unknown-train")
     assert p.returncode == 2 and p.stderr.count("\n") == 1 and "unknown-train" in p.stderr
 
@@ -102,7 +106,7 @@ def test_console_script_installed():
     exe = Path(sys.executable).with_name("adm-calib")
     if not exe.exists():
         pytest.skip("console script not installed in this environment")
-    p = subprocess.run([str(exe), "recommend", "--train", "Railjet", "--n0", "3.6", "--mu", "9.56", "--type", "sc",
+    p = subprocess.run([str(exe), "recommend", "--train", "Railjet", "--n0", "3.6", "--mu", "9560", "--type", "sc",
                         "--span", "30"], capture_output=True, text=True, timeout=120)
     assert p.returncode == 0, p.stderr
     assert "mu lies on mass function mu5" in p.stdout

@@ -43,9 +43,9 @@ def test_sweep_reports_missing_interior_peak(tmp_path):
     (["sweep", "--train", "TGV"], "train: 'TGV' is unknown"),
     (["sweep", "--model", "fem"], "invalid choice: 'fem'"),
     (["sweep", "--speeds", "100:50"], "needs start <= stop"),
-    (["sweep", "--speeds", "100:900:10"], "speed_kmh: 610 km/h is out of range; allowed [1, 600] km/h"),
+    (["sweep", "--speeds", "100:900:10"], "speeds: '100:900:10' gives 610 km/h; allowed speeds in [1, 600] km/h"),
     (["sweep", "--delta-zeta-pct", "-5"], "--delta-zeta-pct: -5 % is out of range"),
-    (["sweep", "--steps-per-period", "1"], "steps_per_period: 1 steps is out of range"),
+    (["sweep", "--steps-per-period", "1"], "--steps-per-period: 1 steps is out of range; allowed [4, 10000] steps"),
 ])
 def test_bad_input_is_one_line_exit_2(args, match):
     r = run(*args)
@@ -95,5 +95,6 @@ def test_bridges_field_is_pure_csv(capsys):
     assert main(["bridges", "--field"]) == 0
     out = capsys.readouterr()
     rows = out.out.splitlines()
-    assert rows[0] == "name,span_m,n0_hz,mu_t_m,EJ_Nm2,zeta_pct,type" and len(rows) == 1111
-    assert rows[1].startswith("L4-f1-mu1,4,20.7883,13.8220,") and "1110 bridges" in out.err
+    assert rows[0] == "name,span_m,n0_hz,mu_kg_m,mu_t_m,EJ_Nm2,zeta_pct,type" and len(rows) == 1111
+    # mu1 at 4 m: 0.843 * 4 + 10.45 = 13.822 t/m (Eq. 19, Table 1), shown in kg/m and t/m
+    assert rows[1].startswith("L4-f1-mu1,4,20.7883,13822.0,13.8220,") and "1110 bridges" in out.err

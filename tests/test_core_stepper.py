@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from adm_sim.bridge import named_bridge
-from adm_sim.errors import InputError
+from adm_sim.errors import InputError, RunError
 from adm_sim.stepping import (BridgeSide, LockstepRun, StepOptions, TrainSide, half_step_positions, make_grid,
                               mlm_modal_load_table, modal_loads_at, speeds_to_m_s)
 from adm_sim.sweep import run_sweep
@@ -151,7 +151,7 @@ def test_unstable_step_fails_with_a_message():
     """ds = 5 m is far beyond the RK4 stability limit of mode 3 at 160 km/h: the run fails."""
     opts = StepOptions(ds_m=5.0)
     with np.errstate(all="ignore"):
-        with pytest.raises(InputError, match=r"^solution is not finite at step \d+ of \d+ \(stage 0\): midspan "):
+        with pytest.raises(RunError, match=r"^solution is not finite at step \d+ of \d+ \(stage 0\): midspan "):
             run_sweep(BRIDGE, TRAIN, "dim", SPEEDS_KMH, options=opts)
         run = in_process("dim", opts)
         while run.status == "running":

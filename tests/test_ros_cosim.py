@@ -91,13 +91,13 @@ def test_calibrate_launch_matches_in_process_calibration(tmp_path, ros_domain):
 def test_non_finite_run_fails_with_the_message_and_nodes_stay_up(node_procs, ros_domain):
     """ds = 5 m makes the DIM blow up: the run fails at that step with the core's message (as
     run_sweep raises it), no result is taken, and the next run of the same nodes works."""
-    from adm_sim.errors import InputError
+    from adm_sim import errors
     from adm_sim.nodes.driver import RunError
 
     node_procs.start("bridge", "adm_sim.nodes.bridge_node", {"bridge": "B1", "ds_m": 5.0})
     node_procs.start("train", "adm_sim.nodes.train_node", {"speeds_kmh": "160,250,350"})
     bridge, train = resolve_bridge("B1"), load_train("ICE-2")
-    with np.errstate(all="ignore"), pytest.raises(InputError) as ref:
+    with np.errstate(all="ignore"), pytest.raises(errors.RunError) as ref:
         run_sweep(bridge, train, "dim", [160.0, 250.0, 350.0], options=StepOptions(ds_m=5.0))
     with driver_node(ros_domain.domain_id) as d:
         d.wait_for_graph()

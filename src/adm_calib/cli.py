@@ -4,25 +4,31 @@ Subcommands::
 
     adm-calib calibrate --bridge B1 --train ICE-2 [--speeds 160:350:1] [--json FILE] [--plot FILE.png]
     adm-calib table4 [--out DIR] [--bridges B1,B2,B3,B4] [--trains ICE-2,...] [--jobs N]
-    adm-calib recommend --train T --n0 HZ --mu T_PER_M --type cfb|sc [--span M] [--interpolate]
+    adm-calib recommend --train T --n0 HZ --mu KG_PER_M --type cfb|sc [--span M] [--interpolate]
     adm-calib study --out DIR [--trains ...] [--mass-functions mu1,...] [--spans 4:40] [--freq-index 1,...]
                     [--limit N] [--workers 2 | --scheduler tcp://127.0.0.1:PORT]
     adm-calib study-fit --results DIR/results.jsonl [--out DIR] [--exclude-flagged]
 
-Bad input prints one line ``error: ...`` on stderr and exits with code 2. Output files are never
-overwritten unless ``--force`` is given.
+Errors are one line ``error: ...`` on stderr: bad input exits with code 2, a run that fails for
+another reason (an unstable integration, a study cluster that fails) with 1, an interrupt with 130
+(:func:`adm_sim.errors.run_cli`). Output paths are checked before any computation; files are never
+overwritten unless ``--overwrite`` (alias ``--force``) is given, and then replaced only by complete
+ones. Mass per length is kg/m in and out (t/m shown beside it).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 import time
 from pathlib import Path
 
-from adm_sim.errors import InputError, check_range
+from adm_sim.cli import output_path, write_atomic
+from adm_sim.errors import InputError, RunError, check_int, check_range, run_cli
+
+#: Range of recommend --mu (kg/m): the 0.5-100 t/m the lower-bound rules accept.
+MU_RANGE_KG_M = (500.0, 100_000.0)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -30,15 +36,26 @@ class _Parser(argparse.ArgumentParser):
         raise InputError(message)
 
 
-def _out_path(text, force, suffix=None):
-    p = Path(text)
-    if suffix and p.suffix.lower() != suffix:
-        raise InputError(f"{text!r}: the file name must end in {suffix}")
-    if p.exists() and not force:
-        raise InputError(f"{str(p)!r} exists; use --force to overwrite it")
-    if not p.parent.exists():
-        raise InputError(f"{str(p)!r}: directory {str(p.parent)!r} does not exist")
-    return p
+def _out_dir(text, option, names, overwrite):
+    """Check an output folder and its files before any computation; returns ``(folder, paths)``.
+
+    The folder may not exist yet (:func:`_make_dir` creates it once every input is checked).
+    """
+    if not str(text).strip():
+        raise InputError(f"{option}: '' is empty; give a directory")
+    out = Path(text)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{option}: {str(out)!r} is not a directory")
+    if out.is_dir():
+        return out, [output_path(str(out / n), option, overwrite) for n in names]
+    return out, [out / n for n in names]
+
+
+def _make_dir(out, option):
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"{option}: cannot create {str(out)!r} ({exc.strerror})") from None
 
 
 def _list(text, field):
@@ -55,8 +72,12 @@ def _options(args):
 
     step = None
     if args.steps_per_period is not None:
-        step = StepOptions(steps_per_period=check_range("--steps-per-period", args.steps_per_period, "steps", 4, 10000))
+        step = StepOptions(steps_per_period=_steps_per_period(args.steps_per_period))
     return CalibrationOptions(dim_grid=args.dim_grid, step=step)
+
+
+def _steps_per_period(text):
+    return check_range("--steps-per-period", text, "steps", 4, 10000)
 
 
 def _speeds(text):
@@ -71,23 +92,24 @@ def cmd_calibrate(args):
 
     from adm_calib.calibrate import calibrate
 
+    json_path = output_path(args.json, "--json", args.force, ".json") if args.json is not None else None
+    plot_path = output_path(args.plot, "--plot", args.force, ".png") if args.plot is not None else None
     bridge = resolve_bridge(args.bridge)
     train = load_train(args.train)
     speeds = _speeds(args.speeds)
-    json_path = _out_path(args.json, args.force, ".json") if args.json else None
-    plot_path = _out_path(args.plot, args.force, ".png") if args.plot else None
+    options = _options(args)
     t0 = time.perf_counter()
-    res = calibrate(bridge, train, speeds_kmh=speeds, options=_options(args), progress=args.progress)
+    res = calibrate(bridge, train, speeds_kmh=speeds, options=options, progress=args.progress)
     wall = time.perf_counter() - t0
     print(res.summary())
     print(f"wall time      {wall:.2f} s")
     if json_path:
-        json_path.write_text(res.to_json() + "\n")
+        write_atomic(json_path, lambda p: p.write_text(res.to_json() + "\n"))
         print(f"wrote {json_path}")
     if plot_path:
         from adm_calib.plots import plot_calibration
 
-        plot_calibration(res, plot_path)
+        write_atomic(plot_path, lambda p: plot_calibration(res, p))
         print(f"wrote {plot_path}")
     return 0
 
@@ -97,46 +119,96 @@ def cmd_table4(args):
     from adm_sim.trains import load_train
 
     from adm_calib.plots import plot_total_damping
-    from adm_calib.reference import canonical_train_name
     from adm_calib.table4 import run_table4
 
-    bridges = [named_bridge(b).name for b in _list(args.bridges, "--bridges")]
-    trains = [canonical_train_name(t) for t in _list(args.trains, "--trains")]
+    names = ("table4.csv", "table4.txt", "table4.json", "fig19_total_damping.png")
+    out, paths = _out_dir(args.out, "--out", names, args.force)
+    bridges = [_as_option("--bridges", "bridge", named_bridge, b).name for b in _list(args.bridges, "--bridges")]
+    if len(set(bridges)) != len(bridges):
+        raise InputError(f"--bridges: {args.bridges!r} names a bridge twice; give each once")
+    trains = [_study_train(t, "--trains") for t in _list(args.trains, "--trains")]
+    if len(set(trains)) != len(trains):
+        raise InputError(f"--trains: {args.trains!r} names a train twice; give each once")
     for t in trains:
         load_train(t)
-    jobs = int(check_range("--jobs", args.jobs, "processes", 1, 64))
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise InputError(f"--out: {str(out)!r} is not a directory")
-    out.mkdir(parents=True, exist_ok=True)
-    names = ("table4.csv", "table4.txt", "table4.json", "fig19_total_damping.png")
-    paths = [_out_path(str(out / n), args.force) for n in names]
+    jobs = check_int("--jobs", args.jobs, 1, 64, "processes")
+    speeds, options = _speeds(args.speeds), _options(args)
+    _make_dir(out, "--out")
     t0 = time.perf_counter()
-    table = run_table4(bridges, trains, speeds_kmh=_speeds(args.speeds), options=_options(args), jobs=jobs,
-                       progress=args.progress)
+    table = run_table4(bridges, trains, speeds_kmh=speeds, options=options, jobs=jobs, progress=args.progress)
     text = table.to_text()
     print(text)
-    paths[0].write_text(table.to_csv())
-    paths[1].write_text(text + "\n")
-    paths[2].write_text(table.to_json() + "\n")
-    plot_total_damping(table, paths[3])
+    write_atomic(paths[0], lambda p: p.write_text(table.to_csv()))
+    write_atomic(paths[1], lambda p: p.write_text(text + "\n"))
+    write_atomic(paths[2], lambda p: p.write_text(table.to_json() + "\n"))
+    write_atomic(paths[3], lambda p: plot_total_damping(table, p))
     print(f"wrote {', '.join(str(p) for p in paths)} ({time.perf_counter() - t0:.1f} s)")
     return 0
 
 
-def cmd_recommend(args):
-    from adm_calib.reference import recommend
+def _recommend_mu_kg_m(text):
+    """``recommend --mu`` in kg/m, like the bridge specs. A value that is a mass per length in t/m
+    (0.5..100) cannot be one in kg/m (500..100000), so the hint shows the conversion."""
+    lo, hi = MU_RANGE_KG_M
+    try:
+        return check_range("--mu", text, "kg/m", lo, hi)
+    except InputError as exc:
+        try:
+            x = float(text)
+        except ValueError:
+            x = float("nan")
+        if 0.5 <= x <= 100.0:
+            raise InputError(f"{exc} (--mu is in kg/m like the bridge specs: {x:g} t/m = {1000 * x:g} kg/m)") from None
+        raise
 
-    rec = recommend(args.train, args.n0, args.mu, args.type, span_m=args.span, interpolate=args.interpolate,
+
+def _as_option(option, label, fn, *args):
+    """``fn(*args)``; an :class:`InputError` labelled ``label`` is relabelled with the ``option`` typed."""
+    try:
+        return fn(*args)
+    except InputError as exc:
+        raise InputError(f"{option}: {str(exc).removeprefix(label + ': ')}") from None
+
+
+def _study_train(text, option):
+    """A study train's canonical name; the error names ``option`` as typed."""
+    from adm_calib.reference import canonical_train_name
+
+    return _as_option(option, "train", canonical_train_name, text)
+
+
+def cmd_recommend(args):
+    from adm_calib.reference import (STUDY_N0_MAX_HZ, STUDY_SPAN_RANGE_M, lower_bound_table, recommend,
+                                     span_from_frequency_m)
+
+    train = _study_train(args.train, "--train")
+    lo_hz = lower_bound_table(args.functions)[train]["mu1"].lower_limit_hz
+    try:
+        n0 = check_range("--n0", args.n0, "Hz", lo_hz, STUDY_N0_MAX_HZ)
+    except InputError as exc:
+        raise InputError(f"{exc} (validity of the lower-bound functions: {lo_hz:g} Hz up to the highest "
+                         f"frequency of the studied bridges, Section 4.2.2)") from None
+    mu_kg_m = _recommend_mu_kg_m(args.mu)
+    span = None if args.span is None else check_range("--span", args.span, "m", *STUDY_SPAN_RANGE_M)
+    if span is None and not STUDY_SPAN_RANGE_M[0] <= span_from_frequency_m(n0) <= STUDY_SPAN_RANGE_M[1]:
+        raise InputError(f"--n0: {n0:g} Hz gives an estimated span of {span_from_frequency_m(n0):.3g} m "
+                         f"(n0 = 97.76 L^-0.9124), outside the studied spans [{STUDY_SPAN_RANGE_M[0]:g}, "
+                         f"{STUDY_SPAN_RANGE_M[1]:g}] m; give --span")
+    rec = recommend(train, n0, mu_kg_m / 1000.0, args.type, span_m=span, interpolate=args.interpolate,
                     functions=args.functions)
     if args.json:
-        print(json.dumps(rec.to_dict(), indent=2))
+        d = rec.to_dict()
+        d["mu_kg_m"] = mu_kg_m
+        d["mass_function_kg_m"] = {m: 1000.0 * v for m, v in rec.mass_function_t_m.items()}
+        print(json.dumps(d, indent=2))
     else:
         print(f"dz_LB = {rec.delta_zeta_pct:.4f} %")
         print(f"functions: {'Tables B1-B4 (paper)' if rec.functions == 'paper' else 're-derived from the shipped study (ours)'}")
+        print(f"mu = {mu_kg_m:g} kg/m ({mu_kg_m / 1000:g} t/m)")
         print(f"rule: {rec.rule}")
         print("mass functions: " + ", ".join(
-            f"{m} (mu={rec.mass_function_t_m[m]:.3f} t/m, weight {w:.3f}, dz={v:.4f} %)"
+            f"{m} (mu={1000 * rec.mass_function_t_m[m]:.0f} kg/m = {rec.mass_function_t_m[m]:.3f} t/m, "
+            f"weight {w:.3f}, dz={v:.4f} %)"
             for m, w, v in zip(rec.mass_functions, rec.weights, rec.function_values_pct)))
         if rec.span_estimated:
             print(f"span: {rec.span_m:.2f} m estimated from n0 by n0 = 97.76 L^-0.9124 (give --span to set it)")
@@ -157,19 +229,6 @@ def _mass_functions(text):
     return out
 
 
-def _int_in(field, text, unit, lo, hi):
-    u = f" {unit}" if unit else ""
-    try:
-        x = float(text)
-    except (TypeError, ValueError):
-        x = math.nan
-    if not math.isfinite(x) or x != int(x):
-        raise InputError(f"{field}: {text!r} is not an integer; allowed integer in [{lo}, {hi}]{u}")
-    if not lo <= x <= hi:
-        raise InputError(f"{field}: {int(x)}{u} is out of range; allowed integer in [{lo}, {hi}]{u}")
-    return int(x)
-
-
 def _spans(text):
     from adm_calib.study import SPAN_RANGE_M
 
@@ -183,7 +242,7 @@ def _spans(text):
 
 
 def _freq_indices(text):
-    return sorted({_int_in("--freq-index", p, "", 1, 5) for p in _list(text, "--freq-index")})
+    return sorted({check_int("--freq-index", p, 1, 5) for p in _list(text, "--freq-index")})
 
 
 def _scheduler(text):
@@ -199,20 +258,22 @@ def cmd_study(args):
 
     from adm_calib.study import StudySettings, canonical_trains, run_study, select_cases
 
+    out, _ = _out_dir(args.out, "--out", (), True)
     trains = canonical_trains(_list(args.trains, "--trains"), field="--trains")
     mfs = _mass_functions(args.mass_functions)
     spans = _spans(args.spans)
     fis = _freq_indices(args.freq_index)
-    workers = _int_in("--workers", args.workers, "processes", 1, 64)
-    limit = None if args.limit is None else _int_in("--limit", args.limit, "cases", 1, 1_000_000)
+    workers = check_int("--workers", args.workers, 1, 64, "processes")
+    limit = None if args.limit is None else check_int("--limit", args.limit, 1, 1_000_000, "cases")
     scheduler = None if args.scheduler is None else _scheduler(args.scheduler)
-    spp = None if args.steps_per_period is None else check_range("--steps-per-period", args.steps_per_period,
-                                                                   "steps", 4, 10000)
+    spp = None if args.steps_per_period is None else _steps_per_period(args.steps_per_period)
     _speeds(args.speeds)
     settings = StudySettings(speeds=args.speeds, dim_grid=args.dim_grid, steps_per_period=spp)
     cases = select_cases(trains, mfs, spans, fis)
     if not cases:
-        raise InputError("study: the options select no case")
+        raise InputError(f"--spans/--freq-index: the options select no case (spans are the integers "
+                         f"4..40 m; --spans {args.spans!r} holds none)")
+    _make_dir(out, "--out")
     options = {"trains": trains, "mass_functions": mfs, "spans_m": list(spans), "freq_index": fis,
                "limit": limit, "workers": workers, "scheduler": scheduler, "retry_errors": args.retry_errors,
                "argv": sys.argv[1:]}
@@ -242,6 +303,31 @@ def cmd_study(args):
     return 130 if run.interrupted else 0
 
 
+def _check_fit_records(records, option, path):
+    """Refuse result lines the fit cannot use as they are: a NaN or text where a number belongs."""
+    from adm_calib.study import MASS_FUNCTION_NAMES
+
+    for no, rec in enumerate(records, start=1):
+        where = f"{option}: {str(path)!r}: record {no} ({rec['bridge']}, {rec['train']})"
+        status = rec.get("status")
+        if not isinstance(status, str):
+            raise InputError(f"{where}: status: {status!r} must be text ('ok', 'error', ...)")
+        for flag in ("dim_is_local_max", "mlm_max_at_range_end"):
+            if flag in rec and not isinstance(rec[flag], bool):
+                raise InputError(f"{where}: {flag}: {rec[flag]!r} must be true or false")
+        if status != "ok" or rec.get("delta_zeta_vbi_pct") is None:
+            continue  # excluded from the fit (error / no dz), whatever else it holds
+        if rec.get("mass_function") not in MASS_FUNCTION_NAMES:
+            raise InputError(f"{where}: mass_function: {rec.get('mass_function')!r} is unknown; "
+                             f"allowed {', '.join(MASS_FUNCTION_NAMES)}")
+        for key, unit, lo, hi in (("delta_zeta_vbi_pct", "%", None, None), ("n0_hz", "Hz", 0.0, None),
+                                  ("span_m", "m", 0.0, None)):
+            value = rec.get(key)
+            if isinstance(value, str) or value is None:
+                raise InputError(f"{where}: {key}: {value!r} is not a number ({unit})")
+            check_range(f"{where}: {key}", value, unit, lo, hi, lo_open=lo is not None)
+
+
 def cmd_study_fit(args):
     from adm_calib import plots
     from adm_calib import study as st
@@ -249,13 +335,6 @@ def cmd_study_fit(args):
     res = Path(args.results)
     if not res.is_file():
         raise InputError(f"--results: {str(res)!r} is not a file")
-    content = st.read_results(res)
-    if not content.records:
-        raise InputError(f"--results: {str(res)!r} holds no complete result line")
-    out = Path(args.out) if args.out else res.parent
-    if out.exists() and not out.is_dir():
-        raise InputError(f"--out: {str(out)!r} is not a directory")
-    out.mkdir(parents=True, exist_ok=True)
     rule = "strict" if args.exclude_flagged else args.exclude
     if args.exclude_flagged and args.exclude not in ("strict", st.DEFAULT_RULE):
         raise InputError(f"--exclude-flagged means --exclude strict; it conflicts with --exclude {args.exclude}")
@@ -264,24 +343,36 @@ def cmd_study_fit(args):
              f"fig16_dz_vs_span{tag}.png", f"fig18_lower_bounds{tag}.png", f"lower_bounds_study{tag}.toml",
              f"appendix_b_comparison{tag}.md", f"fig17_lower_bound_ICE-2_mu3{tag}.png"]
     names += [f"fig17_lower_bound_{t}{tag}.png" for t in st.STUDY_TRAINS]
-    paths = {n: _out_path(str(out / n), args.force) for n in names}
+    out, path_list = _out_dir(args.out if args.out is not None else str(res.parent), "--out", names, args.force)
+    paths = dict(zip(names, path_list))
+    content = st.read_results(res)
+    if not content.records:
+        raise InputError(f"--results: {str(res)!r} holds no complete result line")
+    _check_fit_records(content.records, "--results", res)
+    _make_dir(out, "--out")
     fit = st.fit_study(content.records, rule=rule)
     text = fit.to_text()
     if content.truncated_tail:
         text += "\n(a truncated last line of the results file was ignored)"
     print(text)
-    paths[names[0]].write_text(fit.to_csv())
-    paths[names[1]].write_text(fit.minima_csv())
-    paths[names[2]].write_text(text + "\n")
-    plots.plot_dz_vs_span(fit.records_used, paths[names[3]])
-    plots.plot_lower_bounds(fit, paths[names[4]])
-    paths[names[5]].write_text(fit.to_toml(command=f"adm-calib study-fit --results {res} --exclude {rule}"))
-    paths[names[6]].write_text(st.comparison_markdown(content.records, rule=rule))
+    written = []
+
+    def write(name, fn):
+        write_atomic(paths[name], fn)
+        written.append(name)
+
+    write(names[0], lambda p: p.write_text(fit.to_csv()))
+    write(names[1], lambda p: p.write_text(fit.minima_csv()))
+    write(names[2], lambda p: p.write_text(text + "\n"))
+    write(names[3], lambda p: plots.plot_dz_vs_span(fit.records_used, p))
+    write(names[4], lambda p: plots.plot_lower_bounds(fit, p))
+    write(names[5], lambda p: p.write_text(fit.to_toml(command=f"adm-calib study-fit --results {res} --exclude {rule}")))
+    write(names[6], lambda p: p.write_text(st.comparison_markdown(content.records, rule=rule)))
     if ("ICE-2", "mu3") in fit.fits:
-        plots.plot_lower_bound_set(fit, "ICE-2", "mu3", paths[names[7]])
+        write(names[7], lambda p: plots.plot_lower_bound_set(fit, "ICE-2", "mu3", p))
     for t, n in zip(st.STUDY_TRAINS, names[8:]):
-        plots.plot_lower_bounds_train(fit, t, paths[n])
-    print(f"wrote {len(names)} files to {out}")
+        write(n, lambda p, t=t: plots.plot_lower_bounds_train(fit, t, p))
+    print(f"wrote {len(written)} files to {out}")
     return 0
 
 
@@ -294,14 +385,16 @@ def build_parser():
         sp.add_argument("--speeds", default="160:350:1", help="MLM speeds in km/h, start:stop:step (default 160:350:1)")
         sp.add_argument("--dim-grid", choices=("paper", "full"), default="paper",
                         help="DIM speeds: paper = 5 km/h plus 1 km/h near the MLM peak (Section 3.3); full = all")
-        sp.add_argument("--steps-per-period", type=float, default=None,
+        sp.add_argument("--steps-per-period", default=None,
                         help="integration steps per period of the highest mode (core default 16)")
         sp.add_argument("--progress", action="store_true", help="show progress bars on stderr")
-        sp.add_argument("--force", action="store_true", help="overwrite existing output files")
+        sp.add_argument("--overwrite", "--force", dest="force", action="store_true",
+                        help="replace existing output files (only once the new ones are complete)")
 
     c = sub.add_parser("calibrate", help="calibrate dz_VBI for one bridge and one train")
-    c.add_argument("--bridge", required=True, help="B1..B4, a spec L=15,n0=8.26,mu=19042,zeta_pct=1.85,type=cfb, "
-                                                   "or a TOML file")
+    c.add_argument("--bridge", required=True, help="B1..B4, a spec L=15,n0=8.26,mu=19042,zeta_pct=1.85,class=cfb "
+                   "(L m, n0 Hz or EJ N m^2, mu kg/m, zeta_pct %% or type=cfb|sc for the Table 2 damping; class=cfb|sc "
+                   "classes a bridge of given damping for the lower-bound functions), or a TOML file with these keys")
     c.add_argument("--train", required=True, help="ICE-2, Eurostar, Railjet, ICE-4 or a TOML train file")
     c.add_argument("--json", help="write the result as JSON to this file")
     c.add_argument("--plot", help="write the Fig. 15 analogue to this PNG file")
@@ -312,16 +405,17 @@ def build_parser():
     t.add_argument("--out", default="table4_out", help="output directory (default table4_out)")
     t.add_argument("--bridges", default="B1,B2,B3,B4")
     t.add_argument("--trains", default="ICE-2,Eurostar,Railjet,ICE-4")
-    t.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
+    t.add_argument("--jobs", default="1", help="worker processes, 1..64 (default 1)")
     common(t)
     t.set_defaults(func=cmd_table4)
 
     r = sub.add_parser("recommend", help="dz from the lower-bound functions by the rules of Section 4.3")
     r.add_argument("--train", required=True, help="ICE-2, Eurostar, Railjet or ICE-4")
-    r.add_argument("--n0", type=float, required=True, help="first natural frequency (Hz)")
-    r.add_argument("--mu", type=float, required=True, help="mass per length in t/m (1 t/m = 1000 kg/m; the bridge specs take kg/m), as Table 1 / Eq. 19")
+    r.add_argument("--n0", required=True, help="first natural frequency (Hz), 2.1 Hz up to the highest n0 of the study")
+    r.add_argument("--mu", required=True, help="mass per length in kg/m, like the bridge specs (500..100000 kg/m; "
+                                                "Table 1 / Eq. 19 print t/m: 1 t/m = 1000 kg/m); printed in both")
     r.add_argument("--type", required=True, choices=("cfb", "sc"), help="cfb: concrete/filler beam, sc: steel/composite")
-    r.add_argument("--span", type=float, default=None, help="span (m); estimated from n0 when omitted")
+    r.add_argument("--span", default=None, help="span (m, 4..40); estimated from n0 when omitted")
     r.add_argument("--interpolate", action="store_true",
                    help="interpolate linearly between the adjacent mass functions instead of the safe side")
     r.add_argument("--functions", choices=("paper", "ours"), default="paper",
@@ -344,7 +438,7 @@ def build_parser():
     s.add_argument("--retry-errors", action="store_true", help="run the cases recorded with status error again")
     s.add_argument("--speeds", default="160:350:1", help="MLM speeds in km/h, start:stop:step (default 160:350:1)")
     s.add_argument("--dim-grid", choices=("paper", "full"), default="paper")
-    s.add_argument("--steps-per-period", type=float, default=None,
+    s.add_argument("--steps-per-period", default=None,
                    help="integration steps per period of the highest mode (core default 16)")
     s.set_defaults(func=cmd_study)
 
@@ -356,21 +450,21 @@ def build_parser():
                         "DIM value is not a local maximum (Section 4, Step 2); strict = also cases whose largest "
                         "MLM value lies at an end of the speed range")
     f.add_argument("--exclude-flagged", action="store_true", help="the same as --exclude strict")
-    f.add_argument("--force", action="store_true", help="overwrite existing output files")
+    f.add_argument("--overwrite", "--force", dest="force", action="store_true",
+                   help="replace existing output files (only once the new ones are complete)")
     f.set_defaults(func=cmd_study_fit)
     return p
 
 
 def main(argv=None):
-    try:
+    def work():
         args = build_parser().parse_args(argv)
-        return args.func(args)
-    except InputError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    except OSError as exc:
-        print(f"error: {exc.strerror or exc}: {exc.filename or ''}".rstrip(": "), file=sys.stderr)
-        return 2
+        try:
+            return args.func(args)
+        except OSError as exc:  # paths are checked first: what is left is the system (disk full, ...)
+            raise RunError(f"{exc.strerror or exc}: {exc.filename or ''}".rstrip(": ")) from None
+
+    return run_cli(work)
 
 
 if __name__ == "__main__":

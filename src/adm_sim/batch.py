@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from adm_sim import kernels
-from adm_sim.errors import InputError, check_range
+from adm_sim.errors import InputError, RunError, check_range
 from adm_sim.stepping import (FAILED, MODELS, RUNNING, StepOptions, SteppedRun, _all_finite, half_step_positions,
                               make_grid, mlm_rk4_coefficients, modal_loads_at, speeds_to_m_s)
 
@@ -197,14 +197,14 @@ class BatchRunner:
 
         Raises
         ------
-        InputError
+        RunError
             The solution of a lane is not finite (the run's one-line message).
         """
         run = self.start(model, case, speeds_kmh, delta_zeta, sweep)
         while run.status == RUNNING:
             run.advance()
         if run.status == FAILED:
-            raise InputError(run.message)
+            raise RunError(run.message)
         return run.max_acc_m_s2, run.max_disp_m
 
 

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from adm_sim.errors import InputError, check_range, read_toml
+from adm_sim.errors import InputError, check_choice, check_int, check_number, check_range, read_toml
 
 #: Allowed input ranges (SI): span, first frequency, mass per length, damping (fraction).
 SPAN_RANGE_M = (1.0, 150.0)
@@ -85,7 +85,7 @@ class Bridge:
                              f"allowed 'rayleigh' or 'modal'")
         if self.bridge_type not in BRIDGE_TYPES + ("",):
             raise InputError(f"bridge_type: {self.bridge_type!r} is not allowed; allowed 'cfb' or 'sc'")
-        check_range("n0_hz", self.n0_hz, "Hz", *N0_RANGE_HZ)
+        _check_n0(self.n0_hz, "n0_hz")
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -255,6 +255,8 @@ def parametric_field(n_modes=3, damping_model="rayleigh"):
 
 
 # ---------------------------------------------------------------------- user input
+#: Spec / file keys -> quantity. ``type`` (alias ``bridge_type``) gives the Table 2 damping and the
+#: class; ``class`` only classes the bridge (cfb|sc) for the lower-bound functions.
 _SPEC_KEYS = {
     "L": "span_m", "span_m": "span_m",
     "n0": "n0_hz", "n0_hz": "n0_hz",
@@ -262,61 +264,94 @@ _SPEC_KEYS = {
     "mu": "mass_per_length_kg_m", "mu_kg_m": "mass_per_length_kg_m",
     "mass_per_length_kg_m": "mass_per_length_kg_m",
     "zeta_pct": "zeta_pct", "zeta": "damping_ratio", "damping_ratio": "damping_ratio",
-    "type": "bridge_type", "bridge_type": "bridge_type",
+    "type": "table2_type", "bridge_type": "table2_type", "class": "bridge_class",
     "n_modes": "n_modes", "damping_model": "damping_model", "name": "name",
 }
+#: Keys whose value is text (every other key is a number).
+_TEXT_KEYS = ("type", "bridge_type", "class", "damping_model", "name")
+#: Relative slack on the n0 range for an n0 recomputed from EJ (Eq. 18 round trip).
+_N0_RTOL = 1e-12
 
 
-def bridge_from_mapping(data, source="bridge"):
-    """Build a bridge from a mapping of spec keys (SI units).
+def _n0_in_range(n0):
+    """n0 within :data:`N0_RANGE_HZ`, allowing the rounding of the Eq. 18 round trip."""
+    lo, hi = N0_RANGE_HZ
+    return lo * (1.0 - _N0_RTOL) <= n0 <= hi * (1.0 + _N0_RTOL)
 
-    Keys: ``L`` (m), ``n0`` (Hz) or ``EJ`` (N m^2), ``mu`` (kg/m), ``zeta_pct`` (%) or ``zeta``
-    (fraction); optional ``type`` (cfb|sc: Table 2 damping when zeta is omitted; with a zeta it
-    only classes the bridge for the lower-bound functions), ``n_modes``, ``damping_model``,
-    ``name``. A quantity given twice (``L=15,L=20``, ``L`` and ``span_m``, ``zeta_pct`` and
-    ``zeta``) is refused.
+
+def _check_n0(n0, field):
+    if not _n0_in_range(n0):
+        check_range(field, n0, "Hz", *N0_RANGE_HZ)
+
+
+def bridge_from_mapping(data, source="bridge", typed=False):
+    """Build a bridge from a mapping of spec keys (SI units); every error names the key as typed.
+
+    Keys: ``L`` (m), ``n0`` (Hz) or ``EJ`` (N m^2), ``mu`` (kg/m), and the damping as exactly one
+    of ``zeta_pct`` (%), ``zeta`` (fraction) or ``type=cfb|sc`` (EN 1991-2 Table 6.6 / paper
+    Table 2 damping, which also classes the bridge). ``class=cfb|sc`` classes a bridge of given
+    damping for the lower-bound functions without changing its damping. Optional ``n_modes``
+    (1..20), ``damping_model`` (rayleigh|modal), ``name``. Refused: unknown keys, a quantity given
+    twice (``L=15,L=20``, ``L`` and ``span_m``, ``zeta_pct`` and ``zeta``), ``type`` together with
+    a damping value or with ``class``, ``n0`` together with ``EJ``. With ``typed`` (a TOML file)
+    numbers must be numbers and text must be text.
     """
     vals, given = {}, {}
     for key, value in data.items():
         if key not in _SPEC_KEYS:
-            raise InputError(f"{source}: unknown field {key!r}; allowed {', '.join(sorted(_SPEC_KEYS))}")
+            raise InputError(f"{source}: unknown key {key!r}; allowed {', '.join(sorted(_SPEC_KEYS))}")
         field_ = _SPEC_KEYS[key]
         if field_ in vals:
             raise InputError(f"{source}: {given[field_]!r} and {key!r} give the same quantity twice; give it once")
+        if typed and key in _TEXT_KEYS and not isinstance(value, str):
+            raise InputError(f"{source}.{key}: {value!r} must be text in quotes")
         vals[field_], given[field_] = value, key
-    damping = [given[f] for f in ("zeta_pct", "damping_ratio") if f in vals]
+    where = {f: f"{source}.{k}" for f, k in given.items()}
+    num = check_number if typed else check_range
+    damping = [given[f] for f in ("zeta_pct", "damping_ratio", "table2_type") if f in vals]
     if len(damping) == 2:
-        raise InputError(f"{source}: {damping[0]!r} and {damping[1]!r} both give the damping; give one")
-
-    for need in ("span_m", "mass_per_length_kg_m"):
-        if need not in vals:
-            raise InputError(f"{source}: missing field {need!r} (L in m, mu in kg/m)")
-    L = check_range(f"{source}.L", vals["span_m"], "m", *SPAN_RANGE_M)
-    mu = check_range(f"{source}.mu", vals["mass_per_length_kg_m"], "kg/m", *MU_RANGE_KG_M)
-    btype = str(vals.get("bridge_type", ""))
-    if "zeta_pct" in vals:
-        zeta = check_range(f"{source}.zeta_pct", vals["zeta_pct"], "%", 0.0, 100 * ZETA_RANGE[1]) / 100.0
-    elif "damping_ratio" in vals:
-        zeta = check_range(f"{source}.zeta", vals["damping_ratio"], "- (fraction)", *ZETA_RANGE)
-    elif btype:
-        zeta = eurocode_damping_pct(L, btype) / 100.0
-    else:
-        raise InputError(f"{source}: missing damping: give zeta_pct (%, 0..20) or type=cfb|sc")
-    kw = dict(name=str(vals.get("name", "")), bridge_type=btype)
-    if "n_modes" in vals:
-        try:
-            kw["n_modes"] = int(vals["n_modes"])
-        except ValueError:
-            raise InputError(f"{source}.n_modes: {vals['n_modes']!r} is not an integer; allowed 1..20") from None
-    if "damping_model" in vals:
-        kw["damping_model"] = str(vals["damping_model"])
+        hint = (" (class=cfb|sc classes a bridge of given damping for the lower-bound functions)"
+                if "table2_type" in vals else "")
+        raise InputError(f"{source}: {damping[0]!r} and {damping[1]!r} both give the damping; give one{hint}")
+    if len(damping) > 2:
+        raise InputError(f"{source}: {', '.join(repr(d) for d in damping)} all give the damping; give one")
+    if "table2_type" in vals and "bridge_class" in vals:
+        raise InputError(f"{source}: {given['table2_type']!r} already classes the bridge; drop 'class'")
     if "n0_hz" in vals and "EJ_Nm2" in vals:
         raise InputError(f"{source}: give either n0 (Hz) or EJ (N m^2), not both")
+
+    for need, what in (("span_m", "L (span, m)"), ("mass_per_length_kg_m", "mu (mass per length, kg/m)")):
+        if need not in vals:
+            raise InputError(f"{source}: missing key {what}")
+    L = num(where["span_m"], vals["span_m"], "m", *SPAN_RANGE_M)
+    mu = num(where["mass_per_length_kg_m"], vals["mass_per_length_kg_m"], "kg/m", *MU_RANGE_KG_M)
+    btype = ""
+    for f in ("table2_type", "bridge_class"):
+        if f in vals:
+            btype = check_choice(where[f], str(vals[f]), BRIDGE_TYPES)
+    if "zeta_pct" in vals:
+        zeta = num(where["zeta_pct"], vals["zeta_pct"], "%", 0.0, 100 * ZETA_RANGE[1]) / 100.0
+    elif "damping_ratio" in vals:
+        zeta = num(where["damping_ratio"], vals["damping_ratio"], "- (fraction)", *ZETA_RANGE)
+    elif "table2_type" in vals:
+        zeta = eurocode_damping_pct(L, btype) / 100.0
+    else:
+        raise InputError(f"{source}: missing damping: give zeta_pct (%, 0..20), zeta (fraction, 0..0.2) "
+                         f"or type=cfb|sc (Table 2 damping)")
+    kw = dict(name=str(vals.get("name", "")), bridge_type=btype)
+    if "n_modes" in vals:
+        kw["n_modes"] = check_int(where["n_modes"], vals["n_modes"], *N_MODES_RANGE)
+    if "damping_model" in vals:
+        kw["damping_model"] = check_choice(where["damping_model"], str(vals["damping_model"]), ("rayleigh", "modal"))
     if "n0_hz" in vals:
-        n0 = check_range(f"{source}.n0", vals["n0_hz"], "Hz", *N0_RANGE_HZ)
+        n0 = num(where["n0_hz"], vals["n0_hz"], "Hz", *N0_RANGE_HZ)
         return Bridge.from_frequency(L, n0, mu, zeta, **kw)
     if "EJ_Nm2" in vals:
-        EJ = check_range(f"{source}.EJ", vals["EJ_Nm2"], "N m^2", 0.0, None, lo_open=True)
+        EJ = num(where["EJ_Nm2"], vals["EJ_Nm2"], "N m^2", 0.0, None, lo_open=True)
+        n0 = math.pi / (2.0 * L**2) * math.sqrt(EJ / mu)
+        if not _n0_in_range(n0):
+            raise InputError(f"{where['EJ_Nm2']}: {EJ:g} N m^2 gives n0 = {n0:.4g} Hz with L = {L:g} m and "
+                             f"mu = {mu:g} kg/m (Eq. 18); allowed n0 in [{N0_RANGE_HZ[0]:g}, {N0_RANGE_HZ[1]:g}] Hz")
         return Bridge(span_m=L, EJ_Nm2=EJ, mass_per_length_kg_m=mu, damping_ratio=zeta, **kw)
     raise InputError(f"{source}: missing stiffness: give n0 (Hz, 0.5..100) or EJ (N m^2, > 0)")
 
@@ -344,7 +379,7 @@ def load_bridge_file(path):
     p = Path(path)
     data = read_toml(p, "bridge file")
     data.setdefault("name", p.stem)
-    return bridge_from_mapping(data, source=f"bridge file {p.name}")
+    return bridge_from_mapping(data, source=f"bridge file {p.name}", typed=True)
 
 
 def resolve_bridge(text):

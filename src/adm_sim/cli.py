@@ -1,6 +1,8 @@
 """``adm-sim``: speed sweeps, train data checks and MCAP salvage from the command line.
 
-Errors on bad input are one line ``error: ...`` on stderr with exit code 2.
+Errors are one line ``error: ...`` on stderr: bad input exits with code 2, a run that fails for
+another reason (e.g. an integration that became unstable) with 1, an interrupt with 130
+(:func:`adm_sim.errors.run_cli`). Mass per length is kg/m in and out (t/m shown beside it).
 """
 
 from __future__ import annotations
@@ -11,9 +13,7 @@ import sys
 import time
 from pathlib import Path
 
-from adm_sim.errors import AdmSimError, InputError
-
-EXIT_INPUT = 2
+from adm_sim.errors import EXIT_INPUT, InputError, run_cli
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -54,6 +54,21 @@ def output_path(text, option, overwrite=False, suffix=None):
         raise InputError(f"{option}: {text!r}: the directory {str(parent)!r} does not exist")
     if p.exists() and not overwrite:
         raise InputError(f"{option}: {text!r} exists; use --overwrite to replace it")
+    return p
+
+
+def mcap_input(text, option):
+    """Check an MCAP input before any work: a readable file that starts with the MCAP magic."""
+    p = Path(text)
+    if not p.is_file():
+        raise InputError(f"{option}: {text!r} is not a file")
+    try:
+        with p.open("rb") as f:
+            head = f.read(8)
+    except OSError as exc:
+        raise InputError(f"{option}: {text!r}: cannot read ({exc.strerror})") from None
+    if head != b"\x89MCAP0\r\n":
+        raise InputError(f"{option}: {text!r} is not an MCAP file (it does not start with the MCAP magic bytes)")
     return p
 
 
@@ -108,7 +123,7 @@ def cmd_sweep(args):
     train = load_train(args.train)
     speeds = parse_speeds(args.speeds)
     dz = check_range("--delta-zeta-pct", args.delta_zeta_pct, "%", -100 * bridge.damping_ratio, 20.0) / 100
-    opts = StepOptions(steps_per_period=args.steps_per_period)
+    opts = StepOptions(steps_per_period=check_range("--steps-per-period", args.steps_per_period, "steps", 4, 10000))
     print(bridge.describe())
     print(train.describe())
     cb, close = tqdm_progress(f"{args.model.upper()} sweep", None if args.progress is None else args.progress)
@@ -188,6 +203,8 @@ def cmd_check(args):
 def cmd_trains(args):
     from adm_sim.trains import TRAIN_NAMES, check_train, load_train
 
+    if args.train is not None and not args.train.strip():
+        raise InputError("--train: '' is empty; give a train name or a TOML train file (or omit --train for all)")
     names = [args.train] if args.train else list(TRAIN_NAMES) + ["Eurostar-table"]
     bad = 0
     for name in names:
@@ -214,10 +231,10 @@ def cmd_bridges(args):
 
     if args.field:
         field = parametric_field()
-        print(f"parametric field: {len(field)} bridges (Section 3.3); mu in t/m (x1000 = kg/m)", file=sys.stderr)
-        print("name,span_m,n0_hz,mu_t_m,EJ_Nm2,zeta_pct,type")
+        print(f"parametric field: {len(field)} bridges (Section 3.3); mu in kg/m and t/m", file=sys.stderr)
+        print("name,span_m,n0_hz,mu_kg_m,mu_t_m,EJ_Nm2,zeta_pct,type")
         for b in field:
-            print(f"{b.name},{b.span_m:g},{b.n0_hz:.4f},{b.mass_per_length_kg_m / 1000:.4f},"
+            print(f"{b.name},{b.span_m:g},{b.n0_hz:.4f},{b.mass_per_length_kg_m:.1f},{b.mass_per_length_kg_m / 1000:.4f},"
                   f"{b.EJ_Nm2:.5g},{b.damping_ratio * 100:.4g},{b.bridge_type}")
     else:
         for name in TABLE3:
@@ -230,11 +247,11 @@ def cmd_salvage(args):
         from adm_sim.ros.mcap_log import salvage
     except ImportError as exc:
         raise InputError(f"salvage needs the ROS/MCAP extras ({exc})") from None
-    src = Path(args.src)
-    if not src.is_file():
-        raise InputError(f"salvage: {args.src!r} is not a file")
-    output_path(args.dst, "salvage DST", args.overwrite, ".mcap")
-    n = salvage(args.src, args.dst)
+    src = mcap_input(args.src, "salvage SRC")
+    dst = output_path(args.dst, "salvage DST", args.overwrite, ".mcap")
+    if dst.resolve() == src.resolve():
+        raise InputError(f"salvage DST: {args.dst!r} is SRC; give another file")
+    n = salvage(src, dst, overwrite=args.overwrite)
     print(f"recovered {n} messages into {args.dst}")
     return 0
 
@@ -244,12 +261,14 @@ def build_parser():
     sub = p.add_subparsers(dest="cmd", required=True, parser_class=OneLineParser)
 
     s = sub.add_parser("sweep", help="max midspan acceleration over a speed range")
-    s.add_argument("--bridge", default="B1", help="B1..B4, a spec L=15,n0=8.26,mu=19042,zeta_pct=1.85, or a TOML file")
+    s.add_argument("--bridge", default="B1", help="B1..B4, a spec L=15,n0=8.26,mu=19042,zeta_pct=1.85 (L m, n0 Hz or "
+                   "EJ N m^2, mu kg/m, zeta_pct %% or type=cfb|sc for the Table 2 damping; class=cfb|sc classes a bridge "
+                   "of given damping), or a TOML file with these keys")
     s.add_argument("--train", default="ICE-2", help="ICE-2, Eurostar, Railjet, ICE-4, Eurostar-table, HSLM-A1..A10 (MLM only), or a TOML file")
     s.add_argument("--model", choices=("mlm", "dim"), default="mlm")
     s.add_argument("--speeds", default="160:350:1", help="km/h, start:stop:step or a comma list")
-    s.add_argument("--delta-zeta-pct", type=float, default=0.0, help="additional damping (%%)")
-    s.add_argument("--steps-per-period", type=float, default=16.0,
+    s.add_argument("--delta-zeta-pct", default="0", help="additional damping (%%, from -zeta to 20)")
+    s.add_argument("--steps-per-period", default="16",
                    help="RK4 steps per period of the highest bridge mode (4..10000)")
     s.add_argument("--json", help="write results as JSON")
     s.add_argument("--plot", help="write max acceleration vs speed as PNG")
@@ -281,12 +300,12 @@ def build_parser():
     c.set_defaults(func=cmd_check)
 
     t = sub.add_parser("trains", help="list trains; --check compares axle loads and bogie frequencies")
-    t.add_argument("--train")
-    t.add_argument("--check", action="store_true")
+    t.add_argument("--train", help="one train: a name or a TOML train file (default: all)")
+    t.add_argument("--check", action="store_true", help="axle loads (kN) against the masses (kg) times g, bogie frequencies (Hz)")
     t.set_defaults(func=cmd_trains)
 
     b = sub.add_parser("bridges", help="list bridges B1-B4 or (--field) the 1110-bridge parametric field")
-    b.add_argument("--field", action="store_true")
+    b.add_argument("--field", action="store_true", help="the parametric field as CSV (mu in kg/m and t/m)")
     b.set_defaults(func=cmd_bridges)
 
     v = sub.add_parser("salvage", help="recover a killed run's MCAP log")
@@ -299,22 +318,7 @@ def build_parser():
 
 def main(argv=None):
     args = build_parser().parse_args(argv)
-    try:
-        return args.func(args)
-    except BrokenPipeError:  # e.g. `adm-sim bridges --field | head`: the reader has enough
-        import os
-
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        return 0
-    except InputError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return EXIT_INPUT
-    except AdmSimError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 1
-    except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
-        return 130
+    return run_cli(lambda: args.func(args))
 
 
 if __name__ == "__main__":

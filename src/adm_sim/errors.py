@@ -1,9 +1,20 @@
-"""Exception root of the project.
+"""Exception root of the project and the exit codes of its command lines.
 
-Every error raised on bad user input is an :class:`InputError` whose message names the field,
-the value, the unit and the allowed range, so CLIs, file loaders and ROS parameter callbacks can
-show it as one line.
+:class:`AdmSimError` is the root. It has two branches:
+
+* :class:`InputError`: bad user input (CLI option, input file, ROS parameter). The message names
+  what the user typed, the value, the unit and the allowed range. Exit code 2.
+* :class:`RunError`: a failure that is not bad input (an integration that became unstable, a
+  viewer or a node that does not answer). Exit code 1.
+
+Command lines print either as one line ``error: ...`` on stderr (:func:`run_cli`); an interrupt
+(Ctrl-C) exits with 130.
 """
+
+import sys
+
+#: Exit codes of every command line of the project.
+EXIT_OK, EXIT_RUN, EXIT_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
 
 
 class AdmSimError(Exception):
@@ -11,7 +22,42 @@ class AdmSimError(Exception):
 
 
 class InputError(AdmSimError, ValueError):
-    """Bad user input (CLI argument, input file, ROS parameter)."""
+    """Bad user input (CLI argument, input file, ROS parameter): exit code 2."""
+
+
+class RunError(AdmSimError, RuntimeError):
+    """A failure that is not bad input (unstable integration, a viewer or node that does not answer):
+    exit code 1."""
+
+
+def one_line(exc):
+    """The message of ``exc`` on one line (inner newlines and runs of blanks collapsed)."""
+    return " ".join(str(exc).split())
+
+
+def run_cli(call):
+    """Call ``call()`` (a CLI's work, returning its exit code) and map errors to one line and an exit code.
+
+    :class:`InputError` -> ``error: ...``, exit 2; :class:`RunError` (and any other
+    :class:`AdmSimError`) -> ``error: ...``, exit 1; ``KeyboardInterrupt`` -> ``interrupted``, 130;
+    ``BrokenPipeError`` (``... | head``) -> quiet exit 0. Anything else is a bug and keeps its traceback.
+    """
+    try:
+        return call()
+    except BrokenPipeError:
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return EXIT_OK
+    except InputError as exc:
+        print(f"error: {one_line(exc)}", file=sys.stderr)
+        return EXIT_INPUT
+    except AdmSimError as exc:
+        print(f"error: {one_line(exc)}", file=sys.stderr)
+        return EXIT_RUN
+    except KeyboardInterrupt:
+        print("error: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
 
 
 def check_range(field, value, unit, lo=None, hi=None, lo_open=False, hi_open=False):
@@ -33,6 +79,8 @@ def check_range(field, value, unit, lo=None, hi=None, lo_open=False, hi_open=Fal
     import math
 
     rng = _range_text(lo, hi, lo_open, hi_open, unit)
+    if isinstance(value, bool):  # a TOML/YAML true is not the number 1
+        raise InputError(f"{field}: {str(value).lower()} is a boolean, not a number; allowed {rng}")
     try:
         x = float(value)
     except (TypeError, ValueError):
@@ -44,6 +92,40 @@ def check_range(field, value, unit, lo=None, hi=None, lo_open=False, hi_open=Fal
     if bad_lo or bad_hi:
         raise InputError(f"{field}: {x:g} {unit} is out of range; allowed {rng}")
     return x
+
+
+def check_number(field, value, unit, lo=None, hi=None, lo_open=False, hi_open=False):
+    """:func:`check_range` for values read from a typed file (TOML): a string is refused too."""
+    if isinstance(value, str):
+        rng = _range_text(lo, hi, lo_open, hi_open, unit)
+        raise InputError(f"{field}: {value!r} is a string, not a number (write it without quotes); allowed {rng}")
+    return check_range(field, value, unit, lo, hi, lo_open, hi_open)
+
+
+def check_int(field, value, lo, hi, unit=""):
+    """An integer in ``[lo, hi]`` from a number or its text; booleans and fractions are refused."""
+    u = f" {unit}" if unit else ""
+    x = None
+    if isinstance(value, int) and not isinstance(value, bool):
+        x = value
+    elif isinstance(value, str):
+        try:
+            x = int(value.strip())
+        except ValueError:
+            x = None
+    if x is None:
+        shown = str(value).lower() if isinstance(value, bool) else repr(value)
+        raise InputError(f"{field}: {shown} is not an integer; allowed integer in [{lo}, {hi}]{u}")
+    if not lo <= x <= hi:
+        raise InputError(f"{field}: {x}{u} is out of range; allowed integer in [{lo}, {hi}]{u}")
+    return x
+
+
+def check_choice(field, value, allowed):
+    """``value`` if it is one of the strings ``allowed``, else :class:`InputError` listing them."""
+    if not isinstance(value, str) or value not in allowed:
+        raise InputError(f"{field}: {value!r} is not allowed; allowed {' or '.join(repr(a) for a in allowed)}")
+    return value
 
 
 def _range_text(lo, hi, lo_open, hi_open, unit):

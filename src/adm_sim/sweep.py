@@ -12,8 +12,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from adm_sim.errors import InputError, check_range
-from adm_sim.stepping import (MODELS, BridgeSide, LockstepRun, StepOptions, TrainSide, make_grid,
+from adm_sim.errors import InputError, RunError, check_range
+from adm_sim.stepping import (MODELS, SPEED_RANGE_KMH, BridgeSide, LockstepRun, StepOptions, TrainSide, make_grid,
                               mlm_modal_load_table, speeds_to_m_s)
 
 DEFAULT_SPEEDS = "160:350:1"
@@ -29,6 +29,8 @@ def parse_speeds(text, ordered=True):
     repeats its speeds) take ``ordered=False``.
     """
     text = str(text).strip()
+    if ":" in text and "," in text:
+        raise InputError(f"speeds: {text!r} mixes ':' and ','; give start:stop:step or a comma list (km/h)")
     try:
         parts = [float(p) for p in text.replace(":", ",").split(",") if p.strip()]
     except ValueError:
@@ -49,7 +51,10 @@ def parse_speeds(text, ordered=True):
         v = np.array(parts)
         if ordered and np.any(np.diff(v) <= 0):
             raise InputError(f"speeds: {text!r} must increase strictly (km/h), e.g. 200,250,263")
-    speeds_to_m_s(v)  # range check
+    lo, hi = SPEED_RANGE_KMH
+    out = v[(v < lo) | (v > hi)]
+    if out.size:
+        raise InputError(f"speeds: {text!r} gives {out[0]:g} km/h; allowed speeds in [{lo:g}, {hi:g}] km/h")
     return v
 
 
@@ -180,7 +185,7 @@ def run_sweep(bridge, train, model, speeds_kmh, delta_zeta=0.0, options=None, hi
         if disp is not None:
             disp[k] = run.disp_m
         if run.step() is not None:
-            raise InputError(run.message)
+            raise RunError(run.message)
         if acc is not None:
             acc[k] = run.acc_m_s2
         if forces is not None:

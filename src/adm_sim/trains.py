@@ -45,7 +45,7 @@ from pathlib import Path
 
 import numpy as np
 
-from adm_sim.errors import InputError, check_range, read_toml
+from adm_sim.errors import InputError, check_int, check_number, read_toml
 
 G_M_S2 = 9.81  # gravitational acceleration used by the paper (Section 3.2.2)
 
@@ -247,6 +247,8 @@ def load_train(name_or_path):
 
 def _vehicle_type(name, d, source):
     where = f"{source}: vehicle_types.{name}"
+    if not isinstance(d, dict):
+        raise InputError(f"{where}: {d!r} is not a table; write [vehicle_types.{name}] with its fields")
     unknown = set(d) - set(_TYPE_FIELDS) - {"axle_load_kN"}
     if unknown:
         raise InputError(f"{where}: unknown field(s) {', '.join(sorted(unknown))}; allowed "
@@ -258,14 +260,14 @@ def _vehicle_type(name, d, source):
                 raise InputError(f"{where}.{key}: missing ({unit}, allowed [{lo:g}, {hi:g}])")
             vals[key] = math.nan
             continue
-        vals[key] = check_range(f"{where}.{key}", d[key], unit, lo, hi)
+        vals[key] = check_number(f"{where}.{key}", d[key], unit, lo, hi)
     if "axle_load_kN" not in d:
         raise InputError(f"{where}.axle_load_kN: missing (kN, allowed [1, 500])")
     raw = d["axle_load_kN"]
     raw = raw if isinstance(raw, list) else [raw]
     if not 1 <= len(raw) <= 2:
         raise InputError(f"{where}.axle_load_kN: {raw!r} must be one value or [front, rear] (kN)")
-    loads = tuple(1000.0 * check_range(f"{where}.axle_load_kN", v, "kN", 1.0, 500.0) for v in raw)
+    loads = tuple(1000.0 * check_number(f"{where}.axle_load_kN", v, "kN", 1.0, 500.0) for v in raw)
     if not math.isnan(vals["r_m"]) and vals["r_m"] + vals["b_m"] > vals["d_m"] + 1e-9:
         raise InputError(f"{where}.r_m: {vals['r_m']:g} m plus wheelbase b_m {vals['b_m']:g} m "
                          f"exceeds the vehicle length d_m {vals['d_m']:g} m")
@@ -312,6 +314,12 @@ def train_from_mapping(data, source="train"):
         raise InputError(f"{source}: missing field 'name'")
     if not isinstance(data["name"], str) or not data["name"].strip():
         raise InputError(f"{source}: name: {data['name']!r} must be a non-empty string")
+    for key in ("description", "source", "paper_train"):
+        if key in data and not isinstance(data[key], str):
+            raise InputError(f"{source}: {key}: {data[key]!r} must be text in quotes")
+    if data.get("paper_train", "") not in ("",) + TRAIN_NAMES:
+        raise InputError(f"{source}: paper_train: {data['paper_train']!r} is not a train of the paper; "
+                         f"allowed {', '.join(TRAIN_NAMES)} (or omit it)")
     differ = data.get("loads_differ_from_masses", False)
     if not isinstance(differ, bool):
         raise InputError(f"{source}: loads_differ_from_masses: {differ!r} must be true or false")
@@ -324,7 +332,7 @@ def train_from_mapping(data, source="train"):
         raise InputError(f"{source}: missing [[composition]] entries")
 
     def _type(name, where):
-        if name not in types:
+        if not isinstance(name, str) or name not in types:
             raise InputError(f"{source}: {where}: vehicle type {name!r} not defined; "
                              f"defined: {', '.join(types)}")
         return types[name]
@@ -344,8 +352,10 @@ def train_from_mapping(data, source="train"):
                 raise InputError(f"{source}: {where}: vehicle type {vt.name!r} has no r_m (m) "
                                  f"and cannot run as a conventional vehicle")
             count = entry.get("count", 1)
-            if isinstance(count, bool) or not isinstance(count, int) or count < 1 or count > 100:
-                raise InputError(f"{source}: {where}.count: {count!r} out of range; allowed 1..100")
+            if isinstance(count, str):
+                raise InputError(f"{source}: {where}.count: {count!r} must be an integer without quotes; "
+                                 f"allowed integer in [1, 100]")
+            count = check_int(f"{source}: {where}.count", count, 1, 100)
             for _ in range(count):
                 p1 = front + 0.5 * (vt.d_m - vt.r_m)
                 p2 = front + 0.5 * (vt.d_m + vt.r_m)
@@ -358,6 +368,9 @@ def train_from_mapping(data, source="train"):
             _unknown(entry, _JACOBS_ENTRY_KEYS, f"{source}: {where}")
             if not isinstance(entry["jacobs_set"], list) or not isinstance(entry.get("bogies", []), list):
                 raise InputError(f"{source}: {where}: 'jacobs_set' and 'bogies' must be lists of vehicle types")
+            if not isinstance(entry.get("axle_loads_kN", []), list):
+                raise InputError(f"{source}: {where}.axle_loads_kN: {entry['axle_loads_kN']!r} must be a list "
+                                 f"of one load per bogie (kN)")
             jacobs = True
             cars = [_type(c, where) for c in entry["jacobs_set"]]
             bogie_types = [_type(b, where) for b in entry.get("bogies", [])]
@@ -367,7 +380,7 @@ def train_from_mapping(data, source="train"):
             if len(bogie_types) != len(cars) + 1 or len(loads_kn) != len(cars) + 1:
                 raise InputError(f"{source}: {where}: 'bogies' and 'axle_loads_kN' need "
                                  f"len(jacobs_set) + 1 = {len(cars) + 1} entries")
-            loads = [1000.0 * check_range(f"{source}: {where}.axle_loads_kN", v, "kN", 1.0, 500.0)
+            loads = [1000.0 * check_number(f"{source}: {where}.axle_loads_kN", v, "kN", 1.0, 500.0)
                      for v in loads_kn]
             rev = entry.get("reversed", False)
             if not isinstance(rev, bool):

@@ -109,6 +109,9 @@ def read_results(path):
                              f"truncated)") from None
         if not isinstance(rec, dict) or "bridge" not in rec or "train" not in rec:
             raise InputError(f"results {str(p)!r}: line {no} lacks 'bridge' and 'train'")
+        if not isinstance(rec["bridge"], str) or not isinstance(rec["train"], str):
+            raise InputError(f"results {str(p)!r}: line {no}: 'bridge' and 'train' must be names (text), "
+                             f"got {rec['bridge']!r} and {rec['train']!r}")
         k = record_key(rec)
         dup += k in seen
         seen.add(k)
