@@ -20,20 +20,35 @@ def run_cli(*args, cwd=None):
                           cwd=cwd, timeout=300)
 
 
-def test_calibrate_writes_json_and_plot(tmp_path):
+def png_size(path):
+    """(width, height) in pixels from a PNG's IHDR chunk; fails on anything that is not a PNG."""
+    data = Path(path).read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n" and data[12:16] == b"IHDR"
+    return int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big")
+
+
+def test_calibrate_writes_json_and_plot_readme_headline(tmp_path):
+    """The README's headline numbers (the main job's case, B1 x ICE-2, default speeds 160:350:1 km/h):
+    MLM peak 2.2465 m/s² at 263 km/h, DIM peak 1.8108 m/s² at 262 km/h, dz_VBI 0.553 %, each to the
+    last printed digit (half a unit: 5e-5 m/s², 5e-4 %)."""
     js, png = tmp_path / "b1.json", tmp_path / "b1.png"
-    p = run_cli("calibrate", "--bridge", "B1", "--train", "ice2", "--speeds", "240:290:1",
-                "--json", str(js), "--plot", str(png))
+    p = run_cli("calibrate", "--bridge", "B1", "--train", "ice2", "--json", str(js), "--plot", str(png))
     assert p.returncode == 0, p.stderr
-    assert "dz_VBI" in p.stdout and "MLM peak" in p.stdout and "DIM peak" in p.stdout
+    assert "dz_VBI         0.553 %" in p.stdout and "MLM peak       2.2465 m/s^2 at 263 km/h" in p.stdout
     d = json.loads(js.read_text())
     assert d["status"] == "ok" and d["train"] == "ICE-2"
-    for key in ("delta_zeta_vbi_pct", "delta_zeta_adm_pct", "delta_zeta_eada_pct", "delta_zeta_lb_pct"):
-        assert isinstance(d[key], float)
-    assert d["adapted_mlm_peak"]["acc_m_s2"] == pytest.approx(d["dim_peak"]["acc_m_s2"], rel=1e-3)
-    assert 240 < d["mlm_peak"]["speed_kmh"] < 290
+    assert d["mlm_peak"]["speed_kmh"] == 263.0 and d["mlm_peak"]["acc_m_s2"] == pytest.approx(2.2465, abs=5e-5)
+    assert d["dim_peak"]["speed_kmh"] == 262.0 and d["dim_peak"]["acc_m_s2"] == pytest.approx(1.8108, abs=5e-5)
+    assert d["delta_zeta_vbi_pct"] == pytest.approx(0.553, abs=5e-4)
+    # the adapted MLM peak meets the DIM peak (the calibration's root condition, 1e-5 relative)
+    assert d["adapted_mlm_peak"]["acc_m_s2"] == pytest.approx(d["dim_peak"]["acc_m_s2"], rel=1e-5)
+    # EN 1991-2 6.4.6.3.1 at L = 15 m: (0.0187 L - 0.00064 L^2) / (1 - 0.0441 L - 0.0044 L^2 + 0.000255 L^3)
+    L = 15.0
+    adm = (0.0187 * L - 0.00064 * L**2) / (1 - 0.0441 * L - 0.0044 * L**2 + 0.000255 * L**3)
+    assert d["delta_zeta_adm_pct"] == pytest.approx(adm, rel=1e-9) and adm == pytest.approx(0.6527, abs=1e-4)
     assert d["delta_zeta_lb_pct"] == pytest.approx(ref.lower_bound("ICE-2", "mu2").delta_zeta_pct(8.262), abs=1e-3)
-    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert d["delta_zeta_eada_pct"] == pytest.approx(0.1010, abs=5e-5)
+    assert png_size(png) == (960, 540)  # 8 x 4.5 in at 120 dpi (plots.plot_calibration)
     # never overwrite silently
     p2 = run_cli("calibrate", "--bridge", "B1", "--train", "ICE-2", "--json", str(js))
     assert p2.returncode == 2
@@ -51,7 +66,7 @@ def test_table4_subset_eurostar_has_no_eada(tmp_path):
     assert float(rows[2][1]) == pytest.approx(ref.lower_bound("Eurostar", "mu5").delta_zeta_pct(8.262), abs=1e-3)
     text = (tmp_path / "table4.txt").read_text()
     assert "n/a" in text and "Jacobs" in text
-    assert (tmp_path / "fig19_total_damping.png").stat().st_size > 1000
+    assert png_size(tmp_path / "fig19_total_damping.png") == (720, 432)  # one train: 6 x 3.6 in at 120 dpi
     assert json.loads((tmp_path / "table4.json").read_text())["Eurostar B3"]["delta_zeta_eada_pct"] is None
 
 
@@ -83,8 +98,8 @@ def test_recommend_prints_rule_and_functions(capsys):
     (["calibrate", "--bridge", "L=-15,n0=8,mu=19000,zeta_pct=1.8", "--train", "ICE-2"], r"L: -15 m is out of range"),
     (["calibrate", "--bridge", "B1", "--train", "ICE-2", "--speeds", "350:160:1"], r"speeds: '350:160:1' needs start <= stop"),
     (["calibrate", "--bridge", "B1", "--train", "ICE-2", "--plot", "out.jpg"], r"must end in .png"),
-    (["table4", "--trains", "TGV"], r"train: 'TGV' was not studied"),
-    (["table4", "--bridges", "B7"], r"bridge: 'B7' is not a named bridge"),
+    (["table4", "--trains", "TGV"], r"^error: --trains: 'TGV' was not studied"),
+    (["table4", "--bridges", "B7"], r"^error: --bridges: 'B7' is not a named bridge"),
     (["frobnicate"], r"invalid choice"),
 ])
 def test_bad_input_one_line_exit_2(argv, match, capsys):

@@ -58,6 +58,13 @@ def _make_dir(out, option):
         raise InputError(f"{option}: cannot create {str(out)!r} ({exc.strerror})") from None
 
 
+def _once(values, field, text):
+    """``values`` (canonical names of the items of ``text``) if none repeats, else one line naming ``field``."""
+    if len(set(values)) != len(values):
+        raise InputError(f"{field}: {text!r} names an item twice; give each once")
+    return values
+
+
 def _list(text, field):
     items = [s.strip() for s in text.split(",") if s.strip()]
     if not items:
@@ -123,12 +130,9 @@ def cmd_table4(args):
 
     names = ("table4.csv", "table4.txt", "table4.json", "fig19_total_damping.png")
     out, paths = _out_dir(args.out, "--out", names, args.force)
-    bridges = [_as_option("--bridges", "bridge", named_bridge, b).name for b in _list(args.bridges, "--bridges")]
-    if len(set(bridges)) != len(bridges):
-        raise InputError(f"--bridges: {args.bridges!r} names a bridge twice; give each once")
-    trains = [_study_train(t, "--trains") for t in _list(args.trains, "--trains")]
-    if len(set(trains)) != len(trains):
-        raise InputError(f"--trains: {args.trains!r} names a train twice; give each once")
+    bridges = _once([_as_option("--bridges", "bridge", named_bridge, b).name for b in _list(args.bridges, "--bridges")],
+                    "--bridges", args.bridges)
+    trains = _once([_study_train(t, "--trains") for t in _list(args.trains, "--trains")], "--trains", args.trains)
     for t in trains:
         load_train(t)
     jobs = check_int("--jobs", args.jobs, 1, 64, "processes")
@@ -242,7 +246,7 @@ def _spans(text):
 
 
 def _freq_indices(text):
-    return sorted({check_int("--freq-index", p, 1, 5) for p in _list(text, "--freq-index")})
+    return sorted(_once([check_int("--freq-index", p, 1, 5) for p in _list(text, "--freq-index")], "--freq-index", text))
 
 
 def _scheduler(text):
@@ -259,8 +263,9 @@ def cmd_study(args):
     from adm_calib.study import StudySettings, canonical_trains, run_study, select_cases
 
     out, _ = _out_dir(args.out, "--out", (), True)
-    trains = canonical_trains(_list(args.trains, "--trains"), field="--trains")
-    mfs = _mass_functions(args.mass_functions)
+    trains = _once([canonical_trains([t], field="--trains")[0] for t in _list(args.trains, "--trains")],
+                   "--trains", args.trains)
+    mfs = _once(_mass_functions(args.mass_functions), "--mass-functions", args.mass_functions)
     spans = _spans(args.spans)
     fis = _freq_indices(args.freq_index)
     workers = check_int("--workers", args.workers, 1, 64, "processes")

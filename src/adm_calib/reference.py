@@ -433,9 +433,10 @@ def recommend(train, n0_hz, mu_t_m, bridge_type, span_m=None, interpolate=False,
     values = tuple(table[m].delta_zeta_pct(n0) for m in used)
     dz = float(sum(w * v for w, v in zip(weights, values)))
     beyond = all(n0 >= table[m].zero_from_hz for m in used)
-    funcs = ", ".join(f"{m} ({mus[m]:.3f} t/m at L={L:g} m): {v:.4f} %" for m, v in zip(used, values))
+    funcs = ", ".join(f"{m} ({1000 * mus[m]:.0f} kg/m = {mus[m]:.3f} t/m at L={L:g} m): {v:.4f} %"
+                      for m, v in zip(used, values))
     source = "Tables B1-B4 (paper)" if functions == "paper" else "re-derived from the shipped study (ours)"
-    expl = (f"{source}; {t}, {bridge_type.upper()}, n0={n0:g} Hz, mu={mu:g} t/m, L={L:.3g} m"
+    expl = (f"{source}; {t}, {bridge_type.upper()}, n0={n0:g} Hz, mu={1000 * mu:g} kg/m ({mu:g} t/m), L={L:.3g} m"
             f"{' (estimated from n0 = 97.76 L^-0.9124)' if estimated else ''}; {rule}; {funcs}"
             f"{'; n0 beyond the first root: 0' if beyond else ''}")
     return Recommendation(train=t, n0_hz=n0, mu_t_m=mu, bridge_type=bridge_type, span_m=L,
