@@ -456,6 +456,8 @@ def _data_segments_locked_by(pid: int) -> set[str]:
 
 
 def test_cleanup_shm_removes_only_dead_process_files():
+    """``fastdds shm clean`` (through cleanup_shm) removes the segment a SIGKILLed participant
+    left and keeps the live one's."""
     procs = []
     with ros_env.local_ros_env() as env:
         try:
@@ -465,31 +467,27 @@ def test_cleanup_shm_removes_only_dead_process_files():
             for p in procs:
                 assert p.stdout.readline().strip() == "ready"
             victim, survivor = procs
-            owned = {p.pid: ros_env.shm_files_of(p.pid) for p in procs}
             mine = _data_segments_locked_by(victim.pid)
             theirs = _data_segments_locked_by(survivor.pid)
             assert len(mine) == 1 and len(theirs) == 1
-            assert mine <= owned[victim.pid]
-            (other,) = theirs
-            # a snapshot may list peers' segments (a process maps those it reads from)
-            owned[victim.pid] |= {other, other + "_el"}
-            assert ros_env.cleanup_shm([survivor.pid]) == []  # alive: nothing removed
+            (seg,), (other,) = mine, theirs
+            ros_env.cleanup_shm()  # both alive: both kept
+            assert os.path.exists(f"/dev/shm/{seg}") and os.path.exists(f"/dev/shm/{other}")
             victim.send_signal(signal.SIGKILL)
             victim.wait(timeout=10)
-            (seg,) = mine
             assert os.path.exists(f"/dev/shm/{seg}")  # SIGKILL leaves the segment behind
-            removed = ros_env.cleanup_shm([victim.pid], owned=owned)
-            assert {seg, seg + "_el"} <= set(removed)
-            assert not [n for n in removed if ros_env._base(n) in theirs]
+            report = ros_env.cleanup_shm()
+            assert report.startswith("shm.clean:") and "zombie segments cleaned" in report
+            assert not os.path.exists(f"/dev/shm/{seg}") and not os.path.exists(f"/dev/shm/{seg}_el")
             assert os.path.exists(f"/dev/shm/{other}") and os.path.exists(f"/dev/shm/{other}_el")
-            assert ros_env.cleanup_shm([victim.pid], owned=owned) == []  # nothing left
+            assert _data_segments_locked_by(survivor.pid) == theirs  # still locked by its live owner
         finally:
             for p in procs:
                 if p.poll() is None:
                     p.kill()
                 p.wait(timeout=10)
                 p.stdout.close()
-            ros_env.cleanup_shm([p.pid for p in procs])
+            ros_env.cleanup_shm()
 
 
 def test_core_does_not_import_rclpy():
