@@ -19,7 +19,7 @@ import pytest
 
 from adm_sim.errors import InputError
 from adm_sim.ros import env as ros_env
-from adm_sim.ros.mcap_log import McapRecorder, main, message_definition, read_messages, salvage
+from adm_sim.ros.mcap_log import McapRecorder, message_definition, read_messages, salvage
 
 ROOT = Path(__file__).resolve().parents[1]
 PY = sys.executable
@@ -243,16 +243,19 @@ def test_salvage_errors_and_cli(tmp_path, recording, capsys):
     with pytest.raises(InputError, match="holds no complete message"):
         salvage(junk, tmp_path / "o.mcap")
     assert not (tmp_path / "o.mcap").exists() and not (tmp_path / "o.mcap.part").exists()
-    assert main(["salvage", str(recording), str(tmp_path / "copy.mcap")]) == 0
-    assert capsys.readouterr().out.strip().startswith(f"salvaged {5 * N_STEPS} messages")
-    assert main(["salvage", str(recording), str(tmp_path / "copy.mcap")]) == 2
+    # the one salvage command: adm-sim salvage
+    from adm_sim.cli import main as adm_sim
+
+    assert adm_sim(["salvage", str(recording), str(tmp_path / "copy.mcap")]) == 0
+    assert capsys.readouterr().out.strip() == f"recovered {5 * N_STEPS} messages into {tmp_path / 'copy.mcap'}"
+    assert adm_sim(["salvage", str(recording), str(tmp_path / "copy.mcap")]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and err.startswith("error: dst:")
-    out = subprocess.run([PY, "-m", "adm_sim.ros.mcap_log", "salvage", str(tmp_path / "no.mcap"),
-                          str(tmp_path / "p.mcap")], capture_output=True, text=True, timeout=60)
+    assert err.count("\n") == 1 and err.startswith("error: ") and "copy.mcap" in err
+    out = subprocess.run([PY, "-c", "import sys; from adm_sim.cli import main; sys.exit(main())", "salvage",
+                          str(tmp_path / "no.mcap"), str(tmp_path / "p.mcap")], capture_output=True, text=True,
+                         timeout=60)
     assert out.returncode == 2
-    assert out.stderr.splitlines() == [f"error: src: MCAP file '{tmp_path / 'no.mcap'}' "
-                                       "does not exist"]
+    assert out.stderr.splitlines() == [f"error: salvage: '{tmp_path / 'no.mcap'}' is not a file"]
 
 
 # ---------------------------------------------------------------- rerun
