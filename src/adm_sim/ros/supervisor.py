@@ -95,11 +95,14 @@ class Supervisor:
     def start(self, name, module, args=(), capture=False):
         """Start ``python -m module args``; with ``capture`` its stdout lines go to :attr:`lines`
         as ``(name, line)`` (``(name, None)`` at its end)."""
+        return self.start_command(name, [sys.executable, "-m", module] + list(args), capture)
+
+    def start_command(self, name, cmd, capture=False):
+        """Start the command line ``cmd`` (a list) as node ``name``; see :meth:`start`."""
         err = open(self.log_dir / f"{name}.log", "w")
         out = subprocess.PIPE if capture else open(self.log_dir / f"{name}.out", "w")
         self._files += [err] if capture else [err, out]
-        cmd = [sys.executable, "-m", module] + list(args)
-        p = subprocess.Popen(cmd, env=self.env, cwd=self.cwd, start_new_session=True, stderr=err, stdout=out,
+        p = subprocess.Popen(list(cmd), env=self.env, cwd=self.cwd, start_new_session=True, stderr=err, stdout=out,
                              text=True, bufsize=1, preexec_fn=_default_signals)
         self.procs[name] = p
         if capture:
