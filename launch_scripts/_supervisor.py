@@ -18,13 +18,55 @@ PARAMS_DIR = ROOT / "ros_ws" / "params"
 OUTPUTS = ("run.mcap", "run.rrd", "summary.json")
 
 
+def launch_param_specs():
+    """``node -> parameter specs`` of every node a launch may start (params files are shared by
+    the scripts, so all four nodes are allowed in any of them), and the value checks beyond
+    type and range (``(node, name) -> callable``)."""
+    from adm_calib.nodes.calibration_node import CALIBRATION_SPECS
+    from adm_sim.bridge import resolve_bridge
+    from adm_sim.errors import InputError
+    from adm_sim.nodes.bridge_node import TRACK_TYPES, bridge_specs
+    from adm_sim.nodes.common import ParamSpec
+    from adm_sim.nodes.driver import DRIVER_SPECS
+    from adm_sim.nodes.train_node import TRAIN_SPECS
+    from adm_sim.sweep import MODELS, parse_speeds
+    from adm_sim.trains import load_train
+
+    def one_of(name, allowed):
+        def check(value):
+            if value not in allowed:
+                raise InputError(f"{name}: {value!r} is not allowed; allowed {', '.join(map(repr, allowed))}")
+        return check
+
+    specs = {
+        "bridge": [ParamSpec("bridge", "B1", "", "preset")] + bridge_specs(resolve_bridge("B1")),
+        "train": list(TRAIN_SPECS),
+        "calibration": list(DRIVER_SPECS) + list(CALIBRATION_SPECS),
+        "driver": list(DRIVER_SPECS),
+    }
+    checks = {
+        ("bridge", "bridge"): resolve_bridge,
+        ("bridge", "track_type"): one_of("track_type", TRACK_TYPES),
+        ("bridge", "damping_model"): one_of("damping_model", ("rayleigh", "modal")),
+        ("train", "train"): load_train,
+        ("train", "model"): one_of("model", MODELS),
+        ("train", "speeds_kmh"): lambda v: parse_speeds(v, ordered=False),
+        ("calibration", "speeds_kmh"): parse_speeds,
+        ("calibration", "dim_grid"): one_of("dim_grid", ("paper", "full")),
+    }
+    return specs, checks
+
+
 def check_inputs(bridge=None, train=None, speeds=None, params_file=None):
     """Validate a launch's bridge, train, speeds and params file before any process starts.
 
+    The params file is checked key by key (:func:`adm_sim.nodes.common.check_params_file`):
+    nodes, parameter names, types, ranges, the bridge preset, train and speeds in it.
     Raises :class:`adm_sim.errors.InputError` with the one-line reason.
     """
     from adm_sim.bridge import resolve_bridge
     from adm_sim.errors import InputError
+    from adm_sim.nodes.common import check_params_file
     from adm_sim.sweep import parse_speeds
     from adm_sim.trains import load_train
 
@@ -34,8 +76,10 @@ def check_inputs(bridge=None, train=None, speeds=None, params_file=None):
         load_train(train)
     if speeds:
         parse_speeds(speeds)
-    if params_file and not Path(params_file).is_file():
-        raise InputError(f"--params-file: {params_file!r} does not exist")
+    if params_file:
+        if not Path(params_file).is_file():
+            raise InputError(f"--params-file: {params_file!r} does not exist")
+        check_params_file(params_file, *launch_param_specs())
 
 
 def prepare_out(out, overwrite):

@@ -240,6 +240,78 @@ class ParamNodeMixin:
         return {n: self.get_parameter(n).value for n in self._specs}
 
 
+#: Parameters every rclpy node declares itself (allowed in params files).
+RCLPY_PARAMETERS = {"use_sim_time": bool, "start_type_description_service": bool}
+
+
+def check_params_file(path, specs_by_node, extra_checks=None):
+    """Check a ROS 2 params YAML before any node starts; raise :class:`InputError` (one line
+    naming the file, the node and the key) on the first problem.
+
+    Parameters
+    ----------
+    path : path-like
+        The params file (``<node>: {ros__parameters: {name: value}}``; ``/**`` for every node).
+    specs_by_node : dict
+        ``node name -> list of ParamSpec`` of the nodes the launch starts.
+    extra_checks : dict or None
+        ``(node, name) -> callable(value)`` raising :class:`InputError` (e.g. the bridge preset,
+        the train name, the speeds).
+
+    Returns
+    -------
+    dict
+        ``node -> {name: value}`` as the file gives them (``/**`` merged into every node).
+    """
+    from pathlib import Path
+
+    import yaml
+
+    where = f"--params-file {str(path)!r}"
+    try:
+        doc = yaml.safe_load(Path(path).read_text())
+    except OSError as exc:
+        raise InputError(f"{where}: cannot read ({exc.strerror})") from None
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        at = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+        raise InputError(f"{where}: not valid YAML{at} ({getattr(exc, 'problem', None) or exc})") from None
+    if not isinstance(doc, dict) or not doc:
+        raise InputError(f"{where}: expected '<node>: {{ros__parameters: {{name: value}}}}' entries, got {doc!r}")
+    nodes = sorted(specs_by_node)
+    values = {n: {} for n in nodes}
+    for node, body in doc.items():
+        if node not in specs_by_node and node != "/**":
+            raise InputError(f"{where}: {node!r} is not a node of this launch; allowed {', '.join(nodes)} or '/**'")
+        if not isinstance(body, dict) or set(body) != {"ros__parameters"} or not isinstance(body["ros__parameters"], dict):
+            raise InputError(f"{where}: {node}: expected exactly one key 'ros__parameters' holding 'name: value' "
+                             f"entries, got {body!r}")
+        targets = nodes if node == "/**" else [node]
+        for name, value in body["ros__parameters"].items():
+            key = f"{node}.ros__parameters.{name}"
+            owners = [n for n in targets if any(s.name == name for s in specs_by_node[n])]
+            if not owners and name not in RCLPY_PARAMETERS:
+                known = sorted({s.name for n in targets for s in specs_by_node[n]} | set(RCLPY_PARAMETERS))
+                raise InputError(f"{where}: {key}: unknown parameter; allowed {', '.join(known)}")
+            for n in owners:
+                spec = next(s for s in specs_by_node[n] if s.name == name)
+                want = type(spec.default)
+                if type(value) is not want:  # rclpy refuses 15 for a double and '15' for an int
+                    hint = " (quote text values)" if want is str else (" (write 15.0, not 15)" if want is float else "")
+                    raise InputError(f"{where}: {key}: {value!r} is a {type(value).__name__}; expected a "
+                                     f"{want.__name__}{hint}{f' in {spec.unit}' if spec.unit else ''}")
+                try:
+                    spec.check(value)
+                    if extra_checks and (n, name) in extra_checks:
+                        extra_checks[(n, name)](value)
+                except InputError as exc:
+                    raise InputError(f"{where}: {node}: {exc}") from None
+                values[n][name] = value
+            if name in RCLPY_PARAMETERS and type(value) is not RCLPY_PARAMETERS[name]:
+                raise InputError(f"{where}: {key}: {value!r} is not a boolean; expected true or false")
+    return values
+
+
 def parse_float_list(field, text, unit):
     """Floats from a comma list (``"0.001,0.002"``); empty text gives an empty array."""
     parts = [p.strip() for p in str(text).split(",") if p.strip()]
