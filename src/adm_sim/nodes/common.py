@@ -443,10 +443,13 @@ class NodeBase(ParamNodeMixin, Node):
         """Tell the other nodes that this one stops with ``message`` (best effort)."""
 
     def close(self):
-        """Release files and the exchange lane (always called)."""
+        """Finish the node's files (always called before :meth:`destroy_node`)."""
+
+    def destroy_node(self):
         if self.exchange is not None:
             self.exchange.destroy()
             self.exchange = None
+        return super().destroy_node()
 
 
 def run_node(make_node, args=None, name="node"):
