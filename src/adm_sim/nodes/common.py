@@ -385,20 +385,23 @@ class ExchangeLane:
     that is a dozen parameter services besides the exchange, which costs several times the
     message itself. The exchange subscriptions therefore live on a second node in the same
     context (``<name>_exchange``: no parameter services, no rosout, no type description service)
-    with a ``SingleThreadedExecutor`` of its own. While a run is active :func:`run_node` spins it
-    in bursts (:meth:`spin`) and gives the main node's executor a turn at least every 50 ms.
-    Callbacks and their order are those of a single executor; only public rclpy API is used.
+    with an executor of its own: rclpy's ``rclpy.experimental.EventsExecutor`` (public API,
+    implemented in C++). Measured CPU time per DIM-sized round trip in a ping-pong of two
+    processes: about 270 us with it, 450-640 us with a ``SingleThreadedExecutor``, about 280 us
+    with the private wait set this replaces. While a run is active :func:`run_node` spins it in
+    bursts (:meth:`spin`) and gives the main node's executor a turn at least every 50 ms.
+    Callbacks and their order are those of a single executor.
     """
 
     def __init__(self, node):
-        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.experimental import EventsExecutor
         from rclpy.node import Node
         from rclpy.parameter import Parameter
 
         self.node = Node(f"{node.get_name()}_exchange", context=node.context, use_global_arguments=False,
                          enable_rosout=False, start_parameter_services=False,
                          parameter_overrides=[Parameter("start_type_description_service", value=False)])
-        self.executor = SingleThreadedExecutor(context=node.context)
+        self.executor = EventsExecutor(context=node.context)
         self.executor.add_node(self.node)
 
     def subscribe(self, msg_type, topic, callback, qos):
