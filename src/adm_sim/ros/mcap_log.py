@@ -1,13 +1,12 @@
 """Record ROS 2 messages to MCAP, read them back, salvage the files of killed writers.
 
 Files follow the ROS 2 profile that rosbag2 writes (https://mcap.dev/spec/registry): profile
-``ros2``, schema encoding ``ros2msg``, message encoding ``cdr``. The schema text comes from
-rosbags' ROS 2 Jazzy type store (``Typestore.generate_msgdef``: the definition with every
-dependency after a line of 80 ``=`` and ``MSG: pkg/Type``), and mcap-ros2-support's writer
-serialises the messages from that schema (exact CDR lengths: rclpy's ``serialize_message``
-reports rmw_fastrtps' *estimated* size, up to 8 bytes too long for an empty ``float64[]``,
-which rosbags refuses), so the files read with mcap-ros2-support, ``rosbags`` and
-``rerun mcap convert`` alike.
+``ros2``, schema encoding ``ros2msg``, message encoding ``cdr``. Schema text and serialisation
+both come from rosbags' ROS 2 Jazzy type store (``Typestore.generate_msgdef``: the definition
+with every dependency after a line of 80 ``=`` and ``MSG: pkg/Type``; ``Typestore.serialize_cdr``
+reading the rclpy message by attribute). Its CDR has exact lengths: rclpy's ``serialize_message``
+reports rmw_fastrtps' *estimated* size, up to 8 bytes too long for an empty ``float64[]``, which
+rosbags refuses. The files read with mcap-ros2-support, ``rosbags`` and ``rerun mcap convert``.
 
 Chunks are small (64 KiB before compression by default) and written straight to the operating
 system, so a writer killed with SIGKILL loses at most the open chunk; :func:`salvage` recovers
@@ -17,9 +16,12 @@ every complete record of such a file with ``mcap.reader.NonSeekingReader`` and w
 
 from __future__ import annotations
 
+import array
 import os
 from collections.abc import Iterator, Mapping
 from pathlib import Path
+
+import numpy as np
 
 from adm_sim.errors import InputError
 
@@ -80,8 +82,9 @@ def message_definition(msg_type) -> tuple[str, str]:
 
 
 class _Fields:
-    """An rclpy message as mcap-ros2-support's encoder reads it: attribute access, with rclpy's
-    ``byte`` scalars (a ``bytes`` of length 1) as the integers the encoder expects."""
+    """An rclpy message as rosbags' CDR serialiser reads its own messages: attribute access, with
+    rclpy's ``byte`` scalars (a ``bytes`` of length 1) as integers and its numeric arrays
+    (``array.array``) as numpy arrays (a view, no copy)."""
 
     __slots__ = ("_msg",)
 
@@ -92,6 +95,8 @@ class _Fields:
         value = getattr(self._msg, name)
         if isinstance(value, bytes) and len(value) == 1:
             return value[0]
+        if isinstance(value, array.array):
+            return np.frombuffer(value, dtype=value.typecode) if len(value) else np.zeros(0, dtype=value.typecode)
         if hasattr(value, "get_fields_and_field_types"):
             return _Fields(value)
         if isinstance(value, list) and value and hasattr(value[0], "get_fields_and_field_types"):
@@ -152,8 +157,7 @@ class McapRecorder:
 
     def __init__(self, path, chunk_size: int = DEFAULT_CHUNK_SIZE, overwrite: bool = False,
                  compression: str = "zstd"):
-        from mcap.writer import CompressionType
-        from mcap_ros2.writer import Writer
+        from mcap.writer import CompressionType, Writer
 
         self.path = Path(path)
         if not isinstance(chunk_size, int) or chunk_size < 1024:
@@ -176,8 +180,9 @@ class McapRecorder:
         except OSError as exc:
             raise InputError(f"path: cannot create '{self.path}': {exc.strerror}") from None
         self._writer = Writer(self._file, chunk_size=chunk_size, compression=kinds[compression])
-        self._schemas: dict[type, object] = {}
-        self._channels: dict[str, type] = {}
+        self._writer.start(profile="ros2", library="adm-sim mcap_log")
+        self._schemas: dict[type, tuple[int, str]] = {}
+        self._channels: dict[str, tuple[int, type]] = {}
         self._sequence: dict[str, int] = {}
         self._finished = False
         self.message_count = 0
@@ -199,28 +204,32 @@ class McapRecorder:
             raise InputError(f"McapRecorder: '{self.path}' is finished; no more writes")
 
     def register(self, topic: str, msg_type) -> None:
-        """Register ``topic`` with message class ``msg_type`` (its schema is written at once, its
-        channel with its first message). Registering a topic again with another type is an error.
+        """Register ``topic`` with message class ``msg_type`` (schema and channel records).
+        Registering a topic again with another type is an error.
         """
         self._check_open()
         if not isinstance(topic, str) or not topic.startswith("/"):
             raise InputError(f"topic: {topic!r} is not an absolute ROS topic name (e.g. '/adm/x')")
         known = self._channels.get(topic)
         if known is not None:
-            if known is not msg_type:
+            if known[1] is not msg_type:
                 raise InputError(
-                    f"topic: '{topic}' is registered as {'/'.join(type_name(known))}, "
+                    f"topic: '{topic}' is registered as {'/'.join(type_name(known[1]))}, "
                     f"not {'/'.join(type_name(msg_type))}"
                 )
             return
         if msg_type not in self._schemas:
-            self._schemas[msg_type] = self._writer.register_msgdef(*message_definition(msg_type))
-        self._channels[topic] = msg_type
+            name, text = message_definition(msg_type)
+            self._schemas[msg_type] = (self._writer.register_schema(name=name, encoding="ros2msg",
+                                                                    data=text.encode()), name)
+        channel_id = self._writer.register_channel(topic=topic, message_encoding="cdr",
+                                                   schema_id=self._schemas[msg_type][0])
+        self._channels[topic] = (channel_id, msg_type)
         self._sequence[topic] = 0
 
     def write(self, topic: str, msg, log_time_ns: int, publish_time_ns: int | None = None) -> None:
-        """Serialise ``msg`` (CDR, by mcap-ros2-support from the schema) into ``topic``
-        (registered on first use).
+        """Serialise ``msg`` (CDR, by rosbags' type store: the one that gave the schema) into
+        ``topic`` (registered on first use).
 
         Parameters
         ----------
@@ -229,7 +238,8 @@ class McapRecorder:
         publish_time_ns : int or None
             Publication time in ns; default ``log_time_ns``.
         """
-        if self._channels.get(topic) is not type(msg):
+        known = self._channels.get(topic)
+        if known is None or known[1] is not type(msg):
             self.register(topic, type(msg))
         else:
             self._check_open()
@@ -238,9 +248,10 @@ class McapRecorder:
             raise InputError(f"log_time_ns: {log_time} ns is out of range; allowed >= 0 ns")
         seq = self._sequence[topic]
         self._sequence[topic] = seq + 1
-        self._writer.write_message(topic, self._schemas[type(msg)], _Fields(msg), log_time=log_time,
-                                   publish_time=log_time if publish_time_ns is None else int(publish_time_ns),
-                                   sequence=seq)
+        data = _TYPESTORE.serialize_cdr(_Fields(msg), self._schemas[type(msg)][1])
+        self._writer.add_message(channel_id=self._channels[topic][0], log_time=log_time, data=data,
+                                 publish_time=log_time if publish_time_ns is None else int(publish_time_ns),
+                                 sequence=seq)
         self.message_count += 1
 
     def write_metadata(self, name: str, data: Mapping[str, object]) -> None:
