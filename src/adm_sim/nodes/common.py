@@ -240,6 +240,24 @@ class ParamNodeMixin:
         return {n: self.get_parameter(n).value for n in self._specs}
 
 
+def load_params_yaml(path):
+    """The parsed params YAML ``path``; :class:`InputError` naming the file (and the line) when it
+    cannot be read or is not valid YAML."""
+    from pathlib import Path
+
+    import yaml
+
+    where = f"--params-file {str(path)!r}"
+    try:
+        return yaml.safe_load(Path(path).read_text())
+    except OSError as exc:
+        raise InputError(f"{where}: cannot read ({exc.strerror})") from None
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        at = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+        raise InputError(f"{where}: not valid YAML{at} ({getattr(exc, 'problem', None) or exc})") from None
+
+
 #: Parameters every rclpy node declares itself (allowed in params files).
 RCLPY_PARAMETERS = {"use_sim_time": bool, "start_type_description_service": bool}
 
@@ -263,19 +281,8 @@ def check_params_file(path, specs_by_node, extra_checks=None):
     dict
         ``node -> {name: value}`` as the file gives them (``/**`` merged into every node).
     """
-    from pathlib import Path
-
-    import yaml
-
     where = f"--params-file {str(path)!r}"
-    try:
-        doc = yaml.safe_load(Path(path).read_text())
-    except OSError as exc:
-        raise InputError(f"{where}: cannot read ({exc.strerror})") from None
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        at = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
-        raise InputError(f"{where}: not valid YAML{at} ({getattr(exc, 'problem', None) or exc})") from None
+    doc = load_params_yaml(path)
     if not isinstance(doc, dict) or not doc:
         raise InputError(f"{where}: expected '<node>: {{ros__parameters: {{name: value}}}}' entries, got {doc!r}")
     nodes = sorted(specs_by_node)
@@ -471,9 +478,17 @@ def run_node(make_node, args=None, name="node"):
 
     from adm_sim.errors import AdmSimError
 
+    argv = sys.argv if args is None else list(args)
+    try:  # a params file that is not YAML: our line, before rcl prints its own
+        for i, a in enumerate(argv[:-1]):
+            if a == "--params-file":
+                load_params_yaml(argv[i + 1])
+    except InputError as exc:
+        print(f"error: {name}: {exc}", file=sys.stderr, flush=True)
+        return 2
     try:
         rclpy.init(args=args)
-    except Exception as exc:  # malformed --ros-args or params file: rcl's message, one line
+    except Exception as exc:  # malformed --ros-args: rcl's message, one line
         reason = " ".join(str(exc).split())
         print(f"error: {name}: cannot start: {reason}", file=sys.stderr, flush=True)
         return 2
