@@ -410,18 +410,40 @@ class ExchangeLane:
                          parameter_overrides=[Parameter("start_type_description_service", value=False)])
         self.executor = EventsExecutor(context=node.context)
         self.executor.add_node(self.node)
+        self.error = None
 
     def subscribe(self, msg_type, topic, callback, qos):
-        """An exchange subscription (on the lane's node)."""
-        return self.node.create_subscription(msg_type, topic, callback, qos)
+        """An exchange subscription (on the lane's node).
+
+        An exception of ``callback`` is kept and raised by :meth:`spin` (the executor would log
+        it with its stack first); one raised because the context is shutting down (Ctrl-C,
+        SIGTERM while publishing) is dropped.
+        """
+        def guarded(msg):
+            if self.error is not None:
+                return
+            try:
+                callback(msg)
+            except Exception as exc:
+                if self.node.context.ok():
+                    self.error = exc
+
+        return self.node.create_subscription(msg_type, topic, guarded, qos)
 
     def spin(self, until_s, active, turn_s=0.02):
         """Serve exchange messages until ``time.monotonic()`` passes ``until_s`` or ``active()``
-        turns false; an exception of a callback propagates."""
+        turns false; raises the exception of a callback."""
         import time
 
         while active() and time.monotonic() < until_s:
-            self.executor.spin_once(timeout_sec=turn_s)
+            self.turn(turn_s)
+
+    def turn(self, timeout_s=0.0):
+        """One turn of the lane's executor (``timeout_s`` 0: handle what is there, do not wait)."""
+        self.executor.spin_once(timeout_sec=timeout_s)
+        if self.error is not None:
+            exc, self.error = self.error, None
+            raise exc
 
     def destroy(self):
         self.executor.shutdown()
@@ -507,6 +529,8 @@ def run_node(make_node, args=None, name="node"):
                 executor.spin_once(timeout_sec=0.0)
             else:
                 executor.spin_once(timeout_sec=0.2)
+                if lane is not None:  # a stray exchange message with no run active is an error now
+                    lane.turn()
             node.watch()
         code = node.end(executor)
     except (KeyboardInterrupt, ExternalShutdownException):
