@@ -1,89 +1,36 @@
 """Shared helpers of the ROS 2 tests: node processes on a private domain, an in-process driver.
 
 Every test gets its own ``ROS_DOMAIN_ID`` (reserved with :func:`adm_sim.ros.env.local_ros_env`)
-and shared-memory transport only; processes are started in their own process group and killed
-with it, and the Fast DDS files of killed processes are removed.
+and shared-memory transport only; processes are started, stopped and cleaned up after by
+:class:`adm_sim.ros.supervisor.Supervisor`, as in the launch scripts.
 """
 
 from __future__ import annotations
 
-import os
-import signal
-import subprocess
-import sys
 import threading
-import time
 from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
 
-from adm_sim.ros.env import cleanup_shm, local_ros_env, shm_files_of
+from adm_sim.ros.env import local_ros_env
+from adm_sim.ros.supervisor import Supervisor, ros_args
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def ros_args(params):
-    """``--ros-args -p k:=v ...`` for a dict of parameters."""
-    out = ["--ros-args"]
-    for k, v in params.items():
-        if isinstance(v, bool):
-            v = "true" if v else "false"
-        elif isinstance(v, str):
-            v = repr(v) if v == "" or "," in v or ":" in v else v
-        out += ["-p", f"{k}:={v}"]
-    return out
-
-
-class NodeProcs:
-    """Node processes of one test on one domain."""
+class NodeProcs(Supervisor):
+    """Node processes of one test on one domain (the launch scripts' supervisor; parameters as a
+    dict). Logs go to the test's ``tmp_path`` (``<name>.log`` stderr, ``<name>.out`` stdout)."""
 
     def __init__(self, env, tmp_path):
-        self.env = env
-        self.tmp = Path(tmp_path)
-        self.procs = {}
-        self.shm = {}
+        super().__init__(tmp_path, env=env, cwd=ROOT)
 
     def start(self, name, module, params=None, extra=()):
-        out = open(self.tmp / f"{name}.out", "w")
-        err = open(self.tmp / f"{name}.err", "w")
-        cmd = [sys.executable, "-m", module] + ros_args(params or {}) + list(extra)
-        p = subprocess.Popen(cmd, env=self.env, stdout=out, stderr=err, start_new_session=True, cwd=ROOT)
-        self.procs[name] = p
-        return p
-
-    def note_shm(self):
-        for p in self.procs.values():
-            if p.poll() is None:
-                self.shm[p.pid] = shm_files_of(p.pid)
-
-    def stderr(self, name):
-        return (self.tmp / f"{name}.err").read_text()
-
-    def stdout(self, name):
-        return (self.tmp / f"{name}.out").read_text()
-
-    def kill(self, name, sig=signal.SIGKILL):
-        p = self.procs[name]
-        self.shm[p.pid] = shm_files_of(p.pid)
-        os.killpg(p.pid, sig)
-        p.wait(10)
+        return super().start(name, module, ros_args(params=params or {}) + list(extra))
 
     def stop_all(self):
-        for p in self.procs.values():
-            if p.poll() is None:
-                try:
-                    os.killpg(p.pid, signal.SIGTERM)
-                except ProcessLookupError:
-                    pass
-        t_end = time.monotonic() + 5
-        for p in self.procs.values():
-            try:
-                p.wait(max(0.1, t_end - time.monotonic()))
-            except subprocess.TimeoutExpired:
-                os.killpg(p.pid, signal.SIGKILL)
-                p.wait(5)
-        cleanup_shm([p.pid for p in self.procs.values()], owned=self.shm or None)
+        self.stop()
 
 
 #: Domain reservations are kept for the whole session: a process killed with SIGKILL stays in

@@ -62,7 +62,6 @@ def test_train_killed_mid_run(node_procs, tmp_path):
     node_procs.start("train", "adm_sim.nodes.train_node", TRAIN)
     node_procs.start("driver", "adm_sim.nodes.driver", {"record_path": str(mcap), "chunk_size": 4096})
     wait_for_progress(node_procs, "driver")
-    node_procs.note_shm()
     node_procs.kill("train")
     node_procs.kill("driver")  # the recorder dies too: its file must be salvageable
     dt = wait_exit(b, TIMEOUT_S + SLACK_S + 1.0)
@@ -156,7 +155,6 @@ def test_two_launches_do_not_cross_talk(tmp_path):
             _HELD.append(env)  # never reused by a later test of the session
             env["OPENBLAS_NUM_THREADS"] = "1"
             procs = NodeProcs(env, tmp_path / bridge)
-            (tmp_path / bridge).mkdir()
             procs.start("bridge", "adm_sim.nodes.bridge_node", {"bridge": bridge, "steps_per_period": 8.0})
             procs.start("train", "adm_sim.nodes.train_node", {"speeds_kmh": speeds, "model": "mlm"})
             launches.append((bridge, env, procs))

@@ -19,7 +19,7 @@ import pytest
 
 from adm_sim.errors import InputError
 from adm_sim.ros import env as ros_env
-from adm_sim.ros.mcap_log import McapRecorder, main, message_definition, read_messages, salvage
+from adm_sim.ros.mcap_log import McapRecorder, message_definition, read_messages, salvage
 
 ROOT = Path(__file__).resolve().parents[1]
 PY = sys.executable
@@ -243,16 +243,19 @@ def test_salvage_errors_and_cli(tmp_path, recording, capsys):
     with pytest.raises(InputError, match="holds no complete message"):
         salvage(junk, tmp_path / "o.mcap")
     assert not (tmp_path / "o.mcap").exists() and not (tmp_path / "o.mcap.part").exists()
-    assert main(["salvage", str(recording), str(tmp_path / "copy.mcap")]) == 0
-    assert capsys.readouterr().out.strip().startswith(f"salvaged {5 * N_STEPS} messages")
-    assert main(["salvage", str(recording), str(tmp_path / "copy.mcap")]) == 2
+    # the one salvage command: adm-sim salvage
+    from adm_sim.cli import main as adm_sim
+
+    assert adm_sim(["salvage", str(recording), str(tmp_path / "copy.mcap")]) == 0
+    assert capsys.readouterr().out.strip() == f"recovered {5 * N_STEPS} messages into {tmp_path / 'copy.mcap'}"
+    assert adm_sim(["salvage", str(recording), str(tmp_path / "copy.mcap")]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and err.startswith("error: dst:")
-    out = subprocess.run([PY, "-m", "adm_sim.ros.mcap_log", "salvage", str(tmp_path / "no.mcap"),
-                          str(tmp_path / "p.mcap")], capture_output=True, text=True, timeout=60)
+    assert err.count("\n") == 1 and err.startswith("error: ") and "copy.mcap" in err
+    out = subprocess.run([PY, "-c", "import sys; from adm_sim.cli import main; sys.exit(main())", "salvage",
+                          str(tmp_path / "no.mcap"), str(tmp_path / "p.mcap")], capture_output=True, text=True,
+                         timeout=60)
     assert out.returncode == 2
-    assert out.stderr.splitlines() == [f"error: src: MCAP file '{tmp_path / 'no.mcap'}' "
-                                       "does not exist"]
+    assert out.stderr.splitlines() == [f"error: salvage: '{tmp_path / 'no.mcap'}' is not a file"]
 
 
 # ---------------------------------------------------------------- rerun
@@ -456,6 +459,8 @@ def _data_segments_locked_by(pid: int) -> set[str]:
 
 
 def test_cleanup_shm_removes_only_dead_process_files():
+    """``fastdds shm clean`` (through cleanup_shm) removes the segment a SIGKILLed participant
+    left and keeps the live one's."""
     procs = []
     with ros_env.local_ros_env() as env:
         try:
@@ -465,31 +470,27 @@ def test_cleanup_shm_removes_only_dead_process_files():
             for p in procs:
                 assert p.stdout.readline().strip() == "ready"
             victim, survivor = procs
-            owned = {p.pid: ros_env.shm_files_of(p.pid) for p in procs}
             mine = _data_segments_locked_by(victim.pid)
             theirs = _data_segments_locked_by(survivor.pid)
             assert len(mine) == 1 and len(theirs) == 1
-            assert mine <= owned[victim.pid]
-            (other,) = theirs
-            # a snapshot may list peers' segments (a process maps those it reads from)
-            owned[victim.pid] |= {other, other + "_el"}
-            assert ros_env.cleanup_shm([survivor.pid]) == []  # alive: nothing removed
+            (seg,), (other,) = mine, theirs
+            ros_env.cleanup_shm()  # both alive: both kept
+            assert os.path.exists(f"/dev/shm/{seg}") and os.path.exists(f"/dev/shm/{other}")
             victim.send_signal(signal.SIGKILL)
             victim.wait(timeout=10)
-            (seg,) = mine
             assert os.path.exists(f"/dev/shm/{seg}")  # SIGKILL leaves the segment behind
-            removed = ros_env.cleanup_shm([victim.pid], owned=owned)
-            assert {seg, seg + "_el"} <= set(removed)
-            assert not [n for n in removed if ros_env._base(n) in theirs]
+            report = ros_env.cleanup_shm()
+            assert report.startswith("shm.clean:") and "zombie segments cleaned" in report
+            assert not os.path.exists(f"/dev/shm/{seg}") and not os.path.exists(f"/dev/shm/{seg}_el")
             assert os.path.exists(f"/dev/shm/{other}") and os.path.exists(f"/dev/shm/{other}_el")
-            assert ros_env.cleanup_shm([victim.pid], owned=owned) == []  # nothing left
+            assert _data_segments_locked_by(survivor.pid) == theirs  # still locked by its live owner
         finally:
             for p in procs:
                 if p.poll() is None:
                     p.kill()
                 p.wait(timeout=10)
                 p.stdout.close()
-            ros_env.cleanup_shm([p.pid for p in procs])
+            ros_env.cleanup_shm()
 
 
 def test_core_does_not_import_rclpy():

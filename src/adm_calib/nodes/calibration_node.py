@@ -28,7 +28,7 @@ from std_msgs.msg import Float64MultiArray, String
 from adm_calib.calibrate import CalibrationOptions, calibrate, calibration_step
 from adm_sim.bridge import Bridge
 from adm_sim.nodes import common as c
-from adm_sim.nodes.driver import RunDriver, run_driver, say
+from adm_sim.nodes.driver import RunDriver, say
 from adm_sim.stepping import StepOptions
 from adm_sim.sweep import parse_speeds
 from adm_sim.trains import load_train
@@ -130,7 +130,7 @@ class CalibrationNode(RunDriver):
 
 
 def main(args=None):
-    return run_driver(CalibrationNode, args=args, name="calibration")
+    return c.run_node(CalibrationNode, args=args, name="calibration")
 
 
 if __name__ == "__main__":

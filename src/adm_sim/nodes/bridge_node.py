@@ -16,7 +16,7 @@ the run's one-line message and no result (the train node ends its run on that st
 
 It publishes sim time on ``/clock``, the midspan acceleration/state, the deflected beam, progress,
 ``/diagnostics`` against the EN 1990 A2.4.4.2.1 deck acceleration limit and, at the end, the
-per-lane maxima on ``/adm/run/result``. Topics, layouts and QoS: ``ros_ws/README-topics.md``.
+per-lane maxima on ``/adm/run/result``. Topics, layouts and QoS: README, section "Topics".
 """
 
 from __future__ import annotations
@@ -30,7 +30,6 @@ import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import AccelStamped
 from rcl_interfaces.msg import SetParametersResult
-from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64MultiArray, String
 
@@ -71,7 +70,7 @@ def bridge_specs(preset):
     ]
 
 
-class BridgeNode(c.ParamNodeMixin, Node):
+class BridgeNode(c.NodeBase):
     """Owns the modal beam; see the module docstring."""
 
     def __init__(self, **kw):
@@ -84,9 +83,8 @@ class BridgeNode(c.ParamNodeMixin, Node):
         self.preset = resolve_bridge(self.get_parameter("bridge").value)
         specs = bridge_specs(self.preset)
         self._preset_defaults = {s.name: s.default for s in specs}
-        self.declare_specs(specs)
+        self.declare_specs(specs, on_set=self._on_set)
         self.bridge = self.build_bridge(self.param_values())  # validates the startup values
-        self.add_on_set_parameters_callback(self._on_set)
         self.add_post_set_parameters_callback(lambda _p: self._publish_description())
 
         self.pub_rail = self.create_publisher(Float64MultiArray, c.TOPIC_RAIL, c.QOS_EXCHANGE)
@@ -102,9 +100,10 @@ class BridgeNode(c.ParamNodeMixin, Node):
         self.pub_diag = self.create_publisher(DiagnosticArray, c.TOPIC_DIAGNOSTICS, c.QOS_CONTROL)
         self.pub_desc = self.create_publisher(String, c.TOPIC_BRIDGE_DESC, c.QOS_LATCHED)
         self.create_subscription(String, c.TOPIC_SETUP, self._on_setup, c.QOS_CONTROL)
-        self.fast_subscriptions = [
-            self.create_subscription(Float64MultiArray, c.TOPIC_FORCES, self._on_forces, c.QOS_EXCHANGE),
-            self.create_subscription(Float64MultiArray, c.TOPIC_AXLE_BLOCK, self._on_axle_block, c.QOS_EXCHANGE)]
+        self.exchange = c.ExchangeLane(self)
+        self.exchange_subscriptions = [
+            self.exchange.subscribe(Float64MultiArray, c.TOPIC_FORCES, self._on_forces, c.QOS_EXCHANGE),
+            self.exchange.subscribe(Float64MultiArray, c.TOPIC_AXLE_BLOCK, self._on_axle_block, c.QOS_EXCHANGE)]
 
         self.run = None  # the active run (dict) or None
         self.t_offset_s = 0.0  # sim time continues across runs

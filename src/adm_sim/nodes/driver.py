@@ -21,7 +21,6 @@ import time
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import AccelStamped
-from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from rosgraph_msgs.msg import Clock
@@ -68,7 +67,7 @@ def say(kind, **payload):
         sys.stdout.flush()
 
 
-class RunDriver(c.ParamNodeMixin, Node):
+class RunDriver(c.NodeBase):
     """Requests runs and records them; see the module docstring."""
 
     def __init__(self, name="driver", extra_specs=(), **kw):
@@ -328,20 +327,29 @@ class RunDriver(c.ParamNodeMixin, Node):
                 json.dump(summary, f, indent=2)
         say("result", **{k: v for k, v in summary.items() if k != "curves"})
 
-    def start_job(self):
-        """Run :meth:`job` in a worker thread; the node finishes when it returns."""
+    def begin(self):
+        """Run :meth:`job` in a worker thread (the executor spins in the main thread); the node
+        finishes when it returns."""
         def work():
             try:
                 self.write_summary(self.job())
-            except Exception as exc:  # reported by main(); the process exits non-zero
+            except Exception as exc:  # reported by end(); the process exits non-zero
                 self.error = exc
             finally:
                 self.finished = True
 
         threading.Thread(target=work, name="driver-job", daemon=True).start()
 
-    def watch(self):
-        pass
+    def end(self, executor):
+        """Drain what the nodes published last (recorder, rerun), then report the job's error."""
+        t_end = time.monotonic() + 3.0
+        while self.context.ok() and time.monotonic() - self._last_rx < 0.3 and time.monotonic() < t_end:
+            executor.spin_once(timeout_sec=0.05)
+        if self.error is None:
+            return 0
+        if isinstance(self.error, AdmSimError):
+            raise self.error
+        raise RunError(f"{type(self.error).__name__}: {self.error}")
 
     def close(self):
         if self.recorder is not None:
@@ -351,44 +359,11 @@ class RunDriver(c.ParamNodeMixin, Node):
             from adm_sim.ros import rerun_log
 
             rerun_log.close_rerun()
-
-
-def run_driver(make_node, args=None, name="driver"):
-    """``main`` of a driver: spin in the main thread, the job in a worker thread."""
-    import rclpy
-    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
-
-    rclpy.init(args=args)
-    node = None
-    code = 0
-    try:
-        node = make_node()
-        executor = SingleThreadedExecutor()
-        executor.add_node(node)
-        node.start_job()
-        while rclpy.ok() and not node.finished:
-            executor.spin_once(timeout_sec=0.1)
-        t_end = time.monotonic() + 3.0  # drain what the nodes published last (recorder, rerun)
-        while rclpy.ok() and time.monotonic() - node._last_rx < 0.3 and time.monotonic() < t_end:
-            executor.spin_once(timeout_sec=0.05)
-        if node.error is not None:
-            print(f"error: {name}: {node.error}", file=sys.stderr, flush=True)
-            code = 2
-    except (KeyboardInterrupt, ExternalShutdownException):
-        code = 130
-    except AdmSimError as exc:
-        print(f"error: {name}: {exc}", file=sys.stderr, flush=True)
-        code = 2
-    finally:
-        if node is not None:
-            node.close()
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return code
+        super().close()
 
 
 def main(args=None):
-    return run_driver(RunDriver, args=args, name="driver")
+    return c.run_node(RunDriver, args=args, name="driver")
 
 
 if __name__ == "__main__":

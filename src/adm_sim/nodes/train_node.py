@@ -22,7 +22,6 @@ import sys
 
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
-from rclpy.node import Node
 from std_msgs.msg import Float64MultiArray, String
 from std_srvs.srv import Trigger
 
@@ -42,14 +41,13 @@ TRAIN_SPECS = [
 ]
 
 
-class TrainNode(c.ParamNodeMixin, Node):
+class TrainNode(c.NodeBase):
     """Owns the vehicles; see the module docstring."""
 
     def __init__(self, **kw):
         super().__init__(c.TRAIN_NODE, **kw)
-        self.declare_specs(TRAIN_SPECS)
+        self.declare_specs(TRAIN_SPECS, on_set=self._on_set)
         self.train = self._validate(self.param_values())[0]
-        self.add_on_set_parameters_callback(self._on_set)
         self.add_post_set_parameters_callback(lambda _p: self._publish_description())
         self.pub_setup = self.create_publisher(String, c.TOPIC_SETUP, c.QOS_CONTROL)
         self.pub_forces = self.create_publisher(Float64MultiArray, c.TOPIC_FORCES, c.QOS_EXCHANGE)
@@ -58,8 +56,9 @@ class TrainNode(c.ParamNodeMixin, Node):
         self.pub_desc = self.create_publisher(String, c.TOPIC_TRAIN_DESC, c.QOS_LATCHED)
         self.create_subscription(String, c.TOPIC_READY, self._on_ready, c.QOS_CONTROL)
         self.create_subscription(String, c.TOPIC_STATUS, self._on_status, c.QOS_CONTROL)
-        self.fast_subscriptions = [
-            self.create_subscription(Float64MultiArray, c.TOPIC_RAIL, self._on_rail, c.QOS_EXCHANGE)]
+        self.exchange = c.ExchangeLane(self)
+        self.exchange_subscriptions = [
+            self.exchange.subscribe(Float64MultiArray, c.TOPIC_RAIL, self._on_rail, c.QOS_EXCHANGE)]
         self.create_service(Trigger, "~/start_run", self._on_start)
         self.run = None
         self._pending = []  # rail messages that arrived before /adm/run/ready

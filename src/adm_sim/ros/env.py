@@ -6,9 +6,9 @@
   in ``[1, 101]`` is reserved with an exclusive ``fcntl.flock`` on a lock file under
   ``/tmp/adm_sim_ros_domains/``; the lock is released when the run closes it or dies, so concurrent
   runs never share an id and a killed run never leaks one.
-* :func:`cleanup_shm` removes the Fast DDS shared-memory files (``/dev/shm/fastrtps_*``,
-  ``fast_datasharing_*``) that killed processes left behind, and never a file that a live process
-  still maps, holds open or locks.
+* :func:`cleanup_shm` runs Fast DDS's own ``fastdds shm clean``, which removes the shared-memory
+  files (``/dev/shm/fastrtps_*``) of participants that died without cleaning up (a SIGKILL) and
+  never those of a live one.
 
 This module imports nothing from ROS, so launchers can prepare the environment before rclpy loads.
 """
@@ -17,30 +17,25 @@ from __future__ import annotations
 
 import fcntl
 import os
-import re
+import shutil
+import subprocess
+import sys
 from pathlib import Path
 
-from adm_sim.errors import InputError
+from adm_sim.errors import AdmSimError, InputError
 
 __all__ = [
     "DOMAIN_ID_MAX",
     "DomainLock",
     "LocalRosEnv",
     "cleanup_shm",
+    "fastdds_tool",
     "local_ros_env",
-    "shm_files_of",
 ]
 
 #: Largest ROS_DOMAIN_ID whose Fast DDS ports stay valid on Linux (ROS 2 docs, "The ROS_DOMAIN_ID").
 DOMAIN_ID_MAX = 101
 LOCK_DIR = Path("/tmp/adm_sim_ros_domains")
-SHM_DIR = Path("/dev/shm")
-
-# Files Fast DDS creates in /dev/shm: per-participant data segments ``fastrtps_<16 hex>``, port
-# segments ``fastrtps_port<N>``, their lock files ``*_el`` / ``*_sl``, port mutexes
-# ``sem.fastrtps_port<N>_mutex`` and data-sharing segments ``fast_datasharing_<guid>``.
-_FASTDDS_SHM = re.compile(r"^(sem\.)?(fastrtps_|fast_datasharing_)")
-_DATA_SEGMENT = re.compile(r"^fastrtps_[0-9a-f]{16}(_el|_sl)?$|^fast_datasharing_")
 
 
 class DomainLock:
@@ -219,158 +214,45 @@ def apply_local_ros_env(domain_id: int | None = None) -> LocalRosEnv:
 # ---------------------------------------------------------------- shared memory
 
 
-def _pid_alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    # a zombie (killed, not yet reaped) holds no mapping any more: count it as dead
-    try:
-        stat = Path(f"/proc/{pid}/stat").read_text()
-    except OSError:
-        return False
-    return stat.rsplit(")", 1)[1].split()[0] != "Z"
+def fastdds_tool() -> list[str]:
+    """Command line of Fast DDS's own ``fastdds`` tool.
 
+    The ``ros-fastrtps`` wheel (a dependency of ``ros-jazzy-rclpy[fastrtps]``) ships it as
+    ``<prefix>/bin/fastdds``, a shell launcher of ``<prefix>/tools/fastdds/fastdds.py``; a
+    system ROS 2 has it on ``PATH``. The Python script is run with this interpreter (the
+    launcher would take whichever ``python3`` is first on ``PATH``).
 
-def _names_used_by(pid: int | str) -> set[str]:
-    """Names of /dev/shm files that process ``pid`` maps or holds open."""
-    names: set[str] = set()
-    prefix = str(SHM_DIR) + "/"
-    try:
-        with open(f"/proc/{pid}/maps") as f:
-            for line in f:
-                i = line.find(prefix)
-                if i >= 0:
-                    names.add(line[i + len(prefix):].split(" (deleted)")[0].strip())
-    except OSError:
-        pass
-    try:
-        for fd in os.scandir(f"/proc/{pid}/fd"):
-            try:
-                target = os.readlink(fd.path)
-            except OSError:
-                continue
-            if target.startswith(prefix):
-                names.add(target[len(prefix):])
-    except OSError:
-        pass
-    return {n for n in names if _FASTDDS_SHM.match(n)}
-
-
-def shm_files_of(pid: int) -> set[str]:
-    """Fast DDS /dev/shm files that the live process ``pid`` maps or holds open.
-
-    Record this while a process runs to attribute its files exactly when it is killed later.
+    Raises
+    ------
+    InputError
+        When no ``fastdds`` tool is installed.
     """
-    return _names_used_by(pid)
+    here = Path(sys.executable).parent
+    launcher = here / "fastdds" if (here / "fastdds").is_file() else shutil.which("fastdds")
+    if launcher is None:
+        raise InputError("fastdds: Fast DDS's tool is not installed (it comes with the ros-fastrtps "
+                         "wheel of requirements.txt, or with a system ROS 2 on PATH)")
+    script = Path(launcher).resolve().parent.parent / "tools" / "fastdds" / "fastdds.py"
+    return [sys.executable, str(script)] if script.is_file() else [str(launcher)]
 
 
-def _locked_inodes() -> set[int]:
-    inodes: set[int] = set()
-    try:
-        with open("/proc/locks") as f:
-            for line in f:
-                parts = line.split()
-                # "1: FLOCK ADVISORY WRITE 4891 00:1a:1234 0 EOF" ('->' marks blocked waiters)
-                if "->" in parts:
-                    continue
-                for p in parts:
-                    if p.count(":") == 2:
-                        try:
-                            inodes.add(int(p.rsplit(":", 1)[1]))
-                        except ValueError:
-                            pass
-                        break
-    except OSError:
-        pass
-    return inodes
+def cleanup_shm(timeout_s: float = 60.0) -> str:
+    """Remove the Fast DDS shared-memory files of dead participants: ``fastdds shm clean``.
 
-
-def _in_use() -> set[str]:
-    used: set[str] = set()
-    me = os.getpid()
-    for entry in os.scandir("/proc"):
-        if entry.name.isdigit() and int(entry.name) != me:
-            used |= _names_used_by(entry.name)
-    used |= _names_used_by(me)
-    return used
-
-
-def _base(name: str) -> str:
-    """Segment a Fast DDS /dev/shm file belongs to: ``sem.X_mutex``, ``X_el``, ``X_sl`` -> ``X``."""
-    if name.startswith("sem.") and name.endswith("_mutex"):
-        return name[4:-6]
-    if name.endswith(("_el", "_sl")):
-        return name[:-3]
-    return name
-
-
-def _live_segments(present: dict, locked: set[int], mapped: set[str]) -> set[str]:
-    """Segments whose owner is alive: Fast DDS holds an ``flock`` on ``<segment>_el`` (data and
-    port segments) or ``<segment>_sl`` (shared port) for the owner's lifetime; a segment without
-    any lock file counts as alive while some live process maps it."""
-    live, has_lock_file = set(), set()
-    for name, entry in present.items():
-        if name.endswith(("_el", "_sl")):
-            has_lock_file.add(name[:-3])
-            try:
-                if entry.inode() in locked:
-                    live.add(name[:-3])
-            except OSError:
-                continue
-    for name in mapped:
-        if _base(name) not in has_lock_file:
-            live.add(_base(name))
-    return live
-
-
-def cleanup_shm(pids, owned: dict[int, set[str]] | None = None) -> list[str]:
-    """Remove Fast DDS shared-memory files left in /dev/shm by killed processes.
-
-    A process killed with SIGKILL leaves its data segment ``fastrtps_<hex>`` (about 0.5 MB) with
-    its lock file ``..._el``, and may leave port segments ``fastrtps_port<N>`` that the next
-    participant cleans. A segment is alive while its owner holds the ``flock`` on
-    ``<segment>_el`` / ``_sl`` (listed in /proc/locks); such a segment, and everything of it, is
-    never removed. Unlinking a dead segment that a live peer still maps is safe: the mapping stays
-    valid until the peer drops it.
-
-    Parameters
-    ----------
-    pids : iterable of int
-        Ids of the processes that were killed. Processes still alive are ignored.
-    owned : dict or None
-        ``pid -> names`` recorded with :func:`shm_files_of` while the processes ran: then only
-        the dead segments among those (data and port segments, with their lock and mutex files)
-        are removed. Without it (Fast DDS names carry no pid), the data segments
-        ``fastrtps_<16 hex>`` and ``fast_datasharing_*`` whose owner is dead are removed, with
-        their lock files; port segments are left to Fast DDS.
+    A process killed with SIGKILL leaves its data segment ``fastrtps_<hex>`` (about 0.5 MB) and
+    port files in /dev/shm. Fast DDS holds an ``flock`` on each segment's and port's lock file
+    for the owner's lifetime; ``fastdds shm clean`` removes exactly the files whose lock no live
+    process holds, so the segments of running nodes (of this run or any other) are never
+    touched.
 
     Returns
     -------
-    list of str
-        Names of the removed files, sorted.
+    str
+        The tool's report (``shm.clean: ... zombie segments cleaned``).
     """
-    dead = [int(p) for p in pids if not _pid_alive(int(p))]
-    if not dead or not SHM_DIR.is_dir():
-        return []
-    present = {e.name: e for e in os.scandir(SHM_DIR) if _FASTDDS_SHM.match(e.name)}
-    if owned is not None:
-        bases = set()
-        for pid in dead:
-            bases |= {_base(n) for n in owned.get(pid, ())}
-    else:
-        bases = {_base(n) for n in present if _DATA_SEGMENT.match(n)}
-    if not bases:
-        return []
-    live = _live_segments(present, _locked_inodes(), _in_use())
-    removed = []
-    for name in sorted(present):
-        if _base(name) in bases and _base(name) not in live:
-            try:
-                os.unlink(SHM_DIR / name)
-                removed.append(name)
-            except FileNotFoundError:
-                continue
-    return removed
+    out = subprocess.run(fastdds_tool() + ["shm", "clean"], capture_output=True, text=True,
+                         timeout=timeout_s)
+    if out.returncode != 0:
+        raise AdmSimError(f"fastdds shm clean failed (exit status {out.returncode}): "
+                          f"{(out.stderr or out.stdout).strip()}")
+    return out.stdout.strip()

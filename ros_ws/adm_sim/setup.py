@@ -1,0 +1,36 @@
+"""ament_python package of the adm_sim sources (``src/adm_sim``, linked here as ``adm_sim/``).
+
+Built with ``colcon build`` (see the README, "Building the ROS 2 packages with colcon"): installs
+the Python package, the nodes as executables in ``lib/adm_sim`` (``ros2 run adm_sim bridge_node``),
+and the params files and the DDS profile in ``share/adm_sim/{params,dds}``.
+"""
+
+from glob import glob
+
+from setuptools import find_packages, setup
+
+PACKAGE = "adm_sim"
+
+setup(
+    name=PACKAGE,
+    version="0.1.0",
+    packages=find_packages(include=[PACKAGE, f"{PACKAGE}.*"]),
+    package_data={PACKAGE: ["data/trains/*.toml", "data/examples/*.toml"]},
+    data_files=[
+        ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
+        (f"share/{PACKAGE}", ["package.xml"]),
+        (f"share/{PACKAGE}/params", sorted(glob("params/*.yaml"))),
+        (f"share/{PACKAGE}/dds", sorted(glob("dds/*.xml"))),
+    ],
+    install_requires=["setuptools"],
+    zip_safe=False,
+    maintainer="adm-sim developers",
+    maintainer_email="adm-sim@localhost",
+    description="Railway-bridge dynamics (MLM, DIM): numerical core, bridge/train/driver nodes",
+    license="MIT",
+    entry_points={"console_scripts": [
+        "bridge_node = adm_sim.nodes.bridge_node:main",
+        "train_node = adm_sim.nodes.train_node:main",
+        "driver = adm_sim.nodes.driver:main",
+    ]},
+)

@@ -1,0 +1,194 @@
+"""Start, watch and stop node processes (no ``launch`` and no ``ros2`` CLI in the PyPI wheels).
+
+Used by the launch scripts and by the tests alike. Every node runs as
+``python -m <module> --ros-args ...`` in its own process group, under an environment of
+:func:`adm_sim.ros.env.local_ros_env` (shared memory only, a ROS_DOMAIN_ID of its own).
+:class:`Supervisor` reports the first node that dies, stops all of them on exit, Ctrl-C or
+SIGTERM (SIGTERM first so the nodes finish their files, SIGKILL after a grace period) and, when
+a process had to be killed or died by a signal, removes the shared-memory files it left with
+Fast DDS's ``fastdds shm clean`` (:func:`adm_sim.ros.env.cleanup_shm`).
+
+This module imports nothing from ROS.
+"""
+
+from __future__ import annotations
+
+import os
+import queue
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+from adm_sim.errors import AdmSimError
+from adm_sim.ros.env import cleanup_shm, local_ros_env
+
+__all__ = ["NodeDied", "Supervisor", "ros_args"]
+
+
+class NodeDied(AdmSimError):
+    """A supervised node exited before its job was done."""
+
+
+def ros_args(params_file=None, params=None, log_level=None):
+    """``--ros-args`` list: a params file first, then ``-p name:=value`` overrides.
+
+    Strings are single-quoted so that ``'280'`` or ``'true'`` stay strings (not YAML numbers or
+    booleans); booleans are written ``true``/``false``.
+    """
+    out = ["--ros-args"]
+    if params_file:
+        out += ["--params-file", str(params_file)]
+    for k, v in (params or {}).items():
+        if isinstance(v, bool):
+            v = "true" if v else "false"
+        elif isinstance(v, str):
+            v = "'" + v.replace("'", "") + "'"
+        out += ["-p", f"{k}:={v}"]
+    if log_level:
+        out += ["--log-level", log_level]
+    return out
+
+
+def _default_signals():
+    """In the child before exec: SIGINT/SIGTERM back to their defaults (not inherited as ignored)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+class Supervisor:
+    """The node processes of one launch (or one test).
+
+    Parameters
+    ----------
+    log_dir : path
+        Each node's stderr goes to ``<log_dir>/<name>.log``, its stdout to ``<name>.out``
+        (unless captured line by line, see :meth:`start`).
+    domain_id : int or None
+        ROS_DOMAIN_ID; ``None`` reserves a free one for the life of the supervisor.
+    env : LocalRosEnv or None
+        An environment of :func:`adm_sim.ros.env.local_ros_env` to use instead (its
+        reservation stays with the caller).
+    cwd : path or None
+        Working directory of the processes.
+    """
+
+    def __init__(self, log_dir, domain_id=None, env=None, cwd=None):
+        self.log_dir = Path(log_dir)
+        self.log_dir.mkdir(parents=True, exist_ok=True)
+        self._own_env = env is None
+        self.env = local_ros_env(domain_id) if env is None else env
+        self.env.setdefault("OPENBLAS_NUM_THREADS", "1")
+        self.env["PYTHONUNBUFFERED"] = "1"
+        self.cwd = cwd
+        self.procs = {}
+        self.lines = queue.Queue()
+        self._old = {}
+        self._files = []
+
+    @property
+    def domain_id(self):
+        return self.env.domain_id
+
+    def start(self, name, module, args=(), capture=False):
+        """Start ``python -m module args``; with ``capture`` its stdout lines go to :attr:`lines`
+        as ``(name, line)`` (``(name, None)`` at its end)."""
+        return self.start_command(name, [sys.executable, "-m", module] + list(args), capture)
+
+    def start_command(self, name, cmd, capture=False):
+        """Start the command line ``cmd`` (a list) as node ``name``; see :meth:`start`."""
+        err = open(self.log_dir / f"{name}.log", "w")
+        out = subprocess.PIPE if capture else open(self.log_dir / f"{name}.out", "w")
+        self._files += [err] if capture else [err, out]
+        p = subprocess.Popen(list(cmd), env=self.env, cwd=self.cwd, start_new_session=True, stderr=err, stdout=out,
+                             text=True, bufsize=1, preexec_fn=_default_signals)
+        self.procs[name] = p
+        if capture:
+            def pump():
+                for line in p.stdout:
+                    self.lines.put((name, line.rstrip("\n")))
+                self.lines.put((name, None))
+
+            threading.Thread(target=pump, name=f"stdout-{name}", daemon=True).start()
+        return p
+
+    def stderr(self, name):
+        """Everything node ``name`` wrote to stderr so far."""
+        return (self.log_dir / f"{name}.log").read_text()
+
+    def stdout(self, name):
+        """Everything node ``name`` wrote to stdout so far (not captured)."""
+        return (self.log_dir / f"{name}.out").read_text()
+
+    def dead(self, names=None):
+        """``(name, returncode)`` of the first supervised process that has exited, or None."""
+        for name, p in self.procs.items():
+            if (names is None or name in names) and p.poll() is not None:
+                return name, p.returncode
+        return None
+
+    def log_tail(self, name, n=5):
+        """The ``error:`` lines of a node's stderr (else its last ``n`` lines)."""
+        try:
+            lines = self.stderr(name).strip().splitlines()
+        except OSError:
+            return ""
+        err = [ln for ln in lines if ln.startswith("error:")]
+        return "\n".join((err or lines)[-n:])
+
+    def kill(self, name, sig=signal.SIGKILL):
+        """Send ``sig`` to the process group of node ``name`` and wait for it."""
+        p = self.procs[name]
+        os.killpg(p.pid, sig)
+        p.wait(10)
+
+    def stop(self, grace_s=5.0):
+        """Stop every process (SIGTERM, then SIGKILL after ``grace_s``); clean shared memory.
+
+        SIGTERM rather than SIGINT: a launcher started in the background of a non-interactive
+        shell passes SIGINT on as ignored, and rclpy handles both the same way.
+        """
+        live = [p for p in self.procs.values() if p.poll() is None]
+        for p in live:
+            try:
+                os.killpg(p.pid, signal.SIGTERM)
+            except ProcessLookupError:
+                pass
+        t_end = time.monotonic() + grace_s
+        for p in live:
+            try:
+                p.wait(max(0.05, t_end - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                try:
+                    os.killpg(p.pid, signal.SIGKILL)
+                except ProcessLookupError:
+                    pass
+                p.wait(5)
+        for f in self._files:
+            f.close()
+        self._files = []
+        if any(p.returncode is not None and p.returncode < 0 for p in self.procs.values()):
+            try:
+                cleanup_shm()
+            except (AdmSimError, OSError, subprocess.SubprocessError):
+                pass  # best effort: stale segments are also reclaimed by the next participant
+        if self._own_env:
+            self.env.release()
+
+    # -- signals: SIGTERM behaves like Ctrl-C
+    def __enter__(self):
+        def on_term(signum, frame):
+            raise KeyboardInterrupt
+
+        self._old[signal.SIGTERM] = signal.signal(signal.SIGTERM, on_term)
+        self._old[signal.SIGINT] = signal.signal(signal.SIGINT, signal.default_int_handler)
+        return self
+
+    def __exit__(self, *exc):
+        try:
+            self.stop()
+        finally:
+            for s, h in self._old.items():
+                signal.signal(s, h)
