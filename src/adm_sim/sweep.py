@@ -20,41 +20,42 @@ DEFAULT_SPEEDS = "160:350:1"
 MAX_HISTORY_VALUES = 300_000_000
 
 
-def parse_speeds(text, ordered=True):
+def parse_speeds(text, ordered=True, field="speeds"):
     """Speeds (km/h) from ``"160:350:1"`` (start:stop:step, stop included) or ``"200,250"``.
 
     Every number must be finite; each speed lies in [1, 600] km/h. With ``ordered`` (every user
     input) a comma list must increase strictly, because a peak over speed is only meaningful on an
     ordered grid; lanes of a run (the train node's ``speeds_kmh``, e.g. a damping ladder that
-    repeats its speeds) take ``ordered=False``.
+    repeats its speeds) take ``ordered=False``. ``field`` names the input in messages (the ROS
+    nodes pass their parameter name ``speeds_kmh``).
     """
     text = str(text).strip()
     if ":" in text and "," in text:
-        raise InputError(f"speeds: {text!r} mixes ':' and ','; give start:stop:step or a comma list (km/h)")
+        raise InputError(f"{field}: {text!r} mixes ':' and ','; give start:stop:step or a comma list (km/h)")
     try:
         parts = [float(p) for p in text.replace(":", ",").split(",") if p.strip()]
     except ValueError:
         parts = None
     if not parts or (":" in text and len(parts) not in (2, 3)):
-        raise InputError(f"speeds: {text!r} is not start:stop:step or a comma list (km/h)")
+        raise InputError(f"{field}: {text!r} is not start:stop:step or a comma list (km/h)")
     bad = [p for p in parts if not math.isfinite(p)]
     if bad:
-        raise InputError(f"speeds: {text!r} holds {bad[0]!r}; every speed and step must be a finite number (km/h)")
+        raise InputError(f"{field}: {text!r} holds {bad[0]!r}; every speed and step must be a finite number (km/h)")
     if ":" in text:
         a, b, st = parts if len(parts) == 3 else parts + [1.0]
         if st <= 0 or b < a:
-            raise InputError(f"speeds: {text!r} needs start <= stop and step > 0 (km/h)")
+            raise InputError(f"{field}: {text!r} needs start <= stop and step > 0 (km/h)")
         if (b - a) / st > 100_000:
-            raise InputError(f"speeds: {text!r} gives more than 100000 speeds")
+            raise InputError(f"{field}: {text!r} gives more than 100000 speeds")
         v = a + st * np.arange(int(math.floor((b - a) / st + 1e-9)) + 1)
     else:
         v = np.array(parts)
         if ordered and np.any(np.diff(v) <= 0):
-            raise InputError(f"speeds: {text!r} must increase strictly (km/h), e.g. 200,250,263")
+            raise InputError(f"{field}: {text!r} must increase strictly (km/h), e.g. 200,250,263")
     lo, hi = SPEED_RANGE_KMH
     out = v[(v < lo) | (v > hi)]
     if out.size:
-        raise InputError(f"speeds: {text!r} gives {out[0]:g} km/h; allowed speeds in [{lo:g}, {hi:g}] km/h")
+        raise InputError(f"{field}: {text!r} gives {out[0]:g} km/h; allowed speeds in [{lo:g}, {hi:g}] km/h")
     return v
 
 

@@ -98,7 +98,7 @@ class CalibrationNode(RunDriver):
         base = StepOptions(st["steps_per_period"], st["free_vibration_periods"], st["ds_m"] or None)
         p = self.param_values()
         opt = CalibrationOptions(dim_grid=p["dim_grid"], step=base)
-        v = parse_speeds(p["speeds_kmh"])
+        v = parse_speeds(p["speeds_kmh"], field="speeds_kmh")
         self._n_speeds, self._ds_m = v.size, None
         say("calibration", bridge=bridge.describe(), train=train.name, speeds=len(v),
             ds_m=calibration_step(bridge, train, v, opt).ds_m)

@@ -74,7 +74,7 @@ class TrainNode(c.NodeBase):
             raise InputError(f"model: {p['model']!r} is not allowed; allowed 'mlm' or 'dim'")
         if p["model"] == "dim" and not train.units:
             raise InputError(f"model: 'dim' needs vehicles; train {train.name!r} is a load train (use 'mlm')")
-        speeds = parse_speeds(p["speeds_kmh"], ordered=False)  # lanes, not a user's grid
+        speeds = parse_speeds(p["speeds_kmh"], ordered=False, field="speeds_kmh")  # lanes, not a user's grid
         return train, speeds
 
     def _on_set(self, params):
