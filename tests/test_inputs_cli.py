@@ -11,6 +11,7 @@ salvage), ``adm-calib`` (calibrate, table4, recommend, study, study-fit) and
 from __future__ import annotations
 
 import importlib.util
+import json
 from collections import Counter
 from pathlib import Path
 
@@ -20,7 +21,8 @@ from adm_calib.cli import main as calib_main
 from adm_sim.cli import main as sim_main
 
 ROOT = Path(__file__).resolve().parents[1]
-import json  # noqa: E402
+
+# ---------------------------------------------------------------- the input files of the cases
 
 TRAIN_OK = """name = "mine"
 [vehicle_types.PC]
