@@ -136,6 +136,7 @@ RECORD_EDITS = {
     "r_status": {"status": 1},
     "r_list": {"bridge": ["L10"]},
     "r_ok": {},
+    "r_peak": {"mlm_peak": "high"},
 }
 
 
@@ -562,6 +563,9 @@ CASES = [
      "error: --results: '{t}/r_flag.jsonl': record 1 (L10-f1-mu1, ICE-2): dim_is_local_max: 'yes' must be true or false"),
     ('adm-calib study-fit', ['study-fit', '--results', '{t}/r_status.jsonl', '--out', '{t}/sf'],
      "error: --results: '{t}/r_status.jsonl': record 1 (L10-f1-mu1, ICE-2): status: 1 must be text ('ok', 'error', ...)"),
+    ('adm-calib study-fit', ['study-fit', '--results', '{t}/r_peak.jsonl', '--out', '{t}/sf'],
+     "error: --results: '{t}/r_peak.jsonl': record 1 (L10-f1-mu1, ICE-2): mlm_peak: 'high' must be null or "
+     "{speed_kmh (km/h), acc_m_s2 (m/s^2)}"),
     ('adm-calib study-fit', ['study-fit', '--results', '{t}/r_ok.jsonl', '--out', '{t}/old.json'],
      "error: --out: '{t}/old.json' is not a directory"),
     ('adm-calib study-fit', ['study-fit', '--results', '{t}/r_ok.jsonl', '--out', '{t}/oldfit'],
