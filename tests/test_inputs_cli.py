@@ -667,3 +667,12 @@ def test_every_entry_point_is_covered():
                            "adm-calib recommend", "adm-calib study", "adm-calib study-fit",
                            "launch_scripts/replay.py"}
     assert min(counts.values()) >= 8 and sum(counts.values()) == len(CASES) >= 200
+    # the README's "Bad input" table states these counts
+    readme = (ROOT / "README.md").read_text()
+    table = readme[readme.index("| entry point | bad-input cases |"):]
+    table = table[:table.index("\n\n")]
+    stated = [int(row.rsplit("|", 2)[1].strip("* ")) for row in table.splitlines()[2:]]
+    order = ["adm-sim sweep", "bridge spec", "bridge file", "train file", "adm-sim trains/bridges/salvage",
+             "adm-calib calibrate", "adm-calib table4", "adm-calib recommend", "adm-calib study",
+             "adm-calib study-fit", "launch_scripts/replay.py"]
+    assert stated == [counts[e] for e in order] + [len(CASES)]
