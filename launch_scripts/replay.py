@@ -78,7 +78,8 @@ def parse_args(argv=None):
                    help="with --rrd: use 'rerun mcap convert' instead of the adm-sim views")
     p.add_argument("--overwrite", action="store_true", help="replace OUT.rrd if it exists")
     p.add_argument("--exaggeration", default="1",
-                   help="display factor on beam deflections, > 0 (default 1)")
+                   help="display factor on beam deflections, > 0 (default 1); checked, but without effect "
+                        "yet: the replay draws /adm/beam as series, not as a beam view")
     p.add_argument("--republish", action="store_true", help="republish the run on ROS 2")
     p.add_argument("--domain-id", default=None, help="ROS_DOMAIN_ID, 0..101 (default: a free one)")
     p.add_argument("--rate", default="1",

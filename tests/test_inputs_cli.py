@@ -11,6 +11,7 @@ salvage), ``adm-calib`` (calibrate, table4, recommend, study, study-fit) and
 from __future__ import annotations
 
 import importlib.util
+import json
 from collections import Counter
 from pathlib import Path
 
@@ -20,7 +21,8 @@ from adm_calib.cli import main as calib_main
 from adm_sim.cli import main as sim_main
 
 ROOT = Path(__file__).resolve().parents[1]
-import json  # noqa: E402
+
+# ---------------------------------------------------------------- the input files of the cases
 
 TRAIN_OK = """name = "mine"
 [vehicle_types.PC]
@@ -134,6 +136,7 @@ RECORD_EDITS = {
     "r_status": {"status": 1},
     "r_list": {"bridge": ["L10"]},
     "r_ok": {},
+    "r_peak": {"mlm_peak": "high"},
 }
 
 
@@ -560,6 +563,9 @@ CASES = [
      "error: --results: '{t}/r_flag.jsonl': record 1 (L10-f1-mu1, ICE-2): dim_is_local_max: 'yes' must be true or false"),
     ('adm-calib study-fit', ['study-fit', '--results', '{t}/r_status.jsonl', '--out', '{t}/sf'],
      "error: --results: '{t}/r_status.jsonl': record 1 (L10-f1-mu1, ICE-2): status: 1 must be text ('ok', 'error', ...)"),
+    ('adm-calib study-fit', ['study-fit', '--results', '{t}/r_peak.jsonl', '--out', '{t}/sf'],
+     "error: --results: '{t}/r_peak.jsonl': record 1 (L10-f1-mu1, ICE-2): mlm_peak: 'high' must be null or "
+     "{speed_kmh (km/h), acc_m_s2 (m/s^2)}"),
     ('adm-calib study-fit', ['study-fit', '--results', '{t}/r_ok.jsonl', '--out', '{t}/old.json'],
      "error: --out: '{t}/old.json' is not a directory"),
     ('adm-calib study-fit', ['study-fit', '--results', '{t}/r_ok.jsonl', '--out', '{t}/oldfit'],
@@ -661,3 +667,12 @@ def test_every_entry_point_is_covered():
                            "adm-calib recommend", "adm-calib study", "adm-calib study-fit",
                            "launch_scripts/replay.py"}
     assert min(counts.values()) >= 8 and sum(counts.values()) == len(CASES) >= 200
+    # the README's "Bad input" table states these counts
+    readme = (ROOT / "README.md").read_text()
+    table = readme[readme.index("| entry point | bad-input cases |"):]
+    table = table[:table.index("\n\n")]
+    stated = [int(row.rsplit("|", 2)[1].strip("* ")) for row in table.splitlines()[2:]]
+    order = ["adm-sim sweep", "bridge spec", "bridge file", "train file", "adm-sim trains/bridges/salvage",
+             "adm-calib calibrate", "adm-calib table4", "adm-calib recommend", "adm-calib study",
+             "adm-calib study-fit", "launch_scripts/replay.py"]
+    assert stated == [counts[e] for e in order] + [len(CASES)]

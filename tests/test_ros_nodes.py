@@ -98,7 +98,7 @@ def test_read_only_preset(bridge):
     ("train", "TGV-Z", ["train", "TGV-Z"]),
     ("model", "fem", ["model", "fem", "mlm", "dim"]),
     ("speeds_kmh", "100:50:1", ["speeds_kmh", "100:50:1", "km/h"]),
-    ("speeds_kmh", "700", ["speeds_kmh", "700", "km/h", "[1, 600]"]),
+    ("speeds_kmh", "700", ["speeds_kmh", "700 km/h", "[1, 600] km/h"]),
     ("mlm_block_steps", 0, ["mlm_block_steps", "0", "steps"]),
 ])
 def test_train_rejects_with_reason_and_keeps_old_value(train, name, value, words):

@@ -320,6 +320,10 @@ def _check_fit_records(records, option, path):
         for flag in ("dim_is_local_max", "mlm_max_at_range_end"):
             if flag in rec and not isinstance(rec[flag], bool):
                 raise InputError(f"{where}: {flag}: {rec[flag]!r} must be true or false")
+        pk = rec.get("mlm_peak")
+        if pk is not None and not (isinstance(pk, dict) and all(
+                isinstance(pk.get(k), (int, float)) and not isinstance(pk.get(k), bool) for k in ("speed_kmh", "acc_m_s2"))):
+            raise InputError(f"{where}: mlm_peak: {pk!r} must be null or {{speed_kmh (km/h), acc_m_s2 (m/s^2)}}")
         if status != "ok" or rec.get("delta_zeta_vbi_pct") is None:
             continue  # excluded from the fit (error / no dz), whatever else it holds
         if rec.get("mass_function") not in MASS_FUNCTION_NAMES:

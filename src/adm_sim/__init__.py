@@ -5,7 +5,7 @@ The numerical core (``bridge``, ``trains``, ``dim``, ``stepping``, ``sweep``) im
 scipy only; the ROS 2 nodes live in :mod:`adm_sim.nodes` and are a thin layer on top.
 """
 
-from adm_sim.errors import AdmSimError, InputError
+from adm_sim.errors import AdmSimError, InputError, RunError
 
-__all__ = ["AdmSimError", "InputError"]
+__all__ = ["AdmSimError", "InputError", "RunError"]
 __version__ = "0.1.0"

@@ -251,7 +251,7 @@ def _vehicle_type(name, d, source):
         raise InputError(f"{where}: {d!r} is not a table; write [vehicle_types.{name}] with its fields")
     unknown = set(d) - set(_TYPE_FIELDS) - {"axle_load_kN"}
     if unknown:
-        raise InputError(f"{where}: unknown field(s) {', '.join(sorted(unknown))}; allowed "
+        raise InputError(f"{where}: unknown field(s) {', '.join(sorted(map(str, unknown)))}; allowed "
                          f"{', '.join(list(_TYPE_FIELDS) + ['axle_load_kN'])}")
     vals = {}
     for key, (unit, lo, hi, required) in _TYPE_FIELDS.items():

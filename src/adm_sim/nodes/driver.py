@@ -27,12 +27,8 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64MultiArray, String
 from std_srvs.srv import Trigger
 
-from adm_sim.errors import AdmSimError, InputError
+from adm_sim.errors import AdmSimError, InputError, RunError  # RunError: a run failed or its partners went away
 from adm_sim.nodes import common as c
-
-
-class RunError(AdmSimError):
-    """A requested run failed or its partner nodes went away."""
 
 
 #: Topics the driver records (topic, type); its own publications are recorded as it publishes.

@@ -22,7 +22,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from adm_sim.errors import AdmSimError, InputError
+from adm_sim.errors import InputError, RunError
 
 __all__ = [
     "DOMAIN_ID_MAX",
@@ -253,6 +253,6 @@ def cleanup_shm(timeout_s: float = 60.0) -> str:
     out = subprocess.run(fastdds_tool() + ["shm", "clean"], capture_output=True, text=True,
                          timeout=timeout_s)
     if out.returncode != 0:
-        raise AdmSimError(f"fastdds shm clean failed (exit status {out.returncode}): "
+        raise RunError(f"fastdds shm clean failed (exit status {out.returncode}): "
                           f"{(out.stderr or out.stdout).strip()}")
     return out.stdout.strip()

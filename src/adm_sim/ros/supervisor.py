@@ -22,13 +22,13 @@ import threading
 import time
 from pathlib import Path
 
-from adm_sim.errors import AdmSimError
+from adm_sim.errors import AdmSimError, RunError
 from adm_sim.ros.env import cleanup_shm, local_ros_env
 
 __all__ = ["NodeDied", "Supervisor", "ros_args"]
 
 
-class NodeDied(AdmSimError):
+class NodeDied(RunError):
     """A supervised node exited before its job was done."""
 
 
