@@ -68,7 +68,7 @@ def default_blueprint(span_m: float | None = None, exaggeration: float = BEAM_EX
     ----------
     span_m : float or None
         Span of the bridge in m: fixes the bounds of the beam view (x from -5 % to 105 % of the
-        span, deflection ±30 % of the span after exaggeration). ``None``: automatic bounds.
+        span, deflection from -10 % to +20 % (sag) of the span after exaggeration). ``None``: automatic bounds.
     exaggeration : float
         Display factor on the beam deflections, shown in the beam view's title.
     active_tab : str
@@ -82,7 +82,7 @@ def default_blueprint(span_m: float | None = None, exaggeration: float = BEAM_EX
     bounds = None
     if span_m is not None and span_m > 0:
         bounds = rrb.VisualBounds2D(x_range=[-0.05 * span_m, 1.05 * span_m],
-                                    y_range=[-0.3 * span_m, 0.3 * span_m])
+                                    y_range=[-0.1 * span_m, 0.2 * span_m])
     runs = rrb.Vertical(
         rrb.TimeSeriesView(
             name="Midspan acceleration [m/s²] of every run vs time since train entry [s] (run_time)",
@@ -93,7 +93,7 @@ def default_blueprint(span_m: float | None = None, exaggeration: float = BEAM_EX
                      "its largest deflection",
                 origin=e["beam"], visual_bounds=bounds, background=[250, 250, 250]),
             rrb.TextDocumentView(name="Runs (monitored lane, sampling, peaks)", origin=e["run_info"]),
-            column_shares=[3, 2]),
+            column_shares=[1, 1]),
         row_shares=[3, 2], name="Runs")
     sweep = rrb.Vertical(
         rrb.TimeSeriesView(

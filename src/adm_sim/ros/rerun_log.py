@@ -221,6 +221,8 @@ def init_rerun(app_id: str, spawn: bool = False, connect_url: str | None = None,
     if sinks:
         rr.set_sinks(*sinks)
     rec = rr.get_global_data_recording()
+    # simulated time only: no wall-clock ``log_time`` timeline in the picker (reproducible files)
+    rr.set_log_time_enabled(False, recording=rec)
     if viewer is not None:
         _VIEWERS.append(viewer)
     return rec
@@ -304,6 +306,14 @@ class _Run:
         self.kind = None
         self.row = None
         self.peak = None  # (max |w| [m], x, w, axle x, axle w) of the frame with the largest deflection
+        self.dt_clock = self.ds_m / (v_clock / 3.6) if v_clock > 0 else 0.0  # sim time per step
+        self.n_frames = 0
+
+    def frames_left(self) -> int:
+        """Beam frames still to come: steps 0, b, 2b, ... < n_steps (b = beam_every_steps)."""
+        if not self.beam_every or self.n_steps <= 0:
+            return 0
+        return (self.n_steps - 1) // int(self.beam_every) + 1 - self.n_frames
 
     def contains(self, t_s: float) -> bool:
         return self.t0 - 1e-9 <= t_s <= self.t1 + 1e-9
@@ -338,6 +348,7 @@ class RunLogger:
         self.runs: list[_Run] = []
         self._acc: list[tuple[float, float]] = []
         self._beam: list[tuple] = []
+        self._beam_run = 0  # index of the run the next beam frame belongs to
         self._span_m = None
         self._bridge = {}
         self._train = {}
@@ -349,7 +360,7 @@ class RunLogger:
         self.blueprint_sent = False
 
     # ------------------------------------------------------------ helpers
-    def _style(self, path, lines=True, name=None, color=None, width=None):
+    def _style(self, path, lines=True, name=None, color=None, width=None, visible=None):
         """Name, colour and width of a series (static, once per entity)."""
         import rerun as rr
 
@@ -357,7 +368,7 @@ class RunLogger:
             return
         self._styled.add(path)
         if lines:
-            arch = rr.SeriesLines(names=name, colors=color, widths=width)
+            arch = rr.SeriesLines(names=name, colors=color, widths=width, visible_series=visible)
         else:
             arch = rr.SeriesPoints(names=name, colors=color, marker_sizes=width)
         rr.log(path, arch, static=True, recording=self.rec)
@@ -408,7 +419,10 @@ class RunLogger:
         self._acc.append((float(t_s), float(acc_m_s2)))
 
     def beam(self, t_s: float, x_m, w_m, axle_x_m, axle_w_m):
-        """One ``/adm/beam/deflection`` + ``/adm/beam/axles`` frame (positions and deflections in m)."""
+        """One ``/adm/beam/deflection`` + ``/adm/beam/axles`` frame (positions and deflections in m).
+
+        ``t_s`` (the clock when it was received) is not used: see :meth:`flush`.
+        """
         self._beam.append((float(t_s), np.asarray(x_m, float), np.asarray(w_m, float),
                            np.asarray(axle_x_m, float), np.asarray(axle_w_m, float)))
 
@@ -443,17 +457,21 @@ class RunLogger:
                             indexes=[rr.TimeColumn(SIM_TIME, duration=t),
                                      rr.TimeColumn(RUN_TIME, duration=r.run_time(t))],
                             columns=rr.Scalars.columns(scalars=a), recording=self.rec)
-        keep = []
+        # beam frames carry no stamp: the j-th frame of a run is its step j * beam_every (frames of
+        # one topic arrive in order), so frames are dealt to the announced runs in turn
         k = self.exaggeration
-        for frame in self._beam:
-            t, x, w, ax, aw = frame
-            r = self._owner(t)
-            if r is None:
-                if t > latest:
-                    keep.append(frame)
-                continue
+        while self._beam:
+            while self._beam_run < len(self.runs) and self.runs[self._beam_run].frames_left() == 0:
+                self._beam_run += 1
+            if self._beam_run >= len(self.runs):
+                break
+            r = self.runs[self._beam_run]
+            _, x, w, ax, aw = self._beam.pop(0)
+            step = r.n_frames * int(r.beam_every)
+            r.n_frames += 1
             if w.size and (r.peak is None or np.max(np.abs(w)) > r.peak[0]):
                 r.peak = (float(np.max(np.abs(w))), x, w, ax, aw)
+            t = r.t0 + step * r.dt_clock
             rr.set_time(SIM_TIME, duration=t, recording=self.rec)
             rr.set_time(RUN_TIME, duration=float(r.run_time(t)), recording=self.rec)
             path = f"runs/beam/{r.tag}"
@@ -463,7 +481,6 @@ class RunLogger:
                    recording=self.rec)
             rr.log(f"{path}/axles", rr.Points2D(np.column_stack([ax, k * aw]).reshape(-1, 2), colors=color,
                                                 radii=0.12), recording=self.rec)
-        self._beam = keep
         rr.reset_time(recording=self.rec)
 
     # ------------------------------------------------------------ end of a run
@@ -491,8 +508,10 @@ class RunLogger:
         uniq = np.unique(dz)
         dz_txt = f", Δζ {fmt_pct(uniq[0])}" if uniq.size == 1 and uniq[0] != 0.0 else (
             f", {uniq.size} Δζ" if uniq.size > 1 else "")
+        # the ladder's history is that of its first rung (the lowest Δζ): hidden until asked for
         self._style(f"runs/acceleration/{r.tag}", name=f"run {r.id} {kind}{dz_txt}{mon}", color=color,
-                    width=2.0 if kind in (DIM, MLM_ZETA, MLM_ZETA_DZ) else 1.0)
+                    width=2.0 if kind in (DIM, MLM_ZETA, MLM_ZETA_DZ) else 1.0,
+                    visible=[False] if kind == BRACKETING else None)
         # when the run ends its moving beam gives way to its shape at the largest deflection
         rr.set_time(SIM_TIME, duration=r.t1, recording=self.rec)
         rr.set_time(RUN_TIME, duration=float(r.run_time(r.t1)), recording=self.rec)
@@ -509,19 +528,19 @@ class RunLogger:
         self._log_sweep(r, kind, v, acc, dz)
         i = int(np.argmax(acc))
         r.row = (f"| {r.id} | {kind}{dz_txt} | {v.size} | {_fmt(v.min())}–{_fmt(v.max())} | "
-                 f"{_fmt(r.mon_kmh) if r.mon_kmh else '-'} | {self._sampling(r)} | {acc[i]:.3f} at {v[i]:g} |")
+                 f"{_fmt(r.mon_kmh) if r.mon_kmh else '-'} | {self._sampling(r)} | {acc[i]:.3f} | {v[i]:g} |")
         self._log_run_table()
         return kind
 
     def _sampling(self, r: _Run) -> str:
-        """Monitoring step of a run in the monitored lane's time and per period of the top mode."""
+        """Monitoring step of a run in the monitored lane's time, and samples per period of the top mode."""
         if not r.every or not r.mon_kmh or not r.ds_m:
-            return "-"
+            return "- | -"
         dt = int(r.every) * r.ds_m / (r.mon_kmh / 3.6)
         n0 = float(self._bridge.get("n0_hz", 0.0))
         nm = int(self._bridge.get("bridge", {}).get("n_modes", 0))
-        per = f", {1.0 / (nm * nm * n0 * dt):.1f}/period of mode {nm}" if n0 > 0 and nm > 0 else ""
-        return f"{dt * 1e3:.2f} ms{per}"
+        per = f"{1.0 / (nm * nm * n0 * dt):.1f}" if n0 > 0 and nm > 0 else "-"
+        return f"{dt * 1e3:.2f} | {per}"
 
     def _log_run_table(self):
         import rerun as rr
@@ -530,8 +549,11 @@ class RunLogger:
         t = self._train.get("name", self._train.get("train", ""))
         head = f"**{b}**  \n**train** {t}\n\n" if b or t else ""
         rows = "\n".join(r.row for r in self.runs if r.row)
-        text = (head + "| run | series | lanes | speeds [km/h] | monitored [km/h] | sampling | max a [m/s²] at [km/h] |\n"
-                "|---|---|---|---|---|---|---|\n" + rows + "\n")
+        nm = self._bridge.get("bridge", {}).get("n_modes", "n")
+        text = (head + f"| run | series | lanes | speeds [km/h] | monitored [km/h] | Δt [ms] | per T{nm} | "
+                "max a [m/s²] | at [km/h] |\n|---|---|---|---|---|---|---|---|---|\n" + rows + "\n\n"
+                f"Δt: monitoring step in the monitored lane's time; per T{nm}: samples per period of mode {nm} "
+                "(the highest retained).\n")
         rr.log("runs/info", rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN), static=True,
                recording=self.rec)
 
