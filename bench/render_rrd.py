@@ -8,7 +8,8 @@ Usage::
 
 For every tab it starts ``rerun --serve-web`` bound to 127.0.0.1 on free ports (analytics off,
 ``CI=1``), opens the viewer in headless Chromium (software WebGL, SwiftShader) through chromedriver
-(selenium), waits until two screenshots taken 3 s apart are identical, and writes
+(selenium), waits (at least 30 s) until four screenshots taken 5 s apart are identical (software rendering
+on a loaded 2-core machine takes minutes for a calibration recording), and writes
 ``DIR/<recording>_<tab>.png``. The first tab of the default blueprint (``Runs``) is the
 recording as it opens; any other tab is opened by loading, after the recording, the same default
 blueprint with that tab active and the time panel on its timeline (``--tabs``).
@@ -110,7 +111,8 @@ def _stop(proc: subprocess.Popen) -> None:
         proc.wait()
 
 
-def screenshot(url: str, out: Path, size: tuple[int, int], wait_s: float, profile: Path) -> float:
+def screenshot(url: str, out: Path, size: tuple[int, int], wait_s: float, profile: Path,
+               min_wait_s: float = 30.0) -> float:
     """Open ``url`` in headless Chromium and save a PNG once the page stops changing; returns the wait."""
     from selenium import webdriver
     from selenium.webdriver.chrome.service import Service
@@ -136,13 +138,12 @@ def screenshot(url: str, out: Path, size: tuple[int, int], wait_s: float, profil
         driver.set_page_load_timeout(wait_s)
         driver.set_window_size(*size)
         driver.get(url)
-        time.sleep(8.0)
-        last = shot()
-        while time.monotonic() - t0 < wait_s:
-            time.sleep(3.0)
+        time.sleep(min_wait_s)
+        last, same = shot(), 0
+        while time.monotonic() - t0 < wait_s and same < 3:  # unchanged over 3 x 5 s: loaded and drawn
+            time.sleep(5.0)
             png = shot()
-            if png is not None and png == last:
-                break
+            same = same + 1 if png is not None and png == last else 0
             last = png or last
         if last is None:
             raise InputError(f"chromium: no screenshot of {url} within {wait_s:g} s")
@@ -162,7 +163,7 @@ def parse_args(argv=None):
     p.add_argument("--out", type=Path, required=True, help="directory for the PNGs")
     p.add_argument("--tabs", nargs="+", default=list(bp.TABS), help=f"tabs to render (of {', '.join(bp.TABS)})")
     p.add_argument("--size", default="1600x1000", help="window size WxH in px (default 1600x1000)")
-    p.add_argument("--wait", type=float, default=150.0, help="longest wait per screenshot in s (default 150)")
+    p.add_argument("--wait", type=float, default=600.0, help="longest wait per screenshot in s (default 600)")
     args = p.parse_args(argv)
     for tab in args.tabs:
         if tab not in bp.TABS:
