@@ -6,13 +6,14 @@ Usage::
     .venv/bin/python bench/render_rrd.py RUN.rrd --out DIR [--tabs Runs "Speed sweep" Calibration]
         [--size 1600x1000] [--wait 90]
 
-For every tab it starts ``rerun --serve-web`` bound to 127.0.0.1 on free ports (analytics off,
-``CI=1``), opens the viewer in headless Chromium (software WebGL, SwiftShader) through chromedriver
-(selenium), waits (at least 30 s) until four screenshots taken 5 s apart are identical (software rendering
+It starts ``rerun --serve-web`` with the recording, bound to 127.0.0.1 on free ports (analytics
+off, ``CI=1``), opens the viewer in headless Chromium (software WebGL, SwiftShader) through
+chromedriver (selenium), waits (at least 30 s) until four screenshots taken 5 s apart are identical (software rendering
 on a loaded 2-core machine takes minutes for a calibration recording), and writes
-``DIR/<recording>_<tab>.png``. The first tab of the default blueprint (``Runs``) is the
-recording as it opens; any other tab is opened by loading, after the recording, the same default
-blueprint with that tab active and the time panel on its timeline (``--tabs``).
+``DIR/<recording>_<tab>.png`` for every tab of ``--tabs``. The first tab of the default blueprint
+(``Runs``) is the recording as it opens; for any other tab the same default blueprint, with that
+tab active and the time panel on its timeline, is sent to the viewer (as a user clicks the tab and
+picks the timeline).
 
 Needs the Debian packages ``chromium`` and ``chromium-driver`` (``apt-get install chromium
 chromium-driver``) and selenium (requirements.txt). Nothing listens on other than 127.0.0.1;
@@ -86,17 +87,19 @@ def recording_layout(rrd: Path) -> tuple[str, float | None, float]:
     return app_id, span, exaggeration
 
 
-def _start_viewer(files: list[Path]) -> tuple[subprocess.Popen, str]:
+def _start_viewer(rrd: Path) -> tuple[subprocess.Popen, str, str]:
+    """``rerun --serve-web`` on 127.0.0.1 with the recording; returns it, the page URL and the gRPC URL."""
     web, grpc = _free_port(), _free_port()
     proc = subprocess.Popen(
         [rerun_cli(), "--serve-web", "--bind", "127.0.0.1", "--web-viewer-port", str(web), "--port", str(grpc),
-         *map(str, files)],
-        env=rerun_cli_env(), stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+         str(rrd)],
+        env=rerun_cli_env(), stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
         start_new_session=True)
     if not (_wait_for_port(web, 30.0) and _wait_for_port(grpc, 30.0)):
         _stop(proc)
         raise InputError("rerun --serve-web did not listen on 127.0.0.1 within 30 s")
-    return proc, f"http://127.0.0.1:{web}/?url={quote(f'rerun+http://127.0.0.1:{grpc}/proxy', safe='')}"
+    proxy = f"rerun+http://127.0.0.1:{grpc}/proxy"
+    return proc, f"http://127.0.0.1:{web}/?url={quote(proxy, safe='')}", proxy
 
 
 def _stop(proc: subprocess.Popen) -> None:
@@ -111,9 +114,7 @@ def _stop(proc: subprocess.Popen) -> None:
         proc.wait()
 
 
-def screenshot(url: str, out: Path, size: tuple[int, int], wait_s: float, profile: Path,
-               min_wait_s: float = 30.0) -> float:
-    """Open ``url`` in headless Chromium and save a PNG once the page stops changing; returns the wait."""
+def _browser(size: tuple[int, int], profile: Path):
     from selenium import webdriver
     from selenium.webdriver.chrome.service import Service
 
@@ -121,12 +122,16 @@ def screenshot(url: str, out: Path, size: tuple[int, int], wait_s: float, profil
     opts.binary_location = _which("chromium", "chromium")
     for flag in CHROME_FLAGS + [f"--window-size={size[0]},{size[1]}", f"--user-data-dir={profile}"]:
         opts.add_argument(flag)
-    service = Service(executable_path=_which("chromedriver", "chromium-driver"), port=_free_port(),
-                      service_args=["--allowed-ips=127.0.0.1"])
-    from selenium.common.exceptions import TimeoutException
-
+    # chromedriver listens on the loopback only by default (--allowed-ips would open it to all interfaces)
+    service = Service(executable_path=_which("chromedriver", "chromium-driver"), port=_free_port())
     driver = webdriver.Chrome(service=service, options=opts)
-    t0 = time.monotonic()
+    driver.set_window_size(*size)
+    return driver
+
+
+def settled_screenshot(driver, out: Path, wait_s: float, min_wait_s: float) -> float:
+    """Save a PNG once the page stops changing (4 identical screenshots 5 s apart); returns the wait."""
+    from selenium.common.exceptions import TimeoutException
 
     def shot():  # a renderer busy compiling or drawing (software GL) may not answer in time
         try:
@@ -134,22 +139,17 @@ def screenshot(url: str, out: Path, size: tuple[int, int], wait_s: float, profil
         except TimeoutException:
             return None
 
-    try:
-        driver.set_page_load_timeout(wait_s)
-        driver.set_window_size(*size)
-        driver.get(url)
-        time.sleep(min_wait_s)
-        last, same = shot(), 0
-        while time.monotonic() - t0 < wait_s and same < 3:  # unchanged over 3 x 5 s: loaded and drawn
-            time.sleep(5.0)
-            png = shot()
-            same = same + 1 if png is not None and png == last else 0
-            last = png or last
-        if last is None:
-            raise InputError(f"chromium: no screenshot of {url} within {wait_s:g} s")
-        out.write_bytes(last)
-    finally:
-        driver.quit()
+    t0 = time.monotonic()
+    time.sleep(min_wait_s)
+    last, same = shot(), 0
+    while time.monotonic() - t0 < wait_s and same < 3:
+        time.sleep(5.0)
+        png = shot()
+        same = same + 1 if png is not None and png == last else 0
+        last = png or last
+    if last is None:
+        raise InputError(f"chromium: no screenshot within {wait_s:g} s")
+    out.write_bytes(last)
     return time.monotonic() - t0
 
 
@@ -186,19 +186,23 @@ def main(argv=None) -> int:
         app_id, span, exaggeration = recording_layout(args.rrd)
         args.out.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryDirectory(prefix="render_rrd_") as tmp:
-            for tab in args.tabs:
-                files = [args.rrd]
-                if tab != bp.TABS[0]:
-                    rbl = Path(tmp) / f"{tab.replace(' ', '_')}.rbl"
-                    bp.default_blueprint(span, exaggeration, active_tab=tab).save(app_id, str(rbl))
-                    files.append(rbl)
-                out = args.out / f"{args.rrd.stem}_{tab.lower().replace(' ', '_')}.png"
-                proc, url = _start_viewer(files)
-                try:
-                    waited = screenshot(url, out, args.size, args.wait, Path(tmp) / f"profile_{args.tabs.index(tab)}")
-                finally:
-                    _stop(proc)
-                print(f"{tab}: wrote {out} ({waited:.0f} s)", flush=True)
+            proc, url, proxy = _start_viewer(args.rrd)
+            driver = None
+            try:
+                driver = _browser(args.size, Path(tmp) / "profile")
+                driver.set_page_load_timeout(args.wait)
+                driver.get(url)
+                for i, tab in enumerate(args.tabs):
+                    if i > 0 or tab != bp.TABS[0]:  # the same default blueprint, this tab active
+                        bp.default_blueprint(span, exaggeration, active_tab=tab).connect_grpc(
+                            app_id, url=proxy, make_active=True, make_default=False)
+                    out = args.out / f"{args.rrd.stem}_{tab.lower().replace(' ', '_')}.png"
+                    waited = settled_screenshot(driver, out, args.wait, 30.0 if i == 0 else 10.0)
+                    print(f"{tab}: wrote {out} ({waited:.0f} s)", flush=True)
+            finally:
+                if driver is not None:
+                    driver.quit()
+                _stop(proc)
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

@@ -8,6 +8,7 @@ A synthetic session (no ROS: the messages the driver would receive) goes through
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -177,3 +178,38 @@ def test_crossing_recording_and_its_replay_open_in_the_default_layout(crossing_r
     assert dt[0] <= 2 * np.pi / b1.omega_rad_s[-1] / 8 * (1 + 1e-6)  # times are stored in ns
     assert "monitored [km/h]" in live["/runs/info"]["text"][-1]
     np.testing.assert_allclose(sorted(live["/sweep/curves/MLM_zeta"]["times"][bp.SPEED]), [250, 255, 260, 265, 270])
+
+
+def test_calibration_recording_every_view_has_data_and_monitors_the_peak(tmp_path):
+    """A small co-simulated calibration (B3 x ICE-2, coarse steps): the recording as a user opens it."""
+    import json
+
+    from adm_sim.ros.mcap_log import read_messages
+
+    params = tmp_path / "case.yaml"
+    params.write_text("bridge:\n  ros__parameters:\n    bridge: B3\n    steps_per_period: 4.0\n"
+                      "    free_vibration_periods: 1.0\ntrain:\n  ros__parameters:\n    train: ICE-2\n")
+    out = tmp_path / "out"
+    r = subprocess.run([PY, str(ROOT / "launch_scripts" / "calibrate.py"), "--params-file", str(params),
+                        "--speeds", "230:290:2", "--out", str(out), "--quiet"],
+                       capture_output=True, text=True, timeout=600, cwd=ROOT)
+    assert r.returncode == 0, r.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    ents, blue = check_recording(out / "run.rrd")
+    for view in blue["views"]:  # every view of every tab shows data of this recording
+        assert view_entities(view, ents), view["display_name"]
+    # the first run monitors the first lane, every later one the MLM peak speed
+    started = [json.loads(m.data) for _t, _ns, m in read_messages(out / "run.mcap", topics=["/adm/run/status"])]
+    started = [s for s in started if s["node"] == "bridge" and s["state"] == "started"]
+    assert len(started) == summary["co_simulation"]["runs"]
+    assert started[0]["monitor_speed_kmh"] == 230.0
+    assert {s["monitor_speed_kmh"] for s in started[1:]} == {summary["mlm_peak"]["speed_kmh"]}
+    # one entity per trial damping, as many as the calibration's iterations
+    trials = [p for p in ents if re.fullmatch(r"/sweep/trials/(bracketing|root_search)/\d\d", p)]
+    assert len(trials) == summary["co_simulation"]["delta_zeta_trials"]
+    iters = [m.data for _t, _ns, m in read_messages(out / "run.mcap", topics=["/adm/calibration/iteration"])]
+    dz_logged = (ents["/calibration/delta_zeta_pct/bracketing"]["values"]
+                 + ents["/calibration/delta_zeta_pct/root_search"]["values"])
+    assert dz_logged == [float(d[1]) for d in iters]
+    assert ents["/calibration/delta_zeta_pct/root_search"]["values"][-1] == pytest.approx(
+        summary["delta_zeta_vbi_pct"], abs=1e-6)
