@@ -69,7 +69,7 @@ def check_recording(path: Path) -> tuple[dict, dict]:
     blue = read_blueprint(path)
     assert set(bp.TABS) <= set(blue["tabs"])
     assert blue["timeline"] == bp.RUN_TIME
-    assert len(blue["views"]) == 8
+    assert len(blue["views"]) == 9
     for view in blue["views"]:
         name = view["display_name"]
         assert re.search(r"\[(m/s²|%|m|s|km/h)\]", name) or view["class_identifier"] == "TextDocument", name

@@ -13,8 +13,9 @@ Tabs
     Maximum deck acceleration against train speed on ``speed_kmh``: DIM, MLM ζ and the calibrated
     MLM ζ+Δζ on one plot; every damping trial of the calibration its own series, named by its Δζ.
 ``Calibration``
-    Δζ per iteration and the MLM peak against the DIM peak on ``iteration``, the bracketing ladder
-    and the root search as separate series; the calibration result.
+    Δζ per iteration (all, and the root search alone on its own scale) and the MLM peak against the
+    DIM peak on ``iteration``, the bracketing ladder and the root search as separate series; the
+    calibration result.
 
 A time series view plots against the viewer's one selected timeline, which is shared by all
 tabs; the blueprint opens on ``run_time`` (the ``Runs`` tab) and every view of another tab names
@@ -107,10 +108,13 @@ def default_blueprint(span_m: float | None = None, exaggeration: float = BEAM_EX
     calibration = rrb.Horizontal(
         rrb.Vertical(
             rrb.TimeSeriesView(name="Δζ [%] per iteration: bracketing ladder, root search (timeline iteration)",
-                               origin=e["dz"], plot_legend=rrb.PlotLegend(corner="RightTop")),
+                               origin=e["dz"], plot_legend=rrb.PlotLegend(corner="LeftTop")),
+            rrb.TimeSeriesView(name="Δζ [%] of the root search alone, per iteration (timeline iteration)",
+                               origin=f"{e['dz']}/root_search", plot_legend=rrb.PlotLegend(visible=False)),
             rrb.TimeSeriesView(name="Peak acceleration [m/s²] per iteration: MLM ζ+Δζ vs DIM "
                                     "(timeline iteration)",
-                               origin=e["peaks"], plot_legend=rrb.PlotLegend(corner="RightTop"))),
+                               origin=e["peaks"], plot_legend=rrb.PlotLegend(corner="RightTop")),
+            row_shares=[2, 1, 2]),
         rrb.TextDocumentView(name="Calibration result", origin=e["cal_result"]),
         column_shares=[3, 1], name="Calibration")
     return rrb.Blueprint(
