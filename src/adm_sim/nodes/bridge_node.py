@@ -82,9 +82,9 @@ def bridge_specs(preset):
         S("warn_fraction", 0.8, "-", "/diagnostics WARN above this fraction of the acceleration limit", 0.0, 1.0),
         S("monitor_speed_kmh", 0.0, "km/h", "lane shown on /adm/midspan/accel and /adm/beam/*: nearest speed; 0 = first lane",
           0.0, 600.0),
-        S("monitor_every_steps", 0, "steps", "decimation of /clock, /adm/midspan/accel (every n-th step); 0 = auto: "
+        S("monitor_every_steps", 0, "steps", "decimation of /adm/midspan/accel (every n-th step); 0 = auto: "
           f"{MONITOR_SAMPLES_PER_PERIOD} samples per period of the highest mode at the monitored speed", 0, 1_000_000),
-        S("beam_every_steps", 0, "steps", "decimation of /adm/beam/* and /adm/midspan/state (every lane); "
+        S("beam_every_steps", 0, "steps", "decimation of /clock, /adm/beam/* and /adm/midspan/state (every lane); "
           "0 = auto: 4 x the monitoring step", 0, 1_000_000),
         S("beam_points", 21, "-", "points along the span on /adm/beam/deflection", 2, 1000),
         S("partner_timeout_s", 5.0, "s", "error when the train node sends nothing for this long during a run", 0.5, 600.0),
@@ -317,9 +317,7 @@ class BridgeNode(c.ParamNodeMixin, Node):
 
     def _monitor(self, k, disp, acc):
         r = self.run
-        t = self._sim_time(k)
-        stamp = c.to_time_msg(t)
-        self.pub_clock.publish(Clock(clock=stamp))
+        stamp = c.to_time_msg(self._sim_time(k))
         a = AccelStamped()
         a.header.stamp = stamp
         a.header.frame_id = "midspan"
@@ -327,7 +325,8 @@ class BridgeNode(c.ParamNodeMixin, Node):
         self.pub_accel.publish(a)
 
     def _beam(self, k, disp, acc):
-        """Every lane's midspan state, the deflected beam and the axles of the monitored lane."""
+        """Sim time, every lane's midspan state, the deflected beam and the axles of the monitored lane."""
+        self.pub_clock.publish(Clock(clock=c.to_time_msg(self._sim_time(k))))
         m = c.matrix_msg(("lane", "quantity:disp_m,acc_m_s2"), np.column_stack([disp, acc]))
         self.pub_state.publish(m)
         r, side = self.run, self.run["run"].bridge_side
