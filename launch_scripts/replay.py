@@ -9,11 +9,12 @@ Usage::
     replay.py RUN.mcap --rrd OUT.rrd --via-convert   # rerun's own MCAP importer instead
     replay.py RUN.mcap --republish [--domain-id N] [--rate X] [--topics /adm/midspan/accel ...]
 
-The recording is decoded with mcap-ros2-support and drawn with :mod:`adm_sim.ros.rerun_log`:
-``geometry_msgs/AccelStamped`` as mid-span acceleration of the lane named by ``header.frame_id``
-(or the topic), ``diagnostic_msgs/DiagnosticArray`` as text log, ``JointState``,
-``Float64MultiArray`` and ``Float64`` as scalar series, metadata records as the run table. Time is
-the recorded sim time (``header.stamp`` when present, else the record's log time).
+The recording is decoded with mcap-ros2-support. The adm-sim topics (runs, midspan acceleration,
+beam, results, calibration) are drawn by :class:`adm_sim.ros.rerun_log.RunLogger` exactly as the
+live recording, with its default blueprint; other topics generically: ``AccelStamped`` outside a
+recorded run by ``header.frame_id``, ``DiagnosticArray`` as text log, ``JointState``,
+``Float64MultiArray`` and ``Float64`` as scalar series under ``topics/``, metadata records as a
+table. Time is the recorded sim time (``header.stamp`` when present, else the record's log time).
 
 ``--republish`` publishes every recorded topic (raw CDR, so any type) except ``/clock``, plus a
 ``rosgraph_msgs/Clock`` on ``/clock`` ahead of each new time stamp, paced at ``--rate`` times
@@ -77,9 +78,8 @@ def parse_args(argv=None):
     p.add_argument("--via-convert", action="store_true",
                    help="with --rrd: use 'rerun mcap convert' instead of the adm-sim views")
     p.add_argument("--overwrite", action="store_true", help="replace OUT.rrd if it exists")
-    p.add_argument("--exaggeration", default="1",
-                   help="display factor on beam deflections, > 0 (default 1); checked, but without effect "
-                        "yet: the replay draws /adm/beam as series, not as a beam view")
+    p.add_argument("--exaggeration", default="500",
+                   help="display factor on beam deflections, > 0 (default 500)")
     p.add_argument("--republish", action="store_true", help="republish the run on ROS 2")
     p.add_argument("--domain-id", default=None, help="ROS_DOMAIN_ID, 0..101 (default: a free one)")
     p.add_argument("--rate", default="1",
@@ -105,23 +105,63 @@ def _stamp_ns(msg, log_time_ns: int) -> int:
     return int(log_time_ns)
 
 
+#: Topics drawn by :class:`adm_sim.ros.rerun_log.RunLogger` (the default blueprint's views);
+#: /clock and /adm/midspan/state (every lane) are not drawn.
+_RUN_TOPICS = {"/adm/bridge/description", "/adm/train/description", "/adm/run/status", "/adm/midspan/accel",
+               "/adm/beam/deflection", "/adm/beam/axles", "/adm/run/result", "/adm/calibration/iteration",
+               "/adm/calibration/result", "/adm/progress", "/adm/midspan/state", "/clock"}
+
+
 def show_in_rerun(args, save_path=None) -> dict[str, int]:
-    """Decode the MCAP and log it with the adm-sim views (into ``save_path``, a new ``.rrd``, if
+    """Decode the MCAP and log it in the adm-sim layout (into ``save_path``, a new ``.rrd``, if
     given); returns message counts per topic."""
+    import json
+
     import rerun as rr
 
+    from adm_sim.nodes.common import matrix_from_msg
     from adm_sim.ros import rerun_log as rl
     from adm_sim.ros.mcap_log import read_messages
 
     rl.init_rerun("adm_sim_replay", spawn=args.spawn, connect_url=args.connect, save_path=save_path)
-    _log_metadata(args.mcap, rl)
-    accel = defaultdict(lambda: ([], []))  # lane -> (t_s list, acc list)
+    viz = rl.RunLogger(exaggeration=args.exaggeration)
+    viz.send_blueprint()
+    _log_metadata(args.mcap)
+    accel = defaultdict(lambda: ([], []))  # AccelStamped outside any recorded run: frame -> (t, a)
     series = defaultdict(lambda: defaultdict(lambda: ([], [])))  # topic -> name -> (t, v)
     counts: dict[str, int] = defaultdict(int)
+    deflection = None
     for topic, log_time_ns, msg in _guarded(read_messages(args.mcap), args.mcap):
         counts[topic] += 1
         t_s = _stamp_ns(msg, log_time_ns) * 1e-9
-        if hasattr(msg, "accel") and hasattr(msg, "header"):  # AccelStamped
+        if topic in _RUN_TOPICS:
+            if topic == "/adm/bridge/description":
+                viz.bridge_description(json.loads(msg.data))
+            elif topic == "/adm/train/description":
+                viz.train_description(json.loads(msg.data))
+            elif topic == "/adm/run/status":
+                viz.run_started(json.loads(msg.data))
+            elif topic == "/adm/midspan/accel":
+                if viz.runs:
+                    viz.accel(t_s, msg.accel.linear.z)
+                else:
+                    accel[msg.header.frame_id or topic][0].append(t_s)
+                    accel[msg.header.frame_id or topic][1].append(msg.accel.linear.z)
+            elif topic == "/adm/beam/deflection":
+                deflection = matrix_from_msg(msg)
+            elif topic == "/adm/beam/axles" and deflection is not None:
+                ax = matrix_from_msg(msg)
+                viz.beam(t_s, deflection[0], deflection[1], ax[0], ax[1])
+            elif topic == "/adm/run/result":
+                viz.run_done(matrix_from_msg(msg))
+            elif topic == "/adm/calibration/iteration":
+                i, dz_pct, mlm_peak, dim_peak = matrix_from_msg(msg).ravel()[:4]
+                viz.iteration(int(i), dz_pct, mlm_peak, dim_peak)
+            elif topic == "/adm/calibration/result":
+                viz.calibration_result(json.loads(msg.data))
+            elif topic == "/adm/progress":
+                viz.flush()
+        elif hasattr(msg, "accel") and hasattr(msg, "header"):  # AccelStamped
             lane = msg.header.frame_id or topic
             accel[lane][0].append(t_s)
             accel[lane][1].append(msg.accel.linear.z)
@@ -149,8 +189,11 @@ def show_in_rerun(args, save_path=None) -> dict[str, int]:
             s = series[topic]["value"]
             s[0].append(t_s)
             s[1].append(msg.data)
+    viz.flush()
     for lane, (t, a) in accel.items():
-        rl.log_midspan(np.asarray(t), None, np.asarray(a), lane)
+        rr.send_columns(f"topics/midspan_acceleration_m_s2/{rl._part(lane)}",
+                        indexes=[rr.TimeColumn(rl.SIM_TIME, duration=np.asarray(t))],
+                        columns=rr.Scalars.columns(scalars=np.asarray(a, dtype=float)))
     for topic, named in series.items():
         for name, (t, v) in named.items():
             rr.send_columns(f"topics{topic}/{rl._part(name)}",
@@ -158,6 +201,29 @@ def show_in_rerun(args, save_path=None) -> dict[str, int]:
                             columns=rr.Scalars.columns(scalars=np.asarray(v, dtype=float)))
     rl.close_rerun()
     return dict(counts)
+
+
+def _level(level) -> int:
+    return level[0] if isinstance(level, (bytes, bytearray)) else int(level)
+
+
+def _log_metadata(path: Path) -> None:
+    """The MCAP's metadata records as a table (``metadata``), outside the default views."""
+    import rerun as rr
+    from mcap.reader import make_reader
+
+    info = {}
+    with open(path, "rb") as f:
+        try:
+            for meta in make_reader(f).iter_metadata():
+                for k, v in meta.metadata.items():
+                    info[f"{meta.name}.{k}"] = v
+        except Exception:  # metadata are optional decoration
+            return
+    if info:
+        rows = "\n".join(f"| {k} | {v} |" for k, v in info.items())
+        rr.log("metadata", rr.TextDocument(f"| key | value |\n|---|---|\n{rows}\n",
+                                           media_type=rr.MediaType.MARKDOWN), static=True)
 
 
 def _incomplete(path, exc) -> InputError:

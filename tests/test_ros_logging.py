@@ -301,33 +301,32 @@ def _entity_rows(rrd: Path) -> dict[str, int]:
     return rows
 
 
-def test_rerun_log_functions_write_readable_rrd(tmp_path):
+def test_run_logger_writes_a_verified_rrd(tmp_path):
     from adm_sim.ros import rerun_log as rl
 
     out = tmp_path / "views.rrd"
     rl.init_rerun("adm_sim_test", save_path=out, recording_id="views")
-    t = np.linspace(0.0, 1.0, 501)
-    rl.log_midspan(t, 1e-3 * np.sin(t), np.cos(t), "300 km/h")  # send_columns
-    rl.log_midspan(1.002, 1e-3, 0.5, "300 km/h")  # one sample
+    viz = rl.RunLogger()
+    viz.bridge_description({"bridge": {"span_m": 20.0, "n_modes": 3}, "n0_hz": 5.0, "description": "B"})
+    viz.run_started({"node": "bridge", "run_id": 1, "state": "started", "model": "mlm", "n_steps": 500,
+                     "n_lanes": 2, "ds_m": 0.02, "t0_s": 0.0, "monitor_speed_kmh": 300.0, "clock_speed_kmh": 100.0,
+                     "monitor_every_steps": 1, "beam_every_steps": 50})
+    t = np.arange(500) * 0.02 / (100 / 3.6)
     x = np.linspace(0.0, 20.0, 41)
-    for k in range(10):
-        rl.log_beam(0.01 * k, x, 1e-3 * np.sin(np.pi * x / 20), [2.0 + k, 4.5 + k], 1e-3,
-                    exaggeration=500)
-    rl.log_sweep_curve("MLM zeta=1.0%", np.arange(100, 421, 5), np.linspace(1, 5, 65))
-    rl.log_sweep_curve("DIM", np.arange(100, 421, 5), np.linspace(0.8, 4, 65))
-    for i in range(6):
-        rl.log_delta_zeta_iteration(i, 0.25 * i, 5.0 - 0.5 * i, 3.5)
-    rl.log_run_info({"bridge": "B1"})
+    for k, tk in enumerate(t):
+        viz.accel(tk, np.cos(tk))
+        if k % 50 == 0:
+            viz.beam(tk, x, 1e-3 * np.sin(np.pi * x / 20), [2.0 + k / 50], [1e-3])
+    assert viz.run_done(np.array([[100.0, 300.0], [1.0, 5.0], [1e-3, 2e-3], [0.0, 0.0]])) == rl.MLM_ZETA
+    viz.iteration(1, 0.25, 5.0, 3.5)
     rl.close_rerun()
     with pytest.raises(InputError, match="refusing to overwrite"):
         rl.init_rerun("adm_sim_test", save_path=out)
     rows = _entity_rows(out)
-    lane = "300\\ km\\/h"
-    assert rows[f"/midspan/acceleration_m_s2/{lane}"] == 502
-    assert rows[f"/midspan/displacement_m/{lane}"] == 502
-    assert rows["/beam/deflection"] == 10 and rows["/beam/axles"] == 10
-    assert rows["/sweep/DIM"] == 65
-    assert rows["/calibration/delta_zeta_pct"] == 6
+    assert rows["/runs/acceleration/run_01"] == 500 + 1  # + the static series style
+    assert rows["/runs/beam/run_01/deflection"] == 10 + 1  # + the clear at the run end
+    assert rows["/sweep/curves/MLM_zeta"] == 2 + 1
+    assert rows["/calibration/delta_zeta_pct/root_search"] == 1 + 1
     ver = subprocess.run([str(BIN / "rerun"), "rrd", "verify", str(out)], capture_output=True,
                          text=True, env=_rerun_env(), timeout=120)
     assert ver.returncode == 0, ver.stderr
@@ -350,7 +349,7 @@ def test_replay_writes_rrd(recording, tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert f"logged {5 * N_STEPS} messages on 5 topics" in proc.stdout
     rows = _entity_rows(out)
-    assert rows["/midspan/acceleration_m_s2/300\\ km\\/h"] == N_STEPS
+    assert rows["/topics/midspan_acceleration_m_s2/300\\ km\\/h"] == N_STEPS  # outside any run
     assert rows["/topics/adm/lanes/accel/0"] == N_STEPS
     assert rows["/diagnostics/adm\\/bridge"] == N_STEPS
     again = subprocess.run([PY, str(REPLAY), str(recording), "--rrd", str(out)],

@@ -1,7 +1,8 @@
 """A live rerun viewer on 127.0.0.1 receives a crossing streamed with ``--connect``.
 
 The "viewer" is rerun's own headless receiver (``rerun --bind 127.0.0.1 --port P --save F``), which
-writes whatever a connected SDK sends; its file must hold the midspan and beam views.
+writes whatever a connected SDK sends; its file must hold the default blueprint and the data of
+its Runs and Speed sweep views.
 """
 
 import os
@@ -9,6 +10,8 @@ import signal
 import subprocess
 import sys
 from pathlib import Path
+
+from rrd_views import check_recording, view_entities
 
 from adm_sim.ros.rerun_log import _free_port, _wait_for_port
 
@@ -35,9 +38,9 @@ def test_crossing_streams_to_a_live_viewer(tmp_path):
             viewer.wait(20)
         except subprocess.TimeoutExpired:
             viewer.kill()
-    stats = subprocess.run([str(RERUN), "rrd", "stats", str(recv)], capture_output=True, text=True, env=env,
-                           timeout=60)
-    assert stats.returncode == 0, stats.stderr
-    out = stats.stdout
-    assert "/beam/deflection" in out and "/beam/axles" in out
-    assert "/midspan/acceleration_m_s2/MLM" in out and "/sweep/MLM" in out
+    ents, blue = check_recording(recv)  # blueprint, run_time from 0, units in titles
+    assert "/runs/beam/run_01/deflection" in ents and "/runs/beam/run_01/peak_shape" in ents
+    assert ents["/sweep/curves/MLM_zeta"]["times"]["speed_kmh"] == [280]
+    for view in blue["views"]:
+        if view["space_origin"].startswith(("runs", "sweep/curves")):
+            assert view_entities(view, ents), view["display_name"]

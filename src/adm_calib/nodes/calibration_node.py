@@ -12,6 +12,9 @@ co-simulated run of the bridge and train nodes (its ``sweep`` hook):
    parameter service; every trial damping is one iteration on ``/adm/calibration/iteration`` and
    in rerun.
 
+Unless ``monitor_speed_kmh`` is set on the bridge node, every run after the first MLM sweep
+monitors the MLM peak speed (midspan history and deflected beam of the resonance).
+
 The result is the same :class:`adm_calib.calibrate.CalibrationResult` as in-process, published
 as JSON on ``/adm/calibration/result`` and written to ``summary_path`` with the keys of
 ``adm-calib calibrate --json``.
@@ -68,10 +71,8 @@ class CalibrationNode(RunDriver):
             ("quantity:iteration,delta_zeta_pct,mlm_peak_m_s2,dim_peak_m_s2",), [i, 100 * dz, mlm_peak, dim_peak]))
         say("iteration", i=i, delta_zeta_pct=100 * dz, mlm_peak_m_s2=mlm_peak, dim_peak_m_s2=dim_peak,
             ratio=mlm_peak / dim_peak)
-        if self.rerun:
-            from adm_sim.ros import rerun_log
-
-            rerun_log.log_delta_zeta_iteration(i, 100 * dz, mlm_peak, dim_peak)
+        if self.viz is not None:
+            self.viz.iteration(i, 100 * dz, mlm_peak, dim_peak)
 
     def _hook(self, model, speeds, dz, step):
         """``calibrate``'s sweep hook: one co-simulated run on the calibration's space step."""
@@ -85,7 +86,29 @@ class CalibrationNode(RunDriver):
             label = "MLM trial"
         else:
             label = "MLM zeta" if np.all(dzs == 0.0) else "MLM zeta+dz"
-        return self.sweep(model, speeds, dz, label=label)
+        acc = self.sweep(model, speeds, dz, label=label)
+        if label == "MLM zeta" and self._auto_monitor:
+            self._monitor_peak(speeds, acc)
+        return acc
+
+    def _monitor_peak(self, speeds, acc):
+        """Monitor the MLM peak speed in every later run (when the user set no ``monitor_speed_kmh``)."""
+        from adm_calib import peaks as pk
+
+        peak = pk.find_peak(np.asarray(speeds, float), acc)
+        if peak.found:
+            self.set_params(c.BRIDGE_NODE, monitor_speed_kmh=float(peak.speed_kmh))
+            self._auto_monitor = False
+
+    def _user_monitor_speed(self):
+        """The bridge node's ``monitor_speed_kmh`` (0 = not chosen by the user)."""
+        from rclpy.parameter import parameter_value_to_python
+
+        cli = self.params[c.BRIDGE_NODE]
+        if not cli.wait_for_services(timeout_sec=10.0):
+            return 0.0
+        res = self._wait_future(cli.get_parameters(["monitor_speed_kmh"]), "get monitor_speed_kmh on 'bridge'")
+        return float(parameter_value_to_python(res.values[0])) if res.values else 0.0
 
     # ------------------------------------------------------------------ the job
     def job(self):
@@ -100,6 +123,7 @@ class CalibrationNode(RunDriver):
         opt = CalibrationOptions(dim_grid=p["dim_grid"], step=base)
         v = parse_speeds(p["speeds_kmh"], field="speeds_kmh")
         self._n_speeds, self._ds_m = v.size, None
+        self._auto_monitor = self._user_monitor_speed() <= 0.0
         say("calibration", bridge=bridge.describe(), train=train.name, speeds=len(v),
             ds_m=calibration_step(bridge, train, v, opt).ds_m)
         res = calibrate(bridge, train, v, opt, sweep=self._hook, on_trial=self._iteration)
@@ -121,12 +145,8 @@ class CalibrationNode(RunDriver):
         arr = DiagnosticArray(status=[st])
         arr.header.stamp.sec, arr.header.stamp.nanosec = divmod(self._clock_ns, 1_000_000_000)
         self.publish_recorded(self.pub_diag, c.TOPIC_DIAGNOSTICS, arr)
-        if self.rerun:
-            from adm_sim.ros import rerun_log
-
-            rerun_log.log_run_info({k: d[k] for k in ("bridge_description", "train", "status", "zeta_pct",
-                                                       "delta_zeta_vbi_pct", "delta_zeta_adm_pct",
-                                                       "delta_zeta_eada_pct", "delta_zeta_lb_pct")})
+        if self.viz is not None:
+            self.viz.calibration_result(d)
 
 
 def main(args=None):

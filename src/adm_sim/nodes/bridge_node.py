@@ -39,6 +39,24 @@ from adm_sim.nodes import common as c
 from adm_sim.stepping import BridgeSide, LockstepRun, StepOptions, make_grid, modal_loads_at
 
 TRACK_TYPES = tuple(c.ACC_LIMITS_M_S2)
+#: Automatic monitoring decimation: at least this many samples per period of the highest retained
+#: mode, in the monitored lane's time.
+MONITOR_SAMPLES_PER_PERIOD = 8
+
+
+def monitor_steps(bridge, grid, lane, every, beam_every):
+    """Monitoring and beam decimation (steps) of a run; 0 = automatic.
+
+    Samples are taken every ``every`` steps, i.e. uniformly in every lane's time. Automatic:
+    ``floor(T_top v / ds / MONITOR_SAMPLES_PER_PERIOD)`` (at least 1), ``T_top`` the period of the
+    highest retained mode and ``v`` the monitored lane's speed; the beam every 4 monitoring steps.
+    """
+    if every <= 0:
+        steps_per_top = (2.0 * np.pi / bridge.omega_rad_s[-1]) * grid.speeds_m_s[lane] / grid.ds_m
+        every = max(1, int(steps_per_top // MONITOR_SAMPLES_PER_PERIOD))
+    if beam_every <= 0:
+        beam_every = 4 * every
+    return int(every), int(beam_every)
 
 
 def bridge_specs(preset):
@@ -63,8 +81,10 @@ def bridge_specs(preset):
         S("warn_fraction", 0.8, "-", "/diagnostics WARN above this fraction of the acceleration limit", 0.0, 1.0),
         S("monitor_speed_kmh", 0.0, "km/h", "lane shown on /adm/midspan/accel and /adm/beam/*: nearest speed; 0 = first lane",
           0.0, 600.0),
-        S("monitor_every_steps", 8, "steps", "decimation of /clock, /adm/midspan/* (every n-th step)", 1, 1_000_000),
-        S("beam_every_steps", 32, "steps", "decimation of /adm/beam/*", 1, 1_000_000),
+        S("monitor_every_steps", 0, "steps", "decimation of /adm/midspan/accel (every n-th step); 0 = auto: "
+          f"{MONITOR_SAMPLES_PER_PERIOD} samples per period of the highest mode at the monitored speed", 0, 1_000_000),
+        S("beam_every_steps", 0, "steps", "decimation of /clock, /adm/beam/* and /adm/midspan/state (every lane); "
+          "0 = auto: 4 x the monitoring step", 0, 1_000_000),
         S("beam_points", 21, "-", "points along the span on /adm/beam/deflection", 2, 1000),
         S("partner_timeout_s", 5.0, "s", "error when the train node sends nothing for this long during a run", 0.5, 600.0),
     ]
@@ -203,11 +223,12 @@ class BridgeNode(c.NodeBase):
             return
         speeds_kmh = np.asarray(cfg["speeds_kmh"], dtype=float)
         mon = 0 if p["monitor_speed_kmh"] <= 0.0 else int(np.argmin(np.abs(speeds_kmh - p["monitor_speed_kmh"])))
+        every, beam_every = monitor_steps(bridge, grid, mon, int(p["monitor_every_steps"]), int(p["beam_every_steps"]))
         xb = np.linspace(0.0, bridge.span_m, int(p["beam_points"]))
         self.run = dict(
             id=int(cfg["run_id"]), model=cfg["model"], grid=grid, run=run, bridge=bridge, speeds_kmh=speeds_kmh,
             dz=np.broadcast_to(np.asarray(dz, dtype=float), (grid.n_lanes,)).copy(), lane=mon, disp=None,
-            every=int(p["monitor_every_steps"]), beam_every=int(p["beam_every_steps"]),
+            every=every, beam_every=beam_every,
             x_beam=xb, phi_beam=bridge.shapes(xb)[0], limit=c.ACC_LIMITS_M_S2[p["track_type"]],
             track=p["track_type"], warn=float(p["warn_fraction"]), tick=max(1, grid.n_steps // 100),
             t0=self.t_offset_s, wall0=time.perf_counter())
@@ -215,7 +236,7 @@ class BridgeNode(c.NodeBase):
             "run_id": self.run["id"], "ds_m": grid.ds_m, "n_steps": grid.n_steps, "span_m": bridge.span_m,
             "n_lanes": grid.n_lanes, "t0_s": self.t_offset_s}))
         self._status(self.run["id"], "started", model=cfg["model"], n_steps=grid.n_steps, n_lanes=grid.n_lanes,
-                     ds_m=grid.ds_m, bridge=bridge.describe(), train=cfg.get("train", ""))
+                     ds_m=grid.ds_m, bridge=bridge.describe(), train=cfg.get("train", ""), **self._monitor_info())
         self.get_logger().info(f"run {self.run['id']}: {cfg['model'].upper()} {bridge.describe()}, "
                                f"{grid.n_lanes} lanes, {grid.n_steps} steps of {grid.ds_m * 1000:.2f} mm")
         self._ask_partner()
@@ -279,27 +300,34 @@ class BridgeNode(c.NodeBase):
         if k % r["every"] == 0:
             self._monitor(k, disp, acc)
         if k % r["beam_every"] == 0:
-            self._beam(k)
+            self._beam(k, disp, acc)
         if k % r["tick"] == 0:
             self._progress(k + 1)
+
+    def _monitor_info(self):
+        """What the monitoring topics of the run show: for the rerun run-time timeline and the run table."""
+        r = self.run
+        return {"t0_s": r["t0"], "monitor_lane": r["lane"], "monitor_speed_kmh": float(r["speeds_kmh"][r["lane"]]),
+                "clock_speed_kmh": float(np.min(r["speeds_kmh"])), "monitor_every_steps": r["every"],
+                "beam_every_steps": r["beam_every"]}
 
     def _sim_time(self, k):
         return self.t_offset_s + self.run["grid"].clock_time_s(k)
 
     def _monitor(self, k, disp, acc):
         r = self.run
-        t = self._sim_time(k)
-        stamp = c.to_time_msg(t)
-        self.pub_clock.publish(Clock(clock=stamp))
+        stamp = c.to_time_msg(self._sim_time(k))
         a = AccelStamped()
         a.header.stamp = stamp
         a.header.frame_id = "midspan"
         a.accel.linear.z = float(acc[r["lane"]])
         self.pub_accel.publish(a)
+
+    def _beam(self, k, disp, acc):
+        """Sim time, every lane's midspan state, the deflected beam and the axles of the monitored lane."""
+        self.pub_clock.publish(Clock(clock=c.to_time_msg(self._sim_time(k))))
         m = c.matrix_msg(("lane", "quantity:disp_m,acc_m_s2"), np.column_stack([disp, acc]))
         self.pub_state.publish(m)
-
-    def _beam(self, k):
         r, side = self.run, self.run["run"].bridge_side
         q = side.q[r["lane"]]
         w = r["phi_beam"] @ q

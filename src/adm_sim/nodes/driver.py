@@ -4,8 +4,8 @@
 callback) :meth:`RunDriver.request_run` sets parameters on the bridge and train nodes through their
 parameter services, calls ``/train/start_run`` and blocks until ``/adm/run/result`` arrives; the
 executor keeps spinning in the main thread. While it runs it records every monitoring topic to
-an MCAP file (``record_path``) and logs the midspan histories, the deflected beam and the sweep
-curves to rerun (``rrd_path``, ``rerun_spawn``, ``rerun_connect``).
+an MCAP file (``record_path``) and feeds them to :class:`adm_sim.ros.rerun_log.RunLogger` (rerun:
+``rrd_path``, ``rerun_spawn``, ``rerun_connect``; the recording carries the default blueprint).
 
 ``python -m adm_sim.nodes.driver --ros-args -p summary_path:=run.json`` runs one crossing or sweep
 with the train node's current parameters (``launch_scripts/crossing.py`` starts it).
@@ -81,7 +81,6 @@ class RunDriver(c.NodeBase):
         self._clock_ns = 0
         self._desc = {}
         self._beam = None
-        self._hist = {"t": [], "d": [], "a": []}
         self._current = None  # (run_id, model, lane label)
         self.n_runs = 0
         self._last_rx = time.monotonic()
@@ -91,12 +90,15 @@ class RunDriver(c.NodeBase):
 
             self.recorder = McapRecorder(p["record_path"], chunk_size=int(p["chunk_size"]), overwrite=True)
         self.rerun = False
+        self.viz = None  # rerun_log.RunLogger
         if p["rrd_path"] or p["rerun_spawn"] or p["rerun_connect"]:
             from adm_sim.ros import rerun_log
 
             rerun_log.init_rerun("adm_sim", spawn=bool(p["rerun_spawn"]), connect_url=p["rerun_connect"] or None,
                                  save_path=p["rrd_path"] or None, overwrite=True)
             self.rerun = True
+            self.viz = rerun_log.RunLogger()
+            self.viz.send_blueprint()  # sent again with the beam bounds once the span is known
         for topic, typ in RECORDED:
             qos = c.QOS_LATCHED if topic.endswith("description") else (
                 c.QOS_CONTROL if topic in (c.TOPIC_RESULT, c.TOPIC_STATUS, c.TOPIC_DIAGNOSTICS) else c.QOS_MONITOR)
@@ -138,48 +140,40 @@ class RunDriver(c.NodeBase):
         st = json.loads(msg.data)
         with self._lock:
             self._status[(st.get("node"), st.get("run_id"))] = st
+        if self.viz is not None:
+            self.viz.run_started(st)
         if st.get("state") == "failed":
             self._event.set()
 
     def _on_adm_bridge_description(self, msg, t_ns):
         self._desc["bridge"] = json.loads(msg.data)
+        if self.viz is not None:
+            self.viz.bridge_description(self._desc["bridge"])
 
     def _on_adm_train_description(self, msg, t_ns):
         self._desc["train"] = json.loads(msg.data)
+        if self.viz is not None:
+            self.viz.train_description(self._desc["train"])
 
     def _on_adm_progress(self, msg, t_ns):
         pr = json.loads(msg.data)
         if self._current is None or pr.get("run_id") != self._current[0]:
             return  # a late tick of a finished run
         say("progress", **pr)
-        if self.rerun:
-            self._flush_midspan()
+        if self.viz is not None:
+            self.viz.flush()
 
     def _on_adm_midspan_accel(self, msg, t_ns):
-        if self.rerun and self._current is not None:
-            h = self._hist
-            h["t"].append(t_ns * 1e-9)
-            h["a"].append(msg.accel.linear.z)
+        if self.viz is not None:
+            self.viz.accel(t_ns * 1e-9, msg.accel.linear.z)
 
     def _on_adm_beam_deflection(self, msg, t_ns):
         self._beam = c.matrix_from_msg(msg)
 
     def _on_adm_beam_axles(self, msg, t_ns):
-        if self.rerun and self._beam is not None:
-            from adm_sim.ros import rerun_log
-
+        if self.viz is not None and self._beam is not None:
             ax = c.matrix_from_msg(msg)
-            rerun_log.log_beam(self._clock_ns * 1e-9, self._beam[0], self._beam[1], ax[0], ax[1], exaggeration=500.0)
-
-    def _flush_midspan(self):
-        h = self._hist
-        if not h["t"] or self._current is None:
-            return
-        from adm_sim.ros import rerun_log
-
-        rerun_log.log_midspan(np.array(h["t"]), None, np.array(h["a"]), self._current[2])
-        h["t"].clear()
-        h["a"].clear()
+            self.viz.beam(self._clock_ns * 1e-9, self._beam[0], self._beam[1], ax[0], ax[1])
 
     # ------------------------------------------------------------------ descriptions
     def description(self, which, timeout_s=10.0):
@@ -291,11 +285,10 @@ class RunDriver(c.NodeBase):
             if time.perf_counter() - t0 > timeout:
                 raise RunError(f"run {run_id} took longer than run_timeout_s = {timeout:g} s")
         wall = time.perf_counter() - t0
-        if self.rerun:
-            from adm_sim.ros import rerun_log
-
-            self._flush_midspan()
-            rerun_log.log_sweep_curve(lab, res[0], res[1])
+        if self.recorder is not None or self.viz is not None:
+            self._await_monitoring(run_id)
+        if self.viz is not None:
+            self.viz.run_done(res)
         self._current = None
         self.n_runs += 1
         out = {"run_id": run_id, "model": model, "speeds_kmh": res[0], "max_acc_m_s2": res[1],
@@ -304,6 +297,22 @@ class RunDriver(c.NodeBase):
         say("run", run_id=run_id, model=model, state="done", wall_s=round(wall, 3),
             max_acc_m_s2=float(res[1][i]), speed_kmh=float(res[0][i]), label=lab)
         return out
+
+    def _await_monitoring(self, run_id, timeout_s=60.0):
+        """Wait until the run's monitoring stream has been received up to its last ``/clock`` (its end).
+
+        The monitoring topics (QoS M) may lag behind the result; without this wait a busy recorder
+        would start the next run with a backlog and lose the end of the last one.
+        """
+        t_end = time.monotonic() + timeout_s
+        while time.monotonic() < t_end:
+            with self._lock:
+                st = self._status.get(("bridge", run_id))
+            if st is not None and st.get("state") == "done" and st.get("t1_s") is not None \
+                    and self._clock_ns >= int(round(float(st["t1_s"]) * 1e9)) - 1000:
+                return
+            time.sleep(0.02)
+        self.get_logger().warning(f"run {run_id}: monitoring stream incomplete after {timeout_s:g} s")
 
     # ------------------------------------------------------------------ the driver's own job
     def job(self):
@@ -351,9 +360,10 @@ class RunDriver(c.NodeBase):
         if self.recorder is not None:
             with self._rec_lock:
                 self.recorder.finish()
-        if self.rerun:
+        if self.viz is not None:
             from adm_sim.ros import rerun_log
 
+            self.viz.flush()
             rerun_log.close_rerun()
         super().close()
 

@@ -1,23 +1,26 @@
-"""Visualise adm-sim runs with rerun 0.41: one ``log_*`` function per concern.
+"""Visualise adm-sim runs with rerun 0.41: set-up (loopback only, analytics off) and :class:`RunLogger`.
 
-Time always comes from the simulation, never from the wall clock: results over time go on the
-duration timeline ``sim_time`` (seconds of simulated time, from message stamps), speed sweeps on
-the sequence timeline ``speed_kmh`` and calibration steps on the sequence timeline ``iteration``.
-Whole arrays go through ``rr.send_columns`` (one call per series, not one per sample).
+Time always comes from the simulation, never from the wall clock. Timelines: ``sim_time``
+(session sim time in s, from message stamps; continuous over the runs of a session),
+``run_time`` (s since the first axle entered the bridge, in the monitored lane's own time; 0 at
+every run start, so that runs overlay), ``speed_kmh`` (speed sweeps) and ``iteration``
+(calibration steps). Whole arrays go through ``rr.send_columns``.
 
-Entities
+Every recording carries the default blueprint of :mod:`adm_sim.ros.rerun_blueprint` (tabs
+``Runs``, ``Speed sweep``, ``Calibration``), sent by :class:`RunLogger` as soon as the bridge's
+span is known. Entities
 --------
-``midspan/displacement_m/<lane>``, ``midspan/acceleration_m_s2/<lane>``
-    Scalars over ``sim_time`` (:func:`log_midspan`).
-``beam/deflection``, ``beam/axles``
-    Deflected beam as ``LineStrips2D`` (x along the span in m, y the deflection in m times
-    ``exaggeration``) and the axles on the bridge as ``Points2D`` (:func:`log_beam`). Rerun's 2D
-    y axis points down, so a positive (downward) deflection shows below the axis.
-``sweep/<label>``
-    Maximum deck acceleration against train speed, one series per damping trial or model
-    (:func:`log_sweep_curve`).
-``calibration/delta_zeta_pct``, ``calibration/mlm_peak_m_s2``, ``calibration/dim_peak_m_s2``
-    Additional-damping iteration (:func:`log_delta_zeta_iteration`).
+``runs/acceleration/run_NN``
+    Midspan acceleration [m/s²] of the monitored lane of run NN, on ``sim_time`` and ``run_time``.
+``runs/beam/run_NN/deflection``, ``runs/beam/run_NN/axles``, ``runs/beam/supports``
+    Deflected beam (x along the span in m, deflection in m times the exaggeration; rerun's 2D y
+    axis points down, so a sag shows below the axis) and the axles on it; cleared when the run ends.
+``runs/info``
+    Table of the runs: series, lanes, monitored speed, sampling, peak.
+``sweep/curves/{DIM,MLM_zeta,MLM_zeta_dz}``, ``sweep/trials/{bracketing,root_search}/NN``
+    Maximum deck acceleration [m/s²] against speed, one entity per curve and per damping trial.
+``calibration/delta_zeta_pct/*``, ``calibration/peak_m_s2/*``, ``calibration/result``
+    Δζ per iteration, MLM and DIM peaks, bracketing and root search as separate series.
 
 Privacy and network
 -------------------
@@ -44,24 +47,23 @@ from urllib.parse import urlparse
 
 import numpy as np
 
-from adm_sim.errors import InputError
+from adm_sim.errors import InputError, RunError
 
 __all__ = [
     "analytics_config_path",
     "close_rerun",
     "ensure_analytics_disabled",
     "init_rerun",
-    "log_beam",
-    "log_delta_zeta_iteration",
-    "log_midspan",
-    "log_run_info",
-    "log_sweep_curve",
+    "RunLogger",
+    "fmt_pct",
+    "run_kind",
     "rerun_cli",
     "rerun_cli_env",
     "spawn_viewer",
 ]
 
-SIM_TIME = "sim_time"
+from adm_sim.ros.rerun_blueprint import RUN_TIME, SIM_TIME  # noqa: E402  (timeline names)
+
 _LOOPBACK = {"127.0.0.1", "localhost", "::1"}
 
 
@@ -75,7 +77,7 @@ def rerun_cli() -> str:
         return str(here)
     found = shutil.which("rerun")
     if found is None:
-        raise InputError("rerun: no 'rerun' executable next to python or on PATH; "
+        raise RunError("rerun: no 'rerun' executable next to python or on PATH; "
                          "install rerun-sdk==0.41.0")
     return found
 
@@ -104,7 +106,7 @@ def ensure_analytics_disabled() -> Path:
     """Make rerun's usage analytics off for this user; return the config file.
 
     Runs ``rerun analytics disable`` once (idempotent: nothing is run when the config already
-    says disabled). Raises :class:`InputError` if the config cannot be written.
+    says disabled). Raises :class:`RunError` if the config cannot be written.
     """
     path = analytics_config_path()
     if _analytics_disabled(path):
@@ -112,7 +114,7 @@ def ensure_analytics_disabled() -> Path:
     subprocess.run([rerun_cli(), "analytics", "disable"], env=rerun_cli_env(),
                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, timeout=60, check=False)
     if not _analytics_disabled(path):
-        raise InputError(
+        raise RunError(
             f"rerun analytics: could not disable usage analytics (config '{path}'); "
             "run 'rerun analytics disable' by hand"
         )
@@ -155,7 +157,7 @@ def spawn_viewer(port: int | None = None, memory_limit: str = "25%",
     if not _wait_for_port(port, timeout_s):
         proc.kill()
         proc.wait()
-        raise InputError(f"spawn: the rerun viewer did not listen on 127.0.0.1:{port} "
+        raise RunError(f"spawn: the rerun viewer did not listen on 127.0.0.1:{port} "
                          f"within {timeout_s:g} s (is there a display?)")
     return proc, f"rerun+http://127.0.0.1:{port}/proxy"
 
@@ -219,6 +221,8 @@ def init_rerun(app_id: str, spawn: bool = False, connect_url: str | None = None,
     if sinks:
         rr.set_sinks(*sinks)
     rec = rr.get_global_data_recording()
+    # simulated time only: no wall-clock ``log_time`` timeline in the picker (reproducible files)
+    rr.set_log_time_enabled(False, recording=rec)
     if viewer is not None:
         _VIEWERS.append(viewer)
     return rec
@@ -240,134 +244,389 @@ def _part(label) -> str:
     return rr.escape_entity_path_part(str(label))
 
 
-def _times(t_s) -> np.ndarray:
-    return np.atleast_1d(np.asarray(t_s, dtype=np.float64))
+# ---------------------------------------------------------------- run logger
+
+#: Series kinds of a run (from its result: model and the Δζ of its lanes) and their colours.
+DIM, MLM_ZETA, MLM_ZETA_DZ, BRACKETING, ROOT_SEARCH = "DIM", "MLM ζ", "MLM ζ+Δζ", "bracketing", "root search"
+_COLORS = {DIM: (214, 39, 40), MLM_ZETA: (31, 119, 180), MLM_ZETA_DZ: (44, 160, 44),
+           BRACKETING: (150, 150, 150), ROOT_SEARCH: (255, 127, 14)}
+_SWEEP_NAMES = {DIM: "DIM", MLM_ZETA: "MLM_zeta", MLM_ZETA_DZ: "MLM_zeta_dz"}
 
 
-# ---------------------------------------------------------------- log_* functions
+def run_kind(model: str, delta_zeta, n_lanes: int, n_full: int) -> str:
+    """Kind of a run from its model and the additional damping of its lanes.
 
-
-def log_midspan(t_s, disp_m, acc_m_s2, lane_label, recording=None) -> None:
-    """Mid-span displacement and acceleration of one speed lane over simulated time.
-
-    Parameters
-    ----------
-    t_s : float or array (n,)
-        Simulated time in s.
-    disp_m, acc_m_s2 : float or array (n,) or None
-        Mid-span displacement in m (positive downward) and vertical acceleration in m/s^2;
-        ``None`` logs the other one only.
-    lane_label : str
-        Lane name, e.g. ``"300 km/h"``; escaped into one entity-path part.
+    ``DIM``; ``bracketing`` (an MLM run whose lanes carry several Δζ: the calibration's ladder);
+    ``root search`` (an MLM run with one Δζ on fewer lanes than the full MLM range ``n_full``);
+    ``MLM ζ`` (Δζ = 0) or ``MLM ζ+Δζ`` (one Δζ over the full range). The calibration node labels its
+    runs by the same rule.
     """
-    import rerun as rr
-
-    lane = _part(lane_label)
-    t = _times(t_s)
-    series = {}
-    for name, values in (("displacement_m", disp_m), ("acceleration_m_s2", acc_m_s2)):
-        if values is None:
-            continue
-        v = np.atleast_1d(np.asarray(values, dtype=np.float64))
-        if v.shape != t.shape or t.ndim != 1:
-            raise InputError(f"log_midspan: t_s {t.shape} and {name} {v.shape} must be scalars "
-                             "or arrays of one equal length")
-        series[f"midspan/{name}/{lane}"] = v
-    if np.ndim(t_s) == 0:
-        rr.set_time(SIM_TIME, duration=float(t[0]), recording=recording)
-        for path, v in series.items():
-            rr.log(path, rr.Scalars(v[0]), recording=recording)
-        return
-    index = [rr.TimeColumn(SIM_TIME, duration=t)]
-    for path, v in series.items():
-        rr.send_columns(path, indexes=index, columns=rr.Scalars.columns(scalars=v),
-                        recording=recording)
+    if model.lower() == "dim":
+        return DIM
+    dz = np.unique(np.asarray(delta_zeta, dtype=float))
+    if dz.size > 1:
+        return BRACKETING
+    if n_lanes < n_full:
+        return ROOT_SEARCH
+    return MLM_ZETA if dz.size == 0 or dz[0] == 0.0 else MLM_ZETA_DZ
 
 
-def log_beam(t_s, x_m, w_m, axle_x_m, axle_w_m, exaggeration: float = 1.0,
-             recording=None) -> None:
-    """Deflected beam and the axles on it at one simulated time.
+def fmt_pct(fraction: float) -> str:
+    """A damping fraction as a signed percentage at 1e-4 % (Δζ is solved to 1e-6 %)."""
+    return f"{100.0 * fraction:+.4f} %"
+
+
+def _fmt(x, digits=4) -> str:
+    """A number at ``digits`` significant digits (no 1.8500000000000003)."""
+    if isinstance(x, (bool, np.bool_)) or not isinstance(x, (float, np.floating)):
+        return str(x)
+    return f"{x:.{digits}g}"
+
+
+class _Run:
+    """One run as the bridge announced it (``/adm/run/status`` ``started``)."""
+
+    def __init__(self, st: dict, t0_s: float):
+        self.id = int(st["run_id"])
+        self.model = str(st.get("model", "?"))
+        self.n_steps = int(st.get("n_steps", 0))
+        self.n_lanes = int(st.get("n_lanes", 0))
+        self.ds_m = float(st.get("ds_m", 0.0))
+        self.t0 = float(st.get("t0_s", t0_s))
+        v_clock = float(st.get("clock_speed_kmh", 0.0))
+        v_mon = float(st.get("monitor_speed_kmh", 0.0))
+        #: run time = (sim time - t0) * scale: the monitored lane's own time since train entry
+        self.scale = v_clock / v_mon if v_clock > 0 and v_mon > 0 else 1.0
+        self.mon_kmh = v_mon or None
+        self.every = st.get("monitor_every_steps")
+        self.beam_every = st.get("beam_every_steps")
+        # sim time at the run's last step (the clock runs in the slowest lane)
+        self.t1 = self.t0 + (self.n_steps * self.ds_m / (v_clock / 3.6) if v_clock > 0 else np.inf)
+        self.tag = f"run_{self.id:02d}"
+        self.kind = None
+        self.row = None
+        self.peak = None  # (max |w| [m], x, w, axle x, axle w) of the frame with the largest deflection
+        self.dt_clock = self.ds_m / (v_clock / 3.6) if v_clock > 0 else 0.0  # sim time per step
+        self.n_frames = 0
+
+    def frames_left(self) -> int:
+        """Beam frames still to come: steps 0, b, 2b, ... < n_steps (b = beam_every_steps)."""
+        if not self.beam_every or self.n_steps <= 0:
+            return 0
+        return (self.n_steps - 1) // int(self.beam_every) + 1 - self.n_frames
+
+    def contains(self, t_s: float) -> bool:
+        return self.t0 - 1e-9 <= t_s <= self.t1 + 1e-9
+
+    def run_time(self, t_s):
+        return (np.asarray(t_s, dtype=float) - self.t0) * self.scale
+
+
+class RunLogger:
+    """Logs the monitoring stream of an adm-sim session to rerun in the default layout.
+
+    One object per recording, fed with the messages of the ROS graph in the order they arrive:
+    live by :class:`adm_sim.nodes.driver.RunDriver`, from an MCAP file by ``replay.py``. Entity
+    paths and views: :mod:`adm_sim.ros.rerun_blueprint`. Samples are buffered and logged by
+    :meth:`flush` (the driver calls it on every progress tick and at the end of a run), each on
+    ``sim_time`` and on ``run_time`` (s since the first axle entered the bridge, in the monitored
+    lane's own time: ``(t - t0) v_clock / v_monitored``, 0 at every run start).
 
     Parameters
     ----------
-    t_s : float
-        Simulated time in s.
-    x_m, w_m : array (n,)
-        Positions along the span in m and deflection there in m (positive downward).
-    axle_x_m : array (n_on,)
-        Positions of the axles on the bridge in m (``n_on`` may be 0).
-    axle_w_m : float or array (n_on,)
-        Deflection under each axle in m.
+    recording : rerun.RecordingStream or None
+        Target recording (default: the global one).
     exaggeration : float
-        Factor on the deflections for display (a few mm on a 20 m span are invisible at 1).
+        Display factor on beam deflections.
     """
-    import rerun as rr
 
-    x = np.asarray(x_m, dtype=np.float64).ravel()
-    w = np.asarray(w_m, dtype=np.float64).ravel()
-    if x.shape != w.shape:
-        raise InputError(f"log_beam: x_m {x.shape} and w_m {w.shape} must have equal length")
-    ax = np.asarray(axle_x_m, dtype=np.float64).ravel()
-    aw = np.broadcast_to(np.asarray(axle_w_m, dtype=np.float64), ax.shape) if ax.size else ax
-    k = float(exaggeration)
-    rr.set_time(SIM_TIME, duration=float(t_s), recording=recording)
-    rr.log("beam/deflection", rr.LineStrips2D([np.column_stack([x, k * w])]),
-           recording=recording)
-    rr.log("beam/axles", rr.Points2D(np.column_stack([ax, k * aw]).reshape(-1, 2), radii=0.15),
-           recording=recording)
+    def __init__(self, recording=None, exaggeration: float = None):
+        from adm_sim.ros import rerun_blueprint as bp
 
+        self.rec = recording
+        self.exaggeration = float(bp.BEAM_EXAGGERATION if exaggeration is None else exaggeration)
+        self.runs: list[_Run] = []
+        self._acc: list[tuple[float, float]] = []
+        self._beam: list[tuple] = []
+        self._beam_run = 0  # index of the run the next beam frame belongs to
+        self._span_m = None
+        self._bridge = {}
+        self._train = {}
+        self._n_full = 0
+        self._trials = {BRACKETING: 0, ROOT_SEARCH: 0}
+        self._curves_used: set[str] = set()
+        self._styled: set[str] = set()
+        self._last_kind = None
+        self.blueprint_sent = False
 
-def log_sweep_curve(label, speeds_kmh, max_acc_m_s2, recording=None) -> None:
-    """Maximum deck acceleration against train speed for one damping trial or model.
+    # ------------------------------------------------------------ helpers
+    def _style(self, path, lines=True, name=None, color=None, width=None, visible=None):
+        """Name, colour and width of a series (static, once per entity)."""
+        import rerun as rr
 
-    Parameters
-    ----------
-    label : str
-        Series name, e.g. ``"MLM zeta=1.0%"`` or ``"DIM"``.
-    speeds_kmh : array (n_speeds,)
-        Train speeds in km/h; the ``speed_kmh`` sequence timeline holds them rounded to 1 km/h.
-    max_acc_m_s2 : array (n_speeds,)
-        Maximum vertical deck acceleration in m/s^2 at each speed.
-    """
-    import rerun as rr
+        if path in self._styled:
+            return
+        self._styled.add(path)
+        if lines:
+            arch = rr.SeriesLines(names=name, colors=color, widths=width, visible_series=visible)
+        else:
+            arch = rr.SeriesPoints(names=name, colors=color, marker_sizes=width)
+        rr.log(path, arch, static=True, recording=self.rec)
 
-    v = np.atleast_1d(np.asarray(speeds_kmh, dtype=np.float64))
-    a = np.atleast_1d(np.asarray(max_acc_m_s2, dtype=np.float64))
-    if v.shape != a.shape or v.ndim != 1:
-        raise InputError(f"log_sweep_curve: speeds_kmh {v.shape} and max_acc_m_s2 {a.shape} "
-                         "must have equal length")
-    if not np.all(np.isfinite(v)) or np.any(v < 0):
-        raise InputError("log_sweep_curve: speeds_kmh must be finite and >= 0 km/h")
-    rr.send_columns(f"sweep/{_part(label)}",
-                    indexes=[rr.TimeColumn("speed_kmh", sequence=np.rint(v).astype(np.int64))],
-                    columns=rr.Scalars.columns(scalars=a), recording=recording)
+    def send_blueprint(self, active_tab: str = "Runs"):
+        """Send the default blueprint (again, e.g. once the span is known)."""
+        import rerun as rr
 
+        from adm_sim.ros.rerun_blueprint import default_blueprint
 
-def log_delta_zeta_iteration(i, delta_zeta_pct, mlm_peak, dim_peak, recording=None) -> None:
-    """One step of the additional-damping calibration (Delta zeta, in percent).
+        rr.send_blueprint(default_blueprint(self._span_m, self.exaggeration, active_tab), make_active=True,
+                          make_default=True, recording=self.rec)
+        self.blueprint_sent = True
 
-    Parameters
-    ----------
-    i : int
-        Iteration number (``iteration`` sequence timeline).
-    delta_zeta_pct : float
-        Trial additional damping in % of critical.
-    mlm_peak, dim_peak : float
-        Peak deck accelerations in m/s^2 of the MLM with ``delta_zeta_pct`` and of the DIM.
-    """
-    import rerun as rr
+    # ------------------------------------------------------------ descriptions
+    def bridge_description(self, desc: dict):
+        """``/adm/bridge/description``: the span fixes the beam view and its supports."""
+        import rerun as rr
 
-    rr.set_time("iteration", sequence=int(i), recording=recording)
-    rr.log("calibration/delta_zeta_pct", rr.Scalars(float(delta_zeta_pct)), recording=recording)
-    rr.log("calibration/mlm_peak_m_s2", rr.Scalars(float(mlm_peak)), recording=recording)
-    rr.log("calibration/dim_peak_m_s2", rr.Scalars(float(dim_peak)), recording=recording)
+        self._bridge = desc
+        span = float(desc.get("bridge", {}).get("span_m", 0.0)) or None
+        if span is None or span == self._span_m:
+            return
+        self._span_m = span
+        self.send_blueprint()
+        h = 0.04 * span
+        tri = [[[x - h, h * 1.2], [x, 0.0], [x + h, h * 1.2], [x - h, h * 1.2]] for x in (0.0, span)]
+        rr.log("runs/beam/supports", rr.LineStrips2D(tri, colors=(60, 60, 60), radii=0.02), static=True,
+               recording=self.rec)
+        rr.log("runs/beam/axis", rr.LineStrips2D([[[0.0, 0.0], [span, 0.0]]], colors=(180, 180, 180), radii=0.01),
+               static=True, recording=self.rec)
 
+    def train_description(self, desc: dict):
+        self._train = desc
 
-def log_run_info(info: dict, recording=None) -> None:
-    """Run information (bridge, train, model, speeds) as a static markdown table at ``run``."""
-    import rerun as rr
+    # ------------------------------------------------------------ samples
+    def run_started(self, st: dict):
+        """``/adm/run/status`` with ``state`` = ``started`` from the bridge."""
+        if st.get("node") != "bridge" or st.get("state") != "started" or st.get("run_id") is None:
+            return
+        if any(r.id == int(st["run_id"]) for r in self.runs):
+            return
+        t0 = self.runs[-1].t1 if self.runs and np.isfinite(self.runs[-1].t1) else 0.0
+        self.runs.append(_Run(st, t0))
 
-    rows = "\n".join(f"| {k} | {v} |" for k, v in info.items())
-    rr.log("run", rr.TextDocument(f"| key | value |\n|---|---|\n{rows}\n",
-                                  media_type=rr.MediaType.MARKDOWN),
-           static=True, recording=recording)
+    def accel(self, t_s: float, acc_m_s2: float):
+        """One ``/adm/midspan/accel`` sample (sim time in s, acceleration of the monitored lane)."""
+        self._acc.append((float(t_s), float(acc_m_s2)))
+
+    def beam(self, t_s: float, x_m, w_m, axle_x_m, axle_w_m):
+        """One ``/adm/beam/deflection`` + ``/adm/beam/axles`` frame (positions and deflections in m).
+
+        ``t_s`` (the clock when it was received) is not used: see :meth:`flush`.
+        """
+        self._beam.append((float(t_s), np.asarray(x_m, float), np.asarray(w_m, float),
+                           np.asarray(axle_x_m, float), np.asarray(axle_w_m, float)))
+
+    def _owner(self, t_s):
+        for r in reversed(self.runs):
+            if r.contains(t_s):
+                return r
+        return None
+
+    def flush(self):
+        """Log the buffered samples of every announced run; keep those of runs not yet announced."""
+        import rerun as rr
+
+        if not self.runs:
+            return
+        latest = self.runs[-1].t0
+        groups: dict[int, list] = {}
+        keep = []
+        for t, a in self._acc:
+            r = self._owner(t)
+            if r is not None:
+                groups.setdefault(r.id, []).append((t, a))
+            elif t > latest:
+                keep.append((t, a))
+        self._acc = keep
+        by_id = {r.id: r for r in self.runs}
+        for rid, samples in groups.items():
+            r = by_id[rid]
+            t = np.array([s[0] for s in samples])
+            a = np.array([s[1] for s in samples])
+            rr.send_columns(f"runs/acceleration/{r.tag}",
+                            indexes=[rr.TimeColumn(SIM_TIME, duration=t),
+                                     rr.TimeColumn(RUN_TIME, duration=r.run_time(t))],
+                            columns=rr.Scalars.columns(scalars=a), recording=self.rec)
+        # beam frames carry no stamp: the j-th frame of a run is its step j * beam_every (frames of
+        # one topic arrive in order), so frames are dealt to the announced runs in turn
+        k = self.exaggeration
+        while self._beam:
+            while self._beam_run < len(self.runs) and self.runs[self._beam_run].frames_left() == 0:
+                self._beam_run += 1
+            if self._beam_run >= len(self.runs):
+                break
+            r = self.runs[self._beam_run]
+            _, x, w, ax, aw = self._beam.pop(0)
+            step = r.n_frames * int(r.beam_every)
+            r.n_frames += 1
+            if w.size and (r.peak is None or np.max(np.abs(w)) > r.peak[0]):
+                r.peak = (float(np.max(np.abs(w))), x, w, ax, aw)
+            t = r.t0 + step * r.dt_clock
+            rr.set_time(SIM_TIME, duration=t, recording=self.rec)
+            rr.set_time(RUN_TIME, duration=float(r.run_time(t)), recording=self.rec)
+            path = f"runs/beam/{r.tag}"
+            color = _COLORS.get(r.kind, (90, 90, 90))
+            # rerun's 2D y axis points down: a sag (w > 0, downward) is drawn below the axis
+            rr.log(f"{path}/deflection", rr.LineStrips2D([np.column_stack([x, k * w])], colors=color, radii=0.03),
+                   recording=self.rec)
+            rr.log(f"{path}/axles", rr.Points2D(np.column_stack([ax, k * aw]).reshape(-1, 2), colors=color,
+                                                radii=0.12), recording=self.rec)
+        rr.reset_time(recording=self.rec)
+
+    # ------------------------------------------------------------ end of a run
+    def run_done(self, result) -> str | None:
+        """``/adm/run/result`` (rows speed_kmh, max_acc_m_s2, max_disp_m, delta_zeta): log the curves.
+
+        Returns the run's kind (:func:`run_kind`), ``None`` if the run was never announced.
+        """
+        import rerun as rr
+
+        self.flush()
+        res = np.asarray(result, dtype=float)
+        if not self.runs:
+            return None
+        r = self.runs[-1]
+        if r.kind is not None:  # a result twice (replay of a duplicated record)
+            return r.kind
+        v, acc, dz = res[0], res[1], res[3]
+        if r.model.lower() == "mlm" and np.all(dz == 0.0):
+            self._n_full = max(self._n_full, v.size)
+        r.kind = kind = run_kind(r.model, dz, v.size, self._n_full)
+        self._last_kind = kind
+        color = _COLORS[kind]
+        mon = f" at {r.mon_kmh:g} km/h" if r.mon_kmh else ""
+        uniq = np.unique(dz)
+        dz_txt = f", Δζ {fmt_pct(uniq[0])}" if uniq.size == 1 and uniq[0] != 0.0 else (
+            f", {uniq.size} Δζ" if uniq.size > 1 else "")
+        # the ladder's history is that of its first rung (the lowest Δζ): hidden until asked for
+        self._style(f"runs/acceleration/{r.tag}", name=f"run {r.id} {kind}{dz_txt}{mon}", color=color,
+                    width=2.0 if kind in (DIM, MLM_ZETA, MLM_ZETA_DZ) else 1.0,
+                    visible=[False] if kind == BRACKETING else None)
+        # when the run ends its moving beam gives way to its shape at the largest deflection
+        rr.set_time(SIM_TIME, duration=r.t1, recording=self.rec)
+        rr.set_time(RUN_TIME, duration=float(r.run_time(r.t1)), recording=self.rec)
+        for part in ("deflection", "axles"):
+            rr.log(f"runs/beam/{r.tag}/{part}", rr.Clear(recursive=False), recording=self.rec)
+        if r.peak is not None:
+            _, x, w, ax, aw = r.peak
+            k = self.exaggeration
+            rr.log(f"runs/beam/{r.tag}/peak_shape", rr.LineStrips2D([np.column_stack([x, k * w])], colors=color,
+                                                                    radii=0.03), recording=self.rec)
+            rr.log(f"runs/beam/{r.tag}/peak_axles", rr.Points2D(np.column_stack([ax, k * aw]).reshape(-1, 2),
+                                                                colors=color, radii=0.12), recording=self.rec)
+        rr.reset_time(recording=self.rec)
+        self._log_sweep(r, kind, v, acc, dz)
+        i = int(np.argmax(acc))
+        r.row = (f"| {r.id} | {kind}{dz_txt} | {v.size} | {_fmt(v.min())}–{_fmt(v.max())} | "
+                 f"{_fmt(r.mon_kmh) if r.mon_kmh else '-'} | {self._sampling(r)} | {acc[i]:.3f} | {v[i]:g} |")
+        self._log_run_table()
+        return kind
+
+    def _sampling(self, r: _Run) -> str:
+        """Monitoring step of a run in the monitored lane's time, and samples per period of the top mode."""
+        if not r.every or not r.mon_kmh or not r.ds_m:
+            return "- | -"
+        dt = int(r.every) * r.ds_m / (r.mon_kmh / 3.6)
+        n0 = float(self._bridge.get("n0_hz", 0.0))
+        nm = int(self._bridge.get("bridge", {}).get("n_modes", 0))
+        per = f"{1.0 / (nm * nm * n0 * dt):.1f}" if n0 > 0 and nm > 0 else "-"
+        return f"{dt * 1e3:.2f} | {per}"
+
+    def _log_run_table(self):
+        import rerun as rr
+
+        b = self._bridge.get("description", "")
+        t = self._train.get("name", self._train.get("train", ""))
+        head = f"**{b}**  \n**train** {t}\n\n" if b or t else ""
+        rows = "\n".join(r.row for r in self.runs if r.row)
+        nm = self._bridge.get("bridge", {}).get("n_modes", "n")
+        text = (head + f"| run | series | lanes | speeds [km/h] | monitored [km/h] | Δt [ms] | per T{nm} | "
+                "max a [m/s²] | at [km/h] |\n|---|---|---|---|---|---|---|---|---|\n" + rows + "\n\n"
+                f"Δt: monitoring step in the monitored lane's time; per T{nm}: samples per period of mode {nm} "
+                "(the highest retained).\n")
+        rr.log("runs/info", rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN), static=True,
+               recording=self.rec)
+
+    def _log_sweep(self, r: _Run, kind, v, acc, dz):
+        if kind in (BRACKETING, ROOT_SEARCH):
+            for value in np.unique(dz):
+                lanes = dz == value
+                self._trials[kind] += 1
+                n = self._trials[kind]
+                root = "bracketing" if kind == BRACKETING else "root_search"
+                path = f"sweep/trials/{root}/{n:02d}"
+                shade = _COLORS[kind]
+                self._style(path, name=f"{'bracket' if kind == BRACKETING else 'root'} {n}: Δζ {fmt_pct(value)}",
+                            color=shade, width=1.0)
+                self._send_curve(path, v[lanes], acc[lanes])
+            return
+        name = _SWEEP_NAMES[kind]
+        if kind != DIM and name in self._curves_used:
+            name = f"{name}_{r.tag}"
+        self._curves_used.add(name)
+        uniq = np.unique(dz)
+        label = kind + (f" (Δζ {fmt_pct(uniq[0])})" if kind == MLM_ZETA_DZ else "")
+        for root in ("sweep/curves", "sweep/trials") if kind in (DIM, MLM_ZETA_DZ) else ("sweep/curves",):
+            path = f"{root}/{name}"
+            self._style(path, name=label, color=_COLORS[kind], width=2.0)
+            self._send_curve(path, v, acc)
+
+    def _send_curve(self, path, speeds_kmh, max_acc_m_s2):
+        import rerun as rr
+
+        v = np.asarray(speeds_kmh, dtype=float)
+        order = np.argsort(v, kind="stable")
+        rr.send_columns(path, indexes=[rr.TimeColumn("speed_kmh", sequence=np.rint(v[order]).astype(np.int64))],
+                        columns=rr.Scalars.columns(scalars=np.asarray(max_acc_m_s2, dtype=float)[order]),
+                        recording=self.rec)
+
+    # ------------------------------------------------------------ calibration
+    def iteration(self, i: int, delta_zeta_pct: float, mlm_peak_m_s2: float, dim_peak_m_s2: float):
+        """``/adm/calibration/iteration``: one trial damping; phase from the run it came from."""
+        import rerun as rr
+
+        phase = "bracketing" if self._last_kind == BRACKETING else "root_search"
+        color = _COLORS[BRACKETING if phase == "bracketing" else ROOT_SEARCH]
+        lines = phase == "root_search"
+        words = "bracketing ladder" if phase == "bracketing" else "root search"
+        self._style(f"calibration/delta_zeta_pct/{phase}", lines=lines, name=f"Δζ, {words} [%]", color=color,
+                    width=2.0 if lines else 6.0)
+        self._style(f"calibration/peak_m_s2/mlm_{phase}", lines=lines, name=f"MLM ζ+Δζ peak, {words}",
+                    color=color, width=2.0 if lines else 6.0)
+        self._style("calibration/peak_m_s2/dim", name="DIM peak (target)", color=_COLORS[DIM], width=2.0)
+        rr.set_time("iteration", sequence=int(i), recording=self.rec)
+        rr.log(f"calibration/delta_zeta_pct/{phase}", rr.Scalars(float(delta_zeta_pct)), recording=self.rec)
+        rr.log(f"calibration/peak_m_s2/mlm_{phase}", rr.Scalars(float(mlm_peak_m_s2)), recording=self.rec)
+        rr.log("calibration/peak_m_s2/dim", rr.Scalars(float(dim_peak_m_s2)), recording=self.rec)
+        rr.reset_time(recording=self.rec)
+
+    def calibration_result(self, d: dict):
+        """``/adm/calibration/result`` (``CalibrationResult.to_dict()``) as a markdown table."""
+        import rerun as rr
+
+        units = {"zeta_pct": "%", "delta_zeta_vbi_pct": "%", "delta_zeta_adm_pct": "%", "delta_zeta_eada_pct": "%",
+                 "delta_zeta_lb_pct": "%"}
+        rows = []
+        for k in ("bridge_description", "bridge", "train", "status", "message", "zeta_pct", "delta_zeta_vbi_pct",
+                  "delta_zeta_adm_pct", "delta_zeta_eada_pct", "delta_zeta_lb_pct"):
+            if k in d and d[k] not in (None, ""):
+                val = d[k]
+                val = f"{val:.4f}" if isinstance(val, float) else str(val)
+                rows.append(f"| {k} | {val} {units.get(k, '')} |")
+        for k in ("mlm_peak", "dim_peak", "adapted_mlm_peak"):
+            p = d.get(k)
+            if isinstance(p, dict) and p.get("acc_m_s2") is not None:
+                rows.append(f"| {k} | {p['acc_m_s2']:.4f} m/s² at {p['speed_kmh']:g} km/h |")
+        rr.log("calibration/result", rr.TextDocument("| | |\n|---|---|\n" + "\n".join(rows) + "\n",
+                                                     media_type=rr.MediaType.MARKDOWN),
+               static=True, recording=self.rec)

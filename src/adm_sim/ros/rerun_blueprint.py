@@ -1,0 +1,125 @@
+"""Default rerun layout of an adm-sim recording: three tabs, one per question.
+
+Every recording written or streamed by adm-sim (``calibrate.py``, ``crossing.py``, ``replay.py``)
+carries this blueprint, so the viewer opens on it instead of guessing a layout.
+
+Tabs
+----
+``Runs``
+    Midspan acceleration of every run over ``run_time`` (s since the first axle entered the
+    bridge, in the monitored lane's own time, so that runs overlay); the deflected beam with its
+    supports, fixed bounds and the display exaggeration in the title; the run table.
+``Speed sweep``
+    Maximum deck acceleration against train speed on ``speed_kmh``: DIM, MLM ζ and the calibrated
+    MLM ζ+Δζ on one plot; every damping trial of the calibration its own series, named by its Δζ.
+``Calibration``
+    Δζ per iteration (all, and the root search alone on its own scale) and the MLM peak against the
+    DIM peak on ``iteration``, the bracketing ladder and the root search as separate series; the
+    calibration result.
+
+A time series view plots against the viewer's one selected timeline, which is shared by all
+tabs; the blueprint opens on ``run_time`` (the ``Runs`` tab) and every view of another tab names
+the timeline it needs in its title.
+"""
+
+from __future__ import annotations
+
+__all__ = ["BEAM_EXAGGERATION", "ENTITIES", "TABS", "TIMELINES", "default_blueprint", "tab_timeline"]
+
+#: Session sim time (s), continuous over the runs of one session (``/clock``).
+SIM_TIME = "sim_time"
+#: Time since the first axle entered the bridge in the monitored lane (s); 0 at every run start.
+RUN_TIME = "run_time"
+#: Train speed (sequence, km/h rounded to 1 km/h).
+SPEED = "speed_kmh"
+#: Calibration step (sequence).
+ITERATION = "iteration"
+TIMELINES = (SIM_TIME, RUN_TIME, SPEED, ITERATION)
+
+#: Display factor on beam deflections (a few mm on a 15 m span are invisible at 1).
+BEAM_EXAGGERATION = 500.0
+
+#: Entity roots (the views' contents); the log functions of :mod:`adm_sim.ros.rerun_log` write
+#: below them.
+ENTITIES = {
+    "acceleration": "runs/acceleration",      # runs/acceleration/run_NN: Scalars
+    "beam": "runs/beam",                      # runs/beam/run_NN/{deflection,axles}, runs/beam/supports
+    "run_info": "runs/info",                  # TextDocument (markdown table)
+    "sweep_main": "sweep/curves",             # sweep/curves/{DIM, MLM_zeta, MLM_zeta_dz, ...}
+    "sweep_trials": "sweep/trials",           # sweep/trials/{bracketing,root_search}/NN
+    "dz": "calibration/delta_zeta_pct",       # .../{bracketing,root_search}
+    "peaks": "calibration/peak_m_s2",         # .../{mlm_bracketing,mlm_root_search,dim}
+    "cal_result": "calibration/result",       # TextDocument
+}
+
+TABS = ("Runs", "Speed sweep", "Calibration")
+_TAB_TIMELINE = {"Runs": RUN_TIME, "Speed sweep": SPEED, "Calibration": ITERATION}
+
+
+def tab_timeline(tab: str) -> str:
+    """Timeline the views of ``tab`` plot against."""
+    return _TAB_TIMELINE[tab]
+
+
+def default_blueprint(span_m: float | None = None, exaggeration: float = BEAM_EXAGGERATION,
+                      active_tab: str = "Runs"):
+    """The default blueprint (``rerun.blueprint.Blueprint``) of an adm-sim recording.
+
+    Parameters
+    ----------
+    span_m : float or None
+        Span of the bridge in m: fixes the bounds of the beam view (x from -5 % to 105 % of the
+        span, deflection from -10 % to +20 % (sag) of the span after exaggeration). ``None``: automatic bounds.
+    exaggeration : float
+        Display factor on the beam deflections, shown in the beam view's title.
+    active_tab : str
+        Tab shown first (one of :data:`TABS`); the time panel opens on its timeline.
+    """
+    import rerun.blueprint as rrb
+
+    if active_tab not in TABS:
+        raise ValueError(f"active_tab: {active_tab!r} is not one of {', '.join(TABS)}")
+    e = ENTITIES
+    bounds = None
+    if span_m is not None and span_m > 0:
+        bounds = rrb.VisualBounds2D(x_range=[-0.05 * span_m, 1.05 * span_m],
+                                    y_range=[-0.1 * span_m, 0.2 * span_m])
+    runs = rrb.Vertical(
+        rrb.TimeSeriesView(
+            name="Midspan acceleration [m/s²] of every run vs time since train entry [s] (run_time)",
+            origin=e["acceleration"], plot_legend=rrb.PlotLegend(corner="RightTop")),
+        rrb.Horizontal(
+            rrb.Spatial2DView(
+                name=f"Deflected beam [m], deflection ×{exaggeration:g}, sag down; a finished run shows "
+                     "its largest deflection",
+                origin=e["beam"], visual_bounds=bounds, background=[250, 250, 250]),
+            rrb.TextDocumentView(name="Runs (monitored lane, sampling, peaks)", origin=e["run_info"]),
+            column_shares=[1, 1]),
+        row_shares=[3, 2], name="Runs")
+    sweep = rrb.Vertical(
+        rrb.TimeSeriesView(
+            name="Max deck acceleration [m/s²] vs speed [km/h]: DIM, MLM ζ, MLM ζ+Δζ (timeline speed_kmh)",
+            origin=e["sweep_main"], plot_legend=rrb.PlotLegend(corner="LeftTop")),
+        rrb.TimeSeriesView(
+            name="Damping trials: MLM max acceleration [m/s²] vs speed [km/h], one series per Δζ "
+                 "(timeline speed_kmh)",
+            origin=e["sweep_trials"], plot_legend=rrb.PlotLegend(corner="LeftTop", visible=False)),
+        row_shares=[3, 2], name="Speed sweep")
+    calibration = rrb.Horizontal(
+        rrb.Vertical(
+            rrb.TimeSeriesView(name="Δζ [%] per iteration: bracketing ladder, root search (timeline iteration)",
+                               origin=e["dz"], plot_legend=rrb.PlotLegend(corner="LeftTop")),
+            rrb.TimeSeriesView(name="Δζ [%] of the root search alone, per iteration (timeline iteration)",
+                               origin=f"{e['dz']}/root_search", plot_legend=rrb.PlotLegend(visible=False)),
+            rrb.TimeSeriesView(name="Peak acceleration [m/s²] per iteration: MLM ζ+Δζ vs DIM "
+                                    "(timeline iteration)",
+                               origin=e["peaks"], plot_legend=rrb.PlotLegend(corner="RightTop")),
+            row_shares=[2, 1, 2]),
+        rrb.TextDocumentView(name="Calibration result", origin=e["cal_result"]),
+        column_shares=[3, 1], name="Calibration")
+    return rrb.Blueprint(
+        rrb.Tabs(runs, sweep, calibration, active_tab=TABS.index(active_tab)),  # by name: views only
+        rrb.TimePanel(timeline=tab_timeline(active_tab), state="collapsed"),
+        rrb.BlueprintPanel(state="collapsed"),
+        rrb.SelectionPanel(state="collapsed"),
+        auto_views=False, auto_layout=False)

@@ -1,0 +1,215 @@
+"""The rerun recording an engineer opens: default blueprint, one entity per trial, runs that overlay.
+
+A synthetic session (no ROS: the messages the driver would receive) goes through
+:class:`adm_sim.ros.rerun_log.RunLogger` into an ``.rrd``; everything is read back with
+``rerun.chunk.RrdReader``. The same checks run on a real co-simulated sweep in
+``test_ros_rerun_live.py`` (live) and on its replay from MCAP below.
+"""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from rrd_views import check_recording, read_rrd, view_entities
+
+from adm_sim.ros import rerun_blueprint as bp
+from adm_sim.ros import rerun_log as rl
+
+ROOT = Path(__file__).resolve().parents[1]
+PY = sys.executable
+
+SPAN_M = 15.0
+DS_M = 0.05
+N_STEPS = 400
+EVERY = 4
+
+
+# ---------------------------------------------------------------- a synthetic session
+
+
+def _status(run_id, model, n_lanes, t0, v_clock, v_mon):
+    return {"node": "bridge", "run_id": run_id, "state": "started", "model": model, "n_steps": N_STEPS,
+            "n_lanes": n_lanes, "ds_m": DS_M, "t0_s": t0, "monitor_lane": 0, "monitor_speed_kmh": v_mon,
+            "clock_speed_kmh": v_clock, "monitor_every_steps": EVERY, "beam_every_steps": 4 * EVERY}
+
+
+def _session(viz: rl.RunLogger):
+    """Five runs of a calibration: MLM ζ, DIM, a 3-rung ladder, a root-search step, MLM ζ+Δζ."""
+    viz.bridge_description({"bridge": {"span_m": SPAN_M, "n_modes": 3}, "n0_hz": 8.0,
+                            "description": "B1: L=15 m, zeta=1.85 %"})
+    viz.train_description({"name": "ICE-2"})
+    speeds = np.arange(200.0, 211.0)
+    window = np.array([204.0, 205.0, 206.0])
+    ladder = np.array([-0.005, 0.0, 0.01])
+    runs = [("mlm", speeds, np.zeros(11)), ("dim", speeds, np.zeros(11)),
+            ("mlm", np.tile(window, 3), np.repeat(ladder, 3)), ("mlm", window, np.full(3, 0.0055)),
+            ("mlm", speeds, np.full(11, 0.0055))]
+    t0 = 0.0
+    expected = {}
+    x = np.linspace(0.0, SPAN_M, 11)
+    for i, (model, v, dz) in enumerate(runs, start=1):
+        v_clock, v_mon = float(v.min()), 205.0
+        viz.run_started(_status(i, model, v.size, t0, v_clock, v_mon))
+        ks = np.arange(0, N_STEPS, EVERY)
+        t = t0 + ks * DS_M / (v_clock / 3.6)
+        for k, tk in zip(ks, t):
+            viz.accel(tk, np.sin(0.1 * k) + i)
+            if k % (4 * EVERY) == 0:
+                viz.beam(tk, x, 1e-3 * np.sin(np.pi * x / SPAN_M) * np.sin(0.05 * k), [1.0], [0.0])
+        viz.flush()
+        acc = 1.0 + 0.01 * i + 0.001 * v - 10 * dz
+        t1 = t0 + N_STEPS * DS_M / (v_clock / 3.6)
+        assert viz.run_done(np.vstack([v, acc, 1e-3 * np.ones_like(v), dz])) is not None
+        expected[i] = (v, acc, dz, t, ks * DS_M / (v_mon / 3.6))
+        if i == 3:
+            for j, d in enumerate(ladder, start=1):
+                viz.iteration(j, 100 * d, 2.0 - 100 * d, 1.8)
+        if i == 4:
+            viz.iteration(4, 0.55, 1.8, 1.8)
+        t0 = t1
+    viz.calibration_result({"bridge_description": "B1", "train": "ICE-2", "status": "ok",
+                            "zeta_pct": 1.8500000000000003, "delta_zeta_vbi_pct": 0.5532999999999999,
+                            "mlm_peak": {"speed_kmh": 205.0, "acc_m_s2": 2.2465199999}})
+    return expected
+
+
+@pytest.fixture(scope="module")
+def synthetic(tmp_path_factory):
+    path = tmp_path_factory.mktemp("views") / "session.rrd"
+    rl.init_rerun("adm_sim_test", save_path=path, recording_id="views")
+    viz = rl.RunLogger()
+    viz.send_blueprint()
+    expected = _session(viz)
+    rl.close_rerun()
+    return path, expected
+
+
+def test_run_kind_rule():
+    assert rl.run_kind("dim", np.zeros(5), 5, 191) == rl.DIM
+    assert rl.run_kind("mlm", np.zeros(191), 191, 191) == rl.MLM_ZETA
+    assert rl.run_kind("mlm", np.full(191, 0.005), 191, 191) == rl.MLM_ZETA_DZ
+    assert rl.run_kind("mlm", np.full(11, 0.005), 11, 191) == rl.ROOT_SEARCH
+    assert rl.run_kind("mlm", np.repeat([0.0, 0.01], 11), 22, 191) == rl.BRACKETING
+    assert rl.fmt_pct(0.018500000000000003) == "+1.8500 %"
+
+
+def test_recording_carries_the_blueprint_and_its_views_have_data(synthetic):
+    path, _ = synthetic
+    ents, blue = check_recording(path)
+    for view in blue["views"]:
+        shown = view_entities(view, ents)
+        assert shown, f"view {view['display_name']!r} shows no entity of the recording"
+    names = [v["display_name"] for v in blue["views"]]
+    assert any("×500" in n for n in names)  # the beam's exaggeration is in its title
+
+
+def test_every_trial_is_its_own_entity_with_its_values(synthetic):
+    path, expected = synthetic
+    ents = read_rrd(path)
+    v, acc, dz, *_ = expected[3]
+    for j, d in enumerate(np.unique(dz), start=1):
+        e = ents[f"/sweep/trials/bracketing/{j:02d}"]
+        lanes = dz == d
+        np.testing.assert_array_equal(e["times"][bp.SPEED], np.rint(v[lanes]).astype(int))
+        np.testing.assert_allclose(e["values"], acc[lanes], rtol=0, atol=0)
+    v4, acc4, *_ = expected[4]
+    np.testing.assert_allclose(ents["/sweep/trials/root_search/01"]["values"], acc4, rtol=0, atol=0)
+    for name, run in (("DIM", 2), ("MLM_zeta", 1), ("MLM_zeta_dz", 5)):
+        np.testing.assert_allclose(ents[f"/sweep/curves/{name}"]["values"], expected[run][1], rtol=0, atol=0)
+    assert len(ents["/calibration/delta_zeta_pct/bracketing"]["values"]) == 3
+    assert ents["/calibration/delta_zeta_pct/root_search"]["values"] == [0.55]
+
+
+def test_run_time_is_the_monitored_lanes_time_from_train_entry(synthetic):
+    path, expected = synthetic
+    ents = read_rrd(path)
+    for i, (_v, _a, _dz, t_sim, t_run) in expected.items():
+        e = ents[f"/runs/acceleration/run_{i:02d}"]
+        np.testing.assert_allclose(np.array(e["times"][bp.RUN_TIME]) * 1e-9, t_run, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(np.array(e["times"][bp.SIM_TIME]) * 1e-9, t_sim, rtol=0, atol=1e-9)
+    assert min(ents["/runs/beam/run_02/deflection"]["times"][bp.RUN_TIME]) == 0
+
+
+def test_numbers_are_printed_at_sensible_precision(synthetic):
+    path, _ = synthetic
+    ents = read_rrd(path)
+    text = ents["/calibration/result"]["text"][-1]
+    assert "| zeta_pct | 1.8500 % |" in text and "0.5533 %" in text and "2.2465 m/s² at 205 km/h" in text
+    table = ents["/runs/info"]["text"][-1]
+    assert "| 5 | MLM ζ+Δζ, Δζ +0.5500 % | 11 | 200–210 | 205 | 3.51 | 4.0 |" in table
+
+
+# ---------------------------------------------------------------- a real co-simulated sweep, replayed
+
+
+@pytest.fixture(scope="module")
+def crossing_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("crossing") / "run"
+    r = subprocess.run([PY, str(ROOT / "launch_scripts" / "crossing.py"), "--model", "mlm", "--bridge", "B1",
+                        "--speeds", "250:270:5", "--out", str(out)],
+                       capture_output=True, text=True, timeout=300, cwd=ROOT)
+    assert r.returncode == 0, r.stderr
+    return out
+
+
+def test_crossing_recording_and_its_replay_open_in_the_default_layout(crossing_run, tmp_path):
+    live, blue = check_recording(crossing_run / "run.rrd")
+    replayed = tmp_path / "replay.rrd"
+    r = subprocess.run([PY, str(ROOT / "launch_scripts" / "replay.py"), str(crossing_run / "run.mcap"),
+                        "--rrd", str(replayed)], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    again, _ = check_recording(replayed)
+    for p in ("/runs/acceleration/run_01", "/runs/beam/run_01/deflection", "/sweep/curves/MLM_zeta"):
+        assert sorted(again[p]["values"]) == sorted(live[p]["values"]), p  # chunk order may differ
+        for tl, times in live[p]["times"].items():
+            assert sorted(again[p]["times"][tl]) == sorted(times), (p, tl)
+    acc = live["/runs/acceleration/run_01"]
+    t = np.array(acc["times"][bp.RUN_TIME]) * 1e-9
+    dt = np.diff(t)  # uniform in the monitored lane's time, >= 8 samples per period of mode 3
+    np.testing.assert_allclose(dt, dt[0], rtol=1e-6)
+    from adm_sim.bridge import resolve_bridge
+
+    b1 = resolve_bridge("B1")
+    assert dt[0] <= 2 * np.pi / b1.omega_rad_s[-1] / 8 * (1 + 1e-6)  # times are stored in ns
+    assert "monitored [km/h]" in live["/runs/info"]["text"][-1]
+    np.testing.assert_allclose(sorted(live["/sweep/curves/MLM_zeta"]["times"][bp.SPEED]), [250, 255, 260, 265, 270])
+
+
+def test_calibration_recording_every_view_has_data_and_monitors_the_peak(tmp_path):
+    """A small co-simulated calibration (B3 x ICE-2, coarse steps): the recording as a user opens it."""
+    import json
+
+    from adm_sim.ros.mcap_log import read_messages
+
+    params = tmp_path / "case.yaml"
+    params.write_text("bridge:\n  ros__parameters:\n    bridge: B3\n    steps_per_period: 4.0\n"
+                      "    free_vibration_periods: 1.0\ntrain:\n  ros__parameters:\n    train: ICE-2\n")
+    out = tmp_path / "out"
+    r = subprocess.run([PY, str(ROOT / "launch_scripts" / "calibrate.py"), "--params-file", str(params),
+                        "--speeds", "230:290:2", "--out", str(out), "--quiet"],
+                       capture_output=True, text=True, timeout=600, cwd=ROOT)
+    assert r.returncode == 0, r.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    ents, blue = check_recording(out / "run.rrd")
+    for view in blue["views"]:  # every view of every tab shows data of this recording
+        assert view_entities(view, ents), view["display_name"]
+    # the first run monitors the first lane, every later one the MLM peak speed
+    started = [json.loads(m.data) for _t, _ns, m in read_messages(out / "run.mcap", topics=["/adm/run/status"])]
+    started = [s for s in started if s["node"] == "bridge" and s["state"] == "started"]
+    assert len(started) == summary["co_simulation"]["runs"]
+    assert started[0]["monitor_speed_kmh"] == 230.0
+    assert {s["monitor_speed_kmh"] for s in started[1:]} == {summary["mlm_peak"]["speed_kmh"]}
+    # one entity per trial damping, as many as the calibration's iterations
+    trials = [p for p in ents if re.fullmatch(r"/sweep/trials/(bracketing|root_search)/\d\d", p)]
+    assert len(trials) == summary["co_simulation"]["delta_zeta_trials"]
+    iters = [m.data for _t, _ns, m in read_messages(out / "run.mcap", topics=["/adm/calibration/iteration"])]
+    dz_logged = (ents["/calibration/delta_zeta_pct/bracketing"]["values"]
+                 + ents["/calibration/delta_zeta_pct/root_search"]["values"])
+    assert dz_logged == [float(d[1]) for d in iters]
+    assert ents["/calibration/delta_zeta_pct/root_search"]["values"][-1] == pytest.approx(
+        summary["delta_zeta_vbi_pct"], abs=1e-6)
