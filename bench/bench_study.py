@@ -23,7 +23,9 @@ asserted; the targets are printed next to the numbers.
     of 1 and of 2 workers, wall times including the cluster start and each worker's first kernel
     load; their ratio (target >= 1.8x). The fixed start-up (a cluster of that many workers
     started and every worker's kernels loaded, no case run) is measured separately and printed,
-    with the ratio of the wall times net of it. ``--quick``: 39 + 40 m.
+    with the ratio of the wall times net of it, and the machine's own ceiling: one batch
+    computed three times alone, then in two processes at once (throughput ratio
+    ``2 t_alone / t_both``). ``--quick``: 39 + 40 m.
 
 (c) Projection of the full study (4440 cases = 740 batches: 185 (span, frequency index) pairs x
     4 trains) on 2 workers. Per-batch costs ``t(L, i)`` for the train of (b) are measured in
@@ -192,6 +194,32 @@ def start_up(workers):
     return dt
 
 
+def _timed_repeats(cases, settings, repeats, start_at=None):
+    """Warm up, wait until ``start_at`` (a shared wall-clock instant), then time ``repeats`` batches."""
+    st.run_batch(cases, settings)
+    if start_at is not None:
+        time.sleep(max(0.0, start_at - time.time()))
+    t0 = time.perf_counter()
+    for _ in range(repeats):
+        st.run_batch(cases, settings)
+    return time.perf_counter() - t0
+
+
+def machine_ceiling(settings, cases, repeats=3):
+    """Throughput of two processes computing at once against one alone (the same batch each).
+
+    The ceiling any 2-worker run can reach on this machine: ``2 t_alone / max(t_1, t_2)``.
+    """
+    from concurrent.futures import ProcessPoolExecutor
+    import multiprocessing
+
+    alone = _timed_repeats(cases, settings, repeats)
+    with ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("spawn")) as pool:
+        start_at = time.time() + 15.0  # both processes warmed up by then
+        both = list(pool.map(_timed_repeats, [cases] * 2, [settings] * 2, [repeats] * 2, [start_at] * 2))
+    return alone, both
+
+
 def part_b(settings, cases):
     walls, starts = {}, {}
     for workers in (1, 2):
@@ -274,6 +302,7 @@ def main():
             if (L, fi) not in sample:
                 sample[(L, fi)] = timed_batch(_batch(train, L, fi), settings)[0]
     walls, starts = part_b(settings, cases_b)
+    alone, both = machine_ceiling(settings, _batch(train, span, fi_ref))
     costs_b = [sample[(b[0].span_m, b[0].freq_index)] * len(b) / 6.0 for b in study_order(st.make_batches(cases_b))]
     m_b = schedule(costs_b, 2)
     o1, o2 = walls[1] - sum(costs_b), walls[2] - m_b
@@ -301,6 +330,8 @@ def main():
     _row("(b) start-up alone, 1 / 2 workers", f"{starts[1]:.1f} / {starts[2]:.1f} s",
          "(cluster start + kernel load, no case)")
     _row("(b) speed-up net of start-up", f"{(walls[1] - starts[1]) / (walls[2] - starts[2]):.2f} x")
+    _row("(b) machine ceiling: 1 batch x3, alone / 2 at once", f"{alone:.1f} / {max(both):.1f} s",
+         f"(2 processes give {2 * alone / max(both):.2f} x the throughput of one)")
     _row(f"(c) projected CPU, {len(costs)} batches", f"{sum(costs) / 3600:.2f} h",
          f"(mean {sum(costs) / FULL_CASES:.2f} s/case)")
     _row(f"(c) projected wall, {FULL_CASES} cases, 2 workers", f"{(m_full + o2) / 3600:.2f} h",
