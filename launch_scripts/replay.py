@@ -131,7 +131,7 @@ def show_in_rerun(args, save_path=None) -> dict[str, int]:
     series = defaultdict(lambda: defaultdict(lambda: ([], [])))  # topic -> name -> (t, v)
     counts: dict[str, int] = defaultdict(int)
     deflection = None
-    for topic, log_time_ns, msg in _guarded(read_messages(args.mcap), args.mcap):
+    for topic, log_time_ns, msg in _status_first(_guarded(read_messages(args.mcap), args.mcap)):
         counts[topic] += 1
         t_s = _stamp_ns(msg, log_time_ns) * 1e-9
         if topic in _RUN_TOPICS:
@@ -226,6 +226,24 @@ def _log_metadata(path: Path) -> None:
                                            media_type=rr.MediaType.MARKDOWN), static=True)
 
 
+#: Topics that open a run or describe it: at one log time they go before its samples.
+_OPENING = ("/adm/bridge/description", "/adm/train/description", "/adm/run/status")
+
+
+def _status_first(messages):
+    """``messages`` in log-time order with, among those of one log time, the run's opening topics
+    first: the recorder writes in order of receipt, and the first monitoring sample of a run (step
+    0) carries the same sim time as its ``started`` status, from another publisher."""
+    group, t_group = [], None
+    for item in messages:
+        if item[1] != t_group and group:
+            yield from sorted(group, key=lambda m: m[0] not in _OPENING)  # stable: receipt order otherwise
+            group = []
+        group.append(item)
+        t_group = item[1]
+    yield from sorted(group, key=lambda m: m[0] not in _OPENING)
+
+
 def _incomplete(path, exc) -> InputError:
     return InputError(f"RUN.mcap: '{path}' is not a complete MCAP file ({type(exc).__name__}); "
                       f"recover it with: adm-sim salvage {path} OUT.mcap")
@@ -241,21 +259,6 @@ def _guarded(messages, path):
 
 def _level(level) -> int:
     return level[0] if isinstance(level, (bytes, bytearray)) else int(level)
-
-
-def _log_metadata(path: Path, rl) -> None:
-    from mcap.reader import make_reader
-
-    info = {}
-    with open(path, "rb") as f:
-        try:
-            for meta in make_reader(f).iter_metadata():
-                for k, v in meta.metadata.items():
-                    info[f"{meta.name}.{k}"] = v
-        except Exception:  # metadata are optional decoration
-            return
-    if info:
-        rl.log_run_info(info)
 
 
 def convert(args, save_path) -> None:

@@ -255,7 +255,7 @@ def test_salvage_errors_and_cli(tmp_path, recording, capsys):
                           str(tmp_path / "no.mcap"), str(tmp_path / "p.mcap")], capture_output=True, text=True,
                          timeout=60)
     assert out.returncode == 2
-    assert out.stderr.splitlines() == [f"error: salvage: '{tmp_path / 'no.mcap'}' is not a file"]
+    assert out.stderr.splitlines() == [f"error: salvage SRC: '{tmp_path / 'no.mcap'}' is not a file"]
 
 
 # ---------------------------------------------------------------- rerun
