@@ -256,6 +256,15 @@ def cmd_salvage(args):
     return 0
 
 
+def _output_options(parser, outputs, overwrite_help):
+    """The output files (``--json`` etc., each with its help), ``--overwrite`` and ``--progress``."""
+    for name, text in outputs.items():
+        parser.add_argument(f"--{name}", help=text)
+    parser.add_argument("--overwrite", action="store_true", help=overwrite_help)
+    parser.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
+                        help="progress bar (default: when stderr is a terminal)")
+
+
 def build_parser():
     p = OneLineParser(prog="adm-sim", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="cmd", required=True, parser_class=OneLineParser)
@@ -270,11 +279,8 @@ def build_parser():
     s.add_argument("--delta-zeta-pct", default="0", help="additional damping (%%, from -zeta to 20)")
     s.add_argument("--steps-per-period", default="16",
                    help="RK4 steps per period of the highest bridge mode (4..10000)")
-    s.add_argument("--json", help="write results as JSON")
-    s.add_argument("--plot", help="write max acceleration vs speed as PNG")
-    s.add_argument("--overwrite", action="store_true", help="replace existing --json/--plot files (once the run has finished)")
-    s.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
-                   help="progress bar (default: when stderr is a terminal)")
+    _output_options(s, {"json": "write results as JSON", "plot": "write max acceleration vs speed as PNG"},
+                    "replace existing --json/--plot files (once the run has finished)")
     s.set_defaults(func=cmd_sweep)
 
     c = sub.add_parser("check", help="EN 1991-2 dynamic check: envelopes of HSLM-A and real trains, verdict")
@@ -291,12 +297,10 @@ def build_parser():
     c.add_argument("--modes", type=float, help="more modes than EN 1990 A2.4.4.2.1 asks for (default: exactly those)")
     c.add_argument("--comfort", action="store_true",
                    help="also run the DIM of the real trains: passenger comfort b_v (EN 1990 A2.4.4.3)")
-    c.add_argument("--json", help="write the verdict and every curve as JSON")
-    c.add_argument("--csv", help="write every curve as CSV (train, speed, acc, disp)")
-    c.add_argument("--plot", help="write the acceleration envelopes as PNG")
-    c.add_argument("--overwrite", action="store_true", help="replace existing output files (once the check has finished)")
-    c.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
-                   help="progress bar (default: when stderr is a terminal)")
+    _output_options(c, {"json": "write the verdict and every curve as JSON",
+                        "csv": "write every curve as CSV (train, speed, acc, disp)",
+                        "plot": "write the acceleration envelopes as PNG"},
+                    "replace existing output files (once the check has finished)")
     c.set_defaults(func=cmd_check)
 
     t = sub.add_parser("trains", help="list trains; --check compares axle loads and bogie frequencies")
