@@ -297,10 +297,7 @@ def main():
         pair = (39.0, 40.0) if args.quick else (4.0, 5.0)
     cases_b = [c for c in st.select_cases([train], spans_m=(min(pair), max(pair)), freq_indices=fis)
                if c.span_m in pair]
-    for L in pair:  # per-batch costs of (b)'s own batches, in this process
-        for fi in fis:
-            if (L, fi) not in sample:
-                sample[(L, fi)] = timed_batch(_batch(train, L, fi), settings)[0]
+    measure_sample(settings, train, pair, fis, sample)  # per-batch costs of (b)'s own batches, in this process
     walls, starts = part_b(settings, cases_b)
     alone, both = machine_ceiling(settings, _batch(train, span, fi_ref))
     costs_b = [sample[(b[0].span_m, b[0].freq_index)] * len(b) / 6.0 for b in study_order(st.make_batches(cases_b))]

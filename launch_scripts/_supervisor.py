@@ -29,7 +29,8 @@ def launch_param_specs():
     from adm_sim.nodes.common import ParamSpec
     from adm_sim.nodes.driver import DRIVER_SPECS
     from adm_sim.nodes.train_node import TRAIN_SPECS
-    from adm_sim.sweep import MODELS, parse_speeds
+    from adm_sim.stepping import MODELS
+    from adm_sim.sweep import parse_speeds
     from adm_sim.trains import load_train
 
     def one_of(name, allowed):

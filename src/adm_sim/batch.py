@@ -24,7 +24,7 @@ import numpy as np
 
 from adm_sim import kernels
 from adm_sim.errors import InputError, RunError, check_range
-from adm_sim.stepping import (FAILED, MODELS, RUNNING, StepOptions, SteppedRun, _all_finite, half_step_positions,
+from adm_sim.stepping import (FAILED, RUNNING, StepOptions, SteppedRun, _all_finite, check_model, half_step_positions,
                               make_grid, mlm_rk4_coefficients, modal_loads_at, speeds_to_m_s)
 
 
@@ -233,10 +233,7 @@ class BatchRun(SteppedRun):
     BLOCK_STEPS = 4096
 
     def __init__(self, runner, model, case, speeds_kmh, delta_zeta=0.0, sweep=None):
-        if model not in MODELS:
-            raise InputError(f"model: {model!r} is not allowed; allowed 'mlm' or 'dim'")
-        if model == "dim" and not runner.train.units:
-            raise InputError(f"model: 'dim' needs a train with vehicles; {runner.train.name!r} is a load train")
+        check_model(model, runner.train)
         self.runner = runner
         self.model = model
         case = np.asarray(case, dtype=np.int64)

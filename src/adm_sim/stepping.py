@@ -445,6 +445,14 @@ RUNNING, FINISHED, FAILED = "running", "finished", "failed"  # LockstepRun.statu
 MODELS = ("mlm", "dim")
 
 
+def check_model(model, train=None):
+    """Refuse a model other than ``"mlm"``/``"dim"``, and the DIM for a load train (no vehicles)."""
+    if model not in MODELS:
+        raise InputError(f"model: {model!r} is not allowed; allowed 'mlm' or 'dim'")
+    if model == "dim" and train is not None and not train.units:
+        raise InputError(f"model: 'dim' needs a train with vehicles; {train.name!r} is a load train (MLM only)")
+
+
 def _all_finite(a):
     """True when every value of ``a`` is finite.
 
@@ -567,8 +575,7 @@ class LockstepRun(SteppedRun):
     """
 
     def __init__(self, model, grid, bridge_side=None, train_side=None, modal_loads=None):
-        if model not in MODELS:
-            raise InputError(f"model: {model!r} is not allowed; allowed 'mlm' or 'dim'")
+        check_model(model)
         if model == "mlm" and train_side is not None:
             raise ValueError("LockstepRun: the MLM has no train side (its loads need no state)")
         for side in (bridge_side, train_side):

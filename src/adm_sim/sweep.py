@@ -13,8 +13,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from adm_sim.errors import InputError, RunError, check_range
-from adm_sim.stepping import (MODELS, SPEED_RANGE_KMH, BridgeSide, LockstepRun, StepOptions, TrainSide, make_grid,
-                              mlm_modal_load_table, speeds_to_m_s)
+from adm_sim.stepping import (SPEED_RANGE_KMH, BridgeSide, LockstepRun, StepOptions, TrainSide,
+                              check_model, make_grid, mlm_modal_load_table, speeds_to_m_s)
 
 DEFAULT_SPEEDS = "160:350:1"
 MAX_HISTORY_VALUES = 300_000_000
@@ -158,10 +158,7 @@ def run_sweep(bridge, train, model, speeds_kmh, delta_zeta=0.0, options=None, hi
     -------
     SweepResult
     """
-    if model not in MODELS:
-        raise InputError(f"model: {model!r} is not allowed; allowed 'mlm' or 'dim'")
-    if model == "dim" and not train.units:
-        raise InputError(f"model: 'dim' needs a train with vehicles; {train.name!r} is a load train (MLM only)")
+    check_model(model, train)
     v = speeds_to_m_s(speeds_kmh)
     dz = np.broadcast_to(np.asarray(delta_zeta, dtype=float), v.shape)
     for x in np.unique(dz):

@@ -27,8 +27,8 @@ from std_srvs.srv import Trigger
 
 from adm_sim.errors import InputError
 from adm_sim.nodes import common as c
-from adm_sim.stepping import Grid, LockstepRun, TrainSide, half_step_positions, speeds_to_m_s
-from adm_sim.sweep import MODELS, parse_speeds
+from adm_sim.stepping import Grid, LockstepRun, TrainSide, check_model, half_step_positions, speeds_to_m_s
+from adm_sim.sweep import parse_speeds
 from adm_sim.trains import load_train
 
 TRAIN_SPECS = [
@@ -70,10 +70,7 @@ class TrainNode(c.NodeBase):
     @staticmethod
     def _validate(p):
         train = load_train(p["train"])
-        if p["model"] not in MODELS:
-            raise InputError(f"model: {p['model']!r} is not allowed; allowed 'mlm' or 'dim'")
-        if p["model"] == "dim" and not train.units:
-            raise InputError(f"model: 'dim' needs vehicles; train {train.name!r} is a load train (use 'mlm')")
+        check_model(p["model"], train)
         speeds = parse_speeds(p["speeds_kmh"], ordered=False, field="speeds_kmh")  # lanes, not a user's grid
         return train, speeds
 
