@@ -9,16 +9,20 @@ forces P), not vehicles: the Detailed Interaction Model cannot run them.
 Layout (Fig. 6.12), front to rear, every axle carrying P:
 
 * leading power car: 4 axles, spacings 3 m, 11 m, 3 m;
-* leading end coach: a conventional bogie of wheelbase 3 m whose first axle lies
-  :data:`POWER_TO_END_COACH_M` (3.525 m) behind the last power-car axle; its rear end rests on the
-  first Jacobs bogie, whose centre lies D behind the centre of that conventional bogie;
+* leading end coach: a conventional bogie of wheelbase **d** whose first axle lies
+  :data:`POWER_TO_END_COACH_M` (3.525 m) behind the last power-car axle; the coupling point
+  between power car and end coach lies halfway across that gap (17 + 3.525 / 2 = 18.7625 m behind
+  the first axle), and the centre of the first Jacobs bogie lies D behind the coupling point;
 * N intermediate coaches of length D between Jacobs bogies (wheelbase d), i.e. N + 1 Jacobs
   bogies at spacing D;
 * trailing end coach and power car mirroring the leading ones.
 
-That is 4 + 2 + 2 (N + 1) + 2 + 4 = 2N + 14 axles, and the regular spacing D that drives the
-resonances ``v = n0 D / i``. The figure's dimensions other than (N, D, d, P) are as we read Fig.
-6.12; they could not be cross-checked against a second public source (see the README).
+That is 4 + 2 + 2 (N + 1) + 2 + 4 = 2N + 14 axles, the regular spacing D that drives the
+resonances ``v = n0 D / i``, and a first-to-last axle distance of 2 x 18.7625 + (N + 2) D =
+375.5 .. 398.5 m, inside the 400 m of EN 1991-2 Annex E. The layout agrees to 1e-12 m on every
+axle of A1 .. A10 with independent public implementations (Karoumi's ``HSLMA.m``, KTH; caldintav's
+``a01 .. a10.def``, UPM; SincBridgeDynamics.jl ``A_1 .. A_10``); ``tests/test_hslm.py`` holds
+that table as literals.
 """
 
 from __future__ import annotations
@@ -48,8 +52,9 @@ HSLM_A_NAMES = tuple(HSLM_A_TABLE)
 POWER_CAR_SPACINGS_M = (3.0, 11.0, 3.0)
 #: Last power-car axle to first end-coach axle (m), Fig. 6.12.
 POWER_TO_END_COACH_M = 3.525
-#: Wheelbase of the end coach's conventional bogie (m), Fig. 6.12.
-END_COACH_WHEELBASE_M = 3.0
+#: Coupling point between power car and end coach, behind the first axle (m): halfway across the
+#: power-car-to-end-coach gap, Fig. 6.12.
+COUPLING_POINT_M = 17.0 + 0.5 * POWER_TO_END_COACH_M
 
 _NAME_RE = re.compile(r"^hslm-?a(\d+)$")
 
@@ -78,8 +83,8 @@ def hslm_axles(name):
     N, D, d, P_kN = HSLM_A_TABLE[name]
     power = np.concatenate([[0.0], np.cumsum(POWER_CAR_SPACINGS_M)])  # 0, 3, 14, 17
     first_end = power[-1] + POWER_TO_END_COACH_M
-    end_bogie = np.array([first_end, first_end + END_COACH_WHEELBASE_M])
-    jacobs_centres = end_bogie.mean() + D * np.arange(1, N + 2)  # N + 1 Jacobs bogies
+    end_bogie = np.array([first_end, first_end + d])  # the end coach's bogie has wheelbase d
+    jacobs_centres = COUPLING_POINT_M + D * np.arange(1, N + 2)  # N + 1 Jacobs bogies
     jacobs = (jacobs_centres[:, None] + np.array([-0.5 * d, 0.5 * d])).ravel()
     front = np.concatenate([power, end_bogie])
     # the rear half mirrors the front half about the middle of the Jacobs bogies
