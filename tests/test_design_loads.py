@@ -3,8 +3,9 @@
 References, none of them the code under test:
 * hand calculations written out below (Φ2/Φ3 of 6.4.5.2, φ'' and φ' of Annex C, LM71 on 20 m);
 * Φ3(35 m) = 1.1079, a value quoted from a design report ("BG40") in a public repository that
-  implements Φ3 on its own; the Annex C formulas as coded in bacadra's public EN 15528 module
-  (K, φ', α, φ'' identical to ours) were read, not imported;
+  implements Φ3 on its own; the Annex C formulas as coded in bacadra/bacadra's EN 15528 module
+  (K, φ', α, φ'' identical to ours) and φ'_dyn = y_dyn/y_stat - 1 in addeKTH/BeamDyn
+  dynamicfactor.js were read, not imported;
 * statics: reactions and moments summed from the loads (moment), and the modal (Fourier sine)
   series of the static deflection (deflection), both written here from first principles, with a
   dense scan over positions refined by scipy's bounded scalar minimiser.

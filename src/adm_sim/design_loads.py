@@ -43,6 +43,14 @@ midspan kink of the influence line is concave). For LM71 the largest midspan mom
 at midspan, not the four axles symmetric about it: shifting the group by 0.8 m keeps the
 point-force part and adds ``q 0.8^2 / 2 = 25.6 kNm`` of distributed load (x α).
 
+Independent public sources read for the formulas (their code is not used here): Annex C K, φ', α_v
+and φ'' as coded in bacadra/bacadra's EN 15528 dynamic-factor class (identical to ours); Φ2, Φ3
+in an Italian NTC18 implementation (same formulas; it caps Φ2 at 2.0 where EN caps it at 1.67) and
+Φ3(35 m) = 1.1079 quoted from a design report; φ'_dyn = y_dyn / y_stat - 1 per response quantity
+(moment and deflection each their own) in addeKTH/BeamDyn ``dynamicfactor.js``. The equation
+numbers (6.4), (6.5), (6.14), (C.3)-(C.8) are as we read EN 1991-2:2003; no stored copy of the
+printed text was found to confirm them.
+
 numpy only; no ROS.
 """
 
