@@ -283,18 +283,39 @@ def _piecewise_polynomial_max(f, breakpoints, degree):
     b = np.unique(np.asarray(breakpoints, dtype=float))
     cand = [b]
     scale = max(1.0, float(np.abs(b).max()))
-    t = np.linspace(0.0, 1.0, degree + 1)
-    for s0, s1 in zip(b[:-1], b[1:]):
-        h = s1 - s0
-        if h <= 1e-12 * scale or degree < 2:
-            continue
-        coef = np.polyfit(t, f(s0 + h * t), degree)
-        roots = np.roots(np.polyder(coef)) if np.any(coef[:-1] != 0.0) else np.empty(0)
-        r = roots[(np.abs(roots.imag) < 1e-9)].real
-        r = r[(r > 0.0) & (r < 1.0)]
-        if r.size:
-            cand.append(s0 + h * r)
-    s = np.concatenate(cand)
+    s0, h = b[:-1], np.diff(b)
+    keep = h > 1e-12 * scale
+    s0, h = s0[keep], h[keep]
+    if degree >= 2 and s0.size:
+        t = np.linspace(0.0, 1.0, degree + 1)
+        vals = f((s0[:, None] + h[:, None] * t[None, :]).ravel()).reshape(s0.size, degree + 1)
+        # coefficients in t, highest power first, of every piece at once (exact interpolation)
+        coef = np.linalg.solve(np.vander(t, degree + 1), vals.T).T
+        deriv = coef[:, :-1] * np.arange(degree, 0, -1)[None, :]
+        peak = np.abs(deriv).max(axis=1)
+        if degree == 3:  # the derivative is a quadratic: roots of all pieces at once
+            A, B, C = (np.where(np.abs(deriv[:, i]) > 1e-13 * peak, deriv[:, i], 0.0) for i in range(3))
+            disc = B * B - 4.0 * A * C
+            sq = np.sqrt(np.where(disc >= 0.0, disc, np.nan))
+            with np.errstate(divide="ignore", invalid="ignore"):
+                # stable quadratic roots; a linear derivative (A = 0) has its one root -C / B
+                qq = -0.5 * (B + np.copysign(sq, B))
+                r = np.stack([np.where(A != 0.0, qq / A, -C / B), np.where(A != 0.0, C / qq, np.nan)], axis=1)
+            r = np.where((r > 0.0) & (r < 1.0), r, np.nan)
+            ok = np.isfinite(r)
+            cand.append((s0[:, None] + h[:, None] * r)[ok])
+            return _best(f, cand)
+        for k in np.flatnonzero(peak > 0.0):
+            roots = np.roots(np.trim_zeros(np.where(np.abs(deriv[k]) > 1e-13 * peak[k], deriv[k], 0.0), "f"))
+            r = roots[np.abs(roots.imag) < 1e-9].real
+            r = r[(r > 0.0) & (r < 1.0)]
+            if r.size:
+                cand.append(s0[k] + h[k] * r)
+    return _best(f, cand)
+
+
+def _best(f, candidates):
+    s = np.concatenate(candidates)
     v = f(s)
     i = int(np.argmax(v))
     return float(v[i]), float(s[i])
