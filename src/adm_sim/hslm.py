@@ -94,17 +94,6 @@ def hslm_axles(name):
     return offsets, np.full(offsets.shape, 1000.0 * P_kN)
 
 
-def hslm_train(name):
-    """The load train (MLM only) of universal train ``name`` (``"HSLM-A1"`` ... ``"HSLM-A10"``)."""
-    from adm_sim.trains import moving_loads
-
-    canonical = hslm_name(name)
-    if canonical is None:
-        raise InputError(f"train: {name!r} is not an HSLM-A universal train; allowed {', '.join(HSLM_A_NAMES)}")
-    offsets, loads = hslm_axles(canonical)
-    return moving_loads(offsets, loads, name=canonical)
-
-
 def regular_coach_length_m(name):
     """Coach length D (m) of universal train ``name``: the regular spacing of its Jacobs bogies."""
     return HSLM_A_TABLE[hslm_name(name)][1]

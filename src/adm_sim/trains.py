@@ -46,6 +46,7 @@ from pathlib import Path
 import numpy as np
 
 from adm_sim.errors import InputError, check_int, check_number, read_toml
+from adm_sim.hslm import hslm_axles, hslm_name
 
 G_M_S2 = 9.81  # gravitational acceleration used by the paper (Section 3.2.2)
 
@@ -231,10 +232,9 @@ def load_train(name_or_path):
     """Load a train by name (ICE-2, Eurostar, Railjet, ICE-4, Eurostar-table, HSLM-A1 .. HSLM-A10) or TOML path."""
     text = str(name_or_path)
     key = _normalise(text)
-    from adm_sim.hslm import hslm_name, hslm_train
-
-    if hslm_name(text) is not None:  # EN 1991-2 universal trains HSLM-A1 .. A10 (load trains)
-        return hslm_train(text)
+    canonical = hslm_name(text)
+    if canonical is not None:  # EN 1991-2 universal trains HSLM-A1 .. A10 (load trains)
+        return moving_loads(*hslm_axles(canonical), name=canonical)
     if key in _FILES:
         data = tomllib.loads(resources.files("adm_sim").joinpath("data/trains", _FILES[key]).read_text())
         return train_from_mapping(data, source=_FILES[key])
