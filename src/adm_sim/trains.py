@@ -175,10 +175,10 @@ class Train:
     source: str = ""
     jacobs: bool = False
     paper_train: str = ""
-    axle_offsets_m: np.ndarray = field(default=None, repr=False)
-    axle_loads_n: np.ndarray = field(default=None, repr=False)
-    wheel_mass_kg: np.ndarray = field(default=None, repr=False)
-    unit_of_axle: np.ndarray = field(default=None, repr=False)
+    axle_offsets_m: np.ndarray = field(default=None, repr=False)  # type: ignore[arg-type]  # always given
+    axle_loads_n: np.ndarray = field(default=None, repr=False)  # type: ignore[arg-type]  # always given
+    wheel_mass_kg: np.ndarray = field(default=None, repr=False)  # type: ignore[arg-type]  # always given
+    unit_of_axle: np.ndarray = field(default=None, repr=False)  # type: ignore[arg-type]  # always given
 
     @property
     def n_axles(self):
