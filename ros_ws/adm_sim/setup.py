@@ -1,6 +1,6 @@
 """ament_python package of the adm_sim sources (``src/adm_sim``, linked here as ``adm_sim/``).
 
-Built with ``colcon build`` (see the README, "Building the ROS 2 packages with colcon"): installs
+Built with ``colcon build`` (see docs/ros.md, "Building the ROS 2 packages with colcon"): installs
 the Python package, the nodes as executables in ``lib/adm_sim`` (``ros2 run adm_sim bridge_node``),
 and the params files and the DDS profile in ``share/adm_sim/{params,dds}``.
 """

@@ -1,7 +1,7 @@
 """Trains as data: vehicle types (paper Table A1), compositions (Section 3.2) and the
 multi-body vehicle model of the Detailed Interaction Model (Figs. 2, 3, 7; Eq. 11).
 
-File schema (TOML, SI units; see ``data/trains/*.toml`` and the README):
+File schema (TOML, SI units; see ``data/trains/*.toml`` and docs/model.md, "Trains"):
 
 ``name``, ``description``, ``source``
     Labels.
