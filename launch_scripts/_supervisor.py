@@ -7,7 +7,6 @@ The processes are started, watched and stopped by :class:`adm_sim.ros.supervisor
 from __future__ import annotations
 
 import queue
-import time
 from pathlib import Path
 
 from adm_sim.ros.supervisor import NodeDied, Supervisor, ros_args  # noqa: F401  (used by the scripts)

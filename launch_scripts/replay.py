@@ -185,7 +185,7 @@ def show_in_rerun(args, save_path=None) -> dict[str, int]:
                 s = series[topic][str(i)]
                 s[0].append(t_s)
                 s[1].append(v)
-        elif hasattr(msg, "data") and isinstance(getattr(msg, "data"), float):  # Float64
+        elif hasattr(msg, "data") and isinstance(msg.data, float):  # Float64
             s = series[topic]["value"]
             s[0].append(t_s)
             s[1].append(msg.data)

@@ -1,15 +1,14 @@
 """MLM solver against closed-form solutions, limiting cases and step convergence."""
 
-import math
 
 import numpy as np
 import pytest
 
 from analytic import (moving_force_midspan_deflection, static_midspan_deflection,
                       static_midspan_deflection_modal)
-from adm_sim.bridge import Bridge, named_bridge
+from adm_sim.bridge import named_bridge
 from adm_sim.stepping import StepOptions
-from adm_sim.sweep import largest_interior_peak, run_sweep
+from adm_sim.sweep import run_sweep
 from adm_sim.trains import load_train, moving_loads
 
 ONE_FORCE = moving_loads([0.0], [100e3], "one force")

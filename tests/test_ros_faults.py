@@ -175,7 +175,7 @@ def test_two_launches_do_not_cross_talk(tmp_path):
         for th in threads:
             th.join(60)
     finally:
-        for _, env, procs in launches:
+        for _, _env, procs in launches:
             procs.stop_all()
     assert not errors, errors
     train = load_train("ICE-2")

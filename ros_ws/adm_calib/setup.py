@@ -4,13 +4,19 @@ Built with ``colcon build`` together with ``adm_sim``: installs the Python packa
 calibration node as ``lib/adm_calib/calibration_node`` (``ros2 run adm_calib calibration_node``).
 """
 
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
 from setuptools import find_packages, setup
 
 PACKAGE = "adm_calib"
 
+#: the version stated once in package.xml (the release part of ``adm_sim.__version__``; tested)
+VERSION = ET.parse(Path(__file__).resolve().parent / "package.xml").findtext("version")
+
 setup(
     name=PACKAGE,
-    version="0.1.0",
+    version=VERSION,
     packages=find_packages(include=[PACKAGE, f"{PACKAGE}.*"]),
     package_data={PACKAGE: ["data/*.toml", "data/*.csv"]},
     data_files=[

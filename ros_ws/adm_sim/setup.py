@@ -1,19 +1,25 @@
 """ament_python package of the adm_sim sources (``src/adm_sim``, linked here as ``adm_sim/``).
 
-Built with ``colcon build`` (see the README, "Building the ROS 2 packages with colcon"): installs
+Built with ``colcon build`` (see docs/ros.md, "Building the ROS 2 packages with colcon"): installs
 the Python package, the nodes as executables in ``lib/adm_sim`` (``ros2 run adm_sim bridge_node``),
 and the params files and the DDS profile in ``share/adm_sim/{params,dds}``.
 """
 
 from glob import glob
 
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
 from setuptools import find_packages, setup
 
 PACKAGE = "adm_sim"
 
+#: the version stated once in package.xml (the release part of ``adm_sim.__version__``; tested)
+VERSION = ET.parse(Path(__file__).resolve().parent / "package.xml").findtext("version")
+
 setup(
     name=PACKAGE,
-    version="0.1.0",
+    version=VERSION,
     packages=find_packages(include=[PACKAGE, f"{PACKAGE}.*"]),
     package_data={PACKAGE: ["data/trains/*.toml", "data/examples/*.toml"]},
     data_files=[

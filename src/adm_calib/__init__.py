@@ -10,4 +10,4 @@ Analysis only (numpy/scipy on top of :mod:`adm_sim`); no ROS import here.
 * :mod:`adm_calib.cli`        the ``adm-calib`` command
 """
 
-__version__ = "0.1.0"
+from adm_sim import __version__ as __version__  # one version number for both packages

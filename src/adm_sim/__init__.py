@@ -8,4 +8,7 @@ scipy only; the ROS 2 nodes live in :mod:`adm_sim.nodes` and are a thin layer on
 from adm_sim.errors import AdmSimError, InputError, RunError
 
 __all__ = ["AdmSimError", "InputError", "RunError"]
-__version__ = "0.1.0"
+#: The one version number of adm-sim: ``pyproject.toml`` reads it (``dynamic``), :mod:`adm_calib`
+#: re-exports it, and ``ros_ws/*/package.xml`` carry its release part (ROS admits only X.Y.Z);
+#: ``tests/test_packaging.py`` checks that they agree.
+__version__ = "0.2.0.dev0"

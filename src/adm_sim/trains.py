@@ -1,7 +1,7 @@
 """Trains as data: vehicle types (paper Table A1), compositions (Section 3.2) and the
 multi-body vehicle model of the Detailed Interaction Model (Figs. 2, 3, 7; Eq. 11).
 
-File schema (TOML, SI units; see ``data/trains/*.toml`` and the README):
+File schema (TOML, SI units; see ``data/trains/*.toml`` and docs/model.md, "Trains"):
 
 ``name``, ``description``, ``source``
     Labels.
@@ -176,10 +176,10 @@ class Train:
     source: str = ""
     jacobs: bool = False
     paper_train: str = ""
-    axle_offsets_m: np.ndarray = field(default=None, repr=False)
-    axle_loads_n: np.ndarray = field(default=None, repr=False)
-    wheel_mass_kg: np.ndarray = field(default=None, repr=False)
-    unit_of_axle: np.ndarray = field(default=None, repr=False)
+    axle_offsets_m: np.ndarray = field(default=None, repr=False)  # type: ignore[arg-type]  # always given
+    axle_loads_n: np.ndarray = field(default=None, repr=False)  # type: ignore[arg-type]  # always given
+    wheel_mass_kg: np.ndarray = field(default=None, repr=False)  # type: ignore[arg-type]  # always given
+    unit_of_axle: np.ndarray = field(default=None, repr=False)  # type: ignore[arg-type]  # always given
 
     @property
     def n_axles(self):

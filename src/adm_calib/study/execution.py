@@ -7,6 +7,7 @@ A loopback-only :class:`~distributed.LocalCluster` by default, or an existing sc
 from __future__ import annotations
 
 import contextlib
+import importlib.util
 import os
 import platform
 import sys
@@ -15,7 +16,7 @@ from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from adm_sim.errors import InputError
+from adm_sim.errors import InputError, RunError
 
 from adm_calib.study.cases import WORKER_ENV, StudySettings, _train
 from adm_calib.study.store import (META_FORMAT, RESULTS_NAME, ResultsWriter, _exclusive, _now, _write_meta,
@@ -179,6 +180,8 @@ def run_study(out_dir, cases, settings=StudySettings(), workers=2, scheduler=Non
     StudyRun
         ``interrupted`` is True after Ctrl-C or SIGTERM (everything finished is kept).
     """
+    if importlib.util.find_spec("distributed") is None:  # an optional dependency: the [study] extra
+        raise RunError("study: dask.distributed is not installed; install it with pip install 'adm-sim[study]'")
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise InputError(f"out: {str(out)!r} is not a directory")

@@ -379,7 +379,7 @@ def comparison_markdown(records, rule=DEFAULT_RULE):
                            f"{p.r2:.3f} | {p.max_res_pct:.4f} | {p.min_res_pct:.4f} | |")
         out += ["", "| set | " + " | ".join(f"{x:g} Hz" for x in COMPARE_N0_HZ) + " | max abs |",
                 "|---|" + "---|" * (len(COMPARE_N0_HZ) + 1)]
-        for m, f in rows:
+        for m, _f in rows:
             d = main.difference_pct((t, m))
             if d is None:
                 continue

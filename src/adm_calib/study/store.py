@@ -238,7 +238,7 @@ def _exclusive(out_dir):
 
 
 def _now():
-    return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+    return _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
 
 
 def versions():

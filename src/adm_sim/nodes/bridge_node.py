@@ -16,7 +16,7 @@ the run's one-line message and no result (the train node ends its run on that st
 
 It publishes sim time on ``/clock``, the midspan acceleration/state, the deflected beam, progress,
 ``/diagnostics`` against the EN 1990 A2.4.4.2.1 deck acceleration limit and, at the end, the
-per-lane maxima on ``/adm/run/result``. Topics, layouts and QoS: README, section "Topics".
+per-lane maxima on ``/adm/run/result``. Topics, layouts and QoS: docs/ros.md, section "Topics".
 """
 
 from __future__ import annotations

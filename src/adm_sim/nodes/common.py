@@ -11,7 +11,7 @@ desynchronising::
     data[4:4+n]      axle indices (int) ; layout.data_offset = 4 + n
     data[data_offset:]  the array described by layout.dim (row-major)
 
-Every topic, its layout and its QoS: README, section "Topics".
+Every topic, its layout and its QoS: docs/ros.md, section "Topics".
 """
 
 from __future__ import annotations

@@ -203,7 +203,7 @@ class RunDriver(c.NodeBase):
             raise RunError(f"parameter services of node '{node_name}' not available")
         plist = [Parameter(k, value=v) for k, v in values.items()]
         res = self._wait_future(cli.set_parameters(plist), f"set parameters on '{node_name}'")
-        for p, r in zip(plist, res.results):
+        for _p, r in zip(plist, res.results):
             if not r.successful:
                 raise InputError(f"{node_name}: {r.reason}")
 
