@@ -1,6 +1,5 @@
 """Reference methods: Eurocode ADM, EADA (Eq. 3) and the lower-bound functions (Eq. 20, Tables B1-B4)."""
 
-import math
 import types
 
 import pytest
