@@ -55,7 +55,11 @@ def test_wrong_lane_count_is_reported(node_procs, ros_domain):
         with pytest.raises(RunError, match="delta_zeta_lanes: 3 values for 2 speed lanes"):
             d.request_run(delta_zeta_lanes=[0.0, 0.01, 0.02])
         r = d.request_run(delta_zeta_lanes=[])
-        assert r["max_acc_m_s2"].shape == (2,)
+        # the run after the refused one is the core's run, bit for bit (as in test_ros_colcon.py)
+        ref = run_sweep(resolve_bridge("B3"), load_train("ICE-2"), "mlm", [250.0, 300.0], options=StepOptions(**STEP))
+        np.testing.assert_array_equal(r["speeds_kmh"], [250.0, 300.0])
+        np.testing.assert_array_equal(r["max_acc_m_s2"], ref.max_acc_m_s2)
+        np.testing.assert_array_equal(r["max_disp_m"], ref.max_disp_m)
     assert all(p.poll() is None for p in node_procs.procs.values())
 
 
@@ -85,12 +89,29 @@ def test_calibrate_launch_matches_in_process_calibration(tmp_path, ros_domain):
     for key in ("delta_zeta_vbi_pct", "delta_zeta_adm_pct", "delta_zeta_eada_pct", "delta_zeta_lb_pct"):
         assert got[key] == pytest.approx(ref[key], rel=1e-9, abs=0) if ref[key] is not None else got[key] is None
     assert got["mlm_peak"] == ref["mlm_peak"] and got["dim_peak"] == ref["dim_peak"]
-    # the recording is a complete MCAP with the midspan accelerations; the rerun file is a rerun recording
-    from rosbags.highlevel import AnyReader
+    # every co-simulated run recorded in the MCAP is the core's run_sweep with the calibration's
+    # step, bit for bit (as in test_ros_colcon.py): MLM zeta, DIM, ladder, root search, MLM zeta + dz
+    from adm_calib.calibrate import calibration_step
+    from adm_sim.ros.mcap_log import read_messages
 
-    with AnyReader([out / "run.mcap"]) as reader:
-        counts = {c.topic: c.msgcount for c in reader.connections}
-    assert counts.get("/adm/midspan/accel", 0) > 0 and counts.get("/clock", 0) > 0
+    b3, ice2 = resolve_bridge("B3"), load_train("ICE-2")
+    step = calibration_step(b3, ice2, np.arange(230.0, 291.0, 2.0), CalibrationOptions(step=StepOptions(**STEP)))
+    started, results = [], []
+    for topic, _ns, msg in read_messages(out / "run.mcap", topics=["/adm/run/status", "/adm/run/result"]):
+        if topic == "/adm/run/result":   # Float64MultiArray, rows speed_kmh, max_acc_m_s2, max_disp_m, delta_zeta
+            shape = tuple(dim.size for dim in msg.layout.dim)
+            results.append(np.asarray(msg.data, dtype=np.float64)[msg.layout.data_offset:].reshape(shape))
+        elif (s := json.loads(msg.data))["node"] == "bridge" and s["state"] == "started":
+            started.append(s)
+    assert len(results) == len(started) == got["co_simulation"]["runs"] >= 5
+    models = [s["model"] for s in started]
+    assert models[:2] == ["mlm", "dim"] and set(models[2:]) == {"mlm"}
+    for s, (v, acc, disp, dz) in zip(started, results):
+        assert s["ds_m"] == step.ds_m
+        ref_run = run_sweep(b3, ice2, s["model"], v, delta_zeta=dz, options=step)
+        np.testing.assert_array_equal(acc, ref_run.max_acc_m_s2, err_msg=f"run {s['run_id']} {s['model']}")
+        np.testing.assert_array_equal(disp, ref_run.max_disp_m, err_msg=f"run {s['run_id']} {s['model']}")
+    np.testing.assert_array_equal(results[0][0], np.arange(230.0, 291.0, 2.0))
     assert (out / "run.rrd").read_bytes()[:4] == b"RRF2"
 
 

@@ -38,6 +38,10 @@ def _status(run_id, model, n_lanes, t0, v_clock, v_mon):
             "clock_speed_kmh": v_clock, "monitor_every_steps": EVERY, "beam_every_steps": 4 * EVERY}
 
 
+#: The kind of each run of the session, by its construction (run_kind's rule, see test_run_kind_rule).
+KINDS = {1: rl.MLM_ZETA, 2: rl.DIM, 3: rl.BRACKETING, 4: rl.ROOT_SEARCH, 5: rl.MLM_ZETA_DZ}
+
+
 def _session(viz: rl.RunLogger):
     """Five runs of a calibration: MLM ζ, DIM, a 3-rung ladder, a root-search step, MLM ζ+Δζ."""
     viz.bridge_description({"bridge": {"span_m": SPAN_M, "n_modes": 3}, "n0_hz": 8.0,
@@ -64,7 +68,7 @@ def _session(viz: rl.RunLogger):
         viz.flush()
         acc = 1.0 + 0.01 * i + 0.001 * v - 10 * dz
         t1 = t0 + N_STEPS * DS_M / (v_clock / 3.6)
-        assert viz.run_done(np.vstack([v, acc, 1e-3 * np.ones_like(v), dz])) is not None
+        assert viz.run_done(np.vstack([v, acc, 1e-3 * np.ones_like(v), dz])) == KINDS[i]
         expected[i] = (v, acc, dz, t, ks * DS_M / (v_mon / 3.6))
         if i == 3:
             for j, d in enumerate(ladder, start=1):
@@ -142,6 +146,25 @@ def test_numbers_are_printed_at_sensible_precision(synthetic):
     assert "| zeta_pct | 1.8500 % |" in text and "0.5533 %" in text and "2.2465 m/s² at 205 km/h" in text
     table = ents["/runs/info"]["text"][-1]
     assert "| 5 | MLM ζ+Δζ, Δζ +0.5500 % | 11 | 200–210 | 205 | 3.51 | 4.0 |" in table
+
+
+def test_runs_table_has_every_run_with_its_kind_lanes_and_peak(synthetic):
+    """The run table read back: one row per run with the values the session put in, by hand.
+
+    acc = 1 + 0.01 i + 0.001 v - 10 dz is largest at the highest speed and the lowest dz:
+    run 1: 1.01 + 0.210 = 1.220 at 210; run 2: 1.02 + 0.210 = 1.230 at 210; run 3 (dz -0.5 %):
+    1.03 + 0.206 + 0.05 = 1.286 at 206; run 4: 1.04 + 0.206 - 0.055 = 1.191 at 206;
+    run 5: 1.05 + 0.210 - 0.055 = 1.205 at 210.
+    """
+    path, _ = synthetic
+    table = read_rrd(path)["/runs/info"]["text"][-1]
+    rows = [[c.strip() for c in line.strip().strip("|").split("|")]
+            for line in table.splitlines() if re.match(r"\|\s*\d+\s*\|", line)]
+    want = [("1", "MLM ζ", "11", "200–210", "1.220", "210"), ("2", "DIM", "11", "200–210", "1.230", "210"),
+            ("3", "bracketing, 3 Δζ", "9", "204–206", "1.286", "206"),
+            ("4", "root search, Δζ +0.5500 %", "3", "204–206", "1.191", "206"),
+            ("5", "MLM ζ+Δζ, Δζ +0.5500 %", "11", "200–210", "1.205", "210")]
+    assert [(r[0], r[1], r[2], r[3], r[-2], r[-1]) for r in rows] == want
 
 
 # ---------------------------------------------------------------- a real co-simulated sweep, replayed
