@@ -221,3 +221,11 @@ def test_delta_zeta_range_edges(zeta):
     with pytest.raises(InputError, match=r"out of range"):
         limits.check_delta_zeta_pct("delta_zeta_pct", 100 * below, zeta)
     assert limits.MAX_DELTA_ZETA == 0.2  # exactly: the ladder of the calibration ends on it
+
+
+def test_driver_lines_round_trip_and_other_lines_pass_through():
+    line = P.driver_line("run", {"run_id": 3, "state": "done", "max_acc_m_s2": 2.25, "label": "MLM zeta"})
+    assert line == '@run {"run_id": 3, "state": "done", "max_acc_m_s2": 2.25, "label": "MLM zeta"}'
+    assert P.parse_driver_line(line) == ("run", {"run_id": 3, "state": "done", "max_acc_m_s2": 2.25,
+                                                 "label": "MLM zeta"})
+    assert P.parse_driver_line("[INFO] [bridge]: run 3 done") == (None, "[INFO] [bridge]: run 3 done")

@@ -173,8 +173,46 @@ def progress_record(run_id, model, step, n_steps, sim_time_s):
     return {"run_id": run_id, "model": model, "step": step, "n_steps": n_steps, "sim_time_s": sim_time_s}
 
 
+def bridge_description_record(bridge, description, n0_hz, step, delta_zeta, delta_zeta_lanes, track_type,
+                              acc_limit_m_s2):
+    """``/adm/bridge/description`` (latched): ``bridge`` the exact fields of :class:`adm_sim.bridge.Bridge`
+    (``Bridge(**record["bridge"])`` rebuilds it), ``description`` its one-line text, ``n0_hz``, ``step``
+    the step settings (``steps_per_period, free_vibration_periods, ds_m``), the Δζ parameters
+    (fraction; ``delta_zeta_lanes`` a comma list), the track type and its limit (m/s²)."""
+    return {"bridge": bridge, "description": description, "n0_hz": n0_hz, "step": step,
+            "delta_zeta": delta_zeta, "delta_zeta_lanes": delta_zeta_lanes, "track_type": track_type,
+            "acc_limit_m_s2": acc_limit_m_s2}
+
+
+def train_description_record(train, name, description, length_m, n_axles, model, speeds_kmh):
+    """``/adm/train/description`` (latched): ``train`` as given to the node (a name or a TOML file,
+    ``load_train(record["train"])`` loads it), its ``name``, text, length (m), axles, the model and
+    the speeds parameter (text)."""
+    return {"train": train, "name": name, "description": description, "length_m": length_m, "n_axles": n_axles,
+            "model": model, "speeds_kmh": speeds_kmh}
+
+
 def _list(a):
     return np.asarray(a).tolist() if isinstance(a, np.ndarray) else list(a)
+
+
+# ---------------------------------------------------------------------- driver lines
+#: A driver's progress line on stdout: ``@<kind> <JSON>`` (kinds ``run``, ``progress``,
+#: ``iteration``, ``calibration``, ``result``), read by the launch scripts.
+LINE_MARK = "@"
+
+
+def driver_line(kind: str, payload: dict) -> str:
+    """One progress line ``@kind {json}`` (no newline)."""
+    return f"{LINE_MARK}{kind} {json.dumps(payload)}"
+
+
+def parse_driver_line(line: str):
+    """``(kind, payload)`` of a progress line, ``(None, line)`` for any other output line."""
+    if not line.startswith(LINE_MARK):
+        return None, line
+    kind, _, payload = line[len(LINE_MARK):].partition(" ")
+    return kind, json.loads(payload)
 
 
 # ---------------------------------------------------------------------- run phases
@@ -292,5 +330,6 @@ def is_entity(path: str) -> bool:
 
 __all__ = [n for n in dir() if n.isupper() or n in (
     "encode", "decode", "setup_record", "ready_record", "ready_error", "is_rejected", "status_record",
-    "is_failure", "is_bridge_start", "progress_record", "run_phase", "run_tag", "acceleration_path",
+    "is_failure", "is_bridge_start", "progress_record", "bridge_description_record", "train_description_record",
+    "driver_line", "parse_driver_line", "run_phase", "run_tag", "acceleration_path",
     "beam_path", "sweep_curve_path", "sweep_trial_path", "delta_zeta_path", "peak_path", "is_entity")]

@@ -189,15 +189,15 @@ class BridgeNode(c.NodeBase):
 
     def _publish_description(self):
         b, p = self.bridge, self.param_values()
-        self.pub_desc.publish(c.json_msg({
-            "bridge": {"span_m": b.span_m, "EJ_Nm2": b.EJ_Nm2, "mass_per_length_kg_m": b.mass_per_length_kg_m,
-                       "damping_ratio": b.damping_ratio, "n_modes": b.n_modes, "damping_model": b.damping_model,
-                       "name": b.name, "bridge_type": b.bridge_type},
-            "description": b.describe(), "n0_hz": b.n0_hz,
-            "step": {"steps_per_period": p["steps_per_period"], "free_vibration_periods": p["free_vibration_periods"],
-                     "ds_m": p["ds_m"]},
-            "delta_zeta": p["delta_zeta"], "delta_zeta_lanes": p["delta_zeta_lanes"],
-            "track_type": p["track_type"], "acc_limit_m_s2": ACC_LIMITS_M_S2[p["track_type"]]}))
+        self.pub_desc.publish(c.json_msg(P.bridge_description_record(
+            bridge={"span_m": b.span_m, "EJ_Nm2": b.EJ_Nm2, "mass_per_length_kg_m": b.mass_per_length_kg_m,
+                    "damping_ratio": b.damping_ratio, "n_modes": b.n_modes, "damping_model": b.damping_model,
+                    "name": b.name, "bridge_type": b.bridge_type},
+            description=b.describe(), n0_hz=b.n0_hz,
+            step={"steps_per_period": p["steps_per_period"], "free_vibration_periods": p["free_vibration_periods"],
+                  "ds_m": p["ds_m"]},
+            delta_zeta=p["delta_zeta"], delta_zeta_lanes=p["delta_zeta_lanes"],
+            track_type=p["track_type"], acc_limit_m_s2=ACC_LIMITS_M_S2[p["track_type"]])))
 
     # ------------------------------------------------------------------ run set-up
     def _on_setup(self, msg):

@@ -58,7 +58,7 @@ def say(kind, **payload):
     """One machine-readable progress line on stdout (``@kind {json}``) for launch scripts."""
     if QUIET:
         return
-    line = f"@{kind} {json.dumps(payload)}\n"
+    line = P.driver_line(kind, payload) + "\n"
     with _SAY_LOCK:
         sys.stdout.write(line)
         sys.stdout.flush()

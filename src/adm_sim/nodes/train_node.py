@@ -91,10 +91,9 @@ class TrainNode(c.NodeBase):
 
     def _publish_description(self):
         t = self.train
-        self.pub_desc.publish(c.json_msg({"train": self.get_parameter("train").value, "name": t.name,
-                                          "description": t.describe(), "length_m": t.length_m,
-                                          "n_axles": t.n_axles, "model": self.get_parameter("model").value,
-                                          "speeds_kmh": self.get_parameter("speeds_kmh").value}))
+        self.pub_desc.publish(c.json_msg(P.train_description_record(
+            self.get_parameter("train").value, t.name, t.describe(), t.length_m, t.n_axles,
+            self.get_parameter("model").value, self.get_parameter("speeds_kmh").value)))
 
     # ------------------------------------------------------------------ run control
     def _on_start(self, request, response):
