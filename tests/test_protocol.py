@@ -229,3 +229,32 @@ def test_driver_lines_round_trip_and_other_lines_pass_through():
     assert P.parse_driver_line(line) == ("run", {"run_id": 3, "state": "done", "max_acc_m_s2": 2.25,
                                                  "label": "MLM zeta"})
     assert P.parse_driver_line("[INFO] [bridge]: run 3 done") == (None, "[INFO] [bridge]: run 3 done")
+
+
+def test_run_phase_names_every_sweep_of_a_calibration():
+    """The guess against what the Section 4 calibration does: a calibration over closed-form curves
+    (MLM peak 3 ζ/(ζ + Δζ) m/s², DIM peak 2.4 m/s², Lorentzian in speed) calls its sweep hook for the
+    MLM ζ curve, the DIM, the bracketing ladder, the root search and the adapted curve, in that order;
+    ``run_phase`` must name each call so, and the root is Δζ = ζ (3 / 2.4 - 1)."""
+    from adm_calib.calibrate import calibrate
+    from adm_sim.bridge import resolve_bridge
+    from adm_sim.trains import load_train
+
+    bridge, train = resolve_bridge("B1"), load_train("ICE-2")
+    zeta = bridge.damping_ratio
+    v_all = np.arange(200.0, 301.0, 1.0)
+    phases = []
+
+    def hook(model, speeds, dz, step):
+        dz = np.broadcast_to(np.asarray(dz, dtype=float), np.shape(speeds))
+        phases.append(P.run_phase(model, dz, np.size(speeds), v_all.size))
+        shape = 1.0 / (1.0 + ((np.asarray(speeds) - 250.0) / 8.0) ** 2)
+        peak = 2.4 if model == "dim" else 3.0 * zeta / (zeta + dz)
+        return 0.2 + (peak - 0.2) * shape
+
+    res = calibrate(bridge, train, v_all, sweep=hook)
+    assert res.status == "ok", res.message
+    np.testing.assert_allclose(res.delta_zeta_vbi, zeta * (3.0 / 2.4 - 1.0), rtol=1e-4)
+    order = [P.PHASE_MLM_ZETA, P.PHASE_DIM, P.PHASE_BRACKETING, P.PHASE_ROOT_SEARCH, P.PHASE_MLM_ZETA_DZ]
+    runs = [p for i, p in enumerate(phases) if i == 0 or p != phases[i - 1]]  # consecutive repeats merged
+    assert runs == order, phases
