@@ -14,7 +14,8 @@ import time
 from pathlib import Path
 
 from adm_sim.errors import EXIT_INPUT, InputError, run_cli
-from adm_sim.limits import ACC_LIMITS_M_S2, DEFAULT_SPEEDS, MAX_DELTA_ZETA_PCT, TRACK_ALIASES, check_delta_zeta_pct
+from adm_sim.limits import (ACC_LIMITS_M_S2, DEFAULT_SPEEDS, MAX_DELTA_ZETA_PCT, TRACK_ALIASES, check_delta_zeta_pct,
+                            check_track_type)
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -177,10 +178,11 @@ def cmd_check(args):
         seen[p.resolve()] = opt
     bridge = resolve_bridge(args.bridge)
     trains = resolve_trains(args.trains)
+    track = check_track_type("--track", args.track, aliases=True)  # one vocabulary: direct -> direct_fastening
     cb, close = tqdm_progress("check", None if args.progress is None else args.progress)
     t0 = time.perf_counter()
     try:
-        res = run_check(bridge, args.max_line_speed, trains, track=args.track, damping=args.damping,
+        res = run_check(bridge, args.max_line_speed, trains, track=track, damping=args.damping,
                         step_kmh=args.speed_step, progress=cb, comfort=args.comfort, n_modes=args.modes)
     finally:
         close()

@@ -11,7 +11,8 @@ desynchronising::
     data[4:4+n]      axle indices (int) ; layout.data_offset = 4 + n
     data[data_offset:]  the array described by layout.dim (row-major)
 
-Every topic, its layout and its QoS: docs/ros.md, section "Topics".
+Every topic, its layout and its QoS: docs/ros.md, section "Topics"; their names and records:
+:mod:`adm_sim.protocol` (ROS-free).
 """
 
 from __future__ import annotations
@@ -26,16 +27,16 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension, String
 
 from adm_sim.errors import InputError, check_range
+from adm_sim.protocol import EXCHANGE_HEADER_LEN as HEADER_LEN
 from adm_sim.protocol import encode
 
 # ---------------------------------------------------------------------- names
 # Topic and node names, record layouts: one home, the ROS-free :mod:`adm_sim.protocol`. These
 # re-exports serve node code that still says ``c.TOPIC_*`` (the driver); new code imports the protocol.
-from adm_sim.protocol import (BRIDGE_NODE, NS, TOPIC_ACCEL, TOPIC_AXLE_BLOCK, TOPIC_AXLES,  # noqa: E402,F401
+from adm_sim.protocol import (BRIDGE_NODE, NS, TOPIC_ACCEL, TOPIC_AXLE_BLOCK, TOPIC_AXLES,  # noqa: F401
                               TOPIC_BEAM, TOPIC_BRIDGE_DESC, TOPIC_CAL_ITERATION, TOPIC_CAL_RESULT, TOPIC_CLOCK,
                               TOPIC_DIAGNOSTICS, TOPIC_FORCES, TOPIC_PROGRESS, TOPIC_RAIL, TOPIC_READY, TOPIC_RESULT,
                               TOPIC_SETUP, TOPIC_STATE, TOPIC_STATUS, TOPIC_TRAIN_DESC, TRAIN_NODE)
-from adm_sim.protocol import EXCHANGE_HEADER_LEN as HEADER_LEN  # noqa: E402
 
 # ---------------------------------------------------------------------- QoS
 #: Lockstep exchange: reliable, volatile; strict alternation keeps at most one message in flight.
