@@ -22,6 +22,8 @@ from pathlib import Path
 
 from _supervisor import PARAMS_DIR, ROOT, NodeDied, Supervisor, check_inputs, prepare_out, run_graph
 
+from adm_sim.protocol import parse_driver_line
+
 
 def parse_args(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -69,11 +71,10 @@ class Progress:
             print(text, flush=True)
 
     def handle(self, line):
-        if not line.startswith("@"):
+        kind, d = parse_driver_line(line)
+        if kind is None:
             self.write(line)
             return
-        kind, _, payload = line[1:].partition(" ")
-        d = json.loads(payload)
         if kind == "progress" and not self.quiet and d["run_id"] == getattr(self, "_run", None):
             if self.bar is None or self.bar.total != d["n_steps"]:
                 self._new_bar(d)

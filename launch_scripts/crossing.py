@@ -24,6 +24,7 @@ from pathlib import Path
 from _supervisor import PARAMS_DIR, ROOT, NodeDied, Supervisor, check_inputs, prepare_out, run_graph
 
 from adm_sim.errors import InputError
+from adm_sim.protocol import parse_driver_line
 
 
 def main(argv=None):
@@ -60,13 +61,13 @@ def main(argv=None):
 
             def on_line(line):
                 nonlocal last
-                if line.startswith("@progress"):
-                    d = json.loads(line.split(" ", 1)[1])
+                kind, d = parse_driver_line(line)
+                if kind == "progress":
                     pct = int(100 * d["step"] / d["n_steps"])
                     if pct >= last + 10:
                         print(f"  step {d['step']:>7} / {d['n_steps']}  sim time {d['sim_time_s']:.3f} s", flush=True)
                         last = pct
-                elif not line.startswith("@"):
+                elif kind is None:
                     print(line, flush=True)
 
             run_graph(sup, args.params_file, pb, pt, "driver", "adm_sim.nodes.driver", pd, on_line)

@@ -39,6 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
+from adm_sim import protocol as P
 from adm_sim.errors import EXIT_INPUT, InputError, RunError, check_int, check_range, run_cli
 
 
@@ -105,18 +106,9 @@ def _stamp_ns(msg, log_time_ns: int) -> int:
     return int(log_time_ns)
 
 
-#: Topics drawn by :class:`adm_sim.ros.rerun_log.RunLogger` (the default blueprint's views);
-#: /clock and /adm/midspan/state (every lane) are not drawn.
-_RUN_TOPICS = {"/adm/bridge/description", "/adm/train/description", "/adm/run/status", "/adm/midspan/accel",
-               "/adm/beam/deflection", "/adm/beam/axles", "/adm/run/result", "/adm/calibration/iteration",
-               "/adm/calibration/result", "/adm/progress", "/adm/midspan/state", "/clock"}
-
-
 def show_in_rerun(args, save_path=None) -> dict[str, int]:
     """Decode the MCAP and log it in the adm-sim layout (into ``save_path``, a new ``.rrd``, if
     given); returns message counts per topic."""
-    import json
-
     import rerun as rr
 
     from adm_sim.nodes.common import matrix_from_msg
@@ -134,43 +126,43 @@ def show_in_rerun(args, save_path=None) -> dict[str, int]:
     for topic, log_time_ns, msg in _status_first(_guarded(read_messages(args.mcap), args.mcap)):
         counts[topic] += 1
         t_s = _stamp_ns(msg, log_time_ns) * 1e-9
-        if topic in _RUN_TOPICS:
-            if topic == "/adm/bridge/description":
-                viz.bridge_description(json.loads(msg.data))
-            elif topic == "/adm/train/description":
-                viz.train_description(json.loads(msg.data))
-            elif topic == "/adm/run/status":
-                viz.run_started(json.loads(msg.data))
-            elif topic == "/adm/midspan/accel":
+        if topic in P.RUN_LOGGER_TOPICS:
+            if topic == P.TOPIC_BRIDGE_DESC:
+                viz.bridge_description(P.decode(msg.data))
+            elif topic == P.TOPIC_TRAIN_DESC:
+                viz.train_description(P.decode(msg.data))
+            elif topic == P.TOPIC_STATUS:
+                viz.run_started(P.decode(msg.data))
+            elif topic == P.TOPIC_ACCEL:
                 if viz.runs:
                     viz.accel(t_s, msg.accel.linear.z)
                 else:
                     accel[msg.header.frame_id or topic][0].append(t_s)
                     accel[msg.header.frame_id or topic][1].append(msg.accel.linear.z)
-            elif topic == "/adm/beam/deflection":
+            elif topic == P.TOPIC_BEAM:
                 deflection = matrix_from_msg(msg)
-            elif topic == "/adm/beam/axles" and deflection is not None:
+            elif topic == P.TOPIC_AXLES and deflection is not None:
                 ax = matrix_from_msg(msg)
                 viz.beam(t_s, deflection[0], deflection[1], ax[0], ax[1])
-            elif topic == "/adm/run/result":
+            elif topic == P.TOPIC_RESULT:
                 viz.run_done(matrix_from_msg(msg))
-            elif topic == "/adm/calibration/iteration":
+            elif topic == P.TOPIC_CAL_ITERATION:
                 i, dz_pct, mlm_peak, dim_peak = matrix_from_msg(msg).ravel()[:4]
                 viz.iteration(int(i), dz_pct, mlm_peak, dim_peak)
-            elif topic == "/adm/calibration/result":
-                viz.calibration_result(json.loads(msg.data))
-            elif topic == "/adm/progress":
+            elif topic == P.TOPIC_CAL_RESULT:
+                viz.calibration_result(P.decode(msg.data))
+            elif topic == P.TOPIC_PROGRESS:
                 viz.flush()
         elif hasattr(msg, "accel") and hasattr(msg, "header"):  # AccelStamped
             lane = msg.header.frame_id or topic
             accel[lane][0].append(t_s)
             accel[lane][1].append(msg.accel.linear.z)
         elif hasattr(msg, "status") and hasattr(msg, "header"):  # DiagnosticArray
-            rr.set_time(rl.SIM_TIME, duration=t_s)
+            rr.set_time(P.SIM_TIME, duration=t_s)
             for st in msg.status:
                 level = {0: "INFO", 1: "WARN", 2: "ERROR", 3: "WARN"}.get(_level(st.level), "INFO")
                 values = ", ".join(f"{kv.key}={kv.value}" for kv in st.values)
-                rr.log(f"diagnostics/{rl._part(st.name or 'status')}",
+                rr.log(f"{P.ENTITIES['diagnostics']}/{rl._part(st.name or 'status')}",
                        rr.TextLog(f"{st.message} {values}".strip(), level=level))
         elif hasattr(msg, "position") and hasattr(msg, "name"):  # JointState
             for i, name in enumerate(msg.name):
@@ -191,13 +183,13 @@ def show_in_rerun(args, save_path=None) -> dict[str, int]:
             s[1].append(msg.data)
     viz.flush()
     for lane, (t, a) in accel.items():
-        rr.send_columns(f"topics/midspan_acceleration_m_s2/{rl._part(lane)}",
-                        indexes=[rr.TimeColumn(rl.SIM_TIME, duration=np.asarray(t))],
+        rr.send_columns(f"{P.ENTITIES['topics']}/midspan_acceleration_m_s2/{rl._part(lane)}",
+                        indexes=[rr.TimeColumn(P.SIM_TIME, duration=np.asarray(t))],
                         columns=rr.Scalars.columns(scalars=np.asarray(a, dtype=float)))
     for topic, named in series.items():
         for name, (t, v) in named.items():
-            rr.send_columns(f"topics{topic}/{rl._part(name)}",
-                            indexes=[rr.TimeColumn(rl.SIM_TIME, duration=np.asarray(t))],
+            rr.send_columns(f"{P.ENTITIES['topics']}{topic}/{rl._part(name)}",
+                            indexes=[rr.TimeColumn(P.SIM_TIME, duration=np.asarray(t))],
                             columns=rr.Scalars.columns(scalars=np.asarray(v, dtype=float)))
     rl.close_rerun()
     return dict(counts)
@@ -222,12 +214,8 @@ def _log_metadata(path: Path) -> None:
             return
     if info:
         rows = "\n".join(f"| {k} | {v} |" for k, v in info.items())
-        rr.log("metadata", rr.TextDocument(f"| key | value |\n|---|---|\n{rows}\n",
+        rr.log(P.ENTITIES["metadata"], rr.TextDocument(f"| key | value |\n|---|---|\n{rows}\n",
                                            media_type=rr.MediaType.MARKDOWN), static=True)
-
-
-#: Topics that open a run or describe it: at one log time they go before its samples.
-_OPENING = ("/adm/bridge/description", "/adm/train/description", "/adm/run/status")
 
 
 def _status_first(messages):
@@ -237,11 +225,11 @@ def _status_first(messages):
     group, t_group = [], None
     for item in messages:
         if item[1] != t_group and group:
-            yield from sorted(group, key=lambda m: m[0] not in _OPENING)  # stable: receipt order otherwise
+            yield from sorted(group, key=lambda m: m[0] not in P.OPENING_TOPICS)  # stable: receipt order otherwise
             group = []
         group.append(item)
         t_group = item[1]
-    yield from sorted(group, key=lambda m: m[0] not in _OPENING)
+    yield from sorted(group, key=lambda m: m[0] not in P.OPENING_TOPICS)
 
 
 def _incomplete(path, exc) -> InputError:
@@ -297,7 +285,7 @@ def republish(args, env) -> int:
     rclpy.init(context=context)
     node = rclpy.create_node("adm_replay", context=context)
     qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
-    clock_pub = node.create_publisher(Clock, "/clock", 10)
+    clock_pub = node.create_publisher(Clock, P.TOPIC_CLOCK, 10)
     pubs = {}
     sent = 0
     try:
@@ -310,7 +298,7 @@ def republish(args, env) -> int:
             if summary is None:
                 raise InputError(f"{args.mcap}: no summary; salvage the file first")
             for ch in summary.channels.values():
-                if ch.topic == "/clock" or (args.topics and ch.topic not in args.topics):
+                if ch.topic == P.TOPIC_CLOCK or (args.topics and ch.topic not in args.topics):
                     continue
                 schema = summary.schemas[ch.schema_id]
                 pubs[ch.id] = node.create_publisher(msg_class(schema.name), ch.topic, qos)

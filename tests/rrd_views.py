@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pyarrow as pa
 
+from adm_sim import protocol as P
 from adm_sim.ros import rerun_blueprint as bp
 
 def read_rrd(path: Path) -> dict:
@@ -70,6 +71,10 @@ def check_recording(path: Path) -> tuple[dict, dict]:
     assert set(bp.TABS) <= set(blue["tabs"])
     assert blue["timeline"] == bp.RUN_TIME
     assert len(blue["views"]) == 9
+    for view in blue["views"]:  # views and logged entities: all in the protocol's one table
+        assert P.is_entity(view["space_origin"]), view
+    for p in ents:
+        assert p.startswith("/__") or P.is_entity(p), f"entity {p} is not below a root of adm_sim.protocol.ENTITIES"
     for view in blue["views"]:
         name = view["display_name"]
         assert re.search(r"\[(m/s²|%|m|s|km/h)\]", name) or view["class_identifier"] == "TextDocument", name

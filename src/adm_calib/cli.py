@@ -26,6 +26,7 @@ from pathlib import Path
 
 from adm_sim.cli import output_path, write_atomic
 from adm_sim.errors import InputError, RunError, check_int, check_range, run_cli
+from adm_sim.limits import DEFAULT_SPEEDS
 
 #: Range of recommend --mu (kg/m): the 0.5-100 t/m the lower-bound rules accept.
 MU_RANGE_KG_M = (500.0, 100_000.0)
@@ -391,7 +392,7 @@ def build_parser():
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     def common(sp):
-        sp.add_argument("--speeds", default="160:350:1", help="MLM speeds in km/h, start:stop:step (default 160:350:1)")
+        sp.add_argument("--speeds", default=DEFAULT_SPEEDS, help=f"MLM speeds in km/h, start:stop:step (default {DEFAULT_SPEEDS})")
         sp.add_argument("--dim-grid", choices=("paper", "full"), default="paper",
                         help="DIM speeds: paper = 5 km/h plus 1 km/h near the MLM peak (Section 3.3); full = all")
         sp.add_argument("--steps-per-period", default=None,
@@ -445,7 +446,7 @@ def build_parser():
     s.add_argument("--scheduler", default=None, help="address of a running dask scheduler, e.g. "
                                                      "tcp://127.0.0.1:8786 (instead of a local cluster)")
     s.add_argument("--retry-errors", action="store_true", help="run the cases recorded with status error again")
-    s.add_argument("--speeds", default="160:350:1", help="MLM speeds in km/h, start:stop:step (default 160:350:1)")
+    s.add_argument("--speeds", default=DEFAULT_SPEEDS, help=f"MLM speeds in km/h, start:stop:step (default {DEFAULT_SPEEDS})")
     s.add_argument("--dim-grid", choices=("paper", "full"), default="paper")
     s.add_argument("--steps-per-period", default=None,
                    help="integration steps per period of the highest mode (core default 16)")

@@ -24,6 +24,7 @@ import numpy as np
 
 from adm_sim import kernels
 from adm_sim.errors import InputError, RunError, check_range
+from adm_sim.limits import check_delta_zeta_pct
 from adm_sim.stepping import (FAILED, RUNNING, StepOptions, SteppedRun, _all_finite, check_model, half_step_positions,
                               make_grid, mlm_rk4_coefficients, modal_loads_at, speeds_to_m_s)
 
@@ -249,7 +250,7 @@ class BatchRun(SteppedRun):
             lanes = case == c
             b = runner.bridges[c]
             for x in np.unique(dz[lanes]):
-                check_range("delta_zeta_pct", 100 * x, "%", -100 * b.damping_ratio, 20.0)
+                check_delta_zeta_pct("delta_zeta_pct", 100 * x, b.damping_ratio)
             Z[lanes] = b.modal_damping_Ns_m(dz[lanes])
         self.lane_steps = runner._lane_steps(case, v_kmh, sweep)
         self._case, self._v = case, v

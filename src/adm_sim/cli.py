@@ -14,6 +14,8 @@ import time
 from pathlib import Path
 
 from adm_sim.errors import EXIT_INPUT, InputError, run_cli
+from adm_sim.limits import (ACC_LIMITS_M_S2, DEFAULT_SPEEDS, MAX_DELTA_ZETA_PCT, TRACK_ALIASES, check_delta_zeta_pct,
+                            check_track_type)
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -122,7 +124,7 @@ def cmd_sweep(args):
     bridge = resolve_bridge(args.bridge)
     train = load_train(args.train)
     speeds = parse_speeds(args.speeds)
-    dz = check_range("--delta-zeta-pct", args.delta_zeta_pct, "%", -100 * bridge.damping_ratio, 20.0) / 100
+    dz = check_delta_zeta_pct("--delta-zeta-pct", args.delta_zeta_pct, bridge.damping_ratio) / 100
     opts = StepOptions(steps_per_period=check_range("--steps-per-period", args.steps_per_period, "steps", 4, 10000))
     print(bridge.describe())
     print(train.describe())
@@ -176,10 +178,11 @@ def cmd_check(args):
         seen[p.resolve()] = opt
     bridge = resolve_bridge(args.bridge)
     trains = resolve_trains(args.trains)
+    track = check_track_type("--track", args.track, aliases=True)  # one vocabulary: direct -> direct_fastening
     cb, close = tqdm_progress("check", None if args.progress is None else args.progress)
     t0 = time.perf_counter()
     try:
-        res = run_check(bridge, args.max_line_speed, trains, track=args.track, damping=args.damping,
+        res = run_check(bridge, args.max_line_speed, trains, track=track, damping=args.damping,
                         step_kmh=args.speed_step, progress=cb, comfort=args.comfort, n_modes=args.modes)
     finally:
         close()
@@ -275,8 +278,8 @@ def build_parser():
                    "of given damping), or a TOML file with these keys")
     s.add_argument("--train", default="ICE-2", help="ICE-2, Eurostar, Railjet, ICE-4, Eurostar-table, HSLM-A1..A10 (MLM only), or a TOML file")
     s.add_argument("--model", choices=("mlm", "dim"), default="mlm")
-    s.add_argument("--speeds", default="160:350:1", help="km/h, start:stop:step or a comma list")
-    s.add_argument("--delta-zeta-pct", default="0", help="additional damping (%%, from -zeta to 20)")
+    s.add_argument("--speeds", default=DEFAULT_SPEEDS, help="km/h, start:stop:step or a comma list")
+    s.add_argument("--delta-zeta-pct", default="0", help=f"additional damping (%%, from -zeta to {MAX_DELTA_ZETA_PCT:g})")
     s.add_argument("--steps-per-period", default="16",
                    help="RK4 steps per period of the highest bridge mode (4..10000)")
     _output_options(s, {"json": "write results as JSON", "plot": "write max acceleration vs speed as PNG"},
@@ -289,8 +292,10 @@ def build_parser():
                    help="maximum line speed V (km/h, > 144); speeds 40 m/s .. 1.2 V are checked")
     c.add_argument("--trains", default="hslm",
                    help="comma list: hslm (HSLM-A1..A10), HSLM-Ak, ICE-2, Eurostar, Railjet, ICE-4, .toml files")
-    c.add_argument("--track", choices=("ballasted", "direct"), default="ballasted",
-                   help="deck acceleration limit 3.5 (ballasted) or 5 m/s2 (direct fastened), EN 1990 A2.4.4.2.1")
+    c.add_argument("--track", choices=(*ACC_LIMITS_M_S2, *TRACK_ALIASES), default="ballasted",
+                   help="deck acceleration limit, EN 1990 A2.4.4.2.1: "
+                        + ", ".join(f"{a:g} m/s2 {t}" for t, a in ACC_LIMITS_M_S2.items())
+                        + "".join(f" ({k} = {v})" for k, v in TRACK_ALIASES.items()))
     c.add_argument("--damping", choices=("none", "adm", "lb", "vbi"), default="none",
                    help="additional damping: none, Eurocode ADM, the paper's lower bounds, calibrated VBI")
     c.add_argument("--speed-step", type=float, default=1.0, help="speed step (km/h, at most 1)")

@@ -12,11 +12,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from adm_sim.errors import InputError, RunError, check_range
+from adm_sim.errors import InputError, RunError
+from adm_sim.limits import check_delta_zeta_pct
 from adm_sim.stepping import (SPEED_RANGE_KMH, BridgeSide, LockstepRun, StepOptions, TrainSide,
                               check_model, make_grid, mlm_modal_load_table, speeds_to_m_s)
 
-DEFAULT_SPEEDS = "160:350:1"
 MAX_HISTORY_VALUES = 300_000_000
 
 
@@ -162,7 +162,7 @@ def run_sweep(bridge, train, model, speeds_kmh, delta_zeta=0.0, options=None, hi
     v = speeds_to_m_s(speeds_kmh)
     dz = np.broadcast_to(np.asarray(delta_zeta, dtype=float), v.shape)
     for x in np.unique(dz):
-        check_range("delta_zeta_pct", 100 * x, "%", -100 * bridge.damping_ratio, 20.0)
+        check_delta_zeta_pct("delta_zeta_pct", 100 * x, bridge.damping_ratio)
     grid = make_grid(bridge, train.length_m, v, options or StepOptions())
     n, nl = grid.n_steps, grid.n_lanes
     dim = model == "dim"

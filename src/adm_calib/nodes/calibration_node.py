@@ -29,15 +29,21 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from std_msgs.msg import Float64MultiArray, String
 
 from adm_calib.calibrate import CalibrationOptions, calibrate, calibration_step
+from adm_sim import protocol as P
 from adm_sim.bridge import Bridge
+from adm_sim.limits import DEFAULT_SPEEDS
 from adm_sim.nodes import common as c
 from adm_sim.nodes.driver import RunDriver, say
 from adm_sim.stepping import StepOptions
 from adm_sim.sweep import parse_speeds
 from adm_sim.trains import load_train
 
+#: ``@run`` label of each calibration phase (:func:`adm_sim.protocol.run_phase`).
+PHASE_LABELS = {P.PHASE_DIM: "DIM", P.PHASE_BRACKETING: "MLM trial", P.PHASE_ROOT_SEARCH: "MLM trial",
+                P.PHASE_MLM_ZETA: "MLM zeta", P.PHASE_MLM_ZETA_DZ: "MLM zeta+dz"}
+
 CALIBRATION_SPECS = [
-    c.ParamSpec("speeds_kmh", "160:350:1", "km/h", "MLM speed range: start:stop:step or a comma list"),
+    c.ParamSpec("speeds_kmh", DEFAULT_SPEEDS, "km/h", "MLM speed range: start:stop:step or a comma list"),
     c.ParamSpec("dim_grid", "paper", "", "paper (5 km/h + fine around the MLM peak) | full (every MLM speed)"),
 ]
 
@@ -46,10 +52,10 @@ class CalibrationNode(RunDriver):
     """Drives MLM and DIM runs and adjusts ``delta_zeta`` on the bridge node."""
 
     def __init__(self, **kw):
-        super().__init__(name="calibration", extra_specs=CALIBRATION_SPECS, **kw)
-        self.pub_iter = self.create_publisher(Float64MultiArray, c.TOPIC_CAL_ITERATION, c.QOS_CONTROL)
-        self.pub_result = self.create_publisher(String, c.TOPIC_CAL_RESULT, c.QOS_CONTROL)
-        self.pub_diag = self.create_publisher(DiagnosticArray, c.TOPIC_DIAGNOSTICS, c.QOS_CONTROL)
+        super().__init__(name=P.CALIBRATION_NODE, extra_specs=CALIBRATION_SPECS, **kw)
+        self.pub_iter = self.create_publisher(Float64MultiArray, P.TOPIC_CAL_ITERATION, c.QOS_CONTROL)
+        self.pub_result = self.create_publisher(String, P.TOPIC_CAL_RESULT, c.QOS_CONTROL)
+        self.pub_diag = self.create_publisher(DiagnosticArray, P.TOPIC_DIAGNOSTICS, c.QOS_CONTROL)
         self.iteration = 0
 
     # ------------------------------------------------------------------ co-simulated sweeps
@@ -67,8 +73,8 @@ class CalibrationNode(RunDriver):
         """One trial damping: publish, print and log it (``calibrate``'s ``on_trial``)."""
         self.iteration += 1
         i = self.iteration
-        self.publish_recorded(self.pub_iter, c.TOPIC_CAL_ITERATION, c.matrix_msg(
-            ("quantity:iteration,delta_zeta_pct,mlm_peak_m_s2,dim_peak_m_s2",), [i, 100 * dz, mlm_peak, dim_peak]))
+        self.publish_recorded(self.pub_iter, P.TOPIC_CAL_ITERATION, c.matrix_msg(
+            ("quantity:" + ",".join(P.ITERATION_FIELDS),), [i, 100 * dz, mlm_peak, dim_peak]))
         say("iteration", i=i, delta_zeta_pct=100 * dz, mlm_peak_m_s2=mlm_peak, dim_peak_m_s2=dim_peak,
             ratio=mlm_peak / dim_peak)
         if self.viz is not None:
@@ -77,17 +83,11 @@ class CalibrationNode(RunDriver):
     def _hook(self, model, speeds, dz, step):
         """``calibrate``'s sweep hook: one co-simulated run on the calibration's space step."""
         if self._ds_m != step.ds_m:
-            self.set_params(c.BRIDGE_NODE, ds_m=step.ds_m, delta_zeta=0.0, delta_zeta_lanes="")
+            self.set_params(P.BRIDGE_NODE, ds_m=step.ds_m, delta_zeta=0.0, delta_zeta_lanes="")
             self._ds_m = step.ds_m
-        dzs = np.asarray(dz, dtype=float)
-        if model == "dim":
-            label = "DIM"
-        elif np.size(speeds) < self._n_speeds or dzs.size > 1:
-            label = "MLM trial"
-        else:
-            label = "MLM zeta" if np.all(dzs == 0.0) else "MLM zeta+dz"
-        acc = self.sweep(model, speeds, dz, label=label)
-        if label == "MLM zeta" and self._auto_monitor:
+        phase = P.run_phase(model, dz, np.size(speeds), self._n_speeds)
+        acc = self.sweep(model, speeds, dz, label=PHASE_LABELS[phase])
+        if phase == P.PHASE_MLM_ZETA and self._auto_monitor:
             self._monitor_peak(speeds, acc)
         return acc
 
@@ -97,14 +97,14 @@ class CalibrationNode(RunDriver):
 
         peak = pk.find_peak(np.asarray(speeds, float), acc)
         if peak.found:
-            self.set_params(c.BRIDGE_NODE, monitor_speed_kmh=float(peak.speed_kmh))
+            self.set_params(P.BRIDGE_NODE, monitor_speed_kmh=float(peak.speed_kmh))
             self._auto_monitor = False
 
     def _user_monitor_speed(self):
         """The bridge node's ``monitor_speed_kmh`` (0 = not chosen by the user)."""
         from rclpy.parameter import parameter_value_to_python
 
-        cli = self.params[c.BRIDGE_NODE]
+        cli = self.params[P.BRIDGE_NODE]
         if not cli.wait_for_services(timeout_sec=10.0):
             return 0.0
         res = self._wait_future(cli.get_parameters(["monitor_speed_kmh"]), "get monitor_speed_kmh on 'bridge'")
@@ -113,8 +113,8 @@ class CalibrationNode(RunDriver):
     # ------------------------------------------------------------------ the job
     def job(self):
         self.wait_for_graph()
-        bd = self.description("bridge")
-        td = self.description("train")
+        bd = self.description(P.BRIDGE_NODE)
+        td = self.description(P.TRAIN_NODE)
         bridge = Bridge(**bd["bridge"])
         train = load_train(td["train"])
         st = bd["step"]
@@ -134,7 +134,7 @@ class CalibrationNode(RunDriver):
 
     def _publish_result(self, res):
         d = res.to_dict(curves=False)
-        self.publish_recorded(self.pub_result, c.TOPIC_CAL_RESULT, c.json_msg(res.to_dict(curves=True)))
+        self.publish_recorded(self.pub_result, P.TOPIC_CAL_RESULT, c.json_msg(res.to_dict(curves=True)))
         ok = res.status == "ok"
         st = DiagnosticStatus(level=DiagnosticStatus.OK if ok else DiagnosticStatus.WARN,
                               name="adm_calib/calibration: delta_zeta_vbi", hardware_id=d["bridge"],
@@ -144,7 +144,7 @@ class CalibrationNode(RunDriver):
                       "delta_zeta_lb_pct")]
         arr = DiagnosticArray(status=[st])
         arr.header.stamp.sec, arr.header.stamp.nanosec = divmod(self._clock_ns, 1_000_000_000)
-        self.publish_recorded(self.pub_diag, c.TOPIC_DIAGNOSTICS, arr)
+        self.publish_recorded(self.pub_diag, P.TOPIC_DIAGNOSTICS, arr)
         if self.viz is not None:
             self.viz.calibration_result(d)
 

@@ -12,6 +12,7 @@ from functools import lru_cache
 import numpy as np
 
 from adm_sim.errors import InputError, check_range
+from adm_sim.limits import DEFAULT_SPEEDS
 
 from adm_calib.reference import STUDY_TRAINS, canonical_train_name
 
@@ -142,7 +143,7 @@ class StudySettings:
     (``None``: the core's default). The adapted MLM curve is never computed (not needed here).
     """
 
-    speeds: str = "160:350:1"
+    speeds: str = DEFAULT_SPEEDS
     dim_grid: str = "paper"
     steps_per_period: float | None = None
 

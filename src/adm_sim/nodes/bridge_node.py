@@ -22,7 +22,6 @@ per-lane maxima on ``/adm/run/result``. Topics, layouts and QoS: docs/ros.md, se
 from __future__ import annotations
 
 import dataclasses
-import json
 import sys
 import time
 
@@ -34,11 +33,13 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64MultiArray, String
 
 from adm_sim.bridge import N0_RANGE_HZ, SPAN_RANGE_M, MU_RANGE_KG_M, Bridge, resolve_bridge
+from adm_sim import protocol as P
 from adm_sim.errors import InputError, check_range
+from adm_sim.limits import ACC_LIMITS_M_S2, MAX_DELTA_ZETA, TRACK_TYPES, check_delta_zeta, check_track_type
 from adm_sim.nodes import common as c
 from adm_sim.stepping import BridgeSide, LockstepRun, StepOptions, make_grid, modal_loads_at
 
-TRACK_TYPES = tuple(c.ACC_LIMITS_M_S2)
+__all__ = ["TRACK_TYPES", "MONITOR_SAMPLES_PER_PERIOD", "monitor_steps", "bridge_specs", "BridgeNode", "main"]
 #: Automatic monitoring decimation: at least this many samples per period of the highest retained
 #: mode, in the monitored lane's time.
 MONITOR_SAMPLES_PER_PERIOD = 8
@@ -71,21 +72,23 @@ def bridge_specs(preset):
         S("n_modes", int(preset.n_modes), "-", "retained modes", 1, 20),
         S("damping_model", preset.damping_model, "", "rayleigh (modes 1 and 3) | modal"),
         S("delta_zeta", 0.0, "- (fraction)", "additional damping for every lane (fraction; zeta + delta_zeta >= 0)",
-          -0.2, 0.2),
+          -MAX_DELTA_ZETA, MAX_DELTA_ZETA),
         S("delta_zeta_lanes", "", "- (fraction)",
           "per-lane additional damping, comma list with one value per speed lane; empty = delta_zeta"),
         S("steps_per_period", 16.0, "steps", "RK4 steps per period of the highest mode at the slowest lane", 4.0, 10000.0),
         S("free_vibration_periods", 2.0, "periods", "fundamental periods simulated after the last axle left", 0.0, 100.0),
         S("ds_m", 0.0, "m", "train advance per step; 0 = from steps_per_period", 0.0, 10.0),
-        S("track_type", "ballasted", "", "ballasted (3.5 m/s^2) | direct_fastening (5 m/s^2), EN 1990 A2.4.4.2.1"),
-        S("warn_fraction", 0.8, "-", "/diagnostics WARN above this fraction of the acceleration limit", 0.0, 1.0),
-        S("monitor_speed_kmh", 0.0, "km/h", "lane shown on /adm/midspan/accel and /adm/beam/*: nearest speed; 0 = first lane",
-          0.0, 600.0),
-        S("monitor_every_steps", 0, "steps", "decimation of /adm/midspan/accel (every n-th step); 0 = auto: "
+        S("track_type", "ballasted", "", " | ".join(f"{t} ({a:g} m/s^2)" for t, a in ACC_LIMITS_M_S2.items())
+          + ", EN 1990 A2.4.4.2.1"),
+        S("warn_fraction", 0.8, "-", f"{P.TOPIC_DIAGNOSTICS} WARN above this fraction of the acceleration limit",
+          0.0, 1.0),
+        S("monitor_speed_kmh", 0.0, "km/h", f"lane shown on {P.TOPIC_ACCEL} and {P.BEAM_NS}/*: nearest speed; "
+          "0 = first lane", 0.0, 600.0),
+        S("monitor_every_steps", 0, "steps", f"decimation of {P.TOPIC_ACCEL} (every n-th step); 0 = auto: "
           f"{MONITOR_SAMPLES_PER_PERIOD} samples per period of the highest mode at the monitored speed", 0, 1_000_000),
-        S("beam_every_steps", 0, "steps", "decimation of /clock, /adm/beam/* and /adm/midspan/state (every lane); "
-          "0 = auto: 4 x the monitoring step", 0, 1_000_000),
-        S("beam_points", 21, "-", "points along the span on /adm/beam/deflection", 2, 1000),
+        S("beam_every_steps", 0, "steps", f"decimation of {P.TOPIC_CLOCK}, {P.BEAM_NS}/* and {P.TOPIC_STATE} (every "
+          "lane); 0 = auto: 4 x the monitoring step", 0, 1_000_000),
+        S("beam_points", 21, "-", f"points along the span on {P.TOPIC_BEAM}", 2, 1000),
         S("partner_timeout_s", 5.0, "s", "error when the train node sends nothing for this long during a run", 0.5, 600.0),
     ]
 
@@ -94,7 +97,7 @@ class BridgeNode(c.NodeBase):
     """Owns the modal beam; see the module docstring."""
 
     def __init__(self, **kw):
-        super().__init__(c.BRIDGE_NODE, **kw)
+        super().__init__(P.BRIDGE_NODE, **kw)
         from rcl_interfaces.msg import ParameterDescriptor
 
         self.declare_parameter("bridge", "B1", ParameterDescriptor(
@@ -107,27 +110,27 @@ class BridgeNode(c.NodeBase):
         self.bridge = self.build_bridge(self.param_values())  # validates the startup values
         self.add_post_set_parameters_callback(lambda _p: self._publish_description())
 
-        self.pub_rail = self.create_publisher(Float64MultiArray, c.TOPIC_RAIL, c.QOS_EXCHANGE)
-        self.pub_ready = self.create_publisher(String, c.TOPIC_READY, c.QOS_CONTROL)
-        self.pub_result = self.create_publisher(Float64MultiArray, c.TOPIC_RESULT, c.QOS_CONTROL)
-        self.pub_status = self.create_publisher(String, c.TOPIC_STATUS, c.QOS_CONTROL)
-        self.pub_clock = self.create_publisher(Clock, c.TOPIC_CLOCK, c.QOS_MONITOR)
-        self.pub_accel = self.create_publisher(AccelStamped, c.TOPIC_ACCEL, c.QOS_MONITOR)
-        self.pub_state = self.create_publisher(Float64MultiArray, c.TOPIC_STATE, c.QOS_MONITOR)
-        self.pub_beam = self.create_publisher(Float64MultiArray, c.TOPIC_BEAM, c.QOS_MONITOR)
-        self.pub_axles = self.create_publisher(Float64MultiArray, c.TOPIC_AXLES, c.QOS_MONITOR)
-        self.pub_progress = self.create_publisher(String, c.TOPIC_PROGRESS, c.QOS_MONITOR)
-        self.pub_diag = self.create_publisher(DiagnosticArray, c.TOPIC_DIAGNOSTICS, c.QOS_CONTROL)
-        self.pub_desc = self.create_publisher(String, c.TOPIC_BRIDGE_DESC, c.QOS_LATCHED)
-        self.create_subscription(String, c.TOPIC_SETUP, self._on_setup, c.QOS_CONTROL)
+        self.pub_rail = self.create_publisher(Float64MultiArray, P.TOPIC_RAIL, c.QOS_EXCHANGE)
+        self.pub_ready = self.create_publisher(String, P.TOPIC_READY, c.QOS_CONTROL)
+        self.pub_result = self.create_publisher(Float64MultiArray, P.TOPIC_RESULT, c.QOS_CONTROL)
+        self.pub_status = self.create_publisher(String, P.TOPIC_STATUS, c.QOS_CONTROL)
+        self.pub_clock = self.create_publisher(Clock, P.TOPIC_CLOCK, c.QOS_MONITOR)
+        self.pub_accel = self.create_publisher(AccelStamped, P.TOPIC_ACCEL, c.QOS_MONITOR)
+        self.pub_state = self.create_publisher(Float64MultiArray, P.TOPIC_STATE, c.QOS_MONITOR)
+        self.pub_beam = self.create_publisher(Float64MultiArray, P.TOPIC_BEAM, c.QOS_MONITOR)
+        self.pub_axles = self.create_publisher(Float64MultiArray, P.TOPIC_AXLES, c.QOS_MONITOR)
+        self.pub_progress = self.create_publisher(String, P.TOPIC_PROGRESS, c.QOS_MONITOR)
+        self.pub_diag = self.create_publisher(DiagnosticArray, P.TOPIC_DIAGNOSTICS, c.QOS_CONTROL)
+        self.pub_desc = self.create_publisher(String, P.TOPIC_BRIDGE_DESC, c.QOS_LATCHED)
+        self.create_subscription(String, P.TOPIC_SETUP, self._on_setup, c.QOS_CONTROL)
         self.exchange = c.ExchangeLane(self)
         self.exchange_subscriptions = [
-            self.exchange.subscribe(Float64MultiArray, c.TOPIC_FORCES, self._on_forces, c.QOS_EXCHANGE),
-            self.exchange.subscribe(Float64MultiArray, c.TOPIC_AXLE_BLOCK, self._on_axle_block, c.QOS_EXCHANGE)]
+            self.exchange.subscribe(Float64MultiArray, P.TOPIC_FORCES, self._on_forces, c.QOS_EXCHANGE),
+            self.exchange.subscribe(Float64MultiArray, P.TOPIC_AXLE_BLOCK, self._on_axle_block, c.QOS_EXCHANGE)]
 
         self.run = None  # the active run (dict) or None
         self.t_offset_s = 0.0  # sim time continues across runs
-        self.partner = c.PartnerWatch(self, c.TRAIN_NODE, c.TOPIC_FORCES,
+        self.partner = c.PartnerWatch(self, P.TRAIN_NODE, P.TOPIC_FORCES,
                                       self.get_parameter("partner_timeout_s").value)
         self._publish_description()
 
@@ -157,11 +160,10 @@ class BridgeNode(c.NodeBase):
             n0 = check_range("n0_hz", p["n0_hz"], "Hz", *N0_RANGE_HZ)
             b = Bridge.from_frequency(b.span_m, n0, b.mass_per_length_kg_m, b.damping_ratio, n_modes=b.n_modes,
                                       damping_model=b.damping_model, name=b.name, bridge_type=b.bridge_type)
-        check_range("delta_zeta", p["delta_zeta"], "- (fraction)", -b.damping_ratio, 0.2)
+        check_delta_zeta("delta_zeta", p["delta_zeta"], b.damping_ratio)
         for x in c.parse_float_list("delta_zeta_lanes", p["delta_zeta_lanes"], "- (fraction)"):
-            check_range("delta_zeta_lanes", x, "- (fraction)", -b.damping_ratio, 0.2)
-        if p["track_type"] not in TRACK_TYPES:
-            raise InputError(f"track_type: {p['track_type']!r} is not allowed; allowed {' or '.join(TRACK_TYPES)}")
+            check_delta_zeta("delta_zeta_lanes", x, b.damping_ratio)
+        check_track_type("track_type", p["track_type"])
         self.step_options(p)
         return b
 
@@ -187,19 +189,19 @@ class BridgeNode(c.NodeBase):
 
     def _publish_description(self):
         b, p = self.bridge, self.param_values()
-        self.pub_desc.publish(c.json_msg({
-            "bridge": {"span_m": b.span_m, "EJ_Nm2": b.EJ_Nm2, "mass_per_length_kg_m": b.mass_per_length_kg_m,
-                       "damping_ratio": b.damping_ratio, "n_modes": b.n_modes, "damping_model": b.damping_model,
-                       "name": b.name, "bridge_type": b.bridge_type},
-            "description": b.describe(), "n0_hz": b.n0_hz,
-            "step": {"steps_per_period": p["steps_per_period"], "free_vibration_periods": p["free_vibration_periods"],
-                     "ds_m": p["ds_m"]},
-            "delta_zeta": p["delta_zeta"], "delta_zeta_lanes": p["delta_zeta_lanes"],
-            "track_type": p["track_type"], "acc_limit_m_s2": c.ACC_LIMITS_M_S2[p["track_type"]]}))
+        self.pub_desc.publish(c.json_msg(P.bridge_description_record(
+            bridge={"span_m": b.span_m, "EJ_Nm2": b.EJ_Nm2, "mass_per_length_kg_m": b.mass_per_length_kg_m,
+                    "damping_ratio": b.damping_ratio, "n_modes": b.n_modes, "damping_model": b.damping_model,
+                    "name": b.name, "bridge_type": b.bridge_type},
+            description=b.describe(), n0_hz=b.n0_hz,
+            step={"steps_per_period": p["steps_per_period"], "free_vibration_periods": p["free_vibration_periods"],
+                  "ds_m": p["ds_m"]},
+            delta_zeta=p["delta_zeta"], delta_zeta_lanes=p["delta_zeta_lanes"],
+            track_type=p["track_type"], acc_limit_m_s2=ACC_LIMITS_M_S2[p["track_type"]])))
 
     # ------------------------------------------------------------------ run set-up
     def _on_setup(self, msg):
-        cfg = json.loads(msg.data)
+        cfg = P.decode(msg.data)
         if self.run is not None:
             raise c.ExchangeError(f"bridge: run {cfg.get('run_id')} requested while run {self.run['id']} is active")
         p = self.param_values()
@@ -217,8 +219,8 @@ class BridgeNode(c.NodeBase):
                               np.asarray(cfg["wheel_mass_kg"], dtype=float) if dim else None, dz)
             run = LockstepRun(cfg["model"], grid, bridge_side=side)
         except (InputError, KeyError, ValueError) as exc:
-            self.pub_ready.publish(c.json_msg({"run_id": cfg.get("run_id"), "error": str(exc)}))
-            self._status(cfg.get("run_id"), "failed", message=str(exc))
+            self.pub_ready.publish(c.json_msg(P.ready_error(cfg.get("run_id"), str(exc))))
+            self._status(cfg.get("run_id"), P.FAILED, message=str(exc))
             self.get_logger().error(f"run {cfg.get('run_id')} rejected: {exc}")
             return
         speeds_kmh = np.asarray(cfg["speeds_kmh"], dtype=float)
@@ -229,13 +231,13 @@ class BridgeNode(c.NodeBase):
             id=int(cfg["run_id"]), model=cfg["model"], grid=grid, run=run, bridge=bridge, speeds_kmh=speeds_kmh,
             dz=np.broadcast_to(np.asarray(dz, dtype=float), (grid.n_lanes,)).copy(), lane=mon, disp=None,
             every=every, beam_every=beam_every,
-            x_beam=xb, phi_beam=bridge.shapes(xb)[0], limit=c.ACC_LIMITS_M_S2[p["track_type"]],
+            x_beam=xb, phi_beam=bridge.shapes(xb)[0], limit=ACC_LIMITS_M_S2[p["track_type"]],
             track=p["track_type"], warn=float(p["warn_fraction"]), tick=max(1, grid.n_steps // 100),
             t0=self.t_offset_s, wall0=time.perf_counter())
-        self.pub_ready.publish(c.json_msg({
-            "run_id": self.run["id"], "ds_m": grid.ds_m, "n_steps": grid.n_steps, "span_m": bridge.span_m,
-            "n_lanes": grid.n_lanes, "t0_s": self.t_offset_s}))
-        self._status(self.run["id"], "started", model=cfg["model"], n_steps=grid.n_steps, n_lanes=grid.n_lanes,
+        self.pub_ready.publish(c.json_msg(P.ready_record(
+            self.run["id"], ds_m=grid.ds_m, n_steps=grid.n_steps, span_m=bridge.span_m, n_lanes=grid.n_lanes,
+            t0_s=self.t_offset_s)))
+        self._status(self.run["id"], P.STARTED, model=cfg["model"], n_steps=grid.n_steps, n_lanes=grid.n_lanes,
                      ds_m=grid.ds_m, bridge=bridge.describe(), train=cfg.get("train", ""), **self._monitor_info())
         self.get_logger().info(f"run {self.run['id']}: {cfg['model'].upper()} {bridge.describe()}, "
                                f"{grid.n_lanes} lanes, {grid.n_steps} steps of {grid.ds_m * 1000:.2f} mm")
@@ -251,10 +253,10 @@ class BridgeNode(c.NodeBase):
                 r["disp"] = run.disp_m
             idx, w, wd = run.rail_state()
             self.pub_rail.publish(c.pack(r["id"], k, stage, np.stack([w, wd]), ("field", "lane", "axle_on"), idx))
-            self.partner.waiting(f"at step {k} stage {stage} of run {r['id']}", c.TOPIC_FORCES)
+            self.partner.waiting(f"at step {k} stage {stage} of run {r['id']}", P.TOPIC_FORCES)
         else:
             self.pub_rail.publish(c.pack(r["id"], k, 0, np.zeros((r["grid"].n_lanes, 0)), ("lane", "axle_on")))
-            self.partner.waiting(f"at step {k} of run {r['id']}", c.TOPIC_AXLE_BLOCK)
+            self.partner.waiting(f"at step {k} of run {r['id']}", P.TOPIC_AXLE_BLOCK)
 
     def _on_forces(self, msg):
         r = self.run
@@ -339,8 +341,8 @@ class BridgeNode(c.NodeBase):
     def _progress(self, done):
         r = self.run
         n = r["grid"].n_steps
-        self.pub_progress.publish(c.json_msg({"run_id": r["id"], "model": r["model"], "step": done, "n_steps": n,
-                                              "sim_time_s": self._sim_time(min(done, n))}))
+        self.pub_progress.publish(c.json_msg(P.progress_record(r["id"], r["model"], done, n,
+                                                               self._sim_time(min(done, n)))))
         self._diagnostics(done, final=False)
 
     def _diagnostics(self, done, final):
@@ -364,7 +366,7 @@ class BridgeNode(c.NodeBase):
         self.pub_diag.publish(arr)
 
     def _status(self, run_id, state, **extra):
-        self.pub_status.publish(c.json_msg({"node": "bridge", "run_id": run_id, "state": state, **extra}))
+        self.pub_status.publish(c.json_msg(P.status_record(P.BRIDGE_NODE, run_id, state, **extra)))
 
     def _finish(self):
         """End of the run: finished (result, status ``done``) or failed (status ``failed``, no result)."""
@@ -378,9 +380,9 @@ class BridgeNode(c.NodeBase):
         self.pub_clock.publish(Clock(clock=c.to_time_msg(t1)))
         if ok:
             res = np.vstack([r["speeds_kmh"], run.max_acc_m_s2, run.max_disp_m, r["dz"]])
-            self.pub_result.publish(c.matrix_msg(("quantity:" + ",".join(c.RESULT_ROWS), "lane"), res))
+            self.pub_result.publish(c.matrix_msg(("quantity:" + ",".join(P.RESULT_ROWS), "lane"), res))
         wall = time.perf_counter() - r["wall0"]
-        self._status(r["id"], "done" if ok else "failed", model=r["model"], n_steps=n, n_lanes=r["grid"].n_lanes,
+        self._status(r["id"], P.DONE if ok else P.FAILED, model=r["model"], n_steps=n, n_lanes=r["grid"].n_lanes,
                      ds_m=r["grid"].ds_m, wall_s=wall, t0_s=r["t0"], t1_s=t1, message=run.message)
         if ok:
             self.get_logger().info(f"run {r['id']} done in {wall:.2f} s: "
@@ -397,7 +399,7 @@ class BridgeNode(c.NodeBase):
 
     def report_failure(self, message):
         rid = None if self.run is None else self.run["id"]
-        self._status(rid, "failed", message=message)
+        self._status(rid, P.FAILED, message=message)
 
 
 def main(args=None):

@@ -11,12 +11,12 @@ desynchronising::
     data[4:4+n]      axle indices (int) ; layout.data_offset = 4 + n
     data[data_offset:]  the array described by layout.dim (row-major)
 
-Every topic, its layout and its QoS: docs/ros.md, section "Topics".
+Every topic, its layout and its QoS: docs/ros.md, section "Topics"; their names and records:
+:mod:`adm_sim.protocol` (ROS-free).
 """
 
 from __future__ import annotations
 
-import json
 import math
 
 import numpy as np
@@ -27,36 +27,16 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension, String
 
 from adm_sim.errors import InputError, check_range
+from adm_sim.protocol import EXCHANGE_HEADER_LEN as HEADER_LEN
+from adm_sim.protocol import encode
 
 # ---------------------------------------------------------------------- names
-NS = "/adm"
-TOPIC_SETUP = f"{NS}/run/setup"            # train -> bridge, std_msgs/String (JSON)
-TOPIC_READY = f"{NS}/run/ready"            # bridge -> train, std_msgs/String (JSON)
-TOPIC_RAIL = f"{NS}/exchange/rail"         # bridge -> train, Float64MultiArray
-TOPIC_FORCES = f"{NS}/exchange/forces"     # train -> bridge (DIM), Float64MultiArray
-TOPIC_AXLE_BLOCK = f"{NS}/exchange/axle_block"  # train -> bridge (MLM), Float64MultiArray
-TOPIC_RESULT = f"{NS}/run/result"          # bridge, Float64MultiArray (quantity x lane)
-TOPIC_STATUS = f"{NS}/run/status"          # bridge/train, std_msgs/String (JSON)
-TOPIC_ACCEL = f"{NS}/midspan/accel"        # bridge, geometry_msgs/AccelStamped
-TOPIC_STATE = f"{NS}/midspan/state"        # bridge, Float64MultiArray (lane x [disp, acc])
-TOPIC_BEAM = f"{NS}/beam/deflection"       # bridge, Float64MultiArray (2 x points)
-TOPIC_AXLES = f"{NS}/beam/axles"           # bridge, Float64MultiArray (2 x axles on)
-TOPIC_PROGRESS = f"{NS}/progress"          # bridge, std_msgs/String (JSON)
-TOPIC_BRIDGE_DESC = f"{NS}/bridge/description"  # bridge, std_msgs/String (JSON), latched
-TOPIC_TRAIN_DESC = f"{NS}/train/description"    # train, std_msgs/String (JSON), latched
-TOPIC_DIAGNOSTICS = "/diagnostics"
-TOPIC_CLOCK = "/clock"
-TOPIC_CAL_ITERATION = f"{NS}/calibration/iteration"  # calibration, Float64MultiArray
-TOPIC_CAL_RESULT = f"{NS}/calibration/result"        # calibration, std_msgs/String (JSON)
-
-BRIDGE_NODE = "bridge"
-TRAIN_NODE = "train"
-
-#: RESULT rows (quantity x lane).
-RESULT_ROWS = ("speed_kmh", "max_acc_m_s2", "max_disp_m", "delta_zeta")
-
-#: EN 1990 A2.4.4.2.1(4)P: peak deck acceleration limits (m/s^2) by track type.
-ACC_LIMITS_M_S2 = {"ballasted": 3.5, "direct_fastening": 5.0}
+# Topic and node names, record layouts: one home, the ROS-free :mod:`adm_sim.protocol`. These
+# re-exports serve node code that still says ``c.TOPIC_*`` (the driver); new code imports the protocol.
+from adm_sim.protocol import (BRIDGE_NODE, NS, TOPIC_ACCEL, TOPIC_AXLE_BLOCK, TOPIC_AXLES,  # noqa: F401
+                              TOPIC_BEAM, TOPIC_BRIDGE_DESC, TOPIC_CAL_ITERATION, TOPIC_CAL_RESULT, TOPIC_CLOCK,
+                              TOPIC_DIAGNOSTICS, TOPIC_FORCES, TOPIC_PROGRESS, TOPIC_RAIL, TOPIC_READY, TOPIC_RESULT,
+                              TOPIC_SETUP, TOPIC_STATE, TOPIC_STATUS, TOPIC_TRAIN_DESC, TRAIN_NODE)
 
 # ---------------------------------------------------------------------- QoS
 #: Lockstep exchange: reliable, volatile; strict alternation keeps at most one message in flight.
@@ -71,8 +51,6 @@ QOS_MONITOR = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=5000,
 #: Descriptions: latched (transient local), last value only.
 QOS_LATCHED = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                          reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-
-HEADER_LEN = 4
 
 
 class ExchangeError(RuntimeError):
@@ -154,8 +132,9 @@ def matrix_from_msg(msg):
     return np.array(data[msg.layout.data_offset:], dtype=np.float64).reshape(shape)
 
 
-def json_msg(obj):
-    return String(data=json.dumps(obj))
+def json_msg(record):
+    """``std_msgs/String`` carrying a protocol record (:func:`adm_sim.protocol.encode`)."""
+    return String(data=encode(record))
 
 
 # ---------------------------------------------------------------------- parameters

@@ -27,6 +27,7 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64MultiArray, String
 from std_srvs.srv import Trigger
 
+from adm_sim import protocol as P
 from adm_sim.errors import AdmSimError, InputError, RunError  # RunError: a run failed or its partners went away
 from adm_sim.nodes import common as c
 
@@ -57,7 +58,7 @@ def say(kind, **payload):
     """One machine-readable progress line on stdout (``@kind {json}``) for launch scripts."""
     if QUIET:
         return
-    line = f"@{kind} {json.dumps(payload)}\n"
+    line = P.driver_line(kind, payload) + "\n"
     with _SAY_LOCK:
         sys.stdout.write(line)
         sys.stdout.flush()
@@ -103,7 +104,7 @@ class RunDriver(c.NodeBase):
             qos = c.QOS_LATCHED if topic.endswith("description") else (
                 c.QOS_CONTROL if topic in (c.TOPIC_RESULT, c.TOPIC_STATUS, c.TOPIC_DIAGNOSTICS) else c.QOS_MONITOR)
             self.create_subscription(typ, topic, self._make_cb(topic), qos)
-        self.cli_start = self.create_client(Trigger, f"/{c.TRAIN_NODE}/start_run")
+        self.cli_start = self.create_client(Trigger, P.SERVICE_START_RUN)
         self.params = {n: AsyncParameterClient(self, n) for n in (c.BRIDGE_NODE, c.TRAIN_NODE)}
 
     # ------------------------------------------------------------------ subscriptions
@@ -142,7 +143,7 @@ class RunDriver(c.NodeBase):
             self._status[(st.get("node"), st.get("run_id"))] = st
         if self.viz is not None:
             self.viz.run_started(st)
-        if st.get("state") == "failed":
+        if P.is_failure(st):
             self._event.set()
 
     def _on_adm_bridge_description(self, msg, t_ns):
@@ -181,7 +182,7 @@ class RunDriver(c.NodeBase):
         t_end = time.monotonic() + timeout_s
         while which not in self._desc:
             if time.monotonic() > t_end:
-                raise RunError(f"no {which} description on /adm/{which}/description after {timeout_s:g} s: "
+                raise RunError(f"no {which} description on {P.DESCRIPTION_TOPICS[which]} after {timeout_s:g} s: "
                                f"is the {which} node running?")
             self._event.wait(0.05)
         return self._desc[which]
@@ -225,7 +226,7 @@ class RunDriver(c.NodeBase):
         t_end = time.monotonic() + 1.0
         while True:
             with self._lock:
-                failed = [s for (_n, rid), s in self._status.items() if rid == run and s.get("state") == "failed"]
+                failed = [s for s in self._status.values() if P.is_failure(s, run)]
             if failed or time.monotonic() > t_end:
                 break
             self._event.wait(0.05)
@@ -255,11 +256,11 @@ class RunDriver(c.NodeBase):
         self._event.clear()
         t_end = time.monotonic() + 15.0
         while True:
-            resp = self._wait_future(self.cli_start.call_async(Trigger.Request()), "/train/start_run")
+            resp = self._wait_future(self.cli_start.call_async(Trigger.Request()), P.SERVICE_START_RUN)
             if resp.success:
                 break
             if "retry" not in resp.message or time.monotonic() > t_end:
-                raise RunError(f"/train/start_run refused: {resp.message}")
+                raise RunError(f"{P.SERVICE_START_RUN} refused: {resp.message}")
             self._event.wait(0.1)
         info = dict(kv.split("=", 1) for kv in resp.message.split())
         run_id, model = int(info["run_id"]), info["model"]
@@ -273,7 +274,7 @@ class RunDriver(c.NodeBase):
             self._event.wait(0.2)
             with self._lock:
                 res = self._result
-                failed = [s for (n, rid), s in self._status.items() if rid == run_id and s.get("state") == "failed"]
+                failed = [s for s in self._status.values() if P.is_failure(s, run_id)]
             if failed:
                 raise RunError(f"run {run_id} failed on node '{failed[0]['node']}': {failed[0].get('message', '')}")
             if res is not None:
@@ -307,8 +308,8 @@ class RunDriver(c.NodeBase):
         t_end = time.monotonic() + timeout_s
         while time.monotonic() < t_end:
             with self._lock:
-                st = self._status.get(("bridge", run_id))
-            if st is not None and st.get("state") == "done" and st.get("t1_s") is not None \
+                st = self._status.get((P.BRIDGE_NODE, run_id))
+            if st is not None and st.get("state") == P.DONE and st.get("t1_s") is not None \
                     and self._clock_ns >= int(round(float(st["t1_s"]) * 1e9)) - 1000:
                 return
             time.sleep(0.02)

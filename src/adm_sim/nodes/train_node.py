@@ -17,7 +17,6 @@ here too.
 
 from __future__ import annotations
 
-import json
 import sys
 
 import numpy as np
@@ -25,7 +24,9 @@ from rcl_interfaces.msg import SetParametersResult
 from std_msgs.msg import Float64MultiArray, String
 from std_srvs.srv import Trigger
 
+from adm_sim import protocol as P
 from adm_sim.errors import InputError
+from adm_sim.limits import DEFAULT_SPEEDS
 from adm_sim.nodes import common as c
 from adm_sim.stepping import Grid, LockstepRun, TrainSide, check_model, half_step_positions, speeds_to_m_s
 from adm_sim.sweep import parse_speeds
@@ -34,7 +35,7 @@ from adm_sim.trains import load_train
 TRAIN_SPECS = [
     c.ParamSpec("train", "ICE-2", "", "train name (ICE-2, Eurostar, Railjet, ICE-4, Eurostar-table) or TOML file"),
     c.ParamSpec("model", "dim", "", "dim (Detailed Interaction Model) | mlm (Moving Load Model)"),
-    c.ParamSpec("speeds_kmh", "160:350:1", "km/h", "speed lanes: start:stop:step (stop included) or a comma list"),
+    c.ParamSpec("speeds_kmh", DEFAULT_SPEEDS, "km/h", "speed lanes: start:stop:step (stop included) or a comma list"),
     c.ParamSpec("mlm_block_steps", 2048, "steps", "MLM: steps per axle-position block", 1, 10_000_000),
     c.ParamSpec("partner_timeout_s", 5.0, "s", "error when the bridge node sends nothing for this long during a run",
                 0.5, 600.0),
@@ -45,25 +46,25 @@ class TrainNode(c.NodeBase):
     """Owns the vehicles; see the module docstring."""
 
     def __init__(self, **kw):
-        super().__init__(c.TRAIN_NODE, **kw)
+        super().__init__(P.TRAIN_NODE, **kw)
         self.declare_specs(TRAIN_SPECS, on_set=self._on_set)
         self.train = self._validate(self.param_values())[0]
         self.add_post_set_parameters_callback(lambda _p: self._publish_description())
-        self.pub_setup = self.create_publisher(String, c.TOPIC_SETUP, c.QOS_CONTROL)
-        self.pub_forces = self.create_publisher(Float64MultiArray, c.TOPIC_FORCES, c.QOS_EXCHANGE)
-        self.pub_block = self.create_publisher(Float64MultiArray, c.TOPIC_AXLE_BLOCK, c.QOS_EXCHANGE)
-        self.pub_status = self.create_publisher(String, c.TOPIC_STATUS, c.QOS_CONTROL)
-        self.pub_desc = self.create_publisher(String, c.TOPIC_TRAIN_DESC, c.QOS_LATCHED)
-        self.create_subscription(String, c.TOPIC_READY, self._on_ready, c.QOS_CONTROL)
-        self.create_subscription(String, c.TOPIC_STATUS, self._on_status, c.QOS_CONTROL)
+        self.pub_setup = self.create_publisher(String, P.TOPIC_SETUP, c.QOS_CONTROL)
+        self.pub_forces = self.create_publisher(Float64MultiArray, P.TOPIC_FORCES, c.QOS_EXCHANGE)
+        self.pub_block = self.create_publisher(Float64MultiArray, P.TOPIC_AXLE_BLOCK, c.QOS_EXCHANGE)
+        self.pub_status = self.create_publisher(String, P.TOPIC_STATUS, c.QOS_CONTROL)
+        self.pub_desc = self.create_publisher(String, P.TOPIC_TRAIN_DESC, c.QOS_LATCHED)
+        self.create_subscription(String, P.TOPIC_READY, self._on_ready, c.QOS_CONTROL)
+        self.create_subscription(String, P.TOPIC_STATUS, self._on_status, c.QOS_CONTROL)
         self.exchange = c.ExchangeLane(self)
         self.exchange_subscriptions = [
-            self.exchange.subscribe(Float64MultiArray, c.TOPIC_RAIL, self._on_rail, c.QOS_EXCHANGE)]
+            self.exchange.subscribe(Float64MultiArray, P.TOPIC_RAIL, self._on_rail, c.QOS_EXCHANGE)]
         self.create_service(Trigger, "~/start_run", self._on_start)
         self.run = None
         self._pending = []  # rail messages that arrived before /adm/run/ready
         self.next_run_id = 1
-        self.partner = c.PartnerWatch(self, c.BRIDGE_NODE, c.TOPIC_RAIL, self.get_parameter("partner_timeout_s").value)
+        self.partner = c.PartnerWatch(self, P.BRIDGE_NODE, P.TOPIC_RAIL, self.get_parameter("partner_timeout_s").value)
         self._publish_description()
 
     # ------------------------------------------------------------------ parameters
@@ -90,18 +91,17 @@ class TrainNode(c.NodeBase):
 
     def _publish_description(self):
         t = self.train
-        self.pub_desc.publish(c.json_msg({"train": self.get_parameter("train").value, "name": t.name,
-                                          "description": t.describe(), "length_m": t.length_m,
-                                          "n_axles": t.n_axles, "model": self.get_parameter("model").value,
-                                          "speeds_kmh": self.get_parameter("speeds_kmh").value}))
+        self.pub_desc.publish(c.json_msg(P.train_description_record(
+            self.get_parameter("train").value, t.name, t.describe(), t.length_m, t.n_axles,
+            self.get_parameter("model").value, self.get_parameter("speeds_kmh").value)))
 
     # ------------------------------------------------------------------ run control
     def _on_start(self, request, response):
         if self.run is not None:
             response.success, response.message = False, f"run {self.run['id']} is in progress"
             return response
-        missing = [t for t, n in ((c.TOPIC_SETUP, self.count_subscribers(c.TOPIC_SETUP)),
-                                  (c.TOPIC_RAIL, self.count_publishers(c.TOPIC_RAIL))) if n == 0]
+        missing = [t for t, n in ((P.TOPIC_SETUP, self.count_subscribers(P.TOPIC_SETUP)),
+                                  (P.TOPIC_RAIL, self.count_publishers(P.TOPIC_RAIL))) if n == 0]
         if missing:
             response.success = False
             response.message = f"bridge node not connected yet (nothing on {', '.join(missing)}); retry"
@@ -119,32 +119,30 @@ class TrainNode(c.NodeBase):
         self.run = dict(id=run_id, model=p["model"], train=train, v=v, run=None, grid=None,
                         block=int(p["mlm_block_steps"]))
         self._pending = []
-        self.pub_setup.publish(c.json_msg({
-            "run_id": run_id, "model": p["model"], "train": train.name, "speeds_kmh": speeds.tolist(),
-            "speeds_m_s": v.tolist(), "train_length_m": train.length_m, "axle_offsets_m": train.axle_offsets_m.tolist(),
-            "axle_loads_n": train.axle_loads_n.tolist(),
-            "wheel_mass_kg": train.wheel_mass_kg.tolist() if dim else None}))
-        self.partner.waiting(f"before run {run_id} started", c.TOPIC_READY)
+        self.pub_setup.publish(c.json_msg(P.setup_record(
+            run_id, p["model"], train.name, speeds, v, train.length_m, train.axle_offsets_m, train.axle_loads_n,
+            train.wheel_mass_kg if dim else None)))
+        self.partner.waiting(f"before run {run_id} started", P.TOPIC_READY)
         response.success = True
         response.message = f"run_id={run_id} model={p['model']} lanes={v.size} train={train.name}"
         return response
 
     def _on_ready(self, msg):
-        cfg = json.loads(msg.data)
+        cfg = P.decode(msg.data)
         r = self.run
         if r is None or cfg.get("run_id") != r["id"]:
             return  # another run's answer (e.g. a rejected request)
-        if "error" in cfg:
+        if P.is_rejected(cfg):
             self.get_logger().error(f"run {r['id']} rejected by the bridge: {cfg['error']}")
-            self.pub_status.publish(c.json_msg({"node": "train", "run_id": r["id"], "state": "failed",
-                                                "message": cfg["error"]}))
+            self.pub_status.publish(c.json_msg(P.status_record(P.TRAIN_NODE, r["id"], P.FAILED,
+                                                               message=cfg["error"])))
             self.run = None
             self.partner.clear()
             return
         r["grid"] = Grid(speeds_m_s=r["v"], ds_m=float(cfg["ds_m"]), n_steps=int(cfg["n_steps"]))
         side = TrainSide(r["train"], r["grid"], float(cfg["span_m"])) if r["model"] == "dim" else None
         r["run"] = LockstepRun(r["model"], r["grid"], train_side=side)
-        self.partner.waiting(f"at step 0 of run {r['id']}", c.TOPIC_RAIL)
+        self.partner.waiting(f"at step 0 of run {r['id']}", P.TOPIC_RAIL)
         pending, self._pending = self._pending, []
         for m in pending:
             self._on_rail(m)
@@ -169,22 +167,21 @@ class TrainNode(c.NodeBase):
             block = np.vstack([x, r["train"].axle_loads_n[None, :]])
             self.pub_block.publish(c.pack(run_id, k0, 0, block, ("row:positions_m(2n+1),loads_n", "axle")))
         if run.status == "finished":
-            self.pub_status.publish(c.json_msg({"node": "train", "run_id": r["id"], "state": "done"}))
+            self.pub_status.publish(c.json_msg(P.status_record(P.TRAIN_NODE, r["id"], P.DONE)))
             self.run = None
             self.partner.clear()
         else:
-            self.partner.waiting(f"at step {run.k} stage {run.stage} of run {r['id']}", c.TOPIC_RAIL)
+            self.partner.waiting(f"at step {run.k} stage {run.stage} of run {r['id']}", P.TOPIC_RAIL)
 
     def _on_status(self, msg):
         """End the exchanging run when the bridge reports it failed (its message is passed on)."""
-        st = json.loads(msg.data)
+        st = P.decode(msg.data)
         r = self.run
-        if (r is None or r["run"] is None or st.get("node") != "bridge" or st.get("state") != "failed"
-                or st.get("run_id") != r["id"]):
+        if r is None or r["run"] is None or st.get("node") != P.BRIDGE_NODE or not P.is_failure(st, r["id"]):
             return
         self.get_logger().error(f"run {r['id']} failed on the bridge at step {r['run'].k}: {st.get('message', '')}")
-        self.pub_status.publish(c.json_msg({"node": "train", "run_id": r["id"], "state": "failed",
-                                            "message": st.get("message", "")}))
+        self.pub_status.publish(c.json_msg(P.status_record(P.TRAIN_NODE, r["id"], P.FAILED,
+                                                           message=st.get("message", ""))))
         self.run = None
         self.partner.clear()
 
@@ -194,7 +191,7 @@ class TrainNode(c.NodeBase):
 
     def report_failure(self, message):
         rid = None if self.run is None else self.run["id"]
-        self.pub_status.publish(c.json_msg({"node": "train", "run_id": rid, "state": "failed", "message": message}))
+        self.pub_status.publish(c.json_msg(P.status_record(P.TRAIN_NODE, rid, P.FAILED, message=message)))
 
 
 def main(args=None):

@@ -26,31 +26,12 @@ from __future__ import annotations
 
 __all__ = ["BEAM_EXAGGERATION", "ENTITIES", "TABS", "TIMELINES", "default_blueprint", "tab_timeline"]
 
-#: Session sim time (s), continuous over the runs of one session (``/clock``).
-SIM_TIME = "sim_time"
-#: Time since the first axle entered the bridge in the monitored lane (s); 0 at every run start.
-RUN_TIME = "run_time"
-#: Train speed (sequence, km/h rounded to 1 km/h).
-SPEED = "speed_kmh"
-#: Calibration step (sequence).
-ITERATION = "iteration"
-TIMELINES = (SIM_TIME, RUN_TIME, SPEED, ITERATION)
+# timeline names and entity roots: one home, the ROS-free protocol (re-exported here for the views)
+from adm_sim.protocol import (ENTITIES, ITERATION, PHASE_ROOT_SEARCH, RUN_TIME, SIM_TIME, SPEED,  # noqa: F401
+                              TIMELINES, delta_zeta_path)
 
 #: Display factor on beam deflections (a few mm on a 15 m span are invisible at 1).
 BEAM_EXAGGERATION = 500.0
-
-#: Entity roots (the views' contents); the log functions of :mod:`adm_sim.ros.rerun_log` write
-#: below them.
-ENTITIES = {
-    "acceleration": "runs/acceleration",      # runs/acceleration/run_NN: Scalars
-    "beam": "runs/beam",                      # runs/beam/run_NN/{deflection,axles}, runs/beam/supports
-    "run_info": "runs/info",                  # TextDocument (markdown table)
-    "sweep_main": "sweep/curves",             # sweep/curves/{DIM, MLM_zeta, MLM_zeta_dz, ...}
-    "sweep_trials": "sweep/trials",           # sweep/trials/{bracketing,root_search}/NN
-    "dz": "calibration/delta_zeta_pct",       # .../{bracketing,root_search}
-    "peaks": "calibration/peak_m_s2",         # .../{mlm_bracketing,mlm_root_search,dim}
-    "cal_result": "calibration/result",       # TextDocument
-}
 
 TABS = ("Runs", "Speed sweep", "Calibration")
 _TAB_TIMELINE = {"Runs": RUN_TIME, "Speed sweep": SPEED, "Calibration": ITERATION}
@@ -110,7 +91,7 @@ def default_blueprint(span_m: float | None = None, exaggeration: float = BEAM_EX
             rrb.TimeSeriesView(name="Δζ [%] per iteration: bracketing ladder, root search (timeline iteration)",
                                origin=e["dz"], plot_legend=rrb.PlotLegend(corner="LeftTop")),
             rrb.TimeSeriesView(name="Δζ [%] of the root search alone, per iteration (timeline iteration)",
-                               origin=f"{e['dz']}/root_search", plot_legend=rrb.PlotLegend(visible=False)),
+                               origin=delta_zeta_path(PHASE_ROOT_SEARCH), plot_legend=rrb.PlotLegend(visible=False)),
             rrb.TimeSeriesView(name="Peak acceleration [m/s²] per iteration: MLM ζ+Δζ vs DIM "
                                     "(timeline iteration)",
                                origin=e["peaks"], plot_legend=rrb.PlotLegend(corner="RightTop")),

@@ -62,7 +62,8 @@ __all__ = [
     "spawn_viewer",
 ]
 
-from adm_sim.ros.rerun_blueprint import RUN_TIME, SIM_TIME  # noqa: E402  (timeline names)
+from adm_sim import protocol as P  # noqa: E402  (topics, records, phases, entity paths, timelines)
+from adm_sim.protocol import RUN_TIME, SIM_TIME  # noqa: E402,F401  (timeline names, used by replay.py)
 
 _LOOPBACK = {"127.0.0.1", "localhost", "::1"}
 
@@ -251,24 +252,20 @@ DIM, MLM_ZETA, MLM_ZETA_DZ, BRACKETING, ROOT_SEARCH = "DIM", "MLM ζ", "MLM ζ+�
 _COLORS = {DIM: (214, 39, 40), MLM_ZETA: (31, 119, 180), MLM_ZETA_DZ: (44, 160, 44),
            BRACKETING: (150, 150, 150), ROOT_SEARCH: (255, 127, 14)}
 _SWEEP_NAMES = {DIM: "DIM", MLM_ZETA: "MLM_zeta", MLM_ZETA_DZ: "MLM_zeta_dz"}
+#: Series kind of each calibration phase (:data:`adm_sim.protocol.PHASES`).
+_KIND_OF_PHASE = {P.PHASE_DIM: DIM, P.PHASE_MLM_ZETA: MLM_ZETA, P.PHASE_MLM_ZETA_DZ: MLM_ZETA_DZ,
+                  P.PHASE_BRACKETING: BRACKETING, P.PHASE_ROOT_SEARCH: ROOT_SEARCH}
 
 
 def run_kind(model: str, delta_zeta, n_lanes: int, n_full: int) -> str:
-    """Kind of a run from its model and the additional damping of its lanes.
+    """Series kind of a run: the display name of its phase, :func:`adm_sim.protocol.run_phase`.
 
     ``DIM``; ``bracketing`` (an MLM run whose lanes carry several Δζ: the calibration's ladder);
     ``root search`` (an MLM run with one Δζ on fewer lanes than the full MLM range ``n_full``);
     ``MLM ζ`` (Δζ = 0) or ``MLM ζ+Δζ`` (one Δζ over the full range). The calibration node labels its
-    runs by the same rule.
+    runs with the same function.
     """
-    if model.lower() == "dim":
-        return DIM
-    dz = np.unique(np.asarray(delta_zeta, dtype=float))
-    if dz.size > 1:
-        return BRACKETING
-    if n_lanes < n_full:
-        return ROOT_SEARCH
-    return MLM_ZETA if dz.size == 0 or dz[0] == 0.0 else MLM_ZETA_DZ
+    return _KIND_OF_PHASE[P.run_phase(model, delta_zeta, n_lanes, n_full)]
 
 
 def fmt_pct(fraction: float) -> str:
@@ -302,7 +299,7 @@ class _Run:
         self.beam_every = st.get("beam_every_steps")
         # sim time at the run's last step (the clock runs in the slowest lane)
         self.t1 = self.t0 + (self.n_steps * self.ds_m / (v_clock / 3.6) if v_clock > 0 else np.inf)
-        self.tag = f"run_{self.id:02d}"
+        self.tag = P.run_tag(self.id)
         self.kind = None
         self.row = None
         self.peak = None  # (max |w| [m], x, w, axle x, axle w) of the frame with the largest deflection
@@ -396,9 +393,9 @@ class RunLogger:
         self.send_blueprint()
         h = 0.04 * span
         tri = [[[x - h, h * 1.2], [x, 0.0], [x + h, h * 1.2], [x - h, h * 1.2]] for x in (0.0, span)]
-        rr.log("runs/beam/supports", rr.LineStrips2D(tri, colors=(60, 60, 60), radii=0.02), static=True,
+        rr.log(P.beam_path(part="supports"), rr.LineStrips2D(tri, colors=(60, 60, 60), radii=0.02), static=True,
                recording=self.rec)
-        rr.log("runs/beam/axis", rr.LineStrips2D([[[0.0, 0.0], [span, 0.0]]], colors=(180, 180, 180), radii=0.01),
+        rr.log(P.beam_path(part="axis"), rr.LineStrips2D([[[0.0, 0.0], [span, 0.0]]], colors=(180, 180, 180), radii=0.01),
                static=True, recording=self.rec)
 
     def train_description(self, desc: dict):
@@ -407,7 +404,7 @@ class RunLogger:
     # ------------------------------------------------------------ samples
     def run_started(self, st: dict):
         """``/adm/run/status`` with ``state`` = ``started`` from the bridge."""
-        if st.get("node") != "bridge" or st.get("state") != "started" or st.get("run_id") is None:
+        if not P.is_bridge_start(st):
             return
         if any(r.id == int(st["run_id"]) for r in self.runs):
             return
@@ -453,7 +450,7 @@ class RunLogger:
             r = by_id[rid]
             t = np.array([s[0] for s in samples])
             a = np.array([s[1] for s in samples])
-            rr.send_columns(f"runs/acceleration/{r.tag}",
+            rr.send_columns(P.acceleration_path(r.id),
                             indexes=[rr.TimeColumn(SIM_TIME, duration=t),
                                      rr.TimeColumn(RUN_TIME, duration=r.run_time(t))],
                             columns=rr.Scalars.columns(scalars=a), recording=self.rec)
@@ -474,7 +471,7 @@ class RunLogger:
             t = r.t0 + step * r.dt_clock
             rr.set_time(SIM_TIME, duration=t, recording=self.rec)
             rr.set_time(RUN_TIME, duration=float(r.run_time(t)), recording=self.rec)
-            path = f"runs/beam/{r.tag}"
+            path = P.beam_path(r.id)
             color = _COLORS.get(r.kind, (90, 90, 90))
             # rerun's 2D y axis points down: a sag (w > 0, downward) is drawn below the axis
             rr.log(f"{path}/deflection", rr.LineStrips2D([np.column_stack([x, k * w])], colors=color, radii=0.03),
@@ -509,20 +506,20 @@ class RunLogger:
         dz_txt = f", Δζ {fmt_pct(uniq[0])}" if uniq.size == 1 and uniq[0] != 0.0 else (
             f", {uniq.size} Δζ" if uniq.size > 1 else "")
         # the ladder's history is that of its first rung (the lowest Δζ): hidden until asked for
-        self._style(f"runs/acceleration/{r.tag}", name=f"run {r.id} {kind}{dz_txt}{mon}", color=color,
+        self._style(P.acceleration_path(r.id), name=f"run {r.id} {kind}{dz_txt}{mon}", color=color,
                     width=2.0 if kind in (DIM, MLM_ZETA, MLM_ZETA_DZ) else 1.0,
                     visible=[False] if kind == BRACKETING else None)
         # when the run ends its moving beam gives way to its shape at the largest deflection
         rr.set_time(SIM_TIME, duration=r.t1, recording=self.rec)
         rr.set_time(RUN_TIME, duration=float(r.run_time(r.t1)), recording=self.rec)
         for part in ("deflection", "axles"):
-            rr.log(f"runs/beam/{r.tag}/{part}", rr.Clear(recursive=False), recording=self.rec)
+            rr.log(P.beam_path(r.id, part), rr.Clear(recursive=False), recording=self.rec)
         if r.peak is not None:
             _, x, w, ax, aw = r.peak
             k = self.exaggeration
-            rr.log(f"runs/beam/{r.tag}/peak_shape", rr.LineStrips2D([np.column_stack([x, k * w])], colors=color,
+            rr.log(P.beam_path(r.id, "peak_shape"), rr.LineStrips2D([np.column_stack([x, k * w])], colors=color,
                                                                     radii=0.03), recording=self.rec)
-            rr.log(f"runs/beam/{r.tag}/peak_axles", rr.Points2D(np.column_stack([ax, k * aw]).reshape(-1, 2),
+            rr.log(P.beam_path(r.id, "peak_axles"), rr.Points2D(np.column_stack([ax, k * aw]).reshape(-1, 2),
                                                                 colors=color, radii=0.12), recording=self.rec)
         rr.reset_time(recording=self.rec)
         self._log_sweep(r, kind, v, acc, dz)
@@ -554,7 +551,7 @@ class RunLogger:
                 "max a [m/s²] | at [km/h] |\n|---|---|---|---|---|---|---|---|---|\n" + rows + "\n\n"
                 f"Δt: monitoring step in the monitored lane's time; per T{nm}: samples per period of mode {nm} "
                 "(the highest retained).\n")
-        rr.log("runs/info", rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN), static=True,
+        rr.log(P.ENTITIES["run_info"], rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN), static=True,
                recording=self.rec)
 
     def _log_sweep(self, r: _Run, kind, v, acc, dz):
@@ -563,8 +560,7 @@ class RunLogger:
                 lanes = dz == value
                 self._trials[kind] += 1
                 n = self._trials[kind]
-                root = "bracketing" if kind == BRACKETING else "root_search"
-                path = f"sweep/trials/{root}/{n:02d}"
+                path = P.sweep_trial_path(P.PHASE_BRACKETING if kind == BRACKETING else P.PHASE_ROOT_SEARCH, n)
                 shade = _COLORS[kind]
                 self._style(path, name=f"{'bracket' if kind == BRACKETING else 'root'} {n}: Δζ {fmt_pct(value)}",
                             color=shade, width=1.0)
@@ -576,8 +572,8 @@ class RunLogger:
         self._curves_used.add(name)
         uniq = np.unique(dz)
         label = kind + (f" (Δζ {fmt_pct(uniq[0])})" if kind == MLM_ZETA_DZ else "")
-        for root in ("sweep/curves", "sweep/trials") if kind in (DIM, MLM_ZETA_DZ) else ("sweep/curves",):
-            path = f"{root}/{name}"
+        for trials in (False, True) if kind in (DIM, MLM_ZETA_DZ) else (False,):
+            path = P.sweep_curve_path(name, trials)
             self._style(path, name=label, color=_COLORS[kind], width=2.0)
             self._send_curve(path, v, acc)
 
@@ -586,7 +582,7 @@ class RunLogger:
 
         v = np.asarray(speeds_kmh, dtype=float)
         order = np.argsort(v, kind="stable")
-        rr.send_columns(path, indexes=[rr.TimeColumn("speed_kmh", sequence=np.rint(v[order]).astype(np.int64))],
+        rr.send_columns(path, indexes=[rr.TimeColumn(P.SPEED, sequence=np.rint(v[order]).astype(np.int64))],
                         columns=rr.Scalars.columns(scalars=np.asarray(max_acc_m_s2, dtype=float)[order]),
                         recording=self.rec)
 
@@ -595,19 +591,19 @@ class RunLogger:
         """``/adm/calibration/iteration``: one trial damping; phase from the run it came from."""
         import rerun as rr
 
-        phase = "bracketing" if self._last_kind == BRACKETING else "root_search"
-        color = _COLORS[BRACKETING if phase == "bracketing" else ROOT_SEARCH]
-        lines = phase == "root_search"
-        words = "bracketing ladder" if phase == "bracketing" else "root search"
-        self._style(f"calibration/delta_zeta_pct/{phase}", lines=lines, name=f"Δζ, {words} [%]", color=color,
-                    width=2.0 if lines else 6.0)
-        self._style(f"calibration/peak_m_s2/mlm_{phase}", lines=lines, name=f"MLM ζ+Δζ peak, {words}",
-                    color=color, width=2.0 if lines else 6.0)
-        self._style("calibration/peak_m_s2/dim", name="DIM peak (target)", color=_COLORS[DIM], width=2.0)
-        rr.set_time("iteration", sequence=int(i), recording=self.rec)
-        rr.log(f"calibration/delta_zeta_pct/{phase}", rr.Scalars(float(delta_zeta_pct)), recording=self.rec)
-        rr.log(f"calibration/peak_m_s2/mlm_{phase}", rr.Scalars(float(mlm_peak_m_s2)), recording=self.rec)
-        rr.log("calibration/peak_m_s2/dim", rr.Scalars(float(dim_peak_m_s2)), recording=self.rec)
+        bracketing = self._last_kind == BRACKETING
+        phase = P.PHASE_BRACKETING if bracketing else P.PHASE_ROOT_SEARCH
+        color = _COLORS[BRACKETING if bracketing else ROOT_SEARCH]
+        lines = not bracketing
+        words = "bracketing ladder" if bracketing else "root search"
+        dz_path, mlm_path, dim_path = P.delta_zeta_path(phase), P.peak_path(f"mlm_{phase}"), P.peak_path("dim")
+        self._style(dz_path, lines=lines, name=f"Δζ, {words} [%]", color=color, width=2.0 if lines else 6.0)
+        self._style(mlm_path, lines=lines, name=f"MLM ζ+Δζ peak, {words}", color=color, width=2.0 if lines else 6.0)
+        self._style(dim_path, name="DIM peak (target)", color=_COLORS[DIM], width=2.0)
+        rr.set_time(P.ITERATION, sequence=int(i), recording=self.rec)
+        rr.log(dz_path, rr.Scalars(float(delta_zeta_pct)), recording=self.rec)
+        rr.log(mlm_path, rr.Scalars(float(mlm_peak_m_s2)), recording=self.rec)
+        rr.log(dim_path, rr.Scalars(float(dim_peak_m_s2)), recording=self.rec)
         rr.reset_time(recording=self.rec)
 
     def calibration_result(self, d: dict):
@@ -627,6 +623,6 @@ class RunLogger:
             p = d.get(k)
             if isinstance(p, dict) and p.get("acc_m_s2") is not None:
                 rows.append(f"| {k} | {p['acc_m_s2']:.4f} m/s² at {p['speed_kmh']:g} km/h |")
-        rr.log("calibration/result", rr.TextDocument("| | |\n|---|---|\n" + "\n".join(rows) + "\n",
+        rr.log(P.ENTITIES["cal_result"], rr.TextDocument("| | |\n|---|---|\n" + "\n".join(rows) + "\n",
                                                      media_type=rr.MediaType.MARKDOWN),
                static=True, recording=self.rec)

@@ -1,0 +1,335 @@
+"""The adm-sim wire protocol, free of ROS: topic names, JSON records, run phases, rerun entities.
+
+Everything the bridge, train, driver and calibration nodes, the MCAP recorder, the rerun logger,
+its blueprint and ``replay.py`` exchange by name lives here, once; nodes turn these names and
+records into ROS messages (:mod:`adm_sim.nodes.common`), the rest reads them back. This module
+imports only the standard library and numpy (a test asserts that ``rclpy`` stays out).
+
+Topics (:data:`TOPICS`: name -> message type, QoS class C control / X exchange / M monitor /
+L latched, publisher; docs/ros.md, section "Topics", is the reference for their layouts)::
+
+    /adm/run/setup      train -> bridge   JSON :func:`setup_record`
+    /adm/run/ready      bridge -> train   JSON :func:`ready_record` / :func:`ready_error`
+    /adm/run/status     bridge, train     JSON :func:`status_record` (state started/done/failed)
+    /adm/run/result     bridge            rows :data:`RESULT_ROWS` x lane
+    /adm/exchange/*     lockstep messages (header of :data:`EXCHANGE_HEADER_LEN` doubles)
+    /adm/midspan/*, /adm/beam/*, /adm/progress, /clock, /diagnostics: monitoring
+    /adm/{bridge,train}/description   JSON, latched
+    /adm/calibration/{iteration,result}
+
+Run phases (:func:`run_phase`): which part of the Section 4 calibration a run belongs to. The
+calibration's sweep hook is not told the phase, so it is read from the run itself (model, the Δζ
+of its lanes, its lane count) by that one function, which the calibration node (its ``@run``
+labels) and the rerun logger (series, colours, trial names) both call.
+
+Rerun (:data:`ENTITIES`, :data:`TIMELINES`): the entity roots the logger writes below and the
+blueprint's views show, and the timeline names.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+# ---------------------------------------------------------------------- nodes and services
+BRIDGE_NODE = "bridge"
+TRAIN_NODE = "train"
+CALIBRATION_NODE = "calibration"
+#: The train node's ``~/start_run`` service (``std_srvs/Trigger``) as the driver calls it.
+SERVICE_START_RUN = f"/{TRAIN_NODE}/start_run"
+
+# ---------------------------------------------------------------------- topics
+NS = "/adm"
+TOPIC_SETUP = f"{NS}/run/setup"            # train -> bridge, std_msgs/String (JSON)
+TOPIC_READY = f"{NS}/run/ready"            # bridge -> train, std_msgs/String (JSON)
+TOPIC_RAIL = f"{NS}/exchange/rail"         # bridge -> train, Float64MultiArray
+TOPIC_FORCES = f"{NS}/exchange/forces"     # train -> bridge (DIM), Float64MultiArray
+TOPIC_AXLE_BLOCK = f"{NS}/exchange/axle_block"  # train -> bridge (MLM), Float64MultiArray
+TOPIC_RESULT = f"{NS}/run/result"          # bridge, Float64MultiArray (quantity x lane)
+TOPIC_STATUS = f"{NS}/run/status"          # bridge/train, std_msgs/String (JSON)
+TOPIC_ACCEL = f"{NS}/midspan/accel"        # bridge, geometry_msgs/AccelStamped
+TOPIC_STATE = f"{NS}/midspan/state"        # bridge, Float64MultiArray (lane x [disp, acc])
+BEAM_NS = f"{NS}/beam"
+TOPIC_BEAM = f"{BEAM_NS}/deflection"       # bridge, Float64MultiArray (2 x points)
+TOPIC_AXLES = f"{BEAM_NS}/axles"           # bridge, Float64MultiArray (2 x axles on)
+TOPIC_PROGRESS = f"{NS}/progress"          # bridge, std_msgs/String (JSON)
+TOPIC_BRIDGE_DESC = f"{NS}/bridge/description"  # bridge, std_msgs/String (JSON), latched
+TOPIC_TRAIN_DESC = f"{NS}/train/description"    # train, std_msgs/String (JSON), latched
+TOPIC_DIAGNOSTICS = "/diagnostics"
+TOPIC_CLOCK = "/clock"
+TOPIC_CAL_ITERATION = f"{NS}/calibration/iteration"  # calibration, Float64MultiArray
+TOPIC_CAL_RESULT = f"{NS}/calibration/result"        # calibration, std_msgs/String (JSON)
+
+#: Description topic of the ``bridge`` and ``train`` node.
+DESCRIPTION_TOPICS = {BRIDGE_NODE: TOPIC_BRIDGE_DESC, TRAIN_NODE: TOPIC_TRAIN_DESC}
+
+#: Every topic: ``name -> (message type, QoS class, publisher)``; QoS classes: ``C`` control
+#: (reliable, deep), ``X`` exchange (reliable, lockstep), ``M`` monitor (reliable, deepest),
+#: ``L`` latched (transient local, last value).
+TOPICS = {
+    TOPIC_SETUP: ("std_msgs/msg/String", "C", TRAIN_NODE),
+    TOPIC_READY: ("std_msgs/msg/String", "C", BRIDGE_NODE),
+    TOPIC_RAIL: ("std_msgs/msg/Float64MultiArray", "X", BRIDGE_NODE),
+    TOPIC_FORCES: ("std_msgs/msg/Float64MultiArray", "X", TRAIN_NODE),
+    TOPIC_AXLE_BLOCK: ("std_msgs/msg/Float64MultiArray", "X", TRAIN_NODE),
+    TOPIC_RESULT: ("std_msgs/msg/Float64MultiArray", "C", BRIDGE_NODE),
+    TOPIC_STATUS: ("std_msgs/msg/String", "C", f"{BRIDGE_NODE}, {TRAIN_NODE}"),
+    TOPIC_ACCEL: ("geometry_msgs/msg/AccelStamped", "M", BRIDGE_NODE),
+    TOPIC_STATE: ("std_msgs/msg/Float64MultiArray", "M", BRIDGE_NODE),
+    TOPIC_BEAM: ("std_msgs/msg/Float64MultiArray", "M", BRIDGE_NODE),
+    TOPIC_AXLES: ("std_msgs/msg/Float64MultiArray", "M", BRIDGE_NODE),
+    TOPIC_PROGRESS: ("std_msgs/msg/String", "M", BRIDGE_NODE),
+    TOPIC_BRIDGE_DESC: ("std_msgs/msg/String", "L", BRIDGE_NODE),
+    TOPIC_TRAIN_DESC: ("std_msgs/msg/String", "L", TRAIN_NODE),
+    TOPIC_DIAGNOSTICS: ("diagnostic_msgs/msg/DiagnosticArray", "C", f"{BRIDGE_NODE}, {CALIBRATION_NODE}"),
+    TOPIC_CLOCK: ("rosgraph_msgs/msg/Clock", "M", BRIDGE_NODE),
+    TOPIC_CAL_ITERATION: ("std_msgs/msg/Float64MultiArray", "C", CALIBRATION_NODE),
+    TOPIC_CAL_RESULT: ("std_msgs/msg/String", "C", CALIBRATION_NODE),
+}
+
+#: Topics drawn by the rerun logger (:class:`adm_sim.ros.rerun_log.RunLogger`), live and in
+#: ``replay.py``; ``/clock`` and ``/adm/midspan/state`` (every lane) are read but not drawn.
+RUN_LOGGER_TOPICS = frozenset({
+    TOPIC_BRIDGE_DESC, TOPIC_TRAIN_DESC, TOPIC_STATUS, TOPIC_ACCEL, TOPIC_BEAM, TOPIC_AXLES, TOPIC_RESULT,
+    TOPIC_CAL_ITERATION, TOPIC_CAL_RESULT, TOPIC_PROGRESS, TOPIC_STATE, TOPIC_CLOCK})
+#: Topics that open or describe a run: among records of one log time they go first in a replay.
+OPENING_TOPICS = (TOPIC_BRIDGE_DESC, TOPIC_TRAIN_DESC, TOPIC_STATUS)
+
+# ---------------------------------------------------------------------- array layouts
+#: Doubles before the axle indices of an exchange message: ``run_id, k, stage, n``.
+EXCHANGE_HEADER_LEN = 4
+#: ``/adm/run/result`` rows (quantity x lane).
+RESULT_ROWS = ("speed_kmh", "max_acc_m_s2", "max_disp_m", "delta_zeta")
+#: ``/adm/calibration/iteration`` values.
+ITERATION_FIELDS = ("iteration", "delta_zeta_pct", "mlm_peak_m_s2", "dim_peak_m_s2")
+
+# ---------------------------------------------------------------------- JSON records
+#: ``state`` of a status record.
+STARTED, DONE, FAILED = "started", "done", "failed"
+RUN_STATES = (STARTED, DONE, FAILED)
+
+
+def encode(record: dict) -> str:
+    """A record as the ``data`` of a ``std_msgs/String`` (JSON)."""
+    return json.dumps(record)
+
+
+def decode(text: str) -> dict:
+    """The record of a ``std_msgs/String`` ``data`` (JSON)."""
+    return json.loads(text)
+
+
+def setup_record(run_id, model, train, speeds_kmh, speeds_m_s, train_length_m, axle_offsets_m, axle_loads_n,
+                 wheel_mass_kg):
+    """``/adm/run/setup`` (train -> bridge): the run the train node asks for.
+
+    Arrays (``(n_lanes,)`` speeds, ``(n_axles,)`` offsets in m, loads in N, wheelset masses in kg,
+    ``None`` for the MLM) are sent as lists.
+    """
+    return {"run_id": run_id, "model": model, "train": train, "speeds_kmh": _list(speeds_kmh),
+            "speeds_m_s": _list(speeds_m_s), "train_length_m": train_length_m,
+            "axle_offsets_m": _list(axle_offsets_m), "axle_loads_n": _list(axle_loads_n),
+            "wheel_mass_kg": None if wheel_mass_kg is None else _list(wheel_mass_kg)}
+
+
+def ready_record(run_id, ds_m, n_steps, span_m, n_lanes, t0_s):
+    """``/adm/run/ready`` (bridge -> train): the grid of an accepted run."""
+    return {"run_id": run_id, "ds_m": ds_m, "n_steps": n_steps, "span_m": span_m, "n_lanes": n_lanes, "t0_s": t0_s}
+
+
+def ready_error(run_id, message):
+    """``/adm/run/ready`` (bridge -> train) of a rejected run; :func:`is_rejected` tells it apart."""
+    return {"run_id": run_id, "error": message}
+
+
+def is_rejected(ready: dict) -> bool:
+    return "error" in ready
+
+
+def status_record(node, run_id, state, **extra):
+    """``/adm/run/status``: ``node`` (``bridge`` / ``train``), ``run_id``, ``state`` (:data:`RUN_STATES`).
+
+    The bridge's ``started`` adds ``model, n_steps, n_lanes, ds_m, bridge, train`` and the
+    monitoring of the run (``t0_s, monitor_lane, monitor_speed_kmh, clock_speed_kmh,
+    monitor_every_steps, beam_every_steps``); its ``done`` / ``failed`` add ``wall_s, t0_s, t1_s,
+    message``; a ``failed`` of a node carries the ``message``.
+    """
+    return {"node": node, "run_id": run_id, "state": state, **extra}
+
+
+def is_failure(st: dict, run_id=None) -> bool:
+    """Whether the status record ``st`` reports a failure (of run ``run_id`` if given)."""
+    return st.get("state") == FAILED and (run_id is None or st.get("run_id") == run_id)
+
+
+def is_bridge_start(st: dict) -> bool:
+    """Whether ``st`` is the bridge's ``started`` record of a run (it announces the run's timing)."""
+    return st.get("node") == BRIDGE_NODE and st.get("state") == STARTED and st.get("run_id") is not None
+
+
+def progress_record(run_id, model, step, n_steps, sim_time_s):
+    """``/adm/progress``: steps done of ``n_steps`` and the sim time reached (s)."""
+    return {"run_id": run_id, "model": model, "step": step, "n_steps": n_steps, "sim_time_s": sim_time_s}
+
+
+def bridge_description_record(bridge, description, n0_hz, step, delta_zeta, delta_zeta_lanes, track_type,
+                              acc_limit_m_s2):
+    """``/adm/bridge/description`` (latched): ``bridge`` the exact fields of :class:`adm_sim.bridge.Bridge`
+    (``Bridge(**record["bridge"])`` rebuilds it), ``description`` its one-line text, ``n0_hz``, ``step``
+    the step settings (``steps_per_period, free_vibration_periods, ds_m``), the Δζ parameters
+    (fraction; ``delta_zeta_lanes`` a comma list), the track type and its limit (m/s²)."""
+    return {"bridge": bridge, "description": description, "n0_hz": n0_hz, "step": step,
+            "delta_zeta": delta_zeta, "delta_zeta_lanes": delta_zeta_lanes, "track_type": track_type,
+            "acc_limit_m_s2": acc_limit_m_s2}
+
+
+def train_description_record(train, name, description, length_m, n_axles, model, speeds_kmh):
+    """``/adm/train/description`` (latched): ``train`` as given to the node (a name or a TOML file,
+    ``load_train(record["train"])`` loads it), its ``name``, text, length (m), axles, the model and
+    the speeds parameter (text)."""
+    return {"train": train, "name": name, "description": description, "length_m": length_m, "n_axles": n_axles,
+            "model": model, "speeds_kmh": speeds_kmh}
+
+
+def _list(a):
+    return np.asarray(a).tolist() if isinstance(a, np.ndarray) else list(a)
+
+
+# ---------------------------------------------------------------------- driver lines
+#: A driver's progress line on stdout: ``@<kind> <JSON>`` (kinds ``run``, ``progress``,
+#: ``iteration``, ``calibration``, ``result``), read by the launch scripts.
+LINE_MARK = "@"
+
+
+def driver_line(kind: str, payload: dict) -> str:
+    """One progress line ``@kind {json}`` (no newline)."""
+    return f"{LINE_MARK}{kind} {json.dumps(payload)}"
+
+
+def parse_driver_line(line: str):
+    """``(kind, payload)`` of a progress line, ``(None, line)`` for any other output line."""
+    if not line.startswith(LINE_MARK):
+        return None, line
+    kind, _, payload = line[len(LINE_MARK):].partition(" ")
+    return kind, json.loads(payload)
+
+
+# ---------------------------------------------------------------------- run phases
+#: Phases of the Section 4 calibration a run can belong to.
+PHASE_DIM = "dim"                  # DIM sweep (target curve, refinement)
+PHASE_MLM_ZETA = "mlm_zeta"        # MLM over the full range, Δζ = 0
+PHASE_MLM_ZETA_DZ = "mlm_zeta_dz"  # MLM over the full range, one Δζ (the adapted curve)
+PHASE_BRACKETING = "bracketing"    # MLM lanes carrying several Δζ: the bracketing ladder
+PHASE_ROOT_SEARCH = "root_search"  # MLM, one Δζ on fewer lanes than the full range
+PHASES = (PHASE_DIM, PHASE_MLM_ZETA, PHASE_MLM_ZETA_DZ, PHASE_BRACKETING, PHASE_ROOT_SEARCH)
+
+
+def run_phase(model: str, delta_zeta, n_lanes: int, n_full: int) -> str:
+    """The calibration phase of a run, read from the run (the calibration does not send it).
+
+    Parameters
+    ----------
+    model : str
+        ``dim`` or ``mlm``.
+    delta_zeta : float or array_like (n_lanes,)
+        Additional damping of the lanes (fraction).
+    n_lanes : int
+        Lanes of the run.
+    n_full : int
+        Lanes of the calibration's full MLM speed range.
+
+    Returns
+    -------
+    str
+        :data:`PHASE_DIM`; :data:`PHASE_BRACKETING` (several Δζ over the lanes: the ladder of
+        Section 4); :data:`PHASE_ROOT_SEARCH` (one Δζ on fewer lanes than ``n_full``: the
+        relocation window); :data:`PHASE_MLM_ZETA` (Δζ = 0) or :data:`PHASE_MLM_ZETA_DZ`.
+    """
+    if model.lower() == "dim":
+        return PHASE_DIM
+    dz = np.unique(np.asarray(delta_zeta, dtype=float))
+    if dz.size > 1:
+        return PHASE_BRACKETING
+    if n_lanes < n_full:
+        return PHASE_ROOT_SEARCH
+    return PHASE_MLM_ZETA if dz.size == 0 or dz[0] == 0.0 else PHASE_MLM_ZETA_DZ
+
+
+# ---------------------------------------------------------------------- rerun
+#: Session sim time (s), continuous over the runs of one session (``/clock``).
+SIM_TIME = "sim_time"
+#: Time since the first axle entered the bridge in the monitored lane (s); 0 at every run start.
+RUN_TIME = "run_time"
+#: Train speed (sequence, km/h rounded to 1 km/h).
+SPEED = "speed_kmh"
+#: Calibration step (sequence).
+ITERATION = "iteration"
+TIMELINES = (SIM_TIME, RUN_TIME, SPEED, ITERATION)
+
+#: Entity roots of an adm-sim recording (the blueprint's view origins); the logger writes below them.
+ENTITIES = {
+    "acceleration": "runs/acceleration",      # runs/acceleration/run_NN: Scalars
+    "beam": "runs/beam",                      # runs/beam/run_NN/{deflection,axles,peak_*}, runs/beam/{supports,axis}
+    "run_info": "runs/info",                  # TextDocument (markdown table)
+    "sweep_main": "sweep/curves",             # sweep/curves/{DIM, MLM_zeta, MLM_zeta_dz, ...}
+    "sweep_trials": "sweep/trials",           # sweep/trials/{bracketing,root_search}/NN
+    "dz": "calibration/delta_zeta_pct",       # .../{bracketing,root_search}
+    "peaks": "calibration/peak_m_s2",         # .../{mlm_bracketing,mlm_root_search,dim}
+    "cal_result": "calibration/result",       # TextDocument
+    # outside the default views (replay.py): generic topics, diagnostics, MCAP metadata
+    "topics": "topics",
+    "diagnostics": "diagnostics",
+    "metadata": "metadata",
+}
+
+
+def run_tag(run_id: int) -> str:
+    """Entity path part of a run: ``run_NN``."""
+    return f"run_{int(run_id):02d}"
+
+
+def acceleration_path(run_id: int) -> str:
+    """Midspan acceleration of run ``run_id`` (Scalars)."""
+    return f"{ENTITIES['acceleration']}/{run_tag(run_id)}"
+
+
+def beam_path(run_id: int | None = None, part: str | None = None) -> str:
+    """Beam view entity: the root, a run's (``run_NN``) or one of its parts (``deflection``,
+    ``axles``, ``peak_shape``, ``peak_axles``); with ``run_id`` None, a static part of the
+    view (``supports``, ``axis``)."""
+    path = ENTITIES["beam"] if run_id is None else f"{ENTITIES['beam']}/{run_tag(run_id)}"
+    return path if part is None else f"{path}/{part}"
+
+
+def sweep_curve_path(name: str, trials: bool = False) -> str:
+    """A speed-sweep curve (``DIM``, ``MLM_zeta``, ...) in the main or the trials view."""
+    return f"{ENTITIES['sweep_trials' if trials else 'sweep_main']}/{name}"
+
+
+def sweep_trial_path(phase: str, n: int) -> str:
+    """Damping trial ``n`` (1, 2, ...) of a calibration phase (bracketing / root search)."""
+    return f"{ENTITIES['sweep_trials']}/{phase}/{int(n):02d}"
+
+
+def delta_zeta_path(phase: str) -> str:
+    """Δζ per iteration of a calibration phase."""
+    return f"{ENTITIES['dz']}/{phase}"
+
+
+def peak_path(series: str) -> str:
+    """Peak per iteration: ``mlm_<phase>`` or ``dim``."""
+    return f"{ENTITIES['peaks']}/{series}"
+
+
+def is_entity(path: str) -> bool:
+    """Whether ``path`` is one of :data:`ENTITIES` or lies below one."""
+    p = path.strip("/")
+    return any(p == root or p.startswith(root + "/") for root in ENTITIES.values())
+
+
+__all__ = [n for n in dir() if n.isupper() or n in (
+    "encode", "decode", "setup_record", "ready_record", "ready_error", "is_rejected", "status_record",
+    "is_failure", "is_bridge_start", "progress_record", "bridge_description_record", "train_description_record",
+    "driver_line", "parse_driver_line", "run_phase", "run_tag", "acceleration_path",
+    "beam_path", "sweep_curve_path", "sweep_trial_path", "delta_zeta_path", "peak_path", "is_entity")]
