@@ -132,10 +132,6 @@ def _legend(ax, **kw):
         ax.legend(**kw)
 
 
-def _lb_curve(coefficients, root, n0):
-    return np.where(n0 >= root, 0.0, np.polyval(coefficients, n0))
-
-
 def _draw_set(ax, study_fit, train, m, n0):
     """One (train, mass function) set: Δζ_VBI against n0, interval minima, our fit, the paper's."""
     recs = [r for r in study_fit.records_used if r["train"] == train and r["mass_function"] == m]
@@ -155,7 +151,7 @@ def _draw_set(ax, study_fit, train, m, n0):
 
         p = lower_bound_table().get(train, {}).get(m)
     if p is not None:
-        ax.plot(n0, _lb_curve(p.coefficients, p.first_root_hz, n0), color="tab:red", lw=1.2, ls="--",
+        ax.plot(n0, p.value_pct(n0), color="tab:red", lw=1.2, ls="--",
                 label=f"paper (root {p.upper_limit_hz:.2f} Hz)")
     for e in INTERVAL_EDGES_HZ:
         ax.axvline(e, color="k", lw=0.3, alpha=0.25)
@@ -209,7 +205,7 @@ def plot_lower_bounds(study_fit, path):
                 ax.plot(n0, f.fit.value_pct(n0), color=_MF_COLOURS[m], lw=1.6, label=f"{m} fit")
             p = pub.get(t, {}).get(m)
             if p is not None:
-                ax.plot(n0, _lb_curve(p.coefficients, p.first_root_hz, n0), color=_MF_COLOURS[m], lw=1.0, ls="--")
+                ax.plot(n0, p.value_pct(n0), color=_MF_COLOURS[m], lw=1.0, ls="--")
         ax.set_title(f"{t} (dashed: paper)")
         ax.axhline(0.0, color="k", lw=0.5)
         ax.grid(alpha=0.3)

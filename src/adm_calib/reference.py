@@ -61,6 +61,8 @@ import numpy as np
 from adm_sim.bridge import MASS_FUNCTIONS, N0_FIT, N0_UB, mass_function_t_m
 from adm_sim.errors import InputError, check_range
 
+from adm_calib.lower_bound import FIT_RANGE_MAX_HZ, LOWER_LIMIT_HZ, first_root_hz, lower_bound_pct, zero_from_hz
+
 #: Trains of the study, in the paper's order (Table A1).
 STUDY_TRAINS = ("ICE-2", "Eurostar", "Railjet", "ICE-4")
 #: Mass functions per bridge type, heaviest first (Table 1).
@@ -223,16 +225,6 @@ def eada_for(bridge, train):
 
 
 # ---------------------------------------------------------------------- lower bounds
-def first_root_hz(coefficients, lower_limit_hz=2.1):
-    """First real root of the cubic Eq. (20) above ``lower_limit_hz`` (Hz); ``inf`` if none.
-
-    Section 4.2.1: the lower bound is set to zero from the first intersection with the abscissa.
-    """
-    roots = np.roots(np.asarray(coefficients, dtype=float))
-    real = sorted(r.real for r in roots if abs(r.imag) < 1e-9 * max(1.0, abs(r)) and r.real > lower_limit_hz)
-    return float(real[0]) if real else math.inf
-
-
 @dataclass(frozen=True)
 class LowerBound:
     """One lower-bound function of Tables B1-B4 (Eq. 20): dz in %, n0 in Hz."""
@@ -247,7 +239,7 @@ class LowerBound:
     r2: float
     max_res_pct: float
     min_res_pct: float
-    lower_limit_hz: float = 2.1
+    lower_limit_hz: float = LOWER_LIMIT_HZ
     source: str = ""
     fit_range_max_hz: float = math.inf
 
@@ -255,7 +247,7 @@ class LowerBound:
     def zero_from_hz(self):
         """0 from here on: the first root (Section 4.2.1), or the end of the fitted n0 range where
         the cubic has no root there (re-derived functions; no extrapolation above 21 Hz)."""
-        return min(self.first_root_hz, self.fit_range_max_hz)
+        return zero_from_hz(self.coefficients, self.lower_limit_hz, self.fit_range_max_hz)
 
     @property
     def coefficients(self):
@@ -270,6 +262,10 @@ class LowerBound:
         """First real root of Eq. (20) above the lower limit (Hz), computed."""
         return first_root_hz(self.coefficients, self.lower_limit_hz)
 
+    def value_pct(self, n0_hz):
+        """Lower bound (%) at ``n0_hz``, any shape (:func:`adm_calib.lower_bound.lower_bound_pct`)."""
+        return lower_bound_pct(self.coefficients, n0_hz, self.lower_limit_hz, self.fit_range_max_hz)
+
     def delta_zeta_pct(self, n0_hz):
         """Lower bound (%) at ``n0_hz``: Eq. (20) up to the first root, 0 beyond.
 
@@ -279,9 +275,7 @@ class LowerBound:
             Below the lower limit (2.1 Hz).
         """
         n0 = check_range("n0_hz", n0_hz, "Hz", self.lower_limit_hz, None)
-        if n0 >= self.zero_from_hz:
-            return 0.0
-        return float(self.polynomial_pct(n0))
+        return lower_bound_pct(self.coefficients, n0, self.lower_limit_hz, self.fit_range_max_hz)
 
 
 #: Sets of lower-bound functions: the published ones and the ones re-derived from the shipped study.
@@ -468,4 +462,5 @@ __all__ = [
     "STUDY_TRAINS", "TYPE_MASS_FUNCTIONS", "MASS_FUNCTIONS", "adm_delta_zeta_pct", "HalfCoach", "half_coach",
     "eada_vehicle", "eada_delta_zeta_pct", "eada_for", "LowerBound", "lower_bound_table", "lower_bound",
     "span_from_frequency_m", "Recommendation", "recommend", "lower_bound_for", "canonical_train_name",
+    "first_root_hz", "lower_bound_pct", "LOWER_LIMIT_HZ", "FIT_RANGE_MAX_HZ",
 ]

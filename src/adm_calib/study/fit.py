@@ -12,8 +12,9 @@ import numpy as np
 
 from adm_sim.errors import InputError
 
-from adm_calib.reference import STUDY_TRAINS, first_root_hz
-from adm_calib.study.cases import INTERVAL_EDGES_HZ, LOWER_LIMIT_HZ
+from adm_calib.lower_bound import first_root_hz, lower_bound_pct
+from adm_calib.reference import STUDY_TRAINS
+from adm_calib.study.cases import INTERVAL_EDGES_HZ, LOWER_LIMIT_HZ, TRAIN_VARIANTS, paper_train
 from adm_calib.study.store import record_key
 
 # ====================================================================== lower-bound fit
@@ -67,7 +68,7 @@ class CubicFit:
     """Least-squares cubic of Eq. (20) through the interval minima (Δζ in %, n0 in Hz).
 
     ``residuals_pct`` (n_points,) are ``data - fit``; ``upper_limit_hz`` is the first root above
-    2.1 Hz.
+    2.1 Hz; ``fit_range_max_hz`` the upper end of the n0 range fitted (no extrapolation beyond).
     """
 
     coefficients: tuple
@@ -76,6 +77,7 @@ class CubicFit:
     delta_zeta_pct: np.ndarray
     residuals_pct: np.ndarray
     upper_limit_hz: float
+    fit_range_max_hz: float = INTERVAL_EDGES_HZ[-1]
 
     @property
     def max_res_pct(self):
@@ -86,9 +88,9 @@ class CubicFit:
         return float(self.residuals_pct.min())
 
     def value_pct(self, n0_hz):
-        """The lower bound: Eq. (20) up to the upper limit, 0 beyond."""
-        n0 = np.asarray(n0_hz, dtype=float)
-        return np.where(n0 >= self.upper_limit_hz, 0.0, np.polyval(self.coefficients, n0))
+        """The lower bound (:func:`adm_calib.lower_bound.lower_bound_pct`): Eq. (20) up to the first
+        root or the end of the fitted range, 0 beyond."""
+        return lower_bound_pct(self.coefficients, n0_hz, LOWER_LIMIT_HZ, self.fit_range_max_hz)
 
     def __repr__(self):
         a, b, c, d = self.coefficients
@@ -96,10 +98,11 @@ class CubicFit:
                 f"upper limit {self.upper_limit_hz:.2f} Hz)")
 
 
-def fit_cubic(n0_hz, delta_zeta_pct, lower_limit_hz=LOWER_LIMIT_HZ):
+def fit_cubic(n0_hz, delta_zeta_pct, lower_limit_hz=LOWER_LIMIT_HZ, fit_range_max_hz=INTERVAL_EDGES_HZ[-1]):
     """Fit Eq. (20) to data points by linear least squares (:func:`numpy.polyfit`, degree 3).
 
     ``R² = 1 - SS_res / SS_tot`` about the data points. Needs at least 4 points.
+    ``fit_range_max_hz``: upper end of the n0 range the points come from (0 beyond it).
     """
     x = np.asarray(n0_hz, dtype=float)
     y = np.asarray(delta_zeta_pct, dtype=float)
@@ -110,7 +113,8 @@ def fit_cubic(n0_hz, delta_zeta_pct, lower_limit_hz=LOWER_LIMIT_HZ):
     ss_tot = float(np.sum((y - y.mean()) ** 2))
     r2 = 1.0 - float(np.sum(res**2)) / ss_tot if ss_tot > 0 else float("nan")
     return CubicFit(coefficients=tuple(float(c) for c in coef), r2=r2, n0_hz=x, delta_zeta_pct=y,
-                    residuals_pct=res, upper_limit_hz=first_root_hz(coef, lower_limit_hz))
+                    residuals_pct=res, upper_limit_hz=first_root_hz(coef, lower_limit_hz),
+                    fit_range_max_hz=float(fit_range_max_hz))
 
 
 @dataclass(frozen=True, repr=False)
@@ -194,9 +198,7 @@ class StudyFit:
         if f is None or f.fit is None or f.published is None:
             return None
         n0 = np.asarray(n0_hz, dtype=float)
-        p = f.published
-        pub = np.where(n0 >= p.first_root_hz, 0.0, np.polyval(p.coefficients, n0))
-        return f.fit.value_pct(n0) - pub
+        return f.fit.value_pct(n0) - f.published.value_pct(n0)
 
     def to_toml(self, command=""):
         """The fitted functions in the format of ``data/lower_bounds.toml`` (for ``--functions ours``)."""
