@@ -490,7 +490,7 @@ CASES = [
     ('adm-calib recommend', ['recommend', '--train', 'ICE-2', '--n0', '6.5', '--mu', '15000'],
      'error: the following arguments are required: --type'),
     ('adm-calib study', ['study', '--out', '{t}/st', '--trains', 'TGV'],
-     "error: --trains: 'TGV' is not a study train; allowed ICE-2, Eurostar, Railjet, ICE-4"),
+     "error: --trains: 'TGV' is not a study train; allowed ICE-2, Eurostar, Railjet, ICE-4 or the variant Eurostar-table"),
     ('adm-calib study', ['study', '--out', '{t}/st', '--trains', ''],
      "error: --trains: '' is empty; give a comma-separated list"),
     ('adm-calib study', ['study', '--out', '{t}/st', '--trains', 'ICE-2,ice2'],
