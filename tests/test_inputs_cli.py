@@ -482,7 +482,7 @@ CASES = [
     ('adm-calib recommend', ['recommend', '--train', 'ICE-2', '--type', 'cfb', '--n0', '30', '--mu', '15000'],
      'error: --n0: 30 Hz gives an estimated span of 3.65 m (n0 = 97.76 L^-0.9124), outside the studied spans [4, 40] m; give --span'),
     ('adm-calib recommend', ['recommend', '--train', 'ICE-2', '--type', 'cfb', '--n0', '6.5', '--mu', '15000', '--functions', 'mine'],
-     "error: argument --functions: invalid choice: 'mine' (choose from 'paper', 'ours')"),
+     "error: argument --functions: invalid choice: 'mine' (choose from 'paper', 'ours', 'conservative')"),
     ('adm-calib recommend', ['recommend', '--train', 'TGV', '--type', 'cfb', '--n0', '6.5', '--mu', '15000'],
      "error: --train: 'TGV' was not studied by the paper; allowed ICE-2, Eurostar, Railjet, ICE-4 (the lower-bound functions must not be applied to other trains, Section 4.3)"),
     ('adm-calib recommend', ['recommend', '--train', 'ICE-2', '--type', 'steel', '--n0', '6.5', '--mu', '15000'],

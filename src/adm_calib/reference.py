@@ -279,7 +279,12 @@ class LowerBound:
 
 
 #: Sets of lower-bound functions: the published ones and the ones re-derived from the shipped study.
-LOWER_BOUND_FILES = {"paper": "data/lower_bounds.toml", "ours": "data/lower_bounds_study.toml"}
+LOWER_BOUND_FILES = {"paper": "data/lower_bounds.toml", "ours": "data/lower_bounds_study.toml",
+                     "conservative": "data/lower_bounds_conservative.toml"}
+#: What each set of functions is, as printed by ``recommend``.
+FUNCTION_SOURCES = {"paper": "Tables B1-B4 (paper)", "ours": "re-derived from the shipped study (ours)",
+                    "conservative": "conservative: the largest cubic below every retained case of the shipped "
+                                    "study (linear programme)"}
 
 
 @lru_cache(maxsize=4)
@@ -287,10 +292,12 @@ def lower_bound_table(functions="paper"):
     """Lower-bound functions ``{train: {mass_function: LowerBound}}``.
 
     ``functions="paper"``: Tables B1-B4 as printed; ``"ours"``: the functions fitted by
-    ``adm-calib study-fit`` to the study shipped in ``results/study`` (same rules, Section 4.2.1).
+    ``adm-calib study-fit`` to the study shipped in ``results/study`` (same rules, Section 4.2.1);
+    ``"conservative"``: the linear-programme bounds of the same study
+    (:mod:`adm_calib.study.conservative`), below every retained case up to their first root.
     """
     if functions not in LOWER_BOUND_FILES:
-        raise InputError(f"functions: {functions!r} is not allowed; allowed 'paper' or 'ours'")
+        raise InputError(f"functions: {functions!r} is not allowed; allowed {', '.join(map(repr, LOWER_BOUND_FILES))}")
     text = resources.files("adm_calib").joinpath(LOWER_BOUND_FILES[functions]).read_text()
     data = tomllib.loads(text)
     cols = data["columns"]
@@ -371,8 +378,9 @@ def recommend(train, n0_hz, mu_t_m, bridge_type, span_m=None, interpolate=False,
         power law when omitted.
     interpolate : bool
         Linear interpolation in mu between the adjacent functions instead of the safe-side rule.
-    functions : {"paper", "ours"}
-        Published functions (Tables B1-B4) or the ones re-derived from the shipped study.
+    functions : {"paper", "ours", "conservative"}
+        Published functions (Tables B1-B4), the ones re-derived from the shipped study by least
+        squares, or its conservative (linear-programme) bounds.
 
     Raises
     ------
@@ -429,7 +437,7 @@ def recommend(train, n0_hz, mu_t_m, bridge_type, span_m=None, interpolate=False,
     beyond = all(n0 >= table[m].zero_from_hz for m in used)
     funcs = ", ".join(f"{m} ({1000 * mus[m]:.0f} kg/m = {mus[m]:.3f} t/m at L={L:g} m): {v:.4f} %"
                       for m, v in zip(used, values))
-    source = "Tables B1-B4 (paper)" if functions == "paper" else "re-derived from the shipped study (ours)"
+    source = FUNCTION_SOURCES[functions]
     expl = (f"{source}; {t}, {bridge_type.upper()}, n0={n0:g} Hz, mu={1000 * mu:g} kg/m ({mu:g} t/m), L={L:.3g} m"
             f"{' (estimated from n0 = 97.76 L^-0.9124)' if estimated else ''}; {rule}; {funcs}"
             f"{'; n0 beyond the first root: 0' if beyond else ''}")
