@@ -24,7 +24,10 @@ Lower-bound fit (Section 4.2.1, Eq. 20)
 
 Modules: :mod:`~adm_calib.study.cases` (case selection, settings), :mod:`~adm_calib.study.store`
 (the result store), :mod:`~adm_calib.study.execution` (batches on dask),
-:mod:`~adm_calib.study.fit` (lower-bound fit); the figures are in :mod:`adm_calib.plots`.
+:mod:`~adm_calib.study.fit` (lower-bound fit, Table B range check), :mod:`~adm_calib.study.conservative`
+(the conservative lower bound, linear programmes), :mod:`~adm_calib.study.recheck` (the range-end
+flag re-derived from fresh MLM curves); Eq. (20) itself is :mod:`adm_calib.lower_bound`; the
+figures are in :mod:`adm_calib.plots`.
 Imports: numpy and scipy; dask only inside :func:`run_study`, matplotlib only in the plots.
 """
 

@@ -13,10 +13,10 @@ first root ``R``, 0 beyond; :func:`adm_calib.lower_bound.lower_bound_pct`) that
 * has the largest integral over ``[2.1 Hz, R]`` (the area under the bound as applied).
 
 For a fixed ``R`` this is a linear programme in ``(a, b, c, d)`` (:func:`scipy.optimize.linprog`,
-HiGHS; ``p >= 0`` imposed on a 0.05 Hz grid and at ``R``). ``R`` is scanned from 2.15 Hz to the end
-of the fitted range ``hi`` in 0.05 Hz steps, plus the candidate "no root before ``hi``" (then the
-bound is 0 above ``hi``, no extrapolation), and the best ``R`` is refined to 1e-4 Hz by a bounded
-scalar search. A retained case with a negative Δζ below ``R`` makes ``R`` infeasible, so the bound
+HiGHS; ``p >= 0`` imposed on a 0.01 Hz grid, then at the cubic's minima by cutting planes).
+``R`` is scanned from 2.15 Hz to the end of the fitted range ``hi`` in 0.05 Hz steps, plus the
+candidate "no root before ``hi``" (then the bound is 0 above ``hi``, no extrapolation), and the
+best ``R`` is refined to 1e-4 Hz by a bounded scalar search. A retained case with a negative Δζ below ``R`` makes ``R`` infeasible, so the bound
 ends before the first negative case; negative cases beyond the root lie below any bound that is 0
 there (the paper's too) and are counted (``n_negative_beyond_root``).
 
@@ -36,8 +36,11 @@ from adm_sim.errors import InputError
 
 from adm_calib.lower_bound import LOWER_LIMIT_HZ, first_root_hz, lower_bound_pct
 
-#: Step (Hz) of the scan over the first root and of the grid on which p >= 0 is imposed.
+#: Step (Hz) of the scan over the first root.
 ROOT_STEP_HZ = 0.05
+#: Step (Hz) of the grid on which p >= 0 is imposed before the cutting planes (a finer grid needs
+#: fewer cutting-plane rounds: 2.5x faster than 0.05 Hz on ICE-2 mu1, same bound to 1e-5).
+POSITIVE_GRID_HZ = 0.01
 _INFEASIBLE = 1e30
 #: p >= this (%) on the grid before the last step to its root, so that touching zero between grid
 #: points cannot end the bound early (the applied bound is 0 from the first root on).
@@ -105,7 +108,7 @@ def _solve_for_root(x, y, lo, r, h, with_root):
 
     xs, los, rs = x / h, lo / h, r / h
     sel = x <= r
-    n_grid = max(8, int(math.ceil((r - lo) / ROOT_STEP_HZ)) + 1)
+    n_grid = max(8, int(math.ceil((r - lo) / POSITIVE_GRID_HZ)) + 1)
     g = list(np.linspace(los, rs, n_grid))
     w = np.array([(rs**4 - los**4) / 4, (rs**3 - los**3) / 3, (rs**2 - los**2) / 2, rs - los])
     eq = dict(A_eq=_basis(np.array([rs])), b_eq=np.zeros(1)) if with_root else {}
@@ -223,8 +226,8 @@ class ConservativeRow:
     n_cases: int
 
 
-#: n0 grid (Hz) on which the bounds are compared: 2.1 Hz to the end of the range, 0.01 Hz apart.
 def _grid(hi_hz):
+    """n0 grid (Hz) on which the bounds are compared: 2.1 Hz to the end of the range, 0.01 Hz apart."""
     return np.linspace(LOWER_LIMIT_HZ, hi_hz, int(round((hi_hz - LOWER_LIMIT_HZ) / 0.01)) + 1)
 
 
