@@ -412,13 +412,14 @@ def cmd_study_fit(args):
                + (f" --tag {user_tag}" if user_tag else ""))
     write(names[5], lambda p: p.write_text(fit.to_toml(command=command)))
     write(names[6], lambda p: p.write_text(st.comparison_markdown(content.records, rule=rule, edges_hz=edges)))
-    if ("ICE-2", "mu3") in fit.fits:
-        write(names[7], lambda p: plots.plot_lower_bound_set(fit, "ICE-2", "mu3", p))
     rows = conservative_study(fit)
+    cons = {(r.train, r.mass_function): r.fit for r in rows}
+    if ("ICE-2", "mu3") in fit.fits:
+        write(names[7], lambda p: plots.plot_lower_bound_set(fit, "ICE-2", "mu3", p, cons))
     write(names[8], lambda p: p.write_text(conservative_markdown(rows, fit)))
     write(names[9], lambda p: p.write_text(conservative_toml(rows, fit, command=command)))
     for t in fit.trains:
-        write(fig17[t], lambda p, t=t: plots.plot_lower_bounds_train(fit, t, p))
+        write(fig17[t], lambda p, t=t: plots.plot_lower_bounds_train(fit, t, p, cons))
     print(f"wrote {len(written)} files to {out}")
     return 0
 

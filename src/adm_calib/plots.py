@@ -134,8 +134,9 @@ def _legend(ax, **kw):
         ax.legend(**kw)
 
 
-def _draw_set(ax, study_fit, train, m, n0):
-    """One (train, mass function) set: Δζ_VBI against n0, interval minima, our fit, the paper's."""
+def _draw_set(ax, study_fit, train, m, n0, conservative=None):
+    """One (train, mass function) set: Δζ_VBI against n0, interval minima, our fit, the paper's and,
+    when given (``{(train, mf): ConservativeFit}``), the conservative bound."""
     recs = [r for r in study_fit.records_used if r["train"] == train and r["mass_function"] == m]
     if recs:
         ax.plot([r["n0_hz"] for r in recs], [r["delta_zeta_vbi_pct"] for r in recs], ls="none", marker=".",
@@ -155,6 +156,10 @@ def _draw_set(ax, study_fit, train, m, n0):
     if p is not None:
         ax.plot(n0, p.value_pct(n0), color="tab:red", lw=1.2, ls="--",
                 label=f"paper (root {p.upper_limit_hz:.2f} Hz)")
+    c = (conservative or {}).get((train, m))
+    if c is not None:
+        ax.plot(n0, c.value_pct(n0), color="tab:green", lw=1.2, ls="-.",
+                label=f"conservative (LP, root {c.upper_limit_hz:.2f} Hz)")
     for e in INTERVAL_EDGES_HZ:
         ax.axvline(e, color="k", lw=0.3, alpha=0.25)
     ax.axhline(0.0, color="k", lw=0.5)
@@ -165,11 +170,12 @@ def _draw_set(ax, study_fit, train, m, n0):
     _legend(ax, fontsize=6)
 
 
-def plot_lower_bound_set(study_fit, train, mass_function, path):
-    """Analogue of Fig. 17: one set with its interval minima, our fit and the published function."""
+def plot_lower_bound_set(study_fit, train, mass_function, path, conservative=None):
+    """Analogue of Fig. 17: one set with its interval minima, our fit, the published function and
+    (optional) the conservative bound."""
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(7, 4.5))
-    _draw_set(ax, study_fit, train, mass_function, np.linspace(LOWER_LIMIT_HZ, 21.0, 400))
+    _draw_set(ax, study_fit, train, mass_function, np.linspace(LOWER_LIMIT_HZ, 21.0, 400), conservative)
     ax.set_xlabel("n0 (Hz)")
     ax.set_ylabel("dz (%)")
     fig.tight_layout()
@@ -177,13 +183,13 @@ def plot_lower_bound_set(study_fit, train, mass_function, path):
     plt.close(fig)
 
 
-def plot_lower_bounds_train(study_fit, train, path):
-    """Fig. 17 analogue for the six mass functions of one train."""
+def plot_lower_bounds_train(study_fit, train, path, conservative=None):
+    """Fig. 17 analogue for the six mass functions of one train (optional: the conservative bounds)."""
     plt = _pyplot()
     fig, axes = plt.subplots(2, 3, figsize=(13, 7.5), sharex=True, squeeze=False)
     n0 = np.linspace(LOWER_LIMIT_HZ, 21.0, 400)
     for ax, m in zip(axes.flat, MASS_FUNCTION_NAMES):
-        _draw_set(ax, study_fit, train, m, n0)
+        _draw_set(ax, study_fit, train, m, n0, conservative)
     for ax in axes[-1]:
         ax.set_xlabel("n0 (Hz)")
     for ax in axes[:, 0]:
