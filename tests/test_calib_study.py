@@ -228,7 +228,7 @@ def test_core_imports_stay_light():
 
 # ---------------------------------------------------------------------- bad input
 @pytest.mark.parametrize("args, message", [
-    (["--trains", "TGV"], "error: --trains: 'TGV' is not a study train; allowed ICE-2, Eurostar, Railjet, ICE-4"),
+    (["--trains", "TGV"], "error: --trains: 'TGV' is not a study train; allowed ICE-2, Eurostar, Railjet, ICE-4 or the variant Eurostar-table"),
     (["--spans", "50:60"], "error: --spans: 50 m is out of range; allowed [4, 40] m"),
     (["--workers", "0"], "error: --workers: 0 processes is out of range; allowed integer in [1, 64] processes"),
     (["--freq-index", "1,6"], "error: --freq-index: 6 is out of range; allowed integer in [1, 5]"),

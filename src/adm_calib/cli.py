@@ -5,9 +5,11 @@ Subcommands::
     adm-calib calibrate --bridge B1 --train ICE-2 [--speeds 160:350:1] [--json FILE] [--plot FILE.png]
     adm-calib table4 [--out DIR] [--bridges B1,B2,B3,B4] [--trains ICE-2,...] [--jobs N]
     adm-calib recommend --train T --n0 HZ --mu KG_PER_M --type cfb|sc [--span M] [--interpolate]
+                        [--functions paper|ours|conservative]
     adm-calib study --out DIR [--trains ...] [--mass-functions mu1,...] [--spans 4:40] [--freq-index 1,...]
                     [--limit N] [--workers 2 | --scheduler tcp://127.0.0.1:PORT]
-    adm-calib study-fit --results DIR/results.jsonl [--out DIR] [--exclude-flagged]
+    adm-calib study-fit --results DIR/results.jsonl [--out DIR] [--exclude none|step2|strict]
+                        [--fit-range-hz 2:21] [--tag NAME]
 
 Errors are one line ``error: ...`` on stderr: bad input exits with code 2, a run that fails for
 another reason (an unstable integration, a study cluster that fails) with 1, an interrupt with 130
@@ -183,8 +185,8 @@ def _study_train(text, option):
 
 
 def cmd_recommend(args):
-    from adm_calib.reference import (STUDY_N0_MAX_HZ, STUDY_SPAN_RANGE_M, lower_bound_table, recommend,
-                                     span_from_frequency_m)
+    from adm_calib.reference import (FUNCTION_SOURCES, STUDY_N0_MAX_HZ, STUDY_SPAN_RANGE_M, lower_bound_table,
+                                     recommend, span_from_frequency_m)
 
     train = _study_train(args.train, "--train")
     lo_hz = lower_bound_table(args.functions)[train]["mu1"].lower_limit_hz
@@ -208,7 +210,7 @@ def cmd_recommend(args):
         print(json.dumps(d, indent=2))
     else:
         print(f"dz_LB = {rec.delta_zeta_pct:.4f} %")
-        print(f"functions: {'Tables B1-B4 (paper)' if rec.functions == 'paper' else 're-derived from the shipped study (ours)'}")
+        print(f"functions: {FUNCTION_SOURCES[rec.functions]}")
         print(f"mu = {mu_kg_m:g} kg/m ({mu_kg_m / 1000:g} t/m)")
         print(f"rule: {rec.rule}")
         print("mass functions: " + ", ".join(
@@ -338,9 +340,33 @@ def _check_fit_records(records, option, path):
             check_range(f"{where}: {key}", value, unit, lo, hi, lo_open=lo is not None)
 
 
+def _fit_range_hz(text):
+    """``--fit-range-hz lo:hi`` (Hz) -> the interval boundaries of the fit (:func:`fit_edges_hz`)."""
+    from adm_calib.study import fit_edges_hz
+
+    parts = [p.strip() for p in str(text).split(":")]
+    try:
+        if len(parts) != 2:
+            raise ValueError
+        lo, hi = (float(p) for p in parts)
+    except ValueError:
+        raise InputError(f"--fit-range-hz: {text!r} is not lo:hi in Hz (e.g. 2:16); allowed within [2, 21] Hz") from None
+    return _as_option("--fit-range-hz", "fit_range_hz", fit_edges_hz, lo, hi)
+
+
+def _tag(text):
+    import re
+
+    if text and not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,39}", text):
+        raise InputError(f"--tag: {text!r} is not a file-name suffix; allowed 1-40 letters, digits, '_', '.', '-' "
+                         f"(starting with a letter or digit)")
+    return text
+
+
 def cmd_study_fit(args):
     from adm_calib import plots
     from adm_calib import study as st
+    from adm_calib.study.conservative import conservative_markdown, conservative_study, conservative_toml
 
     res = Path(args.results)
     if not res.is_file():
@@ -348,11 +374,18 @@ def cmd_study_fit(args):
     rule = "strict" if args.exclude_flagged else args.exclude
     if args.exclude_flagged and args.exclude not in ("strict", st.DEFAULT_RULE):
         raise InputError(f"--exclude-flagged means --exclude strict; it conflicts with --exclude {args.exclude}")
-    tag = "" if rule == st.DEFAULT_RULE else f"_{rule}"
+    edges = _fit_range_hz(args.fit_range_hz)
+    user_tag = _tag(args.tag)
+    tag = ("" if rule == st.DEFAULT_RULE else f"_{rule}")
+    if edges != st.INTERVAL_EDGES_HZ:
+        tag += f"_fit{edges[0]:g}-{edges[-1]:g}hz"
+    tag += f"_{user_tag}" if user_tag else ""
     names = [f"lower_bounds_fit{tag}.csv", f"interval_minima{tag}.csv", f"lower_bounds_fit{tag}.txt",
              f"fig16_dz_vs_span{tag}.png", f"fig18_lower_bounds{tag}.png", f"lower_bounds_study{tag}.toml",
-             f"appendix_b_comparison{tag}.md", f"fig17_lower_bound_ICE-2_mu3{tag}.png"]
-    names += [f"fig17_lower_bound_{t}{tag}.png" for t in st.STUDY_TRAINS]
+             f"appendix_b_comparison{tag}.md", f"fig17_lower_bound_ICE-2_mu3{tag}.png",
+             f"conservative_lower_bounds{tag}.md", f"lower_bounds_conservative{tag}.toml"]
+    fig17 = {t: f"fig17_lower_bound_{t}{tag}.png" for t in (*st.STUDY_TRAINS, *st.TRAIN_VARIANTS)}
+    names += list(fig17.values())
     out, path_list = _out_dir(args.out if args.out is not None else str(res.parent), "--out", names, args.force)
     paths = dict(zip(names, path_list))
     content = st.read_results(res)
@@ -360,7 +393,7 @@ def cmd_study_fit(args):
         raise InputError(f"--results: {str(res)!r} holds no complete result line")
     _check_fit_records(content.records, "--results", res)
     _make_dir(out, "--out")
-    fit = st.fit_study(content.records, rule=rule)
+    fit = st.fit_study(content.records, rule=rule, edges_hz=edges)
     text = fit.to_text()
     if content.truncated_tail:
         text += "\n(a truncated last line of the results file was ignored)"
@@ -376,12 +409,18 @@ def cmd_study_fit(args):
     write(names[2], lambda p: p.write_text(text + "\n"))
     write(names[3], lambda p: plots.plot_dz_vs_span(fit.records_used, p))
     write(names[4], lambda p: plots.plot_lower_bounds(fit, p))
-    write(names[5], lambda p: p.write_text(fit.to_toml(command=f"adm-calib study-fit --results {res} --exclude {rule}")))
-    write(names[6], lambda p: p.write_text(st.comparison_markdown(content.records, rule=rule)))
+    command = (f"adm-calib study-fit --results {res} --exclude {rule} --fit-range-hz {edges[0]:g}:{edges[-1]:g}"
+               + (f" --tag {user_tag}" if user_tag else ""))
+    write(names[5], lambda p: p.write_text(fit.to_toml(command=command)))
+    write(names[6], lambda p: p.write_text(st.comparison_markdown(content.records, rule=rule, edges_hz=edges)))
+    rows = conservative_study(fit)
+    cons = {(r.train, r.mass_function): r.fit for r in rows}
     if ("ICE-2", "mu3") in fit.fits:
-        write(names[7], lambda p: plots.plot_lower_bound_set(fit, "ICE-2", "mu3", p))
-    for t, n in zip(st.STUDY_TRAINS, names[8:]):
-        write(n, lambda p, t=t: plots.plot_lower_bounds_train(fit, t, p))
+        write(names[7], lambda p: plots.plot_lower_bound_set(fit, "ICE-2", "mu3", p, cons))
+    write(names[8], lambda p: p.write_text(conservative_markdown(rows, fit)))
+    write(names[9], lambda p: p.write_text(conservative_toml(rows, fit, command=command)))
+    for t in fit.trains:
+        write(fig17[t], lambda p, t=t: plots.plot_lower_bounds_train(fit, t, p, cons))
     print(f"wrote {len(written)} files to {out}")
     return 0
 
@@ -428,9 +467,10 @@ def build_parser():
     r.add_argument("--span", default=None, help="span (m, 4..40); estimated from n0 when omitted")
     r.add_argument("--interpolate", action="store_true",
                    help="interpolate linearly between the adjacent mass functions instead of the safe side")
-    r.add_argument("--functions", choices=("paper", "ours"), default="paper",
+    r.add_argument("--functions", choices=("paper", "ours", "conservative"), default="paper",
                    help="lower-bound functions: paper = Tables B1-B4 (default); ours = re-derived from the "
-                        "study shipped in results/study (adm-calib study-fit)")
+                        "study shipped in results/study (adm-calib study-fit, least squares as the paper); "
+                        "conservative = the largest cubic below every retained case of that study (linear programme)")
     r.add_argument("--json", action="store_true", help="print JSON")
     r.set_defaults(func=cmd_recommend)
 
@@ -460,6 +500,10 @@ def build_parser():
                         "DIM value is not a local maximum (Section 4, Step 2); strict = also cases whose largest "
                         "MLM value lies at an end of the speed range")
     f.add_argument("--exclude-flagged", action="store_true", help="the same as --exclude strict")
+    f.add_argument("--fit-range-hz", default="2:21",
+                   help="n0 range of the fit lo:hi in Hz within 2:21 (default 2:21, the paper's intervals; e.g. 2:16 "
+                        "keeps the boundaries up to 16 Hz); the fitted functions are 0 above hi")
+    f.add_argument("--tag", default="", help="suffix of every output file name (e.g. eurostar_table)")
     f.add_argument("--overwrite", "--force", dest="force", action="store_true",
                    help="replace existing output files (only once the new ones are complete)")
     f.set_defaults(func=cmd_study_fit)

@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from adm_calib.study.cases import INTERVAL_EDGES_HZ, LOWER_LIMIT_HZ, MASS_FUNCTION_NAMES, STUDY_TRAINS
+from adm_calib.study.cases import INTERVAL_EDGES_HZ, LOWER_LIMIT_HZ, MASS_FUNCTION_NAMES, STUDY_TRAINS, paper_train
 
 APPROACHES = ("VBI", "LB", "ADM", "EADA")
 COLOURS = {"VBI": "tab:blue", "LB": "tab:orange", "ADM": "gold", "EADA": "tab:purple"}
@@ -107,7 +107,9 @@ def plot_dz_vs_span(records, path):
     fig, axes = plt.subplots(2, 2, figsize=(11, 7.5), sharex=True, squeeze=False)
     L = np.linspace(4.0, 40.0, 361)
     adm = [adm_delta_zeta_pct(x) for x in L]
-    for ax, t in zip(axes.flat, STUDY_TRAINS):
+    trains = sorted({r["train"] for r in records}, key=lambda t: (STUDY_TRAINS.index(paper_train(t))
+                                                                   if paper_train(t) in STUDY_TRAINS else 9, t))
+    for ax, t in zip(axes.flat, trains):
         for m in MASS_FUNCTION_NAMES:
             pts = [(r["span_m"], r["delta_zeta_vbi_pct"]) for r in records if r["train"] == t and r["mass_function"] == m]
             if pts:
@@ -132,12 +134,9 @@ def _legend(ax, **kw):
         ax.legend(**kw)
 
 
-def _lb_curve(coefficients, root, n0):
-    return np.where(n0 >= root, 0.0, np.polyval(coefficients, n0))
-
-
-def _draw_set(ax, study_fit, train, m, n0):
-    """One (train, mass function) set: Δζ_VBI against n0, interval minima, our fit, the paper's."""
+def _draw_set(ax, study_fit, train, m, n0, conservative=None):
+    """One (train, mass function) set: Δζ_VBI against n0, interval minima, our fit, the paper's and,
+    when given (``{(train, mf): ConservativeFit}``), the conservative bound."""
     recs = [r for r in study_fit.records_used if r["train"] == train and r["mass_function"] == m]
     if recs:
         ax.plot([r["n0_hz"] for r in recs], [r["delta_zeta_vbi_pct"] for r in recs], ls="none", marker=".",
@@ -153,23 +152,30 @@ def _draw_set(ax, study_fit, train, m, n0):
     if p is None:
         from adm_calib.reference import lower_bound_table
 
-        p = lower_bound_table().get(train, {}).get(m)
+        p = lower_bound_table().get(paper_train(train), {}).get(m)
     if p is not None:
-        ax.plot(n0, _lb_curve(p.coefficients, p.first_root_hz, n0), color="tab:red", lw=1.2, ls="--",
+        ax.plot(n0, p.value_pct(n0), color="tab:red", lw=1.2, ls="--",
                 label=f"paper (root {p.upper_limit_hz:.2f} Hz)")
+    c = (conservative or {}).get((train, m))
+    if c is not None:
+        ax.plot(n0, c.value_pct(n0), color="tab:green", lw=1.2, ls="-.",
+                label=f"conservative (LP, root {c.upper_limit_hz:.2f} Hz)")
     for e in INTERVAL_EDGES_HZ:
         ax.axvline(e, color="k", lw=0.3, alpha=0.25)
     ax.axhline(0.0, color="k", lw=0.5)
-    ax.set_title(f"{train}, {m} (rule {study_fit.rule})")
+    lo, hi = study_fit.fit_range_hz
+    rng = "" if (lo, hi) == (INTERVAL_EDGES_HZ[0], INTERVAL_EDGES_HZ[-1]) else f", fit {lo:g}-{hi:g} Hz"
+    ax.set_title(f"{train}, {m} (rule {study_fit.rule}{rng})")
     ax.grid(alpha=0.2)
     _legend(ax, fontsize=6)
 
 
-def plot_lower_bound_set(study_fit, train, mass_function, path):
-    """Analogue of Fig. 17: one set with its interval minima, our fit and the published function."""
+def plot_lower_bound_set(study_fit, train, mass_function, path, conservative=None):
+    """Analogue of Fig. 17: one set with its interval minima, our fit, the published function and
+    (optional) the conservative bound."""
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(7, 4.5))
-    _draw_set(ax, study_fit, train, mass_function, np.linspace(LOWER_LIMIT_HZ, 21.0, 400))
+    _draw_set(ax, study_fit, train, mass_function, np.linspace(LOWER_LIMIT_HZ, 21.0, 400), conservative)
     ax.set_xlabel("n0 (Hz)")
     ax.set_ylabel("dz (%)")
     fig.tight_layout()
@@ -177,13 +183,13 @@ def plot_lower_bound_set(study_fit, train, mass_function, path):
     plt.close(fig)
 
 
-def plot_lower_bounds_train(study_fit, train, path):
-    """Fig. 17 analogue for the six mass functions of one train."""
+def plot_lower_bounds_train(study_fit, train, path, conservative=None):
+    """Fig. 17 analogue for the six mass functions of one train (optional: the conservative bounds)."""
     plt = _pyplot()
     fig, axes = plt.subplots(2, 3, figsize=(13, 7.5), sharex=True, squeeze=False)
     n0 = np.linspace(LOWER_LIMIT_HZ, 21.0, 400)
     for ax, m in zip(axes.flat, MASS_FUNCTION_NAMES):
-        _draw_set(ax, study_fit, train, m, n0)
+        _draw_set(ax, study_fit, train, m, n0, conservative)
     for ax in axes[-1]:
         ax.set_xlabel("n0 (Hz)")
     for ax in axes[:, 0]:
@@ -202,14 +208,14 @@ def plot_lower_bounds(study_fit, path):
     fig, axes = plt.subplots(2, 2, figsize=(11, 7.5), sharex=True, squeeze=False)
     n0 = np.linspace(LOWER_LIMIT_HZ, 21.0, 400)
     pub = lower_bound_table()
-    for ax, t in zip(axes.flat, STUDY_TRAINS):
+    for ax, t in zip(axes.flat, study_fit.trains):
         for m in MASS_FUNCTION_NAMES:
             f = study_fit.fits.get((t, m))
             if f is not None and f.fit is not None:
                 ax.plot(n0, f.fit.value_pct(n0), color=_MF_COLOURS[m], lw=1.6, label=f"{m} fit")
-            p = pub.get(t, {}).get(m)
+            p = pub.get(paper_train(t), {}).get(m)
             if p is not None:
-                ax.plot(n0, _lb_curve(p.coefficients, p.first_root_hz, n0), color=_MF_COLOURS[m], lw=1.0, ls="--")
+                ax.plot(n0, p.value_pct(n0), color=_MF_COLOURS[m], lw=1.0, ls="--")
         ax.set_title(f"{t} (dashed: paper)")
         ax.axhline(0.0, color="k", lw=0.5)
         ax.grid(alpha=0.3)

@@ -61,6 +61,8 @@ import numpy as np
 from adm_sim.bridge import MASS_FUNCTIONS, N0_FIT, N0_UB, mass_function_t_m
 from adm_sim.errors import InputError, check_range
 
+from adm_calib.lower_bound import FIT_RANGE_MAX_HZ, LOWER_LIMIT_HZ, first_root_hz, lower_bound_pct, zero_from_hz
+
 #: Trains of the study, in the paper's order (Table A1).
 STUDY_TRAINS = ("ICE-2", "Eurostar", "Railjet", "ICE-4")
 #: Mass functions per bridge type, heaviest first (Table 1).
@@ -223,16 +225,6 @@ def eada_for(bridge, train):
 
 
 # ---------------------------------------------------------------------- lower bounds
-def first_root_hz(coefficients, lower_limit_hz=2.1):
-    """First real root of the cubic Eq. (20) above ``lower_limit_hz`` (Hz); ``inf`` if none.
-
-    Section 4.2.1: the lower bound is set to zero from the first intersection with the abscissa.
-    """
-    roots = np.roots(np.asarray(coefficients, dtype=float))
-    real = sorted(r.real for r in roots if abs(r.imag) < 1e-9 * max(1.0, abs(r)) and r.real > lower_limit_hz)
-    return float(real[0]) if real else math.inf
-
-
 @dataclass(frozen=True)
 class LowerBound:
     """One lower-bound function of Tables B1-B4 (Eq. 20): dz in %, n0 in Hz."""
@@ -247,7 +239,7 @@ class LowerBound:
     r2: float
     max_res_pct: float
     min_res_pct: float
-    lower_limit_hz: float = 2.1
+    lower_limit_hz: float = LOWER_LIMIT_HZ
     source: str = ""
     fit_range_max_hz: float = math.inf
 
@@ -255,7 +247,7 @@ class LowerBound:
     def zero_from_hz(self):
         """0 from here on: the first root (Section 4.2.1), or the end of the fitted n0 range where
         the cubic has no root there (re-derived functions; no extrapolation above 21 Hz)."""
-        return min(self.first_root_hz, self.fit_range_max_hz)
+        return zero_from_hz(self.coefficients, self.lower_limit_hz, self.fit_range_max_hz)
 
     @property
     def coefficients(self):
@@ -270,6 +262,10 @@ class LowerBound:
         """First real root of Eq. (20) above the lower limit (Hz), computed."""
         return first_root_hz(self.coefficients, self.lower_limit_hz)
 
+    def value_pct(self, n0_hz):
+        """Lower bound (%) at ``n0_hz``, any shape (:func:`adm_calib.lower_bound.lower_bound_pct`)."""
+        return lower_bound_pct(self.coefficients, n0_hz, self.lower_limit_hz, self.fit_range_max_hz)
+
     def delta_zeta_pct(self, n0_hz):
         """Lower bound (%) at ``n0_hz``: Eq. (20) up to the first root, 0 beyond.
 
@@ -279,13 +275,16 @@ class LowerBound:
             Below the lower limit (2.1 Hz).
         """
         n0 = check_range("n0_hz", n0_hz, "Hz", self.lower_limit_hz, None)
-        if n0 >= self.zero_from_hz:
-            return 0.0
-        return float(self.polynomial_pct(n0))
+        return lower_bound_pct(self.coefficients, n0, self.lower_limit_hz, self.fit_range_max_hz)
 
 
 #: Sets of lower-bound functions: the published ones and the ones re-derived from the shipped study.
-LOWER_BOUND_FILES = {"paper": "data/lower_bounds.toml", "ours": "data/lower_bounds_study.toml"}
+LOWER_BOUND_FILES = {"paper": "data/lower_bounds.toml", "ours": "data/lower_bounds_study.toml",
+                     "conservative": "data/lower_bounds_conservative.toml"}
+#: What each set of functions is, as printed by ``recommend``.
+FUNCTION_SOURCES = {"paper": "Tables B1-B4 (paper)", "ours": "re-derived from the shipped study (ours)",
+                    "conservative": "conservative: the largest cubic below every retained case of the shipped "
+                                    "study (linear programme)"}
 
 
 @lru_cache(maxsize=4)
@@ -293,10 +292,12 @@ def lower_bound_table(functions="paper"):
     """Lower-bound functions ``{train: {mass_function: LowerBound}}``.
 
     ``functions="paper"``: Tables B1-B4 as printed; ``"ours"``: the functions fitted by
-    ``adm-calib study-fit`` to the study shipped in ``results/study`` (same rules, Section 4.2.1).
+    ``adm-calib study-fit`` to the study shipped in ``results/study`` (same rules, Section 4.2.1);
+    ``"conservative"``: the linear-programme bounds of the same study
+    (:mod:`adm_calib.study.conservative`), below every retained case up to their first root.
     """
     if functions not in LOWER_BOUND_FILES:
-        raise InputError(f"functions: {functions!r} is not allowed; allowed 'paper' or 'ours'")
+        raise InputError(f"functions: {functions!r} is not allowed; allowed {', '.join(map(repr, LOWER_BOUND_FILES))}")
     text = resources.files("adm_calib").joinpath(LOWER_BOUND_FILES[functions]).read_text()
     data = tomllib.loads(text)
     cols = data["columns"]
@@ -377,8 +378,9 @@ def recommend(train, n0_hz, mu_t_m, bridge_type, span_m=None, interpolate=False,
         power law when omitted.
     interpolate : bool
         Linear interpolation in mu between the adjacent functions instead of the safe-side rule.
-    functions : {"paper", "ours"}
-        Published functions (Tables B1-B4) or the ones re-derived from the shipped study.
+    functions : {"paper", "ours", "conservative"}
+        Published functions (Tables B1-B4), the ones re-derived from the shipped study by least
+        squares, or its conservative (linear-programme) bounds.
 
     Raises
     ------
@@ -435,7 +437,7 @@ def recommend(train, n0_hz, mu_t_m, bridge_type, span_m=None, interpolate=False,
     beyond = all(n0 >= table[m].zero_from_hz for m in used)
     funcs = ", ".join(f"{m} ({1000 * mus[m]:.0f} kg/m = {mus[m]:.3f} t/m at L={L:g} m): {v:.4f} %"
                       for m, v in zip(used, values))
-    source = "Tables B1-B4 (paper)" if functions == "paper" else "re-derived from the shipped study (ours)"
+    source = FUNCTION_SOURCES[functions]
     expl = (f"{source}; {t}, {bridge_type.upper()}, n0={n0:g} Hz, mu={1000 * mu:g} kg/m ({mu:g} t/m), L={L:.3g} m"
             f"{' (estimated from n0 = 97.76 L^-0.9124)' if estimated else ''}; {rule}; {funcs}"
             f"{'; n0 beyond the first root: 0' if beyond else ''}")
@@ -468,4 +470,5 @@ __all__ = [
     "STUDY_TRAINS", "TYPE_MASS_FUNCTIONS", "MASS_FUNCTIONS", "adm_delta_zeta_pct", "HalfCoach", "half_coach",
     "eada_vehicle", "eada_delta_zeta_pct", "eada_for", "LowerBound", "lower_bound_table", "lower_bound",
     "span_from_frequency_m", "Recommendation", "recommend", "lower_bound_for", "canonical_train_name",
+    "first_root_hz", "lower_bound_pct", "LOWER_LIMIT_HZ", "FIT_RANGE_MAX_HZ",
 ]

@@ -24,17 +24,20 @@ Lower-bound fit (Section 4.2.1, Eq. 20)
 
 Modules: :mod:`~adm_calib.study.cases` (case selection, settings), :mod:`~adm_calib.study.store`
 (the result store), :mod:`~adm_calib.study.execution` (batches on dask),
-:mod:`~adm_calib.study.fit` (lower-bound fit); the figures are in :mod:`adm_calib.plots`.
+:mod:`~adm_calib.study.fit` (lower-bound fit, Table B range check), :mod:`~adm_calib.study.conservative`
+(the conservative lower bound, linear programmes), :mod:`~adm_calib.study.recheck` (the range-end
+flag re-derived from fresh MLM curves); Eq. (20) itself is :mod:`adm_calib.lower_bound`; the
+figures are in :mod:`adm_calib.plots`.
 Imports: numpy and scipy; dask only inside :func:`run_study`, matplotlib only in the plots.
 """
 
 from adm_calib.study.cases import (FREQ_INDICES, INTERVAL_EDGES_HZ, LOWER_LIMIT_HZ, MASS_FUNCTION_NAMES,
-                                   SPAN_RANGE_M, STUDY_TRAINS, WORKER_ENV, StudyCase, StudySettings,
-                                   canonical_trains, case_identity, select_cases)
+                                   SPAN_RANGE_M, STUDY_TRAINS, TRAIN_VARIANTS, WORKER_ENV, StudyCase, StudySettings,
+                                   canonical_trains, case_identity, paper_train, select_cases)
 from adm_calib.study.execution import (StudyRun, local_cluster, make_batches, run_batch, run_case,
                                        run_study)
 from adm_calib.study.fit import (COMPARE_N0_HZ, DEFAULT_RULE, EXCLUSION_RULES, EXCLUSIONS, CubicFit, IntervalMinimum, LowerBoundFit, StudyFit, fit_cubic,
-                                 case_flags, comparison_markdown, fit_study,
+                                 case_flags, comparison_markdown, fit_edges_hz, fit_study,
                                  interval_minima)
 from adm_calib.study.store import (LOCK_NAME, META_FORMAT, META_NAME, OLD_FORMATS, RESULTS_NAME, ResultsContent,
                                    ResultsWriter, error_record, read_meta, read_results, record_key,
@@ -42,7 +45,7 @@ from adm_calib.study.store import (LOCK_NAME, META_FORMAT, META_NAME, OLD_FORMAT
 
 __all__ = [
     "FREQ_INDICES", "INTERVAL_EDGES_HZ", "LOWER_LIMIT_HZ", "MASS_FUNCTION_NAMES", "SPAN_RANGE_M", "STUDY_TRAINS",
-    "WORKER_ENV", "StudyCase", "StudySettings", "canonical_trains", "case_identity", "select_cases",
+    "TRAIN_VARIANTS", "paper_train", "fit_edges_hz", "WORKER_ENV", "StudyCase", "StudySettings", "canonical_trains", "case_identity", "select_cases",
     "StudyRun", "local_cluster", "make_batches", "run_batch", "run_case", "run_study",
     "COMPARE_N0_HZ", "DEFAULT_RULE", "EXCLUSION_RULES", "case_flags", "comparison_markdown",
     "EXCLUSIONS", "CubicFit", "IntervalMinimum", "LowerBoundFit", "StudyFit", "fit_cubic", "fit_study",

@@ -6,6 +6,7 @@ A case carries its identity as fields (train, span, frequency index, mass functi
 
 from __future__ import annotations
 
+import re
 from dataclasses import asdict, dataclass
 from functools import lru_cache
 
@@ -14,18 +15,20 @@ import numpy as np
 from adm_sim.errors import InputError, check_range
 from adm_sim.limits import DEFAULT_SPEEDS
 
+from adm_calib.lower_bound import FIT_RANGE_MAX_HZ, LOWER_LIMIT_HZ
 from adm_calib.reference import STUDY_TRAINS, canonical_train_name
 
 #: Frequency indices of the field: 1 = LB power law ... 5 = UB power law (Section 3.1.1).
 FREQ_INDICES = (1, 2, 3, 4, 5)
 #: Spans of the field (m).
 SPAN_RANGE_M = (4, 40)
+#: Shipped variants of the study trains, studied like their paper train and compared with its
+#: Table B (variant -> paper train): ``Eurostar-table`` is Table A1's PC 2-8 column as printed.
+TRAIN_VARIANTS = {"Eurostar-table": "Eurostar"}
 #: Mass functions of Table 1.
 MASS_FUNCTION_NAMES = ("mu1", "mu2", "mu3", "mu4", "mu5", "mu6")
 #: Interval boundaries of Section 4.2.1 (Hz): 0.5 Hz from 2 to 8 Hz, then 9, 10, 11, 13, 16, 21.
-INTERVAL_EDGES_HZ = tuple(float(x) for x in np.arange(2.0, 8.0 + 1e-9, 0.5)) + (9.0, 10.0, 11.0, 13.0, 16.0, 21.0)
-#: Lower validity limit of the lower-bound functions (Hz), Section 4.2.2.
-LOWER_LIMIT_HZ = 2.1
+INTERVAL_EDGES_HZ = tuple(float(x) for x in np.arange(2.0, 8.0 + 1e-9, 0.5)) + (9.0, 10.0, 11.0, 13.0, 16.0, FIT_RANGE_MAX_HZ)
 #: Environment of the worker processes: one BLAS/OpenMP thread each (one case per core).
 WORKER_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 
@@ -62,14 +65,29 @@ class StudyCase:
         return f"StudyCase({self.bridge.name} x {self.train}, n0={self.bridge.n0_hz:.3f} Hz)"
 
 
+def paper_train(name):
+    """The study train a result's ``train`` stands for: the paper train of a variant, else ``name``."""
+    return TRAIN_VARIANTS.get(name, name)
+
+
+def _variant_name(text):
+    key = re.sub(r"[^a-z0-9]", "", str(text).lower())
+    return next((v for v in TRAIN_VARIANTS if re.sub(r"[^a-z0-9]", "", v.lower()) == key), None)
+
+
 def canonical_trains(names, field="trains"):
-    """Study train names for ``names`` (duplicates dropped, order kept); ``field`` names the input."""
+    """Study train names for ``names`` (duplicates dropped, order kept); ``field`` names the input.
+
+    A shipped variant (:data:`TRAIN_VARIANTS`, e.g. ``Eurostar-table``) keeps its own name.
+    """
     out = []
     for t in names:
+        name = _variant_name(t)
         try:
-            name = canonical_train_name(t)
+            name = name or canonical_train_name(t)
         except InputError:
-            raise InputError(f"{field}: {t!r} is not a study train; allowed {', '.join(STUDY_TRAINS)}") from None
+            raise InputError(f"{field}: {t!r} is not a study train; allowed {', '.join(STUDY_TRAINS)} "
+                             f"or the variant {', '.join(TRAIN_VARIANTS)}") from None
         if name not in out:
             out.append(name)
     return out

@@ -12,8 +12,9 @@ import numpy as np
 
 from adm_sim.errors import InputError
 
-from adm_calib.reference import STUDY_TRAINS, first_root_hz
-from adm_calib.study.cases import INTERVAL_EDGES_HZ, LOWER_LIMIT_HZ
+from adm_calib.lower_bound import first_root_hz, lower_bound_pct
+from adm_calib.reference import STUDY_TRAINS
+from adm_calib.study.cases import INTERVAL_EDGES_HZ, LOWER_LIMIT_HZ, TRAIN_VARIANTS, paper_train
 from adm_calib.study.store import record_key
 
 # ====================================================================== lower-bound fit
@@ -67,7 +68,7 @@ class CubicFit:
     """Least-squares cubic of Eq. (20) through the interval minima (Δζ in %, n0 in Hz).
 
     ``residuals_pct`` (n_points,) are ``data - fit``; ``upper_limit_hz`` is the first root above
-    2.1 Hz.
+    2.1 Hz; ``fit_range_max_hz`` the upper end of the n0 range fitted (no extrapolation beyond).
     """
 
     coefficients: tuple
@@ -76,6 +77,7 @@ class CubicFit:
     delta_zeta_pct: np.ndarray
     residuals_pct: np.ndarray
     upper_limit_hz: float
+    fit_range_max_hz: float = INTERVAL_EDGES_HZ[-1]
 
     @property
     def max_res_pct(self):
@@ -86,9 +88,9 @@ class CubicFit:
         return float(self.residuals_pct.min())
 
     def value_pct(self, n0_hz):
-        """The lower bound: Eq. (20) up to the upper limit, 0 beyond."""
-        n0 = np.asarray(n0_hz, dtype=float)
-        return np.where(n0 >= self.upper_limit_hz, 0.0, np.polyval(self.coefficients, n0))
+        """The lower bound (:func:`adm_calib.lower_bound.lower_bound_pct`): Eq. (20) up to the first
+        root or the end of the fitted range, 0 beyond."""
+        return lower_bound_pct(self.coefficients, n0_hz, LOWER_LIMIT_HZ, self.fit_range_max_hz)
 
     def __repr__(self):
         a, b, c, d = self.coefficients
@@ -96,10 +98,11 @@ class CubicFit:
                 f"upper limit {self.upper_limit_hz:.2f} Hz)")
 
 
-def fit_cubic(n0_hz, delta_zeta_pct, lower_limit_hz=LOWER_LIMIT_HZ):
+def fit_cubic(n0_hz, delta_zeta_pct, lower_limit_hz=LOWER_LIMIT_HZ, fit_range_max_hz=INTERVAL_EDGES_HZ[-1]):
     """Fit Eq. (20) to data points by linear least squares (:func:`numpy.polyfit`, degree 3).
 
     ``R² = 1 - SS_res / SS_tot`` about the data points. Needs at least 4 points.
+    ``fit_range_max_hz``: upper end of the n0 range the points come from (0 beyond it).
     """
     x = np.asarray(n0_hz, dtype=float)
     y = np.asarray(delta_zeta_pct, dtype=float)
@@ -110,7 +113,8 @@ def fit_cubic(n0_hz, delta_zeta_pct, lower_limit_hz=LOWER_LIMIT_HZ):
     ss_tot = float(np.sum((y - y.mean()) ** 2))
     r2 = 1.0 - float(np.sum(res**2)) / ss_tot if ss_tot > 0 else float("nan")
     return CubicFit(coefficients=tuple(float(c) for c in coef), r2=r2, n0_hz=x, delta_zeta_pct=y,
-                    residuals_pct=res, upper_limit_hz=first_root_hz(coef, lower_limit_hz))
+                    residuals_pct=res, upper_limit_hz=first_root_hz(coef, lower_limit_hz),
+                    fit_range_max_hz=float(fit_range_max_hz))
 
 
 @dataclass(frozen=True, repr=False)
@@ -136,10 +140,13 @@ EXCLUSIONS = {
     "dim_not_local_max": "associated DIM value not a local maximum (rules step2, strict)",
     "mlm_max_at_range_end": "largest MLM value at an end of the speed range (rule strict)",
     "above_21hz": "n0 above 21 Hz (not fitted, Section 4.2.1)",
+    "outside_fit_range": "n0 outside the chosen fit range (--fit-range-hz), within 2-21 Hz",
     "other_train": "not a study train",
 }
 
-#: Exclusion rules, chosen before looking at any comparison (README "Exclusion rules"):
+#: Exclusion rules (README "Exclusion rules"). History (results/study/APPENDIX_B_FINDINGS.md): the
+#: first comparison with Table B1 (0877165) used today's ``strict`` (then ``--exclude-flagged``);
+#: ``step2`` was added after it (4eb2b23) and made the default later (fb8435b).
 #:
 #: * ``none``: only cases without a Δζ_VBI (no reasonable peak, no bracket, no match, errors);
 #: * ``step2`` (default): also cases whose associated DIM value is not a local maximum: Step 2 of
@@ -175,6 +182,36 @@ def case_flags(rec):
     return out
 
 
+def fit_edges_hz(lo_hz=INTERVAL_EDGES_HZ[0], hi_hz=INTERVAL_EDGES_HZ[-1]):
+    """Interval boundaries (Hz) of a fit over ``[lo_hz, hi_hz]``: the Section 4.2.1 boundaries inside
+    the range, with ``lo_hz`` and ``hi_hz`` as the outer ones (``2, 21``: the paper's intervals).
+
+    Raises
+    ------
+    InputError
+        A range outside 2..21 Hz, reversed, or holding fewer than 4 intervals (a cubic needs 4 points).
+    """
+    e0, e1 = INTERVAL_EDGES_HZ[0], INTERVAL_EDGES_HZ[-1]
+    for name, v in (("lo", lo_hz), ("hi", hi_hz)):
+        if not (isinstance(v, (int, float)) and e0 <= v <= e1):
+            raise InputError(f"fit_range_hz: {name} = {v!r} Hz is out of range; allowed [{e0:g}, {e1:g}] Hz "
+                             f"(the intervals of Section 4.2.1)")
+    if not lo_hz < hi_hz:
+        raise InputError(f"fit_range_hz: {lo_hz:g}:{hi_hz:g} Hz is reversed or empty; allowed lo < hi in "
+                         f"[{e0:g}, {e1:g}] Hz")
+    edges = (float(lo_hz),) + tuple(e for e in INTERVAL_EDGES_HZ if lo_hz < e < hi_hz) + (float(hi_hz),)
+    if len(edges) - 1 < 4:
+        raise InputError(f"fit_range_hz: {lo_hz:g}:{hi_hz:g} Hz holds {len(edges) - 1} intervals; a cubic needs at "
+                         f"least 4 (interval boundaries {', '.join(f'{e:g}' for e in INTERVAL_EDGES_HZ)} Hz)")
+    return edges
+
+
+def _train_order(train):
+    """Sort key: the paper's train order, each variant right after its paper train."""
+    base = paper_train(train)
+    return (STUDY_TRAINS.index(base) if base in STUDY_TRAINS else len(STUDY_TRAINS), train != base, train)
+
+
 @dataclass(repr=False)
 class StudyFit:
     """Lower-bound fits of a study, ``fits[(train, mass_function)]``, with the excluded cases counted."""
@@ -186,6 +223,17 @@ class StudyFit:
     rule: str
     duplicates: int = 0
     flags_by_set: dict = field(default_factory=dict)
+    edges_hz: tuple = INTERVAL_EDGES_HZ
+
+    @property
+    def fit_range_hz(self):
+        """``(lo, hi)`` of the n0 range fitted (Hz)."""
+        return (self.edges_hz[0], self.edges_hz[-1])
+
+    @property
+    def trains(self):
+        """Trains of the fitted sets, in the paper's order (variants after their paper train)."""
+        return sorted({t for t, _ in self.fits}, key=_train_order)
 
     def difference_pct(self, key, n0_hz=COMPARE_N0_HZ):
         """Fitted minus published lower bound (% Δζ) at ``n0_hz`` for set ``key`` (as applied:
@@ -194,9 +242,7 @@ class StudyFit:
         if f is None or f.fit is None or f.published is None:
             return None
         n0 = np.asarray(n0_hz, dtype=float)
-        p = f.published
-        pub = np.where(n0 >= p.first_root_hz, 0.0, np.polyval(p.coefficients, n0))
-        return f.fit.value_pct(n0) - pub
+        return f.fit.value_pct(n0) - f.published.value_pct(n0)
 
     def to_toml(self, command=""):
         """The fitted functions in the format of ``data/lower_bounds.toml`` (for ``--functions ours``)."""
@@ -204,8 +250,9 @@ class StudyFit:
                  "#   delta_zeta(n0) = a n0^3 + b n0^2 + c n0 + d   Eq. (20); delta_zeta in %, n0 in Hz",
                  f"# exclusion rule: {self.rule}; cases read {self.n_records}, used {len(self.records_used)}",
                  *( [f"# command: {command}"] if command else []),
-                 "# zero from the first root, or from the end of the fitted range (21 Hz) where there is none",
-                 "", f"lower_limit_hz = {LOWER_LIMIT_HZ}", f"fit_range_max_hz = {INTERVAL_EDGES_HZ[-1]}",
+                 f"# fitted over {self.edges_hz[0]:g}-{self.edges_hz[-1]:g} Hz; zero from the first root, or from the "
+                 f"end of the fitted range ({self.edges_hz[-1]:g} Hz) where there is none",
+                 "", f"lower_limit_hz = {LOWER_LIMIT_HZ}", f"fit_range_max_hz = {self.edges_hz[-1]}",
                  'columns = ["a", "b", "c", "d", "upper_limit_hz", "r2", "max_res_pct", "min_res_pct"]']
         trains = []
         for (t, m), f in self.fits.items():
@@ -297,6 +344,9 @@ def fit_study(records, rule=DEFAULT_RULE, edges_hz=INTERVAL_EDGES_HZ):
         flags); for a repeated (bridge, train) key the last line counts.
     rule : {"none", "step2", "strict"}
         Exclusion rule (:data:`EXCLUSION_RULES`); default ``step2``.
+    edges_hz : sequence of float
+        Interval boundaries (Hz); :func:`fit_edges_hz` gives them for a narrower fit range. The
+        fitted functions are 0 above the last one where their cubic has no root before it.
 
     Returns
     -------
@@ -319,7 +369,7 @@ def fit_study(records, rule=DEFAULT_RULE, edges_hz=INTERVAL_EDGES_HZ):
         for f in case_flags(rec):
             cnt[f] += 1
         why = _exclusion(rec, rule)
-        if why is None and rec["train"] not in STUDY_TRAINS:
+        if why is None and paper_train(rec["train"]) not in STUDY_TRAINS:
             why = "other_train"
         if why is not None:
             excluded[why] += 1
@@ -328,44 +378,55 @@ def fit_study(records, rule=DEFAULT_RULE, edges_hz=INTERVAL_EDGES_HZ):
         groups.setdefault((rec["train"], rec["mass_function"]), []).append(rec)
     table = lower_bound_table()
     fits = {}
-    order = {t: i for i, t in enumerate(STUDY_TRAINS)}
-    for key in sorted(groups, key=lambda k: (order[k[0]], k[1])):
+    edges_hz = tuple(float(e) for e in edges_hz)
+    for key in sorted(groups, key=lambda k: (_train_order(k[0]), k[1])):
         t, m = key
         recs = groups[key]
         x = np.array([r["n0_hz"] for r in recs], dtype=float)
         y = np.array([r["delta_zeta_vbi_pct"] for r in recs], dtype=float)
-        over = int(np.count_nonzero(x > edges_hz[-1]))
+        over = int(np.count_nonzero(x > INTERVAL_EDGES_HZ[-1]))
         if over:
             excluded["above_21hz"] += over
+        outside = int(np.count_nonzero((x <= INTERVAL_EDGES_HZ[-1]) & ((x < edges_hz[0]) | (x > edges_hz[-1]))))
+        if outside:
+            excluded["outside_fit_range"] += outside
         minima = interval_minima(x, y, [r["bridge"] for r in recs], edges_hz)
         fit, note = None, ""
         if len(minima) >= 4:
-            fit = fit_cubic([p.n0_hz for p in minima], [p.delta_zeta_pct for p in minima])
+            fit = fit_cubic([p.n0_hz for p in minima], [p.delta_zeta_pct for p in minima],
+                            fit_range_max_hz=edges_hz[-1])
         else:
             note = f"only {len(minima)} interval minima; a cubic needs 4"
         fits[key] = LowerBoundFit(train=t, mass_function=m, n_cases=len(recs), minima=minima, fit=fit,
-                                  published=table.get(t, {}).get(m), note=note)
+                                  published=table.get(paper_train(t), {}).get(m), note=note)
     return StudyFit(fits=fits, records_used=used, n_records=len(by_key), excluded=excluded,
-                    rule=rule, duplicates=dup, flags_by_set=flags_by_set)
+                    rule=rule, duplicates=dup, flags_by_set=flags_by_set, edges_hz=edges_hz)
 
 
 def _g(x, fmt="{:.4g}"):
     return "-" if x is None or (isinstance(x, float) and not math.isfinite(x)) else fmt.format(x)
 
 
-def comparison_markdown(records, rule=DEFAULT_RULE):
+def comparison_markdown(records, rule=DEFAULT_RULE, edges_hz=INTERVAL_EDGES_HZ):
     """Markdown tables: our fit next to Tables B1-B4 per train, the differences of the lower bounds
-    at :data:`COMPARE_N0_HZ`, the cases each flag excludes per set and the effect of each rule."""
+    at :data:`COMPARE_N0_HZ`, the cases each flag excludes per set and the effect of each rule.
+
+    A variant train (``Eurostar-table``) is compared with its paper train's table."""
     records = list(records)
-    fits = {r: fit_study(records, rule=r) for r in EXCLUSION_RULES}
+    fits = {r: fit_study(records, rule=r, edges_hz=edges_hz) for r in EXCLUSION_RULES}
     main = fits[rule]
-    out = [f"Exclusion rule of the fits below: **{rule}**. Differences are ours minus the paper's lower bound "
+    lo, hi = main.fit_range_hz
+    rng = "" if (lo, hi) == (INTERVAL_EDGES_HZ[0], INTERVAL_EDGES_HZ[-1]) else (
+        f" Fit range **{lo:g}-{hi:g} Hz** (intervals {', '.join(f'{e:g}' for e in main.edges_hz)} Hz; our "
+        f"functions are 0 above {hi:g} Hz where their cubic has no root before).")
+    out = [f"Exclusion rule of the fits below: **{rule}**.{rng} Differences are ours minus the paper's lower bound "
            f"(Eq. 20 up to the first root, 0 beyond), in % of critical damping.", ""]
-    for t in STUDY_TRAINS:
+    for t in main.trains:
         rows = [(m, f) for (tt, m), f in main.fits.items() if tt == t]
         if not rows:
             continue
-        out += [f"**{t}**", "",
+        vs = f" (compared with Table B of {paper_train(t)})" if t in TRAIN_VARIANTS else ""
+        out += [f"**{t}**{vs}", "",
                 "| set | | a | b | c | d | upper limit (Hz) | R² | max res (%) | min res (%) | points |",
                 "|---|---|---|---|---|---|---|---|---|---|---|"]
         for m, f in rows:
@@ -390,7 +451,7 @@ def comparison_markdown(records, rule=DEFAULT_RULE):
             "| set | cases | no dz_VBI | DIM value not a local max | MLM max at range end | "
             + " | ".join(f"max diff, {r}" for r in EXCLUSION_RULES) + " |",
             "|---|---|---|---|---|" + "---|" * len(EXCLUSION_RULES)]
-    for t in STUDY_TRAINS:
+    for t in sorted({k[0] for k in main.flags_by_set}, key=_train_order):
         for m in sorted({k[1] for k in main.flags_by_set if k[0] == t}):
             cnt = main.flags_by_set[(t, m)]
             diffs = []
@@ -427,4 +488,90 @@ def comparison_markdown(records, rule=DEFAULT_RULE):
                    f"{pmin.delta_zeta_pct:+.3f} | {pk_.get('acc_m_s2', float('nan')):.2f} m/s² at "
                    f"{pk_.get('speed_kmh', float('nan')):g} km/h | {'yes' if rec.get('mlm_max_at_range_end') else 'no'} | "
                    + " | ".join(others) + " |")
+    return "\n".join(out) + "\n"
+
+
+# ====================================================================== Table B range check
+@dataclass(frozen=True)
+class RangeCheckRow:
+    """One Table B set: the highest value an interval minimum in ``[lo_hz, hi_hz]`` could take.
+
+    A least-squares point lies at ``cubic + residual`` and Table B prints the largest residual, so
+    an interval minimum at ``n0`` in the interval is at most ``p(n0) + max_res``; ``ceiling_pct`` is
+    the largest of that over the interval. ``zeta_max_pct``: the largest damping of the set's study
+    bridges in the interval (the most lenient ``-ζ`` a point could stay above).
+    """
+
+    train: str
+    mass_function: str
+    ceiling_pct: float
+    ceiling_n0_hz: float
+    zeta_max_pct: float
+    below_lowest: bool
+    below_minus_zeta: bool
+
+
+def table_b_range_check(records, lo_hz=16.0, hi_hz=21.0, table=None):
+    """For every Table B1-B4 set: could the paper's fit have had a data point in ``[lo_hz, hi_hz]``?
+
+    A point there would lie at most ``max over n0 of (p(n0) + max_res)`` (the cubic plus the set's
+    own largest printed residual). Compared with the lowest Δζ_VBI of the whole study and with
+    ``-ζ`` (Δζ < -ζ: a negative total damping) of the set's bridges in the interval.
+
+    Parameters
+    ----------
+    records : iterable of dict
+        Study result lines (``train``, ``mass_function``, ``n0_hz``, ``zeta_pct``, ``delta_zeta_vbi_pct``).
+    table : dict, optional
+        ``{train: {mass_function: LowerBound}}``; default the published Tables B1-B4.
+
+    Returns
+    -------
+    (list of RangeCheckRow, float)
+        The rows and the lowest Δζ_VBI (%) of all records.
+    """
+    from adm_calib.reference import lower_bound_table
+
+    records = list(records)
+    table = table or lower_bound_table("paper")
+    lowest = min(r["delta_zeta_vbi_pct"] for r in records if r.get("delta_zeta_vbi_pct") is not None)
+    grid = np.linspace(lo_hz, hi_hz, int(round((hi_hz - lo_hz) / 0.001)) + 1)
+    rows = []
+    for t in STUDY_TRAINS:
+        for m, lb in table.get(t, {}).items():
+            v = np.polyval(lb.coefficients, grid) + lb.max_res_pct
+            i = int(np.argmax(v))
+            zs = [r["zeta_pct"] for r in records if r["train"] == t and r["mass_function"] == m
+                  and lo_hz <= r["n0_hz"] <= hi_hz]
+            zmax = max(zs) if zs else float("nan")
+            rows.append(RangeCheckRow(train=t, mass_function=m, ceiling_pct=float(v[i]), ceiling_n0_hz=float(grid[i]),
+                                      zeta_max_pct=zmax, below_lowest=bool(v[i] < lowest),
+                                      below_minus_zeta=bool(v[i] < -zmax)))
+    return rows, float(lowest)
+
+
+def range_check_markdown(records, intervals_hz=((16.0, 21.0), (13.0, 16.0), (11.0, 13.0))):
+    """Markdown table of :func:`table_b_range_check` for each interval, with the counts."""
+    out = []
+    heads, cols = [], {}
+    lowest = None
+    for lo, hi in intervals_hz:
+        rows, lowest = table_b_range_check(records, lo, hi)
+        heads.append(f"{lo:g}-{hi:g} Hz")
+        for r in rows:
+            cols.setdefault((r.train, r.mass_function), []).append(r)
+    out += [f"Lowest Δζ_VBI of the whole study: {lowest:.3f} %. Per Table B set, the highest value a data point in "
+            "the interval could have (max over n0 of the printed cubic plus the set's own largest residual), and "
+            "the largest ζ of the set's study bridges there:", "",
+            "| set | " + " | ".join(f"ceiling {h} (%) | ζ max {h} (%)" for h in heads) + " |",
+            "|---|" + "---|---|" * len(heads)]
+    for (t, m), rs in cols.items():
+        out.append(f"| {t} {m} | " + " | ".join(
+            f"{r.ceiling_pct:+.3f}{' **<lowest**' if r.below_lowest else ''}{' **<-ζ**' if r.below_minus_zeta else ''} | "
+            f"{r.zeta_max_pct:.2f}" for r in rs) + " |")
+    out.append("")
+    for k, h in enumerate(heads):
+        rs = [v[k] for v in cols.values()]
+        out.append(f"* {h}: below the lowest Δζ of the study for {sum(r.below_lowest for r in rs)} of {len(rs)} sets, "
+                   f"below -ζ for {sum(r.below_minus_zeta for r in rs)}.")
     return "\n".join(out) + "\n"
