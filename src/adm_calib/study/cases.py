@@ -15,7 +15,7 @@ import numpy as np
 from adm_sim.errors import InputError, check_range
 from adm_sim.limits import DEFAULT_SPEEDS
 
-from adm_calib.lower_bound import FIT_RANGE_MAX_HZ, LOWER_LIMIT_HZ
+from adm_calib.lower_bound import FIT_RANGE_MAX_HZ, LOWER_LIMIT_HZ  # noqa: F401  (re-exported for the study package)
 from adm_calib.reference import STUDY_TRAINS, canonical_train_name
 
 #: Frequency indices of the field: 1 = LB power law ... 5 = UB power law (Section 3.1.1).
