@@ -175,12 +175,19 @@ def cmd_check(args):
             raise InputError(f"--{opt}: {getattr(args, opt)!r} is the --{seen[p.resolve()]} file; give different files")
         seen[p.resolve()] = opt
     bridge = resolve_bridge(args.bridge)
+    from adm_calib.check import DAMPING_MODELS
+    from adm_sim.envelope import parse_where
+
+    parse_where(args.where, bridge.span_m)  # refused before any work
+    if args.damping_model is not None and args.damping_model not in DAMPING_MODELS:
+        raise InputError(f"--damping-model: {args.damping_model!r} is not allowed; allowed {', '.join(DAMPING_MODELS)}")
     trains = resolve_trains(args.trains)
     cb, close = tqdm_progress("check", None if args.progress is None else args.progress)
     t0 = time.perf_counter()
     try:
         res = run_check(bridge, args.max_line_speed, trains, track=args.track, damping=args.damping,
-                        step_kmh=args.speed_step, progress=cb, comfort=args.comfort, n_modes=args.modes)
+                        step_kmh=args.speed_step, progress=cb, comfort=args.comfort, n_modes=args.modes,
+                        where=args.where, damping_model=args.damping_model)
     finally:
         close()
     wall = time.perf_counter() - t0
@@ -293,6 +300,13 @@ def build_parser():
                    help="deck acceleration limit 3.5 (ballasted) or 5 m/s2 (direct fastened), EN 1990 A2.4.4.2.1")
     c.add_argument("--damping", choices=("none", "adm", "lb", "vbi"), default="none",
                    help="additional damping: none, Eurocode ADM, the paper's lower bounds, calibrated VBI")
+    c.add_argument("--where", default="deck",
+                   help="where the acceleration is taken: deck (default: anywhere on the deck, with the position, "
+                        "EN 1990 A2.4.4.2.1), midspan, or x=<m> (0 < x < L)")
+    c.add_argument("--damping-model", default=None,
+                   help="damping per mode: rayleigh13 (Rayleigh anchored at modes 1 and 3; mode 2 gets 0.625 zeta "
+                        "with 3 modes) or modal (zeta on every mode, EN 1991-2 6.4.6.3.1); default: the bridge's "
+                        "own (rayleigh13 unless its file says damping_model = \"modal\")")
     c.add_argument("--speed-step", type=float, default=1.0, help="speed step (km/h, at most 1)")
     c.add_argument("--modes", type=float, help="more modes than EN 1990 A2.4.4.2.1 asks for (default: exactly those)")
     c.add_argument("--comfort", action="store_true",
