@@ -449,7 +449,7 @@ def _search_kernel(kk, ll, m, ca1, ca2, cd1, cd2, Om, lam, T, t0, bound, curv, b
     e2 = np.empty(nm, dtype=np.complex128)
     active = np.zeros(nq, dtype=np.bool_)
     slack = np.zeros(nq)
-    cf = np.empty((1024, 4))
+    cf = np.empty((1024, 5))
     ci = np.empty((1024, 4), dtype=np.int64)
     nc = 0
     sx = np.zeros((2, 3))  # x-curvature slack hx^2/8 sum_j k_j^2 |v_j| of the last three samples (per family)
@@ -529,7 +529,7 @@ def _search_kernel(kk, ll, m, ca1, ca2, cd1, cd2, Om, lam, T, t0, bound, curv, b
                     if y1 >= ya[q, 2, pp] and (i == 1 or y1 >= ya[q, 0, pp]) and y1 + s1 >= best[q, l]:
                         if deck[q]:
                             if _x_local(ya, q, 1, pp, npos[q]):
-                                cf, ci, nc = _push(cf, ci, nc, y1 + s1, (i - 1) * h, h, T_, q, pp, k, l)
+                                cf, ci, nc = _push(cf, ci, nc, y1, y1 + s1, (i - 1) * h, h, T_, q, pp, k, l)
                         else:
                             refined += _refine_t(q, pp, (i - 1) * h, h, T_, k, l, ca1, ca2, cd1, cd2, om, lam, t0,
                                                  best, when, xat, fam, W, xp)
@@ -541,16 +541,17 @@ def _search_kernel(kk, ll, m, ca1, ca2, cd1, cd2, Om, lam, T, t0, bound, curv, b
                 if ya[q, 2, pp] >= ya[q, 1, pp] and ya[q, 2, pp] + s2 >= best[q, l]:
                     if deck[q]:
                         if _x_local(ya, q, 2, pp, npos[q]):
-                            cf, ci, nc = _push(cf, ci, nc, ya[q, 2, pp] + s2, m[p] * h, h, T_, q, pp, k, l)
+                            cf, ci, nc = _push(cf, ci, nc, ya[q, 2, pp], ya[q, 2, pp] + s2, m[p] * h, h, T_, q, pp, k, l)
                     else:
                         refined += _refine_t(q, pp, m[p] * h, h, T_, k, l, ca1, ca2, cd1, cd2, om, lam, t0,
                                              best, when, xat, fam, W, xp)
-    # deck candidates, deferred until every pair is sampled (the best is then near the maximum), largest first
+    # deck candidates, deferred until every pair is sampled (the best is then near the maximum), the
+    # largest sample first
     for c in np.argsort(-cf[:nc, 0]):
         q, pp, k, l = ci[c, 0], ci[c, 1], ci[c, 2], ci[c, 3]
-        if cf[c, 0] < best[q, l]:
+        if cf[c, 1] < best[q, l]:
             continue
-        refined += _refine_deck(q, pp, cf[c, 1], cf[c, 2], cf[c, 3], k, l, ca1, ca2, cd1, cd2, Om[l], lam, t0,
+        refined += _refine_deck(q, pp, cf[c, 2], cf[c, 3], cf[c, 4], k, l, ca1, ca2, cd1, cd2, Om[l], lam, t0,
                                 best, when, xat, fam, xp, kw, span, hx)
     return refined
 
@@ -563,16 +564,16 @@ def _x_local(ya, q, row, pp, n):
 
 
 @njit(cache=True, nogil=True)
-def _push(cf, ci, nc, bound, t, h, T_, q, pp, k, l):
-    """Append a deck candidate (value bound, time in the interval, step, interval length; quantity,
-    position index, interval, lane), doubling the storage when full."""
+def _push(cf, ci, nc, y, bound, t, h, T_, q, pp, k, l):
+    """Append a deck candidate (sample, value bound, time in the interval, step, interval length;
+    quantity, position index, interval, lane), doubling the storage when full."""
     if nc == cf.shape[0]:
-        cf2 = np.empty((2 * nc, 4))
+        cf2 = np.empty((2 * nc, 5))
         ci2 = np.empty((2 * nc, 4), dtype=np.int64)
         cf2[:nc] = cf
         ci2[:nc] = ci
         cf, ci = cf2, ci2
-    cf[nc, 0], cf[nc, 1], cf[nc, 2], cf[nc, 3] = bound, t, h, T_
+    cf[nc, 0], cf[nc, 1], cf[nc, 2], cf[nc, 3], cf[nc, 4] = y, bound, t, h, T_
     ci[nc, 0], ci[nc, 1], ci[nc, 2], ci[nc, 3] = q, pp, k, l
     return cf, ci, nc + 1
 
