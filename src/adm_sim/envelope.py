@@ -287,49 +287,16 @@ def _all_lanes(v, L, jj, om, zeta, lam, bps, G, ppp, quants):
     deck = np.zeros(nq, dtype=np.bool_)
     odd = (np.round(jj).astype(np.int64) % 2) == 1
     kw = jj * np.pi / L
-    best = np.empty((nq, nl))
-    when = np.empty((nq, nl))
-    xat = np.empty((nq, nl))
-    bound = np.empty((nq, K, nl))
-    curv = np.empty((nq, K, nl))
-    t_free = np.zeros(nl)
-    lanes = np.arange(nl)
-    lam2 = np.abs(lam) ** 2
-    cache = {}
     for i_q, (f, w, x, is_deck) in enumerate(quants):
         x = np.asarray(x, dtype=float)
         W[i_q, :x.size] = w
         xp[i_q, :x.size] = x
         npos[i_q], fam[i_q], deck[i_q] = x.size, f, is_deck
-        c1, c2 = fams[f]
-        if f not in cache:  # per family: values at the event instants, amplitude and curvature terms
-            a1, a2 = np.abs(c1), np.abs(c2)
-            cache[f] = ((c1 + c2).imag, a1 + a2, a1 * Om**2 + a2 * lam2, a2[-1])
-        g, amp, cur, amp_free = cache[f]  # (K, lanes, modes)
-        if is_deck:  # max over {x_p, L - x_p} = |odd part| + |even part|
-            o = g[..., odd] @ w[:, odd].T
-            e = g[..., ~odd] @ w[:, ~odd].T
-            val = np.abs(o) + np.abs(e)  # (K, lanes, positions)
-            ip = val.argmax(-1)
-            at_event = np.take_along_axis(val, ip[..., None], -1)[..., 0]
-            flip = (np.abs(o + e) < np.abs(o - e))
-            flip = np.take_along_axis(flip, ip[..., None], -1)[..., 0]
-            xs = np.where(flip, L - x[ip], x[ip])
-            wmax = np.ones(nm)
-        else:
-            at_event = np.abs((g * w[0]).sum(-1))
-            xs = np.full((K, nl), x[0])
-            wmax = np.abs(w[0])
-        i = at_event.argmax(0)
-        best[i_q] = at_event[i, lanes]
-        when[i_q] = t0[i, lanes]
-        xat[i_q] = xs[i, lanes]
-        bound[i_q] = amp.sum(-1) if is_deck else (amp * wmax).sum(-1)
-        curv[i_q] = cur.sum(-1) if is_deck else (cur * wmax).sum(-1)
+    best, when, xat, bound, curv, b_free = _prepare(fams[0][0], fams[0][1], fams[1][0], fams[1][1], Om,
+                                                    np.abs(lam) ** 2, t0, W, xp, npos, fam, deck, odd, L)
+    with np.errstate(divide="ignore"):
         # free vibration: follow it until its decaying bound falls below the best event value
-        b = (amp_free * wmax).sum(-1)
-        with np.errstate(divide="ignore"):
-            t_free = np.maximum(t_free, np.log(np.maximum(b, 1e-300) / np.maximum(best[i_q], 1e-300)) / (-lam.real).min())
+        t_free = (np.log(np.maximum(b_free, 1e-300) / np.maximum(best, 1e-300)) / (-lam.real).min()).max(0)
     T[-1] = np.clip(t_free, 0.0, MAX_FREE_PERIODS * 2.0 * np.pi / om[0])
     # intervals that can hold a larger value than the event instants, largest bound first
     ratio = (bound / np.maximum(best, 1e-300)[:, None, :]).max(0)
@@ -341,6 +308,67 @@ def _all_lanes(v, L, jj, om, zeta, lam, bps, G, ppp, quants):
     refined = _search_kernel(kk[order], ll[order], m, fams[0][0], fams[0][1], fams[1][0], fams[1][1], Om, lam, T,
                              t0, bound, curv, best, when, xat, fam, deck, npos, W, xp, odd, kw, L, hx)
     return {"best": best, "when": when, "xat": xat, "refined": int(refined)}
+
+
+@njit(cache=True, nogil=True)
+def _prepare(ca1, ca2, cd1, cd2, Om, lam2, t0, W, xp, npos, fam, deck, odd, span):
+    """Per quantity and lane: the largest value at the event instants (and its time and position),
+    the amplitude bound ``sum_j w_j (|c1_j| + |c2_j|)`` and curvature bound
+    ``sum_j w_j (|c1_j| Om_j^2 + |c2_j| |lam_j|^2)`` of every interval (w_j = max |weight|, 1 on the
+    deck), and the amplitude bound of the free vibration."""
+    K, nl, nm = ca1.shape
+    nq = fam.size
+    best = np.zeros((nq, nl))
+    when = np.zeros((nq, nl))
+    xat = np.zeros((nq, nl))
+    bound = np.empty((nq, K, nl))
+    curv = np.empty((nq, K, nl))
+    b_free = np.zeros((nq, nl))
+    g = np.empty(nm)
+    amp = np.empty(nm)
+    cur = np.empty(nm)
+    wmax = np.empty(nm)
+    for q in range(nq):
+        for j in range(nm):
+            wmax[j] = 1.0 if deck[q] else abs(W[q, 0, j])
+        for l in range(nl):
+            top = -1.0
+            for k in range(K):
+                for j in range(nm):
+                    c1 = ca1[k, l, j] if fam[q] == 0 else cd1[k, l, j]
+                    c2 = ca2[k, l, j] if fam[q] == 0 else cd2[k, l, j]
+                    g[j] = (c1 + c2).imag
+                    a1, a2 = abs(c1), abs(c2)
+                    amp[j] = a1 + a2
+                    cur[j] = a1 * Om[l, j] ** 2 + a2 * lam2[j]
+                b = 0.0
+                c = 0.0
+                for j in range(nm):
+                    b += amp[j] * wmax[j]
+                    c += cur[j] * wmax[j]
+                bound[q, k, l] = b
+                curv[q, k, l] = c
+                if k == K - 1:
+                    bf = 0.0
+                    for j in range(nm):
+                        bf += abs(ca2[k, l, j] if fam[q] == 0 else cd2[k, l, j]) * wmax[j]
+                    b_free[q, l] = bf
+                for pp in range(npos[q]):
+                    o = 0.0
+                    e = 0.0
+                    y = 0.0
+                    for j in range(nm):
+                        if deck[q] and not odd[j]:
+                            e += g[j] * W[q, pp, j]
+                        else:
+                            o += g[j] * W[q, pp, j]
+                    y = abs(o) + abs(e) if deck[q] else abs(o)
+                    if y > top:
+                        top = y
+                        best[q, l] = y
+                        when[q, l] = t0[k, l]
+                        xat[q, l] = span - xp[q, pp] if deck[q] and abs(o + e) < abs(o - e) else xp[q, pp]
+    return best, when, xat, bound, curv, b_free
 
 
 @njit(cache=True, nogil=True)
