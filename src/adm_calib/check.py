@@ -256,18 +256,18 @@ class CheckResult:
 
     def write_csv(self, path):
         """Every curve in long format: train, speed_kmh, max_acc_m_s2, x_acc_m, max_disp_m (at
-        ``where``), max_disp_midspan_m, max_moment_Nm, delta_zeta_pct."""
+        ``where``), max_disp_midspan_m, max_moment_Nm, delta_zeta_pct, zeta_per_mode_pct (``/``-joined)."""
         with open(path, "w", newline="") as fh:
             w = csv.writer(fh)
             w.writerow(["train", "speed_kmh", "max_acc_m_s2", "x_acc_m", "max_disp_m", "max_disp_midspan_m",
-                        "max_moment_Nm", "delta_zeta_pct"])
+                        "max_moment_Nm", "delta_zeta_pct", "zeta_per_mode_pct"])
             for c in self.trains:
                 n = c.speeds_kmh.size
                 xa = c.x_acc_m if c.x_acc_m is not None else np.full(n, np.nan)
                 mo = c.max_moment_Nm if c.max_moment_Nm is not None else np.full(n, np.nan)
                 for v, a, x, d, dm, m in zip(c.speeds_kmh, c.max_acc_m_s2, xa, c.max_disp_m, c.midspan_disp_m, mo):
                     w.writerow([c.name, f"{v:.3f}", f"{a:.8g}", f"{x:.6g}", f"{d:.8g}", f"{dm:.8g}", f"{m:.8g}",
-                                f"{c.delta_zeta_pct:.6g}"])
+                                f"{c.delta_zeta_pct:.6g}", "/".join(f"{100 * z:.6g}" for z in c.zeta)])
 
     def plot(self, path):
         import matplotlib
@@ -282,13 +282,15 @@ class CheckResult:
         t, sp, acc = self.governing
         ax.axhline(self.limit_m_s2, color="C3", lw=1.5, label=f"limit {self.limit_m_s2:g} m/s² ({self.track})")
         ax.plot([sp], [acc], "o", ms=9, mfc="none", mec="k", mew=1.8,
-                label=f"governing: {t.name}, {acc:.3f} m/s² at {sp:g} km/h")
+                label=f"governing: {t.name}, {acc:.3f} m/s² at {sp:g} km/h"
+                      + ("" if t.x_max_m is None or self.where == "midspan" else f", x = {t.x_max_m:.2f} m"))
         ax.set_xlabel("speed (km/h)")
         ax.set_ylabel({"deck": "max deck acceleration, whole deck (m/s²)",
                        "midspan": "max midspan acceleration (m/s²)"}.get(self.where,
                                                                          f"max acceleration at {self.where_text} (m/s²)"))
         ax.set_title(f"{self.bridge.name or 'bridge'}: EN 1991-2 dynamic check, V = {self.max_line_speed_kmh:g} km/h, "
-                     f"damping {self.damping}, {self.damping_model}: {'PASS' if self.passed else 'FAIL'}", fontsize=10)
+                     f"damping {self.damping}, {self.damping_model} (zeta per mode {t.zeta_text()} %): "
+                     f"{'PASS' if self.passed else 'FAIL'}", fontsize=9)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7, ncol=2)
         fig.tight_layout()

@@ -90,6 +90,7 @@ def _plot_sweep(result, path, limit=3.5, where="midspan"):
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    import numpy as np
 
     fig, ax = plt.subplots(figsize=(7, 4))
     ax.plot(result.speeds_kmh, result.max_acc_m_s2, lw=1.5, label=result.model.upper())
@@ -103,7 +104,9 @@ def _plot_sweep(result, path, limit=3.5, where="midspan"):
 
     ax.set_ylabel({"deck": "max |deck acceleration| (m/s²)", "midspan": "max |midspan acceleration| (m/s²)"}.get(
         where, f"max |acceleration| at {where_text(where)} (m/s²)"))
-    ax.set_title(f"{result.bridge.name or 'bridge'} x {result.train_name} ({result.model.upper()})")
+    zeta = "/".join(f"{100 * z:.3g}" for z in np.ravel(result.bridge.modal_damping_ratios(result.delta_zeta)))
+    ax.set_title(f"{result.bridge.name or 'bridge'} x {result.train_name} ({result.model.upper()}, "
+                 f"{'exact' if result.method == 'exact' else 'RK4'}; zeta per mode {zeta} %)", fontsize=10)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
