@@ -303,3 +303,30 @@ def test_where_bad_input():
         moving_load_envelope(bridge, [0.0], [1e5], [200.0], where="top")
     with pytest.raises(InputError, match=r"^where: 'abc' is not a number; allowed \(0, 15\) m$"):
         moving_load_envelope(bridge, [0.0], [1e5], [200.0], where="x=abc")
+
+
+def test_compiled_kernels_equal_their_python_source():
+    """The numba kernels run as plain Python (NUMBA_DISABLE_JIT=1, in a subprocess) give the same
+    whole-deck and midspan maxima on a tiny case (two axles, two speeds)."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    code = ("import json, numpy as np; from adm_sim.bridge import named_bridge; "
+            "from adm_sim.envelope import moving_load_envelope as f; b = named_bridge('B1'); "
+            "e = f(b, [0.0, 3.0], [1e5, 1e5], [180.0, 260.0], where='deck'); "
+            "m = f(b, [0.0, 3.0], [1e5, 1e5], [180.0, 260.0]); "
+            "print(json.dumps([e.max_acc_m_s2.tolist(), e.x_acc_m.tolist(), e.max_moment_Nm.tolist(), "
+            "m.max_acc_m_s2.tolist()]))")
+    env = dict(os.environ, NUMBA_DISABLE_JIT="1")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600, env=env, check=False)
+    assert r.returncode == 0, r.stderr
+    py = json.loads(r.stdout)
+    b = named_bridge("B1")
+    e = moving_load_envelope(b, [0.0, 3.0], [1e5, 1e5], [180.0, 260.0], where="deck")
+    m = moving_load_envelope(b, [0.0, 3.0], [1e5, 1e5], [180.0, 260.0])
+    np.testing.assert_allclose(py[0], e.max_acc_m_s2, rtol=1e-12)
+    np.testing.assert_allclose(py[1], e.x_acc_m, rtol=1e-9)
+    np.testing.assert_allclose(py[2], e.max_moment_Nm, rtol=1e-12)
+    np.testing.assert_allclose(py[3], m.max_acc_m_s2, rtol=1e-12)
