@@ -356,7 +356,8 @@ def build_parser():
     c.add_argument("--comfort", action="store_true",
                    help="also run the DIM of the real trains: passenger comfort b_v (EN 1990 A2.4.4.3)")
     _output_options(c, {"json": "write the verdict and every curve as JSON",
-                        "csv": "write every curve as CSV (train, speed, acc and its position, disp, midspan moment, zeta per mode)",
+                        "csv": "write every curve as CSV (train, speed, acc and its position, disp, midspan moment, "
+                               "zeta per mode)",
                         "plot": "write the acceleration envelopes as PNG"},
                     "replace existing output files (once the check has finished)")
     c.set_defaults(func=cmd_check)
