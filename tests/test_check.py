@@ -1,6 +1,7 @@
 """`adm-sim check`: the EN 1991-2 dynamic check, its numbers, outputs and refusals."""
 
 import csv
+import itertools
 import json
 import math
 import subprocess
@@ -281,7 +282,7 @@ def b_v_reference(bridge, vt, v):
     events = np.unique(np.concatenate([a, a + L])) / v
     y = np.zeros(2 * n + 12)
     best = 0.0
-    for t0, t1 in zip(events[:-1], events[1:]):
+    for t0, t1 in itertools.pairwise(events):
         sol = solve_ivp(rhs, (t0, t1), y, method="DOP853", rtol=1e-10, atol=1e-13, dense_output=True)
         tt = np.linspace(t0, t1, max(50, int((t1 - t0) * 2000)))
         for ti in tt:
@@ -291,8 +292,9 @@ def b_v_reference(bridge, vt, v):
     return best
 
 
-ONE_PC = dict(m_c_kg=33930, J_c_kgm2=2.115e6, m_b_kg=2373, J_b_kgm2=1832, m_w_kg=1728, k_s_N_m=3e5, c_s_Ns_m=6e3,
-              k_p_N_m=1.6e6, c_p_Ns_m=2e4, d_m=26.4, r_m=19.0, b_m=2.5, axle_load_kN=112)  # ICE-2 PC, Table A1
+ONE_PC = {"m_c_kg": 33930, "J_c_kgm2": 2.115e6, "m_b_kg": 2373, "J_b_kgm2": 1832, "m_w_kg": 1728,  # ICE-2 PC,
+          "k_s_N_m": 3e5, "c_s_Ns_m": 6e3, "k_p_N_m": 1.6e6, "c_p_Ns_m": 2e4, "d_m": 26.4, "r_m": 19.0,  # Table A1
+          "b_m": 2.5, "axle_load_kN": 112}
 
 
 @pytest.mark.parametrize("name", ["B1", "B3"])
