@@ -1,19 +1,24 @@
 """`adm-sim check`: the EN 1991-2 dynamic check, its numbers, outputs and refusals."""
 
 import csv
+import itertools
 import json
+import math
 import subprocess
 import sys
 
 import numpy as np
 import pytest
+from scipy.integrate import solve_ivp
 
-from adm_calib.check import (check_speeds_kmh, delta_zeta_for, resolve_trains, run_check, screening,
+from adm_calib.check import (TrainCheck, check_speeds_kmh, delta_zeta_for, resolve_trains, run_check, screening,
                              static_midspan_max_m)
 from adm_sim.bridge import Bridge, named_bridge
 from adm_sim.envelope import moving_load_envelope
 from adm_sim.errors import InputError
-from adm_sim.trains import load_train
+from adm_sim.trains import load_train, moving_loads
+from analytic import moving_force_modal
+from test_envelope import reference_maxima
 
 CLI = [sys.executable, "-m", "adm_sim.cli"]
 
@@ -36,19 +41,63 @@ def test_check_numbers_b1():
     res = run_check(bridge, 300.0, trains)
     assert res.modes == (1, 2, 3)
     t, v, acc = res.governing
-    # governing = the largest value of every curve; equals the exact envelope at that speed
+    # governing = the largest value of every curve; equals the exact whole-deck envelope at that speed
     assert acc == max(c.max_acc_m_s2.max() for c in res.trains)
-    env = moving_load_envelope(bridge, load_train(t.name).axle_offsets_m, load_train(t.name).axle_loads_n, [v])
-    assert acc == pytest.approx(env.max_acc_m_s2[0], rel=1e-12)
+    env = moving_load_envelope(bridge, load_train(t.name).axle_offsets_m, load_train(t.name).axle_loads_n, [v],
+                               where="deck")
+    assert acc == pytest.approx(env.max_acc_m_s2[0], rel=1e-12) and t.x_max_m == env.x_acc_m[0]
     assert t.name == "HSLM-A7" and abs(v - 3.6 * bridge.n0_hz * 24.0 / 2) < 5.0  # resonance n0 D / 2
-    assert res.passed == (acc <= 3.5)
     # refinement: 0.1 km/h points around the peak of every train
     for c in res.trains:
         i = c.i_max
         if 0 < i < c.speeds_kmh.size - 1:
             assert c.speeds_kmh[i + 1] - c.speeds_kmh[i] == pytest.approx(0.1, abs=1e-6)
-        assert c.phi_dyn == pytest.approx(c.max_disp_m.max() / c.static_disp_m)
-        assert 1.0 < c.phi_dyn < 3.0
+
+
+def test_verdict_on_cases_designed_to_fail_and_to_pass():
+    """One axle on B1 at midspan: its closed-form maximum (tests/analytic.py, dense grid + Brent)
+    at the check's governing speed equals the check's value; the response is linear in the load,
+    so an axle 1 % heavier than limit / a_1 fails by 1 % and one 1 % lighter passes by 1 %."""
+    b = named_bridge("B1")
+    F = 1e5
+    res = run_check(b, 250.0, [moving_loads([0.0], [F], name="one axle")], where="midspan")
+    _, v, acc = res.governing
+    a_ref = reference_maxima(b, np.array([0.0]), np.array([F]), v / 3.6)[1]
+    assert acc == pytest.approx(a_ref, rel=1e-6)
+    for factor, verdict in ((1.01, False), (0.99, True)):
+        Fk = F * factor * 3.5 / a_ref
+        r = run_check(b, 250.0, [moving_loads([0.0], [Fk], name="one axle")], where="midspan")
+        assert r.passed is verdict
+        assert r.governing[2] == pytest.approx(3.5 * factor, rel=1e-6)
+        assert r.to_dict()["margin_m_s2"] == pytest.approx(3.5 * (1 - factor), rel=1e-4)
+        assert r.to_dict()["verdict"] == ("pass" if verdict else "fail")
+
+
+def test_phi_dyn_eq_6_14_against_the_closed_form():
+    """EN 1991-2 Eq. (6.14): phi'_dyn = max |y_dyn / y_stat| - 1. One axle on B1: y_stat is
+    F L^3 / 48 EJ (3-mode truncation within 0.3 %); at 5 km/h y_dyn -> y_stat, so phi'_dyn -> 0;
+    over the check's speeds it equals max over speeds of the closed-form midspan deflection
+    (one moving force, dense time grid, 48 samples per period of mode 3) / y_stat - 1."""
+    b = named_bridge("B1")
+    F = 1e5
+    y_stat = static_midspan_max_m(b, np.array([0.0]), np.array([F]))
+    assert y_stat == pytest.approx(F * b.span_m**3 / (48 * b.EJ_Nm2), rel=3e-3)
+    slow = moving_load_envelope(b, [0.0], [F], [5.0])
+    tc = TrainCheck(name="one axle", kind="train", speeds_kmh=slow.speeds_kmh, max_acc_m_s2=slow.max_acc_m_s2,
+                    max_disp_m=slow.max_disp_m, delta_zeta_pct=0.0, damping_note="", static_disp_m=y_stat)
+    assert abs(tc.phi_dyn) < 2e-3
+    res = run_check(b, 250.0, [moving_loads([0.0], [F], name="one axle")])
+    c = res.trains[0]
+    mid = np.sin(b.mode_numbers * np.pi / 2)
+    f3 = b.omega_rad_s[-1] / (2 * np.pi)
+    ref = 0.0
+    for kmh in c.speeds_kmh:
+        v = kmh / 3.6
+        t = np.arange(0.0, b.span_m / v + 3.0 / b.n0_hz, 1.0 / (48 * f3))
+        q, _, _ = moving_force_modal(b, F, v, t)
+        ref = max(ref, np.abs(mid @ q).max())
+    assert c.phi_dyn == pytest.approx(ref / y_stat - 1.0, abs=1e-4)
+    assert 0.05 < c.phi_dyn < 0.5  # a single force on B1 below its first resonance (v/n0 L ~ 0.67)
 
 
 def test_static_deflection_against_beam_formula():
@@ -91,7 +140,7 @@ def test_screening_fig_6_10():
     (dict(max_line_speed_kmh=120.0), r"--max-line-speed: 120 km/h is out of range; allowed \(144, 500\] km/h"),
     (dict(max_line_speed_kmh=520.0), r"--max-line-speed: 520 km/h is out of range"),
     (dict(max_line_speed_kmh=300.0, step_kmh=2.0), r"--speed-step: 2 km/h is out of range; allowed \(0, 1\] km/h"),
-    (dict(max_line_speed_kmh=300.0, track="slab"), r"--track: 'slab' is not allowed; allowed ballasted, direct"),
+    (dict(max_line_speed_kmh=300.0, track="slab"), r"--track: 'slab' is not allowed; allowed ballasted, direct_fastening"),
     (dict(max_line_speed_kmh=300.0, damping="eada"), r"--damping: 'eada' is not allowed"),
 ])
 def test_bad_input_api(kw, msg):
@@ -126,6 +175,12 @@ def test_bad_trains():
      "error: --damping lb: HSLM-A1 is an HSLM load train, not a vehicle; the lower-bound functions apply only "
      "to the real trains of the study; allowed for HSLM: --damping none or adm\n"),
     (["--max-line-speed", "300", "--speed-step", "5"], "error: --speed-step: 5 km/h is out of range; allowed (0, 1] km/h\n"),
+    (["--max-line-speed", "300", "--where", "x=15"], "error: --where: 15 m is out of range; allowed (0, 15) m\n"),
+    (["--max-line-speed", "300", "--where", "x=-1.5"], "error: --where: -1.5 m is out of range; allowed (0, 15) m\n"),
+    (["--max-line-speed", "300", "--where", "top"],
+     "error: --where: 'top' is not allowed; allowed deck, midspan or x=<position in m> with 0 < x < 15 m\n"),
+    (["--max-line-speed", "300", "--damping-model", "stiffness"],
+     "error: --damping-model: 'stiffness' is not allowed; allowed rayleigh13, modal\n"),
 ])
 def test_bad_input_cli_lines(args, line):
     r = run("check", *args)
@@ -134,28 +189,131 @@ def test_bad_input_cli_lines(args, line):
 
 
 def test_cli_outputs_and_no_overwrite(tmp_path):
+    """Issue 15's case through the command line: B1, V = 250 km/h, HSLM-A7 (and ICE-2), whole deck
+    by default: the maximum 3.568 m/s2 near 238 km/h at about 3L/8 .. 0.42 L, which the brute force
+    of tests/test_envelope.py confirms, exceeds 3.5 m/s2: FAIL, and the JSON names the governing
+    train, speed and position; zeta per mode of Rayleigh damping anchored at modes 1 and 3 is
+    zeta (a / 2 omega_j + b omega_j / 2) with omega_j ~ j^2: 1, 0.625, 1 times 1.85 %."""
     js, cs, png = tmp_path / "c.json", tmp_path / "c.csv", tmp_path / "c.png"
-    r = run("check", "--bridge", "B1", "--max-line-speed", "250", "--trains", "HSLM-A1,ICE-2", "--damping", "adm",
+    r = run("check", "--bridge", "B1", "--max-line-speed", "250", "--trains", "HSLM-A7,ICE-2",
             "--json", str(js), "--csv", str(cs), "--plot", str(png))
     assert r.returncode == 0, r.stderr
-    assert "governing:" in r.stdout and "screening (EN 1991-2 6.4.4" in r.stdout
-    assert "Eurocode ADM, L = 15 m < 30 m" in r.stdout
+    assert "screening (EN 1991-2 6.4.4" in r.stdout
+    assert "zeta per mode 1.85 %, 1.156 %, 1.85 %" in r.stdout
+    verdict = next(line for line in r.stdout.splitlines() if line.startswith("governing:"))
+    assert "HSLM-A7" in verdict and "whole deck" in verdict and "FAIL" in verdict and "rayleigh13" in verdict
     d = json.loads(js.read_text())
-    assert d["verdict"] in ("pass", "fail") and d["limit_m_s2"] == 3.5 and d["modes"] == [1, 2, 3]
-    assert [t["train"] for t in d["trains"]] == ["HSLM-A1", "ICE-2"]
+    assert d["verdict"] == "fail" and d["limit_m_s2"] == 3.5 and d["modes"] == [1, 2, 3]
+    assert d["where"] == "deck" and d["damping_model"] == "rayleigh13"
+    np.testing.assert_allclose(d["zeta_per_mode_pct"], [1.85, 1.85 * 0.625, 1.85], rtol=1e-12)
+    assert [t["train"] for t in d["trains"]] == ["HSLM-A7", "ICE-2"]
     g = d["governing"]
+    assert g["train"] == "HSLM-A7" and abs(g["speed_kmh"] - 238.1) < 0.25 and 0.37 < g["x_m"] / 15 < 0.43
+    assert g["acc_m_s2"] == pytest.approx(3.5684, abs=1e-4)
     curve = next(t for t in d["trains"] if t["train"] == g["train"])["curve"]
-    assert g["acc_m_s2"] == max(curve["max_acc_m_s2"])
+    i = curve["max_acc_m_s2"].index(g["acc_m_s2"])
+    assert curve["speeds_kmh"][i] == g["speed_kmh"] and curve["x_acc_m"][i] == g["x_m"]
     assert d["margin_m_s2"] == pytest.approx(3.5 - g["acc_m_s2"])
     rows = list(csv.DictReader(cs.open()))
     assert len(rows) == sum(len(t["curve"]["speeds_kmh"]) for t in d["trains"])
-    assert png.stat().st_size > 20_000
+    data = png.read_bytes()  # a PNG of 9 x 5 in at 120 dpi (CheckResult.plot)
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+    assert (int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big")) == (1080, 600)
+    r = run("check", "--bridge", "B1", "--max-line-speed", "250", "--trains", "HSLM-A7", "--where", "midspan",
+            "--damping-model", "modal")
+    verdict = next(line for line in r.stdout.splitlines() if line.startswith("governing:"))
+    assert "max midspan acceleration" in verdict and "PASS" in verdict and "damping model modal" in verdict
     before = js.read_text()
     r = run("check", "--max-line-speed", "250", "--trains", "HSLM-A1", "--json", str(js))
     assert r.returncode == 2 and r.stderr == f"error: --json: {str(js)!r} exists; use --overwrite to replace it\n"
     assert js.read_text() == before
     r = run("check", "--max-line-speed", "250", "--trains", "HSLM-A1", "--csv", str(tmp_path / "x.txt"))
     assert r.returncode == 2 and "must end in .csv" in r.stderr
+
+
+def b_v_reference(bridge, vt, v):
+    """One conventional vehicle (dict of Table A1 fields) crossing ``bridge`` at v (m/s): the coupled
+    bridge-vehicle ODE written out here (z down, about static equilibrium; wheels on the rail; the
+    wheelset inertia in the bridge's mass matrix), integrated by scipy's DOP853 piecewise between axle
+    entries/exits; largest |car-body acceleration| at the two pivots while an axle is on the bridge."""
+    L = bridge.span_m
+    n = bridge.n_modes
+    jpi = bridge.mode_numbers * math.pi / L
+    M, K = bridge.modal_mass_kg, bridge.modal_stiffness_N_m
+    C = 2 * bridge.modal_damping_ratios(0.0) * M * bridge.omega_rad_s
+    b, r = vt["b_m"], vt["r_m"]
+    a = np.array([0.0, b, r, r + b])           # axles behind the first
+    eta = np.array([-b / 2, b / 2, -b / 2, b / 2])  # axle offset from its bogie centre
+    bog = np.array([0, 0, 1, 1])
+    xi = np.array([-r / 2, r / 2])              # pivots from the car-body centre
+    Q = np.full(4, vt["axle_load_kN"] * 1e3)
+    mc, Jc, mb, Jb, mw = vt["m_c_kg"], vt["J_c_kgm2"], vt["m_b_kg"], vt["J_b_kgm2"], vt["m_w_kg"]
+    ks, cs, kp, cp = vt["k_s_N_m"], vt["c_s_Ns_m"], vt["k_p_N_m"], vt["c_p_Ns_m"]
+
+    def parts(t, y):
+        q, qd = y[:n], y[n:2 * n]
+        z, zd = y[2 * n:2 * n + 6], y[2 * n + 6:]
+        x = v * t - a
+        on = ((x >= 0) & (x <= L))[:, None]
+        ph = np.where(on, np.sin(np.outer(x, jpi)), 0.0)
+        phx = np.where(on, jpi * np.cos(np.outer(x, jpi)), 0.0)
+        phxx = -jpi**2 * ph
+        u, ud = ph @ q, ph @ qd + v * (phx @ q)
+        zb, thb = z[2 + 2 * bog], z[3 + 2 * bog]
+        zbd, thbd = zd[2 + 2 * bog], zd[3 + 2 * bog]
+        Fp = kp * (u - zb - eta * thb) + cp * (ud - zbd - eta * thbd)
+        Fs = ks * (z[[2, 4]] - z[0] - xi * z[1]) + cs * (zd[[2, 4]] - zd[0] - xi * zd[1])
+        zdd = np.empty(6)
+        zdd[0] = Fs.sum() / mc
+        zdd[1] = (xi * Fs).sum() / Jc
+        for p in (0, 1):
+            sel = bog == p
+            zdd[2 + 2 * p] = (-Fs[p] + Fp[sel].sum()) / mb
+            zdd[3 + 2 * p] = (eta[sel] * Fp[sel]).sum() / Jb
+        conv = 2 * v * (phx @ qd) + v**2 * (phxx @ q)
+        Mm = np.diag(M) + mw * ph.T @ ph
+        qdd = np.linalg.solve(Mm, ph.T @ (Q - Fp - mw * conv) - C * qd - K * q)
+        return qd, qdd, zd, zdd
+
+    def rhs(t, y):
+        qd, qdd, zd, zdd = parts(t, y)
+        return np.concatenate([qd, qdd, zd, zdd])
+
+    events = np.unique(np.concatenate([a, a + L])) / v
+    y = np.zeros(2 * n + 12)
+    best = 0.0
+    for t0, t1 in itertools.pairwise(events):
+        sol = solve_ivp(rhs, (t0, t1), y, method="DOP853", rtol=1e-10, atol=1e-13, dense_output=True)
+        tt = np.linspace(t0, t1, max(50, int((t1 - t0) * 2000)))
+        for ti in tt:
+            zdd = parts(ti, sol.sol(ti))[3]
+            best = max(best, abs(zdd[0] + xi[0] * zdd[1]), abs(zdd[0] + xi[1] * zdd[1]))
+        y = sol.y[:, -1]
+    return best
+
+
+ONE_PC = {"m_c_kg": 33930, "J_c_kgm2": 2.115e6, "m_b_kg": 2373, "J_b_kgm2": 1832, "m_w_kg": 1728,  # ICE-2 PC,
+          "k_s_N_m": 3e5, "c_s_Ns_m": 6e3, "k_p_N_m": 1.6e6, "c_p_Ns_m": 2e4, "d_m": 26.4, "r_m": 19.0,  # Table A1
+          "b_m": 2.5, "axle_load_kN": 112}
+
+
+@pytest.mark.parametrize("name", ["B1", "B3"])
+def test_comfort_b_v_against_an_independent_integration(tmp_path, name):
+    """One ICE-2 passenger car crossing B1 and B3 at 200 and 263 km/h: b_v of the DIM (RK4, 16
+    steps per period, velocities differenced over the step) equals the coupled bridge-vehicle ODE
+    written out in this file and integrated by scipy's DOP853 (rtol 1e-10) to 5e-4 (measured:
+    <= 8e-5; 1e-5 at 64 steps per period)."""
+    from adm_calib.check import comfort_b_v
+
+    f = tmp_path / "one_pc.toml"
+    f.write_text('name = "one PC"\n[vehicle_types.PC]\n' + "\n".join(f"{k} = {v}" for k, v in ONE_PC.items())
+                 + '\n[[composition]]\nvehicle = "PC"\n')
+    t = load_train(str(f))
+    b = named_bridge(name)
+    v = np.array([200.0, 263.0])
+    dim = comfort_b_v(b, t, v)
+    ref = [b_v_reference(b, ONE_PC, kmh / 3.6) for kmh in v]
+    np.testing.assert_allclose(dim, ref, rtol=5e-4)
 
 
 def test_comfort_b_v_limits_and_convergence():
@@ -169,7 +327,6 @@ def test_comfort_b_v_limits_and_convergence():
     b1 = comfort_b_v(named_bridge("B1"), t, v)
     fine = comfort_b_v(named_bridge("B1"), t, v, options=StepOptions(steps_per_period=32))
     np.testing.assert_allclose(b1, fine, rtol=1e-2)
-    assert 0.05 < b1.max() < 1.0
     rigid = Bridge.from_frequency(15.0, 80.0, 1e6, 0.02, n_modes=1)  # 80 Hz, 1000 t/m: deflections ~1e-4 of B1
     assert comfort_b_v(rigid, t, v).max() < 1e-3 * b1.max()
     assert comfort_b_v(named_bridge("B3"), t, v).max() > b1.max()
@@ -183,7 +340,8 @@ def test_more_modes_on_request():
     t = [load_train("ICE-2")]
     res = run_check(b, 250.0, t, n_modes=5)
     assert res.modes == (1, 2, 3, 4, 5)
-    env = moving_load_envelope(named_bridge("B4", n_modes=5), t[0].axle_offsets_m, t[0].axle_loads_n, res.speeds_kmh)
+    env = moving_load_envelope(named_bridge("B4", n_modes=5), t[0].axle_offsets_m, t[0].axle_loads_n, res.speeds_kmh,
+                               where="deck")
     np.testing.assert_allclose(res.trains[0].max_acc_m_s2[np.isin(res.trains[0].speeds_kmh, res.speeds_kmh)],
                                env.max_acc_m_s2, rtol=1e-12)
     with pytest.raises(InputError, match=r"--modes: 2 - is out of range; allowed \[3, 20\] - \(EN 1990 A2\.4\.4\.2\.1 "

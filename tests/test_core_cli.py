@@ -15,16 +15,24 @@ def run(*args):
 
 def test_sweep_json_and_plot(tmp_path):
     js, png = tmp_path / "s.json", tmp_path / "s.png"
-    # default speeds 160:350:1 km/h: the README's case (the step follows the highest speed, so another
-    # range moves the peak by a few 1e-4 m/s², within step convergence)
+    # default speeds 160:350:1 km/h; the MLM sweep is the exact envelope (adm_sim.envelope), so its
+    # peak is the true maximum at 263 km/h, which tests/test_envelope.py checks against the closed
+    # form of every axle (2.24716 m/s²); the RK4 run (--method rk4, 16 steps per period) samples it
+    # at its steps and sits just below (the README's 2.2465 m/s²)
     r = run("sweep", "--bridge", "B1", "--train", "ICE-2", "--model", "mlm", "--json", str(js), "--plot", str(png))
     assert r.returncode == 0, r.stderr
-    assert "peak:" in r.stdout
+    assert "peak:" in r.stdout and "exact envelope" in r.stdout
+    assert "damping per mode (rayleigh): zeta_1 = 1.85 %, zeta_2 = 1.156 %, zeta_3 = 1.85 %" in r.stdout
     d = json.loads(js.read_text())
     assert len(d["speeds_kmh"]) == 191 == len(d["max_acc_m_s2"])
+    assert d["method"] == "exact" and d["where"] == "midspan"
     pk = d["peak"]
-    # the README's headline MLM peak of B1 x ICE-2 (2.2465 m/s² at 263 km/h), to half the last digit
-    assert pk["speed_kmh"] == 263.0 and pk["acc_m_s2"] == pytest.approx(2.2465, abs=5e-5)
+    assert pk["speed_kmh"] == 263.0 and pk["acc_m_s2"] == pytest.approx(2.24716, abs=5e-6)
+    rk = tmp_path / "rk4.json"
+    r = run("sweep", "--bridge", "B1", "--train", "ICE-2", "--model", "mlm", "--method", "rk4", "--json", str(rk))
+    d4 = json.loads(rk.read_text())
+    assert d4["method"] == "rk4" and d4["peak"]["acc_m_s2"] == pytest.approx(2.2465, abs=5e-5)
+    assert d4["peak"]["acc_m_s2"] < pk["acc_m_s2"]
     i = d["speeds_kmh"].index(pk["speed_kmh"])
     assert pk["acc_m_s2"] == d["max_acc_m_s2"][i] == max(d["max_acc_m_s2"])
     data = png.read_bytes()  # a PNG of 7 x 4 in at 120 dpi (cli._plot_sweep)
@@ -49,6 +57,11 @@ def test_sweep_reports_missing_interior_peak(tmp_path):
     (["sweep", "--speeds", "100:900:10"], "speeds: '100:900:10' gives 610 km/h; allowed speeds in [1, 600] km/h"),
     (["sweep", "--delta-zeta-pct", "-5"], "--delta-zeta-pct: -5 % is out of range"),
     (["sweep", "--steps-per-period", "1"], "--steps-per-period: 1 steps is out of range; allowed [4, 10000] steps"),
+    (["sweep", "--where", "x=15"], "--where: 15 m is out of range; allowed (0, 15) m"),
+    (["sweep", "--where", "span"], "--where: 'span' is not allowed; allowed deck, midspan or x=<position in m>"),
+    (["sweep", "--where", "deck", "--method", "rk4"], "--where: 'deck' needs the exact MLM envelope"),
+    (["sweep", "--model", "dim", "--method", "exact"], "--method: 'exact' is the closed-form MLM envelope"),
+    (["sweep", "--bridge", "L=15,n0=8,mu=10000,zeta_pct=0"], "the exact MLM envelope needs damping > 0 %"),
 ])
 def test_bad_input_is_one_line_exit_2(args, match):
     r = run(*args)

@@ -1,9 +1,11 @@
 """EN 1991-2 dynamic design check of a simply supported bridge (``adm-sim check``).
 
 For every load train (HSLM-A1 .. A10, real trains by their static axle loads, user TOML trains)
-the exact moving-load envelopes (:mod:`adm_sim.envelope`) of the maximum deck acceleration and of
-the maximum midspan deflection are computed over the speeds the standard asks for, the governing
-train and speed found and the deck acceleration compared with the limit of EN 1990 A2.4.4.2.1.
+the exact moving-load envelopes (:mod:`adm_sim.envelope`) of the maximum deck acceleration (by
+default anywhere on the deck, with the position where it occurs; or at midspan or a given point),
+of the maximum midspan deflection and of the maximum midspan bending moment are computed over the
+speeds the standard asks for, the governing train, speed and position found and the deck
+acceleration compared with the limit of EN 1990 A2.4.4.2.1.
 
 Rules (each with its clause):
 
@@ -12,6 +14,13 @@ Rules (each with its clause):
   quarter of its largest value and every predicted HSLM resonance ``v = n0 D / i`` is refined at
   0.1 km/h over +-1 km/h;
 * modes: every mode up to max(30 Hz, 1.5 n0, n3) (EN 1990 A2.4.4.2.1);
+* where: EN 1990 A2.4.4.2.1 limits the peak deck acceleration, not the midspan one (mode 2 has a
+  node at midspan): ``where="deck"`` (default) takes the largest |a| over every position of the
+  span, exact in time and position (:mod:`adm_sim.envelope`); ``"midspan"`` or a position x (m);
+* damping model (ζ per mode): ``rayleigh13`` (Rayleigh damping anchored at modes 1 and 3: mode 2
+  gets 0.625 ζ with 3 modes; the paper's Rayleigh damping, Section 2.1, does not name its anchors)
+  or ``modal`` (ζ of EN 1991-2 Table 6.6 on every mode, what EN 1991-2 6.4.6.3.1 implies); every
+  output states ζ of every mode used;
 * damping: the bridge's ζ (Table 2 / EN 1991-2 Table 6.6 when given by type) plus Δζ by method:
   ``none``; ``adm`` the Eurocode ADM (EN 1991-2 6.4.6.3.1, spans < 30 m; refused for L >= 30 m);
   ``lb`` the paper's lower-bound functions (Section 4.3; only the four trains of the study and
@@ -19,9 +28,9 @@ Rules (each with its clause):
   runs the DIM). HSLM trains are loads, not vehicles: they get only what the standard allows
   (the ADM), so ``lb`` and ``vbi`` refuse them;
 * limits: 3.5 m/s² ballasted, 5 m/s² direct fastened deck (EN 1990 A2.4.4.2.1(4));
-* dynamic enhancement of the midspan deflection phi'_dyn = max y_dyn / y_stat per train
-  (EN 1991-2 6.4.6.5(3)), y_stat the largest static midspan deflection of the same train on the
-  same modes;
+* dynamic enhancement of the midspan deflection phi'_dyn = max |y_dyn / y_stat| - 1 per train
+  (EN 1991-2 6.4.6.5(3), Eq. 6.14), y_dyn the largest dynamic and y_stat the largest static
+  midspan deflection of the same train on the same modes;
 * screening, printed beside the result: EN 1991-2 6.4.4 (Fig. 6.9 flow chart, Fig. 6.10 limits
   of n0: upper 94.76 L^-0.748, lower 80 / L for 4 m <= L <= 20 m and 23.58 L^-0.592 for
   20 m < L <= 100 m); a dynamic analysis is required above 200 km/h or outside the limits.
@@ -44,8 +53,10 @@ MIN_SPEED_M_S = 40.0
 #: Maximum design speed = this factor x maximum line speed, EN 1991-2 6.4.6.2(1).
 DESIGN_SPEED_FACTOR = 1.2
 #: Deck acceleration limits (m/s^2), EN 1990 A2.4.4.2.1(4).
-ACC_LIMITS_M_S2 = {"ballasted": 3.5, "direct": 5.0}
+from adm_sim.limits import ACC_LIMITS_M_S2  # noqa: E402  (EN 1990 A2.4.4.2.1(4)P, one track vocabulary)
 DAMPING_METHODS = ("none", "adm", "lb", "vbi")
+#: Damping models of the check -> ``Bridge.damping_model``.
+DAMPING_MODELS = {"rayleigh13": "rayleigh", "modal": "modal"}
 #: Refinement around every resonance: half-width and step (km/h).
 REFINE_HALF_WIDTH_KMH = 1.0
 REFINE_STEP_KMH = 0.1
@@ -70,15 +81,31 @@ class TrainCheck:
     damping_note: str
     static_disp_m: float
     comfort_b_v_m_s2: np.ndarray | None = None  # per speed of the base grid (DIM), or None
+    x_acc_m: np.ndarray | None = None  # position of the largest acceleration per speed (m)
+    max_disp_midspan_m: np.ndarray | None = None  # per speed; None: max_disp_m is the midspan one
+    max_moment_Nm: np.ndarray | None = None  # max |midspan bending moment| per speed (N m)
+    zeta: tuple = ()  # damping ratio of every mode used (fractions, with this train's Δζ)
 
     @property
     def i_max(self):
         return int(np.argmax(self.max_acc_m_s2))
 
     @property
+    def midspan_disp_m(self):
+        return self.max_disp_m if self.max_disp_midspan_m is None else self.max_disp_midspan_m
+
+    @property
     def phi_dyn(self):
-        """phi'_dyn = max y_dyn / y_stat (EN 1991-2 6.4.6.5(3))."""
-        return float(self.max_disp_m.max() / self.static_disp_m)
+        """phi'_dyn = max |y_dyn / y_stat| - 1 at midspan (EN 1991-2 6.4.6.5(3), Eq. 6.14)."""
+        return float(self.midspan_disp_m.max() / self.static_disp_m) - 1.0
+
+    @property
+    def x_max_m(self):
+        """Position of the largest acceleration (m)."""
+        return None if self.x_acc_m is None else float(self.x_acc_m[self.i_max])
+
+    def zeta_text(self):
+        return "/".join(f"{100 * z:.3g}" for z in self.zeta)
 
     def comfort_dict(self):
         """Largest b_v and the EN 1990 A2.4.4.3 level it reaches, or None (no DIM run)."""
@@ -90,13 +117,20 @@ class TrainCheck:
 
     def to_dict(self):
         i = self.i_max
+        curve = {"speeds_kmh": self.speeds_kmh.tolist(), "max_acc_m_s2": self.max_acc_m_s2.tolist(),
+                 "max_disp_m": self.max_disp_m.tolist()}
+        for key, arr in (("x_acc_m", self.x_acc_m), ("max_disp_midspan_m", self.max_disp_midspan_m),
+                         ("max_moment_Nm", self.max_moment_Nm)):
+            if arr is not None:
+                curve[key] = arr.tolist()
         return {"train": self.name, "kind": self.kind, "delta_zeta_pct": self.delta_zeta_pct,
-                "damping_note": self.damping_note,
+                "damping_note": self.damping_note, "zeta_per_mode_pct": [100 * z for z in self.zeta],
                 "max_acc_m_s2": float(self.max_acc_m_s2[i]), "at_speed_kmh": float(self.speeds_kmh[i]),
-                "max_disp_m": float(self.max_disp_m.max()), "static_disp_m": self.static_disp_m,
-                "phi_dyn": self.phi_dyn, "comfort": self.comfort_dict(),
-                "curve": {"speeds_kmh": self.speeds_kmh.tolist(), "max_acc_m_s2": self.max_acc_m_s2.tolist(),
-                          "max_disp_m": self.max_disp_m.tolist()}}
+                "at_x_m": self.x_max_m,
+                "max_disp_m": float(self.max_disp_m.max()), "max_disp_midspan_m": float(self.midspan_disp_m.max()),
+                "static_disp_m": self.static_disp_m,
+                "max_moment_Nm": None if self.max_moment_Nm is None else float(self.max_moment_Nm.max()),
+                "phi_dyn": self.phi_dyn, "comfort": self.comfort_dict(), "curve": curve}
 
 
 @dataclass
@@ -113,6 +147,8 @@ class CheckResult:
     f_limit_hz: float
     screening: str
     timings_s: dict = field(default_factory=dict)
+    where: object = "midspan"
+    damping_model: str = "rayleigh13"
 
     @property
     def limit_m_s2(self):
@@ -120,8 +156,31 @@ class CheckResult:
 
     @property
     def governing(self):
+        """(train check, speed km/h, acceleration m/s^2) of the largest acceleration."""
         t = max(self.trains, key=lambda c: c.max_acc_m_s2.max())
         return t, float(t.speeds_kmh[t.i_max]), float(t.max_acc_m_s2.max())
+
+    @property
+    def where_text(self):
+        from adm_sim.envelope import where_text
+
+        return where_text(self.where)
+
+    def damping_model_text(self):
+        """The damping model and the ζ of every mode of the bridge without Δζ."""
+        z = self.bridge.modal_damping_ratios(0.0)
+        modes = ", ".join(f"{100 * x:.4g} %" for x in z)
+        if self.damping_model == "modal":
+            how = "modal: zeta on every mode (EN 1991-2 6.4.6.3.1, Table 6.6)"
+        else:
+            how = "rayleigh13: Rayleigh damping anchored at modes 1 and 3"
+        return f"damping model {how}; zeta per mode {modes}"
+
+    def position_text(self, t):
+        x = t.x_max_m
+        if x is None:
+            return ""
+        return f", x = {x:.3f} m ({x / self.bridge.span_m:.3f} L)"
 
     @property
     def passed(self):
@@ -135,16 +194,26 @@ class CheckResult:
                  f"EN 1991-2 6.4.6.2), {v.size} speeds at <= 1 km/h, refined at {REFINE_STEP_KMH:g} km/h "
                  f"around every resonance",
                  f"modes: {', '.join(str(j) for j in self.modes)} (EN 1990 A2.4.4.2.1: at least all modes up to "
-                 f"max(30 Hz, 1.5 n0, n3) = {self.f_limit_hz:.1f} Hz; even modes do not move midspan)",
+                 f"max(30 Hz, 1.5 n0, n3) = {self.f_limit_hz:.1f} Hz; "
+                 + ("every mode moves the deck)" if self.where != "midspan" else "even modes do not move midspan)"),
+                 f"acceleration: {self._where_sentence()}",
+                 f"{self.damping_model_text()}",
                  f"damping: zeta = {100 * b.damping_ratio:.3g} % plus, per train:"]
         for note in dict.fromkeys(f"  {c.damping_note}" for c in self.trains):
             lines.append(note)
-        lines.append(f"{'train':14s} {'max acc':>9s} {'at':>8s} {'max disp':>9s} {'phi_dyn':>8s} {'dzeta':>7s}")
-        lines.append(f"{'':14s} {'(m/s2)':>9s} {'(km/h)':>8s} {'(mm)':>9s} {'(-)':>8s} {'(%)':>7s}")
+        xs = self.where != "midspan"
+        lines.append(f"{'train':14s} {'max acc':>9s} {'at':>8s}" + (f" {'x':>7s}" if xs else "")
+                     + f" {'max disp':>9s} {'phi_dyn':>8s} {'dzeta':>7s}  zeta per mode")
+        lines.append(f"{'':14s} {'(m/s2)':>9s} {'(km/h)':>8s}" + (f" {'(m)':>7s}" if xs else "")
+                     + f" {'(mm)':>9s} {'(-)':>8s} {'(%)':>7s}  (%)")
         for c in self.trains:
             i = c.i_max
-            lines.append(f"{c.name:14s} {c.max_acc_m_s2[i]:9.4f} {c.speeds_kmh[i]:8.1f} "
-                         f"{1000 * c.max_disp_m.max():9.3f} {c.phi_dyn:8.3f} {c.delta_zeta_pct:7.3f}")
+            lines.append(f"{c.name:14s} {c.max_acc_m_s2[i]:9.4f} {c.speeds_kmh[i]:8.1f}"
+                         + (f" {c.x_max_m:7.3f}" if xs else "")
+                         + f" {1000 * c.midspan_disp_m.max():9.3f} {c.phi_dyn:8.3f} {c.delta_zeta_pct:7.3f}  "
+                         f"{c.zeta_text()}")
+        lines.append("max disp: midspan; phi_dyn = phi'_dyn = max |y_dyn / y_stat| - 1 at midspan (EN 1991-2 "
+                     "6.4.6.5(3), Eq. 6.14)")
         for c in self.trains:
             cd = c.comfort_dict()
             if cd is not None:
@@ -153,32 +222,52 @@ class CheckResult:
                              f"1.3 good, 2.0 acceptable)")
         t, sp, acc = self.governing
         margin = self.limit_m_s2 - acc
-        lines.append(f"governing: {t.name} at {sp:g} km/h, max deck acceleration {acc:.4f} m/s2; limit "
+        what = {"deck": "max deck acceleration (whole deck)", "midspan": "max midspan acceleration"}.get(
+            self.where, f"max acceleration at {self.where_text}")
+        lines.append(f"governing: {t.name} at {sp:g} km/h{self.position_text(t)}, {what} {acc:.4f} m/s2; limit "
                      f"{self.limit_m_s2:g} m/s2 ({self.track} track, EN 1990 A2.4.4.2.1): "
                      f"{'PASS' if self.passed else 'FAIL'}, margin {margin:+.4f} m/s2 "
-                     f"({100 * margin / self.limit_m_s2:+.1f} % of the limit)")
+                     f"({100 * margin / self.limit_m_s2:+.1f} % of the limit); damping model {self.damping_model} "
+                     f"(zeta per mode {t.zeta_text()} %)")
         lines.append(self.screening)
         return "\n".join(lines)
+
+    def _where_sentence(self):
+        if self.where == "deck":
+            return ("largest |a| anywhere on the deck (EN 1990 A2.4.4.2.1), exact in time and position "
+                    "(adm_sim.envelope: closed form, Newton in (t, x))")
+        if self.where == "midspan":
+            return "at midspan only (--where midspan; the standard limits the whole deck)"
+        return f"at {self.where_text} only (--where; the standard limits the whole deck)"
 
     def to_dict(self):
         t, sp, acc = self.governing
         return {"bridge": self.bridge.describe(), "max_line_speed_kmh": self.max_line_speed_kmh,
                 "design_speed_kmh": DESIGN_SPEED_FACTOR * self.max_line_speed_kmh, "track": self.track,
-                "damping": self.damping, "limit_m_s2": self.limit_m_s2, "modes": list(self.modes),
+                "damping": self.damping, "damping_model": self.damping_model,
+                "zeta_per_mode_pct": [100 * z for z in self.bridge.modal_damping_ratios(0.0)],
+                "where": self.where, "limit_m_s2": self.limit_m_s2, "modes": list(self.modes),
                 "f_limit_hz": self.f_limit_hz,
-                "governing": {"train": t.name, "speed_kmh": sp, "acc_m_s2": acc},
+                "governing": {"train": t.name, "speed_kmh": sp, "acc_m_s2": acc, "x_m": t.x_max_m,
+                              "where": self.where, "zeta_per_mode_pct": [100 * z for z in t.zeta]},
                 "verdict": "pass" if self.passed else "fail", "margin_m_s2": self.limit_m_s2 - acc,
                 "screening": self.screening, "timings_s": self.timings_s,
                 "trains": [c.to_dict() for c in self.trains]}
 
     def write_csv(self, path):
-        """Every curve in long format: train, speed_kmh, max_acc_m_s2, max_disp_m."""
+        """Every curve in long format: train, speed_kmh, max_acc_m_s2, x_acc_m, max_disp_m (at
+        ``where``), max_disp_midspan_m, max_moment_Nm, delta_zeta_pct, zeta_per_mode_pct (``/``-joined)."""
         with open(path, "w", newline="") as fh:
             w = csv.writer(fh)
-            w.writerow(["train", "speed_kmh", "max_acc_m_s2", "max_disp_m", "delta_zeta_pct"])
+            w.writerow(["train", "speed_kmh", "max_acc_m_s2", "x_acc_m", "max_disp_m", "max_disp_midspan_m",
+                        "max_moment_Nm", "delta_zeta_pct", "zeta_per_mode_pct"])
             for c in self.trains:
-                for v, a, d in zip(c.speeds_kmh, c.max_acc_m_s2, c.max_disp_m):
-                    w.writerow([c.name, f"{v:.3f}", f"{a:.8g}", f"{d:.8g}", f"{c.delta_zeta_pct:.6g}"])
+                n = c.speeds_kmh.size
+                xa = c.x_acc_m if c.x_acc_m is not None else np.full(n, np.nan)
+                mo = c.max_moment_Nm if c.max_moment_Nm is not None else np.full(n, np.nan)
+                for v, a, x, d, dm, m in zip(c.speeds_kmh, c.max_acc_m_s2, xa, c.max_disp_m, c.midspan_disp_m, mo):
+                    w.writerow([c.name, f"{v:.3f}", f"{a:.8g}", f"{x:.6g}", f"{d:.8g}", f"{dm:.8g}", f"{m:.8g}",
+                                f"{c.delta_zeta_pct:.6g}", "/".join(f"{100 * z:.6g}" for z in c.zeta)])
 
     def plot(self, path):
         import matplotlib
@@ -193,11 +282,15 @@ class CheckResult:
         t, sp, acc = self.governing
         ax.axhline(self.limit_m_s2, color="C3", lw=1.5, label=f"limit {self.limit_m_s2:g} m/s² ({self.track})")
         ax.plot([sp], [acc], "o", ms=9, mfc="none", mec="k", mew=1.8,
-                label=f"governing: {t.name}, {acc:.3f} m/s² at {sp:g} km/h")
+                label=f"governing: {t.name}, {acc:.3f} m/s² at {sp:g} km/h"
+                      + ("" if t.x_max_m is None or self.where == "midspan" else f", x = {t.x_max_m:.2f} m"))
         ax.set_xlabel("speed (km/h)")
-        ax.set_ylabel("max deck acceleration (m/s²)")
+        ax.set_ylabel({"deck": "max deck acceleration, whole deck (m/s²)",
+                       "midspan": "max midspan acceleration (m/s²)"}.get(self.where,
+                                                                         f"max acceleration at {self.where_text} (m/s²)"))
         ax.set_title(f"{self.bridge.name or 'bridge'}: EN 1991-2 dynamic check, V = {self.max_line_speed_kmh:g} km/h, "
-                     f"damping {self.damping}: {'PASS' if self.passed else 'FAIL'}")
+                     f"damping {self.damping}, {self.damping_model} (zeta per mode {t.zeta_text()} %): "
+                     f"{'PASS' if self.passed else 'FAIL'}", fontsize=9)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7, ncol=2)
         fig.tight_layout()
@@ -381,7 +474,8 @@ def _refinement(speeds, acc, extra, vmin, vmax):
 
 
 def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="none", step_kmh=1.0,
-              progress=None, calibrate_options=None, comfort=False, n_modes=None):
+              progress=None, calibrate_options=None, comfort=False, n_modes=None, where="deck",
+              damping_model=None):
     """The dynamic check of ``bridge`` for ``trains`` (see the module doc).
 
     Parameters
@@ -391,7 +485,7 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
     max_line_speed_kmh : float
         Maximum line speed V (km/h), > 144 km/h (40 m/s).
     trains : list of adm_sim.trains.Train
-    track : {"ballasted", "direct"}
+    track : {"ballasted", "direct_fastening"}
     damping : {"none", "adm", "lb", "vbi"}
     step_kmh : float
         Speed step (km/h), (0, 1].
@@ -402,14 +496,25 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
     comfort : bool
         Also run the DIM of every train with vehicles over the speeds for the passenger comfort
         b_v (EN 1990 A2.4.4.3); HSLM trains have no car bodies.
+    where : {"deck", "midspan"} or float or str
+        Where the acceleration is taken: anywhere on the deck (default, EN 1990 A2.4.4.2.1), at
+        midspan, or at a position x (m, 0 < x < L; text ``"x=<m>"`` accepted).
+    damping_model : {"rayleigh13", "modal"}, optional
+        ζ per mode: Rayleigh anchored at modes 1 and 3, or ζ on every mode; default the bridge's
+        own ``damping_model`` ("rayleigh" is rayleigh13).
 
     Returns
     -------
     CheckResult
     """
-    from adm_sim.envelope import check_frequency_limit_hz, check_mode_count, moving_load_envelope
+    from adm_sim.envelope import check_frequency_limit_hz, check_mode_count, moving_load_envelope, parse_where
     from adm_sim.hslm import regular_coach_length_m
 
+    if damping_model is None:
+        damping_model = {v: k for k, v in DAMPING_MODELS.items()}[bridge.damping_model]
+    if damping_model not in DAMPING_MODELS:
+        raise InputError(f"--damping-model: {damping_model!r} is not allowed; allowed {', '.join(DAMPING_MODELS)}")
+    where = parse_where(where, bridge.span_m)
     if track not in ACC_LIMITS_M_S2:
         raise InputError(f"--track: {track!r} is not allowed; allowed {', '.join(ACC_LIMITS_M_S2)}")
     if damping not in DAMPING_METHODS:
@@ -429,7 +534,8 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
         if x != int(x):
             raise InputError(f"--modes: {x:g} is not an integer; allowed [{need}, 20]")
         n_modes = int(x)
-    b = dataclasses.replace(bridge, n_modes=need if n_modes is None else n_modes)
+    b = dataclasses.replace(bridge, n_modes=need if n_modes is None else n_modes,
+                            damping_model=DAMPING_MODELS[damping_model])
     t_start = time.perf_counter()
     dz = [None] * len(trains)  # every refusal before any sweep: load trains (cheap refusals) first
     for i in sorted(range(len(trains)), key=lambda i: bool(trains[i].units)):
@@ -438,29 +544,35 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
     out = []
     vmin, vmax = speeds[0], speeds[-1]
     for n, (t, (dz_pct, note)) in enumerate(zip(trains, dz)):
-        env = moving_load_envelope(b, t.axle_offsets_m, t.axle_loads_n, speeds, delta_zeta=dz_pct / 100.0)
+        env = moving_load_envelope(b, t.axle_offsets_m, t.axle_loads_n, speeds, delta_zeta=dz_pct / 100.0,
+                                   where=where)
         extra = np.array([])
         if _is_hslm(t):
             D = regular_coach_length_m(t.name)
             i = np.arange(1, 50)
             extra = 3.6 * b.n0_hz * D / i
         fine = _refinement(speeds, env.max_acc_m_s2, extra, vmin, vmax)
-        v_all, acc, disp = speeds, env.max_acc_m_s2, env.max_disp_m
+        v_all = speeds
+        cols = [env.max_acc_m_s2, env.max_disp_m, env.x_acc_m, env.max_disp_midspan_m, env.max_moment_Nm]
         if fine.size:
-            ef = moving_load_envelope(b, t.axle_offsets_m, t.axle_loads_n, fine, delta_zeta=dz_pct / 100.0)
+            ef = moving_load_envelope(b, t.axle_offsets_m, t.axle_loads_n, fine, delta_zeta=dz_pct / 100.0,
+                                      where=where)
             v_all = np.concatenate([speeds, fine])
             order = np.argsort(v_all, kind="stable")
             v_all = v_all[order]
-            acc = np.concatenate([acc, ef.max_acc_m_s2])[order]
-            disp = np.concatenate([disp, ef.max_disp_m])[order]
+            cols = [np.concatenate([c, f])[order] for c, f in zip(cols, [
+                ef.max_acc_m_s2, ef.max_disp_m, ef.x_acc_m, ef.max_disp_midspan_m, ef.max_moment_Nm])]
+        acc, disp, x_acc, disp_mid, moment = cols
         b_v = comfort_b_v(b, t, speeds) if comfort and t.units else None
         out.append(TrainCheck(name=t.name, kind="hslm" if _is_hslm(t) else "train", speeds_kmh=v_all,
                               max_acc_m_s2=acc, max_disp_m=disp, delta_zeta_pct=float(dz_pct),
                               damping_note=note, static_disp_m=static_midspan_max_m(b, t.axle_offsets_m, t.axle_loads_n),
-                              comfort_b_v_m_s2=b_v))
+                              comfort_b_v_m_s2=b_v, x_acc_m=x_acc, max_disp_midspan_m=disp_mid,
+                              max_moment_Nm=moment, zeta=env.zeta))
         if progress is not None:
             progress(n + 1, len(trains))
     return CheckResult(bridge=b, max_line_speed_kmh=float(max_line_speed_kmh), track=track, damping=damping,
                        speeds_kmh=speeds, trains=out, modes=tuple(int(j) for j in b.mode_numbers),
                        f_limit_hz=f_lim, screening=screening(b, float(max_line_speed_kmh)),
-                       timings_s={"damping": t_damp, "envelopes": time.perf_counter() - t_start - t_damp})
+                       timings_s={"damping": t_damp, "envelopes": time.perf_counter() - t_start - t_damp},
+                       where=where, damping_model=damping_model)

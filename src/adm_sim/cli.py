@@ -87,11 +87,12 @@ def write_atomic(path, write):
             tmp.unlink()
 
 
-def _plot_sweep(result, path, limit=3.5):
+def _plot_sweep(result, path, limit=3.5, where="midspan"):
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    import numpy as np
 
     fig, ax = plt.subplots(figsize=(7, 4))
     ax.plot(result.speeds_kmh, result.max_acc_m_s2, lw=1.5, label=result.model.upper())
@@ -101,8 +102,13 @@ def _plot_sweep(result, path, limit=3.5):
                 label=f"peak {pk['acc_m_s2']:.3f} m/s² at {pk['speed_kmh']:g} km/h")
     ax.axhline(limit, color="0.5", ls="--", lw=1, label=f"EN 1990 A2 ballasted limit {limit} m/s²")
     ax.set_xlabel("speed (km/h)")
-    ax.set_ylabel("max |midspan acceleration| (m/s²)")
-    ax.set_title(f"{result.bridge.name or 'bridge'} x {result.train_name} ({result.model.upper()})")
+    from adm_sim.envelope import where_text
+
+    ax.set_ylabel({"deck": "max |deck acceleration| (m/s²)", "midspan": "max |midspan acceleration| (m/s²)"}.get(
+        where, f"max |acceleration| at {where_text(where)} (m/s²)"))
+    zeta = "/".join(f"{100 * z:.3g}" for z in np.ravel(result.bridge.modal_damping_ratios(result.delta_zeta)))
+    ax.set_title(f"{result.bridge.name or 'bridge'} x {result.train_name} ({result.model.upper()}, "
+                 f"{'exact' if result.method == 'exact' else 'RK4'}; zeta per mode {zeta} %)", fontsize=10)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
@@ -112,8 +118,9 @@ def _plot_sweep(result, path, limit=3.5):
 
 def cmd_sweep(args):
     from adm_sim.bridge import resolve_bridge
+    from adm_sim.envelope import parse_where, where_text
     from adm_sim.stepping import StepOptions
-    from adm_sim.sweep import parse_speeds, run_sweep
+    from adm_sim.sweep import parse_speeds, run_sweep, sweep_exact
     from adm_sim.trains import load_train
     from adm_sim.errors import check_range
 
@@ -126,24 +133,47 @@ def cmd_sweep(args):
     speeds = parse_speeds(args.speeds)
     dz = check_delta_zeta_pct("--delta-zeta-pct", args.delta_zeta_pct, bridge.damping_ratio) / 100
     opts = StepOptions(steps_per_period=check_range("--steps-per-period", args.steps_per_period, "steps", 4, 10000))
+    where = parse_where(args.where, bridge.span_m)
+    method = args.method or ("exact" if args.model == "mlm" else "rk4")
+    if args.model == "dim" and method == "exact":
+        raise InputError("--method: 'exact' is the closed-form MLM envelope; the DIM runs RK4 only (allowed --method rk4)")
+    if where != "midspan" and method != "exact":
+        raise InputError(f"--where: {args.where!r} needs the exact MLM envelope (--model mlm --method exact); the RK4 "
+                         f"runs record midspan only (allowed --where midspan)")
+    if method == "exact" and bridge.damping_ratio + dz <= 0.0:
+        raise InputError(f"--delta-zeta-pct: zeta + delta_zeta = {100 * (bridge.damping_ratio + dz):g} %; the exact "
+                         f"MLM envelope needs damping > 0 % (allowed > {-100 * bridge.damping_ratio:g} %, or --method rk4)")
     print(bridge.describe())
     print(train.describe())
+    zeta = bridge.modal_damping_ratios(dz)
+    print(f"damping per mode ({bridge.damping_model}): "
+          + ", ".join(f"zeta_{j} = {100 * z:.4g} %" for j, z in enumerate(zeta, start=1)))
     cb, close = tqdm_progress(f"{args.model.upper()} sweep", None if args.progress is None else args.progress)
     t0 = time.perf_counter()
     try:
-        res = run_sweep(bridge, train, args.model, speeds, delta_zeta=dz, options=opts, progress=cb)
+        if method == "exact":
+            res, env = sweep_exact(bridge, train, speeds, delta_zeta=dz, where=where)
+        else:
+            res, env = run_sweep(bridge, train, args.model, speeds, delta_zeta=dz, options=opts, progress=cb), None
     finally:
         close()
     wall = time.perf_counter() - t0
     pk = res.peak()
-    print(f"{args.model.upper()} sweep: {len(speeds)} speeds {speeds.min():g}..{speeds.max():g} km/h, "
-          f"{res.n_steps} steps of {res.ds_m * 1000:.2f} mm, {wall:.2f} s")
+    if env is None:
+        print(f"{args.model.upper()} sweep (RK4): {len(speeds)} speeds {speeds.min():g}..{speeds.max():g} km/h, "
+              f"{res.n_steps} steps of {res.ds_m * 1000:.2f} mm, maxima at the steps, {wall:.2f} s")
+    else:
+        print(f"MLM sweep (exact envelope: closed form, maxima refined by Newton), {where_text(where)}: {len(speeds)} "
+              f"speeds {speeds.min():g}..{speeds.max():g} km/h, {wall:.2f} s")
+    at = ""
+    if pk is not None and env is not None and where == "deck":
+        at = f", x = {env.x_acc_m[pk['index']]:.3f} m"
     if pk is None:
         i = int(res.max_acc_m_s2.argmax())
         print(f"no interior peak: the largest value {res.max_acc_m_s2[i]:.4f} m/s2 lies at the end "
               f"of the speed range ({res.speeds_kmh[i]:g} km/h)")
     else:
-        print(f"peak: {pk['acc_m_s2']:.4f} m/s2 at {pk['speed_kmh']:g} km/h")
+        print(f"peak: {pk['acc_m_s2']:.4f} m/s2 at {pk['speed_kmh']:g} km/h{at}")
         top = float(res.max_acc_m_s2.max())
         if top > pk["acc_m_s2"]:
             i = int(res.max_acc_m_s2.argmax())
@@ -151,10 +181,19 @@ def cmd_sweep(args):
     if json_path is not None:
         out = res.to_dict()
         out["wall_time_s"] = wall
+        out["method"] = method
+        out["damping_model"] = bridge.damping_model
+        out["zeta_per_mode_pct"] = [100 * float(z) for z in zeta]
+        if env is not None:
+            out["where"] = where
+            out["x_acc_m"] = env.x_acc_m.tolist()
+            out["x_disp_m"] = env.x_disp_m.tolist()
+            out["max_disp_midspan_m"] = env.max_disp_midspan_m.tolist()
+            out["max_moment_Nm"] = env.max_moment_Nm.tolist()
         write_atomic(json_path, lambda p: p.write_text(json.dumps(out, indent=1)))
         print(f"wrote {args.json}")
     if plot_path is not None:
-        write_atomic(plot_path, lambda p: _plot_sweep(res, p))
+        write_atomic(plot_path, lambda p: _plot_sweep(res, p, where=where))
         print(f"wrote {args.plot}")
     return 0
 
@@ -177,13 +216,20 @@ def cmd_check(args):
             raise InputError(f"--{opt}: {getattr(args, opt)!r} is the --{seen[p.resolve()]} file; give different files")
         seen[p.resolve()] = opt
     bridge = resolve_bridge(args.bridge)
+    from adm_calib.check import DAMPING_MODELS
+    from adm_sim.envelope import parse_where
+
+    parse_where(args.where, bridge.span_m)  # refused before any work
+    if args.damping_model is not None and args.damping_model not in DAMPING_MODELS:
+        raise InputError(f"--damping-model: {args.damping_model!r} is not allowed; allowed {', '.join(DAMPING_MODELS)}")
     trains = resolve_trains(args.trains)
     track = check_track_type("--track", args.track, aliases=True)  # one vocabulary: direct -> direct_fastening
     cb, close = tqdm_progress("check", None if args.progress is None else args.progress)
     t0 = time.perf_counter()
     try:
         res = run_check(bridge, args.max_line_speed, trains, track=track, damping=args.damping,
-                        step_kmh=args.speed_step, progress=cb, comfort=args.comfort, n_modes=args.modes)
+                        step_kmh=args.speed_step, progress=cb, comfort=args.comfort, n_modes=args.modes,
+                        where=args.where, damping_model=args.damping_model)
     finally:
         close()
     wall = time.perf_counter() - t0
@@ -281,7 +327,12 @@ def build_parser():
     s.add_argument("--speeds", default=DEFAULT_SPEEDS, help="km/h, start:stop:step or a comma list")
     s.add_argument("--delta-zeta-pct", default="0", help=f"additional damping (%%, from -zeta to {MAX_DELTA_ZETA_PCT:g})")
     s.add_argument("--steps-per-period", default="16",
-                   help="RK4 steps per period of the highest bridge mode (4..10000)")
+                   help="RK4 steps per period of the highest bridge mode (4..10000; DIM and --method rk4)")
+    s.add_argument("--method", choices=("exact", "rk4"), default=None,
+                   help="MLM: exact (default: the closed-form envelope, true maximum per speed) or rk4 (the lockstep "
+                        "RK4 run, maxima sampled at its steps); the DIM is always rk4")
+    s.add_argument("--where", default="midspan",
+                   help="MLM exact: midspan (default), deck (anywhere on the deck, with the position) or x=<m> (0 < x < L)")
     _output_options(s, {"json": "write results as JSON", "plot": "write max acceleration vs speed as PNG"},
                     "replace existing --json/--plot files (once the run has finished)")
     s.set_defaults(func=cmd_sweep)
@@ -298,12 +349,20 @@ def build_parser():
                         + "".join(f" ({k} = {v})" for k, v in TRACK_ALIASES.items()))
     c.add_argument("--damping", choices=("none", "adm", "lb", "vbi"), default="none",
                    help="additional damping: none, Eurocode ADM, the paper's lower bounds, calibrated VBI")
+    c.add_argument("--where", default="deck",
+                   help="where the acceleration is taken: deck (default: anywhere on the deck, with the position, "
+                        "EN 1990 A2.4.4.2.1), midspan, or x=<m> (0 < x < L)")
+    c.add_argument("--damping-model", default=None,
+                   help="damping per mode: rayleigh13 (Rayleigh anchored at modes 1 and 3; mode 2 gets 0.625 zeta "
+                        "with 3 modes) or modal (zeta on every mode, EN 1991-2 6.4.6.3.1); default: the bridge's "
+                        "own (rayleigh13 unless its file says damping_model = \"modal\")")
     c.add_argument("--speed-step", type=float, default=1.0, help="speed step (km/h, at most 1)")
     c.add_argument("--modes", type=float, help="more modes than EN 1990 A2.4.4.2.1 asks for (default: exactly those)")
     c.add_argument("--comfort", action="store_true",
                    help="also run the DIM of the real trains: passenger comfort b_v (EN 1990 A2.4.4.3)")
     _output_options(c, {"json": "write the verdict and every curve as JSON",
-                        "csv": "write every curve as CSV (train, speed, acc, disp)",
+                        "csv": "write every curve as CSV (train, speed, acc and its position, disp, midspan moment, "
+                               "zeta per mode)",
                         "plot": "write the acceleration envelopes as PNG"},
                     "replace existing output files (once the check has finished)")
     c.set_defaults(func=cmd_check)

@@ -104,6 +104,7 @@ class SweepResult:
     midspan_disp_m: np.ndarray | None = field(default=None)
     midspan_acc_m_s2: np.ndarray | None = field(default=None)
     contact_force_n: np.ndarray | None = field(default=None)
+    method: str = "rk4"
 
     def peak(self):
         """``{"speed_kmh", "acc_m_s2", "index"}`` of the largest interior local maximum, or None."""
@@ -116,6 +117,7 @@ class SweepResult:
         pk = self.peak()
         return {
             "model": self.model,
+            "method": self.method,
             "bridge": self.bridge.describe(),
             "train": self.train_name,
             "delta_zeta_pct": (100.0 * self.delta_zeta).tolist() if np.ndim(self.delta_zeta) else 100.0 * float(self.delta_zeta),
@@ -130,9 +132,26 @@ class SweepResult:
     def __repr__(self):
         pk = self.peak()
         where = "no interior peak" if pk is None else f"peak {pk['acc_m_s2']:.4f} m/s2 at {pk['speed_kmh']:g} km/h"
+        how = "exact envelope" if self.method == "exact" else f"{self.n_steps} steps of {self.ds_m * 1000:.2f} mm"
         return (f"SweepResult({self.model.upper()}, {self.bridge.name or 'bridge'} x {self.train_name}, "
                 f"{len(self.speeds_kmh)} speeds {self.speeds_kmh.min():g}..{self.speeds_kmh.max():g} km/h, "
-                f"{where}, {self.n_steps} steps of {self.ds_m * 1000:.2f} mm)")
+                f"{where}, {how})")
+
+
+def sweep_exact(bridge, train, speeds_kmh, delta_zeta=0.0, where="midspan"):
+    """The MLM sweep by the exact envelope (:func:`adm_sim.envelope.moving_load_envelope`): the true
+    maximum per speed, not the largest RK4 step sample (which sits up to 0.66 % below it on B1 x
+    ICE-2 at 16 steps per period). Returns ``(SweepResult, Envelope)``; the result's
+    ``max_acc_m_s2`` / ``max_disp_m`` are taken at ``where`` (``"midspan"``, ``"deck"`` or x in m).
+    """
+    from adm_sim.envelope import moving_load_envelope
+
+    env = moving_load_envelope(bridge, train.axle_offsets_m, train.axle_loads_n, speeds_kmh,
+                               delta_zeta=delta_zeta, where=where)
+    res = SweepResult(model="mlm", bridge=bridge, train_name=train.name, speeds_kmh=env.speeds_kmh.copy(),
+                      max_acc_m_s2=env.max_acc_m_s2, max_disp_m=env.max_disp_m,
+                      delta_zeta=np.asarray(delta_zeta, dtype=float), ds_m=0.0, n_steps=0, method="exact")
+    return res, env
 
 
 def run_sweep(bridge, train, model, speeds_kmh, delta_zeta=0.0, options=None, histories=False,
