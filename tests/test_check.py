@@ -107,6 +107,52 @@ def test_static_deflection_against_beam_formula():
     assert w == pytest.approx(1e5 * b.span_m**3 / (48 * b.EJ_Nm2), rel=3e-3)
 
 
+def test_static_modal_moment_and_deflection_closed_form():
+    """One axle F crossing B1 on modes 1-3: the largest static midspan effects are the modal series at
+    a = L/2, w = sum_odd 2 F L^3 / (j^4 pi^4 EJ), M = sum_odd 2 F L / (j^2 pi^2) (written out here)."""
+    from adm_calib.check import static_midspan_max
+
+    b = named_bridge("B1")
+    F, L, EJ = 1.0e5, b.span_m, b.EJ_Nm2
+    w, m = static_midspan_max(b, np.array([0.0]), np.array([F]))
+    assert w == pytest.approx(2 * F * L**3 / (np.pi**4 * EJ) * (1 + 1 / 81), rel=1e-9)
+    assert m == pytest.approx(2 * F * L / np.pi**2 * (1 + 1 / 9), rel=1e-9)
+    assert m == pytest.approx(F * L / 4, rel=0.11)  # 3 modes carry 90 % of the exact F L / 4
+
+
+def test_design_comparison_6_4_6_5_by_hand():
+    """The check's EN 1991-2 6.4.6.5(3) numbers for HSLM-A9 on B1 at V = 250 km/h, rebuilt by hand:
+    Phi2 (Eq. 6.4) = 1.44 / (sqrt(15) - 0.2) + 0.82 = 1.21205; phi'' (Annex C, v > 22 m/s so alpha = 1)
+    = [56 e^-(1.5^2) + 50 (15 n0 / 80 - 1) e^-(0.75^2)] / 100; LM71 midspan moment on 15 m with an axle
+    at midspan (4 x 250 kN at 1.6 m, 80 kN/m beyond the 6.4 m group), 3715.2 kNm, worked out below; the train side (1 + phi'_dyn + phi''/2) x its exact static moment."""
+    from adm_sim.design_loads import train_midspan_max
+
+    b = named_bridge("B1")
+    res = run_check(b, 250.0, resolve_trains("HSLM-A9,ICE-2"), step_kmh=1.0)
+    d = res.trains[0].design
+    phi2 = 1.44 / (math.sqrt(15.0) - 0.2) + 0.82
+    n0 = b.n0_hz
+    phi_dd = (56 * math.exp(-1.5**2) + 50 * (15 * n0 / 80 - 1) * math.exp(-0.75**2)) / 100
+    # axles at 5.9, 7.5, 9.1, 10.7 m (one at midspan); influence line of M(L/2): a / 2 left, (L - a) / 2 right
+    m_points = 250e3 * (5.9 + 7.5 + (15 - 9.1) + (15 - 10.7)) / 2
+    # 80 kN/m outside the 6.4 m group [5.1, 11.5]: influence-line areas 5.1^2 / 4 and 3.5^2 / 4
+    m_udl = 80e3 * (5.1**2 / 4 + 3.5**2 / 4)
+    assert d.Phi == pytest.approx(phi2, rel=1e-12)
+    assert d.phi_dd == pytest.approx(phi_dd, rel=1e-12)
+    assert d.lm71_static_moment_Nm == pytest.approx(m_points + m_udl, rel=1e-9)
+    c = res.trains[0]
+    assert d.phi_dyn_moment == pytest.approx(c.max_moment_Nm.max() / c.static_moment_Nm - 1, rel=1e-12)
+    t = load_train("HSLM-A9")
+    m_train = train_midspan_max(b.span_m, b.EJ_Nm2, t.axle_offsets_m, t.axle_loads_n).moment_Nm
+    assert d.train_design_moment_Nm == pytest.approx((1 + d.phi_dyn_moment + phi_dd / 2) * m_train, rel=1e-12)
+    assert d.ratio_moment == pytest.approx(d.train_design_moment_Nm / (phi2 * (m_points + m_udl)), rel=1e-9)
+    js = res.to_dict()
+    assert js["trains"][0]["en1991_2_6_4_6_5"]["Phi"] == pytest.approx(phi2, rel=1e-12)
+    gov = js["en1991_2_6_4_6_5_governing"]["moment"]
+    assert gov["governs"] == "LM71"   # a 15 m span: Phi2 x LM71 governs every train here
+    assert gov["ratio_train_to_lm71"] == max(c.design.ratio_moment for c in res.trains)
+
+
 def test_damping_methods():
     b1, b2 = named_bridge("B1"), named_bridge("B2")
     ice2, a1 = load_train("ICE-2"), load_train("HSLM-A1")
@@ -181,6 +227,12 @@ def test_bad_trains():
      "error: --where: 'top' is not allowed; allowed deck, midspan or x=<position in m> with 0 < x < 15 m\n"),
     (["--max-line-speed", "300", "--damping-model", "stiffness"],
      "error: --damping-model: 'stiffness' is not allowed; allowed rayleigh13, modal\n"),
+    (["--max-line-speed", "300", "--track-maintenance", "poor"],
+     "error: --track-maintenance: 'poor' is not one of EN 1991-2 6.4.5.2's; allowed careful, standard "
+     "(careful: Φ2, standard: Φ3)\n"),
+    (["--max-line-speed", "300", "--alpha", "1.2"],
+     "error: --alpha: 1.2 is not a classification factor of EN 1991-2 6.3.2(3); allowed 0.75, 0.83, 0.91, "
+     "1.00, 1.10, 1.21, 1.33, 1.46\n"),
 ])
 def test_bad_input_cli_lines(args, line):
     r = run("check", *args)

@@ -85,6 +85,8 @@ class TrainCheck:
     max_disp_midspan_m: np.ndarray | None = None  # per speed; None: max_disp_m is the midspan one
     max_moment_Nm: np.ndarray | None = None  # max |midspan bending moment| per speed (N m)
     zeta: tuple = ()  # damping ratio of every mode used (fractions, with this train's Δζ)
+    static_moment_Nm: float | None = None  # largest static midspan moment on the same modes (N m)
+    design: object = None  # adm_sim.design_loads.DesignComparison (EN 1991-2 6.4.6.5(3)) or None
 
     @property
     def i_max(self):
@@ -98,6 +100,13 @@ class TrainCheck:
     def phi_dyn(self):
         """phi'_dyn = max |y_dyn / y_stat| - 1 at midspan (EN 1991-2 6.4.6.5(3), Eq. 6.14)."""
         return float(self.midspan_disp_m.max() / self.static_disp_m) - 1.0
+
+    @property
+    def phi_dyn_moment(self):
+        """phi'_dyn of the midspan bending moment, Eq. (6.14), dynamic and static on the same modes."""
+        if self.max_moment_Nm is None or not self.static_moment_Nm:
+            return None
+        return float(self.max_moment_Nm.max() / self.static_moment_Nm) - 1.0
 
     @property
     def x_max_m(self):
@@ -128,7 +137,9 @@ class TrainCheck:
                 "max_acc_m_s2": float(self.max_acc_m_s2[i]), "at_speed_kmh": float(self.speeds_kmh[i]),
                 "at_x_m": self.x_max_m,
                 "max_disp_m": float(self.max_disp_m.max()), "max_disp_midspan_m": float(self.midspan_disp_m.max()),
-                "static_disp_m": self.static_disp_m,
+                "static_disp_m": self.static_disp_m, "static_moment_Nm": self.static_moment_Nm,
+                "phi_dyn_moment": self.phi_dyn_moment,
+                "en1991_2_6_4_6_5": None if self.design is None else self.design.to_dict(),
                 "max_moment_Nm": None if self.max_moment_Nm is None else float(self.max_moment_Nm.max()),
                 "phi_dyn": self.phi_dyn, "comfort": self.comfort_dict(), "curve": curve}
 
@@ -149,6 +160,16 @@ class CheckResult:
     timings_s: dict = field(default_factory=dict)
     where: object = "midspan"
     damping_model: str = "rayleigh13"
+    track_maintenance: str = "careful"
+    alpha: float = 1.0
+
+    def design_governing(self):
+        """Per effect, the train whose EN 1991-2 6.4.6.5(3) design value is largest against
+        Φ x α x LM71, as ``{"moment": DesignComparison, "deflection": DesignComparison}``."""
+        from adm_sim.design_loads import governing
+
+        comps = [c.design for c in self.trains if c.design is not None]
+        return {e: governing(comps, e) for e in ("moment", "deflection")} if comps else {}
 
     @property
     def limit_m_s2(self):
@@ -214,6 +235,7 @@ class CheckResult:
                          f"{c.zeta_text()}")
         lines.append("max disp: midspan; phi_dyn = phi'_dyn = max |y_dyn / y_stat| - 1 at midspan (EN 1991-2 "
                      "6.4.6.5(3), Eq. 6.14)")
+        lines.extend(self._design_lines())
         for c in self.trains:
             cd = c.comfort_dict()
             if cd is not None:
@@ -231,6 +253,34 @@ class CheckResult:
                      f"(zeta per mode {t.zeta_text()} %)")
         lines.append(self.screening)
         return "\n".join(lines)
+
+    def _design_lines(self):
+        """EN 1991-2 6.4.6.5(3): the midspan moment and deflection per train against Φ x α x LM71."""
+        comps = [c.design for c in self.trains if c.design is not None]
+        if not comps:
+            return []
+        d0 = comps[0]
+        phi = "Phi2 (careful maintenance, 6.4.5.2(2))" if self.track_maintenance == "careful" else \
+            "Phi3 (standard maintenance, 6.4.5.2(3))"
+        out = [f"EN 1991-2 6.4.6.5(3), midspan of the simply supported span: (1 + phi'_dyn + phi''/2) x train "
+               f"vs {phi} = {d0.Phi:.3f} x alpha = {d0.alpha:g} x LM71 (6.3.2); phi'' = {d0.phi_dd:.4f} (Annex C, "
+               f"v = {self.max_line_speed_kmh:g} km/h); alpha x LM71 static: M {d0.lm71_static_moment_Nm / 1e3:.1f} kNm, "
+               f"w {1e3 * d0.lm71_static_deflection_m:.3f} mm",
+               f"{'train':14s} {'phi_M':>7s} {'M design':>10s} {'M/LM71':>7s} {'phi_w':>7s} {'w design':>9s} "
+               f"{'w/LM71':>7s}",
+               f"{'':14s} {'(-)':>7s} {'(kNm)':>10s} {'(-)':>7s} {'(-)':>7s} {'(mm)':>9s} {'(-)':>7s}"]
+        for c in self.trains:
+            d = c.design
+            if d is None:
+                continue
+            out.append(f"{c.name:14s} {d.phi_dyn_moment:7.3f} {d.train_design_moment_Nm / 1e3:10.1f} "
+                       f"{d.ratio_moment:7.3f} {d.phi_dyn_deflection:7.3f} {1e3 * d.train_design_deflection_m:9.3f} "
+                       f"{d.ratio_deflection:7.3f}")
+        for e, d in self.design_governing().items():
+            side = "the train" if getattr(d, f"governs_{e}") == "train" else "Phi x alpha x LM71"
+            out.append(f"design {e}: governed by {side} (largest train ratio {getattr(d, f'ratio_{e}'):.3f}, "
+                       f"{d.train})")
+        return out
 
     def _where_sentence(self):
         if self.where == "deck":
@@ -252,6 +302,10 @@ class CheckResult:
                               "where": self.where, "zeta_per_mode_pct": [100 * z for z in t.zeta]},
                 "verdict": "pass" if self.passed else "fail", "margin_m_s2": self.limit_m_s2 - acc,
                 "screening": self.screening, "timings_s": self.timings_s,
+                "track_maintenance": self.track_maintenance, "alpha": self.alpha,
+                "en1991_2_6_4_6_5_governing": {e: {"train": d.train, "governs": getattr(d, f"governs_{e}"),
+                                                   "ratio_train_to_lm71": getattr(d, f"ratio_{e}")}
+                                               for e, d in self.design_governing().items()},
                 "trains": [c.to_dict() for c in self.trains]}
 
     def write_csv(self, path):
@@ -382,18 +436,30 @@ def delta_zeta_for(bridge, train, method, calibrate_options=None):
     raise InputError(f"--damping: {method!r} is not allowed; allowed {', '.join(DAMPING_METHODS)}")
 
 
-def static_midspan_max_m(bridge, offsets, loads, n_per_span=2000):
-    """Largest static midspan deflection (m) of the axles as they cross, on the bridge's modes."""
+def static_midspan_max(bridge, offsets, loads, n_per_span=2000):
+    """Largest static midspan deflection (m) and bending moment (N m) of the axles as they cross,
+    on the bridge's modes (the same truncation as the dynamic envelopes, so that their ratio is
+    φ'_dyn of Eq. (6.14) without a modal-truncation bias): ``q_j = F sin(j pi a / L) / K_j``,
+    ``w = sum_j q_j sin(j pi / 2)``, ``M = EJ sum_j q_j (j pi / L)^2 sin(j pi / 2)``."""
     L = bridge.span_m
     s = np.arange(0.0, offsets[-1] + L, L / n_per_span)
     j = bridge.mode_numbers
     gain = np.sin(j * np.pi / 2) / bridge.modal_stiffness_N_m  # midspan per unit modal force
+    mgain = gain * bridge.EJ_Nm2 * (j * np.pi / L) ** 2
     w = np.zeros_like(s)
+    m = np.zeros_like(s)
     for a, F in zip(offsets, loads):
         x = s - a
         on = (x >= 0) & (x <= L)
-        w[on] += F * (np.sin(np.outer(x[on], j) * np.pi / L) * gain).sum(-1)
-    return float(np.abs(w).max())
+        sh = np.sin(np.outer(x[on], j) * np.pi / L)
+        w[on] += F * (sh * gain).sum(-1)
+        m[on] += F * (sh * mgain).sum(-1)
+    return float(np.abs(w).max()), float(np.abs(m).max())
+
+
+def static_midspan_max_m(bridge, offsets, loads, n_per_span=2000):
+    """Largest static midspan deflection (m) of the axles as they cross, on the bridge's modes."""
+    return static_midspan_max(bridge, offsets, loads, n_per_span)[0]
 
 
 def comfort_level(b_v_m_s2):
@@ -475,7 +541,7 @@ def _refinement(speeds, acc, extra, vmin, vmax):
 
 def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="none", step_kmh=1.0,
               progress=None, calibrate_options=None, comfort=False, n_modes=None, where="deck",
-              damping_model=None):
+              damping_model=None, track_maintenance="careful", alpha=1.0):
     """The dynamic check of ``bridge`` for ``trains`` (see the module doc).
 
     Parameters
@@ -502,6 +568,11 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
     damping_model : {"rayleigh13", "modal"}, optional
         ζ per mode: Rayleigh anchored at modes 1 and 3, or ζ on every mode; default the bridge's
         own ``damping_model`` ("rayleigh" is rayleigh13).
+    track_maintenance : {"careful", "standard"}
+        Track maintenance for the dynamic factor Φ of LM71 in EN 1991-2 6.4.6.5(3): Φ2 (careful,
+        6.4.5.2(2)) or Φ3 (standard, 6.4.5.2(3)); φ'' of Annex C enters as φ''/2 either way.
+    alpha : float
+        Classification factor α of LM71 (EN 1991-2 6.3.2(3)).
 
     Returns
     -------
@@ -520,6 +591,15 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
     if damping not in DAMPING_METHODS:
         raise InputError(f"--damping: {damping!r} is not allowed; allowed {', '.join(DAMPING_METHODS)}")
     speeds = check_speeds_kmh(max_line_speed_kmh, step_kmh)
+    from adm_sim.design_loads import MAINTENANCE, check_alpha, design_comparison
+
+    if track_maintenance not in MAINTENANCE:
+        raise InputError(f"--track-maintenance: {track_maintenance!r} is not one of EN 1991-2 6.4.5.2's; allowed "
+                         f"{', '.join(MAINTENANCE)} (careful: Φ2, standard: Φ3)")
+    try:
+        alpha = check_alpha(alpha)
+    except InputError as exc:
+        raise InputError(f"--alpha: {str(exc).partition(': ')[2]}") from None
     if bridge.span_m < HSLM_B_SPAN_M and any(_is_hslm(t) for t in trains):
         raise InputError(f"--trains: HSLM-A applies to spans >= {HSLM_B_SPAN_M:g} m; this bridge spans "
                          f"{bridge.span_m:g} m, where EN 1991-2 6.4.6.1.1(5) asks for HSLM-B, which adm-sim "
@@ -564,15 +644,23 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
                 ef.max_acc_m_s2, ef.max_disp_m, ef.x_acc_m, ef.max_disp_midspan_m, ef.max_moment_Nm])]
         acc, disp, x_acc, disp_mid, moment = cols
         b_v = comfort_b_v(b, t, speeds) if comfort and t.units else None
-        out.append(TrainCheck(name=t.name, kind="hslm" if _is_hslm(t) else "train", speeds_kmh=v_all,
-                              max_acc_m_s2=acc, max_disp_m=disp, delta_zeta_pct=float(dz_pct),
-                              damping_note=note, static_disp_m=static_midspan_max_m(b, t.axle_offsets_m, t.axle_loads_n),
-                              comfort_b_v_m_s2=b_v, x_acc_m=x_acc, max_disp_midspan_m=disp_mid,
-                              max_moment_Nm=moment, zeta=env.zeta))
+        y_stat, m_stat = static_midspan_max(b, t.axle_offsets_m, t.axle_loads_n)
+        tc = TrainCheck(name=t.name, kind="hslm" if _is_hslm(t) else "train", speeds_kmh=v_all,
+                        max_acc_m_s2=acc, max_disp_m=disp, delta_zeta_pct=float(dz_pct),
+                        damping_note=note, static_disp_m=y_stat, static_moment_Nm=m_stat,
+                        comfort_b_v_m_s2=b_v, x_acc_m=x_acc, max_disp_midspan_m=disp_mid,
+                        max_moment_Nm=moment, zeta=env.zeta)
+        # EN 1991-2 6.4.6.5(3): (1 + phi'_dyn + phi''/2) x train against Phi x alpha x LM71; phi'' at
+        # the maximum line speed (Annex C: the maximum permitted vehicle speed)
+        tc.design = design_comparison(t.name, b.span_m, b.EJ_Nm2, b.n0_hz, t.axle_offsets_m, t.axle_loads_n,
+                                      float(max_line_speed_kmh) / 3.6, phi_dyn_deflection=tc.phi_dyn,
+                                      phi_dyn_moment=tc.phi_dyn_moment, maintenance=track_maintenance, alpha=alpha)
+        out.append(tc)
         if progress is not None:
             progress(n + 1, len(trains))
     return CheckResult(bridge=b, max_line_speed_kmh=float(max_line_speed_kmh), track=track, damping=damping,
                        speeds_kmh=speeds, trains=out, modes=tuple(int(j) for j in b.mode_numbers),
                        f_limit_hz=f_lim, screening=screening(b, float(max_line_speed_kmh)),
                        timings_s={"damping": t_damp, "envelopes": time.perf_counter() - t_start - t_damp},
-                       where=where, damping_model=damping_model)
+                       where=where, damping_model=damping_model, track_maintenance=track_maintenance,
+                       alpha=alpha)

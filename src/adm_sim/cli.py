@@ -229,7 +229,8 @@ def cmd_check(args):
     try:
         res = run_check(bridge, args.max_line_speed, trains, track=track, damping=args.damping,
                         step_kmh=args.speed_step, progress=cb, comfort=args.comfort, n_modes=args.modes,
-                        where=args.where, damping_model=args.damping_model)
+                        where=args.where, damping_model=args.damping_model,
+                        track_maintenance=args.track_maintenance, alpha=args.alpha)
     finally:
         close()
     wall = time.perf_counter() - t0
@@ -352,6 +353,12 @@ def build_parser():
     c.add_argument("--where", default="deck",
                    help="where the acceleration is taken: deck (default: anywhere on the deck, with the position, "
                         "EN 1990 A2.4.4.2.1), midspan, or x=<m> (0 < x < L)")
+    c.add_argument("--track-maintenance", default="careful",
+                   help="EN 1991-2 6.4.5.2 track maintenance for the LM71 dynamic factor of the 6.4.6.5(3) "
+                        "comparison: careful (Phi2, default) or standard (Phi3)")
+    c.add_argument("--alpha", default="1.0",
+                   help="LM71 classification factor alpha, EN 1991-2 6.3.2(3): 0.75, 0.83, 0.91, 1.00 (default), "
+                        "1.10, 1.21, 1.33, 1.46")
     c.add_argument("--damping-model", default=None,
                    help="damping per mode: rayleigh13 (Rayleigh anchored at modes 1 and 3; mode 2 gets 0.625 zeta "
                         "with 3 modes) or modal (zeta on every mode, EN 1991-2 6.4.6.3.1); default: the bridge's "
