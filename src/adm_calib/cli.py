@@ -36,10 +36,11 @@ class _Parser(argparse.ArgumentParser):
         raise InputError(message)
 
 
-def _out_dir(text, option, names, overwrite):
+def _out_dir(text, option, names, overwrite, inputs=None):
     """Check an output folder and its files before any computation; returns ``(folder, paths)``.
 
-    The folder may not exist yet (:func:`_make_dir` creates it once every input is checked).
+    The folder may not exist yet (:func:`_make_dir` creates it once every input is checked); then
+    its nearest existing ancestor must be writable (probed).
     """
     if not str(text).strip():
         raise InputError(f"{option}: '' is empty; give a directory")
@@ -47,7 +48,13 @@ def _out_dir(text, option, names, overwrite):
     if out.exists() and not out.is_dir():
         raise InputError(f"{option}: {str(out)!r} is not a directory")
     if out.is_dir():
-        return out, [output_path(str(out / n), option, overwrite) for n in names]
+        return out, [output_path(str(out / n), option, overwrite, inputs=inputs) for n in names]
+    from adm_sim.files import probe_writable
+
+    anc = out.absolute().parent
+    while not anc.is_dir() and anc != anc.parent:
+        anc = anc.parent
+    probe_writable(anc, option, str(text))
     return out, [out / n for n in names]
 
 
@@ -341,9 +348,9 @@ def cmd_study_fit(args):
     from adm_calib import plots
     from adm_calib import study as st
 
-    res = Path(args.results)
-    if not res.is_file():
-        raise InputError(f"--results: {str(res)!r} is not a file")
+    from adm_sim.files import input_file
+
+    res = input_file(args.results, "--results", "results file")
     rule = "strict" if args.exclude_flagged else args.exclude
     if args.exclude_flagged and args.exclude not in ("strict", st.DEFAULT_RULE):
         raise InputError(f"--exclude-flagged means --exclude strict; it conflicts with --exclude {args.exclude}")
@@ -352,7 +359,8 @@ def cmd_study_fit(args):
              f"fig16_dz_vs_span{tag}.png", f"fig18_lower_bounds{tag}.png", f"lower_bounds_study{tag}.toml",
              f"appendix_b_comparison{tag}.md", f"fig17_lower_bound_ICE-2_mu3{tag}.png"]
     names += [f"fig17_lower_bound_{t}{tag}.png" for t in st.STUDY_TRAINS]
-    out, path_list = _out_dir(args.out if args.out is not None else str(res.parent), "--out", names, args.force)
+    out, path_list = _out_dir(args.out if args.out is not None else str(res.parent), "--out", names, args.force,
+                              inputs={"--results": res})
     paths = dict(zip(names, path_list))
     content = st.read_results(res)
     if not content.records:

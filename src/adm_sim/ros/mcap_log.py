@@ -351,7 +351,7 @@ def salvage(src, dst, overwrite: bool = False) -> int:
         raise InputError(f"src: MCAP file '{src}' does not exist")
     if dst.exists() and (not overwrite or dst.resolve() == src.resolve()):
         raise InputError(f"dst: '{dst}' already exists; refusing to overwrite it")
-    tmp = dst.with_name(dst.name + ".part")
+    tmp = dst.with_name(f"{dst.name}.part-{os.getpid()}")  # one per salvage run
     count = 0
     try:
         with open(tmp, "wb") as out:
