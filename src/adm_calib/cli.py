@@ -257,11 +257,11 @@ def _freq_indices(text):
 
 
 def _scheduler(text):
-    import re
+    """``--scheduler``: an address like tcp://127.0.0.1:8786 where a dask scheduler answers
+    (connected with a timeout and checked for the dask handshake before anything is written)."""
+    from adm_calib.study.execution import check_scheduler
 
-    if not re.fullmatch(r"tcp://[A-Za-z0-9_.\-]+:\d{1,5}", text or ""):
-        raise InputError(f"--scheduler: {text!r} is not an address like tcp://127.0.0.1:8786")
-    return text
+    return check_scheduler(text)
 
 
 def cmd_study(args):
