@@ -106,8 +106,9 @@ def cmd_calibrate(args):
 
     from adm_calib.calibrate import calibrate
 
-    json_path = output_path(args.json, "--json", args.force, ".json") if args.json is not None else None
-    plot_path = output_path(args.plot, "--plot", args.force, ".png") if args.plot is not None else None
+    inputs = {"--bridge": args.bridge, "--train": args.train}
+    json_path = output_path(args.json, "--json", args.force, ".json", inputs) if args.json is not None else None
+    plot_path = output_path(args.plot, "--plot", args.force, ".png", inputs) if args.plot is not None else None
     bridge = resolve_bridge(args.bridge)
     train = load_train(args.train)
     speeds = _speeds(args.speeds)

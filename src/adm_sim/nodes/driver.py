@@ -59,18 +59,23 @@ def claim_outputs(values):
     anything is created: the one rule of :mod:`adm_sim.files` (regular file, writable folder, not
     replaced unless ``overwrite``, two outputs never the same file, a second writer refused).
     Returns ``{param: Path}`` of the non-empty ones; raises :class:`InputError`."""
-    from adm_sim.files import claim_output
+    from adm_sim.files import claim_output, release
 
     out = {}
-    for name, suffix in OUTPUT_PARAMS:
-        text = values.get(name, "")
-        if not text:
-            continue
-        same = [n for n, p in out.items() if p.resolve() == Path(text).resolve()]
-        if same:
-            raise InputError(f"{name}: {text!r} is the {same[0]} file; give different files")
-        out[name] = claim_output(text, name, bool(values.get("overwrite")), suffix,
-                                 overwrite_hint="set -p overwrite:=true to replace it")
+    try:
+        for name, suffix in OUTPUT_PARAMS:
+            text = values.get(name, "")
+            if not text:
+                continue
+            same = [n for n, p in out.items() if p.resolve() == Path(text).resolve()]
+            if same:
+                raise InputError(f"{name}: {text!r} is the {same[0]} file; give different files")
+            out[name] = claim_output(text, name, bool(values.get("overwrite")), suffix,
+                                     overwrite_hint="set -p overwrite:=true to replace it")
+    except InputError:
+        for path in out.values():  # nothing claimed is kept (its lock file is removed)
+            release(path)
+        raise
     return out
 
 
