@@ -180,7 +180,11 @@ def prepare_out(out, overwrite):
     (InputError), and a folder another launch is writing is refused naming its pid.
 
     The claim is an exclusive ``flock`` on ``<out>/.launch.lock`` holding the launcher's pid; the
-    kernel drops it when the launcher ends, however it ends.
+    kernel drops it when the launcher ends, however it ends. With ``overwrite`` the earlier files
+    stay until the new ones are complete: the driver node (parameter ``overwrite``) writes beside
+    them and renames at a successful end.
+
+    Returns ``(created, old)``: whether the folder was created here, and the earlier outputs in it.
     """
     import fcntl
     import os
@@ -208,9 +212,7 @@ def prepare_out(out, overwrite):
         release_out(out)
         raise InputError(f"--out: {str(out)!r} holds an earlier run ({', '.join(old)}); "
                          f"choose another folder or pass --overwrite")
-    for f in old:
-        (out / f).unlink()
-    return created
+    return created, set(old)
 
 
 def release_out(out):
@@ -226,19 +228,21 @@ def release_out(out):
         os.close(fd)
 
 
-def discard_outputs(out, created):
-    """After an interrupt: remove what the launch wrote (its outputs; the whole folder if the
-    launch created it), so no partial output is left."""
+def discard_outputs(out, created, old=()):
+    """After an interrupt: remove what the launch wrote (its new outputs and logs; the whole
+    folder if the launch created it), so no partial output is left. Earlier outputs (``old``)
+    were never replaced (the node renames only at a successful end) and stay."""
     import shutil
 
     if created:
         shutil.rmtree(out, ignore_errors=True)
         return
     for f in OUTPUTS:
-        try:
-            (out / f).unlink()
-        except OSError:
-            pass
+        if f not in old:
+            try:
+                (out / f).unlink()
+            except OSError:
+                pass
 
 
 def run_graph(sup, params_file, bridge_params, train_params, driver, driver_module, driver_params, on_line):

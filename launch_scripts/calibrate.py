@@ -48,7 +48,7 @@ def parse_args(argv=None):
 def node_params(args, out):
     bridge = {} if args.bridge is None else {"bridge": args.bridge}
     train = {} if args.train is None else {"train": args.train}
-    cal = {"record_path": str(out / "run.mcap"), "summary_path": str(out / "summary.json")}
+    cal = {"record_path": str(out / "run.mcap"), "summary_path": str(out / "summary.json"), "overwrite": args.overwrite}
     if not args.no_rrd:
         cal["rrd_path"] = str(out / "run.rrd")
     if args.spawn:
@@ -151,7 +151,7 @@ def _main(args):
         out = Path(args.out) if args.out else ROOT / "runs" / f"calibrate_{tag}_{time.strftime('%Y%m%d-%H%M%S')}"
         check_out(out, [p for p in (args.params_file, args.bridge, args.train) if p])
         env = local_ros_env(domain_id)  # reserved before the folder exists
-        created = prepare_out(out, args.overwrite)
+        created, old = prepare_out(out, args.overwrite)
     except InputError as exc:
         print(f"error: {one_line(exc)}", file=sys.stderr)
         return 2
@@ -165,7 +165,7 @@ def _main(args):
     except KeyboardInterrupt:
         prog._close_bar()
         release_out(out)
-        discard_outputs(out, created)
+        discard_outputs(out, created, old)
         print("error: interrupted (stopped every node; the outputs of this run are removed)", file=sys.stderr)
         return 130
     except NodeDied as exc:
@@ -179,7 +179,11 @@ def _main(args):
     release_out(out)
     summary = json.loads((out / "summary.json").read_text())
     summary["wall_s"] = time.perf_counter() - t_start
-    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    from adm_sim.files import write_atomic
+
+    write_atomic(out / "summary.json", lambda tmp: tmp.write_text(json.dumps(summary, indent=2) + "\n"))
+    if args.no_rrd and "run.rrd" in old:  # the earlier run's recording does not belong to this one
+        (out / "run.rrd").unlink()
     print_result(summary)
     print(f"\nwrote {out / 'summary.json'}, {out / 'run.mcap'}" + ("" if args.no_rrd else f", {out / 'run.rrd'}"))
     print(f"wall time {summary['wall_s']:.1f} s (processes started and stopped included)")

@@ -63,7 +63,7 @@ def _main(args):
         out = Path(args.out) if args.out else ROOT / "runs" / f"crossing_{time.strftime('%Y%m%d-%H%M%S')}"
         check_out(out, [p for p in (args.params_file, args.bridge, args.train) if p])
         env = local_ros_env(domain_id)  # reserved before the folder exists
-        created = prepare_out(out, args.overwrite)
+        created, old = prepare_out(out, args.overwrite)
     except InputError as exc:
         print(f"error: {one_line(exc)}", file=sys.stderr)
         return 2
@@ -71,7 +71,7 @@ def _main(args):
     pt = {k: v for k, v in (("train", args.train), ("model", args.model), ("speeds_kmh", args.speeds))
           if v is not None}
     pd = {"record_path": str(out / "run.mcap"), "rrd_path": str(out / "run.rrd"),
-          "summary_path": str(out / "summary.json"), "rerun_spawn": args.spawn}
+          "summary_path": str(out / "summary.json"), "rerun_spawn": args.spawn, "overwrite": args.overwrite}
     if args.connect:
         pd["rerun_connect"] = args.connect
     t0 = time.perf_counter()
@@ -94,7 +94,7 @@ def _main(args):
             run_graph(sup, args.params_file, pb, pt, "driver", "adm_sim.nodes.driver", pd, on_line)
     except KeyboardInterrupt:
         release_out(out)
-        discard_outputs(out, created)
+        discard_outputs(out, created, old)
         print("error: interrupted (stopped every node; the outputs of this run are removed)", file=sys.stderr)
         return 130
     except NodeDied as exc:

@@ -290,3 +290,47 @@ def test_death_signal_survives_the_ros_bootstrap_reexec(tmp_path):
             os.kill(child, signal.SIGKILL)
         if parent.poll() is None:
             parent.kill()
+
+
+def test_overwrite_keeps_the_earlier_run_until_the_new_one_is_complete(tmp_path, ros_domain):
+    """crossing.py --overwrite into a folder with a finished run: SIGTERM mid-run leaves the earlier
+    files byte for byte (the driver wrote beside them and renames only at a successful end); a
+    complete run then replaces all three."""
+    import hashlib
+
+    from adm_sim.ros.mcap_log import read_messages
+
+    out = tmp_path / "o"
+    cmd = [sys.executable, str(ROOT / "launch_scripts" / "crossing.py"), "--out", str(out),
+           "--domain-id", str(ros_domain.domain_id)]
+    env = dict(ros_domain)
+
+    def digests():
+        return {f: hashlib.sha256((out / f).read_bytes()).hexdigest() for f in ("run.mcap", "run.rrd", "summary.json")}
+
+    r = subprocess.run(cmd + ["--model", "mlm", "--speeds", "200:300:10"], env=env, capture_output=True, text=True,
+                       timeout=120, cwd=ROOT)
+    assert r.returncode == 0, r.stderr
+    first = digests()
+    p = subprocess.Popen(cmd + ["--model", "dim", "--speeds", "200:300:5", "--overwrite"], env=env,
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+    try:
+        line = ""
+        while "step" not in line:
+            line = p.stdout.readline()
+            assert line, p.stderr.read()
+        p.send_signal(signal.SIGTERM)
+        _, err = p.communicate(timeout=30)
+    finally:
+        if p.poll() is None:
+            p.kill()
+    assert p.returncode == 130 and err.splitlines()[-1].startswith("error: interrupted"), err
+    assert digests() == first
+    assert sorted(f.name for f in out.iterdir()) == ["logs", "run.mcap", "run.rrd", "summary.json"]
+    r = subprocess.run(cmd + ["--model", "mlm", "--speeds", "200:300:20", "--overwrite"], env=env,
+                       capture_output=True, text=True, timeout=120, cwd=ROOT)
+    assert r.returncode == 0, r.stderr
+    again = digests()
+    assert all(again[f] != first[f] for f in first)
+    assert json.loads((out / "summary.json").read_text())["speeds_kmh"] == [200.0, 220.0, 240.0, 260.0, 280.0, 300.0]
+    assert sum(1 for _ in read_messages(out / "run.mcap")) > 0

@@ -394,7 +394,8 @@ class RunDriver(c.NodeBase):
     def _beside(self, name):
         """Where output ``name`` is written: the file itself when it is new (a killed recorder
         leaves a salvageable file there), a temporary file beside it when an earlier one is
-        replaced (``overwrite``): the old file stays until :meth:`close` renames the new one."""
+        replaced (``overwrite``): the old file stays until :meth:`close` renames the new one,
+        which it does only when the job succeeded (else the temporary file is removed)."""
         path = self.outputs[name]
         if not path.exists():
             return path
@@ -413,8 +414,12 @@ class RunDriver(c.NodeBase):
 
             self.viz.flush()
             rerun_log.close_rerun()
-        for name, tmp in self._beside_files.items():  # complete files replace the old ones
-            os.replace(tmp, self.outputs[name])
+        ok = self.finished and self.error is None
+        for name, tmp in self._beside_files.items():  # only complete files replace the old ones
+            if ok:
+                os.replace(tmp, self.outputs[name])
+            else:
+                tmp.unlink(missing_ok=True)
         self._beside_files = {}
         for path in getattr(self, "outputs", {}).values():
             release(path)
