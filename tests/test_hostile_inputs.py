@@ -491,6 +491,10 @@ SIGNAL_ENTRIES = [
     SignalCase("adm-calib-calibrate", lambda t: CAL + ["calibrate", "--bridge", "B1", "--train", "ICE-2", "--json",
                                                        f"{t}/c.json"], None),
     SignalCase("crossing.py", lambda t: CROSS + ["--out", f"{t}/run", "--speeds", "200:300:5"], "step", ros=True),
+    SignalCase("calibrate.py", lambda t: CALIB + ["--out", f"{t}/run", "--bridge", "B3", "--speeds", "240:300:2",
+                                                  "--no-rrd", "--quiet"], "calibrating", ros=True),
+    SignalCase("adm-calib-table4", lambda t: CAL + ["table4", "--out", f"{t}/t4", "--bridges", "B1", "--trains",
+                                                    "ICE-2"], None),
 ]
 SIGNAL_CASES = [(e, s) for e in SIGNAL_ENTRIES for s in (signal.SIGTERM, signal.SIGINT)]
 

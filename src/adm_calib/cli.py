@@ -59,10 +59,26 @@ def _out_dir(text, option, names, overwrite, inputs=None):
 
 
 def _make_dir(out, option):
+    """Create the output folder; one registered here is removed again if the command ends before
+    writing into it (an error or an interrupt leaves no empty folder behind)."""
+    created = [] if out.exists() else [p for p in [out, *out.absolute().parents] if not p.exists()]
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise InputError(f"{option}: cannot create {str(out)!r} ({exc.strerror})") from None
+    _CREATED.extend(created)
+
+
+#: Folders :func:`_make_dir` created in this command (innermost first).
+_CREATED = []
+
+
+def _remove_empty_created():
+    import contextlib
+
+    while _CREATED:
+        with contextlib.suppress(OSError):  # a folder that received files stays
+            _CREATED.pop(0).rmdir()
 
 
 def _once(values, field, text):
@@ -481,6 +497,8 @@ def main(argv=None):
             return args.func(args)
         except OSError as exc:  # paths are checked first: what is left is the system (disk full, ...)
             raise RunError(f"{exc.strerror or exc}: {exc.filename or ''}".rstrip(": ")) from None
+        finally:
+            _remove_empty_created()
 
     return run_cli(work)
 
