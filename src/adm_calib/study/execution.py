@@ -175,7 +175,7 @@ def check_scheduler(address, timeout_s=5.0):
         raise InputError(f"--scheduler: port {port} is out of range; allowed [1, 65535]")
     try:
         sock = socket.create_connection((host, port), timeout=timeout_s)
-    except (socket.timeout, TimeoutError):
+    except TimeoutError:
         raise InputError(f"--scheduler: {address!r} did not accept a connection within {timeout_s:g} s") from None
     except OSError as exc:
         raise InputError(f"--scheduler: cannot connect to {address!r} ({exc.strerror or exc}); "
@@ -199,7 +199,7 @@ def check_scheduler(address, timeout_s=5.0):
             if not 0 < n <= 1 << 20:
                 raise InputError(f"{not_dask} (its first bytes {head!r} are not a dask message)")
             body = recv(n)
-        except (socket.timeout, TimeoutError):
+        except TimeoutError:
             raise InputError(f"{not_dask} (no dask handshake within {timeout_s:g} s)") from None
         except OSError as exc:
             raise InputError(f"{not_dask} ({exc.strerror or exc})") from None
