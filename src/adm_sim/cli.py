@@ -240,8 +240,13 @@ def cmd_salvage(args):
     if Path(args.dst).resolve() == src.resolve():
         raise InputError(f"salvage DST: {args.dst!r} is SRC; give another file")
     dst = output_path(args.dst, "salvage DST", args.overwrite, ".mcap")
-    n = salvage(src, dst, overwrite=args.overwrite)
+    report = {}
+    n = salvage(src, dst, overwrite=args.overwrite, report=report)
     print(f"recovered {n} messages into {args.dst}")
+    if report.get("lost_chunks") or report.get("orphan_messages"):
+        print(f"lost: {report['lost_chunks']} of {report['chunks']} chunks were damaged and skipped"
+              + (f", {report['orphan_messages']} messages of channels declared in them" if report["orphan_messages"]
+                 else ""))
     return 0
 
 
