@@ -56,6 +56,7 @@ CLASSES = {
     "ros-parameters": "undeclared parameters and duplicate YAML keys at node start-up",
     "scheduler": "study --scheduler at a closed port, a silent or a foreign server (loopback only)",
     "signals": "SIGINT / SIGTERM during the work: error: interrupted, 130, no partial output",
+    "damaged-input": "an MCAP cut short, with a damaged chunk, or without messages (no traceback, no empty output)",
 }
 
 
@@ -131,6 +132,34 @@ HOLD_FOLDER = ("import fcntl, os, sys, time\nos.makedirs(sys.argv[1], exist_ok=T
                "fd = os.open(os.path.join(sys.argv[1], '.launch.lock'), os.O_RDWR | os.O_CREAT)\n"
                "fcntl.flock(fd, fcntl.LOCK_EX)\nos.write(fd, f'{os.getpid()}\\n'.encode())\n"
                "print('held', flush=True)\ntime.sleep(120)\n")
+
+
+def _recording(kind):
+    """A small MCAP of many chunks in ``run.mcap``: intact, cut in half, one chunk's bytes flipped
+    (its CRC fails), or a valid file without messages."""
+    def setup(t, ctx):
+        from std_msgs.msg import String
+
+        from adm_sim.ros.mcap_log import McapRecorder
+
+        path = t / "run.mcap"
+        with McapRecorder(path, chunk_size=1024) as rec:
+            for k in range(0 if kind == "empty" else 400):
+                rec.write("/adm/progress", String(data=f'{{"step": {k}, "text": "{"x" * 40}"}}'), k * 1_000_000)
+        data = bytearray(path.read_bytes())
+        if kind == "cut":
+            data = data[:len(data) // 2]
+        elif kind == "damaged":  # flip 16 bytes at the end of the middle Chunk record (opcode 0x06)
+            chunks, pos = [], 8
+            while pos + 9 <= len(data):
+                length = int.from_bytes(data[pos + 1:pos + 9], "little")
+                if data[pos] == 0x06:
+                    chunks.append(pos + 9 + length)
+                pos += 9 + length
+            end = chunks[len(chunks) // 2]
+            data[end - 20:end - 4] = bytes(b ^ 0x5A for b in data[end - 20:end - 4])
+        path.write_bytes(bytes(data))
+    return setup
 
 
 def _server(reply):
@@ -366,6 +395,21 @@ CASES = [
          "train.ros__parameters.span_m: unknown parameter",
          setup=_params("train:\n  ros__parameters:\n    span_m: 20.0\n"), ros=True),
     # --- the study's scheduler (loopback only)
+    # --- damaged files
+    Case("damaged-input", "replay-damaged-chunk", lambda t: REPLAY + [f"{t}/run.mcap", "--rrd", f"{t}/o.rrd"],
+         "RUN.mcap: '{t}/run.mcap' is damaged (1 of", setup=_recording("damaged")),
+    Case("damaged-input", "replay-convert-damaged",
+         lambda t: REPLAY + [f"{t}/run.mcap", "--rrd", f"{t}/o.rrd", "--via-convert"],
+         "is damaged", setup=_recording("damaged")),
+    Case("damaged-input", "replay-cut-short", lambda t: REPLAY + [f"{t}/run.mcap", "--rrd", f"{t}/o.rrd"],
+         "RUN.mcap: '{t}/run.mcap' is not a complete MCAP file", setup=_recording("cut")),
+    Case("damaged-input", "replay-convert-cut-short",
+         lambda t: REPLAY + [f"{t}/run.mcap", "--rrd", f"{t}/o.rrd", "--via-convert"],
+         "is not a complete MCAP file", setup=_recording("cut")),
+    Case("damaged-input", "replay-empty", lambda t: REPLAY + [f"{t}/run.mcap", "--rrd", f"{t}/o.rrd"],
+         "RUN.mcap: '{t}/run.mcap' holds no message; nothing to replay", setup=_recording("empty")),
+    Case("damaged-input", "salvage-empty", lambda t: SIM + ["salvage", f"{t}/run.mcap", f"{t}/s.mcap"],
+         "holds no complete message to recover", setup=_recording("empty")),
     Case("scheduler", "closed-port",
          lambda t: CAL + ["study", "--out", f"{t}/st", "--scheduler", "tcp://127.0.0.1:{port}"],
          "--scheduler: cannot connect to 'tcp://127.0.0.1:{port}'", setup=_closed_port),
