@@ -521,7 +521,7 @@ def _chunks(data):
     uncompressed size u64, crc u32, compression str, records u64 + bytes; records inside likewise)."""
     import struct
 
-    import zstandard
+    from mcap.stream_reader import zstandard  # the codec mcap itself uses
 
     out, pos = [], 8
     while pos + 9 <= len(data):

@@ -316,13 +316,13 @@ def _damage_errors() -> tuple:
 
     from mcap.exceptions import McapError
 
-    errors: list = [McapError, EOFError, struct.error, ValueError, RuntimeError, KeyError, MemoryError]
-    try:
-        import zstandard
+    from mcap import stream_reader
 
-        errors.append(zstandard.ZstdError)
-    except ImportError:  # pragma: no cover - zstandard comes with mcap
-        pass
+    errors: list = [McapError, EOFError, struct.error, ValueError, RuntimeError, KeyError, MemoryError]
+    for module, name in (("zstandard", "ZstdError"), ("lz4", "LZ4FrameError")):  # the codecs mcap loaded
+        exc = getattr(getattr(stream_reader, module, None), name, None)
+        if isinstance(exc, type) and issubclass(exc, Exception):
+            errors.append(exc)
     return tuple(errors)
 
 
