@@ -57,42 +57,191 @@ def launch_param_specs():
     return specs, checks
 
 
-def check_inputs(bridge=None, train=None, speeds=None, params_file=None):
-    """Validate a launch's bridge, train, speeds and params file before any process starts.
+def _given(option, value):
+    """``value`` unless it is an empty or blank string (then one line: an empty option never
+    falls back to the default)."""
+    from adm_sim.errors import InputError
+
+    if value is not None and not str(value).strip():
+        raise InputError(f"{option}: '' is empty; give a value or omit {option}")
+    return value
+
+
+def check_inputs(bridge=None, train=None, speeds=None, params_file=None, model=None, dim=False):
+    """Validate everything a launch hands to its nodes before any process starts or any folder
+    is created; raise :class:`adm_sim.errors.InputError` with the one-line reason.
 
     The params file is checked key by key (:func:`adm_sim.nodes.common.check_params_file`):
-    nodes, parameter names, types, ranges, the bridge preset, train and speeds in it.
-    Raises :class:`adm_sim.errors.InputError` with the one-line reason.
+    nodes, parameter names, duplicate keys, types, ranges, the bridge preset, train and speeds in
+    it. Then the values each node will start with (its defaults, the params file, the command
+    line) are checked together, as the node itself will check them: the bridge's parameters
+    against its preset (:func:`adm_sim.nodes.bridge_node.bridge_from_params`), the train with its
+    model (the DIM needs a train with vehicles; ``dim=True`` when the launch runs the DIM
+    whatever the train node's model, as the calibration does).
+
+    Returns ``{node: {name: value}}`` of the params file.
     """
     from adm_sim.bridge import resolve_bridge
     from adm_sim.errors import InputError
+    from adm_sim.files import input_file
+    from adm_sim.nodes.bridge_node import bridge_from_params, bridge_specs
     from adm_sim.nodes.common import check_params_file
+    from adm_sim.nodes.train_node import TRAIN_SPECS, TrainNode
+    from adm_sim.stepping import check_model
     from adm_sim.sweep import parse_speeds
     from adm_sim.trains import load_train
 
-    if bridge:
+    bridge, train, speeds = _given("--bridge", bridge), _given("--train", train), _given("--speeds", speeds)
+    if bridge is not None:
         resolve_bridge(bridge)
-    if train:
+    if train is not None:
         load_train(train)
-    if speeds:
+    if speeds is not None:
         parse_speeds(speeds)
-    if params_file:
-        if not Path(params_file).is_file():
-            raise InputError(f"--params-file: {params_file!r} does not exist")
-        check_params_file(params_file, *launch_param_specs())
+    file_values = {}
+    if params_file is not None:
+        try:
+            input_file(_given("--params-file", params_file), "--params-file", "params YAML file")
+        except InputError as exc:
+            if not Path(params_file).exists():
+                raise InputError(f"--params-file: {params_file!r} does not exist") from None
+            raise exc from None
+        file_values = check_params_file(params_file, *launch_param_specs())
+    # the bridge node: its preset, then every numeric value against it
+    bv = dict(file_values.get("bridge", {}))
+    preset = resolve_bridge(bridge if bridge is not None else bv.get("bridge", "B1"))
+    values = {s.name: s.default for s in bridge_specs(preset)}
+    values.update({k: v for k, v in bv.items() if k in values})
+    try:
+        bridge_from_params(preset, values)
+    except InputError as exc:
+        raise InputError(f"bridge node: {exc}") from None
+    # the train node: the train with its model and speed lanes
+    tv = {s.name: s.default for s in TRAIN_SPECS}
+    tv.update({k: v for k, v in file_values.get("train", {}).items() if k in tv})
+    tv.update({k: v for k, v in (("train", train), ("model", model), ("speeds_kmh", speeds)) if v is not None})
+    try:
+        t, _ = TrainNode._validate(tv)
+        if dim:
+            check_model("dim", t)
+    except InputError as exc:
+        raise InputError(f"train node: {exc}") from None
+    return file_values
+
+
+def check_domain_id(domain_id):
+    """``--domain-id`` in [0, 101] (Fast DDS ports, see :mod:`adm_sim.ros.env`) or None."""
+    from adm_sim.errors import check_int
+    from adm_sim.ros.env import DOMAIN_ID_MAX
+
+    return None if domain_id is None else check_int("--domain-id", domain_id, 0, DOMAIN_ID_MAX)
+
+
+def check_viewer(spawn, connect):
+    """``--spawn`` and ``--connect`` exclude each other; ``--connect`` is a loopback rerun URL."""
+    from adm_sim.errors import InputError
+
+    if spawn and connect is not None:
+        raise InputError(f"--connect: {connect!r} with --spawn; give --spawn or --connect, not both")
+    if connect is not None:
+        from adm_sim.ros.rerun_log import _check_loopback
+
+        try:
+            _check_loopback(_given("--connect", connect))
+        except InputError as exc:
+            raise InputError(f"--connect: {str(exc).removeprefix('connect_url: ')}") from None
+
+
+def check_out(out, inputs=()):
+    """The output folder before anything is created: not a file, in a writable place, and none
+    of its outputs an input of the launch (``inputs``: paths)."""
+    from adm_sim.errors import InputError
+    from adm_sim.files import is_input, probe_writable
+
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out: {str(out)!r} is not a directory")
+    anc = out.absolute()
+    while not anc.is_dir() and anc != anc.parent:
+        anc = anc.parent
+    probe_writable(anc, "--out", str(out))
+    for f in OUTPUTS:
+        same = is_input(out / f, [("input", p) for p in inputs])
+        if same is not None:
+            raise InputError(f"--out: {str(out / f)!r} would be written but is an input of this launch")
+
+
+#: Held for the life of the launcher: the claim on its output folder (see :func:`prepare_out`).
+_OUT_LOCK = []
 
 
 def prepare_out(out, overwrite):
-    """Create the output folder; an earlier run in it is kept unless ``overwrite`` (InputError)."""
+    """Create the output folder and claim it; an earlier run in it is kept unless ``overwrite``
+    (InputError), and a folder another launch is writing is refused naming its pid.
+
+    The claim is an exclusive ``flock`` on ``<out>/.launch.lock`` holding the launcher's pid; the
+    kernel drops it when the launcher ends, however it ends. With ``overwrite`` the earlier files
+    stay until the new ones are complete: the driver node (parameter ``overwrite``) writes beside
+    them and renames at a successful end.
+
+    Returns ``(created, old)``: whether the folder was created here, and the earlier outputs in it.
+    """
+    import fcntl
+    import os
+
     from adm_sim.errors import InputError
 
-    out.mkdir(parents=True, exist_ok=True)
+    created = not out.exists()
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        fd = os.open(out / ".launch.lock", os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError as exc:
+        raise InputError(f"--out: cannot create {str(out)!r} ({exc.strerror})") from None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        pid = os.pread(fd, 32, 0).decode(errors="replace").strip()
+        os.close(fd)
+        raise InputError(f"--out: {str(out)!r} is being written by another launch (process {pid or '?'}); "
+                         f"wait for it to finish or choose another folder") from None
+    os.ftruncate(fd, 0)
+    os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+    _OUT_LOCK.append(fd)
     old = [f for f in OUTPUTS if (out / f).exists()]
     if old and not overwrite:
+        release_out(out)
         raise InputError(f"--out: {str(out)!r} holds an earlier run ({', '.join(old)}); "
                          f"choose another folder or pass --overwrite")
-    for f in old:
-        (out / f).unlink()
+    return created, set(old)
+
+
+def release_out(out):
+    """Give up the claim of :func:`prepare_out` (its lock file is removed first)."""
+    import os
+
+    while _OUT_LOCK:
+        fd = _OUT_LOCK.pop()
+        try:
+            os.unlink(out / ".launch.lock")
+        except OSError:
+            pass
+        os.close(fd)
+
+
+def discard_outputs(out, created, old=()):
+    """After an interrupt: remove what the launch wrote (its new outputs and logs; the whole
+    folder if the launch created it), so no partial output is left. Earlier outputs (``old``)
+    were never replaced (the node renames only at a successful end) and stay."""
+    import shutil
+
+    if created:
+        shutil.rmtree(out, ignore_errors=True)
+        return
+    for f in OUTPUTS:
+        if f not in old:
+            try:
+                (out / f).unlink()
+            except OSError:
+                pass
 
 
 def run_graph(sup, params_file, bridge_params, train_params, driver, driver_module, driver_params, on_line):

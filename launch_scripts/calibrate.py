@@ -9,7 +9,11 @@ monitoring topic, ROS 2 profile), ``run.rrd`` (rerun), ``summary.json`` (the key
 ``adm-calib calibrate --json``) and ``logs/<node>.log``. Shows the progress of every run and each
 Δζ iteration, prints the result, and stops every process it started, also on Ctrl-C, SIGTERM or
 when a node dies (exit status 1, naming the node). Exit status 0 on success, 2 on bad input
-(checked before any process starts); an earlier run in ``--out`` is kept unless ``--overwrite``.
+(everything, the params file and the values each node will start with included, is checked
+before any process starts or any folder is created); an earlier run in ``--out`` is kept unless
+``--overwrite``, and a folder another launch is writing is refused. Ctrl-C or SIGTERM: ``error:
+interrupted``, exit status 130, the outputs of the interrupted run removed. The nodes end with
+the launcher however it ends (SIGKILL included, see :mod:`adm_sim.ros.supervisor`).
 """
 
 from __future__ import annotations
@@ -20,7 +24,8 @@ import sys
 import time
 from pathlib import Path
 
-from _supervisor import PARAMS_DIR, ROOT, NodeDied, Supervisor, check_inputs, prepare_out, run_graph
+from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, check_domain_id, check_inputs, check_out,
+                         check_viewer, discard_outputs, prepare_out, release_out, run_graph)
 
 from adm_sim.protocol import parse_driver_line
 
@@ -36,23 +41,23 @@ def parse_args(argv=None):
     ap.add_argument("--spawn", action="store_true", help="spawn a live rerun viewer (127.0.0.1)")
     ap.add_argument("--connect", help="stream to a running rerun viewer (loopback URL)")
     ap.add_argument("--no-rrd", action="store_true", help="do not write run.rrd")
-    ap.add_argument("--domain-id", type=int, help="ROS_DOMAIN_ID (default: a free one, reserved)")
+    ap.add_argument("--domain-id", help="ROS_DOMAIN_ID, 0..101 (default: a free one, reserved)")
     ap.add_argument("--quiet", action="store_true", help="no progress bars")
     ap.add_argument("--overwrite", action="store_true", help="replace the outputs of an earlier run in --out")
     return ap.parse_args(argv)
 
 
 def node_params(args, out):
-    bridge = {} if not args.bridge else {"bridge": args.bridge}
-    train = {} if not args.train else {"train": args.train}
-    cal = {"record_path": str(out / "run.mcap"), "summary_path": str(out / "summary.json")}
+    bridge = {} if args.bridge is None else {"bridge": args.bridge}
+    train = {} if args.train is None else {"train": args.train}
+    cal = {"record_path": str(out / "run.mcap"), "summary_path": str(out / "summary.json"), "overwrite": args.overwrite}
     if not args.no_rrd:
         cal["rrd_path"] = str(out / "run.rrd")
     if args.spawn:
         cal["rerun_spawn"] = True
     if args.connect:
         cal["rerun_connect"] = args.connect
-    if args.speeds:
+    if args.speeds is not None:
         cal["speeds_kmh"] = args.speeds
     return bridge, train, cal
 
@@ -121,37 +126,65 @@ def print_result(summary):
 
 
 def main(argv=None):
-    from adm_sim.errors import InputError
+    from adm_sim.errors import interrupt_signals
 
     args = parse_args(argv)
+    with interrupt_signals():
+        try:
+            return _main(args)
+        except KeyboardInterrupt:  # before any process started
+            print("error: interrupted", file=sys.stderr)
+            return 130
+
+
+def _main(args):
+    from adm_sim.errors import InputError, one_line
+    from adm_sim.ros.env import local_ros_env
+
     t_start = time.perf_counter()
-    tag = f"{(args.bridge or 'B1')}_{(args.train or 'ICE-2')}".replace("/", "_").replace("=", "").replace(",", "_")
-    out = Path(args.out) if args.out else ROOT / "runs" / f"calibrate_{tag}_{time.strftime('%Y%m%d-%H%M%S')}"
     try:
-        check_inputs(args.bridge, args.train, args.speeds, args.params_file)
-        prepare_out(out, args.overwrite)
+        domain_id = check_domain_id(args.domain_id)
+        check_viewer(args.spawn, args.connect)
+        if args.out is not None and not args.out.strip():
+            raise InputError("--out: '' is empty; give a folder or omit --out")
+        check_inputs(args.bridge, args.train, args.speeds, args.params_file, dim=True)
+        tag = f"{(args.bridge or 'B1')}_{(args.train or 'ICE-2')}".replace("/", "_").replace("=", "").replace(",", "_")
+        out = Path(args.out) if args.out else ROOT / "runs" / f"calibrate_{tag}_{time.strftime('%Y%m%d-%H%M%S')}"
+        check_out(out, [p for p in (args.params_file, args.bridge, args.train) if p])
+        env = local_ros_env(domain_id)  # reserved before the folder exists
+        created, old = prepare_out(out, args.overwrite)
     except InputError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        print(f"error: {one_line(exc)}", file=sys.stderr)
         return 2
     pb, pt, pc = node_params(args, out)
     prog = Progress(args.quiet)
     try:
-        with Supervisor(out / "logs", args.domain_id) as sup:
+        with Supervisor(out / "logs", env=env) as sup:
             print(f"ROS_DOMAIN_ID={sup.domain_id} (shared memory only); output in {out}", flush=True)
             run_graph(sup, args.params_file, pb, pt, "calibration", "adm_calib.nodes.calibration_node", pc,
                       prog.handle)
     except KeyboardInterrupt:
         prog._close_bar()
-        print("interrupted: stopped every node", file=sys.stderr)
+        release_out(out)
+        discard_outputs(out, created, old)
+        print("error: interrupted (stopped every node; the outputs of this run are removed)", file=sys.stderr)
         return 130
     except NodeDied as exc:
         prog._close_bar()
+        release_out(out)
         print(f"error: {exc}", file=sys.stderr)
         return 1
+    finally:
+        env.release()
     prog._close_bar()
+    release_out(out)
     summary = json.loads((out / "summary.json").read_text())
     summary["wall_s"] = time.perf_counter() - t_start
-    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    from adm_sim.files import write_atomic
+
+    write_atomic(out / "summary.json", lambda tmp: tmp.write_text(json.dumps(summary, indent=2) + "\n"))
+    if args.no_rrd and "run.rrd" in old:  # the earlier run's recording does not belong to this one
+        (out / "run.rrd").unlink()
     print_result(summary)
     print(f"\nwrote {out / 'summary.json'}, {out / 'run.mcap'}" + ("" if args.no_rrd else f", {out / 'run.rrd'}"))
     print(f"wall time {summary['wall_s']:.1f} s (processes started and stopped included)")

@@ -9,8 +9,11 @@ Starts the bridge and train nodes and a driver node (records ``run.mcap`` and ``
 ``DIR``, writes ``summary.json``) as separate processes; every topic of the graph is live while it
 runs (``/adm/midspan/accel``, ``/diagnostics``, ``/clock``...), so a monitoring client on the same
 ``ROS_DOMAIN_ID`` (printed; ``--domain-id`` to choose it) sees the crossing. Stops every process on
-exit, Ctrl-C, SIGTERM or when a node dies. Bad input is refused before anything starts (exit 2);
-an earlier run in ``--out`` is kept unless ``--overwrite``.
+exit, Ctrl-C, SIGTERM or when a node dies; the nodes end with the launcher however it ends
+(SIGKILL included). Bad input, the params file and the values each node will start with
+included, is refused before any process starts or any folder is created (exit 2); an earlier run
+in ``--out`` is kept unless ``--overwrite``, a folder another launch is writing is refused.
+Ctrl-C or SIGTERM: ``error: interrupted``, exit 130, the outputs of the interrupted run removed.
 """
 
 from __future__ import annotations
@@ -21,9 +24,10 @@ import sys
 import time
 from pathlib import Path
 
-from _supervisor import PARAMS_DIR, ROOT, NodeDied, Supervisor, check_inputs, prepare_out, run_graph
+from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, check_domain_id, check_inputs, check_out,
+                         check_viewer, discard_outputs, prepare_out, release_out, run_graph)
 
-from adm_sim.errors import InputError
+from adm_sim.errors import InputError, interrupt_signals, one_line
 from adm_sim.protocol import parse_driver_line
 
 
@@ -37,25 +41,43 @@ def main(argv=None):
     ap.add_argument("--out")
     ap.add_argument("--spawn", action="store_true")
     ap.add_argument("--connect")
-    ap.add_argument("--domain-id", type=int)
+    ap.add_argument("--domain-id", help="ROS_DOMAIN_ID, 0..101 (default: a free one, reserved)")
     ap.add_argument("--overwrite", action="store_true", help="replace the outputs of an earlier run in --out")
     args = ap.parse_args(argv)
-    out = Path(args.out) if args.out else ROOT / "runs" / f"crossing_{time.strftime('%Y%m%d-%H%M%S')}"
+    with interrupt_signals():
+        try:
+            return _main(args)
+        except KeyboardInterrupt:  # before any process started
+            print("error: interrupted", file=sys.stderr)
+            return 130
+
+
+def _main(args):
+    from adm_sim.ros.env import local_ros_env
+
     try:
-        check_inputs(args.bridge, args.train, args.speeds, args.params_file)
-        prepare_out(out, args.overwrite)
+        domain_id = check_domain_id(args.domain_id)
+        check_viewer(args.spawn, args.connect)
+        if args.out is not None and not args.out.strip():
+            raise InputError("--out: '' is empty; give a folder or omit --out")
+        check_inputs(args.bridge, args.train, args.speeds, args.params_file, model=args.model)
+        out = Path(args.out) if args.out else ROOT / "runs" / f"crossing_{time.strftime('%Y%m%d-%H%M%S')}"
+        check_out(out, [p for p in (args.params_file, args.bridge, args.train) if p])
+        env = local_ros_env(domain_id)  # reserved before the folder exists
+        created, old = prepare_out(out, args.overwrite)
     except InputError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        print(f"error: {one_line(exc)}", file=sys.stderr)
         return 2
-    pb = {"bridge": args.bridge} if args.bridge else {}
-    pt = {k: v for k, v in (("train", args.train), ("model", args.model), ("speeds_kmh", args.speeds)) if v}
+    pb = {"bridge": args.bridge} if args.bridge is not None else {}
+    pt = {k: v for k, v in (("train", args.train), ("model", args.model), ("speeds_kmh", args.speeds))
+          if v is not None}
     pd = {"record_path": str(out / "run.mcap"), "rrd_path": str(out / "run.rrd"),
-          "summary_path": str(out / "summary.json"), "rerun_spawn": args.spawn}
+          "summary_path": str(out / "summary.json"), "rerun_spawn": args.spawn, "overwrite": args.overwrite}
     if args.connect:
         pd["rerun_connect"] = args.connect
     t0 = time.perf_counter()
     try:
-        with Supervisor(out / "logs", args.domain_id) as sup:
+        with Supervisor(out / "logs", env=env) as sup:
             print(f"ROS_DOMAIN_ID={sup.domain_id} (shared memory only); output in {out}", flush=True)
             last = -1
 
@@ -72,11 +94,17 @@ def main(argv=None):
 
             run_graph(sup, args.params_file, pb, pt, "driver", "adm_sim.nodes.driver", pd, on_line)
     except KeyboardInterrupt:
-        print("interrupted: stopped every node", file=sys.stderr)
+        release_out(out)
+        discard_outputs(out, created, old)
+        print("error: interrupted (stopped every node; the outputs of this run are removed)", file=sys.stderr)
         return 130
     except NodeDied as exc:
+        release_out(out)
         print(f"error: {exc}", file=sys.stderr)
         return 1
+    finally:
+        env.release()
+    release_out(out)
     s = json.loads((out / "summary.json").read_text())
     print(f"{s['bridge']}\ntrain {s['train']}, {s['model'].upper()}: run {s['run_id']} in {s['wall_s']:.2f} s")
     for v, a in zip(s["speeds_kmh"][:20], s["max_acc_m_s2"][:20]):

@@ -238,11 +238,29 @@ def _incomplete(path, exc) -> InputError:
 
 
 def _guarded(messages, path):
-    """``messages`` with the reader's low-level failures on a cut-short file as one :class:`InputError`."""
+    """``messages`` with the reader's low-level failures on a cut-short file as one :class:`InputError`
+    naming ``RUN.mcap``."""
     try:
         yield from messages
     except OSError as exc:  # e.g. seeking to a footer before the start of a file of a few bytes
         raise _incomplete(path, exc) from None
+    except InputError as exc:  # cut short or damaged (read_messages names its argument 'path')
+        raise InputError(f"RUN.mcap: {str(exc).removeprefix('path: ')}") from None
+
+
+def check_readable(path) -> None:
+    """Refuse, before any output is written, an MCAP that cannot be read (cut short, damaged) or
+    that holds no message: a replay of it would be an empty recording."""
+    from adm_sim.ros.mcap_log import check_intact
+
+    try:
+        n = check_intact(path)
+    except InputError as exc:
+        raise InputError(f"RUN.mcap: {str(exc).removeprefix('path: ')}") from None
+    except OSError as exc:
+        raise _incomplete(path, exc) from None
+    if n == 0:
+        raise InputError(f"RUN.mcap: '{path}' holds no message; nothing to replay")
 
 
 def _level(level) -> int:
@@ -346,6 +364,8 @@ def _run(args) -> int:
     from adm_sim.cli import write_atomic
 
     check_args(args)
+    if args.rrd or args.spawn or args.connect:
+        check_readable(args.mcap)
     env = None
     if args.republish:
         from adm_sim.ros.env import apply_local_ros_env

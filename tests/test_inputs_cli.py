@@ -617,7 +617,7 @@ CASES = [
     ('launch_scripts/replay.py', ['{t}/run.mcap', '--rrd', '{t}/o.rrd', '--spawn'],
      'error: argument --spawn: not allowed with argument --rrd'),
     ('launch_scripts/replay.py', ['{t}/trunc.mcap', '--rrd', '{t}/o.rrd'],
-     "error: RUN.mcap: '{t}/trunc.mcap' is not a complete MCAP file (OSError); recover it with: adm-sim salvage {t}/trunc.mcap OUT.mcap"),
+     "error: RUN.mcap: '{t}/trunc.mcap' is not a complete MCAP file (it ends inside a record); recover it with: adm-sim salvage {t}/trunc.mcap OUT.mcap"),
 ]
 
 

@@ -186,3 +186,151 @@ def test_two_launches_do_not_cross_talk(tmp_path):
         assert [r["run_id"] for r in runs] == [1, 2, 3]  # no foreign run ids
         for r in runs:
             np.testing.assert_array_equal(r["max_acc_m_s2"], ref.max_acc_m_s2)
+
+
+# ---------------------------------------------------------------- children die with their parent
+def _own_shm_segments(pid):
+    """The Fast DDS data segments (``/dev/shm/fastrtps_<16 hex>[_el]``) process ``pid`` has mapped or
+    open: they belong to its participants alone (port files may be shared with other runs)."""
+    import re
+
+    found = set()
+    try:
+        for fd in os.scandir(f"/proc/{pid}/fd"):
+            try:
+                found.add(os.readlink(fd.path))
+            except OSError:
+                pass
+        found.update(ln.split()[-1] for ln in Path(f"/proc/{pid}/maps").read_text().splitlines() if "/dev/shm/" in ln)
+    except OSError:
+        return set()
+    return {f for f in found if re.fullmatch(r"/dev/shm/fastrtps_[0-9a-f]{16}(_el)?", f)}
+
+
+def _alive(pid):
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return False
+    return stat.rsplit(")", 1)[1].split()[0] != "Z"
+
+
+@pytest.mark.parametrize("script,args", [
+    ("crossing.py", ["--model", "dim", "--speeds", "200:300:5"]),
+    ("calibrate.py", ["--bridge", "B3", "--speeds", "240:300:2", "--no-rrd", "--quiet"]),
+])
+def test_launcher_killed_with_sigkill_takes_every_node_with_it(script, args, tmp_path, ros_domain):
+    """SIGKILL of the launcher mid-run: every node it started ends within 5 s (PR_SET_PDEATHSIG ->
+    SIGTERM, a clean rclpy shutdown) and removes its own Fast DDS segments from /dev/shm."""
+    p = subprocess.Popen([sys.executable, str(ROOT / "launch_scripts" / script), "--out", str(tmp_path / "o"),
+                          "--domain-id", str(ros_domain.domain_id)] + args,
+                         env=dict(ros_domain), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+    kids = []
+    try:
+        t_end = time.monotonic() + 60
+        while len(kids) < 3 and time.monotonic() < t_end:
+            kids = _children(p.pid)
+            time.sleep(0.1)
+        assert len(kids) == 3, p.stderr.read() if p.poll() is not None else kids
+        line = ""
+        while not ("step" in line or line.startswith("calibrating")):  # mid-run: the nodes exchange
+            line = p.stdout.readline()
+            assert line, p.stderr.read()
+        segments = {k: _own_shm_segments(k) for k in kids}
+        assert all(segments.values()), segments  # each node holds segments of its own
+        os.kill(p.pid, signal.SIGKILL)
+        p.wait(5)
+        t_end = time.monotonic() + 5.0
+        while any(_alive(k) for k in kids) and time.monotonic() < t_end:
+            time.sleep(0.05)
+        assert not [k for k in kids if _alive(k)], "nodes outlived their launcher"
+        left = sorted(f for fs in segments.values() for f in fs if os.path.exists(f))
+        assert left == []
+    finally:
+        for k in kids:
+            if _alive(k):
+                os.kill(k, signal.SIGKILL)
+        if p.poll() is None:
+            p.kill()
+
+
+def test_death_signal_survives_the_ros_bootstrap_reexec(tmp_path):
+    """A child started without the ROS wheels' bootstrap flag is re-executed in place by their .pth
+    (same pid, LD_LIBRARY_PATH set); the death signal set before exec still ends it when its
+    parent is killed with SIGKILL."""
+    code = (
+        "import os, sys, time\n"
+        "from adm_sim.ros.supervisor import Supervisor\n"
+        "sup = Supervisor(sys.argv[1], domain_id=0)\n"
+        "sup.env.pop('_ROS_WHEELS_BOOTSTRAP_COMPLETE', None)\n"
+        "p = sup.start_command('sleeper', [sys.executable, '-c', 'import time; time.sleep(120)'])\n"
+        "print(p.pid, flush=True)\n"
+        "time.sleep(120)\n")
+    parent = subprocess.Popen([sys.executable, "-c", code, str(tmp_path)], stdout=subprocess.PIPE, text=True,
+                              cwd=ROOT)
+    child = int(parent.stdout.readline())
+    try:
+        t_end = time.monotonic() + 20  # wait until the child has been re-executed by the bootstrapper
+        while time.monotonic() < t_end:
+            environ = Path(f"/proc/{child}/environ").read_bytes().split(b"\0")
+            if b"_ROS_WHEELS_BOOTSTRAP_COMPLETE=1" in environ:
+                break
+            time.sleep(0.05)
+        else:
+            pytest.fail("the child was not re-executed by the ROS wheels' bootstrapper")
+        assert _alive(child)
+        parent.kill()
+        parent.wait(5)
+        t_end = time.monotonic() + 5.0
+        while _alive(child) and time.monotonic() < t_end:
+            time.sleep(0.05)
+        assert not _alive(child)
+    finally:
+        if _alive(child):
+            os.kill(child, signal.SIGKILL)
+        if parent.poll() is None:
+            parent.kill()
+
+
+def test_overwrite_keeps_the_earlier_run_until_the_new_one_is_complete(tmp_path, ros_domain):
+    """crossing.py --overwrite into a folder with a finished run: SIGTERM mid-run leaves the earlier
+    files byte for byte (the driver wrote beside them and renames only at a successful end); a
+    complete run then replaces all three."""
+    import hashlib
+
+    from adm_sim.ros.mcap_log import read_messages
+
+    out = tmp_path / "o"
+    cmd = [sys.executable, str(ROOT / "launch_scripts" / "crossing.py"), "--out", str(out),
+           "--domain-id", str(ros_domain.domain_id)]
+    env = dict(ros_domain)
+
+    def digests():
+        return {f: hashlib.sha256((out / f).read_bytes()).hexdigest() for f in ("run.mcap", "run.rrd", "summary.json")}
+
+    r = subprocess.run(cmd + ["--model", "mlm", "--speeds", "200:300:10"], env=env, capture_output=True, text=True,
+                       timeout=120, cwd=ROOT)
+    assert r.returncode == 0, r.stderr
+    first = digests()
+    p = subprocess.Popen(cmd + ["--model", "dim", "--speeds", "200:300:5", "--overwrite"], env=env,
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+    try:
+        line = ""
+        while "step" not in line:
+            line = p.stdout.readline()
+            assert line, p.stderr.read()
+        p.send_signal(signal.SIGTERM)
+        _, err = p.communicate(timeout=30)
+    finally:
+        if p.poll() is None:
+            p.kill()
+    assert p.returncode == 130 and err.splitlines()[-1].startswith("error: interrupted"), err
+    assert digests() == first
+    assert sorted(f.name for f in out.iterdir()) == ["logs", "run.mcap", "run.rrd", "summary.json"]
+    r = subprocess.run(cmd + ["--model", "mlm", "--speeds", "200:300:20", "--overwrite"], env=env,
+                       capture_output=True, text=True, timeout=120, cwd=ROOT)
+    assert r.returncode == 0, r.stderr
+    again = digests()
+    assert all(again[f] != first[f] for f in first)
+    assert json.loads((out / "summary.json").read_text())["speeds_kmh"] == [200.0, 220.0, 240.0, 260.0, 280.0, 300.0]
+    assert sum(1 for _ in read_messages(out / "run.mcap")) > 0

@@ -39,10 +39,11 @@ class _Parser(argparse.ArgumentParser):
         raise InputError(message)
 
 
-def _out_dir(text, option, names, overwrite):
+def _out_dir(text, option, names, overwrite, inputs=None):
     """Check an output folder and its files before any computation; returns ``(folder, paths)``.
 
-    The folder may not exist yet (:func:`_make_dir` creates it once every input is checked).
+    The folder may not exist yet (:func:`_make_dir` creates it once every input is checked); then
+    its nearest existing ancestor must be writable (probed).
     """
     if not str(text).strip():
         raise InputError(f"{option}: '' is empty; give a directory")
@@ -50,15 +51,37 @@ def _out_dir(text, option, names, overwrite):
     if out.exists() and not out.is_dir():
         raise InputError(f"{option}: {str(out)!r} is not a directory")
     if out.is_dir():
-        return out, [output_path(str(out / n), option, overwrite) for n in names]
+        return out, [output_path(str(out / n), option, overwrite, inputs=inputs) for n in names]
+    from adm_sim.files import probe_writable
+
+    anc = out.absolute().parent
+    while not anc.is_dir() and anc != anc.parent:
+        anc = anc.parent
+    probe_writable(anc, option, str(text))
     return out, [out / n for n in names]
 
 
 def _make_dir(out, option):
+    """Create the output folder; one registered here is removed again if the command ends before
+    writing into it (an error or an interrupt leaves no empty folder behind)."""
+    created = [] if out.exists() else [p for p in [out, *out.absolute().parents] if not p.exists()]
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise InputError(f"{option}: cannot create {str(out)!r} ({exc.strerror})") from None
+    _CREATED.extend(created)
+
+
+#: Folders :func:`_make_dir` created in this command (innermost first).
+_CREATED = []
+
+
+def _remove_empty_created():
+    import contextlib
+
+    while _CREATED:
+        with contextlib.suppress(OSError):  # a folder that received files stays
+            _CREATED.pop(0).rmdir()
 
 
 def _once(values, field, text):
@@ -102,8 +125,9 @@ def cmd_calibrate(args):
 
     from adm_calib.calibrate import calibrate
 
-    json_path = output_path(args.json, "--json", args.force, ".json") if args.json is not None else None
-    plot_path = output_path(args.plot, "--plot", args.force, ".png") if args.plot is not None else None
+    inputs = {"--bridge": args.bridge, "--train": args.train}
+    json_path = output_path(args.json, "--json", args.force, ".json", inputs) if args.json is not None else None
+    plot_path = output_path(args.plot, "--plot", args.force, ".png", inputs) if args.plot is not None else None
     bridge = resolve_bridge(args.bridge)
     train = load_train(args.train)
     speeds = _speeds(args.speeds)
@@ -253,11 +277,11 @@ def _freq_indices(text):
 
 
 def _scheduler(text):
-    import re
+    """``--scheduler``: an address like tcp://127.0.0.1:8786 where a dask scheduler answers
+    (connected with a timeout and checked for the dask handshake before anything is written)."""
+    from adm_calib.study.execution import check_scheduler
 
-    if not re.fullmatch(r"tcp://[A-Za-z0-9_.\-]+:\d{1,5}", text or ""):
-        raise InputError(f"--scheduler: {text!r} is not an address like tcp://127.0.0.1:8786")
-    return text
+    return check_scheduler(text)
 
 
 def cmd_study(args):
@@ -368,9 +392,9 @@ def cmd_study_fit(args):
     from adm_calib import study as st
     from adm_calib.study.conservative import conservative_markdown, conservative_study, conservative_toml
 
-    res = Path(args.results)
-    if not res.is_file():
-        raise InputError(f"--results: {str(res)!r} is not a file")
+    from adm_sim.files import input_file
+
+    res = input_file(args.results, "--results", "results file")
     rule = "strict" if args.exclude_flagged else args.exclude
     if args.exclude_flagged and args.exclude not in ("strict", st.DEFAULT_RULE):
         raise InputError(f"--exclude-flagged means --exclude strict; it conflicts with --exclude {args.exclude}")
@@ -386,7 +410,8 @@ def cmd_study_fit(args):
              f"conservative_lower_bounds{tag}.md", f"lower_bounds_conservative{tag}.toml"]
     fig17 = {t: f"fig17_lower_bound_{t}{tag}.png" for t in (*st.STUDY_TRAINS, *st.TRAIN_VARIANTS)}
     names += list(fig17.values())
-    out, path_list = _out_dir(args.out if args.out is not None else str(res.parent), "--out", names, args.force)
+    out, path_list = _out_dir(args.out if args.out is not None else str(res.parent), "--out", names, args.force,
+                              inputs={"--results": res})
     paths = dict(zip(names, path_list))
     content = st.read_results(res)
     if not content.records:
@@ -517,6 +542,8 @@ def main(argv=None):
             return args.func(args)
         except OSError as exc:  # paths are checked first: what is left is the system (disk full, ...)
             raise RunError(f"{exc.strerror or exc}: {exc.filename or ''}".rstrip(": ")) from None
+        finally:
+            _remove_empty_created()
 
     return run_cli(work)
 

@@ -43,27 +43,21 @@ def tqdm_progress(desc, enabled=None):
     return cb, bar.close
 
 
-def output_path(text, option, overwrite=False, suffix=None):
-    """Check an output path before any computation: its folder exists, it is not a folder, it
-    does not exist unless ``overwrite``; with ``suffix`` the name must end in it."""
-    p = Path(text)
-    if suffix and p.suffix.lower() != suffix:
-        raise InputError(f"{option}: {text!r} must end in {suffix}")
-    if p.is_dir():
-        raise InputError(f"{option}: {text!r} is a directory; give a file name")
-    parent = p.parent if str(p.parent) else Path(".")
-    if not parent.is_dir():
-        raise InputError(f"{option}: {text!r}: the directory {str(parent)!r} does not exist")
-    if p.exists() and not overwrite:
-        raise InputError(f"{option}: {text!r} exists; use --overwrite to replace it")
-    return p
+def output_path(text, option, overwrite=False, suffix=None, inputs=None):
+    """Check an output path before any computation and claim it (the one rule of
+    :func:`adm_sim.files.claim_output`): a regular file, not one of ``inputs`` (``{option: path}``),
+    in a writable folder, not replaced unless ``overwrite``, locked against a second writer; with
+    ``suffix`` the name must end in it."""
+    from adm_sim.files import claim_output
+
+    return claim_output(text, option, overwrite, suffix, inputs)
 
 
 def mcap_input(text, option):
-    """Check an MCAP input before any work: a readable file that starts with the MCAP magic."""
-    p = Path(text)
-    if not p.is_file():
-        raise InputError(f"{option}: {text!r} is not a file")
+    """Check an MCAP input before any work: a readable regular file that starts with the MCAP magic."""
+    from adm_sim.files import input_file
+
+    p = input_file(text, option, "MCAP file")
     try:
         with p.open("rb") as f:
             head = f.read(8)
@@ -75,16 +69,10 @@ def mcap_input(text, option):
 
 
 def write_atomic(path, write):
-    """``write(tmp_path)`` beside ``path``, then rename: an earlier file is replaced only by a complete one."""
-    import os
+    """``write(tmp_path)`` beside ``path``, then rename: :func:`adm_sim.files.write_atomic`."""
+    from adm_sim.files import write_atomic as _write_atomic
 
-    tmp = path.with_name(f".{path.stem}.tmp-{os.getpid()}{path.suffix}")
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+    _write_atomic(path, write)
 
 
 def _plot_sweep(result, path, limit=3.5, where="midspan"):
@@ -124,10 +112,11 @@ def cmd_sweep(args):
     from adm_sim.trains import load_train
     from adm_sim.errors import check_range
 
-    json_path = None if args.json is None else output_path(args.json, "--json", args.overwrite)
-    plot_path = None if args.plot is None else output_path(args.plot, "--plot", args.overwrite, ".png")
-    if json_path is not None and plot_path is not None and json_path.resolve() == plot_path.resolve():
+    inputs = {"--train": args.train, "--bridge": args.bridge}
+    json_path = None if args.json is None else output_path(args.json, "--json", args.overwrite, inputs=inputs)
+    if json_path is not None and args.plot is not None and json_path.resolve() == Path(args.plot).resolve():
         raise InputError(f"--plot: {args.plot!r} is the --json file; give two different files")
+    plot_path = None if args.plot is None else output_path(args.plot, "--plot", args.overwrite, ".png", inputs)
     bridge = resolve_bridge(args.bridge)
     train = load_train(args.train)
     speeds = parse_speeds(args.speeds)
@@ -206,15 +195,15 @@ def cmd_check(args):
     from adm_calib.check import resolve_trains, run_check
 
     outs = {}
+    inputs = [("--bridge", args.bridge)] + [("--trains", t.strip()) for t in str(args.trains).split(",")]
+    seen = {}
     for opt, suffix in (("json", None), ("csv", ".csv"), ("plot", ".png")):
         text = getattr(args, opt)
         if text is not None:
-            outs[opt] = output_path(text, f"--{opt}", args.overwrite, suffix)
-    seen = {}
-    for opt, p in outs.items():
-        if p.resolve() in seen:
-            raise InputError(f"--{opt}: {getattr(args, opt)!r} is the --{seen[p.resolve()]} file; give different files")
-        seen[p.resolve()] = opt
+            if str(text).strip() and Path(text).resolve() in seen:
+                raise InputError(f"--{opt}: {text!r} is the --{seen[Path(text).resolve()]} file; give different files")
+            outs[opt] = output_path(text, f"--{opt}", args.overwrite, suffix, inputs)
+            seen[outs[opt].resolve()] = opt
     bridge = resolve_bridge(args.bridge)
     from adm_calib.check import DAMPING_MODELS
     from adm_sim.envelope import parse_where
@@ -298,11 +287,16 @@ def cmd_salvage(args):
     except ImportError as exc:
         raise InputError(f"salvage needs the ROS/MCAP extras ({exc})") from None
     src = mcap_input(args.src, "salvage SRC")
-    dst = output_path(args.dst, "salvage DST", args.overwrite, ".mcap")
-    if dst.resolve() == src.resolve():
+    if Path(args.dst).resolve() == src.resolve():
         raise InputError(f"salvage DST: {args.dst!r} is SRC; give another file")
-    n = salvage(src, dst, overwrite=args.overwrite)
+    dst = output_path(args.dst, "salvage DST", args.overwrite, ".mcap")
+    report = {}
+    n = salvage(src, dst, overwrite=args.overwrite, report=report)
     print(f"recovered {n} messages into {args.dst}")
+    if report.get("lost_chunks") or report.get("orphan_messages"):
+        print(f"lost: {report['lost_chunks']} of {report['chunks']} chunks were damaged and skipped"
+              + (f", {report['orphan_messages']} messages of channels declared in them" if report["orphan_messages"]
+                 else ""))
     return 0
 
 

@@ -8,7 +8,8 @@
   viewer or a node that does not answer). Exit code 1.
 
 Command lines print either as one line ``error: ...`` on stderr (:func:`run_cli`); an interrupt
-(Ctrl-C) exits with 130.
+(Ctrl-C, SIGINT or SIGTERM) prints ``error: interrupted`` and exits with 130, leaving no partial
+output (outputs are written beside and renamed, :mod:`adm_sim.files`).
 """
 
 import sys
@@ -41,7 +42,45 @@ def run_cli(call):
     :class:`InputError` -> ``error: ...``, exit 2; :class:`RunError` (and any other
     :class:`AdmSimError`) -> ``error: ...``, exit 1; ``KeyboardInterrupt`` -> ``interrupted``, 130;
     ``BrokenPipeError`` (``... | head``) -> quiet exit 0. Anything else is a bug and keeps its traceback.
+    Every output claimed during the call (:func:`adm_sim.files.claim_output`) is released at its end.
     """
+    with interrupt_signals():
+        try:
+            return _run(call)
+        finally:
+            from adm_sim.files import release_all
+
+            release_all()
+
+
+class interrupt_signals:
+    """Within the block, SIGTERM and SIGINT both raise ``KeyboardInterrupt`` in the main thread
+    (SIGINT too when a non-interactive shell started the process with SIGINT ignored); the old
+    handlers come back at its end. Off the main thread it does nothing."""
+
+    def __enter__(self):
+        import signal
+        import threading
+
+        self._old = {}
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self._old[sig] = signal.signal(sig, _raise_interrupt)
+        return self
+
+    def __exit__(self, *exc):
+        import signal
+
+        for sig, handler in self._old.items():
+            signal.signal(sig, handler)
+        return False
+
+
+def _raise_interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
+def _run(call):
     try:
         return call()
     except BrokenPipeError:
@@ -148,7 +187,10 @@ def read_toml(path, what):
     import tomllib
     from pathlib import Path
 
+    from adm_sim.files import refuse_special
+
     p = Path(path)
+    refuse_special(p, f"{what} {str(p)!r}")
     try:
         return tomllib.loads(p.read_text())
     except OSError as exc:

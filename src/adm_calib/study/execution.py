@@ -150,6 +150,65 @@ def _worker_env():
     return {k: os.environ.get(k) for k in WORKER_ENV}
 
 
+#: The first message a dask scheduler sends on a new TCP connection is its comm handshake, a
+#: msgpack map with these keys (``distributed.comm.core``); anything else is not dask.
+_HANDSHAKE_KEYS = (b"compression", b"python", b"pickle-protocol")
+
+
+def check_scheduler(address, timeout_s=5.0):
+    """Check that ``address`` (``tcp://host:port``) answers as a dask scheduler, before anything
+    is written; raise :class:`InputError` (one line) otherwise.
+
+    A plain socket with a timeout reads the scheduler's handshake frame: an 8-byte little-endian
+    length, at most 1 MiB, then a message holding the handshake keys. A closed port, a silent
+    server or one answering another protocol is refused here, instead of a connection attempt
+    without end or a frame length read from foreign bytes (``MemoryError: Unable to allocate
+    3.07 EiB`` in ``distributed``).
+    """
+    import re
+    import socket
+
+    m = re.fullmatch(r"tcp://(\[[^\]]+\]|[A-Za-z0-9_.\-]+):(\d{1,5})", address or "")
+    if m is None:
+        raise InputError(f"--scheduler: {address!r} is not an address like tcp://127.0.0.1:8786")
+    host, port = m.group(1).strip("[]"), int(m.group(2))
+    if not 0 < port < 65536:
+        raise InputError(f"--scheduler: port {port} is out of range; allowed [1, 65535]")
+    try:
+        sock = socket.create_connection((host, port), timeout=timeout_s)
+    except TimeoutError:
+        raise InputError(f"--scheduler: {address!r} did not accept a connection within {timeout_s:g} s") from None
+    except OSError as exc:
+        raise InputError(f"--scheduler: cannot connect to {address!r} ({exc.strerror or exc}); "
+                         f"is a dask scheduler running there?") from None
+    not_dask = f"--scheduler: {address!r} is not a dask scheduler"
+    with sock:
+        sock.settimeout(timeout_s)
+
+        def recv(n):
+            data = b""
+            while len(data) < n:
+                chunk = sock.recv(n - len(data))
+                if not chunk:
+                    raise InputError(f"{not_dask} (it closed the connection without the dask handshake)")
+                data += chunk
+            return data
+
+        try:
+            head = recv(8)
+            n = int.from_bytes(head, "little")
+            if not 0 < n <= 1 << 20:
+                raise InputError(f"{not_dask} (its first bytes {head!r} are not a dask message)")
+            body = recv(n)
+        except TimeoutError:
+            raise InputError(f"{not_dask} (no dask handshake within {timeout_s:g} s)") from None
+        except OSError as exc:
+            raise InputError(f"{not_dask} ({exc.strerror or exc})") from None
+    if not all(k in body for k in _HANDSHAKE_KEYS):
+        raise InputError(f"{not_dask} (its first message is not the dask handshake)")
+    return address
+
+
 def run_study(out_dir, cases, settings=StudySettings(), workers=2, scheduler=None, limit=None, progress=None,
               retry_errors=False, options=None):
     """Run the study cases not yet in ``out_dir/results.jsonl`` on a dask cluster.
@@ -185,6 +244,8 @@ def run_study(out_dir, cases, settings=StudySettings(), workers=2, scheduler=Non
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise InputError(f"out: {str(out)!r} is not a directory")
+    if scheduler is not None:
+        check_scheduler(scheduler)  # before the folder exists
     out.mkdir(parents=True, exist_ok=True)
     with _exclusive(out):
         meta = read_meta(out)
@@ -239,6 +300,8 @@ def _run_on_dask(pending, settings, writer, run, workers, scheduler, progress, e
             except (OSError, TimeoutError) as exc:
                 raise InputError(f"scheduler: cannot connect to {scheduler!r} ({exc})") from None
         info = client.scheduler_info()
+        if scheduler is not None and info.get("type") != "Scheduler":
+            raise InputError(f"--scheduler: {scheduler!r} is not a dask scheduler (identity {info.get('type')!r})")
         run.scheduler = info.get("address", "")
         run.workers = sorted(info.get("workers", {}))
         entry["cluster"] = {"scheduler": run.scheduler, "local": cluster is not None,

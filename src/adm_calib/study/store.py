@@ -87,7 +87,10 @@ def read_results(path):
     InputError
         A complete line that is not a JSON object with ``bridge`` and ``train``.
     """
+    from adm_sim.files import refuse_special
+
     p = Path(path)
+    refuse_special(p, f"results {str(p)!r}")
     try:
         data = p.read_bytes()
         if p.suffix == ".gz":
@@ -129,14 +132,18 @@ def _fsync_dir(path):
 
 
 def _atomic_write(path, data):
-    """Write ``data`` (bytes) to ``path`` through a temporary file and ``os.replace``."""
+    """Write ``data`` (bytes) to ``path`` through a temporary file and ``os.replace``
+    (:func:`adm_sim.files.write_atomic`; the study's folder lock is held by the caller), fsynced."""
+    from adm_sim.files import write_atomic
+
+    def write(tmp):
+        with open(tmp, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+
     p = Path(path)
-    tmp = p.with_name(p.name + ".tmp")
-    with open(tmp, "wb") as f:
-        f.write(data)
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, p)
+    write_atomic(p, write, option="out")
     _fsync_dir(p.parent)
 
 
@@ -226,12 +233,19 @@ def _exclusive(out_dir):
     """Hold an advisory lock on ``out_dir`` so two studies never append to one file."""
     import fcntl
 
-    f = open(Path(out_dir) / LOCK_NAME, "a")
+    f = open(Path(out_dir) / LOCK_NAME, "a+")
     try:
         try:
             fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
-            raise InputError(f"out: {str(out_dir)!r} is in use by another running study") from None
+            f.seek(0)
+            pid = f.read().strip()
+            who = f" (process {pid})" if pid.isdigit() else ""
+            raise InputError(f"out: {str(out_dir)!r} is in use by another running study{who}") from None
+        f.seek(0)
+        f.truncate()
+        f.write(f"{os.getpid()}\n")
+        f.flush()
         yield
     finally:
         f.close()

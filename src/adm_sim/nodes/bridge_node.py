@@ -93,6 +93,42 @@ def bridge_specs(preset):
     ]
 
 
+def bridge_from_params(preset, p, defaults=None):
+    """The :class:`Bridge` of the bridge node's parameter values ``p`` (``{name: value}``, every
+    parameter of :func:`bridge_specs`): ``preset`` with the changed fields. The node checks its
+    start-up values and every later set with it; a launcher checks the values it will hand to the
+    node with it before starting anything.
+
+    Raises :class:`InputError` naming the parameter, value, unit and range.
+    """
+    d = {s.name: s.default for s in bridge_specs(preset)} if defaults is None else defaults
+    kw = {}
+    if p["span_m"] != d["span_m"]:
+        kw["span_m"] = check_range("span_m", p["span_m"], "m", *SPAN_RANGE_M)
+    if p["EJ_Nm2"] != d["EJ_Nm2"]:
+        kw["EJ_Nm2"] = check_range("EJ_Nm2", p["EJ_Nm2"], "N m^2", 0.0, None, lo_open=True)
+    if p["mu_kg_m"] != d["mu_kg_m"]:
+        kw["mass_per_length_kg_m"] = check_range("mu_kg_m", p["mu_kg_m"], "kg/m", *MU_RANGE_KG_M)
+    if p["zeta_pct"] != d["zeta_pct"]:
+        kw["damping_ratio"] = check_range("zeta_pct", p["zeta_pct"], "%", 0.0, 20.0) / 100.0
+    if p["n_modes"] != d["n_modes"]:
+        kw["n_modes"] = int(p["n_modes"])
+    if p["damping_model"] not in ("rayleigh", "modal"):
+        raise InputError(f"damping_model: {p['damping_model']!r} is not allowed; allowed 'rayleigh' or 'modal'")
+    kw["damping_model"] = p["damping_model"]
+    b = dataclasses.replace(preset, **kw)
+    if p["n0_hz"] != 0.0:
+        n0 = check_range("n0_hz", p["n0_hz"], "Hz", *N0_RANGE_HZ)
+        b = Bridge.from_frequency(b.span_m, n0, b.mass_per_length_kg_m, b.damping_ratio, n_modes=b.n_modes,
+                                  damping_model=b.damping_model, name=b.name, bridge_type=b.bridge_type)
+    check_delta_zeta("delta_zeta", p["delta_zeta"], b.damping_ratio)
+    for x in c.parse_float_list("delta_zeta_lanes", p["delta_zeta_lanes"], "- (fraction)"):
+        check_delta_zeta("delta_zeta_lanes", x, b.damping_ratio)
+    check_track_type("track_type", p["track_type"])
+    BridgeNode.step_options(p)
+    return b
+
+
 class BridgeNode(c.NodeBase):
     """Owns the modal beam; see the module docstring."""
 
@@ -140,32 +176,7 @@ class BridgeNode(c.NodeBase):
 
         Raises :class:`InputError` naming the parameter, value, unit and range.
         """
-        d = self._preset_defaults
-        kw = {}
-        if p["span_m"] != d["span_m"]:
-            kw["span_m"] = check_range("span_m", p["span_m"], "m", *SPAN_RANGE_M)
-        if p["EJ_Nm2"] != d["EJ_Nm2"]:
-            kw["EJ_Nm2"] = check_range("EJ_Nm2", p["EJ_Nm2"], "N m^2", 0.0, None, lo_open=True)
-        if p["mu_kg_m"] != d["mu_kg_m"]:
-            kw["mass_per_length_kg_m"] = check_range("mu_kg_m", p["mu_kg_m"], "kg/m", *MU_RANGE_KG_M)
-        if p["zeta_pct"] != d["zeta_pct"]:
-            kw["damping_ratio"] = check_range("zeta_pct", p["zeta_pct"], "%", 0.0, 20.0) / 100.0
-        if p["n_modes"] != d["n_modes"]:
-            kw["n_modes"] = int(p["n_modes"])
-        if p["damping_model"] not in ("rayleigh", "modal"):
-            raise InputError(f"damping_model: {p['damping_model']!r} is not allowed; allowed 'rayleigh' or 'modal'")
-        kw["damping_model"] = p["damping_model"]
-        b = dataclasses.replace(self.preset, **kw)
-        if p["n0_hz"] != 0.0:
-            n0 = check_range("n0_hz", p["n0_hz"], "Hz", *N0_RANGE_HZ)
-            b = Bridge.from_frequency(b.span_m, n0, b.mass_per_length_kg_m, b.damping_ratio, n_modes=b.n_modes,
-                                      damping_model=b.damping_model, name=b.name, bridge_type=b.bridge_type)
-        check_delta_zeta("delta_zeta", p["delta_zeta"], b.damping_ratio)
-        for x in c.parse_float_list("delta_zeta_lanes", p["delta_zeta_lanes"], "- (fraction)"):
-            check_delta_zeta("delta_zeta_lanes", x, b.damping_ratio)
-        check_track_type("track_type", p["track_type"])
-        self.step_options(p)
-        return b
+        return bridge_from_params(self.preset, p, self._preset_defaults)
 
     @staticmethod
     def step_options(p):

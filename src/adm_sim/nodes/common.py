@@ -198,8 +198,22 @@ class ParamNodeMixin:
                                  f"in YAML and -p overrides") from None
         for name, value in self.param_values().items():
             self._specs[name].check(value)
+        self._refuse_undeclared()
         self._on_set_checked = on_set
         self.add_on_set_parameters_callback(self._check_ranges)
+
+    def _refuse_undeclared(self):
+        """A start-up value (``-p name:=value``, a params file's section of this node) for a
+        parameter the node does not declare is refused: rclpy would silently ignore it, and a
+        typo (``-p span:=20.0`` for ``span_m``) would run with the default. Names of a params
+        file's ``/**`` section (meant for every node, each taking its own) are exempt."""
+        overrides = getattr(self, "_parameter_overrides", {}) or {}
+        unknown = sorted(n for n in overrides
+                         if not self.has_parameter(n) and n not in SHARED_PARAMETER_NAMES)
+        if unknown:
+            allowed = sorted(set(self._parameters) | set(RCLPY_PARAMETERS))
+            raise InputError(f"{unknown[0]}: unknown parameter of node '{self.get_name()}'; allowed "
+                             f"{', '.join(allowed)}")
 
     def _check_ranges(self, params):
         """On-set callback: every value in its range (else the reason, old values kept), then the
@@ -219,16 +233,48 @@ class ParamNodeMixin:
         return {n: self.get_parameter(n).value for n in self._specs}
 
 
+#: Parameter names of the ``/**`` sections of the params files this process was started with
+#: (set by :func:`run_node`): every node takes the ones it declares and ignores the others.
+SHARED_PARAMETER_NAMES: set = set()
+
+
+def _unique_key_loader():
+    """A ``yaml.SafeLoader`` that refuses a key given twice in one mapping (plain YAML keeps the
+    last value silently)."""
+    import yaml
+
+    class UniqueKeyLoader(yaml.SafeLoader):
+        def construct_mapping(self, node, deep=False):
+            seen = {}
+            for key_node, _value in node.value:
+                key = self.construct_object(key_node, deep=deep)
+                try:
+                    hash(key)
+                except TypeError:
+                    continue  # the base class reports unhashable keys
+                if key in seen:
+                    raise yaml.constructor.ConstructorError(
+                        None, None, f"key {key!r} is given twice (lines {seen[key] + 1} and "
+                                    f"{key_node.start_mark.line + 1}); give it once", key_node.start_mark)
+                seen[key] = key_node.start_mark.line
+            return super().construct_mapping(node, deep=deep)
+
+    return UniqueKeyLoader
+
+
 def load_params_yaml(path):
     """The parsed params YAML ``path``; :class:`InputError` naming the file (and the line) when it
-    cannot be read or is not valid YAML."""
+    cannot be read, is not a regular file, is not valid YAML or gives a key twice."""
     from pathlib import Path
 
     import yaml
 
+    from adm_sim.files import refuse_special
+
     where = f"--params-file {str(path)!r}"
+    refuse_special(path, where)
     try:
-        return yaml.safe_load(Path(path).read_text())
+        return yaml.load(Path(path).read_text(), Loader=_unique_key_loader())  # noqa: S506 (a SafeLoader)
     except OSError as exc:
         raise InputError(f"{where}: cannot read ({exc.strerror})") from None
     except yaml.YAMLError as exc:
@@ -483,7 +529,10 @@ def run_node(make_node, args=None, name="node"):
     try:  # a params file that is not YAML: our line, before rcl prints its own
         for i, a in enumerate(argv[:-1]):
             if a == "--params-file":
-                load_params_yaml(argv[i + 1])
+                doc = load_params_yaml(argv[i + 1])
+                shared = doc.get("/**") if isinstance(doc, dict) else None
+                if isinstance(shared, dict) and isinstance(shared.get("ros__parameters"), dict):
+                    SHARED_PARAMETER_NAMES.update(shared["ros__parameters"])
     except InputError as exc:
         print(f"error: {name}: {exc}", file=sys.stderr, flush=True)
         return 2

@@ -14,9 +14,11 @@ with the train node's current parameters (``launch_scripts/crossing.py`` starts 
 from __future__ import annotations
 
 import json
+import os
 import sys
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
@@ -46,7 +48,36 @@ DRIVER_SPECS = [
     c.ParamSpec("summary_path", "", "", "JSON summary of the run(s); empty = none"),
     c.ParamSpec("run_timeout_s", 900.0, "s", "longest a single run may take", 1.0, 86400.0),
     c.ParamSpec("chunk_size", 65536, "B", "MCAP chunk size (loss bound of a killed recorder)", 1024, 1 << 26),
+    c.ParamSpec("overwrite", False, "", "replace existing record_path, rrd_path and summary_path files"),
 ]
+
+#: The driver's output parameters and the suffix each must have (:func:`adm_sim.files.claim_output`).
+OUTPUT_PARAMS = (("record_path", ".mcap"), ("rrd_path", ".rrd"), ("summary_path", ".json"))
+
+
+def claim_outputs(values):
+    """Check and claim the output files named by the parameters ``values`` at start-up, before
+    anything is created: the one rule of :mod:`adm_sim.files` (regular file, writable folder, not
+    replaced unless ``overwrite``, two outputs never the same file, a second writer refused).
+    Returns ``{param: Path}`` of the non-empty ones; raises :class:`InputError`."""
+    from adm_sim.files import claim_output, release
+
+    out = {}
+    try:
+        for name, suffix in OUTPUT_PARAMS:
+            text = values.get(name, "")
+            if not text:
+                continue
+            same = [n for n, p in out.items() if p.resolve() == Path(text).resolve()]
+            if same:
+                raise InputError(f"{name}: {text!r} is the {same[0]} file; give different files")
+            out[name] = claim_output(text, name, bool(values.get("overwrite")), suffix,
+                                     overwrite_hint="set -p overwrite:=true to replace it")
+    except InputError:
+        for path in out.values():  # nothing claimed is kept (its lock file is removed)
+            release(path)
+        raise
+    return out
 
 
 _SAY_LOCK = threading.Lock()
@@ -71,6 +102,7 @@ class RunDriver(c.NodeBase):
         super().__init__(name, **kw)
         self.declare_specs(list(DRIVER_SPECS) + list(extra_specs))
         p = self.param_values()
+        self.outputs = claim_outputs(p)  # before any file is created (exit 2, one line)
         self.finished = False
         self.error = None
         self.run = None  # the driver has no lockstep exchange of its own
@@ -86,17 +118,19 @@ class RunDriver(c.NodeBase):
         self.n_runs = 0
         self._last_rx = time.monotonic()
         self.recorder = None
+        self._beside_files = {}
         if p["record_path"]:
             from adm_sim.ros.mcap_log import McapRecorder
 
-            self.recorder = McapRecorder(p["record_path"], chunk_size=int(p["chunk_size"]), overwrite=True)
+            self.recorder = McapRecorder(self._beside("record_path"), chunk_size=int(p["chunk_size"]),
+                                         overwrite=True)
         self.rerun = False
         self.viz = None  # rerun_log.RunLogger
         if p["rrd_path"] or p["rerun_spawn"] or p["rerun_connect"]:
             from adm_sim.ros import rerun_log
 
             rerun_log.init_rerun("adm_sim", spawn=bool(p["rerun_spawn"]), connect_url=p["rerun_connect"] or None,
-                                 save_path=p["rrd_path"] or None, overwrite=True)
+                                 save_path=self._beside("rrd_path") if p["rrd_path"] else None, overwrite=True)
             self.rerun = True
             self.viz = rerun_log.RunLogger()
             self.viz.send_blueprint()  # sent again with the beam bounds once the span is known
@@ -327,10 +361,11 @@ class RunDriver(c.NodeBase):
         return summary
 
     def write_summary(self, summary):
-        path = self.get_parameter("summary_path").value
-        if path:
-            with open(path, "w") as f:
-                json.dump(summary, f, indent=2)
+        path = self.outputs.get("summary_path")
+        if path is not None:
+            from adm_sim.files import write_atomic
+
+            write_atomic(path, lambda tmp: tmp.write_text(json.dumps(summary, indent=2)))
         say("result", **{k: v for k, v in summary.items() if k != "curves"})
 
     def begin(self):
@@ -357,7 +392,21 @@ class RunDriver(c.NodeBase):
             raise self.error
         raise RunError(f"{type(self.error).__name__}: {self.error}")
 
+    def _beside(self, name):
+        """Where output ``name`` is written: the file itself when it is new (a killed recorder
+        leaves a salvageable file there), a temporary file beside it when an earlier one is
+        replaced (``overwrite``): the old file stays until :meth:`close` renames the new one,
+        which it does only when the job succeeded (else the temporary file is removed)."""
+        path = self.outputs[name]
+        if not path.exists():
+            return path
+        tmp = path.with_name(f".{path.stem}.tmp-{os.getpid()}{path.suffix}")
+        self._beside_files[name] = tmp
+        return tmp
+
     def close(self):
+        from adm_sim.files import release
+
         if self.recorder is not None:
             with self._rec_lock:
                 self.recorder.finish()
@@ -366,6 +415,15 @@ class RunDriver(c.NodeBase):
 
             self.viz.flush()
             rerun_log.close_rerun()
+        ok = self.finished and self.error is None
+        for name, tmp in self._beside_files.items():  # only complete files replace the old ones
+            if ok:
+                os.replace(tmp, self.outputs[name])
+            else:
+                tmp.unlink(missing_ok=True)
+        self._beside_files = {}
+        for path in getattr(self, "outputs", {}).values():
+            release(path)
         super().close()
 
 

@@ -10,8 +10,10 @@ rosbags refuses. The files read with mcap-ros2-support, ``rosbags`` and ``rerun 
 
 Chunks are small (64 KiB before compression by default) and written straight to the operating
 system, so a writer killed with SIGKILL loses at most the open chunk; :func:`salvage` recovers
-every complete record of such a file with ``mcap.reader.NonSeekingReader`` and writes a clean one
-(command line: ``adm-sim salvage IN.mcap OUT.mcap``).
+every complete record of such a file and writes a clean one (command line: ``adm-sim salvage
+IN.mcap OUT.mcap``). A damaged file (a chunk that no longer decompresses or fails its CRC) is
+read chunk by chunk: every readable chunk is recovered, the damaged ones are counted and skipped.
+:func:`read_messages` refuses a damaged file with one line pointing to ``salvage``.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from adm_sim.errors import InputError
 __all__ = [
     "McapRecorder",
     "message_definition",
+    "check_intact",
     "read_messages",
     "salvage",
     "type_name",
@@ -288,7 +291,7 @@ def read_messages(path, topics=None) -> Iterator[tuple[str, int, object]]:
     if not path.is_file():
         raise InputError(f"path: MCAP file '{path}' does not exist")
     with open(path, "rb") as f:
-        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        reader = make_reader(f, validate_crcs=True, decoder_factories=[DecoderFactory()])
         try:
             for _schema, channel, message, decoded in reader.iter_decoded_messages(
                 topics=topics, log_time_order=True
@@ -299,33 +302,110 @@ def read_messages(path, topics=None) -> Iterator[tuple[str, int, object]]:
                 f"path: '{path}' is not a complete MCAP file ({type(exc).__name__}: {exc}); "
                 f"recover it with: adm-sim salvage {path} OUT.mcap"
             ) from None
+        except _damage_errors() as exc:
+            raise InputError(
+                f"path: '{path}' is damaged ({type(exc).__name__}: {' '.join(str(exc).split())}); "
+                f"recover its readable chunks with: adm-sim salvage {path} OUT.mcap"
+            ) from None
 
 
-def _recoverable(path: Path):
-    """Yield the complete records of a possibly truncated MCAP: ('metadata', rec) first pass,
-    then ('message', (schema, channel, message))."""
+def _damage_errors() -> tuple:
+    """Exceptions a reader raises on damaged bytes: a chunk that does not decompress (zstd, lz4),
+    a failed CRC (a ``ValueError``), records cut short or with impossible lengths."""
     import struct
 
     from mcap.exceptions import McapError
-    from mcap.reader import NonSeekingReader
 
-    errors = (McapError, EOFError, struct.error, ValueError, RuntimeError, KeyError)
+    from mcap import stream_reader
+
+    errors: list = [McapError, EOFError, struct.error, ValueError, RuntimeError, KeyError, MemoryError]
+    for module, name in (("zstandard", "ZstdError"), ("lz4", "LZ4FrameError")):  # the codecs mcap loaded
+        exc = getattr(getattr(stream_reader, module, None), name, None)
+        if isinstance(exc, type) and issubclass(exc, Exception):
+            errors.append(exc)
+    return tuple(errors)
+
+
+def check_intact(path) -> int:
+    """The number of messages of the MCAP ``path`` after checking every record's framing and
+    every chunk's decompression and CRC (messages are not decoded); :class:`InputError` (one line
+    pointing to ``salvage``) when the file is cut short or damaged."""
+    report: dict = {}
+    n = sum(kind == "message" for kind, _ in _recoverable(Path(path), report))
+    if report["truncated"]:
+        raise InputError(f"path: '{path}' is not a complete MCAP file (it ends inside a record); "
+                         f"recover it with: adm-sim salvage {path} OUT.mcap")
+    if report["lost_chunks"] or report["orphan_messages"]:
+        raise InputError(f"path: '{path}' is damaged ({report['lost_chunks']} of {report['chunks']} chunks do not "
+                         f"decompress or fail their CRC); recover its readable chunks with: "
+                         f"adm-sim salvage {path} OUT.mcap")
+    return n
+
+
+def _recoverable(path: Path, report: dict):
+    """Yield the records of a truncated or damaged MCAP in file order: ``('metadata', rec)`` and
+    ``('message', (schema, channel, message))``.
+
+    The records are read one by one (a chunk as a whole, not decompressed by the reader); each
+    chunk is decompressed and checked against its CRC on its own, so a damaged chunk is skipped
+    (counted in ``report['lost_chunks']``) and the chunks after it are still read. Reading stops
+    at the first record whose framing is broken (a file cut short: ``report['truncated']``).
+    Messages whose channel was only declared in a lost chunk are counted in
+    ``report['orphan_messages']``.
+    """
+    from mcap.records import Channel, Chunk, Message, Metadata, Schema
+    from mcap.stream_reader import StreamReader, breakup_chunk
+
+    errors = _damage_errors()
+    report.update(chunks=0, lost_chunks=0, orphan_messages=0, truncated=False)
+    schemas: dict = {}
+    channels: dict = {}
+
+    def emit(rec):
+        if isinstance(rec, Schema):
+            schemas[rec.id] = rec
+        elif isinstance(rec, Channel):
+            channels[rec.id] = rec
+        elif isinstance(rec, Message):
+            ch = channels.get(rec.channel_id)
+            if ch is None:
+                report["orphan_messages"] += 1
+                return None
+            return "message", (schemas.get(ch.schema_id), ch, rec)
+        elif isinstance(rec, Metadata):
+            return "metadata", rec
+        return None
+
     with open(path, "rb") as f:
-        try:
-            for meta in NonSeekingReader(f).iter_metadata():
-                yield "metadata", meta
-        except errors:
-            pass
-    with open(path, "rb") as f:
-        try:
-            for item in NonSeekingReader(f).iter_messages(log_time_order=False):
-                yield "message", item
-        except errors:
-            pass
+        reader = StreamReader(f, emit_chunks=True, record_size_limit=max(1, path.stat().st_size))
+        records = iter(reader.records)
+        while True:
+            try:
+                rec = next(records)
+            except StopIteration:
+                break
+            except errors:
+                report["truncated"] = True
+                break
+            if isinstance(rec, Chunk):
+                report["chunks"] += 1
+                try:
+                    inner = breakup_chunk(rec, validate_crc=True)
+                except errors:
+                    report["lost_chunks"] += 1
+                    continue
+                for r in inner:
+                    out = emit(r)
+                    if out is not None:
+                        yield out
+            else:
+                out = emit(rec)
+                if out is not None:
+                    yield out
 
 
-def salvage(src, dst, overwrite: bool = False) -> int:
-    """Recover every complete message of a truncated or killed MCAP into a clean file.
+def salvage(src, dst, overwrite: bool = False, report: dict | None = None) -> int:
+    """Recover every complete message of a truncated, killed or damaged MCAP into a clean file.
 
     Parameters
     ----------
@@ -333,6 +413,9 @@ def salvage(src, dst, overwrite: bool = False) -> int:
         The damaged (or intact) MCAP.
     dst : path-like
         The new file; refused if it exists unless ``overwrite``.
+    report : dict or None
+        Filled with ``chunks`` (read), ``lost_chunks`` (damaged, skipped), ``orphan_messages``
+        (whose channel was in a lost chunk) and ``truncated`` (the file ends mid-record).
 
     Returns
     -------
@@ -351,7 +434,7 @@ def salvage(src, dst, overwrite: bool = False) -> int:
         raise InputError(f"src: MCAP file '{src}' does not exist")
     if dst.exists() and (not overwrite or dst.resolve() == src.resolve()):
         raise InputError(f"dst: '{dst}' already exists; refusing to overwrite it")
-    tmp = dst.with_name(dst.name + ".part")
+    tmp = dst.with_name(f"{dst.name}.part-{os.getpid()}")  # one per salvage run
     count = 0
     try:
         with open(tmp, "wb") as out:
@@ -359,7 +442,7 @@ def salvage(src, dst, overwrite: bool = False) -> int:
             writer.start(profile="ros2", library="adm-sim mcap_log salvage")
             schema_ids: dict[int, int] = {}
             channel_ids: dict[int, int] = {}
-            for kind, item in _recoverable(src):
+            for kind, item in _recoverable(src, report if report is not None else {}):
                 if kind == "metadata":
                     writer.add_metadata(item.name, dict(item.metadata))
                     continue

@@ -8,6 +8,21 @@ SIGTERM (SIGTERM first so the nodes finish their files, SIGKILL after a grace pe
 a process had to be killed or died by a signal, removes the shared-memory files it left with
 Fast DDS's ``fastdds shm clean`` (:func:`adm_sim.ros.env.cleanup_shm`).
 
+Children die with their parent
+-------------------------------
+Every process started here is tied to the process that started it (:func:`child_setup`, run in
+the child between ``fork`` and ``exec``): on Linux it asks the kernel with
+``prctl(PR_SET_PDEATHSIG, SIGTERM)`` to send it SIGTERM the moment its parent ends, however the
+parent ends (SIGKILL included, when nothing of the parent runs any more). SIGTERM and not SIGKILL:
+a node ends on SIGTERM like on Ctrl-C, finishes its recording and lets Fast DDS remove its own
+shared-memory files, so a killed launcher leaves neither processes nor ``/dev/shm/fastrtps_*``
+files behind. The setting survives ``execve`` (it is only reset for set-user-ID binaries), so it
+also covers the interpreter the ROS wheels' ``.pth`` bootstrapper re-executes in place
+(``os.execve`` of the same pid with ``LD_LIBRARY_PATH`` set). A parent that died between
+``fork`` and the ``prctl`` call is caught by comparing ``getppid()`` with the parent's pid.
+The kernel signals on the death of the parent *thread*: start processes from the thread that
+lives as long as the supervisor (the main thread of the launch scripts).
+
 This module imports nothing from ROS.
 """
 
@@ -25,7 +40,7 @@ from pathlib import Path
 from adm_sim.errors import AdmSimError, RunError
 from adm_sim.ros.env import cleanup_shm, local_ros_env
 
-__all__ = ["NodeDied", "Supervisor", "ros_args"]
+__all__ = ["NodeDied", "Supervisor", "child_setup", "ros_args"]
 
 
 class NodeDied(RunError):
@@ -56,6 +71,49 @@ def _default_signals():
     """In the child before exec: SIGINT/SIGTERM back to their defaults (not inherited as ignored)."""
     signal.signal(signal.SIGINT, signal.SIG_DFL)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+#: ``PR_SET_PDEATHSIG`` of <linux/prctl.h>.
+_PR_SET_PDEATHSIG = 1
+_PRCTL = []
+
+
+def _prctl():
+    """libc's ``prctl`` (looked up in the parent: no ``dlopen`` between fork and exec), or None
+    off Linux."""
+    if not _PRCTL:
+        fn = None
+        if sys.platform.startswith("linux"):
+            import ctypes
+
+            try:
+                fn = ctypes.CDLL(None, use_errno=True).prctl
+                fn.argtypes = [ctypes.c_int, ctypes.c_ulong, ctypes.c_ulong, ctypes.c_ulong, ctypes.c_ulong]
+                fn.restype = ctypes.c_int
+            except (OSError, AttributeError):
+                fn = None
+        _PRCTL.append(fn)
+    return _PRCTL[0]
+
+
+def child_setup(parent_pid=None, sig=signal.SIGTERM):
+    """The ``preexec_fn`` of every supervised process: default signal handlers and ``sig`` on the
+    death of the parent (see the module docstring, "Children die with their parent").
+
+    Returns a function to pass as ``preexec_fn``; call this in the parent (it resolves ``prctl``
+    there and records the parent's pid).
+    """
+    prctl = _prctl()
+    parent = os.getpid() if parent_pid is None else parent_pid
+
+    def preexec():
+        _default_signals()
+        if prctl is not None:
+            prctl(_PR_SET_PDEATHSIG, int(sig), 0, 0, 0)
+            if os.getppid() != parent:  # the parent died before the prctl: nobody will signal us
+                os.kill(os.getpid(), sig)
+
+    return preexec
 
 
 class Supervisor:
@@ -103,7 +161,7 @@ class Supervisor:
         out = subprocess.PIPE if capture else open(self.log_dir / f"{name}.out", "w")
         self._files += [err] if capture else [err, out]
         p = subprocess.Popen(list(cmd), env=self.env, cwd=self.cwd, start_new_session=True, stderr=err, stdout=out,
-                             text=True, bufsize=1, preexec_fn=_default_signals)
+                             text=True, bufsize=1, preexec_fn=child_setup())
         self.procs[name] = p
         if capture:
             def pump():

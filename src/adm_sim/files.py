@@ -1,0 +1,261 @@
+"""One rule for the files of every entry point (CLIs, launch scripts, nodes, the study).
+
+Inputs (:func:`input_file`)
+    A file read by a run must be a regular file: a folder, a named pipe (whose ``open`` for
+    reading blocks until a writer appears), a socket or a device is refused with one line
+    before it is opened.
+
+Outputs (:func:`claim_output`, :func:`write_atomic`)
+    A file written by a run is checked before any work, by one function:
+
+    1. a regular-file path (not a folder, not a pipe or a device), with the suffix the writer
+       needs;
+    2. not an input of the same run (paths compared after ``resolve()``, so ``./t.toml`` and a
+       symlink to it are the same file);
+    3. in a folder that exists and is writable, probed by creating and removing a temporary file
+       there (permissions, read-only mounts and full quotas all show up here, not after the work);
+    4. never replaced unless the caller passes ``overwrite`` (``--overwrite``, a node's
+       ``overwrite`` parameter);
+    5. claimed with an exclusive ``fcntl.flock`` on a sidecar lock file ``.<name>.lock`` beside
+       it, holding the claimer's pid: a second writer of the same file (another process, or the
+       same process twice) is refused with one line naming the first. The claim lasts until
+       :func:`release` (:func:`adm_sim.errors.run_cli` releases every claim when a command
+       ends; the kernel drops the lock when a process dies, so a killed run never blocks the next);
+    6. written beside and renamed (:func:`write_atomic`): the path holds either its old content or
+       the complete new one, never a half-written file.
+
+Every refusal is an :class:`adm_sim.errors.InputError` (one line; exit code 2 in the CLIs and
+nodes). This module imports only the standard library.
+"""
+
+from __future__ import annotations
+
+import errno
+import fcntl
+import os
+import stat
+import tempfile
+from pathlib import Path
+
+from adm_sim.errors import InputError
+
+__all__ = ["claim_output", "claimed", "input_file", "is_input", "lock_path", "probe_writable", "refuse_special", "release",
+           "release_all", "write_atomic"]
+
+#: Claims held by this process: resolved output path -> (fd of the lock file, lock path).
+_CLAIMS: dict[Path, tuple[int, Path]] = {}
+
+_KINDS = ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a named pipe"), (stat.S_ISSOCK, "a socket"),
+          (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"))
+
+
+def _kind(mode):
+    for test, name in _KINDS:
+        if test(mode):
+            return name
+    return "not a regular file"
+
+
+# ---------------------------------------------------------------------- inputs
+def refuse_special(path, where):
+    """Raise one line when ``path`` exists and is neither a regular file nor a folder (a named
+    pipe, a socket, a device), before anything opens it; missing files and folders are left to
+    the caller's own message."""
+    try:
+        st = Path(path).stat()
+    except OSError:
+        return
+    if not (stat.S_ISREG(st.st_mode) or stat.S_ISDIR(st.st_mode)):
+        raise InputError(f"{where}: is {_kind(st.st_mode)}, not a regular file")
+
+
+def input_file(text, option, what="file"):
+    """``Path(text)`` if it names an existing regular file (symlinks followed); else one line.
+
+    Called before the file is opened, so a named pipe never blocks the run.
+    """
+    if text is None or not str(text).strip():
+        raise InputError(f"{option}: '' is empty; give a {what}")
+    p = Path(text)
+    try:
+        st = p.stat()
+    except FileNotFoundError:
+        raise InputError(f"{option}: {str(text)!r} is not a file") from None
+    except OSError as exc:
+        raise InputError(f"{option}: {str(text)!r}: cannot read ({exc.strerror})") from None
+    if stat.S_ISDIR(st.st_mode):
+        raise InputError(f"{option}: {str(text)!r} is not a file")
+    if not stat.S_ISREG(st.st_mode):
+        raise InputError(f"{option}: {str(text)!r} is {_kind(st.st_mode)}, not a regular file; give a {what}")
+    return p
+
+
+def is_input(path, inputs):
+    """The option of ``inputs`` (``{option: path}`` or ``(option, path)`` pairs) whose existing
+    file is the same file as ``path`` (resolved paths compared), or None."""
+    target = Path(path).resolve()
+    pairs = inputs.items() if isinstance(inputs, dict) else (inputs or ())
+    for option, p in pairs:
+        if p is None or not str(p).strip():
+            continue
+        try:
+            if Path(p).is_file() and Path(p).resolve() == target:
+                return option
+        except (OSError, RuntimeError):
+            continue
+    return None
+
+
+# ---------------------------------------------------------------------- outputs
+def lock_path(path):
+    """The sidecar lock file of output ``path``: ``.<name>.lock`` in the same folder."""
+    p = Path(path)
+    return p.with_name(f".{p.name}.lock")
+
+
+def probe_writable(parent, option, text):
+    """Create and remove a temporary file in ``parent``; one line naming ``option`` if that fails."""
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".adm-probe-", dir=parent)
+    except OSError as exc:
+        raise InputError(f"{option}: {text!r}: cannot write in the directory {str(parent)!r} "
+                         f"({exc.strerror})") from None
+    os.close(fd)
+    os.unlink(probe)
+
+
+def claim_output(text, option, overwrite=False, suffix=None, inputs=None,
+                 overwrite_hint="use --overwrite to replace it"):
+    """Check output ``text`` by the rule of the module docstring and claim it; returns the Path.
+
+    Parameters
+    ----------
+    text : str or path-like
+        The output path as the user gave it.
+    option : str
+        The option or parameter named in messages (``"--json"``, ``"record_path"``).
+    overwrite : bool
+        Whether an existing file may be replaced.
+    suffix : str or None
+        Required suffix (``".png"``), compared case-insensitively.
+    inputs : dict or None
+        ``{option: path}`` of the run's input files; the output may be none of them.
+    overwrite_hint : str
+        How the user allows a replacement (a node: ``set -p overwrite:=true to replace it``).
+
+    Raises
+    ------
+    InputError
+        One line naming ``option``, the path and the reason.
+    """
+    if text is None or not str(text).strip():
+        raise InputError(f"{option}: '' is empty; give a file name")
+    text = str(text)
+    p = Path(text)
+    if suffix and p.suffix.lower() != suffix:
+        raise InputError(f"{option}: {text!r} must end in {suffix}")
+    if p.is_dir():
+        raise InputError(f"{option}: {text!r} is a directory; give a file name")
+    parent = p.parent if str(p.parent) else Path(".")
+    if not parent.is_dir():
+        raise InputError(f"{option}: {text!r}: the directory {str(parent)!r} does not exist")
+    try:
+        st = p.stat()
+    except OSError:
+        st = None
+    if st is not None and not stat.S_ISREG(st.st_mode):
+        raise InputError(f"{option}: {text!r} is {_kind(st.st_mode)}, not a regular file; give a file name")
+    same = is_input(p, inputs)
+    if same is not None:
+        raise InputError(f"{option}: {text!r} is the {same} file, an input of this run; give another file")
+    if st is not None and not overwrite:
+        raise InputError(f"{option}: {text!r} exists; {overwrite_hint}")
+    probe_writable(parent, option, text)
+    _lock(p, option, text)
+    return p
+
+
+def _holder(lock):
+    try:
+        pid = Path(lock).read_text().strip()
+    except OSError:
+        pid = ""
+    return f"process {pid}" if pid.isdigit() else "another process"
+
+
+def _lock(p, option, text):
+    key = p.resolve()
+    if key in _CLAIMS:
+        raise InputError(f"{option}: {text!r} is already being written by this process ({os.getpid()}); "
+                         f"give each output once")
+    lock = lock_path(key)
+    while True:
+        try:
+            fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError as exc:
+            raise InputError(f"{option}: {text!r}: cannot create its lock file {str(lock)!r} "
+                             f"({exc.strerror})") from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as exc:
+            os.close(fd)
+            if exc.errno in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+                raise InputError(f"{option}: {text!r} is being written by {_holder(lock)} (lock {str(lock)!r}); "
+                                 f"wait for it to finish or choose another file") from None
+            raise InputError(f"{option}: {text!r}: cannot lock {str(lock)!r} ({exc.strerror})") from None
+        try:  # the holder we waited for may have removed the file we locked: lock the current one
+            if os.fstat(fd).st_ino == os.stat(lock).st_ino:
+                break
+        except FileNotFoundError:
+            pass
+        os.close(fd)
+    os.ftruncate(fd, 0)
+    os.write(fd, f"{os.getpid()}\n".encode())
+    _CLAIMS[key] = (fd, lock)
+
+
+def claimed(path):
+    """Whether this process holds the claim on ``path``."""
+    return Path(path).resolve() in _CLAIMS
+
+
+def release(path):
+    """Give up the claim on ``path`` (idempotent): the lock file is removed, then unlocked."""
+    entry = _CLAIMS.pop(Path(path).resolve(), None)
+    if entry is None:
+        return
+    fd, lock = entry
+    try:
+        os.unlink(lock)
+    except OSError:
+        pass
+    os.close(fd)
+
+
+def release_all():
+    """Give up every claim of this process (the end of a command)."""
+    for key in list(_CLAIMS):
+        release(key)
+
+
+def write_atomic(path, write, option="output"):
+    """``write(tmp_path)`` beside ``path``, then rename: an earlier file is replaced only by a
+    complete one, and a failed write leaves nothing.
+
+    ``path`` should have been claimed with :func:`claim_output`; if not, it is claimed here (with
+    overwrite, the caller having checked it) for the time of the write. The claim is released
+    once the file is in place.
+    """
+    p = Path(path)
+    if not claimed(p):
+        _lock(p, option, str(p))
+    tmp = p.with_name(f".{p.stem}.tmp-{os.getpid()}{p.suffix}")
+    try:
+        write(tmp)
+        os.replace(tmp, p)
+    finally:
+        try:
+            tmp.unlink()
+        except FileNotFoundError:
+            pass
+        release(p)

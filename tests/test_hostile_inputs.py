@@ -1,0 +1,613 @@
+"""Hostile and borderline inputs at every entry point, table-driven (issue 17).
+
+Every case runs one entry point as a user would (a subprocess: ``adm-sim``, ``adm-calib``,
+``replay.py``, ``crossing.py``, ``calibrate.py``, a node started by hand) in a fresh folder, and
+asserts the properties every refusal must have, whatever the class:
+
+* the exit code (2 for bad input, 130 for an interrupt);
+* no ``Traceback`` on stderr, and stderr is exactly one line ``error: ...`` holding the expected
+  words (naming the option or parameter and the reason);
+* the folder is unchanged: every file (inputs included) has the same name, size and content, no
+  run folder, temporary file or lock file is left;
+* no process is left: each case's processes carry a marker in their environment, and none may
+  be alive once the entry point has exited.
+
+The classes (column ``cls``) are those of issue 17; ``python tests/test_hostile_inputs.py``
+prints the table of classes and counts that ``docs/bad_input.md`` holds.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+import uuid
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PY = sys.executable
+SIM = [PY, "-m", "adm_sim.cli"]
+CAL = [PY, "-m", "adm_calib.cli"]
+REPLAY = [PY, str(ROOT / "launch_scripts" / "replay.py")]
+CROSS = [PY, str(ROOT / "launch_scripts" / "crossing.py")]
+CALIB = [PY, str(ROOT / "launch_scripts" / "calibrate.py")]
+MARK = "ADM_HOSTILE_CASE"
+TRAIN_TOML = (ROOT / "src" / "adm_sim" / "data" / "examples" / "my_train.toml").read_text()
+BRIDGE_TOML = "L = 15\nn0 = 8.26\nmu = 19042\nzeta_pct = 1.85\n"
+MCAP_MAGIC = b"\x89MCAP0\r\n"
+
+CLASSES = {
+    "output-is-input": "an output path that is an input file of the same run",
+    "output-exists": "an existing output replaced without --overwrite (CLIs) or overwrite:=true (nodes)",
+    "output-not-writable": "an output in a folder that cannot be written (probed before any work)",
+    "output-not-a-file": "an output that is a folder or a named pipe, or empty",
+    "concurrent-writer": "an output another process is writing (lock held): refused naming its pid",
+    "input-not-regular": "an input that is a named pipe or a folder (refused before opening: no hang)",
+    "launch-precheck": "launcher values a node would refuse, checked before any process or folder",
+    "ros-parameters": "undeclared parameters and duplicate YAML keys at node start-up",
+    "scheduler": "study --scheduler at a closed port, a silent or a foreign server (loopback only)",
+    "signals": "SIGINT / SIGTERM during the work: error: interrupted, 130, no partial output",
+    "damaged-input": "an MCAP cut short, with a damaged chunk, or without messages (no traceback, no empty output)",
+}
+
+
+@dataclass
+class Case:
+    cls: str
+    ident: str
+    argv: object            # callable(t) -> list, t the case folder
+    line: str               # expected words of the one stderr line (formatted with t=..., pid=...)
+    code: int = 2
+    setup: object = None    # callable(t, ctx) -> None; ctx collects helper processes / values
+    ros: bool = False       # needs a ROS environment (a node or a launcher)
+    timeout_s: float = 60.0
+    ctx: dict = field(default_factory=dict)
+
+
+# ---------------------------------------------------------------------- set-up helpers
+def _files(t, **texts):
+    for name, text in texts.items():
+        p = t / name.replace("__", ".")
+        p.parent.mkdir(parents=True, exist_ok=True)
+        p.write_bytes(text if isinstance(text, bytes) else text.encode())
+
+
+def _fifo(name):
+    def setup(t, ctx):
+        os.mkfifo(t / name)
+    return setup
+
+
+def _all(*setups):
+    def setup(t, ctx):
+        for s in setups:
+            s(t, ctx)
+    return setup
+
+
+def _train(t, ctx):
+    _files(t, t__toml=TRAIN_TOML)
+
+
+def _bridge(t, ctx):
+    _files(t, b__toml=BRIDGE_TOML)
+
+
+def _existing(*names):
+    def setup(t, ctx):
+        for n in names:
+            (t / n).parent.mkdir(parents=True, exist_ok=True)
+            (t / n).write_bytes(MCAP_MAGIC + b"keep me: an earlier result" if n.endswith(".mcap") else b"keep me")
+    return setup
+
+
+def _mcap(t, ctx):
+    (t / "run.mcap").write_bytes(MCAP_MAGIC + b"\x00" * 64)
+
+
+def _holder(code, *args):
+    """A helper process that holds a claim (prints 'held' once it does); killed after the case."""
+    def setup(t, ctx):
+        env = dict(os.environ, PYTHONPATH=os.environ.get("PYTHONPATH", str(ROOT / "src")))
+        p = subprocess.Popen([PY, "-c", code] + [a.format(t=t) for a in args], stdout=subprocess.PIPE, text=True,
+                             env=env, cwd=t)
+        assert p.stdout.readline().strip() == "held"
+        ctx.setdefault("helpers", []).append(p)
+        ctx["pid"] = p.pid
+    return setup
+
+
+HOLD_OUTPUT = ("import sys, time\nfrom adm_sim.files import claim_output\n"
+               "claim_output(sys.argv[1], 'x', True)\nprint('held', flush=True)\ntime.sleep(120)\n")
+HOLD_FOLDER = ("import fcntl, os, sys, time\nos.makedirs(sys.argv[1], exist_ok=True)\n"
+               "fd = os.open(os.path.join(sys.argv[1], '.launch.lock'), os.O_RDWR | os.O_CREAT)\n"
+               "fcntl.flock(fd, fcntl.LOCK_EX)\nos.write(fd, f'{os.getpid()}\\n'.encode())\n"
+               "print('held', flush=True)\ntime.sleep(120)\n")
+
+
+def _recording(kind):
+    """A small MCAP of many chunks in ``run.mcap``: intact, cut in half, one chunk's bytes flipped
+    (its CRC fails), or a valid file without messages."""
+    def setup(t, ctx):
+        from std_msgs.msg import String
+
+        from adm_sim.ros.mcap_log import McapRecorder
+
+        path = t / "run.mcap"
+        with McapRecorder(path, chunk_size=1024) as rec:
+            for k in range(0 if kind == "empty" else 400):
+                rec.write("/adm/progress", String(data=f'{{"step": {k}, "text": "{"x" * 40}"}}'), k * 1_000_000)
+        data = bytearray(path.read_bytes())
+        if kind == "cut":
+            data = data[:len(data) // 2]
+        elif kind == "damaged":  # flip 16 bytes at the end of the middle Chunk record (opcode 0x06)
+            chunks, pos = [], 8
+            while pos + 9 <= len(data):
+                length = int.from_bytes(data[pos + 1:pos + 9], "little")
+                if data[pos] == 0x06:
+                    chunks.append(pos + 9 + length)
+                pos += 9 + length
+            end = chunks[len(chunks) // 2]
+            data[end - 20:end - 4] = bytes(b ^ 0x5A for b in data[end - 20:end - 4])
+        path.write_bytes(bytes(data))
+    return setup
+
+
+def _server(reply):
+    """A loopback TCP server that answers each connection with ``reply`` (None: stays silent)."""
+    def setup(t, ctx):
+        srv = socket.socket()
+        srv.bind(("127.0.0.1", 0))
+        srv.listen(8)
+
+        def run():
+            while True:
+                try:
+                    c, _ = srv.accept()
+                except OSError:
+                    return
+                if reply is not None:
+                    c.sendall(reply)
+                time.sleep(8)
+                c.close()
+
+        threading.Thread(target=run, daemon=True).start()
+        ctx["port"] = srv.getsockname()[1]
+        ctx.setdefault("sockets", []).append(srv)
+    return setup
+
+
+def _closed_port(t, ctx):
+    s = socket.socket()
+    s.bind(("127.0.0.1", 0))
+    ctx["port"] = s.getsockname()[1]
+    s.close()
+
+
+def _unwritable(t):
+    """A folder this process cannot write in: a read-only copy for a user, /sys for root (which
+    ignores permissions)."""
+    if os.geteuid() == 0:
+        return Path("/sys")
+    ro = t / "ro"
+    return ro
+
+
+def _make_ro(t, ctx):
+    if os.geteuid() != 0:
+        (t / "ro").mkdir()
+        (t / "ro").chmod(0o555)
+
+
+def _params(text):
+    def setup(t, ctx):
+        (t / "p.yaml").write_text(text)
+    return setup
+
+
+def node(module, *params):
+    return lambda t: [PY, "-m", module, "--ros-args"] + [x for p in params for x in ("-p", p.format(t=t))]
+
+
+# ---------------------------------------------------------------------- the table
+CASES = [
+    # --- output = input
+    Case("output-is-input", "sweep-json-is-train",
+         lambda t: SIM + ["sweep", "--train", f"{t}/t.toml", "--json", f"{t}/t.toml", "--overwrite"],
+         "--json: '{t}/t.toml' is the --train file, an input of this run", setup=_train),
+    Case("output-is-input", "sweep-json-is-bridge",
+         lambda t: SIM + ["sweep", "--bridge", f"{t}/b.toml", "--json", f"{t}/./b.toml", "--overwrite"],
+         "is the --bridge file, an input of this run", setup=_bridge),
+    Case("output-is-input", "check-csv-is-train",
+         lambda t: SIM + ["check", "--max-line-speed", "200", "--trains", f"{t}/t.csv", "--csv", f"{t}/t.csv",
+                          "--overwrite"],
+         "--csv: '{t}/t.csv' is the --trains file", setup=lambda t, ctx: _files(t, t__csv=TRAIN_TOML)),
+    Case("output-is-input", "calibrate-json-is-train",
+         lambda t: CAL + ["calibrate", "--bridge", "B1", "--train", f"{t}/t.json", "--json", f"{t}/t.json", "--force"],
+         "--json: '{t}/t.json' is the --train file", setup=lambda t, ctx: _files(t, t__json=TRAIN_TOML)),
+    Case("output-is-input", "salvage-dst-is-src",
+         lambda t: SIM + ["salvage", f"{t}/run.mcap", f"{t}/run.mcap", "--overwrite"],
+         "salvage DST: '{t}/run.mcap' is SRC", setup=_mcap),
+    Case("output-is-input", "study-fit-out-holds-results",
+         lambda t: CAL + ["study-fit", "--results", f"{t}/lower_bounds_fit.csv", "--out", str(t), "--force"],
+         "is the --results file, an input of this run",
+         setup=lambda t, ctx: _files(t, lower_bounds_fit__csv='{"bridge": "x", "train": "ICE-2"}\n')),
+    Case("output-is-input", "crossing-out-holds-params",
+         lambda t: CROSS + ["--out", str(t), "--params-file", f"{t}/summary.json", "--overwrite"],
+         "is an input of this launch", ros=True,
+         setup=lambda t, ctx: _files(t, summary__json="train:\n  ros__parameters:\n    model: mlm\n")),
+    # --- existing outputs
+    Case("output-exists", "driver-record-path", node("adm_sim.nodes.driver", "record_path:=keep.mcap"),
+         "error: driver: record_path: 'keep.mcap' exists; set -p overwrite:=true to replace it",
+         setup=_existing("keep.mcap"), ros=True),
+    Case("output-exists", "driver-rrd-path", node("adm_sim.nodes.driver", "rrd_path:=keep.rrd"),
+         "rrd_path: 'keep.rrd' exists; set -p overwrite:=true", setup=_existing("keep.rrd"), ros=True),
+    Case("output-exists", "driver-summary-path", node("adm_sim.nodes.driver", "summary_path:=keep.json"),
+         "summary_path: 'keep.json' exists", setup=_existing("keep.json"), ros=True),
+    Case("output-exists", "calibration-node-record-path",
+         node("adm_calib.nodes.calibration_node", "record_path:=keep.mcap"),
+         "error: calibration: record_path: 'keep.mcap' exists", setup=_existing("keep.mcap"), ros=True),
+    Case("output-exists", "driver-record-path-txt", node("adm_sim.nodes.driver", "record_path:=keep.txt"),
+         "record_path: 'keep.txt' must end in .mcap", setup=_existing("keep.txt"), ros=True),
+    Case("output-exists", "driver-two-outputs-one-file",
+         node("adm_sim.nodes.driver", "record_path:=a.mcap", "summary_path:=./a.mcap"),
+         "summary_path: './a.mcap' is the record_path file; give different files", ros=True),
+    Case("output-exists", "sweep-json", lambda t: SIM + ["sweep", "--json", f"{t}/r.json"],
+         "--json: '{t}/r.json' exists; use --overwrite", setup=_existing("r.json")),
+    Case("output-exists", "replay-rrd", lambda t: REPLAY + [f"{t}/run.mcap", "--rrd", f"{t}/o.rrd"],
+         "--rrd: '{t}/o.rrd' exists", setup=_all(_mcap, _existing("o.rrd"))),
+    Case("output-exists", "crossing-out-earlier-run", lambda t: CROSS + ["--out", str(t)],
+         "holds an earlier run (run.mcap)", setup=_existing("run.mcap"), ros=True),
+    # --- not writable (probed before the work)
+    Case("output-not-writable", "sweep-json", lambda t: SIM + ["sweep", "--json", f"{_unwritable(t)}/r.json"],
+         "--json: '{ro}/r.json': cannot write in the directory '{ro}'", setup=_make_ro),
+    Case("output-not-writable", "check-plot",
+         lambda t: SIM + ["check", "--max-line-speed", "200", "--plot", f"{_unwritable(t)}/r.png"],
+         "--plot: '{ro}/r.png': cannot write in the directory", setup=_make_ro),
+    Case("output-not-writable", "calibrate-json",
+         lambda t: CAL + ["calibrate", "--bridge", "B1", "--train", "ICE-2", "--json", f"{_unwritable(t)}/r.json"],
+         "--json: '{ro}/r.json': cannot write in the directory", setup=_make_ro),
+    Case("output-not-writable", "table4-out", lambda t: CAL + ["table4", "--out", f"{_unwritable(t)}/sub"],
+         "--out: '{ro}/sub': cannot write in the directory", setup=_make_ro),
+    Case("output-not-writable", "salvage-dst",
+         lambda t: SIM + ["salvage", f"{t}/run.mcap", f"{_unwritable(t)}/s.mcap"],
+         "salvage DST: '{ro}/s.mcap': cannot write in the directory", setup=_all(_mcap, _make_ro)),
+    Case("output-not-writable", "replay-rrd", lambda t: REPLAY + [f"{t}/run.mcap", "--rrd", f"{_unwritable(t)}/o.rrd"],
+         "--rrd: '{ro}/o.rrd': cannot write in the directory", setup=_all(_mcap, _make_ro)),
+    Case("output-not-writable", "driver-record-path", lambda t: node("adm_sim.nodes.driver",
+                                                                     f"record_path:={_unwritable(t)}/r.mcap")(t),
+         "error: driver: record_path: '{ro}/r.mcap': cannot write in the directory", setup=_make_ro, ros=True),
+    Case("output-not-writable", "crossing-out", lambda t: CROSS + ["--out", f"{_unwritable(t)}/run"],
+         "--out: '{ro}/run': cannot write in the directory", setup=_make_ro, ros=True),
+    # --- not a regular file
+    Case("output-not-a-file", "sweep-json-fifo", lambda t: SIM + ["sweep", "--json", f"{t}/p", "--overwrite"],
+         "--json: '{t}/p' is a named pipe, not a regular file", setup=_fifo("p")),
+    Case("output-not-a-file", "sweep-json-dir", lambda t: SIM + ["sweep", "--json", str(t)],
+         "--json: '{t}' is a directory; give a file name"),
+    Case("output-not-a-file", "sweep-json-empty", lambda t: SIM + ["sweep", "--json", ""],
+         "--json: '' is empty; give a file name"),
+    Case("output-not-a-file", "driver-record-fifo", node("adm_sim.nodes.driver", "record_path:=p.mcap",
+                                                         "overwrite:=true"),
+         "record_path: 'p.mcap' is a named pipe, not a regular file", setup=_fifo("p.mcap"), ros=True),
+    Case("output-not-a-file", "crossing-out-empty", lambda t: CROSS + ["--out", ""],
+         "--out: '' is empty", ros=True),
+    Case("output-not-a-file", "calibrate-out-is-file", lambda t: CALIB + ["--out", f"{t}/f"],
+         "--out: '{t}/f' is not a directory", setup=lambda t, ctx: _files(t, f="x"), ros=True),
+    # --- a second writer
+    Case("concurrent-writer", "sweep-json", lambda t: SIM + ["sweep", "--json", f"{t}/r.json"],
+         "--json: '{t}/r.json' is being written by process {pid}",
+         setup=_holder(HOLD_OUTPUT, "{t}/r.json")),
+    Case("concurrent-writer", "salvage-dst", lambda t: SIM + ["salvage", f"{t}/run.mcap", f"{t}/s.mcap"],
+         "salvage DST: '{t}/s.mcap' is being written by process {pid}",
+         setup=_all(_mcap, _holder(HOLD_OUTPUT, "{t}/s.mcap"))),
+    Case("concurrent-writer", "calibrate-plot",
+         lambda t: CAL + ["calibrate", "--bridge", "B1", "--train", "ICE-2", "--plot", f"{t}/c.png"],
+         "--plot: '{t}/c.png' is being written by process {pid}", setup=_holder(HOLD_OUTPUT, "{t}/c.png")),
+    Case("concurrent-writer", "driver-record-path", node("adm_sim.nodes.driver", "record_path:=r.mcap"),
+         "error: driver: record_path: 'r.mcap' is being written by process {pid}",
+         setup=_holder(HOLD_OUTPUT, "{t}/r.mcap"), ros=True),
+    Case("concurrent-writer", "crossing-same-out", lambda t: CROSS + ["--out", f"{t}/run"],
+         "--out: '{t}/run' is being written by another launch (process {pid})",
+         setup=_holder(HOLD_FOLDER, "{t}/run"), ros=True),
+    Case("concurrent-writer", "calibrate-same-out", lambda t: CALIB + ["--out", f"{t}/run"],
+         "is being written by another launch (process {pid})", setup=_holder(HOLD_FOLDER, "{t}/run"), ros=True),
+    # --- inputs that are not regular files (a pipe would block open() for ever)
+    Case("input-not-regular", "sweep-train-fifo", lambda t: SIM + ["sweep", "--train", f"{t}/t.toml"],
+         "train file '{t}/t.toml': is a named pipe, not a regular file", setup=_fifo("t.toml")),
+    Case("input-not-regular", "sweep-bridge-fifo", lambda t: SIM + ["sweep", "--bridge", f"{t}/b.toml"],
+         "bridge: '{t}/b.toml' is neither a named bridge", setup=_fifo("b.toml")),
+    Case("input-not-regular", "check-train-fifo",
+         lambda t: SIM + ["check", "--max-line-speed", "200", "--trains", f"{t}/t.toml"],
+         "train file '{t}/t.toml': is a named pipe", setup=_fifo("t.toml")),
+    Case("input-not-regular", "calibrate-bridge-fifo",
+         lambda t: CAL + ["calibrate", "--bridge", f"{t}/b.toml", "--train", "ICE-2"],
+         "bridge: '{t}/b.toml' is neither a named bridge", setup=_fifo("b.toml")),
+    Case("input-not-regular", "salvage-src-fifo", lambda t: SIM + ["salvage", f"{t}/p.mcap", f"{t}/s.mcap"],
+         "salvage SRC: '{t}/p.mcap' is a named pipe, not a regular file", setup=_fifo("p.mcap")),
+    Case("input-not-regular", "replay-mcap-fifo", lambda t: REPLAY + [f"{t}/p.mcap", "--rrd", f"{t}/o.rrd"],
+         "RUN.mcap: '{t}/p.mcap' is a named pipe", setup=_fifo("p.mcap")),
+    Case("input-not-regular", "study-fit-results-fifo", lambda t: CAL + ["study-fit", "--results", f"{t}/r.jsonl"],
+         "--results: '{t}/r.jsonl' is a named pipe", setup=_fifo("r.jsonl")),
+    Case("input-not-regular", "trains-train-dir", lambda t: SIM + ["trains", "--train", f"{t}/d.toml"],
+         "train file '{t}/d.toml': cannot read", setup=lambda t, ctx: (t / "d.toml").mkdir()),
+    Case("input-not-regular", "crossing-params-fifo", lambda t: CROSS + ["--out", f"{t}/o", "--params-file",
+                                                                         f"{t}/p.yaml"],
+         "--params-file: '{t}/p.yaml' is a named pipe", setup=_fifo("p.yaml"), ros=True),
+    Case("input-not-regular", "node-params-fifo",
+         lambda t: [PY, "-m", "adm_sim.nodes.train_node", "--ros-args", "--params-file", f"{t}/p.yaml"],
+         "error: train: --params-file '{t}/p.yaml': is a named pipe", setup=_fifo("p.yaml"), ros=True),
+    Case("input-not-regular", "crossing-train-fifo", lambda t: CROSS + ["--out", f"{t}/o", "--train", f"{t}/t.toml"],
+         "train file '{t}/t.toml': is a named pipe", setup=_fifo("t.toml"), ros=True),
+    # --- launchers: every value checked before a process starts or a folder exists
+    Case("launch-precheck", "crossing-load-train-dim", lambda t: CROSS + ["--out", f"{t}/o", "--train", "HSLM-A1"],
+         "train node: model: 'dim' needs a train with vehicles; 'HSLM-A1' is a load train", ros=True),
+    Case("launch-precheck", "calibrate-load-train", lambda t: CALIB + ["--out", f"{t}/o", "--train", "HSLM-A1"],
+         "train node: model: 'dim' needs a train with vehicles", ros=True),
+    Case("launch-precheck", "crossing-domain-999", lambda t: CROSS + ["--out", f"{t}/o", "--domain-id", "999"],
+         "--domain-id: 999 is out of range; allowed integer in [0, 101]", ros=True),
+    Case("launch-precheck", "calibrate-domain-text", lambda t: CALIB + ["--out", f"{t}/o", "--domain-id", "x"],
+         "--domain-id: 'x' is not an integer", ros=True),
+    Case("launch-precheck", "crossing-params-delta-zeta",
+         lambda t: CROSS + ["--out", f"{t}/o", "--params-file", f"{t}/p.yaml"],
+         "bridge node: delta_zeta: -0.19 - (fraction) is out of range; allowed [-0.0185, 0.2]",
+         setup=_params("bridge:\n  ros__parameters:\n    delta_zeta: -0.19\n"), ros=True),
+    Case("launch-precheck", "calibrate-params-model-for-hslm",
+         lambda t: CALIB + ["--out", f"{t}/o", "--params-file", f"{t}/p.yaml"],
+         "train node: model: 'dim' needs a train with vehicles",
+         setup=_params("train:\n  ros__parameters:\n    train: HSLM-A3\n    model: mlm\n"), ros=True),
+    Case("launch-precheck", "crossing-spawn-and-connect",
+         lambda t: CROSS + ["--out", f"{t}/o", "--spawn", "--connect", "rerun+http://127.0.0.1:9876/proxy"],
+         "give --spawn or --connect, not both", ros=True),
+    Case("launch-precheck", "calibrate-connect-not-loopback",
+         lambda t: CALIB + ["--out", f"{t}/o", "--connect", "rerun+http://viewer.invalid:9876/proxy"],
+         "--connect: host 'viewer.invalid' is not on this machine", ros=True),
+    Case("launch-precheck", "crossing-empty-speeds", lambda t: CROSS + ["--out", f"{t}/o", "--speeds", ""],
+         "--speeds: '' is empty", ros=True),
+    Case("launch-precheck", "calibrate-empty-train", lambda t: CALIB + ["--out", f"{t}/o", "--train", " "],
+         "--train: '' is empty", ros=True),
+    # --- ROS parameters at node start-up
+    Case("ros-parameters", "bridge-undeclared", node("adm_sim.nodes.bridge_node", "span:=20.0"),
+         "error: bridge: span: unknown parameter of node 'bridge'; allowed EJ_Nm2", ros=True),
+    Case("ros-parameters", "train-undeclared", node("adm_sim.nodes.train_node", "trian:=ICE-2"),
+         "error: train: trian: unknown parameter of node 'train'", ros=True),
+    Case("ros-parameters", "driver-undeclared", node("adm_sim.nodes.driver", "record:=x.mcap"),
+         "error: driver: record: unknown parameter of node 'driver'", ros=True),
+    Case("ros-parameters", "node-params-duplicate-key",
+         lambda t: [PY, "-m", "adm_sim.nodes.bridge_node", "--ros-args", "--params-file", f"{t}/p.yaml"],
+         "key 'span_m' is given twice (lines 3 and 4)",
+         setup=_params("bridge:\n  ros__parameters:\n    span_m: 20.0\n    span_m: 30.0\n"), ros=True),
+    Case("ros-parameters", "launch-params-duplicate-node",
+         lambda t: CALIB + ["--out", f"{t}/o", "--params-file", f"{t}/p.yaml"],
+         "key 'train' is given twice",
+         setup=_params("train:\n  ros__parameters:\n    model: mlm\ntrain:\n  ros__parameters:\n    model: dim\n"),
+         ros=True),
+    Case("ros-parameters", "launch-params-undeclared",
+         lambda t: CROSS + ["--out", f"{t}/o", "--params-file", f"{t}/p.yaml"],
+         "train.ros__parameters.span_m: unknown parameter",
+         setup=_params("train:\n  ros__parameters:\n    span_m: 20.0\n"), ros=True),
+    # --- the study's scheduler (loopback only)
+    # --- damaged files
+    Case("damaged-input", "replay-damaged-chunk", lambda t: REPLAY + [f"{t}/run.mcap", "--rrd", f"{t}/o.rrd"],
+         "RUN.mcap: '{t}/run.mcap' is damaged (1 of", setup=_recording("damaged")),
+    Case("damaged-input", "replay-convert-damaged",
+         lambda t: REPLAY + [f"{t}/run.mcap", "--rrd", f"{t}/o.rrd", "--via-convert"],
+         "is damaged", setup=_recording("damaged")),
+    Case("damaged-input", "replay-cut-short", lambda t: REPLAY + [f"{t}/run.mcap", "--rrd", f"{t}/o.rrd"],
+         "RUN.mcap: '{t}/run.mcap' is not a complete MCAP file", setup=_recording("cut")),
+    Case("damaged-input", "replay-convert-cut-short",
+         lambda t: REPLAY + [f"{t}/run.mcap", "--rrd", f"{t}/o.rrd", "--via-convert"],
+         "is not a complete MCAP file", setup=_recording("cut")),
+    Case("damaged-input", "replay-empty", lambda t: REPLAY + [f"{t}/run.mcap", "--rrd", f"{t}/o.rrd"],
+         "RUN.mcap: '{t}/run.mcap' holds no message; nothing to replay", setup=_recording("empty")),
+    Case("damaged-input", "salvage-empty", lambda t: SIM + ["salvage", f"{t}/run.mcap", f"{t}/s.mcap"],
+         "holds no complete message to recover", setup=_recording("empty")),
+    Case("scheduler", "closed-port",
+         lambda t: CAL + ["study", "--out", f"{t}/st", "--scheduler", "tcp://127.0.0.1:{port}"],
+         "--scheduler: cannot connect to 'tcp://127.0.0.1:{port}'", setup=_closed_port),
+    Case("scheduler", "http-server",
+         lambda t: CAL + ["study", "--out", f"{t}/st", "--scheduler", "tcp://127.0.0.1:{port}"],
+         "is not a dask scheduler (its first bytes b'HTTP/1.1' are not a dask message)",
+         setup=_server(b"HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\n\r\n")),
+    Case("scheduler", "silent-server",
+         lambda t: CAL + ["study", "--out", f"{t}/st", "--scheduler", "tcp://127.0.0.1:{port}"],
+         "is not a dask scheduler (no dask handshake within 5 s)", setup=_server(None)),
+    Case("scheduler", "huge-frame-length",
+         lambda t: CAL + ["study", "--out", f"{t}/st", "--scheduler", "tcp://127.0.0.1:{port}"],
+         "is not a dask scheduler", setup=_server(b"\xff" * 64)),
+    Case("scheduler", "existing-study-folder-untouched",
+         lambda t: CAL + ["study", "--out", str(t), "--scheduler", "tcp://127.0.0.1:{port}"],
+         "--scheduler: cannot connect", setup=_all(_closed_port, lambda t, ctx: _files(t, results__jsonl=""))),
+]
+
+
+# ---------------------------------------------------------------------- the properties
+def snapshot(folder):
+    """``{relative path: (kind, size, sha256)}`` of everything under ``folder`` (hidden files too)."""
+    out = {}
+    for dirpath, dirnames, filenames in os.walk(folder):
+        for name in dirnames + filenames:
+            p = Path(dirpath) / name
+            rel = str(p.relative_to(folder))
+            st = p.lstat()
+            if p.is_fifo() or p.is_dir():
+                out[rel] = ("fifo" if p.is_fifo() else "dir", 0, "")
+            else:
+                out[rel] = ("file", st.st_size, hashlib.sha256(p.read_bytes()).hexdigest())
+    return out
+
+
+def marked_processes(marker):
+    """Pids of live processes whose environment holds ``MARK=marker``."""
+    needle = f"{MARK}={marker}".encode()
+    found = []
+    for e in os.scandir("/proc"):
+        if not e.name.isdigit():
+            continue
+        try:
+            if needle in Path(f"/proc/{e.name}/environ").read_bytes().split(b"\0"):
+                stat = Path(f"/proc/{e.name}/stat").read_text()
+                if stat.rsplit(")", 1)[1].split()[0] != "Z":
+                    found.append(int(e.name))
+        except OSError:
+            continue
+    return found
+
+
+@pytest.fixture(scope="module")
+def ros_env():
+    from adm_sim.ros.env import local_ros_env
+
+    env = local_ros_env()
+    yield env
+    env.release()
+
+
+def _env(base, marker):
+    env = dict(base)
+    env[MARK] = marker
+    env.setdefault("OPENBLAS_NUM_THREADS", "1")
+    env["PYTHONPATH"] = str(ROOT / "src")
+    return env
+
+
+def _words(case, t):
+    ro = _unwritable(t)
+    return case.line.format(t=t, pid=case.ctx.get("pid"), port=case.ctx.get("port"), ro=ro)
+
+
+def _cleanup(ctx):
+    for p in ctx.get("helpers", []):
+        p.kill()
+        p.wait(5)
+    for s in ctx.get("sockets", []):
+        s.close()
+
+
+@pytest.mark.parametrize("case", CASES, ids=[f"{c.cls}:{c.ident}" for c in CASES])
+def test_refused_cleanly(case, tmp_path, ros_env):
+    t = tmp_path / "case"
+    t.mkdir()
+    ctx = case.ctx = {}
+    try:
+        if case.setup is not None:
+            case.setup(t, ctx)
+        argv = [a.format(port=ctx.get("port")) if "{port}" in a else a for a in case.argv(t)]
+        before = snapshot(t)
+        marker = uuid.uuid4().hex
+        base = ros_env if case.ros else os.environ
+        r = subprocess.run(argv, capture_output=True, text=True, timeout=case.timeout_s, cwd=t,
+                           env=_env(base, marker), stdin=subprocess.DEVNULL)
+        left = marked_processes(marker)
+        after = snapshot(t)
+    finally:
+        _cleanup(ctx)
+    assert "Traceback" not in r.stderr, r.stderr
+    assert r.returncode == case.code, r.stderr
+    lines = r.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), r.stderr
+    assert _words(case, t) in lines[0]
+    assert after == before  # inputs, outputs and the folder unchanged; no run folder, tmp or lock file
+    assert left == []
+    assert "ROS_DOMAIN_ID=" not in r.stdout  # no launch started
+
+
+# ---------------------------------------------------------------------- signals
+@dataclass
+class SignalCase:
+    ident: str
+    argv: object   # callable(t) -> list
+    ready: object  # text on stdout once the work is under way ("" any line; None: wait 4 s)
+    ros: bool = False
+
+
+SIGNAL_ENTRIES = [
+    SignalCase("adm-sim-sweep", lambda t: SIM + ["sweep", "--model", "dim", "--speeds", "200:300:1", "--json",
+                                                 f"{t}/r.json", "--plot", f"{t}/r.png"], ""),
+    SignalCase("adm-calib-calibrate", lambda t: CAL + ["calibrate", "--bridge", "B1", "--train", "ICE-2", "--json",
+                                                       f"{t}/c.json"], None),
+    SignalCase("crossing.py", lambda t: CROSS + ["--out", f"{t}/run", "--speeds", "200:300:5"], "step", ros=True),
+    SignalCase("calibrate.py", lambda t: CALIB + ["--out", f"{t}/run", "--bridge", "B3", "--speeds", "240:300:2",
+                                                  "--no-rrd", "--quiet"], "calibrating", ros=True),
+    SignalCase("adm-calib-table4", lambda t: CAL + ["table4", "--out", f"{t}/t4", "--bridges", "B1", "--trains",
+                                                    "ICE-2"], None),
+]
+SIGNAL_CASES = [(e, s) for e in SIGNAL_ENTRIES for s in (signal.SIGTERM, signal.SIGINT)]
+
+
+@pytest.mark.parametrize("entry,sig", SIGNAL_CASES,
+                         ids=[f"signals:{e.ident}-{signal.Signals(s).name}" for e, s in SIGNAL_CASES])
+def test_interrupted_cleanly(entry, sig, tmp_path, ros_env):
+    t = tmp_path / "case"
+    t.mkdir()
+    before = snapshot(t)
+    marker = uuid.uuid4().hex
+    p = subprocess.Popen(entry.argv(t), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=t,
+                         env=_env(ros_env if entry.ros else os.environ, marker), stdin=subprocess.DEVNULL)
+    try:
+        if entry.ready is None:
+            time.sleep(4.0)
+        else:
+            t_end = time.monotonic() + 60
+            while time.monotonic() < t_end:
+                line = p.stdout.readline()
+                assert line, p.stderr.read()
+                if entry.ready in line:
+                    break
+        time.sleep(1.0)  # inside the computation
+        assert p.poll() is None, p.stderr.read()
+        p.send_signal(sig)
+        out, err = p.communicate(timeout=30)
+        t_end = time.monotonic() + 5
+        while marked_processes(marker) and time.monotonic() < t_end:
+            time.sleep(0.05)
+        left = marked_processes(marker)
+    finally:
+        if p.poll() is None:
+            p.kill()
+    assert "Traceback" not in err, err
+    assert p.returncode == 130, err
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error: interrupted"), err
+    assert snapshot(t) == before  # no partial output, no run folder
+    assert left == []
+
+
+# ---------------------------------------------------------------------- the table itself
+def class_counts():
+    counts = Counter(c.cls for c in CASES)
+    counts["signals"] += len(SIGNAL_CASES)
+    return counts
+
+
+def test_every_class_is_covered():
+    counts = class_counts()
+    print(f"\n{sum(counts.values())} hostile-input cases in {len(counts)} classes: "
+          + ", ".join(f"{k} {v}" for k, v in counts.items()))
+    assert set(counts) == set(CLASSES)
+    assert min(counts.values()) >= 5
+    assert len({(c.cls, c.ident) for c in CASES}) == len(CASES)
+
+
+def test_docs_table_is_this_table():
+    assert markdown_table() in (ROOT / "docs" / "bad_input.md").read_text()
+
+
+def markdown_table():
+    counts = class_counts()
+    rows = ["| class | what | cases |", "|---|---|---:|"]
+    rows += [f"| `{k}` | {CLASSES[k]} | {counts[k]} |" for k in CLASSES]
+    rows.append(f"| **total** | | **{sum(counts.values())}** |")
+    return "\n".join(rows)
+
+
+if __name__ == "__main__":
+    print(markdown_table())
