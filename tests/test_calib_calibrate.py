@@ -126,3 +126,26 @@ def test_external_sweep_hook_is_used_for_every_run():
     assert r.delta_zeta_vbi == pytest.approx(0.002, abs=0.005e-2)
     # full MLM + ladder + brentq calls + re-evaluation at the root + adapted curve
     assert calls == ["mlm"] * (1 + 1 + r.solve.function_calls + 1 + 1)
+
+
+def test_phase_travels_with_the_lanes_to_a_hook():
+    """A hook that takes ``phase`` is told what every run is for (no guessing from shapes)."""
+    b, t = named_bridge("B1"), load_train("ICE-2")
+    phases = []
+
+    def hook(model, speeds, dz, step, phase):
+        phases.append((model, phase, np.size(speeds)))
+        return run_sweep(b, t, model, speeds, delta_zeta=dz, options=step).max_acc_m_s2
+
+    r = calibrate(b, t, V_B1, sweep=hook)
+    n_root = r.solve.function_calls
+    n_win = r.adapted_speeds_kmh.size and int(np.sum(np.abs(V_B1 - r.mlm_peak.speed_kmh) <= 5.0))
+    assert phases[0] == ("mlm", "mlm", V_B1.size)
+    assert [p[1] for p in phases if p[0] == "dim"][0] == "dim"
+    trials = [p for p in phases if p[1] in ("ladder", "root", "check")]
+    assert [p[1] for p in trials] == ["ladder"] + ["root"] * n_root + ["check"]
+    assert trials[0][2] == 17 * n_win and all(p[2] == n_win for p in trials[1:])   # 17 ladder rungs
+    assert phases[-1] == ("mlm", "adapted", V_B1.size)
+    # the same numbers as the compiled backend
+    ref = calibrate(b, t, V_B1)
+    assert r.delta_zeta_vbi == pytest.approx(ref.delta_zeta_vbi, abs=1e-10)

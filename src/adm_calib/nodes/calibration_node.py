@@ -74,20 +74,22 @@ class CalibrationNode(RunDriver):
         if self.viz is not None:
             self.viz.iteration(i, 100 * dz, mlm_peak, dim_peak)
 
-    def _hook(self, model, speeds, dz, step):
-        """``calibrate``'s sweep hook: one co-simulated run on the calibration's space step."""
+    #: Run label (MCAP, rerun, log) of every calibration phase (:data:`adm_calib.lanes.PHASES`).
+    PHASE_LABELS = {"mlm": "MLM zeta", "mlm_refine": "MLM trial", "dim": "DIM", "dim_refine": "DIM",
+                    "dim_peak_refine": "DIM", "ladder": "MLM trial", "root": "MLM trial",
+                    "check": "MLM trial", "adapted": "MLM zeta+dz"}
+
+    def _hook(self, model, speeds, dz, step, phase):
+        """``calibrate``'s sweep hook: one co-simulated run on the calibration's space step.
+
+        ``phase`` comes with the lanes from the calibration (:mod:`adm_calib.lanes`) and names the run.
+        """
         if self._ds_m != step.ds_m:
             self.set_params(c.BRIDGE_NODE, ds_m=step.ds_m, delta_zeta=0.0, delta_zeta_lanes="")
             self._ds_m = step.ds_m
-        dzs = np.asarray(dz, dtype=float)
-        if model == "dim":
-            label = "DIM"
-        elif np.size(speeds) < self._n_speeds or dzs.size > 1:
-            label = "MLM trial"
-        else:
-            label = "MLM zeta" if np.all(dzs == 0.0) else "MLM zeta+dz"
+        label = self.PHASE_LABELS.get(phase, phase)
         acc = self.sweep(model, speeds, dz, label=label)
-        if label == "MLM zeta" and self._auto_monitor:
+        if phase == "mlm" and self._auto_monitor:
             self._monitor_peak(speeds, acc)
         return acc
 
