@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from adm_sim.errors import InputError, RunError, check_range
+from adm_sim.peaks import largest_interior_peak
 from adm_sim.stepping import (SPEED_RANGE_KMH, BridgeSide, LockstepRun, StepOptions, TrainSide,
                               check_model, make_grid, mlm_modal_load_table, speeds_to_m_s)
 
@@ -59,21 +60,6 @@ def parse_speeds(text, ordered=True, field="speeds"):
     return v
 
 
-def largest_interior_peak(values):
-    """Index of the largest local maximum that is not an end point, or ``None``.
-
-    A local maximum is a sample strictly greater than its left neighbour and not smaller than
-    its right one (plateaus count once).
-    """
-    y = np.asarray(values, dtype=float)
-    if y.size < 3:
-        return None
-    inner = np.flatnonzero((y[1:-1] > y[:-2]) & (y[1:-1] >= y[2:])) + 1
-    if inner.size == 0:
-        return None
-    return int(inner[np.argmax(y[inner])])
-
-
 @dataclass(frozen=True, repr=False)
 class SweepResult:
     """Result of a speed sweep.
@@ -106,7 +92,11 @@ class SweepResult:
     contact_force_n: np.ndarray | None = field(default=None)
 
     def peak(self):
-        """``{"speed_kmh", "acc_m_s2", "index"}`` of the largest interior local maximum, or None."""
+        """``{"speed_kmh", "acc_m_s2", "index"}`` of the peak of the curve, or None.
+
+        The peak rule of :mod:`adm_sim.peaks` (highest interior local maximum, 0.1 % prominence),
+        the one ``adm-calib calibrate`` uses.
+        """
         i = largest_interior_peak(self.max_acc_m_s2)
         if i is None:
             return None
