@@ -62,7 +62,7 @@ class CompiledLanes:
     def __init__(self, bridges, train, step):
         from adm_sim.batch import BatchRunner
 
-        self.runner = BatchRunner(bridges, train, step.ds_m, step.free_vibration_periods)
+        self.runner = BatchRunner(bridges, train, step.ds_m, step.free_vibration_periods, step.dense_maxima)
 
     def run(self, model, case, speeds_kmh, delta_zeta=0.0, sweep=None, phase=""):
         """Max |midspan acceleration| (m/s^2) of every lane, shape (n_lanes,)."""

@@ -153,7 +153,8 @@ def run_sweep(bridge, train, model, speeds_kmh, delta_zeta=0.0, options=None, hi
     dz = np.broadcast_to(np.asarray(delta_zeta, dtype=float), v.shape)
     for x in np.unique(dz):
         check_range("delta_zeta_pct", 100 * x, "%", -100 * bridge.damping_ratio, 20.0)
-    grid = make_grid(bridge, train.length_m, v, options or StepOptions())
+    options = options or StepOptions()
+    grid = make_grid(bridge, train.length_m, v, options)
     n, nl = grid.n_steps, grid.n_lanes
     dim = model == "dim"
     if histories and nl * n * (1 + (train.n_axles if dim else 0)) > MAX_HISTORY_VALUES:
@@ -161,9 +162,10 @@ def run_sweep(bridge, train, model, speeds_kmh, delta_zeta=0.0, options=None, hi
                          f"ask histories for at most a few speeds")
     b = BridgeSide(bridge, grid, train.axle_offsets_m, train.wheel_mass_kg if dim else None, dz)
     if dim:
-        run = LockstepRun(model, grid, bridge_side=b, train_side=TrainSide(train, grid, bridge.span_m))
+        run = LockstepRun(model, grid, bridge_side=b, train_side=TrainSide(train, grid, bridge.span_m),
+                          dense_maxima=options.dense_maxima)
     else:
-        run = LockstepRun(model, grid, bridge_side=b,
+        run = LockstepRun(model, grid, bridge_side=b, dense_maxima=options.dense_maxima,
                           modal_loads=mlm_modal_load_table(bridge, grid, train.axle_offsets_m, train.axle_loads_n))
     acc = np.empty((n, nl)) if histories else None
     disp = np.empty((n, nl)) if histories else None
