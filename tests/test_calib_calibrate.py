@@ -1,6 +1,7 @@
 """Δζ_VBI calibration on the real MLM/DIM solvers: round trip, convergence, outcomes and JSON."""
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -149,3 +150,36 @@ def test_phase_travels_with_the_lanes_to_a_hook():
     # the same numbers as the compiled backend
     ref = calibrate(b, t, V_B1)
     assert r.delta_zeta_vbi == pytest.approx(ref.delta_zeta_vbi, abs=1e-10)
+
+
+def _sdof(v, v_res, zeta):
+    """Steady-state amplification of a damped oscillator; its peak over v is 1 / (2 zeta sqrt(1 - zeta^2))."""
+    s = np.asarray(v, float) / v_res
+    return 1.0 / np.sqrt((1 - s**2) ** 2 + (2 * zeta * s) ** 2)
+
+
+@pytest.mark.parametrize("x", [0.002, -0.001])
+def test_refined_mode_recovers_closed_form_damping_of_a_narrow_resonance(x):
+    """MLM(v; zeta + dz) and DIM(v) as SDOF resonances at off-grid speeds (263.43 and 261.72 km/h),
+    zeta = 0.5 % (a light steel bridge: resonance ~2.6 km/h wide). Their peak values are equal exactly
+    when dz = x, whatever the resonance speeds; the 1 km/h grid misses both peaks."""
+    zeta = 0.005
+    b = replace(named_bridge("B1"), damping_ratio=zeta)
+    t = load_train("ICE-2")
+
+    def hook(model, speeds, dz, step):
+        if model == "dim":
+            return _sdof(speeds, 261.72, zeta + x)
+        return _sdof(speeds, 263.43, zeta + np.asarray(dz, float))
+
+    paper = calibrate(b, t, V, sweep=hook, adapted_curve=False)
+    fine = calibrate(b, t, V, sweep=hook, adapted_curve=False, options=CalibrationOptions(speed_refinement_kmh=0.05))
+    assert paper.status == fine.status == "ok"
+    assert (paper.mlm_peak.speed_kmh, paper.dim_peak.speed_kmh) == (263.0, 262.0)
+    # the refined peaks lie within 0.05 km/h of the true ones (v_res sqrt(1 - 2 zeta^2))
+    assert abs(fine.mlm_peak.speed_kmh - 263.43 * np.sqrt(1 - 2 * zeta**2)) <= 0.05
+    assert abs(fine.dim_peak.speed_kmh - 261.72 * np.sqrt(1 - 2 * (zeta + x) ** 2)) <= 0.05
+    assert fine.dim_peak.acc_m_s2 == pytest.approx(1 / (2 * (zeta + x) * np.sqrt(1 - (zeta + x) ** 2)), rel=1e-3)
+    err_paper, err_fine = abs(paper.delta_zeta_vbi - x), abs(fine.delta_zeta_vbi - x)
+    assert err_fine <= 2e-6                      # 0.0002 %
+    assert err_paper > 50 * err_fine             # the 1 km/h grid: 0.005-0.01 % off here

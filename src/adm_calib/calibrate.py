@@ -23,6 +23,9 @@ value lies where only the coarse grid was run, the DIM is run again at the fine 
 All runs of one calibration share one space step ``ds`` (the one the full MLM speed range needs),
 so the MLM curves at different dampings and the DIM curve are discretised alike.
 
+Refined mode (``speed_refinement_kmh``, e.g. 0.05 km/h; off by default, the paper's 1 km/h
+rule): both peaks located between the grid neighbours of the sampled peak (:func:`refine_peaks`).
+
 Written once (:func:`calibrate_cases`), vectorised over the cases of a batch, over a lane runner
 (:mod:`adm_calib.lanes`: run these lanes -> their maxima): :func:`calibrate` is the batch of one
 on the compiled backend (or the numpy stepper, or a sweep hook such as the ROS co-simulation),
@@ -76,6 +79,10 @@ class CalibrationOptions:
         Smallest relative prominence of a peak.
     step : adm_sim.stepping.StepOptions or None
         Time-integration settings of the core (``None``: its defaults).
+    speed_refinement_kmh : float or None
+        Refined mode: locate the MLM peak and the DIM peak to this speed resolution (e.g. 0.05
+        km/h) between the neighbours of the peak on the MLM speed grid (:func:`refine_peaks`).
+        ``None`` (default): the paper's rule, peaks as sampled on the 1 km/h grid.
     """
 
     dim_grid: str = "paper"
@@ -87,6 +94,7 @@ class CalibrationOptions:
     match_rtol: float = 1e-3
     min_prominence_rel: float = pk.MIN_PROMINENCE_REL
     step: StepOptions | None = None
+    speed_refinement_kmh: float | None = None
 
     def __post_init__(self):
         if self.dim_grid not in ("paper", "full"):
@@ -95,6 +103,8 @@ class CalibrationOptions:
         check_range("relocation_window_kmh", self.relocation_window_kmh, "km/h", 0.0, 100.0, lo_open=True)
         check_range("xtol", self.xtol, "- (fraction)", 0.0, 1e-4, lo_open=True)
         check_range("match_rtol", self.match_rtol, "-", 0.0, 0.1, lo_open=True)
+        if self.speed_refinement_kmh is not None:
+            check_range("speed_refinement_kmh", self.speed_refinement_kmh, "km/h", 0.001, 1.0)
 
 
 @dataclass(frozen=True, repr=False)
@@ -541,6 +551,79 @@ def batch_step(bridges, train, speeds_kmh=None, options=None):
     return replace(opt.step or StepOptions(), ds_m=ds)
 
 
+#: Stages of the refined mode (km/h): a coarse pass over the neighbours' interval, then the final
+#: resolution around its best point (a peak is a few km/h wide, so it is unimodal at 0.25 km/h).
+REFINE_COARSE_KMH = 0.25
+
+
+def _grid(lo, hi, step):
+    n = int(math.floor((hi - lo) / step + 1e-9))
+    return np.round(lo + step * np.arange(n + 1), 9)
+
+
+def refine_peaks(lanes, model, phase, curves, intervals, resolution_kmh):
+    """Peaks located to ``resolution_kmh`` on their intervals by extra lanes, all cases together.
+
+    For each case ``c`` with an interval ``(lo, hi)`` (the neighbours of its peak on the sampled
+    curve): pass 1 runs the speeds of ``[lo, hi]`` at 0.25 km/h, pass 2 those of
+    ``[v1 - 0.25, v1 + 0.25]`` at ``resolution_kmh`` around the best point ``v1`` of pass 1; each
+    pass is one request of lanes (phase ``phase``), each case one sweep. Speeds already on the
+    curve are not run again.
+
+    Parameters
+    ----------
+    lanes : lane runner
+    model : {"mlm", "dim"}
+    phase : str
+    curves : list of (ndarray, ndarray)
+        Per case its curve ``(speeds_kmh, max_acc_m_s2)``, speeds increasing.
+    intervals : list of (float, float) or None
+        Per case the interval to refine, or ``None``.
+    resolution_kmh : float
+
+    Returns
+    -------
+    curves : list of (ndarray, ndarray)
+        The curves with the new speeds merged in.
+    best : list of int or None
+        Per case the index (in its merged curve) of the largest value inside its interval.
+    """
+    curves = [(np.asarray(v, float), np.asarray(a, float)) for v, a in curves]
+    best = [None] * len(curves)
+
+    def top(c):
+        v, a = curves[c]
+        lo, hi = intervals[c]
+        inside = np.flatnonzero((v >= lo - 1e-9) & (v <= hi + 1e-9))
+        return int(inside[np.argmax(a[inside])])
+
+    steps = (REFINE_COARSE_KMH, resolution_kmh) if resolution_kmh < REFINE_COARSE_KMH else (resolution_kmh,)
+    for k, step in enumerate(steps):
+        req, which = _Requests(), []
+        for c, iv in enumerate(intervals):
+            if iv is None:
+                continue
+            if k == 0:
+                lo, hi = iv
+            else:
+                centre = curves[c][0][top(c)]
+                lo, hi = max(iv[0], centre - steps[k - 1]), min(iv[1], centre + steps[k - 1])
+            new = np.setdiff1d(_grid(lo, hi, step), np.round(curves[c][0], 9))
+            if new.size:
+                req.add(c, new)
+                which.append((c, new))
+        for (c, new), acc in zip(which, req.run(lanes, model, phase)):
+            curves[c] = merge_curve(curves[c][0], curves[c][1], new, acc)
+    for c, iv in enumerate(intervals):
+        if iv is not None:
+            best[c] = top(c)
+    return curves, best
+
+
+def _neighbours(v, i):
+    return float(v[max(i - 1, 0)]), float(v[min(i + 1, v.size - 1)])
+
+
 def calibrate_cases(bridges, train, lanes, speeds_kmh=None, options=None, step=None, adapted_curve=False,
                     dim_curves=None, on_trial=None):
     """Section 4 (steps 1-3) for every case of a batch, each phase one request to ``lanes``.
@@ -555,6 +638,13 @@ def calibrate_cases(bridges, train, lanes, speeds_kmh=None, options=None, step=N
        (``"dim_refine"``) where the associated value lies on the coarse grid;
     3. :func:`solve_delta_zetas` over the relocation windows (``"ladder"``, ``"root"``,
        ``"check"``);
+
+    Refined mode (``options.speed_refinement_kmh``): after step 1 the MLM peak is located between
+    its neighbours on the MLM grid by :func:`refine_peaks` (``"mlm_refine"``), after step 2 the
+    associated DIM peak likewise (``"dim_peak_refine"``); the DIM grid and the association use
+    the MLM peak as sampled on the grid (the paper's rules), the relocation window of step 3 is the
+    grid's window plus the finest pass around the refined peak. The refinement lanes of each
+    case form their own sweep (their step count follows their own fastest speed, as any sweep's).
     4. with ``adapted_curve``, the MLM at ``zeta + Δζ_VBI`` over every speed (``"adapted"``).
 
     Parameters
@@ -592,6 +682,18 @@ def calibrate_cases(bridges, train, lanes, speeds_kmh=None, options=None, step=N
         req.add(c, v)
     mlm = req.run(lanes, "mlm", "mlm")
     mlm_peaks = [pk.find_peak(v, mlm[c], opt.min_prominence_rel) for c in range(n)]
+    sampled_peaks = list(mlm_peaks)  # on the MLM grid: the DIM grid and the association use these
+    vm = [v] * n
+    if opt.speed_refinement_kmh is not None:
+        ivs = [_neighbours(v, p.index) if p.found else None for p in mlm_peaks]
+        curves, best = refine_peaks(lanes, "mlm", "mlm_refine", [(v, mlm[c]) for c in range(n)], ivs,
+                                    opt.speed_refinement_kmh)
+        for c in range(n):
+            vm[c], mlm[c] = curves[c]
+            if best[c] is not None:
+                p, i = mlm_peaks[c], best[c]
+                mlm_peaks[c] = replace(p, index=i, speed_kmh=float(vm[c][i]), acc_m_s2=float(mlm[c][i]),
+                                       reason=f"{p.reason}; located to {opt.speed_refinement_kmh:g} km/h")
     timings["mlm_sweep"] = time.perf_counter() - t0
 
     # step 1-2: DIM on the paper's grid, association, refinement where the DIM value lies on the coarse grid
@@ -605,7 +707,7 @@ def calibrate_cases(bridges, train, lanes, speeds_kmh=None, options=None, step=N
             dim.append(a[order])
     else:
         vd = [v if opt.dim_grid == "full" else dim_speeds_paper(v, p.speed_kmh if p.found else None, opt)
-              for p in mlm_peaks]
+              for p in sampled_peaks]
         req = _Requests()
         for c in range(n):
             req.add(c, vd[c])
@@ -614,7 +716,7 @@ def calibrate_cases(bridges, train, lanes, speeds_kmh=None, options=None, step=N
     refined = [False] * n
 
     def associate(c):
-        return pk.associate_peak(vd[c], dim[c], mlm_peaks[c].speed_kmh, opt.association_window_kmh,
+        return pk.associate_peak(vd[c], dim[c], sampled_peaks[c].speed_kmh, opt.association_window_kmh,
                                  opt.min_prominence_rel)
 
     for c in range(n):
@@ -635,12 +737,29 @@ def calibrate_cases(bridges, train, lanes, speeds_kmh=None, options=None, step=N
             vd[c], dim[c] = merge_curve(vd[c], dim[c], extra, acc)
             refined[c] = True
             dim_peaks[c] = associate(c)
+    if opt.speed_refinement_kmh is not None and not given:
+        ivs = [_neighbours(vd[c], p.index) if p.found else None for c, p in enumerate(dim_peaks)]
+        curves, best = refine_peaks(lanes, "dim", "dim_peak_refine", list(zip(vd, dim)), ivs,
+                                    opt.speed_refinement_kmh)
+        for c in range(n):
+            vd[c], dim[c] = curves[c]
+            if best[c] is not None:
+                p, i = dim_peaks[c], best[c]
+                dim_peaks[c] = replace(p, index=i, speed_kmh=float(vd[c][i]), acc_m_s2=float(dim[c][i]),
+                                       reason=f"{p.reason}; located to {opt.speed_refinement_kmh:g} km/h")
     timings["dim_sweep"] = time.perf_counter() - t0
 
     # step 3: damping ladder (bracket), then all roots together
     t0 = time.perf_counter()
     todo = [mlm_peaks[c].found and dim_peaks[c].found for c in range(n)]
-    windows = [relocation_speeds(v, mlm_peaks[c], opt) if todo[c] else None for c in range(n)]
+    windows = [relocation_speeds(vm[c], mlm_peaks[c], opt) if todo[c] else None for c in range(n)]
+    if opt.speed_refinement_kmh is not None:  # the MLM grid's window plus the finest pass around the peak
+        for c in range(n):
+            if windows[c] is not None:
+                w = windows[c]
+                keep = np.isin(np.round(w, 9), np.round(v, 9)) | (
+                    np.abs(w - mlm_peaks[c].speed_kmh) <= REFINE_COARSE_KMH + 1e-9)
+                windows[c] = w[keep]
 
     def evaluate(requests, phase):
         r = _Requests()
@@ -654,9 +773,9 @@ def calibrate_cases(bridges, train, lanes, speeds_kmh=None, options=None, step=N
     if adapted_curve:
         req, which = _Requests(), [c for c in range(n) if solves[c] is not None and solves[c].delta_zeta is not None]
         for c in which:
-            req.add(c, v, solves[c].delta_zeta)
+            req.add(c, vm[c], solves[c].delta_zeta)
         for c, acc in zip(which, req.run(lanes, "mlm", "adapted")):
-            adapted[c] = (v, acc)
+            adapted[c] = (vm[c], acc)
     timings["solve"] = time.perf_counter() - t0
 
     per_case = {k: t / n for k, t in timings.items()}
@@ -671,7 +790,7 @@ def calibrate_cases(bridges, train, lanes, speeds_kmh=None, options=None, step=N
             status, message = "no_dim_peak", dim_peaks[c].reason
         else:
             status, message = s.status, s.message
-        out.append(make_result(bridges[c], train, status, message, s, mlm_peaks[c], dim_peaks[c], v, mlm[c],
+        out.append(make_result(bridges[c], train, status, message, s, mlm_peaks[c], dim_peaks[c], vm[c], mlm[c],
                                vd[c], dim[c], *adapted[c], "given" if given else opt.dim_grid, refined[c],
                                step.ds_m, per_case))
     return out
