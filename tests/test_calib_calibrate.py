@@ -2,6 +2,7 @@
 
 import json
 import os
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -237,3 +238,59 @@ def test_external_sweep_hook_is_used_for_every_run():
     assert r.delta_zeta_vbi == pytest.approx(0.002, abs=0.005e-2)
     # full MLM + ladder + brentq calls + re-evaluation at the root + adapted curve
     assert calls == ["mlm"] * (1 + 1 + r.solve.function_calls + 1 + 1)
+
+
+def test_phase_travels_with_the_lanes_to_a_hook():
+    """A hook that takes ``phase`` is told what every run is for (no guessing from shapes)."""
+    b, t = named_bridge("B1"), load_train("ICE-2")
+    phases = []
+
+    def hook(model, speeds, dz, step, phase):
+        phases.append((model, phase, np.size(speeds)))
+        return run_sweep(b, t, model, speeds, delta_zeta=dz, options=step).max_acc_m_s2
+
+    r = calibrate(b, t, V_B1, sweep=hook)
+    n_root = r.solve.function_calls
+    n_win = r.adapted_speeds_kmh.size and int(np.sum(np.abs(V_B1 - r.mlm_peak.speed_kmh) <= 5.0))
+    assert phases[0] == ("mlm", "mlm", V_B1.size)
+    assert [p[1] for p in phases if p[0] == "dim"][0] == "dim"
+    trials = [p for p in phases if p[1] in ("ladder", "root", "check")]
+    assert [p[1] for p in trials] == ["ladder"] + ["root"] * n_root + ["check"]
+    assert trials[0][2] == 17 * n_win and all(p[2] == n_win for p in trials[1:])   # 17 ladder rungs
+    assert phases[-1] == ("mlm", "adapted", V_B1.size)
+    # the same numbers as the compiled backend
+    ref = calibrate(b, t, V_B1)
+    assert r.delta_zeta_vbi == pytest.approx(ref.delta_zeta_vbi, abs=1e-10)
+
+
+def _sdof(v, v_res, zeta):
+    """Steady-state amplification of a damped oscillator; its peak over v is 1 / (2 zeta sqrt(1 - zeta^2))."""
+    s = np.asarray(v, float) / v_res
+    return 1.0 / np.sqrt((1 - s**2) ** 2 + (2 * zeta * s) ** 2)
+
+
+@pytest.mark.parametrize("x", [0.002, -0.001])
+def test_refined_mode_recovers_closed_form_damping_of_a_narrow_resonance(x):
+    """MLM(v; zeta + dz) and DIM(v) as SDOF resonances at off-grid speeds (263.43 and 261.72 km/h),
+    zeta = 0.5 % (a light steel bridge: resonance ~2.6 km/h wide). Their peak values are equal exactly
+    when dz = x, whatever the resonance speeds; the 1 km/h grid misses both peaks."""
+    zeta = 0.005
+    b = replace(named_bridge("B1"), damping_ratio=zeta)
+    t = load_train("ICE-2")
+
+    def hook(model, speeds, dz, step):
+        if model == "dim":
+            return _sdof(speeds, 261.72, zeta + x)
+        return _sdof(speeds, 263.43, zeta + np.asarray(dz, float))
+
+    paper = calibrate(b, t, V, sweep=hook, adapted_curve=False)
+    fine = calibrate(b, t, V, sweep=hook, adapted_curve=False, options=CalibrationOptions(speed_refinement_kmh=0.05))
+    assert paper.status == fine.status == "ok"
+    assert (paper.mlm_peak.speed_kmh, paper.dim_peak.speed_kmh) == (263.0, 262.0)
+    # the refined peaks lie within 0.05 km/h of the true ones (v_res sqrt(1 - 2 zeta^2))
+    assert abs(fine.mlm_peak.speed_kmh - 263.43 * np.sqrt(1 - 2 * zeta**2)) <= 0.05
+    assert abs(fine.dim_peak.speed_kmh - 261.72 * np.sqrt(1 - 2 * (zeta + x) ** 2)) <= 0.05
+    assert fine.dim_peak.acc_m_s2 == pytest.approx(1 / (2 * (zeta + x) * np.sqrt(1 - (zeta + x) ** 2)), rel=1e-3)
+    err_paper, err_fine = abs(paper.delta_zeta_vbi - x), abs(fine.delta_zeta_vbi - x)
+    assert err_fine <= 2e-6                      # 0.0002 %
+    assert err_paper > 50 * err_fine             # the 1 km/h grid: 0.005-0.01 % off here

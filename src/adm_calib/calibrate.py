@@ -11,8 +11,9 @@ Steps (Section 4, steps 1-3):
    at every trial damping as the largest MLM value within ``relocation_window_kmh`` of the MLM
    peak speed (a max over a fixed window is continuous in ``dz``). The root is bracketed by one
    vectorised MLM run over a ladder of trial dampings (negative down to ``-0.95 zeta``, positive
-   up to 20 %), then found by :func:`scipy.optimize.brentq` to ``xtol`` (1e-8 = 1e-6 %), well
-   inside the paper's acceptance of 0.1 % in the peak value, which is checked.
+   up to 20 %), then found by :func:`scipy.optimize.elementwise.find_root` (Chandrupatla,
+   vectorised over the cases of a batch) to ``xtol`` (1e-8 = 1e-6 %), well inside the paper's
+   acceptance of 0.1 % in the peak value, which is checked.
 
 DIM speeds (``dim_grid="paper"``, Section 3.3): 5 km/h steps over the range plus the MLM step
 (1 km/h) on ``[v_max - 20, v_max + 5]`` around the MLM peak, all in one run; if the associated DIM
@@ -21,6 +22,14 @@ value lies where only the coarse grid was run, the DIM is run again at the fine 
 
 All runs of one calibration share one space step ``ds`` (the one the full MLM speed range needs),
 so the MLM curves at different dampings and the DIM curve are discretised alike.
+
+Refined mode (``speed_refinement_kmh``, e.g. 0.05 km/h; off by default, the paper's 1 km/h
+rule): both peaks located between the grid neighbours of the sampled peak (:func:`refine_peaks`).
+
+Written once (:func:`calibrate_cases`), vectorised over the cases of a batch, over a lane runner
+(:mod:`adm_calib.lanes`: run these lanes -> their maxima): :func:`calibrate` is the batch of one
+on the compiled backend (or the numpy stepper, or a sweep hook such as the ROS co-simulation),
+:func:`adm_calib.batch.calibrate_batch` the study's batches.
 """
 
 from __future__ import annotations
@@ -31,18 +40,17 @@ import time
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.optimize import brentq
+from scipy.optimize import elementwise
 
 from adm_sim.errors import InputError, check_range
+from adm_sim.limits import MAX_DELTA_ZETA, default_speeds_kmh
 from adm_sim.stepping import StepOptions, make_grid, speeds_to_m_s
 
 from adm_calib import peaks as pk
 from adm_calib.reference import adm_delta_zeta_pct, eada_for, lower_bound_for
 
-#: Default speed range (km/h), Section 3.3.
-DEFAULT_SPEEDS_KMH = np.arange(160.0, 351.0, 1.0)
-#: Largest total damping the solver may try (fraction); the core accepts up to 20 % extra.
-MAX_DELTA_ZETA = 0.20
+#: Default speed range (km/h), Section 3.3 (one home: :mod:`adm_sim.limits`).
+DEFAULT_SPEEDS_KMH = default_speeds_kmh()
 STATUSES = ("ok", "no_mlm_peak", "no_dim_peak", "not_bracketed", "no_match")
 
 
@@ -70,6 +78,10 @@ class CalibrationOptions:
         Smallest relative prominence of a peak.
     step : adm_sim.stepping.StepOptions or None
         Time-integration settings of the core (``None``: its defaults).
+    speed_refinement_kmh : float or None
+        Refined mode: locate the MLM peak and the DIM peak to this speed resolution (e.g. 0.05
+        km/h) between the neighbours of the peak on the MLM speed grid (:func:`refine_peaks`).
+        ``None`` (default): the paper's rule, peaks as sampled on the 1 km/h grid.
     """
 
     dim_grid: str = "paper"
@@ -81,6 +93,7 @@ class CalibrationOptions:
     match_rtol: float = 1e-3
     min_prominence_rel: float = pk.MIN_PROMINENCE_REL
     step: StepOptions | None = None
+    speed_refinement_kmh: float | None = None
 
     def __post_init__(self):
         if self.dim_grid not in ("paper", "full"):
@@ -89,6 +102,8 @@ class CalibrationOptions:
         check_range("relocation_window_kmh", self.relocation_window_kmh, "km/h", 0.0, 100.0, lo_open=True)
         check_range("xtol", self.xtol, "- (fraction)", 0.0, 1e-4, lo_open=True)
         check_range("match_rtol", self.match_rtol, "-", 0.0, 0.1, lo_open=True)
+        if self.speed_refinement_kmh is not None:
+            check_range("speed_refinement_kmh", self.speed_refinement_kmh, "km/h", 0.001, 1.0)
 
 
 @dataclass(frozen=True, repr=False)
@@ -119,8 +134,97 @@ def _ladder(zeta):
     return np.array(neg + pos)
 
 
+def solve_delta_zetas(evaluate, windows, peak_speeds_kmh, targets_m_s2, zetas, options=None, on_trial=None):
+    """Δζ of every case such that its re-located MLM peak equals its target (Step 3), all together.
+
+    The one root finder of the project. For case ``c``:
+    ``f_c(dz) = max_{|v - v_c| <= h} a_MLM(v; zeta_c + dz) / target_c - 1`` over the fixed speed
+    window ``windows[c]`` (a max over a fixed set of speeds is continuous in ``dz``, which a
+    bracketing root finder needs). The roots are bracketed by the first sign change of ``f_c`` over
+    a ladder of trial dampings (``-0.95 zeta`` .. 20 %), then found for all bracketed cases at once
+    by :func:`scipy.optimize.elementwise.find_root` (Chandrupatla's bracketing method, vectorised:
+    one evaluation request per iteration) to ``xtol`` on Δζ. A ladder point with ``f_c = 0`` is
+    the root (``method="exact"``). Each root is checked against the paper's 0.1 % peak match.
+
+    Parameters
+    ----------
+    evaluate : callable(requests, phase) -> list of ndarray
+        ``requests`` is a list of ``(case, dz (k,))``; returns for each request the MLM maxima
+        (m/s^2) over ``windows[case]`` at each damping, shape ``(k, n_window)``. Each request is one
+        speed sweep. ``phase`` is ``"ladder"``, ``"root"`` or ``"check"``.
+    windows : sequence of ndarray (n_window_c,)
+        Speeds (km/h) re-evaluated per case; ``None`` for a case not to solve.
+    peak_speeds_kmh, targets_m_s2, zetas : sequence of float
+        MLM peak speed at the structural damping, DIM peak value (m/s^2), structural damping
+        (fraction) per case.
+    options : CalibrationOptions, optional
+    on_trial : callable(case, delta_zeta, mlm_peak_m_s2, target_m_s2), optional
+        Called for every trial damping (ladder, root iterations, check).
+
+    Returns
+    -------
+    list of DampingSolve or None
+        ``None`` for cases without a window.
+    """
+    opt = options or CalibrationOptions()
+    half = (opt.relocation_window_kmh, opt.relocation_window_kmh)
+    n = len(windows)
+    todo = [c for c in range(n) if windows[c] is not None]
+    out = [None] * n
+
+    def peak(c, acc):
+        return pk.window_max(windows[c], acc, peak_speeds_kmh[c], half)[1]
+
+    def trial(c, dz, value):
+        if on_trial is not None:
+            on_trial(c, float(dz), float(value), float(targets_m_s2[c]))
+
+    ladders = {c: _ladder(zetas[c]) for c in todo}
+    brackets = {}
+    for c, acc in zip(todo, evaluate([(c, ladders[c]) for c in todo], "ladder")):
+        values = np.array([peak(c, row) for row in acc])
+        for dz, value in zip(ladders[c], values):
+            trial(c, dz, value)
+        fl = values / targets_m_s2[c] - 1.0
+        b = ladder_bracket(ladders[c], fl)
+        if isinstance(b, DampingSolve):  # not bracketed
+            out[c] = b
+            continue
+        i, lo, hi = b
+        brackets[c] = (lo, hi, (lo if fl[i] == 0.0 else hi) if (fl[i] == 0.0 or fl[i + 1] == 0.0) else None)
+    roots, iters, calls = {}, {}, {}
+    for c, (_lo, _hi, exact) in brackets.items():
+        if exact is not None:
+            roots[c], iters[c], calls[c] = exact, 0, 0
+    open_ = [c for c in brackets if brackets[c][2] is None]
+    if open_:
+        def f(x, idx):
+            x = np.atleast_1d(x)
+            idx = np.broadcast_to(np.atleast_1d(idx), x.shape)
+            cs, dzs = [int(c) for c in idx.ravel()], x.ravel()
+            vals = []
+            for c, dz, acc in zip(cs, dzs, evaluate([(c, np.array([dz])) for c, dz in zip(cs, dzs)], "root")):
+                vals.append(peak(c, acc[0]))
+                trial(c, dz, vals[-1])
+            return (np.array(vals) / np.array([targets_m_s2[c] for c in cs]) - 1.0).reshape(x.shape)
+
+        res = elementwise.find_root(
+            f, (np.array([brackets[c][0] for c in open_]), np.array([brackets[c][1] for c in open_])),
+            args=(np.array(open_),),
+            tolerances=dict(xatol=opt.xtol, xrtol=4 * np.finfo(float).eps, fatol=0.0, frtol=0.0))
+        for k, c in enumerate(open_):
+            roots[c], iters[c], calls[c] = float(res.x[k]), int(res.nit[k]), int(res.nfev[k])
+    order = sorted(roots)
+    for c, acc in zip(order, evaluate([(c, np.array([roots[c]])) for c in order], "check")):
+        lo, hi, exact = brackets[c]
+        trial(c, roots[c], peak(c, acc[0]))
+        out[c] = finish_solve(roots[c], windows[c], acc[0], peak_speeds_kmh[c], targets_m_s2[c], (lo, hi),
+                              iters[c], calls[c], opt, method="exact" if exact is not None else "find_root")
+    return out
+
+
 def solve_delta_zeta(mlm_eval, peak_speed_kmh, speed_window_kmh, target_acc_m_s2, zeta, options=None):
-    """Δζ such that the re-located MLM peak equals ``target_acc_m_s2``.
+    """Δζ of one case by :func:`solve_delta_zetas` with a plain evaluation function.
 
     Parameters
     ----------
@@ -140,38 +244,13 @@ def solve_delta_zeta(mlm_eval, peak_speed_kmh, speed_window_kmh, target_acc_m_s2
     -------
     DampingSolve
     """
-    opt = options or CalibrationOptions()
     w = np.asarray(speed_window_kmh, dtype=float)
-    half = opt.relocation_window_kmh
-    win = (half, half)
 
-    def peak_at(dz):
-        acc = mlm_eval(w, np.full(w.shape, dz))
-        return pk.window_max(w, acc, peak_speed_kmh, win)[1]
+    def evaluate(requests, phase):
+        return [np.asarray(mlm_eval(np.tile(w, dz.size), np.repeat(dz, w.size)), float).reshape(dz.size, w.size)
+                for _, dz in requests]
 
-    calls = 0
-
-    def f(dz):
-        nonlocal calls
-        calls += 1
-        return peak_at(dz) / target_acc_m_s2 - 1.0
-
-    ladder = _ladder(zeta)
-    acc = mlm_eval(np.tile(w, ladder.size), np.repeat(ladder, w.size)).reshape(ladder.size, w.size)
-    fl = np.array([pk.window_max(w, row, peak_speed_kmh, win)[1] for row in acc]) / target_acc_m_s2 - 1.0
-    bracket = ladder_bracket(ladder, fl)
-    if isinstance(bracket, DampingSolve):
-        return bracket
-    i, a, b = bracket
-    if fl[i] == 0.0:
-        root, it = a, 0
-    elif fl[i + 1] == 0.0:
-        root, it = b, 0
-    else:
-        root, res = brentq(f, a, b, xtol=opt.xtol, rtol=4 * np.finfo(float).eps, full_output=True)
-        it = res.iterations
-    acc_root = mlm_eval(w, np.full(w.shape, root))
-    return finish_solve(root, w, acc_root, peak_speed_kmh, target_acc_m_s2, (a, b), it, calls, opt)
+    return solve_delta_zetas(evaluate, [w], [peak_speed_kmh], [target_acc_m_s2], [zeta], options)[0]
 
 
 def ladder_bracket(ladder, fl):
@@ -191,7 +270,7 @@ def ladder_bracket(ladder, fl):
 
 
 def finish_solve(root, w, acc_root, peak_speed_kmh, target_acc_m_s2, bracket, iterations, calls, options,
-                 method="brentq"):
+                 method="find_root"):
     """Check the root: re-located MLM peak at ``zeta + root`` against the target (Step 3's 0.1 %)."""
     opt = options
     half = opt.relocation_window_kmh
@@ -415,19 +494,30 @@ def make_result(bridge, train, status, message, solve, mlm_peak, dim_peak, v, ml
         adapted_speeds_kmh=v_ad, adapted_acc_m_s2=a_ad, dim_grid=dim_grid, dim_refined=refined, ds_m=ds,
         timings_s=timings)
 
+class _Requests:
+    """Sweeps of one lane-runner request built case by case: (case, speeds, damping) per sweep."""
 
-def _progress_bar(enabled, label):
-    if not enabled:
-        return None, None
-    from tqdm import tqdm
+    def __init__(self):
+        self.parts = []
 
-    bar = tqdm(total=100, desc=label, unit="%", leave=False)
+    def add(self, case, speeds, dz=0.0):
+        speeds = np.asarray(speeds, dtype=float)
+        self.parts.append((case, speeds, np.broadcast_to(np.asarray(dz, float), speeds.shape)))
 
-    def cb(done, total):
-        bar.n = int(100 * done / total)
-        bar.refresh()
-
-    return bar, cb
+    def run(self, lanes, model, phase):
+        """Run every sweep as lanes of one request (sweep id = its index); the maxima per sweep."""
+        if not self.parts:
+            return []
+        case = np.concatenate([np.full(p[1].size, p[0]) for p in self.parts])
+        v = np.concatenate([p[1] for p in self.parts])
+        dz = np.concatenate([p[2] for p in self.parts])
+        sw = np.concatenate([np.full(p[1].size, k) for k, p in enumerate(self.parts)])
+        acc = np.asarray(lanes.run(model, case, v, dz, sweep=sw, phase=phase), dtype=float)
+        out, i = [], 0
+        for p in self.parts:
+            out.append(acc[i:i + p[1].size])
+            i += p[1].size
+        return out
 
 
 def _speeds(speeds_kmh):
@@ -447,9 +537,288 @@ def calibration_step(bridge, train, speeds_kmh=None, options=None):
     return replace(base, ds_m=make_grid(bridge, train.length_m, speeds_to_m_s(v), base).ds_m)
 
 
+def batch_step(bridges, train, speeds_kmh=None, options=None):
+    """Shared step settings of a batch: the smallest ``ds`` of the bridges' own calibrations.
+
+    The study batches the six mass functions of one (span, frequency) pair, whose own steps are
+    equal (the step depends on the highest mode's frequency only), so every case runs on exactly
+    the grid it would get alone.
+    """
+    opt = options or CalibrationOptions()
+    v = _speeds(speeds_kmh)
+    ds = min(calibration_step(b, train, v, opt).ds_m for b in bridges)
+    return replace(opt.step or StepOptions(), ds_m=ds)
+
+
+#: Stages of the refined mode (km/h): a coarse pass over the neighbours' interval, then the final
+#: resolution around its best point (a peak is a few km/h wide, so it is unimodal at 0.25 km/h).
+REFINE_COARSE_KMH = 0.25
+
+
+def _grid(lo, hi, step):
+    n = int(math.floor((hi - lo) / step + 1e-9))
+    return np.round(lo + step * np.arange(n + 1), 9)
+
+
+def refine_peaks(lanes, model, phase, curves, intervals, resolution_kmh):
+    """Peaks located to ``resolution_kmh`` on their intervals by extra lanes, all cases together.
+
+    For each case ``c`` with an interval ``(lo, hi)`` (the neighbours of its peak on the sampled
+    curve): pass 1 runs the speeds of ``[lo, hi]`` at 0.25 km/h, pass 2 those of
+    ``[v1 - 0.25, v1 + 0.25]`` at ``resolution_kmh`` around the best point ``v1`` of pass 1; each
+    pass is one request of lanes (phase ``phase``), each case one sweep. Speeds already on the
+    curve are not run again.
+
+    Parameters
+    ----------
+    lanes : lane runner
+    model : {"mlm", "dim"}
+    phase : str
+    curves : list of (ndarray, ndarray)
+        Per case its curve ``(speeds_kmh, max_acc_m_s2)``, speeds increasing.
+    intervals : list of (float, float) or None
+        Per case the interval to refine, or ``None``.
+    resolution_kmh : float
+
+    Returns
+    -------
+    curves : list of (ndarray, ndarray)
+        The curves with the new speeds merged in.
+    best : list of int or None
+        Per case the index (in its merged curve) of the largest value inside its interval.
+    """
+    curves = [(np.asarray(v, float), np.asarray(a, float)) for v, a in curves]
+    best = [None] * len(curves)
+
+    def top(c):
+        v, a = curves[c]
+        lo, hi = intervals[c]
+        inside = np.flatnonzero((v >= lo - 1e-9) & (v <= hi + 1e-9))
+        return int(inside[np.argmax(a[inside])])
+
+    steps = (REFINE_COARSE_KMH, resolution_kmh) if resolution_kmh < REFINE_COARSE_KMH else (resolution_kmh,)
+    for k, step in enumerate(steps):
+        req, which = _Requests(), []
+        for c, iv in enumerate(intervals):
+            if iv is None:
+                continue
+            if k == 0:
+                lo, hi = iv
+            else:
+                centre = curves[c][0][top(c)]
+                lo, hi = max(iv[0], centre - steps[k - 1]), min(iv[1], centre + steps[k - 1])
+            new = np.setdiff1d(_grid(lo, hi, step), np.round(curves[c][0], 9))
+            if new.size:
+                req.add(c, new)
+                which.append((c, new))
+        for (c, new), acc in zip(which, req.run(lanes, model, phase)):
+            curves[c] = merge_curve(curves[c][0], curves[c][1], new, acc)
+    for c, iv in enumerate(intervals):
+        if iv is not None:
+            best[c] = top(c)
+    return curves, best
+
+
+def _neighbours(v, i):
+    return float(v[max(i - 1, 0)]), float(v[min(i + 1, v.size - 1)])
+
+
+def calibrate_cases(bridges, train, lanes, speeds_kmh=None, options=None, step=None, adapted_curve=False,
+                    dim_curves=None, on_trial=None):
+    """Section 4 (steps 1-3) for every case of a batch, each phase one request to ``lanes``.
+
+    The one calibration of the project; :func:`calibrate` is the batch of one and
+    :func:`adm_calib.batch.calibrate_batch` the study's batches.
+
+    1. one MLM request: every case x every speed (phase ``"mlm"``); the MLM peak of each case by
+       :func:`adm_calib.peaks.find_peak`;
+    2. one DIM request over every case's Section 3.3 speeds (``"dim"``), the association of
+       :func:`adm_calib.peaks.associate_peak`, then at most two refinement requests
+       (``"dim_refine"``) where the associated value lies on the coarse grid;
+    3. :func:`solve_delta_zetas` over the relocation windows (``"ladder"``, ``"root"``,
+       ``"check"``);
+
+    Refined mode (``options.speed_refinement_kmh``): after step 1 the MLM peak is located between
+    its neighbours on the MLM grid by :func:`refine_peaks` (``"mlm_refine"``), after step 2 the
+    associated DIM peak likewise (``"dim_peak_refine"``); the DIM grid and the association use
+    the MLM peak as sampled on the grid (the paper's rules), the relocation window of step 3 is the
+    grid's window plus the finest pass around the refined peak. The refinement lanes of each
+    case form their own sweep (their step count follows their own fastest speed, as any sweep's).
+    4. with ``adapted_curve``, the MLM at ``zeta + Δζ_VBI`` over every speed (``"adapted"``).
+
+    Parameters
+    ----------
+    bridges : sequence of adm_sim.bridge.Bridge
+    train : adm_sim.trains.Train
+    lanes : lane runner
+        A backend of :mod:`adm_calib.lanes` built on ``bridges``, ``train`` and ``step``.
+    speeds_kmh : array_like, optional
+        MLM speeds (km/h); default 160..350 at 1 km/h.
+    options : CalibrationOptions, optional
+    step : adm_sim.stepping.StepOptions, optional
+        The shared step (``ds_m`` set), for the results; default :func:`batch_step`.
+    adapted_curve : bool
+    dim_curves : sequence of (ndarray, ndarray) or None, optional
+        Per case a target curve ``(speeds_kmh, max_acc_m_s2)`` used instead of running the DIM.
+    on_trial : callable(case, delta_zeta, mlm_peak_m_s2, dim_peak_m_s2), optional
+
+    Returns
+    -------
+    list of CalibrationResult
+        One per case, in order. ``timings_s`` holds the batch's phase times divided by its size.
+    """
+    opt = options or CalibrationOptions()
+    v = _speeds(speeds_kmh)
+    step = step or batch_step(bridges, train, v, opt)
+    n = len(bridges)
+    given = dim_curves is not None
+    timings = {}
+
+    # step 1: MLM over every speed
+    t0 = time.perf_counter()
+    req = _Requests()
+    for c in range(n):
+        req.add(c, v)
+    mlm = req.run(lanes, "mlm", "mlm")
+    mlm_peaks = [pk.find_peak(v, mlm[c], opt.min_prominence_rel) for c in range(n)]
+    sampled_peaks = list(mlm_peaks)  # on the MLM grid: the DIM grid and the association use these
+    vm = [v] * n
+    if opt.speed_refinement_kmh is not None:
+        ivs = [_neighbours(v, p.index) if p.found else None for p in mlm_peaks]
+        curves, best = refine_peaks(lanes, "mlm", "mlm_refine", [(v, mlm[c]) for c in range(n)], ivs,
+                                    opt.speed_refinement_kmh)
+        for c in range(n):
+            vm[c], mlm[c] = curves[c]
+            if best[c] is not None:
+                p, i = mlm_peaks[c], best[c]
+                mlm_peaks[c] = replace(p, index=i, speed_kmh=float(vm[c][i]), acc_m_s2=float(mlm[c][i]),
+                                       reason=f"{p.reason}; located to {opt.speed_refinement_kmh:g} km/h")
+    timings["mlm_sweep"] = time.perf_counter() - t0
+
+    # step 1-2: DIM on the paper's grid, association, refinement where the DIM value lies on the coarse grid
+    t0 = time.perf_counter()
+    if given:
+        vd, dim = [], []
+        for curve in dim_curves:
+            s, a = (np.asarray(x, dtype=float) for x in curve)
+            order = np.argsort(s)
+            vd.append(s[order])
+            dim.append(a[order])
+    else:
+        vd = [v if opt.dim_grid == "full" else dim_speeds_paper(v, p.speed_kmh if p.found else None, opt)
+              for p in sampled_peaks]
+        req = _Requests()
+        for c in range(n):
+            req.add(c, vd[c])
+        dim = req.run(lanes, "dim", "dim")
+    dim_peaks = [pk.Peak(found=False, reason="no MLM peak to associate with")] * n
+    refined = [False] * n
+
+    def associate(c):
+        return pk.associate_peak(vd[c], dim[c], sampled_peaks[c].speed_kmh, opt.association_window_kmh,
+                                 opt.min_prominence_rel)
+
+    for c in range(n):
+        if mlm_peaks[c].found:
+            dim_peaks[c] = associate(c)
+    for round_ in range(2):
+        if opt.dim_grid == "full" or given:
+            break
+        req, which = _Requests(), []
+        for c in range(n):
+            extra = dim_refinement(v, vd[c], dim_peaks[c]) if mlm_peaks[c].found else None
+            if extra is not None and (round_ == 0 or refined[c]):
+                req.add(c, extra)
+                which.append((c, extra))
+        if not which:
+            break
+        for (c, extra), acc in zip(which, req.run(lanes, "dim", "dim_refine")):
+            vd[c], dim[c] = merge_curve(vd[c], dim[c], extra, acc)
+            refined[c] = True
+            dim_peaks[c] = associate(c)
+    if opt.speed_refinement_kmh is not None and not given:
+        ivs = [_neighbours(vd[c], p.index) if p.found else None for c, p in enumerate(dim_peaks)]
+        curves, best = refine_peaks(lanes, "dim", "dim_peak_refine", list(zip(vd, dim)), ivs,
+                                    opt.speed_refinement_kmh)
+        for c in range(n):
+            vd[c], dim[c] = curves[c]
+            if best[c] is not None:
+                p, i = dim_peaks[c], best[c]
+                dim_peaks[c] = replace(p, index=i, speed_kmh=float(vd[c][i]), acc_m_s2=float(dim[c][i]),
+                                       reason=f"{p.reason}; located to {opt.speed_refinement_kmh:g} km/h")
+    timings["dim_sweep"] = time.perf_counter() - t0
+
+    # step 3: damping ladder (bracket), then all roots together
+    t0 = time.perf_counter()
+    todo = [mlm_peaks[c].found and dim_peaks[c].found for c in range(n)]
+    windows = [relocation_speeds(vm[c], mlm_peaks[c], opt) if todo[c] else None for c in range(n)]
+    if opt.speed_refinement_kmh is not None:  # the MLM grid's window plus the finest pass around the peak
+        for c in range(n):
+            if windows[c] is not None:
+                w = windows[c]
+                keep = np.isin(np.round(w, 9), np.round(v, 9)) | (
+                    np.abs(w - mlm_peaks[c].speed_kmh) <= REFINE_COARSE_KMH + 1e-9)
+                windows[c] = w[keep]
+
+    def evaluate(requests, phase):
+        r = _Requests()
+        for c, dz in requests:
+            r.add(c, np.tile(windows[c], dz.size), np.repeat(dz, windows[c].size))
+        return [acc.reshape(dz.size, windows[c].size) for (c, dz), acc in zip(requests, r.run(lanes, "mlm", phase))]
+
+    solves = solve_delta_zetas(evaluate, windows, [p.speed_kmh for p in mlm_peaks],
+                               [p.acc_m_s2 for p in dim_peaks], [b.damping_ratio for b in bridges], opt, on_trial)
+    adapted = [(np.zeros(0), np.zeros(0))] * n
+    if adapted_curve:
+        req, which = _Requests(), [c for c in range(n) if solves[c] is not None and solves[c].delta_zeta is not None]
+        for c in which:
+            req.add(c, vm[c], solves[c].delta_zeta)
+        for c, acc in zip(which, req.run(lanes, "mlm", "adapted")):
+            adapted[c] = (vm[c], acc)
+    timings["solve"] = time.perf_counter() - t0
+
+    per_case = {k: t / n for k, t in timings.items()}
+    if n > 1:
+        per_case["batch_size"] = n
+    out = []
+    for c in range(n):
+        s = solves[c]
+        if not mlm_peaks[c].found:
+            status, message = "no_mlm_peak", mlm_peaks[c].reason
+        elif not dim_peaks[c].found:
+            status, message = "no_dim_peak", dim_peaks[c].reason
+        else:
+            status, message = s.status, s.message
+        out.append(make_result(bridges[c], train, status, message, s, mlm_peaks[c], dim_peaks[c], vm[c], mlm[c],
+                               vd[c], dim[c], *adapted[c], "given" if given else opt.dim_grid, refined[c],
+                               step.ds_m, per_case))
+    return out
+
+
+class _ProgressLanes:
+    """A lane runner that ticks a tqdm bar (stderr) once per request."""
+
+    def __init__(self, lanes, label):
+        from tqdm import tqdm
+
+        self.lanes = lanes
+        self.bar = tqdm(desc=label, unit=" runs", leave=False)
+
+    def run(self, model, case, speeds_kmh, delta_zeta=0.0, sweep=None, phase=""):
+        self.bar.set_postfix_str(phase)
+        out = self.lanes.run(model, case, speeds_kmh, delta_zeta, sweep, phase)
+        self.bar.update(1)
+        return out
+
+
+BACKENDS = ("compiled", "numpy")
+
+
 def calibrate(bridge, train, speeds_kmh=None, options=None, progress=False, adapted_curve=True, dim_curve=None,
-              sweep=None, on_trial=None):
+              sweep=None, on_trial=None, backend="compiled"):
     """Calibrate Δζ_VBI for a bridge and a train and evaluate the reference methods.
+
+    The batch of one of :func:`calibrate_cases`.
 
     Parameters
     ----------
@@ -459,101 +828,49 @@ def calibrate(bridge, train, speeds_kmh=None, options=None, progress=False, adap
         MLM speeds (km/h); default 160..350 at 1 km/h.
     options : CalibrationOptions, optional
     progress : bool
-        Show tqdm progress bars (stderr) for the sweeps.
+        Show a tqdm progress bar (stderr), one tick per lane request.
     adapted_curve : bool
         Also run the MLM at ``zeta + Δζ_VBI`` over all speeds (for the plot, Fig. 15).
     dim_curve : (ndarray (m,), ndarray (m,)), optional
         Target curve ``(speeds_kmh, max_acc_m_s2)`` used instead of running the DIM (a cached DIM
         sweep, or an MLM at ``zeta + x`` for the round-trip check); it should be computed with
         :func:`calibration_step` so that it is discretised as the MLM runs.
-    sweep : callable(model, speeds_kmh (n,), delta_zeta (n,) or float, step) -> ndarray (n,), optional
-        Runs one speed sweep and returns the maximum midspan accelerations (m/s^2); default
-        :func:`adm_sim.sweep.run_sweep` in this process. A hook for sweeps run elsewhere
-        (co-simulation, a cluster); ``step`` is the shared :class:`~adm_sim.stepping.StepOptions`.
+    sweep : callable(model, speeds_kmh (n,), delta_zeta (n,) or float, step[, phase]) -> ndarray (n,), optional
+        Runs one speed sweep and returns the maximum midspan accelerations (m/s^2): a hook for
+        sweeps run elsewhere (co-simulation, a cluster), used through
+        :class:`adm_calib.lanes.HookLanes`; ``step`` is the shared
+        :class:`~adm_sim.stepping.StepOptions`, ``phase`` (if the hook takes it) the phase.
     on_trial : callable(delta_zeta, mlm_peak_m_s2, dim_peak_m_s2), optional
         Called for every trial damping of the root finder (fraction, re-located MLM peak, target):
         progress displays and logs of the iterations.
+    backend : {"compiled", "numpy"}
+        Lane runner when no ``sweep`` hook is given: the compiled batch
+        (:class:`adm_calib.lanes.CompiledLanes`, default) or the numpy stepper
+        (:class:`adm_calib.lanes.SteppedLanes`); they agree to ~1e-13 relative.
 
     Returns
     -------
     CalibrationResult
     """
-    from adm_sim.sweep import run_sweep
+    from adm_calib.lanes import CompiledLanes, HookLanes, SteppedLanes
 
+    if backend not in BACKENDS:
+        raise InputError(f"backend: {backend!r} is not known; allowed {', '.join(BACKENDS)}")
     opt = options or CalibrationOptions()
     v = _speeds(speeds_kmh)
     step = calibration_step(bridge, train, v, opt)
-    ds = step.ds_m
-    timings = {}
-
-    external = sweep
-
-    def sweep(model, speeds, dz=0.0, label=None):
-        if external is not None:
-            return np.asarray(external(model, np.asarray(speeds, float), dz, step), dtype=float)
-        bar, cb = _progress_bar(progress and label is not None, label or "")
-        try:
-            r = run_sweep(bridge, train, model, np.asarray(speeds, float), delta_zeta=dz, options=step, progress=cb)
-        finally:
-            if bar is not None:
-                bar.close()
-        return np.asarray(r.max_acc_m_s2, dtype=float)
-
-    t0 = time.perf_counter()
-    mlm = sweep("mlm", v, label="MLM")
-    timings["mlm_sweep"] = time.perf_counter() - t0
-    mlm_peak = pk.find_peak(v, mlm, opt.min_prominence_rel)
-
-    t0 = time.perf_counter()
-    if dim_curve is not None:
-        vd, dim = (np.asarray(a, dtype=float) for a in dim_curve)
-        order = np.argsort(vd)
-        vd, dim = vd[order], dim[order]
+    if sweep is not None:
+        lanes = HookLanes(sweep, step)
+    elif backend == "compiled":
+        lanes = CompiledLanes([bridge], train, step)
     else:
-        vd = v if opt.dim_grid == "full" else dim_speeds_paper(v, mlm_peak.speed_kmh if mlm_peak.found else None, opt)
-        dim = sweep("dim", vd, label="DIM")
-    refined = False
-    dim_peak = pk.Peak(found=False, reason="no MLM peak to associate with")
-    if mlm_peak.found:
-        dim_peak = pk.associate_peak(vd, dim, mlm_peak.speed_kmh, opt.association_window_kmh, opt.min_prominence_rel)
-        for _ in range(2):
-            if opt.dim_grid == "full" or dim_curve is not None:
-                break
-            extra = dim_refinement(v, vd, dim_peak)
-            if extra is None:
-                break
-            vd, dim = merge_curve(vd, dim, extra, sweep("dim", extra, label="DIM refine"))
-            refined = True
-            dim_peak = pk.associate_peak(vd, dim, mlm_peak.speed_kmh, opt.association_window_kmh,
-                                         opt.min_prominence_rel)
-    timings["dim_sweep"] = time.perf_counter() - t0
-
-    solve = None
-    v_ad, a_ad = np.zeros(0), np.zeros(0)
-    t0 = time.perf_counter()
-    if not mlm_peak.found:
-        status, message = "no_mlm_peak", mlm_peak.reason
-    elif not dim_peak.found:
-        status, message = "no_dim_peak", dim_peak.reason
-    else:
-        h = opt.relocation_window_kmh
-        w = relocation_speeds(v, mlm_peak, opt)
-
-        def trial(s, dz):
-            acc = sweep("mlm", s, dz)
-            if on_trial is not None:
-                dzs = np.broadcast_to(np.asarray(dz, dtype=float), np.shape(s))
-                for value in np.unique(dzs):  # the bracketing ladder carries several dampings
-                    lanes = dzs == value
-                    peak = pk.window_max(np.asarray(s)[lanes], acc[lanes], mlm_peak.speed_kmh, (h, h))[1]
-                    on_trial(float(value), float(peak), float(dim_peak.acc_m_s2))
-            return acc
-
-        solve = solve_delta_zeta(trial, mlm_peak.speed_kmh, w, dim_peak.acc_m_s2, bridge.damping_ratio, opt)
-        status, message = solve.status, solve.message
-        if solve.delta_zeta is not None and adapted_curve:
-            v_ad, a_ad = v, sweep("mlm", v, solve.delta_zeta)
-    timings["solve"] = time.perf_counter() - t0
-
-    return make_result(bridge, train, status, message, solve, mlm_peak, dim_peak, v, mlm, vd, dim, v_ad, a_ad,
-                       "given" if dim_curve is not None else opt.dim_grid, refined, ds, timings)
+        lanes = SteppedLanes([bridge], train, step)
+    if progress:
+        lanes = _ProgressLanes(lanes, f"calibrate {bridge.name or 'bridge'} x {train.name}")
+    trial = None if on_trial is None else (lambda c, dz, peak, target: on_trial(dz, peak, target))
+    try:
+        return calibrate_cases([bridge], train, lanes, v, opt, step, adapted_curve=adapted_curve,
+                               dim_curves=None if dim_curve is None else [dim_curve], on_trial=trial)[0]
+    finally:
+        if progress:
+            lanes.bar.close()

@@ -3,11 +3,13 @@
 Subcommands::
 
     adm-calib calibrate --bridge B1 --train ICE-2 [--speeds 160:350:1] [--json FILE] [--plot FILE.png]
-    adm-calib table4 [--out DIR] [--bridges B1,B2,B3,B4] [--trains ICE-2,...] [--jobs N]
+                        [--dense-maxima] [--refine-speed]
+    adm-calib table4 [--out DIR] [--bridges B1,B2,B3,B4] [--trains ICE-2,...] [--jobs N] [--dense-maxima]
+                     [--refine-speed]
     adm-calib recommend --train T --n0 HZ --mu KG_PER_M --type cfb|sc [--span M] [--interpolate]
                         [--functions paper|ours|conservative]
     adm-calib study --out DIR [--trains ...] [--mass-functions mu1,...] [--spans 4:40] [--freq-index 1,...]
-                    [--limit N] [--workers 2 | --scheduler tcp://127.0.0.1:PORT]
+                    [--limit N] [--workers 2 | --scheduler tcp://127.0.0.1:PORT] [--dense-maxima] [--refine-speed]
     adm-calib study-fit --results DIR/results.jsonl [--out DIR] [--exclude none|step2|strict]
                         [--fit-range-hz 2:21] [--tag NAME]
 
@@ -103,10 +105,14 @@ def _options(args):
 
     from adm_calib.calibrate import CalibrationOptions
 
+    from adm_calib.study.cases import REFINED_SPEED_STEP_KMH
+
     step = None
-    if args.steps_per_period is not None:
-        step = StepOptions(steps_per_period=_steps_per_period(args.steps_per_period))
-    return CalibrationOptions(dim_grid=args.dim_grid, step=step)
+    if args.steps_per_period is not None or args.dense_maxima:
+        spp = StepOptions.steps_per_period if args.steps_per_period is None else _steps_per_period(args.steps_per_period)
+        step = StepOptions(steps_per_period=spp, dense_maxima=args.dense_maxima)
+    return CalibrationOptions(dim_grid=args.dim_grid, step=step,
+                              speed_refinement_kmh=REFINED_SPEED_STEP_KMH if args.refine_speed else None)
 
 
 def _steps_per_period(text):
@@ -300,7 +306,8 @@ def cmd_study(args):
     scheduler = None if args.scheduler is None else _scheduler(args.scheduler)
     spp = None if args.steps_per_period is None else _steps_per_period(args.steps_per_period)
     _speeds(args.speeds)
-    settings = StudySettings(speeds=args.speeds, dim_grid=args.dim_grid, steps_per_period=spp)
+    settings = StudySettings(speeds=args.speeds, dim_grid=args.dim_grid, steps_per_period=spp,
+                             dense_maxima=args.dense_maxima, refine_speed=args.refine_speed)
     cases = select_cases(trains, mfs, spans, fis)
     if not cases:
         raise InputError(f"--spans/--freq-index: the options select no case (spans are the integers "
@@ -464,6 +471,15 @@ def build_parser():
         sp.add_argument("--progress", action="store_true", help="show progress bars on stderr")
         sp.add_argument("--overwrite", "--force", dest="force", action="store_true",
                         help="replace existing output files (only once the new ones are complete)")
+        peaks_options(sp)
+
+    def peaks_options(sp):
+        sp.add_argument("--dense-maxima", action="store_true",
+                        help="maximum acceleration also between time steps, from the RK4 step's dense output "
+                             "(quintic Hermite); default: at the steps, as the shipped results")
+        sp.add_argument("--refine-speed", action="store_true",
+                        help="refined mode: locate the MLM and the DIM peak to 0.05 km/h; default: the paper's "
+                             "1 km/h speed grid")
 
     c = sub.add_parser("calibrate", help="calibrate dz_VBI for one bridge and one train")
     c.add_argument("--bridge", required=True, help="B1..B4, a spec L=15,n0=8.26,mu=19042,zeta_pct=1.85,class=cfb "
@@ -515,6 +531,7 @@ def build_parser():
     s.add_argument("--dim-grid", choices=("paper", "full"), default="paper")
     s.add_argument("--steps-per-period", default=None,
                    help="integration steps per period of the highest mode (core default 16)")
+    peaks_options(s)
     s.set_defaults(func=cmd_study)
 
     f = sub.add_parser("study-fit", help="lower-bound functions (Section 4.2.1, Tables B1-B4) from study results")

@@ -52,9 +52,11 @@ class BatchRunner:
         Train advance per step (m), shared by every lane.
     free_vibration_periods : float
         As :class:`~adm_sim.stepping.StepOptions`.
+    dense_maxima : bool
+        As :class:`~adm_sim.stepping.StepOptions`: also the maxima between the steps.
     """
 
-    def __init__(self, bridges, train, ds_m, free_vibration_periods=2.0):
+    def __init__(self, bridges, train, ds_m, free_vibration_periods=2.0, dense_maxima=False):
         self.bridges = list(bridges)
         if not self.bridges:
             raise InputError("bridges: need at least one bridge for a batch")
@@ -65,7 +67,8 @@ class BatchRunner:
                                  f"{b.name or b.describe()} differs from {b0.name or b0.describe()}")
         self.train = train
         self.options = StepOptions(free_vibration_periods=free_vibration_periods,
-                                   ds_m=check_range("ds_m", ds_m, "m", 1e-5, 10.0))
+                                   ds_m=check_range("ds_m", ds_m, "m", 1e-5, 10.0), dense_maxima=bool(dense_maxima))
+        self.dense_maxima = bool(dense_maxima)
         self.ds_m = float(ds_m)
         self.span_m = float(b0.span_m)
         self.n_modes = b0.n_modes
@@ -260,6 +263,8 @@ class BatchRun(SteppedRun):
         nm = runner.n_modes
         self._q, self._qd = np.zeros((nm, n_l)), np.zeros((nm, n_l))
         self._amax, self._dmax = np.zeros(n_l), np.zeros(n_l)
+        self._prev = np.zeros((3, n_l))  # dense output: deflection, velocity, acceleration of the last step
+        self._ho = h[order]
         n_max = int(self.lane_steps.max())
         if model == "mlm":
             self._P = runner._mlm_table(n_max)
@@ -269,7 +274,7 @@ class BatchRun(SteppedRun):
             runner._dim_tables(n_max)
             n_dof = runner._trains()["minv_dof"].size
             self._u, self._ud = np.zeros((n_dof, n_l)), np.zeros((n_dof, n_l))
-            self._vo, self._ho, self._Zo = v[order], h[order], np.ascontiguousarray(Z[order])
+            self._vo, self._Zo = v[order], np.ascontiguousarray(Z[order])
         self._start_contract(n_max)
 
     def advance(self, max_steps=None):
@@ -289,7 +294,7 @@ class BatchRun(SteppedRun):
         head = (self._block_ptr, self._bcase, self._bsteps, k0, k1)
         if self.model == "mlm":
             kernels.mlm_blocks(*head, self._P, r.phi_mid, r.M, r.K, *self._T,
-                               self._q, self._qd, self._amax, self._dmax)
+                               self._q, self._qd, self._amax, self._dmax, r.dense_maxima, self._ho, self._prev)
             state = (self._q, self._qd)
         else:
             t, d = r._trains(), r._dim
@@ -300,7 +305,8 @@ class BatchRun(SteppedRun):
                 d["act_ptr"], d["act_units"], t["unit_dof0"], t["unit_ndof"], t["unit_ax0"], t["unit_nax"],
                 t["ks_ptr"], t["ks_col"], t["ks_val"], t["cs_ptr"], t["cs_col"], t["cs_val"],
                 t["lw_ptr"], t["lw_col"], t["lw_val"], t["lwt_ptr"], t["lwt_col"], t["lwt_val"],
-                t["kp"], t["cp"], t["minv_dof"], self._q, self._qd, self._u, self._ud, self._amax, self._dmax)
+                t["kp"], t["cp"], t["minv_dof"], self._q, self._qd, self._u, self._ud, self._amax, self._dmax,
+                r.dense_maxima, self._prev)
             state = (self._q, self._qd, self._u, self._ud)
         self.k = k1
         with np.errstate(over="ignore", invalid="ignore"):  # a blown-up state is what we look for

@@ -31,6 +31,46 @@ RK4_W = np.array([1.0 / 6.0, 1.0 / 3.0, 1.0 / 3.0, 1.0 / 6.0])
 STAGE_ROW = np.array([0, 1, 1, 2])
 
 
+@njit(cache=True, inline="always")
+def hermite_max_abs_acc(d0, v0, a0, d1, v1, a1, h):
+    """Largest |acceleration| strictly inside one step from the dense output, 0 if none.
+
+    One lane, scalar arithmetic of :func:`adm_sim.stepping.hermite_max_abs_acc` operation for
+    operation (the cubic second derivative of the quintic Hermite interpolant of the deflection).
+    """
+    D = (d1 - d0) / (h * h)
+    V0 = v0 / h
+    V1 = v1 / h
+    c1 = 60.0 * D - 36.0 * V0 - 24.0 * V1 - 9.0 * a0 + 3.0 * a1
+    c2 = -180.0 * D + 96.0 * V0 + 84.0 * V1 + 18.0 * a0 - 12.0 * a1
+    c3 = 120.0 * D - 60.0 * V0 - 60.0 * V1 - 10.0 * a0 + 10.0 * a1
+    A = 3.0 * c3
+    B = 2.0 * c2
+    C = c1
+    s1 = -1.0
+    s2 = -1.0
+    disc = B * B - 4.0 * A * C
+    if A != 0.0:
+        if disc >= 0.0:
+            sq = np.sqrt(disc)
+            q = -0.5 * (B + sq) if B >= 0.0 else -0.5 * (B - sq)
+            if q != 0.0:
+                s1 = q / A
+                s2 = C / q
+    elif B != 0.0:
+        s1 = -C / B
+    best = 0.0
+    if s1 > 0.0 and s1 < 1.0:
+        val = abs(a0 + s1 * (c1 + s1 * (c2 + s1 * c3)))
+        if val > best:
+            best = val
+    if s2 > 0.0 and s2 < 1.0:
+        val = abs(a0 + s2 * (c1 + s2 * (c2 + s2 * c3)))
+        if val > best:
+            best = val
+    return best
+
+
 @njit(cache=True, nogil=True)
 def dim_blocks(block_ptr, block_case, block_steps, k0, k1, v, h, K, Z, minv, phi_mid,
                row_ptr, ent_axle, ent_phi, ent_phx, ent_phxx,
@@ -38,7 +78,7 @@ def dim_blocks(block_ptr, block_case, block_steps, k0, k1, v, h, K, Z, minv, phi
                act_ptr, act_units, unit_dof0, unit_ndof, unit_ax0, unit_nax,
                ks_ptr, ks_col, ks_val, cs_ptr, cs_col, cs_val,
                lw_ptr, lw_col, lw_val, lwt_ptr, lwt_col, lwt_val, kp, cp, minv_dof,
-               q_s, qd_s, u_s, ud_s, max_acc, max_disp):
+               q_s, qd_s, u_s, ud_s, max_acc, max_disp, dense, prev_s):
     """DIM (Eqs. 7-17) with one exchange per RK stage, every lane over all its steps.
 
     Lanes ``block_ptr[i]..block_ptr[i+1]`` (same bridge ``block_case[i]``, same number of steps
@@ -56,7 +96,10 @@ def dim_blocks(block_ptr, block_case, block_steps, k0, k1, v, h, K, Z, minv, phi
     lives in the caller's arrays, lanes in block order: modal ``q_s``, ``qd_s`` (n_modes,
     n_lanes), vehicle ``u_s``, ``ud_s`` (n_dof, n_lanes), and the running maxima of |midspan
     acceleration| (stage 0 of every step) ``max_acc`` and |deflection| (start of every step)
-    ``max_disp`` (n_lanes,), updated in place. Chunks give bit for bit what one call gives.
+    ``max_disp`` (n_lanes,), updated in place. With ``dense``, the maxima between the steps from
+    the dense output (:func:`hermite_max_abs_acc`) are folded in too; ``prev_s`` (3, n_lanes)
+    carries the midspan deflection, velocity and acceleration of the last step done (as
+    ``LockstepRun._prev``). Chunks give bit for bit what one call gives.
     """
     nm = K.shape[1]
     n_dof = minv_dof.shape[0]
@@ -100,11 +143,14 @@ def dim_blocks(block_ptr, block_case, block_steps, k0, k1, v, h, K, Z, minv, phi
         d = np.zeros(nb)
         amax = max_acc[l0:l0 + nb].copy()
         dmax = max_disp[l0:l0 + nb].copy()
+        vel = np.zeros(nb)
         for k in range(k0, k_end):
             d[:] = 0.0
+            vel[:] = 0.0
             for j in range(nm):
                 for b in range(nb):
                     d[b] += q[j, b] * phi_mid[j]
+                    vel[b] += qd[j, b] * phi_mid[j]
                     sq[j, b] = q[j, b]
                     sqd[j, b] = qd[j, b]
             a0 = act_ptr[k]
@@ -265,6 +311,17 @@ def dim_blocks(block_ptr, block_case, block_steps, k0, k1, v, h, K, Z, minv, phi
                     amax[b] = abs(acc0[b])
                 if abs(d[b]) > dmax[b]:
                     dmax[b] = abs(d[b])
+            if dense:
+                for b in range(nb):
+                    lb = l0 + b
+                    if k > 0:
+                        inner = hermite_max_abs_acc(prev_s[0, lb], prev_s[1, lb], prev_s[2, lb],
+                                                    d[b], vel[b], acc0[b], hl[b])
+                        if inner > amax[b]:
+                            amax[b] = inner
+                    prev_s[0, lb] = d[b]
+                    prev_s[1, lb] = vel[b]
+                    prev_s[2, lb] = acc0[b]
         q_s[:, l0:l0 + nb] = q
         qd_s[:, l0:l0 + nb] = qd
         u_s[:, l0:l0 + nb] = u
@@ -275,7 +332,7 @@ def dim_blocks(block_ptr, block_case, block_steps, k0, k1, v, h, K, Z, minv, phi
 
 @njit(cache=True, nogil=True)
 def mlm_blocks(block_ptr, block_case, block_steps, k0, k1, P, phi_mid, M, K, Z, ax, axd, bx, bxd, c0, c0d,
-               ch, chd, c1, c1d, q_s, qd_s, max_acc, max_disp):
+               ch, chd, c1, c1d, q_s, qd_s, max_acc, max_disp, dense, h, prev_s):
     """MLM (Eq. 12) by the exact RK4 recurrence of every lane-mode oscillator.
 
     ``P`` (2 n + 1, n_modes) modal loads on the half-step grid (shared); ``M``, ``K`` (n_cases,
@@ -284,7 +341,8 @@ def mlm_blocks(block_ptr, block_case, block_steps, k0, k1, P, phi_mid, M, K, Z, 
     that the inner loops over the lanes of a block (one bridge, one step count) are contiguous.
     Same arithmetic as :meth:`BridgeSide.step_mlm`, operation for operation. Resumable as
     :func:`dim_blocks`: steps ``k0 .. min(k1, block steps) - 1``, state ``q_s``, ``qd_s``
-    (n_modes, n_lanes) and the running maxima ``max_acc``, ``max_disp`` updated in place.
+    (n_modes, n_lanes) and the running maxima ``max_acc``, ``max_disp`` updated in place;
+    ``dense``, ``h`` (time step per lane, lane order) and ``prev_s`` as in :func:`dim_blocks`.
     """
     nm = P.shape[1]
     for bi in range(block_ptr.shape[0] - 1):
@@ -299,11 +357,13 @@ def mlm_blocks(block_ptr, block_case, block_steps, k0, k1, P, phi_mid, M, K, Z, 
         qd = qd_s[:, l0:l1].copy()
         d = np.zeros(nb)
         a = np.zeros(nb)
+        vel = np.zeros(nb)
         amax = max_acc[l0:l1].copy()
         dmax = max_disp[l0:l1].copy()
         for k in range(k0, k_end):
             d[:] = 0.0
             a[:] = 0.0
+            vel[:] = 0.0
             for j in range(nm):
                 p0, ph, p1 = P[2 * k, j], P[2 * k + 1, j], P[2 * k + 2, j]
                 kj, mj, pm = K[c, j], M[c, j], phi_mid[j]
@@ -312,6 +372,7 @@ def mlm_blocks(block_ptr, block_case, block_steps, k0, k1, P, phi_mid, M, K, Z, 
                     x = q[j, b]
                     xd = qd[j, b]
                     d[b] += x * pm
+                    vel[b] += xd * pm
                     a[b] += ((p0 - Z[j, lb] * xd - kj * x) / mj) * pm
                     q[j, b] = ax[j, lb] * x + bx[j, lb] * xd + c0[j, lb] * p0 + ch[j, lb] * ph + c1[j, lb] * p1
                     qd[j, b] = axd[j, lb] * x + bxd[j, lb] * xd + c0d[j, lb] * p0 + chd[j, lb] * ph + c1d[j, lb] * p1
@@ -320,6 +381,17 @@ def mlm_blocks(block_ptr, block_case, block_steps, k0, k1, P, phi_mid, M, K, Z, 
                     amax[b] = abs(a[b])
                 if abs(d[b]) > dmax[b]:
                     dmax[b] = abs(d[b])
+            if dense:
+                for b in range(nb):
+                    lb = l0 + b
+                    if k > 0:
+                        inner = hermite_max_abs_acc(prev_s[0, lb], prev_s[1, lb], prev_s[2, lb],
+                                                    d[b], vel[b], a[b], h[lb])
+                        if inner > amax[b]:
+                            amax[b] = inner
+                    prev_s[0, lb] = d[b]
+                    prev_s[1, lb] = vel[b]
+                    prev_s[2, lb] = a[b]
         q_s[:, l0:l1] = q
         qd_s[:, l0:l1] = qd
         max_acc[l0:l1] = amax

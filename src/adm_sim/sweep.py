@@ -14,6 +14,7 @@ import numpy as np
 
 from adm_sim.errors import InputError, RunError
 from adm_sim.limits import check_delta_zeta_pct
+from adm_sim.peaks import largest_interior_peak
 from adm_sim.stepping import (SPEED_RANGE_KMH, BridgeSide, LockstepRun, StepOptions, TrainSide,
                               check_model, make_grid, mlm_modal_load_table, speeds_to_m_s)
 
@@ -59,21 +60,6 @@ def parse_speeds(text, ordered=True, field="speeds"):
     return v
 
 
-def largest_interior_peak(values):
-    """Index of the largest local maximum that is not an end point, or ``None``.
-
-    A local maximum is a sample strictly greater than its left neighbour and not smaller than
-    its right one (plateaus count once).
-    """
-    y = np.asarray(values, dtype=float)
-    if y.size < 3:
-        return None
-    inner = np.flatnonzero((y[1:-1] > y[:-2]) & (y[1:-1] >= y[2:])) + 1
-    if inner.size == 0:
-        return None
-    return int(inner[np.argmax(y[inner])])
-
-
 @dataclass(frozen=True, repr=False)
 class SweepResult:
     """Result of a speed sweep.
@@ -107,7 +93,11 @@ class SweepResult:
     method: str = "rk4"
 
     def peak(self):
-        """``{"speed_kmh", "acc_m_s2", "index"}`` of the largest interior local maximum, or None."""
+        """``{"speed_kmh", "acc_m_s2", "index"}`` of the peak of the curve, or None.
+
+        The peak rule of :mod:`adm_sim.peaks` (highest interior local maximum, 0.1 % prominence),
+        the one ``adm-calib calibrate`` uses.
+        """
         i = largest_interior_peak(self.max_acc_m_s2)
         if i is None:
             return None
@@ -182,7 +172,8 @@ def run_sweep(bridge, train, model, speeds_kmh, delta_zeta=0.0, options=None, hi
     dz = np.broadcast_to(np.asarray(delta_zeta, dtype=float), v.shape)
     for x in np.unique(dz):
         check_delta_zeta_pct("delta_zeta_pct", 100 * x, bridge.damping_ratio)
-    grid = make_grid(bridge, train.length_m, v, options or StepOptions())
+    options = options or StepOptions()
+    grid = make_grid(bridge, train.length_m, v, options)
     n, nl = grid.n_steps, grid.n_lanes
     dim = model == "dim"
     if histories and nl * n * (1 + (train.n_axles if dim else 0)) > MAX_HISTORY_VALUES:
@@ -190,9 +181,10 @@ def run_sweep(bridge, train, model, speeds_kmh, delta_zeta=0.0, options=None, hi
                          f"ask histories for at most a few speeds")
     b = BridgeSide(bridge, grid, train.axle_offsets_m, train.wheel_mass_kg if dim else None, dz)
     if dim:
-        run = LockstepRun(model, grid, bridge_side=b, train_side=TrainSide(train, grid, bridge.span_m))
+        run = LockstepRun(model, grid, bridge_side=b, train_side=TrainSide(train, grid, bridge.span_m),
+                          dense_maxima=options.dense_maxima)
     else:
-        run = LockstepRun(model, grid, bridge_side=b,
+        run = LockstepRun(model, grid, bridge_side=b, dense_maxima=options.dense_maxima,
                           modal_loads=mlm_modal_load_table(bridge, grid, train.axle_offsets_m, train.axle_loads_n))
     acc = np.empty((n, nl)) if histories else None
     disp = np.empty((n, nl)) if histories else None

@@ -20,6 +20,8 @@ from adm_calib.reference import STUDY_TRAINS, canonical_train_name
 
 #: Frequency indices of the field: 1 = LB power law ... 5 = UB power law (Section 3.1.1).
 FREQ_INDICES = (1, 2, 3, 4, 5)
+#: Speed resolution of the refined mode (``--refine-speed``), km/h.
+REFINED_SPEED_STEP_KMH = 0.05
 #: Spans of the field (m).
 SPAN_RANGE_M = (4, 40)
 #: Shipped variants of the study trains, studied like their paper train and compared with its
@@ -159,11 +161,17 @@ class StudySettings:
     ``speeds`` is the MLM speed grid ``start:stop:step`` in km/h (Section 3.3: 160:350:1),
     ``dim_grid`` and ``steps_per_period`` as for :class:`~adm_calib.calibrate.CalibrationOptions`
     (``None``: the core's default). The adapted MLM curve is never computed (not needed here).
+    ``dense_maxima`` takes the maxima between time samples (dense output,
+    :class:`~adm_sim.stepping.StepOptions`); ``refine_speed`` locates both peaks to 0.05 km/h
+    (:class:`~adm_calib.calibrate.CalibrationOptions` ``speed_refinement_kmh``). Both off: the
+    paper's rules. Settings written by a version without these two read as off.
     """
 
     speeds: str = DEFAULT_SPEEDS
     dim_grid: str = "paper"
     steps_per_period: float | None = None
+    dense_maxima: bool = False
+    refine_speed: bool = False
 
     def speeds_kmh(self):
         from adm_sim.sweep import parse_speeds
@@ -175,8 +183,13 @@ class StudySettings:
 
         from adm_calib.calibrate import CalibrationOptions
 
-        step = None if self.steps_per_period is None else StepOptions(steps_per_period=self.steps_per_period)
-        return CalibrationOptions(dim_grid=self.dim_grid, step=step)
+        step = None
+        if self.steps_per_period is not None or self.dense_maxima:
+            spp = StepOptions.steps_per_period if self.steps_per_period is None else self.steps_per_period
+            step = StepOptions(steps_per_period=spp,
+                               dense_maxima=bool(self.dense_maxima))
+        refine = REFINED_SPEED_STEP_KMH if self.refine_speed else None
+        return CalibrationOptions(dim_grid=self.dim_grid, step=step, speed_refinement_kmh=refine)
 
     def to_dict(self):
         return asdict(self)

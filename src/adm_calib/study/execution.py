@@ -249,8 +249,9 @@ def run_study(out_dir, cases, settings=StudySettings(), workers=2, scheduler=Non
     out.mkdir(parents=True, exist_ok=True)
     with _exclusive(out):
         meta = read_meta(out)
-        if meta is not None and meta.get("settings") != settings.to_dict():
-            old, new = meta.get("settings"), settings.to_dict()
+        old = None if meta is None else {**StudySettings().to_dict(), **(meta.get("settings") or {})}
+        if meta is not None and old != settings.to_dict():
+            new = settings.to_dict()
             diff = ", ".join(f"{k} {old.get(k)!r} -> {new[k]!r}" for k in new if old.get(k) != new[k])
             raise InputError(f"settings: the study in {str(out)!r} was computed with other settings ({diff}); "
                              f"use another --out")

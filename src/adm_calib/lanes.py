@@ -1,0 +1,121 @@
+"""The lane runner: the one thing a calibration asks of a backend.
+
+A calibration (paper Section 4, :mod:`adm_calib.calibrate`) needs nothing from a solver but the
+largest midspan acceleration of many independent runs, each a **lane**: a case (a bridge of the
+batch), a speed, an additional damping Δζ and a sweep id. Lanes of one case with one sweep id form
+one speed sweep: the fastest of them sets its number of steps, exactly as
+:func:`adm_sim.sweep.run_sweep` does, so every backend discretises a lane alike. Every request
+also names its **phase** (what the calibration is doing: ``"mlm"``, ``"dim"``, ``"dim_refine"``,
+``"ladder"``, ``"root"``, ``"check"``, ``"adapted"``, ``"mlm_refine"``, ``"dim_peak_refine"``) so
+that a backend that records or shows its runs (the ROS co-simulation) need not guess it.
+
+Backends (all give the same numbers: the compiled lanes equal the numpy stepper to ~1e-13
+relative, the co-simulation equals it bit for bit):
+
+* :class:`CompiledLanes`: every lane of a request as lanes of one compiled run
+  (:class:`adm_sim.batch.BatchRunner`); the default of ``calibrate`` and the study.
+* :class:`SteppedLanes`: the numpy stepper, one :func:`adm_sim.sweep.run_sweep` per sweep.
+* :class:`HookLanes`: any ``sweep(model, speeds_kmh, delta_zeta, step[, phase=...])`` callable
+  of one case, one call per sweep: the ROS calibration node (co-simulated runs), a cluster.
+"""
+
+from __future__ import annotations
+
+import inspect
+
+import numpy as np
+
+#: Phases of a calibration, in the order they run.
+PHASES = ("mlm", "mlm_refine", "dim", "dim_refine", "dim_peak_refine", "ladder", "root", "check", "adapted")
+
+
+def _groups(case, sweep):
+    """Lane indices of every (case, sweep) pair, in first-seen order."""
+    keys = {}
+    for i, key in enumerate(zip(case.tolist(), sweep.tolist())):
+        keys.setdefault(key, []).append(i)
+    return [(k[0], np.array(ix)) for k, ix in keys.items()]
+
+
+def _lane_arrays(case, speeds_kmh, delta_zeta, sweep):
+    case = np.asarray(case, dtype=np.int64)
+    v = np.broadcast_to(np.asarray(speeds_kmh, dtype=float), case.shape).copy()
+    dz = np.broadcast_to(np.asarray(delta_zeta, dtype=float), case.shape).copy()
+    sw = np.zeros(case.shape, np.int64) if sweep is None else np.asarray(sweep, dtype=np.int64)
+    return case, v, dz, sw
+
+
+class CompiledLanes:
+    """Lanes as one compiled batched run (:class:`adm_sim.batch.BatchRunner`).
+
+    Parameters
+    ----------
+    bridges : sequence of adm_sim.bridge.Bridge
+        The cases (one span, mode count and damping model).
+    train : adm_sim.trains.Train
+    step : adm_sim.stepping.StepOptions
+        With ``ds_m`` set: the space step shared by every lane.
+    """
+
+    name = "compiled"
+
+    def __init__(self, bridges, train, step):
+        from adm_sim.batch import BatchRunner
+
+        self.runner = BatchRunner(bridges, train, step.ds_m, step.free_vibration_periods, step.dense_maxima)
+
+    def run(self, model, case, speeds_kmh, delta_zeta=0.0, sweep=None, phase=""):
+        """Max |midspan acceleration| (m/s^2) of every lane, shape (n_lanes,)."""
+        case, v, dz, sw = _lane_arrays(case, speeds_kmh, delta_zeta, sweep)
+        if case.size == 0:
+            return np.zeros(0)
+        return self.runner.run(model, case, v, dz, sweep=sw)[0]
+
+
+class SteppedLanes:
+    """Lanes on the numpy stepper: one :func:`adm_sim.sweep.run_sweep` per (case, sweep)."""
+
+    name = "numpy"
+
+    def __init__(self, bridges, train, step):
+        self.bridges, self.train, self.step = list(bridges), train, step
+
+    def run(self, model, case, speeds_kmh, delta_zeta=0.0, sweep=None, phase=""):
+        from adm_sim.sweep import run_sweep
+
+        case, v, dz, sw = _lane_arrays(case, speeds_kmh, delta_zeta, sweep)
+        out = np.empty(case.size)
+        for c, ix in _groups(case, sw):
+            out[ix] = run_sweep(self.bridges[c], self.train, model, v[ix], delta_zeta=dz[ix],
+                                options=self.step).max_acc_m_s2
+        return out
+
+
+class HookLanes:
+    """Lanes of one case through a sweep callable, one call per sweep.
+
+    ``sweep(model, speeds_kmh (n,), delta_zeta (n,) or float, step)`` returns the maximum midspan
+    accelerations (m/s^2); if it takes a ``phase`` keyword, it gets the phase of the request. A
+    sweep whose lanes share one damping passes it as a float.
+    """
+
+    name = "hook"
+
+    def __init__(self, sweep, step):
+        self.sweep, self.step = sweep, step
+        try:
+            self._phase = "phase" in inspect.signature(sweep).parameters
+        except (TypeError, ValueError):  # builtins without a signature
+            self._phase = False
+
+    def run(self, model, case, speeds_kmh, delta_zeta=0.0, sweep=None, phase=""):
+        case, v, dz, sw = _lane_arrays(case, speeds_kmh, delta_zeta, sweep)
+        if np.any(case != 0):
+            raise ValueError("HookLanes: a sweep hook runs one case (case 0) only")
+        out = np.empty(case.size)
+        for _, ix in _groups(case, sw):
+            d = dz[ix]
+            d = float(d[0]) if np.all(d == d[0]) else d
+            kw = {"phase": phase} if self._phase else {}
+            out[ix] = np.asarray(self.sweep(model, v[ix], d, self.step, **kw), dtype=float)
+        return out
