@@ -532,13 +532,15 @@ class SignalCase:
 SIGNAL_ENTRIES = [
     SignalCase("adm-sim-sweep", lambda t: SIM + ["sweep", "--model", "dim", "--speeds", "200:300:1", "--json",
                                                  f"{t}/r.json", "--plot", f"{t}/r.png"], ""),
-    SignalCase("adm-calib-calibrate", lambda t: CAL + ["calibrate", "--bridge", "B1", "--train", "ICE-2", "--json",
-                                                       f"{t}/c.json"], None),
+    # the compiled calibration takes 0.2 s: a fine step and the refined mode keep it busy for ~15 s
+    SignalCase("adm-calib-calibrate", lambda t: CAL + ["calibrate", "--bridge", "B4", "--train", "Eurostar",
+                                                       "--steps-per-period", "512", "--refine-speed",
+                                                       "--dense-maxima", "--json", f"{t}/c.json"], None),
     SignalCase("crossing.py", lambda t: CROSS + ["--out", f"{t}/run", "--speeds", "200:300:5"], "step", ros=True),
     SignalCase("calibrate.py", lambda t: CALIB + ["--out", f"{t}/run", "--bridge", "B3", "--speeds", "240:300:2",
                                                   "--no-rrd", "--quiet"], "calibrating", ros=True),
-    SignalCase("adm-calib-table4", lambda t: CAL + ["table4", "--out", f"{t}/t4", "--bridges", "B1", "--trains",
-                                                    "ICE-2"], None),
+    SignalCase("adm-calib-table4", lambda t: CAL + ["table4", "--out", f"{t}/t4", "--steps-per-period", "64",
+                                                    "--refine-speed", "--dense-maxima"], None),
 ]
 SIGNAL_CASES = [(e, s) for e in SIGNAL_ENTRIES for s in (signal.SIGTERM, signal.SIGINT)]
 

@@ -171,6 +171,11 @@ def test_calibration_node_and_rerun_logger_name_the_same_phases():
     from adm_sim.ros import rerun_log as rl
 
     assert set(PHASE_LABELS) == set(P.PHASES)
+    from adm_calib.lanes import PHASES as CALIBRATION_REQUEST_PHASES
+
+    # every phase a calibration request carries has its run phase, and nothing else is mapped
+    assert set(P.CALIBRATION_PHASES) == set(CALIBRATION_REQUEST_PHASES)
+    assert set(P.CALIBRATION_PHASES.values()) == set(P.PHASES)
     assert {p: rl.run_kind(*args) for p, args in (
         (P.PHASE_DIM, ("dim", 0.0, 5, 191)), (P.PHASE_MLM_ZETA, ("mlm", 0.0, 191, 191)),
         (P.PHASE_MLM_ZETA_DZ, ("mlm", 0.01, 191, 191)), (P.PHASE_BRACKETING, ("mlm", [0.0, 0.01], 2, 191)),

@@ -223,6 +223,11 @@ PHASE_MLM_ZETA_DZ = "mlm_zeta_dz"  # MLM over the full range, one Δζ (the adap
 PHASE_BRACKETING = "bracketing"    # MLM lanes carrying several Δζ: the bracketing ladder
 PHASE_ROOT_SEARCH = "root_search"  # MLM, one Δζ on fewer lanes than the full range
 PHASES = (PHASE_DIM, PHASE_MLM_ZETA, PHASE_MLM_ZETA_DZ, PHASE_BRACKETING, PHASE_ROOT_SEARCH)
+#: The phase a calibration request carries (``adm_calib.lanes.PHASES``) -> the run phase above.
+#: The calibration names its phase with every lane request; the calibration node maps it here.
+CALIBRATION_PHASES = {"mlm": PHASE_MLM_ZETA, "mlm_refine": PHASE_ROOT_SEARCH, "dim": PHASE_DIM,
+                      "dim_refine": PHASE_DIM, "dim_peak_refine": PHASE_DIM, "ladder": PHASE_BRACKETING,
+                      "root": PHASE_ROOT_SEARCH, "check": PHASE_ROOT_SEARCH, "adapted": PHASE_MLM_ZETA_DZ}
 
 
 def run_phase(model: str, delta_zeta, n_lanes: int, n_full: int) -> str:

@@ -38,6 +38,10 @@ from adm_sim.stepping import StepOptions
 from adm_sim.sweep import parse_speeds
 from adm_sim.trains import load_train
 
+#: ``@run`` label of each run phase (:data:`adm_sim.protocol.PHASES`).
+PHASE_LABELS = {P.PHASE_DIM: "DIM", P.PHASE_BRACKETING: "MLM trial", P.PHASE_ROOT_SEARCH: "MLM trial",
+                P.PHASE_MLM_ZETA: "MLM zeta", P.PHASE_MLM_ZETA_DZ: "MLM zeta+dz"}
+
 CALIBRATION_SPECS = [
     c.ParamSpec("speeds_kmh", DEFAULT_SPEEDS, "km/h", "MLM speed range: start:stop:step or a comma list"),
     c.ParamSpec("dim_grid", "paper", "", "paper (5 km/h + fine around the MLM peak) | full (every MLM speed)"),
@@ -76,11 +80,6 @@ class CalibrationNode(RunDriver):
         if self.viz is not None:
             self.viz.iteration(i, 100 * dz, mlm_peak, dim_peak)
 
-    #: Run label (MCAP, rerun, log) of every calibration phase (:data:`adm_calib.lanes.PHASES`).
-    PHASE_LABELS = {"mlm": "MLM zeta", "mlm_refine": "MLM trial", "dim": "DIM", "dim_refine": "DIM",
-                    "dim_peak_refine": "DIM", "ladder": "MLM trial", "root": "MLM trial",
-                    "check": "MLM trial", "adapted": "MLM zeta+dz"}
-
     def _hook(self, model, speeds, dz, step, phase):
         """``calibrate``'s sweep hook: one co-simulated run on the calibration's space step.
 
@@ -89,9 +88,9 @@ class CalibrationNode(RunDriver):
         if self._ds_m != step.ds_m:
             self.set_params(P.BRIDGE_NODE, ds_m=step.ds_m, delta_zeta=0.0, delta_zeta_lanes="")
             self._ds_m = step.ds_m
-        label = self.PHASE_LABELS.get(phase, phase)
-        acc = self.sweep(model, speeds, dz, label=label)
-        if phase == "mlm" and self._auto_monitor:
+        run_phase = P.CALIBRATION_PHASES[phase]
+        acc = self.sweep(model, speeds, dz, label=PHASE_LABELS[run_phase])
+        if run_phase == P.PHASE_MLM_ZETA and self._auto_monitor:
             self._monitor_peak(speeds, acc)
         return acc
 
