@@ -26,7 +26,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension, String
 
-from adm_sim.errors import InputError, check_range
+from adm_sim.errors import InputError, RunError, check_range
 from adm_sim.protocol import EXCHANGE_HEADER_LEN as HEADER_LEN
 from adm_sim.protocol import encode
 
@@ -53,8 +53,8 @@ QOS_LATCHED = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                          reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
-class ExchangeError(RuntimeError):
-    """The lockstep exchange lost its partner or its order."""
+class ExchangeError(RunError):
+    """The lockstep exchange lost its partner or its order (a :class:`RunError`: exit 1)."""
 
 
 # ---------------------------------------------------------------------- time
@@ -563,9 +563,9 @@ def run_node(make_node, args=None, name="node"):
         code = node.end(executor)
     except (KeyboardInterrupt, ExternalShutdownException):
         code = 130
-    except (ExchangeError, AdmSimError) as exc:
+    except AdmSimError as exc:  # ExchangeError is a RunError
         print(f"error: {name}: {exc}", file=sys.stderr, flush=True)
-        code = 2
+        code = 2 if isinstance(exc, InputError) else 1  # the CLIs' mapping (adm_sim.errors.run_cli)
         if node is not None:
             try:
                 node.report_failure(str(exc))
