@@ -179,6 +179,21 @@ def test_sweep_warns_about_results_no_bridge_survives(capsys):
     assert lines[3].startswith("warning: sweep: at 250 km/h: peak deflection") and "<= 0.15 m for L = 15 m" in lines[3]
 
 
+def test_check_warns_once_per_quantity_naming_train_and_speed(capsys):
+    """adm-sim check of a light, soft 15 m deck: the largest acceleration and deflection over the
+    trains, one line each, named by train and speed; the verdict is still printed (exit 0)."""
+    from adm_sim.cli import main
+
+    assert main(["check", "--bridge", "L=15,n0=3,mu=3000,zeta_pct=0.2", "--max-line-speed", "160",
+                 "--trains", "HSLM-A1"]) == 0
+    out, err = capsys.readouterr()
+    lines = err.splitlines()
+    assert len(lines) == 2 and lines == _warning_lines(err), err
+    assert lines[0].startswith("warning: check: HSLM-A1 at ") and "peak acceleration" in lines[0]
+    assert "peak deflection" in lines[1] and "<= 0.15 m for L = 15 m" in lines[1]
+    assert "FAIL" in out
+
+
 @pytest.mark.parametrize("extra, code", [([], 2), (["--extrapolate"], 0)])
 def test_recommend_outside_the_field(capsys, extra, code):
     from adm_calib.cli import main
