@@ -249,6 +249,8 @@ def _check_plausible(res):
     trains and speeds, each named by its train and speed (:mod:`adm_sim.plausibility`)."""
     from adm_sim.plausibility import check_response
 
+    if not res.trains:
+        return
     acc = max((float(c.max_acc_m_s2.max()), c.name, float(c.speeds_kmh[int(c.max_acc_m_s2.argmax())]))
               for c in res.trains)
     disp = max((float(c.max_disp_m.max()), c.name, float(c.speeds_kmh[int(c.max_disp_m.argmax())]))

@@ -90,7 +90,7 @@ class Bound:
 
     def message(self, label, value, ctx, hint=""):
         """The one-line warning text (without the ``warning: `` the CLIs add)."""
-        at = f" for L = {ctx['span_m']:g} m" if self.per_span and "span_m" in ctx else ""
+        at = f" for L = {_fmt(ctx['span_m'])} m" if self.per_span and "span_m" in ctx else ""
         return (f"{label}: {_fmt(value)} {self.unit} is outside the plausible range {self.range_text(ctx)}{at}"
                 f"{hint}; {self.reason}")
 
