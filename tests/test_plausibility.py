@@ -132,6 +132,16 @@ def test_fraction_in_pct_field_is_one_warning_with_the_hint():
     assert len(_caught(lambda v: parse_bridge_spec(v), "L=15,n0=8.26,mu=7739,zeta_pct=0.0185")) == 1
 
 
+def test_bridge_file_warns_like_the_spec(tmp_path):
+    from adm_sim.bridge import load_bridge_file
+
+    p = tmp_path / "b.toml"
+    p.write_text("L = 15.0\nn0 = 8.26\nmu = 19042.0\nzeta_pct = 0.0185\n")
+    with pytest.warns(PlausibilityWarning, match=r"^bridge file b.toml.zeta_pct: 0.0185 % is outside the plausible "
+                                                 r"range >= 0.1 %"):
+        load_bridge_file(p)
+
+
 def test_named_and_field_bridges_are_silent():
     """The paper's bridges B1-B4 and the field's corners are plausible by construction."""
     from adm_sim.bridge import resolve_bridge

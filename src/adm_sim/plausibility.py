@@ -17,7 +17,8 @@ Sources of the bounds:
 * EN 1990 A2.4.4.2.1(4)P deck acceleration limits 3.5 / 5 m/s²; EN 1990 A2.4.4.2.3 deflections.
 * EN 15528 line categories: axle loads up to 25 t (245 kN); EN 1991-2 LM71 250 kN, HSLM 170..210 kN.
 
-Numpy-free, no ROS. ``docs/plausibility.md`` is generated from :data:`TABLE` (:func:`markdown_table`;
+No ROS; the constants come from :mod:`adm_sim.bridge` (written once). ``docs/plausibility.md`` holds
+:data:`TABLE` and :data:`FIELD` as :func:`markdown_table` prints them (``python -m adm_sim.plausibility``;
 a test checks the two are equal).
 """
 
