@@ -126,10 +126,10 @@ def print_result(summary):
 
 
 def main(argv=None):
-    from adm_sim.errors import interrupt_signals
+    from adm_sim.errors import interrupt_signals, plausibility_warnings
 
     args = parse_args(argv)
-    with interrupt_signals():
+    with interrupt_signals(), plausibility_warnings():  # warnings: one line "warning: ..." each
         try:
             return _main(args)
         except KeyboardInterrupt:  # before any process started

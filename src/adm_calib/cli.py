@@ -7,7 +7,7 @@ Subcommands::
     adm-calib table4 [--out DIR] [--bridges B1,B2,B3,B4] [--trains ICE-2,...] [--jobs N] [--dense-maxima]
                      [--refine-speed]
     adm-calib recommend --train T --n0 HZ --mu KG_PER_M --type cfb|sc [--span M] [--interpolate]
-                        [--functions paper|ours|conservative]
+                        [--functions paper|ours|conservative] [--extrapolate]
     adm-calib study --out DIR [--trains ...] [--mass-functions mu1,...] [--spans 4:40] [--freq-index 1,...]
                     [--limit N] [--workers 2 | --scheduler tcp://127.0.0.1:PORT] [--dense-maxima] [--refine-speed]
     adm-calib study-fit --results DIR/results.jsonl [--out DIR] [--exclude none|step2|strict]
@@ -215,6 +215,9 @@ def _study_train(text, option):
 
 
 def cmd_recommend(args):
+    from adm_sim.bridge import SPAN_RANGE_M
+    from adm_sim.plausibility import check_studied_field
+
     from adm_calib.reference import (FUNCTION_SOURCES, STUDY_N0_MAX_HZ, STUDY_SPAN_RANGE_M, lower_bound_table,
                                      recommend, span_from_frequency_m)
 
@@ -226,13 +229,17 @@ def cmd_recommend(args):
         raise InputError(f"{exc} (validity of the lower-bound functions: {lo_hz:g} Hz up to the highest "
                          f"frequency of the studied bridges, Section 4.2.2)") from None
     mu_kg_m = _recommend_mu_kg_m(args.mu)
-    span = None if args.span is None else check_range("--span", args.span, "m", *STUDY_SPAN_RANGE_M)
-    if span is None and not STUDY_SPAN_RANGE_M[0] <= span_from_frequency_m(n0) <= STUDY_SPAN_RANGE_M[1]:
+    span_range = SPAN_RANGE_M if args.extrapolate else STUDY_SPAN_RANGE_M  # beyond 4..40 m: warned below
+    span = None if args.span is None else check_range("--span", args.span, "m", *span_range)
+    if span is None and not span_range[0] <= span_from_frequency_m(n0) <= span_range[1]:
         raise InputError(f"--n0: {n0:g} Hz gives an estimated span of {span_from_frequency_m(n0):.3g} m "
                          f"(n0 = 97.76 L^-0.9124), outside the studied spans [{STUDY_SPAN_RANGE_M[0]:g}, "
                          f"{STUDY_SPAN_RANGE_M[1]:g}] m; give --span")
+    # the field the paper studied (Section 3.1): refused outside it, warned with --extrapolate
+    check_studied_field(span_from_frequency_m(n0) if span is None else span, n0, mu_kg_m, args.extrapolate,
+                        "--span" if span is not None else "span (estimated from --n0)")
     rec = recommend(train, n0, mu_kg_m / 1000.0, args.type, span_m=span, interpolate=args.interpolate,
-                    functions=args.functions)
+                    functions=args.functions, extrapolate=args.extrapolate)
     if args.json:
         d = rec.to_dict()
         d["mu_kg_m"] = mu_kg_m
@@ -512,6 +519,9 @@ def build_parser():
                    help="lower-bound functions: paper = Tables B1-B4 (default); ours = re-derived from the "
                         "study shipped in results/study (adm-calib study-fit, least squares as the paper); "
                         "conservative = the largest cubic below every retained case of that study (linear programme)")
+    r.add_argument("--extrapolate", action="store_true",
+                   help="answer outside the studied field (span 4..40 m, n0 in the Fig. 8 band, mu within "
+                        "Table 1) with a warning instead of refusing (docs/plausibility.md)")
     r.add_argument("--json", action="store_true", help="print JSON")
     r.set_defaults(func=cmd_recommend)
 

@@ -58,7 +58,7 @@ from importlib import resources
 
 import numpy as np
 
-from adm_sim.bridge import MASS_FUNCTIONS, N0_FIT, N0_UB, mass_function_t_m
+from adm_sim.bridge import MASS_FUNCTIONS, N0_FIT, N0_UB, SPAN_RANGE_M, mass_function_t_m
 from adm_sim.errors import InputError, check_range
 
 from adm_calib.lower_bound import FIT_RANGE_MAX_HZ, LOWER_LIMIT_HZ, first_root_hz, lower_bound_pct, zero_from_hz
@@ -360,7 +360,8 @@ class Recommendation:
         }
 
 
-def recommend(train, n0_hz, mu_t_m, bridge_type, span_m=None, interpolate=False, functions="paper"):
+def recommend(train, n0_hz, mu_t_m, bridge_type, span_m=None, interpolate=False, functions="paper",
+              extrapolate=False):
     """Additional damping (%) from the lower-bound functions by the rules of Section 4.3.
 
     Parameters
@@ -381,6 +382,9 @@ def recommend(train, n0_hz, mu_t_m, bridge_type, span_m=None, interpolate=False,
     functions : {"paper", "ours", "conservative"}
         Published functions (Tables B1-B4), the ones re-derived from the shipped study by least
         squares, or its conservative (linear-programme) bounds.
+    extrapolate : bool
+        Accept a span outside the studied 4..40 m (up to the bridge model's 1..150 m): the mass
+        functions of Eq. (19) are then extrapolated. The n0 validity of the functions still holds.
 
     Raises
     ------
@@ -400,11 +404,11 @@ def recommend(train, n0_hz, mu_t_m, bridge_type, span_m=None, interpolate=False,
     estimated = span_m is None
     if estimated:
         L = span_from_frequency_m(n0)
-        if not STUDY_SPAN_RANGE_M[0] <= L <= STUDY_SPAN_RANGE_M[1]:
+        if not extrapolate and not STUDY_SPAN_RANGE_M[0] <= L <= STUDY_SPAN_RANGE_M[1]:
             raise InputError(f"span_m: estimated {L:.3g} m from n0={n0:g} Hz is outside the studied spans "
                              f"[{STUDY_SPAN_RANGE_M[0]:g}, {STUDY_SPAN_RANGE_M[1]:g}] m; give --span")
     else:
-        L = check_range("span_m", span_m, "m", *STUDY_SPAN_RANGE_M)
+        L = check_range("span_m", span_m, "m", *(SPAN_RANGE_M if extrapolate else STUDY_SPAN_RANGE_M))
     names = TYPE_MASS_FUNCTIONS[bridge_type]
     mus = {m: mass_function_t_m(m, L) for m in names}
     heavy, light = mus[names[0]], mus[names[-1]]

@@ -294,7 +294,9 @@ def bridge_from_mapping(data, source="bridge", typed=False):
     (1..20), ``damping_model`` (rayleigh|modal), ``name``. Refused: unknown keys, a quantity given
     twice (``L=15,L=20``, ``L`` and ``span_m``, ``zeta_pct`` and ``zeta``), ``type`` together with
     a damping value or with ``class``, ``n0`` together with ``EJ``. With ``typed`` (a TOML file)
-    numbers must be numbers and text must be text.
+    numbers must be numbers and text must be text. Values that no real bridge has (n0 off the
+    Fig. 8 band, mu off Table 1, damping that looks like a fraction) give a
+    :class:`~adm_sim.plausibility.PlausibilityWarning`, not an error.
     """
     vals, given = {}, {}
     for key, value in data.items():
@@ -345,15 +347,24 @@ def bridge_from_mapping(data, source="bridge", typed=False):
         kw["damping_model"] = check_choice(where["damping_model"], str(vals["damping_model"]), ("rayleigh", "modal"))
     if "n0_hz" in vals:
         n0 = num(where["n0_hz"], vals["n0_hz"], "Hz", *N0_RANGE_HZ)
-        return Bridge.from_frequency(L, n0, mu, zeta, **kw)
+        return _plausible(Bridge.from_frequency(L, n0, mu, zeta, **kw), source, zeta, "zeta_pct" in vals)
     if "EJ_Nm2" in vals:
         EJ = num(where["EJ_Nm2"], vals["EJ_Nm2"], "N m^2", 0.0, None, lo_open=True)
         n0 = math.pi / (2.0 * L**2) * math.sqrt(EJ / mu)
         if not _n0_in_range(n0):
             raise InputError(f"{where['EJ_Nm2']}: {EJ:g} N m^2 gives n0 = {n0:.4g} Hz with L = {L:g} m and "
                              f"mu = {mu:g} kg/m (Eq. 18); allowed n0 in [{N0_RANGE_HZ[0]:g}, {N0_RANGE_HZ[1]:g}] Hz")
-        return Bridge(span_m=L, EJ_Nm2=EJ, mass_per_length_kg_m=mu, damping_ratio=zeta, **kw)
+        bridge = Bridge(span_m=L, EJ_Nm2=EJ, mass_per_length_kg_m=mu, damping_ratio=zeta, **kw)
+        return _plausible(bridge, source, zeta, "zeta_pct" in vals)
     raise InputError(f"{source}: missing stiffness: give n0 (Hz, 0.5..100) or EJ (N m^2, > 0)")
+
+
+def _plausible(bridge, source, zeta, zeta_in_pct):
+    """``bridge``, after the plausibility warnings of :mod:`adm_sim.plausibility` (never a refusal)."""
+    from adm_sim.plausibility import check_bridge
+
+    check_bridge(bridge, source, 100.0 * zeta if zeta_in_pct else None)
+    return bridge
 
 
 def parse_bridge_spec(spec):

@@ -111,6 +111,7 @@ def cmd_sweep(args):
     from adm_sim.sweep import parse_speeds, run_sweep, sweep_exact
     from adm_sim.trains import load_train
     from adm_sim.errors import check_range
+    from adm_sim.plausibility import check_response
 
     inputs = {"--train": args.train, "--bridge": args.bridge}
     json_path = None if args.json is None else output_path(args.json, "--json", args.overwrite, inputs=inputs)
@@ -167,6 +168,9 @@ def cmd_sweep(args):
         if top > pk["acc_m_s2"]:
             i = int(res.max_acc_m_s2.argmax())
             print(f"note: the largest value {top:.4f} m/s2 lies at the end of the range ({res.speeds_kmh[i]:g} km/h)")
+    ia, idisp = int(res.max_acc_m_s2.argmax()), int(res.max_disp_m.argmax())
+    check_response(bridge.span_m, res.max_acc_m_s2[ia], res.max_disp_m[idisp],  # warnings, not refusals
+                   f"sweep: at {res.speeds_kmh[ia]:g} km/h", f"sweep: at {res.speeds_kmh[idisp]:g} km/h")
     if json_path is not None:
         out = res.to_dict()
         out["wall_time_s"] = wall
@@ -223,6 +227,7 @@ def cmd_check(args):
     finally:
         close()
     wall = time.perf_counter() - t0
+    _check_plausible(res)
     print(res.summary())
     print(f"{len(trains)} trains, {wall:.2f} s")
     if "json" in outs:
@@ -237,6 +242,21 @@ def cmd_check(args):
         write_atomic(outs["plot"], res.plot)
         print(f"wrote {args.plot}")
     return 0
+
+
+def _check_plausible(res):
+    """Plausibility warnings on a check's results: the largest acceleration and deflection over all
+    trains and speeds, each named by its train and speed (:mod:`adm_sim.plausibility`)."""
+    from adm_sim.plausibility import check_response
+
+    if not res.trains:
+        return
+    acc = max((float(c.max_acc_m_s2.max()), c.name, float(c.speeds_kmh[int(c.max_acc_m_s2.argmax())]))
+              for c in res.trains)
+    disp = max((float(c.max_disp_m.max()), c.name, float(c.speeds_kmh[int(c.max_disp_m.argmax())]))
+               for c in res.trains)
+    check_response(res.bridge.span_m, acc[0], disp[0], f"check: {acc[1]} at {acc[2]:g} km/h",
+                   f"check: {disp[1]} at {disp[2]:g} km/h")
 
 
 def cmd_trains(args):

@@ -7,7 +7,8 @@
 * :class:`RunError`: a failure that is not bad input (an integration that became unstable, a
   viewer or a node that does not answer). Exit code 1.
 
-Command lines print either as one line ``error: ...`` on stderr (:func:`run_cli`); an interrupt
+Command lines print errors as one line ``error: ...`` and plausibility warnings as one line
+``warning: ...`` each on stderr (:func:`run_cli`); an interrupt
 (Ctrl-C, SIGINT or SIGTERM) prints ``error: interrupted`` and exits with 130, leaving no partial
 output (outputs are written beside and renamed, :mod:`adm_sim.files`).
 """
@@ -31,6 +32,11 @@ class RunError(AdmSimError, RuntimeError):
     exit code 1."""
 
 
+class PlausibilityWarning(UserWarning):
+    """A value the model computes but no real bridge or train has: a warning, not an error
+    (the bounds and their reasons: :mod:`adm_sim.plausibility`)."""
+
+
 def one_line(exc):
     """The message of ``exc`` on one line (inner newlines and runs of blanks collapsed)."""
     return " ".join(str(exc).split())
@@ -43,14 +49,43 @@ def run_cli(call):
     :class:`AdmSimError`) -> ``error: ...``, exit 1; ``KeyboardInterrupt`` -> ``interrupted``, 130;
     ``BrokenPipeError`` (``... | head``) -> quiet exit 0. Anything else is a bug and keeps its traceback.
     Every output claimed during the call (:func:`adm_sim.files.claim_output`) is released at its end.
+    A :class:`~adm_sim.plausibility.PlausibilityWarning` raised during the call is printed as one
+    line ``warning: ...`` on stderr, each time it occurs (:func:`plausibility_warnings`).
     """
-    with interrupt_signals():
+    with interrupt_signals(), plausibility_warnings():
         try:
             return _run(call)
         finally:
             from adm_sim.files import release_all
 
             release_all()
+
+
+class plausibility_warnings:
+    """Within the block, every :class:`~adm_sim.plausibility.PlausibilityWarning` is printed as one
+    line ``warning: <message>`` on stderr (not deduplicated); other warnings keep their usual display.
+    The warning filters and ``warnings.showwarning`` come back at its end."""
+
+    def __enter__(self):
+        import warnings
+
+        self._catch = warnings.catch_warnings()
+        self._catch.__enter__()
+        warnings.simplefilter("always", PlausibilityWarning)
+        shown = warnings.showwarning
+
+        def show(message, category, filename, lineno, file=None, line=None):
+            if issubclass(category, PlausibilityWarning):
+                print(f"warning: {one_line(message)}", file=sys.stderr, flush=True)
+            else:
+                shown(message, category, filename, lineno, file, line)
+
+        warnings.showwarning = show
+        return self
+
+    def __exit__(self, *exc):
+        self._catch.__exit__(*exc)
+        return False
 
 
 class interrupt_signals:

@@ -240,7 +240,11 @@ def load_train(name_or_path):
         return train_from_mapping(data, source=_FILES[key])
     p = Path(text)
     if p.suffix == ".toml" or p.is_file():
-        return train_from_mapping(read_toml(p, "train file"), source=p.name)
+        from adm_sim.plausibility import check_train as check_plausible
+
+        train = train_from_mapping(read_toml(p, "train file"), source=p.name)
+        check_plausible(train, source=f"train file {p.name}")  # warnings, not refusals
+        return train
     raise InputError(f"train: {text!r} is unknown; allowed {', '.join(TRAIN_NAMES)}, "
                      f"Eurostar-table, HSLM-A1 .. HSLM-A10, or a .toml train file")
 
