@@ -17,6 +17,21 @@ PARAMS_DIR = ROOT / "ros_ws" / "params"
 OUTPUTS = ("run.mcap", "run.rrd", "summary.json")
 
 
+def launch(body, args):
+    """Run a launch script's ``body(args)`` with SIGINT/SIGTERM as ``error: interrupted`` (130) and
+    plausibility warnings as one ``warning: ...`` line each; the body's return value is the exit code."""
+    import sys
+
+    from adm_sim.errors import interrupt_signals, plausibility_warnings
+
+    with interrupt_signals(), plausibility_warnings():
+        try:
+            return body(args)
+        except KeyboardInterrupt:  # before any process started
+            print("error: interrupted", file=sys.stderr)
+            return 130
+
+
 def launch_param_specs():
     """``node -> parameter specs`` of every node a launch may start (params files are shared by
     the scripts, so all four nodes are allowed in any of them), and the value checks beyond

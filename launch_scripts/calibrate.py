@@ -25,7 +25,7 @@ import time
 from pathlib import Path
 
 from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, check_domain_id, check_inputs, check_out,
-                         check_viewer, discard_outputs, prepare_out, release_out, run_graph)
+                         check_viewer, discard_outputs, launch, prepare_out, release_out, run_graph)
 
 from adm_sim.protocol import parse_driver_line
 
@@ -126,15 +126,8 @@ def print_result(summary):
 
 
 def main(argv=None):
-    from adm_sim.errors import interrupt_signals, plausibility_warnings
-
     args = parse_args(argv)
-    with interrupt_signals(), plausibility_warnings():  # warnings: one line "warning: ..." each
-        try:
-            return _main(args)
-        except KeyboardInterrupt:  # before any process started
-            print("error: interrupted", file=sys.stderr)
-            return 130
+    return launch(_main, args)
 
 
 def _main(args):

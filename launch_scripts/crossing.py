@@ -25,9 +25,9 @@ import time
 from pathlib import Path
 
 from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, check_domain_id, check_inputs, check_out,
-                         check_viewer, discard_outputs, prepare_out, release_out, run_graph)
+                         check_viewer, discard_outputs, launch, prepare_out, release_out, run_graph)
 
-from adm_sim.errors import InputError, interrupt_signals, one_line, plausibility_warnings
+from adm_sim.errors import InputError, one_line
 from adm_sim.protocol import parse_driver_line
 
 
@@ -44,12 +44,7 @@ def main(argv=None):
     ap.add_argument("--domain-id", help="ROS_DOMAIN_ID, 0..101 (default: a free one, reserved)")
     ap.add_argument("--overwrite", action="store_true", help="replace the outputs of an earlier run in --out")
     args = ap.parse_args(argv)
-    with interrupt_signals(), plausibility_warnings():  # warnings: one line "warning: ..." each
-        try:
-            return _main(args)
-        except KeyboardInterrupt:  # before any process started
-            print("error: interrupted", file=sys.stderr)
-            return 130
+    return launch(_main, args)
 
 
 def _main(args):
