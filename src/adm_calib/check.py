@@ -530,7 +530,9 @@ def screening(bridge, max_line_speed_kmh):
 
 def _refinement(speeds, acc, extra, vmin, vmax):
     """Speeds at REFINE_STEP_KMH over +-REFINE_HALF_WIDTH_KMH around interior maxima and ``extra``."""
-    i = np.flatnonzero((acc[1:-1] > acc[:-2]) & (acc[1:-1] >= acc[2:])) + 1
+    from adm_sim.peaks import local_maxima  # the project's one peak rule, every maximum kept
+
+    i = local_maxima(acc, min_prominence_rel=0.0)
     i = i[acc[i] >= REFINE_MIN_FRACTION * acc.max()]  # resonance peaks, not ripples of a low plateau
     centres = np.concatenate([speeds[i], extra])
     off = np.arange(-REFINE_HALF_WIDTH_KMH, REFINE_HALF_WIDTH_KMH + 1e-9, REFINE_STEP_KMH)
