@@ -8,6 +8,7 @@ import pytest
 rclpy = pytest.importorskip("rclpy")
 from ros_fixtures import node_procs, ros_domain  # noqa: E402,F401
 
+from adm_sim import protocol as P  # noqa: E402
 from adm_sim.nodes import common as c  # noqa: E402
 
 
@@ -20,7 +21,7 @@ def test_stray_exchange_message_ends_the_node(node_procs, ros_domain):
     rclpy.init(context=ctx, domain_id=ros_domain.domain_id)
     node = rclpy.create_node("stray", context=ctx)
     try:
-        pub = node.create_publisher(Float64MultiArray, c.TOPIC_FORCES, c.QOS_EXCHANGE)
+        pub = node.create_publisher(Float64MultiArray, P.TOPIC_FORCES, c.QOS_EXCHANGE)
         t_end = time.monotonic() + 30
         while pub.get_subscription_count() == 0:
             assert time.monotonic() < t_end, node_procs.stderr("bridge")

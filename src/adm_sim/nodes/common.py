@@ -32,11 +32,6 @@ from adm_sim.protocol import encode
 
 # ---------------------------------------------------------------------- names
 # Topic and node names, record layouts: one home, the ROS-free :mod:`adm_sim.protocol`. These
-# re-exports serve node code that still says ``c.TOPIC_*`` (the driver); new code imports the protocol.
-from adm_sim.protocol import (BRIDGE_NODE, NS, TOPIC_ACCEL, TOPIC_AXLE_BLOCK, TOPIC_AXLES,  # noqa: F401
-                              TOPIC_BEAM, TOPIC_BRIDGE_DESC, TOPIC_CAL_ITERATION, TOPIC_CAL_RESULT, TOPIC_CLOCK,
-                              TOPIC_DIAGNOSTICS, TOPIC_FORCES, TOPIC_PROGRESS, TOPIC_RAIL, TOPIC_READY, TOPIC_RESULT,
-                              TOPIC_SETUP, TOPIC_STATE, TOPIC_STATUS, TOPIC_TRAIN_DESC, TRAIN_NODE)
 
 # ---------------------------------------------------------------------- QoS
 #: Lockstep exchange: reliable, volatile; strict alternation keeps at most one message in flight.

@@ -35,10 +35,10 @@ from adm_sim.nodes import common as c
 
 
 #: Topics the driver records (topic, type); its own publications are recorded as it publishes.
-RECORDED = [(c.TOPIC_CLOCK, Clock), (c.TOPIC_ACCEL, AccelStamped), (c.TOPIC_STATE, Float64MultiArray),
-            (c.TOPIC_BEAM, Float64MultiArray), (c.TOPIC_AXLES, Float64MultiArray), (c.TOPIC_PROGRESS, String),
-            (c.TOPIC_DIAGNOSTICS, DiagnosticArray), (c.TOPIC_RESULT, Float64MultiArray), (c.TOPIC_STATUS, String),
-            (c.TOPIC_BRIDGE_DESC, String), (c.TOPIC_TRAIN_DESC, String)]
+RECORDED = [(P.TOPIC_CLOCK, Clock), (P.TOPIC_ACCEL, AccelStamped), (P.TOPIC_STATE, Float64MultiArray),
+            (P.TOPIC_BEAM, Float64MultiArray), (P.TOPIC_AXLES, Float64MultiArray), (P.TOPIC_PROGRESS, String),
+            (P.TOPIC_DIAGNOSTICS, DiagnosticArray), (P.TOPIC_RESULT, Float64MultiArray), (P.TOPIC_STATUS, String),
+            (P.TOPIC_BRIDGE_DESC, String), (P.TOPIC_TRAIN_DESC, String)]
 
 DRIVER_SPECS = [
     c.ParamSpec("record_path", "", "", "MCAP file to record to; empty = no recording"),
@@ -136,10 +136,10 @@ class RunDriver(c.NodeBase):
             self.viz.send_blueprint()  # sent again with the beam bounds once the span is known
         for topic, typ in RECORDED:
             qos = c.QOS_LATCHED if topic.endswith("description") else (
-                c.QOS_CONTROL if topic in (c.TOPIC_RESULT, c.TOPIC_STATUS, c.TOPIC_DIAGNOSTICS) else c.QOS_MONITOR)
+                c.QOS_CONTROL if topic in (P.TOPIC_RESULT, P.TOPIC_STATUS, P.TOPIC_DIAGNOSTICS) else c.QOS_MONITOR)
             self.create_subscription(typ, topic, self._make_cb(topic), qos)
         self.cli_start = self.create_client(Trigger, P.SERVICE_START_RUN)
-        self.params = {n: AsyncParameterClient(self, n) for n in (c.BRIDGE_NODE, c.TRAIN_NODE)}
+        self.params = {n: AsyncParameterClient(self, n) for n in (P.BRIDGE_NODE, P.TRAIN_NODE)}
 
     # ------------------------------------------------------------------ subscriptions
     def _make_cb(self, topic):
@@ -245,14 +245,14 @@ class RunDriver(c.NodeBase):
     def wait_for_graph(self, timeout_s=30.0):
         """Block until both nodes, their services and the result topic are there."""
         t_end = time.monotonic() + timeout_s
-        while not (self.cli_start.service_is_ready() and self.count_publishers(c.TOPIC_RESULT) > 0):
+        while not (self.cli_start.service_is_ready() and self.count_publishers(P.TOPIC_RESULT) > 0):
             if time.monotonic() > t_end:
                 raise RunError(f"bridge/train nodes not found after {timeout_s:g} s")
             self._event.wait(0.05)
 
     def _check_alive(self):
         names = set(self.get_node_names())
-        missing = [n for n in (c.BRIDGE_NODE, c.TRAIN_NODE) if n not in names]
+        missing = [n for n in (P.BRIDGE_NODE, P.TRAIN_NODE) if n not in names]
         if not missing:
             return
         run = self._current[0] if self._current else None
@@ -283,8 +283,8 @@ class RunDriver(c.NodeBase):
             bp["delta_zeta"] = float(delta_zeta)
         if delta_zeta_lanes is not None:
             bp["delta_zeta_lanes"] = "" if len(delta_zeta_lanes) == 0 else c.format_float_list(delta_zeta_lanes)
-        self.set_params(c.TRAIN_NODE, **tp)
-        self.set_params(c.BRIDGE_NODE, **bp)
+        self.set_params(P.TRAIN_NODE, **tp)
+        self.set_params(P.BRIDGE_NODE, **bp)
         with self._lock:
             self._result = None
         self._event.clear()
