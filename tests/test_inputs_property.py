@@ -88,8 +88,10 @@ def _check(capsys, argv, json_path):
         rc = exc.code
     out = capsys.readouterr()
     assert "Traceback" not in out.err and "Traceback" not in out.out
+    warnings_ = [ln for ln in out.err.strip().splitlines() if ln.startswith("warning: ")]
+    assert all("\n" not in w and "nan" not in w for w in warnings_)  # plausibility warnings: one line each
     if rc == 2:
-        lines = out.err.strip().splitlines()
+        lines = [ln for ln in out.err.strip().splitlines() if not ln.startswith("warning: ")]
         assert len(lines) == 1 and lines[0].startswith("error: ") and "nan" not in lines[0].split(":")[1], out.err
         return None
     assert rc == 0, out.err
