@@ -1,4 +1,4 @@
-"""`adm-sim check`: the EN 1991-2 dynamic check, its numbers, outputs and refusals."""
+"""`adm-sim check` / `adm-calib check`: the EN 1991-2 dynamic check, its numbers, outputs and refusals."""
 
 import csv
 import itertools
@@ -21,10 +21,11 @@ from analytic import moving_force_modal
 from test_envelope import reference_maxima
 
 CLI = [sys.executable, "-m", "adm_sim.cli"]
+CALIB_CLI = [sys.executable, "-m", "adm_calib.cli"]
 
 
-def run(*args):
-    return subprocess.run(CLI + list(args), capture_output=True, text=True, timeout=600)
+def run(*args, cli=CLI):
+    return subprocess.run(cli + list(args), capture_output=True, text=True, timeout=600)
 
 
 def test_speeds_from_40_m_s_to_1_2_v():
@@ -217,9 +218,6 @@ def test_bad_trains():
     (["--bridge", "B2", "--max-line-speed", "300", "--damping", "adm"],
      "error: --damping adm: the Eurocode ADM applies to spans < 30 m (EN 1991-2 6.4.6.3.1); this bridge "
      "spans 30 m; allowed --damping none\n"),
-    (["--max-line-speed", "300", "--damping", "lb"],
-     "error: --damping lb: HSLM-A1 is an HSLM load train, not a vehicle; the lower-bound functions apply only "
-     "to the real trains of the study; allowed for HSLM: --damping none or adm\n"),
     (["--max-line-speed", "300", "--speed-step", "5"], "error: --speed-step: 5 km/h is out of range; allowed (0, 1] km/h\n"),
     (["--max-line-speed", "300", "--where", "x=15"], "error: --where: 15 m is out of range; allowed (0, 15) m\n"),
     (["--max-line-speed", "300", "--where", "x=-1.5"], "error: --where: -1.5 m is out of range; allowed (0, 15) m\n"),
@@ -238,6 +236,82 @@ def test_bad_input_cli_lines(args, line):
     r = run("check", *args)
     assert r.returncode == 2
     assert r.stderr == line
+
+
+@pytest.mark.parametrize("method", ["lb", "vbi"])
+def test_core_check_refuses_calib_methods(method):
+    """`adm-sim check --damping lb|vbi`: one line, exit 2, pointing to adm-calib check (the core does
+    not compute the paper's lower bounds or Δζ_VBI); the same options run under `adm-calib check`,
+    which reaches the lower-bound rules (an HSLM train is refused there, by the core's HSLM rule)."""
+    args = ["check", "--max-line-speed", "300", "--damping", method]
+    r = run(*args)
+    assert r.returncode == 2
+    assert r.stderr == (f"error: --damping {method}: the paper's lower bounds and the calibrated Δζ_VBI are "
+                        f"adm-calib's; run adm-calib check with the same options (allowed here: --damping none or adm)\n")
+    assert r.stdout == ""
+    r = run(*args, cli=CALIB_CLI)
+    assert r.returncode == 2
+    what = "the lower-bound functions" if method == "lb" else "the calibrated Δζ_VBI"
+    assert r.stderr == (f"error: --damping {method}: HSLM-A1 is an HSLM load train, not a vehicle; {what} apply only "
+                        f"to the real trains of the study; allowed for HSLM: --damping none or adm\n")
+
+
+@pytest.mark.parametrize("args,line", [
+    (["--max-line-speed", "300", "--trains", "src/adm_sim/data/examples/my_train.toml", "--damping", "lb"],
+     "error: --damping lb: my train on B1: lower bound not defined: train: 'my train' was not studied by the paper; "
+     "allowed ICE-2, Eurostar, Railjet, ICE-4 (the lower-bound functions must not be applied to other trains, "
+     "Section 4.3)\n"),
+    (["--max-line-speed", "300", "--trains", "ICE-2", "--damping", "vbi", "--csv", "x.txt"],
+     "error: --csv: 'x.txt' must end in .csv\n"),
+    (["--max-line-speed", "300", "--damping", "eada"],
+     "error: argument --damping: invalid choice: 'eada' (choose from 'none', 'adm', 'lb', 'vbi')\n"),
+])
+def test_calib_check_bad_input_lines(args, line):
+    """`adm-calib check` shares the options of `adm-sim check` (one definition) and refuses the same way."""
+    r = run("check", *args, cli=CALIB_CLI)
+    assert r.returncode == 2
+    assert r.stderr == line
+
+
+def test_calib_check_lb_matches_the_lower_bound():
+    """`adm-calib check --damping lb` on B1 with ICE-2: the damping line and the JSON carry the
+    lower bound of paper Table 4 (B1 ICE-2, 0.323 %), and the governing acceleration lies below the
+    undamped `adm-sim check` one (more damping, same loads)."""
+    base = ["check", "--bridge", "B1", "--max-line-speed", "250", "--trains", "ICE-2", "--speed-step", "1"]
+    r_lb = run(*base, "--damping", "lb", cli=CALIB_CLI)
+    r_none = run(*base)
+    assert r_lb.returncode == 0 and r_none.returncode == 0, r_lb.stderr + r_none.stderr
+
+    def governing_acc(out):
+        line = next(x for x in out.splitlines() if x.startswith("governing:"))
+        return float(line.split("max deck acceleration (whole deck) ")[1].split(" m/s2")[0])
+
+    assert "lower bound 0.323 %" in r_lb.stdout
+    assert governing_acc(r_lb.stdout) < governing_acc(r_none.stdout)
+
+
+def test_core_api_calib_methods_need_a_provider():
+    """adm_sim.check.run_check: lb/vbi without a damping_provider are refused before any work; with
+    one, the provider's Δζ is used exactly as the ADM's: a provider returning the Eurocode ADM value
+    (EN 1991-2 6.4.6.3.1 Eq. 6.13) reproduces --damping adm to the last bit."""
+    from adm_sim import check as core
+    from adm_sim.design_loads import adm_delta_zeta_pct
+
+    b1, axle = named_bridge("B1"), moving_loads([0.0], [100e3], name="one axle")
+    for method in ("lb", "vbi"):
+        with pytest.raises(InputError, match=rf"^--damping {method}: .* are adm-calib's; run adm-calib check"):
+            core.run_check(b1, 250.0, [axle], damping=method)
+    calls = []
+
+    def provider(bridge, train, method, calibrate_options):
+        calls.append((bridge.span_m, train.name, method))
+        return adm_delta_zeta_pct(bridge.span_m), "stub"
+
+    got = core.run_check(b1, 250.0, [axle], damping="lb", damping_provider=provider, where="midspan")
+    ref = core.run_check(b1, 250.0, [axle], damping="adm", where="midspan")
+    assert calls == [(15.0, "one axle", "lb")]
+    assert got.trains[0].delta_zeta_pct == ref.trains[0].delta_zeta_pct == pytest.approx(0.6527, abs=1e-4)
+    np.testing.assert_array_equal(got.trains[0].max_acc_m_s2, ref.trains[0].max_acc_m_s2)
 
 
 def test_cli_outputs_and_no_overwrite(tmp_path):
@@ -404,10 +478,41 @@ def test_more_modes_on_request():
 
 
 def test_core_does_not_import_adm_calib():
-    """The check is registered in adm_sim.cli but imports adm_calib only when it runs."""
-    code = "import sys, adm_sim.cli, adm_sim.envelope, adm_sim.hslm, adm_sim.trains; print('adm_calib' in sys.modules)"
-    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
-    assert r.stdout.strip() == "False", r.stderr
+    """The core's check and its CLI load without adm_calib, and `adm-sim check` runs without it."""
+    code = ("import sys, adm_sim.cli, adm_sim.check, adm_sim.envelope, adm_sim.hslm, adm_sim.trains\n"
+            "adm_sim.cli.main(['check', '--max-line-speed', '250', '--trains', 'HSLM-A1', '--speed-step', '1'])\n"
+            "print('adm_calib' in sys.modules)")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert r.stdout.strip().splitlines()[-1] == "False", r.stderr
+
+
+def test_no_import_of_adm_calib_anywhere_in_adm_sim():
+    """No arrow points up: no .py file under src/adm_sim (cli.py included, none excluded) imports
+    adm_calib, at module level or inside a function (every Import/ImportFrom node of the AST, and
+    importlib/__import__ calls naming it)."""
+    import ast
+    import pathlib
+
+    root = pathlib.Path(__file__).resolve().parents[1] / "src" / "adm_sim"
+    files = sorted(root.rglob("*.py"))
+    assert root / "cli.py" in files and root / "check.py" in files
+    bad = []
+    for f in files:
+        tree = ast.parse(f.read_text(encoding="utf-8"), filename=str(f))
+        for node in ast.walk(tree):
+            names = []
+            if isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                names = [node.module]
+            elif isinstance(node, ast.Call) and node.args and isinstance(node.args[0], ast.Constant):
+                fn = node.func
+                fname = fn.attr if isinstance(fn, ast.Attribute) else getattr(fn, "id", "")
+                if fname in ("import_module", "__import__") and isinstance(node.args[0].value, str):
+                    names = [node.args[0].value]
+            bad += [f"{f.relative_to(root)}:{node.lineno}: {n}" for n in names
+                    if n == "adm_calib" or n.startswith("adm_calib.")]
+    assert bad == []
 
 
 def test_refusal_comes_before_any_calibration(monkeypatch):

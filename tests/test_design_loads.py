@@ -146,6 +146,20 @@ def test_phi_dyn_prime_is_the_increment():
 # ---------------------------------------------------------------- statics, closed forms
 
 
+def test_eurocode_adm_in_the_core_hand_values():
+    """EN 1991-2 6.4.6.3.1 Eq. (6.13) by hand: L = 15 m gives (0.2805 - 0.144) / (1 - 0.6615 - 0.99
+    + 0.860625) = 0.1365 / 0.209125 %; L = 10 m gives 0.123 / (1 - 0.441 - 0.44 + 0.255) = 0.123 / 0.374 %; 0 from 30 m on (and in the
+    dip just below, where Fig. 6.15 ends at 0); adm_calib.reference re-exports the same function."""
+    assert dl.adm_delta_zeta_pct(15.0) == pytest.approx(0.1365 / 0.209125, rel=1e-12)
+    assert dl.adm_delta_zeta_pct(10.0) == pytest.approx(0.123 / 0.374, rel=1e-12)
+    assert dl.adm_delta_zeta_pct(30.0) == 0.0 and dl.adm_delta_zeta_pct(29.5) == 0.0
+    with pytest.raises(InputError, match=r"^span_m: -5 m is out of range"):
+        dl.adm_delta_zeta_pct(-5.0)
+    from adm_calib.reference import adm_delta_zeta_pct
+
+    assert adm_delta_zeta_pct is dl.adm_delta_zeta_pct
+
+
 @pytest.mark.parametrize("a", [0.0, 1.3, 5.0, 10.0, 14.2])
 def test_point_load_closed_forms_against_statics_and_modes(a):
     L, EJ, P = 20.0, 3.3e10, 170e3

@@ -430,7 +430,7 @@ CASES = [
     ('adm-calib calibrate', ['calibrate', '--bridge', 'B1'],
      'error: the following arguments are required: --train'),
     ('adm-calib calibrate', ['frobnicate'],
-     "error: argument command: invalid choice: 'frobnicate' (choose from 'calibrate', 'table4', 'recommend', 'study', 'study-fit')"),
+     "error: argument command: invalid choice: 'frobnicate' (choose from 'calibrate', 'table4', 'recommend', 'study', 'study-fit', 'check')"),
     ('adm-calib table4', ['table4', '--out', '{t}/t4', '--bridges', 'B1,B9'],
      "error: --bridges: 'B9' is not a named bridge; allowed B1, B2, B3, B4"),
     ('adm-calib table4', ['table4', '--out', '{t}/t4', '--bridges', 'B1,B1'],

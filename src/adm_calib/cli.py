@@ -10,6 +10,8 @@ Subcommands::
                         [--functions paper|ours|conservative] [--extrapolate]
     adm-calib study --out DIR [--trains ...] [--mass-functions mu1,...] [--spans 4:40] [--freq-index 1,...]
                     [--limit N] [--workers 2 | --scheduler tcp://127.0.0.1:PORT] [--dense-maxima] [--refine-speed]
+    adm-calib check --max-line-speed KMH [--bridge B1] [--trains hslm,ICE-2,...] [--damping none|adm|lb|vbi]
+                    [the other options of adm-sim check]
     adm-calib study-fit --results DIR/results.jsonl [--out DIR] [--exclude none|step2|strict]
                         [--fit-range-hz 2:21] [--tag NAME]
 
@@ -28,7 +30,7 @@ import sys
 import time
 from pathlib import Path
 
-from adm_sim.cli import output_path, write_atomic
+from adm_sim.cli import add_check_arguments, cmd_check, output_path, write_atomic
 from adm_sim.errors import InputError, RunError, check_int, check_range, run_cli
 from adm_sim.limits import DEFAULT_SPEEDS
 
@@ -464,6 +466,14 @@ def cmd_study_fit(args):
     return 0
 
 
+def cmd_check_calib(args):
+    """``adm-calib check``: the core's EN 1991-2 check (:func:`adm_sim.cli.cmd_check`) with all four
+    damping methods; ``lb`` and ``vbi`` from :func:`adm_calib.check.calibrated_damping`."""
+    from adm_calib.check import calibrated_damping
+
+    return cmd_check(args, damping_provider=calibrated_damping)
+
+
 def build_parser():
     p = _Parser(prog="adm-calib", description="Additional-damping calibration (MLM vs DIM) and comparison "
                                                "with the Eurocode ADM, EADA and the lower-bound functions.")
@@ -559,6 +569,11 @@ def build_parser():
     f.add_argument("--overwrite", "--force", dest="force", action="store_true",
                    help="replace existing output files (only once the new ones are complete)")
     f.set_defaults(func=cmd_study_fit)
+
+    k = sub.add_parser("check", help="EN 1991-2 dynamic check as adm-sim check, with all four damping methods "
+                                     "(none, adm, lb: the paper's lower bounds, vbi: calibrated Δζ_VBI)")
+    add_check_arguments(k)
+    k.set_defaults(func=cmd_check_calib)
     return p
 
 

@@ -4,7 +4,8 @@ All functions return the additional damping in percent of critical (``*_pct``).
 
 Eurocode ADM (EN 1991-2 6.4.6.3.1, Fig. 6.15; paper Fig. 4)
     ``dz = (0.0187 L - 0.00064 L^2) / (1 - 0.0441 L - 0.0044 L^2 + 0.000255 L^3)`` in % for
-    ``L < 30 m``, ``0`` for ``L >= 30 m``.
+    ``L < 30 m``, ``0`` for ``L >= 30 m``. The function lives in the core
+    (:func:`adm_sim.design_loads.adm_delta_zeta_pct`, EN 1991-2 Eq. (6.13)) and is re-exported here.
 
 Equivalent Additional Damping Approach, EADA (Yau et al., paper Eq. 3)
     ``dz ~= mu_1 r_1 sqrt(r_1^2 + (2 zeta_1)^2)`` with ``mu_1 = m_1 / M_1``, ``r_1 = omega_1 / Omega_1``
@@ -59,6 +60,7 @@ from importlib import resources
 import numpy as np
 
 from adm_sim.bridge import MASS_FUNCTIONS, N0_FIT, N0_UB, SPAN_RANGE_M, mass_function_t_m
+from adm_sim.design_loads import adm_delta_zeta_pct  # noqa: F401  (the Eurocode ADM lives in the core; re-exported)
 from adm_sim.errors import InputError, check_range
 
 from adm_calib.lower_bound import FIT_RANGE_MAX_HZ, LOWER_LIMIT_HZ, first_root_hz, lower_bound_pct, zero_from_hz
@@ -93,28 +95,6 @@ def canonical_train_name(name):
 
 
 # ---------------------------------------------------------------------- Eurocode ADM
-def adm_delta_zeta_pct(span_m):
-    """Additional damping of the Eurocode ADM (%), EN 1991-2 6.4.6.3.1, Fig. 6.15.
-
-    Parameters
-    ----------
-    span_m : float
-        Span L (m), > 0.
-
-    Returns
-    -------
-    float
-        ``(0.0187 L - 0.00064 L^2) / (1 - 0.0441 L - 0.0044 L^2 + 0.000255 L^3)`` for L < 30 m,
-        else 0.
-    """
-    L = check_range("span_m", span_m, "m", 0.0, None, lo_open=True)
-    if L >= 30.0:
-        return 0.0
-    # The rational function dips below zero (by at most 0.003 %) for 29.2 m < L < 30 m; the
-    # standard's Fig. 6.15 ends at zero there, and additional damping is never negative.
-    return max(0.0, (0.0187 * L - 0.00064 * L**2) / (1.0 - 0.0441 * L - 0.0044 * L**2 + 0.000255 * L**3))
-
-
 # ---------------------------------------------------------------------- EADA
 @dataclass(frozen=True)
 class HalfCoach:

@@ -191,13 +191,15 @@ def cmd_sweep(args):
     return 0
 
 
-def cmd_check(args):
-    """EN 1991-2 dynamic check; the logic lives in adm_calib.check (imported here, lazily, because
-    the Eurocode ADM, the lower bounds and the calibration belong to adm_calib)."""
+def cmd_check(args, damping_provider=None):
+    """EN 1991-2 dynamic check (:mod:`adm_sim.check`). ``--damping none|adm`` are the core's;
+    ``lb|vbi`` need adm-calib's ``damping_provider`` (``adm-calib check`` passes it) and are refused
+    here, before any work, without one. The core never imports adm_calib."""
     from adm_sim.bridge import resolve_bridge
+    from adm_sim.check import CALIB_DAMPING_METHODS, DAMPING_MODELS, calib_methods_refusal, resolve_trains, run_check
 
-    from adm_calib.check import resolve_trains, run_check
-
+    if args.damping in CALIB_DAMPING_METHODS and damping_provider is None:
+        raise calib_methods_refusal(args.damping)
     outs = {}
     inputs = [("--bridge", args.bridge)] + [("--trains", t.strip()) for t in str(args.trains).split(",")]
     seen = {}
@@ -209,7 +211,6 @@ def cmd_check(args):
             outs[opt] = output_path(text, f"--{opt}", args.overwrite, suffix, inputs)
             seen[outs[opt].resolve()] = opt
     bridge = resolve_bridge(args.bridge)
-    from adm_calib.check import DAMPING_MODELS
     from adm_sim.envelope import parse_where
 
     parse_where(args.where, bridge.span_m)  # refused before any work
@@ -223,7 +224,8 @@ def cmd_check(args):
         res = run_check(bridge, args.max_line_speed, trains, track=track, damping=args.damping,
                         step_kmh=args.speed_step, progress=cb, comfort=args.comfort, n_modes=args.modes,
                         where=args.where, damping_model=args.damping_model,
-                        track_maintenance=args.track_maintenance, alpha=args.alpha)
+                        track_maintenance=args.track_maintenance, alpha=args.alpha,
+                        damping_provider=damping_provider)
     finally:
         close()
     wall = time.perf_counter() - t0
@@ -329,6 +331,45 @@ def _output_options(parser, outputs, overwrite_help):
                         help="progress bar (default: when stderr is a terminal)")
 
 
+def add_check_arguments(c):
+    """The options of the EN 1991-2 check, one definition for ``adm-sim check`` and ``adm-calib check``
+    (``--damping lb|vbi`` are computed only by ``adm-calib check``)."""
+    c.add_argument("--bridge", default="B1", help="B1..B4, a spec L=15,n0=8.26,mu=19042,zeta_pct=1.85, or a TOML file")
+    c.add_argument("--max-line-speed", type=float, required=True,
+                   help="maximum line speed V (km/h, > 144); speeds 40 m/s .. 1.2 V are checked")
+    c.add_argument("--trains", default="hslm",
+                   help="comma list: hslm (HSLM-A1..A10), HSLM-Ak, ICE-2, Eurostar, Railjet, ICE-4, .toml files")
+    c.add_argument("--track", choices=(*ACC_LIMITS_M_S2, *TRACK_ALIASES), default="ballasted",
+                   help="deck acceleration limit, EN 1990 A2.4.4.2.1: "
+                        + ", ".join(f"{a:g} m/s2 {t}" for t, a in ACC_LIMITS_M_S2.items())
+                        + "".join(f" ({k} = {v})" for k, v in TRACK_ALIASES.items()))
+    c.add_argument("--damping", choices=("none", "adm", "lb", "vbi"), default="none",
+                   help="additional damping: none, Eurocode ADM (EN 1991-2 6.4.6.3.1), the paper's lower bounds or the "
+                        "calibrated VBI (lb and vbi: adm-calib check only)")
+    c.add_argument("--where", default="deck",
+                   help="where the acceleration is taken: deck (default: anywhere on the deck, with the position, "
+                        "EN 1990 A2.4.4.2.1), midspan, or x=<m> (0 < x < L)")
+    c.add_argument("--track-maintenance", default="careful",
+                   help="EN 1991-2 6.4.5.2 track maintenance for the LM71 dynamic factor of the 6.4.6.5(3) "
+                        "comparison: careful (Phi2, default) or standard (Phi3)")
+    c.add_argument("--alpha", default="1.0",
+                   help="LM71 classification factor alpha, EN 1991-2 6.3.2(3): 0.75, 0.83, 0.91, 1.00 (default), "
+                        "1.10, 1.21, 1.33, 1.46")
+    c.add_argument("--damping-model", default=None,
+                   help="damping per mode: rayleigh13 (Rayleigh anchored at modes 1 and 3; mode 2 gets 0.625 zeta "
+                        "with 3 modes) or modal (zeta on every mode, EN 1991-2 6.4.6.3.1); default: the bridge's "
+                        "own (rayleigh13 unless its file says damping_model = \"modal\")")
+    c.add_argument("--speed-step", type=float, default=1.0, help="speed step (km/h, at most 1)")
+    c.add_argument("--modes", type=float, help="more modes than EN 1990 A2.4.4.2.1 asks for (default: exactly those)")
+    c.add_argument("--comfort", action="store_true",
+                   help="also run the DIM of the real trains: passenger comfort b_v (EN 1990 A2.4.4.3)")
+    _output_options(c, {"json": "write the verdict and every curve as JSON",
+                        "csv": "write every curve as CSV (train, speed, acc and its position, disp, midspan moment, "
+                               "zeta per mode)",
+                        "plot": "write the acceleration envelopes as PNG"},
+                    "replace existing output files (once the check has finished)")
+
+
 def build_parser():
     p = OneLineParser(prog="adm-sim", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="cmd", required=True, parser_class=OneLineParser)
@@ -352,40 +393,9 @@ def build_parser():
                     "replace existing --json/--plot files (once the run has finished)")
     s.set_defaults(func=cmd_sweep)
 
-    c = sub.add_parser("check", help="EN 1991-2 dynamic check: envelopes of HSLM-A and real trains, verdict")
-    c.add_argument("--bridge", default="B1", help="B1..B4, a spec L=15,n0=8.26,mu=19042,zeta_pct=1.85, or a TOML file")
-    c.add_argument("--max-line-speed", type=float, required=True,
-                   help="maximum line speed V (km/h, > 144); speeds 40 m/s .. 1.2 V are checked")
-    c.add_argument("--trains", default="hslm",
-                   help="comma list: hslm (HSLM-A1..A10), HSLM-Ak, ICE-2, Eurostar, Railjet, ICE-4, .toml files")
-    c.add_argument("--track", choices=(*ACC_LIMITS_M_S2, *TRACK_ALIASES), default="ballasted",
-                   help="deck acceleration limit, EN 1990 A2.4.4.2.1: "
-                        + ", ".join(f"{a:g} m/s2 {t}" for t, a in ACC_LIMITS_M_S2.items())
-                        + "".join(f" ({k} = {v})" for k, v in TRACK_ALIASES.items()))
-    c.add_argument("--damping", choices=("none", "adm", "lb", "vbi"), default="none",
-                   help="additional damping: none, Eurocode ADM, the paper's lower bounds, calibrated VBI")
-    c.add_argument("--where", default="deck",
-                   help="where the acceleration is taken: deck (default: anywhere on the deck, with the position, "
-                        "EN 1990 A2.4.4.2.1), midspan, or x=<m> (0 < x < L)")
-    c.add_argument("--track-maintenance", default="careful",
-                   help="EN 1991-2 6.4.5.2 track maintenance for the LM71 dynamic factor of the 6.4.6.5(3) "
-                        "comparison: careful (Phi2, default) or standard (Phi3)")
-    c.add_argument("--alpha", default="1.0",
-                   help="LM71 classification factor alpha, EN 1991-2 6.3.2(3): 0.75, 0.83, 0.91, 1.00 (default), "
-                        "1.10, 1.21, 1.33, 1.46")
-    c.add_argument("--damping-model", default=None,
-                   help="damping per mode: rayleigh13 (Rayleigh anchored at modes 1 and 3; mode 2 gets 0.625 zeta "
-                        "with 3 modes) or modal (zeta on every mode, EN 1991-2 6.4.6.3.1); default: the bridge's "
-                        "own (rayleigh13 unless its file says damping_model = \"modal\")")
-    c.add_argument("--speed-step", type=float, default=1.0, help="speed step (km/h, at most 1)")
-    c.add_argument("--modes", type=float, help="more modes than EN 1990 A2.4.4.2.1 asks for (default: exactly those)")
-    c.add_argument("--comfort", action="store_true",
-                   help="also run the DIM of the real trains: passenger comfort b_v (EN 1990 A2.4.4.3)")
-    _output_options(c, {"json": "write the verdict and every curve as JSON",
-                        "csv": "write every curve as CSV (train, speed, acc and its position, disp, midspan moment, "
-                               "zeta per mode)",
-                        "plot": "write the acceleration envelopes as PNG"},
-                    "replace existing output files (once the check has finished)")
+    c = sub.add_parser("check", help="EN 1991-2 dynamic check: envelopes of HSLM-A and real trains, verdict "
+                                     "(--damping lb|vbi: adm-calib check)")
+    add_check_arguments(c)
     c.set_defaults(func=cmd_check)
 
     t = sub.add_parser("trains", help="list trains; --check compares axle loads and bogie frequencies")

@@ -21,6 +21,9 @@ supported span). The pieces, each with its clause:
   maintained track (Eq. 6.4), Φ3 = 2.16 / (sqrt(LΦ) - 0.2) + 0.73 within [1.00, 2.00] for
   standard maintenance (Eq. 6.5); LΦ the determinant length, the span for a simply supported main
   girder (Table 6.2, case 5.1); :func:`phi2`, :func:`phi3`, :func:`dynamic_factor`.
+* the Eurocode ADM, EN 1991-2 6.4.6.3.1 Eq. (6.13), Fig. 6.15: the additional damping Δζ (%) of a
+  span L < 30 m, ``(0.0187 L - 0.00064 L^2) / (1 - 0.0441 L - 0.0044 L^2 + 0.000255 L^3)``, 0 for
+  L >= 30 m; :func:`adm_delta_zeta_pct` (``adm_calib.reference`` re-exports it).
 * LM71, EN 1991-2 6.3.2 Fig. 6.2: four 250 kN axles at 1.6 m with 0.8 m to the 80 kN/m
   distributed load on both sides, unlimited (so the point forces take a 6.4 m window out of the
   distributed load), times the classification factor α of 6.3.2(3) (0.75, 0.83, 0.91, 1.00, 1.10,
@@ -193,6 +196,29 @@ def phi_dyn_prime(max_dyn, max_stat):
         raise InputError(f"max_stat: {stat.size} values do not match the {dyn.size} of max_dyn; "
                          "give one value or one per max_dyn entry") from None
     return float(ratio.max() - 1.0)
+
+
+# --------------------------------------------------------------------------- Eurocode ADM
+def adm_delta_zeta_pct(span_m):
+    """Additional damping of the Eurocode ADM (%), EN 1991-2 6.4.6.3.1 Eq. (6.13), Fig. 6.15.
+
+    Parameters
+    ----------
+    span_m : float
+        Span L (m), > 0.
+
+    Returns
+    -------
+    float
+        ``(0.0187 L - 0.00064 L^2) / (1 - 0.0441 L - 0.0044 L^2 + 0.000255 L^3)`` for L < 30 m,
+        else 0.
+    """
+    L = check_range("span_m", span_m, "m", 0.0, None, lo_open=True)
+    if L >= 30.0:
+        return 0.0
+    # The rational function dips below zero (by at most 0.003 %) for 29.2 m < L < 30 m; the
+    # standard's Fig. 6.15 ends at zero there, and additional damping is never negative.
+    return max(0.0, (0.0187 * L - 0.00064 * L**2) / (1.0 - 0.0441 * L - 0.0044 * L**2 + 0.000255 * L**3))
 
 
 def check_alpha(alpha):
