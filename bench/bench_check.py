@@ -17,7 +17,7 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from adm_calib.check import resolve_trains, run_check  # noqa: E402
+from adm_sim.check import resolve_trains, run_check  # noqa: E402
 from adm_sim.bridge import named_bridge  # noqa: E402
 from adm_sim.envelope import moving_load_envelope  # noqa: E402
 from adm_sim.sweep import run_sweep  # noqa: E402
