@@ -623,6 +623,21 @@ def _neighbours(v, i):
     return float(v[max(i - 1, 0)]), float(v[min(i + 1, v.size - 1)])
 
 
+def _relocate_peaks(lanes, model, phase, speeds, curves, peaks, resolution_kmh):
+    """Every found peak located to ``resolution_kmh`` between its sampled neighbours
+    (:func:`refine_peaks`); returns the merged speeds, curves and the relocated peaks (lists)."""
+    ivs = [_neighbours(speeds[c], p.index) if p.found else None for c, p in enumerate(peaks)]
+    merged, best = refine_peaks(lanes, model, phase, list(zip(speeds, curves)), ivs, resolution_kmh)
+    speeds, curves, peaks = list(speeds), list(curves), list(peaks)
+    for c, (vc, ac) in enumerate(merged):
+        speeds[c], curves[c] = vc, ac
+        if best[c] is not None:
+            p, i = peaks[c], best[c]
+            peaks[c] = replace(p, index=i, speed_kmh=float(vc[i]), acc_m_s2=float(ac[i]),
+                               reason=f"{p.reason}; located to {resolution_kmh:g} km/h")
+    return speeds, curves, peaks
+
+
 def calibrate_cases(bridges, train, lanes, speeds_kmh=None, options=None, step=None, adapted_curve=False,
                     dim_curves=None, on_trial=None):
     """Section 4 (steps 1-3) for every case of a batch, each phase one request to ``lanes``.
@@ -684,15 +699,8 @@ def calibrate_cases(bridges, train, lanes, speeds_kmh=None, options=None, step=N
     sampled_peaks = list(mlm_peaks)  # on the MLM grid: the DIM grid and the association use these
     vm = [v] * n
     if opt.speed_refinement_kmh is not None:
-        ivs = [_neighbours(v, p.index) if p.found else None for p in mlm_peaks]
-        curves, best = refine_peaks(lanes, "mlm", "mlm_refine", [(v, mlm[c]) for c in range(n)], ivs,
-                                    opt.speed_refinement_kmh)
-        for c in range(n):
-            vm[c], mlm[c] = curves[c]
-            if best[c] is not None:
-                p, i = mlm_peaks[c], best[c]
-                mlm_peaks[c] = replace(p, index=i, speed_kmh=float(vm[c][i]), acc_m_s2=float(mlm[c][i]),
-                                       reason=f"{p.reason}; located to {opt.speed_refinement_kmh:g} km/h")
+        vm, mlm, mlm_peaks = _relocate_peaks(lanes, "mlm", "mlm_refine", vm, mlm, mlm_peaks,
+                                             opt.speed_refinement_kmh)
     timings["mlm_sweep"] = time.perf_counter() - t0
 
     # step 1-2: DIM on the paper's grid, association, refinement where the DIM value lies on the coarse grid
@@ -737,15 +745,8 @@ def calibrate_cases(bridges, train, lanes, speeds_kmh=None, options=None, step=N
             refined[c] = True
             dim_peaks[c] = associate(c)
     if opt.speed_refinement_kmh is not None and not given:
-        ivs = [_neighbours(vd[c], p.index) if p.found else None for c, p in enumerate(dim_peaks)]
-        curves, best = refine_peaks(lanes, "dim", "dim_peak_refine", list(zip(vd, dim)), ivs,
-                                    opt.speed_refinement_kmh)
-        for c in range(n):
-            vd[c], dim[c] = curves[c]
-            if best[c] is not None:
-                p, i = dim_peaks[c], best[c]
-                dim_peaks[c] = replace(p, index=i, speed_kmh=float(vd[c][i]), acc_m_s2=float(dim[c][i]),
-                                       reason=f"{p.reason}; located to {opt.speed_refinement_kmh:g} km/h")
+        vd, dim, dim_peaks = _relocate_peaks(lanes, "dim", "dim_peak_refine", vd, dim, dim_peaks,
+                                             opt.speed_refinement_kmh)
     timings["dim_sweep"] = time.perf_counter() - t0
 
     # step 3: damping ladder (bracket), then all roots together
