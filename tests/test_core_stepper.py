@@ -1,4 +1,5 @@
-"""The lockstep run (stepping.LockstepRun): status, step/stage bookkeeping, maxima, finite check.
+"""The numpy stepper (stepping.InProcessRun, BridgeHalf, TrainHalf on the SteppedRun template):
+status, step/stage bookkeeping, maxima, finite check.
 
 Short case: bridge B1 x ICE-2 at 160, 250 and 350 km/h; the DIM on a coarse grid (4 steps per
 period of mode 3, one period of free vibration) to keep it quick. Maxima are compared with
@@ -10,7 +11,7 @@ import pytest
 
 from adm_sim.bridge import named_bridge
 from adm_sim.errors import InputError, RunError
-from adm_sim.stepping import (BridgeSide, LockstepRun, StepOptions, TrainSide, half_step_positions, make_grid,
+from adm_sim.stepping import (BridgeHalf, BridgeSide, InProcessRun, StepOptions, TrainHalf, TrainSide, half_step_positions, make_grid,
                               mlm_modal_load_table, modal_loads_at, speeds_to_m_s)
 from adm_sim.sweep import run_sweep
 from adm_sim.trains import load_train
@@ -33,10 +34,9 @@ def in_process(model, options):
     """A run holding both halves, as run_sweep builds it."""
     grid = grid_of(options)
     if model == "dim":
-        return LockstepRun("dim", grid, bridge_side=bridge_side(grid, "dim"),
-                           train_side=TrainSide(TRAIN, grid, BRIDGE.span_m))
+        return InProcessRun("dim", grid, bridge_side(grid, "dim"), train_side=TrainSide(TRAIN, grid, BRIDGE.span_m))
     table = mlm_modal_load_table(BRIDGE, grid, TRAIN.axle_offsets_m, TRAIN.axle_loads_n)
-    return LockstepRun("mlm", grid, bridge_side=bridge_side(grid, "mlm"), modal_loads=table)
+    return InProcessRun("mlm", grid, bridge_side(grid, "mlm"), modal_loads=table)
 
 
 @pytest.fixture(scope="module")
@@ -78,16 +78,11 @@ def test_mlm_status_bookkeeping_and_maxima(reference):
 def test_dim_stage_bookkeeping_and_maxima(reference):
     run = in_process("dim", DIM_OPTIONS)
     n = run.n_steps
-    # the first two steps call by call: the stage advances with take_forces (the last call of a stage)
-    for k in range(2):
-        for stage in range(4):
-            assert (run.k, run.stage) == (k, stage)
-            idx, w, wd = run.rail_state()
-            assert (run.k, run.stage) == (k, stage)
-            G = run.take_rail_state(idx, w, wd)
-            assert (run.k, run.stage) == (k, stage)
-            run.take_forces(G)
+    # advance(n) is n steps; step() is one
+    assert run.advance(2) is None
     assert (run.k, run.stage, run.status) == (2, 0, "running")
+    with pytest.raises(ValueError, match="InProcessRun.advance: max_steps = 0 must be >= 1"):
+        run.advance(0)
     while run.status == "running":
         k = run.k
         assert run.step() is None
@@ -106,13 +101,12 @@ def test_dim_stage_bookkeeping_and_maxima(reference):
 def test_dim_halves_reproduce_in_process(reference):
     """Bridge half and train half driven as the two nodes drive them (copies = the exchange)."""
     grid = grid_of(DIM_OPTIONS)
-    bh = LockstepRun("dim", grid, bridge_side=bridge_side(grid, "dim"))
-    th = LockstepRun("dim", grid, train_side=TrainSide(TRAIN, grid, BRIDGE.span_m))
-    assert th.max_acc_m_s2 is None and th.max_disp_m is None  # no bridge, no maxima
-    with pytest.raises(RuntimeError, match="rail_state: needs a DIM bridge side"):
-        th.rail_state()
-    with pytest.raises(RuntimeError, match="step: needs a bridge side and a train side"):
-        bh.step()
+    bh = BridgeHalf("dim", grid, bridge_side(grid, "dim"))
+    th = TrainHalf("dim", grid, TrainSide(TRAIN, grid, BRIDGE.span_m))
+    with pytest.raises(RuntimeError, match="BridgeHalf.step: needs the MLM"):
+        bh.step(None, None, None)
+    with pytest.raises(RuntimeError, match="TrainHalf.advance: needs the MLM"):
+        th.advance(1)
     while bh.status == "running":
         assert (th.k, th.stage, th.status) == (bh.k, bh.stage, "running")
         k, stage = bh.k, bh.stage
@@ -130,18 +124,20 @@ def test_dim_halves_reproduce_in_process(reference):
 def test_mlm_halves_reproduce_in_process(reference, block):
     """Train half books blocks of axle positions, bridge half steps them (as the two nodes)."""
     grid = grid_of(MLM_OPTIONS)
-    bh = LockstepRun("mlm", grid, bridge_side=bridge_side(grid, "mlm"))
-    th = LockstepRun("mlm", grid)
+    bh = BridgeHalf("mlm", grid, bridge_side(grid, "mlm"))
+    th = TrainHalf("mlm", grid)
     while th.status == "running":
         assert (th.k, th.stage) == (bh.k, 0)
-        k0, nb = th.advance_block(block)
-        assert k0 == bh.k and nb == min(block, grid.n_steps - k0) and th.k == k0 + nb
+        k0 = th.k
+        assert th.advance(block) is None
+        nb = th.k - k0
+        assert k0 == bh.k and nb == min(block, grid.n_steps - k0)
         P = modal_loads_at(BRIDGE, half_step_positions(grid.ds_m, TRAIN.axle_offsets_m, k0, nb), TRAIN.axle_loads_n)
         for j in range(nb):
-            bh.step_mlm(P[2 * j], P[2 * j + 1], P[2 * j + 2])
+            assert bh.step(P[2 * j], P[2 * j + 1], P[2 * j + 2]) is None
     assert bh.status == "finished" and bh.k == th.k == grid.n_steps
-    with pytest.raises(RuntimeError, match="advance_block: the run is finished"):
-        th.advance_block(block)
+    with pytest.raises(RuntimeError, match="TrainHalf.advance: the run is finished"):
+        th.advance(block)
     ref = reference["mlm"]
     assert_bitwise(bh.max_acc_m_s2, ref.max_acc_m_s2)
     assert_bitwise(bh.max_disp_m, ref.max_disp_m)
@@ -184,8 +180,8 @@ def test_injected_nan_fails_and_keeps_the_maxima():
 def test_nan_force_on_the_bridge_half_fails_at_the_next_step():
     """A non-finite interaction force at stage 1 shows in the deflection at the start of k + 1."""
     grid = grid_of(DIM_OPTIONS)
-    bh = LockstepRun("dim", grid, bridge_side=bridge_side(grid, "dim"))
-    th = LockstepRun("dim", grid, train_side=TrainSide(TRAIN, grid, BRIDGE.span_m))
+    bh = BridgeHalf("dim", grid, bridge_side(grid, "dim"))
+    th = TrainHalf("dim", grid, TrainSide(TRAIN, grid, BRIDGE.span_m))
     while bh.k < 300:  # the first axles are on the bridge by then
         idx, w, wd = bh.rail_state()
         bh.take_forces(th.take_rail_state(idx, w, wd))
@@ -206,17 +202,23 @@ def test_nan_force_on_the_bridge_half_fails_at_the_next_step():
 
 def test_contract_refuses_misuse():
     grid = grid_of(MLM_OPTIONS)
-    with pytest.raises(InputError, match="model: 'xyz' is not allowed"):
-        LockstepRun("xyz", grid)
-    with pytest.raises(ValueError, match="the MLM has no train side"):
-        LockstepRun("mlm", grid, train_side=TrainSide(TRAIN, grid, BRIDGE.span_m))
     side = bridge_side(grid, "mlm")
-    run = LockstepRun("mlm", grid, bridge_side=side)
-    with pytest.raises(RuntimeError, match="step: needs a bridge side and a train side \\(DIM\\) or the modal-load"):
-        run.step()  # a bridge half has no modal-load table
-    with pytest.raises(RuntimeError, match="take_forces: needs a DIM bridge side"):
+    with pytest.raises(InputError, match="model: 'xyz' is not allowed"):
+        TrainHalf("xyz", grid)
+    with pytest.raises(InputError, match="model: 'xyz' is not allowed"):
+        InProcessRun("xyz", grid, side)
+    with pytest.raises(ValueError, match="TrainHalf: the MLM has no train side"):
+        TrainHalf("mlm", grid, TrainSide(TRAIN, grid, BRIDGE.span_m))
+    with pytest.raises(ValueError, match="InProcessRun: the MLM has no train side .* and needs the modal-load"):
+        InProcessRun("mlm", grid, side)
+    with pytest.raises(ValueError, match="InProcessRun: the DIM needs a train side"):
+        InProcessRun("dim", grid, side)
+    run = BridgeHalf("mlm", grid, side)
+    with pytest.raises(RuntimeError, match="BridgeHalf.take_forces: needs the DIM"):
         run.take_forces(np.zeros((3, 0)))
+    with pytest.raises(RuntimeError, match="BridgeHalf.advance: a step of a half needs the partner's exchange"):
+        run.advance(1)
     P = mlm_modal_load_table(BRIDGE, grid, TRAIN.axle_offsets_m, TRAIN.axle_loads_n)
-    run.step_mlm(P[0], P[1], P[2])
-    with pytest.raises(ValueError, match="BridgeSide is at step 1, not at step 0"):
-        LockstepRun("mlm", grid, bridge_side=side)
+    run.step(P[0], P[1], P[2])
+    with pytest.raises(ValueError, match="BridgeHalf: BridgeSide is at step 1, not at step 0"):
+        BridgeHalf("mlm", grid, side)

@@ -25,7 +25,7 @@ import numpy as np
 from adm_sim import kernels
 from adm_sim.errors import InputError, RunError, check_range
 from adm_sim.limits import check_delta_zeta_pct
-from adm_sim.stepping import (FAILED, RUNNING, StepOptions, SteppedRun, _all_finite, check_model, half_step_positions,
+from adm_sim.stepping import (FAILED, RUNNING, StepOptions, SteppedRun, check_model, half_step_positions,
                               make_grid, mlm_rk4_coefficients, modal_loads_at, speeds_to_m_s)
 
 
@@ -235,6 +235,7 @@ class BatchRun(SteppedRun):
     #: Steps per :meth:`advance` by default: the finite check runs this often; one kernel call
     #: costs a few microseconds against ~1 ms of arithmetic for a block of this size.
     BLOCK_STEPS = 4096
+    ADVANCE_STEPS = BLOCK_STEPS
 
     def __init__(self, runner, model, case, speeds_kmh, delta_zeta=0.0, sweep=None):
         check_model(model, runner.train)
@@ -277,19 +278,12 @@ class BatchRun(SteppedRun):
             self._vo, self._Zo = v[order], np.ascontiguousarray(Z[order])
         self._start_contract(n_max)
 
-    def advance(self, max_steps=None):
-        """Advance every lane by up to ``max_steps`` steps (default :attr:`BLOCK_STEPS`).
+    def _step_impl(self):
+        self._advance_impl(1)
 
-        Returns
-        -------
-        message : str or None
-            ``None`` on success, else :attr:`message` (the run is then ``'failed'``).
-        """
-        self._require("advance", True, "")
-        n = self.BLOCK_STEPS if max_steps is None else int(max_steps)
-        if n < 1:
-            raise ValueError(f"BatchRun.advance: max_steps = {max_steps} must be >= 1")
-        k0, k1 = self.k, min(self.k + n, self.n_steps)
+    def _advance_impl(self, n):
+        """Every lane by ``n`` steps in one kernel call (:meth:`SteppedRun.advance` owns the status)."""
+        k0, k1 = self.k, self.k + n
         r = self.runner
         head = (self._block_ptr, self._bcase, self._bsteps, k0, k1)
         if self.model == "mlm":
@@ -309,16 +303,12 @@ class BatchRun(SteppedRun):
                 r.dense_maxima, self._prev)
             state = (self._q, self._qd, self._u, self._ud)
         self.k = k1
+        def names():
+            return [r.bridges[c].name or r.bridges[c].describe() for c in self._case[self._order]]
+
         with np.errstate(over="ignore", invalid="ignore"):  # a blown-up state is what we look for
-            finite_all = all(_all_finite(a.ravel()) for a in state)
-        if not finite_all:
-            finite = np.logical_and.reduce([np.isfinite(a).all(axis=0) for a in state])
-            names = [r.bridges[c].name or r.bridges[c].describe() for c in self._case[self._order]]
-            self._fail(f"{self.model.upper()} state", finite, f"in steps {k0}..{k1} of {self.n_steps}",
-                       self._v[self._order], r.ds_m, names)
-            return self.message
-        self._finish_if_done()
-        return None
+            self._check_finite(f"{self.model.upper()} state", state, f"in steps {k0}..{k1} of {self.n_steps}",
+                               self._v[self._order], r.ds_m, names)
 
     def _in_lane_order(self, a):
         out = np.empty_like(a)

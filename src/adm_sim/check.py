@@ -482,15 +482,15 @@ def comfort_b_v(bridge, train, speeds_kmh, options=None):
     maximum over the crossing. A vehicle is integrated while an axle is on the bridge (the core's
     rule on a rigid track), so its motion after leaving the bridge is not followed.
     """
-    from adm_sim.stepping import BridgeSide, LockstepRun, StepOptions, TrainSide, make_grid, speeds_to_m_s
+    from adm_sim.stepping import BridgeSide, InProcessRun, StepOptions, TrainSide, make_grid, speeds_to_m_s
 
     if not train.units:
         raise InputError(f"comfort: {train.name!r} has no vehicles; b_v needs the DIM")
     v = speeds_to_m_s(speeds_kmh)
     grid = make_grid(bridge, train.length_m, v, options or StepOptions())
     side = TrainSide(train, grid, bridge.span_m)
-    run = LockstepRun("dim", grid, bridge_side=BridgeSide(bridge, grid, train.axle_offsets_m, train.wheel_mass_kg,
-                                                          np.zeros(v.shape)), train_side=side)
+    run = InProcessRun("dim", grid, BridgeSide(bridge, grid, train.axle_offsets_m, train.wheel_mass_kg, np.zeros(v.shape)),
+                       train_side=side)
     iz, ith, half = [], [], []
     start = 0
     for unit in train.units:  # DOFs per unit: [z, theta] of its cars, then of its bogies (trains.py)

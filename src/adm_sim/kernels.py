@@ -99,7 +99,7 @@ def dim_blocks(block_ptr, block_case, block_steps, k0, k1, v, h, K, Z, minv, phi
     ``max_disp`` (n_lanes,), updated in place. With ``dense``, the maxima between the steps from
     the dense output (:func:`hermite_max_abs_acc`) are folded in too; ``prev_s`` (3, n_lanes)
     carries the midspan deflection, velocity and acceleration of the last step done (as
-    ``LockstepRun._prev``). Chunks give bit for bit what one call gives.
+    ``InProcessRun._prev``). Chunks give bit for bit what one call gives.
     """
     nm = K.shape[1]
     n_dof = minv_dof.shape[0]

@@ -37,14 +37,18 @@ Free vibration: the run continues after the last axle has left the bridge for at
 ``free_vibration_periods`` (default 2) fundamental periods in every lane, because the largest
 acceleration of a resonant crossing can occur up to one period after the train has left.
 
-One stepper
------------
-:class:`SteppedRun` is the contract of every run (step ``k``, status, message, the finite-value
-check); :class:`LockstepRun` keeps it for the numpy stepper and adds the RK4 stage and the
-running maxima, :class:`adm_sim.batch.BatchRun` keeps it for the compiled batched kernels. The in-process sweep advances it a whole step at a time
-(:meth:`LockstepRun.step`); the bridge and train nodes each drive their own half of the same
-object stage by stage. Every path calls the same :class:`BridgeSide` / :class:`TrainSide`
-methods in the same order, so the co-simulated runs equal the in-process ones bit for bit.
+One stepper, a template as scipy's ``OdeSolver``
+------------------------------------------------
+:class:`SteppedRun` writes the public :meth:`~SteppedRun.step` / :meth:`~SteppedRun.advance`
+once: they own step ``k``, status, message and the finite-value check; an implementation
+provides ``_step_impl`` (or ``_advance_impl`` for a block). Implementations:
+:class:`InProcessRun` (both halves in one process, :func:`adm_sim.sweep.run_sweep`),
+:class:`BridgeHalf` (the bridge node: ``rail_state`` / ``take_forces`` per DIM stage, ``step``
+with the stage-point modal loads for the MLM), :class:`TrainHalf` (the train node:
+``take_rail_state`` per DIM stage, ``advance(n)`` books an MLM axle block) and
+:class:`adm_sim.batch.BatchRun` (the compiled kernels). Every numpy path calls the same
+:class:`BridgeSide` / :class:`TrainSide` methods in the same order, so the co-simulated runs
+equal the in-process ones bit for bit.
 """
 
 from __future__ import annotations
@@ -450,7 +454,7 @@ class TrainSide:
         return G
 
 
-RUNNING, FINISHED, FAILED = "running", "finished", "failed"  # LockstepRun.status
+RUNNING, FINISHED, FAILED = "running", "finished", "failed"  # SteppedRun.status
 MODELS = ("mlm", "dim")
 
 
@@ -528,13 +532,19 @@ def hermite_max_abs_acc(d0, v0, a0, d1, v1, a1, h):
 class SteppedRun:
     """The contract every run of the project keeps, in-process, co-simulated or compiled.
 
-    Modelled on :class:`scipy.integrate.OdeSolver`: a run is ``'running'`` until its last step is
-    done (``'finished'``) or its solution is not finite (``'failed'``, with a one-line
+    Modelled on :class:`scipy.integrate.OdeSolver`: the public :meth:`step` and :meth:`advance`
+    are written once here and own :attr:`status`, :attr:`message`, the step count and the
+    refusal to step a run that is not running; an implementation provides only
+    :meth:`_step_impl` (one step; or :meth:`_advance_impl` for a block of steps) and reports a
+    non-finite solution through :meth:`_check_finite`. A run is ``'running'`` until its last step
+    is done (``'finished'``) or its solution is not finite (``'failed'``, with a one-line
     :attr:`message` saying what, where and for which lane); stepping a run that is not running
-    raises ``RuntimeError``. Subclasses: :class:`LockstepRun` (the numpy stepper, stage by stage,
-    driven by :func:`adm_sim.sweep.run_sweep` and by the two nodes) and
-    :class:`adm_sim.batch.BatchRun` (the compiled kernels, block of steps by block of steps,
-    driven by the batched study).
+    raises ``RuntimeError``.
+
+    Implementations: :class:`InProcessRun` (the numpy stepper, both halves in one process, driven
+    by :func:`adm_sim.sweep.run_sweep`), :class:`BridgeHalf` and :class:`TrainHalf` (what the
+    bridge node and the train node each step, exchanging per RK4 stage or per block) and
+    :class:`adm_sim.batch.BatchRun` (the compiled kernels, block of steps by block of steps).
 
     Attributes
     ----------
@@ -550,6 +560,48 @@ class SteppedRun:
     n_steps: int = 0
     status: str = RUNNING
     message: str = ""
+    #: steps of :meth:`advance` without an argument
+    ADVANCE_STEPS = 1
+
+    # ------------------------------------------------------------------ public contract
+    def step(self, *exchange):
+        """Advance one step (``exchange``: what the partner half sends for it, if anything).
+
+        Returns
+        -------
+        message : str or None
+            ``None`` on success, else :attr:`message` (the run is then ``'failed'``).
+        """
+        self._require("step")
+        self._step_impl(*exchange)
+        return self._after()
+
+    def advance(self, max_steps=None):
+        """Advance up to ``max_steps`` steps (default :attr:`ADVANCE_STEPS`), never past ``n_steps``.
+
+        Returns ``None`` on success, else :attr:`message` (the run is then ``'failed'``).
+        """
+        self._require("advance")
+        n = self.ADVANCE_STEPS if max_steps is None else int(max_steps)
+        if n < 1:
+            raise ValueError(f"{type(self).__name__}.advance: max_steps = {max_steps} must be >= 1")
+        self._advance_impl(min(n, self.n_steps - self.k))
+        return self._after()
+
+    # ------------------------------------------------------------------ for implementations
+    def _step_impl(self, *exchange):  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def _advance_impl(self, n):
+        """``n >= 1`` steps, ``k + n <= n_steps``; by default :meth:`_step_impl` ``n`` times."""
+        for _ in range(n):
+            self._step_impl()
+            if self.status != RUNNING:
+                return
+
+    def _after(self):
+        self._finish_if_done()
+        return self.message if self.status == FAILED else None
 
     def _start_contract(self, n_steps):
         self.n_steps = int(n_steps)
@@ -557,19 +609,33 @@ class SteppedRun:
         self.status = RUNNING if self.n_steps > 0 else FINISHED
         self.message = ""
 
-    def _require(self, what, ok, need):
-        name = type(self).__name__
-        if not ok:
-            raise RuntimeError(f"{name}.{what}: needs {need}")
+    def _require(self, what):
+        """Refuse to step a run that is not running (``RuntimeError`` naming the call)."""
         if self.status != RUNNING:
+            name = type(self).__name__
             why = f": {self.message}" if self.message else ""
             raise RuntimeError(f"{name}.{what}: the run is {self.status} at step {self.k} of "
                                f"{self.n_steps}{why}")
+
+    def _check_finite(self, what, values, where, lane_speeds_m_s, ds_m, lane_names=None):
+        """The finite-value check: False (and the run failed) when a value is not finite.
+
+        ``values``: an array (n_lanes,), or a tuple of arrays (..., n_lanes) (a non-finite
+        entry fails its lane).
+        """
+        arrays = values if isinstance(values, tuple) else (values,)
+        if all(_all_finite(a.ravel()) for a in arrays):
+            return True
+        finite = np.logical_and.reduce([np.isfinite(a.reshape(-1, a.shape[-1])).all(axis=0) for a in arrays])
+        self._fail(what, finite, where, lane_speeds_m_s, ds_m, lane_names)
+        return False
 
     def _fail(self, what, finite, where, lane_speeds_m_s, ds_m, lane_names=None):
         """Fail the run: ``finite`` (n_lanes,) says which lanes are still finite."""
         bad = np.flatnonzero(~np.asarray(finite, dtype=bool))
         first = f"{float(lane_speeds_m_s[bad[0]]) * 3.6:.6g} km/h"
+        if callable(lane_names):  # names built only for a failed run
+            lane_names = lane_names()
         if lane_names is not None:
             first = f"{lane_names[bad[0]]} at {first}"
         self.status = FAILED
@@ -582,92 +648,61 @@ class SteppedRun:
             self.status = FINISHED
 
 
-class LockstepRun(SteppedRun):
-    """One lockstep run: step ``k``, RK4 stage, status, running maxima and the finite-value check.
+class _Lockstep(SteppedRun):
+    """Step ``k`` and RK4 stage of the numpy stepper (shared by the in-process run and the halves)."""
 
-    The contract of :class:`SteppedRun`: a run is ``'running'`` until its last step is done
-    (``'finished'``) or a midspan deflection or acceleration is not finite (``'failed'``, with a
-    one-line :attr:`message`); stepping a run that is not running raises ``RuntimeError``. Which
-    sides a run holds decides what it can do:
+    def __init__(self, model, grid, *sides):
+        check_model(model)
+        for side in sides:
+            if side.k != 0:
+                raise ValueError(f"{type(self).__name__}: {type(side).__name__} is at step {side.k}, not at step 0")
+        self.model = model
+        self.grid = grid
+        self._start_contract(grid.n_steps)
+        self.stage = 0
 
-    * **in process** (:func:`adm_sim.sweep.run_sweep`): a :class:`BridgeSide` and a
-      :class:`TrainSide` (DIM) or a :class:`BridgeSide` and the modal-load table (MLM);
-      :meth:`step` advances one whole step including the per-stage exchange;
-    * **bridge half** (bridge node): a :class:`BridgeSide` alone. DIM: per RK4 stage
-      :meth:`rail_state`, then :meth:`take_forces` with the partner's forces; MLM:
-      :meth:`step_mlm` per step with the modal loads of the stage points;
-    * **train half** (train node): DIM: a :class:`TrainSide` alone, :meth:`take_rail_state`
-      per RK4 stage; MLM: no side, :meth:`advance_block` books the steps of each axle block.
+    def _next_step(self):
+        self.stage = 0
+        self.k += 1
 
-    A DIM stage is ``rail_state`` -> ``take_rail_state`` -> ``take_forces``; the stage advances
-    with the last call of the stage this run makes (``take_forces`` when it holds the bridge,
-    ``take_rail_state`` when it holds only the train). :meth:`step` makes exactly these calls, so
-    the two halves in two processes compute what the in-process run computes, bit for bit.
+    def _next_stage(self):
+        if self.stage < 3:
+            self.stage += 1
+        else:
+            self._next_step()
 
-    Parameters
-    ----------
-    model : {"mlm", "dim"}
-    grid : Grid
-    bridge_side : BridgeSide or None
-        Fresh (at step 0); makes the run keep the maxima and check for finite values.
-    train_side : TrainSide or None
-        Fresh (at step 0); DIM only.
-    modal_loads : ndarray (2 n_steps + 1, n_modes) or None
-        MLM modal loads of Eq. (6) on the half-step grid (:func:`mlm_modal_load_table`), for
-        :meth:`step`.
-    dense_maxima : bool
-        Fold the maxima between the steps (dense output, :func:`hermite_max_abs_acc`) into
-        :attr:`max_acc_m_s2`.
+
+class _BridgeRun(_Lockstep):
+    """A run that holds the bridge: running maxima and the finite check of the midspan response.
 
     Attributes
     ----------
-    k : int
-        Current step, ``0 .. n_steps``: the first axle stands at ``s_k = k ds``.
     stage : int
         RK4 stage ``0 .. 3`` of step ``k`` that the next call works on.
-    n_steps : int
-    status : {"running", "finished", "failed"}
-    message : str
-        Empty, or one line saying what was not finite, where.
-    max_acc_m_s2 : ndarray (n_lanes,) or None
+    max_acc_m_s2 : ndarray (n_lanes,)
         Max |midspan acceleration| at stage 0 of every step done so far (DIM Eq. 15, MLM Eq. 12)
-        and, with ``dense_maxima``, between them (:func:`hermite_max_abs_acc`); with a bridge
-        side only.
-    max_disp_m : ndarray (n_lanes,) or None
+        and, with ``dense_maxima``, between them (:func:`hermite_max_abs_acc`).
+    max_disp_m : ndarray (n_lanes,)
         Max |midspan deflection| at the start of every step ``0 .. min(k, n_steps - 1)``.
-    disp_m : ndarray (n_lanes,) or None
+    disp_m : ndarray (n_lanes,)
         Midspan deflection at the start of step ``k``.
     acc_m_s2 : ndarray (n_lanes,) or None
         Midspan acceleration at stage 0 of the step in progress (or of the last step done).
     """
 
-    def __init__(self, model, grid, bridge_side=None, train_side=None, modal_loads=None, dense_maxima=False):
-        check_model(model)
-        if model == "mlm" and train_side is not None:
-            raise ValueError("LockstepRun: the MLM has no train side (its loads need no state)")
-        for side in (bridge_side, train_side):
-            if side is not None and side.k != 0:
-                raise ValueError(f"LockstepRun: {type(side).__name__} is at step {side.k}, not at step 0")
-        self.model = model
-        self.grid = grid
+    def __init__(self, model, grid, bridge_side, dense_maxima=False, *more_sides):
+        super().__init__(model, grid, bridge_side, *more_sides)
         self.bridge_side = bridge_side
-        self.train_side = train_side
-        self.modal_loads = modal_loads
-        self._start_contract(grid.n_steps)
-        self.stage = 0
-        self.max_acc_m_s2 = self.max_disp_m = self.disp_m = self.acc_m_s2 = None
-        self.axles0 = self.interaction0_n = None  # stage-0 exchange of the step in progress
         self.dense_maxima = bool(dense_maxima)
+        self.acc_m_s2 = None
         self._vel_m_s = self._prev = None  # midspan velocity at step k; (d, v, a) at step k - 1
-        if bridge_side is not None:
-            self.max_acc_m_s2 = np.zeros(grid.n_lanes)
-            self.max_disp_m = np.zeros(grid.n_lanes)
-            self._start_step()
+        self.max_acc_m_s2 = np.zeros(grid.n_lanes)
+        self.max_disp_m = np.zeros(grid.n_lanes)
+        self._start_step()
 
-    # ------------------------------------------------------------------ bookkeeping
-    def _fail_at(self, what, values):
-        self._fail(what, np.isfinite(values), f"at step {self.k} of {self.n_steps} (stage {self.stage})",
-                   self.grid.speeds_m_s, self.grid.ds_m)
+    def _check_lanes(self, what, values):
+        return self._check_finite(what, values, f"at step {self.k} of {self.n_steps} (stage {self.stage})",
+                                  self.grid.speeds_m_s, self.grid.ds_m)
 
     def _start_step(self):
         """Deflection at the start of step ``k``: check, and fold into the maxima (k < n_steps)."""
@@ -675,8 +710,7 @@ class LockstepRun(SteppedRun):
         self.disp_m = d
         if self.dense_maxima:
             self._vel_m_s = self.bridge_side.midspan_velocity()
-        if not _all_finite(d):
-            self._fail_at("midspan deflection", d)
+        if not self._check_lanes("midspan deflection", d):
             return
         if self.k < self.n_steps:
             np.maximum(self.max_disp_m, np.abs(d), out=self.max_disp_m)
@@ -685,8 +719,7 @@ class LockstepRun(SteppedRun):
         """Acceleration at stage 0 of step ``k``: check, and fold into the maxima."""
         a = self.bridge_side.last_acc
         self.acc_m_s2 = a
-        if not _all_finite(a):
-            self._fail_at("midspan acceleration", a)
+        if not self._check_lanes("midspan acceleration", a):
             return
         np.maximum(self.max_acc_m_s2, np.abs(a), out=self.max_acc_m_s2)
         if self.dense_maxima:  # between steps k - 1 and k, from the dense output
@@ -697,65 +730,11 @@ class LockstepRun(SteppedRun):
             self._prev = (self.disp_m, self._vel_m_s, a)
 
     def _next_step(self):
-        self.stage = 0
-        self.k += 1
-        if self.bridge_side is not None:
-            self._start_step()
-        self._finish_if_done()
+        super()._next_step()
+        self._start_step()
 
-    def _next_stage(self):
-        if self.stage < 3:
-            self.stage += 1
-        else:
-            self._next_step()
-
-    # ------------------------------------------------------------------ in process
-    def step(self):
-        """Advance one whole step ``k`` in process (both halves, with the per-stage exchange).
-
-        Returns
-        -------
-        message : str or None
-            ``None`` on success, else :attr:`message` (the run is then ``'failed'``).
-        """
-        self._require("step", self.bridge_side is not None and (
-            self.train_side is not None if self.model == "dim" else self.modal_loads is not None),
-            "a bridge side and a train side (DIM) or the modal-load table (MLM)")
-        if self.model == "dim":
-            for _ in range(4):
-                idx, w, wd = self.rail_state()
-                G = self.take_rail_state(idx, w, wd)
-                self.take_forces(G)
-                if self.status == FAILED:
-                    break
-        else:
-            P, k = self.modal_loads, self.k
-            self.step_mlm(P[2 * k], P[2 * k + 1], P[2 * k + 2])
-        return self.message if self.status == FAILED else None
-
-    def contact_forces_n(self):
-        """Wheel-rail contact forces (Eq. 7) at stage 0 of the step in progress or last done.
-
-        ``F_i = G_i - m_w,i w''(x_i)`` with the rail acceleration under the axle (Eq. 9); needs
-        both sides. Returns ``(idx, F)``: axle indices (n_on,) and forces (n_lanes, n_on) in N.
-        """
-        b = self.bridge_side
-        idx = self.axles0
-        return idx, self.interaction0_n - b.m_w[idx] * b.last_wheel_acc
-
-    # ------------------------------------------------------------------ bridge half
-    def rail_state(self):
-        """Bridge half, DIM: rail state under the axles at (k, stage); see :meth:`BridgeSide.rail_state`."""
-        self._require("rail_state", self.model == "dim" and self.bridge_side is not None, "a DIM bridge side")
-        return self.bridge_side.rail_state()
-
-    def take_forces(self, interaction_n):
-        """Bridge half, DIM: advance stage (k, stage) with the interaction forces (n_lanes, n_on).
-
-        At stage 0 the midspan acceleration is checked and folded into the maxima; at the end of
-        the step the deflection of the next one. Check :attr:`status` afterwards.
-        """
-        self._require("take_forces", self.model == "dim" and self.bridge_side is not None, "a DIM bridge side")
+    def _forces(self, interaction_n):
+        """DIM: advance stage (k, stage) of the bridge with the interaction forces (n_lanes, n_on)."""
         self.bridge_side.take_forces(interaction_n)
         if self.stage == 0:
             self._take_acc()
@@ -763,47 +742,156 @@ class LockstepRun(SteppedRun):
                 return
         self._next_stage()
 
-    def step_mlm(self, p0, ph, p1):
-        """Bridge half, MLM: one step with the modal loads at ``s_k``, ``s_k + ds/2``, ``s_k + ds``.
-
-        See :meth:`BridgeSide.step_mlm` (Eq. 12). Check :attr:`status` afterwards.
-        """
-        self._require("step_mlm", self.model == "mlm" and self.bridge_side is not None, "an MLM bridge side")
+    def _mlm(self, p0, ph, p1):
+        """MLM: one step with the modal loads at ``s_k``, ``s_k + ds/2``, ``s_k + ds`` (Eq. 12)."""
         self.bridge_side.step_mlm(p0, ph, p1)
         self._take_acc()
         if self.status == FAILED:
             return
         self._next_step()
 
-    # ------------------------------------------------------------------ train half
+
+class InProcessRun(_BridgeRun):
+    """Both halves in one process (:func:`adm_sim.sweep.run_sweep`): :meth:`step` advances one
+    whole step including the per-stage exchange.
+
+    A DIM stage is :meth:`BridgeSide.rail_state` -> :meth:`TrainSide.take_rail_state` ->
+    :meth:`BridgeSide.take_forces`, the calls :class:`BridgeHalf` and :class:`TrainHalf` make in
+    two processes, so the co-simulated runs equal this one bit for bit.
+
+    Parameters
+    ----------
+    model : {"mlm", "dim"}
+    grid : Grid
+    bridge_side : BridgeSide
+        Fresh (at step 0).
+    train_side : TrainSide or None
+        Fresh (at step 0); the DIM needs it, the MLM has none (its loads need no state).
+    modal_loads : ndarray (2 n_steps + 1, n_modes) or None
+        MLM modal loads of Eq. (6) on the half-step grid (:func:`mlm_modal_load_table`).
+    dense_maxima : bool
+        Fold the maxima between the steps (dense output, :func:`hermite_max_abs_acc`) into
+        :attr:`max_acc_m_s2`.
+
+    Attributes: those of :class:`_BridgeRun`, and ``axles0``, ``interaction0_n``: the stage-0
+    exchange of the step in progress (DIM).
+    """
+
+    def __init__(self, model, grid, bridge_side, train_side=None, modal_loads=None, dense_maxima=False):
+        check_model(model)
+        if model == "dim" and train_side is None:
+            raise ValueError("InProcessRun: the DIM needs a train side")
+        if model == "mlm" and (train_side is not None or modal_loads is None):
+            raise ValueError("InProcessRun: the MLM has no train side (its loads need no state) and needs "
+                             "the modal-load table")
+        super().__init__(model, grid, bridge_side, dense_maxima, *(() if train_side is None else (train_side,)))
+        self.train_side = train_side
+        self.modal_loads = modal_loads
+        self.axles0 = self.interaction0_n = None
+
+    def _step_impl(self):
+        if self.model == "dim":
+            b, t = self.bridge_side, self.train_side
+            for _ in range(4):
+                idx, w, wd = b.rail_state()
+                G = t.take_rail_state(idx, w, wd)
+                if self.stage == 0:
+                    self.axles0, self.interaction0_n = idx, G
+                self._forces(G)
+                if self.status == FAILED:
+                    break
+        else:
+            P, k = self.modal_loads, self.k
+            self._mlm(P[2 * k], P[2 * k + 1], P[2 * k + 2])
+
+    def contact_forces_n(self):
+        """Wheel-rail contact forces (Eq. 7) at stage 0 of the step in progress or last done.
+
+        ``F_i = G_i - m_w,i w''(x_i)`` with the rail acceleration under the axle (Eq. 9); DIM.
+        Returns ``(idx, F)``: axle indices (n_on,) and forces (n_lanes, n_on) in N.
+        """
+        b = self.bridge_side
+        idx = self.axles0
+        return idx, self.interaction0_n - b.m_w[idx] * b.last_wheel_acc
+
+
+class BridgeHalf(_BridgeRun):
+    """The bridge half of a co-simulated run (the bridge node): a :class:`BridgeSide` alone.
+
+    DIM, per RK4 stage: :meth:`rail_state` (sent to the train), then :meth:`take_forces` with the
+    partner's interaction forces; the stage advances with :meth:`take_forces`. MLM:
+    :meth:`step` ``(p0, ph, p1)`` per step with the modal loads of the stage points. Keeps the
+    maxima and the finite check as :class:`InProcessRun` does (attributes there).
+    """
+
+    def __init__(self, model, grid, bridge_side, dense_maxima=False):
+        super().__init__(model, grid, bridge_side, dense_maxima)
+
+    def _need(self, model, what):
+        if self.model != model:
+            raise RuntimeError(f"BridgeHalf.{what}: needs the {model.upper()} (this run is {self.model.upper()})")
+        self._require(what)
+
+    def rail_state(self):
+        """DIM: rail state under the axles at (k, stage); see :meth:`BridgeSide.rail_state`."""
+        self._need("dim", "rail_state")
+        return self.bridge_side.rail_state()
+
+    def take_forces(self, interaction_n):
+        """DIM: advance stage (k, stage) with the interaction forces (n_lanes, n_on).
+
+        At stage 0 the midspan acceleration is checked and folded into the maxima; at the end of
+        the step the deflection of the next one. Returns ``None`` or :attr:`message`.
+        """
+        self._need("dim", "take_forces")
+        self._forces(interaction_n)
+        return self._after()
+
+    def _advance_impl(self, n):
+        raise RuntimeError("BridgeHalf.advance: a step of a half needs the partner's exchange; use step(p0, ph, p1)")
+
+    def _step_impl(self, p0, ph, p1):
+        if self.model != "mlm":
+            raise RuntimeError("BridgeHalf.step: needs the MLM (a DIM step is four rail_state/take_forces stages)")
+        self._mlm(p0, ph, p1)
+
+
+class TrainHalf(_Lockstep):
+    """The train half of a co-simulated run (the train node).
+
+    DIM: a :class:`TrainSide`; :meth:`take_rail_state` per RK4 stage returns the interaction
+    forces and advances the stage. MLM: no state; :meth:`advance` ``(n)`` books the next block
+    of steps (whose axle positions are being sent), ``k`` then names the next block's first step.
+    """
+
+    def __init__(self, model, grid, train_side=None):
+        if model == "mlm" and train_side is not None:
+            raise ValueError("TrainHalf: the MLM has no train side (its loads need no state)")
+        if model == "dim" and train_side is None:
+            raise ValueError("TrainHalf: the DIM needs a train side")
+        super().__init__(model, grid, *(() if train_side is None else (train_side,)))
+        self.train_side = train_side
+
     def take_rail_state(self, idx_on, w, wd):
-        """Train half, DIM: the interaction forces for the rail state at (k, stage).
+        """DIM: the interaction forces for the rail state at (k, stage).
 
         See :meth:`TrainSide.take_rail_state`; returns ``G`` (n_lanes, n_on) in N.
         """
-        self._require("take_rail_state", self.train_side is not None, "a train side")
+        if self.model != "dim":
+            raise RuntimeError("TrainHalf.take_rail_state: needs the DIM")
+        self._require("take_rail_state")
         G = self.train_side.take_rail_state(idx_on, w, wd)
-        if self.stage == 0:
-            self.axles0, self.interaction0_n = idx_on, G
-        if self.bridge_side is None:
-            self._next_stage()
+        self._next_stage()
+        self._finish_if_done()
         return G
 
-    def advance_block(self, max_steps):
-        """Train half, MLM: book the next block of steps (its axle positions are being sent).
+    def _advance_impl(self, n):
+        if self.model != "mlm":
+            raise RuntimeError("TrainHalf.advance: needs the MLM (a DIM step is four take_rail_state stages)")
+        self.k += n
 
-        Returns ``(k0, n)``: the block's first step and its number of steps,
-        ``n = min(max_steps, n_steps - k0)``.
-        """
-        self._require("advance_block", self.model == "mlm" and self.bridge_side is None,
-                      "an MLM run without a bridge side")
-        k0 = self.k
-        n = min(int(max_steps), self.n_steps - k0)
-        if n < 1:
-            raise ValueError(f"LockstepRun.advance_block: max_steps = {max_steps} must be >= 1")
-        self.k = k0 + n
-        self._finish_if_done()
-        return k0, n
+    def _step_impl(self):
+        self._advance_impl(1)
 
 
 def mlm_rk4_coefficients(h, m, c, kk):

@@ -1,6 +1,6 @@
 """Whole speed sweeps in one call: every speed is a lane of one vectorised lockstep run.
 
-``run_sweep`` advances one :class:`adm_sim.stepping.LockstepRun` a whole step at a time; the ROS
+``run_sweep`` advances one :class:`adm_sim.stepping.InProcessRun` a whole step at a time; the ROS
 bridge and train nodes each drive their half of the same object stage by stage (one exchange per
 RK4 stage), so a co-simulation reproduces these numbers bit for bit.
 """
@@ -15,7 +15,7 @@ import numpy as np
 from adm_sim.errors import InputError, RunError
 from adm_sim.limits import check_delta_zeta_pct
 from adm_sim.peaks import largest_interior_peak
-from adm_sim.stepping import (SPEED_RANGE_KMH, BridgeSide, LockstepRun, StepOptions, TrainSide,
+from adm_sim.stepping import (SPEED_RANGE_KMH, BridgeSide, InProcessRun, StepOptions, TrainSide,
                               check_model, make_grid, mlm_modal_load_table, speeds_to_m_s)
 
 MAX_HISTORY_VALUES = 300_000_000
@@ -181,11 +181,11 @@ def run_sweep(bridge, train, model, speeds_kmh, delta_zeta=0.0, options=None, hi
                          f"ask histories for at most a few speeds")
     b = BridgeSide(bridge, grid, train.axle_offsets_m, train.wheel_mass_kg if dim else None, dz)
     if dim:
-        run = LockstepRun(model, grid, bridge_side=b, train_side=TrainSide(train, grid, bridge.span_m),
-                          dense_maxima=options.dense_maxima)
+        run = InProcessRun(model, grid, b, train_side=TrainSide(train, grid, bridge.span_m),
+                           dense_maxima=options.dense_maxima)
     else:
-        run = LockstepRun(model, grid, bridge_side=b, dense_maxima=options.dense_maxima,
-                          modal_loads=mlm_modal_load_table(bridge, grid, train.axle_offsets_m, train.axle_loads_n))
+        run = InProcessRun(model, grid, b, dense_maxima=options.dense_maxima,
+                           modal_loads=mlm_modal_load_table(bridge, grid, train.axle_offsets_m, train.axle_loads_n))
     acc = np.empty((n, nl)) if histories else None
     disp = np.empty((n, nl)) if histories else None
     forces = np.zeros((n, nl, train.n_axles), dtype=np.float64) if (histories and dim) else None

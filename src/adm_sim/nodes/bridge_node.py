@@ -2,7 +2,7 @@
 
 Per run (requested by the train node on ``/adm/run/setup``) the node builds the bridge from its
 parameters, the shared space grid (:func:`adm_sim.stepping.make_grid`) and a ``BridgeSide`` for
-all speed lanes, held by the bridge half of a :class:`adm_sim.stepping.LockstepRun` (step, stage,
+all speed lanes, held by a :class:`adm_sim.stepping.BridgeHalf` (step, stage,
 status, maxima, finite-value check), then
 
 * DIM: for every RK4 stage publishes the rail displacement/velocity under the axles on the bridge
@@ -37,7 +37,7 @@ from adm_sim import protocol as P
 from adm_sim.errors import InputError, check_range
 from adm_sim.limits import ACC_LIMITS_M_S2, MAX_DELTA_ZETA, TRACK_TYPES, check_delta_zeta, check_track_type
 from adm_sim.nodes import common as c
-from adm_sim.stepping import BridgeSide, LockstepRun, StepOptions, make_grid, modal_loads_at
+from adm_sim.stepping import BridgeHalf, BridgeSide, StepOptions, make_grid, modal_loads_at
 
 __all__ = ["TRACK_TYPES", "MONITOR_SAMPLES_PER_PERIOD", "monitor_steps", "bridge_specs", "BridgeNode", "main"]
 #: Automatic monitoring decimation: at least this many samples per period of the highest retained
@@ -228,7 +228,7 @@ class BridgeNode(c.NodeBase):
             dim = cfg["model"] == "dim"
             side = BridgeSide(bridge, grid, np.asarray(cfg["axle_offsets_m"], dtype=float),
                               np.asarray(cfg["wheel_mass_kg"], dtype=float) if dim else None, dz)
-            run = LockstepRun(cfg["model"], grid, bridge_side=side)
+            run = BridgeHalf(cfg["model"], grid, side)
         except (InputError, KeyError, ValueError) as exc:
             self.pub_ready.publish(c.json_msg(P.ready_error(cfg.get("run_id"), str(exc))))
             self._status(cfg.get("run_id"), P.FAILED, message=str(exc))
@@ -297,7 +297,7 @@ class BridgeNode(c.NodeBase):
         P = modal_loads_at(r["bridge"], block[:-1], block[-1])
         for j in range(n):
             k, disp = run.k, run.disp_m
-            run.step_mlm(P[2 * j], P[2 * j + 1], P[2 * j + 2])
+            run.step(P[2 * j], P[2 * j + 1], P[2 * j + 2])
             if run.status == "failed":
                 break
             self._step_done(k, disp, run.acc_m_s2)

@@ -10,7 +10,7 @@ masses) and waits for the bridge's grid (``/adm/run/ready``). Then
   a block of ``mlm_block_steps`` steps and the axle loads (``/adm/exchange/axle_block``); the
   MLM needs no feedback from the bridge.
 
-Step and stage are kept by the train half of a :class:`adm_sim.stepping.LockstepRun`. A run that
+Step and stage are kept by a :class:`adm_sim.stepping.TrainHalf`. A run that
 the bridge reports ``failed`` on ``/adm/run/status`` (e.g. a solution that is not finite) ends
 here too.
 """
@@ -28,7 +28,7 @@ from adm_sim import protocol as P
 from adm_sim.errors import InputError
 from adm_sim.limits import DEFAULT_SPEEDS
 from adm_sim.nodes import common as c
-from adm_sim.stepping import Grid, LockstepRun, TrainSide, check_model, half_step_positions, speeds_to_m_s
+from adm_sim.stepping import Grid, TrainHalf, TrainSide, check_model, half_step_positions, speeds_to_m_s
 from adm_sim.sweep import parse_speeds
 from adm_sim.trains import load_train
 
@@ -141,7 +141,7 @@ class TrainNode(c.NodeBase):
             return
         r["grid"] = Grid(speeds_m_s=r["v"], ds_m=float(cfg["ds_m"]), n_steps=int(cfg["n_steps"]))
         side = TrainSide(r["train"], r["grid"], float(cfg["span_m"])) if r["model"] == "dim" else None
-        r["run"] = LockstepRun(r["model"], r["grid"], train_side=side)
+        r["run"] = TrainHalf(r["model"], r["grid"], train_side=side)
         self.partner.waiting(f"at step 0 of run {r['id']}", P.TOPIC_RAIL)
         pending, self._pending = self._pending, []
         for m in pending:
@@ -162,7 +162,9 @@ class TrainNode(c.NodeBase):
             G = run.take_rail_state(idx, payload[0], payload[1])
             self.pub_forces.publish(c.pack(run_id, k, stage, G, ("lane", "axle_on"), idx))
         else:
-            k0, b = run.advance_block(r["block"])
+            k0 = run.k
+            run.advance(r["block"])  # books the block whose axle positions are sent now
+            b = run.k - k0
             x = half_step_positions(r["grid"].ds_m, r["train"].axle_offsets_m, k0, b)
             block = np.vstack([x, r["train"].axle_loads_n[None, :]])
             self.pub_block.publish(c.pack(run_id, k0, 0, block, ("row:positions_m(2n+1),loads_n", "axle")))
