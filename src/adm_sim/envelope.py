@@ -67,16 +67,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from adm_sim._jit import njit  # numba compiles the search loop; without it the same source runs as plain Python
 from adm_sim.errors import InputError, check_range
 from adm_sim.limits import check_delta_zeta_pct
-
-try:  # numba compiles the search loop; without it the same source runs as plain Python (slow)
-    from numba import njit
-except ImportError:  # pragma: no cover - numba is in requirements.txt
-    def njit(*args, **kwargs):
-        if args and callable(args[0]):
-            return args[0]
-        return lambda f: f
 
 #: Longest free vibration followed after the last axle has left, in fundamental periods.
 MAX_FREE_PERIODS = 30.0

@@ -17,18 +17,10 @@ from __future__ import annotations
 
 import numpy as np
 
-try:  # numba compiles these loops; the plain-Python path is the same source
-    from numba import njit
-except ImportError:  # pragma: no cover - numba is in requirements.txt
-    def njit(*args, **kwargs):
-        if args and callable(args[0]):
-            return args[0]
-        return lambda f: f
-
-RK4_C = np.array([0.0, 0.5, 0.5, 1.0])
-RK4_W = np.array([1.0 / 6.0, 1.0 / 3.0, 1.0 / 3.0, 1.0 / 6.0])
-#: Half-step row offset of each RK stage: stage points s_k, s_k + ds/2 (twice), s_k + ds.
-STAGE_ROW = np.array([0, 1, 1, 2])
+# numba compiles these loops; the plain-Python path is the same source (adm_sim._jit.njit)
+from adm_sim._jit import RK4_C_ARRAY as RK4_C
+from adm_sim._jit import RK4_W_ARRAY as RK4_W
+from adm_sim._jit import STAGE_ROW, njit
 
 
 @njit(cache=True, inline="always")

@@ -58,10 +58,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from adm_sim._jit import RK4_C, RK4_W  # the RK4 tableau, shared with the numba kernels
 from adm_sim.errors import InputError, check_range
-
-RK4_C = (0.0, 0.5, 0.5, 1.0)
-RK4_W = (1.0 / 6.0, 1.0 / 3.0, 1.0 / 3.0, 1.0 / 6.0)
 
 SPEED_RANGE_KMH = (1.0, 600.0)
 
