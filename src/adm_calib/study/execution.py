@@ -10,7 +10,6 @@ import contextlib
 import importlib.util
 import os
 import platform
-import sys
 import time
 from collections import Counter
 from dataclasses import dataclass, field
@@ -287,7 +286,8 @@ def run_study(out_dir, cases, settings=StudySettings(), workers=2, scheduler=Non
 
 def _run_on_dask(pending, settings, writer, run, workers, scheduler, progress, entry):
     from distributed import Client, as_completed
-    from tqdm import tqdm
+
+    from adm_sim.cliutil import progress_bar
 
     cluster = client = bar = None
     futures = []
@@ -318,8 +318,8 @@ def _run_on_dask(pending, settings, writer, run, workers, scheduler, progress, e
                                 key=f"batch-{b[0].train}-L{L:g}-f{fi}-{os.getpid()}")
             by_future[fut] = b
             futures.append(fut)
-        bar = tqdm(total=run.selected, initial=run.already_done, unit="case", desc="study", file=sys.stderr,
-                   disable=not (sys.stderr.isatty() if progress is None else progress), dynamic_ncols=True)
+        bar = progress_bar("study", total=run.selected, enabled=progress, unit="case", leave=True,
+                           initial=run.already_done, mininterval=0.1)
         for fut in as_completed(futures, loop=client.loop):
             batch = by_future.pop(fut)
             try:
