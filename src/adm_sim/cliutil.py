@@ -49,6 +49,33 @@ class Parser(argparse.ArgumentParser):
             self.exit(EXIT_INPUT, f"error: {one_line(exc)}\n")
 
 
+#: Library argument -> command-line flag: library messages name the argument
+#: (``max_line_speed_kmh: ...``), the command line shows the flag the user typed.
+ARGUMENT_FLAGS = {
+    "max_line_speed_kmh": "--max-line-speed",
+    "step_kmh": "--speed-step",
+    "trains": "--trains",
+    "damping": "--damping",
+    "damping_model": "--damping-model",
+    "track": "--track",
+    "track_maintenance": "--track-maintenance",
+    "alpha": "--alpha",
+    "n_modes": "--modes",
+    "where": "--where",
+    "scheduler": "--scheduler",
+}
+
+
+def cli_message(exc):
+    """The message of :class:`InputError` ``exc`` as a command line shows it: a leading library
+    argument (``exc.field``) becomes its flag (:data:`ARGUMENT_FLAGS`)."""
+    msg, field = str(exc), getattr(exc, "field", None)
+    flag = ARGUMENT_FLAGS.get(field)
+    if flag is not None and msg.startswith(field):
+        return flag + msg[len(field):]
+    return msg
+
+
 class _NoBar:
     """Stands in for a tqdm bar when tqdm is not installed."""
 
