@@ -18,7 +18,6 @@ the launcher however it ends (SIGKILL included, see :mod:`adm_sim.ros.supervisor
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import time
@@ -27,11 +26,12 @@ from pathlib import Path
 from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, check_domain_id, check_inputs, check_out,
                          check_viewer, discard_outputs, launch, prepare_out, release_out, run_graph)
 
+from adm_sim.cliutil import Parser
 from adm_sim.protocol import parse_driver_line
 
 
 def parse_args(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = Parser(prog=Path(__file__).name, description=__doc__.split("\n\n")[0])
     ap.add_argument("--bridge", help="bridge preset for the bridge node (B1..B4, spec or TOML file)")
     ap.add_argument("--train", help="train name or TOML file for the train node")
     ap.add_argument("--speeds", help="MLM speed range, start:stop:step (km/h)")
@@ -44,7 +44,7 @@ def parse_args(argv=None):
     ap.add_argument("--domain-id", help="ROS_DOMAIN_ID, 0..101 (default: a free one, reserved)")
     ap.add_argument("--quiet", action="store_true", help="no progress bars")
     ap.add_argument("--overwrite", action="store_true", help="replace the outputs of an earlier run in --out")
-    return ap.parse_args(argv)
+    return ap.parse_args_or_exit(argv)
 
 
 def node_params(args, out):
@@ -100,11 +100,10 @@ class Progress:
             self.write(f"calibrating {d['bridge']} x {d['train']}: {d['speeds']} speeds, ds = {1000 * d['ds_m']:.2f} mm")
 
     def _new_bar(self, d):
-        from tqdm import tqdm
+        from adm_sim.cliutil import progress_bar
 
         self._close_bar()
-        self.bar = tqdm(total=d["n_steps"], desc=getattr(self, "_label", f"run {d['run_id']}"), unit="step",
-                        leave=False, file=sys.stderr, dynamic_ncols=True, disable=None, mininterval=0.2)
+        self.bar = progress_bar(getattr(self, "_label", f"run {d['run_id']}"), total=d["n_steps"])
 
     def _close_bar(self):
         if self.bar is not None:

@@ -18,7 +18,6 @@ Ctrl-C or SIGTERM: ``error: interrupted``, exit 130, the outputs of the interrup
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import time
@@ -27,12 +26,13 @@ from pathlib import Path
 from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, check_domain_id, check_inputs, check_out,
                          check_viewer, discard_outputs, launch, prepare_out, release_out, run_graph)
 
+from adm_sim.cliutil import Parser
 from adm_sim.errors import InputError, one_line
 from adm_sim.protocol import parse_driver_line
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = Parser(prog=Path(__file__).name, description=__doc__.split("\n\n")[0])
     ap.add_argument("--params-file", default=str(PARAMS_DIR / "crossing_b3_300.yaml"))
     ap.add_argument("--bridge")
     ap.add_argument("--train")
@@ -43,7 +43,7 @@ def main(argv=None):
     ap.add_argument("--connect")
     ap.add_argument("--domain-id", help="ROS_DOMAIN_ID, 0..101 (default: a free one, reserved)")
     ap.add_argument("--overwrite", action="store_true", help="replace the outputs of an earlier run in --out")
-    args = ap.parse_args(argv)
+    args = ap.parse_args_or_exit(argv)
     return launch(_main, args)
 
 

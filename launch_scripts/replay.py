@@ -30,7 +30,6 @@ itself fails (:func:`adm_sim.errors.run_cli`).
 
 from __future__ import annotations
 
-import argparse
 import subprocess
 import sys
 import time
@@ -40,12 +39,8 @@ from pathlib import Path
 import numpy as np
 
 from adm_sim import protocol as P
-from adm_sim.errors import EXIT_INPUT, InputError, RunError, check_int, check_range, run_cli
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message):
-        self.exit(EXIT_INPUT, f"error: {message}\n")
+from adm_sim.cliutil import Parser
+from adm_sim.errors import InputError, RunError, check_int, check_range, run_cli
 
 
 def check_args(args):
@@ -70,7 +65,7 @@ def check_args(args):
 
 
 def parse_args(argv=None):
-    p = _Parser(prog="replay.py", description=__doc__.split("\n\n")[0])
+    p = Parser(prog="replay.py", description=__doc__.split("\n\n")[0])
     p.add_argument("mcap", metavar="RUN.mcap", type=Path)
     out = p.add_mutually_exclusive_group()
     out.add_argument("--rrd", type=Path, metavar="OUT.rrd", help="write a rerun recording")
@@ -356,8 +351,7 @@ def republish(args, env) -> int:
 
 
 def main(argv=None) -> int:
-    args = parse_args(argv)
-    return run_cli(lambda: _run(args))
+    return run_cli(lambda: _run(parse_args(argv)))
 
 
 def _run(args) -> int:

@@ -160,13 +160,13 @@ def test_damping_methods():
     assert delta_zeta_for(b1, a1, "adm")[0] == pytest.approx(0.653, abs=5e-4)  # README: 0.653 % at 15 m
     assert delta_zeta_for(b1, ice2, "lb")[0] == pytest.approx(0.323, abs=5e-4)  # README Table 4: LB B1 ICE-2
     assert delta_zeta_for(b1, ice2, "none")[0] == 0.0
-    with pytest.raises(InputError, match=r"--damping adm: the Eurocode ADM applies to spans < 30 m .* spans 30 m"):
+    with pytest.raises(InputError, match=r"^damping adm: the Eurocode ADM applies to spans < 30 m .* spans 30 m"):
         delta_zeta_for(b2, ice2, "adm")
-    with pytest.raises(InputError, match=r"--damping lb: HSLM-A1 is an HSLM load train, not a vehicle"):
+    with pytest.raises(InputError, match=r"^damping lb: HSLM-A1 is an HSLM load train, not a vehicle"):
         delta_zeta_for(b1, a1, "lb")
-    with pytest.raises(InputError, match=r"--damping vbi: HSLM-A1 is an HSLM load train"):
+    with pytest.raises(InputError, match=r"^damping vbi: HSLM-A1 is an HSLM load train"):
         delta_zeta_for(b1, a1, "vbi")
-    with pytest.raises(InputError, match=r"--damping lb: my train on B1: lower bound not defined: train: .my train. was not studied by the paper"):
+    with pytest.raises(InputError, match=r"^damping lb: my train on B1: lower bound not defined: train: .my train. was not studied by the paper"):
         delta_zeta_for(b1, load_train("src/adm_sim/data/examples/my_train.toml"), "lb")
     res = run_check(b1, 300.0, [ice2], damping="adm")
     plain = run_check(b1, 300.0, [ice2])
@@ -183,25 +183,45 @@ def test_screening_fig_6_10():
 
 
 @pytest.mark.parametrize("kw,msg", [
-    (dict(max_line_speed_kmh=144.0), r"--max-line-speed: 144 km/h is out of range; allowed \(144, 500\] km/h"),
-    (dict(max_line_speed_kmh=120.0), r"--max-line-speed: 120 km/h is out of range; allowed \(144, 500\] km/h"),
-    (dict(max_line_speed_kmh=520.0), r"--max-line-speed: 520 km/h is out of range"),
-    (dict(max_line_speed_kmh=300.0, step_kmh=2.0), r"--speed-step: 2 km/h is out of range; allowed \(0, 1\] km/h"),
-    (dict(max_line_speed_kmh=300.0, track="slab"), r"--track: 'slab' is not allowed; allowed ballasted, direct_fastening"),
-    (dict(max_line_speed_kmh=300.0, damping="eada"), r"--damping: 'eada' is not allowed"),
+    (dict(max_line_speed_kmh=144.0), r"^max_line_speed_kmh: 144 km/h is out of range; allowed \(144, 500\] km/h"),
+    (dict(max_line_speed_kmh=120.0), r"^max_line_speed_kmh: 120 km/h is out of range; allowed \(144, 500\] km/h"),
+    (dict(max_line_speed_kmh=520.0), r"^max_line_speed_kmh: 520 km/h is out of range"),
+    (dict(max_line_speed_kmh=300.0, step_kmh=2.0), r"^step_kmh: 2 km/h is out of range; allowed \(0, 1\] km/h"),
+    (dict(max_line_speed_kmh=300.0, track="slab"), r"^track: 'slab' is not allowed; allowed ballasted, direct_fastening"),
+    (dict(max_line_speed_kmh=300.0, damping="eada"), r"^damping: 'eada' is not allowed"),
 ])
 def test_bad_input_api(kw, msg):
     with pytest.raises(InputError, match=msg):
         run_check(named_bridge("B1"), trains=[load_train("ICE-2")], **kw)
 
 
+@pytest.mark.parametrize("kw,flag", [
+    (dict(max_line_speed_kmh=520.0), "--max-line-speed: 520 km/h is out of range"),
+    (dict(max_line_speed_kmh=300.0, step_kmh=2.0), "--speed-step: 2 km/h is out of range"),
+    (dict(max_line_speed_kmh=300.0, track="slab"), "--track: 'slab' is not allowed"),
+    (dict(max_line_speed_kmh=300.0, damping="eada"), "--damping: 'eada' is not allowed"),
+    (dict(max_line_speed_kmh=300.0, track_maintenance="poor"), "--track-maintenance: 'poor' is not one of"),
+    (dict(max_line_speed_kmh=300.0, where="x=99"), "--where: 99 m is out of range"),
+])
+def test_library_names_the_argument_the_cli_the_flag(kw, flag):
+    """The library's message starts with the argument, the command line's with the flag (issue 16)."""
+    from adm_sim.cliutil import cli_message
+
+    with pytest.raises(InputError) as err:
+        run_check(named_bridge("B1"), trains=[load_train("ICE-2")], **kw)
+    arg = err.value.field
+    assert str(err.value).startswith(f"{arg}: ") and cli_message(err.value).startswith(flag)
+    assert cli_message(err.value)[len(flag.split(":")[0]):] == str(err.value)[len(arg):]
+    assert cli_message(InputError("track: 'slab' from a file")) == "track: 'slab' from a file"  # no field: as is
+
+
 def test_bad_trains():
     with pytest.raises(InputError, match=r"train: 'TGV' is unknown; allowed ICE-2, Eurostar, Railjet, ICE-4, "
                                          r"Eurostar-table, HSLM-A1 \.\. HSLM-A10, or a \.toml train file"):
         resolve_trains("hslm,TGV")
-    with pytest.raises(InputError, match=r"--trains: 'HSLM-A3' is given twice"):
+    with pytest.raises(InputError, match=r"^trains: 'HSLM-A3' is given twice"):
         resolve_trains("hslm,HSLM-A3")
-    with pytest.raises(InputError, match=r"--trains: ' , ' names no train"):
+    with pytest.raises(InputError, match=r"^trains: ' , ' names no train"):
         resolve_trains(" , ")
     short = Bridge.from_frequency(5.0, 20.0, 10000.0, 0.02)
     with pytest.raises(InputError, match=r"HSLM-A applies to spans >= 7 m; this bridge spans 5 m.*HSLM-B"):
@@ -299,7 +319,7 @@ def test_core_api_calib_methods_need_a_provider():
 
     b1, axle = named_bridge("B1"), moving_loads([0.0], [100e3], name="one axle")
     for method in ("lb", "vbi"):
-        with pytest.raises(InputError, match=rf"^--damping {method}: .* are adm-calib's; run adm-calib check"):
+        with pytest.raises(InputError, match=rf"^damping {method}: .* are adm-calib's; run adm-calib check"):
             core.run_check(b1, 250.0, [axle], damping=method)
     calls = []
 
@@ -470,10 +490,10 @@ def test_more_modes_on_request():
                                where="deck")
     np.testing.assert_allclose(res.trains[0].max_acc_m_s2[np.isin(res.trains[0].speeds_kmh, res.speeds_kmh)],
                                env.max_acc_m_s2, rtol=1e-12)
-    with pytest.raises(InputError, match=r"--modes: 2 - is out of range; allowed \[3, 20\] - \(EN 1990 A2\.4\.4\.2\.1 "
+    with pytest.raises(InputError, match=r"^n_modes: 2 - is out of range; allowed \[3, 20\] - \(EN 1990 A2\.4\.4\.2\.1 "
                                          r"asks for every mode up to 32\.4 Hz: 3 modes\)"):
         run_check(b, 250.0, t, n_modes=2)
-    with pytest.raises(InputError, match=r"--modes: 4\.5 is not an integer; allowed \[3, 20\]"):
+    with pytest.raises(InputError, match=r"^n_modes: 4\.5 is not an integer; allowed \[3, 20\]"):
         run_check(b, 250.0, t, n_modes=4.5)
 
 
@@ -523,5 +543,5 @@ def test_refusal_comes_before_any_calibration(monkeypatch):
         raise AssertionError("the calibration ran before the refusal")
 
     monkeypatch.setattr(adm_calib.calibrate, "calibrate", no_calibration)
-    with pytest.raises(InputError, match=r"--damping vbi: HSLM-A2 is an HSLM load train"):
+    with pytest.raises(InputError, match=r"^damping vbi: HSLM-A2 is an HSLM load train"):
         run_check(named_bridge("B1"), 300.0, resolve_trains("ICE-2,HSLM-A2"), damping="vbi")

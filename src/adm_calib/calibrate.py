@@ -797,13 +797,13 @@ def calibrate_cases(bridges, train, lanes, speeds_kmh=None, options=None, step=N
 
 
 class _ProgressLanes:
-    """A lane runner that ticks a tqdm bar (stderr) once per request."""
+    """A lane runner that ticks a progress bar (:func:`adm_sim.cliutil.progress_bar`) once per request."""
 
     def __init__(self, lanes, label):
-        from tqdm import tqdm
+        from adm_sim.cliutil import progress_bar
 
         self.lanes = lanes
-        self.bar = tqdm(desc=label, unit=" runs", leave=False)
+        self.bar = progress_bar(label, enabled=True, unit=" runs")
 
     def run(self, model, case, speeds_kmh, delta_zeta=0.0, sweep=None, phase=""):
         self.bar.set_postfix_str(phase)

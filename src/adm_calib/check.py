@@ -35,21 +35,21 @@ def calibrated_damping(bridge, train, method, calibrate_options=None):
 
         pct, note = lower_bound_for(bridge, train)
         if pct is None:
-            raise InputError(f"--damping lb: {train.name} on {bridge.name or 'this bridge'}: {note}")
+            raise InputError(f"damping lb: {train.name} on {bridge.name or 'this bridge'}: {note}", field="damping")
         return pct, f"{train.name}: lower bound {pct:.3f} % ({note})"
     if method == "vbi":
         if not train.units:
-            raise InputError(f"--damping vbi: {train.name!r} has no vehicles; Δζ_VBI needs the DIM")
+            raise InputError(f"damping vbi: {train.name!r} has no vehicles; Δζ_VBI needs the DIM", field="damping")
         from adm_calib.calibrate import calibrate
 
         res = calibrate(bridge, train, options=calibrate_options, adapted_curve=False)
         if res.delta_zeta_vbi is None:
-            raise InputError(f"--damping vbi: {train.name} on {bridge.name or 'this bridge'}: no Δζ_VBI "
-                             f"({res.status}: {res.message}); use --damping none")
+            raise InputError(f"damping vbi: {train.name} on {bridge.name or 'this bridge'}: no Δζ_VBI "
+                             f"({res.status}: {res.message}); use --damping none", field="damping")
         pct = res.delta_zeta_vbi_pct
         return pct, (f"{train.name}: calibrated Δζ_VBI = {pct:.3f} % (MLM peak {res.mlm_peak.acc_m_s2:.4f} m/s2 "
                      f"matched to the DIM peak {res.dim_peak.acc_m_s2:.4f} m/s2, Section 4)")
-    raise InputError(f"--damping: {method!r} is not one of adm-calib's; allowed {', '.join(CALIB_DAMPING_METHODS)}")
+    raise InputError(f"damping: {method!r} is not one of adm-calib's; allowed {', '.join(CALIB_DAMPING_METHODS)}", field="damping")
 
 
 def delta_zeta_for(bridge, train, method, calibrate_options=None):

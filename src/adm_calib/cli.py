@@ -24,23 +24,18 @@ ones. Mass per length is kg/m in and out (t/m shown beside it).
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import time
 from pathlib import Path
 
 from adm_sim.cli import add_check_arguments, cmd_check, output_path, write_atomic
+from adm_sim.cliutil import Parser
 from adm_sim.errors import InputError, RunError, check_int, check_range, run_cli
 from adm_sim.limits import DEFAULT_SPEEDS
 
 #: Range of recommend --mu (kg/m): the 0.5-100 t/m the lower-bound rules accept.
 MU_RANGE_KG_M = (500.0, 100_000.0)
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message):
-        raise InputError(message)
 
 
 def _out_dir(text, option, names, overwrite, inputs=None):
@@ -475,9 +470,9 @@ def cmd_check_calib(args):
 
 
 def build_parser():
-    p = _Parser(prog="adm-calib", description="Additional-damping calibration (MLM vs DIM) and comparison "
+    p = Parser(prog="adm-calib", description="Additional-damping calibration (MLM vs DIM) and comparison "
                                                "with the Eurocode ADM, EADA and the lower-bound functions.")
-    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    sub = p.add_subparsers(dest="command", required=True)
 
     def common(sp):
         sp.add_argument("--speeds", default=DEFAULT_SPEEDS, help=f"MLM speeds in km/h, start:stop:step (default {DEFAULT_SPEEDS})")

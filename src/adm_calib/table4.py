@@ -100,17 +100,20 @@ def run_table4(bridges=BRIDGES, trains=STUDY_TRAINS, speeds_kmh=None, options=No
     """Calibrate every (train, bridge) pair; ``jobs`` > 1 runs them in worker processes."""
     pairs = [(t, b) for t in trains for b in bridges]
     args = [(b, t, speeds_kmh, options) for t, b in pairs]
-    if progress:
-        from tqdm import tqdm
-    else:
-        def tqdm(it, **kw):
-            return it
+    from adm_sim.cliutil import progress_bar
+
     table = Table4(trains=tuple(trains), bridges=tuple(bridges))
-    if jobs > 1:
-        with ProcessPoolExecutor(max_workers=jobs) as ex:
-            for pair, res in tqdm(zip(pairs, ex.map(_calibrate_one, args)), total=len(pairs), desc="table4"):
-                table.results[pair] = res
-    else:
-        for pair, a in tqdm(list(zip(pairs, args)), desc="table4"):
-            table.results[pair] = _calibrate_one(a)
+    bar = progress_bar("table4", total=len(pairs), enabled=bool(progress), unit="it", leave=True)
+    try:
+        if jobs > 1:
+            with ProcessPoolExecutor(max_workers=jobs) as ex:
+                for pair, res in zip(pairs, ex.map(_calibrate_one, args)):
+                    table.results[pair] = res
+                    bar.update(1)
+        else:
+            for pair, a in zip(pairs, args):
+                table.results[pair] = _calibrate_one(a)
+                bar.update(1)
+    finally:
+        bar.close()
     return table

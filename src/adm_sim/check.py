@@ -363,11 +363,11 @@ def check_speeds_kmh(max_line_speed_kmh, step_kmh=1.0):
     """The speeds of the check (km/h): 40 m/s .. 1.2 V at ``step_kmh``, both ends included."""
     lo = MIN_SPEED_M_S * 3.6
     try:
-        V = check_range("--max-line-speed", max_line_speed_kmh, "km/h", lo, 500.0, lo_open=True)
+        V = check_range("max_line_speed_kmh", max_line_speed_kmh, "km/h", lo, 500.0, lo_open=True)
     except InputError as exc:
         raise InputError(f"{exc} (the check runs from 40 m/s = 144 km/h up to 1.2 V, EN 1991-2 6.4.6.2; "
-                         f"1.2 V at most 600 km/h)") from None
-    step = check_range("--speed-step", step_kmh, "km/h", 0.0, 1.0, lo_open=True)
+                         f"1.2 V at most 600 km/h)", field="max_line_speed_kmh") from None
+    step = check_range("step_kmh", step_kmh, "km/h", 0.0, 1.0, lo_open=True, argument=True)
     hi = DESIGN_SPEED_FACTOR * V
     n = int(math.floor((hi - lo) / step + 1e-9))
     v = lo + step * np.arange(n + 1)
@@ -388,13 +388,13 @@ def resolve_trains(spec):
             continue
         names.extend(HSLM_A_NAMES if part.lower() == "hslm" else [part])
     if not names:
-        raise InputError(f"--trains: {spec!r} names no train; allowed hslm, HSLM-A1 .. HSLM-A10, ICE-2, Eurostar, "
-                         f"Railjet, ICE-4, Eurostar-table or .toml train files, comma separated")
+        raise InputError(f"trains: {spec!r} names no train; allowed hslm, HSLM-A1 .. HSLM-A10, ICE-2, Eurostar, "
+                         f"Railjet, ICE-4, Eurostar-table or .toml train files, comma separated", field="trains")
     trains = [load_train(n) for n in names]
     seen = set()
     for t in trains:
         if t.name in seen:
-            raise InputError(f"--trains: {t.name!r} is given twice in {spec!r}; give every train once")
+            raise InputError(f"trains: {t.name!r} is given twice in {spec!r}; give every train once", field="trains")
         seen.add(t.name)
     return trains
 
@@ -407,8 +407,9 @@ def _is_hslm(train):
 
 def calib_methods_refusal(method):
     """The one-line refusal of ``--damping lb|vbi`` where no adm-calib provider is given."""
-    return InputError(f"--damping {method}: the paper's lower bounds and the calibrated Δζ_VBI are adm-calib's; "
-                      f"run adm-calib check with the same options (allowed here: --damping none or adm)")
+    return InputError(f"damping {method}: the paper's lower bounds and the calibrated Δζ_VBI are adm-calib's; "
+                      f"run adm-calib check with the same options (allowed here: --damping none or adm)",
+                      field="damping")
 
 
 def delta_zeta_for(bridge, train, method, calibrate_options=None, damping_provider=None):
@@ -422,21 +423,21 @@ def delta_zeta_for(bridge, train, method, calibrate_options=None, damping_provid
 
     L = bridge.span_m
     if method not in DAMPING_METHODS:
-        raise InputError(f"--damping: {method!r} is not allowed; allowed {', '.join(DAMPING_METHODS)}")
+        raise InputError(f"damping: {method!r} is not allowed; allowed {', '.join(DAMPING_METHODS)}", field="damping")
     if method == "none":
         return 0.0, f"{train.name}: no additional damping (--damping none)"
     if method == "adm":
         if L >= 30.0:
-            raise InputError(f"--damping adm: the Eurocode ADM applies to spans < 30 m (EN 1991-2 6.4.6.3.1); "
-                             f"this bridge spans {L:g} m; allowed --damping none")
+            raise InputError(f"damping adm: the Eurocode ADM applies to spans < 30 m (EN 1991-2 6.4.6.3.1); "
+                             f"this bridge spans {L:g} m; allowed --damping none", field="damping")
         return adm_delta_zeta_pct(L), (f"Eurocode ADM, L = {L:g} m < 30 m (EN 1991-2 6.4.6.3.1): "
                                        f"{adm_delta_zeta_pct(L):.3f} % for every train")
     if damping_provider is None:
         raise calib_methods_refusal(method)
     if _is_hslm(train):
-        raise InputError(f"--damping {method}: {train.name} is an HSLM load train, not a vehicle; the "
+        raise InputError(f"damping {method}: {train.name} is an HSLM load train, not a vehicle; the "
                          f"{'lower-bound functions' if method == 'lb' else 'calibrated Δζ_VBI'} apply only to the "
-                         f"real trains of the study; allowed for HSLM: --damping none or adm")
+                         f"real trains of the study; allowed for HSLM: --damping none or adm", field="damping")
     return damping_provider(bridge, train, method, calibrate_options)
 
 
@@ -595,37 +596,39 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
     if damping_model is None:
         damping_model = {v: k for k, v in DAMPING_MODELS.items()}[bridge.damping_model]
     if damping_model not in DAMPING_MODELS:
-        raise InputError(f"--damping-model: {damping_model!r} is not allowed; allowed {', '.join(DAMPING_MODELS)}")
+        raise InputError(f"damping_model: {damping_model!r} is not allowed; allowed {', '.join(DAMPING_MODELS)}",
+                         field="damping_model")
     where = parse_where(where, bridge.span_m)
     if track not in ACC_LIMITS_M_S2:
-        raise InputError(f"--track: {track!r} is not allowed; allowed {', '.join(ACC_LIMITS_M_S2)}")
+        raise InputError(f"track: {track!r} is not allowed; allowed {', '.join(ACC_LIMITS_M_S2)}", field="track")
     if damping not in DAMPING_METHODS:
-        raise InputError(f"--damping: {damping!r} is not allowed; allowed {', '.join(DAMPING_METHODS)}")
+        raise InputError(f"damping: {damping!r} is not allowed; allowed {', '.join(DAMPING_METHODS)}", field="damping")
     if damping in CALIB_DAMPING_METHODS and damping_provider is None:
         raise calib_methods_refusal(damping)
     speeds = check_speeds_kmh(max_line_speed_kmh, step_kmh)
     from adm_sim.design_loads import MAINTENANCE, check_alpha, design_comparison
 
     if track_maintenance not in MAINTENANCE:
-        raise InputError(f"--track-maintenance: {track_maintenance!r} is not one of EN 1991-2 6.4.5.2's; allowed "
-                         f"{', '.join(MAINTENANCE)} (careful: Φ2, standard: Φ3)")
+        raise InputError(f"track_maintenance: {track_maintenance!r} is not one of EN 1991-2 6.4.5.2's; allowed "
+                         f"{', '.join(MAINTENANCE)} (careful: Φ2, standard: Φ3)", field="track_maintenance")
     try:
         alpha = check_alpha(alpha)
     except InputError as exc:
-        raise InputError(f"--alpha: {str(exc).partition(': ')[2]}") from None
+        raise InputError(f"alpha: {str(exc).partition(': ')[2]}", field="alpha") from None
     if bridge.span_m < HSLM_B_SPAN_M and any(_is_hslm(t) for t in trains):
-        raise InputError(f"--trains: HSLM-A applies to spans >= {HSLM_B_SPAN_M:g} m; this bridge spans "
+        raise InputError(f"trains: HSLM-A applies to spans >= {HSLM_B_SPAN_M:g} m; this bridge spans "
                          f"{bridge.span_m:g} m, where EN 1991-2 6.4.6.1.1(5) asks for HSLM-B, which adm-sim "
-                         f"does not include (see the README); check real trains only")
+                         f"does not include (see the README); check real trains only", field="trains")
     f_lim = check_frequency_limit_hz(bridge)
     need = min(20, check_mode_count(bridge))
     if n_modes is not None:
         try:
-            x = check_range("--modes", n_modes, "-", need, 20)
+            x = check_range("n_modes", n_modes, "-", need, 20)
         except InputError as exc:
-            raise InputError(f"{exc} (EN 1990 A2.4.4.2.1 asks for every mode up to {f_lim:.1f} Hz: {need} modes)") from None
+            raise InputError(f"{exc} (EN 1990 A2.4.4.2.1 asks for every mode up to {f_lim:.1f} Hz: {need} modes)",
+                             field="n_modes") from None
         if x != int(x):
-            raise InputError(f"--modes: {x:g} is not an integer; allowed [{need}, 20]")
+            raise InputError(f"n_modes: {x:g} is not an integer; allowed [{need}, 20]", field="n_modes")
         n_modes = int(x)
     b = dataclasses.replace(bridge, n_modes=need if n_modes is None else n_modes,
                             damping_model=DAMPING_MODELS[damping_model])

@@ -13,34 +13,10 @@ import sys
 import time
 from pathlib import Path
 
-from adm_sim.errors import EXIT_INPUT, InputError, run_cli
+from adm_sim.cliutil import Parser, progress_callback
+from adm_sim.errors import InputError, run_cli
 from adm_sim.limits import (ACC_LIMITS_M_S2, DEFAULT_SPEEDS, MAX_DELTA_ZETA_PCT, TRACK_ALIASES, check_delta_zeta_pct,
                             check_track_type)
-
-
-class OneLineParser(argparse.ArgumentParser):
-    """argparse that reports usage errors as one line and exit code 2."""
-
-    def error(self, message):
-        self.exit(EXIT_INPUT, f"error: {self.prog}: {message}\n")
-
-
-def tqdm_progress(desc, enabled=None):
-    """A ``progress(done, total)`` callback drawing a tqdm bar (None if tqdm is missing)."""
-    try:
-        from tqdm import tqdm
-    except ImportError:  # pragma: no cover - tqdm is a declared dependency
-        return None, lambda: None
-    disable = None if enabled is None else not enabled  # None: only on a terminal
-    bar = tqdm(total=0, desc=desc, unit="step", disable=disable, leave=False, mininterval=0.2)
-
-    def cb(done, total):
-        if bar.total != total:
-            bar.total = total
-        bar.n = done
-        bar.refresh()
-
-    return cb, bar.close
 
 
 def output_path(text, option, overwrite=False, suffix=None, inputs=None):
@@ -138,7 +114,7 @@ def cmd_sweep(args):
     zeta = bridge.modal_damping_ratios(dz)
     print(f"damping per mode ({bridge.damping_model}): "
           + ", ".join(f"zeta_{j} = {100 * z:.4g} %" for j, z in enumerate(zeta, start=1)))
-    cb, close = tqdm_progress(f"{args.model.upper()} sweep", None if args.progress is None else args.progress)
+    cb, close = progress_callback(f"{args.model.upper()} sweep", None if args.progress is None else args.progress)
     t0 = time.perf_counter()
     try:
         if method == "exact":
@@ -218,7 +194,7 @@ def cmd_check(args, damping_provider=None):
         raise InputError(f"--damping-model: {args.damping_model!r} is not allowed; allowed {', '.join(DAMPING_MODELS)}")
     trains = resolve_trains(args.trains)
     track = check_track_type("--track", args.track, aliases=True)  # one vocabulary: direct -> direct_fastening
-    cb, close = tqdm_progress("check", None if args.progress is None else args.progress)
+    cb, close = progress_callback("check", None if args.progress is None else args.progress)
     t0 = time.perf_counter()
     try:
         res = run_check(bridge, args.max_line_speed, trains, track=track, damping=args.damping,
@@ -371,8 +347,8 @@ def add_check_arguments(c):
 
 
 def build_parser():
-    p = OneLineParser(prog="adm-sim", description=__doc__.splitlines()[0])
-    sub = p.add_subparsers(dest="cmd", required=True, parser_class=OneLineParser)
+    p = Parser(prog="adm-sim", description=__doc__.splitlines()[0], name_prog=True)
+    sub = p.add_subparsers(dest="cmd", required=True)
 
     s = sub.add_parser("sweep", help="max midspan acceleration over a speed range")
     s.add_argument("--bridge", default="B1", help="B1..B4, a spec L=15,n0=8.26,mu=19042,zeta_pct=1.85 (L m, n0 Hz or "
@@ -416,8 +392,11 @@ def build_parser():
 
 
 def main(argv=None):
-    args = build_parser().parse_args(argv)
-    return run_cli(lambda: args.func(args))
+    def work():
+        args = build_parser().parse_args(argv)
+        return args.func(args)
+
+    return run_cli(work)
 
 
 if __name__ == "__main__":

@@ -92,18 +92,18 @@ def check_mode_count(bridge, f_limit_hz=None):
     return max(1, int(math.floor(math.sqrt(f / bridge.n0_hz) + 1e-9)))
 
 
-def parse_where(where, span_m, field="--where"):
+def parse_where(where, span_m, field="where"):
     """``"deck"``, ``"midspan"`` or a position x (m, 0 < x < L) from ``"deck"``, ``"midspan"``,
-    ``"x=<m>"`` or a number; anything else raises :class:`InputError` (one line)."""
+    ``"x=<m>"`` or a number; anything else raises :class:`InputError` (one line, naming ``field``)."""
     if isinstance(where, str):
         w = where.strip().lower()
         if w in WHERE_KEYWORDS:
             return w
         if not w.startswith("x="):
             raise InputError(f"{field}: {where!r} is not allowed; allowed deck, midspan or x=<position in m> "
-                             f"with 0 < x < {span_m:g} m")
+                             f"with 0 < x < {span_m:g} m", field=field)
         where = where.strip()[2:]
-    return check_range(field, where, "m", 0.0, span_m, lo_open=True, hi_open=True)
+    return check_range(field, where, "m", 0.0, span_m, lo_open=True, hi_open=True, argument=True)
 
 
 def where_text(where):

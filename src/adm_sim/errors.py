@@ -24,7 +24,16 @@ class AdmSimError(Exception):
 
 
 class InputError(AdmSimError, ValueError):
-    """Bad user input (CLI argument, input file, ROS parameter): exit code 2."""
+    """Bad user input (CLI argument, input file, ROS parameter): exit code 2.
+
+    ``field``: the library function's argument the message starts with (``max_line_speed_kmh:
+    ...``); a command line shows it as its flag (``--max-line-speed: ...``,
+    :func:`adm_sim.cliutil.cli_message`). None for messages about files, parameters and flags.
+    """
+
+    def __init__(self, *args, field=None):
+        super().__init__(*args)
+        self.field = field
 
 
 class RunError(AdmSimError, RuntimeError):
@@ -124,7 +133,9 @@ def _run(call):
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return EXIT_OK
     except InputError as exc:
-        print(f"error: {one_line(exc)}", file=sys.stderr)
+        from adm_sim.cliutil import cli_message
+
+        print(f"error: {one_line(cli_message(exc))}", file=sys.stderr)
         return EXIT_INPUT
     except AdmSimError as exc:
         print(f"error: {one_line(exc)}", file=sys.stderr)
@@ -134,8 +145,11 @@ def _run(call):
         return EXIT_INTERRUPTED
 
 
-def check_range(field, value, unit, lo=None, hi=None, lo_open=False, hi_open=False):
+def check_range(field, value, unit, lo=None, hi=None, lo_open=False, hi_open=False, *, argument=False):
     """Return ``float(value)`` or raise :class:`InputError` naming field, value, unit and range.
+
+    ``argument=True``: ``field`` is a function argument (the error's ``field``, shown as its flag
+    on a command line).
 
     Parameters
     ----------
@@ -150,6 +164,15 @@ def check_range(field, value, unit, lo=None, hi=None, lo_open=False, hi_open=Fal
     lo_open, hi_open : bool
         Whether the bound itself is excluded.
     """
+    try:
+        return _check_range(field, value, unit, lo, hi, lo_open, hi_open)
+    except InputError as exc:
+        if argument:
+            exc.field = field
+        raise
+
+
+def _check_range(field, value, unit, lo, hi, lo_open, hi_open):
     import math
 
     rng = _range_text(lo, hi, lo_open, hi_open, unit)

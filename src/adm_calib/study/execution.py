@@ -10,7 +10,6 @@ import contextlib
 import importlib.util
 import os
 import platform
-import sys
 import time
 from collections import Counter
 from dataclasses import dataclass, field
@@ -170,18 +169,18 @@ def check_scheduler(address, timeout_s=5.0):
 
     m = re.fullmatch(r"tcp://(\[[^\]]+\]|[A-Za-z0-9_.\-]+):(\d{1,5})", address or "")
     if m is None:
-        raise InputError(f"--scheduler: {address!r} is not an address like tcp://127.0.0.1:8786")
+        raise InputError(f"scheduler: {address!r} is not an address like tcp://127.0.0.1:8786", field="scheduler")
     host, port = m.group(1).strip("[]"), int(m.group(2))
     if not 0 < port < 65536:
-        raise InputError(f"--scheduler: port {port} is out of range; allowed [1, 65535]")
+        raise InputError(f"scheduler: port {port} is out of range; allowed [1, 65535]", field="scheduler")
     try:
         sock = socket.create_connection((host, port), timeout=timeout_s)
     except TimeoutError:
-        raise InputError(f"--scheduler: {address!r} did not accept a connection within {timeout_s:g} s") from None
+        raise InputError(f"scheduler: {address!r} did not accept a connection within {timeout_s:g} s", field="scheduler") from None
     except OSError as exc:
-        raise InputError(f"--scheduler: cannot connect to {address!r} ({exc.strerror or exc}); "
-                         f"is a dask scheduler running there?") from None
-    not_dask = f"--scheduler: {address!r} is not a dask scheduler"
+        raise InputError(f"scheduler: cannot connect to {address!r} ({exc.strerror or exc}); "
+                         f"is a dask scheduler running there?", field="scheduler") from None
+    not_dask = f"scheduler: {address!r} is not a dask scheduler"
     with sock:
         sock.settimeout(timeout_s)
 
@@ -190,7 +189,7 @@ def check_scheduler(address, timeout_s=5.0):
             while len(data) < n:
                 chunk = sock.recv(n - len(data))
                 if not chunk:
-                    raise InputError(f"{not_dask} (it closed the connection without the dask handshake)")
+                    raise InputError(f"{not_dask} (it closed the connection without the dask handshake)", field="scheduler")
                 data += chunk
             return data
 
@@ -198,14 +197,14 @@ def check_scheduler(address, timeout_s=5.0):
             head = recv(8)
             n = int.from_bytes(head, "little")
             if not 0 < n <= 1 << 20:
-                raise InputError(f"{not_dask} (its first bytes {head!r} are not a dask message)")
+                raise InputError(f"{not_dask} (its first bytes {head!r} are not a dask message)", field="scheduler")
             body = recv(n)
         except TimeoutError:
-            raise InputError(f"{not_dask} (no dask handshake within {timeout_s:g} s)") from None
+            raise InputError(f"{not_dask} (no dask handshake within {timeout_s:g} s)", field="scheduler") from None
         except OSError as exc:
-            raise InputError(f"{not_dask} ({exc.strerror or exc})") from None
+            raise InputError(f"{not_dask} ({exc.strerror or exc})", field="scheduler") from None
     if not all(k in body for k in _HANDSHAKE_KEYS):
-        raise InputError(f"{not_dask} (its first message is not the dask handshake)")
+        raise InputError(f"{not_dask} (its first message is not the dask handshake)", field="scheduler")
     return address
 
 
@@ -287,7 +286,8 @@ def run_study(out_dir, cases, settings=StudySettings(), workers=2, scheduler=Non
 
 def _run_on_dask(pending, settings, writer, run, workers, scheduler, progress, entry):
     from distributed import Client, as_completed
-    from tqdm import tqdm
+
+    from adm_sim.cliutil import progress_bar
 
     cluster = client = bar = None
     futures = []
@@ -302,7 +302,7 @@ def _run_on_dask(pending, settings, writer, run, workers, scheduler, progress, e
                 raise InputError(f"scheduler: cannot connect to {scheduler!r} ({exc})") from None
         info = client.scheduler_info()
         if scheduler is not None and info.get("type") != "Scheduler":
-            raise InputError(f"--scheduler: {scheduler!r} is not a dask scheduler (identity {info.get('type')!r})")
+            raise InputError(f"scheduler: {scheduler!r} is not a dask scheduler (identity {info.get('type')!r})", field="scheduler")
         run.scheduler = info.get("address", "")
         run.workers = sorted(info.get("workers", {}))
         entry["cluster"] = {"scheduler": run.scheduler, "local": cluster is not None,
@@ -318,8 +318,8 @@ def _run_on_dask(pending, settings, writer, run, workers, scheduler, progress, e
                                 key=f"batch-{b[0].train}-L{L:g}-f{fi}-{os.getpid()}")
             by_future[fut] = b
             futures.append(fut)
-        bar = tqdm(total=run.selected, initial=run.already_done, unit="case", desc="study", file=sys.stderr,
-                   disable=not (sys.stderr.isatty() if progress is None else progress), dynamic_ncols=True)
+        bar = progress_bar("study", total=run.selected, enabled=progress, unit="case", leave=True,
+                           initial=run.already_done, mininterval=0.1)
         for fut in as_completed(futures, loop=client.loop):
             batch = by_future.pop(fut)
             try:

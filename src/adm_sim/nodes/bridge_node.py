@@ -144,7 +144,7 @@ class BridgeNode(c.NodeBase):
         self._preset_defaults = {s.name: s.default for s in specs}
         self.declare_specs(specs, on_set=self._on_set)
         self.bridge = self.build_bridge(self.param_values())  # validates the startup values
-        self.add_post_set_parameters_callback(lambda _p: self._publish_description())
+        self.add_post_set_parameters_callback(self._after_set)
 
         self.pub_rail = self.create_publisher(Float64MultiArray, P.TOPIC_RAIL, c.QOS_EXCHANGE)
         self.pub_ready = self.create_publisher(String, P.TOPIC_READY, c.QOS_CONTROL)
@@ -191,12 +191,20 @@ class BridgeNode(c.NodeBase):
         values = self.param_values()
         values.update({p.name: p.value for p in params})
         try:
-            self.bridge = self.build_bridge(values)
+            self.build_bridge(values)
         except InputError as exc:
             return SetParametersResult(successful=False, reason=str(exc))
+        return SetParametersResult(successful=True)
+
+    def _after_set(self, params):
+        """Post-set callback, the one place a parameter set changes the node's state (as in ros2/demos
+        ``set_parameters_callback.py``; :meth:`_on_set` only validates): the bridge, the partner
+        timeout and the latched description follow the new values."""
+        values = self.param_values()
+        self.bridge = self.build_bridge(values)
         if any(p.name == "partner_timeout_s" for p in params):
             self.partner.timeout_s = float(values["partner_timeout_s"])
-        return SetParametersResult(successful=True)
+        self._publish_description()
 
     def _publish_description(self):
         b, p = self.bridge, self.param_values()

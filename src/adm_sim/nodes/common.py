@@ -178,7 +178,8 @@ class ParamNodeMixin:
     def declare_specs(self, specs, on_set=None):
         """Declare ``specs``, check their start-up values and refuse out-of-range sets.
 
-        ``on_set`` (a node's own on-set callback) runs after the range checks have passed.
+        ``on_set`` (a node's own on-set callback) runs after the range checks have passed; on-set
+        callbacks only validate, state changes belong in a post-set callback (ros2/demos).
         """
         from rclpy.exceptions import InvalidParameterTypeException
 

@@ -49,7 +49,7 @@ class TrainNode(c.NodeBase):
         super().__init__(P.TRAIN_NODE, **kw)
         self.declare_specs(TRAIN_SPECS, on_set=self._on_set)
         self.train = self._validate(self.param_values())[0]
-        self.add_post_set_parameters_callback(lambda _p: self._publish_description())
+        self.add_post_set_parameters_callback(self._after_set)
         self.pub_setup = self.create_publisher(String, P.TOPIC_SETUP, c.QOS_CONTROL)
         self.pub_forces = self.create_publisher(Float64MultiArray, P.TOPIC_FORCES, c.QOS_EXCHANGE)
         self.pub_block = self.create_publisher(Float64MultiArray, P.TOPIC_AXLE_BLOCK, c.QOS_EXCHANGE)
@@ -82,12 +82,20 @@ class TrainNode(c.NodeBase):
         values = self.param_values()
         values.update({p.name: p.value for p in params})
         try:
-            self.train = self._validate(values)[0]
+            self._validate(values)
         except InputError as exc:
             return SetParametersResult(successful=False, reason=str(exc))
+        return SetParametersResult(successful=True)
+
+    def _after_set(self, params):
+        """Post-set callback, the one place a parameter set changes the node's state (as in ros2/demos
+        ``set_parameters_callback.py``; :meth:`_on_set` only validates): the train, the partner
+        timeout and the latched description follow the new values."""
+        values = self.param_values()
+        self.train = self._validate(values)[0]
         if any(p.name == "partner_timeout_s" for p in params):
             self.partner.timeout_s = float(values["partner_timeout_s"])
-        return SetParametersResult(successful=True)
+        self._publish_description()
 
     def _publish_description(self):
         t = self.train

@@ -1,0 +1,125 @@
+"""The command-line layer shared by ``adm-sim``, ``adm-calib`` and the launch scripts (core, no rclpy).
+
+One parser class (usage errors are one line ``error: ...``, exit code 2, through the one exit-code
+mapping :func:`adm_sim.errors.run_cli`) and one progress bar (tqdm on stderr). The output rule
+lives in :mod:`adm_sim.files`, the exit codes in :mod:`adm_sim.errors`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from adm_sim.errors import EXIT_INPUT, InputError, one_line
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse whose usage errors raise :class:`InputError` (one line ``error: ...``, exit 2 under
+    :func:`~adm_sim.errors.run_cli`, so ``parse_args`` belongs inside the call given to it).
+
+    ``name_prog=True`` puts the program (``adm-sim sweep``) in front of the message; subparsers
+    created by :meth:`add_subparsers` inherit it.
+    """
+
+    def __init__(self, *args, name_prog=False, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.name_prog = name_prog
+
+    def add_subparsers(self, **kwargs):
+        kwargs.setdefault("parser_class", type(self))
+        action = super().add_subparsers(**kwargs)
+        name_prog, add_parser = self.name_prog, action.add_parser
+
+        def add(name, **kw):
+            kw.setdefault("name_prog", name_prog)
+            return add_parser(name, **kw)
+
+        action.add_parser = add
+        return action
+
+    def error(self, message):
+        raise InputError(f"{self.prog}: {message}" if self.name_prog else message)
+
+    def parse_args_or_exit(self, args=None, namespace=None):
+        """:meth:`parse_args` for a caller outside :func:`~adm_sim.errors.run_cli` (the launch scripts'
+        :func:`launch`): a usage error prints its one line and exits with 2."""
+        try:
+            return self.parse_args(args, namespace)
+        except InputError as exc:
+            self.exit(EXIT_INPUT, f"error: {one_line(exc)}\n")
+
+
+#: Library argument -> command-line flag: library messages name the argument
+#: (``max_line_speed_kmh: ...``), the command line shows the flag the user typed.
+ARGUMENT_FLAGS = {
+    "max_line_speed_kmh": "--max-line-speed",
+    "step_kmh": "--speed-step",
+    "trains": "--trains",
+    "damping": "--damping",
+    "damping_model": "--damping-model",
+    "track": "--track",
+    "track_maintenance": "--track-maintenance",
+    "alpha": "--alpha",
+    "n_modes": "--modes",
+    "where": "--where",
+    "scheduler": "--scheduler",
+}
+
+
+def cli_message(exc):
+    """The message of :class:`InputError` ``exc`` as a command line shows it: a leading library
+    argument (``exc.field``) becomes its flag (:data:`ARGUMENT_FLAGS`)."""
+    msg, field = str(exc), getattr(exc, "field", None)
+    flag = ARGUMENT_FLAGS.get(field)
+    if flag is not None and msg.startswith(field):
+        return flag + msg[len(field):]
+    return msg
+
+
+class _NoBar:
+    """Stands in for a tqdm bar when tqdm is not installed."""
+
+    n = total = 0
+
+    def update(self, n=1):
+        self.n += n
+
+    def refresh(self):
+        pass
+
+    def set_postfix_str(self, text):
+        pass
+
+    def write(self, text):
+        print(text, flush=True)
+
+    def close(self):
+        pass
+
+
+def progress_bar(desc, total=None, enabled=None, unit="step", leave=False, **kwargs):
+    """The progress bar of every command: tqdm on stderr, redrawn at most every 0.2 s.
+
+    ``enabled``: True / False, or None for "only when stderr is a terminal". Without tqdm
+    installed, a bar that draws nothing.
+    """
+    try:
+        from tqdm import tqdm
+    except ImportError:  # pragma: no cover - tqdm is a declared dependency
+        return _NoBar()
+    kwargs.setdefault("mininterval", 0.2)
+    return tqdm(total=total, desc=desc, unit=unit, leave=leave, file=sys.stderr, dynamic_ncols=True,
+                disable=None if enabled is None else not enabled, **kwargs)
+
+
+def progress_callback(desc, enabled=None):
+    """A ``progress(done, total)`` callback drawing a :func:`progress_bar`, and its ``close``."""
+    bar = progress_bar(desc, total=0, enabled=enabled)
+
+    def cb(done, total):
+        if bar.total != total:
+            bar.total = total
+        bar.n = done
+        bar.refresh()
+
+    return cb, bar.close
