@@ -263,3 +263,17 @@ def test_run_phase_names_every_sweep_of_a_calibration():
     order = [P.PHASE_MLM_ZETA, P.PHASE_DIM, P.PHASE_BRACKETING, P.PHASE_ROOT_SEARCH, P.PHASE_MLM_ZETA_DZ]
     runs = [p for i, p in enumerate(phases) if i == 0 or p != phases[i - 1]]  # consecutive repeats merged
     assert runs == order, phases
+
+
+def test_docs_topic_table_matches_the_protocol():
+    """docs/ros.md lists every topic of the protocol with its message type, and nothing else
+    (besides the start-run service)."""
+    import re
+    from pathlib import Path
+
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "ros.md").read_text()
+    rows = dict(re.findall(r"^\| `(/[^`]+)` \| `?([^`|]+?)`? \|", doc, re.M))
+    topics = {n: t for n, t in rows.items() if n != P.SERVICE_START_RUN}
+    assert set(topics) == set(P.TOPICS)
+    for name, typ in topics.items():
+        assert typ.strip() == P.TOPICS[name][0].replace("/msg/", "/"), name
