@@ -46,7 +46,7 @@ def main(argv=None):
 
     driver.QUIET = True
 
-    from adm_sim.ros.env import local_ros_env
+    from adm_sim.processes.dds_env import local_ros_env
 
     bridge, train = resolve_bridge(args.bridge), load_train(args.train)
     speeds = parse_speeds(args.speeds)

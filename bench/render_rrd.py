@@ -39,8 +39,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 
 from adm_sim.errors import InputError  # noqa: E402
-from adm_sim.ros import rerun_blueprint as bp  # noqa: E402
-from adm_sim.ros.rerun_log import (_free_port, _wait_for_port, ensure_analytics_disabled,  # noqa: E402
+from adm_sim.recording import rerun_blueprint as bp  # noqa: E402
+from adm_sim.recording.rerun_log import (_free_port, _wait_for_port, ensure_analytics_disabled,  # noqa: E402
                                    rerun_cli, rerun_cli_env)
 
 CHROME_FLAGS = ["--headless=new", "--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",

@@ -1,6 +1,6 @@
 """What the launch scripts share: input checks, the output folder, the bridge/train/driver graph.
 
-The processes are started, watched and stopped by :class:`adm_sim.ros.supervisor.Supervisor`
+The processes are started, watched and stopped by :class:`adm_sim.processes.supervisor.Supervisor`
 (the one supervisor of the launch scripts and the tests).
 """
 
@@ -9,7 +9,7 @@ from __future__ import annotations
 import queue
 from pathlib import Path
 
-from adm_sim.ros.supervisor import NodeDied, Supervisor, ros_args  # noqa: F401  (used by the scripts)
+from adm_sim.processes.supervisor import NodeDied, Supervisor, ros_args  # noqa: F401  (used by the scripts)
 
 ROOT = Path(__file__).resolve().parents[1]
 PARAMS_DIR = ROOT / "ros_ws" / "params"
@@ -145,9 +145,9 @@ def check_inputs(bridge=None, train=None, speeds=None, params_file=None, model=N
 
 
 def check_domain_id(domain_id):
-    """``--domain-id`` in [0, 101] (Fast DDS ports, see :mod:`adm_sim.ros.env`) or None."""
+    """``--domain-id`` in [0, 101] (Fast DDS ports, see :mod:`adm_sim.processes.dds_env`) or None."""
     from adm_sim.errors import check_int
-    from adm_sim.ros.env import DOMAIN_ID_MAX
+    from adm_sim.processes.dds_env import DOMAIN_ID_MAX
 
     return None if domain_id is None else check_int("--domain-id", domain_id, 0, DOMAIN_ID_MAX)
 
@@ -159,7 +159,7 @@ def check_viewer(spawn, connect):
     if spawn and connect is not None:
         raise InputError(f"--connect: {connect!r} with --spawn; give --spawn or --connect, not both")
     if connect is not None:
-        from adm_sim.ros.rerun_log import _check_loopback
+        from adm_sim.recording.rerun_log import _check_loopback
 
         try:
             _check_loopback(_given("--connect", connect))

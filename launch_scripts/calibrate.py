@@ -13,7 +13,7 @@ when a node dies (exit status 1, naming the node). Exit status 0 on success, 2 o
 before any process starts or any folder is created); an earlier run in ``--out`` is kept unless
 ``--overwrite``, and a folder another launch is writing is refused. Ctrl-C or SIGTERM: ``error:
 interrupted``, exit status 130, the outputs of the interrupted run removed. The nodes end with
-the launcher however it ends (SIGKILL included, see :mod:`adm_sim.ros.supervisor`).
+the launcher however it ends (SIGKILL included, see :mod:`adm_sim.processes.supervisor`).
 """
 
 from __future__ import annotations
@@ -131,7 +131,7 @@ def main(argv=None):
 
 def _main(args):
     from adm_sim.errors import InputError, one_line
-    from adm_sim.ros.env import local_ros_env
+    from adm_sim.processes.dds_env import local_ros_env
 
     t_start = time.perf_counter()
     try:

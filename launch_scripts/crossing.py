@@ -48,7 +48,7 @@ def main(argv=None):
 
 
 def _main(args):
-    from adm_sim.ros.env import local_ros_env
+    from adm_sim.processes.dds_env import local_ros_env
 
     try:
         domain_id = check_domain_id(args.domain_id)

@@ -10,7 +10,7 @@ Usage::
     replay.py RUN.mcap --republish [--domain-id N] [--rate X] [--topics /adm/midspan/accel ...]
 
 The recording is decoded with mcap-ros2-support. The adm-sim topics (runs, midspan acceleration,
-beam, results, calibration) are drawn by :class:`adm_sim.ros.rerun_log.RunLogger` exactly as the
+beam, results, calibration) are drawn by :class:`adm_sim.recording.rerun_log.RunLogger` exactly as the
 live recording, with its default blueprint; other topics generically: ``AccelStamped`` outside a
 recorded run by ``header.frame_id``, ``DiagnosticArray`` as text log, ``JointState``,
 ``Float64MultiArray`` and ``Float64`` as scalar series under ``topics/``, metadata records as a
@@ -45,7 +45,7 @@ from adm_sim.errors import InputError, RunError, check_int, check_range, run_cli
 
 def check_args(args):
     """Check every option before anything is read, written or started; raises :class:`InputError`."""
-    from adm_sim.cli import mcap_input, output_path
+    from adm_sim.sim_commands import mcap_input, output_path
 
     mcap_input(str(args.mcap), "RUN.mcap")
     if args.rrd is not None:
@@ -107,8 +107,8 @@ def show_in_rerun(args, save_path=None) -> dict[str, int]:
     import rerun as rr
 
     from adm_sim.nodes.common import matrix_from_msg
-    from adm_sim.ros import rerun_log as rl
-    from adm_sim.ros.mcap_log import read_messages
+    from adm_sim.recording import rerun_log as rl
+    from adm_sim.recording.mcap_log import read_messages
 
     rl.init_rerun("adm_sim_replay", spawn=args.spawn, connect_url=args.connect, save_path=save_path)
     viz = rl.RunLogger(exaggeration=args.exaggeration)
@@ -246,7 +246,7 @@ def _guarded(messages, path):
 def check_readable(path) -> None:
     """Refuse, before any output is written, an MCAP that cannot be read (cut short, damaged) or
     that holds no message: a replay of it would be an empty recording."""
-    from adm_sim.ros.mcap_log import check_intact
+    from adm_sim.recording.mcap_log import check_intact
 
     try:
         n = check_intact(path)
@@ -263,7 +263,7 @@ def _level(level) -> int:
 
 
 def convert(args, save_path) -> None:
-    from adm_sim.ros.rerun_log import ensure_analytics_disabled, rerun_cli, rerun_cli_env
+    from adm_sim.recording.rerun_log import ensure_analytics_disabled, rerun_cli, rerun_cli_env
 
     ensure_analytics_disabled()
     proc = subprocess.run(
@@ -355,14 +355,14 @@ def main(argv=None) -> int:
 
 
 def _run(args) -> int:
-    from adm_sim.cli import write_atomic
+    from adm_sim.sim_commands import write_atomic
 
     check_args(args)
     if args.rrd or args.spawn or args.connect:
         check_readable(args.mcap)
     env = None
     if args.republish:
-        from adm_sim.ros.env import apply_local_ros_env
+        from adm_sim.processes.dds_env import apply_local_ros_env
 
         env = apply_local_ros_env(args.domain_id)  # before rclpy creates a participant
         print(f"ROS_DOMAIN_ID={env.domain_id}", flush=True)

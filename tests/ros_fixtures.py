@@ -1,8 +1,8 @@
 """Shared helpers of the ROS 2 tests: node processes on a private domain, an in-process driver.
 
-Every test gets its own ``ROS_DOMAIN_ID`` (reserved with :func:`adm_sim.ros.env.local_ros_env`)
+Every test gets its own ``ROS_DOMAIN_ID`` (reserved with :func:`adm_sim.processes.dds_env.local_ros_env`)
 and shared-memory transport only; processes are started, stopped and cleaned up after by
-:class:`adm_sim.ros.supervisor.Supervisor`, as in the launch scripts.
+:class:`adm_sim.processes.supervisor.Supervisor`, as in the launch scripts.
 """
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ from pathlib import Path
 
 import pytest
 
-from adm_sim.ros.env import local_ros_env
-from adm_sim.ros.supervisor import Supervisor, ros_args
+from adm_sim.processes.dds_env import local_ros_env
+from adm_sim.processes.supervisor import Supervisor, ros_args
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -8,7 +8,7 @@ from pathlib import Path
 import pyarrow as pa
 
 from adm_sim import protocol as P
-from adm_sim.ros import rerun_blueprint as bp
+from adm_sim.recording import rerun_blueprint as bp
 
 def read_rrd(path: Path) -> dict:
     """Entities of the recording: path -> {"rows", "static", timeline -> int64 ns/seq, "values"}."""

@@ -14,7 +14,7 @@ import pytest
 
 from adm_calib import peaks as pk
 from adm_calib import study as st
-from adm_calib.cli import main
+from adm_calib.calib_commands import main
 from adm_calib.reference import lower_bound_table, recommend
 from adm_calib.study.fit import table_b_range_check
 

@@ -1,8 +1,8 @@
 """Batched runs and batched calibration against the single-case paths.
 
-* :class:`adm_sim.batch.BatchRunner` lanes equal :func:`adm_sim.sweep.run_sweep` (numpy stepper)
+* :class:`adm_sim.compiled_batch.BatchRunner` lanes equal :func:`adm_sim.sweep.run_sweep` (numpy stepper)
   with the same ``ds`` to 1e-12 relative, MLM and DIM, conventional and Jacobs trains;
-* :func:`adm_calib.batch.calibrate_batch` reproduces :func:`adm_calib.calibrate.calibrate` to
+* :func:`adm_calib.calibrate.calibrate_batch` reproduces :func:`adm_calib.calibrate.calibrate` to
   1e-9 relative on its peaks and 1e-5 % on Δζ_VBI (spans 4, 20 and 40 m; ICE-2, ICE-4, Eurostar);
 * the batch's shared step equals every case's own step within one (span, frequency) pair.
 """
@@ -12,10 +12,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from adm_calib.batch import batch_step, calibrate_batch
+from adm_calib.calibrate import batch_step, calibrate_batch
 from adm_calib.calibrate import CalibrationOptions, calibrate, calibration_step
 from adm_calib.study import select_cases
-from adm_sim.batch import BatchRunner
+from adm_sim.compiled_batch import BatchRunner
 from adm_sim.errors import RunError
 from adm_sim.stepping import StepOptions
 from adm_sim.sweep import run_sweep

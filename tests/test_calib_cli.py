@@ -10,13 +10,13 @@ from pathlib import Path
 import pytest
 
 from adm_calib import reference as ref
-from adm_calib.cli import main
+from adm_calib.calib_commands import main
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def run_cli(*args, cwd=None):
-    return subprocess.run([sys.executable, "-m", "adm_calib.cli", *args], capture_output=True, text=True,
+    return subprocess.run([sys.executable, "-m", "adm_calib.calib_commands", *args], capture_output=True, text=True,
                           cwd=cwd, timeout=300)
 
 
@@ -128,7 +128,7 @@ def test_console_script_installed():
 
 
 def test_analysis_package_does_not_import_rclpy():
-    code = ("import sys, adm_calib, adm_calib.cli, adm_calib.calibrate, adm_calib.peaks, adm_calib.reference, "
+    code = ("import sys, adm_calib, adm_calib.calib_commands, adm_calib.calibrate, adm_calib.peaks, adm_calib.reference, "
             "adm_calib.table4, adm_calib.plots; print('rclpy' in sys.modules)")
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert p.returncode == 0, p.stderr

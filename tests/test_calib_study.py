@@ -18,7 +18,7 @@ from scipy.optimize import brentq
 
 from adm_calib import study as st
 from adm_calib.study.store import _exclusive
-from adm_calib.cli import main
+from adm_calib.calib_commands import main
 from adm_calib.reference import lower_bound_table, span_from_frequency_m
 from adm_sim.errors import InputError
 
@@ -29,7 +29,7 @@ N_STUDY = len(STUDY_KEYS)
 
 
 def _study_cmd(out, *extra):
-    return [sys.executable, "-m", "adm_calib.cli", "study", "--out", str(out), *STUDY_ARGS, "--workers", "2", *extra]
+    return [sys.executable, "-m", "adm_calib.calib_commands", "study", "--out", str(out), *STUDY_ARGS, "--workers", "2", *extra]
 
 
 def _complete_lines(path):

@@ -133,7 +133,7 @@ def test_study_on_scheduler_survives_a_killed_worker(tmp_path):
         # nothing started here listens on anything but the loopback interface
         assert _listening_addresses(_tree_pids(procs)) <= {"127.0.0.1"}
 
-        study = _spawn([sys.executable, "-m", "adm_calib.cli", "study", "--out", str(out), *STUDY_ARGS,
+        study = _spawn([sys.executable, "-m", "adm_calib.calib_commands", "study", "--out", str(out), *STUDY_ARGS,
                         "--scheduler", addr], tmp_path / "study.log")
         procs.append(study)
 

@@ -20,8 +20,8 @@ from adm_sim.trains import load_train, moving_loads
 from analytic import moving_force_modal
 from test_envelope import reference_maxima
 
-CLI = [sys.executable, "-m", "adm_sim.cli"]
-CALIB_CLI = [sys.executable, "-m", "adm_calib.cli"]
+CLI = [sys.executable, "-m", "adm_sim.sim_commands"]
+CALIB_CLI = [sys.executable, "-m", "adm_calib.calib_commands"]
 
 
 def run(*args, cli=CLI):
@@ -499,15 +499,15 @@ def test_more_modes_on_request():
 
 def test_core_does_not_import_adm_calib():
     """The core's check and its CLI load without adm_calib, and `adm-sim check` runs without it."""
-    code = ("import sys, adm_sim.cli, adm_sim.check, adm_sim.envelope, adm_sim.hslm, adm_sim.trains\n"
-            "adm_sim.cli.main(['check', '--max-line-speed', '250', '--trains', 'HSLM-A1', '--speed-step', '1'])\n"
+    code = ("import sys, adm_sim.sim_commands, adm_sim.check, adm_sim.envelope, adm_sim.hslm, adm_sim.trains\n"
+            "adm_sim.sim_commands.main(['check', '--max-line-speed', '250', '--trains', 'HSLM-A1', '--speed-step', '1'])\n"
             "print('adm_calib' in sys.modules)")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert r.stdout.strip().splitlines()[-1] == "False", r.stderr
 
 
 def test_no_import_of_adm_calib_anywhere_in_adm_sim():
-    """No arrow points up: no .py file under src/adm_sim (cli.py included, none excluded) imports
+    """No arrow points up: no .py file under src/adm_sim (sim_commands.py included, none excluded) imports
     adm_calib, at module level or inside a function (every Import/ImportFrom node of the AST, and
     importlib/__import__ calls naming it)."""
     import ast
@@ -515,7 +515,7 @@ def test_no_import_of_adm_calib_anywhere_in_adm_sim():
 
     root = pathlib.Path(__file__).resolve().parents[1] / "src" / "adm_sim"
     files = sorted(root.rglob("*.py"))
-    assert root / "cli.py" in files and root / "check.py" in files
+    assert root / "sim_commands.py" in files and root / "check.py" in files
     bad = []
     for f in files:
         tree = ast.parse(f.read_text(encoding="utf-8"), filename=str(f))

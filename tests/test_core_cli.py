@@ -6,7 +6,7 @@ import sys
 
 import pytest
 
-CLI = [sys.executable, "-m", "adm_sim.cli"]
+CLI = [sys.executable, "-m", "adm_sim.sim_commands"]
 
 
 def run(*args):
@@ -81,7 +81,7 @@ def test_trains_check_prints_the_checks():
 
 
 def test_sweep_outputs_checked_before_the_run(tmp_path, capsys):
-    from adm_sim.cli import main
+    from adm_sim.sim_commands import main
 
     base = ["sweep", "--bridge", "B4", "--model", "mlm", "--speeds", "200,260"]
     j = tmp_path / "r.json"
@@ -107,7 +107,7 @@ def test_sweep_outputs_checked_before_the_run(tmp_path, capsys):
 
 
 def test_bridges_field_is_pure_csv(capsys):
-    from adm_sim.cli import main
+    from adm_sim.sim_commands import main
 
     assert main(["bridges", "--field"]) == 0
     out = capsys.readouterr()

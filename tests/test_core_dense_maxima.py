@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from adm_sim import kernels
-from adm_sim.batch import BatchRunner
+from adm_sim.compiled_batch import BatchRunner
 from adm_sim.bridge import named_bridge
 from adm_sim.stepping import StepOptions, hermite_max_abs_acc, make_grid, speeds_to_m_s
 from adm_sim.sweep import run_sweep

@@ -35,8 +35,8 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 PY = sys.executable
-SIM = [PY, "-m", "adm_sim.cli"]
-CAL = [PY, "-m", "adm_calib.cli"]
+SIM = [PY, "-m", "adm_sim.sim_commands"]
+CAL = [PY, "-m", "adm_calib.calib_commands"]
 REPLAY = [PY, str(ROOT / "launch_scripts" / "replay.py")]
 CROSS = [PY, str(ROOT / "launch_scripts" / "crossing.py")]
 CALIB = [PY, str(ROOT / "launch_scripts" / "calibrate.py")]
@@ -140,7 +140,7 @@ def _recording(kind):
     def setup(t, ctx):
         from std_msgs.msg import String
 
-        from adm_sim.ros.mcap_log import McapRecorder
+        from adm_sim.recording.mcap_log import McapRecorder
 
         path = t / "run.mcap"
         with McapRecorder(path, chunk_size=1024) as rec:
@@ -464,7 +464,7 @@ def marked_processes(marker):
 
 @pytest.fixture(scope="module")
 def ros_env():
-    from adm_sim.ros.env import local_ros_env
+    from adm_sim.processes.dds_env import local_ros_env
 
     env = local_ros_env()
     yield env

@@ -12,7 +12,7 @@ from adm_sim.errors import InputError
 from adm_sim.hslm import HSLM_A_TABLE, hslm_name
 from adm_sim.trains import load_train
 
-CLI = [sys.executable, "-m", "adm_sim.cli"]
+CLI = [sys.executable, "-m", "adm_sim.sim_commands"]
 
 #: Table 6.3 as printed: (N, D m, d m, P kN).
 TABLE_6_3 = {

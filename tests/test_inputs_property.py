@@ -10,7 +10,7 @@ import math
 
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from adm_sim.cli import main
+from adm_sim.sim_commands import main
 from adm_sim.errors import InputError
 from adm_sim.sweep import parse_speeds
 

@@ -36,7 +36,7 @@ def test_refuses_to_overwrite_an_earlier_run(script, tmp_path):
 
 def test_node_rejects_a_wrongly_typed_startup_parameter():
     # -p speeds_kmh:=280 is a YAML integer; the node names the parameter and exits 2, no traceback
-    from adm_sim.ros.env import local_ros_env
+    from adm_sim.processes.dds_env import local_ros_env
 
     with local_ros_env() as env:
         r = subprocess.run([sys.executable, "-m", "adm_sim.nodes.train_node", "--ros-args", "-p", "speeds_kmh:=280"],

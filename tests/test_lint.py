@@ -54,7 +54,7 @@ def test_mypy_core_finds_nothing():
 
 
 def test_mypy_checks_the_core_and_not_the_ros_layer():
-    """``files``/``exclude`` select exactly the core modules of ``src/adm_sim`` (no nodes/, no ros/)."""
+    """``files``/``exclude`` select exactly the core modules of ``src/adm_sim`` (no nodes/, recording/, processes/)."""
     _require("mypy")
     res = _run("mypy", "--no-error-summary", "--verbose")
     checked = sorted({Path(p).name for line in (res.stdout + res.stderr).splitlines()

@@ -164,7 +164,7 @@ def _warning_lines(err):
 
 
 def test_sweep_prints_one_warning_line_and_exits_0(capsys):
-    from adm_sim.cli import main
+    from adm_sim.sim_commands import main
 
     shown = warnings.showwarning
     assert main(["sweep", "--bridge", "L=15,n0=8.26,mu=19042,zeta_pct=0.0185", "--speeds", "250"]) == 0
@@ -178,7 +178,7 @@ def test_sweep_prints_one_warning_line_and_exits_0(capsys):
 def test_sweep_warns_about_results_no_bridge_survives(capsys):
     """An undamped light 15 m deck at 0.6 Hz: the bridge lines (n0, damping) and the two result
     lines (acceleration > 50 m/s², deflection > L/100 = 0.15 m), still exit 0."""
-    from adm_sim.cli import main
+    from adm_sim.sim_commands import main
 
     assert main(["sweep", "--bridge", "L=15,n0=0.6,mu=3000,zeta_pct=0", "--speeds", "250", "--method", "rk4"]) == 0
     lines = _warning_lines(capsys.readouterr().err)
@@ -192,7 +192,7 @@ def test_sweep_warns_about_results_no_bridge_survives(capsys):
 def test_check_warns_once_per_quantity_naming_train_and_speed(capsys):
     """adm-sim check of a light, soft 15 m deck: the largest acceleration and deflection over the
     trains, one line each, named by train and speed; the verdict is still printed (exit 0)."""
-    from adm_sim.cli import main
+    from adm_sim.sim_commands import main
 
     assert main(["check", "--bridge", "L=15,n0=3,mu=3000,zeta_pct=0.2", "--max-line-speed", "160",
                  "--trains", "HSLM-A1"]) == 0
@@ -206,7 +206,7 @@ def test_check_warns_once_per_quantity_naming_train_and_speed(capsys):
 
 @pytest.mark.parametrize("extra, code", [([], 2), (["--extrapolate"], 0)])
 def test_recommend_outside_the_field(capsys, extra, code):
-    from adm_calib.cli import main
+    from adm_calib.calib_commands import main
 
     argv = ["recommend", "--train", "ICE-2", "--n0", "5", "--mu", "60000", "--type", "cfb", "--span", "20"]
     assert main(argv + extra) == code
@@ -220,7 +220,7 @@ def test_recommend_outside_the_field(capsys, extra, code):
 
 def test_recommend_span_beyond_the_field_with_extrapolate(capsys):
     """Without --extrapolate the span refusal is unchanged; with it a 60 m span answers with one warning."""
-    from adm_calib.cli import main
+    from adm_calib.calib_commands import main
 
     argv = ["recommend", "--train", "ICE-2", "--n0", "2.5", "--mu", "50000", "--type", "cfb", "--span", "60"]
     assert main(argv) == 2

@@ -38,7 +38,7 @@ def test_protocol_and_limits_import_neither_rclpy_nor_rerun():
 
 def _blueprint_views():
     pytest.importorskip("rerun")
-    from adm_sim.ros.rerun_blueprint import default_blueprint
+    from adm_sim.recording.rerun_blueprint import default_blueprint
 
     def walk(container):
         for x in container.contents:
@@ -98,7 +98,7 @@ _TOPIC_OR_ENTITY = re.compile(
     r"""(?:runs|sweep|calibration)/(?:acceleration|beam|info|curves|trials|delta_zeta_pct|peak_m_s2|result)"""
     r"""[^"']*|(?:topics|diagnostics|metadata)/[^"']*)\1""")
 #: Literals that only look like one: an example in an error message (not a topic of the graph).
-_NOT_A_NAME = {("src/adm_sim/ros/mcap_log.py", "'/adm/x'")}
+_NOT_A_NAME = {("src/adm_sim/recording/mcap_log.py", "'/adm/x'")}
 
 
 def test_no_topic_name_or_entity_path_is_written_outside_the_protocol():
@@ -168,7 +168,7 @@ def test_calibration_node_and_rerun_logger_name_the_same_phases():
     pytest.importorskip("rclpy")
     pytest.importorskip("rerun")
     from adm_calib.nodes.calibration_node import PHASE_LABELS
-    from adm_sim.ros import rerun_log as rl
+    from adm_sim.recording import rerun_log as rl
 
     assert set(PHASE_LABELS) == set(P.PHASES)
     from adm_calib.lanes import PHASES as CALIBRATION_REQUEST_PHASES

@@ -93,7 +93,7 @@ def test_calibrate_launch_matches_in_process_calibration(tmp_path, ros_domain):
     # every co-simulated run recorded in the MCAP is the core's run_sweep with the calibration's
     # step, bit for bit (as in test_ros_colcon.py): MLM zeta, DIM, ladder, root search, MLM zeta + dz
     from adm_calib.calibrate import calibration_step
-    from adm_sim.ros.mcap_log import read_messages
+    from adm_sim.recording.mcap_log import read_messages
 
     b3, ice2 = resolve_bridge("B3"), load_train("ICE-2")
     step = calibration_step(b3, ice2, np.arange(230.0, 291.0, 2.0), CalibrationOptions(step=StepOptions(**STEP)))

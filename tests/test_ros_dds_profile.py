@@ -6,7 +6,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from adm_sim.ros.env import reserve_domain_id
+from adm_sim.processes.dds_env import reserve_domain_id
 
 PROFILE = Path(__file__).resolve().parents[1] / "ros_ws" / "dds" / "fastdds_shm_only.xml"
 

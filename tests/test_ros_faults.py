@@ -20,8 +20,8 @@ pytest.importorskip("rclpy")
 from ros_fixtures import _HELD, ROOT, NodeProcs, driver_node, node_procs, ros_domain  # noqa: E402,F401
 
 from adm_sim.bridge import resolve_bridge  # noqa: E402
-from adm_sim.ros.env import local_ros_env  # noqa: E402
-from adm_sim.ros.mcap_log import salvage  # noqa: E402
+from adm_sim.processes.dds_env import local_ros_env  # noqa: E402
+from adm_sim.recording.mcap_log import salvage  # noqa: E402
 from adm_sim.stepping import StepOptions  # noqa: E402
 from adm_sim.sweep import run_sweep  # noqa: E402
 from adm_sim.trains import load_train  # noqa: E402
@@ -139,7 +139,7 @@ def test_launch_script_stops_everything_when_a_node_dies(tmp_path, ros_domain):
     assert all(group_gone(k) for k in kids)
     # the calibration node was stopped with SIGTERM: it finished its recording, a complete file
     # (its salvage holds every message) with the latched descriptions it had received
-    from adm_sim.ros.mcap_log import read_messages
+    from adm_sim.recording.mcap_log import read_messages
 
     topics = [t for t, _, _ in read_messages(tmp_path / "run.mcap")]
     assert {"/adm/bridge/description", "/adm/train/description"} <= set(topics)
@@ -260,7 +260,7 @@ def test_death_signal_survives_the_ros_bootstrap_reexec(tmp_path):
     parent is killed with SIGKILL."""
     code = (
         "import os, sys, time\n"
-        "from adm_sim.ros.supervisor import Supervisor\n"
+        "from adm_sim.processes.supervisor import Supervisor\n"
         "sup = Supervisor(sys.argv[1], domain_id=0)\n"
         "sup.env.pop('_ROS_WHEELS_BOOTSTRAP_COMPLETE', None)\n"
         "p = sup.start_command('sleeper', [sys.executable, '-c', 'import time; time.sleep(120)'])\n"
@@ -298,7 +298,7 @@ def test_overwrite_keeps_the_earlier_run_until_the_new_one_is_complete(tmp_path,
     complete run then replaces all three."""
     import hashlib
 
-    from adm_sim.ros.mcap_log import read_messages
+    from adm_sim.recording.mcap_log import read_messages
 
     out = tmp_path / "o"
     cmd = [sys.executable, str(ROOT / "launch_scripts" / "crossing.py"), "--out", str(out),

@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 
 from adm_sim.errors import InputError
-from adm_sim.ros import env as ros_env
-from adm_sim.ros.mcap_log import McapRecorder, message_definition, read_messages, salvage
+from adm_sim.processes import dds_env as ros_env
+from adm_sim.recording.mcap_log import McapRecorder, message_definition, read_messages, salvage
 
 ROOT = Path(__file__).resolve().parents[1]
 PY = sys.executable
@@ -188,7 +188,7 @@ def test_bad_inputs_are_named(tmp_path):
 _KILLED_WRITER = """
 import sys
 from std_msgs.msg import Float64MultiArray
-from adm_sim.ros.mcap_log import McapRecorder
+from adm_sim.recording.mcap_log import McapRecorder
 rec = McapRecorder(sys.argv[1], chunk_size=8 * 1024)
 rec.write_metadata("run", {"model": "DIM"})
 msg = Float64MultiArray()
@@ -244,14 +244,14 @@ def test_salvage_errors_and_cli(tmp_path, recording, capsys):
         salvage(junk, tmp_path / "o.mcap")
     assert not (tmp_path / "o.mcap").exists() and not list(tmp_path.glob("o.mcap.part*"))
     # the one salvage command: adm-sim salvage
-    from adm_sim.cli import main as adm_sim
+    from adm_sim.sim_commands import main as adm_sim
 
     assert adm_sim(["salvage", str(recording), str(tmp_path / "copy.mcap")]) == 0
     assert capsys.readouterr().out.strip() == f"recovered {5 * N_STEPS} messages into {tmp_path / 'copy.mcap'}"
     assert adm_sim(["salvage", str(recording), str(tmp_path / "copy.mcap")]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("error: ") and "copy.mcap" in err
-    out = subprocess.run([PY, "-c", "import sys; from adm_sim.cli import main; sys.exit(main())", "salvage",
+    out = subprocess.run([PY, "-c", "import sys; from adm_sim.sim_commands import main; sys.exit(main())", "salvage",
                           str(tmp_path / "no.mcap"), str(tmp_path / "p.mcap")], capture_output=True, text=True,
                          timeout=60)
     assert out.returncode == 2
@@ -262,7 +262,7 @@ def test_salvage_errors_and_cli(tmp_path, recording, capsys):
 
 
 def _rerun_env():
-    from adm_sim.ros.rerun_log import ensure_analytics_disabled, rerun_cli_env
+    from adm_sim.recording.rerun_log import ensure_analytics_disabled, rerun_cli_env
 
     ensure_analytics_disabled()
     return rerun_cli_env()
@@ -285,7 +285,7 @@ def test_rerun_mcap_convert_and_verify(recording, tmp_path):
 def test_analytics_disabled_in_config():
     import json
 
-    from adm_sim.ros.rerun_log import analytics_config_path, ensure_analytics_disabled
+    from adm_sim.recording.rerun_log import analytics_config_path, ensure_analytics_disabled
 
     path = ensure_analytics_disabled()
     assert path == analytics_config_path()
@@ -302,7 +302,7 @@ def _entity_rows(rrd: Path) -> dict[str, int]:
 
 
 def test_run_logger_writes_a_verified_rrd(tmp_path):
-    from adm_sim.ros import rerun_log as rl
+    from adm_sim.recording import rerun_log as rl
 
     out = tmp_path / "views.rrd"
     rl.init_rerun("adm_sim_test", save_path=out, recording_id="views")
@@ -333,7 +333,7 @@ def test_run_logger_writes_a_verified_rrd(tmp_path):
 
 
 def test_rerun_refuses_remote_viewer():
-    from adm_sim.ros.rerun_log import init_rerun
+    from adm_sim.recording.rerun_log import init_rerun
 
     with pytest.raises(InputError, match="is not on this machine"):
         init_rerun("adm_sim_test", connect_url="rerun+http://192.0.2.1:9876/proxy")
@@ -420,7 +420,7 @@ def test_local_env_locks_distinct_domain_ids():
         assert 1 <= a.domain_id <= 101 and a["ROS_DOMAIN_ID"] == str(a.domain_id)
         # another process cannot take a held id
         probe = subprocess.run(
-            [PY, "-c", "from adm_sim.ros.env import _try_lock; import sys; "
+            [PY, "-c", "from adm_sim.processes.dds_env import _try_lock; import sys; "
                        f"sys.exit(0 if _try_lock({a.domain_id}) is None else 1)"], timeout=60)
         assert probe.returncode == 0
         held = a.lock
@@ -494,13 +494,13 @@ def test_cleanup_shm_removes_only_dead_process_files():
 
 def test_core_does_not_import_rclpy():
     code = ("import sys, adm_sim.bridge, adm_sim.trains, adm_sim.stepping, adm_sim.sweep, "
-            "adm_sim.ros.env; assert 'rclpy' not in sys.modules, 'rclpy imported'")
+            "adm_sim.processes.dds_env; assert 'rclpy' not in sys.modules, 'rclpy imported'")
     assert subprocess.run([PY, "-c", code], timeout=60).returncode == 0
 
 
 def test_domain_ids_are_not_reused_straight_away():
     # A freed id goes to the back of the queue: DDS may still see a killed run on it.
-    from adm_sim.ros.env import reserve_domain_id
+    from adm_sim.processes.dds_env import reserve_domain_id
 
     first = reserve_domain_id()
     used = first.domain_id
@@ -581,7 +581,7 @@ def test_damaged_chunk_is_skipped_and_counted(tmp_path):
                                      f"decompress or fail their CRC); recover its readable chunks with: "
                                      f"adm-sim salvage {src} OUT.mcap"]
     assert not (tmp_path / "o.rrd").exists()
-    r = subprocess.run([PY, "-m", "adm_sim.cli", "salvage", str(src), str(tmp_path / "cli.mcap")],
+    r = subprocess.run([PY, "-m", "adm_sim.sim_commands", "salvage", str(src), str(tmp_path / "cli.mcap")],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 0
     assert r.stdout.splitlines() == [f"recovered {n} messages into {tmp_path / 'cli.mcap'}",

@@ -13,7 +13,7 @@ from pathlib import Path
 
 from rrd_views import check_recording, view_entities
 
-from adm_sim.ros.rerun_log import _free_port, _wait_for_port
+from adm_sim.recording.rerun_log import _free_port, _wait_for_port
 
 ROOT = Path(__file__).resolve().parents[1]
 RERUN = Path(sys.executable).with_name("rerun")

@@ -1,7 +1,7 @@
 """The rerun recording an engineer opens: default blueprint, one entity per trial, runs that overlay.
 
 A synthetic session (no ROS: the messages the driver would receive) goes through
-:class:`adm_sim.ros.rerun_log.RunLogger` into an ``.rrd``; everything is read back with
+:class:`adm_sim.recording.rerun_log.RunLogger` into an ``.rrd``; everything is read back with
 ``rerun.chunk.RrdReader``. The same checks run on a real co-simulated sweep in
 ``test_ros_rerun_live.py`` (live) and on its replay from MCAP below.
 """
@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 from rrd_views import check_recording, read_rrd, view_entities
 
-from adm_sim.ros import rerun_blueprint as bp
-from adm_sim.ros import rerun_log as rl
+from adm_sim.recording import rerun_blueprint as bp
+from adm_sim.recording import rerun_log as rl
 
 ROOT = Path(__file__).resolve().parents[1]
 PY = sys.executable
@@ -207,7 +207,7 @@ def test_calibration_recording_every_view_has_data_and_monitors_the_peak(tmp_pat
     """A small co-simulated calibration (B3 x ICE-2, coarse steps): the recording as a user opens it."""
     import json
 
-    from adm_sim.ros.mcap_log import read_messages
+    from adm_sim.recording.mcap_log import read_messages
 
     params = tmp_path / "case.yaml"
     params.write_text("bridge:\n  ros__parameters:\n    bridge: B3\n    steps_per_period: 4.0\n"

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 pytest.importorskip("rclpy")
-from adm_sim.ros.env import local_ros_env  # noqa: E402
+from adm_sim.processes.dds_env import local_ros_env  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPTS = ROOT / "launch_scripts"

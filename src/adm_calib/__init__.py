@@ -7,7 +7,7 @@ Analysis only (numpy/scipy on top of :mod:`adm_sim`); no ROS import here.
 * :mod:`adm_calib.reference`  Eurocode ADM, EADA (Yau et al.), lower-bound functions (Tables B1-B4)
 * :mod:`adm_calib.table4`     the comparison of Section 4.4 (Table 4, Fig. 19)
 * :mod:`adm_calib.plots`      matplotlib figures (Agg), outside the analysis
-* :mod:`adm_calib.cli`        the ``adm-calib`` command
+* :mod:`adm_calib.calib_commands` the ``adm-calib`` command
 """
 
 from adm_sim import __version__ as __version__  # one version number for both packages

@@ -29,7 +29,7 @@ rule): both peaks located between the grid neighbours of the sampled peak (:func
 Written once (:func:`calibrate_cases`), vectorised over the cases of a batch, over a lane runner
 (:mod:`adm_calib.lanes`: run these lanes -> their maxima): :func:`calibrate` is the batch of one
 on the compiled backend (or the numpy stepper, or a sweep hook such as the ROS co-simulation),
-:func:`adm_calib.batch.calibrate_batch` the study's batches.
+:func:`adm_calib.calibrate.calibrate_batch` the study's batches.
 """
 
 from __future__ import annotations
@@ -643,7 +643,7 @@ def calibrate_cases(bridges, train, lanes, speeds_kmh=None, options=None, step=N
     """Section 4 (steps 1-3) for every case of a batch, each phase one request to ``lanes``.
 
     The one calibration of the project; :func:`calibrate` is the batch of one and
-    :func:`adm_calib.batch.calibrate_batch` the study's batches.
+    :func:`adm_calib.calibrate.calibrate_batch` the study's batches.
 
     1. one MLM request: every case x every speed (phase ``"mlm"``); the MLM peak of each case by
        :func:`adm_calib.peaks.find_peak`;
@@ -875,3 +875,45 @@ def calibrate(bridge, train, speeds_kmh=None, options=None, progress=False, adap
     finally:
         if progress:
             lanes.bar.close()
+
+
+def calibrate_batch(bridges, train, speeds_kmh=None, options=None, step=None):
+    """Calibrate Δζ_VBI for every bridge (one span) under ``train``, all in lockstep.
+
+    Runs :func:`calibrate_cases` (the one calibration) over :class:`adm_calib.lanes.CompiledLanes`: every sweep of every bridge is a lane of one compiled
+    run (:class:`adm_sim.compiled_batch.BatchRunner`):
+
+    1. one MLM run: every bridge x every speed;
+    2. one DIM run over every bridge's Section 3.3 speeds, then at most two refinement runs;
+    3. one MLM run over every bridge's damping ladder (bracketing), then the roots of
+       ``peak_MLM(zeta + dz) / peak_DIM - 1`` for all bracketed bridges together with
+       :func:`scipy.optimize.elementwise.find_root` (Chandrupatla, vectorised): one batched MLM run
+       per iteration, tolerance ``xtol`` on Δζ;
+    4. one MLM run at every root (the check of the match).
+
+    Space step: all lanes share one ``ds``; by default the smallest of the bridges' own calibration
+    steps (:func:`batch_step`).
+
+    Parameters
+    ----------
+    bridges : sequence of adm_sim.bridge.Bridge
+        Same span, mode count and damping model.
+    train : adm_sim.trains.Train
+    speeds_kmh : array_like, optional
+        MLM speeds (km/h); default 160..350 at 1 km/h.
+    options : CalibrationOptions, optional
+    step : adm_sim.stepping.StepOptions, optional
+        Shared step (``ds_m`` set); default :func:`batch_step`.
+
+    Returns
+    -------
+    list of CalibrationResult
+        One per bridge, in order; ``solve.method`` is ``"find_root"`` (``"exact"`` when a ladder
+        point is the root). ``timings_s`` holds the batch's phase times divided by its size.
+    """
+    opt = options or CalibrationOptions()
+    v = _speeds(speeds_kmh)
+    step = step or batch_step(bridges, train, v, opt)
+    from adm_calib.lanes import CompiledLanes  # lanes import this module's neighbours lazily too
+
+    return calibrate_cases(bridges, train, CompiledLanes(bridges, train, step), v, opt, step)

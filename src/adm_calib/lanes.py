@@ -13,7 +13,7 @@ Backends (all give the same numbers: the compiled lanes equal the numpy stepper 
 relative, the co-simulation equals it bit for bit):
 
 * :class:`CompiledLanes`: every lane of a request as lanes of one compiled run
-  (:class:`adm_sim.batch.BatchRunner`); the default of ``calibrate`` and the study.
+  (:class:`adm_sim.compiled_batch.BatchRunner`); the default of ``calibrate`` and the study.
 * :class:`SteppedLanes`: the numpy stepper, one :func:`adm_sim.sweep.run_sweep` per sweep.
 * :class:`HookLanes`: any ``sweep(model, speeds_kmh, delta_zeta, step[, phase=...])`` callable
   of one case, one call per sweep: the ROS calibration node (co-simulated runs), a cluster.
@@ -46,7 +46,7 @@ def _lane_arrays(case, speeds_kmh, delta_zeta, sweep):
 
 
 class CompiledLanes:
-    """Lanes as one compiled batched run (:class:`adm_sim.batch.BatchRunner`).
+    """Lanes as one compiled batched run (:class:`adm_sim.compiled_batch.BatchRunner`).
 
     Parameters
     ----------
@@ -60,7 +60,7 @@ class CompiledLanes:
     name = "compiled"
 
     def __init__(self, bridges, train, step):
-        from adm_sim.batch import BatchRunner
+        from adm_sim.compiled_batch import BatchRunner
 
         self.runner = BatchRunner(bridges, train, step.ds_m, step.free_vibration_periods, step.dense_maxima)
 

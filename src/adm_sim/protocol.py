@@ -88,7 +88,7 @@ TOPICS = {
     TOPIC_CAL_RESULT: ("std_msgs/msg/String", "C", CALIBRATION_NODE),
 }
 
-#: Topics drawn by the rerun logger (:class:`adm_sim.ros.rerun_log.RunLogger`), live and in
+#: Topics drawn by the rerun logger (:class:`adm_sim.recording.rerun_log.RunLogger`), live and in
 #: ``replay.py``; ``/clock`` and ``/adm/midspan/state`` (every lane) are read but not drawn.
 RUN_LOGGER_TOPICS = frozenset({
     TOPIC_BRIDGE_DESC, TOPIC_TRAIN_DESC, TOPIC_STATUS, TOPIC_ACCEL, TOPIC_BEAM, TOPIC_AXLES, TOPIC_RESULT,

@@ -46,7 +46,7 @@ provides ``_step_impl`` (or ``_advance_impl`` for a block). Implementations:
 :class:`BridgeHalf` (the bridge node: ``rail_state`` / ``take_forces`` per DIM stage, ``step``
 with the stage-point modal loads for the MLM), :class:`TrainHalf` (the train node:
 ``take_rail_state`` per DIM stage, ``advance(n)`` books an MLM axle block) and
-:class:`adm_sim.batch.BatchRun` (the compiled kernels). Every numpy path calls the same
+:class:`adm_sim.compiled_batch.BatchRun` (the compiled kernels). Every numpy path calls the same
 :class:`BridgeSide` / :class:`TrainSide` methods in the same order, so the co-simulated runs
 equal the in-process ones bit for bit.
 """
@@ -542,7 +542,7 @@ class SteppedRun:
     Implementations: :class:`InProcessRun` (the numpy stepper, both halves in one process, driven
     by :func:`adm_sim.sweep.run_sweep`), :class:`BridgeHalf` and :class:`TrainHalf` (what the
     bridge node and the train node each step, exchanging per RK4 stage or per block) and
-    :class:`adm_sim.batch.BatchRun` (the compiled kernels, block of steps by block of steps).
+    :class:`adm_sim.compiled_batch.BatchRun` (the compiled kernels, block of steps by block of steps).
 
     Attributes
     ----------

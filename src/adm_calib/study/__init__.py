@@ -4,7 +4,7 @@ Study
     Every (bridge, train) case of the 1110-bridge field (:func:`adm_sim.bridge.parametric_field`,
     185 (L, n0) pairs x 6 mass functions, Table 2 damping) times the four trains is calibrated by
     the rules of :func:`adm_calib.calibrate.calibrate` (Section 4, steps 1-3), in batches of the
-    six mass functions of one (L, n0) pair (:func:`adm_calib.batch.calibrate_batch`). Batches run
+    six mass functions of one (L, n0) pair (:func:`adm_calib.calibrate.calibrate_batch`). Batches run
     as tasks on a ``dask.distributed`` cluster: a loopback-only :class:`~distributed.LocalCluster` by default, or
     an existing scheduler. The client process appends one JSON object per finished case to
     ``results.jsonl`` (write, flush, ``os.fsync``), so a crash loses at most the cases still

@@ -35,12 +35,12 @@ def make_batches(cases):
 
 
 def run_batch(cases, settings=StudySettings()):
-    """Calibrate cases of one batch key in lockstep (:func:`adm_calib.batch.calibrate_batch`).
+    """Calibrate cases of one batch key in lockstep (:func:`adm_calib.calibrate.calibrate_batch`).
 
     The task run on the workers. Never raises for errors of the cases themselves: if the batch
     fails, every case is tried alone so that only the failing ones become error records.
     """
-    from adm_calib.batch import calibrate_batch
+    from adm_calib.calibrate import calibrate_batch
 
     t0 = time.perf_counter()
     try:

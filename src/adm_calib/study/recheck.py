@@ -4,7 +4,7 @@ The result lines hold no curves, so a change of the flag's definition
 (:func:`adm_calib.peaks.max_at_range_end`, now with a relative tolerance) cannot be applied to
 them by reading alone. :func:`range_end_recheck` recomputes the MLM curve at the bridge's own
 damping (Section 4, Step 1; the same batched compiled run and the same space step as the study,
-:func:`adm_calib.batch.batch_step`) of every case, checks that its peak is the shipped one, and
+:func:`adm_calib.calibrate.batch_step`) of every case, checks that its peak is the shipped one, and
 returns the flag under both definitions with the end-to-maximum ratio.
 
     python -m adm_calib.study.recheck results/study/results.jsonl.gz OUT.csv
@@ -47,9 +47,9 @@ def range_end_recheck(records, settings=StudySettings(), rtol=pk.RANGE_END_RTOL,
     list of RangeEndRow
         ``peak_matches``: the recomputed MLM peak equals the shipped one (speed, and value to 1e-9).
     """
-    from adm_sim.batch import BatchRunner
+    from adm_sim.compiled_batch import BatchRunner
 
-    from adm_calib.batch import batch_step
+    from adm_calib.calibrate import batch_step
 
     by_key = {record_key(r): r for r in records}
     groups = {}

@@ -4,7 +4,7 @@
 callback) :meth:`RunDriver.request_run` sets parameters on the bridge and train nodes through their
 parameter services, calls ``/train/start_run`` and blocks until ``/adm/run/result`` arrives; the
 executor keeps spinning in the main thread. While it runs it records every monitoring topic to
-an MCAP file (``record_path``) and feeds them to :class:`adm_sim.ros.rerun_log.RunLogger` (rerun:
+an MCAP file (``record_path``) and feeds them to :class:`adm_sim.recording.rerun_log.RunLogger` (rerun:
 ``rrd_path``, ``rerun_spawn``, ``rerun_connect``; the recording carries the default blueprint).
 
 ``python -m adm_sim.nodes.driver --ros-args -p summary_path:=run.json`` runs one crossing or sweep
@@ -120,14 +120,14 @@ class RunDriver(c.NodeBase):
         self.recorder = None
         self._beside_files = {}
         if p["record_path"]:
-            from adm_sim.ros.mcap_log import McapRecorder
+            from adm_sim.recording.mcap_log import McapRecorder
 
             self.recorder = McapRecorder(self._beside("record_path"), chunk_size=int(p["chunk_size"]),
                                          overwrite=True)
         self.rerun = False
         self.viz = None  # rerun_log.RunLogger
         if p["rrd_path"] or p["rerun_spawn"] or p["rerun_connect"]:
-            from adm_sim.ros import rerun_log
+            from adm_sim.recording import rerun_log
 
             rerun_log.init_rerun("adm_sim", spawn=bool(p["rerun_spawn"]), connect_url=p["rerun_connect"] or None,
                                  save_path=self._beside("rrd_path") if p["rrd_path"] else None, overwrite=True)
@@ -411,7 +411,7 @@ class RunDriver(c.NodeBase):
             with self._rec_lock:
                 self.recorder.finish()
         if self.viz is not None:
-            from adm_sim.ros import rerun_log
+            from adm_sim.recording import rerun_log
 
             self.viz.flush()
             rerun_log.close_rerun()

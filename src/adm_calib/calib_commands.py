@@ -29,7 +29,7 @@ import sys
 import time
 from pathlib import Path
 
-from adm_sim.cli import add_check_arguments, cmd_check, output_path, write_atomic
+from adm_sim.sim_commands import add_check_arguments, cmd_check, output_path, write_atomic
 from adm_sim.cliutil import Parser
 from adm_sim.errors import InputError, RunError, check_int, check_range, run_cli
 from adm_sim.limits import DEFAULT_SPEEDS
@@ -462,7 +462,7 @@ def cmd_study_fit(args):
 
 
 def cmd_check_calib(args):
-    """``adm-calib check``: the core's EN 1991-2 check (:func:`adm_sim.cli.cmd_check`) with all four
+    """``adm-calib check``: the core's EN 1991-2 check (:func:`adm_sim.sim_commands.cmd_check`) with all four
     damping methods; ``lb`` and ``vbi`` from :func:`adm_calib.check.calibrated_damping`."""
     from adm_calib.check import calibrated_damping
 

@@ -6,7 +6,7 @@ Time always comes from the simulation, never from the wall clock. Timelines: ``s
 every run start, so that runs overlay), ``speed_kmh`` (speed sweeps) and ``iteration``
 (calibration steps). Whole arrays go through ``rr.send_columns``.
 
-Every recording carries the default blueprint of :mod:`adm_sim.ros.rerun_blueprint` (tabs
+Every recording carries the default blueprint of :mod:`adm_sim.recording.rerun_blueprint` (tabs
 ``Runs``, ``Speed sweep``, ``Calibration``), sent by :class:`RunLogger` as soon as the bridge's
 span is known. Entities
 --------
@@ -324,7 +324,7 @@ class RunLogger:
 
     One object per recording, fed with the messages of the ROS graph in the order they arrive:
     live by :class:`adm_sim.nodes.driver.RunDriver`, from an MCAP file by ``replay.py``. Entity
-    paths and views: :mod:`adm_sim.ros.rerun_blueprint`. Samples are buffered and logged by
+    paths and views: :mod:`adm_sim.recording.rerun_blueprint`. Samples are buffered and logged by
     :meth:`flush` (the driver calls it on every progress tick and at the end of a run), each on
     ``sim_time`` and on ``run_time`` (s since the first axle entered the bridge, in the monitored
     lane's own time: ``(t - t0) v_clock / v_monitored``, 0 at every run start).
@@ -338,7 +338,7 @@ class RunLogger:
     """
 
     def __init__(self, recording=None, exaggeration: float = None):
-        from adm_sim.ros import rerun_blueprint as bp
+        from adm_sim.recording import rerun_blueprint as bp
 
         self.rec = recording
         self.exaggeration = float(bp.BEAM_EXAGGERATION if exaggeration is None else exaggeration)
@@ -374,7 +374,7 @@ class RunLogger:
         """Send the default blueprint (again, e.g. once the span is known)."""
         import rerun as rr
 
-        from adm_sim.ros.rerun_blueprint import default_blueprint
+        from adm_sim.recording.rerun_blueprint import default_blueprint
 
         rr.send_blueprint(default_blueprint(self._span_m, self.exaggeration, active_tab), make_active=True,
                           make_default=True, recording=self.rec)

@@ -281,7 +281,7 @@ def cmd_bridges(args):
 
 def cmd_salvage(args):
     try:
-        from adm_sim.ros.mcap_log import salvage
+        from adm_sim.recording.mcap_log import salvage
     except ImportError as exc:
         raise InputError(f"salvage needs the ROS/MCAP extras ({exc})") from None
     src = mcap_input(args.src, "salvage SRC")

@@ -2,11 +2,11 @@
 
 Used by the launch scripts and by the tests alike. Every node runs as
 ``python -m <module> --ros-args ...`` in its own process group, under an environment of
-:func:`adm_sim.ros.env.local_ros_env` (shared memory only, a ROS_DOMAIN_ID of its own).
+:func:`adm_sim.processes.dds_env.local_ros_env` (shared memory only, a ROS_DOMAIN_ID of its own).
 :class:`Supervisor` reports the first node that dies, stops all of them on exit, Ctrl-C or
 SIGTERM (SIGTERM first so the nodes finish their files, SIGKILL after a grace period) and, when
 a process had to be killed or died by a signal, removes the shared-memory files it left with
-Fast DDS's ``fastdds shm clean`` (:func:`adm_sim.ros.env.cleanup_shm`).
+Fast DDS's ``fastdds shm clean`` (:func:`adm_sim.processes.dds_env.cleanup_shm`).
 
 Children die with their parent
 -------------------------------
@@ -38,7 +38,7 @@ import time
 from pathlib import Path
 
 from adm_sim.errors import AdmSimError, RunError
-from adm_sim.ros.env import cleanup_shm, local_ros_env
+from adm_sim.processes.dds_env import cleanup_shm, local_ros_env
 
 __all__ = ["NodeDied", "Supervisor", "child_setup", "ros_args"]
 
@@ -127,7 +127,7 @@ class Supervisor:
     domain_id : int or None
         ROS_DOMAIN_ID; ``None`` reserves a free one for the life of the supervisor.
     env : LocalRosEnv or None
-        An environment of :func:`adm_sim.ros.env.local_ros_env` to use instead (its
+        An environment of :func:`adm_sim.processes.dds_env.local_ros_env` to use instead (its
         reservation stays with the caller).
     cwd : path or None
         Working directory of the processes.

@@ -1,0 +1,112 @@
+"""The house's import structure, measured: every arrow points down, and the README draws what exists.
+
+Every ``import`` of ``adm_sim``/``adm_calib`` in ``src/`` and ``launch_scripts/`` (module level or inside a
+function: every Import/ImportFrom node of the AST) is mapped to the layer of the importer and of the
+imported module. Ranks, lowest first:
+
+0. ``adm_sim`` core (physics, one-home modules, ``cliutil``), never rclpy;
+1. ``adm_sim.recording`` (MCAP, rerun), ``adm_sim.processes`` (DDS environment, supervisor), ``adm_calib``
+   (analysis);
+2. ``adm_sim.commands`` / ``adm_calib.commands`` (``sim_commands.py``, ``calib_commands.py``: the two
+   command lines), ``adm_sim.nodes`` / ``adm_calib.nodes`` (rclpy);
+3. ``launch_scripts``.
+
+An arrow may run to a lower rank, or inside one rank from an ``adm_calib`` layer to its ``adm_sim`` twin
+(``adm-calib check`` extends ``adm-sim check``; the calibration node drives the simulation nodes).
+"""
+
+from __future__ import annotations
+
+import ast
+import collections
+import pathlib
+import re
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+
+RANK = {
+    "adm_sim": 0,
+    "adm_sim.recording": 1, "adm_sim.processes": 1, "adm_calib": 1,
+    "adm_sim.commands": 2, "adm_calib.commands": 2, "adm_sim.nodes": 2, "adm_calib.nodes": 2,
+    "launch_scripts": 3,
+}
+COMMANDS = {"adm_sim.sim_commands": "adm_sim.commands", "adm_calib.calib_commands": "adm_calib.commands"}
+
+
+def module_name(path):
+    rel = path.relative_to(ROOT)
+    if rel.parts[0] == "launch_scripts":
+        return "launch_scripts." + path.stem
+    parts = list(rel.parts[1:])
+    parts[-1] = parts[-1][:-3]
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def layer(module):
+    if module.startswith("launch_scripts"):
+        return "launch_scripts"
+    for name, lay in COMMANDS.items():
+        if module == name or module.startswith(name + "."):
+            return lay
+    for sub in ("adm_sim.nodes", "adm_calib.nodes", "adm_sim.recording", "adm_sim.processes"):
+        if module == sub or module.startswith(sub + "."):
+            return sub
+    return "adm_calib" if module.split(".")[0] == "adm_calib" else "adm_sim"
+
+
+def _imports(path):
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), filename=str(path))):
+        if isinstance(node, ast.Import):
+            yield from (a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            # ``from adm_sim import recording`` imports the subpackage: count the names too
+            yield node.module
+            yield from (f"{node.module}.{a.name}" for a in node.names)
+
+
+def measured_arrows():
+    files = sorted((ROOT / "src").rglob("*.py")) + sorted((ROOT / "launch_scripts").glob("*.py"))
+    arrows = collections.defaultdict(set)
+    for f in files:
+        src = layer(module_name(f))
+        for target in _imports(f):
+            if target.split(".")[0] not in ("adm_sim", "adm_calib"):
+                continue
+            dst = layer(target)
+            if dst != src:
+                arrows[src].add(dst)
+    return arrows
+
+
+def _twin(src, dst):
+    return src.startswith("adm_calib") and dst == "adm_sim" + src[len("adm_calib"):]
+
+
+def test_layers_cover_every_module():
+    seen = {layer(module_name(f)) for f in (ROOT / "src").rglob("*.py")}
+    assert seen == set(RANK) - {"launch_scripts"}
+
+
+def test_every_arrow_points_down():
+    arrows = measured_arrows()
+    up = [(s, d) for s, ds in arrows.items() for d in ds
+          if not (RANK[d] < RANK[s] or (RANK[d] == RANK[s] and _twin(s, d)))]
+    assert not up, f"arrows that do not point down: {up}"
+    # the scan sees what it should: the launch scripts reach every rank
+    assert {"adm_sim", "adm_sim.nodes", "adm_calib.nodes", "adm_sim.processes"} <= arrows["launch_scripts"]
+
+
+def readme_arrows():
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    block = text.split("<!-- import-arrows -->")[1]
+    table = {}
+    for row in re.findall(r"^\| `([^`]+)` \| (.+?) \|$", block, flags=re.M):
+        table[row[0]] = set(re.findall(r"`([^`]+)`", row[1]))
+    return table
+
+
+def test_readme_table_is_the_measured_one():
+    measured = {k: v for k, v in measured_arrows().items() if v}
+    assert readme_arrows() == measured
