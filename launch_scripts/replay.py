@@ -45,11 +45,11 @@ from adm_sim.errors import InputError, RunError, check_int, check_range, run_cli
 
 def check_args(args):
     """Check every option before anything is read, written or started; raises :class:`InputError`."""
-    from adm_sim.sim_commands import mcap_input, output_path
+    from adm_sim.files import claim_output, mcap_input
 
     mcap_input(str(args.mcap), "RUN.mcap")
     if args.rrd is not None:
-        output_path(str(args.rrd), "--rrd", args.overwrite, ".rrd")
+        claim_output(str(args.rrd), "--rrd", args.overwrite, ".rrd")
     if args.connect is not None and not args.connect.startswith(
             ("rerun+http://127.0.0.1:", "rerun+http://localhost:", "rerun+http://[::1]:")):
         raise InputError(f"--connect: {args.connect!r} is not a loopback rerun URL; allowed "
@@ -355,7 +355,7 @@ def main(argv=None) -> int:
 
 
 def _run(args) -> int:
-    from adm_sim.sim_commands import write_atomic
+    from adm_sim.files import write_atomic
 
     check_args(args)
     if args.rrd or args.spawn or args.connect:

@@ -29,7 +29,8 @@ import sys
 import time
 from pathlib import Path
 
-from adm_sim.sim_commands import add_check_arguments, cmd_check, output_path, write_atomic
+from adm_sim.files import claim_output, write_atomic
+from adm_sim.sim_commands import add_check_arguments, cmd_check
 from adm_sim.cliutil import Parser
 from adm_sim.errors import InputError, RunError, check_int, check_range, run_cli
 from adm_sim.limits import DEFAULT_SPEEDS
@@ -50,7 +51,7 @@ def _out_dir(text, option, names, overwrite, inputs=None):
     if out.exists() and not out.is_dir():
         raise InputError(f"{option}: {str(out)!r} is not a directory")
     if out.is_dir():
-        return out, [output_path(str(out / n), option, overwrite, inputs=inputs) for n in names]
+        return out, [claim_output(str(out / n), option, overwrite, inputs=inputs) for n in names]
     from adm_sim.files import probe_writable
 
     anc = out.absolute().parent
@@ -129,8 +130,8 @@ def cmd_calibrate(args):
     from adm_calib.calibrate import calibrate
 
     inputs = {"--bridge": args.bridge, "--train": args.train}
-    json_path = output_path(args.json, "--json", args.force, ".json", inputs) if args.json is not None else None
-    plot_path = output_path(args.plot, "--plot", args.force, ".png", inputs) if args.plot is not None else None
+    json_path = claim_output(args.json, "--json", args.force, ".json", inputs) if args.json is not None else None
+    plot_path = claim_output(args.plot, "--plot", args.force, ".png", inputs) if args.plot is not None else None
     bridge = resolve_bridge(args.bridge)
     train = load_train(args.train)
     speeds = _speeds(args.speeds)

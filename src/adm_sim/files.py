@@ -3,7 +3,7 @@
 Inputs (:func:`input_file`)
     A file read by a run must be a regular file: a folder, a named pipe (whose ``open`` for
     reading blocks until a writer appears), a socket or a device is refused with one line
-    before it is opened.
+    before it is opened. An MCAP input (:func:`mcap_input`) must also start with the MCAP magic bytes.
 
 Outputs (:func:`claim_output`, :func:`write_atomic`)
     A file written by a run is checked before any work, by one function:
@@ -39,7 +39,7 @@ from pathlib import Path
 
 from adm_sim.errors import InputError
 
-__all__ = ["claim_output", "claimed", "input_file", "is_input", "lock_path", "probe_writable", "refuse_special", "release",
+__all__ = ["claim_output", "claimed", "input_file", "is_input", "mcap_input", "lock_path", "probe_writable", "refuse_special", "release",
            "release_all", "write_atomic"]
 
 #: Claims held by this process: resolved output path -> (fd of the lock file, lock path).
@@ -259,3 +259,16 @@ def write_atomic(path, write, option="output"):
         except FileNotFoundError:
             pass
         release(p)
+
+
+def mcap_input(text, option):
+    """Check an MCAP input before any work: a readable regular file that starts with the MCAP magic."""
+    p = input_file(text, option, "MCAP file")
+    try:
+        with p.open("rb") as f:
+            head = f.read(8)
+    except OSError as exc:
+        raise InputError(f"{option}: {text!r}: cannot read ({exc.strerror})") from None
+    if head != b"\x89MCAP0\r\n":
+        raise InputError(f"{option}: {text!r} is not an MCAP file (it does not start with the MCAP magic bytes)")
+    return p

@@ -15,40 +15,9 @@ from pathlib import Path
 
 from adm_sim.cliutil import Parser, progress_callback
 from adm_sim.errors import InputError, run_cli
+from adm_sim.files import claim_output, mcap_input, write_atomic
 from adm_sim.limits import (ACC_LIMITS_M_S2, DEFAULT_SPEEDS, MAX_DELTA_ZETA_PCT, TRACK_ALIASES, check_delta_zeta_pct,
                             check_track_type)
-
-
-def output_path(text, option, overwrite=False, suffix=None, inputs=None):
-    """Check an output path before any computation and claim it (the one rule of
-    :func:`adm_sim.files.claim_output`): a regular file, not one of ``inputs`` (``{option: path}``),
-    in a writable folder, not replaced unless ``overwrite``, locked against a second writer; with
-    ``suffix`` the name must end in it."""
-    from adm_sim.files import claim_output
-
-    return claim_output(text, option, overwrite, suffix, inputs)
-
-
-def mcap_input(text, option):
-    """Check an MCAP input before any work: a readable regular file that starts with the MCAP magic."""
-    from adm_sim.files import input_file
-
-    p = input_file(text, option, "MCAP file")
-    try:
-        with p.open("rb") as f:
-            head = f.read(8)
-    except OSError as exc:
-        raise InputError(f"{option}: {text!r}: cannot read ({exc.strerror})") from None
-    if head != b"\x89MCAP0\r\n":
-        raise InputError(f"{option}: {text!r} is not an MCAP file (it does not start with the MCAP magic bytes)")
-    return p
-
-
-def write_atomic(path, write):
-    """``write(tmp_path)`` beside ``path``, then rename: :func:`adm_sim.files.write_atomic`."""
-    from adm_sim.files import write_atomic as _write_atomic
-
-    _write_atomic(path, write)
 
 
 def _plot_sweep(result, path, limit=3.5, where="midspan"):
@@ -90,10 +59,10 @@ def cmd_sweep(args):
     from adm_sim.plausibility import check_response
 
     inputs = {"--train": args.train, "--bridge": args.bridge}
-    json_path = None if args.json is None else output_path(args.json, "--json", args.overwrite, inputs=inputs)
+    json_path = None if args.json is None else claim_output(args.json, "--json", args.overwrite, inputs=inputs)
     if json_path is not None and args.plot is not None and json_path.resolve() == Path(args.plot).resolve():
         raise InputError(f"--plot: {args.plot!r} is the --json file; give two different files")
-    plot_path = None if args.plot is None else output_path(args.plot, "--plot", args.overwrite, ".png", inputs)
+    plot_path = None if args.plot is None else claim_output(args.plot, "--plot", args.overwrite, ".png", inputs)
     bridge = resolve_bridge(args.bridge)
     train = load_train(args.train)
     speeds = parse_speeds(args.speeds)
@@ -184,7 +153,7 @@ def cmd_check(args, damping_provider=None):
         if text is not None:
             if str(text).strip() and Path(text).resolve() in seen:
                 raise InputError(f"--{opt}: {text!r} is the --{seen[Path(text).resolve()]} file; give different files")
-            outs[opt] = output_path(text, f"--{opt}", args.overwrite, suffix, inputs)
+            outs[opt] = claim_output(text, f"--{opt}", args.overwrite, suffix, inputs)
             seen[outs[opt].resolve()] = opt
     bridge = resolve_bridge(args.bridge)
     from adm_sim.envelope import parse_where
@@ -287,7 +256,7 @@ def cmd_salvage(args):
     src = mcap_input(args.src, "salvage SRC")
     if Path(args.dst).resolve() == src.resolve():
         raise InputError(f"salvage DST: {args.dst!r} is SRC; give another file")
-    dst = output_path(args.dst, "salvage DST", args.overwrite, ".mcap")
+    dst = claim_output(args.dst, "salvage DST", args.overwrite, ".mcap")
     report = {}
     n = salvage(src, dst, overwrite=args.overwrite, report=report)
     print(f"recovered {n} messages into {args.dst}")
