@@ -263,6 +263,32 @@ def test_phase_travels_with_the_lanes_to_a_hook():
     assert r.delta_zeta_vbi == pytest.approx(ref.delta_zeta_vbi, abs=1e-10)
 
 
+def test_progress_is_reported_once_per_request_with_its_phase():
+    """The library reports, it does not draw: ``progress(done, None, phase)`` after every request, in
+    the order and with the phases the runs were made (the hook sees the same sequence)."""
+    b, t = named_bridge("B1"), load_train("ICE-2")
+    seen, reported = [], []
+
+    def hook(model, speeds, dz, step, phase):
+        seen.append(phase)
+        return run_sweep(b, t, model, speeds, delta_zeta=dz, options=step).max_acc_m_s2
+
+    step = calibration_step(b, t, V_B1)
+    target = run_sweep(b, t, "mlm", V_B1, delta_zeta=0.002, options=step).max_acc_m_s2
+    calibrate(b, t, V_B1, dim_curve=(V_B1, target), sweep=hook, progress=lambda *a: reported.append(a))
+    assert seen[0] == "mlm" and "ladder" in seen and seen[-1] == "adapted"
+    assert reported == [(i, None, ph) for i, ph in enumerate(seen, start=1)]
+
+
+def test_table4_reports_every_pair():
+    """``run_table4(progress=...)`` is called after each pair with (done, total, "train x bridge")."""
+    from adm_calib.table4 import run_table4
+
+    reported = []
+    run_table4(bridges=("B1",), trains=("ICE-2",), speeds_kmh=V_B1, progress=lambda *a: reported.append(a))
+    assert reported == [(1, 1, "ICE-2 x B1")]
+
+
 def _sdof(v, v_res, zeta):
     """Steady-state amplification of a damped oscillator; its peak over v is 1 / (2 zeta sqrt(1 - zeta^2))."""
     s = np.asarray(v, float) / v_res

@@ -78,7 +78,7 @@ def test_tiny_study_equals_in_process_calibrate(tmp_path):
     cases = st.select_cases(["ice2"], ["mu1", "mu2", "mu3"], (40, 40), [1])
     assert [c.key for c in cases] == [(f"L40-f1-mu{m}", "ICE-2") for m in (1, 2, 3)]
     t_start = time.perf_counter()
-    run = st.run_study(tmp_path, cases, workers=2, progress=False)
+    run = st.run_study(tmp_path, cases, workers=2)
     elapsed_s = time.perf_counter() - t_start
     assert (run.completed, run.submitted, run.interrupted, run.errors) == (3, 3, False, 0)
     lines = (tmp_path / "results.jsonl").read_text().splitlines()

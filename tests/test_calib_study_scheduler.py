@@ -103,7 +103,7 @@ def test_study_on_scheduler_survives_a_killed_worker(tmp_path):
     assert len(cases) == N_CASES and len(st.make_batches(cases)) == 6
 
     # reference: the same cases, uninterrupted, on the default local cluster
-    ref = st.run_study(tmp_path / "ref", cases, workers=1, progress=False)
+    ref = st.run_study(tmp_path / "ref", cases, workers=1)
     assert (ref.completed, ref.errors, ref.interrupted) == (N_CASES, 0, False)
     ref_recs = st.read_results(tmp_path / "ref" / st.RESULTS_NAME).by_key
 

@@ -362,7 +362,7 @@ def test_cli_outputs_and_no_overwrite(tmp_path):
     assert d["margin_m_s2"] == pytest.approx(3.5 - g["acc_m_s2"])
     rows = list(csv.DictReader(cs.open()))
     assert len(rows) == sum(len(t["curve"]["speeds_kmh"]) for t in d["trains"])
-    data = png.read_bytes()  # a PNG of 9 x 5 in at 120 dpi (CheckResult.plot)
+    data = png.read_bytes()  # a PNG of 9 x 5 in at 120 dpi (adm_sim.figures.plot_check)
     assert data[:8] == b"\x89PNG\r\n\x1a\n"
     assert (int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big")) == (1080, 600)
     r = run("check", "--bridge", "B1", "--max-line-speed", "250", "--trains", "HSLM-A7", "--where", "midspan",

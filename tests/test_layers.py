@@ -110,3 +110,18 @@ def readme_arrows():
 def test_readme_table_is_the_measured_one():
     measured = {k: v for k, v in measured_arrows().items() if v}
     assert readme_arrows() == measured
+
+
+#: the only modules that draw: the progress bar of the command line and the figure modules
+DRAWING = {"adm_sim.cliutil", "adm_sim.figures", "adm_calib.plots"}
+
+
+def test_only_the_command_layer_draws():
+    """The computations report (``progress(done, total)`` callbacks, result objects); only the
+    command-line layer and the figure modules import tqdm, matplotlib or the progress bar."""
+    drawers = set()
+    for f in sorted((ROOT / "src").rglob("*.py")):
+        for target in _imports(f):
+            if target.split(".")[0] in ("tqdm", "matplotlib") or target.endswith("progress_bar"):
+                drawers.add(module_name(f))
+    assert drawers == DRAWING

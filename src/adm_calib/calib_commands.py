@@ -31,7 +31,7 @@ from pathlib import Path
 
 from adm_sim.files import claim_output, write_atomic
 from adm_sim.sim_commands import add_check_arguments, cmd_check
-from adm_sim.cliutil import Parser
+from adm_sim.cliutil import Parser, progress_callback
 from adm_sim.errors import InputError, RunError, check_int, check_range, run_cli
 from adm_sim.limits import DEFAULT_SPEEDS
 
@@ -136,8 +136,12 @@ def cmd_calibrate(args):
     train = load_train(args.train)
     speeds = _speeds(args.speeds)
     options = _options(args)
+    cb, close = progress_callback(f"calibrate {bridge.name or 'bridge'} x {train.name}", args.progress, unit=" runs")
     t0 = time.perf_counter()
-    res = calibrate(bridge, train, speeds_kmh=speeds, options=options, progress=args.progress)
+    try:
+        res = calibrate(bridge, train, speeds_kmh=speeds, options=options, progress=cb)
+    finally:
+        close()
     wall = time.perf_counter() - t0
     print(res.summary())
     print(f"wall time      {wall:.2f} s")
@@ -170,7 +174,11 @@ def cmd_table4(args):
     speeds, options = _speeds(args.speeds), _options(args)
     _make_dir(out, "--out")
     t0 = time.perf_counter()
-    table = run_table4(bridges, trains, speeds_kmh=speeds, options=options, jobs=jobs, progress=args.progress)
+    cb, close = progress_callback("table4", args.progress, unit="it", leave=True)
+    try:
+        table = run_table4(bridges, trains, speeds_kmh=speeds, options=options, jobs=jobs, progress=cb)
+    finally:
+        close()
     text = table.to_text()
     print(text)
     write_atomic(paths[0], lambda p: p.write_text(table.to_csv()))
@@ -328,9 +336,10 @@ def cmd_study(args):
         raise KeyboardInterrupt
 
     old = signal.signal(signal.SIGTERM, on_term)
+    cb, close = progress_callback("study", None, unit="case", leave=True, mininterval=0.1)  # bar on a terminal
     try:
         run = run_study(args.out, cases, settings, workers=workers, scheduler=scheduler, limit=limit,
-                        progress=None, retry_errors=args.retry_errors, options=options)
+                        progress=cb, retry_errors=args.retry_errors, options=options)
     except KeyboardInterrupt:
         print("error: interrupted while closing the cluster; rerun the same command to resume", file=sys.stderr)
         return 130
@@ -342,6 +351,7 @@ def cmd_study(args):
               file=sys.stderr)
         return 1
     finally:
+        close()
         signal.signal(signal.SIGTERM, old)
     print(run.summary())
     return 130 if run.interrupted else 0

@@ -797,25 +797,22 @@ def calibrate_cases(bridges, train, lanes, speeds_kmh=None, options=None, step=N
 
 
 class _ProgressLanes:
-    """A lane runner that ticks a progress bar (:func:`adm_sim.cliutil.progress_bar`) once per request."""
+    """A lane runner that reports every finished request: ``progress(n_done, None, phase)``."""
 
-    def __init__(self, lanes, label):
-        from adm_sim.cliutil import progress_bar
-
-        self.lanes = lanes
-        self.bar = progress_bar(label, enabled=True, unit=" runs")
+    def __init__(self, lanes, progress):
+        self.lanes, self.progress, self.done = lanes, progress, 0
 
     def run(self, model, case, speeds_kmh, delta_zeta=0.0, sweep=None, phase=""):
-        self.bar.set_postfix_str(phase)
         out = self.lanes.run(model, case, speeds_kmh, delta_zeta, sweep, phase)
-        self.bar.update(1)
+        self.done += 1
+        self.progress(self.done, None, phase)
         return out
 
 
 BACKENDS = ("compiled", "numpy")
 
 
-def calibrate(bridge, train, speeds_kmh=None, options=None, progress=False, adapted_curve=True, dim_curve=None,
+def calibrate(bridge, train, speeds_kmh=None, options=None, progress=None, adapted_curve=True, dim_curve=None,
               sweep=None, on_trial=None, backend="compiled"):
     """Calibrate Δζ_VBI for a bridge and a train and evaluate the reference methods.
 
@@ -828,8 +825,10 @@ def calibrate(bridge, train, speeds_kmh=None, options=None, progress=False, adap
     speeds_kmh : array_like (n_speeds,), optional
         MLM speeds (km/h); default 160..350 at 1 km/h.
     options : CalibrationOptions, optional
-    progress : bool
-        Show a tqdm progress bar (stderr), one tick per lane request.
+    progress : callable(done, total, note), optional
+        Called after every lane request with the count so far, ``None`` (the number of requests is
+        not known in advance) and the run phase; the command line hands in a progress bar
+        (:func:`adm_sim.cliutil.progress_callback`), the library draws nothing.
     adapted_curve : bool
         Also run the MLM at ``zeta + Δζ_VBI`` over all speeds (for the plot, Fig. 15).
     dim_curve : (ndarray (m,), ndarray (m,)), optional
@@ -866,15 +865,11 @@ def calibrate(bridge, train, speeds_kmh=None, options=None, progress=False, adap
         lanes = CompiledLanes([bridge], train, step)
     else:
         lanes = SteppedLanes([bridge], train, step)
-    if progress:
-        lanes = _ProgressLanes(lanes, f"calibrate {bridge.name or 'bridge'} x {train.name}")
+    if progress is not None:
+        lanes = _ProgressLanes(lanes, progress)
     trial = None if on_trial is None else (lambda c, dz, peak, target: on_trial(dz, peak, target))
-    try:
-        return calibrate_cases([bridge], train, lanes, v, opt, step, adapted_curve=adapted_curve,
-                               dim_curves=None if dim_curve is None else [dim_curve], on_trial=trial)[0]
-    finally:
-        if progress:
-            lanes.bar.close()
+    return calibrate_cases([bridge], train, lanes, v, opt, step, adapted_curve=adapted_curve,
+                           dim_curves=None if dim_curve is None else [dim_curve], on_trial=trial)[0]
 
 
 def calibrate_batch(bridges, train, speeds_kmh=None, options=None, step=None):

@@ -96,24 +96,24 @@ class Table4:
                           indent=2)
 
 
-def run_table4(bridges=BRIDGES, trains=STUDY_TRAINS, speeds_kmh=None, options=None, jobs=1, progress=False):
-    """Calibrate every (train, bridge) pair; ``jobs`` > 1 runs them in worker processes."""
+def run_table4(bridges=BRIDGES, trains=STUDY_TRAINS, speeds_kmh=None, options=None, jobs=1, progress=None):
+    """Calibrate every (train, bridge) pair; ``jobs`` > 1 runs them in worker processes.
+
+    ``progress(done, total, note)`` (optional) is called after every pair with the pair's name.
+    """
     pairs = [(t, b) for t in trains for b in bridges]
     args = [(b, t, speeds_kmh, options) for t, b in pairs]
-    from adm_sim.cliutil import progress_bar
-
     table = Table4(trains=tuple(trains), bridges=tuple(bridges))
-    bar = progress_bar("table4", total=len(pairs), enabled=bool(progress), unit="it", leave=True)
-    try:
-        if jobs > 1:
-            with ProcessPoolExecutor(max_workers=jobs) as ex:
-                for pair, res in zip(pairs, ex.map(_calibrate_one, args)):
-                    table.results[pair] = res
-                    bar.update(1)
-        else:
-            for pair, a in zip(pairs, args):
-                table.results[pair] = _calibrate_one(a)
-                bar.update(1)
-    finally:
-        bar.close()
+    if jobs > 1:
+        with ProcessPoolExecutor(max_workers=jobs) as ex:
+            results = zip(pairs, ex.map(_calibrate_one, args))
+            for i, (pair, res) in enumerate(results, start=1):
+                table.results[pair] = res
+                if progress is not None:
+                    progress(i, len(pairs), " x ".join(pair))
+    else:
+        for i, (pair, a) in enumerate(zip(pairs, args), start=1):
+            table.results[pair] = _calibrate_one(a)
+            if progress is not None:
+                progress(i, len(pairs), " x ".join(pair))
     return table

@@ -329,34 +329,6 @@ class CheckResult:
                     w.writerow([c.name, f"{v:.3f}", f"{a:.8g}", f"{x:.6g}", f"{d:.8g}", f"{dm:.8g}", f"{m:.8g}",
                                 f"{c.delta_zeta_pct:.6g}", "/".join(f"{100 * z:.6g}" for z in c.zeta)])
 
-    def plot(self, path):
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-
-        fig, ax = plt.subplots(figsize=(9, 5))
-        for i, c in enumerate(self.trains):
-            ls = "-" if c.kind == "hslm" else "--"
-            ax.plot(c.speeds_kmh, c.max_acc_m_s2, ls, lw=1.1, color=plt.cm.tab20(i % 20), label=c.name)
-        t, sp, acc = self.governing
-        ax.axhline(self.limit_m_s2, color="C3", lw=1.5, label=f"limit {self.limit_m_s2:g} m/s² ({self.track})")
-        ax.plot([sp], [acc], "o", ms=9, mfc="none", mec="k", mew=1.8,
-                label=f"governing: {t.name}, {acc:.3f} m/s² at {sp:g} km/h"
-                      + ("" if t.x_max_m is None or self.where == "midspan" else f", x = {t.x_max_m:.2f} m"))
-        ax.set_xlabel("speed (km/h)")
-        ax.set_ylabel({"deck": "max deck acceleration, whole deck (m/s²)",
-                       "midspan": "max midspan acceleration (m/s²)"}.get(self.where,
-                                                                         f"max acceleration at {self.where_text} (m/s²)"))
-        ax.set_title(f"{self.bridge.name or 'bridge'}: EN 1991-2 dynamic check, V = {self.max_line_speed_kmh:g} km/h, "
-                     f"damping {self.damping}, {self.damping_model} (zeta per mode {t.zeta_text()} %): "
-                     f"{'PASS' if self.passed else 'FAIL'}", fontsize=9)
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=7, ncol=2)
-        fig.tight_layout()
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
-
 
 # ---------------------------------------------------------------------- inputs
 def check_speeds_kmh(max_line_speed_kmh, step_kmh=1.0):

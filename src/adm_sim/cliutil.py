@@ -112,14 +112,22 @@ def progress_bar(desc, total=None, enabled=None, unit="step", leave=False, **kwa
                 disable=None if enabled is None else not enabled, **kwargs)
 
 
-def progress_callback(desc, enabled=None):
-    """A ``progress(done, total)`` callback drawing a :func:`progress_bar`, and its ``close``."""
-    bar = progress_bar(desc, total=0, enabled=enabled)
+def progress_callback(desc, enabled=None, **kwargs):
+    """A ``progress(done, total, note=None)`` callback drawing a :func:`progress_bar`, and its ``close``.
 
-    def cb(done, total):
+    This is how the library reports progress (:func:`adm_sim.sweep.run_sweep`, the check, the
+    calibration, Table 4, the study): it calls ``progress`` and never draws; the command line hands it
+    this callback. ``total`` None: not known (a count without a bar); ``note``: a short status shown
+    beside the count (the calibration's run phase).
+    """
+    bar = progress_bar(desc, total=0, enabled=enabled, **kwargs)
+
+    def cb(done, total=None, note=None):
         if bar.total != total:
             bar.total = total
         bar.n = done
+        if note is not None:
+            bar.set_postfix_str(note, refresh=False)
         bar.refresh()
 
     return cb, bar.close

@@ -16,37 +16,9 @@ from pathlib import Path
 from adm_sim.cliutil import Parser, progress_callback
 from adm_sim.errors import InputError, run_cli
 from adm_sim.files import claim_output, mcap_input, write_atomic
+from adm_sim.figures import plot_check, plot_sweep
 from adm_sim.limits import (ACC_LIMITS_M_S2, DEFAULT_SPEEDS, MAX_DELTA_ZETA_PCT, TRACK_ALIASES, check_delta_zeta_pct,
                             check_track_type)
-
-
-def _plot_sweep(result, path, limit=3.5, where="midspan"):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    import numpy as np
-
-    fig, ax = plt.subplots(figsize=(7, 4))
-    ax.plot(result.speeds_kmh, result.max_acc_m_s2, lw=1.5, label=result.model.upper())
-    pk = result.peak()
-    if pk is not None:
-        ax.plot([pk["speed_kmh"]], [pk["acc_m_s2"]], "o", color="C3",
-                label=f"peak {pk['acc_m_s2']:.3f} m/s² at {pk['speed_kmh']:g} km/h")
-    ax.axhline(limit, color="0.5", ls="--", lw=1, label=f"EN 1990 A2 ballasted limit {limit} m/s²")
-    ax.set_xlabel("speed (km/h)")
-    from adm_sim.envelope import where_text
-
-    ax.set_ylabel({"deck": "max |deck acceleration| (m/s²)", "midspan": "max |midspan acceleration| (m/s²)"}.get(
-        where, f"max |acceleration| at {where_text(where)} (m/s²)"))
-    zeta = "/".join(f"{100 * z:.3g}" for z in np.ravel(result.bridge.modal_damping_ratios(result.delta_zeta)))
-    ax.set_title(f"{result.bridge.name or 'bridge'} x {result.train_name} ({result.model.upper()}, "
-                 f"{'exact' if result.method == 'exact' else 'RK4'}; zeta per mode {zeta} %)", fontsize=10)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
 
 
 def cmd_sweep(args):
@@ -131,7 +103,7 @@ def cmd_sweep(args):
         write_atomic(json_path, lambda p: p.write_text(json.dumps(out, indent=1)))
         print(f"wrote {args.json}")
     if plot_path is not None:
-        write_atomic(plot_path, lambda p: _plot_sweep(res, p, where=where))
+        write_atomic(plot_path, lambda p: plot_sweep(res, p, where=where))
         print(f"wrote {args.plot}")
     return 0
 
@@ -186,7 +158,7 @@ def cmd_check(args, damping_provider=None):
         write_atomic(outs["csv"], res.write_csv)
         print(f"wrote {args.csv}")
     if "plot" in outs:
-        write_atomic(outs["plot"], res.plot)
+        write_atomic(outs["plot"], lambda p: plot_check(res, p))
         print(f"wrote {args.plot}")
     return 0
 

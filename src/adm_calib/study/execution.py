@@ -226,8 +226,10 @@ def run_study(out_dir, cases, settings=StudySettings(), workers=2, scheduler=Non
         Address of a running scheduler (``tcp://127.0.0.1:8786``) instead of a local cluster.
     limit : int, optional
         Run at most this many of the pending cases (the first ones in the order of ``cases``).
-    progress : bool or None
-        tqdm bar on stderr; ``None``: only on a terminal.
+    progress : callable(done, total), optional
+        Called after every finished case with the number of selected cases done so far (those of
+        earlier runs included) and their total; the command line hands in a progress bar
+        (:func:`adm_sim.cliutil.progress_callback`), the study draws nothing.
     retry_errors : bool
         Drop earlier ``status: "error"`` lines and run those cases again.
     options : dict, optional
@@ -287,9 +289,7 @@ def run_study(out_dir, cases, settings=StudySettings(), workers=2, scheduler=Non
 def _run_on_dask(pending, settings, writer, run, workers, scheduler, progress, entry):
     from distributed import Client, as_completed
 
-    from adm_sim.cliutil import progress_bar
-
-    cluster = client = bar = None
+    cluster = client = None
     futures = []
     try:
         if scheduler is None:
@@ -318,8 +318,8 @@ def _run_on_dask(pending, settings, writer, run, workers, scheduler, progress, e
                                 key=f"batch-{b[0].train}-L{L:g}-f{fi}-{os.getpid()}")
             by_future[fut] = b
             futures.append(fut)
-        bar = progress_bar("study", total=run.selected, enabled=progress, unit="case", leave=True,
-                           initial=run.already_done, mininterval=0.1)
+        if progress is not None:
+            progress(run.already_done, run.selected)
         for fut in as_completed(futures, loop=client.loop):
             batch = by_future.pop(fut)
             try:
@@ -330,11 +330,10 @@ def _run_on_dask(pending, settings, writer, run, workers, scheduler, progress, e
                 writer.append(rec)
                 run.completed += 1
                 run.statuses[rec["status"]] += 1
-                bar.update(1)
+                if progress is not None:
+                    progress(run.already_done + run.completed, run.selected)
             fut.release()
     finally:
-        if bar is not None:
-            bar.close()
         if client is not None:
             with contextlib.suppress(Exception):
                 client.cancel([f for f in futures if not f.done()])
