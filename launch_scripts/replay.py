@@ -15,6 +15,10 @@ live recording, with its default blueprint; other topics generically: ``AccelSta
 recorded run by ``header.frame_id``, ``DiagnosticArray`` as text log, ``JointState``,
 ``Float64MultiArray`` and ``Float64`` as scalar series under ``topics/``, metadata records as a
 table. Time is the recorded sim time (``header.stamp`` when present, else the record's log time).
+Each run's phase is read from the driver's ``requested`` record of its run id on ``/adm/run/status``
+and handed to the logger (a Δζ iteration belongs to the run before it); a recording made before
+runs carried their phase replays with phase ``unknown`` (curves ``sweep/curves/unknown*``) and one
+line ``warning: ...`` on stderr.
 
 ``--republish`` publishes every recorded topic (raw CDR, so any type) except ``/clock``, plus a
 ``rosgraph_msgs/Clock`` on ``/clock`` ahead of each new time stamp, paced at ``--rate`` times
@@ -118,6 +122,7 @@ def show_in_rerun(args, save_path=None) -> dict[str, int]:
     series = defaultdict(lambda: defaultdict(lambda: ([], [])))  # topic -> name -> (t, v)
     counts: dict[str, int] = defaultdict(int)
     deflection = None
+    phases = RunPhases(args.mcap)
     for topic, log_time_ns, msg in _status_first(_guarded(read_messages(args.mcap), args.mcap)):
         counts[topic] += 1
         t_s = _stamp_ns(msg, log_time_ns) * 1e-9
@@ -127,7 +132,9 @@ def show_in_rerun(args, save_path=None) -> dict[str, int]:
             elif topic == P.TOPIC_TRAIN_DESC:
                 viz.train_description(P.decode(msg.data))
             elif topic == P.TOPIC_STATUS:
-                viz.run_started(P.decode(msg.data))
+                st = P.decode(msg.data)
+                phases.status(st)
+                viz.run_started(st)
             elif topic == P.TOPIC_ACCEL:
                 if viz.runs:
                     viz.accel(t_s, msg.accel.linear.z)
@@ -140,10 +147,10 @@ def show_in_rerun(args, save_path=None) -> dict[str, int]:
                 ax = matrix_from_msg(msg)
                 viz.beam(t_s, deflection[0], deflection[1], ax[0], ax[1])
             elif topic == P.TOPIC_RESULT:
-                viz.run_done(matrix_from_msg(msg))
+                viz.run_done(matrix_from_msg(msg), phases.of_run(viz.runs[-1].id if viz.runs else None))
             elif topic == P.TOPIC_CAL_ITERATION:
                 i, dz_pct, mlm_peak, dim_peak = matrix_from_msg(msg).ravel()[:4]
-                viz.iteration(int(i), dz_pct, mlm_peak, dim_peak)
+                viz.iteration(int(i), dz_pct, mlm_peak, dim_peak, phases.last)
             elif topic == P.TOPIC_CAL_RESULT:
                 viz.calibration_result(P.decode(msg.data))
             elif topic == P.TOPIC_PROGRESS:
@@ -188,6 +195,37 @@ def show_in_rerun(args, save_path=None) -> dict[str, int]:
                             columns=rr.Scalars.columns(scalars=np.asarray(v, dtype=float)))
     rl.close_rerun()
     return dict(counts)
+
+
+class RunPhases:
+    """The phase of every run of a recording, as the driver recorded it (``requested`` records on
+    ``/adm/run/status``, :func:`adm_sim.protocol.request_record`). A run without one (a recording
+    made before runs carried their phase) is ``unknown``, with one warning line for the file."""
+
+    def __init__(self, path):
+        self.path = path
+        self.by_run: dict[int, str] = {}
+        self.last = P.PHASE_UNKNOWN  # phase of the last run whose result was seen
+        self.warned = False
+
+    def status(self, st: dict) -> None:
+        if P.is_request(st):
+            self.by_run[int(st["run_id"])] = str(st.get("phase", P.PHASE_UNKNOWN))
+
+    def of_run(self, run_id) -> str:
+        """The phase of run ``run_id`` (``None``: a result of no announced run, which is not drawn)."""
+        if run_id is None:
+            return P.PHASE_UNKNOWN
+        phase = self.by_run.get(run_id)
+        if phase is None:
+            phase = P.PHASE_UNKNOWN
+            if not self.warned:
+                self.warned = True
+                print(f"warning: RUN.mcap: '{self.path}' records no phase for run {run_id} (recorded before runs "
+                      f"carried their phase); its runs are shown with phase '{P.PHASE_UNKNOWN}'",
+                      file=sys.stderr, flush=True)
+        self.last = phase
+        return phase
 
 
 def _level(level) -> int:

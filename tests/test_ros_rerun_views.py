@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 from rrd_views import check_recording, read_rrd, view_entities
 
+from adm_sim import protocol as P
 from adm_sim.recording import rerun_blueprint as bp
 from adm_sim.recording import rerun_log as rl
 
@@ -38,7 +39,8 @@ def _status(run_id, model, n_lanes, t0, v_clock, v_mon):
             "clock_speed_kmh": v_clock, "monitor_every_steps": EVERY, "beam_every_steps": 4 * EVERY}
 
 
-#: The kind of each run of the session, by its construction (run_kind's rule, see test_run_kind_rule).
+#: The phase each run of the session is handed (as the calibration node does) and the kind it is drawn as.
+PHASES = {1: P.PHASE_MLM_ZETA, 2: P.PHASE_DIM, 3: P.PHASE_BRACKETING, 4: P.PHASE_ROOT_SEARCH, 5: P.PHASE_MLM_ZETA_DZ}
 KINDS = {1: rl.MLM_ZETA, 2: rl.DIM, 3: rl.BRACKETING, 4: rl.ROOT_SEARCH, 5: rl.MLM_ZETA_DZ}
 
 
@@ -68,13 +70,13 @@ def _session(viz: rl.RunLogger):
         viz.flush()
         acc = 1.0 + 0.01 * i + 0.001 * v - 10 * dz
         t1 = t0 + N_STEPS * DS_M / (v_clock / 3.6)
-        assert viz.run_done(np.vstack([v, acc, 1e-3 * np.ones_like(v), dz])) == KINDS[i]
+        assert viz.run_done(np.vstack([v, acc, 1e-3 * np.ones_like(v), dz]), PHASES[i]) == KINDS[i]
         expected[i] = (v, acc, dz, t, ks * DS_M / (v_mon / 3.6))
         if i == 3:
             for j, d in enumerate(ladder, start=1):
-                viz.iteration(j, 100 * d, 2.0 - 100 * d, 1.8)
+                viz.iteration(j, 100 * d, 2.0 - 100 * d, 1.8, PHASES[i])
         if i == 4:
-            viz.iteration(4, 0.55, 1.8, 1.8)
+            viz.iteration(4, 0.55, 1.8, 1.8, PHASES[i])
         t0 = t1
     viz.calibration_result({"bridge_description": "B1", "train": "ICE-2", "status": "ok",
                             "zeta_pct": 1.8500000000000003, "delta_zeta_vbi_pct": 0.5532999999999999,
@@ -93,12 +95,7 @@ def synthetic(tmp_path_factory):
     return path, expected
 
 
-def test_run_kind_rule():
-    assert rl.run_kind("dim", np.zeros(5), 5, 191) == rl.DIM
-    assert rl.run_kind("mlm", np.zeros(191), 191, 191) == rl.MLM_ZETA
-    assert rl.run_kind("mlm", np.full(191, 0.005), 191, 191) == rl.MLM_ZETA_DZ
-    assert rl.run_kind("mlm", np.full(11, 0.005), 11, 191) == rl.ROOT_SEARCH
-    assert rl.run_kind("mlm", np.repeat([0.0, 0.01], 11), 22, 191) == rl.BRACKETING
+def test_fmt_pct():
     assert rl.fmt_pct(0.018500000000000003) == "+1.8500 %"
 
 
