@@ -183,6 +183,7 @@ def test_crossing_recording_and_its_replay_open_in_the_default_layout(crossing_r
     r = subprocess.run([PY, str(ROOT / "launch_scripts" / "replay.py"), str(crossing_run / "run.mcap"),
                         "--rrd", str(replayed)], capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
+    assert "warning:" not in r.stderr  # the driver recorded the run's phase
     again, _ = check_recording(replayed)
     for p in ("/runs/acceleration/run_01", "/runs/beam/run_01/deflection", "/sweep/curves/MLM_zeta"):
         assert sorted(again[p]["values"]) == sorted(live[p]["values"]), p  # chunk order may differ
@@ -198,6 +199,53 @@ def test_crossing_recording_and_its_replay_open_in_the_default_layout(crossing_r
     assert dt[0] <= 2 * np.pi / b1.omega_rad_s[-1] / 8 * (1 + 1e-6)  # times are stored in ns
     assert "monitored [km/h]" in live["/runs/info"]["text"][-1]
     np.testing.assert_allclose(sorted(live["/sweep/curves/MLM_zeta"]["times"][bp.SPEED]), [250, 255, 260, 265, 270])
+
+
+def _without_phases(src: Path, dst: Path) -> int:
+    """Copy the MCAP ``src`` record by record (raw CDR, mcap's own reader and writer) leaving out the
+    driver's ``requested`` status records: a recording as made before runs carried their phase.
+    Returns the records left out."""
+    from mcap.reader import make_reader
+    from mcap.writer import Writer
+
+    dropped = 0
+    with open(src, "rb") as f, open(dst, "wb") as g:
+        w = Writer(g)
+        w.start(profile="ros2", library="test")
+        schemas, channels = {}, {}
+        for schema, channel, message in make_reader(f).iter_messages(log_time_order=False):
+            if schema.id not in schemas:
+                schemas[schema.id] = w.register_schema(schema.name, schema.encoding, schema.data)
+            if channel.id not in channels:
+                channels[channel.id] = w.register_channel(channel.topic, channel.message_encoding,
+                                                          schemas[schema.id], channel.metadata)
+            if channel.topic == P.TOPIC_STATUS and b'"state": "requested"' in message.data:
+                dropped += 1
+                continue
+            w.add_message(channels[channel.id], message.log_time, message.data, message.publish_time,
+                          message.sequence)
+        w.finish()
+    return dropped
+
+
+def test_replay_of_a_recording_without_phases_shows_phase_unknown(crossing_run, tmp_path):
+    """A recording made before the phase travelled (no ``requested`` record) still replays: exit 0,
+    one warning line, the sweep under ``sweep/curves/unknown`` with the live values of ``MLM_zeta``."""
+    old = tmp_path / "old.mcap"
+    assert _without_phases(crossing_run / "run.mcap", old) == 1  # one run, one phase record
+    replayed = tmp_path / "old.rrd"
+    r = subprocess.run([PY, str(ROOT / "launch_scripts" / "replay.py"), str(old), "--rrd", str(replayed)],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    warnings = [line for line in r.stderr.splitlines() if line.startswith("warning:")]
+    assert len(warnings) == 1 and "phase 'unknown'" in warnings[0] and "run 1" in warnings[0], r.stderr
+    live, _ = check_recording(crossing_run / "run.rrd")
+    again = read_rrd(replayed)
+    assert "/sweep/curves/MLM_zeta" not in again
+    assert sorted(again["/sweep/curves/unknown"]["values"]) == sorted(live["/sweep/curves/MLM_zeta"]["values"])
+    assert sorted(again["/sweep/curves/unknown"]["times"][bp.SPEED]) == [250, 255, 260, 265, 270]
+    np.testing.assert_array_equal(again["/runs/acceleration/run_01"]["values"],
+                                  live["/runs/acceleration/run_01"]["values"])
 
 
 def test_calibration_recording_every_view_has_data_and_monitors_the_peak(tmp_path):
@@ -233,3 +281,37 @@ def test_calibration_recording_every_view_has_data_and_monitors_the_peak(tmp_pat
     assert dz_logged == [float(d[1]) for d in iters]
     assert ents["/calibration/delta_zeta_pct/root_search"]["values"][-1] == pytest.approx(
         summary["delta_zeta_vbi_pct"], abs=1e-6)
+    # each run is drawn where protocol puts its recorded phase: one trial per Δζ of a bracketing or
+    # root-search run (Δζ from the run's result), one curve per other phase
+    status = [json.loads(m.data) for _t, _ns, m in read_messages(out / "run.mcap", topics=[P.TOPIC_STATUS])]
+    phase_of = {s["run_id"]: s["phase"] for s in status if s["state"] == P.REQUESTED}
+    results = [c_matrix(m) for _t, _ns, m in read_messages(out / "run.mcap", topics=[P.TOPIC_RESULT])]
+    assert [s["run_id"] for s in started] == sorted(phase_of)
+    want, n_trials = set(), {ph: 0 for ph in P.TRIAL_PHASES}
+    for s, res in zip(started, results):
+        phase = phase_of[s["run_id"]]
+        if phase in P.TRIAL_PHASES:
+            for _dz in np.unique(res[3]):
+                n_trials[phase] += 1
+                want.add("/" + P.sweep_trial_path(phase, n_trials[phase]))
+        else:
+            want.add("/" + P.sweep_curve_path(P.SWEEP_CURVE_NAMES[phase]))
+    drawn = {p for p in ents if re.fullmatch(r"/sweep/(curves|trials)/[^/]+(/\d\d)?", p)}
+    assert drawn == want | {"/" + P.sweep_curve_path(P.SWEEP_CURVE_NAMES[P.PHASE_DIM], trials=True),
+                            "/" + P.sweep_curve_path(P.SWEEP_CURVE_NAMES[P.PHASE_MLM_ZETA_DZ], trials=True)}
+    # the iterations follow the phase of their run: as many bracketing values as ladder rungs
+    assert len(ents["/" + P.delta_zeta_path(P.PHASE_BRACKETING)]["values"]) == n_trials[P.PHASE_BRACKETING]
+    # its replay draws every run at the same place, with no warning
+    replayed = tmp_path / "replay.rrd"
+    r = subprocess.run([PY, str(ROOT / "launch_scripts" / "replay.py"), str(out / "run.mcap"), "--rrd",
+                        str(replayed)], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0 and "warning:" not in r.stderr, r.stderr
+    again = read_rrd(replayed)
+    for path in (p for p in ents if p.startswith(("/sweep/", "/calibration/"))):
+        assert sorted(again[path]["values"]) == sorted(ents[path]["values"]), path
+
+
+def c_matrix(msg):
+    """A ``Float64MultiArray`` (rows x lanes) as decoded from MCAP."""
+    shape = tuple(dim.size for dim in msg.layout.dim)
+    return np.asarray(msg.data, dtype=np.float64)[msg.layout.data_offset:].reshape(shape)

@@ -339,7 +339,7 @@ class RunDriver(c.NodeBase):
         if self.recorder is not None or self.viz is not None:
             self._await_monitoring(run_id)
         if self.viz is not None:
-            self.viz.run_done(res, phase)
+            self.viz.run_done(res, phase, run_id)
         self._current = None
         self.n_runs += 1
         out = {"run_id": run_id, "model": model, "speeds_kmh": res[0], "max_acc_m_s2": res[1],

@@ -482,20 +482,22 @@ class RunLogger:
         rr.reset_time(recording=self.rec)
 
     # ------------------------------------------------------------ end of a run
-    def run_done(self, result, phase: str) -> str | None:
+    def run_done(self, result, phase: str, run_id: int | None = None) -> str | None:
         """``/adm/run/result`` (rows speed_kmh, max_acc_m_s2, max_disp_m, delta_zeta): log the curves.
 
         ``phase`` is the run's phase as the caller was handed it (:data:`adm_sim.protocol.PHASES`,
-        ``PHASE_UNKNOWN`` for an old recording); it is never read from the arrays. Returns the
-        run's kind (:func:`run_kind`), ``None`` if the run was never announced.
+        ``PHASE_UNKNOWN`` for an old recording); it is never read from the arrays. ``run_id``: the
+        run the result belongs to (default the last announced one). Returns the run's kind
+        (:func:`run_kind`), ``None`` if the run was never announced.
         """
         import rerun as rr
 
         self.flush()
         res = np.asarray(result, dtype=float)
-        if not self.runs:
+        runs = [r for r in self.runs if run_id is None or r.id == int(run_id)]
+        if not runs:
             return None
-        r = self.runs[-1]
+        r = runs[-1]
         if r.kind is not None:  # a result twice (replay of a duplicated record)
             return r.kind
         v, acc, dz = res[0], res[1], res[3]
