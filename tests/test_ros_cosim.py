@@ -41,7 +41,15 @@ def test_cosim_reproduces_run_sweep(node_procs, ros_domain):
         r = d.request_run(model="mlm", delta_zeta_lanes=lanes)
         ref = run_sweep(bridge, train, "mlm", r["speeds_kmh"], delta_zeta=lanes, options=opts)
         assert np.max(np.abs(r["max_acc_m_s2"] / ref.max_acc_m_s2 - 1.0)) <= 1e-9
-        d.request_run(delta_zeta_lanes=[])
+        last = d.request_run(delta_zeta_lanes=[])  # back to the bridge's delta_zeta (0.004 since run 3)
+        # runs outside a calibration are named by their request, published with their run id
+        from adm_sim import protocol as P
+
+        with d._lock:
+            requested = {rid: st for (node, rid), st in d._status.items() if node == P.DRIVER_NODE}
+        assert [requested[rid]["phase"] for rid in sorted(requested)] == [
+            P.PHASE_MLM_ZETA, P.PHASE_DIM, P.PHASE_MLM_ZETA_DZ, P.PHASE_BRACKETING, P.PHASE_MLM_ZETA_DZ]
+        assert max(requested) == last["run_id"] and last["phase"] == P.PHASE_MLM_ZETA_DZ
 
 
 def test_wrong_lane_count_is_reported(node_procs, ros_domain):

@@ -40,6 +40,7 @@ import numpy as np
 BRIDGE_NODE = "bridge"
 TRAIN_NODE = "train"
 CALIBRATION_NODE = "calibration"
+DRIVER_NODE = "driver"  # a plain run's driver (the calibration node is a driver too)
 #: The train node's ``~/start_run`` service (``std_srvs/Trigger``) as the driver calls it.
 SERVICE_START_RUN = f"/{TRAIN_NODE}/start_run"
 
@@ -78,7 +79,7 @@ TOPICS = {
     TOPIC_FORCES: ("std_msgs/msg/Float64MultiArray", "X", TRAIN_NODE),
     TOPIC_AXLE_BLOCK: ("std_msgs/msg/Float64MultiArray", "X", TRAIN_NODE),
     TOPIC_RESULT: ("std_msgs/msg/Float64MultiArray", "C", BRIDGE_NODE),
-    TOPIC_STATUS: ("std_msgs/msg/String", "C", f"{BRIDGE_NODE}, {TRAIN_NODE}, driver / {CALIBRATION_NODE}"),
+    TOPIC_STATUS: ("std_msgs/msg/String", "C", f"{BRIDGE_NODE}, {TRAIN_NODE}, {DRIVER_NODE} / {CALIBRATION_NODE}"),
     TOPIC_ACCEL: ("geometry_msgs/msg/AccelStamped", "M", BRIDGE_NODE),
     TOPIC_STATE: ("std_msgs/msg/Float64MultiArray", "M", BRIDGE_NODE),
     TOPIC_BEAM: ("std_msgs/msg/Float64MultiArray", "M", BRIDGE_NODE),

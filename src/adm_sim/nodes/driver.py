@@ -98,7 +98,7 @@ def say(kind, **payload):
 class RunDriver(c.NodeBase):
     """Requests runs and records them; see the module docstring."""
 
-    def __init__(self, name="driver", extra_specs=(), **kw):
+    def __init__(self, name=P.DRIVER_NODE, extra_specs=(), **kw):
         super().__init__(name, **kw)
         self.declare_specs(list(DRIVER_SPECS) + list(extra_specs))
         p = self.param_values()
@@ -444,7 +444,7 @@ class RunDriver(c.NodeBase):
 
 
 def main(args=None):
-    return c.run_node(RunDriver, args=args, name="driver")
+    return c.run_node(RunDriver, args=args, name=P.DRIVER_NODE)
 
 
 if __name__ == "__main__":
