@@ -15,6 +15,11 @@ live recording, with its default blueprint; other topics generically: ``AccelSta
 recorded run by ``header.frame_id``, ``DiagnosticArray`` as text log, ``JointState``,
 ``Float64MultiArray`` and ``Float64`` as scalar series under ``topics/``, metadata records as a
 table. Time is the recorded sim time (``header.stamp`` when present, else the record's log time).
+Each result is drawn for its run (:class:`RunPhases`) with the phase read from the driver's
+``requested`` record of its run id on ``/adm/run/status`` (a Δζ iteration belongs to the run
+before it); a recording made before
+runs carried their phase replays with phase ``unknown`` (curves ``sweep/curves/unknown*``) and one
+line ``warning: ...`` on stderr.
 
 ``--republish`` publishes every recorded topic (raw CDR, so any type) except ``/clock``, plus a
 ``rosgraph_msgs/Clock`` on ``/clock`` ahead of each new time stamp, paced at ``--rate`` times
@@ -118,6 +123,7 @@ def show_in_rerun(args, save_path=None) -> dict[str, int]:
     series = defaultdict(lambda: defaultdict(lambda: ([], [])))  # topic -> name -> (t, v)
     counts: dict[str, int] = defaultdict(int)
     deflection = None
+    phases = RunPhases(args.mcap)
     for topic, log_time_ns, msg in _status_first(_guarded(read_messages(args.mcap), args.mcap)):
         counts[topic] += 1
         t_s = _stamp_ns(msg, log_time_ns) * 1e-9
@@ -127,7 +133,9 @@ def show_in_rerun(args, save_path=None) -> dict[str, int]:
             elif topic == P.TOPIC_TRAIN_DESC:
                 viz.train_description(P.decode(msg.data))
             elif topic == P.TOPIC_STATUS:
-                viz.run_started(P.decode(msg.data))
+                st = P.decode(msg.data)
+                phases.status(st)
+                viz.run_started(st)
             elif topic == P.TOPIC_ACCEL:
                 if viz.runs:
                     viz.accel(t_s, msg.accel.linear.z)
@@ -140,10 +148,11 @@ def show_in_rerun(args, save_path=None) -> dict[str, int]:
                 ax = matrix_from_msg(msg)
                 viz.beam(t_s, deflection[0], deflection[1], ax[0], ax[1])
             elif topic == P.TOPIC_RESULT:
-                viz.run_done(matrix_from_msg(msg))
+                run_id, phase = phases.result()
+                viz.run_done(matrix_from_msg(msg), phase, run_id)
             elif topic == P.TOPIC_CAL_ITERATION:
                 i, dz_pct, mlm_peak, dim_peak = matrix_from_msg(msg).ravel()[:4]
-                viz.iteration(int(i), dz_pct, mlm_peak, dim_peak)
+                viz.iteration(int(i), dz_pct, mlm_peak, dim_peak, phases.last)
             elif topic == P.TOPIC_CAL_RESULT:
                 viz.calibration_result(P.decode(msg.data))
             elif topic == P.TOPIC_PROGRESS:
@@ -188,6 +197,49 @@ def show_in_rerun(args, save_path=None) -> dict[str, int]:
                             columns=rr.Scalars.columns(scalars=np.asarray(v, dtype=float)))
     rl.close_rerun()
     return dict(counts)
+
+
+class RunPhases:
+    """Which run each result of a recording belongs to, and its phase as the driver recorded it
+    (``requested`` records on ``/adm/run/status``, :func:`adm_sim.protocol.request_record`).
+
+    A result belongs to the earliest run the bridge announced (``started``) that has neither a
+    result nor a failure yet: a bridge sends one result per run, in order, and the next run's
+    ``started`` can carry the same sim time as the last result. A run without a phase record (a
+    recording made before runs carried their phase) is ``unknown``, with one warning line per file.
+    """
+
+    def __init__(self, path):
+        self.path = path
+        self.by_run: dict[int, str] = {}
+        self.pending: list[int] = []  # announced runs still waiting for their result
+        self.last = P.PHASE_UNKNOWN  # phase of the last run whose result was seen
+        self.warned = False
+
+    def status(self, st: dict) -> None:
+        if P.is_request(st):
+            self.by_run[int(st["run_id"])] = str(st.get("phase", P.PHASE_UNKNOWN))
+        elif P.is_bridge_start(st) and int(st["run_id"]) not in self.pending:
+            self.pending.append(int(st["run_id"]))
+        elif st.get("node") == P.BRIDGE_NODE and P.is_failure(st) and st.get("run_id") in self.pending:
+            self.pending.remove(st["run_id"])
+
+    def result(self) -> tuple[int | None, str]:
+        """``(run_id, phase)`` of the next result (``(None, unknown)``: a result of no announced
+        run, which is not drawn)."""
+        if not self.pending:
+            return None, P.PHASE_UNKNOWN
+        run_id = self.pending.pop(0)
+        phase = self.by_run.get(run_id)
+        if phase is None:
+            phase = P.PHASE_UNKNOWN
+            if not self.warned:
+                self.warned = True
+                print(f"warning: RUN.mcap: '{self.path}' records no phase for run {run_id} (recorded before runs "
+                      f"carried their phase); its runs are shown with phase '{P.PHASE_UNKNOWN}'",
+                      file=sys.stderr, flush=True)
+        self.last = phase
+        return run_id, phase
 
 
 def _level(level) -> int:

@@ -89,3 +89,26 @@ def test_bridge_class_and_type():
     # (a 150 m span at 100 Hz is far off the Fig. 8 band: allowed, with a plausibility warning)
     with pytest.warns(errors.PlausibilityWarning, match=r"n0: 100 Hz is outside the plausible range"):
         assert parse_bridge_spec("L=150,n0=100,mu=19042,zeta_pct=1").n0_hz == pytest.approx(100.0, rel=1e-12)
+
+
+def test_one_line_warnings_as_the_nodes_print_them(capsys):
+    """The nodes' display (``run_node``): every warning one line ``warning: <node>: ...`` (a
+    plausibility warning bare, any other with its category), Python's filters deduplicating; the
+    previous display comes back at the end."""
+    import warnings
+
+    from adm_sim.errors import PlausibilityWarning, one_line_warnings
+
+    before = warnings.showwarning
+    with one_line_warnings(prefix="bridge: ", categories=(Warning,), repeat=False):
+        for _ in range(2):  # one place, one message: shown once (the default filter)
+            warnings.warn("mu: 1e+06 kg/m is outside\n the plausible range", PlausibilityWarning, stacklevel=1)
+        warnings.warn("overflow in exp", RuntimeWarning, stacklevel=1)
+    assert warnings.showwarning is before
+    assert capsys.readouterr().err.splitlines() == [
+        "warning: bridge: mu: 1e+06 kg/m is outside the plausible range",
+        "warning: bridge: RuntimeWarning: overflow in exp"]
+    with errors.plausibility_warnings():  # the CLIs': every occurrence, no prefix
+        for _ in range(2):
+            warnings.warn("n0: 90 Hz is outside", PlausibilityWarning, stacklevel=1)
+    assert capsys.readouterr().err.splitlines() == ["warning: n0: 90 Hz is outside"] * 2

@@ -150,18 +150,29 @@ def test_records_round_trip_through_json():
 # ---------------------------------------------------------------- run phases
 
 
-@pytest.mark.parametrize("model, dz, n_lanes, phase", [
-    ("dim", 0.0, 191, P.PHASE_DIM),
-    ("DIM", np.full(5, 0.01), 5, P.PHASE_DIM),
-    ("mlm", 0.0, 191, P.PHASE_MLM_ZETA),
-    ("mlm", np.zeros(191), 191, P.PHASE_MLM_ZETA),
-    ("mlm", 0.0055, 191, P.PHASE_MLM_ZETA_DZ),
-    ("mlm", np.repeat([-0.005, 0.0, 0.01], 11), 33, P.PHASE_BRACKETING),
-    ("mlm", 0.0055, 11, P.PHASE_ROOT_SEARCH),
-    ("mlm", np.full(11, 0.0), 11, P.PHASE_ROOT_SEARCH),
+@pytest.mark.parametrize("model, dz, lanes, phase", [
+    ("dim", 0.0, "", P.PHASE_DIM),
+    ("DIM", 0.01, "0.0,0.01", P.PHASE_DIM),
+    ("mlm", 0.0, "", P.PHASE_MLM_ZETA),
+    ("mlm", 0.01, "0.0,0.0", P.PHASE_MLM_ZETA),          # the lanes replace delta_zeta
+    ("mlm", 0.0055, "", P.PHASE_MLM_ZETA_DZ),
+    ("mlm", 0.0, [0.0055, 0.0055], P.PHASE_MLM_ZETA_DZ),
+    ("mlm", 0.0, "-0.005, 0.0 ,0.01", P.PHASE_BRACKETING),
 ])
-def test_run_phase(model, dz, n_lanes, phase):
-    assert P.run_phase(model, dz, n_lanes, 191) == phase
+def test_plain_run_phase_is_named_by_the_request(model, dz, lanes, phase):
+    """A run outside a calibration is named by the parameters it runs with (model, the bridge's
+    delta_zeta and delta_zeta_lanes), never by its result's arrays; a root search is a calibration's."""
+    assert P.plain_run_phase(model, dz, lanes) == phase
+
+
+def test_request_record_carries_the_phase_with_the_run_id():
+    st = P.decode(P.encode(P.request_record(P.CALIBRATION_NODE, 7, "mlm", P.PHASE_BRACKETING, "MLM trial")))
+    assert st == {"node": "calibration", "run_id": 7, "state": "requested", "model": "mlm", "phase": "bracketing",
+                  "label": "MLM trial"}
+    assert P.is_request(st) and not P.is_bridge_start(st) and not P.is_failure(st)
+    assert not P.is_request(P.status_record(P.BRIDGE_NODE, 7, P.STARTED))
+    assert P.PHASE_UNKNOWN not in P.PHASES and set(P.SWEEP_CURVE_NAMES) | set(P.TRIAL_PHASES) == {
+        *P.PHASES, P.PHASE_UNKNOWN}
 
 
 def test_calibration_node_and_rerun_logger_name_the_same_phases():
@@ -176,12 +187,11 @@ def test_calibration_node_and_rerun_logger_name_the_same_phases():
     # every phase a calibration request carries has its run phase, and nothing else is mapped
     assert set(P.CALIBRATION_PHASES) == set(CALIBRATION_REQUEST_PHASES)
     assert set(P.CALIBRATION_PHASES.values()) == set(P.PHASES)
-    assert {p: rl.run_kind(*args) for p, args in (
-        (P.PHASE_DIM, ("dim", 0.0, 5, 191)), (P.PHASE_MLM_ZETA, ("mlm", 0.0, 191, 191)),
-        (P.PHASE_MLM_ZETA_DZ, ("mlm", 0.01, 191, 191)), (P.PHASE_BRACKETING, ("mlm", [0.0, 0.01], 2, 191)),
-        (P.PHASE_ROOT_SEARCH, ("mlm", 0.01, 11, 191)))} == {
+    assert {p: rl.run_kind(p) for p in (*P.PHASES, P.PHASE_UNKNOWN)} == {
         P.PHASE_DIM: rl.DIM, P.PHASE_MLM_ZETA: rl.MLM_ZETA, P.PHASE_MLM_ZETA_DZ: rl.MLM_ZETA_DZ,
-        P.PHASE_BRACKETING: rl.BRACKETING, P.PHASE_ROOT_SEARCH: rl.ROOT_SEARCH}
+        P.PHASE_BRACKETING: rl.BRACKETING, P.PHASE_ROOT_SEARCH: rl.ROOT_SEARCH, P.PHASE_UNKNOWN: rl.UNKNOWN}
+    with pytest.raises(InputError, match=r"^phase: 'ladder' is not a run phase; allowed dim, "):
+        rl.run_kind("ladder")  # a calibration request's phase must be mapped first (CALIBRATION_PHASES)
 
 
 # ---------------------------------------------------------------- limits
@@ -236,11 +246,13 @@ def test_driver_lines_round_trip_and_other_lines_pass_through():
     assert P.parse_driver_line("[INFO] [bridge]: run 3 done") == (None, "[INFO] [bridge]: run 3 done")
 
 
-def test_run_phase_names_every_sweep_of_a_calibration():
-    """The guess against what the Section 4 calibration does: a calibration over closed-form curves
-    (MLM peak 3 ζ/(ζ + Δζ) m/s², DIM peak 2.4 m/s², Lorentzian in speed) calls its sweep hook for the
-    MLM ζ curve, the DIM, the bracketing ladder, the root search and the adapted curve, in that order;
-    ``run_phase`` must name each call so, and the root is Δζ = ζ (3 / 2.4 - 1)."""
+def test_calibration_hands_on_the_phase_of_every_sweep():
+    """What the calibration sends, against what it does: a calibration over closed-form curves
+    (MLM peak 3 ζ/(ζ + Δζ) m/s², DIM peak 2.4 m/s², Lorentzian in speed) runs the MLM ζ curve, the
+    DIM, the bracketing ladder (several Δζ on the window's lanes), the root search (one Δζ on fewer
+    lanes than the full range) and the adapted curve (one Δζ on every lane), in that order; the phase
+    its hook is handed, mapped by ``CALIBRATION_PHASES``, names each call so, and the root is
+    Δζ = ζ (3 / 2.4 - 1)."""
     from adm_calib.calibrate import calibrate
     from adm_sim.bridge import resolve_bridge
     from adm_sim.trains import load_train
@@ -250,9 +262,17 @@ def test_run_phase_names_every_sweep_of_a_calibration():
     v_all = np.arange(200.0, 301.0, 1.0)
     phases = []
 
-    def hook(model, speeds, dz, step):
+    def hook(model, speeds, dz, step, phase):
         dz = np.broadcast_to(np.asarray(dz, dtype=float), np.shape(speeds))
-        phases.append(P.run_phase(model, dz, np.size(speeds), v_all.size))
+        run_phase = P.CALIBRATION_PHASES[phase]
+        # the run's own shape agrees with the phase it was handed (independent of the mapping)
+        expected_shape = {P.PHASE_DIM: model == "dim",
+                          P.PHASE_MLM_ZETA: model == "mlm" and np.all(dz == 0.0),
+                          P.PHASE_MLM_ZETA_DZ: model == "mlm" and np.unique(dz).size == 1 and np.size(speeds) == v_all.size,
+                          P.PHASE_BRACKETING: model == "mlm" and np.unique(dz).size > 1,
+                          P.PHASE_ROOT_SEARCH: model == "mlm" and np.unique(dz).size == 1 and np.size(speeds) < v_all.size}
+        assert expected_shape[run_phase], (phase, model, np.unique(dz), np.size(speeds))
+        phases.append(run_phase)
         shape = 1.0 / (1.0 + ((np.asarray(speeds) - 250.0) / 8.0) ** 2)
         peak = 2.4 if model == "dim" else 3.0 * zeta / (zeta + dz)
         return 0.2 + (peak - 0.2) * shape

@@ -41,7 +41,15 @@ def test_cosim_reproduces_run_sweep(node_procs, ros_domain):
         r = d.request_run(model="mlm", delta_zeta_lanes=lanes)
         ref = run_sweep(bridge, train, "mlm", r["speeds_kmh"], delta_zeta=lanes, options=opts)
         assert np.max(np.abs(r["max_acc_m_s2"] / ref.max_acc_m_s2 - 1.0)) <= 1e-9
-        d.request_run(delta_zeta_lanes=[])
+        last = d.request_run(delta_zeta_lanes=[])  # back to the bridge's delta_zeta (0.004 since run 3)
+        # runs outside a calibration are named by their request, published with their run id
+        from adm_sim import protocol as P
+
+        with d._lock:
+            requested = {rid: st for (node, rid), st in d._status.items() if node == P.DRIVER_NODE}
+        assert [requested[rid]["phase"] for rid in sorted(requested)] == [
+            P.PHASE_MLM_ZETA, P.PHASE_DIM, P.PHASE_MLM_ZETA_DZ, P.PHASE_BRACKETING, P.PHASE_MLM_ZETA_DZ]
+        assert max(requested) == last["run_id"] and last["phase"] == P.PHASE_MLM_ZETA_DZ
 
 
 def test_wrong_lane_count_is_reported(node_procs, ros_domain):
@@ -84,8 +92,17 @@ def test_calibrate_launch_matches_in_process_calibration(tmp_path, ros_domain):
     assert "dz iteration" in p.stdout and "dz_VBI" in p.stdout
     got = json.loads((out / "summary.json").read_text())
     # the co-simulation is the numpy stepper split in two processes: the same numbers bit for bit
+    # the reference runs every sweep on the numpy stepper through a hook that notes the phase the
+    # calibration sends with it (HookLanes, as the calibration node gets them)
+    sent = []
+
+    def numpy_sweep(model, speeds, dz, step, phase):
+        sent.append(phase)
+        return run_sweep(resolve_bridge("B3"), load_train("ICE-2"), model, speeds, delta_zeta=dz,
+                         options=step).max_acc_m_s2
+
     ref = calibrate(resolve_bridge("B3"), load_train("ICE-2"), np.arange(230.0, 291.0, 2.0),
-                    CalibrationOptions(step=StepOptions(**STEP)), backend="numpy").to_dict()
+                    CalibrationOptions(step=StepOptions(**STEP)), sweep=numpy_sweep).to_dict()
     assert got["status"] == ref["status"]
     for key in ("delta_zeta_vbi_pct", "delta_zeta_adm_pct", "delta_zeta_eada_pct", "delta_zeta_lb_pct"):
         assert got[key] == pytest.approx(ref[key], rel=1e-9, abs=0) if ref[key] is not None else got[key] is None
@@ -105,6 +122,16 @@ def test_calibrate_launch_matches_in_process_calibration(tmp_path, ros_domain):
         elif (s := json.loads(msg.data))["node"] == "bridge" and s["state"] == "started":
             started.append(s)
     assert len(results) == len(started) == got["co_simulation"]["runs"] >= 5
+    # the phase travelled with every run: the driver's requested records, in order, one per run
+    # (its run id) are exactly the phases the calibration sent, mapped by the protocol
+    from adm_sim import protocol as P
+
+    requested = [json.loads(m.data) for _t, _ns, m in read_messages(out / "run.mcap", topics=[P.TOPIC_STATUS])]
+    requested = [s for s in requested if s["state"] == P.REQUESTED]
+    assert [s["phase"] for s in requested] == [P.CALIBRATION_PHASES[ph] for ph in sent]
+    assert [s["run_id"] for s in requested] == [s["run_id"] for s in started]
+    assert {s["node"] for s in requested} == {P.CALIBRATION_NODE}
+    assert [s["model"] for s in requested] == [s["model"] for s in started]
     models = [s["model"] for s in started]
     assert models[:2] == ["mlm", "dim"] and set(models[2:]) == {"mlm"}
     for s, (v, acc, disp, dz) in zip(started, results):

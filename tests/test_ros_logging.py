@@ -317,8 +317,8 @@ def test_run_logger_writes_a_verified_rrd(tmp_path):
         viz.accel(tk, np.cos(tk))
         if k % 50 == 0:
             viz.beam(tk, x, 1e-3 * np.sin(np.pi * x / 20), [2.0 + k / 50], [1e-3])
-    assert viz.run_done(np.array([[100.0, 300.0], [1.0, 5.0], [1e-3, 2e-3], [0.0, 0.0]])) == rl.MLM_ZETA
-    viz.iteration(1, 0.25, 5.0, 3.5)
+    assert viz.run_done(np.array([[100.0, 300.0], [1.0, 5.0], [1e-3, 2e-3], [0.0, 0.0]]), "mlm_zeta") == rl.MLM_ZETA
+    viz.iteration(1, 0.25, 5.0, 3.5, "root_search")
     rl.close_rerun()
     with pytest.raises(InputError, match="refusing to overwrite"):
         rl.init_rerun("adm_sim_test", save_path=out)

@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 from rrd_views import check_recording, read_rrd, view_entities
 
+from adm_sim import protocol as P
 from adm_sim.recording import rerun_blueprint as bp
 from adm_sim.recording import rerun_log as rl
 
@@ -38,7 +39,8 @@ def _status(run_id, model, n_lanes, t0, v_clock, v_mon):
             "clock_speed_kmh": v_clock, "monitor_every_steps": EVERY, "beam_every_steps": 4 * EVERY}
 
 
-#: The kind of each run of the session, by its construction (run_kind's rule, see test_run_kind_rule).
+#: The phase each run of the session is handed (as the calibration node does) and the kind it is drawn as.
+PHASES = {1: P.PHASE_MLM_ZETA, 2: P.PHASE_DIM, 3: P.PHASE_BRACKETING, 4: P.PHASE_ROOT_SEARCH, 5: P.PHASE_MLM_ZETA_DZ}
 KINDS = {1: rl.MLM_ZETA, 2: rl.DIM, 3: rl.BRACKETING, 4: rl.ROOT_SEARCH, 5: rl.MLM_ZETA_DZ}
 
 
@@ -68,13 +70,13 @@ def _session(viz: rl.RunLogger):
         viz.flush()
         acc = 1.0 + 0.01 * i + 0.001 * v - 10 * dz
         t1 = t0 + N_STEPS * DS_M / (v_clock / 3.6)
-        assert viz.run_done(np.vstack([v, acc, 1e-3 * np.ones_like(v), dz])) == KINDS[i]
+        assert viz.run_done(np.vstack([v, acc, 1e-3 * np.ones_like(v), dz]), PHASES[i]) == KINDS[i]
         expected[i] = (v, acc, dz, t, ks * DS_M / (v_mon / 3.6))
         if i == 3:
             for j, d in enumerate(ladder, start=1):
-                viz.iteration(j, 100 * d, 2.0 - 100 * d, 1.8)
+                viz.iteration(j, 100 * d, 2.0 - 100 * d, 1.8, PHASES[i])
         if i == 4:
-            viz.iteration(4, 0.55, 1.8, 1.8)
+            viz.iteration(4, 0.55, 1.8, 1.8, PHASES[i])
         t0 = t1
     viz.calibration_result({"bridge_description": "B1", "train": "ICE-2", "status": "ok",
                             "zeta_pct": 1.8500000000000003, "delta_zeta_vbi_pct": 0.5532999999999999,
@@ -93,12 +95,7 @@ def synthetic(tmp_path_factory):
     return path, expected
 
 
-def test_run_kind_rule():
-    assert rl.run_kind("dim", np.zeros(5), 5, 191) == rl.DIM
-    assert rl.run_kind("mlm", np.zeros(191), 191, 191) == rl.MLM_ZETA
-    assert rl.run_kind("mlm", np.full(191, 0.005), 191, 191) == rl.MLM_ZETA_DZ
-    assert rl.run_kind("mlm", np.full(11, 0.005), 11, 191) == rl.ROOT_SEARCH
-    assert rl.run_kind("mlm", np.repeat([0.0, 0.01], 11), 22, 191) == rl.BRACKETING
+def test_fmt_pct():
     assert rl.fmt_pct(0.018500000000000003) == "+1.8500 %"
 
 
@@ -186,6 +183,7 @@ def test_crossing_recording_and_its_replay_open_in_the_default_layout(crossing_r
     r = subprocess.run([PY, str(ROOT / "launch_scripts" / "replay.py"), str(crossing_run / "run.mcap"),
                         "--rrd", str(replayed)], capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
+    assert "warning:" not in r.stderr  # the driver recorded the run's phase
     again, _ = check_recording(replayed)
     for p in ("/runs/acceleration/run_01", "/runs/beam/run_01/deflection", "/sweep/curves/MLM_zeta"):
         assert sorted(again[p]["values"]) == sorted(live[p]["values"]), p  # chunk order may differ
@@ -201,6 +199,53 @@ def test_crossing_recording_and_its_replay_open_in_the_default_layout(crossing_r
     assert dt[0] <= 2 * np.pi / b1.omega_rad_s[-1] / 8 * (1 + 1e-6)  # times are stored in ns
     assert "monitored [km/h]" in live["/runs/info"]["text"][-1]
     np.testing.assert_allclose(sorted(live["/sweep/curves/MLM_zeta"]["times"][bp.SPEED]), [250, 255, 260, 265, 270])
+
+
+def _without_phases(src: Path, dst: Path) -> int:
+    """Copy the MCAP ``src`` record by record (raw CDR, mcap's own reader and writer) leaving out the
+    driver's ``requested`` status records: a recording as made before runs carried their phase.
+    Returns the records left out."""
+    from mcap.reader import make_reader
+    from mcap.writer import Writer
+
+    dropped = 0
+    with open(src, "rb") as f, open(dst, "wb") as g:
+        w = Writer(g)
+        w.start(profile="ros2", library="test")
+        schemas, channels = {}, {}
+        for schema, channel, message in make_reader(f).iter_messages(log_time_order=False):
+            if schema.id not in schemas:
+                schemas[schema.id] = w.register_schema(schema.name, schema.encoding, schema.data)
+            if channel.id not in channels:
+                channels[channel.id] = w.register_channel(channel.topic, channel.message_encoding,
+                                                          schemas[schema.id], channel.metadata)
+            if channel.topic == P.TOPIC_STATUS and b'"state": "requested"' in message.data:
+                dropped += 1
+                continue
+            w.add_message(channels[channel.id], message.log_time, message.data, message.publish_time,
+                          message.sequence)
+        w.finish()
+    return dropped
+
+
+def test_replay_of_a_recording_without_phases_shows_phase_unknown(crossing_run, tmp_path):
+    """A recording made before the phase travelled (no ``requested`` record) still replays: exit 0,
+    one warning line, the sweep under ``sweep/curves/unknown`` with the live values of ``MLM_zeta``."""
+    old = tmp_path / "old.mcap"
+    assert _without_phases(crossing_run / "run.mcap", old) == 1  # one run, one phase record
+    replayed = tmp_path / "old.rrd"
+    r = subprocess.run([PY, str(ROOT / "launch_scripts" / "replay.py"), str(old), "--rrd", str(replayed)],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    warnings = [line for line in r.stderr.splitlines() if line.startswith("warning:")]
+    assert len(warnings) == 1 and "phase 'unknown'" in warnings[0] and "run 1" in warnings[0], r.stderr
+    live, _ = check_recording(crossing_run / "run.rrd")
+    again = read_rrd(replayed)
+    assert "/sweep/curves/MLM_zeta" not in again
+    assert sorted(again["/sweep/curves/unknown"]["values"]) == sorted(live["/sweep/curves/MLM_zeta"]["values"])
+    assert sorted(again["/sweep/curves/unknown"]["times"][bp.SPEED]) == [250, 255, 260, 265, 270]
+    np.testing.assert_array_equal(again["/runs/acceleration/run_01"]["values"],
+                                  live["/runs/acceleration/run_01"]["values"])
 
 
 def test_calibration_recording_every_view_has_data_and_monitors_the_peak(tmp_path):
@@ -236,3 +281,37 @@ def test_calibration_recording_every_view_has_data_and_monitors_the_peak(tmp_pat
     assert dz_logged == [float(d[1]) for d in iters]
     assert ents["/calibration/delta_zeta_pct/root_search"]["values"][-1] == pytest.approx(
         summary["delta_zeta_vbi_pct"], abs=1e-6)
+    # each run is drawn where protocol puts its recorded phase: one trial per Δζ of a bracketing or
+    # root-search run (Δζ from the run's result), one curve per other phase
+    status = [json.loads(m.data) for _t, _ns, m in read_messages(out / "run.mcap", topics=[P.TOPIC_STATUS])]
+    phase_of = {s["run_id"]: s["phase"] for s in status if s["state"] == P.REQUESTED}
+    results = [c_matrix(m) for _t, _ns, m in read_messages(out / "run.mcap", topics=[P.TOPIC_RESULT])]
+    assert [s["run_id"] for s in started] == sorted(phase_of)
+    want, n_trials = set(), {ph: 0 for ph in P.TRIAL_PHASES}
+    for s, res in zip(started, results):
+        phase = phase_of[s["run_id"]]
+        if phase in P.TRIAL_PHASES:
+            for _dz in np.unique(res[3]):
+                n_trials[phase] += 1
+                want.add("/" + P.sweep_trial_path(phase, n_trials[phase]))
+        else:
+            want.add("/" + P.sweep_curve_path(P.SWEEP_CURVE_NAMES[phase]))
+    drawn = {p for p in ents if re.fullmatch(r"/sweep/(curves|trials)/[^/]+(/\d\d)?", p)}
+    assert drawn == want | {"/" + P.sweep_curve_path(P.SWEEP_CURVE_NAMES[P.PHASE_DIM], trials=True),
+                            "/" + P.sweep_curve_path(P.SWEEP_CURVE_NAMES[P.PHASE_MLM_ZETA_DZ], trials=True)}
+    # the iterations follow the phase of their run: as many bracketing values as ladder rungs
+    assert len(ents["/" + P.delta_zeta_path(P.PHASE_BRACKETING)]["values"]) == n_trials[P.PHASE_BRACKETING]
+    # its replay draws every run at the same place, with no warning
+    replayed = tmp_path / "replay.rrd"
+    r = subprocess.run([PY, str(ROOT / "launch_scripts" / "replay.py"), str(out / "run.mcap"), "--rrd",
+                        str(replayed)], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0 and "warning:" not in r.stderr, r.stderr
+    again = read_rrd(replayed)
+    for path in (p for p in ents if p.startswith(("/sweep/", "/calibration/"))):
+        assert sorted(again[path]["values"]) == sorted(ents[path]["values"]), path
+
+
+def c_matrix(msg):
+    """A ``Float64MultiArray`` (rows x lanes) as decoded from MCAP."""
+    shape = tuple(dim.size for dim in msg.layout.dim)
+    return np.asarray(msg.data, dtype=np.float64)[msg.layout.data_offset:].reshape(shape)

@@ -104,6 +104,35 @@ def test_node_started_by_hand_with_bad_parameter(module, args, line):
         assert r.stderr.splitlines() == [line]
 
 
+def test_node_warns_in_one_line_and_runs_on(tmp_path):
+    """A bridge node started with an implausible but allowed bridge (a damping typed as a fraction
+    into the % key, docs/plausibility.md) prints the CLIs' one-line warning with its name, as its
+    errors (``error: bridge: ...``), never Python's ``file:line: Category:`` + source line; and it runs on."""
+    import signal
+    import time
+
+    doc = (ROOT / "docs" / "plausibility.md").read_text().splitlines()
+    cli_line = next(line for line in doc if line.startswith("warning: bridge spec.zeta_pct: 0.0185 %"))
+    err = tmp_path / "bridge.err"
+    with local_ros_env() as env, open(err, "w") as f:
+        p = subprocess.Popen([sys.executable, "-m", "adm_sim.nodes.bridge_node", "--ros-args", "-p",
+                              "bridge:=L=15,n0=8.26,mu=19042,zeta_pct=0.0185"], stdout=subprocess.DEVNULL, stderr=f,
+                             env=env, cwd=ROOT)
+        try:
+            t_end = time.monotonic() + 60
+            while "warning:" not in err.read_text() and time.monotonic() < t_end and p.poll() is None:
+                time.sleep(0.1)
+            time.sleep(0.5)
+            assert p.poll() is None, err.read_text()  # a warning, not an error: the node runs on
+        finally:
+            p.send_signal(signal.SIGINT)
+            p.wait(30)
+    lines = err.read_text().splitlines()
+    assert [line for line in lines if "warning" in line.lower()] == [
+        "warning: bridge: " + cli_line.removeprefix("warning: ")], lines
+    assert not any("PlausibilityWarning" in line or ".py:" in line for line in lines), lines
+
+
 def test_node_started_by_hand_with_malformed_params_file(tmp_path):
     bad = tmp_path / "bad.yaml"
     bad.write_text("train:\n  ros__parameters:\n    model: [\n")

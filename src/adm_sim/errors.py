@@ -8,7 +8,8 @@
   viewer or a node that does not answer). Exit code 1.
 
 Command lines print errors as one line ``error: ...`` and plausibility warnings as one line
-``warning: ...`` each on stderr (:func:`run_cli`); an interrupt
+``warning: ...`` each on stderr (:func:`run_cli`), ROS nodes ``error: <node>: ...`` and every
+warning as ``warning: <node>: ...`` (:class:`one_line_warnings`); an interrupt
 (Ctrl-C, SIGINT or SIGTERM) prints ``error: interrupted`` and exits with 130, leaving no partial
 output (outputs are written beside and renamed, :mod:`adm_sim.files`).
 """
@@ -70,24 +71,37 @@ def run_cli(call):
             release_all()
 
 
-class plausibility_warnings:
-    """Within the block, every :class:`~adm_sim.plausibility.PlausibilityWarning` is printed as one
-    line ``warning: <message>`` on stderr (not deduplicated); other warnings keep their usual display.
-    The warning filters and ``warnings.showwarning`` come back at its end."""
+class one_line_warnings:
+    """Within the block, every warning of ``categories`` is printed as one line on stderr:
+    ``warning: <prefix><message>`` for a :class:`~adm_sim.plausibility.PlausibilityWarning`,
+    ``warning: <prefix><Category>: <message>`` for any other (no ``file:line:`` and source line as
+    Python's own display). ``repeat``: print every occurrence (``always``), else Python's filters
+    decide (``default``: once per message and place). Other warnings keep their usual display;
+    the warning filters and ``warnings.showwarning`` come back at its end. The ROS nodes use it
+    with their name as the prefix (:func:`adm_sim.nodes.common.run_node`), as their ``error:`` lines.
+    """
+
+    def __init__(self, prefix="", categories=(PlausibilityWarning,), repeat=True):
+        self.prefix, self.categories, self.repeat = prefix, tuple(categories), repeat
 
     def __enter__(self):
         import warnings
 
         self._catch = warnings.catch_warnings()
         self._catch.__enter__()
-        warnings.simplefilter("always", PlausibilityWarning)
+        if self.repeat:
+            for category in self.categories:
+                warnings.simplefilter("always", category)
         shown = warnings.showwarning
 
         def show(message, category, filename, lineno, file=None, line=None):
-            if issubclass(category, PlausibilityWarning):
-                print(f"warning: {one_line(message)}", file=sys.stderr, flush=True)
-            else:
+            if not issubclass(category, self.categories):
                 shown(message, category, filename, lineno, file, line)
+            elif issubclass(category, PlausibilityWarning):
+                print(f"warning: {self.prefix}{one_line(message)}", file=sys.stderr, flush=True)
+            else:
+                print(f"warning: {self.prefix}{category.__name__}: {one_line(message)}", file=sys.stderr,
+                      flush=True)
 
         warnings.showwarning = show
         return self
@@ -95,6 +109,15 @@ class plausibility_warnings:
     def __exit__(self, *exc):
         self._catch.__exit__(*exc)
         return False
+
+
+class plausibility_warnings(one_line_warnings):
+    """Within the block, every :class:`~adm_sim.plausibility.PlausibilityWarning` is printed as one
+    line ``warning: <message>`` on stderr (not deduplicated); other warnings keep their usual display.
+    The warning filters and ``warnings.showwarning`` come back at its end."""
+
+    def __init__(self):
+        super().__init__()
 
 
 class interrupt_signals:

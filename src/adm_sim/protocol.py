@@ -10,17 +10,21 @@ L latched, publisher; docs/ros.md, section "Topics", is the reference for their 
 
     /adm/run/setup      train -> bridge   JSON :func:`setup_record`
     /adm/run/ready      bridge -> train   JSON :func:`ready_record` / :func:`ready_error`
-    /adm/run/status     bridge, train     JSON :func:`status_record` (state started/done/failed)
+    /adm/run/status     bridge, train,    JSON :func:`status_record` (state started/done/failed;
+                        driver            the driver's requested: :func:`request_record`, the phase)
     /adm/run/result     bridge            rows :data:`RESULT_ROWS` x lane
     /adm/exchange/*     lockstep messages (header of :data:`EXCHANGE_HEADER_LEN` doubles)
     /adm/midspan/*, /adm/beam/*, /adm/progress, /clock, /diagnostics: monitoring
     /adm/{bridge,train}/description   JSON, latched
     /adm/calibration/{iteration,result}
 
-Run phases (:func:`run_phase`): which part of the Section 4 calibration a run belongs to. The
-calibration's sweep hook is not told the phase, so it is read from the run itself (model, the Δζ
-of its lanes, its lane count) by that one function, which the calibration node (its ``@run``
-labels) and the rerun logger (series, colours, trial names) both call.
+Run phases (:data:`PHASES`): which part of the Section 4 calibration a run belongs to. The phase
+is handed on, never read from the run's arrays: the calibration names it with every lane request
+(:mod:`adm_calib.lanes`), the calibration node maps it with :data:`CALIBRATION_PHASES`, a plain
+crossing or sweep is named by what it asks for (:func:`plain_run_phase`); the driver publishes it
+with the run id in its ``requested`` status record (:func:`request_record`, recorded in the MCAP)
+and hands it to the rerun logger. A recording made before the phase was recorded replays with
+:data:`PHASE_UNKNOWN`.
 
 Rerun (:data:`ENTITIES`, :data:`TIMELINES`): the entity roots the logger writes below and the
 blueprint's views show, and the timeline names.
@@ -36,6 +40,7 @@ import numpy as np
 BRIDGE_NODE = "bridge"
 TRAIN_NODE = "train"
 CALIBRATION_NODE = "calibration"
+DRIVER_NODE = "driver"  # a plain run's driver (the calibration node is a driver too)
 #: The train node's ``~/start_run`` service (``std_srvs/Trigger``) as the driver calls it.
 SERVICE_START_RUN = f"/{TRAIN_NODE}/start_run"
 
@@ -74,7 +79,7 @@ TOPICS = {
     TOPIC_FORCES: ("std_msgs/msg/Float64MultiArray", "X", TRAIN_NODE),
     TOPIC_AXLE_BLOCK: ("std_msgs/msg/Float64MultiArray", "X", TRAIN_NODE),
     TOPIC_RESULT: ("std_msgs/msg/Float64MultiArray", "C", BRIDGE_NODE),
-    TOPIC_STATUS: ("std_msgs/msg/String", "C", f"{BRIDGE_NODE}, {TRAIN_NODE}"),
+    TOPIC_STATUS: ("std_msgs/msg/String", "C", f"{BRIDGE_NODE}, {TRAIN_NODE}, {DRIVER_NODE} / {CALIBRATION_NODE}"),
     TOPIC_ACCEL: ("geometry_msgs/msg/AccelStamped", "M", BRIDGE_NODE),
     TOPIC_STATE: ("std_msgs/msg/Float64MultiArray", "M", BRIDGE_NODE),
     TOPIC_BEAM: ("std_msgs/msg/Float64MultiArray", "M", BRIDGE_NODE),
@@ -105,9 +110,9 @@ RESULT_ROWS = ("speed_kmh", "max_acc_m_s2", "max_disp_m", "delta_zeta")
 ITERATION_FIELDS = ("iteration", "delta_zeta_pct", "mlm_peak_m_s2", "dim_peak_m_s2")
 
 # ---------------------------------------------------------------------- JSON records
-#: ``state`` of a status record.
-STARTED, DONE, FAILED = "started", "done", "failed"
-RUN_STATES = (STARTED, DONE, FAILED)
+#: ``state`` of a status record; ``requested`` is the driver's (:func:`request_record`).
+STARTED, DONE, FAILED, REQUESTED = "started", "done", "failed", "requested"
+RUN_STATES = (STARTED, DONE, FAILED, REQUESTED)
 
 
 def encode(record: dict) -> str:
@@ -156,6 +161,18 @@ def status_record(node, run_id, state, **extra):
     message``; a ``failed`` of a node carries the ``message``.
     """
     return {"node": node, "run_id": run_id, "state": state, **extra}
+
+
+def request_record(node, run_id, model, phase, label):
+    """``/adm/run/status`` ``requested`` (driver): run ``run_id`` (``model``) was asked for as part of
+    ``phase`` (:data:`PHASES`), shown as ``label``. Published by the driver as soon as the train node
+    accepted the run, so the phase is in the recording with the run id."""
+    return status_record(node, run_id, REQUESTED, model=model, phase=phase, label=label)
+
+
+def is_request(st: dict) -> bool:
+    """Whether ``st`` is a driver's ``requested`` record of a run (it carries the run's phase)."""
+    return st.get("state") == REQUESTED and st.get("run_id") is not None
 
 
 def is_failure(st: dict, run_id=None) -> bool:
@@ -223,42 +240,44 @@ PHASE_MLM_ZETA_DZ = "mlm_zeta_dz"  # MLM over the full range, one Δζ (the adap
 PHASE_BRACKETING = "bracketing"    # MLM lanes carrying several Δζ: the bracketing ladder
 PHASE_ROOT_SEARCH = "root_search"  # MLM, one Δζ on fewer lanes than the full range
 PHASES = (PHASE_DIM, PHASE_MLM_ZETA, PHASE_MLM_ZETA_DZ, PHASE_BRACKETING, PHASE_ROOT_SEARCH)
+#: The phase of a run in a recording made before runs carried their phase (replay).
+PHASE_UNKNOWN = "unknown"
 #: The phase a calibration request carries (``adm_calib.lanes.PHASES``) -> the run phase above.
-#: The calibration names its phase with every lane request; the calibration node maps it here.
+#: The calibration names its phase with every lane request; the calibration node maps it here and
+#: hands it on with the run (:func:`request_record`).
 CALIBRATION_PHASES = {"mlm": PHASE_MLM_ZETA, "mlm_refine": PHASE_ROOT_SEARCH, "dim": PHASE_DIM,
                       "dim_refine": PHASE_DIM, "dim_peak_refine": PHASE_DIM, "ladder": PHASE_BRACKETING,
                       "root": PHASE_ROOT_SEARCH, "check": PHASE_ROOT_SEARCH, "adapted": PHASE_MLM_ZETA_DZ}
 
 
-def run_phase(model: str, delta_zeta, n_lanes: int, n_full: int) -> str:
-    """The calibration phase of a run, read from the run (the calibration does not send it).
+def plain_run_phase(model: str, delta_zeta: float, delta_zeta_lanes) -> str:
+    """The phase of a run requested outside a calibration (a crossing, a sweep), named by its request.
 
     Parameters
     ----------
     model : str
-        ``dim`` or ``mlm``.
-    delta_zeta : float or array_like (n_lanes,)
-        Additional damping of the lanes (fraction).
-    n_lanes : int
-        Lanes of the run.
-    n_full : int
-        Lanes of the calibration's full MLM speed range.
+        ``dim`` or ``mlm`` (the train node's ``model``).
+    delta_zeta : float
+        The bridge node's ``delta_zeta`` (fraction).
+    delta_zeta_lanes : str or sequence of float
+        The bridge node's ``delta_zeta_lanes`` (a comma list, empty: every lane ``delta_zeta``).
 
     Returns
     -------
     str
-        :data:`PHASE_DIM`; :data:`PHASE_BRACKETING` (several Δζ over the lanes: the ladder of
-        Section 4); :data:`PHASE_ROOT_SEARCH` (one Δζ on fewer lanes than ``n_full``: the
-        relocation window); :data:`PHASE_MLM_ZETA` (Δζ = 0) or :data:`PHASE_MLM_ZETA_DZ`.
+        :data:`PHASE_DIM`; :data:`PHASE_BRACKETING` (several Δζ over the lanes, drawn one curve per
+        Δζ); :data:`PHASE_MLM_ZETA` (Δζ = 0) or :data:`PHASE_MLM_ZETA_DZ` (one Δζ).
     """
     if model.lower() == "dim":
         return PHASE_DIM
-    dz = np.unique(np.asarray(delta_zeta, dtype=float))
-    if dz.size > 1:
+    if isinstance(delta_zeta_lanes, str):
+        lanes = [float(x) for x in delta_zeta_lanes.split(",") if x.strip()]
+    else:
+        lanes = [float(x) for x in delta_zeta_lanes]
+    dz = set(lanes) if lanes else {float(delta_zeta)}
+    if len(dz) > 1:
         return PHASE_BRACKETING
-    if n_lanes < n_full:
-        return PHASE_ROOT_SEARCH
-    return PHASE_MLM_ZETA if dz.size == 0 or dz[0] == 0.0 else PHASE_MLM_ZETA_DZ
+    return PHASE_MLM_ZETA if dz == {0.0} else PHASE_MLM_ZETA_DZ
 
 
 # ---------------------------------------------------------------------- rerun
@@ -277,7 +296,7 @@ ENTITIES = {
     "acceleration": "runs/acceleration",      # runs/acceleration/run_NN: Scalars
     "beam": "runs/beam",                      # runs/beam/run_NN/{deflection,axles,peak_*}, runs/beam/{supports,axis}
     "run_info": "runs/info",                  # TextDocument (markdown table)
-    "sweep_main": "sweep/curves",             # sweep/curves/{DIM, MLM_zeta, MLM_zeta_dz, ...}
+    "sweep_main": "sweep/curves",             # sweep/curves/{DIM, MLM_zeta, MLM_zeta_dz, unknown, ...}
     "sweep_trials": "sweep/trials",           # sweep/trials/{bracketing,root_search}/NN
     "dz": "calibration/delta_zeta_pct",       # .../{bracketing,root_search}
     "peaks": "calibration/peak_m_s2",         # .../{mlm_bracketing,mlm_root_search,dim}
@@ -287,6 +306,14 @@ ENTITIES = {
     "diagnostics": "diagnostics",
     "metadata": "metadata",
 }
+
+
+#: Speed-sweep curve (:func:`sweep_curve_path`) of a run of each phase that is drawn as one curve;
+#: the runs of :data:`TRIAL_PHASES` are drawn one curve per Δζ (:func:`sweep_trial_path`).
+SWEEP_CURVE_NAMES = {PHASE_DIM: "DIM", PHASE_MLM_ZETA: "MLM_zeta", PHASE_MLM_ZETA_DZ: "MLM_zeta_dz",
+                     PHASE_UNKNOWN: PHASE_UNKNOWN}
+#: Phases whose runs are damping trials (Δζ per iteration: :func:`delta_zeta_path`).
+TRIAL_PHASES = (PHASE_BRACKETING, PHASE_ROOT_SEARCH)
 
 
 def run_tag(run_id: int) -> str:
@@ -336,5 +363,5 @@ def is_entity(path: str) -> bool:
 __all__ = [n for n in dir() if n.isupper() or n in (
     "encode", "decode", "setup_record", "ready_record", "ready_error", "is_rejected", "status_record",
     "is_failure", "is_bridge_start", "progress_record", "bridge_description_record", "train_description_record",
-    "driver_line", "parse_driver_line", "run_phase", "run_tag", "acceleration_path",
+    "driver_line", "parse_driver_line", "request_record", "is_request", "plain_run_phase", "run_tag", "acceleration_path",
     "beam_path", "sweep_curve_path", "sweep_trial_path", "delta_zeta_path", "peak_path", "is_entity")]

@@ -59,26 +59,30 @@ class CalibrationNode(RunDriver):
         self.iteration = 0
 
     # ------------------------------------------------------------------ co-simulated sweeps
-    def sweep(self, model, speeds, dz=0.0, label=None):
-        """Max midspan acceleration per speed (m/s^2) from one co-simulated run."""
+    def sweep(self, model, speeds, dz=0.0, phase=None):
+        """Max midspan acceleration per speed (m/s^2) from one co-simulated run of run phase ``phase``
+        (:data:`adm_sim.protocol.PHASES`), handed on to the run's records and rerun."""
         dz = np.asarray(dz, dtype=float)
+        label = None if phase is None else PHASE_LABELS[phase]
         if dz.ndim == 0 or np.all(dz == dz.flat[0]):
             r = self.request_run(model, np.asarray(speeds, float), delta_zeta=float(dz.flat[0]), delta_zeta_lanes=[],
-                                 label=label)
+                                 label=label, phase=phase)
         else:
-            r = self.request_run(model, np.asarray(speeds, float), delta_zeta=0.0, delta_zeta_lanes=dz, label=label)
+            r = self.request_run(model, np.asarray(speeds, float), delta_zeta=0.0, delta_zeta_lanes=dz, label=label,
+                                 phase=phase)
         return np.asarray(r["max_acc_m_s2"], dtype=float)
 
     def _iteration(self, dz, mlm_peak, dim_peak):
-        """One trial damping: publish, print and log it (``calibrate``'s ``on_trial``)."""
+        """One trial damping: publish, print and log it (``calibrate``'s ``on_trial``, called after the
+        run it was read from: its phase is the phase of the last run requested)."""
         self.iteration += 1
         i = self.iteration
         self.publish_recorded(self.pub_iter, P.TOPIC_CAL_ITERATION, c.matrix_msg(
             ("quantity:" + ",".join(P.ITERATION_FIELDS),), [i, 100 * dz, mlm_peak, dim_peak]))
         say("iteration", i=i, delta_zeta_pct=100 * dz, mlm_peak_m_s2=mlm_peak, dim_peak_m_s2=dim_peak,
-            ratio=mlm_peak / dim_peak)
+            ratio=mlm_peak / dim_peak, phase=self.last_phase)
         if self.viz is not None:
-            self.viz.iteration(i, 100 * dz, mlm_peak, dim_peak)
+            self.viz.iteration(i, 100 * dz, mlm_peak, dim_peak, self.last_phase)
 
     def _hook(self, model, speeds, dz, step, phase):
         """``calibrate``'s sweep hook: one co-simulated run on the calibration's space step.
@@ -89,7 +93,7 @@ class CalibrationNode(RunDriver):
             self.set_params(P.BRIDGE_NODE, ds_m=step.ds_m, delta_zeta=0.0, delta_zeta_lanes="")
             self._ds_m = step.ds_m
         run_phase = P.CALIBRATION_PHASES[phase]
-        acc = self.sweep(model, speeds, dz, label=PHASE_LABELS[run_phase])
+        acc = self.sweep(model, speeds, dz, phase=run_phase)
         if run_phase == P.PHASE_MLM_ZETA and self._auto_monitor:
             self._monitor_peak(speeds, acc)
         return acc

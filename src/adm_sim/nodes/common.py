@@ -506,7 +506,20 @@ class NodeBase(ParamNodeMixin, Node):
 
 
 def run_node(make_node, args=None, name="node"):
-    """The ``main`` of every node: init, spin until finished, one-line errors, clean shutdown.
+    """The ``main`` of every node: init, spin until finished, one-line errors and warnings, clean shutdown.
+
+    Every Python warning raised in the node (start-up, parameter callbacks, the driver's job) is
+    printed as one line ``warning: <name>: ...`` on stderr, as the CLIs print theirs
+    (:class:`adm_sim.errors.one_line_warnings`; Python's filters still print a repeated warning once).
+    """
+    from adm_sim.errors import one_line_warnings
+
+    with one_line_warnings(prefix=f"{name}: ", categories=(Warning,), repeat=False):
+        return _run_node(make_node, args, name)
+
+
+def _run_node(make_node, args, name):
+    """:func:`run_node` without the warning display.
 
     While the node has a run active (``node.run``) its :class:`ExchangeLane` is served in bursts
     of up to 50 ms, each followed by the partner watch and one turn of the node's executor;

@@ -98,7 +98,7 @@ def say(kind, **payload):
 class RunDriver(c.NodeBase):
     """Requests runs and records them; see the module docstring."""
 
-    def __init__(self, name="driver", extra_specs=(), **kw):
+    def __init__(self, name=P.DRIVER_NODE, extra_specs=(), **kw):
         super().__init__(name, **kw)
         self.declare_specs(list(DRIVER_SPECS) + list(extra_specs))
         p = self.param_values()
@@ -138,6 +138,9 @@ class RunDriver(c.NodeBase):
             qos = c.QOS_LATCHED if topic.endswith("description") else (
                 c.QOS_CONTROL if topic in (P.TOPIC_RESULT, P.TOPIC_STATUS, P.TOPIC_DIAGNOSTICS) else c.QOS_MONITOR)
             self.create_subscription(typ, topic, self._make_cb(topic), qos)
+        #: the driver's ``requested`` records (the run id with its phase); its own subscription records them
+        self.pub_request = self.create_publisher(String, P.TOPIC_STATUS, c.QOS_CONTROL)
+        self.last_phase = None  # phase of the last run requested (the iterations that follow it)
         self.cli_start = self.create_client(Trigger, P.SERVICE_START_RUN)
         self.params = {n: AsyncParameterClient(self, n) for n in (P.BRIDGE_NODE, P.TRAIN_NODE)}
 
@@ -268,12 +271,19 @@ class RunDriver(c.NodeBase):
         why = f" ({failed[0]['node']}: {failed[0].get('message', '')})" if failed else ""
         raise RunError(f"node {which} vanished during run {'?' if run is None else run}{why}")
 
-    def request_run(self, model=None, speeds_kmh=None, delta_zeta=None, delta_zeta_lanes=None, label=None):
-        """One co-simulated run; returns ``{"speeds_kmh", "max_acc_m_s2", "max_disp_m", "delta_zeta", ...}``.
+    def request_run(self, model=None, speeds_kmh=None, delta_zeta=None, delta_zeta_lanes=None, label=None,
+                    phase=None):
+        """One co-simulated run; returns ``{"speeds_kmh", "max_acc_m_s2", "max_disp_m", "delta_zeta", "phase", ...}``.
 
         ``None`` leaves the node's current parameter; ``speeds_kmh`` may be an array (sent as an
-        exact comma list), ``delta_zeta_lanes`` an array with one value per lane.
+        exact comma list), ``delta_zeta_lanes`` an array with one value per lane. ``phase``
+        (:data:`adm_sim.protocol.PHASES`) is what the run is for; ``None``: a run outside a
+        calibration, named by its request (:func:`adm_sim.protocol.plain_run_phase`). It is
+        published with the run id (``/adm/run/status`` ``requested``, so recorded in the MCAP),
+        printed with the ``@run`` lines and handed to the rerun logger.
         """
+        if phase is not None and phase not in P.PHASES:
+            raise InputError(f"phase: {phase!r} is not a run phase; allowed {', '.join(P.PHASES)}")
         tp, bp = {}, {}
         if model is not None:
             tp["model"] = model
@@ -298,11 +308,17 @@ class RunDriver(c.NodeBase):
             self._event.wait(0.1)
         info = dict(kv.split("=", 1) for kv in resp.message.split())
         run_id, model = int(info["run_id"]), info["model"]
+        if phase is None:
+            desc = self.description(P.BRIDGE_NODE)
+            phase = P.plain_run_phase(model, desc["delta_zeta"] if delta_zeta is None else delta_zeta,
+                                      desc["delta_zeta_lanes"] if delta_zeta_lanes is None else delta_zeta_lanes)
+        self.last_phase = phase
         t0 = time.perf_counter()
         timeout = self.get_parameter("run_timeout_s").value
         lab = label or model.upper()
         self._current = (run_id, model, f"{lab} run {run_id}")
-        say("run", run_id=run_id, model=model, lanes=int(info["lanes"]), state="started", label=lab)
+        self.pub_request.publish(c.json_msg(P.request_record(self.get_name(), run_id, model, phase, lab)))
+        say("run", run_id=run_id, model=model, lanes=int(info["lanes"]), state="started", label=lab, phase=phase)
         last_check = time.monotonic()
         while True:
             self._event.wait(0.2)
@@ -323,14 +339,14 @@ class RunDriver(c.NodeBase):
         if self.recorder is not None or self.viz is not None:
             self._await_monitoring(run_id)
         if self.viz is not None:
-            self.viz.run_done(res)
+            self.viz.run_done(res, phase, run_id)
         self._current = None
         self.n_runs += 1
         out = {"run_id": run_id, "model": model, "speeds_kmh": res[0], "max_acc_m_s2": res[1],
-               "max_disp_m": res[2], "delta_zeta": res[3], "wall_s": wall}
+               "max_disp_m": res[2], "delta_zeta": res[3], "wall_s": wall, "phase": phase}
         i = int(np.argmax(res[1]))
         say("run", run_id=run_id, model=model, state="done", wall_s=round(wall, 3),
-            max_acc_m_s2=float(res[1][i]), speed_kmh=float(res[0][i]), label=lab)
+            max_acc_m_s2=float(res[1][i]), speed_kmh=float(res[0][i]), label=lab, phase=phase)
         return out
 
     def _await_monitoring(self, run_id, timeout_s=60.0):
@@ -428,7 +444,7 @@ class RunDriver(c.NodeBase):
 
 
 def main(args=None):
-    return c.run_node(RunDriver, args=args, name="driver")
+    return c.run_node(RunDriver, args=args, name=P.DRIVER_NODE)
 
 
 if __name__ == "__main__":

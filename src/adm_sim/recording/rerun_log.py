@@ -18,7 +18,10 @@ span is known. Entities
 ``runs/info``
     Table of the runs: series, lanes, monitored speed, sampling, peak.
 ``sweep/curves/{DIM,MLM_zeta,MLM_zeta_dz}``, ``sweep/trials/{bracketing,root_search}/NN``
-    Maximum deck acceleration [m/s²] against speed, one entity per curve and per damping trial.
+    Maximum deck acceleration [m/s²] against speed, one entity per curve and per damping trial. The
+    run's phase (:data:`adm_sim.protocol.PHASES`) picks the entity; every caller hands it over
+    (:meth:`RunLogger.run_done`, :meth:`RunLogger.iteration`), nothing is read from array shapes.
+    Runs of a recording made before runs carried their phase go to ``sweep/curves/unknown[_run_NN]``.
 ``calibration/delta_zeta_pct/*``, ``calibration/peak_m_s2/*``, ``calibration/result``
     Δζ per iteration, MLM and DIM peaks, bracketing and root search as separate series.
 
@@ -247,25 +250,25 @@ def _part(label) -> str:
 
 # ---------------------------------------------------------------- run logger
 
-#: Series kinds of a run (from its result: model and the Δζ of its lanes) and their colours.
+#: Series kinds of a run (the display name of its phase, handed on by the caller) and their colours.
 DIM, MLM_ZETA, MLM_ZETA_DZ, BRACKETING, ROOT_SEARCH = "DIM", "MLM ζ", "MLM ζ+Δζ", "bracketing", "root search"
+#: A run of a recording made before runs carried their phase (:data:`adm_sim.protocol.PHASE_UNKNOWN`).
+UNKNOWN = "phase unknown"
 _COLORS = {DIM: (214, 39, 40), MLM_ZETA: (31, 119, 180), MLM_ZETA_DZ: (44, 160, 44),
-           BRACKETING: (150, 150, 150), ROOT_SEARCH: (255, 127, 14)}
-_SWEEP_NAMES = {DIM: "DIM", MLM_ZETA: "MLM_zeta", MLM_ZETA_DZ: "MLM_zeta_dz"}
-#: Series kind of each calibration phase (:data:`adm_sim.protocol.PHASES`).
+           BRACKETING: (150, 150, 150), ROOT_SEARCH: (255, 127, 14), UNKNOWN: (90, 90, 90)}
+#: Series kind of each run phase (:data:`adm_sim.protocol.PHASES` and ``PHASE_UNKNOWN``).
 _KIND_OF_PHASE = {P.PHASE_DIM: DIM, P.PHASE_MLM_ZETA: MLM_ZETA, P.PHASE_MLM_ZETA_DZ: MLM_ZETA_DZ,
-                  P.PHASE_BRACKETING: BRACKETING, P.PHASE_ROOT_SEARCH: ROOT_SEARCH}
+                  P.PHASE_BRACKETING: BRACKETING, P.PHASE_ROOT_SEARCH: ROOT_SEARCH, P.PHASE_UNKNOWN: UNKNOWN}
 
 
-def run_kind(model: str, delta_zeta, n_lanes: int, n_full: int) -> str:
-    """Series kind of a run: the display name of its phase, :func:`adm_sim.protocol.run_phase`.
-
-    ``DIM``; ``bracketing`` (an MLM run whose lanes carry several Δζ: the calibration's ladder);
-    ``root search`` (an MLM run with one Δζ on fewer lanes than the full MLM range ``n_full``);
-    ``MLM ζ`` (Δζ = 0) or ``MLM ζ+Δζ`` (one Δζ over the full range). The calibration node labels its
-    runs with the same function.
-    """
-    return _KIND_OF_PHASE[P.run_phase(model, delta_zeta, n_lanes, n_full)]
+def run_kind(phase: str) -> str:
+    """Series kind of a run of ``phase`` (:data:`adm_sim.protocol.PHASES` or ``PHASE_UNKNOWN``): its
+    display name. Raises :class:`InputError` for any other phase."""
+    try:
+        return _KIND_OF_PHASE[phase]
+    except KeyError:
+        raise InputError(f"phase: {phase!r} is not a run phase; allowed "
+                         f"{', '.join(_KIND_OF_PHASE)}") from None
 
 
 def fmt_pct(fraction: float) -> str:
@@ -349,11 +352,9 @@ class RunLogger:
         self._span_m = None
         self._bridge = {}
         self._train = {}
-        self._n_full = 0
-        self._trials = {BRACKETING: 0, ROOT_SEARCH: 0}
+        self._trials = {phase: 0 for phase in P.TRIAL_PHASES}
         self._curves_used: set[str] = set()
         self._styled: set[str] = set()
-        self._last_kind = None
         self.blueprint_sent = False
 
     # ------------------------------------------------------------ helpers
@@ -481,25 +482,26 @@ class RunLogger:
         rr.reset_time(recording=self.rec)
 
     # ------------------------------------------------------------ end of a run
-    def run_done(self, result) -> str | None:
+    def run_done(self, result, phase: str, run_id: int | None = None) -> str | None:
         """``/adm/run/result`` (rows speed_kmh, max_acc_m_s2, max_disp_m, delta_zeta): log the curves.
 
-        Returns the run's kind (:func:`run_kind`), ``None`` if the run was never announced.
+        ``phase`` is the run's phase as the caller was handed it (:data:`adm_sim.protocol.PHASES`,
+        ``PHASE_UNKNOWN`` for an old recording); it is never read from the arrays. ``run_id``: the
+        run the result belongs to (default the last announced one). Returns the run's kind
+        (:func:`run_kind`), ``None`` if the run was never announced.
         """
         import rerun as rr
 
         self.flush()
         res = np.asarray(result, dtype=float)
-        if not self.runs:
+        runs = [r for r in self.runs if run_id is None or r.id == int(run_id)]
+        if not runs:
             return None
-        r = self.runs[-1]
+        r = runs[-1]
         if r.kind is not None:  # a result twice (replay of a duplicated record)
             return r.kind
         v, acc, dz = res[0], res[1], res[3]
-        if r.model.lower() == "mlm" and np.all(dz == 0.0):
-            self._n_full = max(self._n_full, v.size)
-        r.kind = kind = run_kind(r.model, dz, v.size, self._n_full)
-        self._last_kind = kind
+        r.kind = kind = run_kind(phase)
         color = _COLORS[kind]
         mon = f" at {r.mon_kmh:g} km/h" if r.mon_kmh else ""
         uniq = np.unique(dz)
@@ -522,7 +524,7 @@ class RunLogger:
             rr.log(P.beam_path(r.id, "peak_axles"), rr.Points2D(np.column_stack([ax, k * aw]).reshape(-1, 2),
                                                                 colors=color, radii=0.12), recording=self.rec)
         rr.reset_time(recording=self.rec)
-        self._log_sweep(r, kind, v, acc, dz)
+        self._log_sweep(r, phase, v, acc, dz)
         i = int(np.argmax(acc))
         r.row = (f"| {r.id} | {kind}{dz_txt} | {v.size} | {_fmt(v.min())}–{_fmt(v.max())} | "
                  f"{_fmt(r.mon_kmh) if r.mon_kmh else '-'} | {self._sampling(r)} | {acc[i]:.3f} | {v[i]:g} |")
@@ -554,19 +556,19 @@ class RunLogger:
         rr.log(P.ENTITIES["run_info"], rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN), static=True,
                recording=self.rec)
 
-    def _log_sweep(self, r: _Run, kind, v, acc, dz):
-        if kind in (BRACKETING, ROOT_SEARCH):
+    def _log_sweep(self, r: _Run, phase, v, acc, dz):
+        kind = run_kind(phase)
+        if phase in P.TRIAL_PHASES:
             for value in np.unique(dz):
                 lanes = dz == value
-                self._trials[kind] += 1
-                n = self._trials[kind]
-                path = P.sweep_trial_path(P.PHASE_BRACKETING if kind == BRACKETING else P.PHASE_ROOT_SEARCH, n)
-                shade = _COLORS[kind]
+                self._trials[phase] += 1
+                n = self._trials[phase]
+                path = P.sweep_trial_path(phase, n)
                 self._style(path, name=f"{'bracket' if kind == BRACKETING else 'root'} {n}: Δζ {fmt_pct(value)}",
-                            color=shade, width=1.0)
+                            color=_COLORS[kind], width=1.0)
                 self._send_curve(path, v[lanes], acc[lanes])
             return
-        name = _SWEEP_NAMES[kind]
+        name = P.SWEEP_CURVE_NAMES[phase]
         if kind != DIM and name in self._curves_used:
             name = f"{name}_{r.tag}"
         self._curves_used.add(name)
@@ -587,15 +589,16 @@ class RunLogger:
                         recording=self.rec)
 
     # ------------------------------------------------------------ calibration
-    def iteration(self, i: int, delta_zeta_pct: float, mlm_peak_m_s2: float, dim_peak_m_s2: float):
-        """``/adm/calibration/iteration``: one trial damping; phase from the run it came from."""
+    def iteration(self, i: int, delta_zeta_pct: float, mlm_peak_m_s2: float, dim_peak_m_s2: float, phase: str):
+        """``/adm/calibration/iteration``: one trial damping of the run of ``phase`` it came from
+        (``bracketing``: points, ``root_search``: lines, handed on by the caller like the run's)."""
         import rerun as rr
 
-        bracketing = self._last_kind == BRACKETING
-        phase = P.PHASE_BRACKETING if bracketing else P.PHASE_ROOT_SEARCH
-        color = _COLORS[BRACKETING if bracketing else ROOT_SEARCH]
+        kind = run_kind(phase)
+        bracketing = phase == P.PHASE_BRACKETING
+        color = _COLORS[kind]
         lines = not bracketing
-        words = "bracketing ladder" if bracketing else "root search"
+        words = {BRACKETING: "bracketing ladder", ROOT_SEARCH: "root search"}.get(kind, kind)
         dz_path, mlm_path, dim_path = P.delta_zeta_path(phase), P.peak_path(f"mlm_{phase}"), P.peak_path("dim")
         self._style(dz_path, lines=lines, name=f"Δζ, {words} [%]", color=color, width=2.0 if lines else 6.0)
         self._style(mlm_path, lines=lines, name=f"MLM ζ+Δζ peak, {words}", color=color, width=2.0 if lines else 6.0)
