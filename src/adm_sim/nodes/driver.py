@@ -225,11 +225,17 @@ class RunDriver(c.NodeBase):
         return self._desc[which]
 
     # ------------------------------------------------------------------ blocking calls (worker thread)
-    def _wait_future(self, fut, what, timeout_s=10.0):
+    def _wait_future(self, fut, what, timeout_s=120.0):
+        """Wait for a service answer. A node that left the graph fails at once (checked every
+        second); one that is alive but busy (a first run compiles kernels, a loaded machine) is
+        given ``timeout_s``."""
         done = threading.Event()
         fut.add_done_callback(lambda _f: done.set())
-        if not done.wait(timeout_s):
-            raise RunError(f"{what}: no answer after {timeout_s:g} s")
+        t_end = time.monotonic() + timeout_s
+        while not done.wait(min(1.0, max(0.0, t_end - time.monotonic()))):
+            if time.monotonic() >= t_end:
+                raise RunError(f"{what}: no answer after {timeout_s:g} s")
+            self._check_alive()
         return fut.result()
 
     def set_params(self, node_name, **values):
