@@ -75,7 +75,7 @@ def _default_signals():
 
 #: ``PR_SET_PDEATHSIG`` of <linux/prctl.h>.
 _PR_SET_PDEATHSIG = 1
-_PRCTL = []
+_PRCTL: list = []
 
 
 def _prctl():

@@ -21,6 +21,7 @@ from __future__ import annotations
 import array
 import os
 from collections.abc import Iterator, Mapping
+from typing import Any
 from pathlib import Path
 
 import numpy as np
@@ -54,7 +55,7 @@ def type_name(msg_type) -> tuple[str, str]:
     return pkg, msg_type.__name__
 
 
-_TYPESTORE = None
+_TYPESTORE: Any = None  # rosbags Typestore, loaded on first use
 
 
 def message_definition(msg_type) -> tuple[str, str]:
@@ -182,7 +183,8 @@ class McapRecorder:
             ) from None
         except OSError as exc:
             raise InputError(f"path: cannot create '{self.path}': {exc.strerror}") from None
-        self._writer = Writer(self._file, chunk_size=chunk_size, compression=kinds[compression])
+        self._writer = Writer(self._file, chunk_size=chunk_size,  # type: ignore[arg-type]  # a write()/tell() file
+                              compression=kinds[compression])
         self._writer.start(profile="ros2", library="adm-sim mcap_log")
         self._schemas: dict[type, tuple[int, str]] = {}
         self._channels: dict[str, tuple[int, type]] = {}

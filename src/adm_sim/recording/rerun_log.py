@@ -205,7 +205,7 @@ def init_rerun(app_id: str, spawn: bool = False, connect_url: str | None = None,
     import rerun as rr
 
     ensure_analytics_disabled()
-    sinks = []
+    sinks: list = []
     viewer = None
     if spawn and connect_url is not None:
         raise InputError("init_rerun: give spawn=True or connect_url, not both")
@@ -303,9 +303,9 @@ class _Run:
         # sim time at the run's last step (the clock runs in the slowest lane)
         self.t1 = self.t0 + (self.n_steps * self.ds_m / (v_clock / 3.6) if v_clock > 0 else np.inf)
         self.tag = P.run_tag(self.id)
-        self.kind = None
-        self.row = None
-        self.peak = None  # (max |w| [m], x, w, axle x, axle w) of the frame with the largest deflection
+        self.kind: str | None = None
+        self.row: str | None = None
+        self.peak: tuple | None = None  # (max |w| [m], x, w, axle x, axle w) of the frame with the largest deflection
         self.dt_clock = self.ds_m / (v_clock / 3.6) if v_clock > 0 else 0.0  # sim time per step
         self.n_frames = 0
 
@@ -340,7 +340,7 @@ class RunLogger:
         Display factor on beam deflections.
     """
 
-    def __init__(self, recording=None, exaggeration: float = None):
+    def __init__(self, recording=None, exaggeration: float | None = None):
         from adm_sim.recording import rerun_blueprint as bp
 
         self.rec = recording
@@ -349,9 +349,9 @@ class RunLogger:
         self._acc: list[tuple[float, float]] = []
         self._beam: list[tuple] = []
         self._beam_run = 0  # index of the run the next beam frame belongs to
-        self._span_m = None
-        self._bridge = {}
-        self._train = {}
+        self._span_m: float | None = None
+        self._bridge: dict = {}
+        self._train: dict = {}
         self._trials = {phase: 0 for phase in P.TRIAL_PHASES}
         self._curves_used: set[str] = set()
         self._styled: set[str] = set()
