@@ -22,10 +22,11 @@ from dataclasses import dataclass, field
 from adm_sim.errors import InputError, _range_text, check_choice, check_int, check_number, check_range
 
 #: The unit conversions between a field's unit and a spelling's: ``(field unit, spelling unit) ->
-#: factor`` with ``value in spelling unit = factor * value in field unit``.
+#: (a, b)`` with ``value in field unit = value in spelling unit * a / b`` (two exact factors, so that
+#: ``pct / 100`` and ``kN * 1000`` stay the numbers they were).
 SCALES = {
-    ("- (fraction)", "%"): 100.0,
-    ("N", "kN"): 1e-3,
+    ("- (fraction)", "%"): (1.0, 100.0),
+    ("N", "kN"): (1000.0, 1.0),
 }
 
 #: The surfaces a value is typed on.
@@ -120,19 +121,23 @@ class View:
         return self.spelling.unit or self.field.unit
 
     @property
-    def scale(self):
-        """Value in this view's unit = ``scale`` x value in the field's unit (:data:`SCALES`)."""
-        return 1.0 if self.unit == self.field.unit else SCALES[(self.field.unit, self.unit)]
+    def factors(self):
+        """``(a, b)``: value in the field's unit = value in this view's unit x a / b (:data:`SCALES`)."""
+        return (1.0, 1.0) if self.unit == self.field.unit else SCALES[(self.field.unit, self.unit)]
+
+    def _shown(self, x):
+        a, b = self.factors
+        return x if a == b else _round(x * b / a)
 
     @property
     def lo(self):
         lo = self.field.lo if self.spelling.lo is None else self.spelling.lo
-        return None if lo is None else (_round(lo * self.scale) if self.field.type is float else lo)
+        return None if lo is None else self._shown(lo)
 
     @property
     def hi(self):
         hi = self.field.hi if self.spelling.hi is None else self.spelling.hi
-        return None if hi is None else (_round(hi * self.scale) if self.field.type is float else hi)
+        return None if hi is None else self._shown(hi)
 
     @property
     def special(self):
@@ -140,7 +145,8 @@ class View:
 
     def to_core(self, x):
         """A value of this view in the field's (core) unit."""
-        return x if self.scale == 1.0 else x / self.scale
+        a, b = self.factors
+        return x if a == b else x * a / b
 
     def range_text(self, lo=None):
         """The allowed values as the messages and the help texts state them (``[1, 150] m``,
