@@ -31,9 +31,9 @@ from pathlib import Path
 
 from adm_sim.files import claim_output, write_atomic
 from adm_sim.sim_commands import add_check_arguments, cmd_check
-from adm_sim.cliutil import Parser
+from adm_sim.cliutil import (Parser, add_dim_grid, add_overwrite, add_progress, add_speeds, add_steps_per_period,
+                             check_option, option_help)
 from adm_sim.errors import InputError, RunError, check_int, check_range, run_cli
-from adm_sim.limits import DEFAULT_SPEEDS
 
 #: Range of recommend --mu (kg/m): the 0.5-100 t/m the lower-bound rules accept.
 MU_RANGE_KG_M = (500.0, 100_000.0)
@@ -114,7 +114,7 @@ def _options(args):
 
 
 def _steps_per_period(text):
-    return check_range("--steps-per-period", text, "steps", 4, 10000)
+    return check_option("--steps-per-period", text)
 
 
 def _speeds(text):
@@ -166,7 +166,7 @@ def cmd_table4(args):
     trains = _once([_study_train(t, "--trains") for t in _list(args.trains, "--trains")], "--trains", args.trains)
     for t in trains:
         load_train(t)
-    jobs = check_int("--jobs", args.jobs, 1, 64, "processes")
+    jobs = check_option("--jobs", args.jobs)
     speeds, options = _speeds(args.speeds), _options(args)
     _make_dir(out, "--out")
     t0 = time.perf_counter()
@@ -306,7 +306,7 @@ def cmd_study(args):
     mfs = _once(_mass_functions(args.mass_functions), "--mass-functions", args.mass_functions)
     spans = _spans(args.spans)
     fis = _freq_indices(args.freq_index)
-    workers = check_int("--workers", args.workers, 1, 64, "processes")
+    workers = check_option("--workers", args.workers)
     limit = None if args.limit is None else check_int("--limit", args.limit, 1, 1_000_000, "cases")
     scheduler = None if args.scheduler is None else _scheduler(args.scheduler)
     spp = None if args.steps_per_period is None else _steps_per_period(args.steps_per_period)
@@ -476,14 +476,11 @@ def build_parser():
     sub = p.add_subparsers(dest="command", required=True)
 
     def common(sp):
-        sp.add_argument("--speeds", default=DEFAULT_SPEEDS, help=f"MLM speeds in km/h, start:stop:step (default {DEFAULT_SPEEDS})")
-        sp.add_argument("--dim-grid", choices=("paper", "full"), default="paper",
-                        help="DIM speeds: paper = 5 km/h plus 1 km/h near the MLM peak (Section 3.3); full = all")
-        sp.add_argument("--steps-per-period", default=None,
-                        help="integration steps per period of the highest mode (core default 16)")
-        sp.add_argument("--progress", action="store_true", help="show progress bars on stderr")
-        sp.add_argument("--overwrite", "--force", dest="force", action="store_true",
-                        help="replace existing output files (only once the new ones are complete)")
+        add_speeds(sp, "MLM speeds in km/h, start:stop:step", show_default=True)
+        add_dim_grid(sp, "DIM speeds: paper = 5 km/h plus 1 km/h near the MLM peak (Section 3.3); full = all")
+        add_steps_per_period(sp, "integration steps per period of the highest mode (core default 16)")
+        add_progress(sp, negatable=False, text="show progress bars on stderr")
+        add_overwrite(sp, "replace existing output files (only once the new ones are complete)", force_alias=True)
         peaks_options(sp)
 
     def peaks_options(sp):
@@ -508,7 +505,7 @@ def build_parser():
     t.add_argument("--out", default="table4_out", help="output directory (default table4_out)")
     t.add_argument("--bridges", default="B1,B2,B3,B4")
     t.add_argument("--trains", default="ICE-2,Eurostar,Railjet,ICE-4")
-    t.add_argument("--jobs", default="1", help="worker processes, 1..64 (default 1)")
+    t.add_argument("--jobs", default="1", help=option_help("--jobs", "worker processes (default 1)"))
     common(t)
     t.set_defaults(func=cmd_table4)
 
@@ -539,14 +536,14 @@ def build_parser():
     s.add_argument("--spans", default="4:40", help="span range lo:hi in m, within 4:40 (integer spans of the field)")
     s.add_argument("--freq-index", default="1,2,3,4,5", help="n0 per span: 1 = LB ... 3 = fit ... 5 = UB power law")
     s.add_argument("--limit", default=None, help="run at most N of the pending cases")
-    s.add_argument("--workers", default="2", help="worker processes of the local cluster (default 2)")
+    s.add_argument("--workers", default="2", help=option_help("--workers", "worker processes of the local cluster "
+                                                                           "(default 2)"))
     s.add_argument("--scheduler", default=None, help="address of a running dask scheduler, e.g. "
                                                      "tcp://127.0.0.1:8786 (instead of a local cluster)")
     s.add_argument("--retry-errors", action="store_true", help="run the cases recorded with status error again")
-    s.add_argument("--speeds", default=DEFAULT_SPEEDS, help=f"MLM speeds in km/h, start:stop:step (default {DEFAULT_SPEEDS})")
-    s.add_argument("--dim-grid", choices=("paper", "full"), default="paper")
-    s.add_argument("--steps-per-period", default=None,
-                   help="integration steps per period of the highest mode (core default 16)")
+    add_speeds(s, "MLM speeds in km/h, start:stop:step", show_default=True)
+    add_dim_grid(s)
+    add_steps_per_period(s, "integration steps per period of the highest mode (core default 16)")
     peaks_options(s)
     s.set_defaults(func=cmd_study)
 
@@ -562,8 +559,7 @@ def build_parser():
                    help="n0 range of the fit lo:hi in Hz within 2:21 (default 2:21, the paper's intervals; e.g. 2:16 "
                         "keeps the boundaries up to 16 Hz); the fitted functions are 0 above hi")
     f.add_argument("--tag", default="", help="suffix of every output file name (e.g. eurostar_table)")
-    f.add_argument("--overwrite", "--force", dest="force", action="store_true",
-                   help="replace existing output files (only once the new ones are complete)")
+    add_overwrite(f, "replace existing output files (only once the new ones are complete)", force_alias=True)
     f.set_defaults(func=cmd_study_fit)
 
     k = sub.add_parser("check", help="EN 1991-2 dynamic check as adm-sim check, with all four damping methods "

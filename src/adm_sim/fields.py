@@ -20,6 +20,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from adm_sim.errors import InputError, _range_text, check_choice, check_int, check_number, check_range
+from adm_sim.limits import MAX_DELTA_ZETA, TRACK_TYPES
 
 #: The unit conversions between a field's unit and a spelling's: ``(field unit, spelling unit) ->
 #: (a, b)`` with ``value in field unit = value in spelling unit * a / b`` (two exact factors, so that
@@ -161,9 +162,16 @@ class View:
             text = _range_text(lo, self.hi, f.lo_open, f.hi_open, self.unit)
         else:
             return ""
-        if self.special:
-            text = " or ".join(f"{v:g} ({what})" for v, what in self.special) + f" or {text}"
+        outside = self.specials_outside(lo)
+        if outside:
+            text = " or ".join(f"{v:g} ({what})" for v, what in outside) + f" or {text}"
         return text
+
+    def specials_outside(self, lo=None):
+        """The special values that lie outside the range (only these widen what is allowed)."""
+        lo = self.lo if lo is None else lo
+        return tuple((v, w) for v, w in self.special
+                     if (lo is not None and v < lo) or (self.hi is not None and v > self.hi))
 
     def check(self, value, name=None, lo=None, typed=False, argument=False):
         """``value`` as this view's type in its unit, or :class:`InputError`: one line naming
@@ -177,14 +185,14 @@ class View:
         if f.choices:
             return check_choice(name, value, f.choices)
         if f.type is int:
-            if self.special and any(value == v and type(value) is int for v, _ in self.special):
+            if any(value == v and type(value) is int for v, _ in self.specials_outside()):
                 return value
             return check_int(name, value, self.lo, self.hi, "" if self.unit == "-" else self.unit)
         if f.type is not float:
             return value
-        if self.special and not isinstance(value, bool):
+        if self.specials_outside() and not isinstance(value, bool):
             try:
-                if any(float(value) == v for v, _ in self.special):
+                if any(float(value) == v for v, _ in self.specials_outside()):
                     return float(value)
             except (TypeError, ValueError):
                 pass
@@ -194,7 +202,7 @@ class View:
                 return check_number(name, value, self.unit, lo, self.hi, f.lo_open, f.hi_open)
             return check_range(name, value, self.unit, lo, self.hi, f.lo_open, f.hi_open, argument=argument)
         except InputError as exc:
-            if not self.special or "out of range" not in str(exc):
+            if not self.specials_outside() or "out of range" not in str(exc):
                 raise
             x = float(value)
             raise InputError(f"{name}: {x:g} {self.unit} is out of range; allowed {self.range_text(lo)}",
@@ -206,6 +214,8 @@ class View:
         rng = self.range_text()
         if self.field.lo_text and self.field.type is float:
             rng = rng.replace(f"[{self.lo:g},", f"[{self.field.lo_text},", 1)
+        inside = [f"{v:g} = {what}" for v, what in self.special if (v, what) not in self.specials_outside()]
+        rng = "; ".join([rng] + inside) if rng else "; ".join(inside)
         return f"{text} ({rng})" if rng else text
 
 
@@ -249,19 +259,19 @@ _FIELDS = [
        _S("cli", "--speeds"), _S("ros", "speeds_kmh"), lo=1.0, hi=600.0),
     _F("delta_zeta", "- (fraction)", float, "additional damping delta_zeta (zeta + delta_zeta >= 0)", "run",
        _S("cli", "--delta-zeta-pct", "%"), _S("ros", "delta_zeta"), _S("ros", "delta_zeta_lanes"),
-       lo=-0.20, hi=0.20, lo_text="-zeta"),
+       lo=-MAX_DELTA_ZETA, hi=MAX_DELTA_ZETA, lo_text="-zeta"),
     _F("steps_per_period", "steps", float, "RK4 steps per period of the highest bridge mode", "run",
        _S("cli", "--steps-per-period"), _S("ros", "steps_per_period"), lo=4.0, hi=10000.0),
     _F("free_vibration_periods", "periods", float, "fundamental periods simulated after the last axle left",
        "run", _S("ros", "free_vibration_periods"), lo=0.0, hi=100.0),
     _F("ds_m", "m", float, "train advance per step", "run",
-       _S("ros", "ds_m", special=((0.0, "from steps_per_period"),)), lo=0.0, hi=10.0),
+       _S("ros", "ds_m", special=((0.0, "from steps_per_period"),)), lo=1e-5, hi=10.0),
     _F("model", "", str, "train model: Moving Load Model or Detailed Interaction Model", "run",
        _S("cli", "--model"), _S("ros", "model"), choices=("mlm", "dim")),
     _F("dim_grid", "", str, "DIM speeds: paper (5 km/h + 1 km/h near the MLM peak) or full (every MLM speed)",
        "run", _S("cli", "--dim-grid"), _S("ros", "dim_grid"), choices=("paper", "full")),
     _F("track_type", "", str, "deck acceleration limit, EN 1990 A2.4.4.2.1(4)P", "run",
-       _S("cli", "--track"), _S("ros", "track_type"), choices=("ballasted", "direct_fastening")),
+       _S("cli", "--track"), _S("ros", "track_type"), choices=TRACK_TYPES),
     _F("train", "", str, "train: a name or a TOML train file", "run", _S("cli", "--train"), _S("ros", "train")),
     _F("mlm_block_steps", "steps", int, "MLM: steps per axle-position block", "run",
        _S("ros", "mlm_block_steps"), lo=1, hi=10_000_000),
@@ -286,6 +296,14 @@ _FIELDS = [
        _S("ros", "beam_points"), lo=2, hi=1000),
     _F("chunk_size", "B", int, "MCAP chunk size (loss bound of a killed recorder)", "outputs",
        _S("ros", "chunk_size"), lo=1024, hi=1 << 26),
+    # -------------------------------------------------------------- replay (launch_scripts/replay.py)
+    _F("exaggeration", "x", float, "display factor on beam deflections", "replay",
+       _S("cli", "--exaggeration"), lo=0.0, hi=1e6, lo_open=True),
+    _F("rate", "x simulated time", float, "republish speed, multiples of simulated time", "replay",
+       _S("cli", "--rate", special=((0.0, "as fast as possible"),)), lo=0.0, hi=1e6),
+    _F("wait_subscribers_s", "s", float, "wait up to this long until every republished topic has a subscriber",
+       "replay",
+       _S("cli", "--wait-subscribers"), lo=0.0, hi=3600.0),
     # -------------------------------------------------------------- vehicle (train files, Appendix A)
     _F("m_c_kg", "kg", float, "car body mass", "vehicle", _S("toml", "m_c_kg"), lo=1.0, hi=5.0e5),
     _F("J_c_kgm2", "kg m^2", float, "car body pitch inertia", "vehicle", _S("toml", "J_c_kgm2"), lo=1.0, hi=1.0e8),
@@ -309,7 +327,7 @@ _FIELDS = [
 #: Every field, by its core name.
 FIELDS = {f.name: f for f in _FIELDS}
 #: The groups, in the order of docs/fields.md.
-GROUPS = ("bridge", "run", "outputs", "vehicle")
+GROUPS = ("bridge", "run", "outputs", "replay", "vehicle")
 #: Vehicle-type fields of a train file, in the order of the file format (``r_m`` optional).
 VEHICLE_FIELDS = ("m_c_kg", "J_c_kgm2", "m_b_kg", "J_b_kgm2", "m_w_kg", "k_s_N_m", "c_s_Ns_m", "k_p_N_m",
                   "c_p_Ns_m", "d_m", "r_m", "b_m")

@@ -7,17 +7,16 @@ another reason (e.g. an integration that became unstable) with 1, an interrupt w
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import time
 from pathlib import Path
 
-from adm_sim.cliutil import Parser, progress_callback
+from adm_sim.cliutil import (Parser, add_delta_zeta_pct, add_overwrite, add_progress, add_speeds, add_steps_per_period,
+                             check_option, progress_callback)
 from adm_sim.errors import InputError, run_cli
 from adm_sim.files import claim_output, mcap_input, write_atomic
-from adm_sim.limits import (ACC_LIMITS_M_S2, DEFAULT_SPEEDS, MAX_DELTA_ZETA_PCT, TRACK_ALIASES, check_delta_zeta_pct,
-                            check_track_type)
+from adm_sim.limits import ACC_LIMITS_M_S2, TRACK_ALIASES, check_track_type
 
 
 def _plot_sweep(result, path, limit=3.5, where="midspan"):
@@ -55,7 +54,6 @@ def cmd_sweep(args):
     from adm_sim.stepping import StepOptions
     from adm_sim.sweep import parse_speeds, run_sweep, sweep_exact
     from adm_sim.trains import load_train
-    from adm_sim.errors import check_range
     from adm_sim.plausibility import check_response
 
     inputs = {"--train": args.train, "--bridge": args.bridge}
@@ -66,8 +64,8 @@ def cmd_sweep(args):
     bridge = resolve_bridge(args.bridge)
     train = load_train(args.train)
     speeds = parse_speeds(args.speeds)
-    dz = check_delta_zeta_pct("--delta-zeta-pct", args.delta_zeta_pct, bridge.damping_ratio) / 100
-    opts = StepOptions(steps_per_period=check_range("--steps-per-period", args.steps_per_period, "steps", 4, 10000))
+    dz = check_option("--delta-zeta-pct", args.delta_zeta_pct, lo=-100 * bridge.damping_ratio) / 100  # dz >= -zeta
+    opts = StepOptions(steps_per_period=check_option("--steps-per-period", args.steps_per_period))
     where = parse_where(args.where, bridge.span_m)
     method = args.method or ("exact" if args.model == "mlm" else "rk4")
     if args.model == "dim" and method == "exact":
@@ -271,9 +269,8 @@ def _output_options(parser, outputs, overwrite_help):
     """The output files (``--json`` etc., each with its help), ``--overwrite`` and ``--progress``."""
     for name, text in outputs.items():
         parser.add_argument(f"--{name}", help=text)
-    parser.add_argument("--overwrite", action="store_true", help=overwrite_help)
-    parser.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
-                        help="progress bar (default: when stderr is a terminal)")
+    add_overwrite(parser, overwrite_help)
+    add_progress(parser)
 
 
 def add_check_arguments(c):
@@ -325,10 +322,9 @@ def build_parser():
                    "of given damping), or a TOML file with these keys")
     s.add_argument("--train", default="ICE-2", help="ICE-2, Eurostar, Railjet, ICE-4, Eurostar-table, HSLM-A1..A10 (MLM only), or a TOML file")
     s.add_argument("--model", choices=("mlm", "dim"), default="mlm")
-    s.add_argument("--speeds", default=DEFAULT_SPEEDS, help="km/h, start:stop:step or a comma list")
-    s.add_argument("--delta-zeta-pct", default="0", help=f"additional damping (%%, from -zeta to {MAX_DELTA_ZETA_PCT:g})")
-    s.add_argument("--steps-per-period", default="16",
-                   help="RK4 steps per period of the highest bridge mode (4..10000; DIM and --method rk4)")
+    add_speeds(s, "km/h, start:stop:step or a comma list")
+    add_delta_zeta_pct(s)
+    add_steps_per_period(s, "RK4 steps per period of the highest bridge mode (DIM and --method rk4)", default="16")
     s.add_argument("--method", choices=("exact", "rk4"), default=None,
                    help="MLM: exact (default: the closed-form envelope, true maximum per speed) or rk4 (the lockstep "
                         "RK4 run, maxima sampled at its steps); the DIM is always rk4")
@@ -355,7 +351,7 @@ def build_parser():
     v = sub.add_parser("salvage", help="recover a killed run's MCAP log")
     v.add_argument("src")
     v.add_argument("dst")
-    v.add_argument("--overwrite", action="store_true", help="replace an existing DST")
+    add_overwrite(v, "replace an existing DST")
     v.set_defaults(func=cmd_salvage)
     return p
 
