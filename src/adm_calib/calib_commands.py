@@ -307,7 +307,7 @@ def cmd_study(args):
     spans = _spans(args.spans)
     fis = _freq_indices(args.freq_index)
     workers = check_option("--workers", args.workers)
-    limit = None if args.limit is None else check_int("--limit", args.limit, 1, 1_000_000, "cases")
+    limit = None if args.limit is None else check_option("--limit", args.limit)
     scheduler = None if args.scheduler is None else _scheduler(args.scheduler)
     spp = None if args.steps_per_period is None else _steps_per_period(args.steps_per_period)
     _speeds(args.speeds)
@@ -535,7 +535,7 @@ def build_parser():
     s.add_argument("--mass-functions", default="mu1,mu2,mu3,mu4,mu5,mu6", help="Table 1 mass functions")
     s.add_argument("--spans", default="4:40", help="span range lo:hi in m, within 4:40 (integer spans of the field)")
     s.add_argument("--freq-index", default="1,2,3,4,5", help="n0 per span: 1 = LB ... 3 = fit ... 5 = UB power law")
-    s.add_argument("--limit", default=None, help="run at most N of the pending cases")
+    s.add_argument("--limit", default=None, help=option_help("--limit", "run at most N of the pending cases"))
     s.add_argument("--workers", default="2", help=option_help("--workers", "worker processes of the local cluster "
                                                                            "(default 2)"))
     s.add_argument("--scheduler", default=None, help="address of a running dask scheduler, e.g. "

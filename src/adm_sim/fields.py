@@ -42,7 +42,8 @@ class Spelling:
     bridge spec), ``cli`` (a flag), ``ros`` (a parameter). ``unit``: None for the field's own unit,
     else a unit of :data:`SCALES`. ``special``: ``((value, meaning), ...)`` accepted besides the
     range (``((0.0, "from EJ_Nm2"),)``). ``lo``/``hi``: a narrower range than the field's on this
-    surface only (in the field's unit; None: the field's).
+    surface only (in the field's unit; None: the field's). ``many``: a comma list of values of
+    the field (``delta_zeta_lanes``), each checked by the field.
     """
 
     surface: str
@@ -51,6 +52,7 @@ class Spelling:
     special: tuple = ()
     lo: float | None = None
     hi: float | None = None
+    many: bool = False
 
 
 @dataclass(frozen=True)
@@ -141,6 +143,14 @@ class View:
         return None if hi is None else self._shown(hi)
 
     @property
+    def lo_open(self):
+        return self.field.lo_open if self.spelling.lo is None else False
+
+    @property
+    def hi_open(self):
+        return self.field.hi_open if self.spelling.hi is None else False
+
+    @property
     def special(self):
         return self.spelling.special
 
@@ -159,7 +169,7 @@ class View:
         if f.type is int:
             text = f"integer in [{lo}, {self.hi}]" + (f" {self.unit}" if self.unit and self.unit != "-" else "")
         elif f.type is float or (f.type is str and self.hi is not None):
-            text = _range_text(lo, self.hi, f.lo_open, f.hi_open, self.unit)
+            text = _range_text(lo, self.hi, self.lo_open, self.hi_open, self.unit)
         else:
             return ""
         outside = self.specials_outside(lo)
@@ -199,8 +209,8 @@ class View:
         lo = self.lo if lo is None else lo
         try:
             if typed:
-                return check_number(name, value, self.unit, lo, self.hi, f.lo_open, f.hi_open)
-            return check_range(name, value, self.unit, lo, self.hi, f.lo_open, f.hi_open, argument=argument)
+                return check_number(name, value, self.unit, lo, self.hi, self.lo_open, self.hi_open)
+            return check_range(name, value, self.unit, lo, self.hi, self.lo_open, self.hi_open, argument=argument)
         except InputError as exc:
             if not self.specials_outside() or "out of range" not in str(exc):
                 raise
@@ -224,8 +234,8 @@ def _F(name, unit, type_, doc, group, *spellings, **kw):
     return Field(name, unit, type_, doc, group, spellings=tuple(spellings), **kw)
 
 
-def _S(surface, key, unit=None, special=(), lo=None, hi=None):
-    return Spelling(surface, key, unit, special, lo, hi)
+def _S(surface, key, unit=None, special=(), lo=None, hi=None, many=False):
+    return Spelling(surface, key, unit, special, lo, hi, many)
 
 
 def _toml_spec(*keys, unit=None):
@@ -258,7 +268,7 @@ _FIELDS = [
     _F("speeds_kmh", "km/h", str, "speeds: start:stop:step (stop included) or a comma list; each speed", "run",
        _S("cli", "--speeds"), _S("ros", "speeds_kmh"), lo=1.0, hi=600.0),
     _F("delta_zeta", "- (fraction)", float, "additional damping delta_zeta (zeta + delta_zeta >= 0)", "run",
-       _S("cli", "--delta-zeta-pct", "%"), _S("ros", "delta_zeta"), _S("ros", "delta_zeta_lanes"),
+       _S("cli", "--delta-zeta-pct", "%"), _S("ros", "delta_zeta"), _S("ros", "delta_zeta_lanes", many=True),
        lo=-MAX_DELTA_ZETA, hi=MAX_DELTA_ZETA, lo_text="-zeta"),
     _F("steps_per_period", "steps", float, "RK4 steps per period of the highest bridge mode", "run",
        _S("cli", "--steps-per-period"), _S("ros", "steps_per_period"), lo=4.0, hi=10000.0),
@@ -279,9 +289,15 @@ _FIELDS = [
        "run", _S("ros", "partner_timeout_s"), lo=0.5, hi=600.0),
     _F("run_timeout_s", "s", float, "longest a single run may take", "run", _S("ros", "run_timeout_s"),
        lo=1.0, hi=86400.0),
+    _F("max_line_speed_kmh", "km/h", float, "maximum line speed V of the EN 1991-2 check (40 m/s up to 1.2 V)",
+       "run", _S("cli", "--max-line-speed"), lo=144.0, hi=500.0, lo_open=True),
+    _F("step_kmh", "km/h", float, "speed step of the EN 1991-2 check", "run", _S("cli", "--speed-step"),
+       lo=0.0, hi=1.0, lo_open=True),
     _F("jobs", "processes", int, "worker processes of table4", "run", _S("cli", "--jobs"), lo=1, hi=64),
     _F("workers", "processes", int, "worker processes of the local study cluster", "run", _S("cli", "--workers"),
        lo=1, hi=64),
+    _F("limit", "cases", int, "run at most this many of the pending study cases", "run", _S("cli", "--limit"),
+       lo=1, hi=1_000_000),
     _F("domain_id", "", int, "ROS_DOMAIN_ID (Fast DDS ports)", "run", _S("cli", "--domain-id"), lo=0, hi=101),
     # -------------------------------------------------------------- monitoring and outputs (ROS)
     _F("warn_fraction", "-", float, "diagnostics WARN above this fraction of the acceleration limit", "outputs",

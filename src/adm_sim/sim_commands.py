@@ -13,7 +13,7 @@ import time
 from pathlib import Path
 
 from adm_sim.cliutil import (Parser, add_delta_zeta_pct, add_overwrite, add_progress, add_speeds, add_steps_per_period,
-                             check_option, progress_callback)
+                             check_option, option_help, progress_callback)
 from adm_sim.errors import InputError, run_cli
 from adm_sim.files import claim_output, mcap_input, write_atomic
 from adm_sim.limits import ACC_LIMITS_M_S2, TRACK_ALIASES, check_track_type
@@ -278,7 +278,7 @@ def add_check_arguments(c):
     (``--damping lb|vbi`` are computed only by ``adm-calib check``)."""
     c.add_argument("--bridge", default="B1", help="B1..B4, a spec L=15,n0=8.26,mu=19042,zeta_pct=1.85, or a TOML file")
     c.add_argument("--max-line-speed", type=float, required=True,
-                   help="maximum line speed V (km/h, > 144); speeds 40 m/s .. 1.2 V are checked")
+                   help=option_help("--max-line-speed", "maximum line speed V; speeds 40 m/s .. 1.2 V are checked"))
     c.add_argument("--trains", default="hslm",
                    help="comma list: hslm (HSLM-A1..A10), HSLM-Ak, ICE-2, Eurostar, Railjet, ICE-4, .toml files")
     c.add_argument("--track", choices=(*ACC_LIMITS_M_S2, *TRACK_ALIASES), default="ballasted",
@@ -301,7 +301,7 @@ def add_check_arguments(c):
                    help="damping per mode: rayleigh13 (Rayleigh anchored at modes 1 and 3; mode 2 gets 0.625 zeta "
                         "with 3 modes) or modal (zeta on every mode, EN 1991-2 6.4.6.3.1); default: the bridge's "
                         "own (rayleigh13 unless its file says damping_model = \"modal\")")
-    c.add_argument("--speed-step", type=float, default=1.0, help="speed step (km/h, at most 1)")
+    c.add_argument("--speed-step", type=float, default=1.0, help=option_help("--speed-step", "speed step"))
     c.add_argument("--modes", type=float, help="more modes than EN 1990 A2.4.4.2.1 asks for (default: exactly those)")
     c.add_argument("--comfort", action="store_true",
                    help="also run the DIM of the real trains: passenger comfort b_v (EN 1990 A2.4.4.3)")

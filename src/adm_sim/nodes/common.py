@@ -170,7 +170,7 @@ class ParamSpec:
         """Raise :class:`InputError` naming the parameter, value, unit and range when out of range
         (or not one of the choices)."""
         if self.view is not None:
-            if self.name.endswith("_lanes"):  # a comma list of values, each checked by the node
+            if self.view.spelling.many:  # a comma list of values, each checked by the node
                 return
             self.view.check(value, name=self.name)
         elif self.lo is not None:
@@ -183,7 +183,7 @@ def param(name, default, description=None, read_only=False):
     from adm_sim import fields
 
     v = fields.view("ros", name)
-    lo, hi = (None, None) if v.field.type is str else (v.lo, v.hi)
+    lo, hi = (None, None) if v.field.type is str or v.spelling.many else (v.lo, v.hi)
     return ParamSpec(name, default, v.unit, description or v.field.doc, lo, hi, read_only, view=v)
 
 
