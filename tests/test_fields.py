@@ -146,11 +146,12 @@ def test_help_of_every_registry_flag_states_its_range():
                     if cli[flag].field.choices:
                         assert tuple(action.choices) == cli[flag].field.choices or flag == "--track", flag
                     else:
-                        assert f"({cli[flag].range_text()}" in text.replace("[-zeta,", f"[{cli[flag].lo:g},"), \
+                        shown = text.replace("[-zeta,", f"[{cli[flag].lo:g},")
+                        assert f"({cli[flag].range_text()})" in shown or f"in {cli[flag].range_text()})" in shown, \
                             (p.prog, flag, text)
                     seen.add(flag)
     assert {"--steps-per-period", "--delta-zeta-pct", "--jobs", "--workers", "--max-line-speed",
-            "--speed-step", "--dim-grid", "--model"} <= seen
+            "--speed-step", "--dim-grid", "--model", "--speeds", "--limit", "--type"} <= seen
 
 
 def test_sweep_help_printed_shows_the_registry_range():

@@ -31,8 +31,8 @@ from pathlib import Path
 
 from adm_sim.files import claim_output, write_atomic
 from adm_sim.sim_commands import add_check_arguments, cmd_check
-from adm_sim.cliutil import (Parser, add_dim_grid, add_overwrite, add_progress, add_speeds, add_steps_per_period,
-                             check_option, option_help)
+from adm_sim.cliutil import (Parser, add_choice, add_dim_grid, add_overwrite, add_progress, add_speeds,
+                             add_steps_per_period, check_option, option_help)
 from adm_sim.errors import InputError, RunError, check_int, check_range, run_cli
 
 #: Range of recommend --mu (kg/m): the 0.5-100 t/m the lower-bound rules accept.
@@ -514,7 +514,7 @@ def build_parser():
     r.add_argument("--n0", required=True, help="first natural frequency (Hz), 2.1 Hz up to the highest n0 of the study")
     r.add_argument("--mu", required=True, help="mass per length in kg/m, like the bridge specs (500..100000 kg/m; "
                                                 "Table 1 / Eq. 19 print t/m: 1 t/m = 1000 kg/m); printed in both")
-    r.add_argument("--type", required=True, choices=("cfb", "sc"), help="cfb: concrete/filler beam, sc: steel/composite")
+    add_choice(r, "--type", "cfb: concrete/filler beam, sc: steel/composite", required=True)
     r.add_argument("--span", default=None, help="span (m, 4..40); estimated from n0 when omitted")
     r.add_argument("--interpolate", action="store_true",
                    help="interpolate linearly between the adjacent mass functions instead of the safe side")

@@ -166,12 +166,16 @@ def add_delta_zeta_pct(parser, text="additional damping", default="0"):
     parser.add_argument("--delta-zeta-pct", default=default, help=option_help("--delta-zeta-pct", text))
 
 
-def add_dim_grid(parser, text=None):
+def add_choice(parser, flag, text=None, default=None, **kw):
+    """``flag`` taking one of its registry field's choices (argparse refuses the others)."""
     from adm_sim.fields import view
 
-    v = view("cli", "--dim-grid")
-    parser.add_argument("--dim-grid", choices=v.field.choices, default=v.field.choices[0],
-                        help=None if text is None else _help(text))
+    parser.add_argument(flag, choices=view("cli", flag).field.choices, default=default,
+                        help=None if text is None else _help(text), **kw)
+
+
+def add_dim_grid(parser, text=None):
+    add_choice(parser, "--dim-grid", text, default="paper")
 
 
 def add_progress(parser, negatable=True, text="progress bar (default: when stderr is a terminal)"):

@@ -224,6 +224,8 @@ class View:
         rng = self.range_text()
         if self.field.lo_text and self.field.type is float:
             rng = rng.replace(f"[{self.lo:g},", f"[{self.field.lo_text},", 1)
+        if rng and self.field.type is str and not self.field.choices:
+            rng = f"each in {rng}"  # a list of values (speeds), each in the range
         inside = [f"{v:g} = {what}" for v, what in self.special if (v, what) not in self.specials_outside()]
         rng = "; ".join([rng] + inside) if rng else "; ".join(inside)
         return f"{text} ({rng})" if rng else text
@@ -261,7 +263,7 @@ _FIELDS = [
     _F("damping_model", "", str, "Rayleigh anchored at modes 1 and 3, or equal modal damping", "bridge",
        *_toml_spec("damping_model"), _S("ros", "damping_model"), choices=("rayleigh", "modal")),
     _F("bridge_type", "", str, "concrete/filler beam or steel/composite (Table 2 damping and class)", "bridge",
-       *_toml_spec("type", "bridge_type", "class"), choices=("cfb", "sc")),
+       *_toml_spec("type", "bridge_type", "class"), _S("cli", "--type"), choices=("cfb", "sc")),
     _F("bridge", "", str, "bridge: B1..B4, a key=value spec or a TOML file", "bridge",
        _S("cli", "--bridge"), _S("ros", "bridge")),
     # -------------------------------------------------------------- run (Sections 2.3, 3.3)

@@ -12,8 +12,8 @@ import sys
 import time
 from pathlib import Path
 
-from adm_sim.cliutil import (Parser, add_delta_zeta_pct, add_overwrite, add_progress, add_speeds, add_steps_per_period,
-                             check_option, option_help, progress_callback)
+from adm_sim.cliutil import (Parser, add_choice, add_delta_zeta_pct, add_overwrite, add_progress, add_speeds,
+                             add_steps_per_period, check_option, option_help, progress_callback)
 from adm_sim.errors import InputError, run_cli
 from adm_sim.files import claim_output, mcap_input, write_atomic
 from adm_sim.limits import ACC_LIMITS_M_S2, TRACK_ALIASES, check_track_type
@@ -321,7 +321,7 @@ def build_parser():
                    "EJ N m^2, mu kg/m, zeta_pct %% or type=cfb|sc for the Table 2 damping; class=cfb|sc classes a bridge "
                    "of given damping), or a TOML file with these keys")
     s.add_argument("--train", default="ICE-2", help="ICE-2, Eurostar, Railjet, ICE-4, Eurostar-table, HSLM-A1..A10 (MLM only), or a TOML file")
-    s.add_argument("--model", choices=("mlm", "dim"), default="mlm")
+    add_choice(s, "--model", default="mlm")
     add_speeds(s, "km/h, start:stop:step or a comma list")
     add_delta_zeta_pct(s)
     add_steps_per_period(s, "RK4 steps per period of the highest bridge mode (DIM and --method rk4)", default="16")
