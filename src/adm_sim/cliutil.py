@@ -138,6 +138,13 @@ def option_help(flag, text):
     return _help(view("cli", flag).help(text))
 
 
+def option_view(flag):
+    """The registry's :class:`~adm_sim.fields.View` of ``flag`` (its unit, range, conversion to the core)."""
+    from adm_sim.fields import view
+
+    return view("cli", flag)
+
+
 def check_option(flag, value, **kw):
     """``value`` of ``flag`` checked by its registry field (:meth:`adm_sim.fields.View.check`):
     one line naming the flag, the value, the unit and the allowed range."""

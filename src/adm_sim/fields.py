@@ -159,6 +159,11 @@ class View:
         a, b = self.factors
         return x if a == b else x * a / b
 
+    def from_core(self, x):
+        """A value in the field's (core) unit in this view's unit (exact factors, no rounding)."""
+        a, b = self.factors
+        return x if a == b else x * b / a
+
     def range_text(self, lo=None):
         """The allowed values as the messages and the help texts state them (``[1, 150] m``,
         ``0 (from EJ_Nm2) or [0.5, 100] Hz``, ``'rayleigh' or 'modal'``, ``integer in [1, 20]``)."""
@@ -183,15 +188,18 @@ class View:
         return tuple((v, w) for v, w in self.special
                      if (lo is not None and v < lo) or (self.hi is not None and v > self.hi))
 
-    def check(self, value, name=None, lo=None, typed=False, argument=False):
+    def check(self, value, name=None, lo=None, typed=False, argument=False, lo_core=None):
         """``value`` as this view's type in its unit, or :class:`InputError`: one line naming
         ``name`` (default: the spelling's key), the value, the unit and the allowed range.
 
-        ``lo``: a lower bound set by another value (``delta_zeta >= -zeta``), in this view's unit.
+        ``lo``: a lower bound set by another value (``delta_zeta >= -zeta``), in this view's unit;
+        ``lo_core``: the same in the field's unit (converted here).
         ``typed``: the value comes from a typed file (TOML): a string is not a number.
         ``argument``: ``name`` is a library argument, shown as its flag on a command line.
         """
         f, name = self.field, self.key if name is None else name
+        if lo_core is not None:
+            lo = self.from_core(lo_core)
         if f.choices:
             return check_choice(name, value, f.choices)
         if f.type is int:

@@ -74,7 +74,7 @@ def check_delta_zeta_pct(field, value_pct, damping_ratio):
     with the allowed ``[-100 ζ, 20] %``; ``damping_ratio`` is the bridge's ζ (fraction)."""
     from adm_sim.fields import view
 
-    return view("cli", "--delta-zeta-pct").check(value_pct, name=field, lo=-100 * damping_ratio)
+    return view("cli", "--delta-zeta-pct").check(value_pct, name=field, lo_core=-damping_ratio)
 
 
 __all__ = ["ACC_LIMITS_M_S2", "TRACK_TYPES", "TRACK_ALIASES", "check_track_type", "acc_limit_m_s2",

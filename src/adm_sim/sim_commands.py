@@ -13,7 +13,8 @@ import time
 from pathlib import Path
 
 from adm_sim.cliutil import (Parser, add_choice, add_delta_zeta_pct, add_overwrite, add_progress, add_speeds,
-                             add_steps_per_period, check_option, option_help, progress_callback)
+                             add_steps_per_period, check_option, option_help, option_view,
+                             progress_callback)
 from adm_sim.errors import InputError, run_cli
 from adm_sim.files import claim_output, mcap_input, write_atomic
 from adm_sim.limits import ACC_LIMITS_M_S2, TRACK_ALIASES, check_track_type
@@ -64,7 +65,8 @@ def cmd_sweep(args):
     bridge = resolve_bridge(args.bridge)
     train = load_train(args.train)
     speeds = parse_speeds(args.speeds)
-    dz = check_option("--delta-zeta-pct", args.delta_zeta_pct, lo=-100 * bridge.damping_ratio) / 100  # dz >= -zeta
+    dz_pct = option_view("--delta-zeta-pct")  # % on the command line, a fraction in the core
+    dz = dz_pct.to_core(dz_pct.check(args.delta_zeta_pct, lo_core=-bridge.damping_ratio))  # dz >= -zeta
     opts = StepOptions(steps_per_period=check_option("--steps-per-period", args.steps_per_period))
     where = parse_where(args.where, bridge.span_m)
     method = args.method or ("exact" if args.model == "mlm" else "rk4")

@@ -34,6 +34,7 @@ from std_msgs.msg import Float64MultiArray, String
 
 from adm_sim.bridge import Bridge, resolve_bridge
 from adm_sim import protocol as P
+from adm_sim.fields import view
 from adm_sim.errors import InputError
 from adm_sim.limits import ACC_LIMITS_M_S2, TRACK_TYPES, check_delta_zeta, check_track_type
 from adm_sim.nodes import common as c
@@ -68,7 +69,7 @@ def bridge_specs(preset):
         S("EJ_Nm2", float(preset.EJ_Nm2), "bending stiffness EJ (used when n0_hz is 0)"),
         S("n0_hz", 0.0, "first natural frequency n0; 0 = from EJ_Nm2, else EJ from Eq. (18)"),
         S("mu_kg_m", float(preset.mass_per_length_kg_m)),
-        S("zeta_pct", 100.0 * preset.damping_ratio),
+        S("zeta_pct", view("ros", "zeta_pct").from_core(preset.damping_ratio)),
         S("n_modes", int(preset.n_modes)),
         S("damping_model", preset.damping_model, "rayleigh (modes 1 and 3) | modal"),
         S("delta_zeta", 0.0, "additional damping for every lane (fraction; zeta + delta_zeta >= 0)"),
