@@ -60,7 +60,7 @@ class Field:
     """One user-facing value in the core's unit.
 
     ``type``: ``float``, ``int``, ``str`` (with ``choices``: one of them; without: free text such
-    as a train name, or a speed list whose speeds lie in ``[lo, hi]``), ``bool``. ``lo``/``hi``:
+    as a train name, or a speed list whose speeds lie in ``[lo, hi]``). ``lo``/``hi``:
     the allowed range (None: unbounded); ``lo_open``/``hi_open``: the bound itself excluded.
     ``lo_text``: a lower bound set by another value, stated in words (``"-zeta"``); ``lo`` is then
     its loosest value.

@@ -251,13 +251,13 @@ def _vehicle_type(name, d, source):
         v = field_view("toml", key)
         if key not in d:
             if key not in VEHICLE_OPTIONAL:
-                raise InputError(f"{where}.{key}: missing ({v.unit}, allowed {v.range_text()})")
+                raise InputError(f"{where}.{key}: missing ({v.unit}, allowed [{v.lo:g}, {v.hi:g}])")
             vals[key] = math.nan
             continue
         vals[key] = v.check(d[key], name=f"{where}.{key}", typed=True)
     axle = field_view("toml", "axle_load_kN")
     if "axle_load_kN" not in d:
-        raise InputError(f"{where}.axle_load_kN: missing ({axle.unit}, allowed {axle.range_text().removesuffix(' kN')})")
+        raise InputError(f"{where}.axle_load_kN: missing ({axle.unit}, allowed [{axle.lo:g}, {axle.hi:g}])")
     raw = d["axle_load_kN"]
     raw = raw if isinstance(raw, list) else [raw]
     if not 1 <= len(raw) <= 2:
