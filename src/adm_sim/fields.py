@@ -256,13 +256,17 @@ def _toml_spec(*keys, unit=None):
 _FIELDS = [
     # -------------------------------------------------------------- bridge (paper Section 2.1, Table 3)
     _F("span_m", "m", float, "span L", "bridge",
-       *_toml_spec("L", "span_m"), _S("ros", "span_m"), lo=1.0, hi=150.0),
+       *_toml_spec("L", "span_m"), _S("ros", "span_m"),
+       _S("cli", "--span", lo=4.0, hi=40.0), _S("cli", "--spans", lo=4.0, hi=40.0),  # the studied spans
+       lo=1.0, hi=150.0),
     _F("EJ_Nm2", "N m^2", float, "bending stiffness EJ (Eq. 18 gives n0 from it)", "bridge",
        *_toml_spec("EJ", "EJ_Nm2"), _S("ros", "EJ_Nm2", lo=1.0, hi=1.0e14), lo=0.0, lo_open=True),
     _F("n0_hz", "Hz", float, "first natural frequency n0 (EJ from Eq. 18)", "bridge",
        *_toml_spec("n0", "n0_hz"), _S("ros", "n0_hz", special=((0.0, "from EJ_Nm2"),)), lo=0.5, hi=100.0),
     _F("mass_per_length_kg_m", "kg/m", float, "mass per length mu", "bridge",
-       *_toml_spec("mu", "mu_kg_m", "mass_per_length_kg_m"), _S("ros", "mu_kg_m"), lo=100.0, hi=1.0e6),
+       *_toml_spec("mu", "mu_kg_m", "mass_per_length_kg_m"), _S("ros", "mu_kg_m"),
+       _S("cli", "--mu", lo=500.0, hi=100_000.0),  # recommend: the 0.5-100 t/m of the lower-bound rules
+       lo=100.0, hi=1.0e6),
     _F("damping_ratio", "- (fraction)", float, "structural damping zeta", "bridge",
        *_toml_spec("zeta", "damping_ratio"), *_toml_spec("zeta_pct", unit="%"), _S("ros", "zeta_pct", "%"),
        lo=0.0, hi=0.20),
@@ -306,6 +310,8 @@ _FIELDS = [
     _F("jobs", "processes", int, "worker processes of table4", "run", _S("cli", "--jobs"), lo=1, hi=64),
     _F("workers", "processes", int, "worker processes of the local study cluster", "run", _S("cli", "--workers"),
        lo=1, hi=64),
+    _F("freq_index", "-", int, "n0 of a span in the study: 1 = LB ... 3 = fit ... 5 = UB power law (Section 3.1.1)",
+       "run", _S("cli", "--freq-index"), lo=1, hi=5),
     _F("limit", "cases", int, "run at most this many of the pending study cases", "run", _S("cli", "--limit"),
        lo=1, hi=1_000_000),
     _F("domain_id", "", int, "ROS_DOMAIN_ID (Fast DDS ports)", "run", _S("cli", "--domain-id"), lo=0, hi=101),
