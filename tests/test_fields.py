@@ -30,6 +30,12 @@ def tail(message):
     return message.split(": ", 1)[1] if ": " in message else message
 
 
+def _has_rclpy():
+    import importlib.util
+
+    return importlib.util.find_spec("rclpy") is not None
+
+
 def refusal(call):
     with pytest.raises(InputError) as info:
         call()
@@ -187,6 +193,14 @@ def test_span_out_of_range_same_message_from_toml_cli_and_ros(tmp_path, capsys):
     assert main(["sweep", "--bridge", "L=200,n0=5,mu=10000,zeta_pct=1"]) == 2
     m_cli = capsys.readouterr().err.strip().removeprefix("error: ")
     m_ros = refusal(lambda: fields.view("ros", "span_m").check(200.0))
+    if _has_rclpy():  # the bridge node's own check of its parameters (start-up, on-set, launchers)
+        from adm_sim.bridge import named_bridge
+        from adm_sim.nodes.bridge_node import bridge_from_params, bridge_specs
+
+        values = {sp.name: sp.default for sp in bridge_specs(named_bridge("B1"))}
+        m_node = refusal(lambda: bridge_from_params(named_bridge("B1"), dict(values, span_m=200.0)))
+        spec = next(sp for sp in bridge_specs(named_bridge("B1")) if sp.name == "span_m")
+        assert m_node == refusal(lambda: spec.check(200.0)) == m_ros
     assert m_toml.startswith("bridge file b.toml.L: ")
     assert m_cli.startswith("bridge spec.L: ")
     assert tail(m_toml) == tail(m_cli) == tail(m_ros) == "200 m is out of range; allowed [1, 150] m"
@@ -199,6 +213,12 @@ def test_steps_per_period_same_message_from_cli_ros_and_core(capsys):
     assert main(["sweep", "--model", "dim", "--speeds", "200", "--steps-per-period", "3"]) == 2
     m_cli = capsys.readouterr().err.strip().removeprefix("error: ")
     m_ros = refusal(lambda: fields.view("ros", "steps_per_period").check(3.0))
+    if _has_rclpy():
+        from adm_sim.bridge import named_bridge
+        from adm_sim.nodes.bridge_node import bridge_specs
+
+        spec = next(sp for sp in bridge_specs(named_bridge("B1")) if sp.name == "steps_per_period")
+        assert refusal(lambda: spec.check(3.0)) == m_ros
     m_core = refusal(lambda: StepOptions(steps_per_period=3.0))
     assert m_cli.startswith("--steps-per-period: ")
     assert tail(m_cli) == tail(m_ros) == tail(m_core) == "3 steps is out of range; allowed [4, 10000] steps"
