@@ -26,7 +26,7 @@ from pathlib import Path
 from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, check_domain_id, check_inputs, check_out,
                          check_viewer, discard_outputs, launch, prepare_out, release_out, run_graph)
 
-from adm_sim.cliutil import Parser
+from adm_sim.cliutil import Parser, add_domain_id, add_overwrite
 from adm_sim.protocol import parse_driver_line
 
 
@@ -41,9 +41,9 @@ def parse_args(argv=None):
     ap.add_argument("--spawn", action="store_true", help="spawn a live rerun viewer (127.0.0.1)")
     ap.add_argument("--connect", help="stream to a running rerun viewer (loopback URL)")
     ap.add_argument("--no-rrd", action="store_true", help="do not write run.rrd")
-    ap.add_argument("--domain-id", help="ROS_DOMAIN_ID, 0..101 (default: a free one, reserved)")
+    add_domain_id(ap)
     ap.add_argument("--quiet", action="store_true", help="no progress bars")
-    ap.add_argument("--overwrite", action="store_true", help="replace the outputs of an earlier run in --out")
+    add_overwrite(ap, "replace the outputs of an earlier run in --out")
     return ap.parse_args_or_exit(argv)
 
 

@@ -26,7 +26,7 @@ from pathlib import Path
 from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, check_domain_id, check_inputs, check_out,
                          check_viewer, discard_outputs, launch, prepare_out, release_out, run_graph)
 
-from adm_sim.cliutil import Parser
+from adm_sim.cliutil import Parser, add_choice, add_domain_id, add_overwrite
 from adm_sim.errors import InputError, one_line
 from adm_sim.protocol import parse_driver_line
 
@@ -36,13 +36,13 @@ def main(argv=None):
     ap.add_argument("--params-file", default=str(PARAMS_DIR / "crossing_b3_300.yaml"))
     ap.add_argument("--bridge")
     ap.add_argument("--train")
-    ap.add_argument("--model", choices=("dim", "mlm"))
+    add_choice(ap, "--model")
     ap.add_argument("--speeds", help="km/h: one speed, a comma list or start:stop:step")
     ap.add_argument("--out")
     ap.add_argument("--spawn", action="store_true")
     ap.add_argument("--connect")
-    ap.add_argument("--domain-id", help="ROS_DOMAIN_ID, 0..101 (default: a free one, reserved)")
-    ap.add_argument("--overwrite", action="store_true", help="replace the outputs of an earlier run in --out")
+    add_domain_id(ap)
+    add_overwrite(ap, "replace the outputs of an earlier run in --out")
     args = ap.parse_args_or_exit(argv)
     return launch(_main, args)
 

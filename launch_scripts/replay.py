@@ -44,8 +44,9 @@ from pathlib import Path
 import numpy as np
 
 from adm_sim import protocol as P
-from adm_sim.cliutil import Parser
-from adm_sim.errors import InputError, RunError, check_int, check_range, run_cli
+from adm_sim.cliutil import Parser, add_domain_id, add_overwrite, option_help
+from adm_sim.errors import InputError, RunError, run_cli
+from adm_sim.fields import view
 
 
 def check_args(args):
@@ -59,11 +60,11 @@ def check_args(args):
             ("rerun+http://127.0.0.1:", "rerun+http://localhost:", "rerun+http://[::1]:")):
         raise InputError(f"--connect: {args.connect!r} is not a loopback rerun URL; allowed "
                          f"rerun+http://127.0.0.1:PORT/proxy (the viewer must run on this machine)")
-    args.exaggeration = check_range("--exaggeration", args.exaggeration, "x", 0.0, 1e6, lo_open=True)
-    args.rate = check_range("--rate", args.rate, "x simulated time", 0.0, 1e6)
-    args.wait_subscribers = check_range("--wait-subscribers", args.wait_subscribers, "s", 0.0, 3600.0)
+    args.exaggeration = view("cli", "--exaggeration").check(args.exaggeration)
+    args.rate = view("cli", "--rate").check(args.rate)
+    args.wait_subscribers = view("cli", "--wait-subscribers").check(args.wait_subscribers)
     if args.domain_id is not None:
-        args.domain_id = check_int("--domain-id", args.domain_id, 0, 101)
+        args.domain_id = view("cli", "--domain-id").check(args.domain_id)
     if args.topics is not None and not args.republish:
         raise InputError("--topics: only used with --republish; add --republish or drop --topics")
     return args
@@ -78,16 +79,15 @@ def parse_args(argv=None):
     out.add_argument("--connect", metavar="URL", help="stream to a running viewer (loopback)")
     p.add_argument("--via-convert", action="store_true",
                    help="with --rrd: use 'rerun mcap convert' instead of the adm-sim views")
-    p.add_argument("--overwrite", action="store_true", help="replace OUT.rrd if it exists")
-    p.add_argument("--exaggeration", default="500",
-                   help="display factor on beam deflections, > 0 (default 500)")
+    add_overwrite(p, "replace OUT.rrd if it exists")
+    p.add_argument("--exaggeration", default="500", help=option_help("--exaggeration", "display factor on beam "
+                                                                        "deflections (default 500)"))
     p.add_argument("--republish", action="store_true", help="republish the run on ROS 2")
-    p.add_argument("--domain-id", default=None, help="ROS_DOMAIN_ID, 0..101 (default: a free one)")
-    p.add_argument("--rate", default="1",
-                   help="republish speed, multiples of simulated time, >= 0; 0 = as fast as possible")
+    add_domain_id(p, "ROS_DOMAIN_ID (default: a free one)")
+    p.add_argument("--rate", default="1", help=option_help("--rate", "republish speed, multiples of simulated time"))
     p.add_argument("--topics", nargs="+", default=None, help="republish only these topics")
-    p.add_argument("--wait-subscribers", default="2", metavar="S",
-                   help="wait up to S s (0..3600) until every republished topic has a subscriber")
+    p.add_argument("--wait-subscribers", default="2", metavar="S", help=option_help(
+        "--wait-subscribers", "wait up to S s until every republished topic has a subscriber"))
     args = p.parse_args(argv)
     if args.via_convert and args.rrd is None:
         p.error("--via-convert needs --rrd OUT.rrd")

@@ -31,12 +31,12 @@ from pathlib import Path
 
 from adm_sim.files import claim_output, write_atomic
 from adm_sim.sim_commands import add_check_arguments, cmd_check
-from adm_sim.cliutil import Parser, progress_callback
-from adm_sim.errors import InputError, RunError, check_int, check_range, run_cli
-from adm_sim.limits import DEFAULT_SPEEDS
+from adm_sim.cliutil import (Parser, add_choice, add_dim_grid, add_overwrite, add_progress, add_speeds,
+                             add_steps_per_period, check_option, option_help, option_view, progress_callback)
+from adm_sim.errors import InputError, RunError, check_range, run_cli
 
-#: Range of recommend --mu (kg/m): the 0.5-100 t/m the lower-bound rules accept.
-MU_RANGE_KG_M = (500.0, 100_000.0)
+#: Range of recommend --mu (kg/m): the 0.5-100 t/m the lower-bound rules accept (the registry's).
+MU_RANGE_KG_M = (option_view("--mu").lo, option_view("--mu").hi)
 
 
 def _out_dir(text, option, names, overwrite, inputs=None):
@@ -114,7 +114,7 @@ def _options(args):
 
 
 def _steps_per_period(text):
-    return check_range("--steps-per-period", text, "steps", 4, 10000)
+    return check_option("--steps-per-period", text)
 
 
 def _speeds(text):
@@ -170,7 +170,7 @@ def cmd_table4(args):
     trains = _once([_study_train(t, "--trains") for t in _list(args.trains, "--trains")], "--trains", args.trains)
     for t in trains:
         load_train(t)
-    jobs = check_int("--jobs", args.jobs, 1, 64, "processes")
+    jobs = check_option("--jobs", args.jobs)
     speeds, options = _speeds(args.speeds), _options(args)
     _make_dir(out, "--out")
     t0 = time.perf_counter()
@@ -194,13 +194,13 @@ def _recommend_mu_kg_m(text):
     (0.5..100) cannot be one in kg/m (500..100000), so the hint shows the conversion."""
     lo, hi = MU_RANGE_KG_M
     try:
-        return check_range("--mu", text, "kg/m", lo, hi)
+        return check_option("--mu", text)
     except InputError as exc:
         try:
             x = float(text)
         except ValueError:
             x = float("nan")
-        if 0.5 <= x <= 100.0:
+        if lo / 1000.0 <= x <= hi / 1000.0:
             raise InputError(f"{exc} (--mu is in kg/m like the bridge specs: {x:g} t/m = {1000 * x:g} kg/m)") from None
         raise
 
@@ -236,7 +236,9 @@ def cmd_recommend(args):
                          f"frequency of the studied bridges, Section 4.2.2)") from None
     mu_kg_m = _recommend_mu_kg_m(args.mu)
     span_range = SPAN_RANGE_M if args.extrapolate else STUDY_SPAN_RANGE_M  # beyond 4..40 m: warned below
-    span = None if args.span is None else check_range("--span", args.span, "m", *span_range)
+    span_view = option_view("--span")  # the studied spans; with --extrapolate the bridge's
+    span = None if args.span is None else (span_view.field.check(args.span, name="--span") if args.extrapolate
+                                           else span_view.check(args.span))
     if span is None and not span_range[0] <= span_from_frequency_m(n0) <= span_range[1]:
         raise InputError(f"--n0: {n0:g} Hz gives an estimated span of {span_from_frequency_m(n0):.3g} m "
                          f"(n0 = 97.76 L^-0.9124), outside the studied spans [{STUDY_SPAN_RANGE_M[0]:g}, "
@@ -280,19 +282,19 @@ def _mass_functions(text):
 
 
 def _spans(text):
-    from adm_calib.study import SPAN_RANGE_M
 
     parts = [p.strip() for p in str(text).split(":")]
     if len(parts) not in (1, 2) or not all(parts):
         raise InputError(f"--spans: {text!r} is not lo:hi in m (e.g. 4:40)")
-    lo, hi = (check_range("--spans", p, "m", *SPAN_RANGE_M) for p in (parts[0], parts[-1]))
+    spans = option_view("--spans")
+    lo, hi = (spans.check(p) for p in (parts[0], parts[-1]))
     if lo > hi:
-        raise InputError(f"--spans: {text!r} is empty; allowed lo:hi with lo <= hi in [4, 40] m")
+        raise InputError(f"--spans: {text!r} is empty; allowed lo:hi with lo <= hi in {spans.range_text()}")
     return lo, hi
 
 
 def _freq_indices(text):
-    return sorted(_once([check_int("--freq-index", p, 1, 5) for p in _list(text, "--freq-index")], "--freq-index", text))
+    return sorted(_once([check_option("--freq-index", p) for p in _list(text, "--freq-index")], "--freq-index", text))
 
 
 def _scheduler(text):
@@ -314,8 +316,8 @@ def cmd_study(args):
     mfs = _once(_mass_functions(args.mass_functions), "--mass-functions", args.mass_functions)
     spans = _spans(args.spans)
     fis = _freq_indices(args.freq_index)
-    workers = check_int("--workers", args.workers, 1, 64, "processes")
-    limit = None if args.limit is None else check_int("--limit", args.limit, 1, 1_000_000, "cases")
+    workers = check_option("--workers", args.workers)
+    limit = None if args.limit is None else check_option("--limit", args.limit)
     scheduler = None if args.scheduler is None else _scheduler(args.scheduler)
     spp = None if args.steps_per_period is None else _steps_per_period(args.steps_per_period)
     _speeds(args.speeds)
@@ -486,14 +488,11 @@ def build_parser():
     sub = p.add_subparsers(dest="command", required=True)
 
     def common(sp):
-        sp.add_argument("--speeds", default=DEFAULT_SPEEDS, help=f"MLM speeds in km/h, start:stop:step (default {DEFAULT_SPEEDS})")
-        sp.add_argument("--dim-grid", choices=("paper", "full"), default="paper",
-                        help="DIM speeds: paper = 5 km/h plus 1 km/h near the MLM peak (Section 3.3); full = all")
-        sp.add_argument("--steps-per-period", default=None,
-                        help="integration steps per period of the highest mode (core default 16)")
-        sp.add_argument("--progress", action="store_true", help="show progress bars on stderr")
-        sp.add_argument("--overwrite", "--force", dest="force", action="store_true",
-                        help="replace existing output files (only once the new ones are complete)")
+        add_speeds(sp, "MLM speeds in km/h, start:stop:step", show_default=True)
+        add_dim_grid(sp, "DIM speeds: paper = 5 km/h plus 1 km/h near the MLM peak (Section 3.3); full = all")
+        add_steps_per_period(sp, "integration steps per period of the highest mode (core default 16)")
+        add_progress(sp, negatable=False, text="show progress bars on stderr")
+        add_overwrite(sp, "replace existing output files (only once the new ones are complete)", force_alias=True)
         peaks_options(sp)
 
     def peaks_options(sp):
@@ -518,17 +517,18 @@ def build_parser():
     t.add_argument("--out", default="table4_out", help="output directory (default table4_out)")
     t.add_argument("--bridges", default="B1,B2,B3,B4")
     t.add_argument("--trains", default="ICE-2,Eurostar,Railjet,ICE-4")
-    t.add_argument("--jobs", default="1", help="worker processes, 1..64 (default 1)")
+    t.add_argument("--jobs", default="1", help=option_help("--jobs", "worker processes (default 1)"))
     common(t)
     t.set_defaults(func=cmd_table4)
 
     r = sub.add_parser("recommend", help="dz from the lower-bound functions by the rules of Section 4.3")
     r.add_argument("--train", required=True, help="ICE-2, Eurostar, Railjet or ICE-4")
     r.add_argument("--n0", required=True, help="first natural frequency (Hz), 2.1 Hz up to the highest n0 of the study")
-    r.add_argument("--mu", required=True, help="mass per length in kg/m, like the bridge specs (500..100000 kg/m; "
-                                                "Table 1 / Eq. 19 print t/m: 1 t/m = 1000 kg/m); printed in both")
-    r.add_argument("--type", required=True, choices=("cfb", "sc"), help="cfb: concrete/filler beam, sc: steel/composite")
-    r.add_argument("--span", default=None, help="span (m, 4..40); estimated from n0 when omitted")
+    r.add_argument("--mu", required=True, help=option_help("--mu", "mass per length in kg/m, like the bridge specs "
+                                                                   "(Table 1 / Eq. 19 print t/m: 1 t/m = 1000 kg/m); "
+                                                                   "printed in both"))
+    add_choice(r, "--type", "cfb: concrete/filler beam, sc: steel/composite", required=True)
+    r.add_argument("--span", default=None, help=option_help("--span", "span; estimated from n0 when omitted"))
     r.add_argument("--interpolate", action="store_true",
                    help="interpolate linearly between the adjacent mass functions instead of the safe side")
     r.add_argument("--functions", choices=("paper", "ours", "conservative"), default="paper",
@@ -546,17 +546,19 @@ def build_parser():
                                                 "rerun with the same --out to resume")
     s.add_argument("--trains", default="ICE-2,Eurostar,Railjet,ICE-4")
     s.add_argument("--mass-functions", default="mu1,mu2,mu3,mu4,mu5,mu6", help="Table 1 mass functions")
-    s.add_argument("--spans", default="4:40", help="span range lo:hi in m, within 4:40 (integer spans of the field)")
-    s.add_argument("--freq-index", default="1,2,3,4,5", help="n0 per span: 1 = LB ... 3 = fit ... 5 = UB power law")
-    s.add_argument("--limit", default=None, help="run at most N of the pending cases")
-    s.add_argument("--workers", default="2", help="worker processes of the local cluster (default 2)")
+    s.add_argument("--spans", default="4:40", help=option_help("--spans", "span range lo:hi (integer spans of the "
+                                                                          "field), each end"))
+    s.add_argument("--freq-index", default="1,2,3,4,5", help=option_help(
+        "--freq-index", "n0 per span: 1 = LB ... 3 = fit ... 5 = UB power law; a comma list, each"))
+    s.add_argument("--limit", default=None, help=option_help("--limit", "run at most N of the pending cases"))
+    s.add_argument("--workers", default="2", help=option_help("--workers", "worker processes of the local cluster "
+                                                                           "(default 2)"))
     s.add_argument("--scheduler", default=None, help="address of a running dask scheduler, e.g. "
                                                      "tcp://127.0.0.1:8786 (instead of a local cluster)")
     s.add_argument("--retry-errors", action="store_true", help="run the cases recorded with status error again")
-    s.add_argument("--speeds", default=DEFAULT_SPEEDS, help=f"MLM speeds in km/h, start:stop:step (default {DEFAULT_SPEEDS})")
-    s.add_argument("--dim-grid", choices=("paper", "full"), default="paper")
-    s.add_argument("--steps-per-period", default=None,
-                   help="integration steps per period of the highest mode (core default 16)")
+    add_speeds(s, "MLM speeds in km/h, start:stop:step", show_default=True)
+    add_dim_grid(s)
+    add_steps_per_period(s, "integration steps per period of the highest mode (core default 16)")
     peaks_options(s)
     s.set_defaults(func=cmd_study)
 
@@ -572,8 +574,7 @@ def build_parser():
                    help="n0 range of the fit lo:hi in Hz within 2:21 (default 2:21, the paper's intervals; e.g. 2:16 "
                         "keeps the boundaries up to 16 Hz); the fitted functions are 0 above hi")
     f.add_argument("--tag", default="", help="suffix of every output file name (e.g. eurostar_table)")
-    f.add_argument("--overwrite", "--force", dest="force", action="store_true",
-                   help="replace existing output files (only once the new ones are complete)")
+    add_overwrite(f, "replace existing output files (only once the new ones are complete)", force_alias=True)
     f.set_defaults(func=cmd_study_fit)
 
     k = sub.add_parser("check", help="EN 1991-2 dynamic check as adm-sim check, with all four damping methods "

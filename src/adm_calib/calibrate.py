@@ -42,6 +42,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.optimize import elementwise
 
+from adm_sim.fields import FIELDS
 from adm_sim.errors import InputError, check_range
 from adm_sim.limits import MAX_DELTA_ZETA, default_speeds_kmh
 from adm_sim.stepping import StepOptions, make_grid, speeds_to_m_s
@@ -96,8 +97,7 @@ class CalibrationOptions:
     speed_refinement_kmh: float | None = None
 
     def __post_init__(self):
-        if self.dim_grid not in ("paper", "full"):
-            raise InputError(f"dim_grid: {self.dim_grid!r} is not allowed; allowed 'paper' or 'full'")
+        FIELDS["dim_grid"].check(self.dim_grid)
         check_range("dim_coarse_step_kmh", self.dim_coarse_step_kmh, "km/h", 0.0, 100.0, lo_open=True)
         check_range("relocation_window_kmh", self.relocation_window_kmh, "km/h", 0.0, 100.0, lo_open=True)
         check_range("xtol", self.xtol, "- (fraction)", 0.0, 1e-4, lo_open=True)

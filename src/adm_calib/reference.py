@@ -59,6 +59,7 @@ from importlib import resources
 
 import numpy as np
 
+from adm_sim.fields import view
 from adm_sim.bridge import MASS_FUNCTIONS, N0_FIT, N0_UB, SPAN_RANGE_M, mass_function_t_m
 from adm_sim.design_loads import adm_delta_zeta_pct  # noqa: F401  (the Eurocode ADM lives in the core; re-exported)
 from adm_sim.errors import InputError, check_range
@@ -70,7 +71,7 @@ STUDY_TRAINS = ("ICE-2", "Eurostar", "Railjet", "ICE-4")
 #: Mass functions per bridge type, heaviest first (Table 1).
 TYPE_MASS_FUNCTIONS = {"cfb": ("mu1", "mu2", "mu3"), "sc": ("mu4", "mu5", "mu6")}
 #: Spans of the parametric field (m), Section 3.1.1.
-STUDY_SPAN_RANGE_M = (4.0, 40.0)
+STUDY_SPAN_RANGE_M = (view("cli", "--span").lo, view("cli", "--span").hi)  # the field registry's
 #: Highest first frequency of the parametric field: upper bound n0 = 113.1 L^-0.8312 at L = 4 m.
 STUDY_N0_MAX_HZ = round(N0_UB[0] * STUDY_SPAN_RANGE_M[0] ** N0_UB[1], 2)
 #: Relative tolerance within which a bridge mass counts as lying on a mass function.

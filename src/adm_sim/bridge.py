@@ -27,16 +27,19 @@ from pathlib import Path
 
 import numpy as np
 
-from adm_sim.errors import InputError, check_choice, check_int, check_number, check_range, read_toml
+from adm_sim.errors import InputError, read_toml
+from adm_sim.fields import FIELDS, core
+from adm_sim.fields import view as field_view
 
-#: Allowed input ranges (SI): span, first frequency, mass per length, damping (fraction).
-SPAN_RANGE_M = (1.0, 150.0)
-N0_RANGE_HZ = (0.5, 100.0)
-MU_RANGE_KG_M = (100.0, 1.0e6)
-ZETA_RANGE = (0.0, 0.20)
-N_MODES_RANGE = (1, 20)
+#: Allowed input ranges (SI): span, first frequency, mass per length, damping (fraction), modes; the
+#: field registry's (:mod:`adm_sim.fields`), named here for the callers that need the numbers.
+SPAN_RANGE_M = FIELDS["span_m"].range
+N0_RANGE_HZ = FIELDS["n0_hz"].range
+MU_RANGE_KG_M = FIELDS["mass_per_length_kg_m"].range
+ZETA_RANGE = FIELDS["damping_ratio"].range
+N_MODES_RANGE = FIELDS["n_modes"].range
 
-BRIDGE_TYPES = ("cfb", "sc")
+BRIDGE_TYPES = FIELDS["bridge_type"].choices
 
 
 @dataclass(frozen=True)
@@ -73,27 +76,23 @@ class Bridge:
     bridge_type: str = ""
 
     def __post_init__(self):
-        check_range("span_m", self.span_m, "m", *SPAN_RANGE_M)
-        check_range("EJ_Nm2", self.EJ_Nm2, "N m^2", 0.0, None, lo_open=True)
-        check_range("mass_per_length_kg_m", self.mass_per_length_kg_m, "kg/m", *MU_RANGE_KG_M)
-        check_range("damping_ratio", self.damping_ratio, "- (fraction)", *ZETA_RANGE)
+        for name in ("span_m", "EJ_Nm2", "mass_per_length_kg_m", "damping_ratio"):
+            core(name).check(getattr(self, name))
         if int(self.n_modes) != self.n_modes or not (N_MODES_RANGE[0] <= self.n_modes <= N_MODES_RANGE[1]):
             raise InputError(f"n_modes: {self.n_modes!r} is out of range; allowed integer in "
                              f"[{N_MODES_RANGE[0]}, {N_MODES_RANGE[1]}]")
-        if self.damping_model not in ("rayleigh", "modal"):
-            raise InputError(f"damping_model: {self.damping_model!r} is not allowed; "
-                             f"allowed 'rayleigh' or 'modal'")
-        if self.bridge_type not in BRIDGE_TYPES + ("",):
-            raise InputError(f"bridge_type: {self.bridge_type!r} is not allowed; allowed 'cfb' or 'sc'")
+        core("damping_model").check(self.damping_model)
+        if self.bridge_type != "":
+            core("bridge_type").check(self.bridge_type)
         _check_n0(self.n0_hz, "n0_hz")
 
     # ------------------------------------------------------------------ construction
     @classmethod
     def from_frequency(cls, span_m, n0_hz, mass_per_length_kg_m, damping_ratio, **kw):
         """Bridge from (L, n0, mu, zeta); EJ from Eq. (18): ``EJ = mu (2 L^2 n0 / pi)^2``."""
-        L = check_range("span_m", span_m, "m", *SPAN_RANGE_M)
-        n0 = check_range("n0_hz", n0_hz, "Hz", *N0_RANGE_HZ)
-        mu = check_range("mass_per_length_kg_m", mass_per_length_kg_m, "kg/m", *MU_RANGE_KG_M)
+        L = core("span_m").check(span_m)
+        n0 = core("n0_hz").check(n0_hz)
+        mu = core("mass_per_length_kg_m").check(mass_per_length_kg_m)
         EJ = mu * (2.0 * L**2 * n0 / math.pi) ** 2
         return cls(span_m=L, EJ_Nm2=EJ, mass_per_length_kg_m=mu, damping_ratio=damping_ratio, **kw)
 
@@ -175,12 +174,12 @@ def eurocode_damping_pct(span_m, bridge_type):
     Steel and composite (``"sc"``): ``0.5 + 0.125 (20 - L)`` for L < 20 m, else 0.5.
     Filler beam and reinforced concrete (``"cfb"``): ``1.5 + 0.07 (20 - L)`` for L < 20 m, else 1.5.
     """
-    L = check_range("span_m", span_m, "m", *SPAN_RANGE_M)
+    L = core("span_m").check(span_m)
     if bridge_type == "sc":
         return 0.5 + 0.125 * (20.0 - L) if L < 20.0 else 0.5
     if bridge_type == "cfb":
         return 1.5 + 0.07 * (20.0 - L) if L < 20.0 else 1.5
-    raise InputError(f"bridge_type: {bridge_type!r} is not allowed; allowed 'cfb' or 'sc'")
+    core("bridge_type").check(bridge_type)
 
 
 # ---------------------------------------------------------------------- named bridges (Table 3)
@@ -281,7 +280,7 @@ def _n0_in_range(n0):
 
 def _check_n0(n0, field):
     if not _n0_in_range(n0):
-        check_range(field, n0, "Hz", *N0_RANGE_HZ)
+        core("n0_hz").check(n0, name=field)
 
 
 def bridge_from_mapping(data, source="bridge", typed=False):
@@ -309,7 +308,12 @@ def bridge_from_mapping(data, source="bridge", typed=False):
             raise InputError(f"{source}.{key}: {value!r} must be text in quotes")
         vals[field_], given[field_] = value, key
     where = {f: f"{source}.{k}" for f, k in given.items()}
-    num = check_number if typed else check_range
+    surface = "toml" if typed else "spec"
+
+    def num(f):
+        """The value of quantity ``f`` checked as its key was typed (registry field, its unit)."""
+        return field_view(surface, given[f]).check(vals[f], name=where[f], typed=typed)
+
     damping = [given[f] for f in ("zeta_pct", "damping_ratio", "table2_type") if f in vals]
     if len(damping) == 2:
         hint = (" (class=cfb|sc classes a bridge of given damping for the lower-bound functions)"
@@ -325,38 +329,40 @@ def bridge_from_mapping(data, source="bridge", typed=False):
     for need, what in (("span_m", "L (span, m)"), ("mass_per_length_kg_m", "mu (mass per length, kg/m)")):
         if need not in vals:
             raise InputError(f"{source}: missing key {what}")
-    L = num(where["span_m"], vals["span_m"], "m", *SPAN_RANGE_M)
-    mu = num(where["mass_per_length_kg_m"], vals["mass_per_length_kg_m"], "kg/m", *MU_RANGE_KG_M)
+    L = num("span_m")
+    mu = num("mass_per_length_kg_m")
     btype = ""
     for f in ("table2_type", "bridge_class"):
         if f in vals:
-            btype = check_choice(where[f], str(vals[f]), BRIDGE_TYPES)
-    if "zeta_pct" in vals:
-        zeta = num(where["zeta_pct"], vals["zeta_pct"], "%", 0.0, 100 * ZETA_RANGE[1]) / 100.0
-    elif "damping_ratio" in vals:
-        zeta = num(where["damping_ratio"], vals["damping_ratio"], "- (fraction)", *ZETA_RANGE)
+            btype = field_view(surface, given[f]).check(str(vals[f]), name=where[f])
+    if "zeta_pct" in vals or "damping_ratio" in vals:
+        f = "zeta_pct" if "zeta_pct" in vals else "damping_ratio"
+        zeta = field_view(surface, given[f]).to_core(num(f))
     elif "table2_type" in vals:
         zeta = eurocode_damping_pct(L, btype) / 100.0
     else:
-        raise InputError(f"{source}: missing damping: give zeta_pct (%, 0..20), zeta (fraction, 0..0.2) "
-                         f"or type=cfb|sc (Table 2 damping)")
+        zp, z = field_view(surface, "zeta_pct"), field_view(surface, "zeta")
+        raise InputError(f"{source}: missing damping: give zeta_pct (%, {zp.lo:g}..{zp.hi:g}), zeta (fraction, "
+                         f"{z.lo:g}..{z.hi:g}) or type=cfb|sc (Table 2 damping)")
     kw = dict(name=str(vals.get("name", "")), bridge_type=btype)
     if "n_modes" in vals:
-        kw["n_modes"] = check_int(where["n_modes"], vals["n_modes"], *N_MODES_RANGE)
+        kw["n_modes"] = num("n_modes")
     if "damping_model" in vals:
-        kw["damping_model"] = check_choice(where["damping_model"], str(vals["damping_model"]), ("rayleigh", "modal"))
+        kw["damping_model"] = field_view(surface, "damping_model").check(str(vals["damping_model"]),
+                                                                        name=where["damping_model"])
     if "n0_hz" in vals:
-        n0 = num(where["n0_hz"], vals["n0_hz"], "Hz", *N0_RANGE_HZ)
+        n0 = num("n0_hz")
         return _plausible(Bridge.from_frequency(L, n0, mu, zeta, **kw), source, zeta, "zeta_pct" in vals)
     if "EJ_Nm2" in vals:
-        EJ = num(where["EJ_Nm2"], vals["EJ_Nm2"], "N m^2", 0.0, None, lo_open=True)
+        EJ = num("EJ_Nm2")
         n0 = math.pi / (2.0 * L**2) * math.sqrt(EJ / mu)
         if not _n0_in_range(n0):
             raise InputError(f"{where['EJ_Nm2']}: {EJ:g} N m^2 gives n0 = {n0:.4g} Hz with L = {L:g} m and "
                              f"mu = {mu:g} kg/m (Eq. 18); allowed n0 in [{N0_RANGE_HZ[0]:g}, {N0_RANGE_HZ[1]:g}] Hz")
         bridge = Bridge(span_m=L, EJ_Nm2=EJ, mass_per_length_kg_m=mu, damping_ratio=zeta, **kw)
         return _plausible(bridge, source, zeta, "zeta_pct" in vals)
-    raise InputError(f"{source}: missing stiffness: give n0 (Hz, 0.5..100) or EJ (N m^2, > 0)")
+    raise InputError(f"{source}: missing stiffness: give n0 (Hz, {N0_RANGE_HZ[0]:g}..{N0_RANGE_HZ[1]:g}) or EJ "
+                     f"(N m^2, > {FIELDS['EJ_Nm2'].lo:g})")
 
 
 def _plausible(bridge, source, zeta, zeta_in_pct):

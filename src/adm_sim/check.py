@@ -49,6 +49,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from adm_sim.fields import FIELDS
 from adm_sim.errors import InputError, check_range
 
 #: Lowest speed of the check (m/s), EN 1991-2 6.4.6.2(1).
@@ -335,11 +336,11 @@ def check_speeds_kmh(max_line_speed_kmh, step_kmh=1.0):
     """The speeds of the check (km/h): 40 m/s .. 1.2 V at ``step_kmh``, both ends included."""
     lo = MIN_SPEED_M_S * 3.6
     try:
-        V = check_range("max_line_speed_kmh", max_line_speed_kmh, "km/h", lo, 500.0, lo_open=True)
+        V = FIELDS["max_line_speed_kmh"].check(max_line_speed_kmh, lo=lo)
     except InputError as exc:
         raise InputError(f"{exc} (the check runs from 40 m/s = 144 km/h up to 1.2 V, EN 1991-2 6.4.6.2; "
                          f"1.2 V at most 600 km/h)", field="max_line_speed_kmh") from None
-    step = check_range("step_kmh", step_kmh, "km/h", 0.0, 1.0, lo_open=True, argument=True)
+    step = FIELDS["step_kmh"].check(step_kmh, argument=True)
     hi = DESIGN_SPEED_FACTOR * V
     n = int(math.floor((hi - lo) / step + 1e-9))
     v = lo + step * np.arange(n + 1)
@@ -592,10 +593,11 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
                          f"{bridge.span_m:g} m, where EN 1991-2 6.4.6.1.1(5) asks for HSLM-B, which adm-sim "
                          f"does not include (see the README); check real trains only", field="trains")
     f_lim = check_frequency_limit_hz(bridge)
-    need = min(20, check_mode_count(bridge))
+    most = FIELDS["n_modes"].hi
+    need = min(most, check_mode_count(bridge))
     if n_modes is not None:
         try:
-            x = check_range("n_modes", n_modes, "-", need, 20)
+            x = check_range("n_modes", n_modes, "-", need, most)
         except InputError as exc:
             raise InputError(f"{exc} (EN 1990 A2.4.4.2.1 asks for every mode up to {f_lim:.1f} Hz: {need} modes)",
                              field="n_modes") from None

@@ -131,3 +131,84 @@ def progress_callback(desc, enabled=None, **kwargs):
         bar.refresh()
 
     return cb, bar.close
+
+
+# ---------------------------------------------------------------------- options from the field registry
+def _help(text):
+    return text.replace("%", "%%")  # argparse formats help with %
+
+
+def option_help(flag, text):
+    """The help of ``flag``: ``text`` with the unit and the allowed values of its field in the
+    registry (:meth:`adm_sim.fields.View.help`), so ``--help`` states the range the check applies."""
+    from adm_sim.fields import view
+
+    return _help(view("cli", flag).help(text))
+
+
+def option_view(flag):
+    """The registry's :class:`~adm_sim.fields.View` of ``flag`` (its unit, range, conversion to the core)."""
+    from adm_sim.fields import view
+
+    return view("cli", flag)
+
+
+def check_option(flag, value, **kw):
+    """``value`` of ``flag`` checked by its registry field (:meth:`adm_sim.fields.View.check`):
+    one line naming the flag, the value, the unit and the allowed range."""
+    from adm_sim.fields import view
+
+    return view("cli", flag).check(value, **kw)
+
+
+def add_speeds(parser, text="speeds in km/h, start:stop:step (stop included) or a comma list", default=None,
+               show_default=False):
+    """``--speeds`` (default: the paper's :data:`adm_sim.limits.DEFAULT_SPEEDS`)."""
+    from adm_sim.limits import DEFAULT_SPEEDS
+
+    default = DEFAULT_SPEEDS if default is None else default
+    text = f"{text} (default {default})" if show_default else text
+    parser.add_argument("--speeds", default=default, help=option_help("--speeds", text))
+
+
+def add_steps_per_period(parser, text, default=None):
+    """``--steps-per-period`` (checked by :func:`check_option` when the command uses it)."""
+    parser.add_argument("--steps-per-period", default=default, help=option_help("--steps-per-period", text))
+
+
+def add_delta_zeta_pct(parser, text="additional damping", default="0"):
+    """``--delta-zeta-pct``: Δζ in % (the core's ``delta_zeta`` is a fraction, :data:`adm_sim.fields.SCALES`)."""
+    parser.add_argument("--delta-zeta-pct", default=default, help=option_help("--delta-zeta-pct", text))
+
+
+def add_choice(parser, flag, text=None, default=None, **kw):
+    """``flag`` taking one of its registry field's choices (argparse refuses the others)."""
+    from adm_sim.fields import view
+
+    parser.add_argument(flag, choices=view("cli", flag).field.choices, default=default,
+                        help=None if text is None else _help(text), **kw)
+
+
+def add_dim_grid(parser, text=None):
+    add_choice(parser, "--dim-grid", text, default="paper")
+
+
+def add_progress(parser, negatable=True, text="progress bar (default: when stderr is a terminal)"):
+    """``--progress``: with ``negatable`` also ``--no-progress`` (default None: when stderr is a
+    terminal); else a plain switch (default False)."""
+    if negatable:
+        parser.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None, help=text)
+    else:
+        parser.add_argument("--progress", action="store_true", help=text)
+
+
+def add_overwrite(parser, text, force_alias=False):
+    """``--overwrite`` (with ``force_alias`` also spelled ``--force``, stored as ``force``)."""
+    if force_alias:
+        parser.add_argument("--overwrite", "--force", dest="force", action="store_true", help=text)
+    else:
+        parser.add_argument("--overwrite", action="store_true", help=text)
+
+
+def add_domain_id(parser, text="ROS_DOMAIN_ID (default: a free one, reserved)"):
+    parser.add_argument("--domain-id", default=None, help=option_help("--domain-id", text))

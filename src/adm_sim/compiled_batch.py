@@ -23,7 +23,8 @@ from __future__ import annotations
 import numpy as np
 
 from adm_sim import kernels
-from adm_sim.errors import InputError, RunError, check_range
+from adm_sim.fields import FIELDS
+from adm_sim.errors import InputError, RunError
 from adm_sim.limits import check_delta_zeta_pct
 from adm_sim.stepping import (FAILED, RUNNING, StepOptions, SteppedRun, check_model, half_step_positions,
                               make_grid, mlm_rk4_coefficients, modal_loads_at, speeds_to_m_s)
@@ -67,7 +68,7 @@ class BatchRunner:
                                  f"{b.name or b.describe()} differs from {b0.name or b0.describe()}")
         self.train = train
         self.options = StepOptions(free_vibration_periods=free_vibration_periods,
-                                   ds_m=check_range("ds_m", ds_m, "m", 1e-5, 10.0), dense_maxima=bool(dense_maxima))
+                                   ds_m=FIELDS["ds_m"].check(ds_m), dense_maxima=bool(dense_maxima))
         self.dense_maxima = bool(dense_maxima)
         self.ds_m = float(ds_m)
         self.span_m = float(b0.span_m)

@@ -8,14 +8,15 @@
 * The default speed range of the paper, Section 3.3: 160 to 350 km/h every 1 km/h.
 * The range of the additional damping Δζ: from ``-ζ`` (no negative total damping) to 20 %.
 
-Numpy only; no ROS, no CLI (messages name the field the caller gives).
+Numpy only; no ROS, no CLI (messages name the field the caller gives). The Δζ checks are the field
+registry's (:mod:`adm_sim.fields`, field ``delta_zeta``), whose bounds are the numbers written here.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from adm_sim.errors import InputError, check_range
+from adm_sim.errors import InputError
 
 # ---------------------------------------------------------------------- EN 1990 A2.4.4.2.1
 #: Peak deck acceleration limits (m/s²) by track type, EN 1990 A2.4.4.2.1(4)P.
@@ -63,13 +64,17 @@ MAX_DELTA_ZETA = MAX_DELTA_ZETA_PCT / 100.0
 def check_delta_zeta(field, value, damping_ratio):
     """``float(value)``, an additional damping Δζ as a fraction, or :class:`InputError` naming
     ``field`` with the allowed ``[-ζ, 0.2]``; ``damping_ratio`` is the bridge's ζ (fraction)."""
-    return check_range(field, value, "- (fraction)", -damping_ratio, MAX_DELTA_ZETA)
+    from adm_sim.fields import FIELDS
+
+    return FIELDS["delta_zeta"].check(value, name=field, lo=-damping_ratio)
 
 
 def check_delta_zeta_pct(field, value_pct, damping_ratio):
     """``float(value_pct)``, an additional damping Δζ in %, or :class:`InputError` naming ``field``
     with the allowed ``[-100 ζ, 20] %``; ``damping_ratio`` is the bridge's ζ (fraction)."""
-    return check_range(field, value_pct, "%", -100 * damping_ratio, MAX_DELTA_ZETA_PCT)
+    from adm_sim.fields import view
+
+    return view("cli", "--delta-zeta-pct").check(value_pct, name=field, lo_core=-damping_ratio)
 
 
 __all__ = ["ACC_LIMITS_M_S2", "TRACK_TYPES", "TRACK_ALIASES", "check_track_type", "acc_limit_m_s2",

@@ -7,18 +7,18 @@ another reason (e.g. an integration that became unstable) with 1, an interrupt w
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import time
 from pathlib import Path
 
-from adm_sim.cliutil import Parser, progress_callback
+from adm_sim.cliutil import (Parser, add_choice, add_delta_zeta_pct, add_overwrite, add_progress, add_speeds,
+                             add_steps_per_period, check_option, option_help, option_view,
+                             progress_callback)
 from adm_sim.errors import InputError, run_cli
 from adm_sim.files import claim_output, mcap_input, write_atomic
 from adm_sim.figures import plot_check, plot_sweep
-from adm_sim.limits import (ACC_LIMITS_M_S2, DEFAULT_SPEEDS, MAX_DELTA_ZETA_PCT, TRACK_ALIASES, check_delta_zeta_pct,
-                            check_track_type)
+from adm_sim.limits import ACC_LIMITS_M_S2, TRACK_ALIASES, check_track_type
 
 
 def cmd_sweep(args):
@@ -27,7 +27,6 @@ def cmd_sweep(args):
     from adm_sim.stepping import StepOptions
     from adm_sim.sweep import parse_speeds, run_sweep, sweep_exact
     from adm_sim.trains import load_train
-    from adm_sim.errors import check_range
     from adm_sim.plausibility import check_response
 
     inputs = {"--train": args.train, "--bridge": args.bridge}
@@ -38,8 +37,9 @@ def cmd_sweep(args):
     bridge = resolve_bridge(args.bridge)
     train = load_train(args.train)
     speeds = parse_speeds(args.speeds)
-    dz = check_delta_zeta_pct("--delta-zeta-pct", args.delta_zeta_pct, bridge.damping_ratio) / 100
-    opts = StepOptions(steps_per_period=check_range("--steps-per-period", args.steps_per_period, "steps", 4, 10000))
+    dz_pct = option_view("--delta-zeta-pct")  # % on the command line, a fraction in the core
+    dz = dz_pct.to_core(dz_pct.check(args.delta_zeta_pct, lo_core=-bridge.damping_ratio))  # dz >= -zeta
+    opts = StepOptions(steps_per_period=check_option("--steps-per-period", args.steps_per_period))
     where = parse_where(args.where, bridge.span_m)
     method = args.method or ("exact" if args.model == "mlm" else "rk4")
     if args.model == "dim" and method == "exact":
@@ -243,9 +243,8 @@ def _output_options(parser, outputs, overwrite_help):
     """The output files (``--json`` etc., each with its help), ``--overwrite`` and ``--progress``."""
     for name, text in outputs.items():
         parser.add_argument(f"--{name}", help=text)
-    parser.add_argument("--overwrite", action="store_true", help=overwrite_help)
-    parser.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
-                        help="progress bar (default: when stderr is a terminal)")
+    add_overwrite(parser, overwrite_help)
+    add_progress(parser)
 
 
 def add_check_arguments(c):
@@ -253,7 +252,7 @@ def add_check_arguments(c):
     (``--damping lb|vbi`` are computed only by ``adm-calib check``)."""
     c.add_argument("--bridge", default="B1", help="B1..B4, a spec L=15,n0=8.26,mu=19042,zeta_pct=1.85, or a TOML file")
     c.add_argument("--max-line-speed", type=float, required=True,
-                   help="maximum line speed V (km/h, > 144); speeds 40 m/s .. 1.2 V are checked")
+                   help=option_help("--max-line-speed", "maximum line speed V; speeds 40 m/s .. 1.2 V are checked"))
     c.add_argument("--trains", default="hslm",
                    help="comma list: hslm (HSLM-A1..A10), HSLM-Ak, ICE-2, Eurostar, Railjet, ICE-4, .toml files")
     c.add_argument("--track", choices=(*ACC_LIMITS_M_S2, *TRACK_ALIASES), default="ballasted",
@@ -276,7 +275,7 @@ def add_check_arguments(c):
                    help="damping per mode: rayleigh13 (Rayleigh anchored at modes 1 and 3; mode 2 gets 0.625 zeta "
                         "with 3 modes) or modal (zeta on every mode, EN 1991-2 6.4.6.3.1); default: the bridge's "
                         "own (rayleigh13 unless its file says damping_model = \"modal\")")
-    c.add_argument("--speed-step", type=float, default=1.0, help="speed step (km/h, at most 1)")
+    c.add_argument("--speed-step", type=float, default=1.0, help=option_help("--speed-step", "speed step"))
     c.add_argument("--modes", type=float, help="more modes than EN 1990 A2.4.4.2.1 asks for (default: exactly those)")
     c.add_argument("--comfort", action="store_true",
                    help="also run the DIM of the real trains: passenger comfort b_v (EN 1990 A2.4.4.3)")
@@ -296,11 +295,10 @@ def build_parser():
                    "EJ N m^2, mu kg/m, zeta_pct %% or type=cfb|sc for the Table 2 damping; class=cfb|sc classes a bridge "
                    "of given damping), or a TOML file with these keys")
     s.add_argument("--train", default="ICE-2", help="ICE-2, Eurostar, Railjet, ICE-4, Eurostar-table, HSLM-A1..A10 (MLM only), or a TOML file")
-    s.add_argument("--model", choices=("mlm", "dim"), default="mlm")
-    s.add_argument("--speeds", default=DEFAULT_SPEEDS, help="km/h, start:stop:step or a comma list")
-    s.add_argument("--delta-zeta-pct", default="0", help=f"additional damping (%%, from -zeta to {MAX_DELTA_ZETA_PCT:g})")
-    s.add_argument("--steps-per-period", default="16",
-                   help="RK4 steps per period of the highest bridge mode (4..10000; DIM and --method rk4)")
+    add_choice(s, "--model", default="mlm")
+    add_speeds(s, "km/h, start:stop:step or a comma list")
+    add_delta_zeta_pct(s)
+    add_steps_per_period(s, "RK4 steps per period of the highest bridge mode (DIM and --method rk4)", default="16")
     s.add_argument("--method", choices=("exact", "rk4"), default=None,
                    help="MLM: exact (default: the closed-form envelope, true maximum per speed) or rk4 (the lockstep "
                         "RK4 run, maxima sampled at its steps); the DIM is always rk4")
@@ -327,7 +325,7 @@ def build_parser():
     v = sub.add_parser("salvage", help="recover a killed run's MCAP log")
     v.add_argument("src")
     v.add_argument("dst")
-    v.add_argument("--overwrite", action="store_true", help="replace an existing DST")
+    add_overwrite(v, "replace an existing DST")
     v.set_defaults(func=cmd_salvage)
     return p
 

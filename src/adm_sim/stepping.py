@@ -60,8 +60,9 @@ import numpy as np
 
 from adm_sim._jit import RK4_C, RK4_W  # the RK4 tableau, shared with the numba kernels
 from adm_sim.errors import InputError, check_range
+from adm_sim.fields import FIELDS
 
-SPEED_RANGE_KMH = (1.0, 600.0)
+SPEED_RANGE_KMH = FIELDS["speeds_kmh"].range
 
 
 @dataclass(frozen=True)
@@ -88,10 +89,10 @@ class StepOptions:
     dense_maxima: bool = False
 
     def __post_init__(self):
-        check_range("steps_per_period", self.steps_per_period, "steps", 4.0, 10000.0)
-        check_range("free_vibration_periods", self.free_vibration_periods, "periods", 0.0, 100.0)
+        FIELDS["steps_per_period"].check(self.steps_per_period)
+        FIELDS["free_vibration_periods"].check(self.free_vibration_periods)
         if self.ds_m is not None:
-            check_range("ds_m", self.ds_m, "m", 1e-5, 10.0)
+            FIELDS["ds_m"].check(self.ds_m)
 
     def halved(self):
         """The same settings with half the step (for convergence checks)."""
@@ -453,7 +454,7 @@ class TrainSide:
 
 
 RUNNING, FINISHED, FAILED = "running", "finished", "failed"  # SteppedRun.status
-MODELS = ("mlm", "dim")
+MODELS = FIELDS["model"].choices
 
 
 def check_model(model, train=None):

@@ -45,7 +45,9 @@ from pathlib import Path
 
 import numpy as np
 
-from adm_sim.errors import InputError, check_int, check_number, read_toml
+from adm_sim.errors import InputError, read_toml
+from adm_sim.fields import VEHICLE_FIELDS, VEHICLE_OPTIONAL
+from adm_sim.fields import view as field_view
 from adm_sim.hslm import hslm_axles, hslm_name
 
 G_M_S2 = 9.81  # gravitational acceleration used by the paper (Section 3.2.2)
@@ -54,21 +56,8 @@ TRAIN_NAMES = ("ICE-2", "Eurostar", "Railjet", "ICE-4")
 _FILES = {"ice2": "ice2.toml", "eurostar": "eurostar.toml", "railjet": "railjet.toml",
           "ice4": "ice4.toml", "eurostartable": "eurostar_table.toml"}
 
-# field name -> (unit, lo, hi, required)
-_TYPE_FIELDS = {
-    "m_c_kg": ("kg", 1.0, 5.0e5, True),
-    "J_c_kgm2": ("kg m^2", 1.0, 1.0e8, True),
-    "m_b_kg": ("kg", 1.0, 1.0e5, True),
-    "J_b_kgm2": ("kg m^2", 1.0, 1.0e6, True),
-    "m_w_kg": ("kg", 0.0, 1.0e4, True),
-    "k_s_N_m": ("N/m", 1.0, 1.0e10, True),
-    "c_s_Ns_m": ("N s/m", 0.0, 1.0e8, True),
-    "k_p_N_m": ("N/m", 1.0, 1.0e10, True),
-    "c_p_Ns_m": ("N s/m", 0.0, 1.0e8, True),
-    "d_m": ("m", 1.0, 60.0, True),
-    "r_m": ("m", 0.5, 60.0, False),
-    "b_m": ("m", 0.5, 10.0, True),
-}
+# vehicle-type fields of a train file (units and ranges: the field registry, :mod:`adm_sim.fields`)
+_TYPE_FIELDS = VEHICLE_FIELDS
 
 
 @dataclass(frozen=True)
@@ -258,20 +247,22 @@ def _vehicle_type(name, d, source):
         raise InputError(f"{where}: unknown field(s) {', '.join(sorted(map(str, unknown)))}; allowed "
                          f"{', '.join(list(_TYPE_FIELDS) + ['axle_load_kN'])}")
     vals = {}
-    for key, (unit, lo, hi, required) in _TYPE_FIELDS.items():
+    for key in _TYPE_FIELDS:
+        v = field_view("toml", key)
         if key not in d:
-            if required:
-                raise InputError(f"{where}.{key}: missing ({unit}, allowed [{lo:g}, {hi:g}])")
+            if key not in VEHICLE_OPTIONAL:
+                raise InputError(f"{where}.{key}: missing ({v.unit}, allowed [{v.lo:g}, {v.hi:g}])")
             vals[key] = math.nan
             continue
-        vals[key] = check_number(f"{where}.{key}", d[key], unit, lo, hi)
+        vals[key] = v.check(d[key], name=f"{where}.{key}", typed=True)
+    axle = field_view("toml", "axle_load_kN")
     if "axle_load_kN" not in d:
-        raise InputError(f"{where}.axle_load_kN: missing (kN, allowed [1, 500])")
+        raise InputError(f"{where}.axle_load_kN: missing ({axle.unit}, allowed [{axle.lo:g}, {axle.hi:g}])")
     raw = d["axle_load_kN"]
     raw = raw if isinstance(raw, list) else [raw]
     if not 1 <= len(raw) <= 2:
         raise InputError(f"{where}.axle_load_kN: {raw!r} must be one value or [front, rear] (kN)")
-    loads = tuple(1000.0 * check_number(f"{where}.axle_load_kN", v, "kN", 1.0, 500.0) for v in raw)
+    loads = tuple(axle.to_core(axle.check(v, name=f"{where}.axle_load_kN", typed=True)) for v in raw)
     if not math.isnan(vals["r_m"]) and vals["r_m"] + vals["b_m"] > vals["d_m"] + 1e-9:
         raise InputError(f"{where}.r_m: {vals['r_m']:g} m plus wheelbase b_m {vals['b_m']:g} m "
                          f"exceeds the vehicle length d_m {vals['d_m']:g} m")
@@ -359,7 +350,7 @@ def train_from_mapping(data, source="train"):
             if isinstance(count, str):
                 raise InputError(f"{source}: {where}.count: {count!r} must be an integer without quotes; "
                                  f"allowed integer in [1, 100]")
-            count = check_int(f"{source}: {where}.count", count, 1, 100)
+            count = field_view("toml", "count").check(count, name=f"{source}: {where}.count")
             for _ in range(count):
                 p1 = front + 0.5 * (vt.d_m - vt.r_m)
                 p2 = front + 0.5 * (vt.d_m + vt.r_m)
@@ -384,7 +375,8 @@ def train_from_mapping(data, source="train"):
             if len(bogie_types) != len(cars) + 1 or len(loads_kn) != len(cars) + 1:
                 raise InputError(f"{source}: {where}: 'bogies' and 'axle_loads_kN' need "
                                  f"len(jacobs_set) + 1 = {len(cars) + 1} entries")
-            loads = [1000.0 * check_number(f"{source}: {where}.axle_loads_kN", v, "kN", 1.0, 500.0)
+            axles = field_view("toml", "axle_loads_kN")
+            loads = [axles.to_core(axles.check(v, name=f"{source}: {where}.axle_loads_kN", typed=True))
                      for v in loads_kn]
             rev = entry.get("reversed", False)
             if not isinstance(rev, bool):

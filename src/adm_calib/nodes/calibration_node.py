@@ -43,8 +43,8 @@ PHASE_LABELS = {P.PHASE_DIM: "DIM", P.PHASE_BRACKETING: "MLM trial", P.PHASE_ROO
                 P.PHASE_MLM_ZETA: "MLM zeta", P.PHASE_MLM_ZETA_DZ: "MLM zeta+dz"}
 
 CALIBRATION_SPECS = [
-    c.ParamSpec("speeds_kmh", DEFAULT_SPEEDS, "km/h", "MLM speed range: start:stop:step or a comma list"),
-    c.ParamSpec("dim_grid", "paper", "", "paper (5 km/h + fine around the MLM peak) | full (every MLM speed)"),
+    c.param("speeds_kmh", DEFAULT_SPEEDS, "MLM speed range: start:stop:step or a comma list"),
+    c.param("dim_grid", "paper", "paper (5 km/h + fine around the MLM peak) | full (every MLM speed)"),
 ]
 
 

@@ -32,10 +32,11 @@ from rcl_interfaces.msg import SetParametersResult
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64MultiArray, String
 
-from adm_sim.bridge import N0_RANGE_HZ, SPAN_RANGE_M, MU_RANGE_KG_M, Bridge, resolve_bridge
+from adm_sim.bridge import Bridge, resolve_bridge
 from adm_sim import protocol as P
-from adm_sim.errors import InputError, check_range
-from adm_sim.limits import ACC_LIMITS_M_S2, MAX_DELTA_ZETA, TRACK_TYPES, check_delta_zeta, check_track_type
+from adm_sim.fields import view
+from adm_sim.errors import InputError
+from adm_sim.limits import ACC_LIMITS_M_S2, TRACK_TYPES, check_delta_zeta, check_track_type
 from adm_sim.nodes import common as c
 from adm_sim.stepping import BridgeHalf, BridgeSide, StepOptions, make_grid, modal_loads_at
 
@@ -62,34 +63,32 @@ def monitor_steps(bridge, grid, lane, every, beam_every):
 
 def bridge_specs(preset):
     """Parameter specs of the bridge node; numeric defaults from the preset bridge."""
-    S = c.ParamSpec
+    S = c.param
     return [
-        S("span_m", float(preset.span_m), "m", "span L", *SPAN_RANGE_M),
-        S("EJ_Nm2", float(preset.EJ_Nm2), "N m^2", "bending stiffness EJ (used when n0_hz is 0)", 1.0, 1.0e14),
-        S("n0_hz", 0.0, "Hz", "first natural frequency n0; 0 = from EJ_Nm2, else EJ from Eq. (18)", 0.0, N0_RANGE_HZ[1]),
-        S("mu_kg_m", float(preset.mass_per_length_kg_m), "kg/m", "mass per length mu", *MU_RANGE_KG_M),
-        S("zeta_pct", 100.0 * preset.damping_ratio, "%", "structural damping zeta", 0.0, 20.0),
-        S("n_modes", int(preset.n_modes), "-", "retained modes", 1, 20),
-        S("damping_model", preset.damping_model, "", "rayleigh (modes 1 and 3) | modal"),
-        S("delta_zeta", 0.0, "- (fraction)", "additional damping for every lane (fraction; zeta + delta_zeta >= 0)",
-          -MAX_DELTA_ZETA, MAX_DELTA_ZETA),
-        S("delta_zeta_lanes", "", "- (fraction)",
+        S("span_m", float(preset.span_m)),
+        S("EJ_Nm2", float(preset.EJ_Nm2), "bending stiffness EJ (used when n0_hz is 0)"),
+        S("n0_hz", 0.0, "first natural frequency n0; 0 = from EJ_Nm2, else EJ from Eq. (18)"),
+        S("mu_kg_m", float(preset.mass_per_length_kg_m)),
+        S("zeta_pct", view("ros", "zeta_pct").from_core(preset.damping_ratio)),
+        S("n_modes", int(preset.n_modes)),
+        S("damping_model", preset.damping_model, "rayleigh (modes 1 and 3) | modal"),
+        S("delta_zeta", 0.0, "additional damping for every lane (fraction; zeta + delta_zeta >= 0)"),
+        S("delta_zeta_lanes", "",
           "per-lane additional damping, comma list with one value per speed lane; empty = delta_zeta"),
-        S("steps_per_period", 16.0, "steps", "RK4 steps per period of the highest mode at the slowest lane", 4.0, 10000.0),
-        S("free_vibration_periods", 2.0, "periods", "fundamental periods simulated after the last axle left", 0.0, 100.0),
-        S("ds_m", 0.0, "m", "train advance per step; 0 = from steps_per_period", 0.0, 10.0),
-        S("track_type", "ballasted", "", " | ".join(f"{t} ({a:g} m/s^2)" for t, a in ACC_LIMITS_M_S2.items())
+        S("steps_per_period", 16.0, "RK4 steps per period of the highest mode at the slowest lane"),
+        S("free_vibration_periods", 2.0),
+        S("ds_m", 0.0, "train advance per step; 0 = from steps_per_period"),
+        S("track_type", "ballasted", " | ".join(f"{t} ({a:g} m/s^2)" for t, a in ACC_LIMITS_M_S2.items())
           + ", EN 1990 A2.4.4.2.1"),
-        S("warn_fraction", 0.8, "-", f"{P.TOPIC_DIAGNOSTICS} WARN above this fraction of the acceleration limit",
-          0.0, 1.0),
-        S("monitor_speed_kmh", 0.0, "km/h", f"lane shown on {P.TOPIC_ACCEL} and {P.BEAM_NS}/*: nearest speed; "
-          "0 = first lane", 0.0, 600.0),
-        S("monitor_every_steps", 0, "steps", f"decimation of {P.TOPIC_ACCEL} (every n-th step); 0 = auto: "
-          f"{MONITOR_SAMPLES_PER_PERIOD} samples per period of the highest mode at the monitored speed", 0, 1_000_000),
-        S("beam_every_steps", 0, "steps", f"decimation of {P.TOPIC_CLOCK}, {P.BEAM_NS}/* and {P.TOPIC_STATE} (every "
-          "lane); 0 = auto: 4 x the monitoring step", 0, 1_000_000),
-        S("beam_points", 21, "-", f"points along the span on {P.TOPIC_BEAM}", 2, 1000),
-        S("partner_timeout_s", 5.0, "s", "error when the train node sends nothing for this long during a run", 0.5, 600.0),
+        S("warn_fraction", 0.8, f"{P.TOPIC_DIAGNOSTICS} WARN above this fraction of the acceleration limit"),
+        S("monitor_speed_kmh", 0.0, f"lane shown on {P.TOPIC_ACCEL} and {P.BEAM_NS}/*: nearest speed; "
+          "0 = first lane"),
+        S("monitor_every_steps", 0, f"decimation of {P.TOPIC_ACCEL} (every n-th step); 0 = auto: "
+          f"{MONITOR_SAMPLES_PER_PERIOD} samples per period of the highest mode at the monitored speed"),
+        S("beam_every_steps", 0, f"decimation of {P.TOPIC_CLOCK}, {P.BEAM_NS}/* and {P.TOPIC_STATE} (every "
+          "lane); 0 = auto: 4 x the monitoring step"),
+        S("beam_points", 21, f"points along the span on {P.TOPIC_BEAM}"),
+        S("partner_timeout_s", 5.0, "error when the train node sends nothing for this long during a run"),
     ]
 
 
@@ -101,24 +100,19 @@ def bridge_from_params(preset, p, defaults=None):
 
     Raises :class:`InputError` naming the parameter, value, unit and range.
     """
-    d = {s.name: s.default for s in bridge_specs(preset)} if defaults is None else defaults
+    specs = {s.name: s for s in bridge_specs(preset)}
+    d = {n: s.default for n, s in specs.items()} if defaults is None else defaults
     kw = {}
-    if p["span_m"] != d["span_m"]:
-        kw["span_m"] = check_range("span_m", p["span_m"], "m", *SPAN_RANGE_M)
-    if p["EJ_Nm2"] != d["EJ_Nm2"]:
-        kw["EJ_Nm2"] = check_range("EJ_Nm2", p["EJ_Nm2"], "N m^2", 0.0, None, lo_open=True)
-    if p["mu_kg_m"] != d["mu_kg_m"]:
-        kw["mass_per_length_kg_m"] = check_range("mu_kg_m", p["mu_kg_m"], "kg/m", *MU_RANGE_KG_M)
-    if p["zeta_pct"] != d["zeta_pct"]:
-        kw["damping_ratio"] = check_range("zeta_pct", p["zeta_pct"], "%", 0.0, 20.0) / 100.0
-    if p["n_modes"] != d["n_modes"]:
-        kw["n_modes"] = int(p["n_modes"])
-    if p["damping_model"] not in ("rayleigh", "modal"):
-        raise InputError(f"damping_model: {p['damping_model']!r} is not allowed; allowed 'rayleigh' or 'modal'")
-    kw["damping_model"] = p["damping_model"]
+    for name in ("span_m", "mu_kg_m", "zeta_pct", "n_modes"):
+        if p[name] != d[name]:
+            view = specs[name].view
+            kw[view.field.name] = view.to_core(view.check(p[name], name=name))
+    if p["EJ_Nm2"] != d["EJ_Nm2"]:  # the core's range (> 0); the parameter's is narrower
+        kw["EJ_Nm2"] = specs["EJ_Nm2"].view.field.check(p["EJ_Nm2"], name="EJ_Nm2")
+    kw["damping_model"] = specs["damping_model"].view.check(p["damping_model"])
     b = dataclasses.replace(preset, **kw)
     if p["n0_hz"] != 0.0:
-        n0 = check_range("n0_hz", p["n0_hz"], "Hz", *N0_RANGE_HZ)
+        n0 = specs["n0_hz"].view.field.check(p["n0_hz"], name="n0_hz")
         b = Bridge.from_frequency(b.span_m, n0, b.mass_per_length_kg_m, b.damping_ratio, n_modes=b.n_modes,
                                   damping_model=b.damping_model, name=b.name, bridge_type=b.bridge_type)
     check_delta_zeta("delta_zeta", p["delta_zeta"], b.damping_ratio)

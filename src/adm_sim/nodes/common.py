@@ -138,30 +138,53 @@ _TYPES = {float: ParameterType.PARAMETER_DOUBLE, int: ParameterType.PARAMETER_IN
 
 
 class ParamSpec:
-    """One declared parameter: default, unit, range and description.
+    """One declared parameter: default, unit, range and description; a thin view of its field in
+    the registry (:mod:`adm_sim.fields`) when the registry spells it as a ROS parameter
+    (:func:`param`), so unit, range, special values and the check come from there.
 
-    The range is checked by :meth:`check` (the core's :func:`adm_sim.errors.check_range`) in an
+    The range is checked by :meth:`check` (the registry's :meth:`adm_sim.fields.View.check`, or the
+    core's :func:`adm_sim.errors.check_range` for a parameter outside the registry) in an
     on-set parameter callback, not by a ``FloatingPointRange`` in the descriptor: rclpy applies
     descriptor ranges before any callback with a reason that has no unit, and several ranges are
     not one interval (``n0_hz``: 0 or [0.5, 100]; ``delta_zeta``: [-zeta, 0.2]). The descriptor
     carries the unit in its description and the range as text in ``additional_constraints``.
     """
 
-    def __init__(self, name, default, unit, description, lo=None, hi=None, read_only=False):
+    def __init__(self, name, default, unit, description, lo=None, hi=None, read_only=False, view=None):
         self.name, self.default, self.unit = name, default, unit
         self.description, self.lo, self.hi, self.read_only = description, lo, hi, read_only
+        self.view = view
 
     def descriptor(self):
         typ = _TYPES[type(self.default)]
         d = ParameterDescriptor(name=self.name, type=typ, read_only=self.read_only,
                                 description=f"{self.description} [{self.unit}]" if self.unit else self.description)
         d.additional_constraints = "" if self.lo is None else f"{self.lo:g} <= {self.name} <= {self.hi:g} {self.unit}".strip()
+        if self.view is not None and self.view.specials_outside() and self.lo is not None:
+            d.additional_constraints = " or ".join(f"{self.name} = {v:g} ({what})"
+                                                   for v, what in self.view.specials_outside()) + \
+                f" or {d.additional_constraints}"
         return d
 
     def check(self, value):
-        """Raise :class:`InputError` naming the parameter, value, unit and range when out of range."""
-        if self.lo is not None:
+        """Raise :class:`InputError` naming the parameter, value, unit and range when out of range
+        (or not one of the choices)."""
+        if self.view is not None:
+            if self.view.spelling.many:  # a comma list of values, each checked by the node
+                return
+            self.view.check(value, name=self.name)
+        elif self.lo is not None:
             check_range(self.name, value, self.unit or "-", self.lo, self.hi)
+
+
+def param(name, default, description=None, read_only=False):
+    """The :class:`ParamSpec` of ROS parameter ``name`` from the field registry (unit, range,
+    special values, check); ``description`` replaces the field's doc where the node says more."""
+    from adm_sim import fields
+
+    v = fields.view("ros", name)
+    lo, hi = (None, None) if v.field.type is str or v.spelling.many else (v.lo, v.hi)
+    return ParamSpec(name, default, v.unit, description or v.field.doc, lo, hi, read_only, view=v)
 
 
 class ParamNodeMixin:

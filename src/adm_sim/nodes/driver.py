@@ -46,8 +46,8 @@ DRIVER_SPECS = [
     c.ParamSpec("rerun_spawn", False, "", "spawn a rerun viewer bound to 127.0.0.1"),
     c.ParamSpec("rerun_connect", "", "", "stream to a rerun viewer at this loopback URL"),
     c.ParamSpec("summary_path", "", "", "JSON summary of the run(s); empty = none"),
-    c.ParamSpec("run_timeout_s", 900.0, "s", "longest a single run may take", 1.0, 86400.0),
-    c.ParamSpec("chunk_size", 65536, "B", "MCAP chunk size (loss bound of a killed recorder)", 1024, 1 << 26),
+    c.param("run_timeout_s", 900.0),
+    c.param("chunk_size", 65536),
     c.ParamSpec("overwrite", False, "", "replace existing record_path, rrd_path and summary_path files"),
 ]
 

@@ -33,12 +33,11 @@ from adm_sim.sweep import parse_speeds
 from adm_sim.trains import load_train
 
 TRAIN_SPECS = [
-    c.ParamSpec("train", "ICE-2", "", "train name (ICE-2, Eurostar, Railjet, ICE-4, Eurostar-table) or TOML file"),
-    c.ParamSpec("model", "dim", "", "dim (Detailed Interaction Model) | mlm (Moving Load Model)"),
-    c.ParamSpec("speeds_kmh", DEFAULT_SPEEDS, "km/h", "speed lanes: start:stop:step (stop included) or a comma list"),
-    c.ParamSpec("mlm_block_steps", 2048, "steps", "MLM: steps per axle-position block", 1, 10_000_000),
-    c.ParamSpec("partner_timeout_s", 5.0, "s", "error when the bridge node sends nothing for this long during a run",
-                0.5, 600.0),
+    c.param("train", "ICE-2", "train name (ICE-2, Eurostar, Railjet, ICE-4, Eurostar-table) or TOML file"),
+    c.param("model", "dim", "dim (Detailed Interaction Model) | mlm (Moving Load Model)"),
+    c.param("speeds_kmh", DEFAULT_SPEEDS, "speed lanes: start:stop:step (stop included) or a comma list"),
+    c.param("mlm_block_steps", 2048),
+    c.param("partner_timeout_s", 5.0, "error when the bridge node sends nothing for this long during a run"),
 ]
 
 

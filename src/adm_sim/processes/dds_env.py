@@ -23,6 +23,7 @@ import sys
 from pathlib import Path
 
 from adm_sim.errors import InputError, RunError
+from adm_sim.fields import FIELDS
 
 __all__ = [
     "DOMAIN_ID_MAX",
@@ -34,7 +35,7 @@ __all__ = [
 ]
 
 #: Largest ROS_DOMAIN_ID whose Fast DDS ports stay valid on Linux (ROS 2 docs, "The ROS_DOMAIN_ID").
-DOMAIN_ID_MAX = 101
+DOMAIN_ID_MAX = FIELDS["domain_id"].hi  # the field registry's (adm_sim.fields)
 LOCK_DIR = Path("/tmp/adm_sim_ros_domains")
 
 

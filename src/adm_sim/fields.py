@@ -1,0 +1,389 @@
+"""One registry of every user-facing value: name, unit, type, allowed range or choices, one-line doc.
+
+Each value is a :class:`Field` in the core's unit (SI, a fraction for damping). The surfaces a user
+types it on -- a TOML key, a command-line flag, a ROS 2 parameter, a ``key=value`` bridge spec --
+are :class:`Spelling` s of the field: the name as typed there, its unit, and the values with a
+special meaning there (``n0_hz = 0``: "from EJ_Nm2"). A spelling in another unit than the field
+converts by :data:`SCALES`, the one table of unit conversions (``zeta_pct`` in % at the node and in
+specs, ``damping_ratio`` a fraction in the core; axle loads in kN in train files, N in the core).
+
+Every message about a bad value is built here (:meth:`View.check`): the name as typed, the value,
+the unit and the allowed range, one line, :class:`~adm_sim.errors.InputError` (exit 2). The table of
+every field and its spellings: docs/fields.md (checked against :data:`FIELDS` by tests/test_fields.py).
+
+Numbers and text only; no ROS, no argparse (:mod:`adm_sim.cliutil` builds the options,
+:mod:`adm_sim.nodes.common` the parameter descriptors from these fields).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from adm_sim.errors import InputError, _range_text, check_choice, check_int, check_number, check_range
+from adm_sim.limits import MAX_DELTA_ZETA, TRACK_TYPES
+
+#: The unit conversions between a field's unit and a spelling's: ``(field unit, spelling unit) ->
+#: (a, b)`` with ``value in field unit = value in spelling unit * a / b`` (two exact factors, so that
+#: ``pct / 100`` and ``kN * 1000`` stay the numbers they were).
+SCALES = {
+    ("- (fraction)", "%"): (1.0, 100.0),
+    ("N", "kN"): (1000.0, 1.0),
+}
+
+#: The surfaces a value is typed on.
+SURFACES = ("toml", "spec", "cli", "ros")
+
+
+@dataclass(frozen=True)
+class Spelling:
+    """How one surface spells a :class:`Field`.
+
+    ``surface``: ``toml`` (a key of a bridge/train file), ``spec`` (a key of a ``key=value``
+    bridge spec), ``cli`` (a flag), ``ros`` (a parameter). ``unit``: None for the field's own unit,
+    else a unit of :data:`SCALES`. ``special``: ``((value, meaning), ...)`` accepted besides the
+    range (``((0.0, "from EJ_Nm2"),)``). ``lo``/``hi``: a narrower range than the field's on this
+    surface only (in the field's unit; None: the field's). ``many``: a comma list of values of
+    the field (``delta_zeta_lanes``), each checked by the field.
+    """
+
+    surface: str
+    key: str
+    unit: str | None = None
+    special: tuple = ()
+    lo: float | None = None
+    hi: float | None = None
+    many: bool = False
+
+
+@dataclass(frozen=True)
+class Field:
+    """One user-facing value in the core's unit.
+
+    ``type``: ``float``, ``int``, ``str`` (with ``choices``: one of them; without: free text such
+    as a train name, or a speed list whose speeds lie in ``[lo, hi]``). ``lo``/``hi``:
+    the allowed range (None: unbounded); ``lo_open``/``hi_open``: the bound itself excluded.
+    ``lo_text``: a lower bound set by another value, stated in words (``"-zeta"``); ``lo`` is then
+    its loosest value.
+    """
+
+    name: str
+    unit: str
+    type: type
+    doc: str
+    group: str
+    lo: float | None = None
+    hi: float | None = None
+    lo_open: bool = False
+    hi_open: bool = False
+    choices: tuple = ()
+    lo_text: str = ""
+    spellings: tuple = field(default=(), compare=False)
+
+    @property
+    def range(self):
+        """``(lo, hi)`` in the field's unit."""
+        return (self.lo, self.hi)
+
+    def view(self, surface=None, key=None):
+        """The :class:`View` of this field as ``surface`` spells it (``key`` when it has several
+        spellings there); ``surface=None``: the core's own name and unit."""
+        if surface is None:
+            return View(self, Spelling("core", self.name))
+        hits = [s for s in self.spellings if s.surface == surface and (key is None or s.key == key)]
+        if not hits:
+            raise KeyError(f"{self.name}: no {surface} spelling {key or ''}".rstrip())
+        return View(self, hits[0])
+
+    def views(self):
+        return [View(self, s) for s in self.spellings]
+
+    def check(self, value, name=None, **kw):
+        """``value`` checked in the core's unit (:meth:`View.check`), the message naming ``name``
+        (default: the field's name)."""
+        return self.view().check(value, name=name, **kw)
+
+
+def _round(x):
+    """A scaled bound without the binary noise of the scaling (100 * 0.2 = 20, not 20.000000000000004)."""
+    return None if x is None else float(f"{x:.12g}")
+
+
+@dataclass(frozen=True)
+class View:
+    """A :class:`Field` as one surface spells it: name, unit and range in that unit, the check."""
+
+    field: Field
+    spelling: Spelling
+
+    @property
+    def key(self):
+        return self.spelling.key
+
+    @property
+    def unit(self):
+        return self.spelling.unit or self.field.unit
+
+    @property
+    def factors(self):
+        """``(a, b)``: value in the field's unit = value in this view's unit x a / b (:data:`SCALES`)."""
+        return (1.0, 1.0) if self.unit == self.field.unit else SCALES[(self.field.unit, self.unit)]
+
+    def _shown(self, x):
+        a, b = self.factors
+        return x if a == b else _round(x * b / a)
+
+    @property
+    def lo(self):
+        lo = self.field.lo if self.spelling.lo is None else self.spelling.lo
+        return None if lo is None else self._shown(lo)
+
+    @property
+    def hi(self):
+        hi = self.field.hi if self.spelling.hi is None else self.spelling.hi
+        return None if hi is None else self._shown(hi)
+
+    @property
+    def lo_open(self):
+        return self.field.lo_open if self.spelling.lo is None else False
+
+    @property
+    def hi_open(self):
+        return self.field.hi_open if self.spelling.hi is None else False
+
+    @property
+    def special(self):
+        return self.spelling.special
+
+    def to_core(self, x):
+        """A value of this view in the field's (core) unit."""
+        a, b = self.factors
+        return x if a == b else x * a / b
+
+    def from_core(self, x):
+        """A value in the field's (core) unit in this view's unit (exact factors, no rounding)."""
+        a, b = self.factors
+        return x if a == b else x * b / a
+
+    def range_text(self, lo=None):
+        """The allowed values as the messages and the help texts state them (``[1, 150] m``,
+        ``0 (from EJ_Nm2) or [0.5, 100] Hz``, ``'rayleigh' or 'modal'``, ``integer in [1, 20]``)."""
+        f = self.field
+        if f.choices:
+            return " or ".join(repr(c) for c in f.choices)
+        lo = self.lo if lo is None else lo
+        if f.type is int:
+            text = f"integer in [{lo}, {self.hi}]" + (f" {self.unit}" if self.unit and self.unit != "-" else "")
+        elif f.type is float or (f.type is str and self.hi is not None):
+            text = _range_text(lo, self.hi, self.lo_open, self.hi_open, self.unit)
+        else:
+            return ""
+        outside = self.specials_outside(lo)
+        if outside:
+            text = " or ".join(f"{v:g} ({what})" for v, what in outside) + f" or {text}"
+        return text
+
+    def specials_outside(self, lo=None):
+        """The special values that lie outside the range (only these widen what is allowed)."""
+        lo = self.lo if lo is None else lo
+        return tuple((v, w) for v, w in self.special
+                     if (lo is not None and v < lo) or (self.hi is not None and v > self.hi))
+
+    def check(self, value, name=None, lo=None, typed=False, argument=False, lo_core=None):
+        """``value`` as this view's type in its unit, or :class:`InputError`: one line naming
+        ``name`` (default: the spelling's key), the value, the unit and the allowed range.
+
+        ``lo``: a lower bound set by another value (``delta_zeta >= -zeta``), in this view's unit;
+        ``lo_core``: the same in the field's unit (converted here).
+        ``typed``: the value comes from a typed file (TOML): a string is not a number.
+        ``argument``: ``name`` is a library argument, shown as its flag on a command line.
+        """
+        f, name = self.field, self.key if name is None else name
+        if lo_core is not None:
+            lo = self.from_core(lo_core)
+        if f.choices:
+            return check_choice(name, value, f.choices)
+        if f.type is int:
+            if any(value == v and type(value) is int for v, _ in self.specials_outside()):
+                return value
+            return check_int(name, value, self.lo, self.hi, "" if self.unit == "-" else self.unit)
+        if f.type is not float:
+            return value
+        if self.specials_outside() and not isinstance(value, bool):
+            try:
+                if any(float(value) == v for v, _ in self.specials_outside()):
+                    return float(value)
+            except (TypeError, ValueError):
+                pass
+        lo = self.lo if lo is None else lo
+        try:
+            if typed:
+                return check_number(name, value, self.unit, lo, self.hi, self.lo_open, self.hi_open)
+            return check_range(name, value, self.unit, lo, self.hi, self.lo_open, self.hi_open, argument=argument)
+        except InputError as exc:
+            if not self.specials_outside() or "out of range" not in str(exc):
+                raise
+            x = float(value)
+            raise InputError(f"{name}: {x:g} {self.unit} is out of range; allowed {self.range_text(lo)}",
+                             field=exc.field) from None
+
+    def help(self, text):
+        """``text`` with the unit and the allowed values of this view, for a ``--help`` line or a
+        parameter description (``"span L (m, [1, 150] m)"``)."""
+        rng = self.range_text()
+        if self.field.lo_text and self.field.type is float:
+            rng = rng.replace(f"[{self.lo:g},", f"[{self.field.lo_text},", 1)
+        if rng and self.field.type is str and not self.field.choices:
+            rng = f"each in {rng}"  # a list of values (speeds), each in the range
+        inside = [f"{v:g} = {what}" for v, what in self.special if (v, what) not in self.specials_outside()]
+        rng = "; ".join([rng] + inside) if rng else "; ".join(inside)
+        return f"{text} ({rng})" if rng else text
+
+
+# ---------------------------------------------------------------------- the registry
+def _F(name, unit, type_, doc, group, *spellings, **kw):
+    return Field(name, unit, type_, doc, group, spellings=tuple(spellings), **kw)
+
+
+def _S(surface, key, unit=None, special=(), lo=None, hi=None, many=False):
+    return Spelling(surface, key, unit, special, lo, hi, many)
+
+
+def _toml_spec(*keys, unit=None):
+    """The same key in a TOML bridge file and a ``key=value`` bridge spec."""
+    return tuple(_S(s, k, unit) for k in keys for s in ("toml", "spec"))
+
+
+_FIELDS = [
+    # -------------------------------------------------------------- bridge (paper Section 2.1, Table 3)
+    _F("span_m", "m", float, "span L", "bridge",
+       *_toml_spec("L", "span_m"), _S("ros", "span_m"),
+       _S("cli", "--span", lo=4.0, hi=40.0), _S("cli", "--spans", lo=4.0, hi=40.0),  # the studied spans
+       lo=1.0, hi=150.0),
+    _F("EJ_Nm2", "N m^2", float, "bending stiffness EJ (Eq. 18 gives n0 from it)", "bridge",
+       *_toml_spec("EJ", "EJ_Nm2"), _S("ros", "EJ_Nm2", lo=1.0, hi=1.0e14), lo=0.0, lo_open=True),
+    _F("n0_hz", "Hz", float, "first natural frequency n0 (EJ from Eq. 18)", "bridge",
+       *_toml_spec("n0", "n0_hz"), _S("ros", "n0_hz", special=((0.0, "from EJ_Nm2"),)), lo=0.5, hi=100.0),
+    _F("mass_per_length_kg_m", "kg/m", float, "mass per length mu", "bridge",
+       *_toml_spec("mu", "mu_kg_m", "mass_per_length_kg_m"), _S("ros", "mu_kg_m"),
+       _S("cli", "--mu", lo=500.0, hi=100_000.0),  # recommend: the 0.5-100 t/m of the lower-bound rules
+       lo=100.0, hi=1.0e6),
+    _F("damping_ratio", "- (fraction)", float, "structural damping zeta", "bridge",
+       *_toml_spec("zeta", "damping_ratio"), *_toml_spec("zeta_pct", unit="%"), _S("ros", "zeta_pct", "%"),
+       lo=0.0, hi=0.20),
+    _F("n_modes", "-", int, "retained modes (paper: 3, Section 2.3)", "bridge",
+       *_toml_spec("n_modes"), _S("ros", "n_modes"), lo=1, hi=20),
+    _F("damping_model", "", str, "Rayleigh anchored at modes 1 and 3, or equal modal damping", "bridge",
+       *_toml_spec("damping_model"), _S("ros", "damping_model"), choices=("rayleigh", "modal")),
+    _F("bridge_type", "", str, "concrete/filler beam or steel/composite (Table 2 damping and class)", "bridge",
+       *_toml_spec("type", "bridge_type", "class"), _S("cli", "--type"), choices=("cfb", "sc")),
+    _F("bridge", "", str, "bridge: B1..B4, a key=value spec or a TOML file", "bridge",
+       _S("cli", "--bridge"), _S("ros", "bridge")),
+    # -------------------------------------------------------------- run (Sections 2.3, 3.3)
+    _F("speeds_kmh", "km/h", str, "speeds: start:stop:step (stop included) or a comma list; each speed", "run",
+       _S("cli", "--speeds"), _S("ros", "speeds_kmh"), lo=1.0, hi=600.0),
+    _F("delta_zeta", "- (fraction)", float, "additional damping delta_zeta (zeta + delta_zeta >= 0)", "run",
+       _S("cli", "--delta-zeta-pct", "%"), _S("ros", "delta_zeta"), _S("ros", "delta_zeta_lanes", many=True),
+       lo=-MAX_DELTA_ZETA, hi=MAX_DELTA_ZETA, lo_text="-zeta"),
+    _F("steps_per_period", "steps", float, "RK4 steps per period of the highest bridge mode", "run",
+       _S("cli", "--steps-per-period"), _S("ros", "steps_per_period"), lo=4.0, hi=10000.0),
+    _F("free_vibration_periods", "periods", float, "fundamental periods simulated after the last axle left",
+       "run", _S("ros", "free_vibration_periods"), lo=0.0, hi=100.0),
+    _F("ds_m", "m", float, "train advance per step", "run",
+       _S("ros", "ds_m", special=((0.0, "from steps_per_period"),)), lo=1e-5, hi=10.0),
+    _F("model", "", str, "train model: Moving Load Model or Detailed Interaction Model", "run",
+       _S("cli", "--model"), _S("ros", "model"), choices=("mlm", "dim")),
+    _F("dim_grid", "", str, "DIM speeds: paper (5 km/h + 1 km/h near the MLM peak) or full (every MLM speed)",
+       "run", _S("cli", "--dim-grid"), _S("ros", "dim_grid"), choices=("paper", "full")),
+    _F("track_type", "", str, "deck acceleration limit, EN 1990 A2.4.4.2.1(4)P", "run",
+       _S("cli", "--track"), _S("ros", "track_type"), choices=TRACK_TYPES),
+    _F("train", "", str, "train: a name or a TOML train file", "run", _S("cli", "--train"), _S("ros", "train")),
+    _F("mlm_block_steps", "steps", int, "MLM: steps per axle-position block", "run",
+       _S("ros", "mlm_block_steps"), lo=1, hi=10_000_000),
+    _F("partner_timeout_s", "s", float, "error when the partner node sends nothing for this long during a run",
+       "run", _S("ros", "partner_timeout_s"), lo=0.5, hi=600.0),
+    _F("run_timeout_s", "s", float, "longest a single run may take", "run", _S("ros", "run_timeout_s"),
+       lo=1.0, hi=86400.0),
+    _F("max_line_speed_kmh", "km/h", float, "maximum line speed V of the EN 1991-2 check (40 m/s up to 1.2 V)",
+       "run", _S("cli", "--max-line-speed"), lo=144.0, hi=500.0, lo_open=True),
+    _F("step_kmh", "km/h", float, "speed step of the EN 1991-2 check", "run", _S("cli", "--speed-step"),
+       lo=0.0, hi=1.0, lo_open=True),
+    _F("jobs", "processes", int, "worker processes of table4", "run", _S("cli", "--jobs"), lo=1, hi=64),
+    _F("workers", "processes", int, "worker processes of the local study cluster", "run", _S("cli", "--workers"),
+       lo=1, hi=64),
+    _F("freq_index", "-", int, "n0 of a span in the study: 1 = LB ... 3 = fit ... 5 = UB power law (Section 3.1.1)",
+       "run", _S("cli", "--freq-index"), lo=1, hi=5),
+    _F("limit", "cases", int, "run at most this many of the pending study cases", "run", _S("cli", "--limit"),
+       lo=1, hi=1_000_000),
+    _F("domain_id", "", int, "ROS_DOMAIN_ID (Fast DDS ports)", "run", _S("cli", "--domain-id"), lo=0, hi=101),
+    # -------------------------------------------------------------- monitoring and outputs (ROS)
+    _F("warn_fraction", "-", float, "diagnostics WARN above this fraction of the acceleration limit", "outputs",
+       _S("ros", "warn_fraction"), lo=0.0, hi=1.0),
+    _F("monitor_speed_kmh", "km/h", float, "lane shown on the monitoring topics: nearest speed", "outputs",
+       _S("ros", "monitor_speed_kmh", special=((0.0, "first lane"),)), lo=0.0, hi=600.0),
+    _F("monitor_every_steps", "steps", int, "decimation of the acceleration monitor (every n-th step)", "outputs",
+       _S("ros", "monitor_every_steps", special=((0, "auto"),)), lo=0, hi=1_000_000),
+    _F("beam_every_steps", "steps", int, "decimation of the beam and clock topics", "outputs",
+       _S("ros", "beam_every_steps", special=((0, "auto"),)), lo=0, hi=1_000_000),
+    _F("beam_points", "-", int, "points along the span on the beam topic", "outputs",
+       _S("ros", "beam_points"), lo=2, hi=1000),
+    _F("chunk_size", "B", int, "MCAP chunk size (loss bound of a killed recorder)", "outputs",
+       _S("ros", "chunk_size"), lo=1024, hi=1 << 26),
+    # -------------------------------------------------------------- replay (launch_scripts/replay.py)
+    _F("exaggeration", "x", float, "display factor on beam deflections", "replay",
+       _S("cli", "--exaggeration"), lo=0.0, hi=1e6, lo_open=True),
+    _F("rate", "x simulated time", float, "republish speed, multiples of simulated time", "replay",
+       _S("cli", "--rate", special=((0.0, "as fast as possible"),)), lo=0.0, hi=1e6),
+    _F("wait_subscribers_s", "s", float, "wait up to this long until every republished topic has a subscriber",
+       "replay",
+       _S("cli", "--wait-subscribers"), lo=0.0, hi=3600.0),
+    # -------------------------------------------------------------- vehicle (train files, Appendix A)
+    _F("m_c_kg", "kg", float, "car body mass", "vehicle", _S("toml", "m_c_kg"), lo=1.0, hi=5.0e5),
+    _F("J_c_kgm2", "kg m^2", float, "car body pitch inertia", "vehicle", _S("toml", "J_c_kgm2"), lo=1.0, hi=1.0e8),
+    _F("m_b_kg", "kg", float, "bogie mass", "vehicle", _S("toml", "m_b_kg"), lo=1.0, hi=1.0e5),
+    _F("J_b_kgm2", "kg m^2", float, "bogie pitch inertia", "vehicle", _S("toml", "J_b_kgm2"), lo=1.0, hi=1.0e6),
+    _F("m_w_kg", "kg", float, "wheelset mass", "vehicle", _S("toml", "m_w_kg"), lo=0.0, hi=1.0e4),
+    _F("k_s_N_m", "N/m", float, "secondary suspension stiffness", "vehicle", _S("toml", "k_s_N_m"), lo=1.0, hi=1.0e10),
+    _F("c_s_Ns_m", "N s/m", float, "secondary suspension damping", "vehicle", _S("toml", "c_s_Ns_m"),
+       lo=0.0, hi=1.0e8),
+    _F("k_p_N_m", "N/m", float, "primary suspension stiffness", "vehicle", _S("toml", "k_p_N_m"), lo=1.0, hi=1.0e10),
+    _F("c_p_Ns_m", "N s/m", float, "primary suspension damping", "vehicle", _S("toml", "c_p_Ns_m"),
+       lo=0.0, hi=1.0e8),
+    _F("d_m", "m", float, "vehicle length", "vehicle", _S("toml", "d_m"), lo=1.0, hi=60.0),
+    _F("r_m", "m", float, "bogie pivot distance (optional)", "vehicle", _S("toml", "r_m"), lo=0.5, hi=60.0),
+    _F("b_m", "m", float, "bogie wheelbase", "vehicle", _S("toml", "b_m"), lo=0.5, hi=10.0),
+    _F("axle_load_n", "N", float, "static axle load (one value or [front, rear])", "vehicle",
+       _S("toml", "axle_load_kN", "kN"), _S("toml", "axle_loads_kN", "kN"), lo=1000.0, hi=500_000.0),
+    _F("count", "-", int, "vehicles of one composition entry", "vehicle", _S("toml", "count"), lo=1, hi=100),
+]
+
+#: Every field, by its core name.
+FIELDS = {f.name: f for f in _FIELDS}
+#: The groups, in the order of docs/fields.md.
+GROUPS = ("bridge", "run", "outputs", "replay", "vehicle")
+#: Vehicle-type fields of a train file, in the order of the file format (``r_m`` optional).
+VEHICLE_FIELDS = ("m_c_kg", "J_c_kgm2", "m_b_kg", "J_b_kgm2", "m_w_kg", "k_s_N_m", "c_s_Ns_m", "k_p_N_m",
+                  "c_p_Ns_m", "d_m", "r_m", "b_m")
+VEHICLE_OPTIONAL = ("r_m",)
+
+
+def view(surface, key):
+    """The :class:`View` a surface spells ``key`` (``view("ros", "zeta_pct")``), or KeyError."""
+    for f in _FIELDS:
+        for s in f.spellings:
+            if s.surface == surface and s.key == key:
+                return View(f, s)
+    raise KeyError(f"no {surface} spelling {key!r} in the field registry")
+
+
+def spellings(surface):
+    """``{key: View}`` of every spelling on ``surface``."""
+    return {s.key: View(f, s) for f in _FIELDS for s in f.spellings if s.surface == surface}
+
+
+def core(name):
+    """The core's view of field ``name`` (its own name and unit)."""
+    return FIELDS[name].view()
+
+
+__all__ = ["SCALES", "SURFACES", "Spelling", "Field", "View", "FIELDS", "GROUPS", "VEHICLE_FIELDS",
+           "VEHICLE_OPTIONAL", "view", "spellings", "core"]
