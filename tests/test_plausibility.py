@@ -153,9 +153,11 @@ def test_named_and_field_bridges_are_silent():
 
 
 def test_studied_field_refuses_without_extrapolate():
-    with pytest.raises(InputError, match=r"^--mu: 60000 kg/m is outside the studied field \[4597, 27310\] kg/m "
-                                         r"for L = 20 m; .*give --extrapolate"):
+    with pytest.raises(InputError, match=r"^mu_kg_m: 60000 kg/m is outside the studied field \[4597, 27310\] kg/m "
+                                         r"for L = 20 m; .*give extrapolate=True to accept"):
         check_studied_field(20.0, 5.0, 60000.0)
+    with pytest.raises(InputError, match=r"^--mu: 60000 kg/m .*give --extrapolate to accept"):
+        check_studied_field(20.0, 5.0, 60000.0, names={"mu_kg_m": "--mu", "extrapolate": "--extrapolate"})
 
 
 # ---------------------------------------------------------------------- the command lines

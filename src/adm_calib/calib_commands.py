@@ -245,7 +245,8 @@ def cmd_recommend(args):
                          f"{STUDY_SPAN_RANGE_M[1]:g}] m; give --span")
     # the field the paper studied (Section 3.1): refused outside it, warned with --extrapolate
     check_studied_field(span_from_frequency_m(n0) if span is None else span, n0, mu_kg_m, args.extrapolate,
-                        "--span" if span is not None else "span (estimated from --n0)")
+                        names={"span_m": "--span" if span is not None else "span (estimated from --n0)",
+                               "n0_hz": "--n0", "mu_kg_m": "--mu", "extrapolate": "--extrapolate"})
     rec = recommend(train, n0, mu_kg_m / 1000.0, args.type, span_m=span, interpolate=args.interpolate,
                     functions=args.functions, extrapolate=args.extrapolate)
     if args.json:

@@ -221,20 +221,29 @@ def check_response(span_m, max_acc_m_s2, max_disp_m, label="result", disp_label=
     warn("deflection", f"{disp_label or label}: peak deflection", float(max_disp_m), ctx)
 
 
-def check_studied_field(span_m, n0_hz, mu_kg_m, extrapolate=False, span_option="--span"):
+#: How a caller names the three values and the switch that accepts extrapolation: a library caller
+#: by the arguments, the command line (``adm-calib recommend``) by its flags.
+ARGUMENT_NAMES = {"span_m": "span_m", "n0_hz": "n0_hz", "mu_kg_m": "mu_kg_m", "extrapolate": "extrapolate=True"}
+
+
+def check_studied_field(span_m, n0_hz, mu_kg_m, extrapolate=False, names=None):
     """Refuse (``InputError``, one line naming the field) a ``recommend`` outside the studied field,
-    or with ``extrapolate`` warn about it; the span is checked first (the other bands depend on it)."""
+    or with ``extrapolate`` warn about it; the span is checked first (the other bands depend on it).
+
+    ``names`` (default :data:`ARGUMENT_NAMES`) says how the message names ``span_m``, ``n0_hz``,
+    ``mu_kg_m`` and the ``extrapolate`` switch: a command line passes its flags."""
+    nm = {**ARGUMENT_NAMES, **(names or {})}
     ctx = {"span_m": span_m, "mu_kg_m": mu_kg_m}
-    for key, label, value in (("field_span", span_option, span_m), ("field_n0", "--n0", n0_hz),
-                              ("field_mu", "--mu", mu_kg_m)):
+    for key, label, value in (("field_span", nm["span_m"], span_m), ("field_n0", nm["n0_hz"], n0_hz),
+                              ("field_mu", nm["mu_kg_m"], mu_kg_m)):
         row = ROWS[key]
         if row.outside(value, ctx):
             ctx_shown = ctx if key != "field_span" else {}
             text = row.message(label, value, ctx_shown).replace("plausible range", "studied field")
             if not extrapolate:
                 raise InputError(f"{text}; outside the studied field the lower bounds are extrapolated "
-                                 f"(give --extrapolate to accept)")
-            warnings.warn(f"{text}; extrapolated (--extrapolate)", PlausibilityWarning, stacklevel=2)
+                                 f"(give {nm['extrapolate']} to accept)")
+            warnings.warn(f"{text}; extrapolated ({nm['extrapolate']})", PlausibilityWarning, stacklevel=2)
 
 
 # ---------------------------------------------------------------------- documentation
@@ -251,7 +260,7 @@ def markdown_table():
 
 
 __all__ = ["PlausibilityWarning", "Bound", "TABLE", "FIELD", "ROWS", "warn", "check_bridge", "check_train",
-           "check_response", "check_studied_field", "markdown_table", "n0_lb_hz", "n0_ub_hz"]
+           "check_response", "check_studied_field", "ARGUMENT_NAMES", "markdown_table", "n0_lb_hz", "n0_ub_hz"]
 
 
 if __name__ == "__main__":  # regenerate the table of docs/plausibility.md: python -m adm_sim.plausibility
