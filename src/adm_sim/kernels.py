@@ -310,62 +310,21 @@ def midspan_acceleration(qdd, phi_mid, acc):
 
 
 @njit(cache=True, inline="always")
-def fold_maxima(k, l0, acc, d, vel, h, amax, dmax, dense, prev):
-    """The running maxima of a block (lanes ``l0 ..``) after step ``k``'s stage 0 (``_BridgeRun``):
-    |acceleration| and |deflection|; with ``dense`` also the maximum between steps ``k - 1`` and
-    ``k`` from the dense output (:func:`hermite_max_abs_acc`), ``prev`` (3, n_lanes) then carries
-    deflection, velocity and acceleration to the next step."""
+def dense_maxima(k, l0, acc, d, vel, h, amax, prev):
+    """Dense maxima of a block (lanes ``l0 ..``) at step ``k`` (``_BridgeRun._take_acc``): the
+    largest |acceleration| between steps ``k - 1`` and ``k`` from the dense output
+    (:func:`hermite_max_abs_acc`) folded into ``amax``; ``prev`` (3, n_lanes) then carries the
+    midspan deflection ``d``, velocity ``vel`` and acceleration ``acc`` to the next step."""
     nb = acc.shape[0]
     for b in range(nb):
-        if abs(acc[b]) > amax[b]:
-            amax[b] = abs(acc[b])
-        if abs(d[b]) > dmax[b]:
-            dmax[b] = abs(d[b])
-    if dense:
-        for b in range(nb):
-            lb = l0 + b
-            if k > 0:
-                inner = hermite_max_abs_acc(prev[0, lb], prev[1, lb], prev[2, lb], d[b], vel[b], acc[b], h[b])
-                if inner > amax[b]:
-                    amax[b] = inner
-            prev[0, lb] = d[b]
-            prev[1, lb] = vel[b]
-            prev[2, lb] = acc[b]
-
-
-@njit(cache=True, inline="always")
-def mlm_step(P, k, K, M, c, phi_mid, lanes, l0, q, qd, d, vel, acc):
-    """One MLM step of a block (``BridgeSide.step_mlm``, Eq. 12): midspan deflection ``d``,
-    velocity ``vel`` and acceleration ``acc = phi_mid (p0 - Z qd - K q) / M`` at step ``k``, then
-    the exact RK4 recurrence with the modal loads ``P`` of rows ``2k``, ``2k + 1``, ``2k + 2``."""
-    Z = lanes.Z
-    ax = lanes.ax
-    axd = lanes.axd
-    bx = lanes.bx
-    bxd = lanes.bxd
-    c0 = lanes.c0
-    c0d = lanes.c0d
-    ch = lanes.ch
-    chd = lanes.chd
-    c1 = lanes.c1
-    c1d = lanes.c1d
-    nm, nb = q.shape
-    for b in range(nb):
-        d[b] = 0.0
-        acc[b] = 0.0
-        vel[b] = 0.0
-    for j in range(nm):
-        p0, ph, p1 = P[2 * k, j], P[2 * k + 1, j], P[2 * k + 2, j]
-        kj, mj, pm = K[c, j], M[c, j], phi_mid[j]
-        for b in range(nb):
-            lb = l0 + b
-            x = q[j, b]
-            xd = qd[j, b]
-            d[b] += x * pm
-            vel[b] += xd * pm
-            acc[b] += ((p0 - Z[j, lb] * xd - kj * x) / mj) * pm
-            q[j, b] = ax[j, lb] * x + bx[j, lb] * xd + c0[j, lb] * p0 + ch[j, lb] * ph + c1[j, lb] * p1
-            qd[j, b] = axd[j, lb] * x + bxd[j, lb] * xd + c0d[j, lb] * p0 + chd[j, lb] * ph + c1d[j, lb] * p1
+        lb = l0 + b
+        if k > 0:
+            inner = hermite_max_abs_acc(prev[0, lb], prev[1, lb], prev[2, lb], d[b], vel[b], acc[b], h[b])
+            if inner > amax[b]:
+                amax[b] = inner
+        prev[0, lb] = d[b]
+        prev[1, lb] = vel[b]
+        prev[2, lb] = acc[b]
 
 
 # ---------------------------------------------------------------------- the whole-run kernels
@@ -381,7 +340,7 @@ def dim_blocks(blocks, k0, k1, lanes, bridge, rows, units, vehicles, state, dens
     (:class:`adm_sim.tables.VehicleTables`). A stage is the numpy stepper's, helper by helper:
     :func:`rail_state`, :func:`vehicle_accelerations`, :func:`bridge_accelerations`, (stage 0)
     :func:`midspan_acceleration`, the RK4 bookkeeping of both subsystems; a step starts with
-    :func:`start_step` and ends with :func:`fold_maxima`.
+    :func:`start_step` and ends with the maxima (:func:`dense_maxima` with ``dense``).
 
     Resumable: advances every lane from step ``k0`` to ``min(k1, its block's steps)``; ``state``
     (:class:`LaneState`) is updated in place, so chunks give bit for bit what one call gives.
@@ -496,7 +455,14 @@ def dim_blocks(blocks, k0, k1, lanes, bridge, rows, units, vehicles, state, dens
                             for b in range(nb):
                                 u[dd, b] = u[dd, b] + hl[b] * au[dd, b]
                                 ud[dd, b] = ud[dd, b] + hl[b] * aud[dd, b]
-            fold_maxima(k, l0, acc0, d, vel, hl, amax, dmax, dense, state.prev)
+            # the sampled maxima (stage 0 of every step, _BridgeRun), then the dense ones
+            for b in range(nb):
+                if abs(acc0[b]) > amax[b]:
+                    amax[b] = abs(acc0[b])
+                if abs(d[b]) > dmax[b]:
+                    dmax[b] = abs(d[b])
+            if dense:
+                dense_maxima(k, l0, acc0, d, vel, hl, amax, state.prev)
         state.q[:, l0:l0 + nb] = q
         state.qd[:, l0:l0 + nb] = qd
         state.u[:, l0:l0 + nb] = u
@@ -512,8 +478,23 @@ def mlm_blocks(blocks, k0, k1, lanes, bridge, P, state, dense):
     ``P`` (2 n + 1, n_modes) modal loads on the half-step grid (shared); ``bridge``
     (:class:`adm_sim.tables.BridgeTables`); ``lanes`` (:class:`MlmLanes`), ``blocks`` and
     ``state`` as in :func:`dim_blocks` (``state.u``, ``state.ud`` unused). A step is
-    :func:`mlm_step` then :func:`fold_maxima`; resumable as :func:`dim_blocks`.
+    ``BridgeSide.step_mlm`` (inline) then the maxima (:func:`dense_maxima` with ``dense``); resumable as :func:`dim_blocks`.
     """
+    K = bridge.K
+    M = bridge.M
+    phi_mid = bridge.phi_mid
+    nm = P.shape[1]
+    Z = lanes.Z
+    ax = lanes.ax
+    axd = lanes.axd
+    bx = lanes.bx
+    bxd = lanes.bxd
+    c0 = lanes.c0
+    c0d = lanes.c0d
+    ch = lanes.ch
+    chd = lanes.chd
+    c1 = lanes.c1
+    c1d = lanes.c1d
     block_ptr = blocks.ptr
     for bi in range(block_ptr.shape[0] - 1):
         l0 = block_ptr[bi]
@@ -532,8 +513,33 @@ def mlm_blocks(blocks, k0, k1, lanes, bridge, P, state, dense):
         amax = state.max_acc[l0:l1].copy()
         dmax = state.max_disp[l0:l1].copy()
         for k in range(k0, k_end):
-            mlm_step(P, k, bridge.K, bridge.M, c, bridge.phi_mid, lanes, l0, q, qd, d, vel, a)
-            fold_maxima(k, l0, a, d, vel, hl, amax, dmax, dense, state.prev)
+            # BridgeSide.step_mlm (Eq. 12): midspan deflection, velocity and acceleration at step k,
+            # then the exact RK4 recurrence with the modal loads of rows 2k, 2k + 1, 2k + 2 (inline:
+            # as a helper it costs ~6 % with dense maxima, see docs/benchmarks.md)
+            for b in range(nb):
+                d[b] = 0.0
+                a[b] = 0.0
+                vel[b] = 0.0
+            for j in range(nm):
+                p0, ph, p1 = P[2 * k, j], P[2 * k + 1, j], P[2 * k + 2, j]
+                kj, mj, pm = K[c, j], M[c, j], phi_mid[j]
+                for b in range(nb):
+                    lb = l0 + b
+                    x = q[j, b]
+                    xd = qd[j, b]
+                    d[b] += x * pm
+                    vel[b] += xd * pm
+                    a[b] += ((p0 - Z[j, lb] * xd - kj * x) / mj) * pm
+                    q[j, b] = ax[j, lb] * x + bx[j, lb] * xd + c0[j, lb] * p0 + ch[j, lb] * ph + c1[j, lb] * p1
+                    qd[j, b] = axd[j, lb] * x + bxd[j, lb] * xd + c0d[j, lb] * p0 + chd[j, lb] * ph + c1d[j, lb] * p1
+            # the sampled maxima (stage 0 of every step, _BridgeRun), then the dense ones
+            for b in range(nb):
+                if abs(a[b]) > amax[b]:
+                    amax[b] = abs(a[b])
+                if abs(d[b]) > dmax[b]:
+                    dmax[b] = abs(d[b])
+            if dense:
+                dense_maxima(k, l0, a, d, vel, hl, amax, state.prev)
         state.q[:, l0:l1] = q
         state.qd[:, l0:l1] = qd
         state.max_acc[l0:l1] = amax
