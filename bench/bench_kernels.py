@@ -7,7 +7,8 @@ under ICE-2 at 8 speeds 160..350 km/h = 48 lanes of one :class:`adm_sim.compiled
 on the calibration step of the group, run as DIM and MLM, with and without dense maxima. Every
 timing runs in a worker subprocess (``PYTHONPATH=<src>``) that first runs every configuration
 once untimed (numba compile or cache load), then ``--reps`` timed repetitions, the four
-configurations interleaved. With ``--baseline SRC`` (e.g. another checkout's ``src``) the
+configurations interleaved; times are CPU seconds of the worker (``time.process_time``: on a
+shared 2-core machine the wall clock also counts the other processes). With ``--baseline SRC`` (e.g. another checkout's ``src``) the
 baseline's and this tree's workers alternate for ``--rounds`` rounds (first one, then the other); the bench prints the min
 time of each (over all rounds and repetitions), the ratio this/baseline and whether the per-lane
 maxima of both are equal bit for bit (``np.array_equal``). numba's cache goes to a temporary
@@ -57,9 +58,9 @@ def worker(reps):
         out[f"{model}{'+dense' if dense else ''}"] = {"times": [], "acc": acc.tolist(), "disp": disp.tolist()}
     for _ in range(reps):
         for model, dense in CONFIGS:
-            t0 = time.perf_counter()
+            t0 = time.process_time()
             runners[dense].run(model, case, speeds)
-            out[f"{model}{'+dense' if dense else ''}"]["times"].append(time.perf_counter() - t0)
+            out[f"{model}{'+dense' if dense else ''}"]["times"].append(time.process_time() - t0)
     print(json.dumps(out))
 
 
@@ -79,10 +80,10 @@ def _numpy_times():
     bridges, train, ds = _case()
     out = {}
     for model in ("dim", "mlm"):
-        t0 = time.perf_counter()
+        t0 = time.process_time()
         for b in bridges:
             run_sweep(b, train, model, SPEEDS_KMH, options=StepOptions(ds_m=ds))
-        out[model] = time.perf_counter() - t0
+        out[model] = time.process_time() - t0
     return out
 
 
@@ -106,7 +107,7 @@ def main():
                 runs[name].append(_spawn(src, args.reps, caches[name]))
     bridges, train, ds = _case()
     print(f"48 lanes: {len(bridges)} bridges L20-f3-mu1..6 x ICE-2 x {SPEEDS_KMH.size} speeds 160..350 km/h, "
-          f"ds = {ds:.4g} m; min of {args.rounds} x {args.reps} runs after a warm-up")
+          f"ds = {ds:.4g} m; min CPU time of {args.rounds} x {args.reps} runs after a warm-up")
     for key in runs["this"][0]:
         best = {name: min(t for r in rs for t in r[key]["times"]) for name, rs in runs.items()}
         line = f"{key:10s} this {best['this']:.4f} s"
