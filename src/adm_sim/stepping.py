@@ -60,7 +60,8 @@ import numpy as np
 
 from adm_sim._jit import RK4_C, RK4_W  # the RK4 tableau, shared with the numba kernels
 from adm_sim.errors import InputError, check_range
-from adm_sim.tables import active_units, axle_rows, bridge_tables, vehicle_tables  # shared with the kernels
+from adm_sim.tables import (active_units, axle_rows, bridge_tables, modified_mass_inverse,  # shared with the kernels
+                             vehicle_tables)
 
 SPEED_RANGE_KMH = (1.0, 600.0)
 
@@ -238,6 +239,7 @@ class BridgeSide:
         self.k = 0
         self.set_delta_zeta(delta_zeta)
         self._rows = (-self.TABLE_ROWS, None)  # (first row, AxleRows) of the table in use
+        self._stage_cache = {}
         self.last_acc = np.zeros(grid.n_lanes)  # midspan acceleration at the start of step k
 
     # ------------------------------------------------------------------ settings
@@ -276,17 +278,26 @@ class BridgeSide:
     def _shapes(self):
         """Axles on the bridge at (k, stage), their mode shapes and (DIM) ``M_mod^-1`` (Eq. 13).
 
-        The row of :func:`adm_sim.tables.axle_rows` (the kernels' table) for this stage point.
+        The row of :func:`adm_sim.tables.axle_rows` (the kernels' table) for this stage point;
+        ``M_mod^-1`` by :func:`adm_sim.tables.modified_mass_inverse` (the stepper's summation order).
         """
         key = 2 * self.k + int(2 * RK4_C[self.rk.stage])  # half-step index: end of k = start of k+1
+        hit = self._stage_cache.get(key)
+        if hit is not None:
+            return hit
         r0, rows = self._rows
         if not r0 <= key < r0 + self.TABLE_ROWS:
-            r0, rows = key, axle_rows([self.bridge], self.offsets, self.grid.ds_m, key, self.TABLE_ROWS, self.m_w)
+            r0, rows = key, axle_rows([self.bridge], self.offsets, self.grid.ds_m, key, self.TABLE_ROWS)
             self._rows = (r0, rows)
         i = key - r0
         e0, e1 = rows.ptr[i], rows.ptr[i + 1]
-        minv = rows.minv[0, i] if self.m_w is not None else None
-        return rows.axle[e0:e1], rows.phi[e0:e1], rows.phx[e0:e1], rows.phxx[e0:e1], minv
+        idx, phi = rows.axle[e0:e1], rows.phi[e0:e1]
+        minv = None if self.m_w is None else modified_mass_inverse(self.M, phi, self.m_w[idx])
+        hit = (idx, phi, rows.phx[e0:e1], rows.phxx[e0:e1], minv)
+        if len(self._stage_cache) > 8:
+            self._stage_cache.clear()
+        self._stage_cache[key] = hit
+        return hit
 
     # ------------------------------------------------------------------ DIM exchange
     def rail_state(self):
