@@ -8,9 +8,21 @@ Each lane carries its own bridge (modal stiffness, damping, the wheelset-modifie
 Eq. 13) and its own number of steps; the span, the space step ``ds`` and the train are shared,
 so the axles on the bridge and the mode shapes under them are tabulated once per batch.
 
-One source: without numba the same functions run as plain Python (slow, for debugging).
-The numpy stepper stays the reference (the ROS nodes use it); ``tests/test_batch.py`` holds the
-two together to 1e-12 relative.
+Arguments are named structures (``typing.NamedTuple`` of arrays): the tables of
+:mod:`adm_sim.tables` (``BridgeTables``, ``AxleRows``, ``ActiveUnits``, ``VehicleTables``, built
+by the same functions the numpy stepper uses) and, here, :class:`Blocks`, :class:`DimLanes`,
+:class:`MlmLanes`, :class:`LaneState`. A DIM stage calls one helper per numpy step:
+:func:`rail_state` (``BridgeSide.rail_state``), :func:`vehicle_accelerations`
+(``TrainSide.take_rail_state``), :func:`bridge_accelerations` (``BridgeSide.take_forces``),
+:func:`midspan_acceleration`; a step starts with :func:`start_step`, :func:`start_units` and
+ends with the maxima, whose dense part (:func:`dense_maxima`) both kernels share. The RK4
+bookkeeping (``_Rk4State.push``) and the MLM step (``BridgeSide.step_mlm``) stay inline in their
+kernels: as helpers they cost ~20 % and ~6 % of the kernel's time (``bench/bench_kernels.py``,
+``docs/benchmarks.md``).
+
+One source: without numba the same functions run as plain Python (slow, for debugging;
+``tests/test_kernels_uncompiled.py``). The numpy stepper stays the reference (the ROS nodes use
+it); ``tests/test_batch.py`` holds the two together to 1e-12 relative.
 """
 
 from __future__ import annotations
