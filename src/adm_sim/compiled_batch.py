@@ -23,22 +23,12 @@ from __future__ import annotations
 import numpy as np
 
 from adm_sim import kernels
-from adm_sim.fields import FIELDS
 from adm_sim.errors import InputError, RunError
+from adm_sim.fields import FIELDS
 from adm_sim.limits import check_delta_zeta_pct
 from adm_sim.stepping import (FAILED, RUNNING, StepOptions, SteppedRun, check_model, half_step_positions,
                               make_grid, mlm_rk4_coefficients, modal_loads_at, speeds_to_m_s)
-
-
-def _row_ptr(rows, n_rows):
-    """CSR row pointers (n_rows + 1,) of sorted row indices: entries of row r are ptr[r]:ptr[r+1]."""
-    return np.searchsorted(rows, np.arange(n_rows + 1)).astype(np.int64)
-
-
-def _csr(dense):
-    """Row-compressed nonzeros of a dense matrix: ``(ptr, col, val)``."""
-    rows, cols = np.nonzero(dense)
-    return _row_ptr(rows, dense.shape[0]), cols.astype(np.int64), dense[rows, cols].astype(float)
+from adm_sim.tables import active_units, axle_rows, bridge_tables, vehicle_tables
 
 
 class BatchRunner:
@@ -73,12 +63,11 @@ class BatchRunner:
         self.ds_m = float(ds_m)
         self.span_m = float(b0.span_m)
         self.n_modes = b0.n_modes
-        self.phi_mid = np.sin(b0.mode_numbers * np.pi / 2.0)
-        self.M = np.array([b.modal_mass_kg for b in self.bridges])
-        self.K = np.array([b.modal_stiffness_N_m for b in self.bridges])
+        self.tables = bridge_tables(self.bridges)
+        self.phi_mid, self.M, self.K = self.tables.phi_mid, self.tables.M, self.tables.K
         self._rows = 0
         self._mlm_rows = 0
-        self._train_tables = None
+        self._vehicles = None
 
     # ------------------------------------------------------------------ steps
     def n_steps(self, case, speeds_kmh):
@@ -103,69 +92,20 @@ class BatchRunner:
         return self._P
 
     def _dim_tables(self, n_steps):
+        """The axles on the bridge per half-step row and the active units per step, steps 0..n."""
         if n_steps <= self._rows:
             return
-        b0, tr, ds = self.bridges[0], self.train, self.ds_m
-        r = np.arange(2 * n_steps + 1)
-        front = (r // 2 + 0.5 * (r % 2)) * ds  # == grid.front_m(k, stage) bit for bit
-        x = front[:, None] - tr.axle_offsets_m[None, :]
-        on = (x >= 0.0) & (x <= self.span_m)
-        rows, axles = np.nonzero(on)
-        ptr = _row_ptr(rows, r.size)
-        phi, phx, phxx = b0.shapes(x[rows, axles])
-        mw = tr.wheel_mass_kg[axles]
-        outer = (phi * mw[:, None])[:, :, None] * phi[:, None, :]  # Eq. (13) terms per axle
-        S = np.zeros((r.size, self.n_modes, self.n_modes))
-        np.add.at(S, rows, outer)
-        minv = np.empty((len(self.bridges), r.size, self.n_modes, self.n_modes))
-        for c, M in enumerate(self.M):
-            minv[c] = np.linalg.inv(np.diag(M)[None] + S)
-        self._dim = dict(row_ptr=ptr, ent_axle=axles.astype(np.int64), ent_phi=np.ascontiguousarray(phi),
-                         ent_phx=np.ascontiguousarray(phx), ent_phxx=np.ascontiguousarray(phxx), minv=minv)
-        # vehicles active during step k (as TrainSide._active)
-        t = self._trains()
-        k = np.arange(n_steps)
-        lo, hi = (k + 0.0) * ds, (k + 1.0) * ds
-        act = (hi[:, None] - t["first"][None, :] >= 0.0) & (lo[:, None] - t["last"][None, :] <= self.span_m)
-        krow, units = np.nonzero(act)
-        self._dim.update(act_ptr=_row_ptr(krow, n_steps), act_units=units.astype(np.int64))
+        tr = self.train
+        self._axle_rows = axle_rows(self.bridges, tr.axle_offsets_m, self.ds_m, 0, 2 * n_steps + 1,
+                                    tr.wheel_mass_kg)
+        self._units = active_units(self.vehicles(), self.span_m, self.ds_m, 0, n_steps)
         self._rows = int(n_steps)
 
-    def _trains(self):
-        if self._train_tables is None:
-            tr = self.train
-            mats = [tr.unit_matrices(i) for i in range(len(tr.units))]
-            n = sum(len(m.M) for m in mats)
-            Ks, Cs, Lw = np.zeros((n, n)), np.zeros((n, n)), np.zeros((tr.n_axles, n))
-            minv = np.zeros(n)
-            kp, cp = np.zeros(tr.n_axles), np.zeros(tr.n_axles)
-            dof0, ndof, ax0, nax, first, last = [], [], [], [], [], []
-            d = 0
-            for i, m in enumerate(mats):
-                axles = tr.unit_axles(i)
-                if not np.all(np.diff(axles) == 1):
-                    raise InputError(f"train: unit {i} of {tr.name!r} has axles out of order")
-                nn = len(m.M)
-                Ks[d:d + nn, d:d + nn] = m.K_s
-                Cs[d:d + nn, d:d + nn] = m.C_s
-                Lw[axles[0]:axles[-1] + 1, d:d + nn] = m.Lw
-                kp[axles], cp[axles] = m.k_p, m.c_p
-                minv[d:d + nn] = 1.0 / m.M
-                dof0.append(d)
-                ndof.append(nn)
-                ax0.append(axles[0])
-                nax.append(len(axles))
-                first.append(tr.axle_offsets_m[axles].min())
-                last.append(tr.axle_offsets_m[axles].max())
-                d += nn
-            ks, cs, lw, lwt = _csr(Ks), _csr(Cs), _csr(Lw), _csr(Lw.T.copy())
-            i64 = lambda a: np.asarray(a, dtype=np.int64)  # noqa: E731
-            self._train_tables = dict(
-                unit_dof0=i64(dof0), unit_ndof=i64(ndof), unit_ax0=i64(ax0), unit_nax=i64(nax),
-                ks_ptr=ks[0], ks_col=ks[1], ks_val=ks[2], cs_ptr=cs[0], cs_col=cs[1], cs_val=cs[2],
-                lw_ptr=lw[0], lw_col=lw[1], lw_val=lw[2], lwt_ptr=lwt[0], lwt_col=lwt[1], lwt_val=lwt[2],
-                kp=kp, cp=cp, minv_dof=minv, first=np.array(first), last=np.array(last))
-        return self._train_tables
+    def vehicles(self):
+        """The train's :class:`adm_sim.tables.VehicleTables` (built on first use)."""
+        if self._vehicles is None:
+            self._vehicles = vehicle_tables(self.train)
+        return self._vehicles
 
     # ------------------------------------------------------------------ run
     @staticmethod
@@ -271,12 +211,16 @@ class BatchRun(SteppedRun):
         if model == "mlm":
             self._P = runner._mlm_table(n_max)
             coef = mlm_rk4_coefficients(h[:, None], runner.M[case], Z, runner.K[case])
-            self._T = [np.ascontiguousarray(a[order].T) for a in (Z, *(x for pair in coef for x in pair))]
+            self._lanes = kernels.MlmLanes(self._ho, *(np.ascontiguousarray(a[order].T)
+                                                       for a in (Z, *(x for pair in coef for x in pair))))
+            self._u = self._ud = np.zeros((0, n_l))
         else:
             runner._dim_tables(n_max)
-            n_dof = runner._trains()["minv_dof"].size
+            n_dof = runner.vehicles().minv_dof.size
             self._u, self._ud = np.zeros((n_dof, n_l)), np.zeros((n_dof, n_l))
-            self._vo, self._Zo = v[order], np.ascontiguousarray(Z[order])
+            self._lanes = kernels.DimLanes(v[order], self._ho, np.ascontiguousarray(Z[order]))
+        self._blocks_t = kernels.Blocks(self._block_ptr, self._bcase, self._bsteps)
+        self._state = kernels.LaneState(self._q, self._qd, self._u, self._ud, self._amax, self._dmax, self._prev)
         self._start_contract(n_max)
 
     def _step_impl(self):
@@ -286,22 +230,12 @@ class BatchRun(SteppedRun):
         """Every lane by ``n`` steps in one kernel call (:meth:`SteppedRun.advance` owns the status)."""
         k0, k1 = self.k, self.k + n
         r = self.runner
-        head = (self._block_ptr, self._bcase, self._bsteps, k0, k1)
         if self.model == "mlm":
-            kernels.mlm_blocks(*head, self._P, r.phi_mid, r.M, r.K, *self._T,
-                               self._q, self._qd, self._amax, self._dmax, r.dense_maxima, self._ho, self._prev)
+            kernels.mlm_blocks(self._blocks_t, k0, k1, self._lanes, r.tables, self._P, self._state, r.dense_maxima)
             state = (self._q, self._qd)
         else:
-            t, d = r._trains(), r._dim
-            kernels.dim_blocks(
-                *head, self._vo, self._ho, r.K, self._Zo, d["minv"], r.phi_mid,
-                d["row_ptr"], d["ent_axle"], d["ent_phi"], d["ent_phx"], d["ent_phxx"],
-                r.train.axle_loads_n, r.train.wheel_mass_kg,
-                d["act_ptr"], d["act_units"], t["unit_dof0"], t["unit_ndof"], t["unit_ax0"], t["unit_nax"],
-                t["ks_ptr"], t["ks_col"], t["ks_val"], t["cs_ptr"], t["cs_col"], t["cs_val"],
-                t["lw_ptr"], t["lw_col"], t["lw_val"], t["lwt_ptr"], t["lwt_col"], t["lwt_val"],
-                t["kp"], t["cp"], t["minv_dof"], self._q, self._qd, self._u, self._ud, self._amax, self._dmax,
-                r.dense_maxima, self._prev)
+            kernels.dim_blocks(self._blocks_t, k0, k1, self._lanes, r.tables, r._axle_rows, r._units, r.vehicles(),
+                               self._state, r.dense_maxima)
             state = (self._q, self._qd, self._u, self._ud)
         self.k = k1
         def names():

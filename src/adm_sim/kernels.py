@@ -8,12 +8,26 @@ Each lane carries its own bridge (modal stiffness, damping, the wheelset-modifie
 Eq. 13) and its own number of steps; the span, the space step ``ds`` and the train are shared,
 so the axles on the bridge and the mode shapes under them are tabulated once per batch.
 
-One source: without numba the same functions run as plain Python (slow, for debugging).
-The numpy stepper stays the reference (the ROS nodes use it); ``tests/test_batch.py`` holds the
-two together to 1e-12 relative.
+Arguments are named structures (``typing.NamedTuple`` of arrays): the tables of
+:mod:`adm_sim.tables` (``BridgeTables``, ``AxleRows``, ``ActiveUnits``, ``VehicleTables``, built
+by the same functions the numpy stepper uses) and, here, :class:`Blocks`, :class:`DimLanes`,
+:class:`MlmLanes`, :class:`LaneState`. A DIM stage calls one helper per numpy step:
+:func:`rail_state` (``BridgeSide.rail_state``), :func:`vehicle_accelerations`
+(``TrainSide.take_rail_state``), :func:`bridge_accelerations` (``BridgeSide.take_forces``),
+:func:`midspan_acceleration`; a step starts with :func:`start_step`, :func:`start_units` and
+ends with the maxima, whose dense part (:func:`dense_maxima`) both kernels share. The RK4
+bookkeeping (``_Rk4State.push``) and the MLM step (``BridgeSide.step_mlm``) stay inline in their
+kernels: as helpers they cost ~20 % and ~6 % of the kernel's time (``bench/bench_kernels.py``,
+``docs/benchmarks.md``).
+
+One source: without numba the same functions run as plain Python (slow, for debugging;
+``tests/test_kernels_uncompiled.py``). The numpy stepper stays the reference (the ROS nodes use
+it); ``tests/test_batch.py`` holds the two together to 1e-12 relative.
 """
 
 from __future__ import annotations
+
+from typing import NamedTuple
 
 import numpy as np
 
@@ -63,54 +77,310 @@ def hermite_max_abs_acc(d0, v0, a0, d1, v1, a1, h):
     return best
 
 
+class Blocks(NamedTuple):
+    """Lanes in block order: block ``i`` is lanes ``ptr[i]:ptr[i+1]`` (n_blocks + 1,), all on bridge
+    ``case[i]`` with ``steps[i]`` steps (n_blocks,); they advance together, innermost."""
+
+    ptr: np.ndarray
+    case: np.ndarray
+    steps: np.ndarray
+
+
+class DimLanes(NamedTuple):
+    """Per lane (block order): speed ``v`` (m/s), time step ``h`` (s) (n_lanes,), modal damping
+    ``Z`` (n_lanes, n_modes) (Ns/m)."""
+
+    v: np.ndarray
+    h: np.ndarray
+    Z: np.ndarray
+
+
+class MlmLanes(NamedTuple):
+    """Per lane (block order): time step ``h`` (s) (n_lanes,); modal damping ``Z`` and the exact
+    RK4 recurrence of :func:`adm_sim.stepping.mlm_rk4_coefficients`, each (n_modes, n_lanes)."""
+
+    h: np.ndarray
+    Z: np.ndarray
+    ax: np.ndarray
+    axd: np.ndarray
+    bx: np.ndarray
+    bxd: np.ndarray
+    c0: np.ndarray
+    c0d: np.ndarray
+    ch: np.ndarray
+    chd: np.ndarray
+    c1: np.ndarray
+    c1d: np.ndarray
+
+
+class LaneState(NamedTuple):
+    """State of every lane (block order), updated in place: modal ``q``, ``qd`` (n_modes, n_lanes),
+    vehicle ``u``, ``ud`` (n_dof, n_lanes; n_dof = 0 for the MLM), the running maxima of |midspan
+    acceleration| ``max_acc`` and |deflection| ``max_disp`` (n_lanes,), and ``prev`` (3, n_lanes)
+    the midspan deflection, velocity and acceleration of the last step done (dense maxima)."""
+
+    q: np.ndarray
+    qd: np.ndarray
+    u: np.ndarray
+    ud: np.ndarray
+    max_acc: np.ndarray
+    max_disp: np.ndarray
+    prev: np.ndarray
+
+
+# ---------------------------------------------------------------------- the steps, one helper each
+@njit(cache=True, inline="always")
+def start_step(q, qd, phi_mid, d, vel, sq, sqd):
+    """Start of a step: midspan deflection ``d`` and velocity ``vel`` (n_lanes,) of the modal state
+    (``BridgeSide.midspan_displacement`` / ``midspan_velocity``); the stage state ``sq``, ``sqd``
+    is the step's state (``_Rk4State.reset``)."""
+    nm, nb = q.shape
+    for b in range(nb):
+        d[b] = 0.0
+        vel[b] = 0.0
+    for j in range(nm):
+        pm = phi_mid[j]
+        for b in range(nb):
+            d[b] += q[j, b] * pm
+            vel[b] += qd[j, b] * pm
+            sq[j, b] = q[j, b]
+            sqd[j, b] = qd[j, b]
+
+
+@njit(cache=True, inline="always")
+def start_units(vehicles, units, a0, a1, u, ud, su, sud):
+    """Start of a step for the active units ``units[a0:a1]``: stage state = step state
+    (``TrainSide._active`` / ``_Rk4State.reset``)."""
+    dof0 = vehicles.unit_dof0
+    ndof = vehicles.unit_ndof
+    nb = u.shape[1]
+    for ia in range(a0, a1):
+        un = units[ia]
+        for dd in range(dof0[un], dof0[un] + ndof[un]):
+            for b in range(nb):
+                su[dd, b] = u[dd, b]
+                sud[dd, b] = ud[dd, b]
+
+
+@njit(cache=True, inline="always")
+def rail_state(rows, r, sq, sqd, v, W, Wd, t1, t2, t3):
+    """Bridge -> train (``BridgeSide.rail_state``): rail displacement ``W`` and velocity ``Wd``
+    (n_axles, n_lanes) under every axle on the bridge at half-step row ``r`` (Eqs. 4, 9)."""
+    ptr = rows.ptr
+    axle = rows.axle
+    phi = rows.phi
+    phx = rows.phx
+    nm, nb = sq.shape
+    for e in range(ptr[r], ptr[r + 1]):
+        a = axle[e]
+        for b in range(nb):
+            t1[b] = 0.0
+            t2[b] = 0.0
+            t3[b] = 0.0
+        for j in range(nm):
+            pj = phi[e, j]
+            xj = phx[e, j]
+            for b in range(nb):
+                t1[b] += sq[j, b] * pj
+                t2[b] += sqd[j, b] * pj
+                t3[b] += sq[j, b] * xj
+        for b in range(nb):
+            W[a, b] = t1[b]
+            Wd[a, b] = t2[b] + v[b] * t3[b]
+
+
+@njit(cache=True, inline="always")
+def vehicle_accelerations(vehicles, units, a0, a1, su, sud, W, Wd, f, udd, t1, t2, t3):
+    """Train (``TrainSide.take_rail_state``): primary stage forces ``f = k_p (W - Lw u) + c_p (Wd -
+    Lw ud)`` (n_axles, n_lanes) and vehicle accelerations ``udd = (Lw^T f - K_s u - C_s ud) / M``
+    (Eq. 11) of the active units ``units[a0:a1]``."""
+    dof0 = vehicles.unit_dof0
+    ndof = vehicles.unit_ndof
+    ax0 = vehicles.unit_ax0
+    nax = vehicles.unit_nax
+    lw_ptr = vehicles.lw_ptr
+    lw_col = vehicles.lw_col
+    lw_val = vehicles.lw_val
+    lwt_ptr = vehicles.lwt_ptr
+    lwt_col = vehicles.lwt_col
+    lwt_val = vehicles.lwt_val
+    ks_ptr = vehicles.ks_ptr
+    ks_col = vehicles.ks_col
+    ks_val = vehicles.ks_val
+    cs_ptr = vehicles.cs_ptr
+    cs_col = vehicles.cs_col
+    cs_val = vehicles.cs_val
+    kp = vehicles.kp
+    cp = vehicles.cp
+    minv_dof = vehicles.minv_dof
+    nb = su.shape[1]
+    for ia in range(a0, a1):
+        un = units[ia]
+        for ax_ in range(ax0[un], ax0[un] + nax[un]):
+            for b in range(nb):
+                t1[b] = 0.0
+                t2[b] = 0.0
+            for t in range(lw_ptr[ax_], lw_ptr[ax_ + 1]):
+                col = lw_col[t]
+                val = lw_val[t]
+                for b in range(nb):
+                    t1[b] += su[col, b] * val
+                    t2[b] += sud[col, b] * val
+            kpa = kp[ax_]
+            cpa = cp[ax_]
+            for b in range(nb):
+                f[ax_, b] = kpa * (W[ax_, b] - t1[b]) + cpa * (Wd[ax_, b] - t2[b])
+        for dd in range(dof0[un], dof0[un] + ndof[un]):
+            for b in range(nb):
+                t1[b] = 0.0
+                t2[b] = 0.0
+                t3[b] = 0.0
+            for t in range(lwt_ptr[dd], lwt_ptr[dd + 1]):
+                col = lwt_col[t]
+                val = lwt_val[t]
+                for b in range(nb):
+                    t1[b] += f[col, b] * val
+            for t in range(ks_ptr[dd], ks_ptr[dd + 1]):
+                col = ks_col[t]
+                val = ks_val[t]
+                for b in range(nb):
+                    t2[b] += su[col, b] * val
+            for t in range(cs_ptr[dd], cs_ptr[dd + 1]):
+                col = cs_col[t]
+                val = cs_val[t]
+                for b in range(nb):
+                    t3[b] += sud[col, b] * val
+            md = minv_dof[dd]
+            for b in range(nb):
+                udd[dd, b] = (t1[b] - t2[b] - t3[b]) * md
+
+
+@njit(cache=True, inline="always")
+def bridge_accelerations(rows, r, bridge, c, vehicles, sq, sqd, v, Z, f, W, Wd, p, rhs, qdd, t1, t2, t3):
+    """Train -> bridge (``BridgeSide.take_forces``): interaction ``G = F - F_k1 - F_c1`` (Eq. 7)
+    less the wheelset inertia of the convective terms (Eq. 9), modal load ``p`` (Eq. 14) and
+    ``qdd = M_mod^-1 (p - Z qd - K q)`` (Eq. 15) of bridge ``c`` at half-step row ``r``; the rail
+    state ``W``, ``Wd`` of the axles on the bridge is cleared (rigid track off the bridge)."""
+    ptr = rows.ptr
+    axle = rows.axle
+    phi = rows.phi
+    phx = rows.phx
+    phxx = rows.phxx
+    minv = rows.minv
+    K = bridge.K
+    axle_load = vehicles.axle_load_n
+    wheel_mass = vehicles.wheel_mass_kg
+    nm, nb = sq.shape
+    for j in range(nm):
+        for b in range(nb):
+            p[j, b] = 0.0
+    for e in range(ptr[r], ptr[r + 1]):
+        a = axle[e]
+        for b in range(nb):
+            t1[b] = 0.0
+            t2[b] = 0.0
+        for j in range(nm):
+            xj = phx[e, j]
+            xxj = phxx[e, j]
+            for b in range(nb):
+                t1[b] += sqd[j, b] * xj
+                t2[b] += sq[j, b] * xxj
+        fa = axle_load[a]
+        mwa = wheel_mass[a]
+        for b in range(nb):
+            t3[b] = (fa - f[a, b]) - mwa * (2.0 * v[b] * t1[b] + v[b] * v[b] * t2[b])
+        for j in range(nm):
+            pj = phi[e, j]
+            for b in range(nb):
+                p[j, b] += t3[b] * pj
+        for b in range(nb):
+            W[a, b] = 0.0
+            Wd[a, b] = 0.0
+    for j in range(nm):
+        kj = K[c, j]
+        for b in range(nb):
+            rhs[j, b] = p[j, b] - Z[j, b] * sqd[j, b] - kj * sq[j, b]
+    for i in range(nm):
+        for b in range(nb):
+            qdd[i, b] = 0.0
+        for j in range(nm):
+            mji = minv[c, r, j, i]
+            for b in range(nb):
+                qdd[i, b] += rhs[j, b] * mji
+
+
+@njit(cache=True, inline="always")
+def midspan_acceleration(qdd, phi_mid, acc):
+    """Midspan acceleration ``acc = phi_mid qdd`` (n_lanes,) (``BridgeSide.last_acc``)."""
+    nm, nb = qdd.shape
+    for b in range(nb):
+        acc[b] = 0.0
+    for j in range(nm):
+        pm = phi_mid[j]
+        for b in range(nb):
+            acc[b] += qdd[j, b] * pm
+
+
+@njit(cache=True, inline="always")
+def dense_maxima(k, l0, acc, d, vel, h, amax, prev):
+    """Dense maxima of a block (lanes ``l0 ..``) at step ``k`` (``_BridgeRun._take_acc``): the
+    largest |acceleration| between steps ``k - 1`` and ``k`` from the dense output
+    (:func:`hermite_max_abs_acc`) folded into ``amax``; ``prev`` (3, n_lanes) then carries the
+    midspan deflection ``d``, velocity ``vel`` and acceleration ``acc`` to the next step."""
+    nb = acc.shape[0]
+    for b in range(nb):
+        lb = l0 + b
+        if k > 0:
+            inner = hermite_max_abs_acc(prev[0, lb], prev[1, lb], prev[2, lb], d[b], vel[b], acc[b], h[b])
+            if inner > amax[b]:
+                amax[b] = inner
+        prev[0, lb] = d[b]
+        prev[1, lb] = vel[b]
+        prev[2, lb] = acc[b]
+
+
+# ---------------------------------------------------------------------- the whole-run kernels
 @njit(cache=True, nogil=True)
-def dim_blocks(block_ptr, block_case, block_steps, k0, k1, v, h, K, Z, minv, phi_mid,
-               row_ptr, ent_axle, ent_phi, ent_phx, ent_phxx,
-               axle_load, wheel_mass,
-               act_ptr, act_units, unit_dof0, unit_ndof, unit_ax0, unit_nax,
-               ks_ptr, ks_col, ks_val, cs_ptr, cs_col, cs_val,
-               lw_ptr, lw_col, lw_val, lwt_ptr, lwt_col, lwt_val, kp, cp, minv_dof,
-               q_s, qd_s, u_s, ud_s, max_acc, max_disp, dense, prev_s):
+def dim_blocks(blocks, k0, k1, lanes, bridge, rows, units, vehicles, state, dense):
     """DIM (Eqs. 7-17) with one exchange per RK stage, every lane over all its steps.
 
-    Lanes ``block_ptr[i]..block_ptr[i+1]`` (same bridge ``block_case[i]``, same number of steps
-    ``block_steps[i]``) advance together, innermost, so every inner loop runs over contiguous lanes
-    and compiles to SIMD instructions; each lane's arithmetic is that of ``BridgeSide``/``TrainSide``
-    in the same order. Bridge: ``K`` (n_cases, n_modes), ``Z`` (n_lanes, n_modes), ``minv``
-    (n_cases, n_rows, n_modes, n_modes) the inverse modified mass matrix (Eq. 13) per half-step
-    row; the axles on the bridge per row as CSR (``row_ptr``, ``ent_axle``) with their mode shapes
-    ``ent_phi``, ``ent_phx``, ``ent_phxx`` (n_ent, n_modes). Train: units active per step as CSR
-    (``act_ptr``, ``act_units``), unit DOF/axle ranges, the secondary stage ``K_s``, ``C_s``, the
-    DOF-to-bogie-point map ``Lw`` and its transpose as CSR, primary ``kp``, ``cp`` per axle,
-    ``minv_dof`` the inverse diagonal vehicle masses.
+    ``blocks`` (:class:`Blocks`): lanes of one bridge and one step count advance together,
+    innermost, so every inner loop runs over contiguous lanes (SIMD); ``lanes``
+    (:class:`DimLanes`); ``bridge`` (:class:`adm_sim.tables.BridgeTables`); ``rows``
+    (:class:`adm_sim.tables.AxleRows` of every half-step row from 0, with ``minv``); ``units``
+    (:class:`adm_sim.tables.ActiveUnits` of every step from 0); ``vehicles``
+    (:class:`adm_sim.tables.VehicleTables`). A stage is the numpy stepper's, helper by helper:
+    :func:`rail_state`, :func:`vehicle_accelerations`, :func:`bridge_accelerations`, (stage 0)
+    :func:`midspan_acceleration`, the RK4 bookkeeping of both subsystems; a step starts with
+    :func:`start_step` and ends with the maxima (:func:`dense_maxima` with ``dense``).
 
-    Resumable: advances every lane from step ``k0`` to ``min(k1, its block's steps)``. The state
-    lives in the caller's arrays, lanes in block order: modal ``q_s``, ``qd_s`` (n_modes,
-    n_lanes), vehicle ``u_s``, ``ud_s`` (n_dof, n_lanes), and the running maxima of |midspan
-    acceleration| (stage 0 of every step) ``max_acc`` and |deflection| (start of every step)
-    ``max_disp`` (n_lanes,), updated in place. With ``dense``, the maxima between the steps from
-    the dense output (:func:`hermite_max_abs_acc`) are folded in too; ``prev_s`` (3, n_lanes)
-    carries the midspan deflection, velocity and acceleration of the last step done (as
-    ``InProcessRun._prev``). Chunks give bit for bit what one call gives.
+    Resumable: advances every lane from step ``k0`` to ``min(k1, its block's steps)``; ``state``
+    (:class:`LaneState`) is updated in place, so chunks give bit for bit what one call gives.
     """
-    nm = K.shape[1]
-    n_dof = minv_dof.shape[0]
-    n_axles = axle_load.shape[0]
+    nm = bridge.K.shape[1]
+    n_dof = vehicles.minv_dof.shape[0]
+    n_axles = vehicles.axle_load_n.shape[0]
+    phi_mid = bridge.phi_mid
+    act_ptr = units.ptr
+    act_units = units.units
+    unit_dof0 = vehicles.unit_dof0
+    unit_ndof = vehicles.unit_ndof
+    block_ptr = blocks.ptr
     for bi in range(block_ptr.shape[0] - 1):
         l0 = block_ptr[bi]
         nb = block_ptr[bi + 1] - l0
-        c = block_case[bi]
-        vl = v[l0:l0 + nb].copy()
-        hl = h[l0:l0 + nb].copy()
+        c = blocks.case[bi]
+        k_end = min(k1, blocks.steps[bi])
+        if k0 >= k_end:
+            continue
+        vl = lanes.v[l0:l0 + nb].copy()
+        hl = lanes.h[l0:l0 + nb].copy()
         Zb = np.empty((nm, nb))
         for j in range(nm):
             for b in range(nb):
-                Zb[j, b] = Z[l0 + b, j]
-        k_end = min(k1, block_steps[bi])
-        if k0 >= k_end:
-            continue
-        q = q_s[:, l0:l0 + nb].copy()
-        qd = qd_s[:, l0:l0 + nb].copy()
+                Zb[j, b] = lanes.Z[l0 + b, j]
+        q = state.q[:, l0:l0 + nb].copy()
+        qd = state.qd[:, l0:l0 + nb].copy()
         sq = np.zeros((nm, nb))
         sqd = np.zeros((nm, nb))
         aq = np.zeros((nm, nb))
@@ -118,8 +388,8 @@ def dim_blocks(block_ptr, block_case, block_steps, k0, k1, v, h, K, Z, minv, phi
         qdd = np.zeros((nm, nb))
         p = np.zeros((nm, nb))
         rhs = np.zeros((nm, nb))
-        u = u_s[:, l0:l0 + nb].copy()
-        ud = ud_s[:, l0:l0 + nb].copy()
+        u = state.u[:, l0:l0 + nb].copy()
+        ud = state.ud[:, l0:l0 + nb].copy()
         su = np.zeros((n_dof, nb))
         sud = np.zeros((n_dof, nb))
         au = np.zeros((n_dof, nb))
@@ -133,125 +403,24 @@ def dim_blocks(block_ptr, block_case, block_steps, k0, k1, v, h, K, Z, minv, phi
         t3 = np.zeros(nb)
         acc0 = np.zeros(nb)
         d = np.zeros(nb)
-        amax = max_acc[l0:l0 + nb].copy()
-        dmax = max_disp[l0:l0 + nb].copy()
         vel = np.zeros(nb)
+        amax = state.max_acc[l0:l0 + nb].copy()
+        dmax = state.max_disp[l0:l0 + nb].copy()
         for k in range(k0, k_end):
-            d[:] = 0.0
-            vel[:] = 0.0
-            for j in range(nm):
-                for b in range(nb):
-                    d[b] += q[j, b] * phi_mid[j]
-                    vel[b] += qd[j, b] * phi_mid[j]
-                    sq[j, b] = q[j, b]
-                    sqd[j, b] = qd[j, b]
             a0 = act_ptr[k]
             a1 = act_ptr[k + 1]
-            for ia in range(a0, a1):
-                un = act_units[ia]
-                for dd in range(unit_dof0[un], unit_dof0[un] + unit_ndof[un]):
-                    for b in range(nb):
-                        su[dd, b] = u[dd, b]
-                        sud[dd, b] = ud[dd, b]
-            acc0[:] = 0.0
+            start_step(q, qd, phi_mid, d, vel, sq, sqd)
+            start_units(vehicles, act_units, a0, a1, u, ud, su, sud)
             for st in range(4):
                 r = 2 * k + STAGE_ROW[st]
-                e0 = row_ptr[r]
-                e1 = row_ptr[r + 1]
-                # 1. bridge -> train: rail displacement and velocity under the axles (Eqs. 4, 9)
-                for e in range(e0, e1):
-                    a = ent_axle[e]
-                    t1[:] = 0.0
-                    t2[:] = 0.0
-                    t3[:] = 0.0
-                    for j in range(nm):
-                        pj = ent_phi[e, j]
-                        xj = ent_phx[e, j]
-                        for b in range(nb):
-                            t1[b] += sq[j, b] * pj
-                            t2[b] += sqd[j, b] * pj
-                            t3[b] += sq[j, b] * xj
-                    for b in range(nb):
-                        W[a, b] = t1[b]
-                        Wd[a, b] = t2[b] + vl[b] * t3[b]
-                # 2. train: primary stage forces and vehicle accelerations (Eq. 11)
-                for ia in range(a0, a1):
-                    un = act_units[ia]
-                    for ax_ in range(unit_ax0[un], unit_ax0[un] + unit_nax[un]):
-                        t1[:] = 0.0
-                        t2[:] = 0.0
-                        for t in range(lw_ptr[ax_], lw_ptr[ax_ + 1]):
-                            col = lw_col[t]
-                            val = lw_val[t]
-                            for b in range(nb):
-                                t1[b] += su[col, b] * val
-                                t2[b] += sud[col, b] * val
-                        kpa = kp[ax_]
-                        cpa = cp[ax_]
-                        for b in range(nb):
-                            f[ax_, b] = kpa * (W[ax_, b] - t1[b]) + cpa * (Wd[ax_, b] - t2[b])
-                    for dd in range(unit_dof0[un], unit_dof0[un] + unit_ndof[un]):
-                        t1[:] = 0.0
-                        t2[:] = 0.0
-                        t3[:] = 0.0
-                        for t in range(lwt_ptr[dd], lwt_ptr[dd + 1]):
-                            col = lwt_col[t]
-                            val = lwt_val[t]
-                            for b in range(nb):
-                                t1[b] += f[col, b] * val
-                        for t in range(ks_ptr[dd], ks_ptr[dd + 1]):
-                            col = ks_col[t]
-                            val = ks_val[t]
-                            for b in range(nb):
-                                t2[b] += su[col, b] * val
-                        for t in range(cs_ptr[dd], cs_ptr[dd + 1]):
-                            col = cs_col[t]
-                            val = cs_val[t]
-                            for b in range(nb):
-                                t3[b] += sud[col, b] * val
-                        md = minv_dof[dd]
-                        for b in range(nb):
-                            udd[dd, b] = (t1[b] - t2[b] - t3[b]) * md
-                # 3. train -> bridge: G = F - F_k1 - F_c1 (Eq. 7), modified load (Eq. 14)
-                p[:, :] = 0.0
-                for e in range(e0, e1):
-                    a = ent_axle[e]
-                    t1[:] = 0.0
-                    t2[:] = 0.0
-                    for j in range(nm):
-                        xj = ent_phx[e, j]
-                        xxj = ent_phxx[e, j]
-                        for b in range(nb):
-                            t1[b] += sqd[j, b] * xj
-                            t2[b] += sq[j, b] * xxj
-                    fa = axle_load[a]
-                    mwa = wheel_mass[a]
-                    for b in range(nb):
-                        t3[b] = (fa - f[a, b]) - mwa * (2.0 * vl[b] * t1[b] + vl[b] * vl[b] * t2[b])
-                    for j in range(nm):
-                        pj = ent_phi[e, j]
-                        for b in range(nb):
-                            p[j, b] += t3[b] * pj
-                    for b in range(nb):
-                        W[a, b] = 0.0
-                        Wd[a, b] = 0.0
-                for j in range(nm):
-                    kj = K[c, j]
-                    for b in range(nb):
-                        rhs[j, b] = p[j, b] - Zb[j, b] * sqd[j, b] - kj * sq[j, b]
-                for i in range(nm):
-                    for b in range(nb):
-                        qdd[i, b] = 0.0
-                    for j in range(nm):
-                        mji = minv[c, r, j, i]
-                        for b in range(nb):
-                            qdd[i, b] += rhs[j, b] * mji
+                rail_state(rows, r, sq, sqd, vl, W, Wd, t1, t2, t3)
+                vehicle_accelerations(vehicles, act_units, a0, a1, su, sud, W, Wd, f, udd, t1, t2, t3)
+                bridge_accelerations(rows, r, bridge, c, vehicles, sq, sqd, vl, Zb, f, W, Wd, p, rhs, qdd,
+                                     t1, t2, t3)
                 if st == 0:
-                    for j in range(nm):
-                        pm = phi_mid[j]
-                        for b in range(nb):
-                            acc0[b] += qdd[j, b] * pm
-                # 4. RK4 bookkeeping of both subsystems (as stepping._Rk4State.push)
+                    midspan_acceleration(qdd, phi_mid, acc0)
+                # 4. RK4 bookkeeping of both subsystems (as stepping._Rk4State.push), inline: as a
+                # helper it costs ~20 % of the kernel's time (bench/bench_kernels.py, docs/benchmarks.md)
                 wgt = RK4_W[st]
                 for j in range(nm):
                     for b in range(nb):
@@ -298,64 +467,71 @@ def dim_blocks(block_ptr, block_case, block_steps, k0, k1, v, h, K, Z, minv, phi
                             for b in range(nb):
                                 u[dd, b] = u[dd, b] + hl[b] * au[dd, b]
                                 ud[dd, b] = ud[dd, b] + hl[b] * aud[dd, b]
+            # the sampled maxima (stage 0 of every step, _BridgeRun), then the dense ones
             for b in range(nb):
                 if abs(acc0[b]) > amax[b]:
                     amax[b] = abs(acc0[b])
                 if abs(d[b]) > dmax[b]:
                     dmax[b] = abs(d[b])
             if dense:
-                for b in range(nb):
-                    lb = l0 + b
-                    if k > 0:
-                        inner = hermite_max_abs_acc(prev_s[0, lb], prev_s[1, lb], prev_s[2, lb],
-                                                    d[b], vel[b], acc0[b], hl[b])
-                        if inner > amax[b]:
-                            amax[b] = inner
-                    prev_s[0, lb] = d[b]
-                    prev_s[1, lb] = vel[b]
-                    prev_s[2, lb] = acc0[b]
-        q_s[:, l0:l0 + nb] = q
-        qd_s[:, l0:l0 + nb] = qd
-        u_s[:, l0:l0 + nb] = u
-        ud_s[:, l0:l0 + nb] = ud
-        max_acc[l0:l0 + nb] = amax
-        max_disp[l0:l0 + nb] = dmax
+                dense_maxima(k, l0, acc0, d, vel, hl, amax, state.prev)
+        state.q[:, l0:l0 + nb] = q
+        state.qd[:, l0:l0 + nb] = qd
+        state.u[:, l0:l0 + nb] = u
+        state.ud[:, l0:l0 + nb] = ud
+        state.max_acc[l0:l0 + nb] = amax
+        state.max_disp[l0:l0 + nb] = dmax
 
 
 @njit(cache=True, nogil=True)
-def mlm_blocks(block_ptr, block_case, block_steps, k0, k1, P, phi_mid, M, K, Z, ax, axd, bx, bxd, c0, c0d,
-               ch, chd, c1, c1d, q_s, qd_s, max_acc, max_disp, dense, h, prev_s):
+def mlm_blocks(blocks, k0, k1, lanes, bridge, P, state, dense):
     """MLM (Eq. 12) by the exact RK4 recurrence of every lane-mode oscillator.
 
-    ``P`` (2 n + 1, n_modes) modal loads on the half-step grid (shared); ``M``, ``K`` (n_cases,
-    n_modes); ``Z`` and the recurrence coefficients of
-    :func:`adm_sim.stepping.mlm_rk4_coefficients` per lane, transposed to (n_modes, n_lanes) so
-    that the inner loops over the lanes of a block (one bridge, one step count) are contiguous.
-    Same arithmetic as :meth:`BridgeSide.step_mlm`, operation for operation. Resumable as
-    :func:`dim_blocks`: steps ``k0 .. min(k1, block steps) - 1``, state ``q_s``, ``qd_s``
-    (n_modes, n_lanes) and the running maxima ``max_acc``, ``max_disp`` updated in place;
-    ``dense``, ``h`` (time step per lane, lane order) and ``prev_s`` as in :func:`dim_blocks`.
+    ``P`` (2 n + 1, n_modes) modal loads on the half-step grid (shared); ``bridge``
+    (:class:`adm_sim.tables.BridgeTables`); ``lanes`` (:class:`MlmLanes`), ``blocks`` and
+    ``state`` as in :func:`dim_blocks` (``state.u``, ``state.ud`` unused). A step is
+    ``BridgeSide.step_mlm`` (inline) then the maxima (:func:`dense_maxima` with ``dense``); resumable as :func:`dim_blocks`.
     """
+    K = bridge.K
+    M = bridge.M
+    phi_mid = bridge.phi_mid
     nm = P.shape[1]
+    Z = lanes.Z
+    ax = lanes.ax
+    axd = lanes.axd
+    bx = lanes.bx
+    bxd = lanes.bxd
+    c0 = lanes.c0
+    c0d = lanes.c0d
+    ch = lanes.ch
+    chd = lanes.chd
+    c1 = lanes.c1
+    c1d = lanes.c1d
+    block_ptr = blocks.ptr
     for bi in range(block_ptr.shape[0] - 1):
         l0 = block_ptr[bi]
         l1 = block_ptr[bi + 1]
         nb = l1 - l0
-        c = block_case[bi]
-        k_end = min(k1, block_steps[bi])
+        c = blocks.case[bi]
+        k_end = min(k1, blocks.steps[bi])
         if k0 >= k_end:
             continue
-        q = q_s[:, l0:l1].copy()
-        qd = qd_s[:, l0:l1].copy()
+        q = state.q[:, l0:l1].copy()
+        qd = state.qd[:, l0:l1].copy()
+        hl = lanes.h[l0:l1].copy()
         d = np.zeros(nb)
         a = np.zeros(nb)
         vel = np.zeros(nb)
-        amax = max_acc[l0:l1].copy()
-        dmax = max_disp[l0:l1].copy()
+        amax = state.max_acc[l0:l1].copy()
+        dmax = state.max_disp[l0:l1].copy()
         for k in range(k0, k_end):
-            d[:] = 0.0
-            a[:] = 0.0
-            vel[:] = 0.0
+            # BridgeSide.step_mlm (Eq. 12): midspan deflection, velocity and acceleration at step k,
+            # then the exact RK4 recurrence with the modal loads of rows 2k, 2k + 1, 2k + 2 (inline:
+            # as a helper it costs ~6 % with dense maxima, see docs/benchmarks.md)
+            for b in range(nb):
+                d[b] = 0.0
+                a[b] = 0.0
+                vel[b] = 0.0
             for j in range(nm):
                 p0, ph, p1 = P[2 * k, j], P[2 * k + 1, j], P[2 * k + 2, j]
                 kj, mj, pm = K[c, j], M[c, j], phi_mid[j]
@@ -368,23 +544,15 @@ def mlm_blocks(block_ptr, block_case, block_steps, k0, k1, P, phi_mid, M, K, Z, 
                     a[b] += ((p0 - Z[j, lb] * xd - kj * x) / mj) * pm
                     q[j, b] = ax[j, lb] * x + bx[j, lb] * xd + c0[j, lb] * p0 + ch[j, lb] * ph + c1[j, lb] * p1
                     qd[j, b] = axd[j, lb] * x + bxd[j, lb] * xd + c0d[j, lb] * p0 + chd[j, lb] * ph + c1d[j, lb] * p1
+            # the sampled maxima (stage 0 of every step, _BridgeRun), then the dense ones
             for b in range(nb):
                 if abs(a[b]) > amax[b]:
                     amax[b] = abs(a[b])
                 if abs(d[b]) > dmax[b]:
                     dmax[b] = abs(d[b])
             if dense:
-                for b in range(nb):
-                    lb = l0 + b
-                    if k > 0:
-                        inner = hermite_max_abs_acc(prev_s[0, lb], prev_s[1, lb], prev_s[2, lb],
-                                                    d[b], vel[b], a[b], h[lb])
-                        if inner > amax[b]:
-                            amax[b] = inner
-                    prev_s[0, lb] = d[b]
-                    prev_s[1, lb] = vel[b]
-                    prev_s[2, lb] = a[b]
-        q_s[:, l0:l1] = q
-        qd_s[:, l0:l1] = qd
-        max_acc[l0:l1] = amax
-        max_disp[l0:l1] = dmax
+                dense_maxima(k, l0, a, d, vel, hl, amax, state.prev)
+        state.q[:, l0:l1] = q
+        state.qd[:, l0:l1] = qd
+        state.max_acc[l0:l1] = amax
+        state.max_disp[l0:l1] = dmax

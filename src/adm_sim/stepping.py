@@ -61,6 +61,8 @@ import numpy as np
 from adm_sim._jit import RK4_C, RK4_W  # the RK4 tableau, shared with the numba kernels
 from adm_sim.errors import InputError, check_range
 from adm_sim.fields import FIELDS
+from adm_sim.tables import (active_units, axle_rows, bridge_tables, modified_mass_inverse,  # shared with the kernels
+                             vehicle_tables)
 
 SPEED_RANGE_KMH = FIELDS["speeds_kmh"].range
 
@@ -230,12 +232,14 @@ class BridgeSide:
         self.offsets = np.asarray(axle_offsets_m, dtype=float)
         self.m_w = None if wheel_mass_kg is None else np.asarray(wheel_mass_kg, dtype=float)
         self.v = grid.speeds_m_s[:, None]
-        self.M = bridge.modal_mass_kg
-        self.K = bridge.modal_stiffness_N_m
-        self.phi_mid = np.sin(bridge.mode_numbers * math.pi / 2.0)
+        tables = bridge_tables([bridge])  # the tables of adm_sim.kernels, one bridge
+        self.M = tables.M[0]
+        self.K = tables.K[0]
+        self.phi_mid = tables.phi_mid
         self.rk = _Rk4State(grid.dt_s, grid.n_lanes, bridge.n_modes)
         self.k = 0
         self.set_delta_zeta(delta_zeta)
+        self._rows = (-self.TABLE_ROWS, None)  # (first row, AxleRows) of the table in use
         self._stage_cache = {}
         self.last_acc = np.zeros(grid.n_lanes)  # midspan acceleration at the start of step k
 
@@ -268,21 +272,32 @@ class BridgeSide:
         idx = np.flatnonzero((x >= 0.0) & (x <= self.bridge.span_m))
         return idx, x[idx]
 
+    #: Half-step rows of :func:`adm_sim.tables.axle_rows` tabulated at once (one table call per
+    #: ~32 steps instead of one per stage: the per-call overhead of the table builder).
+    TABLE_ROWS = 64
+
     def _shapes(self):
+        """Axles on the bridge at (k, stage), their mode shapes and (DIM) ``M_mod^-1`` (Eq. 13).
+
+        The row of :func:`adm_sim.tables.axle_rows` (the kernels' table) for this stage point;
+        ``M_mod^-1`` by :func:`adm_sim.tables.modified_mass_inverse` (the stepper's summation order).
+        """
         key = 2 * self.k + int(2 * RK4_C[self.rk.stage])  # half-step index: end of k = start of k+1
         hit = self._stage_cache.get(key)
-        if hit is None:
-            idx, x = self.axles_on()
-            phi, phx, phxx = self.bridge.shapes(x)
-            minv = None
-            if self.m_w is not None:
-                mw = self.m_w[idx]
-                mmod = np.diag(self.M) + (phi.T * mw) @ phi  # Eq. (13)
-                minv = np.linalg.inv(mmod)
-            hit = (idx, phi, phx, phxx, minv)
-            if len(self._stage_cache) > 8:
-                self._stage_cache.clear()
-            self._stage_cache[key] = hit
+        if hit is not None:
+            return hit
+        r0, rows = self._rows
+        if not r0 <= key < r0 + self.TABLE_ROWS:
+            r0, rows = key, axle_rows([self.bridge], self.offsets, self.grid.ds_m, key, self.TABLE_ROWS)
+            self._rows = (r0, rows)
+        i = key - r0
+        e0, e1 = rows.ptr[i], rows.ptr[i + 1]
+        idx, phi = rows.axle[e0:e1], rows.phi[e0:e1]
+        minv = None if self.m_w is None else modified_mass_inverse(self.M, phi, self.m_w[idx])
+        hit = (idx, phi, rows.phx[e0:e1], rows.phxx[e0:e1], minv)
+        if len(self._stage_cache) > 8:
+            self._stage_cache.clear()
+        self._stage_cache[key] = hit
         return hit
 
     # ------------------------------------------------------------------ DIM exchange
@@ -367,51 +382,38 @@ class TrainSide:
         self.grid = grid
         self.span = float(span_m)
         self.offsets = train.axle_offsets_m
-        mats = [train.unit_matrices(i) for i in range(len(train.units))]
-        self._units = []
-        start = 0
-        for i, m in enumerate(mats):
-            axles = train.unit_axles(i)
-            self._units.append((slice(start, start + len(m.M)), axles, m))
-            start += len(m.M)
-        self.n_dof = start
-        # offsets of each unit's first and last axle: the unit acts on the bridge while
-        # front - last_offset <= L and front - first_offset >= 0
-        self._first = np.array([self.offsets[ax].min() for _, ax, _ in self._units])
-        self._last = np.array([self.offsets[ax].max() for _, ax, _ in self._units])
+        self.vehicles = vehicle_tables(train)  # the tables of adm_sim.kernels
+        self.n_dof = self.vehicles.minv_dof.size
         self.x = np.zeros((grid.n_lanes, self.n_dof))  # displacements (m, rad)
         self.xd = np.zeros((grid.n_lanes, self.n_dof))  # velocities
         self.rk = None  # RK4 state of the active DOFs during the current step
         self.k = 0
         self._active_cache = {}
         self._step_active = None
+        self._units = (-self.TABLE_STEPS, None)  # (first step, ActiveUnits) of the table in use
+
+    #: Steps of :func:`adm_sim.tables.active_units` tabulated at once.
+    TABLE_STEPS = 64
 
     def _active(self):
-        """Assembled matrices of the units active during step k (cached by unit set)."""
+        """Matrices of the units active during step k (:func:`adm_sim.tables.active_units`),
+        taken from the train's :class:`~adm_sim.tables.VehicleTables` (cached by unit set)."""
         if self._step_active is not None:
             return self._step_active
-        lo = self.grid.front_m(self.k)
-        hi = self.grid.front_m(self.k, 3)
-        units = tuple(np.flatnonzero((hi - self._first >= 0.0) & (lo - self._last <= self.span)).tolist())
+        k0, act = self._units
+        if not k0 <= self.k < k0 + self.TABLE_STEPS:
+            k0, act = self.k, active_units(self.vehicles, self.span, self.grid.ds_m, self.k, self.k + self.TABLE_STEPS)
+            self._units = (k0, act)
+        units = tuple(act.units[act.ptr[self.k - k0]:act.ptr[self.k - k0 + 1]].tolist())
         hit = self._active_cache.get(units)
         if hit is None:
-            dofs = np.concatenate([np.arange(self.n_dof)[self._units[i][0]] for i in units]) if units else np.zeros(0, int)
-            axles = np.concatenate([self._units[i][1] for i in units]) if units else np.zeros(0, int)
-            n, na = len(dofs), len(axles)
-            Ks, Cs, Lw = np.zeros((n, n)), np.zeros((n, n)), np.zeros((na, n))
-            kp, cp, minv = np.zeros(na), np.zeros(na), np.zeros(n)
-            r = a = 0
-            for i in units:
-                m = self._units[i][2]
-                nn, nax = len(m.M), m.Lw.shape[0]
-                Ks[r:r + nn, r:r + nn] = m.K_s
-                Cs[r:r + nn, r:r + nn] = m.C_s
-                Lw[a:a + nax, r:r + nn] = m.Lw
-                kp[a:a + nax], cp[a:a + nax] = m.k_p, m.c_p
-                minv[r:r + nn] = 1.0 / m.M
-                r += nn
-                a += nax
-            hit = (dofs, axles, Ks.T.copy(), Cs.T.copy(), Lw, Lw.T.copy(), kp, cp, minv)
+            t = self.vehicles
+            dofs = np.concatenate([np.arange(t.unit_dof0[i], t.unit_dof0[i] + t.unit_ndof[i]) for i in units]) \
+                if units else np.zeros(0, int)
+            axles = np.concatenate([np.arange(t.unit_ax0[i], t.unit_ax0[i] + t.unit_nax[i]) for i in units]) \
+                if units else np.zeros(0, int)
+            Ks, Cs, Lw = t.Ks[np.ix_(dofs, dofs)], t.Cs[np.ix_(dofs, dofs)], t.Lw[np.ix_(axles, dofs)]
+            hit = (dofs, axles, Ks.T.copy(), Cs.T.copy(), Lw, Lw.T.copy(), t.kp[axles], t.cp[axles], t.minv_dof[dofs])
             self._active_cache[units] = hit
         self._step_active = hit
         self.rk = _Rk4State(self.grid.dt_s, self.grid.n_lanes, len(hit[0]))
