@@ -43,7 +43,7 @@ def test_readme_orients_in_250_lines():
 def test_readme_test_command_is_what_ci_runs():
     readme = (ROOT / "README.md").read_text()
     ci = (ROOT / ".ci" / "run").read_text()
-    test_cmd = "python3.11 -m venv .venv && .venv/bin/pip install -q -r requirements.txt && .venv/bin/python -m pytest"
+    test_cmd = "python3.11 -m venv .venv && .venv/bin/pip install -q -r requirements.txt && .venv/bin/python -m pytest -n 2"
     assert f"\n    {test_cmd}\n" in readme
     assert [line for line in ci.splitlines() if line.startswith("python3.11")] == [test_cmd]
 
