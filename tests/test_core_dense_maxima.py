@@ -136,7 +136,10 @@ def test_dim_dense_maxima_against_fine_step_and_numpy_equals_kernels():
     # numpy stepper and compiled kernels, one to one
     dense = run_sweep(b, t, "dim", speeds, options=StepOptions(ds_m=grid.ds_m, dense_maxima=True)).max_acc_m_s2
     got = BatchRunner([b], t, grid.ds_m, dense_maxima=True).run("dim", case, speeds)[0]
-    np.testing.assert_allclose(got, dense, rtol=1e-12)
+    # the states agree to ~1e-15 (a few dot products summed in another order); the Hermite quintic
+    # divides displacement differences by h^2, which lifts that to ~1e-12 in the dense maximum
+    # (measured 1.05e-12 at 200 km/h): 5e-12 is round-off, a wrong term shows at 1e-6 and above
+    np.testing.assert_allclose(got, dense, rtol=5e-12)
 
     def run(factor, dense):
         return BatchRunner([b], t, grid.ds_m / factor, dense_maxima=dense).run("dim", case, speeds)[0]

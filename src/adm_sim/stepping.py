@@ -61,8 +61,7 @@ import numpy as np
 from adm_sim._jit import RK4_C, RK4_W  # the RK4 tableau, shared with the numba kernels
 from adm_sim.errors import InputError, check_range
 from adm_sim.fields import FIELDS
-from adm_sim.tables import (active_units, axle_rows, bridge_tables, modified_mass_inverse,  # shared with the kernels
-                             vehicle_tables)
+from adm_sim.tables import active_units, axle_rows, bridge_tables, vehicle_tables  # shared with the kernels
 
 SPEED_RANGE_KMH = FIELDS["speeds_kmh"].range
 
@@ -279,8 +278,8 @@ class BridgeSide:
     def _shapes(self):
         """Axles on the bridge at (k, stage), their mode shapes and (DIM) ``M_mod^-1`` (Eq. 13).
 
-        The row of :func:`adm_sim.tables.axle_rows` (the kernels' table) for this stage point;
-        ``M_mod^-1`` by :func:`adm_sim.tables.modified_mass_inverse` (the stepper's summation order).
+        The row of :func:`adm_sim.tables.axle_rows` (the kernels' table, ``M_mod^-1`` included) for
+        this stage point.
         """
         key = 2 * self.k + int(2 * RK4_C[self.rk.stage])  # half-step index: end of k = start of k+1
         hit = self._stage_cache.get(key)
@@ -288,12 +287,13 @@ class BridgeSide:
             return hit
         r0, rows = self._rows
         if not r0 <= key < r0 + self.TABLE_ROWS:
-            r0, rows = key, axle_rows([self.bridge], self.offsets, self.grid.ds_m, key, self.TABLE_ROWS)
+            r0, rows = key, axle_rows([self.bridge], self.offsets, self.grid.ds_m, key, self.TABLE_ROWS,
+                                      wheel_mass_kg=self.m_w)
             self._rows = (r0, rows)
         i = key - r0
         e0, e1 = rows.ptr[i], rows.ptr[i + 1]
         idx, phi = rows.axle[e0:e1], rows.phi[e0:e1]
-        minv = None if self.m_w is None else modified_mass_inverse(self.M, phi, self.m_w[idx])
+        minv = None if self.m_w is None else rows.minv[0, i]
         hit = (idx, phi, rows.phx[e0:e1], rows.phxx[e0:e1], minv)
         if len(self._stage_cache) > 8:
             self._stage_cache.clear()

@@ -14,8 +14,8 @@ reads their fields by name) built by one function each:
 * :func:`axle_rows` -> :class:`AxleRows`: per half-step row of the shared space grid (the RK4
   stage points, :mod:`adm_sim.stepping`), the axles on the bridge with their mode shapes and
   derivatives (Eqs. 4, 6, 9) and, for the DIM, the inverse of the wheelset-modified mass matrix
-  ``M + sum_i m_w,i phi(x_i) phi(x_i)^T`` (Eq. 13) per bridge (the kernels';
-  :func:`modified_mass_inverse` is the numpy stepper's, one stage point, same equation).
+  ``M + sum_i m_w,i phi(x_i) phi(x_i)^T`` (Eq. 13) per bridge, used by the kernels and the numpy
+  stepper alike.
 
 :class:`adm_sim.stepping.TrainSide` / :class:`~adm_sim.stepping.BridgeSide` take the rows and units
 of the step they are at; :class:`adm_sim.compiled_batch.BatchRunner` tabulates every step at once
@@ -167,18 +167,6 @@ class AxleRows(NamedTuple):
     phx: np.ndarray
     phxx: np.ndarray
     minv: np.ndarray
-
-
-def modified_mass_inverse(modal_mass_kg, phi, wheel_mass_kg):
-    """``(diag(M) + sum_i m_w,i phi_i phi_i^T)^-1`` (Eq. 13) of one stage point, as a matrix product.
-
-    ``modal_mass_kg`` (n_modes,), ``phi`` (n_on, n_modes) the mode shapes under the axles on the
-    bridge, ``wheel_mass_kg`` (n_on,). The numpy stepper's form; :func:`axle_rows` sums the same
-    terms axle by axle for every row at once, which differs in the last bits (the dense maxima of
-    :mod:`adm_sim.stepping` amplify that to ~1e-12 relative, so each backend keeps its summation
-    order and the numbers of both stay what they were).
-    """
-    return np.linalg.inv(np.diag(modal_mass_kg) + (phi.T * wheel_mass_kg) @ phi)
 
 
 def axle_rows(bridges, axle_offsets_m, ds_m, r0, n_rows, wheel_mass_kg=None):
