@@ -277,6 +277,18 @@ class RunDriver(c.NodeBase):
         why = f" ({failed[0]['node']}: {failed[0].get('message', '')})" if failed else ""
         raise RunError(f"node {which} vanished during run {'?' if run is None else run}{why}")
 
+    def _wait_run_ended(self, run_id, timeout_s=5.0):
+        """After one node reported run ``run_id`` failed, wait (at most ``timeout_s``) until the other
+        has ended it too (the train node answers the bridge's failure with its own), so that the
+        next request does not find the other node's parameters still locked by the failed run."""
+        t_end = time.monotonic() + timeout_s
+        while time.monotonic() < t_end:
+            with self._lock:
+                ended = {n for (n, r), st in self._status.items() if r == run_id and P.is_failure(st, run_id)}
+            if {P.BRIDGE_NODE, P.TRAIN_NODE} <= ended:
+                return
+            time.sleep(0.05)
+
     def request_run(self, model=None, speeds_kmh=None, delta_zeta=None, delta_zeta_lanes=None, label=None,
                     phase=None):
         """One co-simulated run; returns ``{"speeds_kmh", "max_acc_m_s2", "max_disp_m", "delta_zeta", "phase", ...}``.
@@ -332,6 +344,7 @@ class RunDriver(c.NodeBase):
                 res = self._result
                 failed = [s for s in self._status.values() if P.is_failure(s, run_id)]
             if failed:
+                self._wait_run_ended(run_id)
                 raise RunError(f"run {run_id} failed on node '{failed[0]['node']}': {failed[0].get('message', '')}")
             if res is not None:
                 break
