@@ -381,3 +381,12 @@ def write_docs_table():
 
 if __name__ == "__main__":
     write_docs_table()
+
+
+def test_a_key_is_spelled_by_one_field_per_surface():
+    """``fields.view(surface, key)`` finds one field: no two fields share a spelling on one surface."""
+    from collections import Counter
+
+    counts = Counter((s.surface, s.key) for f in fields._FIELDS for s in f.spellings)
+    assert [k for k, n in counts.items() if n > 1] == []
+    assert len(fields._VIEWS) == sum(counts.values())

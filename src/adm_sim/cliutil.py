@@ -138,14 +138,6 @@ def _help(text):
     return text.replace("%", "%%")  # argparse formats help with %
 
 
-def option_help(flag, text):
-    """The help of ``flag``: ``text`` with the unit and the allowed values of its field in the
-    registry (:meth:`adm_sim.fields.View.help`), so ``--help`` states the range the check applies."""
-    from adm_sim.fields import view
-
-    return _help(view("cli", flag).help(text))
-
-
 def option_view(flag):
     """The registry's :class:`~adm_sim.fields.View` of ``flag`` (its unit, range, conversion to the core)."""
     from adm_sim.fields import view
@@ -153,12 +145,16 @@ def option_view(flag):
     return view("cli", flag)
 
 
+def option_help(flag, text):
+    """The help of ``flag``: ``text`` with the unit and the allowed values of its field in the
+    registry (:meth:`adm_sim.fields.View.help`), so ``--help`` states the range the check applies."""
+    return _help(option_view(flag).help(text))
+
+
 def check_option(flag, value, **kw):
     """``value`` of ``flag`` checked by its registry field (:meth:`adm_sim.fields.View.check`):
     one line naming the flag, the value, the unit and the allowed range."""
-    from adm_sim.fields import view
-
-    return view("cli", flag).check(value, **kw)
+    return option_view(flag).check(value, **kw)
 
 
 def add_speeds(parser, text="speeds in km/h, start:stop:step (stop included) or a comma list", default=None,
@@ -183,9 +179,7 @@ def add_delta_zeta_pct(parser, text="additional damping", default="0"):
 
 def add_choice(parser, flag, text=None, default=None, **kw):
     """``flag`` taking one of its registry field's choices (argparse refuses the others)."""
-    from adm_sim.fields import view
-
-    parser.add_argument(flag, choices=view("cli", flag).field.choices, default=default,
+    parser.add_argument(flag, choices=option_view(flag).field.choices, default=default,
                         help=None if text is None else _help(text), **kw)
 
 

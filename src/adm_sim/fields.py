@@ -366,18 +366,21 @@ VEHICLE_FIELDS = ("m_c_kg", "J_c_kgm2", "m_b_kg", "J_b_kgm2", "m_w_kg", "k_s_N_m
 VEHICLE_OPTIONAL = ("r_m",)
 
 
+#: ``(surface, key) -> View``: every spelling once (a key is spelled by one field per surface, tested)
+_VIEWS = {(s.surface, s.key): View(f, s) for f in _FIELDS for s in f.spellings}
+
+
 def view(surface, key):
     """The :class:`View` a surface spells ``key`` (``view("ros", "zeta_pct")``), or KeyError."""
-    for f in _FIELDS:
-        for s in f.spellings:
-            if s.surface == surface and s.key == key:
-                return View(f, s)
-    raise KeyError(f"no {surface} spelling {key!r} in the field registry")
+    try:
+        return _VIEWS[surface, key]
+    except KeyError:
+        raise KeyError(f"no {surface} spelling {key!r} in the field registry") from None
 
 
 def spellings(surface):
     """``{key: View}`` of every spelling on ``surface``."""
-    return {s.key: View(f, s) for f in _FIELDS for s in f.spellings if s.surface == surface}
+    return {k: v for (s, k), v in _VIEWS.items() if s == surface}
 
 
 def core(name):
