@@ -268,8 +268,7 @@ class RunDriver(c.NodeBase):
         # a node that stopped because its partner died says so on /adm/run/status before it goes
         t_end = time.monotonic() + 1.0
         while True:
-            with self._lock:
-                failed = [s for s in self._status.values() if P.is_failure(s, run)]
+            failed = self._failures(run)
             if failed or time.monotonic() > t_end:
                 break
             self._event.wait(0.05)
@@ -277,15 +276,18 @@ class RunDriver(c.NodeBase):
         why = f" ({failed[0]['node']}: {failed[0].get('message', '')})" if failed else ""
         raise RunError(f"node {which} vanished during run {'?' if run is None else run}{why}")
 
+    def _failures(self, run_id):
+        """The ``failed`` status records of run ``run_id`` received so far (one per node)."""
+        with self._lock:
+            return [s for s in self._status.values() if P.is_failure(s, run_id)]
+
     def _wait_run_ended(self, run_id, timeout_s=5.0):
         """After one node reported run ``run_id`` failed, wait (at most ``timeout_s``) until the other
         has ended it too (the train node answers the bridge's failure with its own), so that the
         next request does not find the other node's parameters still locked by the failed run."""
         t_end = time.monotonic() + timeout_s
         while time.monotonic() < t_end:
-            with self._lock:
-                ended = {n for (n, r), st in self._status.items() if r == run_id and P.is_failure(st, run_id)}
-            if {P.BRIDGE_NODE, P.TRAIN_NODE} <= ended:
+            if {P.BRIDGE_NODE, P.TRAIN_NODE} <= {s.get("node") for s in self._failures(run_id)}:
                 return
             time.sleep(0.05)
 
@@ -342,7 +344,7 @@ class RunDriver(c.NodeBase):
             self._event.wait(0.2)
             with self._lock:
                 res = self._result
-                failed = [s for s in self._status.values() if P.is_failure(s, run_id)]
+            failed = self._failures(run_id)
             if failed:
                 self._wait_run_ended(run_id)
                 raise RunError(f"run {run_id} failed on node '{failed[0]['node']}': {failed[0].get('message', '')}")
