@@ -524,7 +524,7 @@ class RunLogger:
             rr.log(P.beam_path(r.id, "peak_axles"), rr.Points2D(np.column_stack([ax, k * aw]).reshape(-1, 2),
                                                                 colors=color, radii=0.12), recording=self.rec)
         rr.reset_time(recording=self.rec)
-        self._log_sweep(r, phase, v, acc, dz)
+        self._log_sweep(r, phase, kind, v, acc, dz)
         i = int(np.argmax(acc))
         r.row = (f"| {r.id} | {kind}{dz_txt} | {v.size} | {_fmt(v.min())}–{_fmt(v.max())} | "
                  f"{_fmt(r.mon_kmh) if r.mon_kmh else '-'} | {self._sampling(r)} | {acc[i]:.3f} | {v[i]:g} |")
@@ -556,8 +556,7 @@ class RunLogger:
         rr.log(P.ENTITIES["run_info"], rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN), static=True,
                recording=self.rec)
 
-    def _log_sweep(self, r: _Run, phase, v, acc, dz):
-        kind = run_kind(phase)
+    def _log_sweep(self, r: _Run, phase: str, kind: str, v, acc, dz):
         if phase in P.TRIAL_PHASES:
             for value in np.unique(dz):
                 lanes = dz == value
