@@ -114,10 +114,8 @@ class one_line_warnings:
 class plausibility_warnings(one_line_warnings):
     """Within the block, every :class:`~adm_sim.plausibility.PlausibilityWarning` is printed as one
     line ``warning: <message>`` on stderr (not deduplicated); other warnings keep their usual display.
-    The warning filters and ``warnings.showwarning`` come back at its end."""
-
-    def __init__(self):
-        super().__init__()
+    The warning filters and ``warnings.showwarning`` come back at its end: :class:`one_line_warnings`
+    with its defaults, the form of the command lines."""
 
 
 class interrupt_signals:
