@@ -7,6 +7,7 @@ paper prints them. Undefined values are empty in the CSV and ``n/a`` in the text
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import json
@@ -104,16 +105,10 @@ def run_table4(bridges=BRIDGES, trains=STUDY_TRAINS, speeds_kmh=None, options=No
     pairs = [(t, b) for t in trains for b in bridges]
     args = [(b, t, speeds_kmh, options) for t, b in pairs]
     table = Table4(trains=tuple(trains), bridges=tuple(bridges))
-    if jobs > 1:
-        with ProcessPoolExecutor(max_workers=jobs) as ex:
-            results = zip(pairs, ex.map(_calibrate_one, args))
-            for i, (pair, res) in enumerate(results, start=1):
-                table.results[pair] = res
-                if progress is not None:
-                    progress(i, len(pairs), " x ".join(pair))
-    else:
-        for i, (pair, a) in enumerate(zip(pairs, args), start=1):
-            table.results[pair] = _calibrate_one(a)
+    with ProcessPoolExecutor(max_workers=jobs) if jobs > 1 else contextlib.nullcontext() as ex:
+        results = (ex.map if ex is not None else map)(_calibrate_one, args)
+        for i, (pair, res) in enumerate(zip(pairs, results), start=1):
+            table.results[pair] = res
             if progress is not None:
                 progress(i, len(pairs), " x ".join(pair))
     return table
