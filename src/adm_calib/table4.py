@@ -11,10 +11,12 @@ import contextlib
 import csv
 import io
 import json
+import os
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 
 from adm_calib.reference import STUDY_TRAINS
+from adm_calib.workers import die_with_parent
 
 BRIDGES = ("B1", "B2", "B3", "B4")
 ROWS = ("VBI", "LB", "ADM", "EADA")
@@ -105,7 +107,9 @@ def run_table4(bridges=BRIDGES, trains=STUDY_TRAINS, speeds_kmh=None, options=No
     pairs = [(t, b) for t in trains for b in bridges]
     args = [(b, t, speeds_kmh, options) for t, b in pairs]
     table = Table4(trains=tuple(trains), bridges=tuple(bridges))
-    with ProcessPoolExecutor(max_workers=jobs) if jobs > 1 else contextlib.nullcontext() as ex:
+    pool = (ProcessPoolExecutor(max_workers=jobs, initializer=die_with_parent, initargs=(os.getpid(),))
+            if jobs > 1 else contextlib.nullcontext())
+    with pool as ex:
         results = (ex.map if ex is not None else map)(_calibrate_one, args)
         for i, (pair, res) in enumerate(zip(pairs, results), start=1):
             table.results[pair] = res
