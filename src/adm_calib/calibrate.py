@@ -14,6 +14,11 @@ Steps (Section 4, steps 1-3):
    up to 20 %), then found by :func:`scipy.optimize.elementwise.find_root` (Chandrupatla,
    vectorised over the cases of a batch) to ``xtol`` (1e-8 = 1e-6 %), well inside the paper's
    acceptance of 0.1 % in the peak value, which is checked.
+4. A given speed grid that cannot show the resonance (too coarse, or a range without one) is a
+   status of its own (:func:`speed_grid_finding`), not "ok".
+
+Statuses: ``ok``, ``no_mlm_peak``, ``no_dim_peak``, ``not_bracketed``, ``no_match``,
+``grid_too_coarse``, ``no_resonance_in_range``.
 
 DIM speeds (``dim_grid="paper"``, Section 3.3): 5 km/h steps over the range plus the MLM step
 (1 km/h) on ``[v_max - 20, v_max + 5]`` around the MLM peak, all in one run; if the associated DIM
@@ -52,7 +57,12 @@ from adm_calib.reference import adm_delta_zeta_pct, eada_for, lower_bound_for
 
 #: Default speed range (km/h), Section 3.3 (one home: :mod:`adm_sim.limits`).
 DEFAULT_SPEEDS_KMH = default_speeds_kmh()
-STATUSES = ("ok", "no_mlm_peak", "no_dim_peak", "not_bracketed", "no_match")
+#: A given speed grid is too coarse when its MLM maximum lies more than this fraction below the
+#: maximum over its own range on the 1 km/h grid (exact MLM envelopes of both).
+GRID_RTOL = 0.01
+#: A given speed range holds no resonance when its MLM maximum is below this fraction of the
+#: maximum over the paper's range and the given one together (exact MLM envelope, 1 km/h).
+NO_RESONANCE_FRACTION = 0.5
 
 
 @dataclass(frozen=True)
@@ -790,10 +800,54 @@ def calibrate_cases(bridges, train, lanes, speeds_kmh=None, options=None, step=N
             status, message = "no_dim_peak", dim_peaks[c].reason
         else:
             status, message = s.status, s.message
+            if status == "ok":
+                status, message = speed_grid_finding(bridges[c], train, v) or (status, message)
         out.append(make_result(bridges[c], train, status, message, s, mlm_peaks[c], dim_peaks[c], vm[c], mlm[c],
                                vd[c], dim[c], *adapted[c], "given" if given else opt.dim_grid, refined[c],
                                step.ds_m, per_case))
     return out
+
+
+def speed_grid_finding(bridge, train, speeds_kmh):
+    """Whether a given MLM speed grid can show the resonance the calibration matches:
+    ``None`` or ``(status, message)``.
+
+    The reference is the paper's grid (Section 3.3: 1 km/h, 160..350 km/h) widened to the given
+    range, with the given speeds added; the MLM maxima come from the exact envelope
+    (:func:`adm_sim.sweep.sweep_exact`, ~0.1 s for 350 speeds). A grid that holds every reference
+    speed is fine as it is (the default grid, and any finer or wider one): no computation.
+
+    * ``grid_too_coarse``: the grid's MLM maximum lies more than :data:`GRID_RTOL` below the
+      maximum over its own range on the 1 km/h grid (a 50 km/h grid, a list of three speeds);
+    * ``no_resonance_in_range``: the grid's maximum is below :data:`NO_RESONANCE_FRACTION` of the
+      maximum over the widened reference range (1..10 km/h: a quasi-static "peak").
+    """
+    from adm_sim.sweep import sweep_exact
+
+    v = np.asarray(speeds_kmh, dtype=float)
+    lo, hi = min(v.min(), DEFAULT_SPEEDS_KMH[0]), max(v.max(), DEFAULT_SPEEDS_KMH[-1])
+    ref = np.union1d(np.arange(lo, hi + 0.5, 1.0), v)
+    on_grid = np.isin(np.round(ref, 9), np.round(v, 9))
+    if on_grid.all():
+        return None
+    acc = sweep_exact(bridge, train, ref)[0].max_acc_m_s2
+    a_grid = float(acc[on_grid].max())
+    inside = (ref >= v.min()) & (ref <= v.max())
+    i_in = np.flatnonzero(inside)[np.argmax(acc[inside])]
+    i_all = int(np.argmax(acc))
+    rng = f"{v.min():g}..{v.max():g} km/h"
+    if a_grid < (1.0 - GRID_RTOL) * acc[i_in]:
+        return ("grid_too_coarse",
+                f"the speed grid misses the resonance: on a 1 km/h grid the MLM maximum over {rng} is "
+                f"{acc[i_in]:.4f} m/s^2 at {ref[i_in]:g} km/h, {100 * (acc[i_in] / a_grid - 1):.1f} % above the "
+                f"grid's {a_grid:.4f} m/s^2 (exact MLM envelope; allowed {100 * GRID_RTOL:g} %): use a finer grid")
+    if a_grid < NO_RESONANCE_FRACTION * acc[i_all]:
+        return ("no_resonance_in_range",
+                f"the speed range {rng} holds no resonance: its MLM maximum {a_grid:.4f} m/s^2 is "
+                f"{100 * a_grid / acc[i_all]:.1f} % of the {acc[i_all]:.4f} m/s^2 at {ref[i_all]:g} km/h (exact MLM "
+                f"envelope, 1 km/h over {lo:g}..{hi:g} km/h; a resonance needs >= {100 * NO_RESONANCE_FRACTION:g} %): "
+                f"widen the range")
+    return None
 
 
 class _ProgressLanes:
