@@ -131,10 +131,6 @@ class Grid:
         """Position of the first axle at step ``k``, RK stage ``stage`` (m from the left support)."""
         return (k + RK4_C[stage]) * self.ds_m
 
-    def time_s(self, k, stage=0):
-        """Time of step ``k`` (and stage) in every lane (s), shape (n_lanes,)."""
-        return self.front_m(k, stage) / self.speeds_m_s
-
     def clock_time_s(self, k, stage=0):
         """One time for the whole run: the time of the slowest lane (for ``/clock``)."""
         return self.front_m(k, stage) / float(self.speeds_m_s.min())

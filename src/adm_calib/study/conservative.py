@@ -71,13 +71,6 @@ class ConservativeFit:
         """The bound as applied (Eq. 20 rules): the cubic up to its first root or the range end, 0 beyond."""
         return lower_bound_pct(self.coefficients, n0_hz, LOWER_LIMIT_HZ, self.fit_range_max_hz)
 
-    @property
-    def min_slack_pct(self):
-        """min of ``dz_i - p(n0_i)`` over the cases below the first root (>= 0: the bound holds)."""
-        sel = self.n0_hz < self.zero_from_hz
-        if not np.any(sel):
-            return math.inf
-        return float(np.min(self.delta_zeta_pct[sel] - np.polyval(self.coefficients, self.n0_hz[sel])))
 
     def __repr__(self):
         a, b, c, d = self.coefficients

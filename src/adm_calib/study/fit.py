@@ -548,30 +548,3 @@ def table_b_range_check(records, lo_hz=16.0, hi_hz=21.0, table=None):
                                       zeta_max_pct=zmax, below_lowest=bool(v[i] < lowest),
                                       below_minus_zeta=bool(v[i] < -zmax)))
     return rows, float(lowest)
-
-
-def range_check_markdown(records, intervals_hz=((16.0, 21.0), (13.0, 16.0), (11.0, 13.0))):
-    """Markdown table of :func:`table_b_range_check` for each interval, with the counts."""
-    out = []
-    heads, cols = [], {}
-    lowest = None
-    for lo, hi in intervals_hz:
-        rows, lowest = table_b_range_check(records, lo, hi)
-        heads.append(f"{lo:g}-{hi:g} Hz")
-        for r in rows:
-            cols.setdefault((r.train, r.mass_function), []).append(r)
-    out += [f"Lowest Δζ_VBI of the whole study: {lowest:.3f} %. Per Table B set, the highest value a data point in "
-            "the interval could have (max over n0 of the printed cubic plus the set's own largest residual), and "
-            "the largest ζ of the set's study bridges there:", "",
-            "| set | " + " | ".join(f"ceiling {h} (%) | ζ max {h} (%)" for h in heads) + " |",
-            "|---|" + "---|---|" * len(heads)]
-    for (t, m), rs in cols.items():
-        out.append(f"| {t} {m} | " + " | ".join(
-            f"{r.ceiling_pct:+.3f}{' **<lowest**' if r.below_lowest else ''}{' **<-ζ**' if r.below_minus_zeta else ''} | "
-            f"{r.zeta_max_pct:.2f}" for r in rs) + " |")
-    out.append("")
-    for k, h in enumerate(heads):
-        rs = [v[k] for v in cols.values()]
-        out.append(f"* {h}: below the lowest Δζ of the study for {sum(r.below_lowest for r in rs)} of {len(rs)} sets, "
-                   f"below -ζ for {sum(r.below_minus_zeta for r in rs)}.")
-    return "\n".join(out) + "\n"
