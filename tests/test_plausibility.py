@@ -237,3 +237,20 @@ def test_docs_hold_the_table():
 
     text = (Path(__file__).resolve().parents[1] / "docs" / "plausibility.md").read_text()
     assert text.endswith(plausibility.markdown_table())
+
+
+def test_calibrate_warns_about_peaks_no_bridge_survives(capsys):
+    """A 4 m deck of 1.4 t/m at 0.5 % (the lightest corner of Table 1 and below): the MLM and DIM
+    peaks are hundreds to thousands of m/s²; one warning per curve, named by bridge, train, model
+    and speed, before the (failed) calibration's report; B1 x ICE-2 (2.25 / 1.81 m/s²) warns nothing."""
+    from adm_calib.calib_commands import main
+
+    main(["calibrate", "--bridge", "L=4,n0=11,mu=1400,zeta_pct=0.5", "--train", "ICE-2"])
+    lines = [ln for ln in capsys.readouterr().err.splitlines() if "peak acceleration" in ln]
+    assert len(lines) == 2, lines
+    assert lines[0].startswith("warning: custom x ICE-2: MLM at ") and "<= 50 m/s²" in lines[0]
+    assert lines[1].startswith("warning: custom x ICE-2: DIM at ")
+    value = float(lines[1].split("peak acceleration: ")[1].split(" m/s²")[0])
+    assert value > 50.0
+    assert main(["calibrate", "--bridge", "B1", "--train", "ICE-2", "--speeds", "250:275:1"]) == 0
+    assert "peak acceleration" not in capsys.readouterr().err

@@ -29,6 +29,8 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 from adm_sim.files import claim_output, write_atomic
 from adm_sim.sim_commands import add_check_arguments, cmd_check
 from adm_sim.cliutil import (Parser, add_choice, add_dim_grid, add_overwrite, add_progress, add_speeds,
@@ -143,6 +145,7 @@ def cmd_calibrate(args):
     finally:
         close()
     wall = time.perf_counter() - t0
+    _check_plausible(res)
     print(res.summary())
     print(f"wall time      {wall:.2f} s")
     if json_path:
@@ -154,6 +157,18 @@ def cmd_calibrate(args):
         write_atomic(plot_path, lambda p: plot_calibration(res, p))
         print(f"wrote {plot_path}")
     return 0
+
+
+def _check_plausible(res):
+    """Plausibility warnings on a calibration's MLM and DIM curves: each curve's largest
+    acceleration, named by bridge, train, model and speed (:mod:`adm_sim.plausibility`)."""
+    from adm_sim.plausibility import check_response
+
+    for model, v, a in (("MLM", res.mlm_speeds_kmh, res.mlm_acc_m_s2), ("DIM", res.dim_speeds_kmh, res.dim_acc_m_s2)):
+        if a.size:
+            i = int(np.argmax(a))
+            check_response(res.bridge.span_m, a[i], None,
+                           f"{res.bridge.name or 'bridge'} x {res.train_name}: {model} at {v[i]:g} km/h")
 
 
 def cmd_table4(args):
@@ -179,6 +194,8 @@ def cmd_table4(args):
         table = run_table4(bridges, trains, speeds_kmh=speeds, options=options, jobs=jobs, progress=cb)
     finally:
         close()
+    for res in table.results.values():
+        _check_plausible(res)
     text = table.to_text()
     print(text)
     write_atomic(paths[0], lambda p: p.write_text(table.to_csv()))

@@ -141,7 +141,7 @@ TABLE = (
     Bound("acceleration", "peak deck acceleration", "m/s²", "<= 50 m/s²",
           "about 5 g, ten times the EN 1990 A2.4.4.2.1(4)P limits (3.5 / 5 m/s²); no real deck survives it "
           "(check the damping, mass and frequency)",
-          "adm-sim sweep and check results",
+          "adm-sim sweep and check results, adm-calib calibrate and table4 peaks",
           lambda c: (None, 50.0)),
     Bound("deflection", "peak midspan deflection", "m", "<= L/100",
           "six times the L/600 of EN 1990 A2.4.4.2.3 and far beyond the small deflections of the linear "
@@ -213,12 +213,14 @@ def check_train(train, source="train"):
         warn("car_body_mass", f"{source}: vehicle_types.{name}.m_c_kg", m_t)
 
 
-def check_response(span_m, max_acc_m_s2, max_disp_m, label="result", disp_label=None):
+def check_response(span_m, max_acc_m_s2, max_disp_m=None, label="result", disp_label=None):
     """Warn about peak results no real bridge survives: the largest acceleration (m/s²) and the
-    largest deflection (m) over the speeds (``label``, ``disp_label`` say where each was found)."""
+    largest deflection (m, ``None`` where the result has none) over the speeds (``label``,
+    ``disp_label`` say where each was found)."""
     ctx = {"span_m": span_m}
     warn("acceleration", f"{label}: peak acceleration", float(max_acc_m_s2), ctx)
-    warn("deflection", f"{disp_label or label}: peak deflection", float(max_disp_m), ctx)
+    if max_disp_m is not None:
+        warn("deflection", f"{disp_label or label}: peak deflection", float(max_disp_m), ctx)
 
 
 #: How a caller names the three values and the switch that accepts extrapolation: a library caller
