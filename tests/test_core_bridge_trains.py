@@ -149,7 +149,7 @@ def test_user_train_file(tmp_path):
 @pytest.mark.parametrize("over,match", [
     (dict(k_p_N_m=-5), r"vehicle_types.PC.k_p_N_m: -5 N/m is out of range; allowed \[1, 1e\+10\] N/m"),
     (dict(m_c_kg="heavy"), r"vehicle_types.PC.m_c_kg: 'heavy' is a string, not a number \(write it without quotes\); allowed \[1, 500000\] kg"),
-    (dict(r_m=30), r"r_m: 30 m plus wheelbase b_m 2.5 m exceeds the vehicle length d_m 26 m"),
+    (dict(r_m=30), r"r_m: 30 m plus wheelbase b_m 2.5 m is not shorter than the vehicle length d_m 26 m"),
     (dict(axle_load_kN=900), r"axle_load_kN: 900 kN is out of range; allowed \[1, 500\] kN"),
     (dict(mass=3), r"unknown field\(s\) mass"),
 ])

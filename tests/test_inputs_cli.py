@@ -358,7 +358,8 @@ CASES = [
     ('train file', ['sweep', '--train', '{t}/t_top.toml'],
      "error: t_top.toml: unknown key(s) 'colour'; allowed name, description, source, paper_train, vehicle_types, composition, loads_differ_from_masses"),
     ('train file', ['sweep', '--train', '{t}/t_rb.toml'],
-     'error: t_rb.toml: vehicle_types.PC.r_m: 25 m plus wheelbase b_m 2.5 m exceeds the vehicle length d_m 26 m'),
+     'error: t_rb.toml: vehicle_types.PC.r_m: 25 m plus wheelbase b_m 2.5 m is not shorter than the vehicle length d_m 26 m: '
+     'axles of coupled vehicles would coincide or overlap; allowed r_m + b_m < d_m'),
     ('train file', ['sweep', '--train', '{t}/t_comp.toml'],
      'error: t_comp.toml: missing [[composition]] entries'),
     ('train file', ['sweep', '--train', '{t}/t_ld.toml'],

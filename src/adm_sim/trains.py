@@ -263,9 +263,14 @@ def _vehicle_type(name, d, source):
     if not 1 <= len(raw) <= 2:
         raise InputError(f"{where}.axle_load_kN: {raw!r} must be one value or [front, rear] (kN)")
     loads = tuple(axle.to_core(axle.check(v, name=f"{where}.axle_load_kN", typed=True)) for v in raw)
-    if not math.isnan(vals["r_m"]) and vals["r_m"] + vals["b_m"] > vals["d_m"] + 1e-9:
+    if not math.isnan(vals["r_m"]) and vals["b_m"] >= vals["r_m"]:
+        raise InputError(f"{where}.b_m: bogie wheelbase {vals['b_m']:g} m is not shorter than the pivot distance "
+                         f"r_m {vals['r_m']:g} m: the axles of the two bogies would interleave or coincide; "
+                         f"allowed b_m < r_m")
+    if not math.isnan(vals["r_m"]) and vals["r_m"] + vals["b_m"] >= vals["d_m"]:
         raise InputError(f"{where}.r_m: {vals['r_m']:g} m plus wheelbase b_m {vals['b_m']:g} m "
-                         f"exceeds the vehicle length d_m {vals['d_m']:g} m")
+                         f"is not shorter than the vehicle length d_m {vals['d_m']:g} m: axles of coupled "
+                         f"vehicles would coincide or overlap; allowed r_m + b_m < d_m")
     return VehicleType(name=name, axle_load_n=loads, **vals)
 
 
@@ -411,6 +416,14 @@ def train_from_mapping(data, source="train"):
                 mw.append(bt.m_w_kg)
                 owner.append(ui)
     offs = np.asarray(offs)
+    gaps = np.diff(offs)  # in build order: bogie after bogie, front to rear
+    if np.any(gaps <= 0.0):
+        i = int(np.argmax(gaps <= 0.0))
+        b1, b2 = [b for u in units for b in u.bogies][i // 2], [b for u in units for b in u.bogies][(i + 1) // 2]
+        raise InputError(f"{source}: the axles of bogies {b1.type_name!r} (pivot {b1.pivot_m - offs[0]:.3f} m) and "
+                         f"{b2.type_name!r} (pivot {b2.pivot_m - offs[0]:.3f} m) coincide or interleave "
+                         f"({gaps[i]:.3f} m apart): the wheelbases b_m do not fit between the pivots (d_m, r_m); "
+                         f"allowed axles strictly one after another")
     first = offs.min()
     order = np.argsort(offs, kind="stable")
     train = Train(name=str(data["name"]), vehicle_types=types, units=tuple(units),
