@@ -374,3 +374,22 @@ def test_study_fit_cli_end_to_end(tmp_path, capsys):
         d = dict(zip(cols, row.split(",")))
         assert float(d["r2"]) == pytest.approx(1.0, abs=1e-6)
         assert float(d["upper_limit_hz"]) == pytest.approx(float(d["paper_upper_limit_hz"]), abs=0.01)
+
+
+@pytest.mark.parametrize("dz, zeta, message", [
+    (1e308, 1.5, "delta_zeta_vbi_pct: 1e+308 % is out of range; allowed (-1.5, 20] %"),
+    (-1.6, 1.5, "delta_zeta_vbi_pct: -1.6 % is out of range; allowed (-1.5, 20] %"),
+    (-25.0, None, "delta_zeta_vbi_pct: -25 % is out of range; allowed [-20, 20] %"),
+])
+def test_study_fit_refuses_a_dz_no_calibration_gives(tmp_path, capsys, dz, zeta, message):
+    """A Δζ_VBI beyond what a calibration can return (zeta + dz > 0, the ladder's top of 20 %) is a
+    damaged or edited results file: one line, exit 2, nothing written."""
+    lbs = lower_bound_table()
+    recs, _ = _synthetic(lbs["ICE-2"]["mu2"].coefficients, train="ICE-2", mf="mu2", per_interval=2, seed=1)
+    recs[0] = dict(recs[0], delta_zeta_vbi_pct=dz, zeta_pct=zeta)
+    res = tmp_path / "results.jsonl"
+    res.write_text("".join(json.dumps(r) + "\n" for r in recs))
+    assert main(["study-fit", "--results", str(res), "--out", str(tmp_path / "fit")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0], err
+    assert not (tmp_path / "fit").exists()

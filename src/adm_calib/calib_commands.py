@@ -36,6 +36,7 @@ from adm_sim.sim_commands import add_check_arguments, cmd_check
 from adm_sim.cliutil import (Parser, add_choice, add_dim_grid, add_overwrite, add_progress, add_speeds,
                              add_steps_per_period, check_option, option_help, option_view, progress_callback)
 from adm_sim.errors import InputError, RunError, check_range, run_cli
+from adm_sim.limits import MAX_DELTA_ZETA_PCT
 
 #: Range of recommend --mu (kg/m): the 0.5-100 t/m the lower-bound rules accept (the registry's).
 MU_RANGE_KG_M = (option_view("--mu").lo, option_view("--mu").hi)
@@ -404,6 +405,12 @@ def _check_fit_records(records, option, path):
             if isinstance(value, str) or value is None:
                 raise InputError(f"{where}: {key}: {value!r} is not a number ({unit})")
             check_range(f"{where}: {key}", value, unit, lo, hi, lo_open=lo is not None)
+        # a calibration's Δζ lies in (-ζ, 20 %] (ζ + Δζ > 0, the bracketing ladder's top); where the
+        # record does not carry ζ, in [-20 %, 20 %]
+        zeta = rec.get("zeta_pct")
+        known = isinstance(zeta, (int, float)) and not isinstance(zeta, bool) and zeta > 0
+        check_range(f"{where}: delta_zeta_vbi_pct", rec["delta_zeta_vbi_pct"], "%",
+                    -float(zeta) if known else -MAX_DELTA_ZETA_PCT, MAX_DELTA_ZETA_PCT, lo_open=known)
 
 
 def _fit_range_hz(text):
