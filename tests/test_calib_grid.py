@@ -1,5 +1,5 @@
 """A calibration over a speed grid that cannot show the resonance says so in its status
-(``adm_calib.calibrate.speed_grid_finding``), instead of "ok" beside a number from a quasi-static
+(``adm_calib.speed_grids.speed_grid_finding``), instead of "ok" beside a number from a quasi-static
 or missed peak."""
 
 import numpy as np
@@ -9,7 +9,8 @@ from adm_sim.bridge import named_bridge
 from adm_sim.sweep import sweep_exact
 from adm_sim.trains import load_train
 
-from adm_calib.calibrate import GRID_RTOL, NO_RESONANCE_FRACTION, calibrate, speed_grid_finding
+from adm_calib.calibrate import calibrate
+from adm_calib.speed_grids import GRID_RTOL, NO_RESONANCE_FRACTION, speed_grid_finding
 
 
 @pytest.fixture(scope="module")

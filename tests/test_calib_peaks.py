@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from adm_calib import peaks as pk
-from adm_calib.calibrate import CalibrationOptions, solve_delta_zeta
+from adm_calib.calibration_options import CalibrationOptions
+from adm_calib.damping_root import solve_delta_zeta
 
 
 def sdof(v, v_res, zeta):

@@ -3,7 +3,12 @@
 Analysis only (numpy/scipy on top of :mod:`adm_sim`); no ROS import here.
 
 * :mod:`adm_calib.peaks`      peak identification over speed, MLM/DIM peak association
-* :mod:`adm_calib.calibrate`  Δζ_VBI by a bracketing root finder
+* :mod:`adm_calib.calibrate`  Section 4 over a lane runner: one calibration, vectorised over a batch
+* :mod:`adm_calib.calibration_options`  its settings and speed range
+* :mod:`adm_calib.damping_root`  the root finder of Δζ_VBI (ladder bracket, Chandrupatla)
+* :mod:`adm_calib.speed_grids`  DIM speeds, relocation windows, refined peaks, grid adequacy
+* :mod:`adm_calib.calibration_result`  the result, its JSON and its report
+* :mod:`adm_calib.lanes`      lane runners (compiled, numpy, hook) and request batching
 * :mod:`adm_calib.reference`  Eurocode ADM, EADA (Yau et al.), lower-bound functions (Tables B1-B4)
 * :mod:`adm_calib.table4`     the comparison of Section 4.4 (Table 4, Fig. 19)
 * :mod:`adm_calib.plots`      matplotlib figures (Agg), outside the analysis

@@ -119,3 +119,43 @@ class HookLanes:
             kw = {"phase": phase} if self._phase else {}
             out[ix] = np.asarray(self.sweep(model, v[ix], d, self.step, **kw), dtype=float)
         return out
+
+
+# ---------------------------------------------------------------------- requests
+class Requests:
+    """Sweeps of one lane-runner request built case by case: (case, speeds, damping) per sweep."""
+
+    def __init__(self):
+        self.parts = []
+
+    def add(self, case, speeds, dz=0.0):
+        speeds = np.asarray(speeds, dtype=float)
+        self.parts.append((case, speeds, np.broadcast_to(np.asarray(dz, float), speeds.shape)))
+
+    def run(self, lanes, model, phase):
+        """Run every sweep as lanes of one request (sweep id = its index); the maxima per sweep."""
+        if not self.parts:
+            return []
+        case = np.concatenate([np.full(p[1].size, p[0]) for p in self.parts])
+        v = np.concatenate([p[1] for p in self.parts])
+        dz = np.concatenate([p[2] for p in self.parts])
+        sw = np.concatenate([np.full(p[1].size, k) for k, p in enumerate(self.parts)])
+        acc = np.asarray(lanes.run(model, case, v, dz, sweep=sw, phase=phase), dtype=float)
+        out, i = [], 0
+        for p in self.parts:
+            out.append(acc[i:i + p[1].size])
+            i += p[1].size
+        return out
+
+
+class ProgressLanes:
+    """A lane runner that reports every finished request: ``progress(n_done, None, phase)``."""
+
+    def __init__(self, lanes, progress):
+        self.lanes, self.progress, self.done = lanes, progress, 0
+
+    def run(self, model, case, speeds_kmh, delta_zeta=0.0, sweep=None, phase=""):
+        out = self.lanes.run(model, case, speeds_kmh, delta_zeta, sweep, phase)
+        self.done += 1
+        self.progress(self.done, None, phase)
+        return out

@@ -28,7 +28,7 @@ def _pyplot():
 
 
 def plot_calibration(result, path):
-    """Write the Fig. 15 analogue of a :class:`~adm_calib.calibrate.CalibrationResult` to ``path``."""
+    """Write the Fig. 15 analogue of a :class:`~adm_calib.calibration_result.CalibrationResult` to ``path``."""
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(8, 4.5))
     zeta = result.zeta_pct

@@ -35,7 +35,7 @@ _KEEP = ("status", "message", "delta_zeta_vbi_pct", "delta_zeta_adm_pct", "delta
 
 
 def result_record(case, result, wall_s):
-    """One result line from a :class:`~adm_calib.calibrate.CalibrationResult` (Δζ in %)."""
+    """One result line from a :class:`~adm_calib.calibration_result.CalibrationResult` (Δζ in %)."""
     d = result.to_dict(curves=False)
     rec = case_identity(case.bridge, case.train, case.mass_function, case.freq_index)
     rec.update({k: d[k] for k in _KEEP})
