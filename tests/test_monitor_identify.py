@@ -98,6 +98,23 @@ def test_no_decay_gives_no_number():
     assert not p.identified
 
 
+def test_lost_samples_in_the_free_decay_give_no_number():
+    """Ten samples lost inside the free decay: refused (interpolating across them would bias the
+    fit); the same loss before the decay starts (forced part) is harmless."""
+    t = np.arange(0.0, 6.0, 1 / 600)
+    a = decay(t)
+    keep = np.ones(t.size, bool)
+    keep[1800:1810] = False  # at 3 s
+    p = analyse_passage(t[keep], a[keep])
+    assert not p.identified and "samples missing in the free decay (a gap of 11 sample intervals" in p.reason
+    forced = np.where(t < 1.0, 0.3 * np.sin(2 * math.pi * 3.0 * t), decay(t - 1.0))
+    keep = np.ones(t.size, bool)
+    keep[100:110] = False
+    p = analyse_passage(t[keep], forced[keep])
+    assert p.identified, p.reason
+    assert p.fit.zeta1 == pytest.approx(ZETA, rel=0.01)
+
+
 def test_levels_en1990():
     assert acc_level(3.6, 3.5) == "above"
     assert acc_level(3.0, 3.5) == "near"

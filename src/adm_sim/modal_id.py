@@ -49,7 +49,8 @@ First mode (:func:`identify_first_mode`)
    covariance by first-order propagation. Valid for one dominant mode in the band; two close modes
    beat and are refused by the scatter rule.
 
-A passage whose free decay is too short (fewer than ``min_cycles`` periods), too noisy
+A passage whose free decay is too short (fewer than ``min_cycles`` periods), has samples missing
+(a gap of more than 1.5 sample intervals inside the fit window), too noisy
 (amplitude at its start below ``min_snr`` times the residual RMS), not exponential, or whose ζ1
 is not positive or more uncertain than ``max_rel_std`` gets no numbers: ``identified`` false and
 a one-line ``reason``.
@@ -65,7 +66,7 @@ import numpy as np
 from adm_sim.limits import acc_limit_m_s2
 
 __all__ = ["IdentifySettings", "ModalFit", "Passage", "PassageTracker", "acc_level", "analyse_passage",
-           "analyse_record", "identify_first_mode", "segment_signal", "uniform_samples"]
+           "analyse_record", "identify_first_mode", "run_topics_for", "segment_signal", "uniform_samples"]
 
 #: Level words of a peak against the limit: within (<= warn fraction), near (<= limit), above.
 LEVELS = ("within", "near", "above")
@@ -209,8 +210,8 @@ class Passage:
         f = self.fit
         if f is None:
             return f"{text}; first mode not identified: {self.reason}"
-        return (f"{text}; f1 {f.f1_hz:.4f} ± {f.f1_std_hz:.4f} Hz, zeta1 {f.zeta1_pct:.3f} ± {f.zeta1_std_pct:.3f} % "
-                f"({f.n_cycles:.1f} cycles of free decay)")
+        return (f"{text}; f1 {f.f1_hz:.4f} Hz (u {f.f1_std_hz:.2g} Hz), zeta1 {f.zeta1_pct:.3f} % "
+                f"(u {f.zeta1_std_pct:.2g} %), {f.n_cycles:.1f} cycles of free decay")
 
 
 class IdentificationError(Exception):
@@ -249,6 +250,8 @@ def uniform_samples(t_s, a_m_s2):
     max_gap = float(d.max() / dt)
     if np.max(np.abs(d - dt)) <= 0.01 * dt:
         return t[0] + dt * np.arange(t.size), a, dt, max_gap
+    if (t[-1] - t[0]) / dt > 4 * t.size:  # mostly gaps: not resampled (refused by the identification)
+        return t, a, dt, max_gap
     grid = t[0] + dt * np.arange(int(math.floor((t[-1] - t[0]) / dt)) + 1)
     return grid, np.interp(grid, t, a), dt, max_gap
 
@@ -393,7 +396,11 @@ def identify_first_mode(t_s, a_m_s2, t_free_s=None, settings=None):
 
 
 def _identify(t_s, a_m_s2, t_free_s, s):
+    stamps = np.unique(np.asarray(t_s, dtype=float))
     t, a, dt, _ = uniform_samples(t_s, a_m_s2)
+    if t.size >= 2 and (t[-1] - t[0]) / dt > 4 * t.size:
+        raise IdentificationError(f"{t.size} samples spread over {(t[-1] - t[0]) / dt:.0f} sample intervals: "
+                                  f"the record is mostly gaps")
     if t.size < 32 or not np.all(np.isfinite(a)):
         raise IdentificationError(f"{t.size} samples{'' if np.all(np.isfinite(a)) else ' with non-finite values'}: "
                                   f"too few to identify the first mode")
@@ -485,6 +492,12 @@ def _identify(t_s, a_m_s2, t_free_s, s):
     if n_cyc < s.min_cycles:
         raise IdentificationError(f"free decay of {n_cyc:.1f} cycles above the noise after the passage "
                                   f"(< {s.min_cycles:g} cycles needed to identify damping)")
+    window = stamps[(stamps >= t[i0] - 0.5 * dt) & (stamps <= t[i0] + tw[-1] + 0.5 * dt)]
+    gaps = np.diff(window) / dt
+    if gaps.size and gaps.max() > 1.5:
+        k = int(np.argmax(gaps))
+        raise IdentificationError(f"samples missing in the free decay (a gap of {gaps[k]:.0f} sample intervals at "
+                                  f"t={window[k]:.3f} s): it is not uniformly sampled")
     if snr < s.min_snr:
         raise IdentificationError(f"signal-to-noise ratio {snr:.3g} at the start of the free decay "
                                   f"(< {s.min_snr:g} needed to identify damping)")
@@ -769,6 +782,18 @@ class PassageTracker:
             start = done_until if done_until is not None else 0
             keep = t >= max(t[start - 1] if start else t[0], t[-1] - self.max_buffer_s)
             self.loose_t, self.loose_a = t[keep].tolist(), a[keep].tolist()
+
+
+def run_topics_for(topic):
+    """The run-record and description topics beside an acceleration topic of ours
+    (``/b1/adm/midspan/accel`` -> ``/b1/adm/run/status``, ``/b1/adm/bridge/description``,
+    ``/b1/adm/train/description``), or None for another topic (a sensor's: no run records)."""
+    from adm_sim import protocol as P
+
+    if not topic.endswith(P.TOPIC_ACCEL):
+        return None
+    ns = topic[: len(topic) - len(P.TOPIC_ACCEL)]
+    return ns + P.TOPIC_STATUS, ns + P.TOPIC_BRIDGE_DESC, ns + P.TOPIC_TRAIN_DESC
 
 
 def _stamp_scale(started):
