@@ -175,7 +175,8 @@ def test_tracker_by_run_records_assigns_by_stamp():
     n = t1.size - 100
     for ti, ai in zip(t1[:n], a1[:n]):
         tr.sample(ti, ai)
-    tr.status({"node": "bridge", "run_id": 1, "state": "done", "t0_s": 0.0, "t1_s": 8.0})
+    tr.status({"node": "bridge", "run_id": 1, "state": "done", "t0_s": 0.0, "t1_s": 8.0,
+               "samples": {"/adm/midspan/accel": t1.size + 3, "/clock": 10}})
     for ti, ai in zip(t1[n:], a1[n:]):
         tr.sample(ti, ai)
     for ti, ai in zip(t2[:50], a2[:50]):
@@ -191,6 +192,8 @@ def test_tracker_by_run_records_assigns_by_stamp():
     assert (p1.peak_acc_m_s2, p2.peak_acc_m_s2) == (np.abs(a1).max(), np.abs(a2).max())
     assert p1.identified and p2.identified
     assert tr.dropped == 0
+    assert (p1.info["samples_published"], p1.info["samples_lost"]) == (t1.size + 3, 3)
+    assert ", 3 of 3203 samples lost" in p1.line() and p2.info["samples_lost"] is None
 
 
 # ---------------------------------------------------------------------- simulated crossings
@@ -224,6 +227,22 @@ def test_simulated_crossing_known_damping(ice2, zeta_pct):
         assert p.fit.zeta1 == pytest.approx(zeta1, rel=0.05)
         assert p.fit.t_start_s >= t_left  # fitted after the train left
         assert p.peak_acc_m_s2 == pytest.approx(float(r.max_acc_m_s2[0]), rel=1e-12)
+
+
+@pytest.mark.parametrize("record, scale", [
+    ({"monitor_speed_kmh": 300.0, "clock_speed_kmh": 200.0}, 200.0 / 300.0),  # stamps in the slowest lane's time
+    ({"monitor_speed_kmh": 300.0, "clock_speed_kmh": 300.0, "time_lane": 4}, 1.0),  # in the monitored lane's
+])
+def test_sweep_stamps_in_the_clock_lane_are_rescaled(record, scale):
+    """A sweep whose stamps run in the slowest lane's time: the monitored lane's f1 still comes out."""
+    t = np.arange(0.0, 6.0, 1 / 600)
+    tr = PassageTracker()
+    tr.status({"node": "bridge", "run_id": 1, "state": "started", "t0_s": 10.0, **record})
+    for ti, ai in zip(10.0 + t / scale, decay(t)):
+        tr.sample(ti, ai)
+    tr.flush()
+    (p,) = tr.passages
+    assert p.fit.f1_hz == pytest.approx(F_HZ, rel=1e-4)
 
 
 def test_core_module_imports_no_ros():

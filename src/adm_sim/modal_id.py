@@ -205,8 +205,10 @@ class Passage:
     def line(self):
         """One log line: peak, level, and f1, ζ1 with their standard uncertainties or the reason."""
         head = f"passage {self.index}" + ("" if self.run_id is None else f" (run {self.run_id})")
+        lost = self.info.get("samples_lost")
         text = (f"{head}: peak |a| {self.peak_acc_m_s2:.4f} m/s^2 at t={self.t_peak_s:.3f} s, {self.level} the "
-                f"{self.limit_m_s2:g} m/s^2 limit (EN 1990 A2.4.4.2.1)")
+                f"{self.limit_m_s2:g} m/s^2 limit (EN 1990 A2.4.4.2.1)"
+                + (f", {lost} of {self.info['samples_published']} samples lost" if lost else ""))
         f = self.fit
         if f is None:
             return f"{text}; first mode not identified: {self.reason}"
@@ -604,6 +606,7 @@ class _Run:
     a: list = field(default_factory=list)
     failed: str | None = None
     last_wall_s: float = 0.0
+    published: int | None = None  # samples of the acceleration topic the run says it published
 
 
 class PassageTracker:
@@ -688,6 +691,10 @@ class PassageTracker:
             run.last_wall_s = wall_s
             if state == "failed":
                 run.failed = str(rec.get("message", "failed"))
+            counts = rec.get("samples")
+            if isinstance(counts, dict):  # per-topic counts of the run's done record
+                n = [v for k, v in counts.items() if str(k).endswith("midspan/accel")]
+                run.published = int(n[0]) if len(n) == 1 else None
             run.t1_s = float(rec["t1_s"]) if rec.get("t1_s") is not None else run.t0_s + (
                 (run.t[-1] - run.t0_s) / run.scale if run.t else 0.0)
 
@@ -761,8 +768,10 @@ class PassageTracker:
         t_free = None
         if run.speed_m_s and self.span_m is not None and self.train_length_m is not None:
             t_free = run.t0_s + (self.train_length_m + self.span_m) / run.speed_m_s
+        info = {"t_train_left_s": t_free, "samples_published": run.published,
+                "samples_lost": None if run.published is None else max(run.published - len(run.t), 0)}
         self._emit(np.asarray(run.t), np.asarray(run.a), t_free, "run records", run.run_id,
-                   self.phases.get(run.run_id), {"t_train_left_s": t_free})
+                   self.phases.get(run.run_id), info)
 
     def _signal_passages(self, final):
         t, a = np.asarray(self.loose_t), np.asarray(self.loose_a)
@@ -797,9 +806,12 @@ def run_topics_for(topic):
 
 
 def _stamp_scale(started):
-    """Factor from stamp intervals to the monitored lane's time. Stamps run in the clock lane's
-    time (the slowest) when a ``started`` record names both speeds and no stamp lane of its own."""
-    if started.get("stamp_lane") is not None or started.get("stamps") is not None:
+    """Factor from stamp intervals to the monitored lane's time. A ``started`` record that names the
+    lane its stamps run in (``time_lane``) has stamps in the monitored lane's own time; an older one
+    stamps in the clock lane's (the slowest: ``clock_speed_kmh``), scaled here by its speed over the
+    monitored lane's (``monitor_speed_kmh``), so the frequency of a sweep's monitored lane comes out
+    right."""
+    if started.get("time_lane") is not None:
         return 1.0
     v_mon, v_clock = started.get("monitor_speed_kmh"), started.get("clock_speed_kmh")
     if v_mon and v_clock:
