@@ -168,7 +168,6 @@ def monitor_live(args, on_passage):
     from adm_sim.nodes.monitor_node import MonitorNode
 
     env = apply_local_ros_env(args.domain_id)
-    print(f"ROS_DOMAIN_ID={env.domain_id} (shared memory only); monitoring {args.topic}", flush=True)
     context = rclpy.context.Context()
     rclpy.init(args=[], context=context)
     overrides = [Parameter("topic", value=args.topic), Parameter("topic_timeout_s", value=args.timeout),
@@ -180,6 +179,7 @@ def monitor_live(args, on_passage):
     node = None
     try:
         node = MonitorNode(on_passage=on_passage, quiet=True, context=context, parameter_overrides=overrides)
+        print(f"ROS_DOMAIN_ID={env.domain_id} (shared memory only); subscribed to {node.topic}", flush=True)
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(node)
         t_end = None if args.duration is None else time.monotonic() + args.duration

@@ -242,7 +242,11 @@ def test_live_crossing(ros_domain, tmp_path):  # noqa: F811
                             "--timeout", "120", "--json", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                            text=True, cwd=ROOT, env=env)
     try:
-        threading.Event().wait(3.0)  # the monitor is up and subscribed before the graph starts
+        first = []  # the monitor is subscribed before the graph starts
+        reader = threading.Thread(target=lambda: first.append(mon.stdout.readline()), daemon=True)
+        reader.start()
+        reader.join(120)
+        assert first and "subscribed to /adm/midspan/accel" in first[0], first
         run = subprocess.run([sys.executable, str(CROSSING), "--params-file", str(params), "--out",
                               str(tmp_path / "run"), "--domain-id", str(ros_domain.domain_id)],
                              capture_output=True, text=True, timeout=600, cwd=ROOT, env=env)
