@@ -13,25 +13,28 @@ Passages
 samples whose stamp lies in ``[t0_s, t1_s)`` of the bridge's ``started`` / ``done`` records,
 assigned by stamp, not by arrival (a ``done`` may arrive before the last samples). The train has
 left at ``t0_s + (train length + span) / v`` (the latched descriptions); the free decay is taken
-from one period after that.
+from ``settle_periods`` (3) periods after that. Stamps are in the monitored lane's time (a
+``started`` record naming its ``time_lane``), or rescaled to it from the clock lane's.
 
 *From the signal* (:func:`segment_signal`, no run records): ``e(t)`` is the moving maximum of
 ``|a - median(a)|`` over ``window_s``; the noise level ``σ_n`` the 10th percentile of the maxima of
-``|a - median(a)|`` in consecutive ``window_s`` windows (the envelope of the quiet signal). A passage is a stretch where ``e`` exceeds the release level
-``release_snr σ_n`` that contains a sample above the trigger ``min(trigger_snr σ_n,
+``|a - median(a)|`` in consecutive ``window_s`` windows (the envelope of the quiet signal). A
+passage is a stretch where ``e`` exceeds the release level ``release_snr σ_n`` that contains a sample above the trigger ``min(trigger_snr σ_n,
 trigger_fraction max|a|)`` (or ``threshold_m_s2`` when given); stretches closer than
 ``merge_gap_s`` are one passage. The free decay starts at the first half-cycle peak after the
 largest one from which the logarithms of the half-cycle peak amplitudes lie on a straight line
 (weighted RMS scatter at most ``max_log_scatter``, weights the squared amplitudes, plus three times
-the scatter the noise gives unfiltered; peaks below 5 % of the largest or 3 noise levels left out), plus ``settle_periods`` when band-passed.
+the scatter the noise gives unfiltered; peaks below 5 % of the largest or 3 noise levels left
+out), plus ``settle_periods`` when band-passed.
 
 First mode (:func:`identify_first_mode`)
 ----------------------------------------
 1. Frequency start value: the peak of the Hann-windowed, zero-padded FFT of the free decay in
    ``f_range_hz`` (parabolic interpolation on the log magnitude).
-2. Optional band-pass (default on): zero-phase 4th-order Butterworth (``sosfiltfilt``) over
-   ``[f/1.6, 1.6 f]``, applied to the whole passage so the decay window does not start at a filter
-   edge; one period at the end of the window is dropped. A decaying sinusoid ``e^{st}`` is an
+2. Optional band-pass (default on): zero-phase 2nd-order Butterworth (``sosfiltfilt``) over
+   ``[f/2, 2 f]`` (``band_ratio``), applied to the whole passage so the decay window does not start
+   at a filter edge; one period at the end of the window is dropped, ``settle_periods`` at its
+   start (the filter's response to what came before). A decaying sinusoid ``e^{st}`` is an
    eigenfunction of a linear filter, so the filter changes amplitude and phase but neither the
    frequency nor the decay rate; higher modes (a simply supported beam's third mode is at 9 f1)
    no longer bias the fit.
