@@ -138,3 +138,19 @@ def test_existing_json_is_refused(ctx, tmp_path):
     with pytest.raises(InputError, match="json_path: .* exists; set -p overwrite:=true to replace it"):
         make_monitor(ctx, json_path=str(out))
     assert out.read_text() == "keep"
+
+
+@pytest.mark.parametrize("args, message", [
+    (["-p", "track_type:=gravel"], "error: monitor: track_type: 'gravel' is not allowed"),
+    (["-p", "topic_timeout_s:=0.5"], "error: monitor: topic: '/adm/midspan/accel' did not appear within 0.5 s"),
+])
+def test_node_process_bad_input(ros_domain, args, message):  # noqa: F811
+    """``python -m adm_sim.nodes.monitor_node``: one ``error: monitor: ...`` line, exit 2."""
+    import subprocess
+    import sys
+
+    res = subprocess.run([sys.executable, "-m", "adm_sim.nodes.monitor_node", "--ros-args", *args],
+                         capture_output=True, text=True, timeout=120, env=dict(ros_domain))
+    assert res.returncode == 2
+    errors = [line for line in res.stderr.splitlines() if line.startswith("error: ")]
+    assert len(errors) == 1 and errors[0].startswith(message), res.stderr
