@@ -67,6 +67,9 @@ def check_args(args):
 
     if not args.topic or not args.topic.startswith("/"):
         raise InputError(f"--topic: {args.topic!r} is not an absolute topic name; give e.g. {P.TOPIC_ACCEL}")
+    if args.status_topic is not None and not args.status_topic.startswith("/"):
+        raise InputError(f"--status-topic: {args.status_topic!r} is not an absolute topic name; give e.g. "
+                         f"{P.TOPIC_STATUS}")
     args.timeout = check_range("--timeout", args.timeout, "s", 0.1, 3600.0)
     args.min_cycles = check_range("--min-cycles", args.min_cycles, "periods", 2.0, 1000.0)
     if args.mcap is not None:
@@ -140,6 +143,8 @@ def monitor_mcap(args, tracker):
     from adm_sim.recording.mcap_log import read_messages
 
     channels = check_mcap_topic(args.mcap, args.topic)
+    if args.status_topic is not None and channels.get(args.status_topic) != "std_msgs/msg/String":
+        raise InputError(f"--status-topic: {args.status_topic!r} is not a std_msgs/String topic of '{args.mcap}'")
     ours = run_topics_for(args.topic) or (None, None, None)
     status = args.status_topic or ours[0]
     desc = ours[1:]

@@ -166,6 +166,7 @@ def _refused(res, *words):
     ("another type", ["--topic", "/adm/run/status"], ["has type std_msgs/msg/String, not geometry_msgs/msg/AccelStamped"]),
     ("relative topic", ["--topic", "adm/x"], ["--topic: 'adm/x' is not an absolute topic name"]),
     ("domain id with mcap", ["--domain-id", "5"], ["--domain-id: only used live"]),
+    ("status topic", ["--status-topic", "/nope"], ["--status-topic: '/nope' is not a std_msgs/String topic"]),
     ("timeout", ["--timeout", "-1"], ["--timeout: -1 s is out of range"]),
     ("min cycles", ["--min-cycles", "1"], ["--min-cycles: 1 periods is out of range; allowed [2, 1000]"]),
 ])
