@@ -207,7 +207,8 @@ class Passage:
 
     def line(self):
         """One log line: peak, level, and f1, ζ1 with their standard uncertainties or the reason."""
-        head = f"passage {self.index}" + ("" if self.run_id is None else f" (run {self.run_id})")
+        head = f"passage {self.index}" + ("" if self.run_id is None else f" (run {self.run_id}"
+                                          + ("" if self.phase is None else f", {self.phase}") + ")")
         lost = self.info.get("samples_lost")
         text = (f"{head}: peak |a| {self.peak_acc_m_s2:.4f} m/s^2 at t={self.t_peak_s:.3f} s, {self.level} the "
                 f"{self.limit_m_s2:g} m/s^2 limit (EN 1990 A2.4.4.2.1)"
@@ -433,6 +434,12 @@ def _identify(t_s, a_m_s2, t_free_s, s):
     min_peaks = max(4, int(math.ceil(2 * s.min_cycles)))
     n_avail = (t[i_end - 1] - t[min(i_from, i_end - 1)]) * f0
     if pk.size < min_peaks or n_avail < s.min_cycles:
+        if t_free_s is not None:
+            settle = (s.settle_periods + 1.0) if s.bandpass else 0.0
+            raise IdentificationError(
+                f"free vibration of {max((t[-1] - t_free_s) * f0, 0.0):.1f} cycles recorded after the train left "
+                f"(< {s.min_cycles + settle:g} cycles needed: {s.min_cycles:g} to identify damping"
+                + (f", {settle:g} for the band-pass to settle" if settle else "") + ")")
         raise IdentificationError(f"free decay of {max(n_avail, 0.0):.1f} cycles after the passage "
                                   f"(< {s.min_cycles:g} cycles needed to identify damping)")
     tp, ap = t[pk], np.abs(xf[pk])
