@@ -62,7 +62,7 @@ a one-line ``reason``.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -827,12 +827,3 @@ def _stamp_scale(started):
     if v_mon and v_clock:
         return float(v_clock) / float(v_mon)
     return 1.0
-
-
-def with_settings(settings, **changes):
-    """``settings`` with ``changes`` (a new :class:`IdentifySettings`)."""
-    return replace(settings or IdentifySettings(), **changes)
-
-
-def settings_dict(settings):
-    return asdict(settings)
