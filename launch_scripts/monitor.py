@@ -1,0 +1,243 @@
+#!/usr/bin/env python
+"""Monitor a midspan acceleration topic: each passage's peak, EN 1990 level, and the first mode
+(f1, ζ1 with standard uncertainties) from its free decay; live on ROS 2 or from an MCAP recording.
+
+Usage::
+
+    monitor.py --domain-id 42 [--topic /adm/midspan/accel] [--passages N | --duration S] [--json F]
+    monitor.py --mcap RUN.mcap [--topic /adm/midspan/accel] [--json F]
+
+The topic is any ``geometry_msgs/AccelStamped`` topic (ours, or a real accelerometer's); the run
+records beside one of ours (``/adm/run/status``, the bridge and train descriptions) cut the
+passages where they exist, the signal where they do not (:mod:`adm_sim.modal_id`). Each passage
+is printed as one line; ``--json F`` writes ``{"passages": [{"peak_acc_m_s2", "t_peak_s", "level",
+"f1_hz", "zeta1_pct", "f1_std_hz", "zeta1_std_pct", "identified", "reason", ...}]}`` (numbers of
+the fit null and the reason given when a passage's free decay cannot identify damping).
+
+Live: the monitor node (:class:`adm_sim.nodes.monitor_node.MonitorNode`) runs in this process on
+``--domain-id`` (or an exported ``ROS_DOMAIN_ID``), shared memory only, until ``--passages`` passages
+were reported or ``--duration`` seconds passed; the JSON is rewritten after each passage. Ctrl-C
+or SIGTERM: ``error: interrupted``, exit 130; the JSON then holds the passages completed before.
+
+Bad input, one line ``error: ...`` and exit 2, nothing written: an option out of range, a domain
+id out of range, an MCAP that is not one, a topic the MCAP does not hold or that has another type,
+a live topic that no publisher offers within ``--timeout`` seconds or that has another type, a
+JSON file that exists (without ``--overwrite``).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+from adm_sim import protocol as P
+from adm_sim.cliutil import Parser, add_overwrite
+from adm_sim.errors import InputError, check_int, check_range, run_cli
+from adm_sim.limits import TRACK_TYPES
+
+ACCEL_TYPE = "geometry_msgs/msg/AccelStamped"
+
+
+def parse_args(argv=None):
+    p = Parser(prog="monitor.py", description=__doc__.split("\n\n")[0])
+    p.add_argument("--mcap", metavar="RUN.mcap", help="read a recording instead of subscribing live")
+    p.add_argument("--topic", default=P.TOPIC_ACCEL, help=f"the AccelStamped topic (default {P.TOPIC_ACCEL})")
+    p.add_argument("--status-topic", default=None,
+                   help="run records (default: the one beside the topic when it is one of ours)")
+    p.add_argument("--domain-id", default=None, help="live: ROS_DOMAIN_ID of the graph (default: the exported one)")
+    p.add_argument("--timeout", default="10", metavar="S", help="live: error when the topic does not appear "
+                                                                "within S s (default 10)")
+    p.add_argument("--passages", default=None, metavar="N", help="live: stop after N passages")
+    p.add_argument("--duration", default=None, metavar="S", help="live: stop after S s")
+    p.add_argument("--track-type", choices=TRACK_TYPES, default=None,
+                   help="the limit of EN 1990 A2.4.4.2.1 (default: the bridge description's, else ballasted)")
+    p.add_argument("--min-cycles", default="5", help="periods of free decay needed to identify damping (default 5)")
+    p.add_argument("--no-bandpass", action="store_true", help="fit the raw samples (no band-pass around f1)")
+    p.add_argument("--json", metavar="F", help="write the passages as JSON")
+    add_overwrite(p, "replace the JSON file if it exists")
+    return p.parse_args(argv)
+
+
+def check_args(args):
+    """Every option before anything is read, written or started; raises :class:`InputError`."""
+    from adm_sim.files import claim_output, mcap_input
+
+    if not args.topic or not args.topic.startswith("/"):
+        raise InputError(f"--topic: {args.topic!r} is not an absolute topic name; give e.g. {P.TOPIC_ACCEL}")
+    if args.status_topic is not None and not args.status_topic.startswith("/"):
+        raise InputError(f"--status-topic: {args.status_topic!r} is not an absolute topic name; give e.g. "
+                         f"{P.TOPIC_STATUS}")
+    args.timeout = check_range("--timeout", args.timeout, "s", 0.1, 3600.0)
+    args.min_cycles = check_range("--min-cycles", args.min_cycles, "periods", 2.0, 1000.0)
+    if args.mcap is not None:
+        for opt in ("domain_id", "passages", "duration"):
+            if getattr(args, opt) is not None:
+                raise InputError(f"--{opt.replace('_', '-')}: only used live; drop it or drop --mcap")
+        mcap_input(args.mcap, "--mcap")
+    else:
+        if args.passages is not None:
+            args.passages = check_int("--passages", args.passages, 1, 1_000_000)
+        if args.duration is not None:
+            args.duration = check_range("--duration", args.duration, "s", 0.1, 1e7)
+        args.domain_id = live_domain_id(args.domain_id)
+    if args.json is not None:
+        claim_output(args.json, "--json", args.overwrite, ".json", inputs={"--mcap": args.mcap})
+    return args
+
+
+def live_domain_id(given):
+    """``--domain-id``, else an exported ``ROS_DOMAIN_ID``, checked against the range of the field
+    registry; a live monitor must join an existing graph, so one of them is needed."""
+    from adm_sim.fields import view
+
+    if given is not None:
+        return view("cli", "--domain-id").check(given)
+    exported = os.environ.get("ROS_DOMAIN_ID", "").strip()
+    if exported:
+        try:
+            return view("cli", "--domain-id").check(exported)
+        except InputError as exc:
+            raise InputError(f"ROS_DOMAIN_ID (exported): {str(exc).split(': ', 1)[-1]}") from None
+    raise InputError("--domain-id: not given and no ROS_DOMAIN_ID exported; give the domain id of the graph to "
+                     "monitor (crossing.py and calibrate.py print theirs)")
+
+
+# ---------------------------------------------------------------- MCAP
+def mcap_channels(path):
+    """``{topic: schema name}`` of an MCAP's summary; one line when the file has no summary."""
+    from mcap.exceptions import McapError
+    from mcap.reader import make_reader
+
+    with open(path, "rb") as f:
+        try:
+            summary = make_reader(f).get_summary()
+        except (McapError, OSError, ValueError) as exc:
+            raise InputError(f"--mcap: '{path}' is not a complete MCAP file ({type(exc).__name__}); recover it "
+                             f"with: adm-sim salvage {path} OUT.mcap") from None
+    if summary is None:
+        raise InputError(f"--mcap: '{path}' has no summary (its writer was killed); recover it with: "
+                         f"adm-sim salvage {path} OUT.mcap")
+    return {ch.topic: summary.schemas[ch.schema_id].name if ch.schema_id in summary.schemas else ""
+            for ch in summary.channels.values()}
+
+
+def check_mcap_topic(path, topic):
+    """The topic is in the MCAP with type AccelStamped; else one line naming the ones that are."""
+    channels = mcap_channels(path)
+    accel = sorted(t for t, s in channels.items() if s == ACCEL_TYPE)
+    hint = f"its AccelStamped topics: {', '.join(accel)}" if accel else "it holds no AccelStamped topic"
+    if topic not in channels:
+        raise InputError(f"--topic: {topic!r} is not in '{path}'; {hint}")
+    if channels[topic] != ACCEL_TYPE:
+        raise InputError(f"--topic: {topic!r} in '{path}' has type {channels[topic] or 'unknown'}, not {ACCEL_TYPE}; "
+                         f"{hint}")
+    return channels
+
+
+def monitor_mcap(args, tracker):
+    """Feed the MCAP's samples and run records to ``tracker`` in log-time order."""
+    from adm_sim.modal_id import run_topics_for
+    from adm_sim.recording.mcap_log import read_messages
+
+    channels = check_mcap_topic(args.mcap, args.topic)
+    if args.status_topic is not None and channels.get(args.status_topic) != "std_msgs/msg/String":
+        raise InputError(f"--status-topic: {args.status_topic!r} is not a std_msgs/String topic of '{args.mcap}'")
+    ours = run_topics_for(args.topic) or (None, None, None)
+    status = args.status_topic or ours[0]
+    desc = ours[1:]
+    topics = [t for t in (args.topic, status, *desc) if t in channels]
+    for topic, _log_ns, msg in read_messages(args.mcap, topics=topics):
+        if topic == args.topic:
+            st = msg.header.stamp
+            tracker.sample(st.sec + 1e-9 * st.nanosec, msg.accel.linear.z)
+        elif topic == status:
+            tracker.status(P.decode(msg.data))
+        elif topic == desc[0]:
+            tracker.bridge_description(P.decode(msg.data))
+        elif topic == desc[1]:
+            tracker.train_description(P.decode(msg.data))
+    tracker.flush()
+
+
+# ---------------------------------------------------------------- live
+def monitor_live(args, on_passage):
+    """Run the monitor node in this process until ``--passages`` or ``--duration``; returns it."""
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.parameter import Parameter
+
+    from adm_sim.processes.dds_env import apply_local_ros_env
+    from adm_sim.nodes.monitor_node import MonitorNode
+
+    env = apply_local_ros_env(args.domain_id)
+    context = rclpy.context.Context()
+    rclpy.init(args=[], context=context)
+    overrides = [Parameter("topic", value=args.topic), Parameter("topic_timeout_s", value=args.timeout),
+                 Parameter("min_cycles", value=args.min_cycles), Parameter("bandpass", value=not args.no_bandpass)]
+    if args.status_topic:
+        overrides.append(Parameter("status_topic", value=args.status_topic))
+    if args.track_type:
+        overrides.append(Parameter("track_type", value=args.track_type))
+    node = None
+    try:
+        node = MonitorNode(on_passage=on_passage, quiet=True, context=context, parameter_overrides=overrides)
+        print(f"ROS_DOMAIN_ID={env.domain_id} (shared memory only); subscribed to {node.topic}", flush=True)
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(node)
+        t_end = None if args.duration is None else time.monotonic() + args.duration
+        while context.ok():
+            executor.spin_once(timeout_sec=0.1)
+            if args.passages is not None and len(node.tracker.passages) >= args.passages:
+                break
+            if t_end is not None and time.monotonic() >= t_end:
+                node.finish()
+                break
+        return node
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+# ---------------------------------------------------------------- main
+def main(argv=None) -> int:
+    return run_cli(lambda: _run(parse_args(argv)))
+
+
+def _run(args) -> int:
+    from adm_sim.files import write_atomic
+    from adm_sim.modal_id import IdentifySettings, PassageTracker
+
+    check_args(args)
+    settings = IdentifySettings(min_cycles=args.min_cycles, bandpass=not args.no_bandpass)
+    reported = []
+
+    def write(dropped=0):
+        doc = {"passages": [p.to_dict() for p in reported], "topic": args.topic,
+               "source": args.mcap or f"live, ROS_DOMAIN_ID {args.domain_id}", "dropped_samples": dropped}
+        write_atomic(Path(args.json), lambda tmp: tmp.write_text(json.dumps(doc, indent=1) + "\n"), "--json")
+
+    def on_passage(p):
+        reported.append(p)
+        print(p.line(), flush=True)
+        if args.json is not None and args.mcap is None:  # live: the file follows every passage
+            write()
+
+    if args.mcap is not None:
+        tracker = PassageTracker(track_type=args.track_type, settings=settings, on_passage=on_passage)
+        monitor_mcap(args, tracker)
+    else:
+        tracker = monitor_live(args, on_passage).tracker
+    if args.json is not None:
+        write(tracker.dropped)
+    n_id = sum(p.identified for p in reported)
+    print(f"{len(reported)} passages, {n_id} with the first mode identified"
+          + (f"; wrote {args.json}" if args.json else ""), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

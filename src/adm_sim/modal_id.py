@@ -1,0 +1,829 @@
+"""Passages of trains in a midspan acceleration record: peak, EN 1990 level, first mode from the free decay.
+
+A monitoring record (``/adm/midspan/accel``, a real accelerometer's ``AccelStamped`` topic, an
+MCAP of either) is cut into *passages*; for each one this module reports the peak ``|a|`` and its
+time, its level against the deck acceleration limit of EN 1990 A2.4.4.2.1(4)P (3.5 m/s² ballasted,
+5 m/s² direct fastening, :mod:`adm_sim.limits`) and the first bending mode's natural frequency
+``f1`` and damping ratio ``ζ1`` identified from the free vibration after the train has left.
+Numpy and scipy only (no ROS); the monitor node and ``launch_scripts/monitor.py`` feed it.
+
+Passages
+--------
+*From run records* (:class:`PassageTracker` with ``/adm/run/status``): one passage per run, the
+samples whose stamp lies in ``[t0_s, t1_s)`` of the bridge's ``started`` / ``done`` records,
+assigned by stamp, not by arrival (a ``done`` may arrive before the last samples). The train has
+left at ``t0_s + (train length + span) / v`` (the latched descriptions); the free decay is taken
+from ``settle_periods`` (3) periods after that. Stamps are in the monitored lane's time (a
+``started`` record naming its ``time_lane``), or rescaled to it from the clock lane's.
+
+*From the signal* (:func:`segment_signal`, no run records): ``e(t)`` is the moving maximum of
+``|a - median(a)|`` over ``window_s``; the noise level ``σ_n`` the 10th percentile of the maxima of
+``|a - median(a)|`` in consecutive ``window_s`` windows (the envelope of the quiet signal). A
+passage is a stretch where ``e`` exceeds the release level ``release_snr σ_n`` that contains a sample above the trigger ``min(trigger_snr σ_n,
+trigger_fraction max|a|)`` (or ``threshold_m_s2`` when given); stretches closer than
+``merge_gap_s`` are one passage. The free decay starts at the first half-cycle peak after the
+largest one from which the logarithms of the half-cycle peak amplitudes lie on a straight line
+(weighted RMS scatter at most ``max_log_scatter``, weights the squared amplitudes, plus three times
+the scatter the noise gives unfiltered; peaks below 5 % of the largest or 3 noise levels left
+out), plus ``settle_periods`` when band-passed.
+
+First mode (:func:`identify_first_mode`)
+----------------------------------------
+1. Frequency start value: the peak of the Hann-windowed, zero-padded FFT of the free decay in
+   ``f_range_hz`` (parabolic interpolation on the log magnitude).
+2. Optional band-pass (default on): zero-phase 2nd-order Butterworth (``sosfiltfilt``) over
+   ``[f/2, 2 f]`` (``band_ratio``), applied to the whole passage so the decay window does not start
+   at a filter edge; one period at the end of the window is dropped, ``settle_periods`` at its
+   start (the filter's response to what came before). A decaying sinusoid ``e^{st}`` is an
+   eigenfunction of a linear filter, so the filter changes amplitude and phase but neither the
+   frequency nor the decay rate; higher modes (a simply supported beam's third mode is at 9 f1)
+   no longer bias the fit.
+3. Decay-rate start value: the logarithmic decrement, the slope of ``ln`` of the half-cycle peak
+   amplitudes against time.
+4. Fit, :func:`scipy.optimize.least_squares`, of ``a(t) = e^{-σ t} (B1 cos ω_d t + B2 sin ω_d t) + c``
+   (``t`` from the window start) to the free-decay samples; then ``ω1 = sqrt(ω_d² + σ²)``,
+   ``f1 = ω1 / 2π`` (the undamped natural frequency, as n0) and ``ζ1 = σ / ω1``. The window ends
+   where the fitted envelope falls below ``end_snr`` times the residual RMS (one refit).
+5. Standard uncertainties: the covariance ``s² (JᵀJ)⁻¹`` of the fit's Jacobian ``J`` at the
+   solution, with ``s²`` the residuals' one-sided power spectral density at ``f_d`` (Welch) times
+   ``f_s / 2`` instead of their plain variance: for white noise the two agree; for coloured
+   residuals (band-passed noise, unmodelled modes) it counts the noise where the mode is, not the
+   noise the filter removed. ``u(f1)`` and ``u(ζ1)`` follow from ``u(σ)``, ``u(ω_d)`` and their
+   covariance by first-order propagation. Valid for one dominant mode in the band; two close modes
+   beat and are refused by the scatter rule.
+
+A passage whose free decay is too short (fewer than ``min_cycles`` periods), has samples missing
+(a gap of more than 1.5 sample intervals inside the fit window), too noisy
+(amplitude at its start below ``min_snr`` times the residual RMS), not exponential, or whose ζ1
+is not positive or more uncertain than ``max_rel_std`` gets no numbers: ``identified`` false and
+a one-line ``reason``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from adm_sim.limits import acc_limit_m_s2
+
+__all__ = ["IdentifySettings", "ModalFit", "Passage", "PassageTracker", "acc_level", "analyse_passage",
+           "analyse_record", "identify_first_mode", "run_topics_for", "segment_signal", "uniform_samples"]
+
+#: Level words of a peak against the limit: within (<= warn fraction), near (<= limit), above.
+LEVELS = ("within", "near", "above")
+
+
+@dataclass(frozen=True)
+class IdentifySettings:
+    """Rules of segmentation and identification (see the module docstring).
+
+    Attributes
+    ----------
+    min_cycles : float
+        Periods of free decay needed to identify damping.
+    min_snr : float
+        Amplitude at the start of the free decay over the residual RMS.
+    max_rel_std : float
+        Largest relative standard uncertainty of ζ1 that is still reported.
+    max_log_scatter : float
+        Weighted RMS scatter of ``ln`` of the half-cycle peak amplitudes about their line, on the
+        free decay.
+    end_snr : float
+        The fit window ends where the fitted envelope falls below this times the residual RMS.
+    bandpass : bool
+        Band-pass around the FFT peak before fitting.
+    band_ratio : float
+        The band is ``[f / band_ratio, f band_ratio]``.
+    f_range_hz : (float, float)
+        Where the first mode is looked for.
+    min_samples_per_period : float
+        Coarser sampling is refused.
+    window_s, trigger_snr, trigger_fraction, release_snr, merge_gap_s, threshold_m_s2
+        Segmentation from the signal (:func:`segment_signal`).
+    settle_periods : float
+        Periods skipped after the start of the free decay (run records: after the train has
+        left; the signal: after the log-linear start) when band-passing: the filter's response to
+        what came before has decayed to below 1e-3 by then (a start 2.5 periods after an edge
+        biases ζ1 by +0.2 %, 4 periods by less than 0.01 %, noise-free).
+    """
+
+    min_cycles: float = 5.0
+    min_snr: float = 10.0
+    max_rel_std: float = 0.25
+    max_log_scatter: float = 0.03
+    end_snr: float = 3.0
+    bandpass: bool = True
+    band_ratio: float = 2.0
+    f_range_hz: tuple = (0.5, 100.0)
+    min_samples_per_period: float = 8.0
+    window_s: float = 0.5
+    trigger_snr: float = 10.0
+    trigger_fraction: float = 0.5
+    release_snr: float = 2.0
+    merge_gap_s: float = 2.0
+    threshold_m_s2: float | None = None
+    settle_periods: float = 3.0
+
+
+@dataclass(frozen=True)
+class ModalFit:
+    """The first mode identified from a free decay.
+
+    ``f1_hz`` the undamped natural frequency, ``zeta1`` the damping ratio (fraction), their
+    standard uncertainties, ``fd_hz`` the damped frequency, ``t_start_s``/``t_end_s`` the fitted
+    window, ``n_cycles`` its length in periods, ``snr`` the amplitude at its start over the residual
+    RMS, ``amplitude_m_s2`` that amplitude, ``n_samples`` the samples fitted, ``filtered`` whether
+    they were band-passed, ``log_scatter`` the scatter of the log cycle amplitudes.
+    """
+
+    f1_hz: float
+    zeta1: float
+    f1_std_hz: float
+    zeta1_std: float
+    fd_hz: float
+    t_start_s: float
+    t_end_s: float
+    n_cycles: float
+    snr: float
+    amplitude_m_s2: float
+    n_samples: int
+    filtered: bool
+    log_scatter: float
+
+    @property
+    def zeta1_pct(self):
+        return 100.0 * self.zeta1
+
+    @property
+    def zeta1_std_pct(self):
+        return 100.0 * self.zeta1_std
+
+    def __repr__(self):
+        return (f"ModalFit(f1={self.f1_hz:.4f} ± {self.f1_std_hz:.4f} Hz, zeta1={self.zeta1_pct:.3f} ± "
+                f"{self.zeta1_std_pct:.3f} %, {self.n_cycles:.1f} cycles from {self.t_start_s:.3f} s, "
+                f"SNR {self.snr:.3g})")
+
+
+@dataclass(frozen=True)
+class Passage:
+    """One passage: its peak, level and (when identified) first mode; see :meth:`to_dict`."""
+
+    index: int
+    t_start_s: float
+    t_end_s: float
+    peak_acc_m_s2: float
+    t_peak_s: float
+    limit_m_s2: float
+    level: str
+    n_samples: int
+    fit: ModalFit | None
+    reason: str | None
+    source: str = "signal"
+    run_id: int | None = None
+    phase: str | None = None
+    info: dict = field(default_factory=dict)
+
+    @property
+    def identified(self):
+        return self.fit is not None
+
+    def to_dict(self):
+        """The JSON record of ``monitor.py --json`` (numbers of the fit are null when not identified)."""
+        f = self.fit
+        d = {"index": self.index, "run_id": self.run_id, "phase": self.phase, "source": self.source,
+             "t_start_s": self.t_start_s, "t_end_s": self.t_end_s, "n_samples": self.n_samples,
+             "peak_acc_m_s2": self.peak_acc_m_s2, "t_peak_s": self.t_peak_s, "limit_m_s2": self.limit_m_s2,
+             "level": self.level, "identified": f is not None, "reason": self.reason,
+             "f1_hz": None if f is None else f.f1_hz, "zeta1_pct": None if f is None else f.zeta1_pct,
+             "f1_std_hz": None if f is None else f.f1_std_hz,
+             "zeta1_std_pct": None if f is None else f.zeta1_std_pct,
+             "free_decay": None if f is None else {
+                 "t_start_s": f.t_start_s, "t_end_s": f.t_end_s, "n_cycles": f.n_cycles, "snr": f.snr,
+                 "fd_hz": f.fd_hz, "n_samples": f.n_samples, "bandpass": f.filtered, "log_scatter": f.log_scatter}}
+        d.update(self.info)
+        return d
+
+    def line(self):
+        """One log line: peak, level, and f1, ζ1 with their standard uncertainties or the reason."""
+        head = f"passage {self.index}" + ("" if self.run_id is None else f" (run {self.run_id}"
+                                          + ("" if self.phase is None else f", {self.phase}") + ")")
+        lost = self.info.get("samples_lost")
+        text = (f"{head}: peak |a| {self.peak_acc_m_s2:.4f} m/s^2 at t={self.t_peak_s:.3f} s, {self.level} the "
+                f"{self.limit_m_s2:g} m/s^2 limit (EN 1990 A2.4.4.2.1)"
+                + (f", {lost} of {self.info['samples_published']} samples lost" if lost else ""))
+        f = self.fit
+        if f is None:
+            return f"{text}; first mode not identified: {self.reason}"
+        return (f"{text}; f1 {f.f1_hz:.4f} Hz (u {f.f1_std_hz:.2g} Hz), zeta1 {f.zeta1_pct:.3f} % "
+                f"(u {f.zeta1_std_pct:.2g} %), {f.n_cycles:.1f} cycles of free decay")
+
+
+class IdentificationError(Exception):
+    """Why a free decay gives no first mode (the passage's ``reason``); internal to this module."""
+
+
+# ---------------------------------------------------------------------- samples
+def acc_level(peak_m_s2, limit_m_s2, warn_fraction=0.8):
+    """``within`` (<= ``warn_fraction`` of the limit), ``near`` (<= limit) or ``above`` the limit
+    (EN 1990 A2.4.4.2.1(4)P); a non-finite peak is ``above``."""
+    if not math.isfinite(peak_m_s2) or peak_m_s2 > limit_m_s2:
+        return LEVELS[2]
+    return LEVELS[1] if peak_m_s2 > warn_fraction * limit_m_s2 else LEVELS[0]
+
+
+def uniform_samples(t_s, a_m_s2):
+    """Samples sorted by time, duplicates of a stamp dropped, on a uniform grid.
+
+    Stamped samples whose intervals scatter by less than 1 % of the median interval are taken as
+    uniform (``t`` is replaced by the ideal grid); otherwise they are interpolated linearly onto a
+    grid at the median interval. Returns ``(t, a, dt, max_gap)``, ``max_gap`` the largest interval
+    in units of ``dt`` (a lost stretch of samples shows as a gap > 1.5).
+    """
+    t = np.asarray(t_s, dtype=float)
+    a = np.asarray(a_m_s2, dtype=float)
+    if t.shape != a.shape or t.ndim != 1:
+        raise ValueError(f"t_s and a_m_s2 must be 1-D of one length, got {t.shape} and {a.shape}")
+    order = np.argsort(t, kind="stable")
+    t, a = t[order], a[order]
+    keep = np.concatenate([[True], np.diff(t) > 0]) if t.size else np.zeros(0, bool)
+    t, a = t[keep], a[keep]
+    if t.size < 2:
+        return t, a, float("nan"), 1.0
+    d = np.diff(t)
+    dt = float(np.median(d))
+    max_gap = float(d.max() / dt)
+    if np.max(np.abs(d - dt)) <= 0.01 * dt:
+        return t[0] + dt * np.arange(t.size), a, dt, max_gap
+    if (t[-1] - t[0]) / dt > 4 * t.size:  # mostly gaps: not resampled (refused by the identification)
+        return t, a, dt, max_gap
+    grid = t[0] + dt * np.arange(int(math.floor((t[-1] - t[0]) / dt)) + 1)
+    return grid, np.interp(grid, t, a), dt, max_gap
+
+
+def _spectral_peak_hz(x, dt, f_lo, f_hi):
+    """Frequency of the largest peak of the Hann-windowed, 8x zero-padded spectrum in [f_lo, f_hi]."""
+    n = x.size
+    nfft = 1 << int(math.ceil(math.log2(8 * n)))
+    spec = np.abs(np.fft.rfft((x - x.mean()) * np.hanning(n), nfft))
+    f = np.fft.rfftfreq(nfft, dt)
+    band = np.flatnonzero((f >= f_lo) & (f <= f_hi))
+    if band.size < 3:
+        raise IdentificationError(f"no frequency in [{f_lo:g}, {f_hi:g}] Hz is resolved by {n} samples at "
+                                  f"{1 / dt:g} Hz")
+    i = band[np.argmax(spec[band])]
+    if 0 < i < spec.size - 1 and spec[i - 1] > 0 and spec[i + 1] > 0 and spec[i] > 0:
+        y0, y1, y2 = np.log(spec[i - 1:i + 2])
+        den = y0 - 2 * y1 + y2
+        shift = 0.5 * (y0 - y2) / den if den < 0 else 0.0
+        return float(f[i] + shift * (f[1] - f[0]))
+    return float(f[i])
+
+
+def _bandpass(x, dt, f_hz, ratio):
+    from scipy.signal import butter, sosfiltfilt
+
+    nyq = 0.5 / dt
+    lo, hi = f_hz / ratio, min(f_hz * ratio, 0.9 * nyq)
+    sos = butter(2, [lo / nyq, hi / nyq], btype="bandpass", output="sos")
+    return sosfiltfilt(sos, x, padlen=min(x.size - 1, 3 * int(round(1.0 / (f_hz * dt)))))
+
+
+def _half_cycle_peaks(x, dt, f_hz):
+    """Indices of the extrema of ``x`` (maxima and minima, about one per half period)."""
+    from scipy.signal import find_peaks
+
+    dist = max(1, int(0.7 / (f_hz * dt)))  # one maximum and one minimum per period
+    up, _ = find_peaks(x, distance=dist)
+    down, _ = find_peaks(-x, distance=dist)
+    return np.sort(np.concatenate([up, down]))
+
+
+def _line(tp, y, w):
+    """Weighted straight line through ``(tp, y)``: ``(slope, intercept, weighted RMS scatter)``."""
+    W = w.sum()
+    tm, ym = (w * tp).sum() / W, (w * y).sum() / W
+    stt = (w * (tp - tm) ** 2).sum()
+    slope = (w * (tp - tm) * (y - ym)).sum() / stt if stt > 0 else 0.0
+    res = y - (ym + slope * (tp - tm))
+    return slope, ym - slope * tm, float(np.sqrt((w * res ** 2).sum() / W))
+
+
+def _decay_start(tp, ap, min_peaks, max_scatter, noise):
+    """Index into the half-cycle peaks where the exponential free decay starts: the first one
+    after the largest from which ``ln ap`` lies on a line (weighted scatter <= ``max_scatter``
+    plus three times what the noise ``noise`` (m/s²) alone gives, ``noise / rms(ap)``).
+    Returns ``(index, scatter)``; the index is None when no such start leaves ``min_peaks``."""
+    y = np.log(ap)
+    w = ap ** 2
+    i_max = int(np.argmax(ap))
+    best = (None, float("inf"))
+    for i0 in range(i_max, tp.size - min_peaks + 1):
+        slope, _, scatter = _line(tp[i0:], y[i0:], w[i0:])
+        if slope < 0 and scatter <= max_scatter + 3.0 * noise / math.sqrt(np.mean(w[i0:])):
+            return i0, scatter
+        if scatter < best[1]:
+            best = (None, scatter)
+    return best
+
+
+# ---------------------------------------------------------------------- the fit
+def _model(p, t):
+    sigma, wd, b1, b2, c = p
+    e = np.exp(-sigma * t)
+    return e * (b1 * np.cos(wd * t) + b2 * np.sin(wd * t)) + c
+
+
+def _jac(p, t):
+    sigma, wd, b1, b2, _ = p
+    e = np.exp(-sigma * t)
+    cw, sw = np.cos(wd * t), np.sin(wd * t)
+    osc = b1 * cw + b2 * sw
+    return np.column_stack([-t * e * osc, e * t * (-b1 * sw + b2 * cw), e * cw, e * sw, np.ones_like(t)])
+
+
+def _fit(t, x, f0_hz, sigma0):
+    """Least-squares fit of the decaying sinusoid; returns ``(params, jacobian, residuals)``."""
+    from scipy.optimize import least_squares
+
+    wd0 = 2 * math.pi * f0_hz
+    E = np.exp(-sigma0 * t)
+    A = np.column_stack([E * np.cos(wd0 * t), E * np.sin(wd0 * t), np.ones_like(t)])
+    b1, b2, c = np.linalg.lstsq(A, x, rcond=None)[0]
+    p0 = np.array([sigma0, wd0, b1, b2, c])
+    res = least_squares(lambda p: _model(p, t) - x, p0, jac=lambda p: _jac(p, t), method="lm",
+                        x_scale="jac", xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=2000)
+    if not res.success:
+        raise IdentificationError(f"the decaying-sinusoid fit did not converge ({res.message})")
+    return res.x, res.jac, res.fun
+
+
+def _noise_variance(r, dt, fd_hz):
+    """``S_r(f_d) f_s / 2``: the residuals' variance as seen at the mode's frequency (Welch PSD,
+    one-sided, averaged over ``f_d`` ± 20 %); the plain variance when too few samples."""
+    from scipy.signal import welch
+
+    n = r.size
+    nper = max(16, min(n, int(round(8.0 / (fd_hz * dt)))))  # about 8 periods per segment
+    if n < 2 * nper:
+        return float(np.mean(r ** 2))
+    f, S = welch(r, fs=1.0 / dt, nperseg=nper, detrend="constant")
+    band = (f >= fd_hz / 1.2) & (f <= fd_hz * 1.2)
+    if not band.any():
+        band = np.zeros_like(f, dtype=bool)
+        band[np.argmin(np.abs(f - fd_hz))] = True
+    return float(S[band].mean() * 0.5 / dt)
+
+
+def identify_first_mode(t_s, a_m_s2, t_free_s=None, settings=None):
+    """First mode (f1, ζ1 and their standard uncertainties) from the free decay in a record.
+
+    Parameters
+    ----------
+    t_s, a_m_s2 : array_like (n,)
+        Sample times (s; stamps need not be uniform, see :func:`uniform_samples`) and midspan
+        acceleration (m/s², either sign convention) of one passage and the free vibration after it.
+    t_free_s : float or None
+        When known (run records): the time from which the bridge vibrates freely. None: found from
+        the signal (the log-linear rule of the module docstring).
+    settings : IdentifySettings or None
+
+    Returns
+    -------
+    (ModalFit or None, str or None)
+        The fit, or None and the one-line reason.
+    """
+    s = settings or IdentifySettings()
+    try:
+        return _identify(t_s, a_m_s2, t_free_s, s), None
+    except IdentificationError as exc:
+        return None, str(exc)
+
+
+def _identify(t_s, a_m_s2, t_free_s, s):
+    stamps = np.unique(np.asarray(t_s, dtype=float))
+    t, a, dt, _ = uniform_samples(t_s, a_m_s2)
+    if t.size >= 2 and (t[-1] - t[0]) / dt > 4 * t.size:
+        raise IdentificationError(f"{t.size} samples spread over {(t[-1] - t[0]) / dt:.0f} sample intervals: "
+                                  f"the record is mostly gaps")
+    if t.size < 32 or not np.all(np.isfinite(a)):
+        raise IdentificationError(f"{t.size} samples{'' if np.all(np.isfinite(a)) else ' with non-finite values'}: "
+                                  f"too few to identify the first mode")
+    f_lo, f_hi = s.f_range_hz
+    f_hi = min(f_hi, 1.0 / (dt * s.min_samples_per_period))  # at least min_samples_per_period per period
+    if f_hi <= f_lo:
+        raise IdentificationError(f"sampling at {1 / dt:.4g} Hz gives fewer than {s.min_samples_per_period:g} "
+                                  f"samples per period of any mode above {f_lo:g} Hz")
+    x = a - np.median(a)
+    # 1. where the free vibration is: run records, else after the largest excursion
+    i_peak = int(np.argmax(np.abs(x)))
+    i_from = i_peak if t_free_s is None else int(np.searchsorted(t, t_free_s))
+    if i_from >= t.size - 16:
+        raise IdentificationError("no free vibration recorded after the train left (the record ends "
+                                  f"{(t[-1] - t[min(i_from, t.size - 1)]):.3g} s after it)")
+    f0 = _spectral_peak_hz(x[i_from:], dt, f_lo, f_hi)
+    # 2. band-pass over the whole record
+    xf = _bandpass(x, dt, f0, s.band_ratio) if s.bandpass else x
+    i_end = t.size - (int(round(1.0 / (f0 * dt))) if s.bandpass else 0)
+    # 3. the exponential free decay and the logarithmic decrement
+    if t_free_s is not None:
+        i_from = int(np.searchsorted(t, t_free_s + s.settle_periods / f0))
+    pk = _half_cycle_peaks(xf[:i_end], dt, f0)
+    pk = pk[pk >= i_from]
+    min_peaks = max(4, int(math.ceil(2 * s.min_cycles)))
+    n_avail = (t[i_end - 1] - t[min(i_from, i_end - 1)]) * f0
+    if pk.size < min_peaks or n_avail < s.min_cycles:
+        if t_free_s is not None:
+            settle = (s.settle_periods + 1.0) if s.bandpass else 0.0
+            raise IdentificationError(
+                f"free vibration of {max((t[-1] - t_free_s) * f0, 0.0):.1f} cycles recorded after the train left "
+                f"(< {s.min_cycles + settle:g} cycles needed: {s.min_cycles:g} to identify damping"
+                + (f", {settle:g} for the band-pass to settle" if settle else "") + ")")
+        raise IdentificationError(f"free decay of {max(n_avail, 0.0):.1f} cycles after the passage "
+                                  f"(< {s.min_cycles:g} cycles needed to identify damping)")
+    tp, ap = t[pk], np.abs(xf[pk])
+    if t_free_s is None:
+        # the start rule looks at the cycles well above the noise: 5 % of the largest and 3 noise
+        # levels (robust, from the second differences of the raw samples)
+        d2 = np.diff(x, 2)
+        noise = float(np.median(np.abs(d2 - np.median(d2)))) / 0.6745 / math.sqrt(6.0)
+        above = np.flatnonzero(ap >= max(0.05 * ap.max(), 3.0 * noise))
+        if above.size < min_peaks:
+            raise IdentificationError(f"signal-to-noise ratio {ap.max() / max(noise, 1e-300):.3g} of the largest "
+                                      f"cycle: too few cycles above 3 noise levels to identify damping")
+        n_top = int(above[-1]) + 1
+        j0, scatter = _decay_start(tp[:n_top], ap[:n_top], min_peaks, s.max_log_scatter,
+                                   noise if not s.bandpass else 0.0)
+        if j0 is None:
+            raise IdentificationError(f"no exponential free decay after the peak (scatter of the log cycle "
+                                      f"amplitudes {scatter:.3f} > {s.max_log_scatter:g}; the record may end "
+                                      f"before the train has left, or two modes beat)")
+    else:
+        j0 = 0
+        scatter = _line(tp, np.log(ap), ap ** 2)[2]
+    slope = _line(tp[j0:], np.log(ap[j0:]), ap[j0:] ** 2)[0]
+    sigma0 = max(-slope, 1e-6 * f0)
+    i0 = pk[j0]
+    if t_free_s is None and s.bandpass:  # the filter's memory of the forced vibration
+        i0 = pk[min(int(np.searchsorted(pk, i0 + s.settle_periods / (f0 * dt))), pk.size - 1)]
+    # 4. fit, cut where the envelope meets the noise, refit
+    fit = None
+    for _ in range(2):
+        tw, xw = t[i0:i_end] - t[i0], xf[i0:i_end]
+        n_cyc = tw[-1] * f0 if tw.size else 0.0
+        if n_cyc < s.min_cycles:
+            raise IdentificationError(f"free decay of {n_cyc:.1f} cycles above the noise after the passage "
+                                      f"(< {s.min_cycles:g} cycles needed to identify damping)")
+        p, J, r = _fit(tw, xw, f0, sigma0)
+        fit = (p, J, r, tw, xw)
+        sigma, wd = p[0], abs(p[1])
+        amp = math.hypot(p[2], p[3])
+        rms = float(np.sqrt(np.mean(r ** 2)))
+        if sigma <= 0:
+            break
+        t_cut = math.log(amp / (s.end_snr * rms)) / sigma if rms > 0 and amp > s.end_snr * rms else tw[-1]
+        n_keep = int(np.searchsorted(tw, t_cut))
+        if n_keep >= 0.9 * tw.size:
+            break
+        i_end = i0 + max(n_keep, 2)
+        f0, sigma0 = wd / (2 * math.pi), sigma
+    assert fit is not None
+    p, J, r, tw, xw = fit
+    sigma, wd = float(p[0]), abs(float(p[1]))
+    fd = wd / (2 * math.pi)
+    amp = math.hypot(p[2], p[3])
+    rms = float(np.sqrt(np.mean(r ** 2)))
+    n_cyc = float(tw[-1] * fd)
+    snr = amp / rms if rms > 0 else float("inf")
+    if not f_lo <= fd <= f_hi:
+        raise IdentificationError(f"the fitted frequency {fd:.4g} Hz is outside [{f_lo:g}, {f_hi:.4g}] Hz")
+    if sigma <= 0:
+        raise IdentificationError(f"the fitted decay rate {sigma:.3g} 1/s is not positive: no damping "
+                                  f"can be identified from an amplitude that does not decay")
+    if n_cyc < s.min_cycles:
+        raise IdentificationError(f"free decay of {n_cyc:.1f} cycles above the noise after the passage "
+                                  f"(< {s.min_cycles:g} cycles needed to identify damping)")
+    window = stamps[(stamps >= t[i0] - 0.5 * dt) & (stamps <= t[i0] + tw[-1] + 0.5 * dt)]
+    gaps = np.diff(window) / dt
+    if gaps.size and gaps.max() > 1.5:
+        k = int(np.argmax(gaps))
+        raise IdentificationError(f"samples missing in the free decay (a gap of {gaps[k]:.0f} sample intervals at "
+                                  f"t={window[k]:.3f} s): it is not uniformly sampled")
+    if snr < s.min_snr:
+        raise IdentificationError(f"signal-to-noise ratio {snr:.3g} at the start of the free decay "
+                                  f"(< {s.min_snr:g} needed to identify damping)")
+    # 5. uncertainties: s^2 (J^T J)^-1 with s^2 from the residual spectrum at f_d
+    s2 = _noise_variance(r, dt, fd)
+    try:
+        cov = s2 * np.linalg.inv(J.T @ J)
+    except np.linalg.LinAlgError:
+        raise IdentificationError("the fit's Jacobian is singular: the free decay does not determine "
+                                  "frequency and damping") from None
+    w1 = math.hypot(wd, sigma)
+    zeta = sigma / w1
+    g_z = np.array([wd ** 2 / w1 ** 3, -sigma * wd / w1 ** 3])  # d zeta / d(sigma, wd)
+    g_w = np.array([sigma / w1, wd / w1])                       # d omega1 / d(sigma, wd)
+    c2 = cov[:2, :2]
+    zeta_std = float(math.sqrt(max(g_z @ c2 @ g_z, 0.0)))
+    f1_std = float(math.sqrt(max(g_w @ c2 @ g_w, 0.0))) / (2 * math.pi)
+    if zeta_std > s.max_rel_std * zeta:
+        raise IdentificationError(f"relative standard uncertainty of zeta1 {100 * zeta_std / zeta:.0f} % "
+                                  f"(> {100 * s.max_rel_std:g} % allowed)")
+    return ModalFit(f1_hz=w1 / (2 * math.pi), zeta1=zeta, f1_std_hz=f1_std, zeta1_std=zeta_std, fd_hz=fd,
+                    t_start_s=float(t[i0]), t_end_s=float(t[i0] + tw[-1]), n_cycles=n_cyc, snr=float(snr),
+                    amplitude_m_s2=float(amp), n_samples=int(tw.size), filtered=bool(s.bandpass),
+                    log_scatter=float(scatter))
+
+
+# ---------------------------------------------------------------------- passages
+def analyse_passage(t_s, a_m_s2, index=1, limit_m_s2=None, track_type="ballasted", warn_fraction=0.8,
+                    t_free_s=None, settings=None, source="signal", run_id=None, phase=None, info=None):
+    """One :class:`Passage` from its samples: peak ``|a|`` and its time, the level against the
+    limit (``limit_m_s2``, else the one of ``track_type``), and the first mode of its free decay."""
+    t = np.asarray(t_s, dtype=float)
+    a = np.asarray(a_m_s2, dtype=float)
+    limit = acc_limit_m_s2(track_type) if limit_m_s2 is None else float(limit_m_s2)
+    if t.size == 0:
+        return Passage(index, float("nan"), float("nan"), float("nan"), float("nan"), limit, acc_level(
+            float("nan"), limit, warn_fraction), 0, None, "no samples", source, run_id, phase, dict(info or {}))
+    absa = np.abs(a)
+    i = int(np.nanargmax(absa)) if np.any(np.isfinite(absa)) else 0
+    peak = float(absa[i]) if np.all(np.isfinite(absa)) else float("inf")
+    fit, reason = identify_first_mode(t, a, t_free_s, settings)
+    return Passage(index=index, t_start_s=float(t.min()), t_end_s=float(t.max()), peak_acc_m_s2=peak,
+                   t_peak_s=float(t[i]), limit_m_s2=limit, level=acc_level(peak, limit, warn_fraction),
+                   n_samples=int(t.size), fit=fit, reason=reason, source=source, run_id=run_id, phase=phase,
+                   info=dict(info or {}))
+
+
+def _moving_max(x, n):
+    from scipy.ndimage import maximum_filter1d
+
+    return maximum_filter1d(x, size=max(1, n), mode="nearest")
+
+
+def segment_signal(t_s, a_m_s2, settings=None):
+    """Passages in a record without run records: ``[(i_start, i_end), ...]`` (``i_end`` exclusive)
+    into the sorted samples, by the envelope rule of the module docstring."""
+    s = settings or IdentifySettings()
+    t, a, dt, _ = uniform_samples(t_s, a_m_s2)
+    if t.size < 4:
+        return []
+    x = np.abs(a - np.median(a))
+    n_win = max(2, int(round(s.window_s / dt)))
+    env = _moving_max(x, n_win)
+    n_blocks = max(1, x.size // n_win)
+    noise = float(np.percentile(x[:n_blocks * n_win].reshape(n_blocks, -1).max(axis=1), 10))
+    trigger = s.threshold_m_s2 if s.threshold_m_s2 is not None else min(s.trigger_snr * noise,
+                                                                         s.trigger_fraction * float(x.max()))
+    release = min(s.release_snr * noise, trigger)
+    above = env > release
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], above.astype(np.int8), [0]])))
+    runs = [[int(b), int(e)] for b, e in zip(edges[::2], edges[1::2]) if x[b:e].max() > trigger]
+    merged: list[list[int]] = []
+    for b, e in runs:
+        if merged and t[b] - t[merged[-1][1] - 1] < s.merge_gap_s:
+            merged[-1][1] = e
+        else:
+            merged.append([b, e])
+    # map back to the caller's samples (uniform_samples may have resampled)
+    order_t = np.sort(np.asarray(t_s, dtype=float))
+    return [(int(np.searchsorted(order_t, t[b])), int(np.searchsorted(order_t, t[e - 1], side="right")))
+            for b, e in merged]
+
+
+def analyse_record(t_s, a_m_s2, limit_m_s2=None, track_type="ballasted", warn_fraction=0.8, settings=None):
+    """Every passage of a record without run records (:func:`segment_signal`), as :class:`Passage`."""
+    t = np.asarray(t_s, dtype=float)
+    a = np.asarray(a_m_s2, dtype=float)
+    order = np.argsort(t, kind="stable")
+    t, a = t[order], a[order]
+    return [analyse_passage(t[b:e], a[b:e], k + 1, limit_m_s2, track_type, warn_fraction, None, settings)
+            for k, (b, e) in enumerate(segment_signal(t, a, settings))]
+
+
+# ---------------------------------------------------------------------- incremental: the monitor
+@dataclass
+class _Run:
+    run_id: int
+    t0_s: float
+    scale: float = 1.0          # stamp interval -> monitored lane's time
+    speed_m_s: float | None = None
+    t1_s: float | None = None
+    phase: str | None = None
+    t: list = field(default_factory=list)
+    a: list = field(default_factory=list)
+    failed: str | None = None
+    last_wall_s: float = 0.0
+    published: int | None = None  # samples of the acceleration topic the run says it published
+
+
+class PassageTracker:
+    """Passages of a stream of samples and run records, reported as they complete.
+
+    Feed it the latched descriptions (:meth:`bridge_description`, :meth:`train_description`), the
+    ``/adm/run/status`` records (:meth:`status`) and the samples (:meth:`sample`, stamp in s and
+    acceleration in m/s²) in any order; each completed passage is handed to ``on_passage`` and kept
+    in :attr:`passages`. With run records a run's passage completes when a sample stamped at or
+    after its ``t1_s`` arrives, when :meth:`poll` finds no sample for ``settle_s`` of wall time after
+    its ``done``, or at :meth:`flush`. Without any run record the samples are segmented by the
+    signal (:func:`segment_signal`): at :meth:`flush`, or by :meth:`poll` for a passage followed by
+    ``quiet_s`` of quiet signal.
+
+    Parameters
+    ----------
+    track_type : str or None
+        Track type of the limit (EN 1990 A2.4.4.2.1); None: the bridge description's, else ballasted.
+    warn_fraction : float
+        ``near`` above this fraction of the limit.
+    """
+
+    def __init__(self, track_type=None, warn_fraction=0.8, settings=None, on_passage=None, settle_s=1.0,
+                 quiet_s=10.0, max_buffer_s=900.0):
+        self.track_type, self.warn_fraction = track_type, float(warn_fraction)
+        self.settings = settings or IdentifySettings()
+        self.on_passage = on_passage
+        self.settle_s, self.quiet_s, self.max_buffer_s = float(settle_s), float(quiet_s), float(max_buffer_s)
+        self.passages: list[Passage] = []
+        self.runs: list[_Run] = []
+        self.phases: dict[int, str] = {}
+        self.span_m: float | None = None
+        self.train_length_m: float | None = None
+        self.bridge_track: str | None = None
+        self.bridge_limit: float | None = None
+        self.seen_records = False
+        self.loose_t: list[float] = []
+        self.loose_a: list[float] = []
+        self.dropped = 0  # samples outside every run (with run records)
+
+    # ------------------------------------------------------------------ inputs
+    def bridge_description(self, rec):
+        b = rec.get("bridge") or {}
+        if "span_m" in b:
+            self.span_m = float(b["span_m"])
+        self.bridge_track = rec.get("track_type") or self.bridge_track
+        if rec.get("acc_limit_m_s2") is not None:
+            self.bridge_limit = float(rec["acc_limit_m_s2"])
+
+    def train_description(self, rec):
+        if rec.get("length_m") is not None:
+            self.train_length_m = float(rec["length_m"])
+
+    def status(self, rec, wall_s=0.0):
+        """A ``/adm/run/status`` record (dict)."""
+        state, run_id = rec.get("state"), rec.get("run_id")
+        if run_id is None:
+            return
+        run_id = int(run_id)
+        if rec.get("phase") is not None:
+            self.phases[run_id] = str(rec["phase"])
+        if rec.get("node") != "bridge":
+            return
+        if state == "started":
+            self.seen_records = True
+            run = _Run(run_id, float(rec.get("t0_s", 0.0)), scale=_stamp_scale(rec), last_wall_s=wall_s)
+            v_kmh = rec.get("monitor_speed_kmh")
+            run.speed_m_s = None if v_kmh is None else float(v_kmh) / 3.6
+            self.runs.append(run)
+            keep_t, keep_a = [], []
+            for t, a in zip(self.loose_t, self.loose_a):  # samples that overtook their started record
+                if t >= run.t0_s:
+                    self._put(run, t, a)
+                else:
+                    keep_t.append(t)
+                    keep_a.append(a)
+            self.loose_t, self.loose_a = keep_t, keep_a
+        elif state in ("done", "failed"):
+            run = self._run(run_id)
+            if run is None:
+                return
+            run.last_wall_s = wall_s
+            if state == "failed":
+                run.failed = str(rec.get("message", "failed"))
+            counts = rec.get("samples")
+            if isinstance(counts, dict):  # per-topic counts of the run's done record
+                n = [v for k, v in counts.items() if str(k).endswith("midspan/accel")]
+                run.published = int(n[0]) if len(n) == 1 else None
+            run.t1_s = float(rec["t1_s"]) if rec.get("t1_s") is not None else run.t0_s + (
+                (run.t[-1] - run.t0_s) / run.scale if run.t else 0.0)
+
+    def sample(self, t_s, a_m_s2, wall_s=0.0):
+        """One acceleration sample (stamp in s, m/s²)."""
+        t, a = float(t_s), float(a_m_s2)
+        for run in self.runs:
+            if run.t0_s <= t and (run.t1_s is None or t < run.t1_s):
+                self._put(run, t, a)
+                run.last_wall_s = wall_s
+                break
+        else:  # before its run's started record, or outside every run (counted when its run completes)
+            self.loose_t.append(t)
+            self.loose_a.append(a)
+        for run in list(self.runs):  # a sample at or after a run's end completes it
+            if run.t1_s is not None and t >= run.t1_s:
+                self._complete(run)
+
+    def poll(self, wall_s):
+        """Complete what is due by wall time (live): runs ``settle_s`` after their last input, and
+        without run records a passage followed by ``quiet_s`` of quiet signal."""
+        for run in list(self.runs):
+            if run.t1_s is not None and wall_s - run.last_wall_s >= self.settle_s:
+                self._complete(run)
+        if not self.seen_records and self.loose_t:
+            self._signal_passages(final=False)
+
+    def flush(self):
+        """Complete everything (end of a recording or of the monitor)."""
+        for run in list(self.runs):
+            if run.t1_s is None:
+                run.t1_s = run.t0_s + ((run.t[-1] - run.t0_s) / run.scale if run.t else 0.0)
+            self._complete(run)
+        if not self.seen_records and self.loose_t:
+            self._signal_passages(final=True)
+
+    # ------------------------------------------------------------------ internals
+    def _run(self, run_id):
+        return next((r for r in self.runs if r.run_id == run_id), None)
+
+    @staticmethod
+    def _put(run, t, a):
+        run.t.append(run.t0_s + (t - run.t0_s) * run.scale)
+        run.a.append(a)
+
+    def _limit(self):
+        track = self.track_type or self.bridge_track or "ballasted"
+        if self.track_type is None and self.bridge_limit is not None:
+            return self.bridge_limit, track
+        return acc_limit_m_s2(track), track
+
+    def _emit(self, t, a, t_free_s, source, run_id=None, phase=None, info=None):
+        limit, track = self._limit()
+        p = analyse_passage(t, a, len(self.passages) + 1, limit, track, self.warn_fraction, t_free_s,
+                            self.settings, source, run_id, phase, {"track_type": track, **(info or {})})
+        self.passages.append(p)
+        if self.on_passage is not None:
+            self.on_passage(p)
+        return p
+
+    def _complete(self, run):
+        self.runs.remove(run)
+        if self.loose_t:  # samples left before this run's end belong to no run
+            t = np.asarray(self.loose_t)
+            keep = t >= run.t1_s
+            self.dropped += int((~keep).sum())
+            self.loose_t = t[keep].tolist()
+            self.loose_a = np.asarray(self.loose_a)[keep].tolist()
+        if run.failed is not None:
+            return
+        t_free = None
+        if run.speed_m_s and self.span_m is not None and self.train_length_m is not None:
+            t_free = run.t0_s + (self.train_length_m + self.span_m) / run.speed_m_s
+        info = {"t_train_left_s": t_free, "samples_published": run.published,
+                "samples_lost": None if run.published is None else max(run.published - len(run.t), 0)}
+        self._emit(np.asarray(run.t), np.asarray(run.a), t_free, "run records", run.run_id,
+                   self.phases.get(run.run_id), info)
+
+    def _signal_passages(self, final):
+        t, a = np.asarray(self.loose_t), np.asarray(self.loose_a)
+        segs = segment_signal(t, a, self.settings)
+        order = np.argsort(t, kind="stable")
+        t, a = t[order], a[order]
+        done_until = None
+        for b, e in segs:
+            if not final and t[-1] - t[e - 1] < self.quiet_s:
+                break  # may go on
+            self._emit(t[b:e], a[b:e], None, "signal")
+            done_until = e
+        if final:
+            self.loose_t, self.loose_a = [], []
+        elif done_until is not None or (t.size and t[-1] - t[0] > self.max_buffer_s):
+            # keep some quiet signal for the noise level, drop what was reported or too old
+            start = done_until if done_until is not None else 0
+            keep = t >= max(t[start - 1] if start else t[0], t[-1] - self.max_buffer_s)
+            self.loose_t, self.loose_a = t[keep].tolist(), a[keep].tolist()
+
+
+def run_topics_for(topic):
+    """The run-record and description topics beside an acceleration topic of ours
+    (``/b1/adm/midspan/accel`` -> ``/b1/adm/run/status``, ``/b1/adm/bridge/description``,
+    ``/b1/adm/train/description``), or None for another topic (a sensor's: no run records)."""
+    from adm_sim import protocol as P
+
+    if not topic.endswith(P.TOPIC_ACCEL):
+        return None
+    ns = topic[: len(topic) - len(P.TOPIC_ACCEL)]
+    return ns + P.TOPIC_STATUS, ns + P.TOPIC_BRIDGE_DESC, ns + P.TOPIC_TRAIN_DESC
+
+
+def _stamp_scale(started):
+    """Factor from stamp intervals to the monitored lane's time. A ``started`` record that names the
+    lane its stamps run in (``time_lane``) has stamps in the monitored lane's own time; an older one
+    stamps in the clock lane's (the slowest: ``clock_speed_kmh``), scaled here by its speed over the
+    monitored lane's (``monitor_speed_kmh``), so the frequency of a sweep's monitored lane comes out
+    right."""
+    if started.get("time_lane") is not None:
+        return 1.0
+    v_mon, v_clock = started.get("monitor_speed_kmh"), started.get("clock_speed_kmh")
+    if v_mon and v_clock:
+        return float(v_clock) / float(v_mon)
+    return 1.0

@@ -1,0 +1,226 @@
+"""Monitor node: the passages of any ``geometry_msgs/AccelStamped`` topic, their EN 1990 level and
+the first mode (f1, ζ1) identified from each free decay.
+
+A thin adapter over :class:`adm_sim.modal_id.PassageTracker` (ROS-free): it subscribes to the
+acceleration ``topic`` (ours, ``/adm/midspan/accel``, or a real accelerometer's), to the run
+records on ``status_topic`` when a graph publishes them (one passage per run, samples assigned by
+stamp) and to the latched bridge and train descriptions (span, train length, track type and
+limit); without run records it segments passages by the signal. ``|a|`` is used, so the sign
+convention of the sensor does not matter. Each passage is logged as one line and, with
+``json_path``, the JSON file (``{"passages": [...]}``, :meth:`adm_sim.modal_id.Passage.to_dict`)
+is rewritten after each one (written beside and renamed: always complete).
+
+QoS: the samples RELIABLE, KEEP_LAST 5000 (the depth of the bridge's monitoring topics); when the
+topic's publishers offer only BEST_EFFORT (the sensor-data profile of many drivers) the
+subscription is made again best effort, which a reliable subscription would not match.
+
+Bad input (exit 2, one line ``error: monitor: ...``): a parameter out of range, a topic that has
+another type than ``AccelStamped``, a topic that no publisher offers within ``topic_timeout_s``.
+
+    python -m adm_sim.nodes.monitor_node --ros-args -p topic:=/adm/midspan/accel -p json_path:=passages.json
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+
+from geometry_msgs.msg import AccelStamped
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import String
+
+from adm_sim import protocol as P
+from adm_sim.errors import InputError
+from adm_sim.limits import TRACK_TYPES, check_track_type
+from adm_sim.modal_id import IdentifySettings, PassageTracker, run_topics_for
+from adm_sim.nodes import common as c
+
+__all__ = ["ACCEL_TYPE", "MONITOR_SPECS", "MonitorNode", "main", "passages_document"]
+
+#: The message type the monitor reads, as the ROS graph and MCAP schemas name it.
+ACCEL_TYPE = "geometry_msgs/msg/AccelStamped"
+#: Samples: reliable, as deep as the bridge's monitoring history (bursts of whole step blocks).
+QOS_SAMPLES = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=5000, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.VOLATILE)
+QOS_SAMPLES_BEST_EFFORT = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=5000,
+                                     reliability=ReliabilityPolicy.BEST_EFFORT,
+                                     durability=DurabilityPolicy.VOLATILE)
+
+MONITOR_SPECS = [
+    c.ParamSpec("topic", P.TOPIC_ACCEL, "", f"the {ACCEL_TYPE} topic to monitor"),
+    c.ParamSpec("status_topic", "", "", f"run records ({P.TOPIC_STATUS} JSON); empty = the one beside the "
+                                        "topic when it ends in /adm/midspan/accel"),
+    c.ParamSpec("track_type", "", "", f"limit of EN 1990 A2.4.4.2.1: {' | '.join(TRACK_TYPES)}; empty = the "
+                                      "bridge description's, else ballasted"),
+    c.ParamSpec("warn_fraction", 0.8, "-", "level 'near' above this fraction of the limit", 0.0, 1.0),
+    c.ParamSpec("topic_timeout_s", 10.0, "s", "error when no publisher offers the topic for this long", 0.1, 3600.0),
+    c.ParamSpec("settle_s", 1.0, "s", "a run's passage completes this long after its done record when no "
+                                      "later sample came", 0.0, 600.0),
+    c.ParamSpec("quiet_s", 10.0, "s", "without run records, a passage completes after this much quiet signal",
+                0.0, 3600.0),
+    c.ParamSpec("min_cycles", 5.0, "periods", "free decay needed to identify damping", 2.0, 1000.0),
+    c.ParamSpec("bandpass", True, "", "band-pass around the FFT peak before the fit"),
+    c.ParamSpec("json_path", "", "", "JSON file of the passages, rewritten after each; empty = none"),
+    c.ParamSpec("overwrite", False, "", "replace an existing json_path"),
+]
+
+
+class MonitorNode(c.ParamNodeMixin, Node):
+    """Subscribes, tracks passages, reports them; see the module docstring.
+
+    ``on_passage`` (optional) is called with every :class:`adm_sim.modal_id.Passage` after it is
+    logged; ``quiet``: log nothing (the launcher prints the lines itself, on stdout).
+    """
+
+    def __init__(self, on_passage=None, quiet=False, **kw):
+        super().__init__("monitor", **kw)
+        self.quiet = quiet
+        self.declare_specs(MONITOR_SPECS)
+        p = self.param_values()
+        track = p["track_type"] or None
+        if track is not None:
+            check_track_type("track_type", track)
+        self.topic = self.resolve_topic_name(p["topic"]) if p["topic"] else ""
+        if not self.topic:
+            raise InputError("topic: '' is empty; give the AccelStamped topic to monitor")
+        self.timeout_s = float(p["topic_timeout_s"])
+        self.on_passage = on_passage
+        self.json_path = p["json_path"] or None
+        if self.json_path is not None:
+            from adm_sim.files import claim_output
+
+            claim_output(self.json_path, "json_path", bool(p["overwrite"]), ".json",
+                         overwrite_hint="set -p overwrite:=true to replace it")
+        settings = IdentifySettings(min_cycles=float(p["min_cycles"]), bandpass=bool(p["bandpass"]))
+        self.tracker = PassageTracker(track_type=track, warn_fraction=float(p["warn_fraction"]), settings=settings,
+                                      on_passage=self._report, settle_s=float(p["settle_s"]),
+                                      quiet_s=float(p["quiet_s"]))
+        self.sub = self.create_subscription(AccelStamped, self.topic, self._on_accel, QOS_SAMPLES)
+        self.best_effort = False
+        ours = run_topics_for(self.topic)
+        status = p["status_topic"] or (ours[0] if ours else "")
+        if status:
+            self.create_subscription(String, status, self._on_status, c.QOS_CONTROL)
+        if ours:
+            self.create_subscription(String, ours[1], self._on_bridge, c.QOS_LATCHED)
+            self.create_subscription(String, ours[2], self._on_train, c.QOS_LATCHED)
+        self.started = time.monotonic()
+        self.seen = False
+        self.samples = 0
+        self.create_timer(0.2, self._tick)
+        self._log(f"monitoring {self.topic}" + (f" with run records on {status}" if status else ""))
+
+    # ------------------------------------------------------------------ callbacks
+    def _on_accel(self, msg):
+        t = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec  # the sample's own time
+        self.samples += 1
+        self.tracker.sample(t, msg.accel.linear.z, time.monotonic())
+
+    def _on_status(self, msg):
+        self.tracker.status(P.decode(msg.data), time.monotonic())
+
+    def _on_bridge(self, msg):
+        self.tracker.bridge_description(P.decode(msg.data))
+
+    def _on_train(self, msg):
+        self.tracker.train_description(P.decode(msg.data))
+
+    def _tick(self):
+        self.check_topic()
+        self.tracker.poll(time.monotonic())
+
+    # ------------------------------------------------------------------ graph
+    def check_topic(self):
+        """Raise :class:`InputError` when the topic has another type, or when no publisher offered
+        it within ``topic_timeout_s``; subscribe best effort when its publishers are best effort."""
+        infos = self.get_publishers_info_by_topic(self.topic)  # publishers only (our subscription is on it too)
+        types = sorted({i.topic_type for i in infos})
+        if types:
+            if ACCEL_TYPE not in types:
+                raise InputError(f"topic: {self.topic!r} has type {', '.join(types)}, not {ACCEL_TYPE}; give an "
+                                 f"AccelStamped topic")
+            if not self.seen:
+                self.seen = True
+                self._match_reliability()
+        elif not self.seen and time.monotonic() - self.started > self.timeout_s:
+            raise InputError(f"topic: {self.topic!r} did not appear within {self.timeout_s:g} s on "
+                             f"ROS_DOMAIN_ID {self._domain_id()}; check the name and the domain id")
+
+    def _domain_id(self):
+        try:
+            return self.context.get_domain_id()
+        except Exception:  # pragma: no cover - older rclpy
+            return "?"
+
+    def _match_reliability(self):
+        infos = self.get_publishers_info_by_topic(self.topic)
+        if infos and all(i.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT for i in infos) \
+                and not self.best_effort:
+            self.destroy_subscription(self.sub)
+            self.sub = self.create_subscription(AccelStamped, self.topic, self._on_accel, QOS_SAMPLES_BEST_EFFORT)
+            self.best_effort = True
+            self._log(f"{self.topic}: publishers are best effort; subscribed best effort")
+
+    # ------------------------------------------------------------------ reports
+    def _log(self, text):
+        if not self.quiet:
+            self.get_logger().info(text)
+
+    def _report(self, passage):
+        self._log(passage.line())
+        if self.json_path is not None:
+            self.write_json()
+        if self.on_passage is not None:
+            self.on_passage(passage)
+
+    def write_json(self):
+        from adm_sim.files import write_atomic
+
+        doc = passages_document(self.tracker, self.topic, "live")
+        write_atomic(self.json_path, lambda tmp: tmp.write_text(json.dumps(doc, indent=1) + "\n"), "json_path")
+
+    def finish(self):
+        """Complete every pending passage (the end of monitoring)."""
+        self.tracker.flush()
+
+
+def passages_document(tracker, topic, source):
+    """The JSON document of the passages: ``{"passages": [...], "topic", "source", "dropped_samples"}``."""
+    return {"passages": [p.to_dict() for p in tracker.passages], "topic": topic, "source": source,
+            "dropped_samples": tracker.dropped}
+
+
+def main(args=None):
+    import rclpy
+    from rclpy.executors import ExternalShutdownException
+
+    rclpy.init(args=args)
+    node = None
+    code = 0
+    try:
+        node = MonitorNode()
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except InputError as exc:
+        print(f"error: monitor: {' '.join(str(exc).split())}", file=sys.stderr, flush=True)
+        code = 2
+    finally:
+        if node is not None:
+            try:
+                node.finish()
+            except InputError as exc:  # the last JSON could not be written
+                print(f"error: monitor: {exc}", file=sys.stderr, flush=True)
+                code = code or 2
+            node.destroy_node()
+        rclpy.try_shutdown()
+        from adm_sim.files import release_all
+
+        release_all()
+    return code
+
+
+if __name__ == "__main__":
+    sys.exit(main())
