@@ -22,7 +22,7 @@ def launch(body, args):
     plausibility warnings as one ``warning: ...`` line each; the body's return value is the exit code."""
     import sys
 
-    from adm_sim.errors import interrupt_signals, plausibility_warnings
+    from adm_sim.cliutil import interrupt_signals, plausibility_warnings
 
     with interrupt_signals(), plausibility_warnings():
         try:

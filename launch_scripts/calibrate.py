@@ -130,7 +130,8 @@ def main(argv=None):
 
 
 def _main(args):
-    from adm_sim.errors import InputError, one_line
+    from adm_sim.errors import InputError
+    from adm_sim.cliutil import one_line
     from adm_sim.processes.dds_env import local_ros_env
 
     t_start = time.perf_counter()

@@ -27,7 +27,8 @@ from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, check_domain_id
                          check_viewer, discard_outputs, launch, prepare_out, release_out, run_graph)
 
 from adm_sim.cliutil import Parser, add_choice, add_domain_id, add_overwrite
-from adm_sim.errors import InputError, one_line
+from adm_sim.errors import InputError
+from adm_sim.cliutil import one_line
 from adm_sim.protocol import parse_driver_line
 
 

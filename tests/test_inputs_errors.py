@@ -5,9 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from adm_sim import errors
-from adm_sim.errors import (AdmSimError, InputError, RunError, check_choice, check_int, check_number, check_range,
-                            run_cli)
+from adm_sim import cliutil, errors
+from adm_sim.errors import AdmSimError, InputError, RunError
+from adm_sim.fields import check_choice, check_int, check_number, check_range
+from adm_sim.cliutil import run_cli
 
 
 def _raise(exc):
@@ -97,7 +98,8 @@ def test_one_line_warnings_as_the_nodes_print_them(capsys):
     previous display comes back at the end."""
     import warnings
 
-    from adm_sim.errors import PlausibilityWarning, one_line_warnings
+    from adm_sim.errors import PlausibilityWarning
+    from adm_sim.cliutil import one_line_warnings
 
     before = warnings.showwarning
     with one_line_warnings(prefix="bridge: ", categories=(Warning,), repeat=False):
@@ -108,7 +110,7 @@ def test_one_line_warnings_as_the_nodes_print_them(capsys):
     assert capsys.readouterr().err.splitlines() == [
         "warning: bridge: mu: 1e+06 kg/m is outside the plausible range",
         "warning: bridge: RuntimeWarning: overflow in exp"]
-    with errors.plausibility_warnings():  # the CLIs': every occurrence, no prefix
+    with cliutil.plausibility_warnings():  # the CLIs': every occurrence, no prefix
         for _ in range(2):
             warnings.warn("n0: 90 Hz is outside", PlausibilityWarning, stacklevel=1)
     assert capsys.readouterr().err.splitlines() == ["warning: n0: 90 Hz is outside"] * 2

@@ -17,7 +17,7 @@ Subcommands::
 
 Errors are one line ``error: ...`` on stderr: bad input exits with code 2, a run that fails for
 another reason (an unstable integration, a study cluster that fails) with 1, an interrupt with 130
-(:func:`adm_sim.errors.run_cli`). Output paths are checked before any computation; files are never
+(:func:`adm_sim.cliutil.run_cli`). Output paths are checked before any computation; files are never
 overwritten unless ``--overwrite`` (alias ``--force``) is given, and then replaced only by complete
 ones. Mass per length is kg/m in and out (t/m shown beside it).
 """
@@ -33,7 +33,9 @@ from adm_sim.files import claim_output, write_atomic
 from adm_sim.sim_commands import add_check_arguments, cmd_check
 from adm_sim.cliutil import (Parser, add_choice, add_dim_grid, add_overwrite, add_progress, add_speeds,
                              add_steps_per_period, check_option, option_help, option_view, progress_callback)
-from adm_sim.errors import InputError, RunError, check_range, run_cli
+from adm_sim.errors import InputError, RunError
+from adm_sim.fields import check_range
+from adm_sim.cliutil import run_cli
 
 #: Range of recommend --mu (kg/m): the 0.5-100 t/m the lower-bound rules accept (the registry's).
 MU_RANGE_KG_M = (option_view("--mu").lo, option_view("--mu").hi)

@@ -43,7 +43,8 @@ import numpy as np
 from scipy.optimize import elementwise
 
 from adm_sim.fields import FIELDS
-from adm_sim.errors import InputError, check_range
+from adm_sim.errors import InputError
+from adm_sim.fields import check_range
 from adm_sim.limits import MAX_DELTA_ZETA, default_speeds_kmh
 from adm_sim.stepping import StepOptions, make_grid, speeds_to_m_s
 

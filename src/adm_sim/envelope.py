@@ -68,8 +68,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from adm_sim._jit import njit  # numba compiles the search loop; without it the same source runs as plain Python
-from adm_sim.errors import InputError, check_range
-from adm_sim.limits import check_delta_zeta_pct
+from adm_sim.errors import InputError
+from adm_sim.fields import check_range
+from adm_sim.fields import check_delta_zeta_pct
 
 #: Longest free vibration followed after the last axle has left, in fundamental periods.
 MAX_FREE_PERIODS = 30.0

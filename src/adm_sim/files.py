@@ -1,9 +1,10 @@
 """One rule for the files of every entry point (CLIs, launch scripts, nodes, the study).
 
-Inputs (:func:`input_file`)
+Inputs (:func:`input_file`, :func:`read_toml`)
     A file read by a run must be a regular file: a folder, a named pipe (whose ``open`` for
     reading blocks until a writer appears), a socket or a device is refused with one line
-    before it is opened. An MCAP input (:func:`mcap_input`) must also start with the MCAP magic bytes.
+    before it is opened. An MCAP input (:func:`mcap_input`) must also start with the MCAP magic bytes;
+    a TOML input (bridge and train files) must parse.
 
 Outputs (:func:`claim_output`, :func:`write_atomic`)
     A file written by a run is checked before any work, by one function:
@@ -19,7 +20,7 @@ Outputs (:func:`claim_output`, :func:`write_atomic`)
     5. claimed with an exclusive ``fcntl.flock`` on a sidecar lock file ``.<name>.lock`` beside
        it, holding the claimer's pid: a second writer of the same file (another process, or the
        same process twice) is refused with one line naming the first. The claim lasts until
-       :func:`release` (:func:`adm_sim.errors.run_cli` releases every claim when a command
+       :func:`release` (:func:`adm_sim.cliutil.run_cli` releases every claim when a command
        ends; the kernel drops the lock when a process dies, so a killed run never blocks the next);
     6. written beside and renamed (:func:`write_atomic`): the path holds either its old content or
        the complete new one, never a half-written file.
@@ -35,12 +36,13 @@ import fcntl
 import os
 import stat
 import tempfile
+import tomllib
 from pathlib import Path
 
 from adm_sim.errors import InputError
 
-__all__ = ["claim_output", "claimed", "input_file", "is_input", "mcap_input", "lock_path", "probe_writable", "refuse_special", "release",
-           "release_all", "write_atomic"]
+__all__ = ["claim_output", "claimed", "input_file", "is_input", "mcap_input", "lock_path", "probe_writable", "read_toml",
+           "refuse_special", "release", "release_all", "write_atomic"]
 
 #: Claims held by this process: resolved output path -> (fd of the lock file, lock path).
 _CLAIMS: dict[Path, tuple[int, Path]] = {}
@@ -104,6 +106,21 @@ def is_input(path, inputs):
         except (OSError, RuntimeError):
             continue
     return None
+
+
+def read_toml(path, what):
+    """Parse a TOML input file; unreadable or invalid files raise :class:`InputError`.
+
+    ``what`` names the file's role in the message (``"bridge file"``, ``"train file"``).
+    """
+    p = Path(path)
+    refuse_special(p, f"{what} {str(p)!r}")
+    try:
+        return tomllib.loads(p.read_text())
+    except OSError as exc:
+        raise InputError(f"{what} {str(p)!r}: cannot read ({exc.strerror})") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(f"{what} {str(p)!r}: not valid TOML ({exc})") from None
 
 
 # ---------------------------------------------------------------------- outputs

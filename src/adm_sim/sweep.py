@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from adm_sim.errors import InputError, RunError
-from adm_sim.limits import check_delta_zeta_pct
+from adm_sim.fields import check_delta_zeta_pct
 from adm_sim.peaks import largest_interior_peak
 from adm_sim.stepping import (SPEED_RANGE_KMH, BridgeSide, InProcessRun, StepOptions, TrainSide,
                               check_model, make_grid, mlm_modal_load_table, speeds_to_m_s)

@@ -12,7 +12,8 @@ from functools import lru_cache
 
 import numpy as np
 
-from adm_sim.errors import InputError, check_range
+from adm_sim.errors import InputError
+from adm_sim.fields import check_range
 from adm_sim.limits import DEFAULT_SPEEDS
 
 from adm_calib.lower_bound import FIT_RANGE_MAX_HZ, LOWER_LIMIT_HZ  # noqa: F401  (re-exported for the study package)
@@ -137,7 +138,8 @@ def select_cases(trains=STUDY_TRAINS, mass_functions=MASS_FUNCTION_NAMES, spans_
 def _field():
     """The field as ``(span_m, freq_index, mass_function, bridge)``, in the order of
     :func:`adm_sim.bridge.parametric_field` (span, frequency index, mass function)."""
-    from adm_sim.bridge import FIELD_SPANS_M, MASS_FUNCTIONS, parametric_field
+    from adm_sim.bridge import parametric_field
+    from adm_sim.parametric import FIELD_SPANS_M, MASS_FUNCTIONS
 
     ids = [(float(L), fi, m) for L in FIELD_SPANS_M for fi in FREQ_INDICES for m in MASS_FUNCTIONS]
     field = parametric_field()
