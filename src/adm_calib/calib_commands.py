@@ -25,6 +25,8 @@ ones. Mass per length is kg/m in and out (t/m shown beside it).
 from __future__ import annotations
 
 import json
+import re
+import signal
 import sys
 import time
 from pathlib import Path
@@ -274,8 +276,6 @@ def _scheduler(text):
 
 
 def cmd_study(args):
-    import signal
-
     from adm_calib.study import StudySettings, canonical_trains, run_study, select_cases
 
     out, _ = _out_dir(args.out, "--out", (), True)
@@ -371,8 +371,6 @@ def _fit_range_hz(text):
 
 
 def _tag(text):
-    import re
-
     if text and not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,39}", text):
         raise InputError(f"--tag: {text!r} is not a file-name suffix; allowed 1-40 letters, digits, '_', '.', '-' "
                          f"(starting with a letter or digit)")

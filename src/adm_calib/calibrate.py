@@ -49,6 +49,7 @@ from adm_sim.limits import MAX_DELTA_ZETA, default_speeds_kmh
 from adm_sim.stepping import StepOptions, make_grid, speeds_to_m_s
 
 from adm_calib import peaks as pk
+from adm_calib.lanes import CompiledLanes, HookLanes, SteppedLanes
 from adm_calib.reference import adm_delta_zeta_pct, eada_for, lower_bound_for
 
 #: Default speed range (km/h), Section 3.3 (one home: :mod:`adm_sim.limits`).
@@ -853,8 +854,6 @@ def calibrate(bridge, train, speeds_kmh=None, options=None, progress=None, adapt
     -------
     CalibrationResult
     """
-    from adm_calib.lanes import CompiledLanes, HookLanes, SteppedLanes
-
     if backend not in BACKENDS:
         raise InputError(f"backend: {backend!r} is not known; allowed {', '.join(BACKENDS)}")
     opt = options or CalibrationOptions()
@@ -910,6 +909,4 @@ def calibrate_batch(bridges, train, speeds_kmh=None, options=None, step=None):
     opt = options or CalibrationOptions()
     v = _speeds(speeds_kmh)
     step = step or batch_step(bridges, train, v, opt)
-    from adm_calib.lanes import CompiledLanes  # lanes import this module's neighbours lazily too
-
     return calibrate_cases(bridges, train, CompiledLanes(bridges, train, step), v, opt, step)

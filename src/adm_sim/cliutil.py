@@ -238,7 +238,7 @@ def progress_bar(desc, total=None, enabled=None, unit="step", leave=False, **kwa
     installed, a bar that draws nothing.
     """
     try:
-        from tqdm import tqdm
+        from tqdm import tqdm  # noqa: PLC0415  tqdm loads with the first bar, not with every command
     except ImportError:  # pragma: no cover - tqdm is a declared dependency
         return _NoBar()
     kwargs.setdefault("mininterval", 0.2)
