@@ -23,6 +23,11 @@ def _raise(exc):
     (RunError("solution is not finite at step 3 of 9\n(stage 0)"), 1, "error: solution is not finite at step 3 of 9 (stage 0)\n"),
     (AdmSimError("node 'train' died"), 1, "error: node 'train' died\n"),
     (KeyboardInterrupt(), 130, "error: interrupted\n"),
+    # the system refuses a write (full disk, ulimit -f, a folder made read-only during the run)
+    (OSError(28, "No space left on device", "/data/out/r.json"), 1, "error: '/data/out/r.json': No space left on device\n"),
+    (OSError(27, "File too large"), 1, "error: File too large\n"),
+    (PermissionError(13, "Permission denied", "/data/out/run.mcap"), 1,
+     "error: '/data/out/run.mcap': Permission denied\n"),
 ])
 def test_run_cli_maps_the_root_to_one_line_and_an_exit_code(capsys, exc, code, line):
     assert run_cli(_raise(exc)) == code

@@ -34,15 +34,11 @@ from adm_sim.plausibility import check_bridge
 from adm_sim.fields import FIELDS, core
 from adm_sim.fields import view as field_view
 
-#: Allowed input ranges (SI): span, first frequency, mass per length, damping (fraction), modes; the
-#: field registry's (:mod:`adm_sim.fields`), named here for the callers that need the numbers.
+#: Allowed input ranges (SI): span, first frequency, modes; the field registry's
+#: (:mod:`adm_sim.fields`), named here for the callers that need the numbers.
 SPAN_RANGE_M = FIELDS["span_m"].range
 N0_RANGE_HZ = FIELDS["n0_hz"].range
-MU_RANGE_KG_M = FIELDS["mass_per_length_kg_m"].range
-ZETA_RANGE = FIELDS["damping_ratio"].range
 N_MODES_RANGE = FIELDS["n_modes"].range
-
-BRIDGE_TYPES = FIELDS["bridge_type"].choices
 
 
 @dataclass(frozen=True)
