@@ -31,7 +31,7 @@ import sys
 import time
 from pathlib import Path
 
-from adm_sim.files import check_output_folder, claim_output, make_output_folder, write_atomic
+from adm_sim.files import check_output_folder, claim_output, input_file, make_output_folder, write_atomic
 from adm_sim.sim_commands import add_check_arguments, cmd_check
 from adm_sim.cliutil import (Parser, add_choice, add_dim_grid, add_overwrite, add_progress, add_speeds,
                              add_steps_per_period, check_option, option_help, option_view, progress_callback, run_cli)
@@ -381,8 +381,6 @@ def cmd_study_fit(args):
     from adm_calib import plots
     from adm_calib import study as st
     from adm_calib.study.conservative import conservative_markdown, conservative_study, conservative_toml
-
-    from adm_sim.files import input_file
 
     res = input_file(args.results, "--results", "results file")
     rule = "strict" if args.exclude_flagged else args.exclude
