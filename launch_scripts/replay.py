@@ -30,7 +30,7 @@ locked ROS_DOMAIN_ID (printed on the first line).
 Exit status 0 on success, 2 with one line ``error: ...`` on bad input (checked before anything is
 read, written or started: RUN.mcap must be an MCAP file, OUT.rrd a new ``.rrd`` file in an existing
 folder unless ``--overwrite``, every number finite and in range), 1 with one line when the replay
-itself fails (:func:`adm_sim.errors.run_cli`).
+itself fails (:func:`adm_sim.cliutil.run_cli`).
 """
 
 from __future__ import annotations
@@ -45,7 +45,8 @@ import numpy as np
 
 from adm_sim import protocol as P
 from adm_sim.cliutil import Parser, add_domain_id, add_overwrite, option_help
-from adm_sim.errors import InputError, RunError, run_cli
+from adm_sim.errors import InputError, RunError
+from adm_sim.cliutil import run_cli
 from adm_sim.fields import view
 
 

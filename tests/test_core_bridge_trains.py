@@ -7,10 +7,10 @@ import subprocess
 import numpy as np
 import pytest
 
-from adm_sim.bridge import (Bridge, TABLE3, eurocode_damping_pct, field_frequencies_hz,
-                            load_bridge_file, named_bridge, parametric_field, parse_bridge_spec,
-                            resolve_bridge)
+from adm_sim.bridge import (Bridge, TABLE3, eurocode_damping_pct, load_bridge_file, named_bridge, parametric_field,
+                            parse_bridge_spec, resolve_bridge)
 from adm_sim.errors import InputError
+from adm_sim.parametric import field_frequencies_hz
 from adm_sim.trains import check_train, load_train, train_from_mapping
 
 

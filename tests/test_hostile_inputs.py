@@ -243,7 +243,7 @@ CASES = [
          setup=lambda t, ctx: _files(t, lower_bounds_fit__csv='{"bridge": "x", "train": "ICE-2"}\n')),
     Case("output-is-input", "crossing-out-holds-params",
          lambda t: CROSS + ["--out", str(t), "--params-file", f"{t}/summary.json", "--overwrite"],
-         "is an input of this launch", ros=True,
+         "is the --params-file file, an input of this run", ros=True,
          setup=lambda t, ctx: _files(t, summary__json="train:\n  ros__parameters:\n    model: mlm\n")),
     # --- existing outputs
     Case("output-exists", "driver-record-path", node("adm_sim.nodes.driver", "record_path:=keep.mcap"),

@@ -8,7 +8,8 @@
   function unchanged, so the same source runs as plain Python (slow, for debugging). numba is
   imported only when a module decorates a function with it (:mod:`adm_sim.kernels`,
   :mod:`adm_sim.envelope`), not by importing this module: the numpy stepper and the ROS nodes
-  start without loading numba.
+  start without loading numba. A compiled function whose on-disk cache cannot be written (a full
+  disk, ``ulimit -f``) runs from memory and is compiled again next time; the run goes on.
 """
 
 from __future__ import annotations
@@ -29,9 +30,28 @@ STAGE_ROW = np.array([int(round(2.0 * c)) for c in RK4_C])
 def njit(*args, **kwargs):
     """``numba.njit`` if numba is installed, else the identity decorator (same arguments)."""
     try:
-        from numba import njit as numba_njit
+        from numba import njit as numba_njit  # noqa: PLC0415  numba loads only with the kernels that need it
     except ImportError:  # pragma: no cover - numba is a declared dependency
         if args and callable(args[0]):
             return args[0]
         return lambda f: f
-    return numba_njit(*args, **kwargs)
+    if args and callable(args[0]):
+        return _cache_may_fail(numba_njit(*args, **kwargs))
+    decorate = numba_njit(*args, **kwargs)
+    return lambda f: _cache_may_fail(decorate(f))
+
+
+def _cache_may_fail(dispatcher):
+    """``dispatcher`` whose cache, when it cannot be saved (OSError: no space, file too large, a
+    read-only folder), is skipped: the compiled code is used from memory."""
+    cache = getattr(dispatcher, "_cache", None)
+    save = getattr(cache, "save_overload", None)
+    if save is not None:
+        def save_overload(sig, data):
+            try:
+                save(sig, data)
+            except OSError:
+                pass
+
+        cache.save_overload = save_overload
+    return dispatcher

@@ -50,7 +50,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from adm_sim.fields import FIELDS
-from adm_sim.errors import InputError, check_range
+from adm_sim.errors import InputError
+from adm_sim.fields import check_range
 
 #: Lowest speed of the check (m/s), EN 1991-2 6.4.6.2(1).
 MIN_SPEED_M_S = 40.0

@@ -24,8 +24,7 @@ import numpy as np
 
 from adm_sim import kernels
 from adm_sim.errors import InputError, RunError
-from adm_sim.fields import FIELDS
-from adm_sim.limits import check_delta_zeta_pct
+from adm_sim.fields import FIELDS, check_delta_zeta_pct
 from adm_sim.stepping import (FAILED, RUNNING, StepOptions, SteppedRun, check_model, half_step_positions,
                               make_grid, mlm_rk4_coefficients, modal_loads_at, speeds_to_m_s)
 from adm_sim.tables import active_units, axle_rows, bridge_tables, vehicle_tables

@@ -64,7 +64,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from adm_sim.errors import InputError, check_choice, check_range
+from adm_sim.errors import InputError
+from adm_sim.fields import check_choice, check_range
 
 #: Classification factors α allowed by EN 1991-2 6.3.2(3).
 LM71_ALPHAS = (0.75, 0.83, 0.91, 1.00, 1.10, 1.21, 1.33, 1.46)

@@ -2,7 +2,7 @@
 
 Errors are one line ``error: ...`` on stderr: bad input exits with code 2, a run that fails for
 another reason (e.g. an integration that became unstable) with 1, an interrupt with 130
-(:func:`adm_sim.errors.run_cli`). Mass per length is kg/m in and out (t/m shown beside it).
+(:func:`adm_sim.cliutil.run_cli`). Mass per length is kg/m in and out (t/m shown beside it).
 """
 
 from __future__ import annotations
@@ -15,7 +15,8 @@ from pathlib import Path
 from adm_sim.cliutil import (Parser, add_choice, add_delta_zeta_pct, add_overwrite, add_progress, add_speeds,
                              add_steps_per_period, check_option, option_help, option_view,
                              progress_callback)
-from adm_sim.errors import InputError, run_cli
+from adm_sim.errors import InputError
+from adm_sim.cliutil import run_cli
 from adm_sim.files import claim_output, mcap_input, write_atomic
 from adm_sim.figures import plot_check, plot_sweep
 from adm_sim.limits import ACC_LIMITS_M_S2, TRACK_ALIASES, check_track_type

@@ -59,8 +59,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from adm_sim._jit import RK4_C, RK4_W  # the RK4 tableau, shared with the numba kernels
-from adm_sim.errors import InputError, check_range
-from adm_sim.fields import FIELDS
+from adm_sim.errors import InputError
+from adm_sim.fields import FIELDS, check_range
 from adm_sim.tables import active_units, axle_rows, bridge_tables, vehicle_tables  # shared with the kernels
 
 SPEED_RANGE_KMH = FIELDS["speeds_kmh"].range

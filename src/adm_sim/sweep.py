@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from adm_sim.errors import InputError, RunError
-from adm_sim.limits import check_delta_zeta_pct
+from adm_sim.fields import check_delta_zeta_pct
 from adm_sim.peaks import largest_interior_peak
 from adm_sim.stepping import (SPEED_RANGE_KMH, BridgeSide, InProcessRun, StepOptions, TrainSide,
                               check_model, make_grid, mlm_modal_load_table, speeds_to_m_s)
@@ -134,7 +134,7 @@ def sweep_exact(bridge, train, speeds_kmh, delta_zeta=0.0, where="midspan"):
     ICE-2 at 16 steps per period). Returns ``(SweepResult, Envelope)``; the result's
     ``max_acc_m_s2`` / ``max_disp_m`` are taken at ``where`` (``"midspan"``, ``"deck"`` or x in m).
     """
-    from adm_sim.envelope import moving_load_envelope
+    from adm_sim.envelope import moving_load_envelope  # noqa: PLC0415  numba kernels: only the exact sweep needs them
 
     env = moving_load_envelope(bridge, train.axle_offsets_m, train.axle_loads_n, speeds_kmh,
                                delta_zeta=delta_zeta, where=where)

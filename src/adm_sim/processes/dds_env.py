@@ -123,8 +123,11 @@ def _try_lock(domain_id: int) -> DomainLock | None:
     except BlockingIOError:
         os.close(fd)
         return None
-    os.ftruncate(fd, 0)
-    os.write(fd, f"{os.getpid()}\n".encode())
+    try:  # the pid names the holder; the flock is the reservation (a full disk does not undo it)
+        os.ftruncate(fd, 0)
+        os.write(fd, f"{os.getpid()}\n".encode())
+    except OSError:
+        pass
     return DomainLock(domain_id, fd, path)
 
 
