@@ -17,10 +17,13 @@ Rules (each with its clause):
 * where: EN 1990 A2.4.4.2.1 limits the peak deck acceleration, not the midspan one (mode 2 has a
   node at midspan): ``where="deck"`` (default) takes the largest |a| over every position of the
   span, exact in time and position (:mod:`adm_sim.envelope`); ``"midspan"`` or a position x (m);
-* damping model (ζ per mode): ``rayleigh13`` (Rayleigh damping anchored at modes 1 and 3: mode 2
-  gets 0.625 ζ with 3 modes; the paper's Rayleigh damping, Section 2.1, does not name its anchors)
-  or ``modal`` (ζ of EN 1991-2 Table 6.6 on every mode, what EN 1991-2 6.4.6.3.1 implies); every
-  output states ζ of every mode used;
+* damping model (ζ per mode): ``modal`` (default: ζ of EN 1991-2 Table 6.6 on every mode, what
+  EN 1991-2 6.4.6.3.1 implies) or ``rayleigh13`` (Rayleigh damping anchored at modes 1 and 3: mode
+  2 gets 0.625 ζ with 3 modes; the paper's Rayleigh damping, Section 2.1, does not name its
+  anchors; the paper's reproduction keeps it); every output states ζ of every mode used;
+* verdict: the governing train, speed and position, every train within 5 % of the governing
+  value, and a warning for any train whose maximum lies at the first or last checked speed (the
+  resonance may lie outside the range);
 * damping: the bridge's ζ (Table 2 / EN 1991-2 Table 6.6 when given by type) plus Δζ by method:
   ``none``; ``adm`` the Eurocode ADM (EN 1991-2 6.4.6.3.1 Eq. (6.13), spans < 30 m; refused for
   L >= 30 m; :func:`adm_sim.design_loads.adm_delta_zeta_pct`); ``lb`` the paper's lower-bound
@@ -73,6 +76,8 @@ REFINE_MIN_FRACTION = 0.25
 COMFORT_LEVELS_M_S2 = (("very good", 1.0), ("good", 1.3), ("acceptable", 2.0))
 #: Spans below which HSLM-B applies instead of HSLM-A for simply supported bridges (EN 1991-2 6.4.6.1.1(5)).
 HSLM_B_SPAN_M = 7.0
+#: Trains whose largest acceleration is within this fraction of the governing one are named in the verdict.
+NEAR_GOVERNING_FRACTION = 0.05
 
 
 @dataclass
@@ -166,7 +171,7 @@ class CheckResult:
     screening: str
     timings_s: dict = field(default_factory=dict)
     where: object = "midspan"
-    damping_model: str = "rayleigh13"
+    damping_model: str = "modal"
     track_maintenance: str = "careful"
     alpha: float = 1.0
 
@@ -188,114 +193,40 @@ class CheckResult:
         t = max(self.trains, key=lambda c: c.max_acc_m_s2.max())
         return t, float(t.speeds_kmh[t.i_max]), float(t.max_acc_m_s2.max())
 
+    def near_governing(self, fraction=NEAR_GOVERNING_FRACTION):
+        """Every train whose largest acceleration is at least ``1 - fraction`` of the governing one,
+        largest first (the governing train included)."""
+        top = self.governing[2]
+        near = [c for c in self.trains if c.max_acc_m_s2.max() >= (1.0 - fraction) * top]
+        return sorted(near, key=lambda c: -c.max_acc_m_s2.max())
+
+    def range_end_maxima(self):
+        """``{"bottom": [...], "top": [...]}``: the trains whose largest acceleration lies at the first
+        or the last checked speed (a resonance may lie outside the range); empty ends left out."""
+        out = {"bottom": [], "top": []}
+        for c in self.trains:
+            i = c.i_max
+            if i == 0:
+                out["bottom"].append(c)
+            elif i == c.speeds_kmh.size - 1:
+                out["top"].append(c)
+        return {k: v for k, v in out.items() if v}
+
     @property
     def where_text(self):
         from adm_sim.envelope import where_text
 
         return where_text(self.where)
 
-    def damping_model_text(self):
-        """The damping model and the ζ of every mode of the bridge without Δζ."""
-        z = self.bridge.modal_damping_ratios(0.0)
-        modes = ", ".join(f"{100 * x:.4g} %" for x in z)
-        if self.damping_model == "modal":
-            how = "modal: zeta on every mode (EN 1991-2 6.4.6.3.1, Table 6.6)"
-        else:
-            how = "rayleigh13: Rayleigh damping anchored at modes 1 and 3"
-        return f"damping model {how}; zeta per mode {modes}"
-
-    def position_text(self, t):
-        x = t.x_max_m
-        if x is None:
-            return ""
-        return f", x = {x:.3f} m ({x / self.bridge.span_m:.3f} L)"
-
     @property
     def passed(self):
         return self.governing[2] <= self.limit_m_s2
 
     def summary(self):
-        b = self.bridge
-        v = self.speeds_kmh
-        lines = [b.describe(),
-                 f"speeds: {v.min():g} .. {v.max():g} km/h (40 m/s .. 1.2 x {self.max_line_speed_kmh:g} km/h, "
-                 f"EN 1991-2 6.4.6.2), {v.size} speeds at <= 1 km/h, refined at {REFINE_STEP_KMH:g} km/h "
-                 f"around every resonance",
-                 f"modes: {', '.join(str(j) for j in self.modes)} (EN 1990 A2.4.4.2.1: at least all modes up to "
-                 f"max(30 Hz, 1.5 n0, n3) = {self.f_limit_hz:.1f} Hz; "
-                 + ("every mode moves the deck)" if self.where != "midspan" else "even modes do not move midspan)"),
-                 f"acceleration: {self._where_sentence()}",
-                 f"{self.damping_model_text()}",
-                 f"damping: zeta = {100 * b.damping_ratio:.3g} % plus, per train:"]
-        for note in dict.fromkeys(f"  {c.damping_note}" for c in self.trains):
-            lines.append(note)
-        xs = self.where != "midspan"
-        lines.append(f"{'train':14s} {'max acc':>9s} {'at':>8s}" + (f" {'x':>7s}" if xs else "")
-                     + f" {'max disp':>9s} {'phi_dyn':>8s} {'dzeta':>7s}  zeta per mode")
-        lines.append(f"{'':14s} {'(m/s2)':>9s} {'(km/h)':>8s}" + (f" {'(m)':>7s}" if xs else "")
-                     + f" {'(mm)':>9s} {'(-)':>8s} {'(%)':>7s}  (%)")
-        for c in self.trains:
-            i = c.i_max
-            lines.append(f"{c.name:14s} {c.max_acc_m_s2[i]:9.4f} {c.speeds_kmh[i]:8.1f}"
-                         + (f" {c.x_max_m:7.3f}" if xs else "")
-                         + f" {1000 * c.midspan_disp_m.max():9.3f} {c.phi_dyn:8.3f} {c.delta_zeta_pct:7.3f}  "
-                         f"{c.zeta_text()}")
-        lines.append("max disp: midspan; phi_dyn = phi'_dyn = max |y_dyn / y_stat| - 1 at midspan (EN 1991-2 "
-                     "6.4.6.5(3), Eq. 6.14)")
-        lines.extend(self._design_lines())
-        for c in self.trains:
-            cd = c.comfort_dict()
-            if cd is not None:
-                lines.append(f"passenger comfort {c.name}: largest vertical car-body acceleration b_v = "
-                             f"{cd['b_v_m_s2']:.3f} m/s2 (DIM): {cd['level']} (EN 1990 A2.4.4.3: 1.0 very good, "
-                             f"1.3 good, 2.0 acceptable)")
-        t, sp, acc = self.governing
-        margin = self.limit_m_s2 - acc
-        what = {"deck": "max deck acceleration (whole deck)", "midspan": "max midspan acceleration"}.get(
-            self.where, f"max acceleration at {self.where_text}")
-        lines.append(f"governing: {t.name} at {sp:g} km/h{self.position_text(t)}, {what} {acc:.4f} m/s2; limit "
-                     f"{self.limit_m_s2:g} m/s2 ({self.track} track, EN 1990 A2.4.4.2.1): "
-                     f"{'PASS' if self.passed else 'FAIL'}, margin {margin:+.4f} m/s2 "
-                     f"({100 * margin / self.limit_m_s2:+.1f} % of the limit); damping model {self.damping_model} "
-                     f"(zeta per mode {t.zeta_text()} %)")
-        lines.append(self.screening)
-        return "\n".join(lines)
+        """The check as text (:func:`adm_sim.check_text.summary`)."""
+        from adm_sim.check_text import summary
 
-    def _design_lines(self):
-        """EN 1991-2 6.4.6.5(3): the midspan moment and deflection per train against Φ x α x LM71."""
-        comps = [c.design for c in self.trains if c.design is not None]
-        if not comps:
-            return []
-        d0 = comps[0]
-        phi = "Phi2 (careful maintenance, 6.4.5.2(2))" if self.track_maintenance == "careful" else \
-            "Phi3 (standard maintenance, 6.4.5.2(3))"
-        out = [f"EN 1991-2 6.4.6.5(3), midspan of the simply supported span: (1 + phi'_dyn + phi''/2) x train "
-               f"vs {phi} = {d0.Phi:.3f} x alpha = {d0.alpha:g} x LM71 (6.3.2); phi'' = {d0.phi_dd:.4f} (Annex C, "
-               f"v = {self.max_line_speed_kmh:g} km/h); alpha x LM71 static: M {d0.lm71_static_moment_Nm / 1e3:.1f} kNm, "
-               f"w {1e3 * d0.lm71_static_deflection_m:.3f} mm",
-               f"{'train':14s} {'phi_M':>7s} {'M design':>10s} {'M/LM71':>7s} {'phi_w':>7s} {'w design':>9s} "
-               f"{'w/LM71':>7s}",
-               f"{'':14s} {'(-)':>7s} {'(kNm)':>10s} {'(-)':>7s} {'(-)':>7s} {'(mm)':>9s} {'(-)':>7s}"]
-        for c in self.trains:
-            d = c.design
-            if d is None:
-                continue
-            out.append(f"{c.name:14s} {d.phi_dyn_moment:7.3f} {d.train_design_moment_Nm / 1e3:10.1f} "
-                       f"{d.ratio_moment:7.3f} {d.phi_dyn_deflection:7.3f} {1e3 * d.train_design_deflection_m:9.3f} "
-                       f"{d.ratio_deflection:7.3f}")
-        for e, d in self.design_governing().items():
-            side = "the train" if getattr(d, f"governs_{e}") == "train" else "Phi x alpha x LM71"
-            out.append(f"design {e}: governed by {side} (largest train ratio {getattr(d, f'ratio_{e}'):.3f}, "
-                       f"{d.train})")
-        return out
-
-    def _where_sentence(self):
-        if self.where == "deck":
-            return ("largest |a| anywhere on the deck (EN 1990 A2.4.4.2.1), exact in time and position "
-                    "(adm_sim.envelope: closed form, Newton in (t, x))")
-        if self.where == "midspan":
-            return "at midspan only (--where midspan; the standard limits the whole deck)"
-        return f"at {self.where_text} only (--where; the standard limits the whole deck)"
+        return summary(self)
 
     def to_dict(self):
         t, sp, acc = self.governing
@@ -308,6 +239,9 @@ class CheckResult:
                 "governing": {"train": t.name, "speed_kmh": sp, "acc_m_s2": acc, "x_m": t.x_max_m,
                               "where": self.where, "zeta_per_mode_pct": [100 * z for z in t.zeta]},
                 "verdict": "pass" if self.passed else "fail", "margin_m_s2": self.limit_m_s2 - acc,
+                "near_governing": [{"train": c.name, "acc_m_s2": float(c.max_acc_m_s2.max()),
+                                    "speed_kmh": float(c.speeds_kmh[c.i_max])} for c in self.near_governing()],
+                "range_end_maxima": {k: [c.name for c in v] for k, v in self.range_end_maxima().items()},
                 "screening": self.screening, "timings_s": self.timings_s,
                 "track_maintenance": self.track_maintenance, "alpha": self.alpha,
                 "en1991_2_6_4_6_5_governing": {e: {"train": d.train, "governs": getattr(d, f"governs_{e}"),
@@ -521,7 +455,7 @@ def _refinement(speeds, acc, extra, vmin, vmax):
 
 def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="none", step_kmh=1.0,
               progress=None, calibrate_options=None, comfort=False, n_modes=None, where="deck",
-              damping_model=None, track_maintenance="careful", alpha=1.0, damping_provider=None):
+              damping_model="modal", track_maintenance="careful", alpha=1.0, damping_provider=None):
     """The dynamic check of ``bridge`` for ``trains`` (see the module doc).
 
     Parameters
@@ -547,9 +481,10 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
     where : {"deck", "midspan"} or float or str
         Where the acceleration is taken: anywhere on the deck (default, EN 1990 A2.4.4.2.1), at
         midspan, or at a position x (m, 0 < x < L; text ``"x=<m>"`` accepted).
-    damping_model : {"rayleigh13", "modal"}, optional
-        ζ per mode: Rayleigh anchored at modes 1 and 3, or ζ on every mode; default the bridge's
-        own ``damping_model`` ("rayleigh" is rayleigh13).
+    damping_model : {"rayleigh13", "modal"} or None
+        ζ per mode: ζ on every mode (default, what EN 1991-2 6.4.6.3.1 implies) or Rayleigh
+        anchored at modes 1 and 3; ``None`` takes the bridge's own ``damping_model``
+        ("rayleigh" is rayleigh13).
     track_maintenance : {"careful", "standard"}
         Track maintenance for the dynamic factor Φ of LM71 in EN 1991-2 6.4.6.5(3): Φ2 (careful,
         6.4.5.2(2)) or Φ3 (standard, 6.4.5.2(3)); φ'' of Annex C enters as φ''/2 either way.

@@ -271,10 +271,9 @@ def add_check_arguments(c):
     c.add_argument("--alpha", default="1.0",
                    help="LM71 classification factor alpha, EN 1991-2 6.3.2(3): 0.75, 0.83, 0.91, 1.00 (default), "
                         "1.10, 1.21, 1.33, 1.46")
-    c.add_argument("--damping-model", default=None,
-                   help="damping per mode: rayleigh13 (Rayleigh anchored at modes 1 and 3; mode 2 gets 0.625 zeta "
-                        "with 3 modes) or modal (zeta on every mode, EN 1991-2 6.4.6.3.1); default: the bridge's "
-                        "own (rayleigh13 unless its file says damping_model = \"modal\")")
+    c.add_argument("--damping-model", default="modal",
+                   help="damping per mode: modal (default: zeta on every mode, what EN 1991-2 6.4.6.3.1 implies) or "
+                        "rayleigh13 (Rayleigh anchored at modes 1 and 3; mode 2 gets 0.625 zeta with 3 modes)")
     c.add_argument("--speed-step", type=float, default=1.0, help=option_help("--speed-step", "speed step"))
     c.add_argument("--modes", type=float, help="more modes than EN 1990 A2.4.4.2.1 asks for (default: exactly those)")
     c.add_argument("--comfort", action="store_true",
