@@ -97,6 +97,32 @@ def design_lines(res):
     return out
 
 
+def effects_lines(res):
+    """EN 1991-2 6.4.6.5(3) for every effect along the span: the governing train per effect and section."""
+    gov = res.effects_governing()
+    if not gov:
+        return []
+    t0 = gov[0][0]
+    d0 = gov[0][1]
+    share = "phi''/2 (careful maintenance, Annex C (C.1))" if d0.phi_dd_factor == 0.5 else \
+        "phi'' (standard maintenance, Annex C (C.2))"
+    out = [f"EN 1991-2 6.4.6.5(3), every effect: (1 + phi'_dyn + {share}) x train vs Phi = {d0.Phi:.3f} x alpha "
+           f"x LM71 (distributed load on the unfavourable part of each influence line); phi'_dyn by the "
+           f"mode-acceleration method: {t0.effects.n_modes} modes dynamic plus the exact static effect "
+           f"(every mode), sections every L/10; M in kNm, V and reactions in kN",
+           f"{'effect':16s} {'train':10s} {'phi_dyn':>8s} {'at':>7s} {'static':>9s} {'design':>9s} "
+           f"{'Phi LM71':>9s} {'ratio':>6s}",
+           f"{'':16s} {'':10s} {'(-)':>8s} {'(km/h)':>7s} {'':>9s} {'':>9s} {'':>9s} {'(-)':>6s}"]
+    for t, d, i in gov:
+        out.append(f"{d.effect.label:16s} {t.name:10s} {d.phi_dyn:8.3f} {t.effects.at_speed_kmh[i]:7.1f} "
+                   f"{d.train_static / 1e3:9.1f} {d.train_design / 1e3:9.1f} {d.lm71_design / 1e3:9.1f} "
+                   f"{d.ratio:6.3f}")
+    t, d, _ = max(gov, key=lambda g: g[1].ratio)
+    side = "the train" if d.ratio > 1.0 else "Phi x alpha x LM71"
+    out.append(f"every effect: governed by {side} (largest ratio {d.ratio:.3f}: {d.effect.label}, {t.name})")
+    return out
+
+
 def comfort_lines(res):
     out = []
     for c in res.trains:
@@ -145,6 +171,7 @@ def summary(res):
     lines.extend(dict.fromkeys(f"  {c.damping_note}" for c in res.trains))
     lines.extend(train_table_lines(res))
     lines.extend(design_lines(res))
+    lines.extend(effects_lines(res))
     lines.extend(comfort_lines(res))
     lines.extend(verdict_lines(res))
     lines.append(res.screening)
