@@ -587,6 +587,9 @@ def test_default_is_modal_damping_b1_250_passes_closed_form():
     text = res.summary()
     assert "within 5 % of the governing value: HSLM-A1 3.3220 m/s2 at 267.7 km/h (-2.1 %)" in text
     assert "WARNING" not in text and res.range_end_maxima() == {}
+    assert "vertical deflection under Phi x alpha x LM71 = 1.212 x 1 x LM71: 3.843 mm" in text
+    assert text.splitlines()[-1].startswith("not checked: deck twist (EN 1990 A2.4.4.2.2); track-bridge interaction")
+    assert "fatigue (EN 1991-2 6.4.6.6)" in res.to_dict()["not_checked"]
     ray = run_check(b, 250.0, resolve_trains("HSLM-A1,HSLM-A7"), damping_model="rayleigh13")
     assert not ray.passed and ray.governing[2] == pytest.approx(3.5684, abs=1e-4)
     assert [c.name for c in ray.near_governing()] == ["HSLM-A7", "HSLM-A1"]

@@ -125,3 +125,65 @@ def test_phi_dd_share_by_maintenance():
                             train_static=1e6, lm71_static=2e6)
     assert c.train_design == pytest.approx(1.7e6) and c.ratio == pytest.approx(1.7 / 2.6)
     assert math.isclose(dataclasses.replace(c, phi_dd_factor=0.5).train_design, 1.6e6)
+
+
+# ---------------------------------------------------------------------- EN 1990 A2.4.4 serviceability
+def test_lm71_deflection_and_end_rotation_by_hand():
+    """The largest deflection of LM71 on a span is at midspan for a symmetric group: equal to the exact
+    midspan maximum of design_loads (3e-7, the trapezoid rule of the distributed load); on B1
+    Φ2 x LM71 = 1.212 x 3.171 = 3.843 mm < L/600 = 25 mm. End rotation: a point force P at a gives
+    P a (L - a)(2L - a) / (6 EJ L), checked against its sine series sum_j 2 P sin(j pi a / L) / (L EJ k_j^3)
+    (1/j^3, 400 terms); the distributed load alone q L^3 / (24 EJ); LM71 on 15 m: the maximum over the
+    group position, brute force on a 0.5 mm grid with the distributed load integrated by the same
+    formula's antiderivative checked against scipy's quad."""
+    from scipy.integrate import quad
+
+    from adm_sim import check_sls as sls
+
+    L, EJ = 15.0, 1e10
+    w, x = sls.lm71_max_deflection(L, EJ)
+    assert w == pytest.approx(lm71_midspan(L, EJ).deflection_m, rel=1e-6) and x == 7.5
+    b1 = named_bridge("B1")
+    res = sls.serviceability(b1, 1.44 / (math.sqrt(15.0) - 0.2) + 0.82, 1.0, "ballasted", 2.0)
+    assert res.deflection_m == pytest.approx(3.843e-3, abs=1e-6) and res.deflection_ok and res.lateral_ok
+    P, a = 1e5, 4.0
+    k = np.arange(1, 401) * np.pi / L
+    series = (2 * P * np.sin(k * a) / (L * EJ * k**3)).sum()
+    closed = P * a * (L - a) * (2 * L - a) / (6 * EJ * L)
+    assert closed == pytest.approx(series, rel=1e-6)
+    point = lambda u: u * (L - u) * (2 * L - u) / (6 * EJ * L)  # noqa: E731
+    assert quad(point, 0, L)[0] * 80e3 == pytest.approx(80e3 * L**3 / (24 * EJ), rel=1e-12)
+    from scipy.optimize import minimize_scalar
+
+    c = np.array([-2.4, -0.8, 0.8, 2.4])
+
+    def theta(d):
+        u = d + c
+        u = u[(u >= 0) & (u <= L)]
+        lo, hi = min(max(d - 3.2, 0.0), L), min(max(d + 3.2, 0.0), L)
+        return 250e3 * point(u).sum() + 80e3 * (quad(point, 0, lo)[0] + quad(point, hi, L)[0])
+
+    grid = np.arange(-3.2, L + 3.2, 0.01)
+    d0 = grid[np.argmax([theta(d) for d in grid])]
+    opt = minimize_scalar(lambda d: -theta(d), bounds=(d0 - 0.02, d0 + 0.02), method="bounded",
+                          options={"xatol": 1e-9})
+    best = max(-opt.fun, theta(d0))
+    got = sls.lm71_end_rotation(L, EJ)
+    assert got == pytest.approx(best, rel=1e-6)
+
+
+@pytest.mark.parametrize("value,line", [
+    ("abc", "error: --lateral-frequency: 'abc' is not a frequency; give the first lateral natural frequency of "
+            "the span in Hz, > 0\n"),
+    ("-1", "error: --lateral-frequency: '-1' Hz is not a frequency; allowed (0, inf) Hz (EN 1990 A2.4.4.2.4(3) "
+           "asks for at least 1.2 Hz)\n"),
+])
+def test_lateral_frequency_bad_input(tmp_path, value, line):
+    import subprocess
+    import sys
+
+    js = tmp_path / "c.json"
+    r = subprocess.run([sys.executable, "-m", "adm_sim.sim_commands", "check", "--max-line-speed", "250",
+                        "--trains", "HSLM-A1", "--lateral-frequency", value, "--json", str(js)],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 2 and r.stderr == line and not js.exists()

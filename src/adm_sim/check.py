@@ -196,6 +196,7 @@ class CheckResult:
     damping_model: str = "modal"
     track_maintenance: str = "careful"
     alpha: float = 1.0
+    sls: object = None  # adm_sim.check_sls.Serviceability (EN 1990 A2.4.4 beside the acceleration)
 
     def design_governing(self):
         """Per effect, the train whose EN 1991-2 6.4.6.5(3) design value is largest against
@@ -227,6 +228,12 @@ class CheckResult:
         """(train check, speed km/h, acceleration m/s^2) of the largest acceleration."""
         t = max(self.trains, key=lambda c: c.max_acc_m_s2.max())
         return t, float(t.speeds_kmh[t.i_max]), float(t.max_acc_m_s2.max())
+
+    def not_checked(self):
+        """What this check does not cover, each with its clause (:data:`adm_sim.check_sls.NOT_CHECKED`)."""
+        from adm_sim.check_sls import NOT_CHECKED
+
+        return NOT_CHECKED
 
     def near_governing(self, fraction=NEAR_GOVERNING_FRACTION):
         """Every train whose largest acceleration is at least ``1 - fraction`` of the governing one,
@@ -290,6 +297,8 @@ class CheckResult:
                 "effects_modes": None if not self.trains or self.trains[0].effects is None else {
                     "dynamic_modes": self.trains[0].effects.n_modes,
                     "method": "mode-acceleration (exact static effect + dynamic correction of the modes used)"},
+                "en1990_a2_4_4_serviceability": None if self.sls is None else self.sls.to_dict(),
+                "not_checked": list(self.not_checked()),
                 "trains": [c.to_dict() for c in self.trains]}
 
     def write_csv(self, path):
@@ -498,7 +507,8 @@ def _refinement(speeds, acc, extra, vmin, vmax):
 
 def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="none", step_kmh=1.0,
               progress=None, calibrate_options=None, comfort=False, n_modes=None, where="deck",
-              damping_model="modal", track_maintenance="careful", alpha=1.0, damping_provider=None):
+              damping_model="modal", track_maintenance="careful", alpha=1.0, damping_provider=None,
+              lateral_frequency_hz=None):
     """The dynamic check of ``bridge`` for ``trains`` (see the module doc).
 
     Parameters
@@ -533,6 +543,9 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
         6.4.5.2(2)) or Φ3 (standard, 6.4.5.2(3)); φ'' of Annex C enters as φ''/2 either way.
     alpha : float
         Classification factor α of LM71 (EN 1991-2 6.3.2(3)).
+    lateral_frequency_hz : float, optional
+        First lateral natural frequency of the span (Hz), given by the user, checked against
+        EN 1990 A2.4.4.2.4(3)'s 1.2 Hz (:mod:`adm_sim.check_sls`).
     damping_provider : callable(bridge, train, method, calibrate_options) -> (pct, note), optional
         Δζ (%) and its sentence for ``lb`` and ``vbi``; adm-calib passes
         :func:`adm_calib.check.calibrated_damping`. The core never imports adm_calib.
@@ -566,6 +579,10 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
         alpha = check_alpha(alpha)
     except InputError as exc:
         raise InputError(f"alpha: {str(exc).partition(': ')[2]}", field="alpha") from None
+    from adm_sim.check_sls import check_lateral_frequency
+
+    if lateral_frequency_hz is not None:
+        lateral_frequency_hz = check_lateral_frequency(lateral_frequency_hz)
     if bridge.span_m < HSLM_B_SPAN_M and any(_is_hslm(t) for t in trains):
         raise InputError(f"trains: HSLM-A applies to spans >= {HSLM_B_SPAN_M:g} m; this bridge spans "
                          f"{bridge.span_m:g} m, where EN 1991-2 6.4.6.1.1(5) asks for HSLM-B, which adm-sim "
@@ -635,7 +652,11 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
         out.append(tc)
         if progress is not None:
             progress(n + 1, len(trains))
-    return CheckResult(bridge=b, max_line_speed_kmh=float(max_line_speed_kmh), track=track, damping=damping,
+    from adm_sim.check_sls import serviceability
+    from adm_sim.design_loads import dynamic_factor
+
+    sls = serviceability(b, dynamic_factor(b.span_m, track_maintenance), alpha, track, lateral_frequency_hz)
+    return CheckResult(bridge=b, max_line_speed_kmh=float(max_line_speed_kmh), track=track, damping=damping, sls=sls,
                        speeds_kmh=speeds, trains=out, modes=tuple(int(j) for j in b.mode_numbers),
                        f_limit_hz=f_lim, screening=screening(b, float(max_line_speed_kmh)),
                        timings_s={"damping": t_damp, "envelopes": time.perf_counter() - t_start - t_damp},

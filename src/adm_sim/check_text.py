@@ -174,5 +174,8 @@ def summary(res):
     lines.extend(effects_lines(res))
     lines.extend(comfort_lines(res))
     lines.extend(verdict_lines(res))
+    if res.sls is not None:
+        lines.extend(res.sls.lines())
     lines.append(res.screening)
+    lines.append("not checked: " + "; ".join(res.not_checked()))
     return "\n".join(lines)

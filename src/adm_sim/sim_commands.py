@@ -134,6 +134,13 @@ def cmd_check(args, damping_provider=None):
     if args.damping_model is not None and args.damping_model not in DAMPING_MODELS:
         raise InputError(f"--damping-model: {args.damping_model!r} is not allowed; allowed {', '.join(DAMPING_MODELS)}")
     trains = resolve_trains(args.trains)
+    if args.lateral_frequency is not None:
+        from adm_sim.check_sls import check_lateral_frequency
+
+        try:  # refused before any work, named by its flag
+            check_lateral_frequency(args.lateral_frequency)
+        except InputError as exc:
+            raise InputError("--lateral-frequency" + str(exc)[len("lateral_frequency"):]) from None
     track = check_track_type("--track", args.track, aliases=True)  # one vocabulary: direct -> direct_fastening
     cb, close = progress_callback("check", None if args.progress is None else args.progress)
     t0 = time.perf_counter()
@@ -142,7 +149,7 @@ def cmd_check(args, damping_provider=None):
                         step_kmh=args.speed_step, progress=cb, comfort=args.comfort, n_modes=args.modes,
                         where=args.where, damping_model=args.damping_model,
                         track_maintenance=args.track_maintenance, alpha=args.alpha,
-                        damping_provider=damping_provider)
+                        damping_provider=damping_provider, lateral_frequency_hz=args.lateral_frequency)
     finally:
         close()
     wall = time.perf_counter() - t0
@@ -274,6 +281,9 @@ def add_check_arguments(c):
     c.add_argument("--damping-model", default="modal",
                    help="damping per mode: modal (default: zeta on every mode, what EN 1991-2 6.4.6.3.1 implies) or "
                         "rayleigh13 (Rayleigh anchored at modes 1 and 3; mode 2 gets 0.625 zeta with 3 modes)")
+    c.add_argument("--lateral-frequency", default=None,
+                   help="first lateral natural frequency of the span (Hz), checked against 1.2 Hz "
+                        "(EN 1990 A2.4.4.2.4(3)); not checked without it")
     c.add_argument("--speed-step", type=float, default=1.0, help=option_help("--speed-step", "speed step"))
     c.add_argument("--modes", type=float, help="more modes than EN 1990 A2.4.4.2.1 asks for (default: exactly those)")
     c.add_argument("--comfort", action="store_true",
