@@ -616,3 +616,43 @@ def test_maximum_at_the_top_of_the_range_is_flagged():
     c = wider.trains[0]
     assert "top" not in wider.range_end_maxima() and 355.0 < c.speeds_kmh[c.i_max] < 384.0
     assert c.max_acc_m_s2.max() > a8.max_acc_m_s2.max()
+
+
+def test_mass_and_stiffness_bounds_follow_the_scaling_laws():
+    """EN 1991-2 6.4.6.3.2/3 bounds: the check runs at every bound and the verdict is the envelope. The
+    modal beam scales exactly: mass x c moves every response to the speed v / sqrt(c) with the same
+    deflection and the acceleration / c; stiffness x c moves it to v sqrt(c) with the same acceleration.
+    B1, HSLM-A7, V = 250 km/h: nominal 3.3932 m/s2 at 238.1 km/h (PASS); mass -10 %: 3.3932 / 0.9 =
+    3.770 m/s2 at 251.0 km/h, which FAILs the envelope; mass +15 %: 3.3932 / 1.15 = 2.951; stiffness -10 %:
+    3.3932 at 225.9 km/h (the speed grids differ: 2e-4)."""
+    b = named_bridge("B1")
+    res = run_check(b, 250.0, resolve_trains("HSLM-A7"), mass_bounds=(-0.1, 0.15), stiffness_bounds=(-0.1, 0.0))
+    nominal = res.governing[2]
+    cases = dict(res.bounds)
+    assert list(cases) == ["mass lower bound -10 % (6.4.6.3.2)", "mass upper bound +15 % (6.4.6.3.2)",
+                           "stiffness lower bound -10 % (6.4.6.3.3)"]
+    lo = cases["mass lower bound -10 % (6.4.6.3.2)"]
+    assert lo.governing[2] == pytest.approx(nominal / 0.9, rel=2e-4)
+    assert lo.governing[1] == pytest.approx(res.governing[1] / math.sqrt(0.9), abs=0.6)
+    assert cases["mass upper bound +15 % (6.4.6.3.2)"].governing[2] == pytest.approx(nominal / 1.15, rel=2e-4)
+    st = cases["stiffness lower bound -10 % (6.4.6.3.3)"]
+    assert st.governing[2] == pytest.approx(nominal, rel=2e-4)
+    assert st.governing[1] == pytest.approx(res.governing[1] * math.sqrt(0.9), abs=0.6)
+    label, t, v, a = res.envelope_governing()
+    assert label.startswith("mass lower bound") and a == lo.governing[2] and not res.passed
+    assert res.to_dict()["verdict"] == "fail" and "mass and stiffness bounds" not in " ".join(res.not_checked())
+    assert "envelope over the bounds: 3.770" in res.summary()
+
+
+@pytest.mark.parametrize("args,line", [
+    (["--mass-bounds=-0.7,0.1"], "error: --mass-bounds: lower bound -0.7 is out of range; allowed [-0.5, 0] "
+                                 "(a fraction of the nominal value)\n"),
+    (["--stiffness-bounds", "0.1"], "error: --stiffness-bounds: '0.1' is not two fractions; give lower,upper, e.g. "
+                                    "-0.10,0.15 (lower in [-0.5, 0], upper in [0, 1])\n"),
+    (["--mass-bounds=-0.1,x"], "error: --mass-bounds: upper bound 'x' is not a number; allowed [0, 1] (a fraction "
+                               "of the nominal value)\n"),
+])
+def test_bounds_bad_input(tmp_path, args, line):
+    js = tmp_path / "c.json"
+    r = run("check", "--max-line-speed", "250", "--trains", "HSLM-A1", "--json", str(js), *args)
+    assert r.returncode == 2 and r.stderr == line and not js.exists()

@@ -197,6 +197,7 @@ class CheckResult:
     track_maintenance: str = "careful"
     alpha: float = 1.0
     sls: object = None  # adm_sim.check_sls.Serviceability (EN 1990 A2.4.4 beside the acceleration)
+    bounds: tuple = ()  # ((label, CheckResult), ...): mass and stiffness bounds, EN 1991-2 6.4.6.3.2/3
 
     def design_governing(self):
         """Per effect, the train whose EN 1991-2 6.4.6.5(3) design value is largest against
@@ -233,7 +234,7 @@ class CheckResult:
         """What this check does not cover, each with its clause (:data:`adm_sim.check_sls.NOT_CHECKED`)."""
         from adm_sim.check_sls import NOT_CHECKED
 
-        return NOT_CHECKED
+        return tuple(x for x in NOT_CHECKED if not (self.bounds and x.startswith("mass and stiffness bounds")))
 
     def near_governing(self, fraction=NEAR_GOVERNING_FRACTION):
         """Every train whose largest acceleration is at least ``1 - fraction`` of the governing one,
@@ -262,7 +263,16 @@ class CheckResult:
 
     @property
     def passed(self):
-        return self.governing[2] <= self.limit_m_s2
+        """The verdict of the envelope over the nominal bridge and every bound."""
+        return self.envelope_governing()[3] <= self.limit_m_s2
+
+    def envelope_governing(self):
+        """(case label, train check, speed km/h, acceleration m/s^2) of the largest acceleration over the
+        nominal bridge and every mass and stiffness bound (EN 1991-2 6.4.6.3.2/3)."""
+        cases = [("nominal", self)] + list(self.bounds)
+        label, res = max(cases, key=lambda c: c[1].governing[2])
+        t, v, a = res.governing
+        return label, t, v, a
 
     def summary(self):
         """The check as text (:func:`adm_sim.check_text.summary`)."""
@@ -298,6 +308,11 @@ class CheckResult:
                     "dynamic_modes": self.trains[0].effects.n_modes,
                     "method": "mode-acceleration (exact static effect + dynamic correction of the modes used)"},
                 "en1990_a2_4_4_serviceability": None if self.sls is None else self.sls.to_dict(),
+                "bounds": [{"case": label, "n0_hz": r.bridge.n0_hz, "mass_per_length_kg_m": r.bridge.mass_per_length_kg_m,
+                            "EJ_Nm2": r.bridge.EJ_Nm2, "governing_train": r.governing[0].name,
+                            "speed_kmh": r.governing[1], "acc_m_s2": r.governing[2]} for label, r in self.bounds],
+                "envelope_governing": dict(zip(("case", "train", "speed_kmh", "acc_m_s2"),
+                                               (lambda g: (g[0], g[1].name, g[2], g[3]))(self.envelope_governing()))),
                 "not_checked": list(self.not_checked()),
                 "trains": [c.to_dict() for c in self.trains]}
 
@@ -356,6 +371,50 @@ def resolve_trains(spec):
             raise InputError(f"trains: {t.name!r} is given twice in {spec!r}; give every train once", field="trains")
         seen.add(t.name)
     return trains
+
+
+#: Allowed range of the lower and of the upper bound (fractions of the nominal value).
+BOUND_RANGES = ((-0.5, 0.0), (0.0, 1.0))
+
+
+def parse_bounds(value, field):
+    """``(lower, upper)`` fractions from ``"-0.1,0.15"`` or a pair; lower in [-0.5, 0], upper in [0, 1];
+    ``None`` stays None. One-line InputError naming ``field`` otherwise."""
+    if value is None:
+        return None
+    parts = str(value).split(",") if isinstance(value, str) else list(value)
+    if len(parts) != 2:
+        raise InputError(f"{field}: {value!r} is not two fractions; give lower,upper, e.g. -0.10,0.15 "
+                         f"(lower in [-0.5, 0], upper in [0, 1])", field=field)
+    out = []
+    for x, (lo, hi), which in zip(parts, BOUND_RANGES, ("lower", "upper")):
+        try:
+            f = float(x)
+        except (TypeError, ValueError):
+            raise InputError(f"{field}: {which} bound {x!r} is not a number; allowed [{lo:g}, {hi:g}] "
+                             f"(a fraction of the nominal value)", field=field) from None
+        if not (lo <= f <= hi):
+            raise InputError(f"{field}: {which} bound {f:g} is out of range; allowed [{lo:g}, {hi:g}] "
+                             f"(a fraction of the nominal value)", field=field)
+        out.append(f)
+    return tuple(out)
+
+
+def bound_cases(bridge, mass_bounds=None, stiffness_bounds=None):
+    """``[(label, bridge), ...]`` of the mass and stiffness bounds (EN 1991-2 6.4.6.3.2/3)."""
+    mb = parse_bounds(mass_bounds, "mass_bounds")
+    sb = parse_bounds(stiffness_bounds, "stiffness_bounds")
+    out = []
+    for name, key, fr, clause in (("mass", "mass_per_length_kg_m", mb, "6.4.6.3.2"),
+                                  ("stiffness", "EJ_Nm2", sb, "6.4.6.3.3")):
+        if fr is None:
+            continue
+        for which, f in zip(("lower", "upper"), fr):
+            if f == 0.0:
+                continue
+            bb = dataclasses.replace(bridge, **{key: getattr(bridge, key) * (1.0 + f)})
+            out.append((f"{name} {which} bound {100 * f:+g} % ({clause})", bb))
+    return out
 
 
 def _is_hslm(train):
@@ -508,7 +567,7 @@ def _refinement(speeds, acc, extra, vmin, vmax):
 def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="none", step_kmh=1.0,
               progress=None, calibrate_options=None, comfort=False, n_modes=None, where="deck",
               damping_model="modal", track_maintenance="careful", alpha=1.0, damping_provider=None,
-              lateral_frequency_hz=None):
+              lateral_frequency_hz=None, mass_bounds=None, stiffness_bounds=None):
     """The dynamic check of ``bridge`` for ``trains`` (see the module doc).
 
     Parameters
@@ -546,6 +605,12 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
     lateral_frequency_hz : float, optional
         First lateral natural frequency of the span (Hz), given by the user, checked against
         EN 1990 A2.4.4.2.4(3)'s 1.2 Hz (:mod:`adm_sim.check_sls`).
+    mass_bounds, stiffness_bounds : (float, float), optional
+        Lower and upper bound of the mass per length and of the bending stiffness as fractions of
+        the nominal value (e.g. ``(-0.10, 0.15)``; lower in [-0.5, 0], upper in [0, 1]), EN 1991-2
+        6.4.6.3.2 (a lower mass gives the largest accelerations, a higher one the lowest resonance
+        speeds) and 6.4.6.3.3 (stiffness). The check runs at every bound as well and the verdict is
+        the envelope; ``bounds`` names each case and which one governs.
     damping_provider : callable(bridge, train, method, calibrate_options) -> (pct, note), optional
         Δζ (%) and its sentence for ``lb`` and ``vbi``; adm-calib passes
         :func:`adm_calib.check.calibrated_damping`. The core never imports adm_calib.
@@ -587,6 +652,12 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
         raise InputError(f"trains: HSLM-A applies to spans >= {HSLM_B_SPAN_M:g} m; this bridge spans "
                          f"{bridge.span_m:g} m, where EN 1991-2 6.4.6.1.1(5) asks for HSLM-B, which adm-sim "
                          f"does not include (see the README); check real trains only", field="trains")
+    cases = bound_cases(bridge, mass_bounds, stiffness_bounds)
+    bounds = tuple((label, run_check(bb, max_line_speed_kmh, trains, track=track, damping=damping, step_kmh=step_kmh,
+                                     calibrate_options=calibrate_options, n_modes=n_modes, where=where,
+                                     damping_model=damping_model, track_maintenance=track_maintenance, alpha=alpha,
+                                     damping_provider=damping_provider, lateral_frequency_hz=lateral_frequency_hz))
+                   for label, bb in cases)
     f_lim = check_frequency_limit_hz(bridge)
     most = FIELDS["n_modes"].hi
     need = min(most, check_mode_count(bridge))
@@ -657,6 +728,7 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
 
     sls = serviceability(b, dynamic_factor(b.span_m, track_maintenance), alpha, track, lateral_frequency_hz)
     return CheckResult(bridge=b, max_line_speed_kmh=float(max_line_speed_kmh), track=track, damping=damping, sls=sls,
+                       bounds=bounds,
                        speeds_kmh=speeds, trains=out, modes=tuple(int(j) for j in b.mode_numbers),
                        f_limit_hz=f_lim, screening=screening(b, float(max_line_speed_kmh)),
                        timings_s={"damping": t_damp, "envelopes": time.perf_counter() - t_start - t_damp},

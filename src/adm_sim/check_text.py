@@ -142,7 +142,8 @@ def verdict_lines(res):
         res.where, f"max acceleration at {res.where_text}")
     out = [f"governing: {t.name} at {sp:g} km/h{position_text(res, t)}, {what} {acc:.4f} m/s2; limit "
            f"{res.limit_m_s2:g} m/s2 ({res.track} track, EN 1990 A2.4.4.2.1): "
-           f"{'PASS' if res.passed else 'FAIL'}, margin {margin:+.4f} m/s2 "
+           f"{'PASS' if acc <= res.limit_m_s2 else 'FAIL'}{' (nominal bridge)' if res.bounds else ''}, "
+           f"margin {margin:+.4f} m/s2 "
            f"({100 * margin / res.limit_m_s2:+.1f} % of the limit); damping model {res.damping_model} "
            f"(zeta per mode {t.zeta_text()} %)"]
     near = [c for c in res.near_governing() if c is not t]
@@ -165,6 +166,20 @@ def verdict_lines(res):
     return out
 
 
+def bounds_lines(res):
+    """The nominal bridge and every mass and stiffness bound: n0, governing train, speed, acceleration."""
+    if not res.bounds:
+        return []
+    out = ["mass and stiffness bounds (EN 1991-2 6.4.6.3.2, 6.4.6.3.3): the check at every bound"]
+    for label, r in [("nominal", res)] + list(res.bounds):
+        t, v, a = r.governing
+        out.append(f"  {label:38s} n0 {r.bridge.n0_hz:7.3f} Hz: {t.name} {a:.4f} m/s2 at {v:g} km/h")
+    label, t, v, a = res.envelope_governing()
+    out.append(f"envelope over the bounds: {a:.4f} m/s2, {t.name} at {v:g} km/h, governed by {label}; limit "
+               f"{res.limit_m_s2:g} m/s2: {'PASS' if res.passed else 'FAIL'}")
+    return out
+
+
 def summary(res):
     """Every line ``adm-sim check`` prints for ``res``."""
     lines = header_lines(res)
@@ -174,6 +189,7 @@ def summary(res):
     lines.extend(effects_lines(res))
     lines.extend(comfort_lines(res))
     lines.extend(verdict_lines(res))
+    lines.extend(bounds_lines(res))
     if res.sls is not None:
         lines.extend(res.sls.lines())
     lines.append(res.screening)

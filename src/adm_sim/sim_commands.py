@@ -141,6 +141,10 @@ def cmd_check(args, damping_provider=None):
             check_lateral_frequency(args.lateral_frequency)
         except InputError as exc:
             raise InputError("--lateral-frequency" + str(exc)[len("lateral_frequency"):]) from None
+    from adm_sim.check import parse_bounds
+
+    mass_bounds, stiffness_bounds = (parse_bounds(getattr(args, k), f"--{k.replace('_', '-')}")
+                                     for k in ("mass_bounds", "stiffness_bounds"))
     track = check_track_type("--track", args.track, aliases=True)  # one vocabulary: direct -> direct_fastening
     cb, close = progress_callback("check", None if args.progress is None else args.progress)
     t0 = time.perf_counter()
@@ -149,7 +153,8 @@ def cmd_check(args, damping_provider=None):
                         step_kmh=args.speed_step, progress=cb, comfort=args.comfort, n_modes=args.modes,
                         where=args.where, damping_model=args.damping_model,
                         track_maintenance=args.track_maintenance, alpha=args.alpha,
-                        damping_provider=damping_provider, lateral_frequency_hz=args.lateral_frequency)
+                        damping_provider=damping_provider, lateral_frequency_hz=args.lateral_frequency,
+                        mass_bounds=mass_bounds, stiffness_bounds=stiffness_bounds)
     finally:
         close()
     wall = time.perf_counter() - t0
@@ -284,6 +289,13 @@ def add_check_arguments(c):
     c.add_argument("--lateral-frequency", default=None,
                    help="first lateral natural frequency of the span (Hz), checked against 1.2 Hz "
                         "(EN 1990 A2.4.4.2.4(3)); not checked without it")
+    c.add_argument("--mass-bounds", default=None,
+                   help="lower,upper bound of the mass per length as fractions of the nominal (write "
+                        "--mass-bounds=-0.1,0.15; EN 1991-2 6.4.6.3.2): the check runs at each, the verdict is "
+                        "the envelope")
+    c.add_argument("--stiffness-bounds", default=None,
+                   help="lower,upper bound of the bending stiffness EJ as fractions of the nominal "
+                        "(--stiffness-bounds=-0.1,0; EN 1991-2 6.4.6.3.3)")
     c.add_argument("--speed-step", type=float, default=1.0, help=option_help("--speed-step", "speed step"))
     c.add_argument("--modes", type=float, help="more modes than EN 1990 A2.4.4.2.1 asks for (default: exactly those)")
     c.add_argument("--comfort", action="store_true",
