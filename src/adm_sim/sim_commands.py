@@ -120,8 +120,8 @@ def cmd_check(args, damping_provider=None):
     outs = {}
     inputs = [("--bridge", args.bridge)] + [("--trains", t.strip()) for t in str(args.trains).split(",")]
     seen = {}
-    for opt, suffix in (("json", None), ("csv", ".csv"), ("plot", ".png")):
-        text = getattr(args, opt)
+    for opt, suffix in (("json", None), ("csv", ".csv"), ("plot", ".png"), ("report", ".html")):
+        text = getattr(args, opt, None)
         if text is not None:
             if str(text).strip() and Path(text).resolve() in seen:
                 raise InputError(f"--{opt}: {text!r} is the --{seen[Path(text).resolve()]} file; give different files")
@@ -172,6 +172,11 @@ def cmd_check(args, damping_provider=None):
     if "plot" in outs:
         write_atomic(outs["plot"], lambda p: plot_check(res, p))
         print(f"wrote {args.plot}")
+    if "report" in outs:
+        from adm_sim.check_report import write_report
+
+        write_atomic(outs["report"], lambda p: write_report(res, p))
+        print(f"wrote {args.report}")
     return 0
 
 
@@ -303,7 +308,9 @@ def add_check_arguments(c):
     _output_options(c, {"json": "write the verdict and every curve as JSON",
                         "csv": "write every curve as CSV (train, speed, acc and its position, disp, midspan moment, "
                                "zeta per mode)",
-                        "plot": "write the acceleration envelopes as PNG"},
+                        "plot": "write the acceleration envelopes as PNG",
+                        "report": "write one self-contained HTML page (inline figures, no network): inputs, "
+                                  "verdict per clause, envelopes, governing cases, what is not checked"},
                     "replace existing output files (once the check has finished)")
 
 
