@@ -95,16 +95,22 @@ def test_modal_convergence_table_hslm_a9_b1():
 
 
 def test_two_passes_equal_one_fine_pass(monkeypatch):
-    """The coarse pass only chooses the speeds of the fine one: with every speed refined (margin 1) the
-    results are the same to round-off for HSLM-A9 and ICE-2 on B1, V = 350 km/h."""
-    sp = check_speeds_kmh(350.0)
-    for name in ("HSLM-A9", "ICE-2"):
-        t = load_train(name)
-        two = ce.train_effects(B1, t.axle_offsets_m, t.axle_loads_n, sp)
+    """The coarse pass only chooses the speeds of the fine one: with every speed refined (margin 1, step 0)
+    the results are the same to round-off for HSLM-A9 and ICE-2 on B1, V = 350 km/h, at the check's own
+    speeds (1 km/h and the 0.1 km/h refinement around every acceleration peak)."""
+    from adm_sim.check import run_check
+
+    res = run_check(named_bridge("B1"), 350.0, [load_train("HSLM-A9"), load_train("ICE-2")])
+    for c in res.trains:
+        t = load_train(c.name)
+        assert c.speeds_kmh.size > 300
+        two = ce.train_effects(B1, t.axle_offsets_m, t.axle_loads_n, c.speeds_kmh)
         monkeypatch.setattr(ce, "COARSE_MARGIN", 1.0)
-        one = ce.train_effects(B1, t.axle_offsets_m, t.axle_loads_n, sp)
+        monkeypatch.setattr(ce, "COARSE_STEP_KMH", 0.0)
+        one = ce.train_effects(B1, t.axle_offsets_m, t.axle_loads_n, c.speeds_kmh)
         monkeypatch.undo()
         np.testing.assert_allclose(two.dynamic_max, one.dynamic_max, rtol=1e-12)
+        np.testing.assert_array_equal(two.at_speed_kmh, one.at_speed_kmh)
 
 
 def test_sampling_step_halved_twice():

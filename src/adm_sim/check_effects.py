@@ -51,11 +51,13 @@ SHEAR_SECTIONS = tuple(np.round(np.linspace(0.0, 1.0, 11), 10))
 MOMENT_SECTIONS = tuple(np.round(np.linspace(0.1, 0.9, 9), 10))
 #: Free vibration followed after the last axle, in fundamental periods.
 FREE_PERIODS = 1.25
-#: Pass 1 (every speed): uniform samples per span; pass 2 refines the speeds whose pass-1 maximum of
-#: any effect is within COARSE_MARGIN of that effect's largest (sampling lowers a maximum by less
+#: Pass 1 (speeds 1 km/h apart): uniform samples per span; pass 2 refines the speeds near those whose
+#: pass-1 maximum of any effect is within COARSE_MARGIN of that effect's largest (sampling lowers a maximum by less
 #: than 1 % at 20 per span on B1, see tests/test_check_effects.py).
 COARSE_SAMPLES_PER_SPAN = 20
 COARSE_MARGIN = 0.015
+#: Pass 1 takes speeds at least this far apart (km/h); pass 2 every speed within it of a candidate.
+COARSE_STEP_KMH = 1.0
 #: One-sided offset (fraction of L) at a section, where the shear jumps.
 _EPS = 1e-9
 
@@ -291,20 +293,33 @@ def train_effects(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, delta_zeta=0
             q = (p * eW).imag + (H[k] * eL).imag
             dq = (1j * Om * p * eW).imag + (lam * H[k] * eL).imag
     Wc = np.ascontiguousarray(W.T)
-    # pass 1, every speed on a coarse grid; pass 2, a fine grid on the speeds that can hold a maximum
+    # free vibration after the last exit: q = Im[H_K e^(lam t)], static part zero (every speed, cheap)
+    qf = (H[K - 1][None] * np.exp(lam[None, None, :] * t_free[:, None, None])).imag  # (t, lanes, modes)
+    free = np.abs(qf @ W).max(0)  # (lanes, effects)
+    # pass 1: speeds at least COARSE_STEP_KMH apart, coarse positions; pass 2: fine positions at every
+    # speed within COARSE_STEP_KMH of a pass-1 speed whose value of some effect is within COARSE_MARGIN
+    # of that effect's largest
+    kmh = 3.6 * v
+    sel, last = [], -np.inf
+    for i in np.argsort(kmh, kind="stable"):
+        if kmh[i] >= last + COARSE_STEP_KMH - 1e-9:
+            sel.append(i)
+            last = kmh[i]
+    sel = np.sort(np.asarray(sel, dtype=np.int64))
     k_of, ds, E1, base, _ = samples(COARSE_SAMPLES_PER_SPAN)
-    coarse = np.zeros((v.size, len(effects)))
-    _scan(k_of, ds, E1, P, H, lam, v, Wc, base, coarse)
-    keep = np.nonzero((coarse >= (1.0 - COARSE_MARGIN) * coarse.max(0)[None, :]).any(1))[0]
+    coarse = np.zeros((sel.size, len(effects)))
+    _scan(k_of, ds, E1, np.ascontiguousarray(P[:, sel]), np.ascontiguousarray(H[:, sel]), lam, v[sel], Wc, base,
+          coarse)
+    coarse = np.maximum(coarse, free[sel])
+    cand = sel[(coarse >= (1.0 - COARSE_MARGIN) * coarse.max(0)[None, :]).any(1)]
+    keep = np.nonzero((np.abs(kmh[:, None] - kmh[cand][None, :]) <= COARSE_STEP_KMH + 1e-9).any(1))[0]
     k_of, ds, E1, base, static_max = samples(samples_per_span)
     fine = np.zeros((keep.size, len(effects)))
     _scan(k_of, ds, E1, np.ascontiguousarray(P[:, keep]), np.ascontiguousarray(H[:, keep]), lam, v[keep], Wc,
           base, fine)
-    best = coarse.copy()
-    best[keep] = np.maximum(fine, coarse[keep])
-    # free vibration after the last exit: q = Im[H_K e^(lam t)], static part zero
-    qf = (H[K - 1][None] * np.exp(lam[None, None, :] * t_free[:, None, None])).imag  # (t, lanes, modes)
-    best = np.maximum(best, np.abs(qf @ W).max(0))
+    best = free.copy()
+    best[sel] = np.maximum(best[sel], coarse)
+    best[keep] = np.maximum(best[keep], fine)
     i = best.argmax(0)
     dyn_max = best[i, np.arange(len(effects))]
     at = 3.6 * v[i]
