@@ -36,7 +36,13 @@ Rules (each with its clause):
 * limits: 3.5 m/s² ballasted, 5 m/s² direct fastened deck (EN 1990 A2.4.4.2.1(4));
 * dynamic enhancement of the midspan deflection phi'_dyn = max |y_dyn / y_stat| - 1 per train
   (EN 1991-2 6.4.6.5(3), Eq. 6.14), y_dyn the largest dynamic and y_stat the largest static
-  midspan deflection of the same train on the same modes;
+  midspan deflection of the same train on the same modes; of the moment and shear at every L/10
+  and the support reactions by the mode-acceleration method, compared per effect with
+  Φ x α x LM71 (:mod:`adm_sim.check_effects`; r φ'' with r = 1/2 careful, 1 standard maintenance);
+* serviceability of EN 1990 A2.4.4 a single span gives and the list of what is not checked
+  (:mod:`adm_sim.check_sls`); mass and stiffness bounds of EN 1991-2 6.4.6.3.2/3 on request,
+  the verdict then the envelope;
+* the text is :mod:`adm_sim.check_text`, the HTML report :mod:`adm_sim.check_report`;
 * screening, printed beside the result: EN 1991-2 6.4.4 (Fig. 6.9 flow chart, Fig. 6.10 limits
   of n0: upper 94.76 L^-0.748, lower 80 / L for 4 m <= L <= 20 m and 23.58 L^-0.592 for
   20 m < L <= 100 m); a dynamic analysis is required above 200 km/h or outside the limits.
