@@ -121,8 +121,8 @@ def cmd_check(args, damping_provider=None):
     outs = {}
     inputs = [("--bridge", args.bridge)] + [("--trains", t.strip()) for t in str(args.trains).split(",")]
     seen = {}
-    for opt, suffix in (("json", None), ("csv", ".csv"), ("plot", ".png")):
-        text = getattr(args, opt)
+    for opt, suffix in (("json", None), ("csv", ".csv"), ("plot", ".png"), ("report", ".html")):
+        text = getattr(args, opt, None)
         if text is not None:
             if str(text).strip() and Path(text).resolve() in seen:
                 raise InputError(f"--{opt}: {text!r} is the --{seen[Path(text).resolve()]} file; give different files")
@@ -135,6 +135,17 @@ def cmd_check(args, damping_provider=None):
     if args.damping_model is not None and args.damping_model not in DAMPING_MODELS:
         raise InputError(f"--damping-model: {args.damping_model!r} is not allowed; allowed {', '.join(DAMPING_MODELS)}")
     trains = resolve_trains(args.trains)
+    if args.lateral_frequency is not None:
+        from adm_sim.check_sls import check_lateral_frequency
+
+        try:  # refused before any work, named by its flag
+            check_lateral_frequency(args.lateral_frequency)
+        except InputError as exc:
+            raise InputError("--lateral-frequency" + str(exc)[len("lateral_frequency"):]) from None
+    from adm_sim.check import parse_bounds
+
+    mass_bounds, stiffness_bounds = (parse_bounds(getattr(args, k), f"--{k.replace('_', '-')}")
+                                     for k in ("mass_bounds", "stiffness_bounds"))
     track = check_track_type("--track", args.track, aliases=True)  # one vocabulary: direct -> direct_fastening
     cb, close = progress_callback("check", None if args.progress is None else args.progress)
     t0 = time.perf_counter()
@@ -143,7 +154,8 @@ def cmd_check(args, damping_provider=None):
                         step_kmh=args.speed_step, progress=cb, comfort=args.comfort, n_modes=args.modes,
                         where=args.where, damping_model=args.damping_model,
                         track_maintenance=args.track_maintenance, alpha=args.alpha,
-                        damping_provider=damping_provider)
+                        damping_provider=damping_provider, lateral_frequency_hz=args.lateral_frequency,
+                        mass_bounds=mass_bounds, stiffness_bounds=stiffness_bounds)
     finally:
         close()
     wall = time.perf_counter() - t0
@@ -161,6 +173,11 @@ def cmd_check(args, damping_provider=None):
     if "plot" in outs:
         write_atomic(outs["plot"], lambda p: plot_check(res, p))
         print(f"wrote {args.plot}")
+    if "report" in outs:
+        from adm_sim.check_report import write_report
+
+        write_atomic(outs["report"], lambda p: write_report(res, p))
+        print(f"wrote {args.report}")
     return 0
 
 
@@ -272,10 +289,19 @@ def add_check_arguments(c):
     c.add_argument("--alpha", default="1.0",
                    help="LM71 classification factor alpha, EN 1991-2 6.3.2(3): 0.75, 0.83, 0.91, 1.00 (default), "
                         "1.10, 1.21, 1.33, 1.46")
-    c.add_argument("--damping-model", default=None,
-                   help="damping per mode: rayleigh13 (Rayleigh anchored at modes 1 and 3; mode 2 gets 0.625 zeta "
-                        "with 3 modes) or modal (zeta on every mode, EN 1991-2 6.4.6.3.1); default: the bridge's "
-                        "own (rayleigh13 unless its file says damping_model = \"modal\")")
+    c.add_argument("--damping-model", default="modal",
+                   help="damping per mode: modal (default: zeta on every mode, what EN 1991-2 6.4.6.3.1 implies) or "
+                        "rayleigh13 (Rayleigh anchored at modes 1 and 3; mode 2 gets 0.625 zeta with 3 modes)")
+    c.add_argument("--lateral-frequency", default=None,
+                   help="first lateral natural frequency of the span (Hz), checked against 1.2 Hz "
+                        "(EN 1990 A2.4.4.2.4(3)); not checked without it")
+    c.add_argument("--mass-bounds", default=None,
+                   help="lower,upper bound of the mass per length as fractions of the nominal (write "
+                        "--mass-bounds=-0.1,0.15; EN 1991-2 6.4.6.3.2): the check runs at each, the verdict is "
+                        "the envelope")
+    c.add_argument("--stiffness-bounds", default=None,
+                   help="lower,upper bound of the bending stiffness EJ as fractions of the nominal "
+                        "(--stiffness-bounds=-0.1,0; EN 1991-2 6.4.6.3.3)")
     c.add_argument("--speed-step", type=float, default=1.0, help=option_help("--speed-step", "speed step"))
     c.add_argument("--modes", type=float, help="more modes than EN 1990 A2.4.4.2.1 asks for (default: exactly those)")
     c.add_argument("--comfort", action="store_true",
@@ -283,7 +309,9 @@ def add_check_arguments(c):
     _output_options(c, {"json": "write the verdict and every curve as JSON",
                         "csv": "write every curve as CSV (train, speed, acc and its position, disp, midspan moment, "
                                "zeta per mode)",
-                        "plot": "write the acceleration envelopes as PNG"},
+                        "plot": "write the acceleration envelopes as PNG",
+                        "report": "write one self-contained HTML page (inline figures, no network): inputs, "
+                                  "verdict per clause, envelopes, governing cases, what is not checked"},
                     "replace existing output files (once the check has finished)")
 
 
