@@ -12,6 +12,8 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
+from adm_sim.check_text import summary
+
 from adm_calib.check import (TrainCheck, check_speeds_kmh, delta_zeta_for, resolve_trains, run_check, screening,
                              static_midspan_max_m)
 from adm_sim.bridge import Bridge, named_bridge
@@ -584,7 +586,7 @@ def test_default_is_modal_damping_b1_250_passes_closed_form():
     near = res.near_governing()
     assert [c.name for c in near] == ["HSLM-A7", "HSLM-A1"]
     assert near[1].max_acc_m_s2.max() == pytest.approx(3.3220, abs=1e-4)
-    text = res.summary()
+    text = summary(res)
     assert "within 5 % of the governing value: HSLM-A1 3.3220 m/s2 at 267.7 km/h (-2.1 %)" in text
     assert "WARNING" not in text and res.range_end_maxima() == {}
     assert "vertical deflection under Phi x alpha x LM71 = 1.212 x 1 x LM71: 3.843 mm" in text
@@ -607,7 +609,7 @@ def test_maximum_at_the_top_of_the_range_is_flagged():
     assert [c.name for c in ends["top"]] == ["HSLM-A8"] and "bottom" not in ends
     a8 = ends["top"][0]
     assert a8.speeds_kmh[a8.i_max] == 360.0
-    text = res.summary()
+    text = summary(res)
     assert ("WARNING: the largest acceleration of HSLM-A8 (" in text and "lies at the top of the checked range, "
             "360 km/h = 1.2 V: the resonance may lie above it; extend the range with a higher --max-line-speed" in text)
     d = res.to_dict()
@@ -641,7 +643,7 @@ def test_mass_and_stiffness_bounds_follow_the_scaling_laws():
     label, t, v, a = res.envelope_governing()
     assert label.startswith("mass lower bound") and a == lo.governing[2] and not res.passed
     assert res.to_dict()["verdict"] == "fail" and "mass and stiffness bounds" not in " ".join(res.not_checked())
-    assert "envelope over the bounds: 3.770" in res.summary()
+    assert "envelope over the bounds: 3.770" in summary(res)
 
 
 @pytest.mark.parametrize("args,line", [

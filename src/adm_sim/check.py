@@ -281,12 +281,6 @@ class CheckResult:
         t, v, a = res.governing
         return label, t, v, a
 
-    def summary(self):
-        """The check as text (:func:`adm_sim.check_text.summary`)."""
-        from adm_sim.check_text import summary
-
-        return summary(self)
-
     def to_dict(self):
         t, sp, acc = self.governing
         return {"bridge": self.bridge.describe(), "max_line_speed_kmh": self.max_line_speed_kmh,

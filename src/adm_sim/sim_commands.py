@@ -115,6 +115,7 @@ def cmd_check(args, damping_provider=None):
     here, before any work, without one. The core never imports adm_calib."""
     from adm_sim.bridge import resolve_bridge
     from adm_sim.check import CALIB_DAMPING_METHODS, DAMPING_MODELS, calib_methods_refusal, resolve_trains, run_check
+    from adm_sim.check_text import summary as check_summary
 
     if args.damping in CALIB_DAMPING_METHODS and damping_provider is None:
         raise calib_methods_refusal(args.damping)
@@ -160,7 +161,7 @@ def cmd_check(args, damping_provider=None):
         close()
     wall = time.perf_counter() - t0
     _check_plausible(res)
-    print(res.summary())
+    print(check_summary(res))
     print(f"{len(trains)} trains, {wall:.2f} s")
     if "json" in outs:
         d = res.to_dict()
