@@ -28,6 +28,7 @@ from std_msgs.msg import Float64MultiArray, MultiArrayDimension, String
 
 from adm_sim.errors import InputError, RunError
 from adm_sim.fields import check_range
+from adm_sim.files import release_all
 from adm_sim.protocol import EXCHANGE_HEADER_LEN as HEADER_LEN
 from adm_sim.protocol import encode
 
@@ -618,4 +619,5 @@ def _run_node(make_node, args, name):
             node.close()
             node.destroy_node()
         rclpy.try_shutdown()
+        release_all()  # every output this node claimed, however it ended (no stray lock file)
     return code
