@@ -24,8 +24,9 @@ line ``warning: ...`` on stderr.
 ``--republish`` publishes every recorded topic (raw CDR, so any type) except ``/clock``, plus a
 ``rosgraph_msgs/Clock`` on ``/clock`` ahead of each new time stamp, paced at ``--rate`` times
 simulated time (0: as fast as possible). DDS stays on this machine: ``FASTDDS_BUILTIN_TRANSPORTS=SHM``
-unless already set, ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, and ``--domain-id`` or a free,
-locked ROS_DOMAIN_ID (printed on the first line).
+unless already set, ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, and ``--domain-id``, else an exported
+``ROS_DOMAIN_ID``, else a free, locked id (printed on the first line); ids up to 232 with shared memory
+only, 101 with a UDP transport.
 
 Exit status 0 on success, 2 with one line ``error: ...`` on bad input (checked before anything is
 read, written or started: RUN.mcap must be an MCAP file, OUT.rrd a new ``.rrd`` file in an existing
@@ -65,6 +66,16 @@ def check_args(args):
     args.wait_subscribers = view("cli", "--wait-subscribers").check(args.wait_subscribers)
     if args.domain_id is not None:
         args.domain_id = view("cli", "--domain-id").check(args.domain_id)
+    if args.republish:  # the transport's range (232 with shared memory only, else 101), an exported id too
+        import os
+
+        from adm_sim.processes.dds_env import check_domain_id
+
+        env = {"FASTDDS_BUILTIN_TRANSPORTS": "SHM", **os.environ}
+        if args.domain_id is not None:
+            check_domain_id(args.domain_id, env, "--domain-id")
+        elif os.environ.get("ROS_DOMAIN_ID", "").strip():
+            check_domain_id(os.environ["ROS_DOMAIN_ID"], env, "ROS_DOMAIN_ID (exported)")
     if args.topics is not None and not args.republish:
         raise InputError("--topics: only used with --republish; add --republish or drop --topics")
     return args

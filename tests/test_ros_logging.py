@@ -426,8 +426,8 @@ def test_local_env_locks_distinct_domain_ids():
         held = a.lock
     assert not held.held
     assert ros_env.local_ros_env(7).domain_id == 7
-    with pytest.raises(InputError, match=r"ROS_DOMAIN_ID: 150 is out of range; allowed \[0, 101\]"):
-        ros_env.local_ros_env(150)
+    with pytest.raises(InputError, match=r"ROS_DOMAIN_ID: 233 is out of range; allowed \[0, 232\]"):
+        ros_env.local_ros_env(233, base={"FASTDDS_BUILTIN_TRANSPORTS": "SHM"})
 
 
 _SHM_NODE = """
