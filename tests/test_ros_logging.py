@@ -566,8 +566,11 @@ def test_damaged_chunk_is_skipped_and_counted(tmp_path):
     src.write_bytes(bytes(bad))
     report = {}
     n = salvage(src, tmp_path / "out.mcap", report=report)
+    damage = report.pop("damage")
     assert report == {"chunks": len(chunks), "lost_chunks": 1, "orphan_messages": 0, "truncated": False}
     assert n == total - lost
+    assert len(damage) == 2 and damage[0].startswith("chunk ") and f": {lost} messages lost (" in damage[0]
+    assert damage[1].startswith(f"in all {lost} of {total} recorded messages lost (")
     from rosbags.highlevel import AnyReader
 
     with AnyReader([tmp_path / "out.mcap"]) as reader:
@@ -578,14 +581,15 @@ def test_damaged_chunk_is_skipped_and_counted(tmp_path):
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and "Traceback" not in r.stderr
     assert r.stderr.splitlines() == [f"error: RUN.mcap: '{src}' is damaged (1 of {len(chunks)} chunks do not "
-                                     f"decompress or fail their CRC); recover its readable chunks with: "
-                                     f"adm-sim salvage {src} OUT.mcap"]
+                                     f"decompress or fail their CRC; {damage[0]}); replay its intact chunks with "
+                                     f"--skip-damaged or recover them with: adm-sim salvage {src} OUT.mcap"]
     assert not (tmp_path / "o.rrd").exists()
     r = subprocess.run([PY, "-m", "adm_sim.sim_commands", "salvage", str(src), str(tmp_path / "cli.mcap")],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 0
     assert r.stdout.splitlines() == [f"recovered {n} messages into {tmp_path / 'cli.mcap'}",
-                                     f"lost: 1 of {len(chunks)} chunks were damaged and skipped"]
+                                     f"lost: 1 of {len(chunks)} chunks were damaged and skipped"] + [
+                                     f"dropped: {line}" for line in damage]
 
 
 def test_replay_of_a_file_without_messages_is_an_error(tmp_path):
