@@ -36,6 +36,7 @@ itself fails (:func:`adm_sim.errors.run_cli`).
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 import time
@@ -82,7 +83,6 @@ def check_args(args):
 def _refuse_input_as_output(mcap: Path, rrd: Path) -> None:
     """``--rrd`` naming the recording being replayed (the same path, a symbolic or a hard link) would
     replace the recording by its own replay."""
-    import os
 
     same = Path(rrd).resolve() == Path(mcap).resolve()
     if not same and Path(rrd).exists():
@@ -266,9 +266,13 @@ def _qos_profile(offered: str, topic: str):
 
 class _FlowControl:
     """Publish without outrunning the subscribers: at most ``window`` messages of a reliable
-    publisher are unacknowledged (``window`` = half the smallest history depth of the publisher and
-    its matched subscribers); then the replay waits until every matched reader acknowledged them
-    (``Publisher.wait_for_all_acked``). A reader that stays silent for ``ack_timeout_s`` is an error."""
+    publisher are unacknowledged (``window`` = half the history depth of the publisher, the
+    recorded one, and of each matched subscriber whose depth the graph reports); then the replay
+    waits until every matched reader acknowledged them (``Publisher.wait_for_all_acked``), so the
+    publisher's history never drops a sample a reader has not received. A reader that stays
+    silent for ``ack_timeout_s`` is an error. DDS discovery does not carry a reader's history
+    depth: a subscriber that must not lose samples at ``--rate 0`` takes them with KEEP_ALL or a
+    history as deep as the recording's (5000 for the monitoring topics)."""
 
     def __init__(self, node, ack_timeout_s: float = 30.0):
         self.node = node
@@ -281,8 +285,13 @@ class _FlowControl:
 
         if qos.reliability != ReliabilityPolicy.RELIABLE:
             return  # best effort: nothing to wait for
-        depths = [qos.depth] + [i.qos_profile.depth for i in self.node.get_subscriptions_info_by_topic(topic)
-                                if i.qos_profile.depth > 0]
+        infos = self.node.get_subscriptions_info_by_topic(topic)
+        deadline = time.monotonic() + 2.0  # the graph cache can lag the match
+        while len(infos) < pub.get_subscription_count() and time.monotonic() < deadline:
+            time.sleep(0.05)
+            infos = self.node.get_subscriptions_info_by_topic(topic)
+        # DDS discovery does not carry a reader's history depth (the graph reports 0 then)
+        depths = [qos.depth] + [i.qos_profile.depth for i in infos if i.qos_profile.depth > 0]
         self.windows[pub] = max(1, min(depths) // 2)
         self.outstanding[pub] = 0
 

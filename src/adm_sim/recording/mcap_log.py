@@ -653,7 +653,7 @@ def scan(path) -> Scan:
     import zlib
 
     from mcap.data_stream import ReadDataStream
-    from mcap.records import Channel, Message, Metadata, Schema
+    from mcap.records import Channel, Header, Message, Metadata, Schema
     import io
 
     path = Path(path)
@@ -669,10 +669,13 @@ def scan(path) -> Scan:
     if result.footer_ok and end >= 8 + 13 and data[end - 13] == _DATA_END and _u(data, end - 12, 8) == 4:
         limit = end - 13
 
+    verified = 8  # end of the last chunk whose CRC held: nothing before it is read again
+
     def resume(after: int) -> int | None:
-        """Where reading goes on after damage at ``after - 1``: the next intact chunk, else the
+        """Where reading goes on after damage: the next intact chunk after the last verified one
+        (a damaged length of an unchecked record may have jumped over intact chunks), else the
         data section's end record (when the footer locates it)."""
-        nxt = _next_chunk(data, after, limit)
+        nxt = _next_chunk(data, min(after, verified), limit)
         if nxt is not None:
             return nxt
         return limit if limit < end else None
@@ -727,7 +730,7 @@ def scan(path) -> Scan:
             if why is None:
                 for rec in records:
                     take(rec)
-                pos = inner_end
+                pos = verified = inner_end
                 continue
             if why == "broken record framing":
                 result.damage.append(Damage(pos, why, None))
@@ -745,10 +748,12 @@ def scan(path) -> Scan:
                 result.damage.append(Damage(0, "data section fails its CRC (outside the chunks: header, "
                                                "metadata or message indexes)", {}))
             break
-        if op in (0x03, 0x04, 0x05, 0x0C):
+        if op in (0x01, 0x03, 0x04, 0x05, 0x0C):
             stream = ReadDataStream(io.BytesIO(data[pos + 9:rec_end]))
             try:
-                if op == 0x03:
+                if op == 0x01:
+                    rec = Header.read(stream)
+                elif op == 0x03:
                     rec = Schema.read(stream)
                 elif op == 0x04:
                     rec = Channel.read(stream)
@@ -764,7 +769,7 @@ def scan(path) -> Scan:
                 continue
             if op == 0x0C:
                 result.metadata.append(rec)
-            else:
+            elif op != 0x01:
                 take(rec)
         pos = rec_end
     if data_end is None and not any(d.what == "broken record framing" for d in result.damage):
