@@ -223,6 +223,24 @@ def check_readable(path, skip_damaged: bool = False):
     return found
 
 
+def verify_rrd(tmp, final) -> None:
+    """``rerun rrd verify`` of the written recording: rerun's file sink reports a failed write (a
+    full disk, a file size limit) only in its own log, so a recording that does not load whole is
+    this run's failure (:class:`RunError`), and it is never renamed to its final name."""
+    from adm_sim.recording.rerun_log import rerun_cli, rerun_cli_env
+
+    try:
+        proc = subprocess.run([rerun_cli(), "rrd", "verify", str(tmp)], env=rerun_cli_env(), capture_output=True,
+                              text=True, timeout=600)
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        raise RunError(f"--rrd: cannot verify the recording written for '{final}' ({exc})") from None
+    if proc.returncode != 0:
+        lines = [ln.strip() for ln in (proc.stderr + proc.stdout).splitlines() if ln.strip()]
+        why = next((ln for ln in lines if "rrd" in ln.lower() or "footer" in ln.lower()), lines[-1] if lines else "")
+        raise RunError(f"--rrd: rerun could not write '{final}' whole (rerun rrd verify: {why}); "
+                       f"nothing was written (is the disk full or a file size limit set?)")
+
+
 def convert(args, save_path) -> None:
     from adm_sim.recording.mcap_log import salvage
     from adm_sim.recording.rerun_log import ensure_analytics_disabled, rerun_cli, rerun_cli_env
@@ -399,11 +417,11 @@ def _run(args) -> int:
         env = apply_local_ros_env(args.domain_id)  # before rclpy creates a participant
         print(f"ROS_DOMAIN_ID={env.domain_id}", flush=True)
     if args.rrd and args.via_convert:
-        write_atomic(args.rrd, lambda tmp: convert(args, tmp))  # a failed replay leaves no stub
+        write_atomic(args.rrd, lambda tmp: (convert(args, tmp), verify_rrd(tmp, args.rrd)))  # a failed replay leaves no stub
         print(f"wrote {args.rrd} (rerun mcap convert)")
     elif args.rrd:
         counts = {}
-        write_atomic(args.rrd, lambda tmp: counts.update(show_in_rerun(args, found, tmp)))
+        write_atomic(args.rrd, lambda tmp: (counts.update(show_in_rerun(args, found, tmp)), verify_rrd(tmp, args.rrd)))
         print(f"logged {sum(counts.values())} messages on {len(counts)} topics to {args.rrd}")
     elif args.spawn or args.connect:
         counts = show_in_rerun(args, found)

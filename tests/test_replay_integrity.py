@@ -341,3 +341,40 @@ def test_republish_latches_the_descriptions_and_loses_nothing_at_rate_0(recordin
     assert len(desc) == 1 and P.decode(desc[0].data)["bridge"]["span_m"] == 15.0
     stamps = [m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec for m in got]
     assert len(got) == len(want) > 2000 and stamps == sorted(stamps)
+
+
+# ---------------------------------------------------------------- rerun's writer failing
+
+
+def _limit_file_size(n_bytes):
+    import resource
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (n_bytes, n_bytes))
+    return limit
+
+
+def test_rrd_that_cannot_be_written_whole_fails_the_replay(tmp_path, recording):
+    """Under ``ulimit -f 64`` (64 KiB) and on a full 16 KiB tmpfs: rerun's file sink fails (it only
+    logs it); replay exits 1 with one ``error:`` line and leaves no .rrd, not even a temporary one."""
+    targets = [(tmp_path / "small", _limit_file_size(64 * 1024))]
+    full = tmp_path / "full"
+    full.mkdir()
+    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=16k", "tmpfs", str(full)],
+                             capture_output=True).returncode == 0
+    if mounted:
+        targets.append((full, None))
+    try:
+        for folder, limit in targets:
+            folder.mkdir(exist_ok=True)
+            out = folder / "o.rrd"
+            r = subprocess.run([PY, str(REPLAY), str(recording), "--rrd", str(out)], capture_output=True, text=True,
+                               timeout=300, preexec_fn=limit)
+            assert r.returncode == 1, r.stderr
+            errors = [line for line in r.stderr.splitlines() if line.startswith("error:")]
+            assert len(errors) == 1 and errors[0].startswith(f"error: --rrd: rerun could not write '{out}' whole")
+            assert "logged" not in r.stdout and list(folder.iterdir()) == []
+    finally:
+        if mounted:
+            subprocess.run(["umount", str(full)], capture_output=True)
+    assert mounted or os.geteuid() != 0  # root can mount the tmpfs: both faults were tested

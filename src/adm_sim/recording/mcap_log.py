@@ -471,7 +471,7 @@ class Scan:
             out.append("the file ends inside a record (a writer stopped mid-chunk): the messages of that "
                        "chunk are lost")
         missing = self.missing()
-        if missing:
+        if missing and self.expected is not None:
             out.append(f"in all {sum(missing.values())} of {sum(self.expected.values())} recorded messages lost ("
                        + ", ".join(f"{t} {n}" for t, n in sorted(missing.items())) + ")")
         return out
@@ -721,7 +721,7 @@ def scan(path) -> Scan:
                     result.damage.append(Damage(pos, "chunk record length is damaged (its contents pass "
                                                      "their CRC and are kept)", {}))
                     why = None
-            records = None
+            records: list = []
             if why is None:
                 try:
                     records = _inner_records(raw)
@@ -780,7 +780,7 @@ def scan(path) -> Scan:
     missing = result.missing()
     unknown = [d for d in result.damage if d.lost is None]
     if missing is not None and unknown:  # the statistics account for what the damaged places held
-        known = {}
+        known: dict = {}
         for d in result.damage:
             for t, k in (d.lost or {}).items():
                 known[t] = known.get(t, 0) + k
@@ -854,6 +854,9 @@ def decode_messages(items, path="the recording") -> Iterator[tuple[str, int, obj
         dec = decoders.get(channel.id)
         if dec is None:
             dec = decoders[channel.id] = factory.decoder_for(channel.message_encoding, schema)
+        if dec is None:
+            raise InputError(f"path: '{path}': no decoder for '{channel.topic}' "
+                             f"({channel.message_encoding}, schema {getattr(schema, 'name', None)})")
         try:
             decoded = dec(message.data)
         except Exception as exc:
