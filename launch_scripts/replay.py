@@ -237,6 +237,7 @@ def verify_rrd(tmp, final) -> None:
     if proc.returncode != 0:
         lines = [ln.strip() for ln in (proc.stderr + proc.stdout).splitlines() if ln.strip()]
         why = next((ln for ln in lines if "rrd" in ln.lower() or "footer" in ln.lower()), lines[-1] if lines else "")
+        why = why.replace(f'"{tmp}": ', "").replace(str(tmp), "the file")
         raise RunError(f"--rrd: rerun could not write '{final}' whole (rerun rrd verify: {why}); "
                        f"nothing was written (is the disk full or a file size limit set?)")
 
@@ -420,6 +421,9 @@ def _run(args) -> int:
         write_atomic(args.rrd, lambda tmp: (convert(args, tmp), verify_rrd(tmp, args.rrd)))  # a failed replay leaves no stub
         print(f"wrote {args.rrd} (rerun mcap convert)")
     elif args.rrd:
+        # rerun's own log would add coloured lines to the one error line of a failed write, which
+        # verify_rrd reports; RUST_LOG set by the caller is kept
+        os.environ.setdefault("RUST_LOG", "off")
         counts = {}
         write_atomic(args.rrd, lambda tmp: (counts.update(show_in_rerun(args, found, tmp)), verify_rrd(tmp, args.rrd)))
         print(f"logged {sum(counts.values())} messages on {len(counts)} topics to {args.rrd}")

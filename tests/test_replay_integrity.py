@@ -371,8 +371,9 @@ def test_rrd_that_cannot_be_written_whole_fails_the_replay(tmp_path, recording):
             r = subprocess.run([PY, str(REPLAY), str(recording), "--rrd", str(out)], capture_output=True, text=True,
                                timeout=300, preexec_fn=limit)
             assert r.returncode == 1, r.stderr
-            errors = [line for line in r.stderr.splitlines() if line.startswith("error:")]
-            assert len(errors) == 1 and errors[0].startswith(f"error: --rrd: rerun could not write '{out}' whole")
+            assert r.stderr.splitlines() == [f"error: --rrd: rerun could not write '{out}' whole (rerun rrd verify: "
+                                             f"Missing RRD footer / no RRD manifests); nothing was written (is the "
+                                             f"disk full or a file size limit set?)"]
             assert "logged" not in r.stdout and list(folder.iterdir()) == []
     finally:
         if mounted:
