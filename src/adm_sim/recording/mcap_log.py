@@ -798,8 +798,9 @@ def _refusal(path, s: Scan) -> InputError:
         return InputError(f"path: '{path}' is not a complete MCAP file (it ends inside a record); "
                           f"recover it with: adm-sim salvage {path} OUT.mcap")
     n = len(s.damage)
-    return InputError(f"path: '{path}' is damaged ({s.lost_chunks} of {s.chunks} chunks do not decompress or "
-                      f"fail their CRC; {s.first()}{f'; and {n - 1} more' if n > 1 else ''}); "
+    chunks = (f"{s.lost_chunks} of {s.chunks} chunks do not decompress or fail their CRC; " if s.lost_chunks
+              else "")
+    return InputError(f"path: '{path}' is damaged ({chunks}{s.first()}{f'; and {n - 1} more' if n > 1 else ''}); "
                       f"recover its readable chunks with: adm-sim salvage {path} OUT.mcap")
 
 
