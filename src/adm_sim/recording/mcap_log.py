@@ -8,12 +8,17 @@ reading the rclpy message by attribute). Its CDR has exact lengths: rclpy's ``se
 reports rmw_fastrtps' *estimated* size, up to 8 bytes too long for an empty ``float64[]``, which
 rosbags refuses. The files read with mcap-ros2-support, ``rosbags`` and ``rerun mcap convert``.
 
+Each channel carries ``offered_qos_profiles`` as rosbag2 writes it (:func:`qos_profiles_yaml`),
+the QoS of the topic's class (:data:`QOS_CLASSES`) unless the caller gives its own.
+
 Chunks are small (64 KiB before compression by default) and written straight to the operating
-system, so a writer killed with SIGKILL loses at most the open chunk; :func:`salvage` recovers
-every complete record of such a file and writes a clean one (command line: ``adm-sim salvage
-IN.mcap OUT.mcap``). A damaged file (a chunk that no longer decompresses or fails its CRC) is
-read chunk by chunk: every readable chunk is recovered, the damaged ones are counted and skipped.
-:func:`read_messages` refuses a damaged file with one line pointing to ``salvage``.
+system, so a writer killed with SIGKILL loses at most the open chunk; the recorder also writes the
+data-section CRC (header, metadata, message indexes). Every reader checks a file first
+(:func:`scan`, :func:`checked_scan`): record framing, chunk decompression and CRC, summary and
+data-section CRC; a damaged place is named with its offset and the messages lost there per topic,
+and reading goes on at the next intact chunk. :func:`read_messages` refuses a damaged file with one
+line unless asked to skip the damage; :func:`salvage` writes every intact message of a killed or
+damaged file into a clean one (command line: ``adm-sim salvage IN.mcap OUT.mcap``).
 """
 
 from __future__ import annotations
