@@ -353,7 +353,7 @@ CASES = [
     Case("launch-precheck", "calibrate-load-train", lambda t: CALIB + ["--out", f"{t}/o", "--train", "HSLM-A1"],
          "train node: model: 'dim' needs a train with vehicles", ros=True),
     Case("launch-precheck", "crossing-domain-999", lambda t: CROSS + ["--out", f"{t}/o", "--domain-id", "999"],
-         "--domain-id: 999 is out of range; allowed integer in [0, 101]", ros=True),
+         "--domain-id: 999 is out of range; allowed integer in [0, 232]", ros=True),
     Case("launch-precheck", "calibrate-domain-text", lambda t: CALIB + ["--out", f"{t}/o", "--domain-id", "x"],
          "--domain-id: 'x' is not an integer", ros=True),
     Case("launch-precheck", "crossing-params-delta-zeta",

@@ -410,7 +410,8 @@ _FIELDS = [
        "run", _S("cli", "--freq-index"), lo=1, hi=5),
     _F("limit", "cases", int, "run at most this many of the pending study cases", "run", _S("cli", "--limit"),
        lo=1, hi=1_000_000),
-    _F("domain_id", "", int, "ROS_DOMAIN_ID (Fast DDS ports)", "run", _S("cli", "--domain-id"), lo=0, hi=101),
+    _F("domain_id", "", int, "ROS_DOMAIN_ID (up to 232 with shared memory only, 101 with UDP: Fast DDS ports)",
+       "run", _S("cli", "--domain-id"), lo=0, hi=232),
     # -------------------------------------------------------------- monitoring and outputs (ROS)
     _F("warn_fraction", "-", float, "diagnostics WARN above this fraction of the acceleration limit", "outputs",
        _S("ros", "warn_fraction"), lo=0.0, hi=1.0),

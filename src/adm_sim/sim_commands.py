@@ -255,6 +255,8 @@ def cmd_salvage(args):
         print(f"lost: {report['lost_chunks']} of {report['chunks']} chunks were damaged and skipped"
               + (f", {report['orphan_messages']} messages of channels declared in them" if report["orphan_messages"]
                  else ""))
+    for line in report.get("damage", ()):  # each damaged place: offset, topics, messages lost
+        print(f"dropped: {line}")
     return 0
 
 
