@@ -5,7 +5,9 @@ Times ``adm-sim sweep --model mlm``, ``adm-sim sweep --model dim`` (B1 x ICE-2, 
 start, imports, loading the compiled kernels from numba's cache, the work, the output), warm: one
 untimed run of each command per tree first (it also fills a tree's numba cache), then ``--repeat``
 timed runs, the two trees alternating so that both meet the same load of the shared machine.
-Prints the median and the best wall time per command and tree and the ratio baseline / this.
+Prints the median and the best wall time and CPU time (user + system of the process and its
+children: less swayed by the load of a shared machine) per command and tree, and the ratios
+baseline / this.
 
 ``--first-run``: copies this tree's ``src`` (no ``__pycache__``, so no numba cache) to a temporary
 folder and times ``adm-sim compile`` (the set-up step that compiles the kernels once), then the
@@ -23,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import resource
 import shutil
 import statistics
 import subprocess
@@ -45,27 +48,36 @@ def adm_sim_script(python):
     return [str(script)] if script.exists() else [python, "-m", "adm_sim.sim_commands"]
 
 
-def run(tree, argv, python, check=True):
-    """Wall time (s) of one whole process of ``adm-sim argv`` importing ``tree/src``, and its stderr."""
+def _children_cpu_s():
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
+def run(tree, argv, python, check=True, cpu=None):
+    """Wall time (s) of one whole process of ``adm-sim argv`` importing ``tree/src``, and its stderr;
+    its CPU time (user + system, s) is appended to the list ``cpu`` if given."""
     env = dict(os.environ, PYTHONPATH=str(Path(tree) / "src"), OPENBLAS_NUM_THREADS="1")
-    t0 = time.perf_counter()
+    c0, t0 = _children_cpu_s(), time.perf_counter()
     p = subprocess.run(adm_sim_script(python) + argv, env=env, cwd=tree, capture_output=True, text=True)
     wall = time.perf_counter() - t0
+    if cpu is not None:
+        cpu.append(_children_cpu_s() - c0)
     if check and p.returncode != 0:
         raise SystemExit(f"error: adm-sim {' '.join(argv)} in {tree} exited {p.returncode}: {p.stderr.strip()[-400:]}")
     return wall, p.stderr
 
 
 def side_by_side(trees, python, repeat, names):
-    """Median and best wall time per (command, tree), trees alternating run by run."""
+    """Wall and CPU times per (command, tree), trees alternating run by run."""
     times = {(c, t): [] for c in names for t in trees}
+    cpu = {(c, t): [] for c in names for t in trees}
     for c in names:
         for t in trees:
             run(t, COMMANDS[c], python)  # warm-up (and compile into the tree's cache if it has none)
         for _ in range(repeat):
             for t in trees:
-                times[c, t].append(run(t, COMMANDS[c], python)[0])
-    return times
+                times[c, t].append(run(t, COMMANDS[c], python, cpu=cpu[c, t])[0])
+    return times, cpu
 
 
 def copy_src(dst):
@@ -108,20 +120,21 @@ def main():
         return 0
     trees = [ROOT] + ([Path(args.baseline).resolve()] if args.baseline else [])
     names = args.only or list(COMMANDS)
-    times = side_by_side(trees, args.python, args.repeat, names)
-    head = f"{'command':10s} {'this: median (best)':>22s}"
-    if args.baseline:
-        head += f" {'baseline: median (best)':>26s} {'baseline / this':>16s}"
+    times, cpu = side_by_side(trees, args.python, args.repeat, names)
     print(f"whole process, warm, {args.repeat} runs each (s); this = {ROOT}, baseline = {args.baseline}")
-    print(head)
-    for c in names:
-        a = times[c, ROOT]
-        line = f"{c:10s} {statistics.median(a):14.3f} ({min(a):.3f})"
+    for what, table in (("wall time", times), ("CPU time (user + system)", cpu)):
+        head = f"{what:26s} {'this: median (best)':>22s}"
         if args.baseline:
-            b = times[c, trees[1]]
-            line += (f" {statistics.median(b):18.3f} ({min(b):.3f}) {statistics.median(b) / statistics.median(a):10.2f}x"
-                     f" (best {min(b) / min(a):.2f}x)")
-        print(line)
+            head += f" {'baseline: median (best)':>26s} {'baseline / this':>16s}"
+        print(head)
+        for c in names:
+            a = table[c, ROOT]
+            line = f"{c:26s} {statistics.median(a):14.3f} ({min(a):.3f})"
+            if args.baseline:
+                b = table[c, trees[1]]
+                line += (f" {statistics.median(b):18.3f} ({min(b):.3f}) "
+                         f"{statistics.median(b) / statistics.median(a):10.2f}x (best {min(b) / min(a):.2f}x)")
+            print(line)
     print(f"load after: {os.getloadavg()[0]:.2f}")
     return 0
 

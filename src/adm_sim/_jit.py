@@ -42,8 +42,8 @@ COMPILE_NOTICE = ("compiling kernels (once): {name} and the kernels it calls; nu
                   "machine; 'adm-sim compile' does it ahead)")
 #: Environment variable that silences :data:`COMPILE_NOTICE` (any value but "" and "0").
 QUIET_ENV = "ADM_SIM_QUIET_COMPILE"
-_LISTENERS = []  # the one compile listener of this process, once registered
-_SAID = []  # not empty once the notice has been given in this process
+_LISTENERS: list = []  # the one compile listener of this process, once registered
+_SAID: list[bool] = []  # not empty once the notice has been given in this process
 
 
 def notice_given():
