@@ -10,8 +10,9 @@ scipy.stats), numba ~0.4 s plus ~0.3 s the first time a kernel is loaded (its CP
 imports scipy.linalg for BLAS), matplotlib ~0.3 s, rerun ~0.3 s, dask ~0.3 s, rclpy ~0.2 s,
 scipy.optimize ~0.3 s, tqdm ~30 ms.
 
-Also here: after :func:`adm_sim.precompile.compile_kernels` (``adm-sim compile``) a sweep and a
-check add no signature to any kernel, so the compile step compiles everything they need.
+Also here: after :func:`adm_sim.precompile.compile_kernels` (``adm-sim compile``) the sweeps, the
+checks and a calibration add no signature to any kernel, so the compile step compiles everything
+they need.
 """
 
 from __future__ import annotations
@@ -132,6 +133,8 @@ with contextlib.redirect_stdout(io.StringIO()):
                   "--where", "midspan"],
                  ["check", "--bridge", "B1", "--max-line-speed", "160", "--trains", "HSLM-A3", "--where", "x=4"]):
         assert main(argv) == 0, argv
+    from adm_calib.calib_commands import main as calib_main
+    assert calib_main(["calibrate", "--bridge", "B1", "--train", "ICE-2"]) == 0
 print(json.dumps({"before": before, "after": signatures()}))
 """
 
