@@ -38,7 +38,7 @@ STAGE_ROW = np.array([int(round(2.0 * c)) for c in RK4_C])
 
 #: What a process prints on stderr before it compiles the first kernel of this package.
 COMPILE_NOTICE = ("compiling kernels (once): {name} and the kernels it calls; numba keeps them in its cache "
-                  "(__pycache__ beside the source) and later runs load them (all kernels: 15-60 s on a 2-core "
+                  "(__pycache__ beside the source) and later runs load them (all kernels: 15-60 s on a quiet 2-core "
                   "machine; 'adm-sim compile' does it ahead)")
 #: Environment variable that silences :data:`COMPILE_NOTICE` (any value but "" and "0").
 QUIET_ENV = "ADM_SIM_QUIET_COMPILE"

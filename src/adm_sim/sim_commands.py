@@ -256,9 +256,9 @@ def cmd_compile(args):
     if not _jit.numba_available():
         print("numba is not installed: the kernels run as plain Python, nothing to compile")
         return 0
-    print("compiling kernels (once): every code path on a tiny case; numba keeps the machine code in "
-          "__pycache__ beside the source (15-60 s the first time, a few seconds when it is cached)", file=sys.stderr,
-          flush=True)
+    print("compiling kernels (once): every code path on a tiny case; numba keeps the machine code in __pycache__ "
+          "beside the source (15-60 s the first time on a quiet 2-core machine, a few seconds once cached)",
+          file=sys.stderr, flush=True)
     _jit.notice_given()
     total = compile_kernels(report=lambda name, s: print(f"  {name}: {s:.2f} s", flush=True))
     print(f"kernels ready in {total:.2f} s; later runs load them from the cache")
