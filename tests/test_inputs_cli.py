@@ -403,7 +403,7 @@ CASES = [
     ('adm-sim trains/bridges/salvage', ['salvage', '{t}/run.mcap', '{t}/old.mcap'],
      "error: salvage DST: '{t}/old.mcap' exists; use --overwrite to replace it"),
     ('adm-sim trains/bridges/salvage', ['frobnicate'],
-     "error: adm-sim: argument cmd: invalid choice: 'frobnicate' (choose from 'sweep', 'check', 'trains', 'bridges', 'salvage')"),
+     "error: adm-sim: argument cmd: invalid choice: 'frobnicate' (choose from 'sweep', 'check', 'trains', 'bridges', 'compile', 'salvage')"),
     ('adm-calib calibrate', ['calibrate', '--bridge', 'B1', '--train', 'ICE-2', '--steps-per-period', 'nan'],
      "error: --steps-per-period: 'nan' steps is not finite; allowed [4, 10000] steps"),
     ('adm-calib calibrate', ['calibrate', '--bridge', 'B1', '--train', 'ICE-2', '--speeds', '250,260'],

@@ -1,4 +1,4 @@
-"""``adm-sim``: speed sweeps, train data checks and MCAP salvage from the command line.
+"""``adm-sim``: speed sweeps, train data checks, kernel compilation and MCAP salvage from the command line.
 
 Errors are one line ``error: ...`` on stderr: bad input exits with code 2, a run that fails for
 another reason (e.g. an integration that became unstable) with 1, an interrupt with 130
@@ -26,7 +26,7 @@ def cmd_sweep(args):
     from adm_sim.bridge import resolve_bridge
     from adm_sim.envelope import parse_where, where_text
     from adm_sim.stepping import StepOptions
-    from adm_sim.sweep import parse_speeds, run_sweep, sweep_exact
+    from adm_sim.sweep import parse_speeds, run_sweep, run_sweep_compiled, sweep_exact
     from adm_sim.trains import load_train
     from adm_sim.plausibility import check_response
 
@@ -45,6 +45,10 @@ def cmd_sweep(args):
     method = args.method or ("exact" if args.model == "mlm" else "rk4")
     if args.model == "dim" and method == "exact":
         raise InputError("--method: 'exact' is the closed-form MLM envelope; the DIM runs RK4 only (allowed --method rk4)")
+    if method == "exact" and args.backend == "numpy":
+        raise InputError("--backend: 'numpy' is the RK4 stepper's; the exact MLM envelope has one backend "
+                         "(allowed with --method exact: compiled, or give --method rk4)")
+    backend = None if method == "exact" else (args.backend or "compiled")
     if where != "midspan" and method != "exact":
         raise InputError(f"--where: {args.where!r} needs the exact MLM envelope (--model mlm --method exact); the RK4 "
                          f"runs record midspan only (allowed --where midspan)")
@@ -61,6 +65,8 @@ def cmd_sweep(args):
     try:
         if method == "exact":
             res, env = sweep_exact(bridge, train, speeds, delta_zeta=dz, where=where)
+        elif backend == "compiled":
+            res, env = run_sweep_compiled(bridge, train, args.model, speeds, delta_zeta=dz, options=opts, progress=cb), None
         else:
             res, env = run_sweep(bridge, train, args.model, speeds, delta_zeta=dz, options=opts, progress=cb), None
     finally:
@@ -69,7 +75,7 @@ def cmd_sweep(args):
     pk = res.peak()
     if env is None:
         print(f"{args.model.upper()} sweep (RK4): {len(speeds)} speeds {speeds.min():g}..{speeds.max():g} km/h, "
-              f"{res.n_steps} steps of {res.ds_m * 1000:.2f} mm, maxima at the steps, {wall:.2f} s")
+              f"{res.n_steps} steps of {res.ds_m * 1000:.2f} mm, maxima at the steps, {backend} backend, {wall:.2f} s")
     else:
         print(f"MLM sweep (exact envelope: closed form, maxima refined by Newton), {where_text(where)}: {len(speeds)} "
               f"speeds {speeds.min():g}..{speeds.max():g} km/h, {wall:.2f} s")
@@ -93,6 +99,8 @@ def cmd_sweep(args):
         out = res.to_dict()
         out["wall_time_s"] = wall
         out["method"] = method
+        if backend is not None:
+            out["backend"] = backend
         out["damping_model"] = bridge.damping_model
         out["zeta_per_mode_pct"] = [100 * float(z) for z in zeta]
         if env is not None:
@@ -260,6 +268,24 @@ def cmd_salvage(args):
     return 0
 
 
+def cmd_compile(args):
+    """Compile every numba kernel once (:mod:`adm_sim.precompile`), at set-up rather than in the first
+    real command; with numba's cache in place it only loads the kernels."""
+    from adm_sim import _jit
+    from adm_sim.precompile import compile_kernels
+
+    if not _jit.numba_available():
+        print("numba is not installed: the kernels run as plain Python, nothing to compile")
+        return 0
+    print("compiling kernels (once): every code path on a tiny case; numba keeps the machine code in __pycache__ "
+          "beside the source (15-60 s the first time on a quiet 2-core machine, a few seconds once cached)",
+          file=sys.stderr, flush=True)
+    _jit.notice_given()
+    total = compile_kernels(report=lambda name, s: print(f"  {name}: {s:.2f} s", flush=True))
+    print(f"kernels ready in {total:.2f} s; later runs load them from the cache")
+    return 0
+
+
 def _output_options(parser, outputs, overwrite_help):
     """The output files (``--json`` etc., each with its help), ``--overwrite`` and ``--progress``."""
     for name, text in outputs.items():
@@ -334,6 +360,10 @@ def build_parser():
     s.add_argument("--method", choices=("exact", "rk4"), default=None,
                    help="MLM: exact (default: the closed-form envelope, true maximum per speed) or rk4 (the lockstep "
                         "RK4 run, maxima sampled at its steps); the DIM is always rk4")
+    s.add_argument("--backend", choices=("compiled", "numpy"), default=None,  # adm_sim.sweep.BACKENDS
+                   help="RK4 runs (the DIM, MLM --method rk4): compiled (default: the numba kernels, every speed a lane "
+                        "of one run) or numpy (the numpy stepper, the reference the kernels are tested against; equal "
+                        "to 1e-12)")
     s.add_argument("--where", default="midspan",
                    help="MLM exact: midspan (default), deck (anywhere on the deck, with the position) or x=<m> (0 < x < L)")
     _output_options(s, {"json": "write results as JSON", "plot": "write max acceleration vs speed as PNG"},
@@ -353,6 +383,9 @@ def build_parser():
     b = sub.add_parser("bridges", help="list bridges B1-B4 or (--field) the 1110-bridge parametric field")
     b.add_argument("--field", action="store_true", help="the parametric field as CSV (mu in kg/m and t/m)")
     b.set_defaults(func=cmd_bridges)
+
+    k = sub.add_parser("compile", help="compile the numba kernels once, ahead of the first run (set-up)")
+    k.set_defaults(func=cmd_compile)
 
     v = sub.add_parser("salvage", help="recover a killed run's MCAP log")
     v.add_argument("src")
