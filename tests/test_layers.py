@@ -209,3 +209,25 @@ def test_only_the_command_layer_draws():
             if target.split(".")[0] in ("tqdm", "matplotlib") or target.endswith("progress_bar"):
                 drawers.add(module_name(f))
     assert drawers == DRAWING
+
+
+def test_nothing_below_the_nodes_loads_rclpy():
+    """The one run-time check beside the static scan: every module of ``adm_sim`` and ``adm_calib``
+    outside their ``nodes`` packages, imported together in a fresh interpreter, leaves ``rclpy``
+    (and every ROS message package) out of ``sys.modules``."""
+    import pkgutil
+    import subprocess
+    import sys
+
+    import adm_calib
+    import adm_sim
+
+    names = [m.name for pkg in (adm_sim, adm_calib) for m in pkgutil.walk_packages(pkg.__path__, pkg.__name__ + ".")
+             if ".nodes" not in m.name]
+    assert len(names) > 50
+    code = ("import sys\n" + "".join(f"import {n}\n" for n in names) +
+            "ros = sorted(m for m in sys.modules if m == 'rclpy' or m.startswith(('rclpy.', 'std_msgs', "
+            "'geometry_msgs', 'diagnostic_msgs', 'rosgraph_msgs', 'std_srvs')))\nprint(ros)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "[]", out.stdout
