@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import cmath
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -166,9 +167,9 @@ class EffectsResult:
     static_correction: bool
     span_m: float = 0.0
 
-    @property
+    @cached_property
     def phi_dyn(self):
-        """φ'_dyn per effect, ``(n_effects,)`` (:func:`adm_sim.design_loads.phi_dyn_prime`)."""
+        """φ'_dyn per effect, ``(n_effects,)`` (:func:`adm_sim.design_loads.phi_dyn_prime`; computed once)."""
         return np.array([phi_dyn_prime(d, s) for d, s in zip(self.dynamic_max, self.static_max)])
 
 
