@@ -14,8 +14,9 @@ from scipy.integrate import solve_ivp
 
 from adm_sim.check_text import summary
 
-from adm_calib.check import (TrainCheck, check_speeds_kmh, delta_zeta_for, resolve_trains, run_check, screening,
-                             static_midspan_max_m)
+from adm_calib.check import calibrated_damping
+from adm_sim.check import (TrainCheck, check_speeds_kmh, delta_zeta_for, resolve_trains, run_check, screening,
+                           static_midspan_max_m)
 from adm_sim.bridge import Bridge, named_bridge
 from adm_sim.envelope import moving_load_envelope
 from adm_sim.errors import InputError
@@ -37,6 +38,11 @@ def test_speeds_from_40_m_s_to_1_2_v():
     np.testing.assert_allclose(np.diff(v), 1.0)
     v = check_speeds_kmh(250.0, 0.5)
     assert v[0] == 144.0 and v[-1] == 300.0 and v.size == 313
+    # the open bound of --max-line-speed is the same 40 m/s: just above it is accepted, at it refused
+    v = check_speeds_kmh(144.5)
+    assert v[0] == 144.0 and v[-1] == pytest.approx(173.4, abs=1e-12) and v.size == 31
+    with pytest.raises(InputError, match=r"^max_line_speed_kmh: 144 km/h is out of range; allowed \(144, 500\]"):
+        check_speeds_kmh(144.0)
 
 
 def test_check_numbers_b1():
@@ -115,7 +121,7 @@ def test_static_deflection_against_beam_formula():
 def test_static_modal_moment_and_deflection_closed_form():
     """One axle F crossing B1 on modes 1-3: the largest static midspan effects are the modal series at
     a = L/2, w = sum_odd 2 F L^3 / (j^4 pi^4 EJ), M = sum_odd 2 F L / (j^2 pi^2) (written out here)."""
-    from adm_calib.check import static_midspan_max
+    from adm_sim.check import static_midspan_max
 
     b = named_bridge("B1")
     F, L, EJ = 1.0e5, b.span_m, b.EJ_Nm2
@@ -167,16 +173,17 @@ def test_damping_methods():
     b1, b2 = named_bridge("B1"), named_bridge("B2")
     ice2, a1 = load_train("ICE-2"), load_train("HSLM-A1")
     assert delta_zeta_for(b1, a1, "adm")[0] == pytest.approx(0.653, abs=5e-4)  # README: 0.653 % at 15 m
-    assert delta_zeta_for(b1, ice2, "lb")[0] == pytest.approx(0.323, abs=5e-4)  # README Table 4: LB B1 ICE-2
+    assert delta_zeta_for(b1, ice2, "lb", damping_provider=calibrated_damping)[0] == pytest.approx(0.323, abs=5e-4)  # README Table 4: LB B1 ICE-2
     assert delta_zeta_for(b1, ice2, "none")[0] == 0.0
     with pytest.raises(InputError, match=r"^damping adm: the Eurocode ADM applies to spans < 30 m .* spans 30 m"):
         delta_zeta_for(b2, ice2, "adm")
     with pytest.raises(InputError, match=r"^damping lb: HSLM-A1 is an HSLM load train, not a vehicle"):
-        delta_zeta_for(b1, a1, "lb")
+        delta_zeta_for(b1, a1, "lb", damping_provider=calibrated_damping)
     with pytest.raises(InputError, match=r"^damping vbi: HSLM-A1 is an HSLM load train"):
-        delta_zeta_for(b1, a1, "vbi")
+        delta_zeta_for(b1, a1, "vbi", damping_provider=calibrated_damping)
     with pytest.raises(InputError, match=r"^damping lb: my train on B1: lower bound not defined: train: .my train. was not studied by the paper"):
-        delta_zeta_for(b1, load_train("src/adm_sim/data/examples/my_train.toml"), "lb")
+        delta_zeta_for(b1, load_train("src/adm_sim/data/examples/my_train.toml"), "lb",
+                       damping_provider=calibrated_damping)
     res = run_check(b1, 300.0, [ice2], damping="adm")
     plain = run_check(b1, 300.0, [ice2])
     assert res.trains[0].max_acc_m_s2.max() < plain.trains[0].max_acc_m_s2.max()
@@ -458,7 +465,7 @@ def test_comfort_b_v_against_an_independent_integration(tmp_path, name):
     steps per period, velocities differenced over the step) equals the coupled bridge-vehicle ODE
     written out in this file and integrated by scipy's DOP853 (rtol 1e-10) to 5e-4 (measured:
     <= 8e-5; 1e-5 at 64 steps per period)."""
-    from adm_calib.check import comfort_b_v
+    from adm_sim.check import comfort_b_v
 
     f = tmp_path / "one_pc.toml"
     f.write_text('name = "one PC"\n[vehicle_types.PC]\n' + "\n".join(f"{k} = {v}" for k, v in ONE_PC.items())
@@ -474,7 +481,7 @@ def test_comfort_b_v_against_an_independent_integration(tmp_path, name):
 def test_comfort_b_v_limits_and_convergence():
     """Passenger comfort b_v from the DIM: step-converged, ~0 on a rigid bridge, larger on a light
     bridge (B3 weighs 0.41 of B1 at the same n0), level by EN 1990 A2.4.4.3 Table A2.9."""
-    from adm_calib.check import comfort_b_v, comfort_level
+    from adm_sim.check import comfort_b_v, comfort_level
     from adm_sim.stepping import StepOptions
 
     t = load_train("ICE-2")
@@ -553,7 +560,8 @@ def test_refusal_comes_before_any_calibration(monkeypatch):
 
     monkeypatch.setattr(adm_calib.calibrate, "calibrate", no_calibration)
     with pytest.raises(InputError, match=r"^damping vbi: HSLM-A2 is an HSLM load train"):
-        run_check(named_bridge("B1"), 300.0, resolve_trains("ICE-2,HSLM-A2"), damping="vbi")
+        run_check(named_bridge("B1"), 300.0, resolve_trains("ICE-2,HSLM-A2"), damping="vbi",
+                  damping_provider=calibrated_damping)
 
 
 def test_default_is_modal_damping_b1_250_passes_closed_form():

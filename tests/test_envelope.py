@@ -271,7 +271,7 @@ def test_issue_case_b1_v250_deck_fails_where_midspan_passes(model, expect):
     alone (3.2275 m/s2) passes under both."""
     import dataclasses
 
-    from adm_calib.check import resolve_trains, run_check
+    from adm_sim.check import resolve_trains, run_check
 
     bridge = named_bridge("B1", damping_model=model)
     trains = resolve_trains("hslm,ICE-2,Eurostar,Railjet,ICE-4")

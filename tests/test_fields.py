@@ -361,13 +361,6 @@ def test_every_field_has_a_spelling_and_a_doc():
     assert re.fullmatch(r"\w+", "".join(fields.FIELDS))
 
 
-def test_check_lower_speed_bound_is_40_m_s():
-    """--max-line-speed's open lower bound is the EN 1991-2 6.4.6.2 minimum, 40 m/s, in km/h."""
-    from adm_sim.check import MIN_SPEED_M_S
-
-    assert fields.FIELDS["max_line_speed_kmh"].lo == MIN_SPEED_M_S * 3.6 == 144.0
-
-
 def write_docs_table():
     """Rewrite the table of docs/fields.md from the registry (``python tests/test_fields.py``)."""
     path = ROOT / "docs" / "fields.md"

@@ -58,16 +58,19 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from adm_sim.fields import FIELDS
+from adm_sim.check_sls import NOT_CHECKED, check_lateral_frequency, serviceability
+from adm_sim.design_loads import (MAINTENANCE, adm_delta_zeta_pct, check_alpha, design_comparison, dynamic_factor,
+                                  governing, phi_dd_factor, phi_dyn_prime)
 from adm_sim.errors import InputError
-from adm_sim.fields import check_range
+from adm_sim.fields import FIELDS, check_range
+from adm_sim.hslm import HSLM_A_NAMES, HSLM_A_TABLE, regular_coach_length_m
+from adm_sim.peaks import local_maxima  # the project's one peak rule, every maximum kept
+from adm_sim.stepping import BridgeSide, InProcessRun, StepOptions, TrainSide, make_grid, speeds_to_m_s
+from adm_sim.trains import load_train
+# the speed range (EN 1991-2 6.4.6.2(1)) and the deck acceleration limits (EN 1990 A2.4.4.2.1(4)P)
+from adm_sim.limits import ACC_LIMITS_M_S2, DESIGN_SPEED_FACTOR
+from adm_sim.limits import CHECK_MIN_SPEED_M_S as MIN_SPEED_M_S
 
-#: Lowest speed of the check (m/s), EN 1991-2 6.4.6.2(1).
-MIN_SPEED_M_S = 40.0
-#: Maximum design speed = this factor x maximum line speed, EN 1991-2 6.4.6.2(1).
-DESIGN_SPEED_FACTOR = 1.2
-#: Deck acceleration limits (m/s^2), EN 1990 A2.4.4.2.1(4).
-from adm_sim.limits import ACC_LIMITS_M_S2  # noqa: E402  (EN 1990 A2.4.4.2.1(4)P, one track vocabulary)
 #: Damping methods of the check; the core computes ``none`` and ``adm`` (EN 1991-2 6.4.6.3.1).
 DAMPING_METHODS = ("none", "adm", "lb", "vbi")
 #: The methods only adm-calib provides (the paper's lower bounds, the calibrated Δζ_VBI).
@@ -120,7 +123,7 @@ class TrainCheck:
     @property
     def phi_dyn(self):
         """phi'_dyn = max |y_dyn / y_stat| - 1 at midspan (EN 1991-2 6.4.6.5(3), Eq. 6.14)."""
-        return float(self.midspan_disp_m.max() / self.static_disp_m) - 1.0
+        return phi_dyn_prime(self.midspan_disp_m, self.static_disp_m)
 
     @property
     def phi_dyn_moment_truncated(self):
@@ -128,7 +131,7 @@ class TrainCheck:
         modes (truncated: on B1 HSLM-A9 0.482 with 3 modes, 0.513 with 5, 0.528 with 9)."""
         if self.max_moment_Nm is None or not self.static_moment_Nm:
             return None
-        return float(self.max_moment_Nm.max() / self.static_moment_Nm) - 1.0
+        return phi_dyn_prime(self.max_moment_Nm, self.static_moment_Nm)
 
     @property
     def phi_dyn_moment(self):
@@ -209,8 +212,6 @@ class CheckResult:
     def design_governing(self):
         """Per effect, the train whose EN 1991-2 6.4.6.5(3) design value is largest against
         Φ x α x LM71, as ``{"moment": DesignComparison, "deflection": DesignComparison}``."""
-        from adm_sim.design_loads import governing
-
         comps = [c.design for c in self.trains if c.design is not None]
         return {e: governing(comps, e) for e in ("moment", "deflection")} if comps else {}
 
@@ -239,8 +240,6 @@ class CheckResult:
 
     def not_checked(self):
         """What this check does not cover, each with its clause (:data:`adm_sim.check_sls.NOT_CHECKED`)."""
-        from adm_sim.check_sls import NOT_CHECKED
-
         return tuple(x for x in NOT_CHECKED if not (self.bounds and x.startswith("mass and stiffness bounds")))
 
     def near_governing(self, fraction=NEAR_GOVERNING_FRACTION):
@@ -264,7 +263,7 @@ class CheckResult:
 
     @property
     def where_text(self):
-        from adm_sim.envelope import where_text
+        from adm_sim.envelope import where_text  # noqa: PLC0415  numba: envelope loads its kernels; a result means it is loaded
 
         return where_text(self.where)
 
@@ -340,8 +339,10 @@ def check_speeds_kmh(max_line_speed_kmh, step_kmh=1.0):
     try:
         V = FIELDS["max_line_speed_kmh"].check(max_line_speed_kmh, lo=lo)
     except InputError as exc:
-        raise InputError(f"{exc} (the check runs from 40 m/s = 144 km/h up to 1.2 V, EN 1991-2 6.4.6.2; "
-                         f"1.2 V at most 600 km/h)", field="max_line_speed_kmh") from None
+        hi = DESIGN_SPEED_FACTOR * FIELDS["max_line_speed_kmh"].hi
+        raise InputError(f"{exc} (the check runs from {MIN_SPEED_M_S:g} m/s = {lo:g} km/h up to "
+                         f"{DESIGN_SPEED_FACTOR:g} V, EN 1991-2 6.4.6.2; {DESIGN_SPEED_FACTOR:g} V at most "
+                         f"{hi:g} km/h)", field="max_line_speed_kmh") from None
     step = FIELDS["step_kmh"].check(step_kmh, argument=True)
     hi = DESIGN_SPEED_FACTOR * V
     n = int(math.floor((hi - lo) / step + 1e-9))
@@ -353,9 +354,6 @@ def check_speeds_kmh(max_line_speed_kmh, step_kmh=1.0):
 
 def resolve_trains(spec):
     """Trains from ``"hslm,ICE-2,my.toml"``: ``hslm`` is HSLM-A1 .. A10; duplicates refused."""
-    from adm_sim.hslm import HSLM_A_NAMES
-    from adm_sim.trains import load_train
-
     names = []
     for part in str(spec).split(","):
         part = part.strip()
@@ -419,8 +417,6 @@ def bound_cases(bridge, mass_bounds=None, stiffness_bounds=None):
 
 
 def _is_hslm(train):
-    from adm_sim.hslm import HSLM_A_TABLE
-
     return train.name in HSLM_A_TABLE and not train.units
 
 
@@ -438,8 +434,6 @@ def delta_zeta_for(bridge, train, method, calibrate_options=None, damping_provid
     ``lb`` and ``vbi`` come from ``damping_provider(bridge, train, method, calibrate_options)``
     (adm-calib's :func:`adm_calib.check.calibrated_damping`) and are refused without one.
     """
-    from adm_sim.design_loads import adm_delta_zeta_pct
-
     L = bridge.span_m
     if method not in DAMPING_METHODS:
         raise InputError(f"damping: {method!r} is not allowed; allowed {', '.join(DAMPING_METHODS)}", field="damping")
@@ -502,8 +496,6 @@ def comfort_b_v(bridge, train, speeds_kmh, options=None):
     maximum over the crossing. A vehicle is integrated while an axle is on the bridge (the core's
     rule on a rigid track), so its motion after leaving the bridge is not followed.
     """
-    from adm_sim.stepping import BridgeSide, InProcessRun, StepOptions, TrainSide, make_grid, speeds_to_m_s
-
     if not train.units:
         raise InputError(f"comfort: {train.name!r} has no vehicles; b_v needs the DIM")
     v = speeds_to_m_s(speeds_kmh)
@@ -554,8 +546,6 @@ def screening(bridge, max_line_speed_kmh):
 
 def _refinement(speeds, acc, extra, vmin, vmax):
     """Speeds at REFINE_STEP_KMH over +-REFINE_HALF_WIDTH_KMH around interior maxima and ``extra``."""
-    from adm_sim.peaks import local_maxima  # the project's one peak rule, every maximum kept
-
     i = local_maxima(acc, min_prominence_rel=0.0)
     i = i[acc[i] >= REFINE_MIN_FRACTION * acc.max()]  # resonance peaks, not ripples of a low plateau
     centres = np.concatenate([speeds[i], extra])
@@ -620,8 +610,10 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
     -------
     CheckResult
     """
-    from adm_sim.envelope import check_frequency_limit_hz, check_mode_count, moving_load_envelope, parse_where
-    from adm_sim.hslm import regular_coach_length_m
+    # numba kernels: a refusal before run_check (trains, bounds, damping) does not wait for them
+    from adm_sim.check_effects import EffectComparison, lm71_effects, train_effects  # noqa: PLC0415  numba kernels
+    from adm_sim.envelope import (  # noqa: PLC0415  numba kernels
+        check_frequency_limit_hz, check_mode_count, moving_load_envelope, parse_where)
 
     if damping_model is None:
         damping_model = {v: k for k, v in DAMPING_MODELS.items()}[bridge.damping_model]
@@ -636,8 +628,6 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
     if damping in CALIB_DAMPING_METHODS and damping_provider is None:
         raise calib_methods_refusal(damping)
     speeds = check_speeds_kmh(max_line_speed_kmh, step_kmh)
-    from adm_sim.design_loads import MAINTENANCE, check_alpha, design_comparison
-
     if track_maintenance not in MAINTENANCE:
         raise InputError(f"track_maintenance: {track_maintenance!r} is not one of EN 1991-2 6.4.5.2's; allowed "
                          f"{', '.join(MAINTENANCE)} (careful: Φ2, standard: Φ3)", field="track_maintenance")
@@ -645,8 +635,6 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
         alpha = check_alpha(alpha)
     except InputError as exc:
         raise InputError(f"alpha: {str(exc).partition(': ')[2]}", field="alpha") from None
-    from adm_sim.check_sls import check_lateral_frequency
-
     if lateral_frequency_hz is not None:
         lateral_frequency_hz = check_lateral_frequency(lateral_frequency_hz)
     if bridge.span_m < HSLM_B_SPAN_M and any(_is_hslm(t) for t in trains):
@@ -678,9 +666,6 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
     for i in sorted(range(len(trains)), key=lambda i: bool(trains[i].units)):
         dz[i] = delta_zeta_for(b, trains[i], damping, calibrate_options, damping_provider)
     t_damp = time.perf_counter() - t_start
-    from adm_sim.check_effects import EffectComparison, lm71_effects, train_effects
-    from adm_sim.design_loads import phi_dd_factor
-
     lm71_eff = lm71_effects(b.span_m, alpha)
     out = []
     vmin, vmax = speeds[0], speeds[-1]
@@ -724,9 +709,6 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
         out.append(tc)
         if progress is not None:
             progress(n + 1, len(trains))
-    from adm_sim.check_sls import serviceability
-    from adm_sim.design_loads import dynamic_factor
-
     sls = serviceability(b, dynamic_factor(b.span_m, track_maintenance), alpha, track, lateral_frequency_hz)
     return CheckResult(bridge=b, max_line_speed_kmh=float(max_line_speed_kmh), track=track, damping=damping, sls=sls,
                        bounds=bounds,

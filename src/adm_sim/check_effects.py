@@ -40,12 +40,13 @@ from __future__ import annotations
 
 import cmath
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
 from adm_sim._jit import njit
 from adm_sim.envelope import _events
-from adm_sim.design_loads import LM71_AXLE_LOAD_N, LM71_AXLES_M, LM71_HALF_WINDOW_M, LM71_UDL_N_M
+from adm_sim.design_loads import LM71_AXLE_LOAD_N, LM71_AXLES_M, LM71_HALF_WINDOW_M, LM71_UDL_N_M, phi_dyn_prime
 
 #: Sections of the shear (x/L); the ends are the support reactions.
 SHEAR_SECTIONS = tuple(np.round(np.linspace(0.0, 1.0, 11), 10))
@@ -166,9 +167,10 @@ class EffectsResult:
     static_correction: bool
     span_m: float = 0.0
 
-    @property
+    @cached_property
     def phi_dyn(self):
-        return self.dynamic_max / self.static_max - 1.0
+        """φ'_dyn per effect, ``(n_effects,)`` (:func:`adm_sim.design_loads.phi_dyn_prime`; computed once)."""
+        return np.array([phi_dyn_prime(d, s) for d, s in zip(self.dynamic_max, self.static_max)])
 
 
 @njit(cache=True, nogil=True)

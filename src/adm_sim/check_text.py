@@ -6,7 +6,8 @@ the command prints. Nothing here changes a number.
 
 from __future__ import annotations
 
-from adm_sim.check import NEAR_GOVERNING_FRACTION, REFINE_STEP_KMH
+from adm_sim.check import MIN_SPEED_M_S, NEAR_GOVERNING_FRACTION, REFINE_STEP_KMH
+from adm_sim.limits import DESIGN_SPEED_FACTOR
 
 
 def damping_model_text(res):
@@ -40,7 +41,8 @@ def header_lines(res):
     b = res.bridge
     v = res.speeds_kmh
     return [b.describe(),
-            f"speeds: {v.min():g} .. {v.max():g} km/h (40 m/s .. 1.2 x {res.max_line_speed_kmh:g} km/h, "
+            f"speeds: {v.min():g} .. {v.max():g} km/h ({MIN_SPEED_M_S:g} m/s .. {DESIGN_SPEED_FACTOR:g} x "
+            f"{res.max_line_speed_kmh:g} km/h, "
             f"EN 1991-2 6.4.6.2), {v.size} speeds at <= 1 km/h, refined at {REFINE_STEP_KMH:g} km/h "
             f"around every resonance",
             f"modes: {', '.join(str(j) for j in res.modes)} (EN 1990 A2.4.4.2.1: at least all modes up to "
@@ -161,7 +163,7 @@ def verdict_lines(res):
                        f"with a higher --max-line-speed (1.2 V is the check's top) to see the peak")
         else:
             out.append(f"WARNING: the largest acceleration of {names} lies at the bottom of the checked range, "
-                       f"{res.speeds_kmh[0]:g} km/h = 40 m/s: a resonance lies at or below it, outside the "
+                       f"{res.speeds_kmh[0]:g} km/h = {MIN_SPEED_M_S:g} m/s: a resonance lies at or below it, outside the "
                        f"speeds EN 1991-2 6.4.6.2(1) asks for; check the lower speeds with adm-sim sweep")
     return out
 

@@ -72,12 +72,11 @@ from adm_sim.fields import check_choice, check_range
 
 #: Classification factors α allowed by EN 1991-2 6.3.2(3).
 LM71_ALPHAS = (0.75, 0.83, 0.91, 1.00, 1.10, 1.21, 1.33, 1.46)
-#: LM71 (EN 1991-2 6.3.2 Fig. 6.2): axle load Q_vk (N), axle spacing (m), distributed load q_vk (N/m).
+#: LM71 (EN 1991-2 6.3.2 Fig. 6.2): axle load Q_vk (N), distributed load q_vk (N/m).
 LM71_AXLE_LOAD_N = 250e3
-LM71_AXLE_SPACING_M = 1.6
 LM71_UDL_N_M = 80e3
-#: Axle positions relative to the centre of the point-force group (m) and half its window (m):
-#: 0.8 m + 3 x 1.6 m + 0.8 m = 6.4 m free of the distributed load.
+#: Axle positions relative to the centre of the point-force group (m), 1.6 m apart, and half its
+#: window (m): 0.8 m + 3 x 1.6 m + 0.8 m = 6.4 m free of the distributed load.
 LM71_AXLES_M = (-2.4, -0.8, 0.8, 2.4)
 LM71_HALF_WINDOW_M = 3.2
 #: Track maintenance classes of EN 1991-2 6.4.5.2(2)/(3).

@@ -23,7 +23,7 @@ import math
 from dataclasses import dataclass, field
 
 from adm_sim.errors import InputError
-from adm_sim.limits import MAX_DELTA_ZETA, TRACK_TYPES
+from adm_sim.limits import CHECK_MIN_SPEED_M_S, DESIGN_SPEED_FACTOR, MAX_DELTA_ZETA, TRACK_TYPES
 
 
 # ---------------------------------------------------------------------- the checks
@@ -399,8 +399,9 @@ _FIELDS = [
        "run", _S("ros", "partner_timeout_s"), lo=0.5, hi=600.0),
     _F("run_timeout_s", "s", float, "longest a single run may take", "run", _S("ros", "run_timeout_s"),
        lo=1.0, hi=86400.0),
-    _F("max_line_speed_kmh", "km/h", float, "maximum line speed V of the EN 1991-2 check (40 m/s up to 1.2 V)",
-       "run", _S("cli", "--max-line-speed"), lo=144.0, hi=500.0, lo_open=True),
+    _F("max_line_speed_kmh", "km/h", float, f"maximum line speed V of the EN 1991-2 check "
+       f"({CHECK_MIN_SPEED_M_S:g} m/s up to {DESIGN_SPEED_FACTOR:g} V)",
+       "run", _S("cli", "--max-line-speed"), lo=3.6 * CHECK_MIN_SPEED_M_S, hi=500.0, lo_open=True),
     _F("step_kmh", "km/h", float, "speed step of the EN 1991-2 check", "run", _S("cli", "--speed-step"),
        lo=0.0, hi=1.0, lo_open=True),
     _F("jobs", "processes", int, "worker processes of table4", "run", _S("cli", "--jobs"), lo=1, hi=64),

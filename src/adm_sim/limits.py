@@ -5,6 +5,8 @@
   tracks with track and structural elements designed for high speed traffic"). ``direct`` is
   accepted as an alias of ``direct_fastening`` only where it was documented
   (``adm-sim check --track direct``, docs/check.md).
+* The speed range of the EN 1991-2 dynamic check, 6.4.6.2(1): 40 m/s up to 1.2 x the maximum
+  line speed.
 * The default speed range of the paper, Section 3.3: 160 to 350 km/h every 1 km/h.
 * The range of the additional damping Δζ: from ``-ζ`` (no negative total damping) to 20 %.
 
@@ -44,6 +46,13 @@ def acc_limit_m_s2(track_type):
     return ACC_LIMITS_M_S2[TRACK_ALIASES.get(track_type, track_type)]
 
 
+# ---------------------------------------------------------------------- speeds, EN 1991-2 6.4.6.2(1)
+#: Lowest speed of the dynamic check (m/s), EN 1991-2 6.4.6.2(1); the maximum line speed must exceed it.
+CHECK_MIN_SPEED_M_S = 40.0
+#: Maximum design speed = this factor x maximum line speed, EN 1991-2 6.4.6.2(1).
+DESIGN_SPEED_FACTOR = 1.2
+
+
 # ---------------------------------------------------------------------- speeds, Section 3.3
 #: Default speed range (km/h), the paper's Section 3.3: ``start:stop:step``, stop included.
 DEFAULT_SPEEDS = "160:350:1"
@@ -63,4 +72,4 @@ MAX_DELTA_ZETA = MAX_DELTA_ZETA_PCT / 100.0
 
 
 __all__ = ["ACC_LIMITS_M_S2", "TRACK_TYPES", "TRACK_ALIASES", "check_track_type", "acc_limit_m_s2",
-           "DEFAULT_SPEEDS", "default_speeds_kmh", "MAX_DELTA_ZETA_PCT", "MAX_DELTA_ZETA"]
+           "CHECK_MIN_SPEED_M_S", "DESIGN_SPEED_FACTOR", "DEFAULT_SPEEDS", "default_speeds_kmh", "MAX_DELTA_ZETA_PCT", "MAX_DELTA_ZETA"]
