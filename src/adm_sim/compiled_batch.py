@@ -26,7 +26,7 @@ from adm_sim import kernels
 from adm_sim.errors import InputError, RunError
 from adm_sim.fields import FIELDS
 from adm_sim.limits import check_delta_zeta_pct
-from adm_sim.stepping import (FAILED, RUNNING, StepOptions, SteppedRun, check_model, half_step_positions,
+from adm_sim.stepping import (FAILED, RUNNING, AdvancingRun, StepOptions, check_model, half_step_positions,
                               make_grid, mlm_rk4_coefficients, modal_loads_at, speeds_to_m_s)
 from adm_sim.tables import active_units, axle_rows, bridge_tables, vehicle_tables
 
@@ -153,7 +153,7 @@ class BatchRunner:
         return run.max_acc_m_s2, run.max_disp_m
 
 
-class BatchRun(SteppedRun):
+class BatchRun(AdvancingRun):
     """A compiled batched run with the contract of :class:`~adm_sim.stepping.SteppedRun`.
 
     Owns step ``k``, status, message, the state of every lane, the running maxima and the
@@ -224,10 +224,10 @@ class BatchRun(SteppedRun):
         self._start_contract(n_max)
 
     def _step_impl(self):
-        self._advance_impl(1)
+        return self._advance_impl(1)
 
     def _advance_impl(self, n):
-        """Every lane by ``n`` steps in one kernel call (:meth:`SteppedRun.advance` owns the status)."""
+        """Every lane by ``n`` steps in one kernel call; ``(success, message)`` of the finite check."""
         k0, k1 = self.k, self.k + n
         r = self.runner
         if self.model == "mlm":
@@ -242,8 +242,9 @@ class BatchRun(SteppedRun):
             return [r.bridges[c].name or r.bridges[c].describe() for c in self._case[self._order]]
 
         with np.errstate(over="ignore", invalid="ignore"):  # a blown-up state is what we look for
-            self._check_finite(f"{self.model.upper()} state", state, f"in steps {k0}..{k1} of {self.n_steps}",
-                               self._v[self._order], r.ds_m, names)
+            failure = self._not_finite(f"{self.model.upper()} state", state, f"in steps {k0}..{k1} of {self.n_steps}",
+                                       self._v[self._order], r.ds_m, names)
+        return failure is None, failure
 
     def _in_lane_order(self, a):
         out = np.empty_like(a)

@@ -39,13 +39,15 @@ acceleration of a resonant crossing can occur up to one period after the train h
 
 One stepper, a template as scipy's ``OdeSolver``
 ------------------------------------------------
-:class:`SteppedRun` writes the public :meth:`~SteppedRun.step` / :meth:`~SteppedRun.advance`
-once: they own step ``k``, status, message and the finite-value check; an implementation
-provides ``_step_impl`` (or ``_advance_impl`` for a block). Implementations:
-:class:`InProcessRun` (both halves in one process, :func:`adm_sim.sweep.run_sweep`),
-:class:`BridgeHalf` (the bridge node: ``rail_state`` / ``take_forces`` per DIM stage, ``step``
-with the stage-point modal loads for the MLM), :class:`TrainHalf` (the train node:
-``take_rail_state`` per DIM stage, ``advance(n)`` books an MLM axle block) and
+:class:`SteppedRun` writes the public :meth:`~SteppedRun.step` (and
+:meth:`~AdvancingRun.advance` for a run that needs no partner per step) once: only they set
+status and message; an implementation provides ``_step_impl`` (or ``_advance_impl`` for a
+block), which returns ``(success, message)``. The input a half receives from its partner is the
+argument of ``step``; nothing else advances a run. Implementations: :class:`InProcessRun` (both
+halves in one process, :func:`adm_sim.sweep.run_sweep`), :class:`BridgeHalf` (the bridge node:
+``rail_state`` is sent, ``step(interaction_n)`` per DIM stage, ``step(p0, ph, p1)`` with the
+stage-point modal loads per MLM step), :class:`TrainHalf` (the train node: ``step(idx_on, w, wd)``
+per DIM stage leaves the forces in ``interaction_n``; ``advance(n)`` books an MLM axle block) and
 :class:`adm_sim.compiled_batch.BatchRun` (the compiled kernels). Every numpy path calls the same
 :class:`BridgeSide` / :class:`TrainSide` methods in the same order, so the co-simulated runs
 equal the in-process ones bit for bit.
@@ -529,14 +531,20 @@ def hermite_max_abs_acc(d0, v0, a0, d1, v1, a1, h):
 class SteppedRun:
     """The contract every run of the project keeps, in-process, co-simulated or compiled.
 
-    Modelled on :class:`scipy.integrate.OdeSolver`: the public :meth:`step` and :meth:`advance`
-    are written once here and own :attr:`status`, :attr:`message`, the step count and the
-    refusal to step a run that is not running; an implementation provides only
-    :meth:`_step_impl` (one step; or :meth:`_advance_impl` for a block of steps) and reports a
-    non-finite solution through :meth:`_check_finite`. A run is ``'running'`` until its last step
-    is done (``'finished'``) or its solution is not finite (``'failed'``, with a one-line
-    :attr:`message` saying what, where and for which lane); stepping a run that is not running
-    raises ``RuntimeError``.
+    Modelled on :class:`scipy.integrate.OdeSolver`: the public :meth:`step` (and
+    :meth:`AdvancingRun.advance`) are written once here and are the only methods that set
+    :attr:`status` and :attr:`message`; they refuse to step a run that is not running. An
+    implementation provides :meth:`_step_impl` (one step, or one exchange with the partner half)
+    which moves its state and step count on and returns ``(success, message)``: ``success`` False
+    with a one-line ``message`` saying what was not finite, where and for which lane (see
+    :meth:`_not_finite`), else ``(True, None)``. A run is ``'running'`` until its last step is done
+    (``'finished'``) or an implementation reports a failure (``'failed'``); stepping a run that is
+    not running raises ``RuntimeError``.
+
+    One call of :meth:`step` is one exchange with the partner, whose input is its argument: a
+    whole step for :class:`InProcessRun` and :class:`adm_sim.compiled_batch.BatchRun` (no
+    partner) and for the MLM halves (the modal loads of a step); one RK4 stage of step ``k`` for
+    the DIM halves (the exchange is per stage), ``k`` then moves on with the fourth stage.
 
     Implementations: :class:`InProcessRun` (the numpy stepper, both halves in one process, driven
     by :func:`adm_sim.sweep.run_sweep`), :class:`BridgeHalf` and :class:`TrainHalf` (what the
@@ -557,12 +565,10 @@ class SteppedRun:
     n_steps: int = 0
     status: str = RUNNING
     message: str = ""
-    #: steps of :meth:`advance` without an argument
-    ADVANCE_STEPS = 1
 
     # ------------------------------------------------------------------ public contract
     def step(self, *exchange):
-        """Advance one step (``exchange``: what the partner half sends for it, if anything).
+        """Advance one step, or one exchange (``exchange``: what the partner half sends for it).
 
         Returns
         -------
@@ -570,35 +576,22 @@ class SteppedRun:
             ``None`` on success, else :attr:`message` (the run is then ``'failed'``).
         """
         self._require("step")
-        self._step_impl(*exchange)
-        return self._after()
-
-    def advance(self, max_steps=None):
-        """Advance up to ``max_steps`` steps (default :attr:`ADVANCE_STEPS`), never past ``n_steps``.
-
-        Returns ``None`` on success, else :attr:`message` (the run is then ``'failed'``).
-        """
-        self._require("advance")
-        n = self.ADVANCE_STEPS if max_steps is None else int(max_steps)
-        if n < 1:
-            raise ValueError(f"{type(self).__name__}.advance: max_steps = {max_steps} must be >= 1")
-        self._advance_impl(min(n, self.n_steps - self.k))
-        return self._after()
+        return self._settle(*self._step_impl(*exchange))
 
     # ------------------------------------------------------------------ for implementations
     def _step_impl(self, *exchange):  # pragma: no cover - abstract
+        """Move the state on by one step or exchange; return ``(success, message)``."""
         raise NotImplementedError
 
-    def _advance_impl(self, n):
-        """``n >= 1`` steps, ``k + n <= n_steps``; by default :meth:`_step_impl` ``n`` times."""
-        for _ in range(n):
-            self._step_impl()
-            if self.status != RUNNING:
-                return
-
-    def _after(self):
-        self._finish_if_done()
-        return self.message if self.status == FAILED else None
+    def _settle(self, success, message):
+        """Status and message after an implementation's step (the only place that sets them)."""
+        if not success:
+            self.status = FAILED
+            self.message = message
+            return message
+        if self.k >= self.n_steps:
+            self.status = FINISHED
+        return None
 
     def _start_contract(self, n_steps):
         self.n_steps = int(n_steps)
@@ -614,35 +607,56 @@ class SteppedRun:
             raise RuntimeError(f"{name}.{what}: the run is {self.status} at step {self.k} of "
                                f"{self.n_steps}{why}")
 
-    def _check_finite(self, what, values, where, lane_speeds_m_s, ds_m, lane_names=None):
-        """The finite-value check: False (and the run failed) when a value is not finite.
+    @staticmethod
+    def _not_finite(what, values, where, lane_speeds_m_s, ds_m, lane_names=None):
+        """The finite-value check: ``None`` when every value is finite, else the failure message.
 
         ``values``: an array (n_lanes,), or a tuple of arrays (..., n_lanes) (a non-finite
-        entry fails its lane).
+        entry fails its lane). ``lane_names``: names per lane, or a callable building them
+        (called only for a failure).
         """
         arrays = values if isinstance(values, tuple) else (values,)
         if all(_all_finite(a.ravel()) for a in arrays):
-            return True
+            return None
         finite = np.logical_and.reduce([np.isfinite(a.reshape(-1, a.shape[-1])).all(axis=0) for a in arrays])
-        self._fail(what, finite, where, lane_speeds_m_s, ds_m, lane_names)
-        return False
-
-    def _fail(self, what, finite, where, lane_speeds_m_s, ds_m, lane_names=None):
-        """Fail the run: ``finite`` (n_lanes,) says which lanes are still finite."""
-        bad = np.flatnonzero(~np.asarray(finite, dtype=bool))
+        bad = np.flatnonzero(~finite)
         first = f"{float(lane_speeds_m_s[bad[0]]) * 3.6:.6g} km/h"
-        if callable(lane_names):  # names built only for a failed run
+        if callable(lane_names):
             lane_names = lane_names()
         if lane_names is not None:
             first = f"{lane_names[bad[0]]} at {first}"
-        self.status = FAILED
-        self.message = (f"solution is not finite {where}: {what} in {bad.size} of {np.size(finite)} lanes "
-                        f"(first at {first}); the step ds = {ds_m:.4g} m is too large for this bridge/train "
-                        f"(raise steps_per_period or lower ds_m)")
+        return (f"solution is not finite {where}: {what} in {bad.size} of {finite.size} lanes "
+                f"(first at {first}); the step ds = {ds_m:.4g} m is too large for this bridge/train "
+                f"(raise steps_per_period or lower ds_m)")
 
-    def _finish_if_done(self):
-        if self.status == RUNNING and self.k >= self.n_steps:
-            self.status = FINISHED
+
+class AdvancingRun(SteppedRun):
+    """A run that needs nothing from a partner per step, so it can also :meth:`advance` by blocks."""
+
+    #: steps of :meth:`advance` without an argument
+    ADVANCE_STEPS = 1
+
+    def advance(self, max_steps=None):
+        """Advance up to ``max_steps`` steps (default :attr:`ADVANCE_STEPS`), never past ``n_steps``.
+
+        Returns ``None`` on success, else :attr:`message` (the run is then ``'failed'``).
+        """
+        self._require("advance")
+        n = self.ADVANCE_STEPS if max_steps is None else int(max_steps)
+        if n < 1:
+            raise ValueError(f"{type(self).__name__}.advance: max_steps = {max_steps} must be >= 1")
+        return self._settle(*self._advance_impl(min(n, self.n_steps - self.k)))
+
+    def _advance_impl(self, n):
+        """``n >= 1`` steps, ``k + n <= n_steps``; by default :meth:`_step_impl` ``n`` times.
+
+        Returns ``(success, message)`` as :meth:`_step_impl`.
+        """
+        for _ in range(n):
+            success, message = self._step_impl()
+            if not success:
+                return success, message
+        return True, None
 
 
 class _Lockstep(SteppedRun):
@@ -658,15 +672,24 @@ class _Lockstep(SteppedRun):
         self._start_contract(grid.n_steps)
         self.stage = 0
 
-    def _next_step(self):
-        self.stage = 0
-        self.k += 1
-
     def _next_stage(self):
         if self.stage < 3:
             self.stage += 1
-        else:
-            self._next_step()
+            return None
+        return self._next_step()
+
+    def _next_step(self):
+        """Move on to step ``k + 1``; returns ``None`` or the failure message of the new step."""
+        self.stage = 0
+        self.k += 1
+        return None
+
+    def _exchange_args(self, exchange, n, what):
+        """Refuse a :meth:`step` exchange of the wrong arity (``TypeError`` naming what it takes)."""
+        if len(exchange) != n:
+            raise TypeError(f"{type(self).__name__}.step: the {self.model.upper()} takes {what} "
+                            f"({n} argument{'s' if n != 1 else ''}), got {len(exchange)}")
+        return exchange
 
 
 class _BridgeRun(_Lockstep):
@@ -695,29 +718,38 @@ class _BridgeRun(_Lockstep):
         self._vel_m_s = self._prev = None  # midspan velocity at step k; (d, v, a) at step k - 1
         self.max_acc_m_s2 = np.zeros(grid.n_lanes)
         self.max_disp_m = np.zeros(grid.n_lanes)
-        self._start_step()
+        failure = self._start_step()
+        if failure is not None:
+            raise ValueError(f"{type(self).__name__}: the bridge side does not start from a finite state: {failure}")
 
     def _check_lanes(self, what, values):
-        return self._check_finite(what, values, f"at step {self.k} of {self.n_steps} (stage {self.stage})",
-                                  self.grid.speeds_m_s, self.grid.ds_m)
+        return self._not_finite(what, values, f"at step {self.k} of {self.n_steps} (stage {self.stage})",
+                                self.grid.speeds_m_s, self.grid.ds_m)
 
     def _start_step(self):
-        """Deflection at the start of step ``k``: check, and fold into the maxima (k < n_steps)."""
+        """Deflection at the start of step ``k``: check, and fold into the maxima (k < n_steps).
+
+        Returns ``None`` or the failure message.
+        """
         d = self.bridge_side.midspan_displacement()
         self.disp_m = d
         if self.dense_maxima:
             self._vel_m_s = self.bridge_side.midspan_velocity()
-        if not self._check_lanes("midspan deflection", d):
-            return
-        if self.k < self.n_steps:
+        failure = self._check_lanes("midspan deflection", d)
+        if failure is None and self.k < self.n_steps:
             np.maximum(self.max_disp_m, np.abs(d), out=self.max_disp_m)
+        return failure
 
     def _take_acc(self):
-        """Acceleration at stage 0 of step ``k``: check, and fold into the maxima."""
+        """Acceleration at stage 0 of step ``k``: check, and fold into the maxima.
+
+        Returns ``None`` or the failure message.
+        """
         a = self.bridge_side.last_acc
         self.acc_m_s2 = a
-        if not self._check_lanes("midspan acceleration", a):
-            return
+        failure = self._check_lanes("midspan acceleration", a)
+        if failure is not None:
+            return failure
         np.maximum(self.max_acc_m_s2, np.abs(a), out=self.max_acc_m_s2)
         if self.dense_maxima:  # between steps k - 1 and k, from the dense output
             if self._prev is not None:
@@ -725,30 +757,36 @@ class _BridgeRun(_Lockstep):
                 inner = hermite_max_abs_acc(d0, v0, a0, self.disp_m, self._vel_m_s, a, self.grid.dt_s)
                 np.maximum(self.max_acc_m_s2, inner, out=self.max_acc_m_s2)
             self._prev = (self.disp_m, self._vel_m_s, a)
+        return None
 
     def _next_step(self):
         super()._next_step()
-        self._start_step()
+        return self._start_step()
 
     def _forces(self, interaction_n):
-        """DIM: advance stage (k, stage) of the bridge with the interaction forces (n_lanes, n_on)."""
+        """DIM: advance stage (k, stage) of the bridge with the interaction forces (n_lanes, n_on).
+
+        Returns ``(success, message)``.
+        """
         self.bridge_side.take_forces(interaction_n)
-        if self.stage == 0:
-            self._take_acc()
-            if self.status == FAILED:
-                return
-        self._next_stage()
+        failure = self._take_acc() if self.stage == 0 else None
+        if failure is None:
+            failure = self._next_stage()
+        return failure is None, failure
 
     def _mlm(self, p0, ph, p1):
-        """MLM: one step with the modal loads at ``s_k``, ``s_k + ds/2``, ``s_k + ds`` (Eq. 12)."""
+        """MLM: one step with the modal loads at ``s_k``, ``s_k + ds/2``, ``s_k + ds`` (Eq. 12).
+
+        Returns ``(success, message)``.
+        """
         self.bridge_side.step_mlm(p0, ph, p1)
-        self._take_acc()
-        if self.status == FAILED:
-            return
-        self._next_step()
+        failure = self._take_acc()
+        if failure is None:
+            failure = self._next_step()
+        return failure is None, failure
 
 
-class InProcessRun(_BridgeRun):
+class InProcessRun(_BridgeRun, AdvancingRun):
     """Both halves in one process (:func:`adm_sim.sweep.run_sweep`): :meth:`step` advances one
     whole step including the per-stage exchange.
 
@@ -787,19 +825,19 @@ class InProcessRun(_BridgeRun):
         self.axles0 = self.interaction0_n = None
 
     def _step_impl(self):
-        if self.model == "dim":
-            b, t = self.bridge_side, self.train_side
-            for _ in range(4):
-                idx, w, wd = b.rail_state()
-                G = t.take_rail_state(idx, w, wd)
-                if self.stage == 0:
-                    self.axles0, self.interaction0_n = idx, G
-                self._forces(G)
-                if self.status == FAILED:
-                    break
-        else:
+        if self.model == "mlm":
             P, k = self.modal_loads, self.k
-            self._mlm(P[2 * k], P[2 * k + 1], P[2 * k + 2])
+            return self._mlm(P[2 * k], P[2 * k + 1], P[2 * k + 2])
+        b, t = self.bridge_side, self.train_side
+        for _ in range(4):
+            idx, w, wd = b.rail_state()
+            G = t.take_rail_state(idx, w, wd)
+            if self.stage == 0:
+                self.axles0, self.interaction0_n = idx, G
+            success, message = self._forces(G)
+            if not success:
+                return success, message
+        return True, None
 
     def contact_forces_n(self):
         """Wheel-rail contact forces (Eq. 7) at stage 0 of the step in progress or last done.
@@ -815,50 +853,41 @@ class InProcessRun(_BridgeRun):
 class BridgeHalf(_BridgeRun):
     """The bridge half of a co-simulated run (the bridge node): a :class:`BridgeSide` alone.
 
-    DIM, per RK4 stage: :meth:`rail_state` (sent to the train), then :meth:`take_forces` with the
-    partner's interaction forces; the stage advances with :meth:`take_forces`. MLM:
-    :meth:`step` ``(p0, ph, p1)`` per step with the modal loads of the stage points. Keeps the
-    maxima and the finite check as :class:`InProcessRun` does (attributes there).
+    DIM, per RK4 stage: :meth:`rail_state` (the state sent to the train; it does not advance),
+    then :meth:`step` ``(interaction_n)`` with the partner's interaction forces (n_lanes, n_on),
+    which advances the stage. At stage 0 the midspan acceleration is checked and folded into the
+    maxima; at the end of the step the deflection of the next one. MLM: :meth:`step`
+    ``(p0, ph, p1)`` per step with the modal loads of the stage points. Keeps the maxima and the
+    finite check as :class:`InProcessRun` does (attributes there). It has no ``advance``: every
+    step needs the partner's exchange.
     """
 
     def __init__(self, model, grid, bridge_side, dense_maxima=False):
         super().__init__(model, grid, bridge_side, dense_maxima)
 
-    def _need(self, model, what):
-        if self.model != model:
-            raise RuntimeError(f"BridgeHalf.{what}: needs the {model.upper()} (this run is {self.model.upper()})")
-        self._require(what)
-
     def rail_state(self):
         """DIM: rail state under the axles at (k, stage); see :meth:`BridgeSide.rail_state`."""
-        self._need("dim", "rail_state")
+        if self.model != "dim":
+            raise RuntimeError(f"BridgeHalf.rail_state: needs the DIM (this run is {self.model.upper()})")
+        self._require("rail_state")
         return self.bridge_side.rail_state()
 
-    def take_forces(self, interaction_n):
-        """DIM: advance stage (k, stage) with the interaction forces (n_lanes, n_on).
-
-        At stage 0 the midspan acceleration is checked and folded into the maxima; at the end of
-        the step the deflection of the next one. Returns ``None`` or :attr:`message`.
-        """
-        self._need("dim", "take_forces")
-        self._forces(interaction_n)
-        return self._after()
-
-    def _advance_impl(self, n):
-        raise RuntimeError("BridgeHalf.advance: a step of a half needs the partner's exchange; use step(p0, ph, p1)")
-
-    def _step_impl(self, p0, ph, p1):
-        if self.model != "mlm":
-            raise RuntimeError("BridgeHalf.step: needs the MLM (a DIM step is four rail_state/take_forces stages)")
-        self._mlm(p0, ph, p1)
+    def _step_impl(self, *exchange):
+        if self.model == "dim":
+            (interaction_n,) = self._exchange_args(exchange, 1, "the interaction forces of one RK4 stage")
+            return self._forces(interaction_n)
+        p0, ph, p1 = self._exchange_args(exchange, 3, "the modal loads p0, ph, p1 of one step")
+        return self._mlm(p0, ph, p1)
 
 
-class TrainHalf(_Lockstep):
+class TrainHalf(_Lockstep, AdvancingRun):
     """The train half of a co-simulated run (the train node).
 
-    DIM: a :class:`TrainSide`; :meth:`take_rail_state` per RK4 stage returns the interaction
-    forces and advances the stage. MLM: no state; :meth:`advance` ``(n)`` books the next block
-    of steps (whose axle positions are being sent), ``k`` then names the next block's first step.
+    DIM: a :class:`TrainSide`; :meth:`step` ``(idx_on, w, wd)`` per RK4 stage takes the bridge's
+    rail state (see :meth:`TrainSide.take_rail_state`), advances the stage and leaves the
+    interaction forces to send back in :attr:`interaction_n` (n_lanes, n_on) in N. MLM: no
+    state; :meth:`advance` ``(n)`` books the next block of steps (whose axle positions are being
+    sent), ``k`` then names the next block's first step.
     """
 
     def __init__(self, model, grid, train_side=None):
@@ -868,27 +897,24 @@ class TrainHalf(_Lockstep):
             raise ValueError("TrainHalf: the DIM needs a train side")
         super().__init__(model, grid, *(() if train_side is None else (train_side,)))
         self.train_side = train_side
+        self.interaction_n = None
 
-    def take_rail_state(self, idx_on, w, wd):
-        """DIM: the interaction forces for the rail state at (k, stage).
-
-        See :meth:`TrainSide.take_rail_state`; returns ``G`` (n_lanes, n_on) in N.
-        """
-        if self.model != "dim":
-            raise RuntimeError("TrainHalf.take_rail_state: needs the DIM")
-        self._require("take_rail_state")
-        G = self.train_side.take_rail_state(idx_on, w, wd)
+    def _step_impl(self, *exchange):
+        if self.model == "mlm":
+            self._exchange_args(exchange, 0, "nothing per step")
+            self.k += 1
+            return True, None
+        idx_on, w, wd = self._exchange_args(exchange, 3, "the rail state idx_on, w, wd of one RK4 stage")
+        self.interaction_n = self.train_side.take_rail_state(idx_on, w, wd)
         self._next_stage()
-        self._finish_if_done()
-        return G
+        return True, None
 
     def _advance_impl(self, n):
         if self.model != "mlm":
-            raise RuntimeError("TrainHalf.advance: needs the MLM (a DIM step is four take_rail_state stages)")
+            raise RuntimeError("TrainHalf.advance: needs the MLM (a DIM step is four stages, each with the "
+                               "bridge's rail state: step(idx_on, w, wd))")
         self.k += n
-
-    def _step_impl(self):
-        self._advance_impl(1)
+        return True, None
 
 
 def mlm_rk4_coefficients(h, m, c, kk):

@@ -279,7 +279,7 @@ class BridgeNode(c.NodeBase):
         run_id, k, stage, idx, G = c.unpack(msg)
         c.check_step("bridge", (run_id, k, stage), (r["id"], run.k, run.stage))
         self.partner.clear()
-        run.take_forces(G)
+        run.step(G)  # one RK4 stage with the partner's interaction forces
         if stage == 0 and run.status != "failed":
             self._step_done(k, r["disp"], run.acc_m_s2)
         if run.status != "running":

@@ -166,7 +166,8 @@ class TrainNode(c.NodeBase):
         c.check_step("train", (run_id, k, stage), (r["id"], run.k, run.stage))
         self.partner.clear()
         if r["model"] == "dim":
-            G = run.take_rail_state(idx, payload[0], payload[1])
+            run.step(idx, payload[0], payload[1])  # one RK4 stage with the bridge's rail state
+            G = run.interaction_n
             self.pub_forces.publish(c.pack(run_id, k, stage, G, ("lane", "axle_on"), idx))
         else:
             k0 = run.k
