@@ -226,7 +226,7 @@ def test_train_file_missing_and_unknown(tmp_path):
 
 
 def test_core_never_imports_rclpy():
-    code = ("import sys, adm_sim, adm_sim.bridge, adm_sim.trains, adm_sim.stepping, adm_sim.sweep, "
+    code = ("import sys, adm_sim, adm_sim.bridge, adm_sim.trains, adm_sim.lockstep_runs, adm_sim.sweep, "
             "adm_sim.sim_commands; assert 'rclpy' not in sys.modules, 'rclpy imported'; print('clean')")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert out.returncode == 0 and "clean" in out.stdout, out.stderr

@@ -1,4 +1,4 @@
-"""The numpy stepper (stepping.InProcessRun, BridgeHalf, TrainHalf on the SteppedRun template):
+"""The numpy stepper (lockstep_runs.InProcessRun, BridgeHalf, TrainHalf on the run_contract.SteppedRun template):
 status, step/stage bookkeeping, maxima, finite check.
 
 Short case: bridge B1 x ICE-2 at 160, 250 and 350 km/h; the DIM on a coarse grid (4 steps per
@@ -11,8 +11,10 @@ import pytest
 
 from adm_sim.bridge import named_bridge
 from adm_sim.errors import InputError, RunError
-from adm_sim.stepping import (BridgeHalf, BridgeSide, InProcessRun, StepOptions, TrainHalf, TrainSide, half_step_positions, make_grid,
-                              mlm_modal_load_table, modal_loads_at, speeds_to_m_s)
+from adm_sim.lockstep_runs import BridgeHalf, InProcessRun, TrainHalf
+from adm_sim.mlm_loads import half_step_positions, mlm_modal_load_table, modal_loads_at
+from adm_sim.rk4_sides import BridgeSide, TrainSide
+from adm_sim.step_grid import StepOptions, make_grid, speeds_to_m_s
 from adm_sim.sweep import run_sweep
 from adm_sim.trains import load_train
 

@@ -102,7 +102,7 @@ def _list(text, field):
 
 
 def _options(args):
-    from adm_sim.stepping import StepOptions
+    from adm_sim.step_grid import StepOptions
 
     from adm_calib.calibrate import CalibrationOptions
 

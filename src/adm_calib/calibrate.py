@@ -45,7 +45,7 @@ from dataclasses import replace
 import numpy as np
 
 from adm_sim.errors import InputError
-from adm_sim.stepping import StepOptions, make_grid, speeds_to_m_s
+from adm_sim.step_grid import StepOptions, make_grid, speeds_to_m_s
 
 from adm_calib import peaks as pk
 from adm_calib.calibration_options import CalibrationOptions, check_speeds
@@ -109,7 +109,7 @@ def calibrate_cases(bridges, train, lanes, speeds_kmh=None, options=None, step=N
     speeds_kmh : array_like, optional
         MLM speeds (km/h); default 160..350 at 1 km/h.
     options : CalibrationOptions, optional
-    step : adm_sim.stepping.StepOptions, optional
+    step : adm_sim.step_grid.StepOptions, optional
         The shared step (``ds_m`` set), for the results; default :func:`batch_step`.
     adapted_curve : bool
     dim_curves : sequence of (ndarray, ndarray) or None, optional
@@ -269,7 +269,7 @@ def calibrate(bridge, train, speeds_kmh=None, options=None, progress=None, adapt
         Runs one speed sweep and returns the maximum midspan accelerations (m/s^2): a hook for
         sweeps run elsewhere (co-simulation, a cluster), used through
         :class:`adm_calib.lanes.HookLanes`; ``step`` is the shared
-        :class:`~adm_sim.stepping.StepOptions`, ``phase`` (if the hook takes it) the phase.
+        :class:`~adm_sim.step_grid.StepOptions`, ``phase`` (if the hook takes it) the phase.
     on_trial : callable(delta_zeta, mlm_peak_m_s2, dim_peak_m_s2), optional
         Called for every trial damping of the root finder (fraction, re-located MLM peak, target):
         progress displays and logs of the iterations.
@@ -325,7 +325,7 @@ def calibrate_batch(bridges, train, speeds_kmh=None, options=None, step=None):
     speeds_kmh : array_like, optional
         MLM speeds (km/h); default 160..350 at 1 km/h.
     options : CalibrationOptions, optional
-    step : adm_sim.stepping.StepOptions, optional
+    step : adm_sim.step_grid.StepOptions, optional
         Shared step (``ds_m`` set); default :func:`batch_step`.
 
     Returns

@@ -456,7 +456,9 @@ def comfort_b_v(bridge, train, speeds_kmh, options=None):
     maximum over the crossing. A vehicle is integrated while an axle is on the bridge (the core's
     rule on a rigid track), so its motion after leaving the bridge is not followed.
     """
-    from adm_sim.stepping import BridgeSide, InProcessRun, StepOptions, TrainSide, make_grid, speeds_to_m_s
+    from adm_sim.lockstep_runs import InProcessRun
+    from adm_sim.rk4_sides import BridgeSide, TrainSide
+    from adm_sim.step_grid import StepOptions, make_grid, speeds_to_m_s
 
     if not train.units:
         raise InputError(f"comfort: {train.name!r} has no vehicles; b_v needs the DIM")

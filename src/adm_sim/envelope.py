@@ -197,7 +197,7 @@ def moving_load_envelope(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, delta
     -------
     Envelope
     """
-    from adm_sim.stepping import speeds_to_m_s
+    from adm_sim.step_grid import speeds_to_m_s
 
     L = bridge.span_m
     where = parse_where(where, L, field="where")

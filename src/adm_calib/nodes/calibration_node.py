@@ -34,7 +34,7 @@ from adm_sim.bridge import Bridge
 from adm_sim.limits import DEFAULT_SPEEDS
 from adm_sim.nodes import common as c
 from adm_sim.nodes.driver import RunDriver, say
-from adm_sim.stepping import StepOptions
+from adm_sim.step_grid import StepOptions
 from adm_sim.sweep import parse_speeds
 from adm_sim.trains import load_train
 

@@ -162,7 +162,7 @@ class StudySettings:
     ``dim_grid`` and ``steps_per_period`` as for :class:`~adm_calib.calibrate.CalibrationOptions`
     (``None``: the core's default). The adapted MLM curve is never computed (not needed here).
     ``dense_maxima`` takes the maxima between time samples (dense output,
-    :class:`~adm_sim.stepping.StepOptions`); ``refine_speed`` locates both peaks to 0.05 km/h
+    :class:`~adm_sim.step_grid.StepOptions`); ``refine_speed`` locates both peaks to 0.05 km/h
     (:class:`~adm_calib.calibrate.CalibrationOptions` ``speed_refinement_kmh``). Both off: the
     paper's rules. Settings written by a version without these two read as off.
     """
@@ -179,7 +179,7 @@ class StudySettings:
         return parse_speeds(self.speeds)
 
     def calibration_options(self):
-        from adm_sim.stepping import StepOptions
+        from adm_sim.step_grid import StepOptions
 
         from adm_calib.calibrate import CalibrationOptions
 

@@ -1,8 +1,8 @@
-"""Bridge node: the modal beam (:class:`adm_sim.stepping.BridgeSide`) in lockstep with the train node.
+"""Bridge node: the modal beam (:class:`adm_sim.rk4_sides.BridgeSide`) in lockstep with the train node.
 
 Per run (requested by the train node on ``/adm/run/setup``) the node builds the bridge from its
-parameters, the shared space grid (:func:`adm_sim.stepping.make_grid`) and a ``BridgeSide`` for
-all speed lanes, held by a :class:`adm_sim.stepping.BridgeHalf` (step, stage,
+parameters, the shared space grid (:func:`adm_sim.step_grid.make_grid`) and a ``BridgeSide`` for
+all speed lanes, held by a :class:`adm_sim.lockstep_runs.BridgeHalf` (step, stage,
 status, maxima, finite-value check), then
 
 * DIM: for every RK4 stage publishes the rail displacement/velocity under the axles on the bridge
@@ -38,7 +38,10 @@ from adm_sim.fields import view
 from adm_sim.errors import InputError
 from adm_sim.limits import ACC_LIMITS_M_S2, TRACK_TYPES, check_delta_zeta, check_track_type
 from adm_sim.nodes import common as c
-from adm_sim.stepping import BridgeHalf, BridgeSide, StepOptions, make_grid, modal_loads_at
+from adm_sim.lockstep_runs import BridgeHalf
+from adm_sim.mlm_loads import modal_loads_at
+from adm_sim.rk4_sides import BridgeSide
+from adm_sim.step_grid import StepOptions, make_grid
 
 __all__ = ["TRACK_TYPES", "MONITOR_SAMPLES_PER_PERIOD", "monitor_steps", "bridge_specs", "BridgeNode", "main"]
 #: Automatic monitoring decimation: at least this many samples per period of the highest retained
