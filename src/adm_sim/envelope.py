@@ -174,7 +174,7 @@ def deck_positions_m(span_m, n_modes, samples_per_period=4.0):
     return span_m * np.arange(1, n + 1) / (2.0 * n)
 
 
-def moving_load_envelope(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, delta_zeta=0.0,
+def moving_load_envelope(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, *, delta_zeta=0.0,
                          samples_per_period=4.0, where="midspan"):
     """Exact max |acceleration|, |deflection| (at ``where``) and |midspan moment| at every speed.
 

@@ -171,7 +171,7 @@ class InProcessRun(_BridgeRun, AdvancingRun):
     exchange of the step in progress (DIM).
     """
 
-    def __init__(self, model, grid, bridge_side, train_side=None, modal_loads=None, dense_maxima=False):
+    def __init__(self, model, grid, bridge_side, *, train_side=None, modal_loads=None, dense_maxima=False):
         check_model(model)
         if model == "dim" and train_side is None:
             raise ValueError("InProcessRun: the DIM needs a train side")
@@ -221,7 +221,7 @@ class BridgeHalf(_BridgeRun):
     step needs the partner's exchange.
     """
 
-    def __init__(self, model, grid, bridge_side, dense_maxima=False):
+    def __init__(self, model, grid, bridge_side, *, dense_maxima=False):
         super().__init__(model, grid, bridge_side, dense_maxima)
 
     def rail_state(self):

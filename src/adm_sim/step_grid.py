@@ -28,7 +28,7 @@ from adm_sim.fields import FIELDS
 SPEED_RANGE_KMH = FIELDS["speeds_kmh"].range
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class StepOptions:
     """Discretisation settings.
 
@@ -60,10 +60,12 @@ class StepOptions:
     def halved(self):
         """The same settings with half the step (for convergence checks)."""
         ds = None if self.ds_m is None else 0.5 * self.ds_m
-        return StepOptions(2.0 * self.steps_per_period, self.free_vibration_periods, ds, self.dense_maxima)
+        return StepOptions(steps_per_period=2.0 * self.steps_per_period,
+                           free_vibration_periods=self.free_vibration_periods, ds_m=ds,
+                           dense_maxima=self.dense_maxima)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Grid:
     """The shared space grid of a run.
 
