@@ -1,4 +1,5 @@
-"""What the launch scripts share: input checks, the output folder, the bridge/train/driver graph.
+"""What the launch scripts share: the runner, the pre-flight (input checks, the output folder), the
+bridge/train/driver graph.
 
 The processes are started, watched and stopped by :class:`adm_sim.processes.supervisor.Supervisor`
 (the one supervisor of the launch scripts and the tests).
@@ -18,18 +19,44 @@ OUTPUTS = ("run.mcap", "run.rrd", "summary.json")
 
 
 def launch(body, args):
-    """Run a launch script's ``body(args)`` with SIGINT/SIGTERM as ``error: interrupted`` (130) and
-    plausibility warnings as one ``warning: ...`` line each; the body's return value is the exit code."""
-    import sys
+    """Run a launch script's ``body(args)`` under the runner of every command line
+    (:func:`adm_sim.cliutil.run_cli`): bad input ``error: ...`` and 2, a failed run 1, a refused
+    write (full disk, ``ulimit -f``, read-only folder) 1, SIGINT/SIGTERM ``error: interrupted`` and
+    130, plausibility warnings one ``warning: ...`` line each; the body's return value is the exit code."""
+    from adm_sim.cliutil import run_cli
 
-    from adm_sim.errors import interrupt_signals, plausibility_warnings
+    return run_cli(lambda: body(args))
 
-    with interrupt_signals(), plausibility_warnings():
-        try:
-            return body(args)
-        except KeyboardInterrupt:  # before any process started
-            print("error: interrupted", file=sys.stderr)
-            return 130
+
+def preflight(args, default_out, dim=False, model=None):
+    """Everything a launch checks before any process starts, then its output folder and its domain id.
+
+    The domain id and the viewer options, the inputs each node will start with
+    (:func:`check_inputs`), the output folder ``args.out`` (``default_out`` when not given) by the
+    folder rule of :mod:`adm_sim.files` (:func:`check_out`); then a ROS domain id is reserved and
+    the folder created and claimed (:func:`prepare_out`). Bad input raises
+    :class:`adm_sim.errors.InputError` before anything is created.
+
+    Returns ``(out, env, created, old)``: the folder, the :class:`~adm_sim.processes.dds_env.LocalRosEnv`
+    (release it at the end), whether the folder was created here, the earlier outputs in it.
+    """
+    from adm_sim.errors import InputError
+    from adm_sim.processes.dds_env import local_ros_env
+
+    domain_id = check_domain_id(args.domain_id)
+    check_viewer(args.spawn, args.connect)
+    if args.out is not None and not args.out.strip():
+        raise InputError("--out: '' is empty; give a folder or omit --out")
+    check_inputs(args.bridge, args.train, args.speeds, args.params_file, model=model, dim=dim)
+    out = Path(args.out) if args.out else default_out
+    check_out(out, {"--params-file": args.params_file, "--bridge": args.bridge, "--train": args.train})
+    env = local_ros_env(domain_id)  # reserved before the folder exists
+    try:
+        created, old = prepare_out(out, args.overwrite)
+    except BaseException:
+        env.release()
+        raise
+    return out, env, created, old
 
 
 def launch_param_specs():
@@ -156,79 +183,34 @@ def check_viewer(spawn, connect):
             raise InputError(f"--connect: {str(exc).removeprefix('connect_url: ')}") from None
 
 
-def check_out(out, inputs=()):
-    """The output folder before anything is created: not a file, in a writable place, and none
-    of its outputs an input of the launch (``inputs``: paths)."""
-    from adm_sim.errors import InputError
-    from adm_sim.files import is_input, probe_writable
+def check_out(out, inputs=None):
+    """The output folder before anything is created (:func:`adm_sim.files.check_output_folder`): not
+    a file, in a writable place, and none of its outputs an input of the launch (``inputs``:
+    ``{option: path}``)."""
+    from adm_sim.files import check_output_folder
 
-    if out.exists() and not out.is_dir():
-        raise InputError(f"--out: {str(out)!r} is not a directory")
-    anc = out.absolute()
-    while not anc.is_dir() and anc != anc.parent:
-        anc = anc.parent
-    probe_writable(anc, "--out", str(out))
-    for f in OUTPUTS:
-        same = is_input(out / f, [("input", p) for p in inputs])
-        if same is not None:
-            raise InputError(f"--out: {str(out / f)!r} would be written but is an input of this launch")
-
-
-#: Held for the life of the launcher: the claim on its output folder (see :func:`prepare_out`).
-_OUT_LOCK = []
+    return check_output_folder(out, "--out", OUTPUTS, inputs)
 
 
 def prepare_out(out, overwrite):
-    """Create the output folder and claim it; an earlier run in it is kept unless ``overwrite``
-    (InputError), and a folder another launch is writing is refused naming its pid.
-
-    The claim is an exclusive ``flock`` on ``<out>/.launch.lock`` holding the launcher's pid; the
-    kernel drops it when the launcher ends, however it ends. With ``overwrite`` the earlier files
-    stay until the new ones are complete: the driver node (parameter ``overwrite``) writes beside
-    them and renames at a successful end.
+    """Create the output folder and claim it (:func:`adm_sim.files.claim_folder`); an earlier run in
+    it is kept unless ``overwrite`` (InputError), and a folder another launch is writing is refused
+    naming its pid. With ``overwrite`` the earlier files stay until the new ones are complete: the
+    driver node (parameter ``overwrite``) writes beside them and renames at a successful end.
 
     Returns ``(created, old)``: whether the folder was created here, and the earlier outputs in it.
     """
-    import fcntl
-    import os
+    from adm_sim.files import claim_folder, make_output_folder
 
-    from adm_sim.errors import InputError
-
-    created = not out.exists()
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        fd = os.open(out / ".launch.lock", os.O_RDWR | os.O_CREAT, 0o644)
-    except OSError as exc:
-        raise InputError(f"--out: cannot create {str(out)!r} ({exc.strerror})") from None
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except BlockingIOError:
-        pid = os.pread(fd, 32, 0).decode(errors="replace").strip()
-        os.close(fd)
-        raise InputError(f"--out: {str(out)!r} is being written by another launch (process {pid or '?'}); "
-                         f"wait for it to finish or choose another folder") from None
-    os.ftruncate(fd, 0)
-    os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
-    _OUT_LOCK.append(fd)
-    old = [f for f in OUTPUTS if (out / f).exists()]
-    if old and not overwrite:
-        release_out(out)
-        raise InputError(f"--out: {str(out)!r} holds an earlier run ({', '.join(old)}); "
-                         f"choose another folder or pass --overwrite")
-    return created, set(old)
+    created = make_output_folder(out, "--out")
+    return created, set(claim_folder(out, "--out", OUTPUTS, overwrite))
 
 
 def release_out(out):
     """Give up the claim of :func:`prepare_out` (its lock file is removed first)."""
-    import os
+    from adm_sim.files import release
 
-    while _OUT_LOCK:
-        fd = _OUT_LOCK.pop()
-        try:
-            os.unlink(out / ".launch.lock")
-        except OSError:
-            pass
-        os.close(fd)
+    release(out)
 
 
 def discard_outputs(out, created, old=()):

@@ -23,8 +23,8 @@ import sys
 import time
 from pathlib import Path
 
-from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, check_domain_id, check_inputs, check_out,
-                         check_viewer, discard_outputs, launch, prepare_out, release_out, run_graph)
+from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, discard_outputs, launch, preflight, release_out,
+                         run_graph)
 
 from adm_sim.cliutil import Parser, add_domain_id, add_overwrite
 from adm_sim.protocol import parse_driver_line
@@ -130,24 +130,10 @@ def main(argv=None):
 
 
 def _main(args):
-    from adm_sim.errors import InputError, one_line
-    from adm_sim.processes.dds_env import local_ros_env
-
     t_start = time.perf_counter()
-    try:
-        domain_id = check_domain_id(args.domain_id)
-        check_viewer(args.spawn, args.connect)
-        if args.out is not None and not args.out.strip():
-            raise InputError("--out: '' is empty; give a folder or omit --out")
-        check_inputs(args.bridge, args.train, args.speeds, args.params_file, dim=True)
-        tag = f"{(args.bridge or 'B1')}_{(args.train or 'ICE-2')}".replace("/", "_").replace("=", "").replace(",", "_")
-        out = Path(args.out) if args.out else ROOT / "runs" / f"calibrate_{tag}_{time.strftime('%Y%m%d-%H%M%S')}"
-        check_out(out, [p for p in (args.params_file, args.bridge, args.train) if p])
-        env = local_ros_env(domain_id)  # reserved before the folder exists
-        created, old = prepare_out(out, args.overwrite)
-    except InputError as exc:
-        print(f"error: {one_line(exc)}", file=sys.stderr)
-        return 2
+    tag = f"{(args.bridge or 'B1')}_{(args.train or 'ICE-2')}".replace("/", "_").replace("=", "").replace(",", "_")
+    default_out = ROOT / "runs" / f"calibrate_{tag}_{time.strftime('%Y%m%d-%H%M%S')}"
+    out, env, created, old = preflight(args, default_out, dim=True)
     pb, pt, pc = node_params(args, out)
     prog = Progress(args.quiet)
     try:

@@ -23,11 +23,10 @@ import sys
 import time
 from pathlib import Path
 
-from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, check_domain_id, check_inputs, check_out,
-                         check_viewer, discard_outputs, launch, prepare_out, release_out, run_graph)
+from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, discard_outputs, launch, preflight, release_out,
+                         run_graph)
 
 from adm_sim.cliutil import Parser, add_choice, add_domain_id, add_overwrite
-from adm_sim.errors import InputError, one_line
 from adm_sim.protocol import parse_driver_line
 
 
@@ -48,21 +47,8 @@ def main(argv=None):
 
 
 def _main(args):
-    from adm_sim.processes.dds_env import local_ros_env
-
-    try:
-        domain_id = check_domain_id(args.domain_id)
-        check_viewer(args.spawn, args.connect)
-        if args.out is not None and not args.out.strip():
-            raise InputError("--out: '' is empty; give a folder or omit --out")
-        check_inputs(args.bridge, args.train, args.speeds, args.params_file, model=args.model)
-        out = Path(args.out) if args.out else ROOT / "runs" / f"crossing_{time.strftime('%Y%m%d-%H%M%S')}"
-        check_out(out, [p for p in (args.params_file, args.bridge, args.train) if p])
-        env = local_ros_env(domain_id)  # reserved before the folder exists
-        created, old = prepare_out(out, args.overwrite)
-    except InputError as exc:
-        print(f"error: {one_line(exc)}", file=sys.stderr)
-        return 2
+    default_out = ROOT / "runs" / f"crossing_{time.strftime('%Y%m%d-%H%M%S')}"
+    out, env, created, old = preflight(args, default_out, model=args.model)
     pb = {"bridge": args.bridge} if args.bridge is not None else {}
     pt = {k: v for k, v in (("train", args.train), ("model", args.model), ("speeds_kmh", args.speeds))
           if v is not None}

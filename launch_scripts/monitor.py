@@ -34,8 +34,9 @@ import time
 from pathlib import Path
 
 from adm_sim import protocol as P
-from adm_sim.cliutil import Parser, add_overwrite
-from adm_sim.errors import InputError, check_int, check_range, run_cli
+from adm_sim.cliutil import Parser, add_overwrite, run_cli
+from adm_sim.errors import InputError
+from adm_sim.fields import check_int, check_range
 from adm_sim.limits import TRACK_TYPES
 
 ACCEL_TYPE = "geometry_msgs/msg/AccelStamped"

@@ -24,28 +24,28 @@ line ``warning: ...`` on stderr.
 ``--republish`` publishes every recorded topic (raw CDR, so any type) except ``/clock``, plus a
 ``rosgraph_msgs/Clock`` on ``/clock`` ahead of each new time stamp, paced at ``--rate`` times
 simulated time (0: as fast as possible). DDS stays on this machine: ``FASTDDS_BUILTIN_TRANSPORTS=SHM``
-unless already set, ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, and ``--domain-id`` or a free,
-locked ROS_DOMAIN_ID (printed on the first line).
+unless already set, ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, and ``--domain-id``, else an exported
+``ROS_DOMAIN_ID``, else a free, locked id (printed on the first line); ids up to 232 with shared memory
+only, 101 with a UDP transport.
 
 Exit status 0 on success, 2 with one line ``error: ...`` on bad input (checked before anything is
 read, written or started: RUN.mcap must be an MCAP file, OUT.rrd a new ``.rrd`` file in an existing
 folder unless ``--overwrite``, every number finite and in range), 1 with one line when the replay
-itself fails (:func:`adm_sim.errors.run_cli`).
+itself fails (:func:`adm_sim.cliutil.run_cli`).
 """
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 import time
-from collections import defaultdict
 from pathlib import Path
-
-import numpy as np
 
 from adm_sim import protocol as P
 from adm_sim.cliutil import Parser, add_domain_id, add_overwrite, option_help
-from adm_sim.errors import InputError, RunError, run_cli
+from adm_sim.errors import InputError, RunError
+from adm_sim.cliutil import run_cli
 from adm_sim.fields import view
 
 
@@ -55,6 +55,7 @@ def check_args(args):
 
     mcap_input(str(args.mcap), "RUN.mcap")
     if args.rrd is not None:
+        _refuse_input_as_output(args.mcap, args.rrd)
         claim_output(str(args.rrd), "--rrd", args.overwrite, ".rrd")
     if args.connect is not None and not args.connect.startswith(
             ("rerun+http://127.0.0.1:", "rerun+http://localhost:", "rerun+http://[::1]:")):
@@ -65,9 +66,34 @@ def check_args(args):
     args.wait_subscribers = view("cli", "--wait-subscribers").check(args.wait_subscribers)
     if args.domain_id is not None:
         args.domain_id = view("cli", "--domain-id").check(args.domain_id)
+    if args.republish:  # the transport's range (232 with shared memory only, else 101), an exported id too
+        import os
+
+        from adm_sim.processes.dds_env import check_domain_id
+
+        env = {"FASTDDS_BUILTIN_TRANSPORTS": "SHM", **os.environ}
+        if args.domain_id is not None:
+            check_domain_id(args.domain_id, env, "--domain-id")
+        elif os.environ.get("ROS_DOMAIN_ID", "").strip():
+            check_domain_id(os.environ["ROS_DOMAIN_ID"], env, "ROS_DOMAIN_ID (exported)")
     if args.topics is not None and not args.republish:
         raise InputError("--topics: only used with --republish; add --republish or drop --topics")
     return args
+
+
+def _refuse_input_as_output(mcap: Path, rrd: Path) -> None:
+    """``--rrd`` naming the recording being replayed (the same path, a symbolic or a hard link) would
+    replace the recording by its own replay."""
+
+    same = Path(rrd).resolve() == Path(mcap).resolve()
+    if not same and Path(rrd).exists():
+        try:
+            same = os.path.samefile(rrd, mcap)
+        except OSError:
+            same = False
+    if same:
+        raise InputError(f"--rrd: '{rrd}' is RUN.mcap, the recording being replayed (the same file"
+                         f"{'' if str(rrd) == str(mcap) else ' by another name'}); give another file")
 
 
 def parse_args(argv=None):
@@ -82,6 +108,8 @@ def parse_args(argv=None):
     add_overwrite(p, "replace OUT.rrd if it exists")
     p.add_argument("--exaggeration", default="500", help=option_help("--exaggeration", "display factor on beam "
                                                                         "deflections (default 500)"))
+    p.add_argument("--skip-damaged", action="store_true",
+                   help="replay the intact chunks of a damaged recording (each skipped damage is named on stderr)")
     p.add_argument("--republish", action="store_true", help="republish the run on ROS 2")
     add_domain_id(p, "ROS_DOMAIN_ID (default: a free one)")
     p.add_argument("--rate", default="1", help=option_help("--rate", "republish speed, multiples of simulated time"))
@@ -99,151 +127,26 @@ def parse_args(argv=None):
 # ---------------------------------------------------------------- rerun
 
 
-def _stamp_ns(msg, log_time_ns: int) -> int:
-    header = getattr(msg, "header", None)
-    if header is not None:
-        return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
-    return int(log_time_ns)
-
-
-def show_in_rerun(args, save_path=None) -> dict[str, int]:
+def show_in_rerun(args, found, save_path=None) -> dict[str, int]:
     """Decode the MCAP and log it in the adm-sim layout (into ``save_path``, a new ``.rrd``, if
-    given); returns message counts per topic."""
-    import rerun as rr
-
-    from adm_sim.nodes.common import matrix_from_msg
+    given) through the live driver's feed (:class:`adm_sim.recording.viewer_feed.ViewerFeed`);
+    ``found`` is the checked :class:`~adm_sim.recording.mcap_log.Scan` of the recording; returns
+    message counts per topic."""
     from adm_sim.recording import rerun_log as rl
-    from adm_sim.recording.mcap_log import read_messages
+    from adm_sim.recording.mcap_log import decode_messages, sorted_messages
+    from adm_sim.recording.viewer_feed import RunPhases, ViewerFeed, stamp_ns
 
     rl.init_rerun("adm_sim_replay", spawn=args.spawn, connect_url=args.connect, save_path=save_path)
     viz = rl.RunLogger(exaggeration=args.exaggeration)
     viz.send_blueprint()
     _log_metadata(args.mcap)
-    accel = defaultdict(lambda: ([], []))  # AccelStamped outside any recorded run: frame -> (t, a)
-    series = defaultdict(lambda: defaultdict(lambda: ([], [])))  # topic -> name -> (t, v)
-    counts: dict[str, int] = defaultdict(int)
-    deflection = None
-    phases = RunPhases(args.mcap)
-    for topic, log_time_ns, msg in _status_first(_guarded(read_messages(args.mcap), args.mcap)):
-        counts[topic] += 1
-        t_s = _stamp_ns(msg, log_time_ns) * 1e-9
-        if topic in P.RUN_LOGGER_TOPICS:
-            if topic == P.TOPIC_BRIDGE_DESC:
-                viz.bridge_description(P.decode(msg.data))
-            elif topic == P.TOPIC_TRAIN_DESC:
-                viz.train_description(P.decode(msg.data))
-            elif topic == P.TOPIC_STATUS:
-                st = P.decode(msg.data)
-                phases.status(st)
-                viz.run_started(st)
-            elif topic == P.TOPIC_ACCEL:
-                if viz.runs:
-                    viz.accel(t_s, msg.accel.linear.z)
-                else:
-                    accel[msg.header.frame_id or topic][0].append(t_s)
-                    accel[msg.header.frame_id or topic][1].append(msg.accel.linear.z)
-            elif topic == P.TOPIC_BEAM:
-                deflection = matrix_from_msg(msg)
-            elif topic == P.TOPIC_AXLES and deflection is not None:
-                ax = matrix_from_msg(msg)
-                viz.beam(t_s, deflection[0], deflection[1], ax[0], ax[1])
-            elif topic == P.TOPIC_RESULT:
-                run_id, phase = phases.result()
-                viz.run_done(matrix_from_msg(msg), phase, run_id)
-            elif topic == P.TOPIC_CAL_ITERATION:
-                i, dz_pct, mlm_peak, dim_peak = matrix_from_msg(msg).ravel()[:4]
-                viz.iteration(int(i), dz_pct, mlm_peak, dim_peak, phases.last)
-            elif topic == P.TOPIC_CAL_RESULT:
-                viz.calibration_result(P.decode(msg.data))
-            elif topic == P.TOPIC_PROGRESS:
-                viz.flush()
-        elif hasattr(msg, "accel") and hasattr(msg, "header"):  # AccelStamped
-            lane = msg.header.frame_id or topic
-            accel[lane][0].append(t_s)
-            accel[lane][1].append(msg.accel.linear.z)
-        elif hasattr(msg, "status") and hasattr(msg, "header"):  # DiagnosticArray
-            rr.set_time(P.SIM_TIME, duration=t_s)
-            for st in msg.status:
-                level = {0: "INFO", 1: "WARN", 2: "ERROR", 3: "WARN"}.get(_level(st.level), "INFO")
-                values = ", ".join(f"{kv.key}={kv.value}" for kv in st.values)
-                rr.log(f"{P.ENTITIES['diagnostics']}/{rl._part(st.name or 'status')}",
-                       rr.TextLog(f"{st.message} {values}".strip(), level=level))
-        elif hasattr(msg, "position") and hasattr(msg, "name"):  # JointState
-            for i, name in enumerate(msg.name):
-                for field in ("position", "velocity", "effort"):
-                    vals = getattr(msg, field)
-                    if i < len(vals):
-                        s = series[f"{topic}/{field}"][name]
-                        s[0].append(t_s)
-                        s[1].append(vals[i])
-        elif hasattr(msg, "data") and hasattr(msg, "layout"):  # Float64MultiArray
-            for i, v in enumerate(msg.data):
-                s = series[topic][str(i)]
-                s[0].append(t_s)
-                s[1].append(v)
-        elif hasattr(msg, "data") and isinstance(msg.data, float):  # Float64
-            s = series[topic]["value"]
-            s[0].append(t_s)
-            s[1].append(msg.data)
-    viz.flush()
-    for lane, (t, a) in accel.items():
-        rr.send_columns(f"{P.ENTITIES['topics']}/midspan_acceleration_m_s2/{rl._part(lane)}",
-                        indexes=[rr.TimeColumn(P.SIM_TIME, duration=np.asarray(t))],
-                        columns=rr.Scalars.columns(scalars=np.asarray(a, dtype=float)))
-    for topic, named in series.items():
-        for name, (t, v) in named.items():
-            rr.send_columns(f"{P.ENTITIES['topics']}{topic}/{rl._part(name)}",
-                            indexes=[rr.TimeColumn(P.SIM_TIME, duration=np.asarray(t))],
-                            columns=rr.Scalars.columns(scalars=np.asarray(v, dtype=float)))
+    feed = ViewerFeed(viz, RunPhases(f"RUN.mcap: '{args.mcap}'"))
+    messages = decode_messages(sorted_messages(found), args.mcap)  # damage was named by check_readable
+    for topic, log_time_ns, msg in _status_first(_guarded(messages, args.mcap)):
+        feed(topic, msg, stamp_ns(msg, log_time_ns))
+    feed.finish()
     rl.close_rerun()
-    return dict(counts)
-
-
-class RunPhases:
-    """Which run each result of a recording belongs to, and its phase as the driver recorded it
-    (``requested`` records on ``/adm/run/status``, :func:`adm_sim.protocol.request_record`).
-
-    A result belongs to the earliest run the bridge announced (``started``) that has neither a
-    result nor a failure yet: a bridge sends one result per run, in order, and the next run's
-    ``started`` can carry the same sim time as the last result. A run without a phase record (a
-    recording made before runs carried their phase) is ``unknown``, with one warning line per file.
-    """
-
-    def __init__(self, path):
-        self.path = path
-        self.by_run: dict[int, str] = {}
-        self.pending: list[int] = []  # announced runs still waiting for their result
-        self.last = P.PHASE_UNKNOWN  # phase of the last run whose result was seen
-        self.warned = False
-
-    def status(self, st: dict) -> None:
-        if P.is_request(st):
-            self.by_run[int(st["run_id"])] = str(st.get("phase", P.PHASE_UNKNOWN))
-        elif P.is_bridge_start(st) and int(st["run_id"]) not in self.pending:
-            self.pending.append(int(st["run_id"]))
-        elif st.get("node") == P.BRIDGE_NODE and P.is_failure(st) and st.get("run_id") in self.pending:
-            self.pending.remove(st["run_id"])
-
-    def result(self) -> tuple[int | None, str]:
-        """``(run_id, phase)`` of the next result (``(None, unknown)``: a result of no announced
-        run, which is not drawn)."""
-        if not self.pending:
-            return None, P.PHASE_UNKNOWN
-        run_id = self.pending.pop(0)
-        phase = self.by_run.get(run_id)
-        if phase is None:
-            phase = P.PHASE_UNKNOWN
-            if not self.warned:
-                self.warned = True
-                print(f"warning: RUN.mcap: '{self.path}' records no phase for run {run_id} (recorded before runs "
-                      f"carried their phase); its runs are shown with phase '{P.PHASE_UNKNOWN}'",
-                      file=sys.stderr, flush=True)
-        self.last = phase
-        return run_id, phase
-
-
-def _level(level) -> int:
-    return level[0] if isinstance(level, (bytes, bytearray)) else int(level)
+    return dict(feed.counts)
 
 
 def _log_metadata(path: Path) -> None:
@@ -295,33 +198,68 @@ def _guarded(messages, path):
         raise InputError(f"RUN.mcap: {str(exc).removeprefix('path: ')}") from None
 
 
-def check_readable(path) -> None:
-    """Refuse, before any output is written, an MCAP that cannot be read (cut short, damaged) or
-    that holds no message: a replay of it would be an empty recording."""
-    from adm_sim.recording.mcap_log import check_intact
+def _warn(line: str) -> None:
+    print(f"warning: RUN.mcap: {line}", file=sys.stderr, flush=True)
+
+
+def check_readable(path, skip_damaged: bool = False):
+    """Refuse, before any output is written, an MCAP that cannot be read (cut short, damaged: every
+    chunk's framing, decompression and CRC is checked; with ``skip_damaged`` its intact chunks are
+    used and each skipped damage is named on stderr) or that holds no message: a replay of it would
+    be an empty recording."""
+    from adm_sim.recording.mcap_log import checked_scan
 
     try:
-        n = check_intact(path)
+        found = checked_scan(path, skip_damaged, _warn)
     except InputError as exc:
-        raise InputError(f"RUN.mcap: {str(exc).removeprefix('path: ')}") from None
+        msg = str(exc).removeprefix("path: ")
+        if "--skip-damaged" not in msg and "is damaged" in msg:
+            msg = msg.replace("; recover its readable chunks with:", "; replay its intact chunks with --skip-damaged "
+                                                                        "or recover them with:")
+        raise InputError(f"RUN.mcap: {msg}") from None
     except OSError as exc:
         raise _incomplete(path, exc) from None
-    if n == 0:
+    if not found.messages:
         raise InputError(f"RUN.mcap: '{path}' holds no message; nothing to replay")
+    return found
 
 
-def _level(level) -> int:
-    return level[0] if isinstance(level, (bytes, bytearray)) else int(level)
+def verify_rrd(tmp, final) -> None:
+    """``rerun rrd verify`` of the written recording: rerun's file sink reports a failed write (a
+    full disk, a file size limit) only in its own log, so a recording that does not load whole is
+    this run's failure (:class:`RunError`), and it is never renamed to its final name."""
+    from adm_sim.recording.rerun_log import rerun_cli, rerun_cli_env
+
+    try:
+        proc = subprocess.run([rerun_cli(), "rrd", "verify", str(tmp)], env=rerun_cli_env(), capture_output=True,
+                              text=True, timeout=600)
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        raise RunError(f"--rrd: cannot verify the recording written for '{final}' ({exc})") from None
+    if proc.returncode != 0:
+        lines = [ln.strip() for ln in (proc.stderr + proc.stdout).splitlines() if ln.strip()]
+        why = next((ln for ln in lines if "rrd" in ln.lower() or "footer" in ln.lower()), lines[-1] if lines else "")
+        why = why.replace(f'"{tmp}": ', "").replace(str(tmp), "the file")
+        raise RunError(f"--rrd: rerun could not write '{final}' whole (rerun rrd verify: {why}); "
+                       f"nothing was written (is the disk full or a file size limit set?)")
 
 
 def convert(args, save_path) -> None:
+    from adm_sim.recording.mcap_log import salvage
     from adm_sim.recording.rerun_log import ensure_analytics_disabled, rerun_cli, rerun_cli_env
 
     ensure_analytics_disabled()
-    proc = subprocess.run(
-        [rerun_cli(), "mcap", "convert", str(args.mcap), "-o", str(save_path),
-         "--application-id", "adm_sim_replay"],
-        env=rerun_cli_env(), capture_output=True, text=True, timeout=600)
+    source = Path(args.mcap)
+    if args.skip_damaged:  # rerun's importer reads a clean copy of the intact chunks
+        source = Path(save_path).with_name(Path(save_path).name + ".intact.mcap")
+        salvage(args.mcap, source, overwrite=True)
+    try:
+        proc = subprocess.run(
+            [rerun_cli(), "mcap", "convert", str(source), "-o", str(save_path),
+             "--application-id", "adm_sim_replay"],
+            env=rerun_cli_env(), capture_output=True, text=True, timeout=600)
+    finally:
+        if source != Path(args.mcap):
+            source.unlink(missing_ok=True)
     if proc.returncode != 0:
         last = (proc.stderr.strip().splitlines() or ["no message"])[-1]
         raise RunError(f"rerun mcap convert failed on '{args.mcap}': {last}")
@@ -330,15 +268,84 @@ def convert(args, save_path) -> None:
 # ---------------------------------------------------------------- ROS 2 republish
 
 
-def republish(args, env) -> int:
-    """Publish the recorded topics and /clock in simulated time; returns messages published."""
+def _qos_profile(offered: str, topic: str):
+    """The rclpy QoS a channel was offered with: its ``offered_qos_profiles`` (rosbag2's metadata,
+    written by :class:`adm_sim.recording.mcap_log.McapRecorder`), else the class of its topic in
+    :data:`adm_sim.protocol.TOPICS` (recordings made before channels carried it)."""
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+    from adm_sim.recording.mcap_log import parse_qos_profiles, topic_qos
+
+    history, depth, reliability, durability = parse_qos_profiles(offered) or topic_qos(topic)
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_ALL if history == "keep_all" else HistoryPolicy.KEEP_LAST,
+        depth=max(1, depth),
+        reliability=ReliabilityPolicy.BEST_EFFORT if reliability == "best_effort" else ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL if durability == "transient_local" else DurabilityPolicy.VOLATILE)
+
+
+class _FlowControl:
+    """Publish without outrunning the subscribers: at most ``window`` messages of a reliable
+    publisher are unacknowledged (``window`` = half the history depth of the publisher, the
+    recorded one, and of each matched subscriber whose depth the graph reports); then the replay
+    waits until every matched reader acknowledged them (``Publisher.wait_for_all_acked``), so the
+    publisher's history never drops a sample a reader has not received. A reader that stays
+    silent for ``ack_timeout_s`` is an error. DDS discovery does not carry a reader's history
+    depth: a subscriber that must not lose samples at ``--rate 0`` takes them with KEEP_ALL or a
+    history as deep as the recording's (5000 for the monitoring topics)."""
+
+    def __init__(self, node, ack_timeout_s: float = 30.0):
+        self.node = node
+        self.ack_timeout_s = ack_timeout_s
+        self.windows: dict = {}
+        self.outstanding: dict = {}
+
+    def add(self, pub, topic: str, qos) -> None:
+        from rclpy.qos import ReliabilityPolicy
+
+        if qos.reliability != ReliabilityPolicy.RELIABLE:
+            return  # best effort: nothing to wait for
+        infos = self.node.get_subscriptions_info_by_topic(topic)
+        deadline = time.monotonic() + 2.0  # the graph cache can lag the match
+        while len(infos) < pub.get_subscription_count() and time.monotonic() < deadline:
+            time.sleep(0.05)
+            infos = self.node.get_subscriptions_info_by_topic(topic)
+        # DDS discovery does not carry a reader's history depth (the graph reports 0 then)
+        depths = [qos.depth] + [i.qos_profile.depth for i in infos if i.qos_profile.depth > 0]
+        self.windows[pub] = max(1, min(depths) // 2)
+        self.outstanding[pub] = 0
+
+    def sent(self, pub, topic: str) -> None:
+        if pub not in self.windows:
+            return
+        self.outstanding[pub] += 1
+        if self.outstanding[pub] >= self.windows[pub]:
+            self.drain(pub, topic)
+
+    def drain(self, pub, topic: str) -> None:
+        from rclpy.duration import Duration
+
+        if pub.get_subscription_count() and not pub.wait_for_all_acked(Duration(seconds=self.ack_timeout_s)):
+            raise RunError(f"republish: the subscribers of '{topic}' acknowledged nothing for "
+                           f"{self.ack_timeout_s:g} s; stopped")
+        self.outstanding[pub] = 0
+
+    def drain_all(self, topics: dict) -> None:
+        for pub in list(self.outstanding):
+            if self.outstanding[pub]:
+                self.drain(pub, topics[pub])
+
+
+def republish(args, found) -> int:
+    """Publish the recorded topics (``found``: the checked scan of the recording) and /clock in
+    simulated time, each with the QoS it was recorded with (descriptions latched again),
+    flow-controlled; returns messages published."""
     import importlib
 
     import rclpy
-    from mcap.exceptions import McapError
-    from mcap.reader import make_reader
-    from rclpy.qos import QoSProfile, ReliabilityPolicy
     from rosgraph_msgs.msg import Clock
+
+    from adm_sim.recording.mcap_log import sorted_messages
 
     def msg_class(schema_name: str):
         pkg, _, name = schema_name.partition("/msg/")
@@ -346,56 +353,50 @@ def republish(args, env) -> int:
             pkg, _, name = schema_name.partition("/")
         return getattr(importlib.import_module(f"{pkg}.msg"), name)
 
+    items = [m for m in sorted_messages(found, args.topics) if m[1].topic != P.TOPIC_CLOCK]
+    if not items:
+        raise InputError(f"--topics: none of {args.topics} is in '{args.mcap}'")
     context = rclpy.context.Context()
     rclpy.init(context=context)
     node = rclpy.create_node("adm_replay", context=context)
-    qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
-    clock_pub = node.create_publisher(Clock, P.TOPIC_CLOCK, 10)
-    pubs = {}
+    flow = _FlowControl(node)
+    pubs, qos_of, topics = {}, {}, {}
     sent = 0
     try:
-        with open(args.mcap, "rb") as f:
-            reader = make_reader(f)
-            try:
-                summary = reader.get_summary()
-            except (McapError, OSError) as exc:
-                raise _incomplete(args.mcap, exc) from None
-            if summary is None:
-                raise InputError(f"{args.mcap}: no summary; salvage the file first")
-            for ch in summary.channels.values():
-                if ch.topic == P.TOPIC_CLOCK or (args.topics and ch.topic not in args.topics):
-                    continue
-                schema = summary.schemas[ch.schema_id]
-                pubs[ch.id] = node.create_publisher(msg_class(schema.name), ch.topic, qos)
-            if not pubs:
-                raise InputError(f"--topics: none of {args.topics} is in '{args.mcap}'")
-            deadline = time.monotonic() + args.wait_subscribers
-            while time.monotonic() < deadline and any(
-                    p.get_subscription_count() == 0 for p in pubs.values()):
-                time.sleep(0.05)
-            start_wall = time.monotonic()
-            start_sim = None
-            last_clock = None
-            for _schema, channel, message in reader.iter_messages(log_time_order=True):
-                pub = pubs.get(channel.id)
-                if pub is None:
-                    continue
-                t_ns = message.log_time
-                if start_sim is None:
-                    start_sim = t_ns
-                if args.rate > 0:
-                    due = start_wall + (t_ns - start_sim) * 1e-9 / args.rate
-                    pause = due - time.monotonic()
-                    if pause > 0:
-                        time.sleep(pause)
-                if t_ns != last_clock:
-                    clock = Clock()
-                    clock.clock.sec, clock.clock.nanosec = divmod(t_ns, 1_000_000_000)
-                    clock_pub.publish(clock)
-                    last_clock = t_ns
-                pub.publish(bytes(message.data))
-                sent += 1
-        time.sleep(0.2)  # let reliable late packets drain before the participant goes away
+        for schema, ch, _m in items:
+            if ch.id not in pubs:
+                qos_of[ch.id] = _qos_profile(ch.metadata.get("offered_qos_profiles", ""), ch.topic)
+                pubs[ch.id] = node.create_publisher(msg_class(schema.name), ch.topic, qos_of[ch.id])
+                topics[pubs[ch.id]] = ch.topic
+        clock_qos = _qos_profile("", P.TOPIC_CLOCK)
+        clock_pub = node.create_publisher(Clock, P.TOPIC_CLOCK, clock_qos)
+        topics[clock_pub] = P.TOPIC_CLOCK
+        deadline = time.monotonic() + args.wait_subscribers
+        while time.monotonic() < deadline and any(p.get_subscription_count() == 0 for p in pubs.values()):
+            time.sleep(0.05)
+        for cid, pub in pubs.items():
+            flow.add(pub, topics[pub], qos_of[cid])
+        flow.add(clock_pub, P.TOPIC_CLOCK, clock_qos)
+        start_wall = time.monotonic()
+        start_sim = items[0][2].log_time
+        last_clock = None
+        for _schema, channel, message in items:
+            pub = pubs[channel.id]
+            t_ns = message.log_time
+            if args.rate > 0:
+                pause = start_wall + (t_ns - start_sim) * 1e-9 / args.rate - time.monotonic()
+                if pause > 0:
+                    time.sleep(pause)
+            if t_ns != last_clock:
+                clock = Clock()
+                clock.clock.sec, clock.clock.nanosec = divmod(t_ns, 1_000_000_000)
+                clock_pub.publish(clock)
+                flow.sent(clock_pub, P.TOPIC_CLOCK)
+                last_clock = t_ns
+            pub.publish(bytes(message.data))
+            flow.sent(pub, channel.topic)
+            sent += 1
+        flow.drain_all(topics)  # every reliable message acknowledged before the participant goes away
     finally:
         node.destroy_node()
         rclpy.try_shutdown(context=context)
@@ -410,8 +411,7 @@ def _run(args) -> int:
     from adm_sim.files import write_atomic
 
     check_args(args)
-    if args.rrd or args.spawn or args.connect:
-        check_readable(args.mcap)
+    found = check_readable(args.mcap, args.skip_damaged)  # every reader: damage named before anything starts
     env = None
     if args.republish:
         from adm_sim.processes.dds_env import apply_local_ros_env
@@ -419,18 +419,21 @@ def _run(args) -> int:
         env = apply_local_ros_env(args.domain_id)  # before rclpy creates a participant
         print(f"ROS_DOMAIN_ID={env.domain_id}", flush=True)
     if args.rrd and args.via_convert:
-        write_atomic(args.rrd, lambda tmp: convert(args, tmp))  # a failed replay leaves no stub
+        write_atomic(args.rrd, lambda tmp: (convert(args, tmp), verify_rrd(tmp, args.rrd)))  # a failed replay leaves no stub
         print(f"wrote {args.rrd} (rerun mcap convert)")
     elif args.rrd:
+        # rerun's own log would add coloured lines to the one error line of a failed write, which
+        # verify_rrd reports; RUST_LOG set by the caller is kept
+        os.environ.setdefault("RUST_LOG", "off")
         counts = {}
-        write_atomic(args.rrd, lambda tmp: counts.update(show_in_rerun(args, tmp)))
+        write_atomic(args.rrd, lambda tmp: (counts.update(show_in_rerun(args, found, tmp)), verify_rrd(tmp, args.rrd)))
         print(f"logged {sum(counts.values())} messages on {len(counts)} topics to {args.rrd}")
     elif args.spawn or args.connect:
-        counts = show_in_rerun(args)
+        counts = show_in_rerun(args, found)
         where = args.rrd or args.connect or "the spawned viewer"
         print(f"logged {sum(counts.values())} messages on {len(counts)} topics to {where}")
     if args.republish:
-        n = republish(args, env)
+        n = republish(args, found)
         print(f"republished {n} messages on domain {env.domain_id}")
     return 0
 

@@ -125,15 +125,3 @@ def test_console_script_installed():
                         "--span", "30"], capture_output=True, text=True, timeout=120)
     assert p.returncode == 0, p.stderr
     assert "mu lies on mass function mu5" in p.stdout
-
-
-def test_analysis_package_does_not_import_rclpy():
-    code = ("import sys, adm_calib, adm_calib.calib_commands, adm_calib.calibrate, adm_calib.peaks, adm_calib.reference, "
-            "adm_calib.table4, adm_calib.plots; print('rclpy' in sys.modules)")
-    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
-    assert p.returncode == 0, p.stderr
-    assert p.stdout.strip() == "False"
-    for f in (ROOT / "src" / "adm_calib").rglob("*.py"):
-        if "nodes" in f.relative_to(ROOT / "src" / "adm_calib").parts:
-            continue
-        assert "rclpy" not in f.read_text(), f

@@ -1,6 +1,7 @@
 """`adm-sim check` / `adm-calib check`: the EN 1991-2 dynamic check, its numbers, outputs and refusals."""
 
 import csv
+import dataclasses
 import itertools
 import json
 import math
@@ -10,6 +11,8 @@ import sys
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
+
+from adm_sim.check_text import summary
 
 from adm_calib.check import (TrainCheck, check_speeds_kmh, delta_zeta_for, resolve_trains, run_check, screening,
                              static_midspan_max_m)
@@ -44,7 +47,8 @@ def test_check_numbers_b1():
     t, v, acc = res.governing
     # governing = the largest value of every curve; equals the exact whole-deck envelope at that speed
     assert acc == max(c.max_acc_m_s2.max() for c in res.trains)
-    env = moving_load_envelope(bridge, load_train(t.name).axle_offsets_m, load_train(t.name).axle_loads_n, [v],
+    modal = dataclasses.replace(bridge, damping_model="modal")  # the check's default: zeta on every mode
+    env = moving_load_envelope(modal, load_train(t.name).axle_offsets_m, load_train(t.name).axle_loads_n, [v],
                                where="deck")
     assert acc == pytest.approx(env.max_acc_m_s2[0], rel=1e-12) and t.x_max_m == env.x_acc_m[0]
     assert t.name == "HSLM-A7" and abs(v - 3.6 * bridge.n0_hz * 24.0 / 2) < 5.0  # resonance n0 D / 2
@@ -142,7 +146,12 @@ def test_design_comparison_6_4_6_5_by_hand():
     assert d.phi_dd == pytest.approx(phi_dd, rel=1e-12)
     assert d.lm71_static_moment_Nm == pytest.approx(m_points + m_udl, rel=1e-9)
     c = res.trains[0]
-    assert d.phi_dyn_moment == pytest.approx(c.max_moment_Nm.max() / c.static_moment_Nm - 1, rel=1e-12)
+    # the midspan moment's phi'_dyn by the mode-acceleration method (adm_sim.check_effects), not the
+    # 3-mode sum divided by the 3-mode static moment (0.482, truncated)
+    mid = next(i for i, e in enumerate(c.effects.effects) if e.kind == "M" and e.x_m == 7.5)
+    assert d.phi_dyn_moment == c.effects.phi_dyn[mid] == pytest.approx(0.524, abs=1e-3)  # speeds refined at 0.1 km/h
+    assert c.phi_dyn_moment_truncated == pytest.approx(c.max_moment_Nm.max() / c.static_moment_Nm - 1, rel=1e-12)
+    assert c.phi_dyn_moment_truncated == pytest.approx(0.482, abs=1e-3)
     t = load_train("HSLM-A9")
     m_train = train_midspan_max(b.span_m, b.EJ_Nm2, t.axle_offsets_m, t.axle_loads_n).moment_Nm
     assert d.train_design_moment_Nm == pytest.approx((1 + d.phi_dyn_moment + phi_dd / 2) * m_train, rel=1e-12)
@@ -336,13 +345,13 @@ def test_core_api_calib_methods_need_a_provider():
 
 def test_cli_outputs_and_no_overwrite(tmp_path):
     """Issue 15's case through the command line: B1, V = 250 km/h, HSLM-A7 (and ICE-2), whole deck
-    by default: the maximum 3.568 m/s2 near 238 km/h at about 3L/8 .. 0.42 L, which the brute force
+    by default, with Rayleigh damping asked for: the maximum 3.568 m/s2 near 238 km/h at about 3L/8 .. 0.42 L, which the brute force
     of tests/test_envelope.py confirms, exceeds 3.5 m/s2: FAIL, and the JSON names the governing
     train, speed and position; zeta per mode of Rayleigh damping anchored at modes 1 and 3 is
     zeta (a / 2 omega_j + b omega_j / 2) with omega_j ~ j^2: 1, 0.625, 1 times 1.85 %."""
     js, cs, png = tmp_path / "c.json", tmp_path / "c.csv", tmp_path / "c.png"
     r = run("check", "--bridge", "B1", "--max-line-speed", "250", "--trains", "HSLM-A7,ICE-2",
-            "--json", str(js), "--csv", str(cs), "--plot", str(png))
+            "--damping-model", "rayleigh13", "--json", str(js), "--csv", str(cs), "--plot", str(png))
     assert r.returncode == 0, r.stderr
     assert "screening (EN 1991-2 6.4.4" in r.stdout
     assert "zeta per mode 1.85 %, 1.156 %, 1.85 %" in r.stdout
@@ -486,7 +495,7 @@ def test_more_modes_on_request():
     t = [load_train("ICE-2")]
     res = run_check(b, 250.0, t, n_modes=5)
     assert res.modes == (1, 2, 3, 4, 5)
-    env = moving_load_envelope(named_bridge("B4", n_modes=5), t[0].axle_offsets_m, t[0].axle_loads_n, res.speeds_kmh,
+    env = moving_load_envelope(named_bridge("B4", n_modes=5, damping_model="modal"), t[0].axle_offsets_m, t[0].axle_loads_n, res.speeds_kmh,
                                where="deck")
     np.testing.assert_allclose(res.trains[0].max_acc_m_s2[np.isin(res.trains[0].speeds_kmh, res.speeds_kmh)],
                                env.max_acc_m_s2, rtol=1e-12)
@@ -545,3 +554,107 @@ def test_refusal_comes_before_any_calibration(monkeypatch):
     monkeypatch.setattr(adm_calib.calibrate, "calibrate", no_calibration)
     with pytest.raises(InputError, match=r"^damping vbi: HSLM-A2 is an HSLM load train"):
         run_check(named_bridge("B1"), 300.0, resolve_trains("ICE-2,HSLM-A2"), damping="vbi")
+
+
+def test_default_is_modal_damping_b1_250_passes_closed_form():
+    """The standard's default, ζ on every mode (EN 1991-2 6.4.6.3.1): B1 at V = 250 km/h with HSLM-A1..A10
+    PASSes; the governing HSLM-A7 value 3.3932 m/s2 at 238.1 km/h, x = 6.281 m is checked against the
+    closed form of tests/analytic.py (one moving force per mode, superposed over the 40 axles with their
+    entry delays; acceleration q'' = F/M - 2 ζ ω q' - ω² q), sampled at 64 points per period of mode 3
+    at that speed and position: the sampled maximum lies below the exact one by less than 2e-4 of it.
+    HSLM-A1 (3.3220 m/s2, -2.1 %) is named beside it as within 5 %; Rayleigh 1-3 (asked for) FAILs."""
+    b = named_bridge("B1")
+    res = run_check(b, 250.0, resolve_trains("hslm"))
+    assert res.damping_model == "modal" and res.passed
+    t, v, acc = res.governing
+    assert t.name == "HSLM-A7" and v == pytest.approx(238.1, abs=0.05) and acc == pytest.approx(3.3932, abs=1e-4)
+    assert [z * 100 for z in t.zeta] == pytest.approx([1.85, 1.85, 1.85], rel=1e-12)
+    bm = dataclasses.replace(b, damping_model="modal")
+    tr = load_train("HSLM-A7")
+    vs = v / 3.6
+    f3 = bm.omega_rad_s[-1] / (2 * np.pi)
+    tt = np.arange(0.0, (tr.axle_offsets_m[-1] + b.span_m) / vs + 0.05, 1.0 / (64 * f3))
+    shape = np.sin(bm.mode_numbers * np.pi * t.x_max_m / b.span_m)
+    zeta = np.asarray(bm.modal_damping_ratios(0.0))
+    a = np.zeros(tt.size)
+    for off, F in zip(tr.axle_offsets_m, tr.axle_loads_n):
+        q, qd, f = moving_force_modal(bm, F, vs, tt - off / vs)
+        qdd = f - (2 * zeta * bm.omega_rad_s)[:, None] * qd - (bm.omega_rad_s**2)[:, None] * q
+        a += shape @ qdd
+    ref = np.abs(a).max()
+    assert acc * (1 - 2e-4) < ref <= acc * (1 + 1e-9)
+    near = res.near_governing()
+    assert [c.name for c in near] == ["HSLM-A7", "HSLM-A1"]
+    assert near[1].max_acc_m_s2.max() == pytest.approx(3.3220, abs=1e-4)
+    text = summary(res)
+    assert "within 5 % of the governing value: HSLM-A1 3.3220 m/s2 at 267.7 km/h (-2.1 %)" in text
+    assert "WARNING" not in text and res.range_end_maxima() == {}
+    assert "vertical deflection under Phi x alpha x LM71 = 1.212 x 1 x LM71: 3.843 mm" in text
+    assert text.splitlines()[-1].startswith("not checked: deck twist (EN 1990 A2.4.4.2.2); track-bridge interaction")
+    assert "fatigue (EN 1991-2 6.4.6.6)" in res.to_dict()["not_checked"]
+    ray = run_check(b, 250.0, resolve_trains("HSLM-A1,HSLM-A7"), damping_model="rayleigh13")
+    assert not ray.passed and ray.governing[2] == pytest.approx(3.5684, abs=1e-4)
+    assert [c.name for c in ray.near_governing()] == ["HSLM-A7", "HSLM-A1"]
+    assert ray.near_governing()[1].max_acc_m_s2.max() == pytest.approx(3.537, abs=1e-3)
+
+
+def test_maximum_at_the_top_of_the_range_is_flagged():
+    """A 30 m span with n0 = 4 Hz at V = 300 km/h: HSLM-A8's resonance v = n0 D = 4 x 25 x 3.6 = 360
+    km/h sits exactly at 1.2 V, so its largest value is the last speed; the verdict says so and how to
+    extend the range. With V = 320 km/h (top 384 km/h) the peak is inside and HSLM-A8 is no longer
+    flagged."""
+    b = Bridge.from_frequency(30.0, 4.0, 15000.0, 0.015)
+    res = run_check(b, 300.0, resolve_trains("HSLM-A8,HSLM-A1"))
+    ends = res.range_end_maxima()
+    assert [c.name for c in ends["top"]] == ["HSLM-A8"] and "bottom" not in ends
+    a8 = ends["top"][0]
+    assert a8.speeds_kmh[a8.i_max] == 360.0
+    text = summary(res)
+    assert ("WARNING: the largest acceleration of HSLM-A8 (" in text and "lies at the top of the checked range, "
+            "360 km/h = 1.2 V: the resonance may lie above it; extend the range with a higher --max-line-speed" in text)
+    d = res.to_dict()
+    assert d["range_end_maxima"] == {"top": ["HSLM-A8"]}
+    wider = run_check(b, 320.0, resolve_trains("HSLM-A8"))
+    c = wider.trains[0]
+    assert "top" not in wider.range_end_maxima() and 355.0 < c.speeds_kmh[c.i_max] < 384.0
+    assert c.max_acc_m_s2.max() > a8.max_acc_m_s2.max()
+
+
+def test_mass_and_stiffness_bounds_follow_the_scaling_laws():
+    """EN 1991-2 6.4.6.3.2/3 bounds: the check runs at every bound and the verdict is the envelope. The
+    modal beam scales exactly: mass x c moves every response to the speed v / sqrt(c) with the same
+    deflection and the acceleration / c; stiffness x c moves it to v sqrt(c) with the same acceleration.
+    B1, HSLM-A7, V = 250 km/h: nominal 3.3932 m/s2 at 238.1 km/h (PASS); mass -10 %: 3.3932 / 0.9 =
+    3.770 m/s2 at 251.0 km/h, which FAILs the envelope; mass +15 %: 3.3932 / 1.15 = 2.951; stiffness -10 %:
+    3.3932 at 225.9 km/h (the speed grids differ: 2e-4)."""
+    b = named_bridge("B1")
+    res = run_check(b, 250.0, resolve_trains("HSLM-A7"), mass_bounds=(-0.1, 0.15), stiffness_bounds=(-0.1, 0.0))
+    nominal = res.governing[2]
+    cases = dict(res.bounds)
+    assert list(cases) == ["mass lower bound -10 % (6.4.6.3.2)", "mass upper bound +15 % (6.4.6.3.2)",
+                           "stiffness lower bound -10 % (6.4.6.3.3)"]
+    lo = cases["mass lower bound -10 % (6.4.6.3.2)"]
+    assert lo.governing[2] == pytest.approx(nominal / 0.9, rel=2e-4)
+    assert lo.governing[1] == pytest.approx(res.governing[1] / math.sqrt(0.9), abs=0.6)
+    assert cases["mass upper bound +15 % (6.4.6.3.2)"].governing[2] == pytest.approx(nominal / 1.15, rel=2e-4)
+    st = cases["stiffness lower bound -10 % (6.4.6.3.3)"]
+    assert st.governing[2] == pytest.approx(nominal, rel=2e-4)
+    assert st.governing[1] == pytest.approx(res.governing[1] * math.sqrt(0.9), abs=0.6)
+    label, t, v, a = res.envelope_governing()
+    assert label.startswith("mass lower bound") and a == lo.governing[2] and not res.passed
+    assert res.to_dict()["verdict"] == "fail" and "mass and stiffness bounds" not in " ".join(res.not_checked())
+    assert "envelope over the bounds: 3.770" in summary(res)
+
+
+@pytest.mark.parametrize("args,line", [
+    (["--mass-bounds=-0.7,0.1"], "error: --mass-bounds: lower bound -0.7 is out of range; allowed [-0.5, 0] "
+                                 "(a fraction of the nominal value)\n"),
+    (["--stiffness-bounds", "0.1"], "error: --stiffness-bounds: '0.1' is not two fractions; give lower,upper, e.g. "
+                                    "-0.10,0.15 (lower in [-0.5, 0], upper in [0, 1])\n"),
+    (["--mass-bounds=-0.1,x"], "error: --mass-bounds: upper bound 'x' is not a number; allowed [0, 1] (a fraction "
+                               "of the nominal value)\n"),
+])
+def test_bounds_bad_input(tmp_path, args, line):
+    js = tmp_path / "c.json"
+    r = run("check", "--max-line-speed", "250", "--trains", "HSLM-A1", "--json", str(js), *args)
+    assert r.returncode == 2 and r.stderr == line and not js.exists()

@@ -174,11 +174,11 @@ def test_sweep_help_printed_shows_the_registry_range():
 def test_launch_script_domain_id_help_and_check_from_the_registry():
     _, replay = parsers()
     v = fields.view("cli", "--domain-id")
-    assert v.range_text() == "integer in [0, 101]"
+    assert v.range_text() == "integer in [0, 232]"
     from adm_sim.processes.dds_env import DOMAIN_ID_MAX
 
     assert DOMAIN_ID_MAX == v.hi
-    assert refusal(lambda: v.check("500")) == "--domain-id: 500 is out of range; allowed integer in [0, 101]"
+    assert refusal(lambda: v.check("500")) == "--domain-id: 500 is out of range; allowed integer in [0, 232]"
 
 
 # ---------------------------------------------------------------- one field, three surfaces

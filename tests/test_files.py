@@ -1,5 +1,6 @@
 """adm_sim.files: the one rule for inputs and outputs (claims, locks, atomic writes)."""
 
+import errno
 import os
 import subprocess
 import sys
@@ -7,8 +8,9 @@ from pathlib import Path
 
 import pytest
 
-from adm_sim.errors import InputError
-from adm_sim.files import claim_output, claimed, input_file, lock_path, release, release_all, write_atomic
+from adm_sim.errors import InputError, RunError
+from adm_sim.files import (check_output_folder, claim_folder, claim_output, claimed, input_file, lock_path,
+                           make_output_folder, release, release_all, write_atomic)
 
 HOLD = ("import sys, time\nfrom adm_sim.files import claim_output\nclaim_output(sys.argv[1], 'x', True)\n"
         "print('held', flush=True)\ntime.sleep(60)\n")
@@ -91,3 +93,80 @@ def test_named_pipe_is_refused_without_opening_it(tmp_path):
         claim_output(str(tmp_path / "p"), "--json", overwrite=True)
     with pytest.raises(InputError, match=r"^--train: '.*' is not a file$"):
         input_file(str(tmp_path), "--train", "train file")
+
+
+def _strays(folder):
+    return sorted(p.name for p in folder.iterdir() if p.name.startswith("."))
+
+
+def test_claim_whose_pid_cannot_be_written_leaves_no_lock(tmp_path, monkeypatch):
+    """A full disk refuses the pid (``ulimit -f 0``, ENOSPC): the claim holds (the flock is the claim)
+    and its release removes the lock file (it was recorded before the pid was written)."""
+    def full(fd, data, offset):
+        raise OSError(errno.EFBIG, "File too large")
+
+    monkeypatch.setattr(os, "pwrite", full)
+    out = tmp_path / "r.json"
+    claim_output(str(out), "--json")
+    assert claimed(out) and _strays(tmp_path) == [".r.json.lock"] and lock_path(out).read_text() == ""
+    release_all()
+    assert _strays(tmp_path) == []
+
+
+@pytest.mark.parametrize("failure", [OSError(errno.ENOSPC, "No space left on device"),
+                                     RuntimeError("Failed to encode LogMsg: Failed to write: No space left on "
+                                                  "device (os error 28)")])
+def test_write_refused_by_the_system_is_one_run_error_naming_the_output(tmp_path, failure):
+    """An OSError (or a Rust writer's "(os error N)") during the write: RunError naming the output
+    the user gave, not the temporary file; nothing left beside it."""
+    out = tmp_path / "r.json"
+    claim_output(str(out), "--json")
+
+    def write(tmp):
+        tmp.write_text("half")
+        raise failure
+
+    with pytest.raises(RunError, match=rf"^--json: '{out}': cannot write \(No space left on device\)$"):
+        write_atomic(out, write, "--json")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_folder_without_room_is_a_failed_run_before_any_work(tmp_path):
+    """The probe writes one byte: with ``ulimit -f 0`` (as on a full disk) the output is refused
+    before the work, as a failed run (RunError, exit 1), not as bad input."""
+    code = ("import resource, signal, sys\nfrom adm_sim.errors import RunError\n"
+            "from adm_sim.files import claim_output\nsignal.signal(signal.SIGXFSZ, signal.SIG_IGN)\n"
+            "resource.setrlimit(resource.RLIMIT_FSIZE, (0, resource.RLIM_INFINITY))\n"
+            "try:\n    claim_output(sys.argv[1], '--json')\nexcept RunError as exc:\n    print(exc)\n")
+    r = subprocess.run([sys.executable, "-c", code, str(tmp_path / "r.json")], capture_output=True, text=True,
+                       timeout=60)
+    assert r.stdout.strip() == f"--json: '{tmp_path}/r.json': cannot write in the directory '{tmp_path}' " \
+                               f"(File too large)", r.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_output_folder_rule(tmp_path):
+    """One rule for a folder a run writes into: checked before the work, created after, removed
+    again while empty at the end; claimed as a whole for a launch."""
+    (tmp_path / "f").write_text("x")
+    with pytest.raises(InputError, match=r"^--out: '' is empty; give a directory$"):
+        check_output_folder(" ", "--out")
+    with pytest.raises(InputError, match=rf"^--out: '{tmp_path}/f' is not a directory$"):
+        check_output_folder(str(tmp_path / "f"), "--out")
+    (tmp_path / "f").rename(tmp_path / "run.mcap")
+    with pytest.raises(InputError, match=rf"^--out: '{tmp_path}/run.mcap' is the --params-file file, an input"):
+        check_output_folder(str(tmp_path), "--out", ["run.mcap"], {"--params-file": tmp_path / "run.mcap"})
+    out = check_output_folder(str(tmp_path / "a" / "b"), "--out", ["run.mcap"])
+    assert not out.exists() and make_output_folder(out, "--out")
+    assert claim_folder(out, "--out", ["run.mcap"]) == [] and (out / ".launch.lock").exists()
+    release(out)
+    release_all()  # the folders created above are empty: removed
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.mcap"]
+    old = tmp_path / "old"
+    old.mkdir()
+    (old / "run.mcap").write_text("x")
+    with pytest.raises(InputError, match=r"holds an earlier run \(run.mcap\); choose another folder or pass --overwrite"):
+        claim_folder(old, "--out", ["run.mcap"])
+    assert claim_folder(old, "--out", ["run.mcap"], overwrite=True) == ["run.mcap"]
+    release_all()
+    assert sorted(p.name for p in old.iterdir()) == ["run.mcap"]

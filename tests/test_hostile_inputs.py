@@ -243,7 +243,7 @@ CASES = [
          setup=lambda t, ctx: _files(t, lower_bounds_fit__csv='{"bridge": "x", "train": "ICE-2"}\n')),
     Case("output-is-input", "crossing-out-holds-params",
          lambda t: CROSS + ["--out", str(t), "--params-file", f"{t}/summary.json", "--overwrite"],
-         "is an input of this launch", ros=True,
+         "is the --params-file file, an input of this run", ros=True,
          setup=lambda t, ctx: _files(t, summary__json="train:\n  ros__parameters:\n    model: mlm\n")),
     # --- existing outputs
     Case("output-exists", "driver-record-path", node("adm_sim.nodes.driver", "record_path:=keep.mcap"),
@@ -353,7 +353,7 @@ CASES = [
     Case("launch-precheck", "calibrate-load-train", lambda t: CALIB + ["--out", f"{t}/o", "--train", "HSLM-A1"],
          "train node: model: 'dim' needs a train with vehicles", ros=True),
     Case("launch-precheck", "crossing-domain-999", lambda t: CROSS + ["--out", f"{t}/o", "--domain-id", "999"],
-         "--domain-id: 999 is out of range; allowed integer in [0, 101]", ros=True),
+         "--domain-id: 999 is out of range; allowed integer in [0, 232]", ros=True),
     Case("launch-precheck", "calibrate-domain-text", lambda t: CALIB + ["--out", f"{t}/o", "--domain-id", "x"],
          "--domain-id: 'x' is not an integer", ros=True),
     Case("launch-precheck", "crossing-params-delta-zeta",

@@ -5,9 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from adm_sim import errors
-from adm_sim.errors import (AdmSimError, InputError, RunError, check_choice, check_int, check_number, check_range,
-                            run_cli)
+from adm_sim import cliutil, errors
+from adm_sim.errors import AdmSimError, InputError, RunError
+from adm_sim.fields import check_choice, check_int, check_number, check_range
+from adm_sim.cliutil import run_cli
 
 
 def _raise(exc):
@@ -22,6 +23,11 @@ def _raise(exc):
     (RunError("solution is not finite at step 3 of 9\n(stage 0)"), 1, "error: solution is not finite at step 3 of 9 (stage 0)\n"),
     (AdmSimError("node 'train' died"), 1, "error: node 'train' died\n"),
     (KeyboardInterrupt(), 130, "error: interrupted\n"),
+    # the system refuses a write (full disk, ulimit -f, a folder made read-only during the run)
+    (OSError(28, "No space left on device", "/data/out/r.json"), 1, "error: '/data/out/r.json': No space left on device\n"),
+    (OSError(27, "File too large"), 1, "error: File too large\n"),
+    (PermissionError(13, "Permission denied", "/data/out/run.mcap"), 1,
+     "error: '/data/out/run.mcap': Permission denied\n"),
 ])
 def test_run_cli_maps_the_root_to_one_line_and_an_exit_code(capsys, exc, code, line):
     assert run_cli(_raise(exc)) == code
@@ -97,7 +103,8 @@ def test_one_line_warnings_as_the_nodes_print_them(capsys):
     previous display comes back at the end."""
     import warnings
 
-    from adm_sim.errors import PlausibilityWarning, one_line_warnings
+    from adm_sim.errors import PlausibilityWarning
+    from adm_sim.cliutil import one_line_warnings
 
     before = warnings.showwarning
     with one_line_warnings(prefix="bridge: ", categories=(Warning,), repeat=False):
@@ -108,7 +115,7 @@ def test_one_line_warnings_as_the_nodes_print_them(capsys):
     assert capsys.readouterr().err.splitlines() == [
         "warning: bridge: mu: 1e+06 kg/m is outside the plausible range",
         "warning: bridge: RuntimeWarning: overflow in exp"]
-    with errors.plausibility_warnings():  # the CLIs': every occurrence, no prefix
+    with cliutil.plausibility_warnings():  # the CLIs': every occurrence, no prefix
         for _ in range(2):
             warnings.warn("n0: 90 Hz is outside", PlausibilityWarning, stacklevel=1)
     assert capsys.readouterr().err.splitlines() == ["warning: n0: 90 Hz is outside"] * 2

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from adm_sim import limits
+from adm_sim import fields, limits
 from adm_sim import protocol as P
 from adm_sim.errors import InputError
 
@@ -222,19 +222,19 @@ def test_default_speeds_are_section_3_3():
 
 @pytest.mark.parametrize("zeta", [0.0, 0.0185, 0.05])
 def test_delta_zeta_range_edges(zeta):
-    assert limits.check_delta_zeta("delta_zeta", -zeta, zeta) == -zeta  # total damping 0
-    assert limits.check_delta_zeta("delta_zeta", 0.2, zeta) == 0.2
-    assert limits.check_delta_zeta_pct("delta_zeta_pct", -100 * zeta, zeta) == -100 * zeta
-    assert limits.check_delta_zeta_pct("delta_zeta_pct", 20.0, zeta) == 20.0
+    assert fields.check_delta_zeta("delta_zeta", -zeta, zeta) == -zeta  # total damping 0
+    assert fields.check_delta_zeta("delta_zeta", 0.2, zeta) == 0.2
+    assert fields.check_delta_zeta_pct("delta_zeta_pct", -100 * zeta, zeta) == -100 * zeta
+    assert fields.check_delta_zeta_pct("delta_zeta_pct", 20.0, zeta) == 20.0
     with pytest.raises(InputError, match=r"^delta_zeta: 0\.2001 - \(fraction\) is out of range; allowed "):
-        limits.check_delta_zeta("delta_zeta", 0.2001, zeta)
+        fields.check_delta_zeta("delta_zeta", 0.2001, zeta)
     with pytest.raises(InputError, match=r"^--delta-zeta-pct: 20\.01 % is out of range; allowed "):
-        limits.check_delta_zeta_pct("--delta-zeta-pct", 20.01, zeta)
+        fields.check_delta_zeta_pct("--delta-zeta-pct", 20.01, zeta)
     below = -zeta - 1e-4
     with pytest.raises(InputError, match=r"out of range"):
-        limits.check_delta_zeta("delta_zeta", below, zeta)
+        fields.check_delta_zeta("delta_zeta", below, zeta)
     with pytest.raises(InputError, match=r"out of range"):
-        limits.check_delta_zeta_pct("delta_zeta_pct", 100 * below, zeta)
+        fields.check_delta_zeta_pct("delta_zeta_pct", 100 * below, zeta)
     assert limits.MAX_DELTA_ZETA == 0.2  # exactly: the ladder of the calibration ends on it
 
 

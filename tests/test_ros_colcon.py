@@ -1,6 +1,8 @@
 """ros_ws/ is a colcon workspace: both packages build with colcon from PyPI, and the nodes run
 from the install space as a ROS 2 user runs them (``source install/setup.sh``, the executables
-in ``lib/<package>``, the params files from ``share/adm_sim/params``).
+in ``lib/<package>``, the params files from ``share/adm_sim/params``). The manifests are valid
+(catkin_pkg), colcon identifies both packages as ``ros.ament_python`` and builds ``adm_sim``
+first, the ament index finds them after sourcing, and ``colcon test`` runs their own tests.
 """
 
 import shutil
@@ -23,15 +25,62 @@ from adm_sim.trains import load_train  # noqa: E402
 COLCON = Path(sys.executable).parent / "colcon"
 
 
+PACKAGES = ("adm_sim", "adm_calib")
+
+
+def test_manifests_are_valid_format3():
+    """Both package.xml parse and validate with catkin_pkg (a maintainer e-mail it accepts, the
+    ament_python build type), and adm_calib depends on adm_sim for build and run."""
+    from catkin_pkg.package import parse_package
+
+    pkgs = {}
+    for name in PACKAGES:
+        pkg = parse_package(str(ROOT / "ros_ws" / name / "package.xml"))
+        pkg.validate()  # raises InvalidPackage (e.g. on an e-mail without a domain)
+        assert pkg.name == name and pkg.package_format == 3
+        assert pkg.get_build_type() == "ament_python"
+        assert [t.name for t in pkg.test_depends] == ["python3-pytest"]
+        pkgs[name] = pkg
+    assert "adm_sim" in [d.name for d in pkgs["adm_calib"].build_depends]
+    assert "adm_sim" in [d.name for d in pkgs["adm_calib"].exec_depends]
+
+
+def test_colcon_identifies_ament_python_packages_in_dependency_order():
+    from colcon_core.package_augmentation import augment_packages
+    from colcon_core.package_identification import get_package_identification_extensions, identify
+    from colcon_core.topological_order import topological_order_packages
+
+    extensions = get_package_identification_extensions()
+    descs = [identify(extensions, str(ROOT / "ros_ws" / name)) for name in reversed(PACKAGES)]
+    augment_packages(descs)
+    assert {d.name: d.type for d in descs} == {"adm_sim": "ros.ament_python", "adm_calib": "ros.ament_python"}
+    assert [d.descriptor.name for d in topological_order_packages(set(descs))] == ["adm_sim", "adm_calib"]
+
+
+def test_gitignore_holds_the_colcon_spaces():
+    lines = (ROOT / ".gitignore").read_text().splitlines()
+    for space in ("build/", "install/", "log/"):
+        assert space in lines, space
+
+
 @pytest.fixture(scope="module")
-def install(tmp_path_factory):
-    """``colcon build`` of ros_ws into a temporary build, install and log space."""
+def colcon_base(tmp_path_factory):
+    """``colcon build`` of ros_ws into a temporary build, install and log space; adm_sim finishes
+    before adm_calib starts (its declared dependency)."""
     base = tmp_path_factory.mktemp("colcon")
     cmd = [str(COLCON), "--log-base", str(base / "log"), "build", "--base-paths", str(ROOT / "ros_ws"),
            "--build-base", str(base / "build"), "--install-base", str(base / "install")]
     out = subprocess.run(cmd, capture_output=True, text=True, timeout=600, cwd=base)
     assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
-    return base / "install"
+    events = [line for line in out.stdout.splitlines() if line.startswith(("Starting >>>", "Finished <<<"))]
+    assert events.index("Starting >>> adm_calib") > next(
+        i for i, e in enumerate(events) if e.startswith("Finished <<< adm_sim")), events
+    return base
+
+
+@pytest.fixture(scope="module")
+def install(colcon_base):
+    return colcon_base / "install"
 
 
 def in_install(install, command):
@@ -50,6 +99,35 @@ def test_install_space_layout(install):
     for src in sorted((ROOT / "ros_ws" / "params").glob("*.yaml")) + [ROOT / "ros_ws" / "dds" / "fastdds_shm_only.xml"]:
         installed = share / src.parent.name / src.name
         assert installed.read_bytes() == src.read_bytes(), installed
+
+
+def test_ament_index_finds_the_packages_after_sourcing(install, ros_domain):
+    code = ("from ament_index_python.packages import get_package_share_directory as share; "
+            "import pathlib; d = pathlib.Path(share('adm_sim')); print(d); print(share('adm_calib')); "
+            "print(sorted(p.name for p in (d / 'params').glob('*.yaml')))")
+    out = subprocess.run(in_install(install, f'"{sys.executable}" -c "{code}"'), capture_output=True, text=True,
+                         timeout=60, env=dict(ros_domain), cwd="/")
+    assert out.returncode == 0, out.stderr
+    lines = out.stdout.splitlines()
+    assert lines[:2] == [str(install / "adm_sim" / "share" / "adm_sim"), str(install / "adm_calib" / "share" / "adm_calib")]
+    assert lines[2] == str(sorted(p.name for p in (ROOT / "ros_ws" / "params").glob("*.yaml")))
+
+
+def test_colcon_test_runs_each_packages_own_tests(colcon_base, ros_domain):
+    """``colcon test`` runs the smoke tests in ros_ws/<package>/test against the install space:
+    2 per package, all passing (``colcon test-result``)."""
+    base = colcon_base
+    common = ["--base-paths", str(ROOT / "ros_ws"), "--build-base", str(base / "build"),
+              "--install-base", str(base / "install")]
+    out = subprocess.run([str(COLCON), "--log-base", str(base / "log"), "test", *common], capture_output=True,
+                         text=True, timeout=600, cwd=base, env=dict(ros_domain))
+    assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
+    res = subprocess.run([str(COLCON), "--log-base", str(base / "log"), "test-result", "--test-result-base",
+                          str(base / "build"), "--all"], capture_output=True, text=True, timeout=120, cwd=base)
+    assert res.returncode == 0, res.stdout + res.stderr
+    for pkg in PACKAGES:
+        assert f"build/{pkg}/pytest.xml: 2 tests, 0 errors, 0 failures, 0 skipped" in res.stdout, res.stdout
+    assert "Summary: 4 tests, 0 errors, 0 failures, 0 skipped" in res.stdout
 
 
 def test_sourced_workspace_imports_the_installed_packages(install, ros_domain):

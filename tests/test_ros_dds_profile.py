@@ -70,3 +70,56 @@ def test_shm_only_profile_delivers_between_processes():
             sub.kill()
         lock.release()
     assert "sum 499500.0" in out
+
+
+# ---------------------------------------------------------------- domain ids
+
+
+def test_exported_domain_id_is_honoured_and_checked_per_transport():
+    from adm_sim.errors import InputError
+    from adm_sim.processes.dds_env import local_ros_env
+
+    import pytest
+
+    env = local_ros_env(base={"ROS_DOMAIN_ID": "150"})  # exported: kept, not replaced by a free id
+    assert (env.domain_id, env["ROS_DOMAIN_ID"], env["FASTDDS_BUILTIN_TRANSPORTS"], env.lock) == (150, "150", "SHM", None)
+    assert local_ros_env(232, base={"ROS_DOMAIN_ID": "150"}).domain_id == 232  # an explicit id wins
+    assert local_ros_env(101, base={"FASTDDS_BUILTIN_TRANSPORTS": "UDPv4"}).domain_id == 101
+    with local_ros_env(base={"ROS_DOMAIN_ID": ""}) as free:  # empty: a free, locked id
+        assert 1 <= free.domain_id <= 101 and free.lock.held
+    cases = [
+        (dict(domain_id=233, base={}), "ROS_DOMAIN_ID: 233 is out of range; allowed [0, 232]"),
+        (dict(base={"ROS_DOMAIN_ID": "233"}), "ROS_DOMAIN_ID (exported): 233 is out of range; allowed [0, 232]"),
+        (dict(base={"ROS_DOMAIN_ID": "b3"}), "ROS_DOMAIN_ID (exported): 'b3' is not an integer; allowed [0, 232]"),
+        (dict(domain_id=102, base={"FASTDDS_BUILTIN_TRANSPORTS": "UDPv4"}),
+         "ROS_DOMAIN_ID: 102 is out of range; allowed [0, 101] with FASTDDS_BUILTIN_TRANSPORTS=UDPv4 "
+         "(up to 232 with FASTDDS_BUILTIN_TRANSPORTS=SHM)"),
+    ]
+    for kw, message in cases:
+        with pytest.raises(InputError) as exc:
+            local_ros_env(**kw)
+        assert str(exc.value) == message
+
+
+def test_launchers_refuse_an_exported_domain_id_out_of_range(tmp_path):
+    """The launchers read an exported ROS_DOMAIN_ID (they no longer replace it): out of range,
+    one line, exit 2, no output folder."""
+    root = Path(__file__).resolve().parents[1]
+    for script, extra in (("crossing.py", []), ("replay.py", ["--republish"])):
+        argv = [sys.executable, str(root / "launch_scripts" / script)]
+        argv += ([str(root / "tests" / "data" / "missing.mcap")] if script == "replay.py" else ["--out", str(tmp_path / "o")])
+        env = dict(os.environ, ROS_DOMAIN_ID="240", FASTDDS_BUILTIN_TRANSPORTS="SHM")
+        if script == "replay.py":
+            mcap = tmp_path / "in.mcap"
+            mcap.write_bytes(b"\x89MCAP0\r\n")
+            argv[2] = str(mcap)
+        out = subprocess.run(argv + extra, capture_output=True, text=True, timeout=120, env=env)
+        assert out.returncode == 2, (script, out.stderr)
+        assert out.stderr.splitlines() == ["error: ROS_DOMAIN_ID (exported): 240 is out of range; allowed [0, 232]"]
+        assert out.stdout == "" and not (tmp_path / "o").exists()
+    env = dict(os.environ, ROS_DOMAIN_ID="150", FASTDDS_BUILTIN_TRANSPORTS="UDPv4")
+    out = subprocess.run([sys.executable, str(root / "launch_scripts" / "crossing.py"), "--out", str(tmp_path / "o")],
+                         capture_output=True, text=True, timeout=120, env=env)
+    assert out.returncode == 2
+    assert out.stderr.splitlines() == ["error: ROS_DOMAIN_ID (exported): 150 is out of range; allowed [0, 101] with "
+                                       "FASTDDS_BUILTIN_TRANSPORTS=UDPv4 (up to 232 with FASTDDS_BUILTIN_TRANSPORTS=SHM)"]

@@ -426,8 +426,8 @@ def test_local_env_locks_distinct_domain_ids():
         held = a.lock
     assert not held.held
     assert ros_env.local_ros_env(7).domain_id == 7
-    with pytest.raises(InputError, match=r"ROS_DOMAIN_ID: 150 is out of range; allowed \[0, 101\]"):
-        ros_env.local_ros_env(150)
+    with pytest.raises(InputError, match=r"ROS_DOMAIN_ID: 233 is out of range; allowed \[0, 232\]"):
+        ros_env.local_ros_env(233, base={"FASTDDS_BUILTIN_TRANSPORTS": "SHM"})
 
 
 _SHM_NODE = """
@@ -566,8 +566,11 @@ def test_damaged_chunk_is_skipped_and_counted(tmp_path):
     src.write_bytes(bytes(bad))
     report = {}
     n = salvage(src, tmp_path / "out.mcap", report=report)
+    damage = report.pop("damage")
     assert report == {"chunks": len(chunks), "lost_chunks": 1, "orphan_messages": 0, "truncated": False}
     assert n == total - lost
+    assert len(damage) == 2 and damage[0].startswith("chunk ") and f": {lost} messages lost (" in damage[0]
+    assert damage[1].startswith(f"in all {lost} of {total} recorded messages lost (")
     from rosbags.highlevel import AnyReader
 
     with AnyReader([tmp_path / "out.mcap"]) as reader:
@@ -578,14 +581,15 @@ def test_damaged_chunk_is_skipped_and_counted(tmp_path):
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and "Traceback" not in r.stderr
     assert r.stderr.splitlines() == [f"error: RUN.mcap: '{src}' is damaged (1 of {len(chunks)} chunks do not "
-                                     f"decompress or fail their CRC); recover its readable chunks with: "
-                                     f"adm-sim salvage {src} OUT.mcap"]
+                                     f"decompress or fail their CRC; {damage[0]}); replay its intact chunks with "
+                                     f"--skip-damaged or recover them with: adm-sim salvage {src} OUT.mcap"]
     assert not (tmp_path / "o.rrd").exists()
     r = subprocess.run([PY, "-m", "adm_sim.sim_commands", "salvage", str(src), str(tmp_path / "cli.mcap")],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 0
     assert r.stdout.splitlines() == [f"recovered {n} messages into {tmp_path / 'cli.mcap'}",
-                                     f"lost: 1 of {len(chunks)} chunks were damaged and skipped"]
+                                     f"lost: 1 of {len(chunks)} chunks were damaged and skipped"] + [
+                                     f"dropped: {line}" for line in damage]
 
 
 def test_replay_of_a_file_without_messages_is_an_error(tmp_path):

@@ -24,9 +24,10 @@ setup(
         (f"share/{PACKAGE}", ["package.xml"]),
     ],
     install_requires=["setuptools"],
+    extras_require={"test": ["pytest"]},  # colcon test runs test/ with pytest
     zip_safe=False,
     maintainer="adm-sim developers",
-    maintainer_email="adm-sim@localhost",
+    maintainer_email="adm-sim@example.org",
     description="Additional-damping calibration and the calibration node",
     license="MIT",
     entry_points={"console_scripts": [

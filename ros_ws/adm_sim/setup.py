@@ -29,9 +29,10 @@ setup(
         (f"share/{PACKAGE}/dds", sorted(glob("dds/*.xml"))),
     ],
     install_requires=["setuptools"],
+    extras_require={"test": ["pytest"]},  # colcon test runs test/ with pytest
     zip_safe=False,
     maintainer="adm-sim developers",
-    maintainer_email="adm-sim@localhost",
+    maintainer_email="adm-sim@example.org",
     description="Railway-bridge dynamics (MLM, DIM): numerical core, bridge/train/driver nodes",
     license="MIT",
     entry_points={"console_scripts": [

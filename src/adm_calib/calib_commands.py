@@ -17,7 +17,7 @@ Subcommands::
 
 Errors are one line ``error: ...`` on stderr: bad input exits with code 2, a run that fails for
 another reason (an unstable integration, a study cluster that fails) with 1, an interrupt with 130
-(:func:`adm_sim.errors.run_cli`). Output paths are checked before any computation; files are never
+(:func:`adm_sim.cliutil.run_cli`). Output paths are checked before any computation; files are never
 overwritten unless ``--overwrite`` (alias ``--force``) is given, and then replaced only by complete
 ones. Mass per length is kg/m in and out (t/m shown beside it).
 """
@@ -25,17 +25,20 @@ ones. Mass per length is kg/m in and out (t/m shown beside it).
 from __future__ import annotations
 
 import json
+import re
+import signal
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-from adm_sim.files import claim_output, write_atomic
+from adm_sim.files import check_output_folder, claim_output, input_file, make_output_folder, write_atomic
 from adm_sim.sim_commands import add_check_arguments, cmd_check
 from adm_sim.cliutil import (Parser, add_choice, add_dim_grid, add_overwrite, add_progress, add_speeds,
-                             add_steps_per_period, check_option, option_help, option_view, progress_callback)
-from adm_sim.errors import InputError, RunError, check_range, run_cli
+                             add_steps_per_period, check_option, option_help, option_view, progress_callback, run_cli)
+from adm_sim.errors import InputError
+from adm_sim.fields import check_range
 from adm_sim.limits import MAX_DELTA_ZETA_PCT
 
 #: Range of recommend --mu (kg/m): the 0.5-100 t/m the lower-bound rules accept (the registry's).
@@ -43,48 +46,14 @@ MU_RANGE_KG_M = (option_view("--mu").lo, option_view("--mu").hi)
 
 
 def _out_dir(text, option, names, overwrite, inputs=None):
-    """Check an output folder and its files before any computation; returns ``(folder, paths)``.
-
-    The folder may not exist yet (:func:`_make_dir` creates it once every input is checked); then
-    its nearest existing ancestor must be writable (probed).
-    """
-    if not str(text).strip():
-        raise InputError(f"{option}: '' is empty; give a directory")
-    out = Path(text)
-    if out.exists() and not out.is_dir():
-        raise InputError(f"{option}: {str(out)!r} is not a directory")
+    """Check an output folder and its files before any computation (the folder rule of
+    :mod:`adm_sim.files`); returns ``(folder, paths)``. The files of a folder that exists are
+    claimed here; a folder that does not exist yet is created by :func:`adm_sim.files.make_output_folder`
+    once every input is checked."""
+    out = check_output_folder(text, option, names, inputs)
     if out.is_dir():
         return out, [claim_output(str(out / n), option, overwrite, inputs=inputs) for n in names]
-    from adm_sim.files import probe_writable
-
-    anc = out.absolute().parent
-    while not anc.is_dir() and anc != anc.parent:
-        anc = anc.parent
-    probe_writable(anc, option, str(text))
     return out, [out / n for n in names]
-
-
-def _make_dir(out, option):
-    """Create the output folder; one registered here is removed again if the command ends before
-    writing into it (an error or an interrupt leaves no empty folder behind)."""
-    created = [] if out.exists() else [p for p in [out, *out.absolute().parents] if not p.exists()]
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InputError(f"{option}: cannot create {str(out)!r} ({exc.strerror})") from None
-    _CREATED.extend(created)
-
-
-#: Folders :func:`_make_dir` created in this command (innermost first).
-_CREATED = []
-
-
-def _remove_empty_created():
-    import contextlib
-
-    while _CREATED:
-        with contextlib.suppress(OSError):  # a folder that received files stays
-            _CREATED.pop(0).rmdir()
 
 
 def _once(values, field, text):
@@ -188,7 +157,7 @@ def cmd_table4(args):
         load_train(t)
     jobs = check_option("--jobs", args.jobs)
     speeds, options = _speeds(args.speeds), _options(args)
-    _make_dir(out, "--out")
+    make_output_folder(out, "--out")
     t0 = time.perf_counter()
     cb, close = progress_callback("table4", args.progress, unit="it", leave=True)
     try:
@@ -325,8 +294,6 @@ def _scheduler(text):
 
 
 def cmd_study(args):
-    import signal
-
     from adm_calib.study import StudySettings, canonical_trains, run_study, select_cases
 
     out, _ = _out_dir(args.out, "--out", (), True)
@@ -346,7 +313,7 @@ def cmd_study(args):
     if not cases:
         raise InputError(f"--spans/--freq-index: the options select no case (spans are the integers "
                          f"4..40 m; --spans {args.spans!r} holds none)")
-    _make_dir(out, "--out")
+    make_output_folder(out, "--out")
     options = {"trains": trains, "mass_functions": mfs, "spans_m": list(spans), "freq_index": fis,
                "limit": limit, "workers": workers, "scheduler": scheduler, "retry_errors": args.retry_errors,
                "argv": sys.argv[1:]}
@@ -428,8 +395,6 @@ def _fit_range_hz(text):
 
 
 def _tag(text):
-    import re
-
     if text and not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,39}", text):
         raise InputError(f"--tag: {text!r} is not a file-name suffix; allowed 1-40 letters, digits, '_', '.', '-' "
                          f"(starting with a letter or digit)")
@@ -440,8 +405,6 @@ def cmd_study_fit(args):
     from adm_calib import plots
     from adm_calib import study as st
     from adm_calib.study.conservative import conservative_markdown, conservative_study, conservative_toml
-
-    from adm_sim.files import input_file
 
     res = input_file(args.results, "--results", "results file")
     rule = "strict" if args.exclude_flagged else args.exclude
@@ -466,7 +429,7 @@ def cmd_study_fit(args):
     if not content.records:
         raise InputError(f"--results: {str(res)!r} holds no complete result line")
     _check_fit_records(content.records, "--results", res)
-    _make_dir(out, "--out")
+    make_output_folder(out, "--out")
     fit = st.fit_study(content.records, rule=rule, edges_hz=edges)
     text = fit.to_text()
     if content.truncated_tail:
@@ -612,12 +575,7 @@ def build_parser():
 def main(argv=None):
     def work():
         args = build_parser().parse_args(argv)
-        try:
-            return args.func(args)
-        except OSError as exc:  # paths are checked first: what is left is the system (disk full, ...)
-            raise RunError(f"{exc.strerror or exc}: {exc.filename or ''}".rstrip(": ")) from None
-        finally:
-            _remove_empty_created()
+        return args.func(args)
 
     return run_cli(work)
 

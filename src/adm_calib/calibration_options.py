@@ -11,7 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from adm_sim.errors import InputError, check_range
+from adm_sim.errors import InputError
+from adm_sim.fields import check_range
 from adm_sim.fields import FIELDS
 from adm_sim.limits import default_speeds_kmh
 from adm_sim.step_grid import StepOptions, speeds_to_m_s

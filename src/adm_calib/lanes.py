@@ -25,6 +25,8 @@ import inspect
 
 import numpy as np
 
+from adm_sim.sweep import run_sweep
+
 #: Phases of a calibration, in the order they run.
 PHASES = ("mlm", "mlm_refine", "dim", "dim_refine", "dim_peak_refine", "ladder", "root", "check", "adapted")
 
@@ -60,7 +62,7 @@ class CompiledLanes:
     name = "compiled"
 
     def __init__(self, bridges, train, step):
-        from adm_sim.compiled_batch import BatchRunner
+        from adm_sim.compiled_batch import BatchRunner  # noqa: PLC0415  numba kernels: the stepped backends run without
 
         self.runner = BatchRunner(bridges, train, step.ds_m, step.free_vibration_periods, step.dense_maxima)
 
@@ -81,8 +83,6 @@ class SteppedLanes:
         self.bridges, self.train, self.step = list(bridges), train, step
 
     def run(self, model, case, speeds_kmh, delta_zeta=0.0, sweep=None, phase=""):
-        from adm_sim.sweep import run_sweep
-
         case, v, dz, sw = _lane_arrays(case, speeds_kmh, delta_zeta, sweep)
         out = np.empty(case.size)
         for c, ix in _groups(case, sw):

@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 
+from adm_calib.reference import adm_delta_zeta_pct, lower_bound_table
 from adm_calib.study.cases import INTERVAL_EDGES_HZ, LOWER_LIMIT_HZ, MASS_FUNCTION_NAMES, STUDY_TRAINS, paper_train
 
 APPROACHES = ("VBI", "LB", "ADM", "EADA")
@@ -19,10 +20,10 @@ COLOURS = {"VBI": "tab:blue", "LB": "tab:orange", "ADM": "gold", "EADA": "tab:pu
 
 
 def _pyplot():
-    import matplotlib
+    import matplotlib  # noqa: PLC0415  matplotlib loads only when a figure is drawn
 
     matplotlib.use("Agg", force=True)
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # noqa: PLC0415  after the Agg backend is chosen
 
     return plt
 
@@ -101,8 +102,6 @@ _MF_COLOURS = {"mu1": "#4b0082", "mu2": "#8a2be2", "mu3": "#c39bd3",
 
 def plot_dz_vs_span(records, path):
     """Analogue of Fig. 16: Δζ_VBI against span per train with the Eurocode ADM curve."""
-    from adm_calib.reference import adm_delta_zeta_pct
-
     plt = _pyplot()
     fig, axes = plt.subplots(2, 2, figsize=(11, 7.5), sharex=True, squeeze=False)
     L = np.linspace(4.0, 40.0, 361)
@@ -150,8 +149,6 @@ def _draw_set(ax, study_fit, train, m, n0, conservative=None):
                 label=f"our fit (R2 {f.fit.r2:.3f}, root {f.fit.upper_limit_hz:.2f} Hz)")
     p = f.published if f is not None else None
     if p is None:
-        from adm_calib.reference import lower_bound_table
-
         p = lower_bound_table().get(paper_train(train), {}).get(m)
     if p is not None:
         ax.plot(n0, p.value_pct(n0), color="tab:red", lw=1.2, ls="--",
@@ -202,8 +199,6 @@ def plot_lower_bounds_train(study_fit, train, path, conservative=None):
 
 def plot_lower_bounds(study_fit, path):
     """Analogue of Fig. 18: fitted (solid) and published (dashed) lower bounds per train."""
-    from adm_calib.reference import lower_bound_table
-
     plt = _pyplot()
     fig, axes = plt.subplots(2, 2, figsize=(11, 7.5), sharex=True, squeeze=False)
     n0 = np.linspace(LOWER_LIMIT_HZ, 21.0, 400)

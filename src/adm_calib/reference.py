@@ -60,9 +60,11 @@ from importlib import resources
 import numpy as np
 
 from adm_sim.fields import view
-from adm_sim.bridge import MASS_FUNCTIONS, N0_FIT, N0_UB, SPAN_RANGE_M, mass_function_t_m
+from adm_sim.bridge import SPAN_RANGE_M
 from adm_sim.design_loads import adm_delta_zeta_pct  # noqa: F401  (the Eurocode ADM lives in the core; re-exported)
-from adm_sim.errors import InputError, check_range
+from adm_sim.errors import InputError
+from adm_sim.fields import check_range
+from adm_sim.parametric import MASS_FUNCTIONS, N0_FIT, N0_UB, mass_function_t_m
 
 from adm_calib.lower_bound import FIT_RANGE_MAX_HZ, LOWER_LIMIT_HZ, first_root_hz, lower_bound_pct, zero_from_hz
 

@@ -15,6 +15,10 @@ import os
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 
+from adm_sim.bridge import named_bridge
+from adm_sim.trains import load_train
+
+from adm_calib.calibrate import calibrate
 from adm_calib.reference import STUDY_TRAINS
 from adm_calib.workers import die_with_parent
 
@@ -24,11 +28,6 @@ ROWS = ("VBI", "LB", "ADM", "EADA")
 
 def _calibrate_one(args):
     bridge_name, train_name, speeds, options = args
-    from adm_sim.bridge import named_bridge
-    from adm_sim.trains import load_train
-
-    from adm_calib.calibrate import calibrate
-
     return calibrate(named_bridge(bridge_name), load_train(train_name), speeds_kmh=speeds, options=options,
                      adapted_curve=False)
 

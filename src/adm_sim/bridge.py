@@ -27,19 +27,18 @@ from pathlib import Path
 
 import numpy as np
 
-from adm_sim.errors import InputError, read_toml
+from adm_sim.errors import InputError
+from adm_sim.files import read_toml
+from adm_sim.parametric import FIELD_SPANS_M, MASS_FUNCTIONS, field_frequencies_hz
+from adm_sim.plausibility import check_bridge
 from adm_sim.fields import FIELDS, core
 from adm_sim.fields import view as field_view
 
-#: Allowed input ranges (SI): span, first frequency, mass per length, damping (fraction), modes; the
-#: field registry's (:mod:`adm_sim.fields`), named here for the callers that need the numbers.
+#: Allowed input ranges (SI): span, first frequency, modes; the field registry's
+#: (:mod:`adm_sim.fields`), named here for the callers that need the numbers.
 SPAN_RANGE_M = FIELDS["span_m"].range
 N0_RANGE_HZ = FIELDS["n0_hz"].range
-MU_RANGE_KG_M = FIELDS["mass_per_length_kg_m"].range
-ZETA_RANGE = FIELDS["damping_ratio"].range
 N_MODES_RANGE = FIELDS["n_modes"].range
-
-BRIDGE_TYPES = FIELDS["bridge_type"].choices
 
 
 @dataclass(frozen=True)
@@ -203,40 +202,8 @@ def named_bridge(name, **kw):
 
 
 # ---------------------------------------------------------------------- parametric field
-#: n0 = a L^b power laws of Section 3.1.1 (fit, upper bound, lower bound).
-N0_FIT = (97.76, -0.9124)
-N0_UB = (113.1, -0.8312)
-N0_LB = (82.43, -0.9937)
-#: Table 1 mass functions mu = k L + d (t/m, Eq. 19); mu1-mu3 CFB, mu4-mu6 SC.
-MASS_FUNCTIONS = {
-    "mu1": (0.843, 10.45, "cfb"),
-    "mu2": (0.7002, 8.539, "cfb"),
-    "mu3": (0.5584, 6.627, "cfb"),
-    "mu4": (0.1214, 9.5174, "sc"),
-    "mu5": (0.1214, 5.918, "sc"),
-    "mu6": (0.1214, 2.1691, "sc"),
-}
-FIELD_SPANS_M = tuple(float(L) for L in range(4, 41))
-
-
-def field_frequencies_hz(span_m):
-    """The five n0 of one span (Section 3.1.1): LB, mid(LB, fit), fit, mid(fit, UB), UB."""
-    lb = N0_LB[0] * span_m ** N0_LB[1]
-    fit = N0_FIT[0] * span_m ** N0_FIT[1]
-    ub = N0_UB[0] * span_m ** N0_UB[1]
-    return (lb, 0.5 * (lb + fit), fit, 0.5 * (fit + ub), ub)
-
-
-def mass_function_t_m(name, span_m):
-    """Mass per length (t/m) of mass function ``name`` (Eq. 19, Table 1)."""
-    if name not in MASS_FUNCTIONS:
-        raise InputError(f"mass_function: {name!r} unknown; allowed {', '.join(MASS_FUNCTIONS)}")
-    k, d, _ = MASS_FUNCTIONS[name]
-    return k * span_m + d
-
-
 def parametric_field(n_modes=3, damping_model="rayleigh"):
-    """The 1110 bridges of Section 3.3: 185 (L, n0) pairs x 6 mass functions.
+    """The 1110 bridges of Section 3.3: 185 (L, n0) pairs x 6 mass functions (:mod:`adm_sim.parametric`).
 
     Each bridge carries its Table 2 damping and a name ``"L15-f3-mu2"`` (span, frequency index
     1..5 from LB to UB, mass function). Returns a list of :class:`Bridge`.
@@ -367,8 +334,6 @@ def bridge_from_mapping(data, source="bridge", typed=False):
 
 def _plausible(bridge, source, zeta, zeta_in_pct):
     """``bridge``, after the plausibility warnings of :mod:`adm_sim.plausibility` (never a refusal)."""
-    from adm_sim.plausibility import check_bridge
-
     check_bridge(bridge, source, 100.0 * zeta if zeta_in_pct else None)
     return bridge
 

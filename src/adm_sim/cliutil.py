@@ -1,21 +1,155 @@
 """The command-line layer shared by ``adm-sim``, ``adm-calib`` and the launch scripts (core, no rclpy).
 
-One parser class (usage errors are one line ``error: ...``, exit code 2, through the one exit-code
-mapping :func:`adm_sim.errors.run_cli`) and one progress bar (tqdm on stderr). The output rule
-lives in :mod:`adm_sim.files`, the exit codes in :mod:`adm_sim.errors`.
+One runner (:func:`run_cli`: the one mapping of errors, interrupts and system failures to one line
+``error: ...`` and an exit code, the warnings as one line ``warning: ...``), one parser class (usage
+errors are one line, exit code 2) and one progress bar (tqdm on stderr). The output rule lives in
+:mod:`adm_sim.files`, the exit codes in :mod:`adm_sim.errors`, the fields the options check in
+:mod:`adm_sim.fields`.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import signal
 import sys
+import threading
+import warnings
 
-from adm_sim.errors import EXIT_INPUT, InputError, one_line
+from adm_sim.errors import EXIT_INPUT, EXIT_INTERRUPTED, EXIT_OK, EXIT_RUN, AdmSimError, InputError, PlausibilityWarning
+from adm_sim.fields import view
+from adm_sim.files import release_all
+from adm_sim.limits import DEFAULT_SPEEDS
+
+
+# ---------------------------------------------------------------------- the runner
+def one_line(exc):
+    """The message of ``exc`` on one line (inner newlines and runs of blanks collapsed)."""
+    return " ".join(str(exc).split())
+
+
+def run_cli(call):
+    """Call ``call()`` (a CLI's work, returning its exit code) and map errors to one line and an exit code.
+
+    The one runner of every entry point (``adm-sim``, ``adm-calib``, the launch scripts):
+    :class:`InputError` -> ``error: ...``, exit 2; :class:`RunError` (and any other
+    :class:`AdmSimError`) -> ``error: ...``, exit 1; an :class:`OSError` (a full disk, a file
+    larger than ``ulimit -f``, a read-only folder) -> ``error: '<path>': <reason>``, exit 1;
+    ``KeyboardInterrupt`` (Ctrl-C, SIGINT, SIGTERM) -> ``error: interrupted``, 130;
+    ``BrokenPipeError`` (``... | head``) -> quiet exit 0. Anything else is a bug and keeps its traceback.
+    Every output claimed during the call (:func:`adm_sim.files.claim_output`) is released at its end.
+    A :class:`~adm_sim.plausibility.PlausibilityWarning` raised during the call is printed as one
+    line ``warning: ...`` on stderr, each time it occurs (:func:`plausibility_warnings`).
+    """
+    with interrupt_signals(), plausibility_warnings():
+        try:
+            return _run(call)
+        finally:
+            release_all()
+
+
+class one_line_warnings:
+    """Within the block, every warning of ``categories`` is printed as one line on stderr:
+    ``warning: <prefix><message>`` for a :class:`~adm_sim.plausibility.PlausibilityWarning`,
+    ``warning: <prefix><Category>: <message>`` for any other (no ``file:line:`` and source line as
+    Python's own display). ``repeat``: print every occurrence (``always``), else Python's filters
+    decide (``default``: once per message and place). Other warnings keep their usual display;
+    the warning filters and ``warnings.showwarning`` come back at its end. The ROS nodes use it
+    with their name as the prefix (:func:`adm_sim.nodes.common.run_node`), as their ``error:`` lines.
+    """
+
+    def __init__(self, prefix="", categories=(PlausibilityWarning,), repeat=True):
+        self.prefix, self.categories, self.repeat = prefix, tuple(categories), repeat
+
+    def __enter__(self):
+        self._catch = warnings.catch_warnings()
+        self._catch.__enter__()
+        if self.repeat:
+            for category in self.categories:
+                warnings.simplefilter("always", category)
+        shown = warnings.showwarning
+
+        def show(message, category, filename, lineno, file=None, line=None):
+            if not issubclass(category, self.categories):
+                shown(message, category, filename, lineno, file, line)
+            elif issubclass(category, PlausibilityWarning):
+                print(f"warning: {self.prefix}{one_line(message)}", file=sys.stderr, flush=True)
+            else:
+                print(f"warning: {self.prefix}{category.__name__}: {one_line(message)}", file=sys.stderr,
+                      flush=True)
+
+        warnings.showwarning = show
+        return self
+
+    def __exit__(self, *exc):
+        self._catch.__exit__(*exc)
+        return False
+
+
+class plausibility_warnings(one_line_warnings):
+    """Within the block, every :class:`~adm_sim.plausibility.PlausibilityWarning` is printed as one
+    line ``warning: <message>`` on stderr (not deduplicated); other warnings keep their usual display.
+    The warning filters and ``warnings.showwarning`` come back at its end: :class:`one_line_warnings`
+    with its defaults, the form of the command lines."""
+
+
+class interrupt_signals:
+    """Within the block, SIGTERM and SIGINT both raise ``KeyboardInterrupt`` in the main thread
+    (SIGINT too when a non-interactive shell started the process with SIGINT ignored); the old
+    handlers come back at its end. Off the main thread it does nothing."""
+
+    def __enter__(self):
+        self._old = {}
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self._old[sig] = signal.signal(sig, _raise_interrupt)
+        return self
+
+    def __exit__(self, *exc):
+        for sig, handler in self._old.items():
+            signal.signal(sig, handler)
+        return False
+
+
+def _raise_interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
+def _run(call):
+    try:
+        return call()
+    except BrokenPipeError:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return EXIT_OK
+    except InputError as exc:
+        print(f"error: {one_line(cli_message(exc))}", file=sys.stderr)
+        return EXIT_INPUT
+    except AdmSimError as exc:
+        print(f"error: {one_line(exc)}", file=sys.stderr)
+        return EXIT_RUN
+    except OSError as exc:  # inputs and outputs are checked first: what is left is the system
+        print(f"error: {one_line(os_message(exc))}", file=sys.stderr)
+        return EXIT_RUN
+    except KeyboardInterrupt:
+        print("error: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+
+
+def os_message(exc):
+    """One line for an :class:`OSError` that reached a command line (a full disk, a file larger than
+    ``ulimit -f``, a folder made read-only during the run): the path and the system's reason."""
+    reason = exc.strerror or str(exc)
+    if exc.filename is None:
+        return reason
+    return f"{str(exc.filename)!r}: {reason}"
+
+
+# ---------------------------------------------------------------------- the parser
 
 
 class Parser(argparse.ArgumentParser):
     """argparse whose usage errors raise :class:`InputError` (one line ``error: ...``, exit 2 under
-    :func:`~adm_sim.errors.run_cli`, so ``parse_args`` belongs inside the call given to it).
+    :func:`run_cli`, so ``parse_args`` belongs inside the call given to it).
 
     ``name_prog=True`` puts the program (``adm-sim sweep``) in front of the message; subparsers
     created by :meth:`add_subparsers` inherit it.
@@ -41,7 +175,7 @@ class Parser(argparse.ArgumentParser):
         raise InputError(f"{self.prog}: {message}" if self.name_prog else message)
 
     def parse_args_or_exit(self, args=None, namespace=None):
-        """:meth:`parse_args` for a caller outside :func:`~adm_sim.errors.run_cli` (the launch scripts'
+        """:meth:`parse_args` for a caller outside :func:`run_cli` (the launch scripts'
         :func:`launch`): a usage error prints its one line and exits with 2."""
         try:
             return self.parse_args(args, namespace)
@@ -87,7 +221,7 @@ class _NoBar:
     def refresh(self):
         pass
 
-    def set_postfix_str(self, text):
+    def set_postfix_str(self, text, refresh=True):
         pass
 
     def write(self, text):
@@ -101,10 +235,13 @@ def progress_bar(desc, total=None, enabled=None, unit="step", leave=False, **kwa
     """The progress bar of every command: tqdm on stderr, redrawn at most every 0.2 s.
 
     ``enabled``: True / False, or None for "only when stderr is a terminal". Without tqdm
-    installed, a bar that draws nothing.
+    installed, a bar that draws nothing. A bar that would not draw (disabled, or stderr not a
+    terminal) is that bar too, without importing tqdm (~30 ms of a command's start).
     """
+    if enabled is False or (enabled is None and not sys.stderr.isatty()):
+        return _NoBar()
     try:
-        from tqdm import tqdm
+        from tqdm import tqdm  # noqa: PLC0415  tqdm loads with the first bar, not with every command
     except ImportError:  # pragma: no cover - tqdm is a declared dependency
         return _NoBar()
     kwargs.setdefault("mininterval", 0.2)
@@ -140,8 +277,6 @@ def _help(text):
 
 def option_view(flag):
     """The registry's :class:`~adm_sim.fields.View` of ``flag`` (its unit, range, conversion to the core)."""
-    from adm_sim.fields import view
-
     return view("cli", flag)
 
 
@@ -160,8 +295,6 @@ def check_option(flag, value, **kw):
 def add_speeds(parser, text="speeds in km/h, start:stop:step (stop included) or a comma list", default=None,
                show_default=False):
     """``--speeds`` (default: the paper's :data:`adm_sim.limits.DEFAULT_SPEEDS`)."""
-    from adm_sim.limits import DEFAULT_SPEEDS
-
     default = DEFAULT_SPEEDS if default is None else default
     text = f"{text} (default {default})" if show_default else text
     parser.add_argument("--speeds", default=default, help=option_help("--speeds", text))

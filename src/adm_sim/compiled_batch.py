@@ -24,8 +24,7 @@ import numpy as np
 
 from adm_sim import kernels
 from adm_sim.errors import InputError, RunError
-from adm_sim.fields import FIELDS
-from adm_sim.limits import check_delta_zeta_pct
+from adm_sim.fields import FIELDS, check_delta_zeta_pct
 from adm_sim.mlm_loads import half_step_positions, modal_loads_at
 from adm_sim.rk4_sides import mlm_rk4_coefficients
 from adm_sim.run_contract import FAILED, RUNNING, AdvancingRun, check_model

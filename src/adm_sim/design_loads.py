@@ -6,7 +6,10 @@ the more unfavourable of
     (1 + φ'_dyn + φ''/2) x (HSLM or real train, static)    and    Φ x (α x LM71, static),
 
 for every load effect (here: the midspan bending moment and the midspan deflection of a simply
-supported span). The pieces, each with its clause:
+supported span; :mod:`adm_sim.check_effects` does the moment and shear along the span and the
+reactions). φ''/2 is the carefully maintained track's share (Annex C (C.1), with Φ2); for standard
+maintenance (Φ3) the full φ'' of Annex C (C.2) is used (:func:`phi_dd_factor`). The pieces, each
+with its clause:
 
 * φ'_dyn = max |y_dyn / y_stat| - 1, EN 1991-2 6.4.6.5(3) Eq. (6.14): the dynamic *increment*
   (not the ratio), y_dyn the largest dynamic response of the train over the speeds of the analysis
@@ -64,7 +67,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from adm_sim.errors import InputError, check_choice, check_range
+from adm_sim.errors import InputError
+from adm_sim.fields import check_choice, check_range
 
 #: Classification factors α allowed by EN 1991-2 6.3.2(3).
 LM71_ALPHAS = (0.75, 0.83, 0.91, 1.00, 1.10, 1.21, 1.33, 1.46)
@@ -196,6 +200,16 @@ def phi_dyn_prime(max_dyn, max_stat):
         raise InputError(f"max_stat: {stat.size} values do not match the {dyn.size} of max_dyn; "
                          "give one value or one per max_dyn entry") from None
     return float(ratio.max() - 1.0)
+
+
+def phi_dd_factor(maintenance):
+    """The share r of φ'' in ``1 + φ'_dyn + r φ''``: EN 1991-2 Annex C gives the dynamic factor of a
+    real train as ``1 + φ' + 0.5 φ''`` for carefully maintained track (C.1) and ``1 + φ' + φ''`` for
+    standard maintenance (C.2); 6.4.6.5(3) Eq. (6.15) writes ``φ''/2``, the careful-track case,
+    the one its Φ2 alternative pairs with. With standard maintenance (Φ3) the full φ'' goes with
+    it, as in (C.2). Returns 0.5 for ``"careful"``, 1.0 for ``"standard"``."""
+    m = check_choice("maintenance", maintenance, MAINTENANCE)
+    return 0.5 if m == "careful" else 1.0
 
 
 # --------------------------------------------------------------------------- Eurocode ADM
@@ -520,14 +534,20 @@ class DesignComparison:
     lm71_static_deflection_m: float
 
     @property
+    def phi_dd_factor(self):
+        """r in ``1 + φ'_dyn + r φ''``: 1/2 for carefully maintained track (6.4.6.5(3) Eq. (6.15),
+        Annex C (C.1)), 1 for standard maintenance (Annex C (C.2))."""
+        return phi_dd_factor(self.maintenance)
+
+    @property
     def factor_moment(self):
-        """1 + φ'_dyn + φ''/2 for the moment."""
-        return 1.0 + self.phi_dyn_moment + 0.5 * self.phi_dd
+        """1 + φ'_dyn + r φ'' for the moment (r = 1/2 careful, 1 standard maintenance)."""
+        return 1.0 + self.phi_dyn_moment + self.phi_dd_factor * self.phi_dd
 
     @property
     def factor_deflection(self):
-        """1 + φ'_dyn + φ''/2 for the deflection."""
-        return 1.0 + self.phi_dyn_deflection + 0.5 * self.phi_dd
+        """1 + φ'_dyn + r φ'' for the deflection."""
+        return 1.0 + self.phi_dyn_deflection + self.phi_dd_factor * self.phi_dd
 
     @property
     def train_design_moment_Nm(self):
@@ -566,17 +586,18 @@ class DesignComparison:
     def describe(self):
         """One line: both effects, both sides, the governing one."""
         phi = "Φ2" if self.maintenance == "careful" else "Φ3"
+        dd = f"{self.phi_dd:.3f}/2" if self.phi_dd_factor == 0.5 else f"{self.phi_dd:.3f}"
         return (f"{self.train}: EN 1991-2 6.4.6.5(3) M {self.train_design_moment_Nm / 1e3:.1f} kNm "
-                f"(1+{self.phi_dyn_moment:.3f}+{self.phi_dd:.3f}/2) vs {phi}={self.Phi:.3f} x "
+                f"(1+{self.phi_dyn_moment:.3f}+{dd}) vs {phi}={self.Phi:.3f} x "
                 f"{self.alpha:.2f} LM71 {self.lm71_design_moment_Nm / 1e3:.1f} kNm -> {self.governs_moment} "
                 f"({self.ratio_moment:.3f}); w {self.train_design_deflection_m * 1e3:.2f} mm "
-                f"(1+{self.phi_dyn_deflection:.3f}+{self.phi_dd:.3f}/2) vs "
+                f"(1+{self.phi_dyn_deflection:.3f}+{dd}) vs "
                 f"{self.lm71_design_deflection_m * 1e3:.2f} mm -> {self.governs_deflection} "
                 f"({self.ratio_deflection:.3f})")
 
     def to_dict(self):
         d = {k: getattr(self, k) for k in self.__dataclass_fields__}
-        for k in ("factor_moment", "factor_deflection", "train_design_moment_Nm", "train_design_deflection_m",
+        for k in ("phi_dd_factor", "factor_moment", "factor_deflection", "train_design_moment_Nm", "train_design_deflection_m",
                   "lm71_design_moment_Nm", "lm71_design_deflection_m", "ratio_moment", "ratio_deflection",
                   "governs_moment", "governs_deflection"):
             d[k] = getattr(self, k)

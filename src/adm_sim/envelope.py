@@ -69,8 +69,9 @@ from typing import NamedTuple
 import numpy as np
 
 from adm_sim._jit import njit  # numba compiles the search loop; without it the same source runs as plain Python
-from adm_sim.errors import InputError, check_range
-from adm_sim.limits import check_delta_zeta_pct
+from adm_sim.errors import InputError
+from adm_sim.fields import check_delta_zeta_pct, check_range
+from adm_sim.step_grid import speeds_to_m_s
 
 #: Longest free vibration followed after the last axle has left, in fundamental periods.
 MAX_FREE_PERIODS = 30.0
@@ -198,8 +199,6 @@ def moving_load_envelope(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, *, de
     -------
     Envelope
     """
-    from adm_sim.step_grid import speeds_to_m_s
-
     L = bridge.span_m
     where = parse_where(where, L, field="where")
     v_all = speeds_to_m_s(speeds_kmh)

@@ -11,17 +11,113 @@ Every message about a bad value is built here (:meth:`View.check`): the name as 
 the unit and the allowed range, one line, :class:`~adm_sim.errors.InputError` (exit 2). The table of
 every field and its spellings: docs/fields.md (checked against :data:`FIELDS` by tests/test_fields.py).
 
-Numbers and text only; no ROS, no argparse (:mod:`adm_sim.cliutil` builds the options,
+The checks every loader uses (:func:`check_range`, :func:`check_number`, :func:`check_int`,
+:func:`check_choice`) live here too, at the top: a field's check is one of them with the field's
+unit and range. Numbers and text only; no ROS, no argparse (:mod:`adm_sim.cliutil` builds the options,
 :mod:`adm_sim.nodes.common` the parameter descriptors from these fields).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
-from adm_sim.errors import InputError, _range_text, check_choice, check_int, check_number, check_range
+from adm_sim.errors import InputError
 from adm_sim.limits import MAX_DELTA_ZETA, TRACK_TYPES
 
+
+# ---------------------------------------------------------------------- the checks
+def check_range(field, value, unit, lo=None, hi=None, lo_open=False, hi_open=False, *, argument=False):
+    """Return ``float(value)`` or raise :class:`InputError` naming field, value, unit and range.
+
+    ``argument=True``: ``field`` is a function argument (the error's ``field``, shown as its flag
+    on a command line).
+
+    Parameters
+    ----------
+    field : str
+        Name shown to the user (``"span_m"``, ``"vehicles.PC.k_p_N_m"``).
+    value : object
+        Value to check; must convert to a finite float.
+    unit : str
+        Unit shown in the message (``"m"``, ``"%"``, ``"-"``).
+    lo, hi : float or None
+        Bounds; ``None`` means unbounded.
+    lo_open, hi_open : bool
+        Whether the bound itself is excluded.
+    """
+    try:
+        return _check_range(field, value, unit, lo, hi, lo_open, hi_open)
+    except InputError as exc:
+        if argument:
+            exc.field = field
+        raise
+
+
+def _check_range(field, value, unit, lo, hi, lo_open, hi_open):
+    rng = _range_text(lo, hi, lo_open, hi_open, unit)
+    if isinstance(value, bool):  # a TOML/YAML true is not the number 1
+        raise InputError(f"{field}: {str(value).lower()} is a boolean, not a number; allowed {rng}")
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"{field}: {value!r} is not a number; allowed {rng}") from None
+    if not math.isfinite(x):
+        raise InputError(f"{field}: {value!r} {unit} is not finite; allowed {rng}")
+    bad_lo = lo is not None and (x <= lo if lo_open else x < lo)
+    bad_hi = hi is not None and (x >= hi if hi_open else x > hi)
+    if bad_lo or bad_hi:
+        raise InputError(f"{field}: {x:g} {unit} is out of range; allowed {rng}")
+    return x
+
+
+def check_number(field, value, unit, lo=None, hi=None, lo_open=False, hi_open=False):
+    """:func:`check_range` for values read from a typed file (TOML): a string is refused too."""
+    if isinstance(value, str):
+        rng = _range_text(lo, hi, lo_open, hi_open, unit)
+        raise InputError(f"{field}: {value!r} is a string, not a number (write it without quotes); allowed {rng}")
+    return check_range(field, value, unit, lo, hi, lo_open, hi_open)
+
+
+def check_int(field, value, lo, hi, unit=""):
+    """An integer in ``[lo, hi]`` from a number or its text; booleans and fractions are refused."""
+    u = f" {unit}" if unit else ""
+    x = None
+    if isinstance(value, int) and not isinstance(value, bool):
+        x = value
+    elif isinstance(value, str):
+        try:
+            x = int(value.strip())
+        except ValueError:
+            x = None
+    if x is None:
+        shown = str(value).lower() if isinstance(value, bool) else repr(value)
+        raise InputError(f"{field}: {shown} is not an integer; allowed integer in [{lo}, {hi}]{u}")
+    if not lo <= x <= hi:
+        raise InputError(f"{field}: {x}{u} is out of range; allowed integer in [{lo}, {hi}]{u}")
+    return x
+
+
+def check_choice(field, value, allowed):
+    """``value`` if it is one of the strings ``allowed``, else :class:`InputError` listing them."""
+    if not isinstance(value, str) or value not in allowed:
+        raise InputError(f"{field}: {value!r} is not allowed; allowed {' or '.join(repr(a) for a in allowed)}")
+    return value
+
+
+def _range_text(lo, hi, lo_open, hi_open, unit):
+    if lo is None and hi is None:
+        return f"any finite value in {unit}"
+    if hi is None:
+        return f"{'>' if lo_open else '>='} {lo:g} {unit}"
+    if lo is None:
+        return f"{'<' if hi_open else '<='} {hi:g} {unit}"
+    left = "(" if lo_open else "["
+    right = ")" if hi_open else "]"
+    return f"{left}{lo:g}, {hi:g}{right} {unit}"
+
+
+# ---------------------------------------------------------------------- fields, spellings, views
 #: The unit conversions between a field's unit and a spelling's: ``(field unit, spelling unit) ->
 #: (a, b)`` with ``value in field unit = value in spelling unit * a / b`` (two exact factors, so that
 #: ``pct / 100`` and ``kN * 1000`` stay the numbers they were).
@@ -314,7 +410,8 @@ _FIELDS = [
        "run", _S("cli", "--freq-index"), lo=1, hi=5),
     _F("limit", "cases", int, "run at most this many of the pending study cases", "run", _S("cli", "--limit"),
        lo=1, hi=1_000_000),
-    _F("domain_id", "", int, "ROS_DOMAIN_ID (Fast DDS ports)", "run", _S("cli", "--domain-id"), lo=0, hi=101),
+    _F("domain_id", "", int, "ROS_DOMAIN_ID (up to 232 with shared memory only, 101 with UDP: Fast DDS ports)",
+       "run", _S("cli", "--domain-id"), lo=0, hi=232),
     # -------------------------------------------------------------- monitoring and outputs (ROS)
     _F("warn_fraction", "-", float, "diagnostics WARN above this fraction of the acceleration limit", "outputs",
        _S("ros", "warn_fraction"), lo=0.0, hi=1.0),
@@ -388,5 +485,18 @@ def core(name):
     return FIELDS[name].view()
 
 
-__all__ = ["SCALES", "SURFACES", "Spelling", "Field", "View", "FIELDS", "GROUPS", "VEHICLE_FIELDS",
+def check_delta_zeta(field, value, damping_ratio):
+    """``float(value)``, an additional damping Δζ as a fraction, or :class:`InputError` naming
+    ``field`` with the allowed ``[-ζ, 0.2]``; ``damping_ratio`` is the bridge's ζ (fraction)."""
+    return FIELDS["delta_zeta"].check(value, name=field, lo=-damping_ratio)
+
+
+def check_delta_zeta_pct(field, value_pct, damping_ratio):
+    """``float(value_pct)``, an additional damping Δζ in %, or :class:`InputError` naming ``field``
+    with the allowed ``[-100 ζ, 20] %``; ``damping_ratio`` is the bridge's ζ (fraction)."""
+    return view("cli", "--delta-zeta-pct").check(value_pct, name=field, lo_core=-damping_ratio)
+
+
+__all__ = ["check_range", "check_number", "check_int", "check_choice", "check_delta_zeta", "check_delta_zeta_pct",
+           "SCALES", "SURFACES", "Spelling", "Field", "View", "FIELDS", "GROUPS", "VEHICLE_FIELDS",
            "VEHICLE_OPTIONAL", "view", "spellings", "core"]

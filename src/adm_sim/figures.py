@@ -7,14 +7,15 @@ The core computes and returns results; the command line draws them: :func:`plot_
 
 from __future__ import annotations
 
+import numpy as np
+
 
 def plot_sweep(result, path, limit=3.5, where="midspan"):
     """A sweep's maximum acceleration against speed, its peak and the EN 1990 limit, as a PNG."""
-    import matplotlib
+    import matplotlib  # noqa: PLC0415  matplotlib loads only when a figure is drawn
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    import numpy as np
+    import matplotlib.pyplot as plt  # noqa: PLC0415  after the Agg backend is chosen
 
     fig, ax = plt.subplots(figsize=(7, 4))
     ax.plot(result.speeds_kmh, result.max_acc_m_s2, lw=1.5, label=result.model.upper())
@@ -24,7 +25,7 @@ def plot_sweep(result, path, limit=3.5, where="midspan"):
                 label=f"peak {pk['acc_m_s2']:.3f} m/s² at {pk['speed_kmh']:g} km/h")
     ax.axhline(limit, color="0.5", ls="--", lw=1, label=f"EN 1990 A2 ballasted limit {limit} m/s²")
     ax.set_xlabel("speed (km/h)")
-    from adm_sim.envelope import where_text
+    from adm_sim.envelope import where_text  # noqa: PLC0415  numba kernels of the envelope: adm-sim starts without them
 
     ax.set_ylabel({"deck": "max |deck acceleration| (m/s²)", "midspan": "max |midspan acceleration| (m/s²)"}.get(
         where, f"max |acceleration| at {where_text(where)} (m/s²)"))
@@ -40,10 +41,10 @@ def plot_sweep(result, path, limit=3.5, where="midspan"):
 
 def plot_check(result, path):
     """The check's envelopes (one curve per train), the limit and the governing case, as a PNG."""
-    import matplotlib
+    import matplotlib  # noqa: PLC0415  matplotlib loads only when a figure is drawn
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # noqa: PLC0415  after the Agg backend is chosen
 
     fig, ax = plt.subplots(figsize=(9, 5))
     for i, c in enumerate(result.trains):

@@ -1,9 +1,10 @@
 """One rule for the files of every entry point (CLIs, launch scripts, nodes, the study).
 
-Inputs (:func:`input_file`)
+Inputs (:func:`input_file`, :func:`read_toml`)
     A file read by a run must be a regular file: a folder, a named pipe (whose ``open`` for
     reading blocks until a writer appears), a socket or a device is refused with one line
-    before it is opened. An MCAP input (:func:`mcap_input`) must also start with the MCAP magic bytes.
+    before it is opened. An MCAP input (:func:`mcap_input`) must also start with the MCAP magic bytes;
+    a TOML input (bridge and train files) must parse.
 
 Outputs (:func:`claim_output`, :func:`write_atomic`)
     A file written by a run is checked before any work, by one function:
@@ -12,17 +13,29 @@ Outputs (:func:`claim_output`, :func:`write_atomic`)
        needs;
     2. not an input of the same run (paths compared after ``resolve()``, so ``./t.toml`` and a
        symlink to it are the same file);
-    3. in a folder that exists and is writable, probed by creating and removing a temporary file
-       there (permissions, read-only mounts and full quotas all show up here, not after the work);
+    3. in a folder that exists and is writable, probed by creating a temporary file there, writing
+       one byte and removing it (permissions and read-only mounts show up here as bad input; a
+       full disk, a full quota or ``ulimit -f`` as a failed run, exit 1; both before the work);
     4. never replaced unless the caller passes ``overwrite`` (``--overwrite``, a node's
        ``overwrite`` parameter);
     5. claimed with an exclusive ``fcntl.flock`` on a sidecar lock file ``.<name>.lock`` beside
        it, holding the claimer's pid: a second writer of the same file (another process, or the
        same process twice) is refused with one line naming the first. The claim lasts until
-       :func:`release` (:func:`adm_sim.errors.run_cli` releases every claim when a command
+       :func:`release` (:func:`adm_sim.cliutil.run_cli` releases every claim when a command
        ends; the kernel drops the lock when a process dies, so a killed run never blocks the next);
     6. written beside and renamed (:func:`write_atomic`): the path holds either its old content or
-       the complete new one, never a half-written file.
+       the complete new one, never a half-written file; a write the system refuses (a full disk,
+       a file larger than ``ulimit -f``) is one :class:`~adm_sim.errors.RunError` naming the path,
+       and leaves neither the temporary file nor the lock.
+
+Output folders (:func:`check_output_folder`, :func:`make_output_folder`, :func:`claim_folder`)
+    A folder a run writes into (``adm-calib --out``, a launch's ``--out``) is checked before any
+    work by the same rule: not an existing file; the folder, or while it does not exist its nearest
+    existing ancestor, writable (probed); none of the files it will hold an input of the run. It
+    is created once every input is checked, and removed again if the command ends before anything
+    was written into it (:func:`release_all`). A folder that several processes write (a launch and
+    its nodes) is claimed as a whole by a lock file ``.launch.lock`` in it, holding the claimer's
+    pid; the files in it are claimed by their writers.
 
 Every refusal is an :class:`adm_sim.errors.InputError` (one line; exit code 2 in the CLIs and
 nodes). This module imports only the standard library.
@@ -33,17 +46,24 @@ from __future__ import annotations
 import errno
 import fcntl
 import os
+import re
 import stat
 import tempfile
+import tomllib
 from pathlib import Path
 
-from adm_sim.errors import InputError
+from adm_sim.errors import InputError, RunError
 
-__all__ = ["claim_output", "claimed", "input_file", "is_input", "mcap_input", "lock_path", "probe_writable", "refuse_special", "release",
-           "release_all", "write_atomic"]
+__all__ = ["check_output_folder", "claim_folder", "claim_output", "claimed", "input_file", "is_input", "lock_path",
+           "make_output_folder", "mcap_input", "probe_writable", "read_toml", "refuse_special", "release", "release_all",
+           "write_atomic"]
 
-#: Claims held by this process: resolved output path -> (fd of the lock file, lock path).
+#: Claims held by this process: resolved output path (or folder) -> (fd of the lock file, lock path).
 _CLAIMS: dict[Path, tuple[int, Path]] = {}
+#: Folders :func:`make_output_folder` created in this process (innermost first); removed again while empty.
+_CREATED: list[Path] = []
+#: The lock file of a claimed folder (:func:`claim_folder`).
+FOLDER_LOCK = ".launch.lock"
 
 _KINDS = ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a named pipe"), (stat.S_ISSOCK, "a socket"),
           (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"))
@@ -106,6 +126,21 @@ def is_input(path, inputs):
     return None
 
 
+def read_toml(path, what):
+    """Parse a TOML input file; unreadable or invalid files raise :class:`InputError`.
+
+    ``what`` names the file's role in the message (``"bridge file"``, ``"train file"``).
+    """
+    p = Path(path)
+    refuse_special(p, f"{what} {str(p)!r}")
+    try:
+        return tomllib.loads(p.read_text())
+    except OSError as exc:
+        raise InputError(f"{what} {str(p)!r}: cannot read ({exc.strerror})") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(f"{what} {str(p)!r}: not valid TOML ({exc})") from None
+
+
 # ---------------------------------------------------------------------- outputs
 def lock_path(path):
     """The sidecar lock file of output ``path``: ``.<name>.lock`` in the same folder."""
@@ -113,15 +148,32 @@ def lock_path(path):
     return p.with_name(f".{p.name}.lock")
 
 
+#: Errors of a write that the system refuses for want of room (a full disk, a quota, ``ulimit -f``):
+#: a failed run (exit 1), where a folder the user may not write in is bad input (exit 2).
+NO_ROOM = (errno.ENOSPC, errno.EFBIG, errno.EDQUOT)
+
+
 def probe_writable(parent, option, text):
-    """Create and remove a temporary file in ``parent``; one line naming ``option`` if that fails."""
+    """Create a temporary file in ``parent``, write one byte, remove it; one line naming ``option``
+    if that fails: :class:`InputError` for a folder that cannot be written (permissions, a
+    read-only mount), :class:`RunError` when there is no room (a full disk, ``ulimit -f``)."""
     try:
         fd, probe = tempfile.mkstemp(prefix=".adm-probe-", dir=parent)
     except OSError as exc:
-        raise InputError(f"{option}: {text!r}: cannot write in the directory {str(parent)!r} "
-                         f"({exc.strerror})") from None
-    os.close(fd)
-    os.unlink(probe)
+        raise _refusal(exc)(f"{option}: {text!r}: cannot write in the directory {str(parent)!r} "
+                            f"({exc.strerror})") from None
+    try:
+        os.write(fd, b"\0")
+    except OSError as exc:
+        raise _refusal(exc)(f"{option}: {text!r}: cannot write in the directory {str(parent)!r} "
+                            f"({exc.strerror})") from None
+    finally:
+        os.close(fd)
+        os.unlink(probe)
+
+
+def _refusal(exc):
+    return RunError if exc.errno in NO_ROOM else InputError
 
 
 def claim_output(text, option, overwrite=False, suffix=None, inputs=None,
@@ -209,9 +261,19 @@ def _lock(p, option, text):
         except FileNotFoundError:
             pass
         os.close(fd)
-    os.ftruncate(fd, 0)
-    os.write(fd, f"{os.getpid()}\n".encode())
+    _claimed(key, fd, lock)
+
+
+def _claimed(key, fd, lock):
+    """Record the claim, then write the pid into its lock file: the claim is recorded first so that
+    :func:`release` removes the lock file even when the pid cannot be written (a full disk, ``ulimit
+    -f 0``); the pid only names the holder in another process's message, the ``flock`` is the claim."""
     _CLAIMS[key] = (fd, lock)
+    try:
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+    except OSError:
+        pass
 
 
 def claimed(path):
@@ -233,9 +295,15 @@ def release(path):
 
 
 def release_all():
-    """Give up every claim of this process (the end of a command)."""
+    """Give up every claim of this process and remove the output folders it created that are still
+    empty (the end of a command)."""
     for key in list(_CLAIMS):
         release(key)
+    while _CREATED:
+        try:  # a folder that received files stays
+            _CREATED.pop(0).rmdir()
+        except OSError:
+            pass
 
 
 def write_atomic(path, write, option="output"):
@@ -253,12 +321,89 @@ def write_atomic(path, write, option="output"):
     try:
         write(tmp)
         os.replace(tmp, p)
+    except OSError as exc:
+        if exc.filename not in (None, str(tmp), str(p)):
+            raise  # not the output: another file the writer reads or writes
+        raise RunError(f"{option}: {str(p)!r}: cannot write ({exc.strerror or exc})") from None
+    except RuntimeError as exc:  # a writer in Rust (rerun) reports the system's refusal as "... (os error 27)"
+        code = re.search(r"\(os error (\d+)\)", str(exc))
+        if code is None:
+            raise
+        raise RunError(f"{option}: {str(p)!r}: cannot write ({os.strerror(int(code.group(1)))})") from None
     finally:
         try:
             tmp.unlink()
         except FileNotFoundError:
             pass
         release(p)
+
+
+# ---------------------------------------------------------------------- output folders
+def check_output_folder(text, option, names=(), inputs=None):
+    """Check output folder ``text`` before any work by the rule of the module docstring; returns its Path.
+
+    ``names``: the files the run will write in it; ``inputs``: ``{option: path}`` of the run's input
+    files (none of ``names`` may be one of them).
+    """
+    if text is None or not str(text).strip():
+        raise InputError(f"{option}: '' is empty; give a directory")
+    out = Path(text)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{option}: {str(out)!r} is not a directory")
+    anc = out.absolute()
+    while not anc.is_dir() and anc != anc.parent:
+        anc = anc.parent
+    probe_writable(anc, option, str(text))
+    for name in names:
+        same = is_input(out / name, inputs)
+        if same is not None:
+            raise InputError(f"{option}: {str(out / name)!r} is the {same} file, an input of this run; "
+                             f"give another file")
+    return out
+
+
+def make_output_folder(out, option):
+    """Create output folder ``out`` (and its missing parents); returns whether it was created here.
+    The folders created here are removed again by :func:`release_all` while they are empty."""
+    out = Path(out)
+    created = [] if out.exists() else [p for p in [out, *out.absolute().parents] if not p.exists()]
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"{option}: cannot create {str(out)!r} ({exc.strerror})") from None
+    _CREATED.extend(created)
+    return bool(created)
+
+
+def claim_folder(out, option, names=(), overwrite=False):
+    """Claim folder ``out`` as a whole (an exclusive ``flock`` on ``<out>/.launch.lock`` holding the
+    pid) for a run whose files other processes write; returns the ``names`` that exist in it.
+
+    A folder another process holds is refused naming its pid; a folder that holds any of ``names``
+    (an earlier run) is refused unless ``overwrite``. The kernel drops the lock when the process
+    ends, however it ends; :func:`release` (``release(out)``) removes the lock file.
+    """
+    out = Path(out)
+    key = out.resolve()
+    lock = out / FOLDER_LOCK
+    try:
+        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError as exc:
+        raise InputError(f"{option}: cannot create {str(out)!r} ({exc.strerror})") from None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        pid = os.pread(fd, 32, 0).decode(errors="replace").strip()
+        os.close(fd)
+        raise InputError(f"{option}: {str(out)!r} is being written by another launch (process {pid or '?'}); "
+                         f"wait for it to finish or choose another folder") from None
+    _claimed(key, fd, lock)
+    old = [n for n in names if (out / n).exists()]
+    if old and not overwrite:
+        release(key)
+        raise InputError(f"{option}: {str(out)!r} holds an earlier run ({', '.join(old)}); "
+                         f"choose another folder or pass --overwrite")
+    return old
 
 
 def mcap_input(text, option):

@@ -9,7 +9,8 @@
 * The range of the additional damping Δζ: from ``-ζ`` (no negative total damping) to 20 %.
 
 Numpy only; no ROS, no CLI (messages name the field the caller gives). The Δζ checks are the field
-registry's (:mod:`adm_sim.fields`, field ``delta_zeta``), whose bounds are the numbers written here.
+registry's (:func:`adm_sim.fields.check_delta_zeta`, field ``delta_zeta``), whose bounds are the
+numbers written here.
 """
 
 from __future__ import annotations
@@ -61,22 +62,5 @@ MAX_DELTA_ZETA_PCT = 20.0
 MAX_DELTA_ZETA = MAX_DELTA_ZETA_PCT / 100.0
 
 
-def check_delta_zeta(field, value, damping_ratio):
-    """``float(value)``, an additional damping Δζ as a fraction, or :class:`InputError` naming
-    ``field`` with the allowed ``[-ζ, 0.2]``; ``damping_ratio`` is the bridge's ζ (fraction)."""
-    from adm_sim.fields import FIELDS
-
-    return FIELDS["delta_zeta"].check(value, name=field, lo=-damping_ratio)
-
-
-def check_delta_zeta_pct(field, value_pct, damping_ratio):
-    """``float(value_pct)``, an additional damping Δζ in %, or :class:`InputError` naming ``field``
-    with the allowed ``[-100 ζ, 20] %``; ``damping_ratio`` is the bridge's ζ (fraction)."""
-    from adm_sim.fields import view
-
-    return view("cli", "--delta-zeta-pct").check(value_pct, name=field, lo_core=-damping_ratio)
-
-
 __all__ = ["ACC_LIMITS_M_S2", "TRACK_TYPES", "TRACK_ALIASES", "check_track_type", "acc_limit_m_s2",
-           "DEFAULT_SPEEDS", "default_speeds_kmh", "MAX_DELTA_ZETA_PCT", "MAX_DELTA_ZETA", "check_delta_zeta",
-           "check_delta_zeta_pct"]
+           "DEFAULT_SPEEDS", "default_speeds_kmh", "MAX_DELTA_ZETA_PCT", "MAX_DELTA_ZETA"]

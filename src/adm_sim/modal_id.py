@@ -66,6 +66,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from adm_sim import protocol as P
 from adm_sim.limits import acc_limit_m_s2
 
 __all__ = ["IdentifySettings", "ModalFit", "Passage", "PassageTracker", "acc_level", "analyse_passage",
@@ -282,7 +283,7 @@ def _spectral_peak_hz(x, dt, f_lo, f_hi):
 
 
 def _bandpass(x, dt, f_hz, ratio):
-    from scipy.signal import butter, sosfiltfilt
+    from scipy.signal import butter, sosfiltfilt  # noqa: PLC0415  deferred: scipy.signal costs ~1.5 s to import
 
     nyq = 0.5 / dt
     lo, hi = f_hz / ratio, min(f_hz * ratio, 0.9 * nyq)
@@ -292,7 +293,7 @@ def _bandpass(x, dt, f_hz, ratio):
 
 def _half_cycle_peaks(x, dt, f_hz):
     """Indices of the extrema of ``x`` (maxima and minima, about one per half period)."""
-    from scipy.signal import find_peaks
+    from scipy.signal import find_peaks  # noqa: PLC0415  deferred: scipy.signal costs ~1.5 s to import
 
     dist = max(1, int(0.7 / (f_hz * dt)))  # one maximum and one minimum per period
     up, _ = find_peaks(x, distance=dist)
@@ -345,7 +346,7 @@ def _jac(p, t):
 
 def _fit(t, x, f0_hz, sigma0):
     """Least-squares fit of the decaying sinusoid; returns ``(params, jacobian, residuals)``."""
-    from scipy.optimize import least_squares
+    from scipy.optimize import least_squares  # noqa: PLC0415  deferred: scipy.optimize costs ~1 s to import
 
     wd0 = 2 * math.pi * f0_hz
     E = np.exp(-sigma0 * t)
@@ -362,7 +363,7 @@ def _fit(t, x, f0_hz, sigma0):
 def _noise_variance(r, dt, fd_hz):
     """``S_r(f_d) f_s / 2``: the residuals' variance as seen at the mode's frequency (Welch PSD,
     one-sided, averaged over ``f_d`` ± 20 %); the plain variance when too few samples."""
-    from scipy.signal import welch
+    from scipy.signal import welch  # noqa: PLC0415  deferred: scipy.signal costs ~1.5 s to import
 
     n = r.size
     nper = max(16, min(n, int(round(8.0 / (fd_hz * dt)))))  # about 8 periods per segment
@@ -560,7 +561,7 @@ def analyse_passage(t_s, a_m_s2, *, index=1, limit_m_s2=None, track_type="ballas
 
 
 def _moving_max(x, n):
-    from scipy.ndimage import maximum_filter1d
+    from scipy.ndimage import maximum_filter1d  # noqa: PLC0415  deferred: scipy.ndimage is a heavy import
 
     return maximum_filter1d(x, size=max(1, n), mode="nearest")
 
@@ -811,8 +812,6 @@ def run_topics_for(topic):
     """The run-record and description topics beside an acceleration topic of ours
     (``/b1/adm/midspan/accel`` -> ``/b1/adm/run/status``, ``/b1/adm/bridge/description``,
     ``/b1/adm/train/description``), or None for another topic (a sensor's: no run records)."""
-    from adm_sim import protocol as P
-
     if not topic.endswith(P.TOPIC_ACCEL):
         return None
     ns = topic[: len(topic) - len(P.TOPIC_ACCEL)]

@@ -3,8 +3,11 @@
 Paper Section 4, step 2: "We considered only peaks that are also local maxima", so a **peak** is
 an *interior local maximum* of the curve ``a(v)`` of maximum midspan accelerations:
 
-* higher than its neighbours on both sides, found by :func:`scipy.signal.find_peaks`; a plateau
-  of equal samples counts once, at its middle sample (the left one of two);
+* higher than its neighbours on both sides; a plateau of equal samples counts once, at its middle
+  sample (the left one of two): the rule of :func:`scipy.signal.find_peaks`, written here in a few
+  lines of Python (:func:`_local_maxima_1d`, :func:`_prominences`) that give the same indices and
+  prominences bit for bit (``tests/test_core_peaks.py`` compares them), because importing
+  ``scipy.signal`` costs about 1 s at the start of every command;
 * never the first or the last speed of the range (its true maximum may lie outside the range);
 * not a ripple: its prominence is at least ``min_prominence_rel`` times its value (default
   0.1 %, the calibration's acceptance of a peak match).
@@ -21,7 +24,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import find_peaks
 
 #: Default smallest prominence of a peak relative to its value (0.1 %).
 MIN_PROMINENCE_REL = 1e-3
@@ -88,11 +90,59 @@ def local_maxima(values, min_prominence_rel=MIN_PROMINENCE_REL):
     every maximum).
     """
     a = np.asarray(values, dtype=float)
+    if a.ndim != 1:
+        raise ValueError(f"values {a.shape} must be 1-D")
     if a.size < 3:
         return np.zeros(0, dtype=int)
-    idx, props = find_peaks(a, prominence=0.0)
-    keep = props["prominences"] >= min_prominence_rel * np.abs(a[idx])
+    idx = _local_maxima_1d(a)
+    keep = _prominences(a, idx) >= min_prominence_rel * np.abs(a[idx])
     return idx[keep]
+
+
+def _local_maxima_1d(a):
+    """Indices of the interior local maxima of ``a`` (1-D float64), plateaus at their middle sample.
+
+    The rule of scipy's ``_local_maxima_1d`` (``scipy/signal/_peak_finding_utils.pyx``), which
+    :func:`scipy.signal.find_peaks` applies, on runs of equal samples: a run is a maximum when it
+    is neither the first nor the last run, and the runs before and after it are lower; its peak is
+    its middle sample ``(first + last) // 2``. NaN is a run of its own and every comparison with
+    it is false, as in scipy's loop.
+    """
+    n = a.size
+    if n < 3:
+        return np.zeros(0, dtype=np.intp)
+    start = np.flatnonzero(np.r_[True, a[1:] != a[:-1]])  # first sample of every run
+    end = np.r_[start[1:] - 1, n - 1]
+    v = a[start]
+    inner = np.flatnonzero((v[1:-1] > v[:-2]) & (v[1:-1] > v[2:])) + 1
+    return ((start[inner] + end[inner]) // 2).astype(np.intp)
+
+
+def _prominences(a, peaks):
+    """Topographic prominence of every peak, shape (n_peaks,): the peak's value minus the higher
+    of the lowest values between it and the nearest sample on either side that is not lower or
+    equal (higher, or NaN), or the end of the curve.
+
+    The loop of scipy's ``_peak_prominences`` with no window: the same stopping rule, the same
+    comparisons and the same subtraction.
+    """
+    x = a.tolist()
+    n_x = len(x)
+    out = np.empty(len(peaks))
+    for n, p in enumerate(peaks.tolist()):
+        top = left = right = x[p]
+        i = p
+        while i >= 0 and x[i] <= top:
+            if x[i] < left:
+                left = x[i]
+            i -= 1
+        i = p
+        while i < n_x and x[i] <= top:
+            if x[i] < right:
+                right = x[i]
+            i += 1
+        out[n] = top - max(left, right)
+    return out
 
 
 def largest_interior_peak(values, min_prominence_rel=MIN_PROMINENCE_REL):

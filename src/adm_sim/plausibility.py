@@ -3,7 +3,7 @@
 The input ranges of :mod:`adm_sim.bridge` and :mod:`adm_sim.trains` refuse what the model cannot
 compute. These bounds are wider questions: a value the model computes but no real railway bridge or
 train has. Crossing one gives a :class:`PlausibilityWarning` (a normal Python warning for library
-callers; the command lines print it as one line ``warning: ...`` on stderr, :func:`adm_sim.errors.run_cli`),
+callers; the command lines print it as one line ``warning: ...`` on stderr, :func:`adm_sim.cliutil.run_cli`),
 never a refusal. The exception is ``adm-calib recommend``: its answer exists only inside the field the
 paper studied (Section 3.1: spans 4..40 m, n0 within the Fig. 8 band, mu within Table 1), so there the
 :data:`FIELD` rows refuse (:func:`check_studied_field`) unless the user asks to extrapolate.
@@ -28,8 +28,8 @@ import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from adm_sim.bridge import FIELD_SPANS_M, MASS_FUNCTIONS, N0_LB, N0_UB
 from adm_sim.errors import InputError, PlausibilityWarning
+from adm_sim.parametric import FIELD_SPANS_M, MASS_FUNCTIONS, N0_LB, N0_UB
 
 
 # ---------------------------------------------------------------------- the sources

@@ -1,8 +1,8 @@
-"""``adm-sim``: speed sweeps, train data checks and MCAP salvage from the command line.
+"""``adm-sim``: speed sweeps, train data checks, kernel compilation and MCAP salvage from the command line.
 
 Errors are one line ``error: ...`` on stderr: bad input exits with code 2, a run that fails for
 another reason (e.g. an integration that became unstable) with 1, an interrupt with 130
-(:func:`adm_sim.errors.run_cli`). Mass per length is kg/m in and out (t/m shown beside it).
+(:func:`adm_sim.cliutil.run_cli`). Mass per length is kg/m in and out (t/m shown beside it).
 """
 
 from __future__ import annotations
@@ -15,7 +15,8 @@ from pathlib import Path
 from adm_sim.cliutil import (Parser, add_choice, add_delta_zeta_pct, add_overwrite, add_progress, add_speeds,
                              add_steps_per_period, check_option, option_help, option_view,
                              progress_callback)
-from adm_sim.errors import InputError, run_cli
+from adm_sim.errors import InputError
+from adm_sim.cliutil import run_cli
 from adm_sim.files import claim_output, mcap_input, write_atomic
 from adm_sim.figures import plot_check, plot_sweep
 from adm_sim.limits import ACC_LIMITS_M_S2, TRACK_ALIASES, check_track_type
@@ -25,7 +26,7 @@ def cmd_sweep(args):
     from adm_sim.bridge import resolve_bridge
     from adm_sim.envelope import parse_where, where_text
     from adm_sim.step_grid import StepOptions
-    from adm_sim.sweep import parse_speeds, run_sweep, sweep_exact
+    from adm_sim.sweep import parse_speeds, run_sweep, run_sweep_compiled, sweep_exact
     from adm_sim.trains import load_train
     from adm_sim.plausibility import check_response
 
@@ -44,6 +45,10 @@ def cmd_sweep(args):
     method = args.method or ("exact" if args.model == "mlm" else "rk4")
     if args.model == "dim" and method == "exact":
         raise InputError("--method: 'exact' is the closed-form MLM envelope; the DIM runs RK4 only (allowed --method rk4)")
+    if method == "exact" and args.backend == "numpy":
+        raise InputError("--backend: 'numpy' is the RK4 stepper's; the exact MLM envelope has one backend "
+                         "(allowed with --method exact: compiled, or give --method rk4)")
+    backend = None if method == "exact" else (args.backend or "compiled")
     if where != "midspan" and method != "exact":
         raise InputError(f"--where: {args.where!r} needs the exact MLM envelope (--model mlm --method exact); the RK4 "
                          f"runs record midspan only (allowed --where midspan)")
@@ -60,6 +65,8 @@ def cmd_sweep(args):
     try:
         if method == "exact":
             res, env = sweep_exact(bridge, train, speeds, delta_zeta=dz, where=where)
+        elif backend == "compiled":
+            res, env = run_sweep_compiled(bridge, train, args.model, speeds, delta_zeta=dz, options=opts, progress=cb), None
         else:
             res, env = run_sweep(bridge, train, args.model, speeds, delta_zeta=dz, options=opts, progress=cb), None
     finally:
@@ -68,7 +75,7 @@ def cmd_sweep(args):
     pk = res.peak()
     if env is None:
         print(f"{args.model.upper()} sweep (RK4): {len(speeds)} speeds {speeds.min():g}..{speeds.max():g} km/h, "
-              f"{res.n_steps} steps of {res.ds_m * 1000:.2f} mm, maxima at the steps, {wall:.2f} s")
+              f"{res.n_steps} steps of {res.ds_m * 1000:.2f} mm, maxima at the steps, {backend} backend, {wall:.2f} s")
     else:
         print(f"MLM sweep (exact envelope: closed form, maxima refined by Newton), {where_text(where)}: {len(speeds)} "
               f"speeds {speeds.min():g}..{speeds.max():g} km/h, {wall:.2f} s")
@@ -92,6 +99,8 @@ def cmd_sweep(args):
         out = res.to_dict()
         out["wall_time_s"] = wall
         out["method"] = method
+        if backend is not None:
+            out["backend"] = backend
         out["damping_model"] = bridge.damping_model
         out["zeta_per_mode_pct"] = [100 * float(z) for z in zeta]
         if env is not None:
@@ -114,14 +123,15 @@ def cmd_check(args, damping_provider=None):
     here, before any work, without one. The core never imports adm_calib."""
     from adm_sim.bridge import resolve_bridge
     from adm_sim.check import CALIB_DAMPING_METHODS, DAMPING_MODELS, calib_methods_refusal, resolve_trains, run_check
+    from adm_sim.check_text import summary as check_summary
 
     if args.damping in CALIB_DAMPING_METHODS and damping_provider is None:
         raise calib_methods_refusal(args.damping)
     outs = {}
     inputs = [("--bridge", args.bridge)] + [("--trains", t.strip()) for t in str(args.trains).split(",")]
     seen = {}
-    for opt, suffix in (("json", None), ("csv", ".csv"), ("plot", ".png")):
-        text = getattr(args, opt)
+    for opt, suffix in (("json", None), ("csv", ".csv"), ("plot", ".png"), ("report", ".html")):
+        text = getattr(args, opt, None)
         if text is not None:
             if str(text).strip() and Path(text).resolve() in seen:
                 raise InputError(f"--{opt}: {text!r} is the --{seen[Path(text).resolve()]} file; give different files")
@@ -134,6 +144,17 @@ def cmd_check(args, damping_provider=None):
     if args.damping_model is not None and args.damping_model not in DAMPING_MODELS:
         raise InputError(f"--damping-model: {args.damping_model!r} is not allowed; allowed {', '.join(DAMPING_MODELS)}")
     trains = resolve_trains(args.trains)
+    if args.lateral_frequency is not None:
+        from adm_sim.check_sls import check_lateral_frequency
+
+        try:  # refused before any work, named by its flag
+            check_lateral_frequency(args.lateral_frequency)
+        except InputError as exc:
+            raise InputError("--lateral-frequency" + str(exc)[len("lateral_frequency"):]) from None
+    from adm_sim.check import parse_bounds
+
+    mass_bounds, stiffness_bounds = (parse_bounds(getattr(args, k), f"--{k.replace('_', '-')}")
+                                     for k in ("mass_bounds", "stiffness_bounds"))
     track = check_track_type("--track", args.track, aliases=True)  # one vocabulary: direct -> direct_fastening
     cb, close = progress_callback("check", None if args.progress is None else args.progress)
     t0 = time.perf_counter()
@@ -142,12 +163,13 @@ def cmd_check(args, damping_provider=None):
                         step_kmh=args.speed_step, progress=cb, comfort=args.comfort, n_modes=args.modes,
                         where=args.where, damping_model=args.damping_model,
                         track_maintenance=args.track_maintenance, alpha=args.alpha,
-                        damping_provider=damping_provider)
+                        damping_provider=damping_provider, lateral_frequency_hz=args.lateral_frequency,
+                        mass_bounds=mass_bounds, stiffness_bounds=stiffness_bounds)
     finally:
         close()
     wall = time.perf_counter() - t0
     _check_plausible(res)
-    print(res.summary())
+    print(check_summary(res))
     print(f"{len(trains)} trains, {wall:.2f} s")
     if "json" in outs:
         d = res.to_dict()
@@ -160,6 +182,11 @@ def cmd_check(args, damping_provider=None):
     if "plot" in outs:
         write_atomic(outs["plot"], lambda p: plot_check(res, p))
         print(f"wrote {args.plot}")
+    if "report" in outs:
+        from adm_sim.check_report import write_report
+
+        write_atomic(outs["report"], lambda p: write_report(res, p))
+        print(f"wrote {args.report}")
     return 0
 
 
@@ -236,6 +263,26 @@ def cmd_salvage(args):
         print(f"lost: {report['lost_chunks']} of {report['chunks']} chunks were damaged and skipped"
               + (f", {report['orphan_messages']} messages of channels declared in them" if report["orphan_messages"]
                  else ""))
+    for line in report.get("damage", ()):  # each damaged place: offset, topics, messages lost
+        print(f"dropped: {line}")
+    return 0
+
+
+def cmd_compile(args):
+    """Compile every numba kernel once (:mod:`adm_sim.precompile`), at set-up rather than in the first
+    real command; with numba's cache in place it only loads the kernels."""
+    from adm_sim import _jit
+    from adm_sim.precompile import compile_kernels
+
+    if not _jit.numba_available():
+        print("numba is not installed: the kernels run as plain Python, nothing to compile")
+        return 0
+    print("compiling kernels (once): every code path on a tiny case; numba keeps the machine code in __pycache__ "
+          "beside the source (15-60 s the first time on a quiet 2-core machine, a few seconds once cached)",
+          file=sys.stderr, flush=True)
+    _jit.notice_given()
+    total = compile_kernels(report=lambda name, s: print(f"  {name}: {s:.2f} s", flush=True))
+    print(f"kernels ready in {total:.2f} s; later runs load them from the cache")
     return 0
 
 
@@ -271,10 +318,19 @@ def add_check_arguments(c):
     c.add_argument("--alpha", default="1.0",
                    help="LM71 classification factor alpha, EN 1991-2 6.3.2(3): 0.75, 0.83, 0.91, 1.00 (default), "
                         "1.10, 1.21, 1.33, 1.46")
-    c.add_argument("--damping-model", default=None,
-                   help="damping per mode: rayleigh13 (Rayleigh anchored at modes 1 and 3; mode 2 gets 0.625 zeta "
-                        "with 3 modes) or modal (zeta on every mode, EN 1991-2 6.4.6.3.1); default: the bridge's "
-                        "own (rayleigh13 unless its file says damping_model = \"modal\")")
+    c.add_argument("--damping-model", default="modal",
+                   help="damping per mode: modal (default: zeta on every mode, what EN 1991-2 6.4.6.3.1 implies) or "
+                        "rayleigh13 (Rayleigh anchored at modes 1 and 3; mode 2 gets 0.625 zeta with 3 modes)")
+    c.add_argument("--lateral-frequency", default=None,
+                   help="first lateral natural frequency of the span (Hz), checked against 1.2 Hz "
+                        "(EN 1990 A2.4.4.2.4(3)); not checked without it")
+    c.add_argument("--mass-bounds", default=None,
+                   help="lower,upper bound of the mass per length as fractions of the nominal (write "
+                        "--mass-bounds=-0.1,0.15; EN 1991-2 6.4.6.3.2): the check runs at each, the verdict is "
+                        "the envelope")
+    c.add_argument("--stiffness-bounds", default=None,
+                   help="lower,upper bound of the bending stiffness EJ as fractions of the nominal "
+                        "(--stiffness-bounds=-0.1,0; EN 1991-2 6.4.6.3.3)")
     c.add_argument("--speed-step", type=float, default=1.0, help=option_help("--speed-step", "speed step"))
     c.add_argument("--modes", type=float, help="more modes than EN 1990 A2.4.4.2.1 asks for (default: exactly those)")
     c.add_argument("--comfort", action="store_true",
@@ -282,7 +338,9 @@ def add_check_arguments(c):
     _output_options(c, {"json": "write the verdict and every curve as JSON",
                         "csv": "write every curve as CSV (train, speed, acc and its position, disp, midspan moment, "
                                "zeta per mode)",
-                        "plot": "write the acceleration envelopes as PNG"},
+                        "plot": "write the acceleration envelopes as PNG",
+                        "report": "write one self-contained HTML page (inline figures, no network): inputs, "
+                                  "verdict per clause, envelopes, governing cases, what is not checked"},
                     "replace existing output files (once the check has finished)")
 
 
@@ -302,6 +360,10 @@ def build_parser():
     s.add_argument("--method", choices=("exact", "rk4"), default=None,
                    help="MLM: exact (default: the closed-form envelope, true maximum per speed) or rk4 (the lockstep "
                         "RK4 run, maxima sampled at its steps); the DIM is always rk4")
+    s.add_argument("--backend", choices=("compiled", "numpy"), default=None,  # adm_sim.sweep.BACKENDS
+                   help="RK4 runs (the DIM, MLM --method rk4): compiled (default: the numba kernels, every speed a lane "
+                        "of one run) or numpy (the numpy stepper, the reference the kernels are tested against; equal "
+                        "to 1e-12)")
     s.add_argument("--where", default="midspan",
                    help="MLM exact: midspan (default), deck (anywhere on the deck, with the position) or x=<m> (0 < x < L)")
     _output_options(s, {"json": "write results as JSON", "plot": "write max acceleration vs speed as PNG"},
@@ -321,6 +383,9 @@ def build_parser():
     b = sub.add_parser("bridges", help="list bridges B1-B4 or (--field) the 1110-bridge parametric field")
     b.add_argument("--field", action="store_true", help="the parametric field as CSV (mu in kg/m and t/m)")
     b.set_defaults(func=cmd_bridges)
+
+    k = sub.add_parser("compile", help="compile the numba kernels once, ahead of the first run (set-up)")
+    k.set_defaults(func=cmd_compile)
 
     v = sub.add_parser("salvage", help="recover a killed run's MCAP log")
     v.add_argument("src")

@@ -22,8 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from adm_sim._jit import RK4_C  # the RK4 tableau, shared with the numba kernels
-from adm_sim.errors import InputError, check_range
-from adm_sim.fields import FIELDS
+from adm_sim.errors import InputError
+from adm_sim.fields import FIELDS, check_range
 
 SPEED_RANGE_KMH = FIELDS["speeds_kmh"].range
 

@@ -13,12 +13,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from adm_sim.errors import InputError, RunError
-from adm_sim.limits import check_delta_zeta_pct
+from adm_sim.fields import check_delta_zeta_pct
 from adm_sim.peaks import largest_interior_peak
 from adm_sim.lockstep_runs import InProcessRun
 from adm_sim.mlm_loads import mlm_modal_load_table
 from adm_sim.rk4_sides import BridgeSide, TrainSide
-from adm_sim.run_contract import check_model
+from adm_sim.run_contract import FAILED, RUNNING, check_model
 from adm_sim.step_grid import SPEED_RANGE_KMH, StepOptions, make_grid, speeds_to_m_s
 
 MAX_HISTORY_VALUES = 300_000_000
@@ -137,7 +137,7 @@ def sweep_exact(bridge, train, speeds_kmh, delta_zeta=0.0, where="midspan"):
     ICE-2 at 16 steps per period). Returns ``(SweepResult, Envelope)``; the result's
     ``max_acc_m_s2`` / ``max_disp_m`` are taken at ``where`` (``"midspan"``, ``"deck"`` or x in m).
     """
-    from adm_sim.envelope import moving_load_envelope
+    from adm_sim.envelope import moving_load_envelope  # noqa: PLC0415  numba kernels: only the exact sweep needs them
 
     env = moving_load_envelope(bridge, train.axle_offsets_m, train.axle_loads_n, speeds_kmh,
                                delta_zeta=delta_zeta, where=where)
@@ -145,6 +145,44 @@ def sweep_exact(bridge, train, speeds_kmh, delta_zeta=0.0, where="midspan"):
                       max_acc_m_s2=env.max_acc_m_s2, max_disp_m=env.max_disp_m,
                       delta_zeta=np.asarray(delta_zeta, dtype=float), ds_m=0.0, n_steps=0, method="exact")
     return res, env
+
+
+#: Backends of a sweep: the compiled kernels (default) and the numpy stepper they are tested against.
+BACKENDS = ("compiled", "numpy")
+
+
+def run_sweep_compiled(bridge, train, model, speeds_kmh, delta_zeta=0.0, options=None, progress=None):
+    """:func:`run_sweep` on the compiled kernels: every speed a lane of one
+    :class:`adm_sim.compiled_batch.BatchRun`, on the grid ``run_sweep`` makes (its ``ds`` and
+    number of steps), so the maxima equal the numpy stepper's to ~1e-13 relative (the summation
+    order of a few small dot products differs; ``tests/test_sweep_backends.py`` holds them to
+    1e-12). No histories. ``progress(done_steps, n_steps)`` is called after every block of steps
+    (about 100 per run).
+    """
+    from adm_sim.compiled_batch import BatchRunner  # noqa: PLC0415  deferred: heavy import (numba, ~0.4 s)
+
+    check_model(model, train)
+    options = options or StepOptions()
+    v_kmh = np.atleast_1d(np.asarray(speeds_kmh, dtype=float)).copy()
+    v = speeds_to_m_s(v_kmh)
+    dz = np.broadcast_to(np.asarray(delta_zeta, dtype=float), v.shape)
+    for x in np.unique(dz):
+        check_delta_zeta_pct("delta_zeta_pct", 100 * x, bridge.damping_ratio)
+    grid = make_grid(bridge, train.length_m, v, options)
+    runner = BatchRunner([bridge], train, grid.ds_m, options.free_vibration_periods, options.dense_maxima)
+    run = runner.start(model, np.zeros(v.size, dtype=np.int64), v_kmh, dz)
+    if run.n_steps != grid.n_steps:  # pragma: no cover - the same make_grid on both sides
+        raise RunError(f"compiled sweep: {run.n_steps} steps where the grid has {grid.n_steps}")
+    block = None if progress is None else max(1, -(-run.n_steps // 100))
+    while run.status == RUNNING:
+        run.advance(block)
+        if progress is not None:
+            progress(run.k, run.n_steps)
+    if run.status == FAILED:
+        raise RunError(run.message)
+    return SweepResult(model=model, bridge=bridge, train_name=train.name, speeds_kmh=v_kmh,
+                       max_acc_m_s2=run.max_acc_m_s2, max_disp_m=run.max_disp_m,
+                       delta_zeta=np.asarray(delta_zeta, dtype=float), ds_m=grid.ds_m, n_steps=grid.n_steps)
 
 
 def run_sweep(bridge, train, model, speeds_kmh, delta_zeta=0.0, options=None, histories=False,

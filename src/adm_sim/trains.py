@@ -45,10 +45,12 @@ from pathlib import Path
 
 import numpy as np
 
-from adm_sim.errors import InputError, read_toml
+from adm_sim.errors import InputError
+from adm_sim.files import read_toml
 from adm_sim.fields import VEHICLE_FIELDS, VEHICLE_OPTIONAL
 from adm_sim.fields import view as field_view
 from adm_sim.hslm import hslm_axles, hslm_name
+from adm_sim.plausibility import check_train as check_plausible
 
 G_M_S2 = 9.81  # gravitational acceleration used by the paper (Section 3.2.2)
 
@@ -229,8 +231,6 @@ def load_train(name_or_path):
         return train_from_mapping(data, source=_FILES[key])
     p = Path(text)
     if p.suffix == ".toml" or p.is_file():
-        from adm_sim.plausibility import check_train as check_plausible
-
         train = train_from_mapping(read_toml(p, "train file"), source=p.name)
         check_plausible(train, source=f"train file {p.name}")  # warnings, not refusals
         return train

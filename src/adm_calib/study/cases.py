@@ -12,8 +12,13 @@ from functools import lru_cache
 
 import numpy as np
 
-from adm_sim.errors import InputError, check_range
+from adm_sim.bridge import parametric_field
+from adm_sim.errors import InputError
+from adm_sim.fields import check_range
 from adm_sim.limits import DEFAULT_SPEEDS
+from adm_sim.parametric import FIELD_SPANS_M, MASS_FUNCTIONS
+from adm_sim.step_grid import StepOptions
+from adm_sim.trains import load_train
 
 from adm_calib.lower_bound import FIT_RANGE_MAX_HZ, LOWER_LIMIT_HZ  # noqa: F401  (re-exported for the study package)
 from adm_calib.reference import STUDY_TRAINS, canonical_train_name
@@ -137,8 +142,6 @@ def select_cases(trains=STUDY_TRAINS, mass_functions=MASS_FUNCTION_NAMES, spans_
 def _field():
     """The field as ``(span_m, freq_index, mass_function, bridge)``, in the order of
     :func:`adm_sim.bridge.parametric_field` (span, frequency index, mass function)."""
-    from adm_sim.bridge import FIELD_SPANS_M, MASS_FUNCTIONS, parametric_field
-
     ids = [(float(L), fi, m) for L in FIELD_SPANS_M for fi in FREQ_INDICES for m in MASS_FUNCTIONS]
     field = parametric_field()
     if len(ids) != len(field):
@@ -148,8 +151,6 @@ def _field():
 
 @lru_cache(maxsize=8)
 def _train(name):
-    from adm_sim.trains import load_train
-
     return load_train(name)
 
 
@@ -174,14 +175,12 @@ class StudySettings:
     refine_speed: bool = False
 
     def speeds_kmh(self):
-        from adm_sim.sweep import parse_speeds
+        from adm_sim.sweep import parse_speeds  # noqa: PLC0415  scipy.signal (peaks) only when a study runs
 
         return parse_speeds(self.speeds)
 
     def calibration_options(self):
-        from adm_sim.step_grid import StepOptions
-
-        from adm_calib.calibrate import CalibrationOptions
+        from adm_calib.calibrate import CalibrationOptions  # noqa: PLC0415  scipy.optimize only when a study runs
 
         step = None
         if self.steps_per_period is not None or self.dense_maxima:

@@ -97,7 +97,7 @@ def _solve_for_root(x, y, lo, r, h, with_root):
     then at the minima of the solution between grid points until none is negative (cutting planes).
     ``area`` is the integral of the bound as applied: up to the cubic's actual first root.
     """
-    from scipy.optimize import linprog
+    from scipy.optimize import linprog  # noqa: PLC0415  scipy.optimize (~1.7 s to import) only for the conservative fit
 
     xs, los, rs = x / h, lo / h, r / h
     sel = x <= r
@@ -150,7 +150,7 @@ def conservative_cubic(n0_hz, delta_zeta_pct, fit_range_max_hz=21.0, lower_limit
         No first root in the range gives a feasible, bounded programme (e.g. a negative Δζ right
         above 2.1 Hz, or fewer than 4 cases before every candidate root).
     """
-    from scipy.optimize import minimize_scalar
+    from scipy.optimize import minimize_scalar  # noqa: PLC0415  scipy.optimize, as above
 
     x = np.asarray(n0_hz, dtype=float)
     y = np.asarray(delta_zeta_pct, dtype=float)

@@ -8,8 +8,13 @@ from __future__ import annotations
 
 import contextlib
 import importlib.util
+import logging
 import os
 import platform
+import re
+import signal
+import socket
+import threading
 import time
 from collections import Counter
 from dataclasses import dataclass, field
@@ -40,7 +45,7 @@ def run_batch(cases, settings=StudySettings()):
     The task run on the workers. Never raises for errors of the cases themselves: if the batch
     fails, every case is tried alone so that only the failing ones become error records.
     """
-    from adm_calib.calibrate import calibrate_batch
+    from adm_calib.calibrate import calibrate_batch  # noqa: PLC0415  scipy.optimize and scipy.signal, loaded by the workers that calibrate
 
     t0 = time.perf_counter()
     try:
@@ -110,10 +115,8 @@ def local_cluster(workers=2):
     health and metrics, on free ports); no dashboard; one BLAS thread per worker (set in the
     environment before the worker process starts).
     """
-    import logging
-
-    import dask
-    from distributed import LocalCluster
+    import dask  # noqa: PLC0415  dask and distributed: only a study on a local cluster needs them
+    from distributed import LocalCluster  # noqa: PLC0415  as dask
 
     env = dict(dask.config.get("distributed.nanny.pre-spawn-environ", {}) or {})
     env.update(WORKER_ENV)
@@ -132,9 +135,6 @@ def _workers_ignore_sigint():
     Ctrl-C on a terminal reaches the whole process group; the client alone then stops the
     study and closes the cluster, instead of every worker printing a KeyboardInterrupt trace.
     """
-    import signal
-    import threading
-
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -164,9 +164,6 @@ def check_scheduler(address, timeout_s=5.0):
     without end or a frame length read from foreign bytes (``MemoryError: Unable to allocate
     3.07 EiB`` in ``distributed``).
     """
-    import re
-    import socket
-
     m = re.fullmatch(r"tcp://(\[[^\]]+\]|[A-Za-z0-9_.\-]+):(\d{1,5})", address or "")
     if m is None:
         raise InputError(f"scheduler: {address!r} is not an address like tcp://127.0.0.1:8786", field="scheduler")
@@ -287,7 +284,7 @@ def run_study(out_dir, cases, *, settings=StudySettings(), workers=2, scheduler=
 
 
 def _run_on_dask(pending, settings, writer, run, workers, scheduler, progress, entry):
-    from distributed import Client, as_completed
+    from distributed import Client, as_completed  # noqa: PLC0415  as dask
 
     cluster = client = None
     futures = []

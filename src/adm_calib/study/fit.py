@@ -13,7 +13,7 @@ import numpy as np
 from adm_sim.errors import InputError
 
 from adm_calib.lower_bound import first_root_hz, lower_bound_pct
-from adm_calib.reference import STUDY_TRAINS
+from adm_calib.reference import STUDY_TRAINS, lower_bound_table
 from adm_calib.study.cases import INTERVAL_EDGES_HZ, LOWER_LIMIT_HZ, TRAIN_VARIANTS, paper_train
 from adm_calib.study.store import record_key
 
@@ -352,8 +352,6 @@ def fit_study(records, rule=DEFAULT_RULE, edges_hz=INTERVAL_EDGES_HZ):
     -------
     StudyFit
     """
-    from adm_calib.reference import lower_bound_table
-
     if rule not in EXCLUSION_RULES:
         raise InputError(f"exclude: {rule!r} is not a rule; allowed {', '.join(EXCLUSION_RULES)}")
     records = list(records)
@@ -530,8 +528,6 @@ def table_b_range_check(records, lo_hz=16.0, hi_hz=21.0, table=None):
     (list of RangeCheckRow, float)
         The rows and the lowest Δζ_VBI (%) of all records.
     """
-    from adm_calib.reference import lower_bound_table
-
     records = list(records)
     table = table or lower_bound_table("paper")
     lowest = min(r["delta_zeta_vbi_pct"] for r in records if r.get("delta_zeta_vbi_pct") is not None)

@@ -9,15 +9,19 @@ from __future__ import annotations
 
 import contextlib
 import datetime as _dt
+import fcntl
 import gzip
 import json
 import os
 import platform
 import signal
+import threading
 from dataclasses import dataclass
+from importlib import metadata
 from pathlib import Path
 
 from adm_sim.errors import InputError
+from adm_sim.files import refuse_special, write_atomic
 
 from adm_calib.study.cases import case_identity
 
@@ -87,8 +91,6 @@ def read_results(path):
     InputError
         A complete line that is not a JSON object with ``bridge`` and ``train``.
     """
-    from adm_sim.files import refuse_special
-
     p = Path(path)
     refuse_special(p, f"results {str(p)!r}")
     try:
@@ -134,8 +136,6 @@ def _fsync_dir(path):
 def _atomic_write(path, data):
     """Write ``data`` (bytes) to ``path`` through a temporary file and ``os.replace``
     (:func:`adm_sim.files.write_atomic`; the study's folder lock is held by the caller), fsynced."""
-    from adm_sim.files import write_atomic
-
     def write(tmp):
         with open(tmp, "wb") as f:
             f.write(data)
@@ -159,8 +159,6 @@ def _signals_deferred():
     event loop runs in another one), so blocking the signal in this thread is not enough: the
     handlers themselves are replaced for the block, and a signal that came is re-delivered after.
     """
-    import threading
-
     if threading.current_thread() is not threading.main_thread():
         held = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
         try:
@@ -231,8 +229,6 @@ class ResultsWriter:
 @contextlib.contextmanager
 def _exclusive(out_dir):
     """Hold an advisory lock on ``out_dir`` so two studies never append to one file."""
-    import fcntl
-
     f = open(Path(out_dir) / LOCK_NAME, "a+")
     try:
         try:
@@ -257,8 +253,6 @@ def _now():
 
 def versions():
     """Versions of the software that computes the study."""
-    from importlib import metadata
-
     out = {"python": platform.python_version(), "platform": platform.platform()}
     for dist in ("adm-sim", "numpy", "scipy", "numba", "dask", "distributed"):
         try:

@@ -36,7 +36,8 @@ from adm_sim.bridge import Bridge, resolve_bridge
 from adm_sim import protocol as P
 from adm_sim.fields import view
 from adm_sim.errors import InputError
-from adm_sim.limits import ACC_LIMITS_M_S2, TRACK_TYPES, check_delta_zeta, check_track_type
+from adm_sim.limits import ACC_LIMITS_M_S2, TRACK_TYPES, check_track_type
+from adm_sim.fields import check_delta_zeta
 from adm_sim.nodes import common as c
 from adm_sim.lockstep_runs import BridgeHalf
 from adm_sim.mlm_loads import modal_loads_at

@@ -26,7 +26,9 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension, String
 
-from adm_sim.errors import InputError, RunError, check_range
+from adm_sim.errors import InputError, RunError
+from adm_sim.fields import check_range
+from adm_sim.files import release_all
 from adm_sim.protocol import EXCHANGE_HEADER_LEN as HEADER_LEN
 from adm_sim.protocol import encode
 
@@ -143,7 +145,7 @@ class ParamSpec:
     (:func:`param`), so unit, range, special values and the check come from there.
 
     The range is checked by :meth:`check` (the registry's :meth:`adm_sim.fields.View.check`, or the
-    core's :func:`adm_sim.errors.check_range` for a parameter outside the registry) in an
+    core's :func:`adm_sim.fields.check_range` for a parameter outside the registry) in an
     on-set parameter callback, not by a ``FloatingPointRange`` in the descriptor: rclpy applies
     descriptor ranges before any callback with a reason that has no unit, and several ranges are
     not one interval (``n0_hz``: 0 or [0.5, 100]; ``delta_zeta``: [-zeta, 0.2]). The descriptor
@@ -533,9 +535,9 @@ def run_node(make_node, args=None, name="node"):
 
     Every Python warning raised in the node (start-up, parameter callbacks, the driver's job) is
     printed as one line ``warning: <name>: ...`` on stderr, as the CLIs print theirs
-    (:class:`adm_sim.errors.one_line_warnings`; Python's filters still print a repeated warning once).
+    (:class:`adm_sim.cliutil.one_line_warnings`; Python's filters still print a repeated warning once).
     """
-    from adm_sim.errors import one_line_warnings
+    from adm_sim.cliutil import one_line_warnings
 
     with one_line_warnings(prefix=f"{name}: ", categories=(Warning,), repeat=False):
         return _run_node(make_node, args, name)
@@ -597,7 +599,7 @@ def _run_node(make_node, args, name):
         code = 130
     except AdmSimError as exc:  # ExchangeError is a RunError
         print(f"error: {name}: {exc}", file=sys.stderr, flush=True)
-        code = 2 if isinstance(exc, InputError) else 1  # the CLIs' mapping (adm_sim.errors.run_cli)
+        code = 2 if isinstance(exc, InputError) else 1  # the CLIs' mapping (adm_sim.cliutil.run_cli)
         if node is not None:
             try:
                 node.report_failure(str(exc))
@@ -617,4 +619,5 @@ def _run_node(make_node, args, name):
             node.close()
             node.destroy_node()
         rclpy.try_shutdown()
+        release_all()  # every output this node claimed, however it ended (no stray lock file)
     return code

@@ -2,10 +2,12 @@
 
 * :func:`local_ros_env` returns an environment for a run (or its child processes) with Fast DDS
   restricted to shared memory (``FASTDDS_BUILTIN_TRANSPORTS=SHM``: no UDP socket at all),
-  ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` and a ``ROS_DOMAIN_ID`` of its own. A free domain id
-  in ``[1, 101]`` is reserved with an exclusive ``fcntl.flock`` on a lock file under
-  ``/tmp/adm_sim_ros_domains/``; the lock is released when the run closes it or dies, so concurrent
-  runs never share an id and a killed run never leaks one.
+  ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` and a ``ROS_DOMAIN_ID``: the one asked for, else an
+  exported ``ROS_DOMAIN_ID``, else a free id in ``[1, 101]`` reserved with an exclusive
+  ``fcntl.flock`` on a lock file under ``/tmp/adm_sim_ros_domains/``; the lock is released when
+  the run closes it or dies, so concurrent runs never share an id and a killed run never leaks
+  one. Ids up to 232 are accepted with shared memory only; with a UDP transport 101 is the
+  largest id whose ports stay valid.
 * :func:`cleanup_shm` runs Fast DDS's own ``fastdds shm clean``, which removes the shared-memory
   files (``/dev/shm/fastrtps_*``) of participants that died without cleaning up (a SIGKILL) and
   never those of a live one.
@@ -20,6 +22,7 @@ import os
 import shutil
 import subprocess
 import sys
+from collections.abc import Mapping
 from pathlib import Path
 
 from adm_sim.errors import InputError, RunError
@@ -27,6 +30,7 @@ from adm_sim.fields import FIELDS
 
 __all__ = [
     "DOMAIN_ID_MAX",
+    "DOMAIN_ID_MAX_UDP",
     "DomainLock",
     "LocalRosEnv",
     "cleanup_shm",
@@ -34,8 +38,12 @@ __all__ = [
     "local_ros_env",
 ]
 
-#: Largest ROS_DOMAIN_ID whose Fast DDS ports stay valid on Linux (ROS 2 docs, "The ROS_DOMAIN_ID").
-DOMAIN_ID_MAX = FIELDS["domain_id"].hi  # the field registry's (adm_sim.fields)
+#: Largest ROS_DOMAIN_ID (the field registry's, adm_sim.fields): 232 with shared memory only (the
+#: id only names the shared-memory segments and ports) ...
+DOMAIN_ID_MAX = FIELDS["domain_id"].hi
+#: ... and 101 with a UDP transport, whose ports 7400 + 250 id + ... must stay below 32768 on Linux
+#: (ROS 2 docs, "The ROS_DOMAIN_ID"). Automatically reserved ids are taken from [1, 101].
+DOMAIN_ID_MAX_UDP = 101
 LOCK_DIR = Path("/tmp/adm_sim_ros_domains")
 
 
@@ -123,21 +131,24 @@ def _try_lock(domain_id: int) -> DomainLock | None:
     except BlockingIOError:
         os.close(fd)
         return None
-    os.ftruncate(fd, 0)
-    os.write(fd, f"{os.getpid()}\n".encode())
+    try:  # the pid names the holder; the flock is the reservation (a full disk does not undo it)
+        os.ftruncate(fd, 0)
+        os.write(fd, f"{os.getpid()}\n".encode())
+    except OSError:
+        pass
     return DomainLock(domain_id, fd, path)
 
 
 def reserve_domain_id() -> DomainLock:
-    """Reserve a free ROS_DOMAIN_ID in ``[1, DOMAIN_ID_MAX]`` (0, the ROS default, is left alone),
-    the least recently used first.
+    """Reserve a free ROS_DOMAIN_ID in ``[1, DOMAIN_ID_MAX_UDP]`` (0, the ROS default, is left
+    alone; ids valid with any transport), the least recently used first.
 
     Raises
     ------
     InputError
         When all 101 ids are held by other runs.
     """
-    n = DOMAIN_ID_MAX
+    n = DOMAIN_ID_MAX_UDP
     start = os.getpid() % n  # spread concurrent starters over the range
 
     def last_used(domain_id):
@@ -154,9 +165,35 @@ def reserve_domain_id() -> DomainLock:
         if lock is not None:
             return lock
     raise InputError(
-        f"ROS_DOMAIN_ID: all ids in [1, {DOMAIN_ID_MAX}] are reserved by other runs "
+        f"ROS_DOMAIN_ID: all ids in [1, {DOMAIN_ID_MAX_UDP}] are reserved by other runs "
         f"(lock files in {LOCK_DIR}); wait for a run to end or pass an explicit id"
     )
+
+
+def _shm_only(env: Mapping[str, str]) -> bool:
+    return env.get("FASTDDS_BUILTIN_TRANSPORTS", "SHM").strip().upper() == "SHM"
+
+
+def check_domain_id(domain_id, env: Mapping[str, str], source: str = "ROS_DOMAIN_ID") -> int:
+    """``domain_id`` (an int, or the text of an exported variable) checked against the range of
+    the transport ``env`` selects: ``[0, 232]`` with ``FASTDDS_BUILTIN_TRANSPORTS=SHM`` (the
+    default this module sets), ``[0, 101]`` otherwise; :class:`InputError` naming ``source``."""
+    shm = _shm_only(env)
+    hi = DOMAIN_ID_MAX if shm else DOMAIN_ID_MAX_UDP
+    allowed = (f"allowed [0, {hi}]" if shm else
+               f"allowed [0, {hi}] with FASTDDS_BUILTIN_TRANSPORTS={env.get('FASTDDS_BUILTIN_TRANSPORTS')} "
+               f"(up to {DOMAIN_ID_MAX} with FASTDDS_BUILTIN_TRANSPORTS=SHM)")
+    value = domain_id
+    if isinstance(value, str):
+        try:
+            value = int(value.strip())
+        except ValueError:
+            raise InputError(f"{source}: {domain_id!r} is not an integer; {allowed}") from None
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise InputError(f"{source}: {domain_id!r} is not an integer; {allowed}")
+    if not 0 <= value <= hi:
+        raise InputError(f"{source}: {value} is out of range; {allowed}")
+    return value
 
 
 def local_ros_env(domain_id: int | None = None, base: dict | None = None) -> LocalRosEnv:
@@ -165,9 +202,11 @@ def local_ros_env(domain_id: int | None = None, base: dict | None = None) -> Loc
     Parameters
     ----------
     domain_id : int or None
-        ``ROS_DOMAIN_ID`` in ``[0, 101]``. ``None`` reserves a free id in ``[1, 101]`` with an
-        exclusive lock file (see :func:`reserve_domain_id`); an explicit id is not locked, so a
-        child process can be handed the id its parent reserved.
+        ``ROS_DOMAIN_ID`` in ``[0, 232]`` (``[0, 101]`` when ``FASTDDS_BUILTIN_TRANSPORTS`` is set
+        to anything but ``SHM``). ``None``: the ``ROS_DOMAIN_ID`` exported in ``base`` if it is
+        set and not empty (checked the same way), else a free id in ``[1, 101]`` reserved with an
+        exclusive lock file (see :func:`reserve_domain_id`). A given or exported id is not locked,
+        so a child process can be handed the id its parent reserved.
     base : dict or None
         Environment to start from; default a copy of ``os.environ``.
 
@@ -179,21 +218,16 @@ def local_ros_env(domain_id: int | None = None, base: dict | None = None) -> Loc
         holds the reservation and must live as long as the run (``with local_ros_env() as env:``).
     """
     env = LocalRosEnv(os.environ if base is None else base)
-    if domain_id is None:
+    env.setdefault("FASTDDS_BUILTIN_TRANSPORTS", "SHM")
+    exported = env.get("ROS_DOMAIN_ID", "").strip()
+    lock = None
+    if domain_id is not None:
+        chosen = check_domain_id(domain_id, env)
+    elif exported:
+        chosen = check_domain_id(exported, env, "ROS_DOMAIN_ID (exported)")
+    else:
         lock = reserve_domain_id()
         chosen = lock.domain_id
-    else:
-        if isinstance(domain_id, bool) or not isinstance(domain_id, int):
-            raise InputError(
-                f"ROS_DOMAIN_ID: {domain_id!r} is not an integer; allowed [0, {DOMAIN_ID_MAX}]"
-            )
-        if not 0 <= domain_id <= DOMAIN_ID_MAX:
-            raise InputError(
-                f"ROS_DOMAIN_ID: {domain_id} is out of range; allowed [0, {DOMAIN_ID_MAX}]"
-            )
-        lock = None
-        chosen = domain_id
-    env.setdefault("FASTDDS_BUILTIN_TRANSPORTS", "SHM")
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     env["ROS_DOMAIN_ID"] = str(chosen)
     env.domain_id = chosen

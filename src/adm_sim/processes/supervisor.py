@@ -28,6 +28,7 @@ This module imports nothing from ROS.
 
 from __future__ import annotations
 
+import ctypes
 import os
 import queue
 import signal
@@ -84,8 +85,6 @@ def _prctl():
     if not _PRCTL:
         fn = None
         if sys.platform.startswith("linux"):
-            import ctypes
-
             try:
                 fn = ctypes.CDLL(None, use_errno=True).prctl
                 fn.argtypes = [ctypes.c_int, ctypes.c_ulong, ctypes.c_ulong, ctypes.c_ulong, ctypes.c_ulong]

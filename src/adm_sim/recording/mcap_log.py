@@ -8,12 +8,17 @@ reading the rclpy message by attribute). Its CDR has exact lengths: rclpy's ``se
 reports rmw_fastrtps' *estimated* size, up to 8 bytes too long for an empty ``float64[]``, which
 rosbags refuses. The files read with mcap-ros2-support, ``rosbags`` and ``rerun mcap convert``.
 
+Each channel carries ``offered_qos_profiles`` as rosbag2 writes it (:func:`qos_profiles_yaml`),
+the QoS of the topic's class (:data:`QOS_CLASSES`) unless the caller gives its own.
+
 Chunks are small (64 KiB before compression by default) and written straight to the operating
-system, so a writer killed with SIGKILL loses at most the open chunk; :func:`salvage` recovers
-every complete record of such a file and writes a clean one (command line: ``adm-sim salvage
-IN.mcap OUT.mcap``). A damaged file (a chunk that no longer decompresses or fails its CRC) is
-read chunk by chunk: every readable chunk is recovered, the damaged ones are counted and skipped.
-:func:`read_messages` refuses a damaged file with one line pointing to ``salvage``.
+system, so a writer killed with SIGKILL loses at most the open chunk; the recorder also writes the
+data-section CRC (header, metadata, message indexes). Every reader checks a file first
+(:func:`scan`, :func:`checked_scan`): record framing, chunk decompression and CRC, summary and
+data-section CRC; a damaged place is named with its offset and the messages lost there per topic,
+and reading goes on at the next intact chunk. :func:`read_messages` refuses a damaged file with one
+line unless asked to skip the damage; :func:`salvage` writes every intact message of a killed or
+damaged file into a clean one (command line: ``adm-sim salvage IN.mcap OUT.mcap``).
 """
 
 from __future__ import annotations
@@ -21,6 +26,7 @@ from __future__ import annotations
 import array
 import os
 from collections.abc import Iterator, Mapping
+from dataclasses import dataclass, field
 from typing import Any
 from pathlib import Path
 
@@ -30,8 +36,19 @@ from adm_sim.errors import InputError
 
 __all__ = [
     "McapRecorder",
+    "QOS_CLASSES",
+    "parse_qos_profiles",
+    "qos_profiles_yaml",
+    "topic_qos",
     "message_definition",
+    "Damage",
+    "Scan",
     "check_intact",
+    "checked_scan",
+    "decode_messages",
+    "sorted_messages",
+    "iter_raw_messages",
+    "scan",
     "read_messages",
     "salvage",
     "type_name",
@@ -80,6 +97,93 @@ def message_definition(msg_type) -> tuple[str, str]:
                          f"allowed the common_interfaces types")
     text, _ = _TYPESTORE.generate_msgdef(full, ros_version=2)
     return full, text
+
+
+# ---------------------------------------------------------------- QoS metadata
+
+#: The QoS of each class of :data:`adm_sim.protocol.TOPICS` as the nodes offer it
+#: (:mod:`adm_sim.nodes.common`, ``QOS_*``; a test keeps the two equal): ``(history, depth,
+#: reliability, durability)`` in rosbag2's lower-case names.
+QOS_CLASSES = {
+    "C": ("keep_last", 100, "reliable", "volatile"),
+    "X": ("keep_last", 16, "reliable", "volatile"),
+    "M": ("keep_last", 5000, "reliable", "volatile"),
+    "L": ("keep_last", 1, "reliable", "transient_local"),
+}
+#: rclpy's default profile (``depth=10``), for a topic of no known class.
+QOS_DEFAULT = ("keep_last", 10, "reliable", "volatile")
+#: An unset (infinite) duration as rmw reports an offered profile and rosbag2 writes it.
+_INFINITE = (9223372036, 854775807)
+
+
+def topic_qos(topic: str) -> tuple[str, int, str, str]:
+    """``(history, depth, reliability, durability)`` of an adm-sim topic by its class in
+    :data:`adm_sim.protocol.TOPICS` (also under a namespace: ``/b1/adm/midspan/accel``), else
+    :data:`QOS_DEFAULT`."""
+    from adm_sim import protocol as P
+
+    entry = P.TOPICS.get(topic)
+    if entry is None:
+        entry = next((P.TOPICS[k] for k in sorted(P.TOPICS, key=len, reverse=True) if topic.endswith(k)), None)
+    return QOS_CLASSES.get(entry[1], QOS_DEFAULT) if entry is not None else QOS_DEFAULT
+
+
+def _qos_tuple(qos) -> tuple[str, int, str, str]:
+    """A QoS given as a tuple, a dict with rosbag2's keys, or an rclpy ``QoSProfile`` (read by
+    attribute: its policies' ``name``)."""
+    if isinstance(qos, tuple):
+        return qos
+    if isinstance(qos, Mapping):
+        return (str(qos["history"]), int(qos["depth"]), str(qos["reliability"]), str(qos["durability"]))
+    return (qos.history.name.lower(), int(qos.depth), qos.reliability.name.lower(), qos.durability.name.lower())
+
+
+def qos_profiles_yaml(qos) -> str:
+    """``offered_qos_profiles`` of an MCAP channel as rosbag2 (Jazzy, metadata version 9) writes it:
+    a YAML list with one profile per publisher, policies by name, durations as ``sec``/``nsec``
+    (an unset duration as rmw's infinite, 9223372036 s 854775807 ns).
+
+    Parameters
+    ----------
+    qos : tuple, dict or rclpy QoSProfile
+        ``(history, depth, reliability, durability)``, e.g. ``('keep_last', 1, 'reliable',
+        'transient_local')``.
+    """
+    history, depth, reliability, durability = _qos_tuple(qos)
+    sec, nsec = _INFINITE
+    duration = f"\n    sec: {sec}\n    nsec: {nsec}"
+    return (f"- history: {history}\n  depth: {depth}\n  reliability: {reliability}\n"
+            f"  durability: {durability}\n  deadline:{duration}\n  lifespan:{duration}\n"
+            f"  liveliness: automatic\n  liveliness_lease_duration:{duration}\n"
+            f"  avoid_ros_namespace_conventions: false")
+
+
+def parse_qos_profiles(text: str) -> tuple[str, int, str, str] | None:
+    """The first profile of an ``offered_qos_profiles`` text as ``(history, depth, reliability,
+    durability)`` (lower-case names; rosbag2 also writes the enums as integers in older versions),
+    or ``None`` when the text holds none."""
+    import yaml
+
+    try:
+        items = yaml.safe_load(text) if text else None
+    except yaml.YAMLError:
+        return None
+    if not isinstance(items, list) or not items or not isinstance(items[0], dict):
+        return None
+    first = items[0]
+    by_int = {"history": {0: "system_default", 1: "keep_last", 2: "keep_all"},
+              "reliability": {0: "system_default", 1: "reliable", 2: "best_effort"},
+              "durability": {0: "system_default", 1: "transient_local", 2: "volatile"}}
+
+    def name(key, default):
+        value = first.get(key, default)
+        return by_int[key].get(value, default) if isinstance(value, int) else str(value).lower()
+
+    try:
+        depth = int(first.get("depth", 10))
+    except (TypeError, ValueError):
+        depth = 10
+    return (name("history", "keep_last"), depth, name("reliability", "reliable"), name("durability", "volatile"))
 
 
 # ---------------------------------------------------------------- writing
@@ -184,7 +288,7 @@ class McapRecorder:
         except OSError as exc:
             raise InputError(f"path: cannot create '{self.path}': {exc.strerror}") from None
         self._writer = Writer(self._file, chunk_size=chunk_size,  # type: ignore[arg-type]  # a write()/tell() file
-                              compression=kinds[compression])
+                              compression=kinds[compression], enable_data_crcs=True)
         self._writer.start(profile="ros2", library="adm-sim mcap_log")
         self._schemas: dict[type, tuple[int, str]] = {}
         self._channels: dict[str, tuple[int, type]] = {}
@@ -208,9 +312,14 @@ class McapRecorder:
         if self._finished:
             raise InputError(f"McapRecorder: '{self.path}' is finished; no more writes")
 
-    def register(self, topic: str, msg_type) -> None:
+    def register(self, topic: str, msg_type, qos=None) -> None:
         """Register ``topic`` with message class ``msg_type`` (schema and channel records).
         Registering a topic again with another type is an error.
+
+        The channel carries ``offered_qos_profiles`` as rosbag2 writes it
+        (:func:`qos_profiles_yaml`): ``qos`` (an rclpy ``QoSProfile``, a dict or a tuple, see
+        there) when given, else the QoS of the topic's class in :data:`adm_sim.protocol.TOPICS`
+        (:func:`topic_qos`), so a replay publishes it as the run did (descriptions latched).
         """
         self._check_open()
         if not isinstance(topic, str) or not topic.startswith("/"):
@@ -227,8 +336,10 @@ class McapRecorder:
             name, text = message_definition(msg_type)
             self._schemas[msg_type] = (self._writer.register_schema(name=name, encoding="ros2msg",
                                                                     data=text.encode()), name)
+        profiles = qos_profiles_yaml(topic_qos(topic) if qos is None else qos)
         channel_id = self._writer.register_channel(topic=topic, message_encoding="cdr",
-                                                   schema_id=self._schemas[msg_type][0])
+                                                   schema_id=self._schemas[msg_type][0],
+                                                   metadata={"offered_qos_profiles": profiles})
         self._channels[topic] = (channel_id, msg_type)
         self._sequence[topic] = 0
 
@@ -276,138 +387,502 @@ class McapRecorder:
             self._file.close()
 
 
-# ---------------------------------------------------------------- reading, salvage
+# ---------------------------------------------------------------- reading, integrity
+
+_MAGIC = b"\x89MCAP0\r\n"
+#: records of the data section: header (first), schema, channel, message, chunk, message index,
+#: attachment, metadata, data end
+_DATA_OPS = frozenset((0x01, 0x03, 0x04, 0x05, 0x06, 0x07, 0x09, 0x0C, 0x0F))
+_CHUNK, _MESSAGE_INDEX, _DATA_END, _FOOTER = 0x06, 0x07, 0x0F, 0x02
 
 
-def read_messages(path, topics=None) -> Iterator[tuple[str, int, object]]:
-    """Yield ``(topic, log_time_ns, message)`` of a finished MCAP file in log-time order.
+@dataclass
+class Damage:
+    """One damaged place of an MCAP file.
 
-    Messages are decoded by mcap-ros2-support from the schemas in the file (attribute access
-    like rclpy messages; arrays as lists). A killed writer's file must be :func:`salvage`-d first.
+    Attributes
+    ----------
+    offset : int
+        Byte offset of the damaged record (a chunk's opcode) or region.
+    what : str
+        What is wrong (``chunk fails its CRC``, ``chunk does not decompress``, ``broken record
+        framing``, ``summary fails its CRC``, ...).
+    lost : dict
+        Messages lost there per topic (from the message indexes that follow a chunk); empty when
+        nothing was lost, ``None`` when the count is unknown.
     """
-    from mcap.exceptions import McapError
-    from mcap.reader import make_reader
-    from mcap_ros2.decoder import DecoderFactory
 
+    offset: int
+    what: str
+    lost: dict | None = field(default_factory=dict)
+
+    @property
+    def messages(self) -> int | None:
+        return None if self.lost is None else sum(self.lost.values())
+
+    def describe(self) -> str:
+        if self.lost is None:
+            loss = "messages lost: unknown"
+        elif not self.lost:
+            loss = "no message lost"
+        else:
+            loss = (f"{self.messages} messages lost ("
+                    + ", ".join(f"{t} {n}" for t, n in sorted(self.lost.items())) + ")")
+        return f"{self.what} at byte {self.offset}: {loss}"
+
+
+@dataclass
+class Scan:
+    """What :func:`scan` found: every readable message (file order), the metadata records and the
+    damage. ``expected`` is the number of messages per topic the file's statistics state (``None``
+    without an intact summary)."""
+
+    path: Path
+    chunks: int = 0
+    damage: list = field(default_factory=list)
+    truncated: bool = False
+    messages: list = field(default_factory=list)  # (schema, channel, message)
+    metadata: list = field(default_factory=list)
+    expected: dict | None = None
+    orphan_messages: int = 0
+    footer_ok: bool = False
+
+    @property
+    def damaged(self) -> bool:
+        return bool(self.damage) or self.truncated
+
+    @property
+    def lost_chunks(self) -> int:
+        return sum(d.what.startswith("chunk") or d.what.startswith("broken") for d in self.damage)
+
+    def recovered(self) -> dict:
+        counts: dict = {}
+        for _s, ch, _m in self.messages:
+            counts[ch.topic] = counts.get(ch.topic, 0) + 1
+        return counts
+
+    def missing(self) -> dict | None:
+        """Messages per topic the statistics count and no intact chunk holds (``None`` without
+        statistics)."""
+        if self.expected is None:
+            return None
+        got = self.recovered()
+        return {t: n - got.get(t, 0) for t, n in self.expected.items() if n > got.get(t, 0)}
+
+    def lines(self) -> list[str]:
+        """One line per damage, then the total lost (by the statistics when there are some)."""
+        out = [d.describe() for d in self.damage]
+        if self.truncated:
+            out.append("the file ends inside a record (a writer stopped mid-chunk): the messages of that "
+                       "chunk are lost")
+        missing = self.missing()
+        if missing and self.expected is not None:
+            out.append(f"in all {sum(missing.values())} of {sum(self.expected.values())} recorded messages lost ("
+                       + ", ".join(f"{t} {n}" for t, n in sorted(missing.items())) + ")")
+        return out
+
+    def first(self) -> str:
+        if self.damage:
+            return self.damage[0].describe()
+        return "the file ends inside a record"
+
+
+def _u(data, pos, n):
+    return int.from_bytes(data[pos:pos + n], "little")
+
+
+def _decompress(compression: str, raw: bytes, size: int) -> bytes:
+    from mcap import stream_reader
+
+    if compression == "zstd":
+        return stream_reader.zstandard.ZstdDecompressor().decompress(raw, max_output_size=size)
+    if compression == "lz4":
+        return stream_reader.lz4.decompress(raw)
+    if compression == "":
+        return raw
+    raise ValueError(f"unknown compression {compression!r}")
+
+
+def _parse_chunk(data, pos: int, end: int, check_length: bool = True):
+    """The records inside the Chunk record at ``pos`` (decompressed, CRC checked) or a reason."""
+    import zlib
+
+    body = pos + 9
+    length = _u(data, pos + 1, 8)
+    if body + 32 > end:
+        return None, "broken record framing"
+    size, crc = _u(data, body + 16, 8), _u(data, body + 24, 4)
+    n_comp = _u(data, body + 28, 4)
+    if n_comp > 16 or body + 32 + n_comp + 8 > end:
+        return None, "chunk header is damaged"
+    try:
+        compression = bytes(data[body + 32:body + 32 + n_comp]).decode()
+    except UnicodeDecodeError:
+        return None, "chunk header is damaged"
+    at = body + 32 + n_comp
+    n_rec = _u(data, at, 8)
+    if at + 8 + n_rec > end or (check_length and at + 8 + n_rec != body + length):
+        return None, "broken record framing"
+    if size > 1 << 34:
+        return None, "chunk header is damaged"
+    try:
+        raw = _decompress(compression, bytes(data[at + 8:at + 8 + n_rec]), size)
+    except Exception:
+        return None, "chunk does not decompress"
+    if len(raw) != size:
+        return None, "chunk does not decompress"
+    if crc == 0:
+        return None, "chunk has no CRC to check"
+    if zlib.crc32(raw) != crc:
+        return None, "chunk fails its CRC"
+    return raw, None
+
+
+def _inner_records(raw: bytes):
+    from mcap.data_stream import ReadDataStream
+    import io
+
+    from mcap.records import Channel, Message, Schema
+
+    out, q = [], 0
+    while q < len(raw):
+        if q + 9 > len(raw):
+            raise ValueError("record cut short inside a chunk")
+        op, length = raw[q], _u(raw, q + 1, 8)
+        if q + 9 + length > len(raw):
+            raise ValueError("record cut short inside a chunk")
+        stream = ReadDataStream(io.BytesIO(raw[q + 9:q + 9 + length]))
+        if op == 0x04:
+            out.append(Channel.read(stream))
+        elif op == 0x05:
+            out.append(Message.read(stream, length))
+        elif op == 0x03:
+            out.append(Schema.read(stream))
+        q += 9 + length
+    return out
+
+
+def _next_chunk(data, start: int, end: int) -> int | None:
+    """Offset of the next intact Chunk record at or after ``start`` (found by its opcode and a
+    header, decompression and CRC that check out), or None."""
+    pos = start
+    while True:
+        pos = data.find(b"\x06", pos, end)
+        if pos < 0:
+            return None
+        if pos + 9 + 32 <= end:
+            raw, why = _parse_chunk(data, pos, end)
+            if why is None:
+                return pos
+        pos += 1
+
+
+def _index_ok(data, pos: int, length: int) -> bool:
+    """A MessageIndex record's own framing: channel id, then ``length - 6`` bytes of 16-byte entries."""
+    return length >= 6 and _u(data, pos + 11, 4) == length - 6 and (length - 6) % 16 == 0
+
+
+def _message_index_counts(data, pos: int, end: int):
+    """Counts per channel id of the MessageIndex records starting at ``pos`` (as the writer puts
+    them right after their chunk), and the offset after them."""
+    counts: dict = {}
+    while pos + 9 <= end and data[pos] == _MESSAGE_INDEX:
+        length = _u(data, pos + 1, 8)
+        if pos + 9 + length > end or length < 8:
+            break
+        channel_id, n_bytes = _u(data, pos + 9, 2), _u(data, pos + 11, 4)
+        if n_bytes != length - 6 or n_bytes % 16:
+            break
+        counts[channel_id] = counts.get(channel_id, 0) + n_bytes // 16
+        pos += 9 + length
+    return counts, pos
+
+
+def _read_summary(data, scan: Scan):
+    """Schemas, channels and statistics of the summary section, if its CRC holds; the start of
+    the summary (or of the footer) as the end of the data section."""
+    import io
+    import zlib
+
+    from mcap.data_stream import ReadDataStream
+    from mcap.records import Channel, Schema, Statistics
+
+    n = len(data)
+    foot = n - 8 - 29
+    if n < 8 + 29 + 8 or bytes(data[n - 8:]) != _MAGIC or data[foot] != _FOOTER or _u(data, foot + 1, 8) != 20:
+        return None, None, n
+    scan.footer_ok = True
+    summary_start, crc = _u(data, foot + 9, 8), _u(data, foot + 25, 4)
+    section = summary_start if 8 <= summary_start <= foot else foot
+    if summary_start and not 8 <= summary_start <= foot:
+        scan.damage.append(Damage(foot, "footer is damaged", {}))
+        return None, None, foot
+    if crc and zlib.crc32(bytes(data[section:foot + 25])) != crc:
+        scan.damage.append(Damage(section, "summary fails its CRC", {}))
+        return None, None, section
+    schemas, channels, stats = {}, {}, None
+    pos = section
+    while pos + 9 <= foot:
+        op, length = data[pos], _u(data, pos + 1, 8)
+        stream = ReadDataStream(io.BytesIO(bytes(data[pos + 9:pos + 9 + length])))
+        try:
+            if op == 0x03:
+                rec = Schema.read(stream)
+                schemas[rec.id] = rec
+            elif op == 0x04:
+                rec = Channel.read(stream)
+                channels[rec.id] = rec
+            elif op == 0x0B:
+                stats = Statistics.read(stream)
+        except Exception:
+            break
+        pos += 9 + length
+    if stats is not None:
+        scan.expected = {}
+        for cid, count in stats.channel_message_counts.items():
+            if cid in channels and count:
+                topic = channels[cid].topic
+                scan.expected[topic] = scan.expected.get(topic, 0) + count
+    return schemas, channels, section
+
+
+def scan(path) -> Scan:
+    """Read every record of the MCAP ``path`` and check it: the chunks' framing, decompression and
+    CRC, the summary's CRC and the data section's CRC when the writer wrote one.
+
+    A damaged chunk is recorded with its offset and the messages lost per topic (from the message
+    indexes after it) and the reading goes on with the next intact chunk (found by its own framing
+    and CRC, so a broken record length does not end the reading). A file cut short (a killed
+    writer) is ``truncated``. Nothing is decoded.
+    """
+    import zlib
+
+    from mcap.data_stream import ReadDataStream
+    from mcap.records import Channel, Header, Message, Metadata, Schema
+    import io
+
+    path = Path(path)
+    data = path.read_bytes()
+    result = Scan(path)
+    if bytes(data[:8]) != _MAGIC:
+        result.damage.append(Damage(0, "file magic is damaged", {}))
+    sum_schemas, sum_channels, end = _read_summary(data, result)
+    schemas: dict = dict(sum_schemas or {})
+    channels: dict = dict(sum_channels or {})
+    # the data section ends at its DataEnd record, right before the summary (when the footer holds)
+    limit = end
+    if result.footer_ok and end >= 8 + 13 and data[end - 13] == _DATA_END and _u(data, end - 12, 8) == 4:
+        limit = end - 13
+
+    verified = 8  # end of the last chunk whose CRC held: nothing before it is read again
+
+    def resume(after: int) -> int | None:
+        """Where reading goes on after damage: the next intact chunk after the last verified one
+        (a damaged length of an unchecked record may have jumped over intact chunks), else the
+        data section's end record (when the footer locates it)."""
+        nxt = _next_chunk(data, min(after, verified), limit)
+        if nxt is not None:
+            return nxt
+        return limit if limit < end else None
+
+    def take(rec):
+        if isinstance(rec, Schema):
+            schemas.setdefault(rec.id, rec)
+        elif isinstance(rec, Channel):
+            channels.setdefault(rec.id, rec)
+        else:
+            ch = channels.get(rec.channel_id)
+            if ch is None:
+                result.orphan_messages += 1
+            else:
+                result.messages.append((schemas.get(ch.schema_id), ch, rec))
+
+    pos: int | None = 8
+    data_end = None
+    while pos is not None and pos < end:
+        if pos + 9 > end:
+            result.truncated = True
+            break
+        op, length = data[pos], _u(data, pos + 1, 8)
+        rec_end = pos + 9 + length
+        if op not in _DATA_OPS or rec_end > end or (op == 0x01) != (pos == 8) or (
+                op == _MESSAGE_INDEX and not _index_ok(data, pos, length)) or (op == _DATA_END and length != 4):
+            nxt = resume(pos + 1)
+            if nxt is None and op in _DATA_OPS and rec_end > end and not result.footer_ok:
+                result.truncated = True  # a killed writer's last record
+                break
+            result.damage.append(Damage(pos, "broken record framing", None))
+            pos = nxt
+            continue
+        if op == _CHUNK:
+            result.chunks += 1
+            raw, why = _parse_chunk(data, pos, end)
+            inner_end = rec_end
+            if why == "broken record framing":  # the record length disagrees with the chunk's own sizes
+                raw, why2 = _parse_chunk(data, pos, end, check_length=False)
+                if why2 is None:  # the contents check out: only the outer length is damaged
+                    n_comp = _u(data, pos + 9 + 28, 4)
+                    inner_end = pos + 9 + 32 + n_comp + 8 + _u(data, pos + 9 + 32 + n_comp, 8)
+                    result.damage.append(Damage(pos, "chunk record length is damaged (its contents pass "
+                                                     "their CRC and are kept)", {}))
+                    why = None
+            records: list = []
+            if why is None:
+                try:
+                    records = _inner_records(raw)
+                except Exception:
+                    why = "chunk's records are damaged"
+            if why is None:
+                for rec in records:
+                    take(rec)
+                pos = verified = inner_end
+                continue
+            if why == "broken record framing":
+                result.damage.append(Damage(pos, why, None))
+                pos = resume(pos + 1)
+                continue
+            counts, after = _message_index_counts(data, rec_end, limit)
+            result.damage.append(Damage(pos, why, {channels[c].topic if c in channels else f"channel {c}": k
+                                                   for c, k in counts.items()} if counts else None))
+            pos = after
+            continue
+        if op == _DATA_END:
+            data_end = pos
+            crc = _u(data, pos + 9, 4)
+            if crc and zlib.crc32(data[:pos]) != crc and not result.damage:
+                result.damage.append(Damage(0, "data section fails its CRC (outside the chunks: header, "
+                                               "metadata or message indexes)", {}))
+            break
+        if op in (0x01, 0x03, 0x04, 0x05, 0x0C):
+            stream = ReadDataStream(io.BytesIO(data[pos + 9:rec_end]))
+            try:
+                if op == 0x01:
+                    rec = Header.read(stream)
+                elif op == 0x03:
+                    rec = Schema.read(stream)
+                elif op == 0x04:
+                    rec = Channel.read(stream)
+                elif op == 0x0C:
+                    rec = Metadata.read(stream)
+                else:
+                    rec = Message.read(stream, length)
+                if op != 0x05 and stream.count != length:
+                    raise ValueError("record length")
+            except Exception:
+                result.damage.append(Damage(pos, "record is damaged", None))
+                pos = resume(pos + 1)
+                continue
+            if op == 0x0C:
+                result.metadata.append(rec)
+            elif op != 0x01:
+                take(rec)
+        pos = rec_end
+    if data_end is None and not any(d.what == "broken record framing" for d in result.damage):
+        result.truncated = True  # no end of the data section: the writer did not finish the file
+    if data_end is not None and not result.footer_ok and not any(d.what.startswith(("summary", "footer"))
+                                                                 for d in result.damage):
+        result.damage.append(Damage(data_end, "summary or footer is damaged", {}))
+    missing = result.missing()
+    unknown = [d for d in result.damage if d.lost is None]
+    if missing is not None and unknown:  # the statistics account for what the damaged places held
+        known: dict = {}
+        for d in result.damage:
+            for t, k in (d.lost or {}).items():
+                known[t] = known.get(t, 0) + k
+        rest = {t: n - known.get(t, 0) for t, n in missing.items() if n > known.get(t, 0)}
+        if not rest:
+            for d in unknown:
+                d.lost = {}
+        elif len(unknown) == 1:
+            unknown[0].lost = rest
+    return result
+
+
+def _refusal(path, s: Scan) -> InputError:
+    if s.truncated and not s.damage:
+        return InputError(f"path: '{path}' is not a complete MCAP file (it ends inside a record); "
+                          f"recover it with: adm-sim salvage {path} OUT.mcap")
+    n = len(s.damage)
+    chunks = (f"{s.lost_chunks} of {s.chunks} chunks do not decompress or fail their CRC; " if s.lost_chunks
+              else "")
+    return InputError(f"path: '{path}' is damaged ({chunks}{s.first()}{f'; and {n - 1} more' if n > 1 else ''}); "
+                      f"recover its readable chunks with: adm-sim salvage {path} OUT.mcap")
+
+
+def checked_scan(path, skip_damaged: bool = False, warn=None) -> Scan:
+    """:func:`scan` of ``path``; damage is an :class:`InputError` (one line naming the first damaged
+    place) unless ``skip_damaged``, then each line of :meth:`Scan.lines` goes to ``warn``."""
     path = Path(path)
     if not path.is_file():
         raise InputError(f"path: MCAP file '{path}' does not exist")
-    with open(path, "rb") as f:
-        reader = make_reader(f, validate_crcs=True, decoder_factories=[DecoderFactory()])
+    s = scan(path)
+    if s.damaged:
+        if not skip_damaged:
+            raise _refusal(path, s)
+        for line in s.lines():
+            (warn or (lambda text: None))(f"skipped damage in '{path}': {line}")
+    return s
+
+
+def iter_raw_messages(path, skip_damaged: bool = False, warn=None, topics=None):
+    """``(schema, channel, message)`` of every intact message in log-time order (file order among
+    equal times), after :func:`checked_scan`."""
+    yield from sorted_messages(checked_scan(path, skip_damaged, warn), topics)
+
+
+def read_messages(path, topics=None, skip_damaged: bool = False, warn=None) -> Iterator[tuple[str, int, object]]:
+    """Yield ``(topic, log_time_ns, message)`` of an MCAP file in log-time order, every chunk's
+    framing, decompression and CRC checked first (:func:`checked_scan`): a damaged or cut-short file
+    is one :class:`InputError` naming the damage, unless ``skip_damaged`` (then its intact chunks
+    are read and each skipped damage is handed to ``warn``).
+
+    Messages are decoded by mcap-ros2-support from the schemas in the file (attribute access
+    like rclpy messages; arrays as lists).
+    """
+    yield from decode_messages(iter_raw_messages(path, skip_damaged, warn, topics), path)
+
+
+def sorted_messages(found: Scan, topics=None) -> list:
+    """The intact ``(schema, channel, message)`` of a :class:`Scan` in log-time order (file order
+    among equal times)."""
+    items = [m for m in found.messages if topics is None or m[1].topic in topics]
+    items.sort(key=lambda m: m[2].log_time)  # stable
+    return items
+
+
+def decode_messages(items, path="the recording") -> Iterator[tuple[str, int, object]]:
+    """``(topic, log_time_ns, decoded message)`` of raw ``(schema, channel, message)`` items."""
+    from mcap_ros2.decoder import DecoderFactory
+
+    factory = DecoderFactory()
+    decoders: dict = {}
+    for schema, channel, message in items:
+        dec = decoders.get(channel.id)
+        if dec is None:
+            dec = decoders[channel.id] = factory.decoder_for(channel.message_encoding, schema)
+        if dec is None:
+            raise InputError(f"path: '{path}': no decoder for '{channel.topic}' "
+                             f"({channel.message_encoding}, schema {getattr(schema, 'name', None)})")
         try:
-            for _schema, channel, message, decoded in reader.iter_decoded_messages(
-                topics=topics, log_time_order=True
-            ):
-                yield channel.topic, message.log_time, decoded
-        except McapError as exc:
-            raise InputError(
-                f"path: '{path}' is not a complete MCAP file ({type(exc).__name__}: {exc}); "
-                f"recover it with: adm-sim salvage {path} OUT.mcap"
-            ) from None
-        except _damage_errors() as exc:
-            raise InputError(
-                f"path: '{path}' is damaged ({type(exc).__name__}: {' '.join(str(exc).split())}); "
-                f"recover its readable chunks with: adm-sim salvage {path} OUT.mcap"
-            ) from None
-
-
-def _damage_errors() -> tuple:
-    """Exceptions a reader raises on damaged bytes: a chunk that does not decompress (zstd, lz4),
-    a failed CRC (a ``ValueError``), records cut short or with impossible lengths."""
-    import struct
-
-    from mcap.exceptions import McapError
-
-    from mcap import stream_reader
-
-    errors: list = [McapError, EOFError, struct.error, ValueError, RuntimeError, KeyError, MemoryError]
-    for module, name in (("zstandard", "ZstdError"), ("lz4", "LZ4FrameError")):  # the codecs mcap loaded
-        exc = getattr(getattr(stream_reader, module, None), name, None)
-        if isinstance(exc, type) and issubclass(exc, Exception):
-            errors.append(exc)
-    return tuple(errors)
+            decoded = dec(message.data)
+        except Exception as exc:
+            raise InputError(f"path: '{path}': a message of '{channel.topic}' at {message.log_time} ns does "
+                             f"not decode ({type(exc).__name__}); the file was written wrongly") from None
+        yield channel.topic, message.log_time, decoded
 
 
 def check_intact(path) -> int:
     """The number of messages of the MCAP ``path`` after checking every record's framing and
     every chunk's decompression and CRC (messages are not decoded); :class:`InputError` (one line
-    pointing to ``salvage``) when the file is cut short or damaged."""
-    report: dict = {}
-    n = sum(kind == "message" for kind, _ in _recoverable(Path(path), report))
-    if report["truncated"]:
-        raise InputError(f"path: '{path}' is not a complete MCAP file (it ends inside a record); "
-                         f"recover it with: adm-sim salvage {path} OUT.mcap")
-    if report["lost_chunks"] or report["orphan_messages"]:
-        raise InputError(f"path: '{path}' is damaged ({report['lost_chunks']} of {report['chunks']} chunks do not "
-                         f"decompress or fail their CRC); recover its readable chunks with: "
-                         f"adm-sim salvage {path} OUT.mcap")
-    return n
-
-
-def _recoverable(path: Path, report: dict):
-    """Yield the records of a truncated or damaged MCAP in file order: ``('metadata', rec)`` and
-    ``('message', (schema, channel, message))``.
-
-    The records are read one by one (a chunk as a whole, not decompressed by the reader); each
-    chunk is decompressed and checked against its CRC on its own, so a damaged chunk is skipped
-    (counted in ``report['lost_chunks']``) and the chunks after it are still read. Reading stops
-    at the first record whose framing is broken (a file cut short: ``report['truncated']``).
-    Messages whose channel was only declared in a lost chunk are counted in
-    ``report['orphan_messages']``.
-    """
-    from mcap.records import Channel, Chunk, Message, Metadata, Schema
-    from mcap.stream_reader import StreamReader, breakup_chunk
-
-    errors = _damage_errors()
-    report.update(chunks=0, lost_chunks=0, orphan_messages=0, truncated=False)
-    schemas: dict = {}
-    channels: dict = {}
-
-    def emit(rec):
-        if isinstance(rec, Schema):
-            schemas[rec.id] = rec
-        elif isinstance(rec, Channel):
-            channels[rec.id] = rec
-        elif isinstance(rec, Message):
-            ch = channels.get(rec.channel_id)
-            if ch is None:
-                report["orphan_messages"] += 1
-                return None
-            return "message", (schemas.get(ch.schema_id), ch, rec)
-        elif isinstance(rec, Metadata):
-            return "metadata", rec
-        return None
-
-    with open(path, "rb") as f:
-        reader = StreamReader(f, emit_chunks=True, record_size_limit=max(1, path.stat().st_size))
-        records = iter(reader.records)
-        while True:
-            try:
-                rec = next(records)
-            except StopIteration:
-                break
-            except errors:
-                report["truncated"] = True
-                break
-            if isinstance(rec, Chunk):
-                report["chunks"] += 1
-                try:
-                    inner = breakup_chunk(rec, validate_crc=True)
-                except errors:
-                    report["lost_chunks"] += 1
-                    continue
-                for r in inner:
-                    out = emit(r)
-                    if out is not None:
-                        yield out
-            else:
-                out = emit(rec)
-                if out is not None:
-                    yield out
+    naming the damage and pointing to ``salvage``) when the file is cut short or damaged."""
+    return len(checked_scan(path).messages)
 
 
 def salvage(src, dst, overwrite: bool = False, report: dict | None = None) -> int:
-    """Recover every complete message of a truncated, killed or damaged MCAP into a clean file.
+    """Recover every intact message of a truncated, killed or damaged MCAP into a clean file.
+
+    Every chunk is checked (:func:`scan`); a damaged one is skipped and the reading goes on with
+    every intact chunk after it.
 
     Parameters
     ----------
@@ -417,7 +892,9 @@ def salvage(src, dst, overwrite: bool = False, report: dict | None = None) -> in
         The new file; refused if it exists unless ``overwrite``.
     report : dict or None
         Filled with ``chunks`` (read), ``lost_chunks`` (damaged, skipped), ``orphan_messages``
-        (whose channel was in a lost chunk) and ``truncated`` (the file ends mid-record).
+        (whose channel was in a lost chunk), ``truncated`` (the file ends mid-record or was not
+        finished) and ``damage`` (the lines of :meth:`Scan.lines`: each damaged place with its
+        offset, topics and messages lost).
 
     Returns
     -------
@@ -434,21 +911,24 @@ def salvage(src, dst, overwrite: bool = False, report: dict | None = None) -> in
     src, dst = Path(src), Path(dst)
     if not src.is_file():
         raise InputError(f"src: MCAP file '{src}' does not exist")
-    if dst.exists() and (not overwrite or dst.resolve() == src.resolve()):
+    if dst.exists() and (not overwrite or dst.resolve() == src.resolve() or os.path.samefile(dst, src)):
         raise InputError(f"dst: '{dst}' already exists; refusing to overwrite it")
+    found = scan(src)
+    if report is not None:
+        report.update(chunks=found.chunks, lost_chunks=found.lost_chunks, orphan_messages=found.orphan_messages,
+                      truncated=found.truncated, damage=found.lines())
+    if not found.messages:
+        raise InputError(f"src: '{src}' holds no complete message to recover")
     tmp = dst.with_name(f"{dst.name}.part-{os.getpid()}")  # one per salvage run
-    count = 0
     try:
         with open(tmp, "wb") as out:
-            writer = Writer(out, chunk_size=1024 * 1024, compression=CompressionType.ZSTD)
+            writer = Writer(out, chunk_size=1024 * 1024, compression=CompressionType.ZSTD, enable_data_crcs=True)
             writer.start(profile="ros2", library="adm-sim mcap_log salvage")
+            for item in found.metadata:
+                writer.add_metadata(item.name, dict(item.metadata))
             schema_ids: dict[int, int] = {}
             channel_ids: dict[int, int] = {}
-            for kind, item in _recoverable(src, report if report is not None else {}):
-                if kind == "metadata":
-                    writer.add_metadata(item.name, dict(item.metadata))
-                    continue
-                schema, channel, message = item
+            for schema, channel, message in found.messages:
                 if channel.id not in channel_ids:
                     sid = 0
                     if schema is not None:
@@ -462,12 +942,9 @@ def salvage(src, dst, overwrite: bool = False, report: dict | None = None) -> in
                 writer.add_message(channel_id=channel_ids[channel.id], log_time=message.log_time,
                                    data=message.data, publish_time=message.publish_time,
                                    sequence=message.sequence)
-                count += 1
             writer.finish()
-        if count == 0:
-            raise InputError(f"src: '{src}' holds no complete message to recover")
         os.replace(tmp, dst)
     finally:
         if tmp.exists():
             tmp.unlink()
-    return count
+    return len(found.messages)

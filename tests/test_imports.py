@@ -1,0 +1,187 @@
+"""Commands start fast: each command imports only the heavy modules its work uses.
+
+Every case runs in a fresh interpreter (a subprocess: ``sys.modules`` starts empty), imports a
+command module and, for a subcommand, runs it on a small case; then it lists which of
+:data:`HEAVY` were imported. The test asserts which are absent (and, for the numerical paths,
+that the one they need is present, so the probe can fail both ways), not a time: times are in
+``bench/bench_cli.py`` and docs/benchmarks.md. What each heavy module costs at the start of a
+process on the 2-core machine (``python -X importtime``, quiet): scipy.signal ~1 s (it pulls
+scipy.stats), numba ~0.4 s plus ~0.3 s the first time a kernel is loaded (its CPU target, which
+imports scipy.linalg for BLAS), matplotlib ~0.3 s, rerun ~0.3 s, dask ~0.3 s, rclpy ~0.2 s,
+scipy.optimize ~0.3 s, tqdm ~30 ms.
+
+Also here: after :func:`adm_sim.precompile.compile_kernels` (``adm-sim compile``) the sweeps, the
+checks and a calibration add no signature to any kernel, so the compile step compiles everything
+they need.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+HEAVY = ("scipy", "scipy.signal", "scipy.stats", "scipy.optimize", "scipy.integrate", "scipy.interpolate",
+         "scipy.linalg", "scipy.sparse", "numba", "matplotlib", "rerun", "dask", "distributed", "rclpy", "mcap",
+         "mcap_ros2", "tqdm", "selenium", "pandas")
+#: Never at the start of a command that does not draw, record, distribute or talk ROS.
+NEVER = ("scipy.signal", "scipy.stats", "scipy.integrate", "scipy.interpolate", "matplotlib", "rerun", "dask",
+         "distributed", "rclpy", "mcap", "mcap_ros2", "tqdm", "selenium", "pandas")
+
+PROBE = """
+import contextlib, importlib, io, json, sys
+mod, argv = sys.argv[1], json.loads(sys.argv[2])
+m = importlib.import_module(mod)
+rc = None
+if argv:
+    with contextlib.redirect_stdout(io.StringIO()):
+        rc = m.main(argv)
+print(json.dumps({"rc": rc, "loaded": [h for h in json.loads(sys.argv[3]) if h in sys.modules]}))
+"""
+
+
+def loaded(module, argv=(), cwd=None):
+    """Heavy modules in ``sys.modules`` of a fresh interpreter after importing ``module`` (and
+    running ``main(argv)``); asserts exit code 0."""
+    env = dict(os.environ, ADM_SIM_QUIET_COMPILE="1", PYTHONPATH=str(ROOT / "src"))
+    p = subprocess.run([sys.executable, "-c", PROBE, module, json.dumps(list(argv)), json.dumps(HEAVY)],
+                       capture_output=True, text=True, env=env, cwd=cwd, timeout=600)
+    assert p.returncode == 0, p.stderr
+    out = json.loads(p.stdout.strip().splitlines()[-1])
+    assert out["rc"] in (None, 0), p.stderr
+    return set(out["loaded"])
+
+
+@pytest.mark.parametrize("module", ["adm_sim.sim_commands", "adm_calib.calib_commands"])
+def test_importing_a_command_module_loads_nothing_heavy(module):
+    assert loaded(module) == set()
+
+
+@pytest.mark.parametrize("argv", [["trains", "--check"], ["bridges"], ["bridges", "--field"]])
+def test_table_commands_load_nothing_heavy(argv):
+    assert loaded("adm_sim.sim_commands", argv) == set()
+
+
+def test_recommend_loads_nothing_heavy():
+    argv = ["recommend", "--train", "ICE-2", "--n0", "6.5", "--mu", "15000", "--type", "cfb"]
+    assert loaded("adm_calib.calib_commands", argv) == set()
+
+
+@pytest.mark.parametrize("argv", [
+    ["sweep", "--model", "mlm", "--speeds", "250:270:5"],
+    ["sweep", "--model", "mlm", "--speeds", "250:270:5", "--where", "deck"],
+    ["sweep", "--model", "dim", "--speeds", "250,300"],
+    ["sweep", "--model", "mlm", "--method", "rk4", "--speeds", "250,300"],
+    ["check", "--bridge", "B1", "--max-line-speed", "160", "--trains", "HSLM-A1,ICE-2"],
+])
+def test_compiled_paths_load_numba_and_nothing_else_heavy(argv):
+    """The sweep (exact envelope and compiled RK4 lanes) and the check need numba (whose CPU target
+    imports scipy.linalg for BLAS) and nothing else: no scipy.signal (the peak rule is written out
+    in adm_sim.peaks), no optimiser, no plotting, no ROS, no progress-bar library when stderr is
+    not a terminal."""
+    got = loaded("adm_sim.sim_commands", argv)
+    assert "numba" in got
+    assert got.isdisjoint(NEVER), got & set(NEVER)
+    assert "scipy.optimize" not in got
+
+
+def test_numpy_backend_sweep_does_not_start_numbas_cpu_target():
+    got = loaded("adm_sim.sim_commands", ["sweep", "--model", "dim", "--speeds", "250,300", "--backend", "numpy"])
+    assert got.isdisjoint(NEVER) and "scipy.linalg" not in got, got
+
+
+def test_calibrate_loads_the_optimiser_and_no_signal_processing():
+    got = loaded("adm_calib.calib_commands", ["calibrate", "--bridge", "B1", "--train", "ICE-2"])
+    assert {"numba", "scipy.optimize"} <= got
+    assert got.isdisjoint(NEVER), got & set(NEVER)
+
+
+def test_plot_loads_matplotlib_only_when_asked(tmp_path):
+    """The one place matplotlib belongs: --plot (the probe can see it)."""
+    got = loaded("adm_sim.sim_commands", ["sweep", "--speeds", "250:270:5", "--plot", str(tmp_path / "s.png")])
+    assert "matplotlib" in got and (tmp_path / "s.png").stat().st_size > 1000
+
+
+CHECK_SIGNATURES = """
+import contextlib, io, json
+from adm_sim import envelope, kernels
+from adm_sim.precompile import compile_kernels
+from adm_sim.sim_commands import main
+
+def signatures():
+    out = {}
+    for mod in (envelope, kernels):
+        for name, f in vars(mod).items():
+            if hasattr(f, "signatures") and hasattr(f, "py_func") and f.py_func.__module__ == mod.__name__:
+                out[f"{mod.__name__}.{name}"] = sorted(str(s) for s in f.signatures)
+    return out
+
+compile_kernels()
+before = signatures()
+with contextlib.redirect_stdout(io.StringIO()):
+    for argv in (["sweep", "--model", "mlm"], ["sweep", "--model", "mlm", "--where", "deck"],
+                 ["sweep", "--model", "dim", "--speeds", "200:300:50"],
+                 ["sweep", "--model", "mlm", "--method", "rk4", "--speeds", "200:300:50"],
+                 ["sweep", "--train", "Eurostar", "--model", "dim", "--speeds", "200:300:50"],
+                 ["check", "--bridge", "B3", "--max-line-speed", "160", "--trains", "hslm,ICE-2,Eurostar",
+                  "--where", "midspan"],
+                 ["check", "--bridge", "B1", "--max-line-speed", "160", "--trains", "HSLM-A3", "--where", "x=4"]):
+        assert main(argv) == 0, argv
+    from adm_calib.calib_commands import main as calib_main
+    assert calib_main(["calibrate", "--bridge", "B1", "--train", "ICE-2"]) == 0
+print(json.dumps({"before": before, "after": signatures()}))
+"""
+
+
+def test_compile_step_compiles_every_signature_the_commands_use():
+    env = dict(os.environ, ADM_SIM_QUIET_COMPILE="1", PYTHONPATH=str(ROOT / "src"))
+    p = subprocess.run([sys.executable, "-c", CHECK_SIGNATURES], capture_output=True, text=True, env=env,
+                       timeout=900)
+    assert p.returncode == 0, p.stderr
+    d = json.loads(p.stdout.strip().splitlines()[-1])
+    assert d["after"] == d["before"]
+    assert sum(len(s) for s in d["before"].values()) >= 4  # the entry kernels were compiled or loaded
+
+
+NOTICE_PROBE = """
+import sys
+sys.path.insert(0, sys.argv[1])
+import adm_sim_probe  # a module of this package's name prefix, one uncached kernel
+print(adm_sim_probe.twice(2.0), adm_sim_probe.twice(3.0), adm_sim_probe.thrice(1.0))
+"""
+PROBE_MODULE = """
+from adm_sim._jit import njit
+
+
+@njit
+def twice(x):
+    return 2.0 * x
+
+
+@njit
+def thrice(x):
+    return 3.0 * x
+"""
+
+
+@pytest.mark.parametrize("quiet", ["", "1"])
+def test_a_process_that_compiles_says_so_once_on_stderr(tmp_path, quiet):
+    """The first-run line comes before numba compiles a kernel of the package (here two uncached
+    kernels: one line), and ADM_SIM_QUIET_COMPILE=1 silences it."""
+    (tmp_path / "adm_sim_probe.py").write_text(PROBE_MODULE)
+    env = dict(os.environ, ADM_SIM_QUIET_COMPILE=quiet, PYTHONPATH=str(ROOT / "src"))
+    p = subprocess.run([sys.executable, "-c", NOTICE_PROBE, str(tmp_path)], capture_output=True, text=True,
+                       env=env, timeout=300)
+    assert p.returncode == 0, p.stderr
+    assert p.stdout.split() == ["4.0", "6.0", "3.0"]
+    lines = [ln for ln in p.stderr.splitlines() if ln.strip()]
+    if quiet:
+        assert lines == []
+    else:
+        assert len(lines) == 1 and lines[0].startswith("compiling kernels (once): adm_sim_probe.twice and the kernels")
