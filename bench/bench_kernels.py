@@ -74,7 +74,7 @@ def _spawn(src, reps, cache_dir):
 
 
 def _numpy_times():
-    from adm_sim.stepping import StepOptions
+    from adm_sim.step_grid import StepOptions
     from adm_sim.sweep import run_sweep
 
     bridges, train, ds = _case()

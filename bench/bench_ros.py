@@ -26,7 +26,7 @@ sys.path.insert(0, str(ROOT / "tests"))
 import numpy as np  # noqa: E402
 
 from adm_sim.bridge import resolve_bridge  # noqa: E402
-from adm_sim.stepping import StepOptions  # noqa: E402
+from adm_sim.step_grid import StepOptions  # noqa: E402
 from adm_sim.sweep import parse_speeds, run_sweep  # noqa: E402
 from adm_sim.trains import load_train  # noqa: E402
 

@@ -226,7 +226,7 @@ def part_b(settings, cases):
         starts[workers] = start_up(workers)
         with tempfile.TemporaryDirectory() as d:
             t0 = time.perf_counter()
-            run = st.run_study(d, cases, settings, workers=workers)
+            run = st.run_study(d, cases, settings=settings, workers=workers)
             walls[workers] = time.perf_counter() - t0
             if run.completed != len(cases) or run.errors:
                 print(f"   note: {workers}-worker run finished {run.completed} of {len(cases)} cases, "

@@ -119,7 +119,7 @@ def check_inputs(bridge=None, train=None, speeds=None, params_file=None, model=N
     from adm_sim.nodes.bridge_node import bridge_from_params, bridge_specs
     from adm_sim.nodes.common import check_params_file
     from adm_sim.nodes.train_node import TRAIN_SPECS, TrainNode
-    from adm_sim.stepping import check_model
+    from adm_sim.run_contract import check_model
     from adm_sim.sweep import parse_speeds
     from adm_sim.trains import load_train
 

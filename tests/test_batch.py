@@ -17,7 +17,7 @@ from adm_calib.calibrate import CalibrationOptions, calibrate, calibration_step
 from adm_calib.study import select_cases
 from adm_sim.compiled_batch import BatchRunner
 from adm_sim.errors import RunError
-from adm_sim.stepping import StepOptions
+from adm_sim.step_grid import StepOptions
 from adm_sim.sweep import run_sweep
 from adm_sim.trains import load_train
 

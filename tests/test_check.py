@@ -482,7 +482,7 @@ def test_comfort_b_v_limits_and_convergence():
     """Passenger comfort b_v from the DIM: step-converged, ~0 on a rigid bridge, larger on a light
     bridge (B3 weighs 0.41 of B1 at the same n0), level by EN 1990 A2.4.4.3 Table A2.9."""
     from adm_sim.check import comfort_b_v, comfort_level
-    from adm_sim.stepping import StepOptions
+    from adm_sim.step_grid import StepOptions
 
     t = load_train("ICE-2")
     v = np.array([200.0, 263.0])

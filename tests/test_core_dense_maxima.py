@@ -18,7 +18,8 @@ import pytest
 from adm_sim import kernels
 from adm_sim.compiled_batch import BatchRunner
 from adm_sim.bridge import named_bridge
-from adm_sim.stepping import StepOptions, hermite_max_abs_acc, make_grid, speeds_to_m_s
+from adm_sim.dense_output import hermite_max_abs_acc
+from adm_sim.step_grid import StepOptions, make_grid, speeds_to_m_s
 from adm_sim.sweep import run_sweep
 from adm_sim.trains import load_train, moving_loads
 

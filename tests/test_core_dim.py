@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from adm_sim.bridge import named_bridge
-from adm_sim.stepping import StepOptions
+from adm_sim.step_grid import StepOptions
 from adm_sim.sweep import run_sweep
 from adm_sim.trains import load_train, train_from_mapping
 

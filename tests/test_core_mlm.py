@@ -7,7 +7,7 @@ import pytest
 from analytic import (moving_force_midspan_deflection, static_midspan_deflection,
                       static_midspan_deflection_modal)
 from adm_sim.bridge import named_bridge
-from adm_sim.stepping import StepOptions
+from adm_sim.step_grid import StepOptions
 from adm_sim.sweep import run_sweep
 from adm_sim.trains import load_train, moving_loads
 

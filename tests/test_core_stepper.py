@@ -1,4 +1,4 @@
-"""The numpy stepper (stepping.InProcessRun, BridgeHalf, TrainHalf on the SteppedRun template):
+"""The numpy stepper (lockstep_runs.InProcessRun, BridgeHalf, TrainHalf on the run_contract.SteppedRun template):
 status, step/stage bookkeeping, maxima, finite check.
 
 Short case: bridge B1 x ICE-2 at 160, 250 and 350 km/h; the DIM on a coarse grid (4 steps per
@@ -11,8 +11,10 @@ import pytest
 
 from adm_sim.bridge import named_bridge
 from adm_sim.errors import InputError, RunError
-from adm_sim.stepping import (BridgeHalf, BridgeSide, InProcessRun, StepOptions, TrainHalf, TrainSide, half_step_positions, make_grid,
-                              mlm_modal_load_table, modal_loads_at, speeds_to_m_s)
+from adm_sim.lockstep_runs import BridgeHalf, InProcessRun, TrainHalf
+from adm_sim.mlm_loads import half_step_positions, mlm_modal_load_table, modal_loads_at
+from adm_sim.rk4_sides import BridgeSide, TrainSide
+from adm_sim.step_grid import StepOptions, make_grid, speeds_to_m_s
 from adm_sim.sweep import run_sweep
 from adm_sim.trains import load_train
 
@@ -103,17 +105,25 @@ def test_dim_halves_reproduce_in_process(reference):
     grid = grid_of(DIM_OPTIONS)
     bh = BridgeHalf("dim", grid, bridge_side(grid, "dim"))
     th = TrainHalf("dim", grid, TrainSide(TRAIN, grid, BRIDGE.span_m))
-    with pytest.raises(RuntimeError, match="BridgeHalf.step: needs the MLM"):
+    with pytest.raises(TypeError, match=r"BridgeHalf.step: the DIM takes the interaction forces of one RK4 stage "
+                                        r"\(1 argument\), got 3"):
         bh.step(None, None, None)
+    with pytest.raises(TypeError, match=r"TrainHalf.step: the DIM takes the rail state .* \(3 arguments\), got 0"):
+        th.step()
     with pytest.raises(RuntimeError, match="TrainHalf.advance: needs the MLM"):
         th.advance(1)
+    assert not hasattr(bh, "advance") and not hasattr(bh, "take_forces") and not hasattr(th, "take_rail_state")
+    assert (bh.k, bh.stage, th.k, th.stage) == (0, 0, 0, 0)  # the refused calls moved nothing
     while bh.status == "running":
         assert (th.k, th.stage, th.status) == (bh.k, bh.stage, "running")
         k, stage = bh.k, bh.stage
         idx, w, wd = bh.rail_state()
-        G = th.take_rail_state(idx.copy(), w.copy(), wd.copy())
+        assert (bh.k, bh.stage) == (k, stage)  # the rail state is a query: it does not advance
+        assert th.step(idx.copy(), w.copy(), wd.copy()) is None
+        G = th.interaction_n
         assert (th.k, th.stage) == ((k, stage + 1) if stage < 3 else (k + 1, 0))  # train half: stage done
-        bh.take_forces(G.copy())
+        assert bh.step(G.copy()) is None
+        assert (bh.k, bh.stage) == (th.k, th.stage)
     assert bh.status == th.status == "finished" and bh.k == th.k == grid.n_steps
     ref = reference["dim"]
     assert_bitwise(bh.max_acc_m_s2, ref.max_acc_m_s2)
@@ -184,20 +194,24 @@ def test_nan_force_on_the_bridge_half_fails_at_the_next_step():
     th = TrainHalf("dim", grid, TrainSide(TRAIN, grid, BRIDGE.span_m))
     while bh.k < 300:  # the first axles are on the bridge by then
         idx, w, wd = bh.rail_state()
-        bh.take_forces(th.take_rail_state(idx, w, wd))
+        th.step(idx, w, wd)
+        bh.step(th.interaction_n)
     for stage in range(4):
         idx, w, wd = bh.rail_state()
-        G = th.take_rail_state(idx, w, wd)
+        th.step(idx, w, wd)
+        G = th.interaction_n
         assert idx.size > 0
         if stage == 1:
             G = G.copy()
             G[2, 0] = np.nan  # 350 km/h lane
-        bh.take_forces(G)
-    assert bh.status == "failed" and (bh.k, bh.stage) == (301, 0)
+        msg = bh.step(G)
+    assert bh.status == "failed" and (bh.k, bh.stage) == (301, 0) and msg == bh.message
     assert "at step 301 of" in bh.message and "midspan deflection in 1 of 3 lanes (first at 350 km/h)" in bh.message
     assert np.all(np.isfinite(bh.max_disp_m)) and np.all(np.isfinite(bh.max_acc_m_s2))
-    with pytest.raises(RuntimeError, match="take_forces: the run is failed at step 301"):
-        bh.take_forces(G)
+    with pytest.raises(RuntimeError, match="BridgeHalf.step: the run is failed at step 301"):
+        bh.step(G)
+    with pytest.raises(RuntimeError, match="BridgeHalf.rail_state: the run is failed at step 301"):
+        bh.rail_state()
 
 
 def test_contract_refuses_misuse():
@@ -214,11 +228,27 @@ def test_contract_refuses_misuse():
     with pytest.raises(ValueError, match="InProcessRun: the DIM needs a train side"):
         InProcessRun("dim", grid, side)
     run = BridgeHalf("mlm", grid, side)
-    with pytest.raises(RuntimeError, match="BridgeHalf.take_forces: needs the DIM"):
-        run.take_forces(np.zeros((3, 0)))
-    with pytest.raises(RuntimeError, match="BridgeHalf.advance: a step of a half needs the partner's exchange"):
-        run.advance(1)
+    with pytest.raises(RuntimeError, match="BridgeHalf.rail_state: needs the DIM"):
+        run.rail_state()
+    with pytest.raises(TypeError, match=r"BridgeHalf.step: the MLM takes the modal loads p0, ph, p1 of one step "
+                                        r"\(3 arguments\), got 1"):
+        run.step(np.zeros((3, 0)))
+    assert (run.k, run.status) == (0, "running")
     P = mlm_modal_load_table(BRIDGE, grid, TRAIN.axle_offsets_m, TRAIN.axle_loads_n)
     run.step(P[0], P[1], P[2])
     with pytest.raises(ValueError, match="BridgeHalf: BridgeSide is at step 1, not at step 0"):
         BridgeHalf("mlm", grid, side)
+
+
+def test_an_implementation_reports_and_only_step_sets_the_status():
+    """``_step_impl`` returns ``(success, message)`` and leaves status and message to ``step``."""
+    run = in_process("mlm", MLM_OPTIONS)
+    for _ in range(10):
+        run.step()
+    run.bridge_side.rk.x[0, 0] = np.inf  # the 160 km/h lane
+    with np.errstate(invalid="ignore", over="ignore"):
+        success, message = run._step_impl()
+    assert not success and message.startswith(f"solution is not finite at step 10 of {run.n_steps} (stage 0): "
+                                              f"midspan acceleration in 1 of 3 lanes (first at 160 km/h)")
+    assert (run.status, run.message) == ("running", "")
+    assert run._settle(success, message) == message and (run.status, run.message) == ("failed", message)

@@ -208,7 +208,7 @@ def test_span_out_of_range_same_message_from_toml_cli_and_ros(tmp_path, capsys):
 
 def test_steps_per_period_same_message_from_cli_ros_and_core(capsys):
     from adm_sim.sim_commands import main
-    from adm_sim.stepping import StepOptions
+    from adm_sim.step_grid import StepOptions
 
     assert main(["sweep", "--model", "dim", "--speeds", "200", "--steps-per-period", "3"]) == 2
     m_cli = capsys.readouterr().err.strip().removeprefix("error: ")
@@ -242,7 +242,8 @@ def test_damping_in_percent_and_as_fraction_are_one_field(tmp_path, capsys):
 # ---------------------------------------------------------------- no range literal left in the surfaces
 #: The surfaces: the modules that read what a user typed (TOML, CLI, ROS parameters, launchers).
 SURFACES = [*(ROOT / "src" / "adm_sim").glob("bridge.py"), ROOT / "src/adm_sim/trains.py",
-            ROOT / "src/adm_sim/stepping.py", ROOT / "src/adm_sim/sweep.py", ROOT / "src/adm_sim/limits.py",
+            ROOT / "src/adm_sim/step_grid.py", ROOT / "src/adm_sim/run_contract.py",
+            ROOT / "src/adm_sim/rk4_sides.py", ROOT / "src/adm_sim/sweep.py", ROOT / "src/adm_sim/limits.py",
             ROOT / "src/adm_sim/sim_commands.py", ROOT / "src/adm_sim/cliutil.py", ROOT / "src/adm_sim/check.py",
             ROOT / "src/adm_sim/compiled_batch.py", ROOT / "src/adm_sim/processes/dds_env.py",
             *sorted((ROOT / "src/adm_sim/nodes").glob("*.py")), ROOT / "src/adm_calib/calib_commands.py",

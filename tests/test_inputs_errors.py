@@ -49,7 +49,7 @@ def test_classes():
 def test_unstable_integration_is_a_run_error_not_bad_input():
     """ds = 5 m is far beyond RK4's stability limit for B1's third mode: the sweep fails as a run."""
     from adm_sim.bridge import named_bridge
-    from adm_sim.stepping import StepOptions
+    from adm_sim.step_grid import StepOptions
     from adm_sim.sweep import run_sweep
     from adm_sim.trains import load_train
 

@@ -209,7 +209,7 @@ def test_simulated_crossing_known_damping(ice2, zeta_pct):
     within 0.5 % of n0, ζ1 within 5 % of mode 1's ratio (Rayleigh at modes 1 and 3: ζ itself),
     with the train's departure from the run (as the run records give it) and from the signal alone."""
     from adm_sim.bridge import named_bridge
-    from adm_sim.stepping import StepOptions
+    from adm_sim.step_grid import StepOptions
     from adm_sim.sweep import run_sweep
 
     b = named_bridge("B1").with_damping(zeta_pct / 100)
@@ -248,7 +248,7 @@ def test_simulated_dim_crossing_known_damping(ice2, zeta_pct):
     """The same with the Detailed Interaction Model (B3 x ICE-2 at 300 km/h): once the train has
     left, the bridge vibrates alone (measured: f1 within 5e-5 of n0, ζ1 within 0.5 %)."""
     from adm_sim.bridge import named_bridge
-    from adm_sim.stepping import StepOptions
+    from adm_sim.step_grid import StepOptions
     from adm_sim.sweep import run_sweep
 
     b = named_bridge("B3").with_damping(zeta_pct / 100)

@@ -124,5 +124,5 @@ def test_study_without_dask_says_which_extra(monkeypatch, tmp_path):
     monkeypatch.setitem(sys.modules, "distributed", None)  # importlib.util.find_spec then returns None
     with pytest.raises(RunError, match=r"^study: dask\.distributed is not installed; install it with "
                                        r"pip install 'adm-sim\[study\]'$"):
-        run_study(tmp_path / "study", [], StudySettings())
+        run_study(tmp_path / "study", [], settings=StudySettings())
     assert list(tmp_path.iterdir()) == []

@@ -18,7 +18,7 @@ pytest.importorskip("colcon_ros")
 from ros_fixtures import ROOT, NodeProcs, driver_node, ros_domain  # noqa: E402,F401
 
 from adm_sim.bridge import resolve_bridge  # noqa: E402
-from adm_sim.stepping import StepOptions  # noqa: E402
+from adm_sim.step_grid import StepOptions  # noqa: E402
 from adm_sim.sweep import parse_speeds, run_sweep  # noqa: E402
 from adm_sim.trains import load_train  # noqa: E402
 

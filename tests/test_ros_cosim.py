@@ -13,7 +13,7 @@ pytest.importorskip("rclpy")
 from ros_fixtures import driver_node, node_procs, ros_domain  # noqa: E402,F401
 
 from adm_sim.bridge import resolve_bridge  # noqa: E402
-from adm_sim.stepping import StepOptions  # noqa: E402
+from adm_sim.step_grid import StepOptions  # noqa: E402
 from adm_sim.sweep import run_sweep  # noqa: E402
 from adm_sim.trains import load_train  # noqa: E402
 
@@ -102,7 +102,7 @@ def test_calibrate_launch_matches_in_process_calibration(tmp_path, ros_domain):
                          options=step).max_acc_m_s2
 
     ref = calibrate(resolve_bridge("B3"), load_train("ICE-2"), np.arange(230.0, 291.0, 2.0),
-                    CalibrationOptions(step=StepOptions(**STEP)), sweep=numpy_sweep).to_dict()
+                    options=CalibrationOptions(step=StepOptions(**STEP)), sweep=numpy_sweep).to_dict()
     assert got["status"] == ref["status"]
     for key in ("delta_zeta_vbi_pct", "delta_zeta_adm_pct", "delta_zeta_eada_pct", "delta_zeta_lb_pct"):
         assert got[key] == pytest.approx(ref[key], rel=1e-9, abs=0) if ref[key] is not None else got[key] is None

@@ -22,7 +22,7 @@ from ros_fixtures import _HELD, ROOT, NodeProcs, driver_node, node_procs, ros_do
 from adm_sim.bridge import resolve_bridge  # noqa: E402
 from adm_sim.processes.dds_env import local_ros_env  # noqa: E402
 from adm_sim.recording.mcap_log import salvage  # noqa: E402
-from adm_sim.stepping import StepOptions  # noqa: E402
+from adm_sim.step_grid import StepOptions  # noqa: E402
 from adm_sim.sweep import run_sweep  # noqa: E402
 from adm_sim.trains import load_train  # noqa: E402
 

@@ -493,7 +493,7 @@ def test_cleanup_shm_removes_only_dead_process_files():
 
 
 def test_core_does_not_import_rclpy():
-    code = ("import sys, adm_sim.bridge, adm_sim.trains, adm_sim.stepping, adm_sim.sweep, "
+    code = ("import sys, adm_sim.bridge, adm_sim.trains, adm_sim.lockstep_runs, adm_sim.sweep, "
             "adm_sim.processes.dds_env; assert 'rclpy' not in sys.modules, 'rclpy imported'")
     assert subprocess.run([PY, "-c", code], timeout=60).returncode == 0
 

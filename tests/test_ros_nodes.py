@@ -145,6 +145,6 @@ def test_bad_preset_fails_at_start(ctx):
 
 
 def test_core_does_not_import_rclpy():
-    code = ("import sys, adm_sim.sweep, adm_sim.stepping, adm_calib.calibrate, adm_calib.peaks; "
+    code = ("import sys, adm_sim.sweep, adm_sim.lockstep_runs, adm_calib.calibrate, adm_calib.peaks; "
             "assert 'rclpy' not in sys.modules, 'core imported rclpy'")
     subprocess.run([sys.executable, "-c", code], check=True)

@@ -15,7 +15,7 @@ import pytest
 
 from adm_sim.bridge import named_bridge
 from adm_sim.sim_commands import main
-from adm_sim.stepping import StepOptions
+from adm_sim.step_grid import StepOptions
 from adm_sim.sweep import BACKENDS, run_sweep, run_sweep_compiled
 from adm_sim.trains import load_train
 

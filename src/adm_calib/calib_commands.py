@@ -71,7 +71,7 @@ def _list(text, field):
 
 
 def _options(args):
-    from adm_sim.stepping import StepOptions
+    from adm_sim.step_grid import StepOptions
 
     from adm_calib.calibrate import CalibrationOptions
 
@@ -326,7 +326,7 @@ def cmd_study(args):
     old = signal.signal(signal.SIGTERM, on_term)
     cb, close = progress_callback("study", None, unit="case", leave=True, mininterval=0.1)  # bar on a terminal
     try:
-        run = run_study(args.out, cases, settings, workers=workers, scheduler=scheduler, limit=limit,
+        run = run_study(args.out, cases, settings=settings, workers=workers, scheduler=scheduler, limit=limit,
                         progress=cb, retry_errors=args.retry_errors, options=options)
     except KeyboardInterrupt:
         print("error: interrupted while closing the cluster; rerun the same command to resume", file=sys.stderr)

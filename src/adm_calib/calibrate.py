@@ -45,7 +45,7 @@ from dataclasses import replace
 import numpy as np
 
 from adm_sim.errors import InputError
-from adm_sim.stepping import StepOptions, make_grid, speeds_to_m_s
+from adm_sim.step_grid import StepOptions, make_grid, speeds_to_m_s
 
 from adm_calib import peaks as pk
 from adm_calib.calibration_options import CalibrationOptions, check_speeds
@@ -77,7 +77,7 @@ def batch_step(bridges, train, speeds_kmh=None, options=None):
     return replace(opt.step or StepOptions(), ds_m=ds)
 
 
-def calibrate_cases(bridges, train, lanes, speeds_kmh=None, options=None, step=None, adapted_curve=False,
+def calibrate_cases(bridges, train, lanes, speeds_kmh=None, *, options=None, step=None, adapted_curve=False,
                     dim_curves=None, on_trial=None):
     """Section 4 (steps 1-3) for every case of a batch, each phase one request to ``lanes``.
 
@@ -109,7 +109,7 @@ def calibrate_cases(bridges, train, lanes, speeds_kmh=None, options=None, step=N
     speeds_kmh : array_like, optional
         MLM speeds (km/h); default 160..350 at 1 km/h.
     options : CalibrationOptions, optional
-    step : adm_sim.stepping.StepOptions, optional
+    step : adm_sim.step_grid.StepOptions, optional
         The shared step (``ds_m`` set), for the results; default :func:`batch_step`.
     adapted_curve : bool
     dim_curves : sequence of (ndarray, ndarray) or None, optional
@@ -139,7 +139,7 @@ def calibrate_cases(bridges, train, lanes, speeds_kmh=None, options=None, step=N
     vm = [v] * n
     if opt.speed_refinement_kmh is not None:
         vm, mlm, mlm_peaks = relocate_peaks(lanes, "mlm", "mlm_refine", vm, mlm, mlm_peaks,
-                                             opt.speed_refinement_kmh)
+                                             resolution_kmh=opt.speed_refinement_kmh)
     timings["mlm_sweep"] = time.perf_counter() - t0
 
     # step 1-2: DIM on the paper's grid, association, refinement where the DIM value lies on the coarse grid
@@ -185,7 +185,7 @@ def calibrate_cases(bridges, train, lanes, speeds_kmh=None, options=None, step=N
             dim_peaks[c] = associate(c)
     if opt.speed_refinement_kmh is not None and not given:
         vd, dim, dim_peaks = relocate_peaks(lanes, "dim", "dim_peak_refine", vd, dim, dim_peaks,
-                                             opt.speed_refinement_kmh)
+                                             resolution_kmh=opt.speed_refinement_kmh)
     timings["dim_sweep"] = time.perf_counter() - t0
 
     # step 3: damping ladder (bracket), then all roots together
@@ -207,7 +207,8 @@ def calibrate_cases(bridges, train, lanes, speeds_kmh=None, options=None, step=N
         return [acc.reshape(dz.size, windows[c].size) for (c, dz), acc in zip(requests, r.run(lanes, "mlm", phase))]
 
     solves = solve_delta_zetas(evaluate, windows, [p.speed_kmh for p in mlm_peaks],
-                               [p.acc_m_s2 for p in dim_peaks], [b.damping_ratio for b in bridges], opt, on_trial)
+                               [p.acc_m_s2 for p in dim_peaks], [b.damping_ratio for b in bridges],
+                               options=opt, on_trial=on_trial)
     adapted = [(np.zeros(0), np.zeros(0))] * n
     if adapted_curve:
         req, which = Requests(), [c for c in range(n) if solves[c] is not None and solves[c].delta_zeta is not None]
@@ -242,7 +243,7 @@ def calibrate_cases(bridges, train, lanes, speeds_kmh=None, options=None, step=N
 BACKENDS = ("compiled", "numpy")
 
 
-def calibrate(bridge, train, speeds_kmh=None, options=None, progress=None, adapted_curve=True, dim_curve=None,
+def calibrate(bridge, train, speeds_kmh=None, *, options=None, progress=None, adapted_curve=True, dim_curve=None,
               sweep=None, on_trial=None, backend="compiled"):
     """Calibrate Δζ_VBI for a bridge and a train and evaluate the reference methods.
 
@@ -269,7 +270,7 @@ def calibrate(bridge, train, speeds_kmh=None, options=None, progress=None, adapt
         Runs one speed sweep and returns the maximum midspan accelerations (m/s^2): a hook for
         sweeps run elsewhere (co-simulation, a cluster), used through
         :class:`adm_calib.lanes.HookLanes`; ``step`` is the shared
-        :class:`~adm_sim.stepping.StepOptions`, ``phase`` (if the hook takes it) the phase.
+        :class:`~adm_sim.step_grid.StepOptions`, ``phase`` (if the hook takes it) the phase.
     on_trial : callable(delta_zeta, mlm_peak_m_s2, dim_peak_m_s2), optional
         Called for every trial damping of the root finder (fraction, re-located MLM peak, target):
         progress displays and logs of the iterations.
@@ -296,7 +297,7 @@ def calibrate(bridge, train, speeds_kmh=None, options=None, progress=None, adapt
     if progress is not None:
         lanes = ProgressLanes(lanes, progress)
     trial = None if on_trial is None else (lambda c, dz, peak, target: on_trial(dz, peak, target))
-    return calibrate_cases([bridge], train, lanes, v, opt, step, adapted_curve=adapted_curve,
+    return calibrate_cases([bridge], train, lanes, v, options=opt, step=step, adapted_curve=adapted_curve,
                            dim_curves=None if dim_curve is None else [dim_curve], on_trial=trial)[0]
 
 
@@ -325,7 +326,7 @@ def calibrate_batch(bridges, train, speeds_kmh=None, options=None, step=None):
     speeds_kmh : array_like, optional
         MLM speeds (km/h); default 160..350 at 1 km/h.
     options : CalibrationOptions, optional
-    step : adm_sim.stepping.StepOptions, optional
+    step : adm_sim.step_grid.StepOptions, optional
         Shared step (``ds_m`` set); default :func:`batch_step`.
 
     Returns
@@ -337,4 +338,4 @@ def calibrate_batch(bridges, train, speeds_kmh=None, options=None, step=None):
     opt = options or CalibrationOptions()
     v = check_speeds(speeds_kmh)
     step = step or batch_step(bridges, train, v, opt)
-    return calibrate_cases(bridges, train, CompiledLanes(bridges, train, step), v, opt, step)
+    return calibrate_cases(bridges, train, CompiledLanes(bridges, train, step), v, options=opt, step=step)

@@ -15,7 +15,7 @@ from adm_sim.errors import InputError
 from adm_sim.fields import check_range
 from adm_sim.fields import FIELDS
 from adm_sim.limits import default_speeds_kmh
-from adm_sim.stepping import StepOptions, speeds_to_m_s
+from adm_sim.step_grid import StepOptions, speeds_to_m_s
 
 from adm_calib import peaks as pk
 
@@ -45,7 +45,7 @@ class CalibrationOptions:
         Acceptance of the peak match (paper: 0.1 %).
     min_prominence_rel : float
         Smallest relative prominence of a peak.
-    step : adm_sim.stepping.StepOptions or None
+    step : adm_sim.step_grid.StepOptions or None
         Time-integration settings of the core (``None``: its defaults).
     speed_refinement_kmh : float or None
         Refined mode: locate the MLM peak and the DIM peak to this speed resolution (e.g. 0.05

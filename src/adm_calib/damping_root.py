@@ -46,7 +46,7 @@ def _ladder(zeta):
     return np.array(neg + pos)
 
 
-def solve_delta_zetas(evaluate, windows, peak_speeds_kmh, targets_m_s2, zetas, options=None, on_trial=None):
+def solve_delta_zetas(evaluate, windows, peak_speeds_kmh, targets_m_s2, zetas, *, options=None, on_trial=None):
     """Δζ of every case such that its re-located MLM peak equals its target (Step 3), all together.
 
     The one root finder of the project. For case ``c``:
@@ -130,12 +130,12 @@ def solve_delta_zetas(evaluate, windows, peak_speeds_kmh, targets_m_s2, zetas, o
     for c, acc in zip(order, evaluate([(c, np.array([roots[c]])) for c in order], "check")):
         lo, hi, exact = brackets[c]
         trial(c, roots[c], peak(c, acc[0]))
-        out[c] = finish_solve(roots[c], windows[c], acc[0], peak_speeds_kmh[c], targets_m_s2[c], (lo, hi),
-                              iters[c], calls[c], opt, method="exact" if exact is not None else "find_root")
+        out[c] = finish_solve(roots[c], windows[c], acc[0], peak_speeds_kmh[c], targets_m_s2[c], bracket=(lo, hi),
+                              iterations=iters[c], calls=calls[c], options=opt, method="exact" if exact is not None else "find_root")
     return out
 
 
-def solve_delta_zeta(mlm_eval, peak_speed_kmh, speed_window_kmh, target_acc_m_s2, zeta, options=None):
+def solve_delta_zeta(mlm_eval, peak_speed_kmh, speed_window_kmh, target_acc_m_s2, zeta, *, options=None):
     """Δζ of one case by :func:`solve_delta_zetas` with a plain evaluation function.
 
     Parameters
@@ -162,7 +162,7 @@ def solve_delta_zeta(mlm_eval, peak_speed_kmh, speed_window_kmh, target_acc_m_s2
         return [np.asarray(mlm_eval(np.tile(w, dz.size), np.repeat(dz, w.size)), float).reshape(dz.size, w.size)
                 for _, dz in requests]
 
-    return solve_delta_zetas(evaluate, [w], [peak_speed_kmh], [target_acc_m_s2], [zeta], options)[0]
+    return solve_delta_zetas(evaluate, [w], [peak_speed_kmh], [target_acc_m_s2], [zeta], options=options)[0]
 
 
 def ladder_bracket(ladder, fl):
@@ -181,7 +181,7 @@ def ladder_bracket(ladder, fl):
     return i, float(ladder[i]), float(ladder[i + 1])
 
 
-def finish_solve(root, w, acc_root, peak_speed_kmh, target_acc_m_s2, bracket, iterations, calls, options,
+def finish_solve(root, w, acc_root, peak_speed_kmh, target_acc_m_s2, *, bracket, iterations, calls, options,
                  method="find_root"):
     """Check the root: re-located MLM peak at ``zeta + root`` against the target (Step 3's 0.1 %)."""
     opt = options

@@ -55,7 +55,7 @@ class CompiledLanes:
     bridges : sequence of adm_sim.bridge.Bridge
         The cases (one span, mode count and damping model).
     train : adm_sim.trains.Train
-    step : adm_sim.stepping.StepOptions
+    step : adm_sim.step_grid.StepOptions
         With ``ds_m`` set: the space step shared by every lane.
     """
 

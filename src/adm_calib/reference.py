@@ -343,7 +343,7 @@ class Recommendation:
         }
 
 
-def recommend(train, n0_hz, mu_t_m, bridge_type, span_m=None, interpolate=False, functions="paper",
+def recommend(train, n0_hz, mu_t_m, bridge_type, *, span_m=None, interpolate=False, functions="paper",
               extrapolate=False):
     """Additional damping (%) from the lower-bound functions by the rules of Section 4.3.
 

@@ -93,7 +93,7 @@ def _grid(lo, hi, step):
     return np.round(lo + step * np.arange(n + 1), 9)
 
 
-def refine_peaks(lanes, model, phase, curves, intervals, resolution_kmh):
+def refine_peaks(lanes, model, phase, curves, intervals, *, resolution_kmh):
     """Peaks located to ``resolution_kmh`` on their intervals by extra lanes, all cases together.
 
     For each case ``c`` with an interval ``(lo, hi)`` (the neighbours of its peak on the sampled
@@ -156,11 +156,11 @@ def _neighbours(v, i):
     return float(v[max(i - 1, 0)]), float(v[min(i + 1, v.size - 1)])
 
 
-def relocate_peaks(lanes, model, phase, speeds, curves, peaks, resolution_kmh):
+def relocate_peaks(lanes, model, phase, speeds, curves, peaks, *, resolution_kmh):
     """Every found peak located to ``resolution_kmh`` between its sampled neighbours
     (:func:`refine_peaks`); returns the merged speeds, curves and the relocated peaks (lists)."""
     ivs = [_neighbours(speeds[c], p.index) if p.found else None for c, p in enumerate(peaks)]
-    merged, best = refine_peaks(lanes, model, phase, list(zip(speeds, curves)), ivs, resolution_kmh)
+    merged, best = refine_peaks(lanes, model, phase, list(zip(speeds, curves)), ivs, resolution_kmh=resolution_kmh)
     speeds, curves, peaks = list(speeds), list(curves), list(peaks)
     for c, (vc, ac) in enumerate(merged):
         speeds[c], curves[c] = vc, ac

@@ -98,7 +98,7 @@ class Table4:
                           indent=2)
 
 
-def run_table4(bridges=BRIDGES, trains=STUDY_TRAINS, speeds_kmh=None, options=None, jobs=1, progress=None):
+def run_table4(bridges=BRIDGES, trains=STUDY_TRAINS, speeds_kmh=None, *, options=None, jobs=1, progress=None):
     """Calibrate every (train, bridge) pair; ``jobs`` > 1 runs them in worker processes.
 
     ``progress(done, total, note)`` (optional) is called after every pair with the pair's name.

@@ -1,7 +1,7 @@
 """adm-sim: modal railway-bridge dynamics under moving loads (MLM) and detailed
 vehicle-bridge interaction (DIM).
 
-The numerical core (``bridge``, ``trains``, ``dim``, ``stepping``, ``sweep``) imports numpy and
+The numerical core (``bridge``, ``trains``, ``step_grid``, ``rk4_sides``, ``lockstep_runs``, ``sweep``) imports numpy and
 scipy only; the ROS 2 nodes live in :mod:`adm_sim.nodes` and are a thin layer on top.
 """
 

@@ -1,7 +1,7 @@
 """What the numpy stepper and the numba kernels share, written once.
 
 * The classical RK4 tableau (nodes ``c`` and weights ``b`` of the explicit fourth-order
-  Runge-Kutta method used for Eq. (17), see :mod:`adm_sim.stepping`), as tuples for the numpy
+  Runge-Kutta method used for Eq. (17), see :mod:`adm_sim.rk4_sides`), as tuples for the numpy
   stepper and as arrays for the compiled kernels (:mod:`adm_sim.kernels`), and the half-step row
   of each stage point on the shared space grid.
 * :func:`njit`: numba's ``njit`` when numba is installed, else a decorator that returns the

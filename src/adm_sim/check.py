@@ -65,7 +65,9 @@ from adm_sim.errors import InputError
 from adm_sim.fields import FIELDS, check_range
 from adm_sim.hslm import HSLM_A_NAMES, HSLM_A_TABLE, regular_coach_length_m
 from adm_sim.peaks import local_maxima  # the project's one peak rule, every maximum kept
-from adm_sim.stepping import BridgeSide, InProcessRun, StepOptions, TrainSide, make_grid, speeds_to_m_s
+from adm_sim.lockstep_runs import InProcessRun
+from adm_sim.rk4_sides import BridgeSide, TrainSide
+from adm_sim.step_grid import StepOptions, make_grid, speeds_to_m_s
 from adm_sim.trains import load_train
 # the speed range (EN 1991-2 6.4.6.2(1)) and the deck acceleration limits (EN 1990 A2.4.4.2.1(4)P)
 from adm_sim.limits import ACC_LIMITS_M_S2, DESIGN_SPEED_FACTOR

@@ -3,7 +3,7 @@
 A :class:`BatchRunner` holds a train and several bridges that share the span, the number of
 modes and the damping model, and one space step ``ds``. Then the axle positions, the axles on
 the bridge and their mode shapes (Eq. 6), the MLM modal loads and the active vehicles are the same
-for every lane at every stage (as in :mod:`adm_sim.stepping`); what differs per lane is only the
+for every lane at every stage (as in :mod:`adm_sim.step_grid`); what differs per lane is only the
 bridge's modal stiffness, damping and mass (the wheelset-modified mass matrix of Eq. 13 is
 tabulated per bridge), the speed, the additional damping and the number of steps.
 
@@ -13,7 +13,7 @@ summation order of a few small dot products differs), including its number of st
 ``run_sweep`` derives from the fastest speed of the sweep: :meth:`BatchRunner.run` takes the
 ``sweep`` id of every lane and gives all lanes of one (bridge, sweep) the steps that sweep needs.
 
-A run is a :class:`BatchRun`: the contract of :class:`adm_sim.stepping.SteppedRun` (step, status,
+A run is a :class:`BatchRun`: the contract of :class:`adm_sim.run_contract.SteppedRun` (step, status,
 message, running maxima, finite-value check) over the compiled kernels, advanced block of steps
 by block of steps.
 """
@@ -25,8 +25,10 @@ import numpy as np
 from adm_sim import kernels
 from adm_sim.errors import InputError, RunError
 from adm_sim.fields import FIELDS, check_delta_zeta_pct
-from adm_sim.stepping import (FAILED, RUNNING, StepOptions, SteppedRun, check_model, half_step_positions,
-                              make_grid, mlm_rk4_coefficients, modal_loads_at, speeds_to_m_s)
+from adm_sim.mlm_loads import half_step_positions, modal_loads_at
+from adm_sim.rk4_sides import mlm_rk4_coefficients
+from adm_sim.run_contract import FAILED, RUNNING, AdvancingRun, check_model
+from adm_sim.step_grid import StepOptions, make_grid, speeds_to_m_s
 from adm_sim.tables import active_units, axle_rows, bridge_tables, vehicle_tables
 
 
@@ -41,9 +43,9 @@ class BatchRunner:
     ds_m : float
         Train advance per step (m), shared by every lane.
     free_vibration_periods : float
-        As :class:`~adm_sim.stepping.StepOptions`.
+        As :class:`~adm_sim.step_grid.StepOptions`.
     dense_maxima : bool
-        As :class:`~adm_sim.stepping.StepOptions`: also the maxima between the steps.
+        As :class:`~adm_sim.step_grid.StepOptions`: also the maxima between the steps.
     """
 
     def __init__(self, bridges, train, ds_m, free_vibration_periods=2.0, dense_maxima=False):
@@ -152,8 +154,8 @@ class BatchRunner:
         return run.max_acc_m_s2, run.max_disp_m
 
 
-class BatchRun(SteppedRun):
-    """A compiled batched run with the contract of :class:`~adm_sim.stepping.SteppedRun`.
+class BatchRun(AdvancingRun):
+    """A compiled batched run with the contract of :class:`~adm_sim.run_contract.SteppedRun`.
 
     Owns step ``k``, status, message, the state of every lane, the running maxima and the
     finite-value check; :meth:`advance` moves every lane on by a block of steps through one call of
@@ -223,10 +225,10 @@ class BatchRun(SteppedRun):
         self._start_contract(n_max)
 
     def _step_impl(self):
-        self._advance_impl(1)
+        return self._advance_impl(1)
 
     def _advance_impl(self, n):
-        """Every lane by ``n`` steps in one kernel call (:meth:`SteppedRun.advance` owns the status)."""
+        """Every lane by ``n`` steps in one kernel call; ``(success, message)`` of the finite check."""
         k0, k1 = self.k, self.k + n
         r = self.runner
         if self.model == "mlm":
@@ -241,8 +243,9 @@ class BatchRun(SteppedRun):
             return [r.bridges[c].name or r.bridges[c].describe() for c in self._case[self._order]]
 
         with np.errstate(over="ignore", invalid="ignore"):  # a blown-up state is what we look for
-            self._check_finite(f"{self.model.upper()} state", state, f"in steps {k0}..{k1} of {self.n_steps}",
-                               self._v[self._order], r.ds_m, names)
+            failure = self._not_finite(f"{self.model.upper()} state", state, f"in steps {k0}..{k1} of {self.n_steps}",
+                                       self._v[self._order], r.ds_m, names)
+        return failure is None, failure
 
     def _in_lane_order(self, a):
         out = np.empty_like(a)

@@ -64,13 +64,14 @@ from __future__ import annotations
 import cmath
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
 from adm_sim._jit import njit  # numba compiles the search loop; without it the same source runs as plain Python
 from adm_sim.errors import InputError
 from adm_sim.fields import check_delta_zeta_pct, check_range
-from adm_sim.stepping import speeds_to_m_s
+from adm_sim.step_grid import speeds_to_m_s
 
 #: Longest free vibration followed after the last axle has left, in fundamental periods.
 MAX_FREE_PERIODS = 30.0
@@ -174,7 +175,7 @@ def deck_positions_m(span_m, n_modes, samples_per_period=4.0):
     return span_m * np.arange(1, n + 1) / (2.0 * n)
 
 
-def moving_load_envelope(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, delta_zeta=0.0,
+def moving_load_envelope(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, *, delta_zeta=0.0,
                          samples_per_period=4.0, where="midspan"):
     """Exact max |acceleration|, |deflection| (at ``where``) and |midspan moment| at every speed.
 
@@ -249,6 +250,59 @@ def moving_load_envelope(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, delta
                     refined=res["refined"])
 
 
+class Intervals(NamedTuple):
+    """Every lane's response between the breakpoints (interval ``k = 0 .. K-2``; ``K-1`` is the free
+    vibration after the last exit): per mode ``j`` the acceleration is
+    ``Im[acc_c1 e^(i Om tau) + acc_c2 e^(lam tau)]``, the deflection the same with ``disp_c1``,
+    ``disp_c2``, ``tau`` the time since the interval's start."""
+
+    acc_c1: np.ndarray  #: (K, lanes, modes) complex
+    acc_c2: np.ndarray  #: (K, lanes, modes) complex
+    disp_c1: np.ndarray  #: (K, lanes, modes) complex
+    disp_c2: np.ndarray  #: (K, lanes, modes) complex
+    Om: np.ndarray  #: (lanes, modes) load frequencies j pi v / L (rad/s)
+    lam: np.ndarray  #: (modes,) complex eigenvalues -zeta om + i om sqrt(1 - zeta^2) (1/s)
+    lam2: np.ndarray  #: (modes,) |lam|^2 (1/s^2)
+    t0: np.ndarray  #: (K, lanes) start time of every interval (s)
+    T: np.ndarray  #: (K, lanes) length of every interval (s); the free vibration's is set after the first pass
+
+
+class Quantities(NamedTuple):
+    """What is searched: quantity ``q`` of family ``fam[q]`` (0 acceleration, 1 deflection), the sum over
+    modes weighted ``W[q, p, j]`` at positions ``xp[q, p]``, ``p < npos[q]``; on the deck
+    (``deck[q]``) each position stands for ``x_p`` and ``L - x_p`` (odd and even modes apart)."""
+
+    fam: np.ndarray  #: (quantities,) int
+    deck: np.ndarray  #: (quantities,) bool
+    npos: np.ndarray  #: (quantities,) int
+    W: np.ndarray  #: (quantities, positions, modes)
+    xp: np.ndarray  #: (quantities, positions) (m)
+    odd: np.ndarray  #: (modes,) bool: odd mode number
+    kw: np.ndarray  #: (modes,) wave numbers j pi / L (1/m)
+    span_m: float
+    hx_m: float  #: half the spacing of the deck positions (m)
+
+
+class Maxima(NamedTuple):
+    """Per quantity and lane: the largest value found (``best``), its time (``when``, s) and position
+    (``xat``, m), updated in place by the search; per interval the bounds of the value (``bound``)
+    and of its curvature in time (``curv``)."""
+
+    best: np.ndarray  #: (quantities, lanes)
+    when: np.ndarray  #: (quantities, lanes)
+    xat: np.ndarray  #: (quantities, lanes)
+    bound: np.ndarray  #: (quantities, K, lanes)
+    curv: np.ndarray  #: (quantities, K, lanes)
+
+
+class Pairs(NamedTuple):
+    """The (interval ``k``, lane ``l``) pairs to sample, largest bound first, with ``m`` samples each."""
+
+    k: np.ndarray
+    l: np.ndarray  # noqa: E741  the lane index, as in the equations
+    m: np.ndarray
+
+
 def _all_lanes(v, L, jj, om, zeta, lam, bps, G, ppp, quants):
     """Propagate every lane from event to event, then search the maxima (see the module doc)."""
     nl = v.size
@@ -288,8 +342,12 @@ def _all_lanes(v, L, jj, om, zeta, lam, bps, G, ppp, quants):
         W[i_q, :x.size] = w
         xp[i_q, :x.size] = x
         npos[i_q], fam[i_q], deck[i_q] = x.size, f, is_deck
-    best, when, xat, bound, curv, b_free = _prepare(fams[0][0], fams[0][1], fams[1][0], fams[1][1], Om,
-                                                    np.abs(lam) ** 2, t0, W, xp, npos, fam, deck, odd, L)
+    hx = L / (2.0 * max(1, int(npos[deck].max()) if deck.any() else 1))
+    iv = Intervals(acc_c1=fams[0][0], acc_c2=fams[0][1], disp_c1=fams[1][0], disp_c2=fams[1][1], Om=Om, lam=lam,
+                   lam2=np.abs(lam) ** 2, t0=t0, T=T)
+    qs = Quantities(fam=fam, deck=deck, npos=npos, W=W, xp=xp, odd=odd, kw=kw, span_m=float(L), hx_m=float(hx))
+    best, when, xat, bound, curv, b_free = _prepare(iv, qs)
+    mx = Maxima(best=best, when=when, xat=xat, bound=bound, curv=curv)
     with np.errstate(divide="ignore"):
         # free vibration: follow it until its decaying bound falls below the best event value
         t_free = (np.log(np.maximum(b_free, 1e-300) / np.maximum(best, 1e-300)) / (-lam.real).min()).max(0)
@@ -300,18 +358,19 @@ def _all_lanes(v, L, jj, om, zeta, lam, bps, G, ppp, quants):
     order = np.argsort(-ratio[kk, ll], kind="stable")
     f_lane = np.maximum(np.abs(lam).max(), Om.max(1)) / (2.0 * np.pi)  # fastest component per lane
     m = np.ceil(T[kk[order], ll[order]] * f_lane[ll[order]] * ppp).astype(np.int64) + 1
-    hx = L / (2.0 * max(1, int(npos[deck].max()) if deck.any() else 1))
-    refined = _search_kernel(kk[order], ll[order], m, fams[0][0], fams[0][1], fams[1][0], fams[1][1], Om, lam, T,
-                             t0, bound, curv, best, when, xat, fam, deck, npos, W, xp, odd, kw, L, hx)
+    refined = _search_kernel(Pairs(k=kk[order], l=ll[order], m=m), iv, qs, mx)
     return {"best": best, "when": when, "xat": xat, "refined": int(refined)}
 
 
 @njit(cache=True, nogil=True)
-def _prepare(ca1, ca2, cd1, cd2, Om, lam2, t0, W, xp, npos, fam, deck, odd, span):
+def _prepare(iv, qs):
     """Per quantity and lane: the largest value at the event instants (and its time and position),
     the amplitude bound ``sum_j w_j (|c1_j| + |c2_j|)`` and curvature bound
     ``sum_j w_j (|c1_j| Om_j^2 + |c2_j| |lam_j|^2)`` of every interval (w_j = max |weight|, 1 on the
-    deck), and the amplitude bound of the free vibration."""
+    deck), and the amplitude bound of the free vibration. ``iv``: :class:`Intervals`, ``qs``:
+    :class:`Quantities`; returns the fields of :class:`Maxima` and the free-vibration bound."""
+    ca1, ca2, cd1, cd2, Om, lam2, t0 = iv.acc_c1, iv.acc_c2, iv.disp_c1, iv.disp_c2, iv.Om, iv.lam2, iv.t0
+    W, xp, npos, fam, deck, odd, span = qs.W, qs.xp, qs.npos, qs.fam, qs.deck, qs.odd, qs.span_m
     K, nl, nm = ca1.shape
     nq = fam.size
     best = np.zeros((nq, nl))
@@ -454,12 +513,16 @@ def _newton2(c1, c2, om, lam, kw, t, x, tlo, thi, xlo, xhi, t_scale, x_scale):
 
 
 @njit(cache=True, nogil=True)
-def _search_kernel(kk, ll, m, ca1, ca2, cd1, cd2, Om, lam, T, t0, bound, curv, best, when, xat,
-                   fam, deck, npos, W, xp, odd, kw, span, hx):
-    """Sample every (interval, lane) pair that can still hold a maximum (pruned again against the
-    risen best before each pair), refine every sampled local maximum of every quantity that can
-    reach its best by Newton (in t, or jointly in (t, x) on the deck); ``best``, ``when`` and
-    ``xat`` (quantities, lanes) in place."""
+def _search_kernel(pairs, iv, qs, mx):
+    """Sample every (interval, lane) pair of ``pairs`` (:class:`Pairs`) that can still hold a maximum
+    (pruned again against the risen best before each pair), refine every sampled local maximum of
+    every quantity that can reach its best by Newton (in t, or jointly in (t, x) on the deck);
+    ``mx.best``, ``mx.when`` and ``mx.xat`` (quantities, lanes) in place. Returns the number of
+    refinements."""
+    kk, ll, m = pairs.k, pairs.l, pairs.m
+    ca1, ca2, cd1, cd2, Om, lam, T, t0 = iv.acc_c1, iv.acc_c2, iv.disp_c1, iv.disp_c2, iv.Om, iv.lam, iv.T, iv.t0
+    fam, deck, npos, W, xp, odd, kw, span, hx = qs.fam, qs.deck, qs.npos, qs.W, qs.xp, qs.odd, qs.kw, qs.span_m, qs.hx_m
+    bound, curv, best, when, xat = mx.bound, mx.curv, mx.best, mx.when, mx.xat
     nm = lam.size
     nq = fam.size
     pmax = W.shape[1]
@@ -555,8 +618,7 @@ def _search_kernel(kk, ll, m, ca1, ca2, cd1, cd2, Om, lam, T, t0, bound, curv, b
                             if _x_local(ya, q, 1, pp, npos[q]):
                                 cf, ci, nc = _push(cf, ci, nc, y1, y1 + s1, (i - 1) * h, h, T_, q, pp, k, l)
                         else:
-                            refined += _refine_t(q, pp, (i - 1) * h, h, T_, k, l, ca1, ca2, cd1, cd2, om, lam, t0,
-                                                 best, when, xat, fam, W, xp)
+                            refined += _refine_t(q, pp, (i - 1) * h, h, T_, k, l, iv, qs, mx)
         for q in range(nq):  # the last sample
             if not active[q]:
                 continue
@@ -567,16 +629,14 @@ def _search_kernel(kk, ll, m, ca1, ca2, cd1, cd2, Om, lam, T, t0, bound, curv, b
                         if _x_local(ya, q, 2, pp, npos[q]):
                             cf, ci, nc = _push(cf, ci, nc, ya[q, 2, pp], ya[q, 2, pp] + s2, m[p] * h, h, T_, q, pp, k, l)
                     else:
-                        refined += _refine_t(q, pp, m[p] * h, h, T_, k, l, ca1, ca2, cd1, cd2, om, lam, t0,
-                                             best, when, xat, fam, W, xp)
+                        refined += _refine_t(q, pp, m[p] * h, h, T_, k, l, iv, qs, mx)
     # deck candidates, deferred until every pair is sampled (the best is then near the maximum), the
     # largest sample first
     for c in np.argsort(-cf[:nc, 0]):
         q, pp, k, l = ci[c, 0], ci[c, 1], ci[c, 2], ci[c, 3]
         if cf[c, 1] < best[q, l]:
             continue
-        refined += _refine_deck(q, pp, cf[c, 2], cf[c, 3], cf[c, 4], k, l, ca1, ca2, cd1, cd2, Om[l], lam, t0,
-                                best, when, xat, fam, xp, kw, span, hx)
+        refined += _refine_deck(q, pp, cf[c, 2], cf[c, 3], cf[c, 4], k, l, iv, qs, mx)
     return refined
 
 
@@ -603,25 +663,28 @@ def _push(cf, ci, nc, y, bound, t, h, T_, q, pp, k, l):
 
 
 @njit(cache=True, nogil=True)
-def _refine_t(q, pp, x, h, T_, k, l, ca1, ca2, cd1, cd2, om, lam, t0, best, when, xat, fam, W, xp):
-    """Refine a candidate of a one-position quantity at time ``x`` of the interval (Newton in t)."""
-    c1 = ca1[k, l] if fam[q] == 0 else cd1[k, l]
-    c2 = ca2[k, l] if fam[q] == 0 else cd2[k, l]
-    x, y = _newton(c1, c2, W[q, pp], om, lam, x, max(0.0, x - h), min(T_, x + h))
-    if y > best[q, l]:
-        best[q, l] = y
-        when[q, l] = t0[k, l] + x
-        xat[q, l] = xp[q, pp]
+def _refine_t(q, pp, x, h, T_, k, l, iv, qs, mx):
+    """Refine a candidate of quantity ``q`` at position ``pp`` (one position, not the deck) at time ``x``
+    of interval ``k``, lane ``l`` (step ``h``, length ``T_``) by Newton in t; into ``mx`` in place."""
+    c1 = iv.acc_c1[k, l] if qs.fam[q] == 0 else iv.disp_c1[k, l]
+    c2 = iv.acc_c2[k, l] if qs.fam[q] == 0 else iv.disp_c2[k, l]
+    x, y = _newton(c1, c2, qs.W[q, pp], iv.Om[l], iv.lam, x, max(0.0, x - h), min(T_, x + h))
+    if y > mx.best[q, l]:
+        mx.best[q, l] = y
+        mx.when[q, l] = iv.t0[k, l] + x
+        mx.xat[q, l] = qs.xp[q, pp]
     return 1
 
 
 @njit(cache=True, nogil=True)
-def _refine_deck(q, pp, t, h, T_, k, l, ca1, ca2, cd1, cd2, om, lam, t0, best, when, xat, fam, xp, kw, span, hx):
-    """Refine a deck candidate at time ``t`` of the interval and position x_p or L - x_p (the larger)
-    jointly in (t, x)."""
-    c1 = ca1[k, l] if fam[q] == 0 else cd1[k, l]
-    c2 = ca2[k, l] if fam[q] == 0 else cd2[k, l]
-    xs = xp[q, pp]
+def _refine_deck(q, pp, t, h, T_, k, l, iv, qs, mx):
+    """Refine a deck candidate of quantity ``q`` at time ``t`` of interval ``k``, lane ``l`` (step ``h``,
+    length ``T_``) and position x_p or L - x_p (the larger) jointly in (t, x); into ``mx`` in place."""
+    c1 = iv.acc_c1[k, l] if qs.fam[q] == 0 else iv.disp_c1[k, l]
+    c2 = iv.acc_c2[k, l] if qs.fam[q] == 0 else iv.disp_c2[k, l]
+    om, lam, kw, span, hx = iv.Om[l], iv.lam, qs.kw, qs.span_m, qs.hx_m
+    best, when, xat, t0 = mx.best, mx.when, mx.xat, iv.t0
+    xs = qs.xp[q, pp]
     if abs(_field(c1, c2, om, lam, kw, t, span - xs)[0]) > abs(_field(c1, c2, om, lam, kw, t, xs)[0]):
         xs = span - xs
     t, xs, y = _newton2(c1, c2, om, lam, kw, t, xs, max(0.0, t - h), min(T_, t + h), max(0.0, xs - 2.0 * hx),

@@ -1,7 +1,7 @@
 """Compiled whole-run kernels: every lane of a batch integrated over all its steps in one call.
 
-These are the per-stage computations of :class:`adm_sim.stepping.BridgeSide` and
-:class:`adm_sim.stepping.TrainSide` (same equations, same RK4 bookkeeping, same operation order),
+These are the per-stage computations of :class:`adm_sim.rk4_sides.BridgeSide` and
+:class:`adm_sim.rk4_sides.TrainSide` (same equations, same RK4 bookkeeping, same operation order),
 written as loops over lanes and steps so that numba compiles them: the Python overhead of ~40
 small numpy calls per RK stage (~100 us) disappears, and a lane costs only its arithmetic.
 Each lane carries its own bridge (modal stiffness, damping, the wheelset-modified mass matrix of
@@ -41,7 +41,7 @@ from adm_sim._jit import STAGE_ROW, njit
 def hermite_max_abs_acc(d0, v0, a0, d1, v1, a1, h):
     """Largest |acceleration| strictly inside one step from the dense output, 0 if none.
 
-    One lane, scalar arithmetic of :func:`adm_sim.stepping.hermite_max_abs_acc` operation for
+    One lane, scalar arithmetic of :func:`adm_sim.dense_output.hermite_max_abs_acc` operation for
     operation (the cubic second derivative of the quintic Hermite interpolant of the deflection).
     """
     D = (d1 - d0) / (h * h)
@@ -97,7 +97,7 @@ class DimLanes(NamedTuple):
 
 class MlmLanes(NamedTuple):
     """Per lane (block order): time step ``h`` (s) (n_lanes,); modal damping ``Z`` and the exact
-    RK4 recurrence of :func:`adm_sim.stepping.mlm_rk4_coefficients`, each (n_modes, n_lanes)."""
+    RK4 recurrence of :func:`adm_sim.rk4_sides.mlm_rk4_coefficients`, each (n_modes, n_lanes)."""
 
     h: np.ndarray
     Z: np.ndarray
@@ -419,7 +419,7 @@ def dim_blocks(blocks, k0, k1, lanes, bridge, rows, units, vehicles, state, dens
                                      t1, t2, t3)
                 if st == 0:
                     midspan_acceleration(qdd, phi_mid, acc0)
-                # 4. RK4 bookkeeping of both subsystems (as stepping._Rk4State.push), inline: as a
+                # 4. RK4 bookkeeping of both subsystems (as rk4_sides._Rk4State.push), inline: as a
                 # helper it costs ~20 % of the kernel's time (bench/bench_kernels.py, docs/benchmarks.md)
                 wgt = RK4_W[st]
                 for j in range(nm):

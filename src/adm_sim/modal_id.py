@@ -538,7 +538,7 @@ def _identify(t_s, a_m_s2, t_free_s, s):
 
 
 # ---------------------------------------------------------------------- passages
-def analyse_passage(t_s, a_m_s2, index=1, limit_m_s2=None, track_type="ballasted", warn_fraction=0.8,
+def analyse_passage(t_s, a_m_s2, *, index=1, limit_m_s2=None, track_type="ballasted", warn_fraction=0.8,
                     t_free_s=None, settings=None, source="signal", run_id=None, phase=None, info=None):
     """One :class:`Passage` from its samples: peak ``|a|`` and its time, the level against the
     limit (``limit_m_s2``, else the one of ``track_type``), and the first mode of its free decay."""
@@ -546,8 +546,10 @@ def analyse_passage(t_s, a_m_s2, index=1, limit_m_s2=None, track_type="ballasted
     a = np.asarray(a_m_s2, dtype=float)
     limit = acc_limit_m_s2(track_type) if limit_m_s2 is None else float(limit_m_s2)
     if t.size == 0:
-        return Passage(index, float("nan"), float("nan"), float("nan"), float("nan"), limit, acc_level(
-            float("nan"), limit, warn_fraction), 0, None, "no samples", source, run_id, phase, dict(info or {}))
+        nan = float("nan")
+        return Passage(index=index, t_start_s=nan, t_end_s=nan, peak_acc_m_s2=nan, t_peak_s=nan, limit_m_s2=limit,
+                       level=acc_level(nan, limit, warn_fraction), n_samples=0, fit=None, reason="no samples",
+                       source=source, run_id=run_id, phase=phase, info=dict(info or {}))
     absa = np.abs(a)
     i = int(np.nanargmax(absa)) if np.any(np.isfinite(absa)) else 0
     peak = float(absa[i]) if np.all(np.isfinite(absa)) else float("inf")
@@ -594,13 +596,14 @@ def segment_signal(t_s, a_m_s2, settings=None):
             for b, e in merged]
 
 
-def analyse_record(t_s, a_m_s2, limit_m_s2=None, track_type="ballasted", warn_fraction=0.8, settings=None):
+def analyse_record(t_s, a_m_s2, *, limit_m_s2=None, track_type="ballasted", warn_fraction=0.8, settings=None):
     """Every passage of a record without run records (:func:`segment_signal`), as :class:`Passage`."""
     t = np.asarray(t_s, dtype=float)
     a = np.asarray(a_m_s2, dtype=float)
     order = np.argsort(t, kind="stable")
     t, a = t[order], a[order]
-    return [analyse_passage(t[b:e], a[b:e], k + 1, limit_m_s2, track_type, warn_fraction, None, settings)
+    return [analyse_passage(t[b:e], a[b:e], index=k + 1, limit_m_s2=limit_m_s2, track_type=track_type,
+                            warn_fraction=warn_fraction, settings=settings)
             for k, (b, e) in enumerate(segment_signal(t, a, settings))]
 
 
@@ -640,7 +643,7 @@ class PassageTracker:
         ``near`` above this fraction of the limit.
     """
 
-    def __init__(self, track_type=None, warn_fraction=0.8, settings=None, on_passage=None, settle_s=1.0,
+    def __init__(self, *, track_type=None, warn_fraction=0.8, settings=None, on_passage=None, settle_s=1.0,
                  quiet_s=10.0, max_buffer_s=900.0):
         self.track_type, self.warn_fraction = track_type, float(warn_fraction)
         self.settings = settings or IdentifySettings()
@@ -759,8 +762,9 @@ class PassageTracker:
 
     def _emit(self, t, a, t_free_s, source, run_id=None, phase=None, info=None):
         limit, track = self._limit()
-        p = analyse_passage(t, a, len(self.passages) + 1, limit, track, self.warn_fraction, t_free_s,
-                            self.settings, source, run_id, phase, {"track_type": track, **(info or {})})
+        p = analyse_passage(t, a, index=len(self.passages) + 1, limit_m_s2=limit, track_type=track,
+                            warn_fraction=self.warn_fraction, t_free_s=t_free_s, settings=self.settings,
+                            source=source, run_id=run_id, phase=phase, info={"track_type": track, **(info or {})})
         self.passages.append(p)
         if self.on_passage is not None:
             self.on_passage(p)

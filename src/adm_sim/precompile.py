@@ -24,7 +24,7 @@ import numpy as np
 
 from adm_sim.bridge import named_bridge
 from adm_sim.check import resolve_trains, run_check
-from adm_sim.stepping import StepOptions
+from adm_sim.step_grid import StepOptions
 from adm_sim.sweep import run_sweep_compiled, sweep_exact
 from adm_sim.trains import load_train
 

@@ -25,7 +25,7 @@ from adm_sim.limits import ACC_LIMITS_M_S2, TRACK_ALIASES, check_track_type
 def cmd_sweep(args):
     from adm_sim.bridge import resolve_bridge
     from adm_sim.envelope import parse_where, where_text
-    from adm_sim.stepping import StepOptions
+    from adm_sim.step_grid import StepOptions
     from adm_sim.sweep import parse_speeds, run_sweep, run_sweep_compiled, sweep_exact
     from adm_sim.trains import load_train
     from adm_sim.plausibility import check_response

@@ -1,6 +1,6 @@
 """Whole speed sweeps in one call: every speed is a lane of one vectorised lockstep run.
 
-``run_sweep`` advances one :class:`adm_sim.stepping.InProcessRun` a whole step at a time; the ROS
+``run_sweep`` advances one :class:`adm_sim.lockstep_runs.InProcessRun` a whole step at a time; the ROS
 bridge and train nodes each drive their half of the same object stage by stage (one exchange per
 RK4 stage), so a co-simulation reproduces these numbers bit for bit.
 """
@@ -15,8 +15,11 @@ import numpy as np
 from adm_sim.errors import InputError, RunError
 from adm_sim.fields import check_delta_zeta_pct
 from adm_sim.peaks import largest_interior_peak
-from adm_sim.stepping import (FAILED, RUNNING, SPEED_RANGE_KMH, BridgeSide, InProcessRun, StepOptions, TrainSide,
-                              check_model, make_grid, mlm_modal_load_table, speeds_to_m_s)
+from adm_sim.lockstep_runs import InProcessRun
+from adm_sim.mlm_loads import mlm_modal_load_table
+from adm_sim.rk4_sides import BridgeSide, TrainSide
+from adm_sim.run_contract import FAILED, RUNNING, check_model
+from adm_sim.step_grid import SPEED_RANGE_KMH, StepOptions, make_grid, speeds_to_m_s
 
 MAX_HISTORY_VALUES = 300_000_000
 

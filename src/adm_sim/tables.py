@@ -12,12 +12,12 @@ reads their fields by name) built by one function each:
 * :func:`bridge_tables` -> :class:`BridgeTables`: modal mass and stiffness (Eq. 5) per bridge
   and the mode shapes at midspan.
 * :func:`axle_rows` -> :class:`AxleRows`: per half-step row of the shared space grid (the RK4
-  stage points, :mod:`adm_sim.stepping`), the axles on the bridge with their mode shapes and
+  stage points, :mod:`adm_sim.step_grid`), the axles on the bridge with their mode shapes and
   derivatives (Eqs. 4, 6, 9) and, for the DIM, the inverse of the wheelset-modified mass matrix
   ``M + sum_i m_w,i phi(x_i) phi(x_i)^T`` (Eq. 13) per bridge, used by the kernels and the numpy
   stepper alike.
 
-:class:`adm_sim.stepping.TrainSide` / :class:`~adm_sim.stepping.BridgeSide` take the rows and units
+:class:`adm_sim.rk4_sides.TrainSide` / :class:`~adm_sim.rk4_sides.BridgeSide` take the rows and units
 of the step they are at; :class:`adm_sim.compiled_batch.BatchRunner` tabulates every step at once
 for :mod:`adm_sim.kernels`.
 """

@@ -34,7 +34,7 @@ from adm_sim.bridge import Bridge
 from adm_sim.limits import DEFAULT_SPEEDS
 from adm_sim.nodes import common as c
 from adm_sim.nodes.driver import RunDriver, say
-from adm_sim.stepping import StepOptions
+from adm_sim.step_grid import StepOptions
 from adm_sim.sweep import parse_speeds
 from adm_sim.trains import load_train
 
@@ -125,7 +125,8 @@ class CalibrationNode(RunDriver):
         bridge = Bridge(**bd["bridge"])
         train = load_train(td["train"])
         st = bd["step"]
-        base = StepOptions(st["steps_per_period"], st["free_vibration_periods"], st["ds_m"] or None)
+        base = StepOptions(steps_per_period=st["steps_per_period"], free_vibration_periods=st["free_vibration_periods"],
+                           ds_m=st["ds_m"] or None)
         p = self.param_values()
         opt = CalibrationOptions(dim_grid=p["dim_grid"], step=base)
         v = parse_speeds(p["speeds_kmh"], field="speeds_kmh")
@@ -133,7 +134,7 @@ class CalibrationNode(RunDriver):
         self._auto_monitor = self._user_monitor_speed() <= 0.0
         say("calibration", bridge=bridge.describe(), train=train.name, speeds=len(v),
             ds_m=calibration_step(bridge, train, v, opt).ds_m)
-        res = calibrate(bridge, train, v, opt, sweep=self._hook, on_trial=self._iteration)
+        res = calibrate(bridge, train, v, options=opt, sweep=self._hook, on_trial=self._iteration)
         self._publish_result(res)
         summary = res.to_dict(curves=True)
         summary["co_simulation"] = {"runs": self.n_runs, "delta_zeta_trials": self.iteration}

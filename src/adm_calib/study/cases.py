@@ -17,7 +17,7 @@ from adm_sim.errors import InputError
 from adm_sim.fields import check_range
 from adm_sim.limits import DEFAULT_SPEEDS
 from adm_sim.parametric import FIELD_SPANS_M, MASS_FUNCTIONS
-from adm_sim.stepping import StepOptions
+from adm_sim.step_grid import StepOptions
 from adm_sim.trains import load_train
 
 from adm_calib.lower_bound import FIT_RANGE_MAX_HZ, LOWER_LIMIT_HZ  # noqa: F401  (re-exported for the study package)
@@ -163,7 +163,7 @@ class StudySettings:
     ``dim_grid`` and ``steps_per_period`` as for :class:`~adm_calib.calibrate.CalibrationOptions`
     (``None``: the core's default). The adapted MLM curve is never computed (not needed here).
     ``dense_maxima`` takes the maxima between time samples (dense output,
-    :class:`~adm_sim.stepping.StepOptions`); ``refine_speed`` locates both peaks to 0.05 km/h
+    :class:`~adm_sim.step_grid.StepOptions`); ``refine_speed`` locates both peaks to 0.05 km/h
     (:class:`~adm_calib.calibrate.CalibrationOptions` ``speed_refinement_kmh``). Both off: the
     paper's rules. Settings written by a version without these two read as off.
     """

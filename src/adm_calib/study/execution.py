@@ -205,7 +205,7 @@ def check_scheduler(address, timeout_s=5.0):
     return address
 
 
-def run_study(out_dir, cases, settings=StudySettings(), workers=2, scheduler=None, limit=None, progress=None,
+def run_study(out_dir, cases, *, settings=StudySettings(), workers=2, scheduler=None, limit=None, progress=None,
               retry_errors=False, options=None):
     """Run the study cases not yet in ``out_dir/results.jsonl`` on a dask cluster.
 

@@ -1,8 +1,8 @@
-"""Bridge node: the modal beam (:class:`adm_sim.stepping.BridgeSide`) in lockstep with the train node.
+"""Bridge node: the modal beam (:class:`adm_sim.rk4_sides.BridgeSide`) in lockstep with the train node.
 
 Per run (requested by the train node on ``/adm/run/setup``) the node builds the bridge from its
-parameters, the shared space grid (:func:`adm_sim.stepping.make_grid`) and a ``BridgeSide`` for
-all speed lanes, held by a :class:`adm_sim.stepping.BridgeHalf` (step, stage,
+parameters, the shared space grid (:func:`adm_sim.step_grid.make_grid`) and a ``BridgeSide`` for
+all speed lanes, held by a :class:`adm_sim.lockstep_runs.BridgeHalf` (step, stage,
 status, maxima, finite-value check), then
 
 * DIM: for every RK4 stage publishes the rail displacement/velocity under the axles on the bridge
@@ -39,7 +39,10 @@ from adm_sim.errors import InputError
 from adm_sim.limits import ACC_LIMITS_M_S2, TRACK_TYPES, check_track_type
 from adm_sim.fields import check_delta_zeta
 from adm_sim.nodes import common as c
-from adm_sim.stepping import BridgeHalf, BridgeSide, StepOptions, make_grid, modal_loads_at
+from adm_sim.lockstep_runs import BridgeHalf
+from adm_sim.mlm_loads import modal_loads_at
+from adm_sim.rk4_sides import BridgeSide
+from adm_sim.step_grid import StepOptions, make_grid
 
 __all__ = ["TRACK_TYPES", "MONITOR_SAMPLES_PER_PERIOD", "monitor_steps", "bridge_specs", "BridgeNode", "main"]
 #: Automatic monitoring decimation: at least this many samples per period of the highest retained
@@ -280,7 +283,7 @@ class BridgeNode(c.NodeBase):
         run_id, k, stage, idx, G = c.unpack(msg)
         c.check_step("bridge", (run_id, k, stage), (r["id"], run.k, run.stage))
         self.partner.clear()
-        run.take_forces(G)
+        run.step(G)  # one RK4 stage with the partner's interaction forces
         if stage == 0 and run.status != "failed":
             self._step_done(k, r["disp"], run.acc_m_s2)
         if run.status != "running":

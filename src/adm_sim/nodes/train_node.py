@@ -1,4 +1,4 @@
-"""Train node: the vehicles (:class:`adm_sim.stepping.TrainSide`) in lockstep with the bridge node.
+"""Train node: the vehicles (:class:`adm_sim.rk4_sides.TrainSide`) in lockstep with the bridge node.
 
 A run starts with the ``~/start_run`` service (std_srvs/Trigger): the node validates its
 parameters, publishes the run set-up (``/adm/run/setup``: speeds, axle offsets, loads and wheelset
@@ -10,7 +10,7 @@ masses) and waits for the bridge's grid (``/adm/run/ready``). Then
   a block of ``mlm_block_steps`` steps and the axle loads (``/adm/exchange/axle_block``); the
   MLM needs no feedback from the bridge.
 
-Step and stage are kept by a :class:`adm_sim.stepping.TrainHalf`. A run that
+Step and stage are kept by a :class:`adm_sim.lockstep_runs.TrainHalf`. A run that
 the bridge reports ``failed`` on ``/adm/run/status`` (e.g. a solution that is not finite) ends
 here too.
 """
@@ -28,7 +28,11 @@ from adm_sim import protocol as P
 from adm_sim.errors import InputError
 from adm_sim.limits import DEFAULT_SPEEDS
 from adm_sim.nodes import common as c
-from adm_sim.stepping import Grid, TrainHalf, TrainSide, check_model, half_step_positions, speeds_to_m_s
+from adm_sim.lockstep_runs import TrainHalf
+from adm_sim.mlm_loads import half_step_positions
+from adm_sim.rk4_sides import TrainSide
+from adm_sim.run_contract import check_model
+from adm_sim.step_grid import Grid, speeds_to_m_s
 from adm_sim.sweep import parse_speeds
 from adm_sim.trains import load_train
 
@@ -166,7 +170,8 @@ class TrainNode(c.NodeBase):
         c.check_step("train", (run_id, k, stage), (r["id"], run.k, run.stage))
         self.partner.clear()
         if r["model"] == "dim":
-            G = run.take_rail_state(idx, payload[0], payload[1])
+            run.step(idx, payload[0], payload[1])  # one RK4 stage with the bridge's rail state
+            G = run.interaction_n
             self.pub_forces.publish(c.pack(run_id, k, stage, G, ("lane", "axle_on"), idx))
         else:
             k0 = run.k
