@@ -57,6 +57,7 @@ CLASSES = {
     "scheduler": "study --scheduler at a closed port, a silent or a foreign server (loopback only)",
     "signals": "SIGINT / SIGTERM during the work: error: interrupted, 130, no partial output",
     "damaged-input": "an MCAP cut short, with a damaged chunk, or without messages (no traceback, no empty output)",
+    "bounded-work": "more speeds, lanes, trains, axles or train length than one run may take (field registry limits)",
 }
 
 
@@ -206,6 +207,15 @@ def _make_ro(t, ctx):
     if os.geteuid() != 0:
         (t / "ro").mkdir()
         (t / "ro").chmod(0o555)
+
+
+def _long_train(vehicles):
+    """The example train with ``vehicles`` more coaches (100 per composition entry)."""
+    def setup(t, ctx):
+        extra = "".join(f'[[composition]]\nvehicle = "Coach"\ncount = {min(100, vehicles - k)}\n'
+                        for k in range(0, vehicles, 100))
+        _files(t, long__toml=TRAIN_TOML + "\n" + extra)
+    return setup
 
 
 def _params(text):
@@ -410,6 +420,30 @@ CASES = [
          "RUN.mcap: '{t}/run.mcap' holds no message; nothing to replay", setup=_recording("empty")),
     Case("damaged-input", "salvage-empty", lambda t: SIM + ["salvage", f"{t}/run.mcap", f"{t}/s.mcap"],
          "holds no complete message to recover", setup=_recording("empty")),
+    # --- bounded work: the limits of the field registry, refused before any array is allocated
+    Case("bounded-work", "check-speed-step-1e-4",
+         lambda t: SIM + ["check", "--max-line-speed", "300", "--speed-step", "1e-4", "--json", f"{t}/c.json"],
+         "error: --speed-step: 0.0001 km/h from 144 to 360 km/h gives 2160001 speeds; allowed at most 20000 speeds"),
+    Case("bounded-work", "sweep-speeds-60k",
+         lambda t: SIM + ["sweep", "--speeds", "1:600:0.01", "--json", f"{t}/r.json"],
+         "'1:600:0.01' gives 59901 speeds; allowed at most 20000 speeds"),
+    Case("bounded-work", "calibrate-speeds-30k",
+         lambda t: CAL + ["calibrate", "--bridge", "B1", "--train", "ICE-2", "--speeds", "1:600:0.02", "--json", f"{t}/c.json"],
+         "'1:600:0.02' gives 29951 speeds; allowed at most 20000 speeds"),
+    Case("bounded-work", "check-trains-50",
+         lambda t: SIM + ["check", "--max-line-speed", "300", "--trains", "hslm,hslm,hslm,hslm,hslm"],
+         "error: --trains: 'hslm,hslm,hslm,hslm,hslm' gives 50 trains; allowed at most 40 trains"),
+    Case("bounded-work", "sweep-train-10000-vehicles",
+         lambda t: SIM + ["sweep", "--train", f"{t}/long.toml", "--json", f"{t}/r.json"],
+         "long.toml: composition: 10010 units gives 40040 axles; allowed at most 400 axles", setup=_long_train(10000)),
+    Case("bounded-work", "check-train-1300-m",
+         lambda t: SIM + ["check", "--max-line-speed", "200", "--trains", f"{t}/long.toml"],
+         "long.toml: composition: 50 units, 200 axles gives 1282.75 m; allowed at most 1000 m",
+         setup=_long_train(40)),
+    Case("bounded-work", "train-node-lanes", node("adm_sim.nodes.train_node", "speeds_kmh:=1:600:0.01"),
+         "speeds_kmh: '1:600:0.01' gives 59901 lanes; allowed at most 20000 lanes", ros=True),
+    Case("bounded-work", "crossing-speeds", lambda t: CROSS + ["--out", f"{t}/o", "--speeds", "1:600:0.02"],
+         "'1:600:0.02' gives 29951", ros=True),
     Case("scheduler", "closed-port",
          lambda t: CAL + ["study", "--out", f"{t}/st", "--scheduler", "tcp://127.0.0.1:{port}"],
          "--scheduler: cannot connect to 'tcp://127.0.0.1:{port}'", setup=_closed_port),

@@ -60,7 +60,7 @@ import numpy as np
 
 from adm_sim.fields import FIELDS
 from adm_sim.errors import InputError
-from adm_sim.fields import check_range
+from adm_sim.fields import check_count, check_range
 
 #: Lowest speed of the check (m/s), EN 1991-2 6.4.6.2(1).
 MIN_SPEED_M_S = 40.0
@@ -345,6 +345,7 @@ def check_speeds_kmh(max_line_speed_kmh, step_kmh=1.0):
     step = FIELDS["step_kmh"].check(step_kmh, argument=True)
     hi = DESIGN_SPEED_FACTOR * V
     n = int(math.floor((hi - lo) / step + 1e-9))
+    check_count("n_speeds", n + 1, "--speed-step", f"{step:g} km/h from {lo:g} to {hi:g} km/h")  # before any array
     v = lo + step * np.arange(n + 1)
     if hi - v[-1] > 1e-9:
         v = np.append(v, hi)
@@ -365,6 +366,7 @@ def resolve_trains(spec):
     if not names:
         raise InputError(f"trains: {spec!r} names no train; allowed hslm, HSLM-A1 .. HSLM-A10, ICE-2, Eurostar, "
                          f"Railjet, ICE-4, Eurostar-table or .toml train files, comma separated", field="trains")
+    check_count("n_trains", len(names), "--trains", repr(spec))
     trains = [load_train(n) for n in names]
     seen = set()
     for t in trains:
