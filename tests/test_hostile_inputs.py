@@ -58,6 +58,7 @@ CLASSES = {
     "signals": "SIGINT / SIGTERM during the work: error: interrupted, 130, no partial output",
     "damaged-input": "an MCAP cut short, with a damaged chunk, or without messages (no traceback, no empty output)",
     "bounded-work": "more speeds, lanes, trains, axles or train length than one run may take (field registry limits)",
+    "output-set": "an interrupt or a refused write while a command writes its outputs: none of the set appears",
 }
 
 
@@ -216,6 +217,39 @@ def _long_train(vehicles):
                         for k in range(0, vehicles, 100))
         _files(t, long__toml=TRAIN_TOML + "\n" + extra)
     return setup
+
+
+def _failing(module, name, entry, *args, exc="KeyboardInterrupt"):
+    """``entry``'s main with ``module.name`` (a writer of one output of the set) replaced by one
+    that writes half a file and then raises ``exc`` (``p``: the file it was given)."""
+    code = ("import importlib, sys\n"
+            f"m = importlib.import_module({module!r})\n"
+            "def failing(*a, **k):\n"
+            "    p = next((x for x in a if hasattr(x, 'write_bytes')), None)\n"
+            "    if p is not None:\n"
+            "        p.write_bytes(b'half a file')\n"
+            f"    raise {exc}\n"
+            f"setattr(m, {name!r}, failing)\n"
+            f"from {entry} import main\n"
+            "sys.exit(main(sys.argv[1:]))\n")
+    return lambda t: [PY, "-c", code] + [a.format(t=t) for a in args]
+
+
+NO_ROOM = "OSError(28, 'No space left on device', str(p))"
+
+
+def _fit_results(t, ctx):
+    """A study results file of 4 cases per frequency interval (ICE-2, mu2), on the paper's fit."""
+    import json
+
+    sys.path.insert(0, str(ROOT / "tests"))
+    from test_calib_study import _synthetic
+
+    from adm_calib.reference import lower_bound_table
+
+    recs, _ = _synthetic(lower_bound_table()["ICE-2"]["mu2"].coefficients, train="ICE-2", mf="mu2",
+                         per_interval=4, seed=0)
+    _files(t, r__jsonl="".join(json.dumps(r) + "\n" for r in recs))
 
 
 def _params(text):
@@ -382,6 +416,12 @@ CASES = [
          "--connect: host 'viewer.invalid' is not on this machine", ros=True),
     Case("launch-precheck", "crossing-empty-speeds", lambda t: CROSS + ["--out", f"{t}/o", "--speeds", ""],
          "--speeds: '' is empty", ros=True),
+    Case("launch-precheck", "calibrate-one-speed", lambda t: CALIB + ["--out", f"{t}/o", "--speeds", "300"],
+         "error: --speeds: '300': need at least 3 speeds (km/h), got 1", ros=True),
+    Case("launch-precheck", "calibrate-params-two-speeds",
+         lambda t: CALIB + ["--out", f"{t}/o", "--params-file", f"{t}/p.yaml"],
+         "calibration: speeds_kmh: '200,300': need at least 3 speeds (km/h), got 2", ros=True,
+         setup=_params('calibration:\n  ros__parameters:\n    speeds_kmh: "200,300"\n')),
     Case("launch-precheck", "calibrate-empty-train", lambda t: CALIB + ["--out", f"{t}/o", "--train", " "],
          "--train: '' is empty", ros=True),
     # --- ROS parameters at node start-up
@@ -444,6 +484,33 @@ CASES = [
          "speeds_kmh: '1:600:0.01' gives 59901 lanes; allowed at most 20000 lanes", ros=True),
     Case("bounded-work", "crossing-speeds", lambda t: CROSS + ["--out", f"{t}/o", "--speeds", "1:600:0.02"],
          "'1:600:0.02' gives 29951", ros=True),
+    # --- output sets: written beside, all renamed at the end, or none
+    Case("output-set", "calibrate-json-plot-interrupted-in-plot",
+         _failing("adm_calib.plots", "plot_calibration", "adm_calib.calib_commands", "calibrate", "--bridge", "B1",
+                  "--train", "ICE-2", "--speeds", "160:350:5", "--json", "{t}/c.json", "--plot", "{t}/c.png"),
+         "error: interrupted", code=130),
+    Case("output-set", "calibrate-json-plot-disk-full-in-plot",
+         _failing("adm_calib.plots", "plot_calibration", "adm_calib.calib_commands", "calibrate", "--bridge", "B1",
+                  "--train", "ICE-2", "--speeds", "160:350:5", "--json", "{t}/c.json", "--plot", "{t}/c.png",
+                  exc=NO_ROOM),
+         "error: --plot: '{t}/c.png': cannot write (No space left on device)", code=1),
+    Case("output-set", "sweep-json-plot-interrupted-in-plot",
+         _failing("adm_sim.sim_commands", "plot_sweep", "adm_sim.sim_commands", "sweep", "--speeds", "200:300:5",
+                  "--json", "{t}/r.json", "--plot", "{t}/r.png"),
+         "error: interrupted", code=130),
+    Case("output-set", "check-four-outputs-interrupted-in-report",
+         _failing("adm_sim.check_report", "write_report", "adm_sim.sim_commands", "check", "--max-line-speed",
+                  "160", "--trains", "HSLM-A1", "--json", "{t}/c.json", "--csv", "{t}/c.csv", "--plot",
+                  "{t}/c.png", "--report", "{t}/c.html"),
+         "error: interrupted", code=130),
+    Case("output-set", "table4-interrupted-in-figure",
+         _failing("adm_calib.plots", "plot_total_damping", "adm_calib.calib_commands", "table4", "--bridges", "B1",
+                  "--trains", "ICE-2", "--out", "{t}/t4"),
+         "error: interrupted", code=130, timeout_s=120),
+    Case("output-set", "study-fit-interrupted-in-figure",
+         _failing("adm_calib.plots", "plot_lower_bounds_train", "adm_calib.calib_commands", "study-fit",
+                  "--results", "{t}/r.jsonl", "--out", "{t}/fit"),
+         "error: interrupted", code=130, setup=_fit_results),
     Case("scheduler", "closed-port",
          lambda t: CAL + ["study", "--out", f"{t}/st", "--scheduler", "tcp://127.0.0.1:{port}"],
          "--scheduler: cannot connect to 'tcp://127.0.0.1:{port}'", setup=_closed_port),

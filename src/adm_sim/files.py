@@ -28,6 +28,11 @@ Outputs (:func:`claim_output`, :func:`write_atomic`)
        a file larger than ``ulimit -f``) is one :class:`~adm_sim.errors.RunError` naming the path,
        and leaves neither the temporary file nor the lock.
 
+Output sets (:class:`OutputSet`)
+    The outputs of one command (``--json`` and ``--plot``, a folder of tables and figures) are
+    written as a set: each beside its final name, all renamed at the end; a command that fails or
+    is interrupted before that leaves none of them (and no temporary file).
+
 Output folders (:func:`check_output_folder`, :func:`make_output_folder`, :func:`claim_folder`)
     A folder a run writes into (``adm-calib --out``, a launch's ``--out``) is checked before any
     work by the same rule: not an existing file; the folder, or while it does not exist its nearest
@@ -47,6 +52,7 @@ import errno
 import fcntl
 import os
 import re
+import signal
 import stat
 import tempfile
 import tomllib
@@ -55,7 +61,7 @@ from pathlib import Path
 from adm_sim.errors import InputError, RunError
 
 __all__ = ["check_output_folder", "claim_folder", "claim_output", "claimed", "input_file", "is_input", "lock_path",
-           "make_output_folder", "mcap_input", "probe_writable", "read_toml", "refuse_special", "release", "release_all",
+           "make_output_folder", "mcap_input", "OutputSet", "probe_writable", "read_toml", "refuse_special", "release", "release_all",
            "write_atomic"]
 
 #: Claims held by this process: resolved output path (or folder) -> (fd of the lock file, lock path).
@@ -336,6 +342,99 @@ def write_atomic(path, write, option="output"):
         except FileNotFoundError:
             pass
         release(p)
+
+
+class OutputSet:
+    """The outputs of one command written as a set: all or nothing.
+
+    Each :meth:`write` writes one output beside its final name (a temporary ``.<stem>.tmp-<pid>``
+    file, as :func:`write_atomic`); :meth:`commit` renames every one into place at the end, with
+    SIGINT and SIGTERM held back for the renames, then prints the notes (``wrote ...``). If the
+    command fails or is interrupted before the commit (an exception, ``KeyboardInterrupt``), every
+    temporary file is removed and no output of the set appears: an earlier file under a final name
+    keeps its content, a re-run finds nothing in its way. Used as a context manager::
+
+        with OutputSet() as outs:
+            outs.write(json_path, lambda p: p.write_text(text), "--json", note=f"wrote {json_path}")
+            outs.write(plot_path, plot, "--plot", note=f"wrote {plot_path}")
+        # both renamed here, or neither
+
+    A write the system refuses is one :class:`~adm_sim.errors.RunError` naming the output (as
+    :func:`write_atomic`). The paths should have been claimed with :func:`claim_output`; if not,
+    each is claimed here until the set ends.
+    """
+
+    def __init__(self):
+        self._staged = []   # (tmp, final path, option)
+        self._notes = []
+        self.written = []   # final paths, once committed
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, kind, exc, tb):
+        if kind is None:
+            self.commit()
+        else:
+            self.abort()
+        return False
+
+    def write(self, path, write, option="output", note=None):
+        """``write(tmp_path)`` beside ``path``; renamed by :meth:`commit`."""
+        p = Path(path)
+        if not claimed(p):
+            _lock(p, option, str(p))
+        tmp = p.with_name(f".{p.stem}.tmp-{os.getpid()}{p.suffix}")
+        self._staged.append((tmp, p, option))
+        try:
+            write(tmp)
+        except OSError as exc:
+            if exc.filename not in (None, str(tmp), str(p)):
+                raise
+            raise RunError(f"{option}: {str(p)!r}: cannot write ({exc.strerror or exc})") from None
+        except RuntimeError as exc:
+            code = re.search(r"\(os error (\d+)\)", str(exc))
+            if code is None:
+                raise
+            raise RunError(f"{option}: {str(p)!r}: cannot write ({os.strerror(int(code.group(1)))})") from None
+        if not tmp.exists():
+            raise RunError(f"{option}: {str(p)!r}: the writer wrote nothing")
+        if note is not None:
+            self._notes.append(note)
+        return p
+
+    def commit(self):
+        """Rename every written output into place (signals held back meanwhile), release the
+        claims, print the notes."""
+        held = {signal.SIGINT, signal.SIGTERM}
+        old = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+        try:
+            for tmp, p, option in self._staged:
+                try:
+                    os.replace(tmp, p)
+                except OSError as exc:
+                    raise RunError(f"{option}: {str(p)!r}: cannot write ({exc.strerror or exc})") from None
+                self.written.append(p)
+        finally:
+            if len(self.written) != len(self._staged):
+                self.abort()
+            signal.pthread_sigmask(signal.SIG_SETMASK, old)
+        self._release()
+        for note in self._notes:
+            print(note)
+
+    def abort(self):
+        """Remove every temporary file of the set and release the claims."""
+        for tmp, _, _ in self._staged:
+            try:
+                tmp.unlink()
+            except FileNotFoundError:
+                pass
+        self._release()
+
+    def _release(self):
+        for _, p, _ in self._staged:
+            release(p)
 
 
 # ---------------------------------------------------------------------- output folders

@@ -17,7 +17,7 @@ from adm_sim.cliutil import (Parser, add_choice, add_delta_zeta_pct, add_overwri
                              progress_callback)
 from adm_sim.errors import InputError
 from adm_sim.cliutil import run_cli
-from adm_sim.files import claim_output, mcap_input, write_atomic
+from adm_sim.files import OutputSet, claim_output, mcap_input
 from adm_sim.figures import plot_check, plot_sweep
 from adm_sim.limits import ACC_LIMITS_M_S2, TRACK_ALIASES, check_track_type
 
@@ -95,25 +95,25 @@ def cmd_sweep(args):
     ia, idisp = int(res.max_acc_m_s2.argmax()), int(res.max_disp_m.argmax())
     check_response(bridge.span_m, res.max_acc_m_s2[ia], res.max_disp_m[idisp],  # warnings, not refusals
                    f"sweep: at {res.speeds_kmh[ia]:g} km/h", f"sweep: at {res.speeds_kmh[idisp]:g} km/h")
-    if json_path is not None:
-        out = res.to_dict()
-        out["wall_time_s"] = wall
-        out["method"] = method
-        if backend is not None:
-            out["backend"] = backend
-        out["damping_model"] = bridge.damping_model
-        out["zeta_per_mode_pct"] = [100 * float(z) for z in zeta]
-        if env is not None:
-            out["where"] = where
-            out["x_acc_m"] = env.x_acc_m.tolist()
-            out["x_disp_m"] = env.x_disp_m.tolist()
-            out["max_disp_midspan_m"] = env.max_disp_midspan_m.tolist()
-            out["max_moment_Nm"] = env.max_moment_Nm.tolist()
-        write_atomic(json_path, lambda p: p.write_text(json.dumps(out, indent=1)))
-        print(f"wrote {args.json}")
-    if plot_path is not None:
-        write_atomic(plot_path, lambda p: plot_sweep(res, p, where=where))
-        print(f"wrote {args.plot}")
+    with OutputSet() as outs:  # --json and --plot: both or neither
+        if json_path is not None:
+            out = res.to_dict()
+            out["wall_time_s"] = wall
+            out["method"] = method
+            if backend is not None:
+                out["backend"] = backend
+            out["damping_model"] = bridge.damping_model
+            out["zeta_per_mode_pct"] = [100 * float(z) for z in zeta]
+            if env is not None:
+                out["where"] = where
+                out["x_acc_m"] = env.x_acc_m.tolist()
+                out["x_disp_m"] = env.x_disp_m.tolist()
+                out["max_disp_midspan_m"] = env.max_disp_midspan_m.tolist()
+                out["max_moment_Nm"] = env.max_moment_Nm.tolist()
+            outs.write(json_path, lambda p: p.write_text(json.dumps(out, indent=1)), "--json",
+                       note=f"wrote {args.json}")
+        if plot_path is not None:
+            outs.write(plot_path, lambda p: plot_sweep(res, p, where=where), "--plot", note=f"wrote {args.plot}")
     return 0
 
 
@@ -171,22 +171,20 @@ def cmd_check(args, damping_provider=None):
     _check_plausible(res)
     print(check_summary(res))
     print(f"{len(trains)} trains, {wall:.2f} s")
-    if "json" in outs:
-        d = res.to_dict()
-        d["wall_time_s"] = wall
-        write_atomic(outs["json"], lambda p: p.write_text(json.dumps(d, indent=1)))
-        print(f"wrote {args.json}")
-    if "csv" in outs:
-        write_atomic(outs["csv"], res.write_csv)
-        print(f"wrote {args.csv}")
-    if "plot" in outs:
-        write_atomic(outs["plot"], lambda p: plot_check(res, p))
-        print(f"wrote {args.plot}")
-    if "report" in outs:
-        from adm_sim.check_report import write_report
+    with OutputSet() as files:  # --json, --csv, --plot, --report: all or none
+        if "json" in outs:
+            d = res.to_dict()
+            d["wall_time_s"] = wall
+            files.write(outs["json"], lambda p: p.write_text(json.dumps(d, indent=1)), "--json",
+                        note=f"wrote {args.json}")
+        if "csv" in outs:
+            files.write(outs["csv"], res.write_csv, "--csv", note=f"wrote {args.csv}")
+        if "plot" in outs:
+            files.write(outs["plot"], lambda p: plot_check(res, p), "--plot", note=f"wrote {args.plot}")
+        if "report" in outs:
+            from adm_sim.check_report import write_report
 
-        write_atomic(outs["report"], lambda p: write_report(res, p))
-        print(f"wrote {args.report}")
+            files.write(outs["report"], lambda p: write_report(res, p), "--report", note=f"wrote {args.report}")
     return 0
 
 
