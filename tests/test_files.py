@@ -265,3 +265,39 @@ def test_study_fit_interrupted_at_a_figure_leaves_no_file_in_the_way(tmp_path, m
     monkeypatch.setattr(plots, "plot_lower_bounds_train", real)
     assert main(["study-fit", "--results", str(res), "--out", str(out)]) == 0
     assert (out / "lower_bounds_fit.csv").exists() and (out / "fig17_lower_bound_ICE-2.png").exists()
+
+
+# ---------------------------------------------------------------- text inputs and long names
+def test_text_input_with_bom_is_read_and_a_binary_file_is_one_line(tmp_path):
+    from adm_sim.bridge import resolve_bridge
+    from adm_sim.files import read_text
+
+    body = "L = 15\nn0 = 8.26\nmu = 19042\nzeta_pct = 1.85\n"
+    (tmp_path / "bom.toml").write_bytes(b"\xef\xbb\xbf" + body.encode())
+    b = resolve_bridge(str(tmp_path / "bom.toml"))
+    assert b.span_m == 15.0 and b.damping_ratio == pytest.approx(0.0185, rel=1e-12)
+    (tmp_path / "bin.toml").write_bytes(b"L = 15\n\xff\xfe")
+    with pytest.raises(InputError, match=r"bridge file '.*bin\.toml': not UTF-8 text \(byte 0xff at offset 7\)"):
+        resolve_bridge(str(tmp_path / "bin.toml"))
+    assert read_text(tmp_path / "bom.toml", "x") == body
+
+
+def test_existing_file_with_equals_in_its_name_is_a_file_not_a_spec(tmp_path, monkeypatch):
+    from adm_sim.bridge import resolve_bridge
+
+    monkeypatch.chdir(tmp_path)
+    Path("L=15.toml").write_text("L = 20\nn0 = 6\nmu = 15000\nzeta_pct = 2\n")
+    assert resolve_bridge("L=15.toml").span_m == 20.0     # the file, not the spec L=15
+    assert resolve_bridge("L=15,n0=8.26,mu=19042,zeta_pct=1.85").span_m == 15.0
+
+
+def test_path_component_over_255_bytes_is_refused_naming_the_option(tmp_path):
+    from adm_sim.files import check_path
+
+    assert check_path(f"{tmp_path}/{'a' * 255}.json"[:-5], "--json")
+    for text in (f"{tmp_path}/{'a' * 256}", f"{tmp_path}/{'é' * 128}/x"):  # 256 bytes each
+        with pytest.raises(InputError, match=r"--json: a path component \('.{24}\.\.\.'\) is 256 bytes long; "
+                                             r"allowed at most 255"):
+            claim_output(text, "--json")
+    with pytest.raises(InputError, match="--out: a path component"):
+        check_output_folder(f"{tmp_path}/{'b' * 300}", "--out")

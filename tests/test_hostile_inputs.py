@@ -59,6 +59,8 @@ CLASSES = {
     "damaged-input": "an MCAP cut short, with a damaged chunk, or without messages (no traceback, no empty output)",
     "bounded-work": "more speeds, lanes, trains, axles or train length than one run may take (field registry limits)",
     "output-set": "an interrupt or a refused write while a command writes its outputs: none of the set appears",
+    "odd-input": "binary text files, names over 255 bytes, a bad NUMBA_NUM_THREADS, a BOM, '=' in a file name, "
+                 "zero damping, --comfort without vehicles",
 }
 
 
@@ -73,6 +75,7 @@ class Case:
     ros: bool = False       # needs a ROS environment (a node or a launcher)
     timeout_s: float = 60.0
     ctx: dict = field(default_factory=dict)
+    env: dict = field(default_factory=dict)  # environment variables set for the case
 
 
 # ---------------------------------------------------------------------- set-up helpers
@@ -250,6 +253,11 @@ def _fit_results(t, ctx):
     recs, _ = _synthetic(lower_bound_table()["ICE-2"]["mu2"].coefficients, train="ICE-2", mf="mu2",
                          per_interval=4, seed=0)
     _files(t, r__jsonl="".join(json.dumps(r) + "\n" for r in recs))
+
+
+LONG = "a" * 300  # one file name of 300 bytes (the system allows 255)
+BINARY = bytes(range(256)) * 4
+BOM = b"\xef\xbb\xbf"
 
 
 def _params(text):
@@ -511,6 +519,39 @@ CASES = [
          _failing("adm_calib.plots", "plot_lower_bounds_train", "adm_calib.calib_commands", "study-fit",
                   "--results", "{t}/r.jsonl", "--out", "{t}/fit"),
          "error: interrupted", code=130, setup=_fit_results),
+    # --- odd inputs: one line, exit 2
+    Case("odd-input", "node-params-binary",
+         lambda t: [PY, "-m", "adm_sim.nodes.train_node", "--ros-args", "--params-file", f"{t}/p.yaml"],
+         "--params-file '{t}/p.yaml': not UTF-8 text (byte 0x80 at offset 128)", ros=True,
+         setup=lambda t, ctx: _files(t, p__yaml=BINARY)),
+    Case("odd-input", "crossing-params-binary",
+         lambda t: CROSS + ["--out", f"{t}/o", "--params-file", f"{t}/p.yaml"],
+         "not UTF-8 text (byte 0x80 at offset 128)", ros=True, setup=lambda t, ctx: _files(t, p__yaml=BINARY)),
+    Case("odd-input", "train-file-binary", lambda t: SIM + ["sweep", "--train", f"{t}/t.toml"],
+         "train file '{t}/t.toml': not UTF-8 text (byte 0x80 at offset 128)",
+         setup=lambda t, ctx: _files(t, t__toml=BINARY)),
+    Case("odd-input", "sweep-json-name-300-bytes", lambda t: SIM + ["sweep", "--json", f"{t}/{LONG}.json"],
+         "error: --json: a path component ('aaaaaaaaaaaaaaaaaaaaaaaa...') is 305 bytes long; allowed at most 255"),
+    Case("odd-input", "calibrate-bridge-name-300-bytes",
+         lambda t: CAL + ["calibrate", "--bridge", f"{t}/{LONG}.toml", "--train", "ICE-2"],
+         "is 305 bytes long; allowed at most 255 bytes per file or folder name"),
+    Case("odd-input", "crossing-out-name-300-bytes", lambda t: CROSS + ["--out", f"{t}/{LONG}"],
+         "error: --out: a path component ('aaaaaaaaaaaaaaaaaaaaaaaa...') is 300 bytes long", ros=True),
+    Case("odd-input", "numba-threads-0", lambda t: SIM + ["sweep", "--json", f"{t}/r.json"],
+         "error: NUMBA_NUM_THREADS: '0' is not allowed; allowed an integer >= 1", env={"NUMBA_NUM_THREADS": "0"}),
+    Case("odd-input", "numba-threads-text", lambda t: CAL + ["calibrate", "--bridge", "B1", "--train", "ICE-2"],
+         "error: NUMBA_NUM_THREADS: 'all' is not allowed", env={"NUMBA_NUM_THREADS": "all"}),
+    Case("odd-input", "bridge-file-named-with-equals", lambda t: SIM + ["sweep", "--bridge", "L=15.toml"],
+         "error: bridge file L=15.toml.L: 200 m is out of range; allowed [1, 150] m",
+         setup=lambda t, ctx: _files(t, **{"L=15__toml": BRIDGE_TOML.replace("L = 15", "L = 200")})),
+    Case("odd-input", "bridge-file-with-bom", lambda t: SIM + ["sweep", "--bridge", f"{t}/b.toml"],
+         "L: 200 m is out of range; allowed [1, 150] m",
+         setup=lambda t, ctx: _files(t, b__toml=BOM + BRIDGE_TOML.replace("L = 15", "L = 200").encode())),
+    Case("odd-input", "spec-zeta-pct-0", lambda t: SIM + ["sweep", "--bridge", "L=15,n0=8.26,mu=19042,zeta_pct=0"],
+         "error: --bridge: 'L=15,n0=8.26,mu=19042,zeta_pct=0' has zeta_pct = 0 %"),
+    Case("odd-input", "check-comfort-hslm-only",
+         lambda t: SIM + ["check", "--max-line-speed", "200", "--comfort", "--json", f"{t}/c.json"],
+         "error: --comfort: the trains checked (HSLM-A1, HSLM-A2"),
     Case("scheduler", "closed-port",
          lambda t: CAL + ["study", "--out", f"{t}/st", "--scheduler", "tcp://127.0.0.1:{port}"],
          "--scheduler: cannot connect to 'tcp://127.0.0.1:{port}'", setup=_closed_port),
@@ -606,7 +647,7 @@ def test_refused_cleanly(case, tmp_path, ros_env):
         marker = uuid.uuid4().hex
         base = ros_env if case.ros else os.environ
         r = subprocess.run(argv, capture_output=True, text=True, timeout=case.timeout_s, cwd=t,
-                           env=_env(base, marker), stdin=subprocess.DEVNULL)
+                           env=_env(base, marker) | case.env, stdin=subprocess.DEVNULL)
         left = marked_processes(marker)
         after = snapshot(t)
     finally:

@@ -474,6 +474,7 @@ def cmd_check_calib(args):
 def build_parser():
     p = Parser(prog="adm-calib", description="Additional-damping calibration (MLM vs DIM) and comparison "
                                                "with the Eurocode ADM, EADA and the lower-bound functions.")
+    p.add_version()
     sub = p.add_subparsers(dest="command", required=True)
 
     def common(sp):

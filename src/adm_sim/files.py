@@ -4,7 +4,9 @@ Inputs (:func:`input_file`, :func:`read_toml`)
     A file read by a run must be a regular file: a folder, a named pipe (whose ``open`` for
     reading blocks until a writer appears), a socket or a device is refused with one line
     before it is opened. An MCAP input (:func:`mcap_input`) must also start with the MCAP magic bytes;
-    a TOML input (bridge and train files) must parse.
+    a TOML input (bridge and train files) must parse. A text input (:func:`read_text`: TOML files,
+    params YAML files) must be UTF-8; a UTF-8 byte order mark at its start is accepted and dropped.
+    A path with a component longer than 255 bytes is refused naming the option (:func:`check_path`).
 
 Outputs (:func:`claim_output`, :func:`write_atomic`)
     A file written by a run is checked before any work, by one function:
@@ -60,7 +62,7 @@ from pathlib import Path
 
 from adm_sim.errors import InputError, RunError
 
-__all__ = ["check_output_folder", "claim_folder", "claim_output", "claimed", "input_file", "is_input", "lock_path",
+__all__ = ["check_path", "read_text", "check_output_folder", "claim_folder", "claim_output", "claimed", "input_file", "is_input", "lock_path",
            "make_output_folder", "mcap_input", "OutputSet", "probe_writable", "read_toml", "refuse_special", "release", "release_all",
            "write_atomic"]
 
@@ -95,6 +97,38 @@ def refuse_special(path, where):
         raise InputError(f"{where}: is {_kind(st.st_mode)}, not a regular file")
 
 
+#: Longest name of one path component (bytes), the NAME_MAX of Linux file systems.
+NAME_MAX_BYTES = 255
+
+
+def check_path(text, option):
+    """``text`` unless a component of the path is longer than :data:`NAME_MAX_BYTES` (the system
+    would refuse it with ``File name too long``); one line naming ``option`` otherwise."""
+    for part in Path(str(text)).parts:
+        n = len(os.fsencode(part))
+        if n > NAME_MAX_BYTES:
+            shown = part if len(part) <= 24 else part[:24] + "..."
+            raise InputError(f"{option}: a path component ({shown!r}) is {n} bytes long; allowed at most "
+                             f"{NAME_MAX_BYTES} bytes per file or folder name", field=option)
+    return text
+
+
+def read_text(path, what):
+    """The text of input file ``path`` (UTF-8; a UTF-8 byte order mark at its start is accepted
+    and dropped); :class:`InputError` naming ``what`` and the path when it cannot be read or is
+    not UTF-8 text (a binary file)."""
+    p = Path(path)
+    try:
+        data = p.read_bytes()
+    except OSError as exc:
+        raise InputError(f"{what} {str(p)!r}: cannot read ({exc.strerror})") from None
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{what} {str(p)!r}: not UTF-8 text (byte 0x{data[exc.start]:02x} at offset "
+                         f"{exc.start}); give a text file") from None
+
+
 def input_file(text, option, what="file"):
     """``Path(text)`` if it names an existing regular file (symlinks followed); else one line.
 
@@ -102,6 +136,7 @@ def input_file(text, option, what="file"):
     """
     if text is None or not str(text).strip():
         raise InputError(f"{option}: '' is empty; give a {what}")
+    check_path(text, option)
     p = Path(text)
     try:
         st = p.stat()
@@ -139,11 +174,10 @@ def read_toml(path, what):
     """
     p = Path(path)
     refuse_special(p, f"{what} {str(p)!r}")
+    text = read_text(p, what)
     try:
-        return tomllib.loads(p.read_text())
-    except OSError as exc:
-        raise InputError(f"{what} {str(p)!r}: cannot read ({exc.strerror})") from None
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
         raise InputError(f"{what} {str(p)!r}: not valid TOML ({exc})") from None
 
 
@@ -209,6 +243,7 @@ def claim_output(text, option, overwrite=False, suffix=None, inputs=None,
     if text is None or not str(text).strip():
         raise InputError(f"{option}: '' is empty; give a file name")
     text = str(text)
+    check_path(text, option)
     p = Path(text)
     if suffix and p.suffix.lower() != suffix:
         raise InputError(f"{option}: {text!r} must end in {suffix}")
@@ -446,6 +481,7 @@ def check_output_folder(text, option, names=(), inputs=None):
     """
     if text is None or not str(text).strip():
         raise InputError(f"{option}: '' is empty; give a directory")
+    check_path(text, option)
     out = Path(text)
     if out.exists() and not out.is_dir():
         raise InputError(f"{option}: {str(out)!r} is not a directory")

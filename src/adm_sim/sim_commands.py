@@ -52,6 +52,9 @@ def cmd_sweep(args):
     if where != "midspan" and method != "exact":
         raise InputError(f"--where: {args.where!r} needs the exact MLM envelope (--model mlm --method exact); the RK4 "
                          f"runs record midspan only (allowed --where midspan)")
+    if method == "exact" and bridge.damping_ratio + dz <= 0.0 and dz == 0.0:  # the bridge's own damping is 0
+        raise InputError(f"--bridge: {args.bridge!r} has zeta_pct = 0 % (damping ratio zeta); the exact MLM envelope "
+                         f"needs damping > 0 % (give zeta_pct > 0 in the bridge, --delta-zeta-pct > 0, or --method rk4)")
     if method == "exact" and bridge.damping_ratio + dz <= 0.0:
         raise InputError(f"--delta-zeta-pct: zeta + delta_zeta = {100 * (bridge.damping_ratio + dz):g} %; the exact "
                          f"MLM envelope needs damping > 0 % (allowed > {-100 * bridge.damping_ratio:g} %, or --method rk4)")
@@ -144,6 +147,10 @@ def cmd_check(args, damping_provider=None):
     if args.damping_model is not None and args.damping_model not in DAMPING_MODELS:
         raise InputError(f"--damping-model: {args.damping_model!r} is not allowed; allowed {', '.join(DAMPING_MODELS)}")
     trains = resolve_trains(args.trains)
+    if args.comfort and not any(t.units for t in trains):  # comfort is computed for trains with vehicles only
+        raise InputError(f"--comfort: the trains checked ({', '.join(t.name for t in trains)}) are load models "
+                         f"without vehicles; passenger comfort b_v needs the DIM of a real train (add ICE-2, "
+                         f"Eurostar, Railjet, ICE-4 or a .toml train to --trains) or omit --comfort")
     if args.lateral_frequency is not None:
         from adm_sim.check_sls import check_lateral_frequency
 
@@ -344,6 +351,7 @@ def add_check_arguments(c):
 
 def build_parser():
     p = Parser(prog="adm-sim", description=__doc__.splitlines()[0], name_prog=True)
+    p.add_version()
     sub = p.add_subparsers(dest="cmd", required=True)
 
     s = sub.add_parser("sweep", help="max midspan acceleration over a speed range")

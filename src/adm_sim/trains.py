@@ -46,7 +46,7 @@ from pathlib import Path
 import numpy as np
 
 from adm_sim.errors import InputError
-from adm_sim.files import read_toml
+from adm_sim.files import check_path, read_toml
 from adm_sim.fields import VEHICLE_FIELDS, VEHICLE_OPTIONAL, check_count
 from adm_sim.fields import view as field_view
 from adm_sim.hslm import hslm_axles, hslm_name
@@ -229,7 +229,7 @@ def load_train(name_or_path):
     if key in _FILES:
         data = tomllib.loads(resources.files("adm_sim").joinpath("data/trains", _FILES[key]).read_text())
         return train_from_mapping(data, source=_FILES[key])
-    p = Path(text)
+    p = Path(check_path(text, "train"))
     if p.suffix == ".toml" or p.is_file():
         train = train_from_mapping(read_toml(p, "train file"), source=p.name)
         check_plausible(train, source=f"train file {p.name}")  # warnings, not refusals
