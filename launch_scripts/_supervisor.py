@@ -48,6 +48,8 @@ def preflight(args, default_out, dim=False, model=None):
     if args.out is not None and not args.out.strip():
         raise InputError("--out: '' is empty; give a folder or omit --out")
     check_inputs(args.bridge, args.train, args.speeds, args.params_file, model=model, dim=dim)
+    if dim and args.speeds is not None:  # a calibration: the speeds the calibration node will refuse
+        check_calibration_speeds(args.speeds, "--speeds")
     out = Path(args.out) if args.out else default_out
     check_out(out, {"--params-file": args.params_file, "--bridge": args.bridge, "--train": args.train})
     env = local_ros_env(domain_id)  # reserved before the folder exists
@@ -57,6 +59,20 @@ def preflight(args, default_out, dim=False, model=None):
         env.release()
         raise
     return out, env, created, old
+
+
+def check_calibration_speeds(text, option):
+    """The speeds of a calibration, refused as ``adm-calib calibrate`` refuses them (a speed list
+    of at least 3 speeds, each valid): one line naming ``option``."""
+    from adm_calib.calibration_options import check_speeds
+    from adm_sim.errors import InputError
+    from adm_sim.sweep import parse_speeds
+
+    v = parse_speeds(text, field=option)
+    try:
+        return check_speeds(v)
+    except InputError as exc:
+        raise InputError(f"{option}: {text!r}: {str(exc).removeprefix('speeds: ')}", field=option) from None
 
 
 def launch_param_specs():
@@ -84,7 +100,7 @@ def launch_param_specs():
         ("bridge", "bridge"): resolve_bridge,
         ("train", "train"): load_train,
         ("train", "speeds_kmh"): lambda v: parse_speeds(v, ordered=False, field="speeds_kmh"),
-        ("calibration", "speeds_kmh"): lambda v: parse_speeds(v, field="speeds_kmh"),
+        ("calibration", "speeds_kmh"): lambda v: check_calibration_speeds(v, "speeds_kmh"),
     }
     return specs, checks
 

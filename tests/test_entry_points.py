@@ -196,3 +196,23 @@ def test_sigterm_mid_run_is_one_line_and_exit_130(entry, folder, ros_env):
     assert line.startswith("error: interrupted"), line
     assert _strays(out) == []
     assert list(out.iterdir()) == []  # no partial output; a launch removes the folder it created
+
+
+@pytest.mark.parametrize("argv,prog", [(SIM, "adm-sim"), (CAL, "adm-calib")], ids=["adm-sim", "adm-calib"])
+def test_version_prints_the_one_version_number(argv, prog):
+    from adm_sim import __version__
+
+    r = subprocess.run(argv + ["--version"], capture_output=True, text=True, timeout=60,
+                       env=dict(os.environ, PYTHONPATH=str(ROOT / "src")))
+    assert (r.returncode, r.stdout, r.stderr) == (0, f"{prog} {__version__}\n", "")
+
+
+def test_environment_check_numba_threads():
+    from adm_sim.cliutil import check_environment
+    from adm_sim.errors import InputError
+
+    for good in ({}, {"NUMBA_NUM_THREADS": "1"}, {"NUMBA_NUM_THREADS": " 4 "}):
+        check_environment(good)
+    for bad in ("0", "-2", "", "1.5", "all"):
+        with pytest.raises(InputError, match=f"NUMBA_NUM_THREADS: '{bad}' is not allowed; allowed an integer >= 1"):
+            check_environment({"NUMBA_NUM_THREADS": bad})

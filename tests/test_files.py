@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from adm_sim.errors import InputError, RunError
-from adm_sim.files import (check_output_folder, claim_folder, claim_output, claimed, input_file, lock_path,
+from adm_sim.files import (OutputSet, check_output_folder, claim_folder, claim_output, claimed, input_file, lock_path,
                            make_output_folder, release, release_all, write_atomic)
 
 HOLD = ("import sys, time\nfrom adm_sim.files import claim_output\nclaim_output(sys.argv[1], 'x', True)\n"
@@ -170,3 +170,134 @@ def test_output_folder_rule(tmp_path):
     assert claim_folder(old, "--out", ["run.mcap"], overwrite=True) == ["run.mcap"]
     release_all()
     assert sorted(p.name for p in old.iterdir()) == ["run.mcap"]
+
+
+# ---------------------------------------------------------------- output sets: all or nothing
+def test_output_set_interrupted_leaves_none_and_keeps_earlier_files(tmp_path, capsys):
+    a, b = tmp_path / "a.json", tmp_path / "b.png"
+    b.write_text("earlier")
+    for p in (a, b):
+        claim_output(p, "--x", overwrite=True)
+
+    def interrupted(p):
+        p.write_text("half")
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        with OutputSet() as outs:
+            outs.write(a, lambda p: p.write_text("{}"), "--json", note="wrote a")
+            outs.write(b, interrupted, "--plot", note="wrote b")
+    assert sorted(x.name for x in tmp_path.iterdir()) == ["b.png"]  # no a.json, no tmp, no lock
+    assert b.read_text() == "earlier"
+    assert not claimed(a) and not claimed(b)
+    assert capsys.readouterr().out == ""
+
+
+def test_output_set_renames_every_output_at_the_end_then_prints(tmp_path, capsys):
+    a, b = tmp_path / "a.json", tmp_path / "b.txt"
+    with OutputSet() as outs:
+        outs.write(a, lambda p: p.write_text("1"), "--json", note="wrote a")
+        outs.write(b, lambda p: p.write_text("2"), "--csv", note="wrote b")
+        assert not a.exists() and not b.exists()  # nothing under a final name before the end
+        assert capsys.readouterr().out == ""
+    assert (a.read_text(), b.read_text()) == ("1", "2")
+    assert outs.written == [a, b]
+    assert capsys.readouterr().out == "wrote a\nwrote b\n"
+    assert sorted(x.name for x in tmp_path.iterdir()) == ["a.json", "b.txt"]
+
+
+def test_output_set_write_refused_by_the_system_is_one_run_error(tmp_path):
+    a, b = tmp_path / "a.json", tmp_path / "b.txt"
+
+    def full(p):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(p))
+
+    with pytest.raises(RunError, match=r"--csv: '.*b\.txt': cannot write \(No space left on device\)"):
+        with OutputSet() as outs:
+            outs.write(a, lambda p: p.write_text("1"), "--json")
+            outs.write(b, full, "--csv")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_calibrate_json_and_plot_interrupted_while_plotting_leave_neither(tmp_path, monkeypatch, capsys):
+    """adm-calib calibrate --json --plot: an interrupt in the plot leaves no JSON either (exit 130)."""
+    from adm_calib import plots
+    from adm_calib.calib_commands import main
+
+    def interrupted(res, p):
+        p.write_bytes(b"\x89PNG half")
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(plots, "plot_calibration", interrupted)
+    argv = ["calibrate", "--bridge", "B1", "--train", "ICE-2", "--speeds", "160:350:5",
+            "--json", str(tmp_path / "c.json"), "--plot", str(tmp_path / "c.png")]
+    assert main(argv) == 130
+    assert capsys.readouterr().err.strip() == "error: interrupted"
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_study_fit_interrupted_at_a_figure_leaves_no_file_in_the_way(tmp_path, monkeypatch, capsys):
+    """study-fit interrupted at its last figures: no file of the fit (the re-run is not blocked) and
+    the folder it created is gone; the re-run then writes every file."""
+    import json
+
+    from adm_calib import plots
+    from adm_calib.calib_commands import main
+    from adm_calib.reference import lower_bound_table
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    from test_calib_study import _synthetic
+
+    lbs = lower_bound_table()
+    recs, _ = _synthetic(lbs["ICE-2"]["mu2"].coefficients, train="ICE-2", mf="mu2", per_interval=4, seed=0)
+    res = tmp_path / "results.jsonl"
+    res.write_text("".join(json.dumps(r) + "\n" for r in recs))
+    out = tmp_path / "fit"
+    real = plots.plot_lower_bounds_train
+
+    def interrupted(*a, **k):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(plots, "plot_lower_bounds_train", interrupted)
+    assert main(["study-fit", "--results", str(res), "--out", str(out)]) == 130
+    assert capsys.readouterr().err.strip() == "error: interrupted"
+    assert sorted(x.name for x in tmp_path.iterdir()) == ["results.jsonl"]
+    monkeypatch.setattr(plots, "plot_lower_bounds_train", real)
+    assert main(["study-fit", "--results", str(res), "--out", str(out)]) == 0
+    assert (out / "lower_bounds_fit.csv").exists() and (out / "fig17_lower_bound_ICE-2.png").exists()
+
+
+# ---------------------------------------------------------------- text inputs and long names
+def test_text_input_with_bom_is_read_and_a_binary_file_is_one_line(tmp_path):
+    from adm_sim.bridge import resolve_bridge
+    from adm_sim.files import read_text
+
+    body = "L = 15\nn0 = 8.26\nmu = 19042\nzeta_pct = 1.85\n"
+    (tmp_path / "bom.toml").write_bytes(b"\xef\xbb\xbf" + body.encode())
+    b = resolve_bridge(str(tmp_path / "bom.toml"))
+    assert b.span_m == 15.0 and b.damping_ratio == pytest.approx(0.0185, rel=1e-12)
+    (tmp_path / "bin.toml").write_bytes(b"L = 15\n\xff\xfe")
+    with pytest.raises(InputError, match=r"bridge file '.*bin\.toml': not UTF-8 text \(byte 0xff at offset 7\)"):
+        resolve_bridge(str(tmp_path / "bin.toml"))
+    assert read_text(tmp_path / "bom.toml", "x") == body
+
+
+def test_existing_file_with_equals_in_its_name_is_a_file_not_a_spec(tmp_path, monkeypatch):
+    from adm_sim.bridge import resolve_bridge
+
+    monkeypatch.chdir(tmp_path)
+    Path("L=15.toml").write_text("L = 20\nn0 = 6\nmu = 15000\nzeta_pct = 2\n")
+    assert resolve_bridge("L=15.toml").span_m == 20.0     # the file, not the spec L=15
+    assert resolve_bridge("L=15,n0=8.26,mu=19042,zeta_pct=1.85").span_m == 15.0
+
+
+def test_path_component_over_255_bytes_is_refused_naming_the_option(tmp_path):
+    from adm_sim.files import check_path
+
+    assert check_path(f"{tmp_path}/{'a' * 255}.json"[:-5], "--json")
+    for text in (f"{tmp_path}/{'a' * 256}", f"{tmp_path}/{'é' * 128}/x"):  # 256 bytes each
+        with pytest.raises(InputError, match=r"--json: a path component \('.{24}\.\.\.'\) is 256 bytes long; "
+                                             r"allowed at most 255"):
+            claim_output(text, "--json")
+    with pytest.raises(InputError, match="--out: a path component"):
+        check_output_folder(f"{tmp_path}/{'b' * 300}", "--out")

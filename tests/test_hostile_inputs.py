@@ -57,6 +57,10 @@ CLASSES = {
     "scheduler": "study --scheduler at a closed port, a silent or a foreign server (loopback only)",
     "signals": "SIGINT / SIGTERM during the work: error: interrupted, 130, no partial output",
     "damaged-input": "an MCAP cut short, with a damaged chunk, or without messages (no traceback, no empty output)",
+    "bounded-work": "more speeds, lanes, trains, axles or train length than one run may take (field registry limits)",
+    "output-set": "an interrupt or a refused write while a command writes its outputs: none of the set appears",
+    "odd-input": "binary text files, names over 255 bytes, a bad NUMBA_NUM_THREADS, a BOM, '=' in a file name, "
+                 "zero damping, --comfort without vehicles",
 }
 
 
@@ -71,6 +75,7 @@ class Case:
     ros: bool = False       # needs a ROS environment (a node or a launcher)
     timeout_s: float = 60.0
     ctx: dict = field(default_factory=dict)
+    env: dict = field(default_factory=dict)  # environment variables set for the case
 
 
 # ---------------------------------------------------------------------- set-up helpers
@@ -206,6 +211,53 @@ def _make_ro(t, ctx):
     if os.geteuid() != 0:
         (t / "ro").mkdir()
         (t / "ro").chmod(0o555)
+
+
+def _long_train(vehicles):
+    """The example train with ``vehicles`` more coaches (100 per composition entry)."""
+    def setup(t, ctx):
+        extra = "".join(f'[[composition]]\nvehicle = "Coach"\ncount = {min(100, vehicles - k)}\n'
+                        for k in range(0, vehicles, 100))
+        _files(t, long__toml=TRAIN_TOML + "\n" + extra)
+    return setup
+
+
+def _failing(module, name, entry, *args, exc="KeyboardInterrupt"):
+    """``entry``'s main with ``module.name`` (a writer of one output of the set) replaced by one
+    that writes half a file and then raises ``exc`` (``p``: the file it was given)."""
+    code = ("import importlib, sys\n"
+            f"m = importlib.import_module({module!r})\n"
+            "def failing(*a, **k):\n"
+            "    p = next((x for x in a if hasattr(x, 'write_bytes')), None)\n"
+            "    if p is not None:\n"
+            "        p.write_bytes(b'half a file')\n"
+            f"    raise {exc}\n"
+            f"setattr(m, {name!r}, failing)\n"
+            f"from {entry} import main\n"
+            "sys.exit(main(sys.argv[1:]))\n")
+    return lambda t: [PY, "-c", code] + [a.format(t=t) for a in args]
+
+
+NO_ROOM = "OSError(28, 'No space left on device', str(p))"
+
+
+def _fit_results(t, ctx):
+    """A study results file of 4 cases per frequency interval (ICE-2, mu2), on the paper's fit."""
+    import json
+
+    sys.path.insert(0, str(ROOT / "tests"))
+    from test_calib_study import _synthetic
+
+    from adm_calib.reference import lower_bound_table
+
+    recs, _ = _synthetic(lower_bound_table()["ICE-2"]["mu2"].coefficients, train="ICE-2", mf="mu2",
+                         per_interval=4, seed=0)
+    _files(t, r__jsonl="".join(json.dumps(r) + "\n" for r in recs))
+
+
+LONG = "a" * 300  # one file name of 300 bytes (the system allows 255)
+BINARY = bytes(range(256)) * 4
+BOM = b"\xef\xbb\xbf"
 
 
 def _params(text):
@@ -372,6 +424,12 @@ CASES = [
          "--connect: host 'viewer.invalid' is not on this machine", ros=True),
     Case("launch-precheck", "crossing-empty-speeds", lambda t: CROSS + ["--out", f"{t}/o", "--speeds", ""],
          "--speeds: '' is empty", ros=True),
+    Case("launch-precheck", "calibrate-one-speed", lambda t: CALIB + ["--out", f"{t}/o", "--speeds", "300"],
+         "error: --speeds: '300': need at least 3 speeds (km/h), got 1", ros=True),
+    Case("launch-precheck", "calibrate-params-two-speeds",
+         lambda t: CALIB + ["--out", f"{t}/o", "--params-file", f"{t}/p.yaml"],
+         "calibration: speeds_kmh: '200,300': need at least 3 speeds (km/h), got 2", ros=True,
+         setup=_params('calibration:\n  ros__parameters:\n    speeds_kmh: "200,300"\n')),
     Case("launch-precheck", "calibrate-empty-train", lambda t: CALIB + ["--out", f"{t}/o", "--train", " "],
          "--train: '' is empty", ros=True),
     # --- ROS parameters at node start-up
@@ -410,6 +468,90 @@ CASES = [
          "RUN.mcap: '{t}/run.mcap' holds no message; nothing to replay", setup=_recording("empty")),
     Case("damaged-input", "salvage-empty", lambda t: SIM + ["salvage", f"{t}/run.mcap", f"{t}/s.mcap"],
          "holds no complete message to recover", setup=_recording("empty")),
+    # --- bounded work: the limits of the field registry, refused before any array is allocated
+    Case("bounded-work", "check-speed-step-1e-4",
+         lambda t: SIM + ["check", "--max-line-speed", "300", "--speed-step", "1e-4", "--json", f"{t}/c.json"],
+         "error: --speed-step: 0.0001 km/h from 144 to 360 km/h gives 2160001 speeds; allowed at most 20000 speeds"),
+    Case("bounded-work", "sweep-speeds-60k",
+         lambda t: SIM + ["sweep", "--speeds", "1:600:0.01", "--json", f"{t}/r.json"],
+         "'1:600:0.01' gives 59901 speeds; allowed at most 20000 speeds"),
+    Case("bounded-work", "calibrate-speeds-30k",
+         lambda t: CAL + ["calibrate", "--bridge", "B1", "--train", "ICE-2", "--speeds", "1:600:0.02", "--json", f"{t}/c.json"],
+         "'1:600:0.02' gives 29951 speeds; allowed at most 20000 speeds"),
+    Case("bounded-work", "check-trains-50",
+         lambda t: SIM + ["check", "--max-line-speed", "300", "--trains", "hslm,hslm,hslm,hslm,hslm"],
+         "error: --trains: 'hslm,hslm,hslm,hslm,hslm' gives 50 trains; allowed at most 40 trains"),
+    Case("bounded-work", "sweep-train-10000-vehicles",
+         lambda t: SIM + ["sweep", "--train", f"{t}/long.toml", "--json", f"{t}/r.json"],
+         "long.toml: composition: 10010 units gives 40040 axles; allowed at most 400 axles", setup=_long_train(10000)),
+    Case("bounded-work", "check-train-1300-m",
+         lambda t: SIM + ["check", "--max-line-speed", "200", "--trains", f"{t}/long.toml"],
+         "long.toml: composition: 50 units, 200 axles gives 1282.75 m; allowed at most 1000 m",
+         setup=_long_train(40)),
+    Case("bounded-work", "train-node-lanes", node("adm_sim.nodes.train_node", "speeds_kmh:=1:600:0.01"),
+         "speeds_kmh: '1:600:0.01' gives 59901 lanes; allowed at most 20000 lanes", ros=True),
+    Case("bounded-work", "crossing-speeds", lambda t: CROSS + ["--out", f"{t}/o", "--speeds", "1:600:0.02"],
+         "'1:600:0.02' gives 29951", ros=True),
+    # --- output sets: written beside, all renamed at the end, or none
+    Case("output-set", "calibrate-json-plot-interrupted-in-plot",
+         _failing("adm_calib.plots", "plot_calibration", "adm_calib.calib_commands", "calibrate", "--bridge", "B1",
+                  "--train", "ICE-2", "--speeds", "160:350:5", "--json", "{t}/c.json", "--plot", "{t}/c.png"),
+         "error: interrupted", code=130),
+    Case("output-set", "calibrate-json-plot-disk-full-in-plot",
+         _failing("adm_calib.plots", "plot_calibration", "adm_calib.calib_commands", "calibrate", "--bridge", "B1",
+                  "--train", "ICE-2", "--speeds", "160:350:5", "--json", "{t}/c.json", "--plot", "{t}/c.png",
+                  exc=NO_ROOM),
+         "error: --plot: '{t}/c.png': cannot write (No space left on device)", code=1),
+    Case("output-set", "sweep-json-plot-interrupted-in-plot",
+         _failing("adm_sim.sim_commands", "plot_sweep", "adm_sim.sim_commands", "sweep", "--speeds", "200:300:5",
+                  "--json", "{t}/r.json", "--plot", "{t}/r.png"),
+         "error: interrupted", code=130),
+    Case("output-set", "check-four-outputs-interrupted-in-report",
+         _failing("adm_sim.check_report", "write_report", "adm_sim.sim_commands", "check", "--max-line-speed",
+                  "160", "--trains", "HSLM-A1", "--json", "{t}/c.json", "--csv", "{t}/c.csv", "--plot",
+                  "{t}/c.png", "--report", "{t}/c.html"),
+         "error: interrupted", code=130),
+    Case("output-set", "table4-interrupted-in-figure",
+         _failing("adm_calib.plots", "plot_total_damping", "adm_calib.calib_commands", "table4", "--bridges", "B1",
+                  "--trains", "ICE-2", "--out", "{t}/t4"),
+         "error: interrupted", code=130, timeout_s=120),
+    Case("output-set", "study-fit-interrupted-in-figure",
+         _failing("adm_calib.plots", "plot_lower_bounds_train", "adm_calib.calib_commands", "study-fit",
+                  "--results", "{t}/r.jsonl", "--out", "{t}/fit"),
+         "error: interrupted", code=130, setup=_fit_results),
+    # --- odd inputs: one line, exit 2
+    Case("odd-input", "node-params-binary",
+         lambda t: [PY, "-m", "adm_sim.nodes.train_node", "--ros-args", "--params-file", f"{t}/p.yaml"],
+         "--params-file '{t}/p.yaml': not UTF-8 text (byte 0x80 at offset 128)", ros=True,
+         setup=lambda t, ctx: _files(t, p__yaml=BINARY)),
+    Case("odd-input", "crossing-params-binary",
+         lambda t: CROSS + ["--out", f"{t}/o", "--params-file", f"{t}/p.yaml"],
+         "not UTF-8 text (byte 0x80 at offset 128)", ros=True, setup=lambda t, ctx: _files(t, p__yaml=BINARY)),
+    Case("odd-input", "train-file-binary", lambda t: SIM + ["sweep", "--train", f"{t}/t.toml"],
+         "train file '{t}/t.toml': not UTF-8 text (byte 0x80 at offset 128)",
+         setup=lambda t, ctx: _files(t, t__toml=BINARY)),
+    Case("odd-input", "sweep-json-name-300-bytes", lambda t: SIM + ["sweep", "--json", f"{t}/{LONG}.json"],
+         "error: --json: a path component ('aaaaaaaaaaaaaaaaaaaaaaaa...') is 305 bytes long; allowed at most 255"),
+    Case("odd-input", "calibrate-bridge-name-300-bytes",
+         lambda t: CAL + ["calibrate", "--bridge", f"{t}/{LONG}.toml", "--train", "ICE-2"],
+         "is 305 bytes long; allowed at most 255 bytes per file or folder name"),
+    Case("odd-input", "crossing-out-name-300-bytes", lambda t: CROSS + ["--out", f"{t}/{LONG}"],
+         "error: --out: a path component ('aaaaaaaaaaaaaaaaaaaaaaaa...') is 300 bytes long", ros=True),
+    Case("odd-input", "numba-threads-0", lambda t: SIM + ["sweep", "--json", f"{t}/r.json"],
+         "error: NUMBA_NUM_THREADS: '0' is not allowed; allowed an integer >= 1", env={"NUMBA_NUM_THREADS": "0"}),
+    Case("odd-input", "numba-threads-text", lambda t: CAL + ["calibrate", "--bridge", "B1", "--train", "ICE-2"],
+         "error: NUMBA_NUM_THREADS: 'all' is not allowed", env={"NUMBA_NUM_THREADS": "all"}),
+    Case("odd-input", "bridge-file-named-with-equals", lambda t: SIM + ["sweep", "--bridge", "L=15.toml"],
+         "error: bridge file L=15.toml.L: 200 m is out of range; allowed [1, 150] m",
+         setup=lambda t, ctx: _files(t, **{"L=15__toml": BRIDGE_TOML.replace("L = 15", "L = 200")})),
+    Case("odd-input", "bridge-file-with-bom", lambda t: SIM + ["sweep", "--bridge", f"{t}/b.toml"],
+         "L: 200 m is out of range; allowed [1, 150] m",
+         setup=lambda t, ctx: _files(t, b__toml=BOM + BRIDGE_TOML.replace("L = 15", "L = 200").encode())),
+    Case("odd-input", "spec-zeta-pct-0", lambda t: SIM + ["sweep", "--bridge", "L=15,n0=8.26,mu=19042,zeta_pct=0"],
+         "error: --bridge: 'L=15,n0=8.26,mu=19042,zeta_pct=0' has zeta_pct = 0 %"),
+    Case("odd-input", "check-comfort-hslm-only",
+         lambda t: SIM + ["check", "--max-line-speed", "200", "--comfort", "--json", f"{t}/c.json"],
+         "error: --comfort: the trains checked (HSLM-A1, HSLM-A2"),
     Case("scheduler", "closed-port",
          lambda t: CAL + ["study", "--out", f"{t}/st", "--scheduler", "tcp://127.0.0.1:{port}"],
          "--scheduler: cannot connect to 'tcp://127.0.0.1:{port}'", setup=_closed_port),
@@ -505,7 +647,7 @@ def test_refused_cleanly(case, tmp_path, ros_env):
         marker = uuid.uuid4().hex
         base = ros_env if case.ros else os.environ
         r = subprocess.run(argv, capture_output=True, text=True, timeout=case.timeout_s, cwd=t,
-                           env=_env(base, marker), stdin=subprocess.DEVNULL)
+                           env=_env(base, marker) | case.env, stdin=subprocess.DEVNULL)
         left = marked_processes(marker)
         after = snapshot(t)
     finally:

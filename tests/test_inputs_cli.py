@@ -216,7 +216,8 @@ CASES = [
     ('adm-sim sweep', ['sweep', '--speeds', '0x10'],
      "error: speeds: '0x10' is not start:stop:step or a comma list (km/h)"),
     ('adm-sim sweep', ['sweep', '--speeds', '160:350:0.0001'],
-     "error: speeds: '160:350:0.0001' gives more than 100000 speeds"),
+     "error: speeds: '160:350:0.0001' gives 1900001 speeds; allowed at most 20000 speeds (speeds of one run or "
+     "check; bounded work)"),
     ('adm-sim sweep', ['sweep', '--model', 'fem'],
      "error: adm-sim sweep: argument --model: invalid choice: 'fem' (choose from 'mlm', 'dim')"),
     ('adm-sim sweep', ['sweep', '--json', '{t}/nodir/r.json'],
@@ -326,7 +327,7 @@ CASES = [
     ('bridge file', ['sweep', '--bridge', '{t}/b_dup.toml'],
      "error: bridge file b_dup.toml: 'L' and 'span_m' give the same quantity twice; give it once"),
     ('bridge file', ['sweep', '--bridge', '{t}/b_bin.toml'],
-     "error: bridge file '{t}/b_bin.toml': not valid TOML ('utf-8' codec can't decode byte 0xff in position 0: invalid start byte)"),
+     "error: bridge file '{t}/b_bin.toml': not UTF-8 text (byte 0xff at offset 0); give a text file"),
     ('train file', ['sweep', '--train', '{t}/t_bool.toml'],
      'error: t_bool.toml: vehicle_types.PC.m_c_kg: true is a boolean, not a number; allowed [1, 500000] kg'),
     ('train file', ['sweep', '--train', '{t}/t_str.toml'],

@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from adm_sim.files import check_output_folder, claim_output, input_file, make_output_folder, write_atomic
+from adm_sim.files import OutputSet, check_output_folder, claim_output, input_file, make_output_folder
 from adm_sim.sim_commands import add_check_arguments, cmd_check
 from adm_sim.cliutil import (Parser, add_choice, add_dim_grid, add_overwrite, add_progress, add_speeds,
                              add_steps_per_period, check_option, option_help, option_view, progress_callback, run_cli)
@@ -118,14 +118,13 @@ def cmd_calibrate(args):
     _check_plausible(res)
     print(res.summary())
     print(f"wall time      {wall:.2f} s")
-    if json_path:
-        write_atomic(json_path, lambda p: p.write_text(res.to_json() + "\n"))
-        print(f"wrote {json_path}")
-    if plot_path:
-        from adm_calib.plots import plot_calibration
+    with OutputSet() as outs:  # --json and --plot: both or neither
+        if json_path:
+            outs.write(json_path, lambda p: p.write_text(res.to_json() + "\n"), "--json", note=f"wrote {json_path}")
+        if plot_path:
+            from adm_calib.plots import plot_calibration
 
-        write_atomic(plot_path, lambda p: plot_calibration(res, p))
-        print(f"wrote {plot_path}")
+            outs.write(plot_path, lambda p: plot_calibration(res, p), "--plot", note=f"wrote {plot_path}")
     return 0
 
 
@@ -168,10 +167,11 @@ def cmd_table4(args):
         _check_plausible(res)
     text = table.to_text()
     print(text)
-    write_atomic(paths[0], lambda p: p.write_text(table.to_csv()))
-    write_atomic(paths[1], lambda p: p.write_text(text + "\n"))
-    write_atomic(paths[2], lambda p: p.write_text(table.to_json() + "\n"))
-    write_atomic(paths[3], lambda p: plot_total_damping(table, p))
+    with OutputSet() as outs:  # the four files: all or none
+        outs.write(paths[0], lambda p: p.write_text(table.to_csv()), "--out")
+        outs.write(paths[1], lambda p: p.write_text(text + "\n"), "--out")
+        outs.write(paths[2], lambda p: p.write_text(table.to_json() + "\n"), "--out")
+        outs.write(paths[3], lambda p: plot_total_damping(table, p), "--out")
     print(f"wrote {', '.join(str(p) for p in paths)} ({time.perf_counter() - t0:.1f} s)")
     return 0
 
@@ -438,26 +438,27 @@ def cmd_study_fit(args):
     written = []
 
     def write(name, fn):
-        write_atomic(paths[name], fn)
+        outs.write(paths[name], fn, "--out")
         written.append(name)
 
-    write(names[0], lambda p: p.write_text(fit.to_csv()))
-    write(names[1], lambda p: p.write_text(fit.minima_csv()))
-    write(names[2], lambda p: p.write_text(text + "\n"))
-    write(names[3], lambda p: plots.plot_dz_vs_span(fit.records_used, p))
-    write(names[4], lambda p: plots.plot_lower_bounds(fit, p))
-    command = (f"adm-calib study-fit --results {res} --exclude {rule} --fit-range-hz {edges[0]:g}:{edges[-1]:g}"
-               + (f" --tag {user_tag}" if user_tag else ""))
-    write(names[5], lambda p: p.write_text(fit.to_toml(command=command)))
-    write(names[6], lambda p: p.write_text(st.comparison_markdown(content.records, rule=rule, edges_hz=edges)))
-    rows = conservative_study(fit)
-    cons = {(r.train, r.mass_function): r.fit for r in rows}
-    if ("ICE-2", "mu3") in fit.fits:
-        write(names[7], lambda p: plots.plot_lower_bound_set(fit, "ICE-2", "mu3", p, cons))
-    write(names[8], lambda p: p.write_text(conservative_markdown(rows, fit)))
-    write(names[9], lambda p: p.write_text(conservative_toml(rows, fit, command=command)))
-    for t in fit.trains:
-        write(fig17[t], lambda p, t=t: plots.plot_lower_bounds_train(fit, t, p, cons))
+    with OutputSet() as outs:  # every file of the fit, or none: an interrupted fit leaves nothing in the way
+        write(names[0], lambda p: p.write_text(fit.to_csv()))
+        write(names[1], lambda p: p.write_text(fit.minima_csv()))
+        write(names[2], lambda p: p.write_text(text + "\n"))
+        write(names[3], lambda p: plots.plot_dz_vs_span(fit.records_used, p))
+        write(names[4], lambda p: plots.plot_lower_bounds(fit, p))
+        command = (f"adm-calib study-fit --results {res} --exclude {rule} --fit-range-hz {edges[0]:g}:{edges[-1]:g}"
+                   + (f" --tag {user_tag}" if user_tag else ""))
+        write(names[5], lambda p: p.write_text(fit.to_toml(command=command)))
+        write(names[6], lambda p: p.write_text(st.comparison_markdown(content.records, rule=rule, edges_hz=edges)))
+        rows = conservative_study(fit)
+        cons = {(r.train, r.mass_function): r.fit for r in rows}
+        if ("ICE-2", "mu3") in fit.fits:
+            write(names[7], lambda p: plots.plot_lower_bound_set(fit, "ICE-2", "mu3", p, cons))
+        write(names[8], lambda p: p.write_text(conservative_markdown(rows, fit)))
+        write(names[9], lambda p: p.write_text(conservative_toml(rows, fit, command=command)))
+        for t in fit.trains:
+            write(fig17[t], lambda p, t=t: plots.plot_lower_bounds_train(fit, t, p, cons))
     print(f"wrote {len(written)} files to {out}")
     return 0
 
@@ -473,6 +474,7 @@ def cmd_check_calib(args):
 def build_parser():
     p = Parser(prog="adm-calib", description="Additional-damping calibration (MLM vs DIM) and comparison "
                                                "with the Eurocode ADM, EADA and the lower-bound functions.")
+    p.add_version()
     sub = p.add_subparsers(dest="command", required=True)
 
     def common(sp):

@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from adm_sim.errors import InputError
-from adm_sim.files import read_toml
+from adm_sim.files import check_path, read_toml
 from adm_sim.parametric import FIELD_SPANS_M, MASS_FUNCTIONS, field_frequencies_hz
 from adm_sim.plausibility import check_bridge
 from adm_sim.fields import FIELDS, core
@@ -368,9 +368,15 @@ def resolve_bridge(text):
     """A bridge from a CLI/parameter string: a Table 3 name, a ``key=value`` spec or a file."""
     if text.upper() in TABLE3:
         return named_bridge(text)
+    if "=" not in text or text.endswith(".toml"):
+        check_path(text, "bridge")
+    try:
+        exists = Path(text).is_file()
+    except OSError:  # a spec longer than a file name can be
+        exists = False
+    if exists:  # an existing file wins, even with '=' in its name
+        return load_bridge_file(text)
     if "=" in text:
         return parse_bridge_spec(text)
-    if Path(text).is_file():
-        return load_bridge_file(text)
     raise InputError(f"bridge: {text!r} is neither a named bridge ({', '.join(TABLE3)}), "
                      f"a spec like L=15,n0=8.26,mu=19042,zeta_pct=1.85, nor a file")

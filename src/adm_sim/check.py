@@ -62,7 +62,7 @@ from adm_sim.check_sls import NOT_CHECKED, check_lateral_frequency, serviceabili
 from adm_sim.design_loads import (MAINTENANCE, adm_delta_zeta_pct, check_alpha, design_comparison, dynamic_factor,
                                   governing, phi_dd_factor, phi_dyn_prime)
 from adm_sim.errors import InputError
-from adm_sim.fields import FIELDS, check_range
+from adm_sim.fields import FIELDS, check_count, check_range
 from adm_sim.hslm import HSLM_A_NAMES, HSLM_A_TABLE, regular_coach_length_m
 from adm_sim.peaks import local_maxima  # the project's one peak rule, every maximum kept
 from adm_sim.lockstep_runs import InProcessRun
@@ -348,6 +348,7 @@ def check_speeds_kmh(max_line_speed_kmh, step_kmh=1.0):
     step = FIELDS["step_kmh"].check(step_kmh, argument=True)
     hi = DESIGN_SPEED_FACTOR * V
     n = int(math.floor((hi - lo) / step + 1e-9))
+    check_count("n_speeds", n + 1, "--speed-step", f"{step:g} km/h from {lo:g} to {hi:g} km/h")  # before any array
     v = lo + step * np.arange(n + 1)
     if hi - v[-1] > 1e-9:
         v = np.append(v, hi)
@@ -365,6 +366,7 @@ def resolve_trains(spec):
     if not names:
         raise InputError(f"trains: {spec!r} names no train; allowed hslm, HSLM-A1 .. HSLM-A10, ICE-2, Eurostar, "
                          f"Railjet, ICE-4, Eurostar-table or .toml train files, comma separated", field="trains")
+    check_count("n_trains", len(names), "--trains", repr(spec))
     trains = [load_train(n) for n in names]
     seen = set()
     for t in trains:

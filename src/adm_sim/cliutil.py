@@ -10,12 +10,14 @@ errors are one line, exit code 2) and one progress bar (tqdm on stderr). The out
 from __future__ import annotations
 
 import argparse
+import errno
 import os
 import signal
 import sys
 import threading
 import warnings
 
+from adm_sim import __version__
 from adm_sim.errors import EXIT_INPUT, EXIT_INTERRUPTED, EXIT_OK, EXIT_RUN, AdmSimError, InputError, PlausibilityWarning
 from adm_sim.fields import view
 from adm_sim.files import release_all
@@ -36,7 +38,9 @@ def run_cli(call):
     :class:`AdmSimError`) -> ``error: ...``, exit 1; an :class:`OSError` (a full disk, a file
     larger than ``ulimit -f``, a read-only folder) -> ``error: '<path>': <reason>``, exit 1;
     ``KeyboardInterrupt`` (Ctrl-C, SIGINT, SIGTERM) -> ``error: interrupted``, 130;
-    ``BrokenPipeError`` (``... | head``) -> quiet exit 0. Anything else is a bug and keeps its traceback.
+    ``BrokenPipeError`` (``... | head``) -> quiet exit 0; a path too long for the system
+    (``ENAMETOOLONG``) is bad input, exit 2. :func:`check_environment` runs first. Anything else is
+    a bug and keeps its traceback.
     Every output claimed during the call (:func:`adm_sim.files.claim_output`) is released at its end.
     A :class:`~adm_sim.plausibility.PlausibilityWarning` raised during the call is printed as one
     line ``warning: ...`` on stderr, each time it occurs (:func:`plausibility_warnings`).
@@ -115,8 +119,26 @@ def _raise_interrupt(signum, frame):
     raise KeyboardInterrupt
 
 
+def check_environment(environ=None):
+    """Environment variables a run depends on, refused up front like an option: ``NUMBA_NUM_THREADS``
+    (threads of the compiled kernels; numba itself fails deep inside the first parallel kernel)
+    must be an integer >= 1 when set."""
+    environ = os.environ if environ is None else environ
+    text = environ.get("NUMBA_NUM_THREADS")
+    if text is None:
+        return
+    try:
+        n = int(text.strip())
+    except ValueError:
+        n = 0
+    if n < 1:
+        raise InputError(f"NUMBA_NUM_THREADS: {text!r} is not allowed; allowed an integer >= 1 (threads of the "
+                         f"compiled kernels), or unset it")
+
+
 def _run(call):
     try:
+        check_environment()
         return call()
     except BrokenPipeError:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
@@ -129,7 +151,7 @@ def _run(call):
         return EXIT_RUN
     except OSError as exc:  # inputs and outputs are checked first: what is left is the system
         print(f"error: {one_line(os_message(exc))}", file=sys.stderr)
-        return EXIT_RUN
+        return EXIT_INPUT if exc.errno == errno.ENAMETOOLONG else EXIT_RUN  # a path the user typed
     except KeyboardInterrupt:
         print("error: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
@@ -158,6 +180,11 @@ class Parser(argparse.ArgumentParser):
     def __init__(self, *args, name_prog=False, **kwargs):
         super().__init__(*args, **kwargs)
         self.name_prog = name_prog
+
+    def add_version(self):
+        """``--version``: the program and the one version number of both packages, exit 0."""
+        self.add_argument("--version", action="version", version=f"{self.prog} {__version__}",
+                          help="print the version and exit")
 
     def add_subparsers(self, **kwargs):
         kwargs.setdefault("parser_class", type(self))

@@ -127,7 +127,7 @@ SCALES = {
 }
 
 #: The surfaces a value is typed on.
-SURFACES = ("toml", "spec", "cli", "ros")
+SURFACES = ("toml", "spec", "cli", "ros", "count")
 
 
 @dataclass(frozen=True)
@@ -452,12 +452,24 @@ _FIELDS = [
     _F("axle_load_n", "N", float, "static axle load (one value or [front, rear])", "vehicle",
        _S("toml", "axle_load_kN", "kN"), _S("toml", "axle_loads_kN", "kN"), lo=1000.0, hi=500_000.0),
     _F("count", "-", int, "vehicles of one composition entry", "vehicle", _S("toml", "count"), lo=1, hi=100),
+    # -------------------------------------------------------------- bounded work (sizes of one run)
+    _F("n_speeds", "speeds", int, "speeds of one run or check: a --speeds grid or list, the check's grid from "
+       "--speed-step (memory and time grow with it)", "limits",
+       _S("count", "--speeds"), _S("count", "speeds"), _S("count", "--speed-step"), lo=1, hi=20_000),
+    _F("n_lanes", "lanes", int, "lanes of one run: speeds x additional dampings (the train node's speeds_kmh)",
+       "limits", _S("count", "speeds_kmh"), lo=1, hi=20_000),
+    _F("n_trains", "trains", int, "trains of one check (--trains; hslm counts 10)", "limits",
+       _S("count", "--trains"), lo=1, hi=40),
+    _F("n_axles", "axles", int, "axles of one train (train file composition)", "limits",
+       _S("count", "axles"), lo=1, hi=400),
+    _F("train_length_m", "m", float, "length of one train, first to last axle (train file composition)", "limits",
+       _S("count", "train length"), lo=0.0, hi=1000.0),
 ]
 
 #: Every field, by its core name.
 FIELDS = {f.name: f for f in _FIELDS}
 #: The groups, in the order of docs/fields.md.
-GROUPS = ("bridge", "run", "outputs", "replay", "vehicle")
+GROUPS = ("bridge", "run", "outputs", "replay", "vehicle", "limits")
 #: Vehicle-type fields of a train file, in the order of the file format (``r_m`` optional).
 VEHICLE_FIELDS = ("m_c_kg", "J_c_kgm2", "m_b_kg", "J_b_kgm2", "m_w_kg", "k_s_N_m", "c_s_Ns_m", "k_p_N_m",
                   "c_p_Ns_m", "d_m", "r_m", "b_m")
@@ -486,6 +498,20 @@ def core(name):
     return FIELDS[name].view()
 
 
+def check_count(name, n, where, given):
+    """``n``, a size of one run's input (field ``name`` of group ``limits``), or :class:`InputError`
+    refusing it up front, one line naming ``where`` (the flag, parameter or file the user typed),
+    what was ``given`` there and the limit (``--speed-step: 0.0001 km/h gives 4560001 speeds;
+    allowed at most 20000 speeds (speeds of one run or check; bounded work)``)."""
+    f = FIELDS[name]
+    if not f.lo <= n <= f.hi:
+        shown = f"{n:g}" if isinstance(n, float) else f"{n}"
+        what = f.doc.split(":")[0].split(" (")[0]
+        raise InputError(f"{where}: {given} gives {shown} {f.unit}; allowed at most {f.hi:g} {f.unit} "
+                         f"({what}; bounded work)", field=where)
+    return n
+
+
 def check_delta_zeta(field, value, damping_ratio):
     """``float(value)``, an additional damping Δζ as a fraction, or :class:`InputError` naming
     ``field`` with the allowed ``[-ζ, 0.2]``; ``damping_ratio`` is the bridge's ζ (fraction)."""
@@ -498,6 +524,6 @@ def check_delta_zeta_pct(field, value_pct, damping_ratio):
     return view("cli", "--delta-zeta-pct").check(value_pct, name=field, lo_core=-damping_ratio)
 
 
-__all__ = ["check_range", "check_number", "check_int", "check_choice", "check_delta_zeta", "check_delta_zeta_pct",
+__all__ = ["check_range", "check_number", "check_int", "check_choice", "check_count", "check_delta_zeta", "check_delta_zeta_pct",
            "SCALES", "SURFACES", "Spelling", "Field", "View", "FIELDS", "GROUPS", "VEHICLE_FIELDS",
            "VEHICLE_OPTIONAL", "view", "spellings", "core"]

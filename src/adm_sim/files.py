@@ -4,7 +4,9 @@ Inputs (:func:`input_file`, :func:`read_toml`)
     A file read by a run must be a regular file: a folder, a named pipe (whose ``open`` for
     reading blocks until a writer appears), a socket or a device is refused with one line
     before it is opened. An MCAP input (:func:`mcap_input`) must also start with the MCAP magic bytes;
-    a TOML input (bridge and train files) must parse.
+    a TOML input (bridge and train files) must parse. A text input (:func:`read_text`: TOML files,
+    params YAML files) must be UTF-8; a UTF-8 byte order mark at its start is accepted and dropped.
+    A path with a component longer than 255 bytes is refused naming the option (:func:`check_path`).
 
 Outputs (:func:`claim_output`, :func:`write_atomic`)
     A file written by a run is checked before any work, by one function:
@@ -28,6 +30,11 @@ Outputs (:func:`claim_output`, :func:`write_atomic`)
        a file larger than ``ulimit -f``) is one :class:`~adm_sim.errors.RunError` naming the path,
        and leaves neither the temporary file nor the lock.
 
+Output sets (:class:`OutputSet`)
+    The outputs of one command (``--json`` and ``--plot``, a folder of tables and figures) are
+    written as a set: each beside its final name, all renamed at the end; a command that fails or
+    is interrupted before that leaves none of them (and no temporary file).
+
 Output folders (:func:`check_output_folder`, :func:`make_output_folder`, :func:`claim_folder`)
     A folder a run writes into (``adm-calib --out``, a launch's ``--out``) is checked before any
     work by the same rule: not an existing file; the folder, or while it does not exist its nearest
@@ -47,6 +54,7 @@ import errno
 import fcntl
 import os
 import re
+import signal
 import stat
 import tempfile
 import tomllib
@@ -54,8 +62,8 @@ from pathlib import Path
 
 from adm_sim.errors import InputError, RunError
 
-__all__ = ["check_output_folder", "claim_folder", "claim_output", "claimed", "input_file", "is_input", "lock_path",
-           "make_output_folder", "mcap_input", "probe_writable", "read_toml", "refuse_special", "release", "release_all",
+__all__ = ["check_path", "read_text", "check_output_folder", "claim_folder", "claim_output", "claimed", "input_file", "is_input", "lock_path",
+           "make_output_folder", "mcap_input", "OutputSet", "probe_writable", "read_toml", "refuse_special", "release", "release_all",
            "write_atomic"]
 
 #: Claims held by this process: resolved output path (or folder) -> (fd of the lock file, lock path).
@@ -89,6 +97,38 @@ def refuse_special(path, where):
         raise InputError(f"{where}: is {_kind(st.st_mode)}, not a regular file")
 
 
+#: Longest name of one path component (bytes), the NAME_MAX of Linux file systems.
+NAME_MAX_BYTES = 255
+
+
+def check_path(text, option):
+    """``text`` unless a component of the path is longer than :data:`NAME_MAX_BYTES` (the system
+    would refuse it with ``File name too long``); one line naming ``option`` otherwise."""
+    for part in Path(str(text)).parts:
+        n = len(os.fsencode(part))
+        if n > NAME_MAX_BYTES:
+            shown = part if len(part) <= 24 else part[:24] + "..."
+            raise InputError(f"{option}: a path component ({shown!r}) is {n} bytes long; allowed at most "
+                             f"{NAME_MAX_BYTES} bytes per file or folder name", field=option)
+    return text
+
+
+def read_text(path, what):
+    """The text of input file ``path`` (UTF-8; a UTF-8 byte order mark at its start is accepted
+    and dropped); :class:`InputError` naming ``what`` and the path when it cannot be read or is
+    not UTF-8 text (a binary file)."""
+    p = Path(path)
+    try:
+        data = p.read_bytes()
+    except OSError as exc:
+        raise InputError(f"{what} {str(p)!r}: cannot read ({exc.strerror})") from None
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{what} {str(p)!r}: not UTF-8 text (byte 0x{data[exc.start]:02x} at offset "
+                         f"{exc.start}); give a text file") from None
+
+
 def input_file(text, option, what="file"):
     """``Path(text)`` if it names an existing regular file (symlinks followed); else one line.
 
@@ -96,6 +136,7 @@ def input_file(text, option, what="file"):
     """
     if text is None or not str(text).strip():
         raise InputError(f"{option}: '' is empty; give a {what}")
+    check_path(text, option)
     p = Path(text)
     try:
         st = p.stat()
@@ -133,11 +174,10 @@ def read_toml(path, what):
     """
     p = Path(path)
     refuse_special(p, f"{what} {str(p)!r}")
+    text = read_text(p, what)
     try:
-        return tomllib.loads(p.read_text())
-    except OSError as exc:
-        raise InputError(f"{what} {str(p)!r}: cannot read ({exc.strerror})") from None
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
         raise InputError(f"{what} {str(p)!r}: not valid TOML ({exc})") from None
 
 
@@ -203,6 +243,7 @@ def claim_output(text, option, overwrite=False, suffix=None, inputs=None,
     if text is None or not str(text).strip():
         raise InputError(f"{option}: '' is empty; give a file name")
     text = str(text)
+    check_path(text, option)
     p = Path(text)
     if suffix and p.suffix.lower() != suffix:
         raise InputError(f"{option}: {text!r} must end in {suffix}")
@@ -338,6 +379,99 @@ def write_atomic(path, write, option="output"):
         release(p)
 
 
+class OutputSet:
+    """The outputs of one command written as a set: all or nothing.
+
+    Each :meth:`write` writes one output beside its final name (a temporary ``.<stem>.tmp-<pid>``
+    file, as :func:`write_atomic`); :meth:`commit` renames every one into place at the end, with
+    SIGINT and SIGTERM held back for the renames, then prints the notes (``wrote ...``). If the
+    command fails or is interrupted before the commit (an exception, ``KeyboardInterrupt``), every
+    temporary file is removed and no output of the set appears: an earlier file under a final name
+    keeps its content, a re-run finds nothing in its way. Used as a context manager::
+
+        with OutputSet() as outs:
+            outs.write(json_path, lambda p: p.write_text(text), "--json", note=f"wrote {json_path}")
+            outs.write(plot_path, plot, "--plot", note=f"wrote {plot_path}")
+        # both renamed here, or neither
+
+    A write the system refuses is one :class:`~adm_sim.errors.RunError` naming the output (as
+    :func:`write_atomic`). The paths should have been claimed with :func:`claim_output`; if not,
+    each is claimed here until the set ends.
+    """
+
+    def __init__(self):
+        self._staged = []   # (tmp, final path, option)
+        self._notes = []
+        self.written = []   # final paths, once committed
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, kind, exc, tb):
+        if kind is None:
+            self.commit()
+        else:
+            self.abort()
+        return False
+
+    def write(self, path, write, option="output", note=None):
+        """``write(tmp_path)`` beside ``path``; renamed by :meth:`commit`."""
+        p = Path(path)
+        if not claimed(p):
+            _lock(p, option, str(p))
+        tmp = p.with_name(f".{p.stem}.tmp-{os.getpid()}{p.suffix}")
+        self._staged.append((tmp, p, option))
+        try:
+            write(tmp)
+        except OSError as exc:
+            if exc.filename not in (None, str(tmp), str(p)):
+                raise
+            raise RunError(f"{option}: {str(p)!r}: cannot write ({exc.strerror or exc})") from None
+        except RuntimeError as exc:
+            code = re.search(r"\(os error (\d+)\)", str(exc))
+            if code is None:
+                raise
+            raise RunError(f"{option}: {str(p)!r}: cannot write ({os.strerror(int(code.group(1)))})") from None
+        if not tmp.exists():
+            raise RunError(f"{option}: {str(p)!r}: the writer wrote nothing")
+        if note is not None:
+            self._notes.append(note)
+        return p
+
+    def commit(self):
+        """Rename every written output into place (signals held back meanwhile), release the
+        claims, print the notes."""
+        held = {signal.SIGINT, signal.SIGTERM}
+        old = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+        try:
+            for tmp, p, option in self._staged:
+                try:
+                    os.replace(tmp, p)
+                except OSError as exc:
+                    raise RunError(f"{option}: {str(p)!r}: cannot write ({exc.strerror or exc})") from None
+                self.written.append(p)
+        finally:
+            if len(self.written) != len(self._staged):
+                self.abort()
+            signal.pthread_sigmask(signal.SIG_SETMASK, old)
+        self._release()
+        for note in self._notes:
+            print(note)
+
+    def abort(self):
+        """Remove every temporary file of the set and release the claims."""
+        for tmp, _, _ in self._staged:
+            try:
+                tmp.unlink()
+            except FileNotFoundError:
+                pass
+        self._release()
+
+    def _release(self):
+        for _, p, _ in self._staged:
+            release(p)
+
+
 # ---------------------------------------------------------------------- output folders
 def check_output_folder(text, option, names=(), inputs=None):
     """Check output folder ``text`` before any work by the rule of the module docstring; returns its Path.
@@ -347,6 +481,7 @@ def check_output_folder(text, option, names=(), inputs=None):
     """
     if text is None or not str(text).strip():
         raise InputError(f"{option}: '' is empty; give a directory")
+    check_path(text, option)
     out = Path(text)
     if out.exists() and not out.is_dir():
         raise InputError(f"{option}: {str(out)!r} is not a directory")

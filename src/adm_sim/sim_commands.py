@@ -17,7 +17,7 @@ from adm_sim.cliutil import (Parser, add_choice, add_delta_zeta_pct, add_overwri
                              progress_callback)
 from adm_sim.errors import InputError
 from adm_sim.cliutil import run_cli
-from adm_sim.files import claim_output, mcap_input, write_atomic
+from adm_sim.files import OutputSet, claim_output, mcap_input
 from adm_sim.figures import plot_check, plot_sweep
 from adm_sim.limits import ACC_LIMITS_M_S2, TRACK_ALIASES, check_track_type
 
@@ -52,6 +52,9 @@ def cmd_sweep(args):
     if where != "midspan" and method != "exact":
         raise InputError(f"--where: {args.where!r} needs the exact MLM envelope (--model mlm --method exact); the RK4 "
                          f"runs record midspan only (allowed --where midspan)")
+    if method == "exact" and bridge.damping_ratio + dz <= 0.0 and dz == 0.0:  # the bridge's own damping is 0
+        raise InputError(f"--bridge: {args.bridge!r} has zeta_pct = 0 % (damping ratio zeta); the exact MLM envelope "
+                         f"needs damping > 0 % (give zeta_pct > 0 in the bridge, --delta-zeta-pct > 0, or --method rk4)")
     if method == "exact" and bridge.damping_ratio + dz <= 0.0:
         raise InputError(f"--delta-zeta-pct: zeta + delta_zeta = {100 * (bridge.damping_ratio + dz):g} %; the exact "
                          f"MLM envelope needs damping > 0 % (allowed > {-100 * bridge.damping_ratio:g} %, or --method rk4)")
@@ -95,25 +98,25 @@ def cmd_sweep(args):
     ia, idisp = int(res.max_acc_m_s2.argmax()), int(res.max_disp_m.argmax())
     check_response(bridge.span_m, res.max_acc_m_s2[ia], res.max_disp_m[idisp],  # warnings, not refusals
                    f"sweep: at {res.speeds_kmh[ia]:g} km/h", f"sweep: at {res.speeds_kmh[idisp]:g} km/h")
-    if json_path is not None:
-        out = res.to_dict()
-        out["wall_time_s"] = wall
-        out["method"] = method
-        if backend is not None:
-            out["backend"] = backend
-        out["damping_model"] = bridge.damping_model
-        out["zeta_per_mode_pct"] = [100 * float(z) for z in zeta]
-        if env is not None:
-            out["where"] = where
-            out["x_acc_m"] = env.x_acc_m.tolist()
-            out["x_disp_m"] = env.x_disp_m.tolist()
-            out["max_disp_midspan_m"] = env.max_disp_midspan_m.tolist()
-            out["max_moment_Nm"] = env.max_moment_Nm.tolist()
-        write_atomic(json_path, lambda p: p.write_text(json.dumps(out, indent=1)))
-        print(f"wrote {args.json}")
-    if plot_path is not None:
-        write_atomic(plot_path, lambda p: plot_sweep(res, p, where=where))
-        print(f"wrote {args.plot}")
+    with OutputSet() as outs:  # --json and --plot: both or neither
+        if json_path is not None:
+            out = res.to_dict()
+            out["wall_time_s"] = wall
+            out["method"] = method
+            if backend is not None:
+                out["backend"] = backend
+            out["damping_model"] = bridge.damping_model
+            out["zeta_per_mode_pct"] = [100 * float(z) for z in zeta]
+            if env is not None:
+                out["where"] = where
+                out["x_acc_m"] = env.x_acc_m.tolist()
+                out["x_disp_m"] = env.x_disp_m.tolist()
+                out["max_disp_midspan_m"] = env.max_disp_midspan_m.tolist()
+                out["max_moment_Nm"] = env.max_moment_Nm.tolist()
+            outs.write(json_path, lambda p: p.write_text(json.dumps(out, indent=1)), "--json",
+                       note=f"wrote {args.json}")
+        if plot_path is not None:
+            outs.write(plot_path, lambda p: plot_sweep(res, p, where=where), "--plot", note=f"wrote {args.plot}")
     return 0
 
 
@@ -144,6 +147,10 @@ def cmd_check(args, damping_provider=None):
     if args.damping_model is not None and args.damping_model not in DAMPING_MODELS:
         raise InputError(f"--damping-model: {args.damping_model!r} is not allowed; allowed {', '.join(DAMPING_MODELS)}")
     trains = resolve_trains(args.trains)
+    if args.comfort and not any(t.units for t in trains):  # comfort is computed for trains with vehicles only
+        raise InputError(f"--comfort: the trains checked ({', '.join(t.name for t in trains)}) are load models "
+                         f"without vehicles; passenger comfort b_v needs the DIM of a real train (add ICE-2, "
+                         f"Eurostar, Railjet, ICE-4 or a .toml train to --trains) or omit --comfort")
     if args.lateral_frequency is not None:
         from adm_sim.check_sls import check_lateral_frequency
 
@@ -171,22 +178,20 @@ def cmd_check(args, damping_provider=None):
     _check_plausible(res)
     print(check_summary(res))
     print(f"{len(trains)} trains, {wall:.2f} s")
-    if "json" in outs:
-        d = res.to_dict()
-        d["wall_time_s"] = wall
-        write_atomic(outs["json"], lambda p: p.write_text(json.dumps(d, indent=1)))
-        print(f"wrote {args.json}")
-    if "csv" in outs:
-        write_atomic(outs["csv"], res.write_csv)
-        print(f"wrote {args.csv}")
-    if "plot" in outs:
-        write_atomic(outs["plot"], lambda p: plot_check(res, p))
-        print(f"wrote {args.plot}")
-    if "report" in outs:
-        from adm_sim.check_report import write_report
+    with OutputSet() as files:  # --json, --csv, --plot, --report: all or none
+        if "json" in outs:
+            d = res.to_dict()
+            d["wall_time_s"] = wall
+            files.write(outs["json"], lambda p: p.write_text(json.dumps(d, indent=1)), "--json",
+                        note=f"wrote {args.json}")
+        if "csv" in outs:
+            files.write(outs["csv"], res.write_csv, "--csv", note=f"wrote {args.csv}")
+        if "plot" in outs:
+            files.write(outs["plot"], lambda p: plot_check(res, p), "--plot", note=f"wrote {args.plot}")
+        if "report" in outs:
+            from adm_sim.check_report import write_report
 
-        write_atomic(outs["report"], lambda p: write_report(res, p))
-        print(f"wrote {args.report}")
+            files.write(outs["report"], lambda p: write_report(res, p), "--report", note=f"wrote {args.report}")
     return 0
 
 
@@ -346,6 +351,7 @@ def add_check_arguments(c):
 
 def build_parser():
     p = Parser(prog="adm-sim", description=__doc__.splitlines()[0], name_prog=True)
+    p.add_version()
     sub = p.add_subparsers(dest="cmd", required=True)
 
     s = sub.add_parser("sweep", help="max midspan acceleration over a speed range")

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from adm_sim.errors import InputError, RunError
-from adm_sim.fields import check_delta_zeta_pct
+from adm_sim.fields import check_count, check_delta_zeta_pct
 from adm_sim.peaks import largest_interior_peak
 from adm_sim.lockstep_runs import InProcessRun
 from adm_sim.mlm_loads import mlm_modal_load_table
@@ -49,10 +49,11 @@ def parse_speeds(text, ordered=True, field="speeds"):
         a, b, st = parts if len(parts) == 3 else parts + [1.0]
         if st <= 0 or b < a:
             raise InputError(f"{field}: {text!r} needs start <= stop and step > 0 (km/h)")
-        if (b - a) / st > 100_000:
-            raise InputError(f"{field}: {text!r} gives more than 100000 speeds")
-        v = a + st * np.arange(int(math.floor((b - a) / st + 1e-9)) + 1)
+        n = int(math.floor((b - a) / st + 1e-9)) + 1
+        check_count("n_speeds" if ordered else "n_lanes", n, field, repr(text))  # before any array
+        v = a + st * np.arange(n)
     else:
+        check_count("n_speeds" if ordered else "n_lanes", len(parts), field, repr(text))
         v = np.array(parts)
         if ordered and np.any(np.diff(v) <= 0):
             raise InputError(f"{field}: {text!r} must increase strictly (km/h), e.g. 200,250,263")

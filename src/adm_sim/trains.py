@@ -46,8 +46,8 @@ from pathlib import Path
 import numpy as np
 
 from adm_sim.errors import InputError
-from adm_sim.files import read_toml
-from adm_sim.fields import VEHICLE_FIELDS, VEHICLE_OPTIONAL
+from adm_sim.files import check_path, read_toml
+from adm_sim.fields import VEHICLE_FIELDS, VEHICLE_OPTIONAL, check_count
 from adm_sim.fields import view as field_view
 from adm_sim.hslm import hslm_axles, hslm_name
 from adm_sim.plausibility import check_train as check_plausible
@@ -229,7 +229,7 @@ def load_train(name_or_path):
     if key in _FILES:
         data = tomllib.loads(resources.files("adm_sim").joinpath("data/trains", _FILES[key]).read_text())
         return train_from_mapping(data, source=_FILES[key])
-    p = Path(text)
+    p = Path(check_path(text, "train"))
     if p.suffix == ".toml" or p.is_file():
         train = train_from_mapping(read_toml(p, "train file"), source=p.name)
         check_plausible(train, source=f"train file {p.name}")  # warnings, not refusals
@@ -415,6 +415,10 @@ def train_from_mapping(data, source="train"):
                 loads.append(b.axle_load_n)
                 mw.append(bt.m_w_kg)
                 owner.append(ui)
+    check_count("n_axles", len(offs), f"{source}: composition", f"{len(units)} units")
+    length = max(offs) - min(offs) if offs else 0.0
+    check_count("train_length_m", round(length, 3), f"{source}: composition",
+                f"{len(units)} units, {len(offs)} axles")
     offs = np.asarray(offs)
     gaps = np.diff(offs)  # in build order: bogie after bogie, front to rear
     if np.any(gaps <= 0.0):

@@ -290,14 +290,13 @@ def load_params_yaml(path):
 
     import yaml
 
-    from adm_sim.files import refuse_special
+    from adm_sim.files import read_text, refuse_special
 
     where = f"--params-file {str(path)!r}"
     refuse_special(path, where)
+    text = read_text(Path(path), "--params-file")  # not UTF-8 (a binary file): one line
     try:
-        return yaml.load(Path(path).read_text(), Loader=_unique_key_loader())  # noqa: S506 (a SafeLoader)
-    except OSError as exc:
-        raise InputError(f"{where}: cannot read ({exc.strerror})") from None
+        return yaml.load(text, Loader=_unique_key_loader())  # noqa: S506 (a SafeLoader)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         at = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
