@@ -80,6 +80,8 @@ class StudyRun:
     statuses: Counter = field(default_factory=Counter)
     interrupted: bool = False
     dropped_truncated_line: bool = False
+    #: One line per line the store dropped or repaired on opening (line number, byte offset, reason).
+    store_notes: list = field(default_factory=list)
     dropped_error_lines: int = 0
     wall_s: float = 0.0
     scheduler: str = ""
@@ -93,8 +95,7 @@ class StudyRun:
         st = ", ".join(f"{k} {v}" for k, v in sorted(self.statuses.items())) or "none"
         lines = [f"study: {self.completed} of {self.submitted} submitted cases finished in {self.wall_s:.1f} s "
                  f"({st}); {self.already_done} of {self.selected} selected were already done"]
-        if self.dropped_truncated_line:
-            lines.append("study: dropped a truncated last line of results.jsonl (that case ran again)")
+        lines += [f"study: {n}" for n in self.store_notes]
         if self.dropped_error_lines:
             lines.append(f"study: dropped {self.dropped_error_lines} error lines to run those cases again")
         done = self.already_done + self.completed
@@ -261,7 +262,8 @@ def run_study(out_dir, cases, settings=StudySettings(), workers=2, scheduler=Non
                 pending = pending[:int(limit)]
             run = StudyRun(out_dir=out, selected=len(cases), already_done=len(cases) - len(
                 [c for c in cases if c.key not in writer.records]), submitted=len(pending),
-                dropped_truncated_line=writer.dropped_truncated, dropped_error_lines=writer.dropped_errors)
+                dropped_truncated_line=writer.dropped_truncated, dropped_error_lines=writer.dropped_errors,
+                store_notes=list(writer.notes))
             entry = {"started": _now(), "finished": None, "options": dict(options or {}), "versions": versions(),
                      "selected": run.selected, "already_done": run.already_done, "submitted": run.submitted}
             meta["runs"].append(entry)
@@ -278,6 +280,7 @@ def run_study(out_dir, cases, settings=StudySettings(), workers=2, scheduler=Non
                 entry.update({"finished": _now(), "completed": run.completed, "statuses": dict(run.statuses),
                               "interrupted": run.interrupted, "wall_s": round(run.wall_s, 3),
                               "dropped_truncated_line": run.dropped_truncated_line,
+                              "store_notes": run.store_notes,
                               "dropped_error_lines": run.dropped_error_lines})
                 _write_meta(out, meta)
     return run
