@@ -356,9 +356,20 @@ def republish(args, found) -> int:
     items = [m for m in sorted_messages(found, args.topics) if m[1].topic != P.TOPIC_CLOCK]
     if not items:
         raise InputError(f"--topics: none of {args.topics} is in '{args.mcap}'")
+    from adm_sim.processes.dds_env import clean_dead_shm, record_shm
+
+    clean_dead_shm()  # what an earlier replay or node killed with SIGKILL left in /dev/shm
     context = rclpy.context.Context()
     rclpy.init(context=context)
     node = rclpy.create_node("adm_replay", context=context)
+    noted = [0.0]
+
+    def note_shm():  # this process's Fast DDS files, noted while it lives (a SIGKILL gives no later chance)
+        if time.monotonic() - noted[0] >= 0.5:
+            noted[0] = time.monotonic()
+            record_shm([os.getpid()])
+
+    note_shm()
     flow = _FlowControl(node)
     pubs, qos_of, topics = {}, {}, {}
     sent = 0
@@ -373,6 +384,7 @@ def republish(args, found) -> int:
         topics[clock_pub] = P.TOPIC_CLOCK
         deadline = time.monotonic() + args.wait_subscribers
         while time.monotonic() < deadline and any(p.get_subscription_count() == 0 for p in pubs.values()):
+            note_shm()
             time.sleep(0.05)
         for cid, pub in pubs.items():
             flow.add(pub, topics[pub], qos_of[cid])
@@ -396,6 +408,7 @@ def republish(args, found) -> int:
             pub.publish(bytes(message.data))
             flow.sent(pub, channel.topic)
             sent += 1
+            note_shm()
         flow.drain_all(topics)  # every reliable message acknowledged before the participant goes away
     finally:
         node.destroy_node()

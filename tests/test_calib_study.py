@@ -138,12 +138,24 @@ def test_resume_after_sigkill_with_truncated_line(tmp_path):
     _assert_processes_end(tree[1:])
     first = _complete_lines(res)
     assert 1 <= len(first) < N_STUDY
-    # a write cut short: the last line has no newline
+    # one flipped byte in the first line (a digit of its wall time: still valid JSON) and a write
+    # cut short (the last line has no newline): both named, dropped, and those cases computed again
+    size = res.stat().st_size
+    data = bytearray(res.read_bytes())
+    at = data.index(b'"wall_s":') + len(b'"wall_s":')
+    data[at] = ord("9") if data[at] != ord("9") else ord("8")
+    res.write_bytes(bytes(data))
     with open(res, "ab") as f:
         f.write(json.dumps({"bridge": "L40-f1-mu1", "train": "ICE-2", "status": "ok"}).encode()[:40])
+    with pytest.raises(InputError, match=r"damaged line 1 \(byte 0, \d+ bytes\): checksum mismatch"):
+        st.read_results(res)
     p2 = subprocess.run(_study_cmd(tmp_path), capture_output=True, text=True, timeout=120)
     assert p2.returncode == 0, p2.stderr
-    assert "dropped a truncated last line" in p2.stdout
+    assert (f"study: dropped results.jsonl line 1 (byte 0, {len(first[0]) + 1} bytes): checksum mismatch; "
+            f"that case runs again") in p2.stdout
+    assert (f"study: dropped a truncated last line {len(first) + 1} (byte {size}, 40 bytes, no newline) of "
+            f"results.jsonl; that case runs again") in p2.stdout
+    first = first[1:]
     final = res.read_bytes()
     assert final.endswith(b"\n")
     lines = final.splitlines()
@@ -193,7 +205,7 @@ def test_error_case_is_recorded_not_raised():
 def test_results_reader_and_guards(tmp_path):
     res = tmp_path / "results.jsonl"
     res.write_text('{"bridge": "a", "train": "ICE-2"}\nnot json\n{"bridge": "b", "train": "ICE-2"}\n')
-    with pytest.raises(InputError, match=r"line 2 is not valid JSON \(only the last line may be truncated\)"):
+    with pytest.raises(InputError, match=r"damaged line 2 \(byte 34, 9 bytes\): not valid JSON; a study resumed"):
         st.read_results(res)
     res.write_text('{"bridge": "a", "train": "ICE-2"}\n{"bridge": "b", "tr')
     c = st.read_results(res)
@@ -341,7 +353,7 @@ def test_study_fit_cli_end_to_end(tmp_path, capsys):
     text = capsys.readouterr().out
     assert "excluded     1: status error" in text and "excluded     1: no dz_VBI" in text
     assert "associated DIM value" not in text
-    assert "a truncated last line of the results file was ignored" in text
+    assert f"a truncated last line {len(recs) + 1} (byte {len(res.read_bytes()) - 15}, 15 bytes, no newline) of the results file was ignored" in text
     rows = (out / "lower_bounds_fit_none.csv").read_text().splitlines()
     assert rows[0].startswith("train,mass_function,n_cases,n_points,a,b,c,d,upper_limit_hz,r2")
     assert [r.split(",")[:2] for r in rows[1:]] == [["ICE-2", "mu2"], ["ICE-2", "mu5"], ["Eurostar", "mu2"],

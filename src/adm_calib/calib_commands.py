@@ -433,7 +433,7 @@ def cmd_study_fit(args):
     fit = st.fit_study(content.records, rule=rule, edges_hz=edges)
     text = fit.to_text()
     if content.truncated_tail:
-        text += "\n(a truncated last line of the results file was ignored)"
+        text += f"\n(a truncated last {content.describe_tail()} of the results file was ignored)"
     print(text)
     written = []
 

@@ -80,6 +80,8 @@ class StudyRun:
     statuses: Counter = field(default_factory=Counter)
     interrupted: bool = False
     dropped_truncated_line: bool = False
+    #: One line per line the store dropped or repaired on opening (line number, byte offset, reason).
+    store_notes: list = field(default_factory=list)
     dropped_error_lines: int = 0
     wall_s: float = 0.0
     scheduler: str = ""
@@ -93,8 +95,7 @@ class StudyRun:
         st = ", ".join(f"{k} {v}" for k, v in sorted(self.statuses.items())) or "none"
         lines = [f"study: {self.completed} of {self.submitted} submitted cases finished in {self.wall_s:.1f} s "
                  f"({st}); {self.already_done} of {self.selected} selected were already done"]
-        if self.dropped_truncated_line:
-            lines.append("study: dropped a truncated last line of results.jsonl (that case ran again)")
+        lines += [f"study: {n}" for n in self.store_notes]
         if self.dropped_error_lines:
             lines.append(f"study: dropped {self.dropped_error_lines} error lines to run those cases again")
         done = self.already_done + self.completed
@@ -206,7 +207,7 @@ def check_scheduler(address, timeout_s=5.0):
 
 
 def run_study(out_dir, cases, *, settings=StudySettings(), workers=2, scheduler=None, limit=None, progress=None,
-              retry_errors=False, options=None):
+              retry_errors=False, options=None, no_worker_wait_s=None):
     """Run the study cases not yet in ``out_dir/results.jsonl`` on a dask cluster.
 
     Parameters
@@ -231,11 +232,20 @@ def run_study(out_dir, cases, *, settings=StudySettings(), workers=2, scheduler=
         Drop earlier ``status: "error"`` lines and run those cases again.
     options : dict, optional
         Command-line options recorded in ``study.json``.
+    no_worker_wait_s : float, optional
+        While cases are pending and the scheduler has had no worker for this long (default
+        :data:`NO_WORKER_WAIT_S`, 30 s), the study stops (everything finished is kept).
 
     Returns
     -------
     StudyRun
         ``interrupted`` is True after Ctrl-C or SIGTERM (everything finished is kept).
+
+    Raises
+    ------
+    RunError
+        The scheduler had no worker for ``no_worker_wait_s`` seconds while cases were pending;
+        the finished cases are kept and the same call resumes.
     """
     if importlib.util.find_spec("distributed") is None:  # an optional dependency: the [study] extra
         raise RunError("study: dask.distributed is not installed; install it with pip install 'adm-sim[study]'")
@@ -261,7 +271,8 @@ def run_study(out_dir, cases, *, settings=StudySettings(), workers=2, scheduler=
                 pending = pending[:int(limit)]
             run = StudyRun(out_dir=out, selected=len(cases), already_done=len(cases) - len(
                 [c for c in cases if c.key not in writer.records]), submitted=len(pending),
-                dropped_truncated_line=writer.dropped_truncated, dropped_error_lines=writer.dropped_errors)
+                dropped_truncated_line=writer.dropped_truncated, dropped_error_lines=writer.dropped_errors,
+                store_notes=list(writer.notes))
             entry = {"started": _now(), "finished": None, "options": dict(options or {}), "versions": versions(),
                      "selected": run.selected, "already_done": run.already_done, "submitted": run.submitted}
             meta["runs"].append(entry)
@@ -269,21 +280,56 @@ def run_study(out_dir, cases, *, settings=StudySettings(), workers=2, scheduler=
             t0 = time.perf_counter()
             try:
                 if pending:
-                    _run_on_dask(pending, settings, writer, run, workers, scheduler, progress, entry)
+                    _run_on_dask(pending, settings, writer, run, workers, scheduler, progress, entry,
+                                 NO_WORKER_WAIT_S if no_worker_wait_s is None else no_worker_wait_s)
             except KeyboardInterrupt:
                 run.interrupted = True
+            except RunError as exc:
+                entry["stopped"] = str(exc)
+                raise
             finally:
                 run.wall_s = time.perf_counter() - t0
                 run.completed = writer.appended  # the lines this run wrote, whatever interrupted it
                 entry.update({"finished": _now(), "completed": run.completed, "statuses": dict(run.statuses),
                               "interrupted": run.interrupted, "wall_s": round(run.wall_s, 3),
                               "dropped_truncated_line": run.dropped_truncated_line,
+                              "store_notes": run.store_notes,
                               "dropped_error_lines": run.dropped_error_lines})
                 _write_meta(out, meta)
     return run
 
 
-def _run_on_dask(pending, settings, writer, run, workers, scheduler, progress, entry):
+#: How long a study waits while its scheduler has no worker before it stops (exit 1, resumable).
+NO_WORKER_WAIT_S = 30.0
+_POLL_S = 0.1
+
+
+class _WorkerWatch:
+    """Stops a study whose scheduler has had no worker for ``wait_s`` seconds in a row.
+
+    Polled while no task is ready; asks the scheduler for its workers at most once a second.
+    """
+
+    def __init__(self, client, address, wait_s, submitted):
+        self.client, self.address, self.wait_s, self.submitted = client, address, float(wait_s), submitted
+        self.since = self.asked = None
+
+    def check(self, completed):
+        now = time.monotonic()
+        if self.asked is not None and now - self.asked < min(1.0, self.wait_s / 4):
+            return
+        self.asked = now
+        if self.client.scheduler_info().get("workers"):
+            self.since = None
+            return
+        self.since = now if self.since is None else self.since
+        if now - self.since >= self.wait_s:
+            raise RunError(f"the scheduler {self.address} has had no worker for {self.wait_s:g} s; {completed} of "
+                           f"{self.submitted} submitted cases finished and are kept; start workers for it")
+
+
+def _run_on_dask(pending, settings, writer, run, workers, scheduler, progress, entry,
+                 no_worker_wait_s=NO_WORKER_WAIT_S):
     from distributed import Client, as_completed  # noqa: PLC0415  as dask
 
     cluster = client = None
@@ -317,19 +363,26 @@ def _run_on_dask(pending, settings, writer, run, workers, scheduler, progress, e
             futures.append(fut)
         if progress is not None:
             progress(run.already_done, run.selected)
-        for fut in as_completed(futures, loop=client.loop):
-            batch = by_future.pop(fut)
-            try:
-                recs = fut.result()
-            except Exception as exc:  # the task never returned (worker died, cancelled)
-                recs = [error_record(case, exc) for case in batch]
-            for rec in recs:
-                writer.append(rec)
-                run.completed += 1
-                run.statuses[rec["status"]] += 1
-                if progress is not None:
-                    progress(run.already_done + run.completed, run.selected)
-            fut.release()
+        ac = as_completed(futures, loop=client.loop)
+        watch = _WorkerWatch(client, run.scheduler, no_worker_wait_s, len(pending))
+        while not ac.is_empty():
+            if not ac.has_ready():
+                watch.check(run.completed)
+                time.sleep(_POLL_S)
+                continue
+            for fut in ac.next_batch(block=False):
+                batch = by_future.pop(fut)
+                try:
+                    recs = fut.result()
+                except Exception as exc:  # the task never returned (worker died, cancelled)
+                    recs = [error_record(case, exc) for case in batch]
+                for rec in recs:
+                    writer.append(rec)
+                    run.completed += 1
+                    run.statuses[rec["status"]] += 1
+                    if progress is not None:
+                        progress(run.already_done + run.completed, run.selected)
+                fut.release()
     finally:
         if client is not None:
             with contextlib.suppress(Exception):

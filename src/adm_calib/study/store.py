@@ -1,8 +1,11 @@
 """The study's result store: ``results.jsonl`` (one fsynced line per case) and ``study.json``.
 
 Lines are appended and fsynced one by one, so a crash loses at most the cases still running; a
-rerun skips the cases already in the file (key: bridge name and train) and drops a truncated
-last line. ``study.json`` holds the format, settings, versions and every run's options and times.
+rerun skips the cases already in the file (key: bridge name and train). Every line carries the
+CRC-32 of its JSON; a reader refuses a damaged line (and a damaged ``.gz`` file) naming its line
+number and byte offset, and a resumed study drops damaged lines and a truncated last line, says
+so in one line each and computes those cases again. ``study.json`` holds the format, settings,
+versions and every run's options and times.
 """
 
 from __future__ import annotations
@@ -10,12 +13,13 @@ from __future__ import annotations
 import contextlib
 import datetime as _dt
 import fcntl
-import gzip
 import json
 import os
 import platform
+import re
 import signal
 import threading
+import zlib
 from dataclasses import dataclass
 from importlib import metadata
 from pathlib import Path
@@ -63,6 +67,27 @@ def record_key(rec):
     return (rec["bridge"], rec["train"])
 
 
+#: Every line written ends in ``,"crc32":"<8 hex digits>"}``: the CRC-32 of the line's JSON
+#: without that member (the bytes before it, closed by ``}``). A file written before line
+#: checksums existed carries none; it is read as it is and given checksums when a study resumes it.
+CHECK_KEY = "crc32"
+_CHECK_RE = re.compile(rb',"crc32":"([0-9a-f]{8})"\}$')
+
+
+@dataclass(frozen=True)
+class DamagedLine:
+    """A complete line of ``results.jsonl`` that failed its check: line number (from 1), byte
+    offset of its start (in the decompressed data of a ``.gz``), length with the newline, reason."""
+
+    line_no: int
+    offset: int
+    length: int
+    reason: str
+
+    def describe(self):
+        return f"line {self.line_no} (byte {self.offset}, {self.length} bytes): {self.reason}"
+
+
 @dataclass(frozen=True, repr=False)
 class ResultsContent:
     """What :func:`read_results` found: records in file order and the state of the file's end."""
@@ -71,57 +96,137 @@ class ResultsContent:
     valid_bytes: int
     truncated_tail: bytes = b""
     duplicates: int = 0
+    #: :class:`DamagedLine` s (only with ``skip_damaged``; otherwise the first one raises).
+    damaged: tuple = ()
+    #: False for a file written before line checksums existed.
+    checksummed: bool = True
+    #: Number of complete lines (damaged ones included) before the truncated tail.
+    lines: int = 0
 
     @property
     def by_key(self):
         """``{(bridge, train): record}``, the last line of a key winning."""
         return {record_key(r): r for r in self.records}
 
+    def describe_tail(self):
+        """The truncated last line: its number, byte offset and length."""
+        return f"line {self.lines + 1} (byte {self.valid_bytes}, {len(self.truncated_tail)} bytes, no newline)"
+
     def __repr__(self):
         tail = f", truncated tail of {len(self.truncated_tail)} bytes" if self.truncated_tail else ""
-        return f"ResultsContent({len(self.records)} records{tail})"
+        bad = f", {len(self.damaged)} damaged lines" if self.damaged else ""
+        return f"ResultsContent({len(self.records)} records{tail}{bad})"
 
 
-def read_results(path):
+def _gunzip(data, label):
+    """Decompress every gzip member of ``data``, each checked against its CRC-32 and length.
+
+    Nothing of a damaged file is used: what was decompressed before a failed check is unverified.
+    """
+    if not data:
+        raise InputError(f"{label}: empty, not gzip data (a file cut short?); nothing was read from it")
+    out, pos, step = [], 0, 1 << 16
+    while pos < len(data):
+        if not data[pos:].strip(b"\0"):
+            break  # zero padding after the last member, as gzip(1) allows
+        d = zlib.decompressobj(wbits=31)
+        member, at = [], pos
+        try:
+            while at < len(data) and not d.eof:
+                member.append(d.decompress(data[at:at + step]))
+                at += step
+        except zlib.error as exc:
+            raise InputError(f"{label}: damaged gzip data in compressed bytes {at}..{min(at + step, len(data))} of "
+                             f"{len(data)} (member at byte {pos}: {exc}); nothing was read from it") from None
+        if not d.eof:
+            raise InputError(f"{label}: the gzip data is cut short (the member at byte {pos} ends at byte "
+                             f"{len(data)} without its end and checksum); nothing was read from it")
+        out.append(b"".join(member))
+        pos = len(data) - len(d.unused_data)
+    return b"".join(out)
+
+
+def _check_line(line):
+    """``(record, None)`` for a line whose checksum holds, else ``(None, reason)``."""
+    m = _CHECK_RE.search(line)
+    if m is None:
+        return None, "no line checksum"
+    body = line[:m.start()] + b"}"
+    if f"{zlib.crc32(body):08x}".encode() != m.group(1):
+        return None, "checksum mismatch"
+    try:
+        return json.loads(body), None
+    except (ValueError, UnicodeDecodeError):
+        return None, "not valid JSON"
+
+
+def read_results(path, skip_damaged=False):
     """Read a ``results.jsonl`` (or a gzip-compressed ``results.jsonl.gz``, as shipped in
-    ``results/study``); a last line without its newline (a write cut short) is ignored.
+    ``results/study``), every line checked against its checksum.
+
+    A last line without its newline (a write cut short) is not a record: it is returned as
+    ``truncated_tail``, for the caller to name (:meth:`ResultsContent.describe_tail`).
+
+    Parameters
+    ----------
+    skip_damaged : bool
+        Return damaged lines in ``damaged`` (the study drops them and runs those cases again)
+        instead of raising.
 
     Raises
     ------
     InputError
-        A complete line that is not a JSON object with ``bridge`` and ``train``.
+        A damaged line (checksum mismatch, no checksum in a checksummed file, not JSON, no
+        ``bridge`` and ``train``), unless ``skip_damaged``; a damaged or cut-short gzip file always.
     """
     p = Path(path)
-    refuse_special(p, f"results {str(p)!r}")
+    label = f"results {str(p)!r}"
+    refuse_special(p, label)
     try:
         data = p.read_bytes()
-        if p.suffix == ".gz":
-            data = gzip.decompress(data)
     except FileNotFoundError:
         return ResultsContent(records=[], valid_bytes=0)
-    except (OSError, EOFError) as exc:
-        raise InputError(f"results {str(p)!r}: cannot read ({getattr(exc, 'strerror', None) or exc})") from None
+    except OSError as exc:
+        raise InputError(f"{label}: cannot read ({exc.strerror or exc})") from None
+    if p.suffix == ".gz":
+        data = _gunzip(data, label)
     end = data.rfind(b"\n") + 1
     body, tail = data[:end], data[end:]
-    records, seen, dup = [], set(), 0
-    for no, line in enumerate(body.split(b"\n")[:-1], start=1):
+    lines = body.split(b"\n")[:-1]
+    checksummed = any(_CHECK_RE.search(line) for line in lines)
+    records, seen, dup, damaged, offset = [], set(), 0, [], 0
+    for no, line in enumerate(lines, start=1):
+        at, offset = offset, offset + len(line) + 1
         if not line.strip():
             continue
-        try:
-            rec = json.loads(line)
-        except (ValueError, UnicodeDecodeError):
-            raise InputError(f"results {str(p)!r}: line {no} is not valid JSON (only the last line may be "
-                             f"truncated)") from None
-        if not isinstance(rec, dict) or "bridge" not in rec or "train" not in rec:
-            raise InputError(f"results {str(p)!r}: line {no} lacks 'bridge' and 'train'")
-        if not isinstance(rec["bridge"], str) or not isinstance(rec["train"], str):
-            raise InputError(f"results {str(p)!r}: line {no}: 'bridge' and 'train' must be names (text), "
-                             f"got {rec['bridge']!r} and {rec['train']!r}")
+        if checksummed:
+            rec, why = _check_line(line)
+        else:
+            try:
+                rec, why = json.loads(line), None
+            except (ValueError, UnicodeDecodeError):
+                rec, why = None, "not valid JSON"
+        if why is None:
+            if not isinstance(rec, dict) or "bridge" not in rec or "train" not in rec:
+                why = "lacks 'bridge' and 'train'"
+            elif not isinstance(rec["bridge"], str) or not isinstance(rec["train"], str):
+                why = f"'bridge' and 'train' must be names (text), got {rec['bridge']!r} and {rec['train']!r}"
+            elif not checksummed and CHECK_KEY in rec:
+                why = "its checksum is damaged"
+        if why is not None:
+            bad = DamagedLine(no, at, len(line) + 1, why)
+            if not skip_damaged:
+                raise InputError(f"{label}: damaged {bad.describe()}; a study resumed with the same --out drops "
+                                 f"damaged lines and computes those cases again")
+            damaged.append(bad)
+            continue
+        rec.pop(CHECK_KEY, None)
         k = record_key(rec)
         dup += k in seen
         seen.add(k)
         records.append(rec)
-    return ResultsContent(records=records, valid_bytes=end, truncated_tail=tail, duplicates=dup)
+    return ResultsContent(records=records, valid_bytes=end, truncated_tail=tail, duplicates=dup,
+                          damaged=tuple(damaged), checksummed=checksummed or not lines, lines=len(lines))
 
 
 def _fsync_dir(path):
@@ -148,7 +253,10 @@ def _atomic_write(path, data):
 
 
 def _line(rec):
-    return (json.dumps(rec, allow_nan=False, separators=(",", ":")) + "\n").encode()
+    """One result line: the record's JSON with its CRC-32 as the last member, and a newline."""
+    body = json.dumps({k: v for k, v in rec.items() if k != CHECK_KEY}, allow_nan=False,
+                      separators=(",", ":")).encode()
+    return body[:-1] + b',"%s":"%08x"}\n' % (CHECK_KEY.encode(), zlib.crc32(body))
 
 
 @contextlib.contextmanager
@@ -178,23 +286,33 @@ def _signals_deferred():
 
 
 class ResultsWriter:
-    """Append-only writer of ``results.jsonl``: one line per record, flushed and fsynced.
+    """Append-only writer of ``results.jsonl``: one checksummed line per record, flushed and fsynced.
 
-    Opening drops a truncated last line (the file is rewritten without it); with
+    Opening drops a truncated last line and every damaged line (the file is rewritten without
+    them, so those cases run again) and gives a file written without line checksums its checksums;
+    ``notes`` names each drop in one line (line number, byte offset, reason). With
     ``drop_errors=True`` it also drops the ``status: "error"`` lines so those cases run again.
     A context manager; :meth:`finish` is idempotent.
     """
 
     def __init__(self, path, drop_errors=False):
         self.path = Path(path)
-        content = read_results(self.path)
+        content = read_results(self.path, skip_damaged=True)
         keep = content.records
+        name = self.path.name
         self.dropped_truncated = bool(content.truncated_tail)
+        self.dropped_damaged = len(content.damaged)
+        self.notes = [f"dropped {name} {d.describe()}; that case runs again" for d in content.damaged]
+        if content.truncated_tail:
+            self.notes.append(f"dropped a truncated last {content.describe_tail()} of {name}; that case runs again")
+        upgrade = bool(keep) and not content.checksummed
+        if upgrade:
+            self.notes.append(f"added line checksums to the {len(keep)} lines of {name} written without them")
         self.dropped_errors = 0
         if drop_errors:
             keep = [r for r in content.records if r.get("status") != "error"]
             self.dropped_errors = len(content.records) - len(keep)
-        if self.dropped_truncated or self.dropped_errors:
+        if self.dropped_truncated or self.dropped_damaged or self.dropped_errors or upgrade:
             _atomic_write(self.path, b"".join(_line(r) for r in keep))
         self.records = {record_key(r): r for r in keep}
         self._f = open(self.path, "ab")

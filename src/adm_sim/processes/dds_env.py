@@ -17,6 +17,7 @@ This module imports nothing from ROS, so launchers can prepare the environment b
 
 from __future__ import annotations
 
+import contextlib
 import fcntl
 import os
 import shutil
@@ -291,3 +292,160 @@ def cleanup_shm(timeout_s: float = 60.0) -> str:
         raise RunError(f"fastdds shm clean failed (exit status {out.returncode}): "
                           f"{(out.stderr or out.stdout).strip()}")
     return out.stdout.strip()
+
+
+# ---------------------------------------------------------------- our own dead processes' segments
+#: Where the Fast DDS files of our processes are noted: one ledger file per process.
+SHM_LEDGER_DIR = LOCK_DIR / "shm"
+SHM_DIR = Path("/dev/shm")
+#: Names of Fast DDS files in /dev/shm: data segments ``fastrtps_<16 hex>``, ports
+#: ``fastrtps_port<n>``, data-sharing pools ``fast_datasharing_*``; each with ``_el``/``_sl``
+#: lock files and, for a port, a ``sem.<port>_mutex`` semaphore.
+_FASTDDS_BASE = ("fastrtps_", "fast_datasharing_")
+
+
+def _start_time(pid: int) -> str | None:
+    """The kernel's start time of ``pid`` (field 22 of /proc/pid/stat): a pid reused later differs."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return None
+    return stat.rsplit(")", 1)[1].split()[19]
+
+
+def _base_name(name: str) -> str | None:
+    if name.startswith("sem.") and name.endswith("_mutex"):
+        name = name[4:-6]
+    for suffix in ("_el", "_sl"):
+        if name.endswith(suffix):
+            name = name[:-3]
+    return name if name.startswith(_FASTDDS_BASE) else None
+
+
+def mapped_shm(pid: int) -> set[str]:
+    """Base names of the Fast DDS files process ``pid`` maps or holds open (its segments, ports
+    and their lock files), from /proc; empty when it is gone or not ours to read."""
+    names = set()
+    try:
+        for line in Path(f"/proc/{pid}/maps").read_text().splitlines():
+            parts = line.split(maxsplit=5)
+            path = parts[5] if len(parts) == 6 else ""
+            if path.startswith("/dev/shm/"):
+                names.add(path[9:].removesuffix(" (deleted)"))
+        for fd in os.scandir(f"/proc/{pid}/fd"):
+            try:
+                target = os.readlink(fd.path)
+            except OSError:
+                continue
+            if target.startswith("/dev/shm/"):
+                names.add(target[9:])
+    except OSError:
+        pass
+    return {b for b in map(_base_name, names) if b is not None}
+
+
+def record_shm(pids) -> int:
+    """Note in the ledger the Fast DDS files each of ``pids`` (processes of ours) uses now, so
+    that :func:`clean_dead_shm` can remove them once the process is dead; returns names noted.
+
+    Called while the processes live (a SIGKILL leaves no chance later); the ledger of a pid
+    grows, never shrinks, until its files are cleaned.
+    """
+    total = 0
+    for pid in pids:
+        names = mapped_shm(pid)
+        start = _start_time(pid)
+        if not names or start is None:
+            continue
+        path = SHM_LEDGER_DIR / f"{pid}-{start}.txt"
+        try:
+            SHM_LEDGER_DIR.mkdir(mode=0o777, parents=True, exist_ok=True)
+            old = set(path.read_text().split()) if path.exists() else set()
+            if names - old:
+                tmp = path.with_suffix(f".tmp{os.getpid()}")
+                tmp.write_text("".join(f"{n}\n" for n in sorted(old | names)))
+                os.replace(tmp, path)
+        except OSError:
+            continue  # best effort: a full /tmp costs the note, never the run
+        total += len(names)
+    return total
+
+
+def _locked_by_someone(path: Path) -> bool:
+    """True when a live process holds an flock on ``path`` (Fast DDS's lock of a live owner)."""
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return True
+    except OSError:
+        return False
+    finally:
+        os.close(fd)  # closing drops a lock this call took
+    return False
+
+
+def _in_use() -> set[str]:
+    """Base names of Fast DDS files mapped or open in any live process we can read."""
+    used = set()
+    for entry in os.scandir("/proc"):
+        if entry.name.isdigit():
+            used |= mapped_shm(int(entry.name))
+    return used
+
+
+def clean_dead_shm() -> tuple[int, int]:
+    """Remove the Fast DDS files our dead processes left: those in the ledger of a process that
+    is gone (its pid ended, or now names another process), and only when no live process maps or
+    holds them and no live process holds their lock. Ledgers of live processes are kept.
+
+    Returns
+    -------
+    (int, int)
+        Files removed and ledgers closed.
+    """
+    try:
+        ledgers = [p for p in SHM_LEDGER_DIR.iterdir() if p.suffix == ".txt"]
+    except OSError:
+        return 0, 0
+    dead = []
+    for p in ledgers:
+        pid, _, start = p.stem.partition("-")
+        if not pid.isdigit() or _start_time(int(pid)) != start:
+            dead.append(p)
+    if not dead:
+        return 0, 0
+    used = _in_use()
+    removed = closed = 0
+    for ledger in dead:
+        try:
+            names = set(ledger.read_text().split())
+        except OSError:
+            continue
+        left = set()
+        for base in names:
+            if _base_name(base) != base:
+                continue
+            files = [SHM_DIR / base, SHM_DIR / f"{base}_el", SHM_DIR / f"{base}_sl", SHM_DIR / f"sem.{base}_mutex"]
+            if base in used or any(_locked_by_someone(f) for f in files[1:3]):
+                left.add(base)  # a live process uses it (a peer's port or segment this one mapped)
+                continue
+            for f in files:
+                try:
+                    f.unlink()
+                    removed += 1
+                except FileNotFoundError:
+                    pass
+                except OSError:
+                    left.add(base)
+        with contextlib.suppress(OSError):
+            if left:  # looked at again at the next clean, once their users are gone too
+                if left != names:
+                    ledger.write_text("".join(f"{n}\n" for n in sorted(left)))
+            else:
+                ledger.unlink()
+                closed += 1
+    return removed, closed

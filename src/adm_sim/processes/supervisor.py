@@ -5,8 +5,9 @@ Used by the launch scripts and by the tests alike. Every node runs as
 :func:`adm_sim.processes.dds_env.local_ros_env` (shared memory only, a ROS_DOMAIN_ID of its own).
 :class:`Supervisor` reports the first node that dies, stops all of them on exit, Ctrl-C or
 SIGTERM (SIGTERM first so the nodes finish their files, SIGKILL after a grace period) and, when
-a process had to be killed or died by a signal, removes the shared-memory files it left with
-Fast DDS's ``fastdds shm clean`` (:func:`adm_sim.processes.dds_env.cleanup_shm`).
+a process had to be killed or died by a signal, removes the Fast DDS shared-memory files it left
+(:func:`adm_sim.processes.dds_env.clean_dead_shm`: the files the supervisor noted while the node
+lived, once no live process uses them; also at the next start).
 
 Children die with their parent
 -------------------------------
@@ -39,9 +40,17 @@ import time
 from pathlib import Path
 
 from adm_sim.errors import AdmSimError, RunError
-from adm_sim.processes.dds_env import cleanup_shm, local_ros_env
+from adm_sim.processes.dds_env import clean_dead_shm, local_ros_env, record_shm
 
 __all__ = ["NodeDied", "Supervisor", "child_setup", "ros_args"]
+
+
+def _best_effort(fn, *args):
+    """Shared-memory housekeeping never fails a run: stale files are also reclaimed at the next start."""
+    try:
+        return fn(*args)
+    except (AdmSimError, OSError):
+        return None
 
 
 class NodeDied(RunError):
@@ -144,6 +153,8 @@ class Supervisor:
         self.lines = queue.Queue()
         self._old = {}
         self._files = []
+        self._noted = 0.0
+        _best_effort(clean_dead_shm)  # what our processes killed earlier left
 
     @property
     def domain_id(self):
@@ -181,10 +192,18 @@ class Supervisor:
 
     def dead(self, names=None):
         """``(name, returncode)`` of the first supervised process that has exited, or None."""
+        self._note_shm()
         for name, p in self.procs.items():
             if (names is None or name in names) and p.poll() is not None:
                 return name, p.returncode
         return None
+
+    def _note_shm(self, every_s=0.5):
+        """Note the Fast DDS files the live nodes use (:func:`record_shm`), at most every ``every_s``."""
+        now = time.monotonic()
+        if now - self._noted >= every_s:
+            self._noted = now
+            _best_effort(record_shm, [p.pid for p in self.procs.values() if p.poll() is None])
 
     def log_tail(self, name, n=5):
         """The ``error:`` lines of a node's stderr (else its last ``n`` lines)."""
@@ -207,6 +226,7 @@ class Supervisor:
         SIGTERM rather than SIGINT: a launcher started in the background of a non-interactive
         shell passes SIGINT on as ignored, and rclpy handles both the same way.
         """
+        self._note_shm(every_s=0.0)
         live = [p for p in self.procs.values() if p.poll() is None]
         for p in live:
             try:
@@ -226,11 +246,7 @@ class Supervisor:
         for f in self._files:
             f.close()
         self._files = []
-        if any(p.returncode is not None and p.returncode < 0 for p in self.procs.values()):
-            try:
-                cleanup_shm()
-            except (AdmSimError, OSError, subprocess.SubprocessError):
-                pass  # best effort: stale segments are also reclaimed by the next participant
+        _best_effort(clean_dead_shm)  # what a node killed by a signal left
         if self._own_env:
             self.env.release()
 
