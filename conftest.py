@@ -1,6 +1,12 @@
 """Root test configuration: stable numbers and timings on a 2-core machine, local-only DDS."""
 
+import glob
+import importlib.util
 import os
+import subprocess
+import sys
+
+import pytest
 
 # Pin BLAS threads before numpy is imported anywhere (numbers and timings stay stable).
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
@@ -13,3 +19,142 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 # No first-run compile notice on stderr in tests (they compare stderr line by line; a fresh clone
 # compiles numba's kernels in whichever test comes first). tests/test_imports.py tests the notice.
 os.environ.setdefault("ADM_SIM_QUIET_COMPILE", "1")
+
+
+# --- optional per-test CPU cost (``ADM_SIM_TEST_CPU_LOG=path``) ----------------------------------
+# Wall time on a shared machine says little; the CPU a test costs (this process and the children
+# it waited for) does. Each test appends "nodeid<TAB>cpu_s<TAB>wall_s" to the file named; the
+# numbers in docs/benchmarks.md ("Test suite") were gathered this way.
+_CPU_LOG = os.environ.get("ADM_SIM_TEST_CPU_LOG")
+
+if _CPU_LOG:
+    import resource
+    import time
+
+    def _cpu_s():
+        own = resource.getrusage(resource.RUSAGE_SELF)
+        kids = resource.getrusage(resource.RUSAGE_CHILDREN)
+        return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
+
+    @pytest.hookimpl(hookwrapper=True)
+    def pytest_runtest_protocol(item, nextitem):
+        c0, t0 = _cpu_s(), time.perf_counter()
+        yield
+        with open(_CPU_LOG, "a") as fh:
+            fh.write(f"{item.nodeid}\t{_cpu_s() - c0:.3f}\t{time.perf_counter() - t0:.3f}\n")
+
+
+# --- the suite on two workers (``python -m pytest -n 2``, .ci/run) --------------------------------
+# Three things decide how long the suite takes on this 2-core machine, more than any one test:
+#
+# 1. Numba compiles each kernel on its first call and keeps it in ``src/adm_sim/__pycache__``. In a
+#    fresh clone that is about 35 s of CPU, paid by every process that calls a kernel before the
+#    cache holds it: both workers at once, and every command-line subprocess a test starts early.
+#    So the controller compiles the kernels once, before the workers start, on both cores in parallel
+#    (``adm-sim compile``'s code paths, split in two), and every later process loads the cache.
+# 2. The order work is handed out: xdist hands it out in collection order, so a slow file that
+#    comes last is the tail of the run. Files are ordered by their measured cost, the costliest
+#    first (``_FILE_CPU_S``; a file not in the table comes after them, alphabetically).
+# 3. A module-scoped fixture (a crossing recorded through the ROS graph, a table of calibrations)
+#    is built once per worker that runs one of its tests. Scheduling by group (``--dist loadgroup``)
+#    keeps every test that uses a module-scoped fixture of its file on one worker; the other tests
+#    are still handed out one by one.
+
+ROOT = os.path.dirname(os.path.abspath(__file__))
+
+#: CPU seconds of each test file run alone (cache warm, ``ADM_SIM_TEST_CPU_LOG``), measured on the
+#: 2-core machine of docs/benchmarks.md ("Test suite"); used only to order the files, costliest first.
+_FILE_CPU_S = {
+    "test_ros_cosim.py": 72,
+    "test_ros_rerun_views.py": 57,
+    "test_ros_faults.py": 48,
+    "test_replay_integrity.py": 35,
+    "test_monitor_cli.py": 30,
+    "test_imports.py": 27,
+    "test_entry_points.py": 25,
+    "test_ros_colcon.py": 15,
+    "test_ros_startup_inputs.py": 15,
+    "test_appendix_b_findings.py": 12,
+    "test_monitor_identify.py": 11,
+    "test_paper_findings.py": 8,
+    "test_check_effects.py": 8,
+    "test_monitor_node.py": 8,
+    "test_sweep_backends.py": 8,
+    "test_ros_rerun_live.py": 9,
+    "test_ros_monitoring.py": 8,
+    "test_ros_nodes.py": 4,
+    "test_ros_exchange_errors.py": 3,
+}
+
+
+def _xdist_controller(config):
+    return bool(getattr(config.option, "numprocesses", None)) and not hasattr(config, "workerinput")
+
+
+def pytest_cmdline_main(config):
+    if _xdist_controller(config) and not any(a.startswith(("--dist", "-d")) for a in config.invocation_params.args):
+        config.option.dist = "loadgroup"
+        config.option.loadscopereorder = False  # keep the collection's order (costliest first)
+
+
+_COMPILE_PARTS = (
+    # (which of adm_sim.precompile's code paths, by the start of their name): about half of the
+    # compile time each on one core.
+    ("exact", "EN 1991-2"),
+    ("compiled",),
+)
+_COMPILE_PROBE = (
+    "import sys\n"
+    "from adm_sim.precompile import _paths\n"
+    "for name, run in _paths():\n"
+    "    if name.startswith(tuple(sys.argv[1:])):\n"
+    "        run()\n"
+)
+
+
+def _precompile_kernels():
+    """Compile (or load) every kernel in two processes at once; a failure is left to the tests."""
+    if importlib.util.find_spec("numba") is None:
+        return
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (os.path.join(ROOT, "src"), env.get("PYTHONPATH")) if p)
+    procs = [subprocess.Popen([sys.executable, "-c", _COMPILE_PROBE, *part], env=env, cwd=ROOT,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, stdin=subprocess.DEVNULL)
+             for part in _COMPILE_PARTS]
+    for p in procs:
+        p.wait()
+
+
+def _kernels_cached():
+    """True when numba's index of both kernel modules is newer than their source (nothing to compile)."""
+    for mod in ("kernels", "envelope"):
+        src = os.path.join(ROOT, "src", "adm_sim", f"{mod}.py")
+        idx = glob.glob(os.path.join(ROOT, "src", "adm_sim", "__pycache__", f"{mod}.*.nbi"))
+        if not idx or min(os.path.getmtime(i) for i in idx) < os.path.getmtime(src):
+            return False
+    return True
+
+
+def pytest_configure(config):
+    if (_xdist_controller(config) and not config.option.collectonly
+            and os.environ.get("ADM_SIM_TEST_PRECOMPILE", "1") != "0" and not _kernels_cached()):
+        _precompile_kernels()
+
+
+def _module_scoped(item):
+    info = getattr(item, "_fixtureinfo", None)
+    if info is None:
+        return False
+    return any(defs and defs[-1].scope in ("module", "package", "session") and
+               defs[-1].baseid.split("::")[0].endswith(".py") and item.nodeid.startswith(defs[-1].baseid.split("::")[0])
+               for defs in info.name2fixturedefs.values())
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config, items):
+    rank = {name: k for k, name in enumerate(sorted(_FILE_CPU_S, key=lambda n: -_FILE_CPU_S[n]))}
+    items.sort(key=lambda it: (rank.get(os.path.basename(str(it.path)), len(rank)), str(it.path)))
+    if getattr(config.option, "loadgroup", False):  # set on the workers by xdist under --dist loadgroup
+        for it in items:
+            if _module_scoped(it) and not it.get_closest_marker("xdist_group"):
+                it.add_marker(pytest.mark.xdist_group(os.path.basename(str(it.path))))
