@@ -53,9 +53,10 @@ class CalibrationNode(RunDriver):
 
     def __init__(self, **kw):
         super().__init__(name=P.CALIBRATION_NODE, extra_specs=CALIBRATION_SPECS, **kw)
-        self.pub_iter = self.create_publisher(Float64MultiArray, P.TOPIC_CAL_ITERATION, c.QOS_CONTROL)
-        self.pub_result = self.create_publisher(String, P.TOPIC_CAL_RESULT, c.QOS_CONTROL)
-        self.pub_diag = self.create_publisher(DiagnosticArray, P.TOPIC_DIAGNOSTICS, c.QOS_CONTROL)
+        R = P.relative
+        self.pub_iter = self.create_publisher(Float64MultiArray, R(P.TOPIC_CAL_ITERATION), c.QOS_CONTROL)
+        self.pub_result = self.create_publisher(String, R(P.TOPIC_CAL_RESULT), c.QOS_LATCHED)
+        self.pub_diag = self.create_publisher(DiagnosticArray, R(P.TOPIC_DIAGNOSTICS), c.QOS_LATCHED)
         self.iteration = 0
 
     # ------------------------------------------------------------------ co-simulated sweeps
@@ -136,7 +137,8 @@ class CalibrationNode(RunDriver):
         res = calibrate(bridge, train, v, opt, sweep=self._hook, on_trial=self._iteration)
         self._publish_result(res)
         summary = res.to_dict(curves=True)
-        summary["co_simulation"] = {"runs": self.n_runs, "delta_zeta_trials": self.iteration}
+        summary["co_simulation"] = {"runs": self.n_runs, "delta_zeta_trials": self.iteration,
+                                    "incomplete_runs": self.incomplete}
         return summary
 
     def _publish_result(self, res):

@@ -61,6 +61,15 @@ def monitor_steps(bridge, grid, lane, every, beam_every):
     return int(every), int(beam_every)
 
 
+def frame_id(bridge, namespace="/"):
+    """Frame id of a bridge's midspan: ``<bridge>/midspan`` (the bridge's name, else the node's
+    namespace, else ``bridge``), characters outside ``[A-Za-z0-9_]`` replaced by ``_``."""
+    import re
+
+    name = bridge.name or namespace.strip("/") or "bridge"
+    return re.sub(r"[^A-Za-z0-9_]", "_", name) + "/midspan"
+
+
 def bridge_specs(preset):
     """Parameter specs of the bridge node; numeric defaults from the preset bridge."""
     S = c.param
@@ -140,27 +149,32 @@ class BridgeNode(c.NodeBase):
         self.bridge = self.build_bridge(self.param_values())  # validates the startup values
         self.add_post_set_parameters_callback(self._after_set)
 
-        self.pub_rail = self.create_publisher(Float64MultiArray, P.TOPIC_RAIL, c.QOS_EXCHANGE)
-        self.pub_ready = self.create_publisher(String, P.TOPIC_READY, c.QOS_CONTROL)
-        self.pub_result = self.create_publisher(Float64MultiArray, P.TOPIC_RESULT, c.QOS_CONTROL)
-        self.pub_status = self.create_publisher(String, P.TOPIC_STATUS, c.QOS_CONTROL)
-        self.pub_clock = self.create_publisher(Clock, P.TOPIC_CLOCK, c.QOS_MONITOR)
-        self.pub_accel = self.create_publisher(AccelStamped, P.TOPIC_ACCEL, c.QOS_MONITOR)
-        self.pub_state = self.create_publisher(Float64MultiArray, P.TOPIC_STATE, c.QOS_MONITOR)
-        self.pub_beam = self.create_publisher(Float64MultiArray, P.TOPIC_BEAM, c.QOS_MONITOR)
-        self.pub_axles = self.create_publisher(Float64MultiArray, P.TOPIC_AXLES, c.QOS_MONITOR)
-        self.pub_progress = self.create_publisher(String, P.TOPIC_PROGRESS, c.QOS_MONITOR)
-        self.pub_diag = self.create_publisher(DiagnosticArray, P.TOPIC_DIAGNOSTICS, c.QOS_CONTROL)
-        self.pub_desc = self.create_publisher(String, P.TOPIC_BRIDGE_DESC, c.QOS_LATCHED)
-        self.create_subscription(String, P.TOPIC_SETUP, self._on_setup, c.QOS_CONTROL)
+        R, pub = P.relative, self.create_publisher
+        self.pub_rail = pub(Float64MultiArray, R(P.TOPIC_RAIL), c.QOS_EXCHANGE)
+        self.pub_ready = pub(String, R(P.TOPIC_READY), c.QOS_CONTROL)
+        self.pub_result = pub(Float64MultiArray, R(P.TOPIC_RESULT), c.QOS_LATCHED)
+        self.pub_status = pub(String, R(P.TOPIC_STATUS), c.QOS_CONTROL)
+        self.pub_summary = pub(DiagnosticStatus, R(P.TOPIC_SUMMARY), c.QOS_LATCHED)
+        #: monitoring publishers, counted per run (:data:`adm_sim.protocol.SAMPLE_TOPICS`)
+        self.pubs = {t: pub(typ, R(t), c.QOS_CONTROL if t == P.TOPIC_DIAGNOSTICS else c.QOS_MONITOR)
+                     for t, typ in ((P.TOPIC_CLOCK, Clock), (P.TOPIC_ACCEL, AccelStamped),
+                                    (P.TOPIC_STATE, Float64MultiArray), (P.TOPIC_BEAM, Float64MultiArray),
+                                    (P.TOPIC_AXLES, Float64MultiArray), (P.TOPIC_PROGRESS, String),
+                                    (P.TOPIC_DIAGNOSTICS, DiagnosticArray))}
+        #: the run's final /diagnostics, latched (a late joiner gets the last verdict)
+        self.pub_diag_final = pub(DiagnosticArray, R(P.TOPIC_DIAGNOSTICS), c.QOS_LATCHED)
+        self.pub_desc = pub(String, R(P.TOPIC_BRIDGE_DESC), c.QOS_LATCHED)
+        self.create_subscription(String, R(P.TOPIC_SETUP), self._on_setup, c.QOS_CONTROL)
         self.exchange = c.ExchangeLane(self)
         self.exchange_subscriptions = [
-            self.exchange.subscribe(Float64MultiArray, P.TOPIC_FORCES, self._on_forces, c.QOS_EXCHANGE),
-            self.exchange.subscribe(Float64MultiArray, P.TOPIC_AXLE_BLOCK, self._on_axle_block, c.QOS_EXCHANGE)]
+            self.exchange.subscribe(Float64MultiArray, R(P.TOPIC_FORCES), self._on_forces, c.QOS_EXCHANGE),
+            self.exchange.subscribe(Float64MultiArray, R(P.TOPIC_AXLE_BLOCK), self._on_axle_block, c.QOS_EXCHANGE),
+            # acknowledgements of the recorders, served as fast as the exchange (flow control)
+            self.exchange.subscribe(String, R(P.TOPIC_ACK), self._on_ack, c.QOS_CONTROL)]
 
         self.run = None  # the active run (dict) or None
         self.t_offset_s = 0.0  # sim time continues across runs
-        self.partner = c.PartnerWatch(self, P.TRAIN_NODE, P.TOPIC_FORCES,
+        self.partner = c.PartnerWatch(self, P.TRAIN_NODE, P.relative(P.TOPIC_FORCES),
                                       self.get_parameter("partner_timeout_s").value)
         self._publish_description()
 
@@ -240,23 +254,100 @@ class BridgeNode(c.NodeBase):
         mon = 0 if p["monitor_speed_kmh"] <= 0.0 else int(np.argmin(np.abs(speeds_kmh - p["monitor_speed_kmh"])))
         every, beam_every = monitor_steps(bridge, grid, mon, int(p["monitor_every_steps"]), int(p["beam_every_steps"]))
         xb = np.linspace(0.0, bridge.span_m, int(p["beam_points"]))
+        phase = cfg.get("phase") or P.plain_run_phase(cfg["model"], p["delta_zeta"], p["delta_zeta_lanes"])
+        recorders = self._recorders()
         self.run = dict(
             id=int(cfg["run_id"]), model=cfg["model"], grid=grid, run=run, bridge=bridge, speeds_kmh=speeds_kmh,
             dz=np.broadcast_to(np.asarray(dz, dtype=float), (grid.n_lanes,)).copy(), lane=mon, disp=None,
-            every=every, beam_every=beam_every,
+            every=every, beam_every=beam_every, phase=phase, train=cfg.get("train", ""),
+            frame=frame_id(bridge, self.get_namespace()), v_mon=float(grid.speeds_m_s[mon]),
             x_beam=xb, phi_beam=bridge.shapes(xb)[0], limit=ACC_LIMITS_M_S2[p["track_type"]],
             track=p["track_type"], warn=float(p["warn_fraction"]), tick=max(1, grid.n_steps // 100),
-            t0=self.t_offset_s, wall0=time.perf_counter())
+            t0=self.t_offset_s, wall0=time.perf_counter(),
+            peak=(-1.0, 0),  # (exact max |a| of the monitored lane so far, its step)
+            counts={t: 0 for t in P.SAMPLE_TOPICS}, sent=0,
+            # flow control: recorder -> messages it acknowledged; what waits for an acknowledgement
+            acked={n: 0 for n in recorders}, paused=None, block=None, ack_wait_since=None)
         self.pub_ready.publish(c.json_msg(P.ready_record(
             self.run["id"], ds_m=grid.ds_m, n_steps=grid.n_steps, span_m=bridge.span_m, n_lanes=grid.n_lanes,
             t0_s=self.t_offset_s)))
-        self._status(self.run["id"], P.STARTED, model=cfg["model"], n_steps=grid.n_steps, n_lanes=grid.n_lanes,
-                     ds_m=grid.ds_m, bridge=bridge.describe(), train=cfg.get("train", ""), **self._monitor_info())
+        self._status(self.run["id"], P.STARTED, **self._run_info(), **self._monitor_info())
         self.get_logger().info(f"run {self.run['id']}: {cfg['model'].upper()} {bridge.describe()}, "
                                f"{grid.n_lanes} lanes, {grid.n_steps} steps of {grid.ds_m * 1000:.2f} mm")
         self._ask_partner()
 
     # ------------------------------------------------------------------ lockstep
+    def _run_info(self):
+        r = self.run
+        return {"model": r["model"], "phase": r["phase"], "n_steps": r["grid"].n_steps, "n_lanes": r["grid"].n_lanes,
+                "ds_m": r["grid"].ds_m, "bridge": r["bridge"].describe(), "train": r["train"]}
+
+    # ------------------------------------------------------------------ flow control
+    def _recorders(self):
+        """Names of the nodes that acknowledge what they recorded (publishers of ``/adm/run/ack``)."""
+        return sorted({i.node_namespace.rstrip("/") + "/" + i.node_name
+                       for i in self.get_publishers_info_by_topic(self.resolve_topic_name(P.relative(P.TOPIC_ACK)))})
+
+    def _on_ack(self, msg):
+        r = self.run
+        ack = P.decode(msg.data)
+        if r is None or ack.get("node") not in r["acked"]:
+            return
+        r["acked"][ack["node"]] = max(r["acked"][ack["node"]], int(ack["received"]))
+        r["ack_wait_since"] = None
+        self._resume()
+
+    def _ahead(self):
+        """Whether the run is more than the window ahead of the slowest recorder."""
+        r = self.run
+        return bool(r["acked"]) and r["sent"] - min(r["acked"].values()) >= P.FLOW_WINDOW
+
+    def _all_acked(self):
+        r = self.run
+        return not r["acked"] or min(r["acked"].values()) >= r["sent"]
+
+    def _pause(self, what):
+        """Wait for the recorders before ``what`` (``step``: the next exchange; ``end``: the result)."""
+        r = self.run
+        r["paused"] = what
+        if r["ack_wait_since"] is None:
+            r["ack_wait_since"] = time.monotonic()
+
+    def _resume(self):
+        r = self.run
+        if r is None or r["paused"] is None:
+            return
+        if r["paused"] == "end":
+            if self._all_acked():
+                r["paused"] = None
+                self._publish_end()
+            return
+        if self._ahead():
+            return
+        r["paused"] = None
+        if r["block"] is not None:
+            self._advance_block()
+        else:
+            self._ask_partner()
+
+    def _check_recorders(self):
+        """Between turns: a recorder that left the graph or acknowledged nothing for
+        ``partner_timeout_s`` is dropped from the flow control of this run (with a warning)."""
+        r = self.run
+        if r is None or r["paused"] is None or r["ack_wait_since"] is None:
+            return
+        alive = set(self._recorders())
+        stale = time.monotonic() - r["ack_wait_since"] > self.partner.timeout_s
+        for name in list(r["acked"]):
+            if name not in alive or stale:
+                self.get_logger().warning(
+                    f"run {r['id']}: recorder '{name}' {'left' if name not in alive else 'acknowledged nothing for'}"
+                    f"{'' if name not in alive else f' {self.partner.timeout_s:g} s'}; it is no longer waited for "
+                    f"({r['acked'][name]} of {r['sent']} messages acknowledged)")
+                del r["acked"][name]
+        r["ack_wait_since"] = None if not r["acked"] else time.monotonic()
+        self._resume()
+
     def _ask_partner(self):
         """Publish the rail state for the current (step, stage) (MLM: a token for the next block)."""
         r, run = self.run, self.run["run"]
@@ -266,10 +357,10 @@ class BridgeNode(c.NodeBase):
                 r["disp"] = run.disp_m
             idx, w, wd = run.rail_state()
             self.pub_rail.publish(c.pack(r["id"], k, stage, np.stack([w, wd]), ("field", "lane", "axle_on"), idx))
-            self.partner.waiting(f"at step {k} stage {stage} of run {r['id']}", P.TOPIC_FORCES)
+            self.partner.waiting(f"at step {k} stage {stage} of run {r['id']}", P.relative(P.TOPIC_FORCES))
         else:
             self.pub_rail.publish(c.pack(r["id"], k, 0, np.zeros((r["grid"].n_lanes, 0)), ("lane", "axle_on")))
-            self.partner.waiting(f"at step {k} of run {r['id']}", P.TOPIC_AXLE_BLOCK)
+            self.partner.waiting(f"at step {k} of run {r['id']}", P.relative(P.TOPIC_AXLE_BLOCK))
 
     def _on_forces(self, msg):
         r = self.run
@@ -284,6 +375,8 @@ class BridgeNode(c.NodeBase):
             self._step_done(k, r["disp"], run.acc_m_s2)
         if run.status != "running":
             self._finish()
+        elif stage == 0 and self._ahead():
+            self._pause("step")
         else:
             self._ask_partner()
 
@@ -296,15 +389,30 @@ class BridgeNode(c.NodeBase):
         c.check_step("bridge", (run_id, k0, stage), (r["id"], run.k, 0))
         self.partner.clear()
         n = (block.shape[0] - 2) // 2
-        P = modal_loads_at(r["bridge"], block[:-1], block[-1])
-        for j in range(n):
+        r["block"] = [modal_loads_at(r["bridge"], block[:-1], block[-1]), 0, n]
+        self._advance_block()
+
+    def _advance_block(self):
+        """Step through the MLM block of axle loads; pause when the recorders lag a window behind."""
+        r = self.run
+        run = r["run"]
+        loads, j, n = r["block"]
+        while j < n:
             k, disp = run.k, run.disp_m
-            run.step(P[2 * j], P[2 * j + 1], P[2 * j + 2])
+            run.step(loads[2 * j], loads[2 * j + 1], loads[2 * j + 2])
+            j += 1
             if run.status == "failed":
                 break
             self._step_done(k, disp, run.acc_m_s2)
+            if j < n and self._ahead():
+                r["block"][1] = j
+                self._pause("step")
+                return
+        r["block"] = None
         if run.status != "running":
             self._finish()
+        elif self._ahead():
+            self._pause("step")
         else:
             self._ask_partner()
 
@@ -312,6 +420,9 @@ class BridgeNode(c.NodeBase):
     def _step_done(self, k, disp, acc):
         """Monitoring after step ``k`` produced its midspan displacement and acceleration."""
         r = self.run
+        a = abs(float(acc[r["lane"]]))
+        if a > r["peak"][0]:
+            r["peak"] = (a, k)
         if k % r["every"] == 0:
             self._monitor(k, disp, acc)
         if k % r["beam_every"] == 0:
@@ -323,80 +434,139 @@ class BridgeNode(c.NodeBase):
         """What the monitoring topics of the run show: for the rerun run-time timeline and the run table."""
         r = self.run
         return {"t0_s": r["t0"], "monitor_lane": r["lane"], "monitor_speed_kmh": float(r["speeds_kmh"][r["lane"]]),
-                "clock_speed_kmh": float(np.min(r["speeds_kmh"])), "monitor_every_steps": r["every"],
-                "beam_every_steps": r["beam_every"]}
+                "time_lane": r["lane"], "clock_speed_kmh": float(r["speeds_kmh"][r["lane"]]),
+                "monitor_every_steps": r["every"], "beam_every_steps": r["beam_every"], "frame_id": r["frame"],
+                "acc_sign": "z-up (REP 103)"}
 
     def _sim_time(self, k):
-        return self.t_offset_s + self.run["grid"].clock_time_s(k)
+        """Session sim time of step ``k``: the monitored lane's own time since its first axle
+        entered the bridge, plus the run's offset (``/clock`` and every stamp)."""
+        r = self.run
+        return r["t0"] + r["grid"].front_m(k) / r["v_mon"]
+
+    def _publish(self, topic, msg, pub=None):
+        """Publish a monitoring message and count it (flow control, the run's ``samples``)."""
+        r = self.run
+        (pub or self.pubs[topic]).publish(msg)
+        r["counts"][topic] += 1
+        r["sent"] += 1
 
     def _monitor(self, k, disp, acc):
         r = self.run
-        stamp = c.to_time_msg(self._sim_time(k))
         a = AccelStamped()
-        a.header.stamp = stamp
-        a.header.frame_id = "midspan"
-        a.accel.linear.z = float(acc[r["lane"]])
-        self.pub_accel.publish(a)
+        a.header.stamp = c.to_time_msg(self._sim_time(k))
+        a.header.frame_id = r["frame"]
+        a.accel.linear.z = -float(acc[r["lane"]])  # the core's acceleration is positive downwards
+        self._publish(P.TOPIC_ACCEL, a)
 
     def _beam(self, k, disp, acc):
-        """Sim time, every lane's midspan state, the deflected beam and the axles of the monitored lane."""
-        self.pub_clock.publish(Clock(clock=c.to_time_msg(self._sim_time(k))))
-        m = c.matrix_msg(("lane", "quantity:disp_m,acc_m_s2"), np.column_stack([disp, acc]))
-        self.pub_state.publish(m)
+        """Sim time, every lane's midspan state, the deflected beam and the axles of the monitored lane;
+        the arrays carry the step ``k`` before their data (``layout.data_offset`` = 1)."""
+        self._publish(P.TOPIC_CLOCK, Clock(clock=c.to_time_msg(self._sim_time(k))))
+        self._publish(P.TOPIC_STATE, c.matrix_msg(("lane", "quantity:disp_m,acc_m_s2"), np.column_stack([disp, acc]),
+                                                  step=k))
         r, side = self.run, self.run["run"].bridge_side
         q = side.q[r["lane"]]
         w = r["phi_beam"] @ q
         _, xa = side.axles_on(k, 0)
         wa = r["bridge"].shapes(xa)[0] @ q if xa.size else np.zeros(0)
-        self.pub_beam.publish(c.matrix_msg(("row:x_m,w_m", "point"), np.vstack([r["x_beam"], w])))
-        self.pub_axles.publish(c.matrix_msg(("row:x_m,w_m", "axle_on"), np.vstack([xa, wa])))
+        self._publish(P.TOPIC_BEAM, c.matrix_msg(("row:x_m,w_m", "point"), np.vstack([r["x_beam"], w]), step=k))
+        self._publish(P.TOPIC_AXLES, c.matrix_msg(("row:x_m,w_m", "axle_on"), np.vstack([xa, wa]), step=k))
 
-    def _progress(self, done):
+    def _progress(self, done, final=False):
         r = self.run
         n = r["grid"].n_steps
-        self.pub_progress.publish(c.json_msg(P.progress_record(r["id"], r["model"], done, n,
-                                                               self._sim_time(min(done, n)))))
+        if final:  # the run's last progress record carries what the run published, itself included
+            r["counts"][P.TOPIC_PROGRESS] += 1
+            r["sent"] += 1
+            self.pubs[P.TOPIC_PROGRESS].publish(c.json_msg(P.progress_record(
+                r["id"], r["model"], done, n, self._sim_time(min(done, n)), samples=r["counts"])))
+            return
+        self._publish(P.TOPIC_PROGRESS, c.json_msg(P.progress_record(r["id"], r["model"], done, n,
+                                                                     self._sim_time(min(done, n)))))
         self._diagnostics(done, final=False)
+
+    def _level(self, peak):
+        """Diagnostic level of a peak: ERROR only for a run of the bridge as specified; a numerical
+        trial (:data:`adm_sim.protocol.TRIAL_PHASES`) reports at most WARN."""
+        r = self.run
+        level = c.acc_level(peak, r["limit"], r["warn"])
+        return min(level, 1) if r["phase"] in P.TRIAL_PHASES else level
 
     def _diagnostics(self, done, final):
         r = self.run
         max_acc = r["run"].max_acc_m_s2
         i = int(np.argmax(max_acc))
         peak = float(max_acc[i])
-        level = c.acc_level(peak, r["limit"], r["warn"])
-        word = {0: "within", 1: "near", 2: "above"}[level]
-        st = DiagnosticStatus(level=bytes([level]), name="adm_sim/bridge: deck acceleration",
+        level = self._level(peak)
+        trial = r["phase"] in P.TRIAL_PHASES
+        word = {0: "within", 1: "near", 2: "above"}[c.acc_level(peak, r["limit"], r["warn"])]
+        st = DiagnosticStatus(level=bytes([level]), name=P.DIAG_TRIAL_NAME if trial else P.DIAG_NAME,
                               hardware_id=r["bridge"].name or "bridge",
-                              message=(f"max |a| {peak:.3f} m/s^2 at {r['speeds_kmh'][i]:g} km/h {word} the "
+                              message=(f"{'numerical trial (' + r['phase'] + '): ' if trial else ''}"
+                                       f"max |a| {peak:.3f} m/s^2 at {r['speeds_kmh'][i]:g} km/h {word} the "
                                        f"{r['limit']:g} m/s^2 limit ({r['track']} track, EN 1990 A2.4.4.2.1)"
                                        f"{'' if final else ' so far'}"))
-        vals = {"run_id": r["id"], "model": r["model"], "max_acc_m_s2": peak, "speed_kmh": float(r["speeds_kmh"][i]),
-                "limit_m_s2": r["limit"], "track_type": r["track"], "step": done, "n_steps": r["grid"].n_steps,
-                "final": final}
+        vals = {"run_id": r["id"], "phase": r["phase"], "model": r["model"], "max_acc_m_s2": peak,
+                "speed_kmh": float(r["speeds_kmh"][i]), "limit_m_s2": r["limit"], "track_type": r["track"],
+                "step": done, "n_steps": r["grid"].n_steps, "final": final}
         st.values = [KeyValue(key=k, value=str(v)) for k, v in vals.items()]
         arr = DiagnosticArray(status=[st])
         arr.header.stamp = c.to_time_msg(self._sim_time(min(done, r["grid"].n_steps)))
-        self.pub_diag.publish(arr)
+        self._publish(P.TOPIC_DIAGNOSTICS, arr, self.pub_diag_final if final else None)
+
+    def _summary(self, done):
+        """The per-passage summary (``/adm/run/summary``, latched): the monitored lane's passage."""
+        r, run = self.run, self.run["run"]
+        lane, grid = r["lane"], r["grid"]
+        peak, k = r["peak"]
+        peak = float(run.max_acc_m_s2[lane])  # the same value, exactly (every step is folded in both)
+        level = self._level(peak)
+        i = int(np.argmax(run.max_acc_m_s2))
+        vals = P.summary_values(
+            run_id=r["id"], phase=r["phase"], bridge=r["bridge"].describe(), train=r["train"], model=r["model"],
+            speed_kmh=float(r["speeds_kmh"][lane]), peak_acc_m_s2=peak, t_peak_s=self._sim_time(k),
+            run_time_peak_s=self._sim_time(k) - r["t0"], step_peak=k, x_front_peak_m=float(grid.front_m(k)),
+            limit_m_s2=r["limit"], track_type=r["track"], level=level, max_acc_all_lanes_m_s2=float(run.max_acc_m_s2[i]),
+            speed_at_max_kmh=float(r["speeds_kmh"][i]), n_lanes=grid.n_lanes, n_steps=grid.n_steps, steps_done=done,
+            t0_s=r["t0"], t1_s=self._sim_time(done), frame_id=r["frame"], samples=r["counts"])
+        return DiagnosticStatus(level=bytes([level]), name=P.SUMMARY_NAME, hardware_id=r["bridge"].name or "bridge",
+                                message=(f"run {r['id']} ({r['phase']}): peak {peak:.4f} m/s^2 at {vals['speed_kmh']} "
+                                         f"km/h, t = {vals['t_peak_s']} s, limit {r['limit']:g} m/s^2"),
+                                values=[KeyValue(key=k, value=v) for k, v in vals.items()])
 
     def _status(self, run_id, state, **extra):
         self.pub_status.publish(c.json_msg(P.status_record(P.BRIDGE_NODE, run_id, state, **extra)))
 
     def _finish(self):
-        """End of the run: finished (result, status ``done``) or failed (status ``failed``, no result)."""
+        """End of the run's steps: the last monitoring messages (the final progress record counts
+        them), then, once every recorder has acknowledged them all, :meth:`_publish_end`."""
         r, run = self.run, self.run["run"]
         n = r["grid"].n_steps
-        ok = run.status == "finished"
-        done = n if ok else run.k
+        done = n if run.status == "finished" else run.k
+        r["done_step"] = done
         self._progress(done)
         self._diagnostics(done, final=True)
+        self._publish(P.TOPIC_CLOCK, Clock(clock=c.to_time_msg(self._sim_time(done))))
+        self._progress(done, final=True)
+        if self._all_acked():
+            self._publish_end()
+        else:
+            self._pause("end")
+
+    def _publish_end(self):
+        """The run's summary, result and status ``done`` (or ``failed``, no result), after its data."""
+        r, run = self.run, self.run["run"]
+        done = r["done_step"]
+        ok = run.status == "finished"
         t1 = self._sim_time(done)
-        self.pub_clock.publish(Clock(clock=c.to_time_msg(t1)))
+        self.pub_summary.publish(self._summary(done))
         if ok:
             res = np.vstack([r["speeds_kmh"], run.max_acc_m_s2, run.max_disp_m, r["dz"]])
             self.pub_result.publish(c.matrix_msg(("quantity:" + ",".join(P.RESULT_ROWS), "lane"), res))
         wall = time.perf_counter() - r["wall0"]
-        self._status(r["id"], P.DONE if ok else P.FAILED, model=r["model"], n_steps=n, n_lanes=r["grid"].n_lanes,
-                     ds_m=r["grid"].ds_m, wall_s=wall, t0_s=r["t0"], t1_s=t1, message=run.message)
+        self._status(r["id"], P.DONE if ok else P.FAILED, **self._run_info(), wall_s=wall, t0_s=r["t0"], t1_s=t1,
+                     message=run.message, samples=dict(r["counts"]))
         if ok:
             self.get_logger().info(f"run {r['id']} done in {wall:.2f} s: "
                                    f"max |a| {np.max(run.max_acc_m_s2):.4f} m/s^2")
@@ -409,6 +579,7 @@ class BridgeNode(c.NodeBase):
     # ------------------------------------------------------------------ supervision
     def watch(self):
         self.partner.check()
+        self._check_recorders()
 
     def report_failure(self, message):
         rid = None if self.run is None else self.run["id"]

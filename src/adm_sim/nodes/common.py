@@ -109,16 +109,24 @@ def check_step(who, got, expected):
                             f"got {tuple(got)}")
 
 
-def matrix_msg(dims, array):
-    """Plain 2-D ``Float64MultiArray`` (no header) with labelled dimensions."""
+def matrix_msg(dims, array, step=None):
+    """Plain 2-D ``Float64MultiArray`` with labelled dimensions; with ``step``, the step index is
+    carried before the data (``data[0]``, ``layout.data_offset`` = 1; :func:`matrix_step`)."""
     a = np.ascontiguousarray(array, dtype=np.float64)
     msg = Float64MultiArray()
+    if step is not None:
+        msg.layout.data_offset = 1
     stride = a.size
     for label, size in zip(dims, a.shape):
         msg.layout.dim.append(MultiArrayDimension(label=label, size=int(size), stride=int(stride)))
         stride = stride // size if size else 0
-    msg.data = a.ravel()
+    msg.data = a.ravel() if step is None else np.concatenate([[float(step)], a.ravel()])
     return msg
+
+
+def matrix_step(msg):
+    """The step index a monitoring array carries (:func:`matrix_msg`), ``None`` if it has none."""
+    return int(msg.data[0]) if msg.layout.data_offset == 1 and len(msg.data) else None
 
 
 def matrix_from_msg(msg):
@@ -449,7 +457,8 @@ class ExchangeLane:
         from rclpy.node import Node
         from rclpy.parameter import Parameter
 
-        self.node = Node(f"{node.get_name()}_exchange", context=node.context, use_global_arguments=False,
+        self.node = Node(f"{node.get_name()}_exchange", namespace=node.get_namespace(), context=node.context,
+                         use_global_arguments=False,
                          enable_rosout=False, start_parameter_services=False,
                          parameter_overrides=[Parameter("start_type_description_service", value=False)])
         self.executor = EventsExecutor(context=node.context)

@@ -21,7 +21,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from diagnostic_msgs.msg import DiagnosticArray
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import AccelStamped
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
@@ -38,7 +38,9 @@ from adm_sim.nodes import common as c
 RECORDED = [(P.TOPIC_CLOCK, Clock), (P.TOPIC_ACCEL, AccelStamped), (P.TOPIC_STATE, Float64MultiArray),
             (P.TOPIC_BEAM, Float64MultiArray), (P.TOPIC_AXLES, Float64MultiArray), (P.TOPIC_PROGRESS, String),
             (P.TOPIC_DIAGNOSTICS, DiagnosticArray), (P.TOPIC_RESULT, Float64MultiArray), (P.TOPIC_STATUS, String),
-            (P.TOPIC_BRIDGE_DESC, String), (P.TOPIC_TRAIN_DESC, String)]
+            (P.TOPIC_SUMMARY, DiagnosticStatus), (P.TOPIC_BRIDGE_DESC, String), (P.TOPIC_TRAIN_DESC, String)]
+#: Bridge ``/diagnostics`` statuses that belong to a run (counted with its samples).
+_RUN_DIAG_NAMES = (P.DIAG_NAME, P.DIAG_TRIAL_NAME)
 
 DRIVER_SPECS = [
     c.ParamSpec("record_path", "", "", "MCAP file to record to; empty = no recording"),
@@ -134,33 +136,89 @@ class RunDriver(c.NodeBase):
             self.rerun = True
             self.viz = rerun_log.RunLogger()
             self.viz.send_blueprint()  # sent again with the beam bounds once the span is known
+        # flow control (a recorder or a rerun logger is attached): what this run has received so far
+        self._rx = dict.fromkeys(P.SAMPLE_TOPICS, 0)
+        self._rx_total = 0
+        self._rx_acked = 0
+        self._expect = None  # (run_id, {topic: published}) from the run's final progress record
+        self.recorded = {}  # run_id -> {topic: received} of the runs received whole
+        self.incomplete = []  # runs not received whole: {"run_id", "phase", "missing": {topic: n}}
+        self.pub_ack = None
+        if self.recorder is not None or self.viz is not None:
+            self.pub_ack = self.create_publisher(String, P.relative(P.TOPIC_ACK), c.QOS_CONTROL)
         for topic, typ in RECORDED:
             qos = c.QOS_LATCHED if topic.endswith("description") else (
-                c.QOS_CONTROL if topic in (P.TOPIC_RESULT, P.TOPIC_STATUS, P.TOPIC_DIAGNOSTICS) else c.QOS_MONITOR)
-            self.create_subscription(typ, topic, self._make_cb(topic), qos)
+                c.QOS_CONTROL if topic in (P.TOPIC_RESULT, P.TOPIC_STATUS, P.TOPIC_DIAGNOSTICS, P.TOPIC_SUMMARY)
+                else c.QOS_MONITOR)
+            self.create_subscription(typ, P.relative(topic), self._make_cb(topic), qos)
         #: the driver's ``requested`` records (the run id with its phase); its own subscription records them
-        self.pub_request = self.create_publisher(String, P.TOPIC_STATUS, c.QOS_CONTROL)
+        self.pub_request = self.create_publisher(String, P.relative(P.TOPIC_STATUS), c.QOS_CONTROL)
         self.last_phase = None  # phase of the last run requested (the iterations that follow it)
-        self.cli_start = self.create_client(Trigger, P.SERVICE_START_RUN)
+        self.cli_start = self.create_client(Trigger, P.relative(P.SERVICE_START_RUN))
         self.params = {n: AsyncParameterClient(self, n) for n in (P.BRIDGE_NODE, P.TRAIN_NODE)}
 
     # ------------------------------------------------------------------ subscriptions
     def _make_cb(self, topic):
         handler = getattr(self, "_on_" + topic.strip("/").replace("/", "_"), None)
 
+        counted = topic in P.SAMPLE_TOPICS
+
         def cb(msg):
             self._last_rx = time.monotonic()
-            stamp = getattr(getattr(msg, "header", None), "stamp", None)
             if isinstance(msg, Clock):
                 self._clock_ns = msg.clock.sec * 1_000_000_000 + msg.clock.nanosec
-            t_ns = self._clock_ns if stamp is None else stamp.sec * 1_000_000_000 + stamp.nanosec
+            t_ns = self._log_time_ns(msg)
             if self.recorder is not None:
                 with self._rec_lock:
                     self.recorder.write(topic, msg, t_ns)
             if handler is not None:
                 handler(msg, t_ns)
+            if counted and self.pub_ack is not None:
+                self._count(topic, msg)
 
         return cb
+
+    def _log_time_ns(self, msg):
+        """Log time of a message: its stamp; for a record without a header the sim time it
+        describes (``t0_s`` of a ``started``, ``t1_s`` of a ``done``, ``sim_time_s`` of a progress
+        record), else the last ``/clock`` (a run's result and summary come after its last one)."""
+        stamp = getattr(getattr(msg, "header", None), "stamp", None)
+        if stamp is not None:
+            return stamp.sec * 1_000_000_000 + stamp.nanosec
+        if isinstance(msg, String) and msg.data.startswith("{"):
+            rec = json.loads(msg.data)
+            st = rec.get("state")
+            t = rec.get("t0_s") if st == P.STARTED else rec.get("t1_s") if st in (P.DONE, P.FAILED) else \
+                rec.get("sim_time_s")
+            if isinstance(t, (int, float)):
+                return c.time_ns(t)
+        return self._clock_ns
+
+    def _count(self, topic, msg):
+        """Count a monitoring message of the current run; acknowledge every
+        :data:`adm_sim.protocol.ACK_EVERY` and when the run's last one arrived (flow control)."""
+        if topic == P.TOPIC_DIAGNOSTICS and not any(st.name in _RUN_DIAG_NAMES for st in msg.status):
+            return  # a calibration verdict, not a run's message
+        with self._lock:
+            self._rx[topic] += 1
+            self._rx_total += 1
+            if topic == P.TOPIC_PROGRESS:
+                rec = json.loads(msg.data)
+                if rec.get("final"):
+                    self._expect = (rec["run_id"], rec["samples"])
+            whole = self._expect is not None and all(self._rx.get(t, 0) == n for t, n in self._expect[1].items())
+            if whole or self._rx_total - self._rx_acked >= P.ACK_EVERY:
+                run_id = self._expect[0] if self._expect else (self._current[0] if self._current else None)
+                self.pub_ack.publish(c.json_msg(P.ack_record(self.get_fully_qualified_name(), run_id, self._rx_total)))
+                self._rx_acked = self._rx_total
+            if whole:
+                self.recorded[self._expect[0]] = dict(self._rx)
+                self._reset_counts()
+
+    def _reset_counts(self):
+        self._rx = dict.fromkeys(P.SAMPLE_TOPICS, 0)
+        self._rx_total = self._rx_acked = 0
+        self._expect = None
 
     def publish_recorded(self, pub, topic, msg):
         """Publish and record one of the driver's own messages at the current sim time."""
@@ -254,13 +312,14 @@ class RunDriver(c.NodeBase):
     def wait_for_graph(self, timeout_s=30.0):
         """Block until both nodes, their services and the result topic are there."""
         t_end = time.monotonic() + timeout_s
-        while not (self.cli_start.service_is_ready() and self.count_publishers(P.TOPIC_RESULT) > 0):
+        while not (self.cli_start.service_is_ready() and self.count_publishers(P.relative(P.TOPIC_RESULT)) > 0):
             if time.monotonic() > t_end:
                 raise RunError(f"bridge/train nodes not found after {timeout_s:g} s")
             self._event.wait(0.05)
 
     def _check_alive(self):
-        names = set(self.get_node_names())
+        ns = self.get_namespace()
+        names = {n for n, n_ns in self.get_node_names_and_namespaces() if n_ns == ns}
         missing = [n for n in (P.BRIDGE_NODE, P.TRAIN_NODE) if n not in names]
         if not missing:
             return
@@ -313,6 +372,12 @@ class RunDriver(c.NodeBase):
             bp["delta_zeta"] = float(delta_zeta)
         if delta_zeta_lanes is not None:
             bp["delta_zeta_lanes"] = "" if len(delta_zeta_lanes) == 0 else c.format_float_list(delta_zeta_lanes)
+        if phase is None:
+            desc = self.description(P.BRIDGE_NODE)
+            phase = P.plain_run_phase(model or self._train_model(),
+                                      desc["delta_zeta"] if delta_zeta is None else delta_zeta,
+                                      desc["delta_zeta_lanes"] if delta_zeta_lanes is None else delta_zeta_lanes)
+        tp["run_phase"] = phase
         self.set_params(P.TRAIN_NODE, **tp)
         self.set_params(P.BRIDGE_NODE, **bp)
         with self._lock:
@@ -328,10 +393,6 @@ class RunDriver(c.NodeBase):
             self._event.wait(0.1)
         info = dict(kv.split("=", 1) for kv in resp.message.split())
         run_id, model = int(info["run_id"]), info["model"]
-        if phase is None:
-            desc = self.description(P.BRIDGE_NODE)
-            phase = P.plain_run_phase(model, desc["delta_zeta"] if delta_zeta is None else delta_zeta,
-                                      desc["delta_zeta_lanes"] if delta_zeta_lanes is None else delta_zeta_lanes)
         self.last_phase = phase
         t0 = time.perf_counter()
         timeout = self.get_parameter("run_timeout_s").value
@@ -357,8 +418,8 @@ class RunDriver(c.NodeBase):
             if time.perf_counter() - t0 > timeout:
                 raise RunError(f"run {run_id} took longer than run_timeout_s = {timeout:g} s")
         wall = time.perf_counter() - t0
-        if self.recorder is not None or self.viz is not None:
-            self._await_monitoring(run_id)
+        if self.pub_ack is not None:
+            self._await_monitoring(run_id, phase)
         if self.viz is not None:
             self.viz.run_done(res, phase, run_id)
         self._current = None
@@ -370,21 +431,59 @@ class RunDriver(c.NodeBase):
             max_acc_m_s2=float(res[1][i]), speed_kmh=float(res[0][i]), label=lab, phase=phase)
         return out
 
-    def _await_monitoring(self, run_id, timeout_s=60.0):
-        """Wait until the run's monitoring stream has been received up to its last ``/clock`` (its end).
+    def _await_monitoring(self, run_id, phase, timeout_s=5.0):
+        """Check that every monitoring message of run ``run_id`` was received (and recorded).
 
-        The monitoring topics (QoS M) may lag behind the result; without this wait a busy recorder
-        would start the next run with a backlog and lose the end of the last one.
+        The bridge publishes ``done`` with the run's counts (``samples``) only after this node
+        acknowledged them all, so they are normally here already; a run that is not whole
+        ``timeout_s`` after its ``done`` is booked in :attr:`incomplete` (the job then ends with
+        exit status 1 and its summary names the run). The counts go into the MCAP's metadata
+        (``run_NN_samples``: ``published <topic>``, ``received <topic>``).
         """
-        t_end = time.monotonic() + timeout_s
-        while time.monotonic() < t_end:
+        t_end = time.monotonic() + 60.0
+        done_at = None
+        while True:
             with self._lock:
                 st = self._status.get((P.BRIDGE_NODE, run_id))
-            if st is not None and st.get("state") == P.DONE and st.get("t1_s") is not None \
-                    and self._clock_ns >= int(round(float(st["t1_s"]) * 1e9)) - 1000:
-                return
-            time.sleep(0.02)
-        self.get_logger().warning(f"run {run_id}: monitoring stream incomplete after {timeout_s:g} s")
+                got = self.recorded.get(run_id)
+            st = st if st is not None and st.get("state") in (P.DONE, P.FAILED) else None
+            published = (st or {}).get("samples")
+            if st is not None and done_at is None:
+                done_at = time.monotonic()
+            if got is not None and published is not None:
+                break
+            now = time.monotonic()
+            if (done_at is not None and now - done_at > timeout_s) or now > t_end:
+                with self._lock:
+                    got = dict(self._rx)
+                    self._reset_counts()
+                break
+            time.sleep(0.005)
+        published = published or {}
+        missing = {t: int(n) - int(got.get(t, 0)) for t, n in published.items() if int(n) != int(got.get(t, 0))}
+        if not published:
+            missing = {"/adm/run/status": 1}  # no done record: nothing tells what the run published
+        if missing:
+            self.incomplete.append({"run_id": run_id, "phase": phase, "missing": missing})
+            self.get_logger().error(f"run {run_id}: recorded incomplete (missing {missing})")
+        if self.recorder is not None:
+            meta = {"run_id": run_id, "phase": phase, "whole": not missing}
+            meta.update({f"published {t}": published.get(t, "?") for t in P.SAMPLE_TOPICS})
+            meta.update({f"received {t}": got.get(t, 0) for t in P.SAMPLE_TOPICS})
+            with self._rec_lock:
+                self.recorder.write_metadata(f"{P.run_tag(run_id)}_samples", meta)
+
+    def incomplete_error(self):
+        """The one-line error of the runs not received whole (``None`` if every run was)."""
+        if not self.incomplete:
+            return None
+        runs = "; ".join(f"run {r['run_id']} ({r['phase']}) misses " + ", ".join(f"{n} {t}" for t, n in r["missing"].items())
+                         for r in self.incomplete)
+        return RunError(f"{len(self.incomplete)} run(s) not recorded whole: {runs}")
+
+    def _train_model(self):
+        """The train node's ``model`` (its latched description)."""
+        return self.description(P.TRAIN_NODE)["model"]
 
     # ------------------------------------------------------------------ the driver's own job
     def job(self):
@@ -394,7 +493,8 @@ class RunDriver(c.NodeBase):
         summary = {"run_id": r["run_id"], "model": r["model"], "bridge": self.description("bridge")["description"],
                    "train": self.description("train")["name"], "speeds_kmh": r["speeds_kmh"].tolist(),
                    "max_acc_m_s2": r["max_acc_m_s2"].tolist(), "max_disp_m": r["max_disp_m"].tolist(),
-                   "wall_s": r["wall_s"]}
+                   "wall_s": r["wall_s"], "phase": r["phase"], "samples": self.recorded.get(r["run_id"]),
+                   "incomplete_runs": self.incomplete}
         return summary
 
     def write_summary(self, summary):
@@ -411,6 +511,8 @@ class RunDriver(c.NodeBase):
         def work():
             try:
                 self.write_summary(self.job())
+                self.error = self.incomplete_error()  # outputs kept, exit status 1
+                self._keep_outputs = self.error is not None
             except Exception as exc:  # reported by end(); the process exits non-zero
                 self.error = exc
             finally:
@@ -452,7 +554,7 @@ class RunDriver(c.NodeBase):
 
             self.viz.flush()
             rerun_log.close_rerun()
-        ok = self.finished and self.error is None
+        ok = self.finished and (self.error is None or getattr(self, "_keep_outputs", False))
         for name, tmp in self._beside_files.items():  # only complete files replace the old ones
             if ok:
                 os.replace(tmp, self.outputs[name])

@@ -38,7 +38,16 @@ TRAIN_SPECS = [
     c.param("speeds_kmh", DEFAULT_SPEEDS, "speed lanes: start:stop:step (stop included) or a comma list"),
     c.param("mlm_block_steps", 2048),
     c.param("partner_timeout_s", 5.0, "error when the bridge node sends nothing for this long during a run"),
+    c.ParamSpec("run_phase", "", "", "what the next run is for, handed to the bridge with the run request: "
+                + " | ".join(P.PHASES) + "; empty = named by the request (dim, mlm_zeta, mlm_zeta_dz, bracketing)"),
 ]
+
+
+def check_run_phase(value):
+    """Raise :class:`InputError` unless ``value`` is empty or one of :data:`adm_sim.protocol.PHASES`."""
+    if value and value not in P.PHASES:
+        raise InputError(f"run_phase: {value!r} is not a run phase; allowed {', '.join(P.PHASES)} or empty")
+    return value
 
 
 class TrainNode(c.NodeBase):
@@ -49,21 +58,24 @@ class TrainNode(c.NodeBase):
         self.declare_specs(TRAIN_SPECS, on_set=self._on_set)
         self.train = self._validate(self.param_values())[0]
         self.add_post_set_parameters_callback(self._after_set)
-        self.pub_setup = self.create_publisher(String, P.TOPIC_SETUP, c.QOS_CONTROL)
-        self.pub_forces = self.create_publisher(Float64MultiArray, P.TOPIC_FORCES, c.QOS_EXCHANGE)
-        self.pub_block = self.create_publisher(Float64MultiArray, P.TOPIC_AXLE_BLOCK, c.QOS_EXCHANGE)
-        self.pub_status = self.create_publisher(String, P.TOPIC_STATUS, c.QOS_CONTROL)
-        self.pub_desc = self.create_publisher(String, P.TOPIC_TRAIN_DESC, c.QOS_LATCHED)
-        self.create_subscription(String, P.TOPIC_READY, self._on_ready, c.QOS_CONTROL)
-        self.create_subscription(String, P.TOPIC_STATUS, self._on_status, c.QOS_CONTROL)
+        R = P.relative
+        self.pub_setup = self.create_publisher(String, R(P.TOPIC_SETUP), c.QOS_CONTROL)
+        self.pub_forces = self.create_publisher(Float64MultiArray, R(P.TOPIC_FORCES), c.QOS_EXCHANGE)
+        self.pub_block = self.create_publisher(Float64MultiArray, R(P.TOPIC_AXLE_BLOCK), c.QOS_EXCHANGE)
+        self.pub_status = self.create_publisher(String, R(P.TOPIC_STATUS), c.QOS_CONTROL)
+        self.pub_desc = self.create_publisher(String, R(P.TOPIC_TRAIN_DESC), c.QOS_LATCHED)
+        self.create_subscription(String, R(P.TOPIC_READY), self._on_ready, c.QOS_CONTROL)
+        self.create_subscription(String, R(P.TOPIC_STATUS), self._on_status, c.QOS_CONTROL)
         self.exchange = c.ExchangeLane(self)
         self.exchange_subscriptions = [
-            self.exchange.subscribe(Float64MultiArray, P.TOPIC_RAIL, self._on_rail, c.QOS_EXCHANGE)]
+            self.exchange.subscribe(Float64MultiArray, R(P.TOPIC_RAIL), self._on_rail, c.QOS_EXCHANGE)]
         self.create_service(Trigger, "~/start_run", self._on_start)
+        self._bridge_desc = None
+        self.create_subscription(String, R(P.TOPIC_BRIDGE_DESC), self._on_bridge_description, c.QOS_LATCHED)
         self.run = None
         self._pending = []  # rail messages that arrived before /adm/run/ready
         self.next_run_id = 1
-        self.partner = c.PartnerWatch(self, P.BRIDGE_NODE, P.TOPIC_RAIL, self.get_parameter("partner_timeout_s").value)
+        self.partner = c.PartnerWatch(self, P.BRIDGE_NODE, R(P.TOPIC_RAIL), self.get_parameter("partner_timeout_s").value)
         self._publish_description()
 
     # ------------------------------------------------------------------ parameters
@@ -71,6 +83,7 @@ class TrainNode(c.NodeBase):
     def _validate(p):
         train = load_train(p["train"])
         check_model(p["model"], train)
+        check_run_phase(p["run_phase"])
         speeds = parse_speeds(p["speeds_kmh"], ordered=False, field="speeds_kmh")  # lanes, not a user's grid
         return train, speeds
 
@@ -102,13 +115,22 @@ class TrainNode(c.NodeBase):
             self.get_parameter("train").value, t.name, t.describe(), t.length_m, t.n_axles,
             self.get_parameter("model").value, self.get_parameter("speeds_kmh").value)))
 
+    def _bridge_dz(self):
+        """``(delta_zeta, delta_zeta_lanes)`` of the bridge's latched description (to name a run
+        requested without a phase as the bridge will); ``(0.0, "")`` before it arrived."""
+        d = self._bridge_desc or {}
+        return d.get("delta_zeta", 0.0), d.get("delta_zeta_lanes", "")
+
+    def _on_bridge_description(self, msg):
+        self._bridge_desc = P.decode(msg.data)
+
     # ------------------------------------------------------------------ run control
     def _on_start(self, request, response):
         if self.run is not None:
             response.success, response.message = False, f"run {self.run['id']} is in progress"
             return response
-        missing = [t for t, n in ((P.TOPIC_SETUP, self.count_subscribers(P.TOPIC_SETUP)),
-                                  (P.TOPIC_RAIL, self.count_publishers(P.TOPIC_RAIL))) if n == 0]
+        missing = [t for t, n in ((P.TOPIC_SETUP, self.count_subscribers(P.relative(P.TOPIC_SETUP))),
+                                  (P.TOPIC_RAIL, self.count_publishers(P.relative(P.TOPIC_RAIL)))) if n == 0]
         if missing:
             response.success = False
             response.message = f"bridge node not connected yet (nothing on {', '.join(missing)}); retry"
@@ -123,15 +145,16 @@ class TrainNode(c.NodeBase):
         self.next_run_id += 1
         v = speeds_to_m_s(speeds)
         dim = p["model"] == "dim"
+        phase = p["run_phase"] or P.plain_run_phase(p["model"], *self._bridge_dz())
         self.run = dict(id=run_id, model=p["model"], train=train, v=v, run=None, grid=None,
-                        block=int(p["mlm_block_steps"]))
+                        block=int(p["mlm_block_steps"]), phase=phase)
         self._pending = []
         self.pub_setup.publish(c.json_msg(P.setup_record(
             run_id, p["model"], train.name, speeds, v, train.length_m, train.axle_offsets_m, train.axle_loads_n,
-            train.wheel_mass_kg if dim else None)))
-        self.partner.waiting(f"before run {run_id} started", P.TOPIC_READY)
+            train.wheel_mass_kg if dim else None, phase=p["run_phase"])))
+        self.partner.waiting(f"before run {run_id} started", P.relative(P.TOPIC_READY))
         response.success = True
-        response.message = f"run_id={run_id} model={p['model']} lanes={v.size} train={train.name}"
+        response.message = f"run_id={run_id} model={p['model']} lanes={v.size} train={train.name} phase={phase}"
         return response
 
     def _on_ready(self, msg):
@@ -141,7 +164,7 @@ class TrainNode(c.NodeBase):
             return  # another run's answer (e.g. a rejected request)
         if P.is_rejected(cfg):
             self.get_logger().error(f"run {r['id']} rejected by the bridge: {cfg['error']}")
-            self.pub_status.publish(c.json_msg(P.status_record(P.TRAIN_NODE, r["id"], P.FAILED,
+            self.pub_status.publish(c.json_msg(P.status_record(P.TRAIN_NODE, r["id"], P.FAILED, phase=r["phase"],
                                                                message=cfg["error"])))
             self.run = None
             self.partner.clear()
@@ -149,7 +172,9 @@ class TrainNode(c.NodeBase):
         r["grid"] = Grid(speeds_m_s=r["v"], ds_m=float(cfg["ds_m"]), n_steps=int(cfg["n_steps"]))
         side = TrainSide(r["train"], r["grid"], float(cfg["span_m"])) if r["model"] == "dim" else None
         r["run"] = TrainHalf(r["model"], r["grid"], train_side=side)
-        self.partner.waiting(f"at step 0 of run {r['id']}", P.TOPIC_RAIL)
+        self.pub_status.publish(c.json_msg(P.status_record(P.TRAIN_NODE, r["id"], P.STARTED, model=r["model"],
+                                                           phase=r["phase"], n_steps=r["grid"].n_steps)))
+        self.partner.waiting(f"at step 0 of run {r['id']}", P.relative(P.TOPIC_RAIL))
         pending, self._pending = self._pending, []
         for m in pending:
             self._on_rail(m)
@@ -176,11 +201,12 @@ class TrainNode(c.NodeBase):
             block = np.vstack([x, r["train"].axle_loads_n[None, :]])
             self.pub_block.publish(c.pack(run_id, k0, 0, block, ("row:positions_m(2n+1),loads_n", "axle")))
         if run.status == "finished":
-            self.pub_status.publish(c.json_msg(P.status_record(P.TRAIN_NODE, r["id"], P.DONE)))
+            self.pub_status.publish(c.json_msg(P.status_record(P.TRAIN_NODE, r["id"], P.DONE, model=r["model"],
+                                                               phase=r["phase"])))
             self.run = None
             self.partner.clear()
         else:
-            self.partner.waiting(f"at step {run.k} stage {run.stage} of run {r['id']}", P.TOPIC_RAIL)
+            self.partner.waiting(f"at step {run.k} stage {run.stage} of run {r['id']}", P.relative(P.TOPIC_RAIL))
 
     def _on_status(self, msg):
         """End the exchanging run when the bridge reports it failed (its message is passed on)."""
@@ -189,7 +215,7 @@ class TrainNode(c.NodeBase):
         if r is None or r["run"] is None or st.get("node") != P.BRIDGE_NODE or not P.is_failure(st, r["id"]):
             return
         self.get_logger().error(f"run {r['id']} failed on the bridge at step {r['run'].k}: {st.get('message', '')}")
-        self.pub_status.publish(c.json_msg(P.status_record(P.TRAIN_NODE, r["id"], P.FAILED,
+        self.pub_status.publish(c.json_msg(P.status_record(P.TRAIN_NODE, r["id"], P.FAILED, phase=r["phase"],
                                                            message=st.get("message", ""))))
         self.run = None
         self.partner.clear()
