@@ -22,6 +22,7 @@ from rrd_views import read_rrd
 
 from adm_sim import protocol as P
 from adm_sim.recording.mcap_log import read_messages
+from ros_fixtures import ros_domain  # noqa: F401
 
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 
@@ -82,9 +83,9 @@ def test_no_sample_lost_under_load(tmp_path, ros_domain):
     hogs = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(2)]
     try:
         cal, cross = tmp_path / "cal", tmp_path / "cross"
-        common = ["--quiet", "--domain-id", str(ros_domain.domain_id)]
+        common = ["--domain-id", str(ros_domain.domain_id)]
         p = subprocess.run([sys.executable, str(ROOT / "launch_scripts" / "calibrate.py"), "--bridge", "B1",
-                            "--train", "ICE-2", "--speeds", "240:290:2", "--out", str(cal)] + common,
+                            "--train", "ICE-2", "--speeds", "240:290:2", "--out", str(cal), "--quiet"] + common,
                            env=dict(ros_domain), capture_output=True, text=True, timeout=600, cwd=ROOT)
         assert p.returncode == 0, p.stderr
         q = subprocess.run([sys.executable, str(ROOT / "launch_scripts" / "crossing.py"), "--bridge", "B1",

@@ -28,7 +28,6 @@ import time
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import AccelStamped
-from rcl_interfaces.msg import SetParametersResult
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64MultiArray, String
 
@@ -132,7 +131,7 @@ def bridge_from_params(preset, p, defaults=None):
     return b
 
 
-class BridgeNode(c.NodeBase):
+class BridgeNode(c.LockstepNode):
     """Owns the modal beam; see the module docstring."""
 
     def __init__(self, **kw):
@@ -145,9 +144,7 @@ class BridgeNode(c.NodeBase):
         self.preset = resolve_bridge(self.get_parameter("bridge").value)
         specs = bridge_specs(self.preset)
         self._preset_defaults = {s.name: s.default for s in specs}
-        self.declare_specs(specs, on_set=self._on_set)
-        self.bridge = self.build_bridge(self.param_values())  # validates the startup values
-        self.add_post_set_parameters_callback(self._after_set)
+        self.bridge = self.declare_run_parameters(specs)  # validates the startup values
 
         R, pub = P.relative, self.create_publisher
         self.pub_rail = pub(Float64MultiArray, R(P.TOPIC_RAIL), c.QOS_EXCHANGE)
@@ -176,7 +173,7 @@ class BridgeNode(c.NodeBase):
         self.t_offset_s = 0.0  # sim time continues across runs
         self.partner = c.PartnerWatch(self, P.TRAIN_NODE, P.relative(P.TOPIC_FORCES),
                                       self.get_parameter("partner_timeout_s").value)
-        self._publish_description()
+        self.publish_description()
 
     # ------------------------------------------------------------------ parameters
     def build_bridge(self, p):
@@ -191,30 +188,17 @@ class BridgeNode(c.NodeBase):
         return StepOptions(steps_per_period=p["steps_per_period"], free_vibration_periods=p["free_vibration_periods"],
                            ds_m=p["ds_m"] if p["ds_m"] > 0.0 else None)
 
-    def _on_set(self, params):
-        if self.run is not None:
-            return SetParametersResult(successful=False, reason=(
-                f"bridge: parameters are locked while run {self.run['id']} is in progress "
-                f"(step {self.run['run'].k} of {self.run['grid'].n_steps})"))
-        values = self.param_values()
-        values.update({p.name: p.value for p in params})
-        try:
-            self.build_bridge(values)
-        except InputError as exc:
-            return SetParametersResult(successful=False, reason=str(exc))
-        return SetParametersResult(successful=True)
+    # the parameter life cycle (c.LockstepNode): validate, lock while a run is active, configure
+    def validate(self, values):
+        return self.build_bridge(values)
 
-    def _after_set(self, params):
-        """Post-set callback, the one place a parameter set changes the node's state (as in ros2/demos
-        ``set_parameters_callback.py``; :meth:`_on_set` only validates): the bridge, the partner
-        timeout and the latched description follow the new values."""
-        values = self.param_values()
+    def configure(self, values):
         self.bridge = self.build_bridge(values)
-        if any(p.name == "partner_timeout_s" for p in params):
-            self.partner.timeout_s = float(values["partner_timeout_s"])
-        self._publish_description()
 
-    def _publish_description(self):
+    def lock_reason(self):
+        return f"run {self.run['id']} is in progress (step {self.run['run'].k} of {self.run['grid'].n_steps})"
+
+    def publish_description(self):
         b, p = self.bridge, self.param_values()
         self.pub_desc.publish(c.json_msg(P.bridge_description_record(
             bridge={"span_m": b.span_m, "EJ_Nm2": b.EJ_Nm2, "mass_per_length_kg_m": b.mass_per_length_kg_m,

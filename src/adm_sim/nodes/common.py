@@ -537,6 +537,63 @@ class NodeBase(ParamNodeMixin, Node):
         return super().destroy_node()
 
 
+class LockstepNode(NodeBase):
+    """Base of the bridge and train nodes: the parameter life cycle of a node that runs lockstep runs.
+
+    :meth:`declare_run_parameters` declares the specs; then every set passes three stages, in
+    the order of ros2/demos ``set_parameters_callback.py``:
+
+    1. the range of each value (:class:`ParamSpec`, in :class:`ParamNodeMixin`);
+    2. on-set, :meth:`_check_set`: refused while a run is active (``<node>: parameters are locked
+       while run 3 is in progress ...``, :meth:`lock_reason`) or when :meth:`validate` raises
+       :class:`InputError` for the new values taken together; nothing changes here;
+    3. post-set, :meth:`_apply_set`: :meth:`configure` with the new values, the partner timeout
+       and the latched description (:meth:`publish_description`) follow them.
+    """
+
+    partner = None
+
+    def declare_run_parameters(self, specs):
+        """Declare ``specs`` and install the on-set and post-set stages; returns
+        :meth:`validate` of the start-up values (they are checked before the node runs)."""
+        self.declare_specs(specs, on_set=self._check_set)
+        checked = self.validate(self.param_values())
+        self.add_post_set_parameters_callback(self._apply_set)
+        return checked
+
+    def validate(self, values):
+        """Raise :class:`InputError` when ``values`` (every parameter) do not make a valid node."""
+
+    def configure(self, values):
+        """Change the node's state to ``values`` (post-set; they passed :meth:`validate`)."""
+
+    def publish_description(self):
+        """Publish the node's latched description."""
+
+    def lock_reason(self):
+        """Why parameters are locked now (the run in progress)."""
+        return f"run {self.run['id']} is in progress"
+
+    def _check_set(self, params):
+        if self.run is not None:
+            return SetParametersResult(successful=False, reason=(
+                f"{self.get_name()}: parameters are locked while {self.lock_reason()}"))
+        values = self.param_values()
+        values.update({p.name: p.value for p in params})
+        try:
+            self.validate(values)
+        except InputError as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
+        return SetParametersResult(successful=True)
+
+    def _apply_set(self, params):
+        values = self.param_values()
+        self.configure(values)
+        if self.partner is not None and any(p.name == "partner_timeout_s" for p in params):
+            self.partner.timeout_s = float(values["partner_timeout_s"])
+        self.publish_description()
+
+
 def run_node(make_node, args=None, name="node"):
     """The ``main`` of every node: init, spin until finished, one-line errors and warnings, clean shutdown.
 

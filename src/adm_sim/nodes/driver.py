@@ -462,7 +462,7 @@ class RunDriver(c.NodeBase):
         published = published or {}
         missing = {t: int(n) - int(got.get(t, 0)) for t, n in published.items() if int(n) != int(got.get(t, 0))}
         if not published:
-            missing = {"/adm/run/status": 1}  # no done record: nothing tells what the run published
+            missing = {P.TOPIC_STATUS: 1}  # no done record: nothing tells what the run published
         if missing:
             self.incomplete.append({"run_id": run_id, "phase": phase, "missing": missing})
             self.get_logger().error(f"run {run_id}: recorded incomplete (missing {missing})")

@@ -20,7 +20,6 @@ from __future__ import annotations
 import sys
 
 import numpy as np
-from rcl_interfaces.msg import SetParametersResult
 from std_msgs.msg import Float64MultiArray, String
 from std_srvs.srv import Trigger
 
@@ -50,14 +49,12 @@ def check_run_phase(value):
     return value
 
 
-class TrainNode(c.NodeBase):
+class TrainNode(c.LockstepNode):
     """Owns the vehicles; see the module docstring."""
 
     def __init__(self, **kw):
         super().__init__(P.TRAIN_NODE, **kw)
-        self.declare_specs(TRAIN_SPECS, on_set=self._on_set)
-        self.train = self._validate(self.param_values())[0]
-        self.add_post_set_parameters_callback(self._after_set)
+        self.train = self.declare_run_parameters(TRAIN_SPECS)[0]  # validates the startup values
         R = P.relative
         self.pub_setup = self.create_publisher(String, R(P.TOPIC_SETUP), c.QOS_CONTROL)
         self.pub_forces = self.create_publisher(Float64MultiArray, R(P.TOPIC_FORCES), c.QOS_EXCHANGE)
@@ -76,7 +73,7 @@ class TrainNode(c.NodeBase):
         self._pending = []  # rail messages that arrived before /adm/run/ready
         self.next_run_id = 1
         self.partner = c.PartnerWatch(self, P.BRIDGE_NODE, R(P.TOPIC_RAIL), self.get_parameter("partner_timeout_s").value)
-        self._publish_description()
+        self.publish_description()
 
     # ------------------------------------------------------------------ parameters
     @staticmethod
@@ -87,29 +84,14 @@ class TrainNode(c.NodeBase):
         speeds = parse_speeds(p["speeds_kmh"], ordered=False, field="speeds_kmh")  # lanes, not a user's grid
         return train, speeds
 
-    def _on_set(self, params):
-        if self.run is not None:
-            return SetParametersResult(successful=False, reason=(
-                f"train: parameters are locked while run {self.run['id']} is in progress"))
-        values = self.param_values()
-        values.update({p.name: p.value for p in params})
-        try:
-            self._validate(values)
-        except InputError as exc:
-            return SetParametersResult(successful=False, reason=str(exc))
-        return SetParametersResult(successful=True)
+    # the parameter life cycle (c.LockstepNode): validate, lock while a run is active, configure
+    def validate(self, values):
+        return self._validate(values)
 
-    def _after_set(self, params):
-        """Post-set callback, the one place a parameter set changes the node's state (as in ros2/demos
-        ``set_parameters_callback.py``; :meth:`_on_set` only validates): the train, the partner
-        timeout and the latched description follow the new values."""
-        values = self.param_values()
+    def configure(self, values):
         self.train = self._validate(values)[0]
-        if any(p.name == "partner_timeout_s" for p in params):
-            self.partner.timeout_s = float(values["partner_timeout_s"])
-        self._publish_description()
 
-    def _publish_description(self):
+    def publish_description(self):
         t = self.train
         self.pub_desc.publish(c.json_msg(P.train_description_record(
             self.get_parameter("train").value, t.name, t.describe(), t.length_m, t.n_axles,
