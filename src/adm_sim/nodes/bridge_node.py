@@ -37,7 +37,8 @@ from adm_sim.fields import view
 from adm_sim.errors import InputError
 from adm_sim.limits import ACC_LIMITS_M_S2, TRACK_TYPES, check_delta_zeta, check_track_type
 from adm_sim.nodes import common as c
-from adm_sim.stepping import BridgeHalf, BridgeSide, StepOptions, make_grid, modal_loads_at
+from adm_sim.stepping import (FAILED, FINISHED, RUNNING, BridgeHalf, BridgeSide, Grid, StepOptions, make_grid,
+                              modal_loads_at)
 
 __all__ = ["TRACK_TYPES", "MONITOR_SAMPLES_PER_PERIOD", "monitor_steps", "bridge_specs", "BridgeNode", "main"]
 #: Automatic monitoring decimation: at least this many samples per period of the highest retained
@@ -131,6 +132,47 @@ def bridge_from_params(preset, p, defaults=None):
     return b
 
 
+#: What a run waits for the recorders' acknowledgement before (flow control).
+PAUSE_STEP, PAUSE_END = "step", "end"
+
+
+@dataclasses.dataclass
+class BridgeRunState:
+    """The bridge node's active run (``BridgeNode.run``; ``None`` between runs)."""
+
+    id: int
+    model: str
+    phase: str                 #: :data:`adm_sim.protocol.PHASES`
+    train: str
+    grid: Grid
+    run: BridgeHalf            #: step, stage, status, maxima
+    bridge: Bridge
+    speeds_kmh: np.ndarray     #: (n_lanes,) km/h
+    dz: np.ndarray             #: (n_lanes,) additional damping (fraction)
+    lane: int                  #: the monitored lane
+    every: int                 #: monitoring decimation (steps)
+    beam_every: int            #: beam, state and /clock decimation (steps)
+    frame: str                 #: frame id of the samples
+    v_mon: float               #: monitored lane's speed (m/s): sim time runs in its time
+    x_beam: np.ndarray
+    phi_beam: np.ndarray
+    limit: float               #: EN 1990 A2.4.4.2.1 limit (m/s^2)
+    track: str
+    warn: float
+    tick: int                  #: progress every this many steps
+    t0: float                  #: sim time at the start (s)
+    wall0: float
+    acked: dict                #: recorder -> messages it acknowledged (flow control)
+    disp: np.ndarray | None = None
+    peak: tuple = (-1.0, 0)    #: (exact max |a| of the monitored lane so far, its step)
+    counts: dict = dataclasses.field(default_factory=dict)  #: topic -> messages published
+    sent: int = 0              #: messages published over every counted topic
+    paused: str | None = None  #: :data:`PAUSE_STEP` / :data:`PAUSE_END` while waiting for the recorders
+    block: list | None = None  #: MLM block in progress: [modal loads, next index, steps]
+    ack_wait_since: float | None = None
+    done_step: int = 0
+
+
 class BridgeNode(c.LockstepNode):
     """Owns the modal beam; see the module docstring."""
 
@@ -196,7 +238,7 @@ class BridgeNode(c.LockstepNode):
         self.bridge = self.build_bridge(values)
 
     def lock_reason(self):
-        return f"run {self.run['id']} is in progress (step {self.run['run'].k} of {self.run['grid'].n_steps})"
+        return f"run {self.run.id} is in progress (step {self.run.run.k} of {self.run.grid.n_steps})"
 
     def publish_description(self):
         b, p = self.bridge, self.param_values()
@@ -214,7 +256,7 @@ class BridgeNode(c.LockstepNode):
     def _on_setup(self, msg):
         cfg = P.decode(msg.data)
         if self.run is not None:
-            raise c.ExchangeError(f"bridge: run {cfg.get('run_id')} requested while run {self.run['id']} is active")
+            raise c.ExchangeError(f"bridge: run {cfg.get('run_id')} requested while run {self.run.id} is active")
         p = self.param_values()
         try:
             bridge = self.build_bridge(p)
@@ -240,7 +282,7 @@ class BridgeNode(c.LockstepNode):
         xb = np.linspace(0.0, bridge.span_m, int(p["beam_points"]))
         phase = cfg.get("phase") or P.plain_run_phase(cfg["model"], p["delta_zeta"], p["delta_zeta_lanes"])
         recorders = self._recorders()
-        self.run = dict(
+        self.run = BridgeRunState(
             id=int(cfg["run_id"]), model=cfg["model"], grid=grid, run=run, bridge=bridge, speeds_kmh=speeds_kmh,
             dz=np.broadcast_to(np.asarray(dz, dtype=float), (grid.n_lanes,)).copy(), lane=mon, disp=None,
             every=every, beam_every=beam_every, phase=phase, train=cfg.get("train", ""),
@@ -253,18 +295,18 @@ class BridgeNode(c.LockstepNode):
             # flow control: recorder -> messages it acknowledged; what waits for an acknowledgement
             acked={n: 0 for n in recorders}, paused=None, block=None, ack_wait_since=None)
         self.pub_ready.publish(c.json_msg(P.ready_record(
-            self.run["id"], ds_m=grid.ds_m, n_steps=grid.n_steps, span_m=bridge.span_m, n_lanes=grid.n_lanes,
+            self.run.id, ds_m=grid.ds_m, n_steps=grid.n_steps, span_m=bridge.span_m, n_lanes=grid.n_lanes,
             t0_s=self.t_offset_s)))
-        self._status(self.run["id"], P.STARTED, **self._run_info(), **self._monitor_info())
-        self.get_logger().info(f"run {self.run['id']}: {cfg['model'].upper()} {bridge.describe()}, "
+        self._status(self.run.id, P.STARTED, **self._run_info(), **self._monitor_info())
+        self.get_logger().info(f"run {self.run.id}: {cfg['model'].upper()} {bridge.describe()}, "
                                f"{grid.n_lanes} lanes, {grid.n_steps} steps of {grid.ds_m * 1000:.2f} mm")
         self._ask_partner()
 
     # ------------------------------------------------------------------ lockstep
     def _run_info(self):
         r = self.run
-        return {"model": r["model"], "phase": r["phase"], "n_steps": r["grid"].n_steps, "n_lanes": r["grid"].n_lanes,
-                "ds_m": r["grid"].ds_m, "bridge": r["bridge"].describe(), "train": r["train"]}
+        return {"model": r.model, "phase": r.phase, "n_steps": r.grid.n_steps, "n_lanes": r.grid.n_lanes,
+                "ds_m": r.grid.ds_m, "bridge": r.bridge.describe(), "train": r.train}
 
     # ------------------------------------------------------------------ flow control
     def _recorders(self):
@@ -275,41 +317,41 @@ class BridgeNode(c.LockstepNode):
     def _on_ack(self, msg):
         r = self.run
         ack = P.decode(msg.data)
-        if r is None or ack.get("node") not in r["acked"]:
+        if r is None or ack.get("node") not in r.acked:
             return
-        r["acked"][ack["node"]] = max(r["acked"][ack["node"]], int(ack["received"]))
-        r["ack_wait_since"] = None
+        r.acked[ack["node"]] = max(r.acked[ack["node"]], int(ack["received"]))
+        r.ack_wait_since = None
         self._resume()
 
     def _ahead(self):
         """Whether the run is more than the window ahead of the slowest recorder."""
         r = self.run
-        return bool(r["acked"]) and r["sent"] - min(r["acked"].values()) >= P.FLOW_WINDOW
+        return bool(r.acked) and r.sent - min(r.acked.values()) >= P.FLOW_WINDOW
 
     def _all_acked(self):
         r = self.run
-        return not r["acked"] or min(r["acked"].values()) >= r["sent"]
+        return not r.acked or min(r.acked.values()) >= r.sent
 
     def _pause(self, what):
         """Wait for the recorders before ``what`` (``step``: the next exchange; ``end``: the result)."""
         r = self.run
-        r["paused"] = what
-        if r["ack_wait_since"] is None:
-            r["ack_wait_since"] = time.monotonic()
+        r.paused = what
+        if r.ack_wait_since is None:
+            r.ack_wait_since = time.monotonic()
 
     def _resume(self):
         r = self.run
-        if r is None or r["paused"] is None:
+        if r is None or r.paused is None:
             return
-        if r["paused"] == "end":
+        if r.paused == PAUSE_END:
             if self._all_acked():
-                r["paused"] = None
+                r.paused = None
                 self._publish_end()
             return
         if self._ahead():
             return
-        r["paused"] = None
-        if r["block"] is not None:
+        r.paused = None
+        if r.block is not None:
             self._advance_block()
         else:
             self._ask_partner()
@@ -318,85 +360,85 @@ class BridgeNode(c.LockstepNode):
         """Between turns: a recorder that left the graph or acknowledged nothing for
         ``partner_timeout_s`` is dropped from the flow control of this run (with a warning)."""
         r = self.run
-        if r is None or r["paused"] is None or r["ack_wait_since"] is None:
+        if r is None or r.paused is None or r.ack_wait_since is None:
             return
         alive = set(self._recorders())
-        stale = time.monotonic() - r["ack_wait_since"] > self.partner.timeout_s
-        for name in list(r["acked"]):
+        stale = time.monotonic() - r.ack_wait_since > self.partner.timeout_s
+        for name in list(r.acked):
             if name not in alive or stale:
                 self.get_logger().warning(
-                    f"run {r['id']}: recorder '{name}' {'left' if name not in alive else 'acknowledged nothing for'}"
+                    f"run {r.id}: recorder '{name}' {'left' if name not in alive else 'acknowledged nothing for'}"
                     f"{'' if name not in alive else f' {self.partner.timeout_s:g} s'}; it is no longer waited for "
-                    f"({r['acked'][name]} of {r['sent']} messages acknowledged)")
-                del r["acked"][name]
-        r["ack_wait_since"] = None if not r["acked"] else time.monotonic()
+                    f"({r.acked[name]} of {r.sent} messages acknowledged)")
+                del r.acked[name]
+        r.ack_wait_since = None if not r.acked else time.monotonic()
         self._resume()
 
     def _ask_partner(self):
         """Publish the rail state for the current (step, stage) (MLM: a token for the next block)."""
-        r, run = self.run, self.run["run"]
+        r, run = self.run, self.run.run
         k, stage = run.k, run.stage
-        if r["model"] == "dim":
+        if r.model == "dim":
             if stage == 0:
-                r["disp"] = run.disp_m
+                r.disp = run.disp_m
             idx, w, wd = run.rail_state()
-            self.pub_rail.publish(c.pack(r["id"], k, stage, np.stack([w, wd]), ("field", "lane", "axle_on"), idx))
-            self.partner.waiting(f"at step {k} stage {stage} of run {r['id']}", P.relative(P.TOPIC_FORCES))
+            self.pub_rail.publish(c.pack(r.id, k, stage, np.stack([w, wd]), ("field", "lane", "axle_on"), idx))
+            self.partner.waiting(f"at step {k} stage {stage} of run {r.id}", P.relative(P.TOPIC_FORCES))
         else:
-            self.pub_rail.publish(c.pack(r["id"], k, 0, np.zeros((r["grid"].n_lanes, 0)), ("lane", "axle_on")))
-            self.partner.waiting(f"at step {k} of run {r['id']}", P.relative(P.TOPIC_AXLE_BLOCK))
+            self.pub_rail.publish(c.pack(r.id, k, 0, np.zeros((r.grid.n_lanes, 0)), ("lane", "axle_on")))
+            self.partner.waiting(f"at step {k} of run {r.id}", P.relative(P.TOPIC_AXLE_BLOCK))
 
     def _on_forces(self, msg):
         r = self.run
-        if r is None or r["model"] != "dim":
+        if r is None or r.model != "dim":
             raise c.ExchangeError("bridge: interaction forces received with no DIM run active")
-        run = r["run"]
+        run = r.run
         run_id, k, stage, idx, G = c.unpack(msg)
-        c.check_step("bridge", (run_id, k, stage), (r["id"], run.k, run.stage))
+        c.check_step("bridge", (run_id, k, stage), (r.id, run.k, run.stage))
         self.partner.clear()
         run.take_forces(G)
-        if stage == 0 and run.status != "failed":
-            self._step_done(k, r["disp"], run.acc_m_s2)
-        if run.status != "running":
+        if stage == 0 and run.status != FAILED:
+            self._step_done(k, r.disp, run.acc_m_s2)
+        if run.status != RUNNING:
             self._finish()
         elif stage == 0 and self._ahead():
-            self._pause("step")
+            self._pause(PAUSE_STEP)
         else:
             self._ask_partner()
 
     def _on_axle_block(self, msg):
         r = self.run
-        if r is None or r["model"] != "mlm":
+        if r is None or r.model != "mlm":
             raise c.ExchangeError("bridge: axle block received with no MLM run active")
-        run = r["run"]
+        run = r.run
         run_id, k0, stage, _, block = c.unpack(msg)
-        c.check_step("bridge", (run_id, k0, stage), (r["id"], run.k, 0))
+        c.check_step("bridge", (run_id, k0, stage), (r.id, run.k, 0))
         self.partner.clear()
         n = (block.shape[0] - 2) // 2
-        r["block"] = [modal_loads_at(r["bridge"], block[:-1], block[-1]), 0, n]
+        r.block = [modal_loads_at(r.bridge, block[:-1], block[-1]), 0, n]
         self._advance_block()
 
     def _advance_block(self):
         """Step through the MLM block of axle loads; pause when the recorders lag a window behind."""
         r = self.run
-        run = r["run"]
-        loads, j, n = r["block"]
+        run = r.run
+        loads, j, n = r.block
         while j < n:
             k, disp = run.k, run.disp_m
             run.step(loads[2 * j], loads[2 * j + 1], loads[2 * j + 2])
             j += 1
-            if run.status == "failed":
+            if run.status == FAILED:
                 break
             self._step_done(k, disp, run.acc_m_s2)
             if j < n and self._ahead():
-                r["block"][1] = j
-                self._pause("step")
+                r.block[1] = j
+                self._pause(PAUSE_STEP)
                 return
-        r["block"] = None
-        if run.status != "running":
+        r.block = None
+        if run.status != RUNNING:
             self._finish()
         elif self._ahead():
-            self._pause("step")
+            self._pause(PAUSE_STEP)
         else:
             self._ask_partner()
 
@@ -404,43 +446,43 @@ class BridgeNode(c.LockstepNode):
     def _step_done(self, k, disp, acc):
         """Monitoring after step ``k`` produced its midspan displacement and acceleration."""
         r = self.run
-        a = abs(float(acc[r["lane"]]))
-        if a > r["peak"][0]:
-            r["peak"] = (a, k)
-        if k % r["every"] == 0:
+        a = abs(float(acc[r.lane]))
+        if a > r.peak[0]:
+            r.peak = (a, k)
+        if k % r.every == 0:
             self._monitor(k, disp, acc)
-        if k % r["beam_every"] == 0:
+        if k % r.beam_every == 0:
             self._beam(k, disp, acc)
-        if k % r["tick"] == 0:
+        if k % r.tick == 0:
             self._progress(k + 1)
 
     def _monitor_info(self):
         """What the monitoring topics of the run show: for the rerun run-time timeline and the run table."""
         r = self.run
-        return {"t0_s": r["t0"], "monitor_lane": r["lane"], "monitor_speed_kmh": float(r["speeds_kmh"][r["lane"]]),
-                "time_lane": r["lane"], "clock_speed_kmh": float(r["speeds_kmh"][r["lane"]]),
-                "monitor_every_steps": r["every"], "beam_every_steps": r["beam_every"], "frame_id": r["frame"],
+        return {"t0_s": r.t0, "monitor_lane": r.lane, "monitor_speed_kmh": float(r.speeds_kmh[r.lane]),
+                "time_lane": r.lane, "clock_speed_kmh": float(r.speeds_kmh[r.lane]),
+                "monitor_every_steps": r.every, "beam_every_steps": r.beam_every, "frame_id": r.frame,
                 "acc_sign": "z-up (REP 103)"}
 
     def _sim_time(self, k):
         """Session sim time of step ``k``: the monitored lane's own time since its first axle
         entered the bridge, plus the run's offset (``/clock`` and every stamp)."""
         r = self.run
-        return r["t0"] + r["grid"].front_m(k) / r["v_mon"]
+        return r.t0 + r.grid.front_m(k) / r.v_mon
 
     def _publish(self, topic, msg, pub=None):
         """Publish a monitoring message and count it (flow control, the run's ``samples``)."""
         r = self.run
         (pub or self.pubs[topic]).publish(msg)
-        r["counts"][topic] += 1
-        r["sent"] += 1
+        r.counts[topic] += 1
+        r.sent += 1
 
     def _monitor(self, k, disp, acc):
         r = self.run
         a = AccelStamped()
         a.header.stamp = c.to_time_msg(self._sim_time(k))
-        a.header.frame_id = r["frame"]
-        a.accel.linear.z = -float(acc[r["lane"]])  # the core's acceleration is positive downwards
+        a.header.frame_id = r.frame
+        a.accel.linear.z = -float(acc[r.lane])  # the core's acceleration is positive downwards
         self._publish(P.TOPIC_ACCEL, a)
 
     def _beam(self, k, disp, acc):
@@ -449,24 +491,24 @@ class BridgeNode(c.LockstepNode):
         self._publish(P.TOPIC_CLOCK, Clock(clock=c.to_time_msg(self._sim_time(k))))
         self._publish(P.TOPIC_STATE, c.matrix_msg(("lane", "quantity:disp_m,acc_m_s2"), np.column_stack([disp, acc]),
                                                   step=k))
-        r, side = self.run, self.run["run"].bridge_side
-        q = side.q[r["lane"]]
-        w = r["phi_beam"] @ q
+        r, side = self.run, self.run.run.bridge_side
+        q = side.q[r.lane]
+        w = r.phi_beam @ q
         _, xa = side.axles_on(k, 0)
-        wa = r["bridge"].shapes(xa)[0] @ q if xa.size else np.zeros(0)
-        self._publish(P.TOPIC_BEAM, c.matrix_msg(("row:x_m,w_m", "point"), np.vstack([r["x_beam"], w]), step=k))
+        wa = r.bridge.shapes(xa)[0] @ q if xa.size else np.zeros(0)
+        self._publish(P.TOPIC_BEAM, c.matrix_msg(("row:x_m,w_m", "point"), np.vstack([r.x_beam, w]), step=k))
         self._publish(P.TOPIC_AXLES, c.matrix_msg(("row:x_m,w_m", "axle_on"), np.vstack([xa, wa]), step=k))
 
     def _progress(self, done, final=False):
         r = self.run
-        n = r["grid"].n_steps
+        n = r.grid.n_steps
         if final:  # the run's last progress record carries what the run published, itself included
-            r["counts"][P.TOPIC_PROGRESS] += 1
-            r["sent"] += 1
+            r.counts[P.TOPIC_PROGRESS] += 1
+            r.sent += 1
             self.pubs[P.TOPIC_PROGRESS].publish(c.json_msg(P.progress_record(
-                r["id"], r["model"], done, n, self._sim_time(min(done, n)), samples=r["counts"])))
+                r.id, r.model, done, n, self._sim_time(min(done, n)), samples=r.counts)))
             return
-        self._publish(P.TOPIC_PROGRESS, c.json_msg(P.progress_record(r["id"], r["model"], done, n,
+        self._publish(P.TOPIC_PROGRESS, c.json_msg(P.progress_record(r.id, r.model, done, n,
                                                                      self._sim_time(min(done, n)))))
         self._diagnostics(done, final=False)
 
@@ -474,49 +516,49 @@ class BridgeNode(c.LockstepNode):
         """Diagnostic level of a peak: ERROR only for a run of the bridge as specified; a numerical
         trial (:data:`adm_sim.protocol.TRIAL_PHASES`) reports at most WARN."""
         r = self.run
-        level = c.acc_level(peak, r["limit"], r["warn"])
-        return min(level, 1) if r["phase"] in P.TRIAL_PHASES else level
+        level = c.acc_level(peak, r.limit, r.warn)
+        return min(level, 1) if r.phase in P.TRIAL_PHASES else level
 
     def _diagnostics(self, done, final):
         r = self.run
-        max_acc = r["run"].max_acc_m_s2
+        max_acc = r.run.max_acc_m_s2
         i = int(np.argmax(max_acc))
         peak = float(max_acc[i])
         level = self._level(peak)
-        trial = r["phase"] in P.TRIAL_PHASES
-        word = {0: "within", 1: "near", 2: "above"}[c.acc_level(peak, r["limit"], r["warn"])]
+        trial = r.phase in P.TRIAL_PHASES
+        word = {0: "within", 1: "near", 2: "above"}[c.acc_level(peak, r.limit, r.warn)]
         st = DiagnosticStatus(level=bytes([level]), name=P.DIAG_TRIAL_NAME if trial else P.DIAG_NAME,
-                              hardware_id=r["bridge"].name or "bridge",
-                              message=(f"{'numerical trial (' + r['phase'] + '): ' if trial else ''}"
-                                       f"max |a| {peak:.3f} m/s^2 at {r['speeds_kmh'][i]:g} km/h {word} the "
-                                       f"{r['limit']:g} m/s^2 limit ({r['track']} track, EN 1990 A2.4.4.2.1)"
+                              hardware_id=r.bridge.name or "bridge",
+                              message=(f"{'numerical trial (' + r.phase + '): ' if trial else ''}"
+                                       f"max |a| {peak:.3f} m/s^2 at {r.speeds_kmh[i]:g} km/h {word} the "
+                                       f"{r.limit:g} m/s^2 limit ({r.track} track, EN 1990 A2.4.4.2.1)"
                                        f"{'' if final else ' so far'}"))
-        vals = {"run_id": r["id"], "phase": r["phase"], "model": r["model"], "max_acc_m_s2": peak,
-                "speed_kmh": float(r["speeds_kmh"][i]), "limit_m_s2": r["limit"], "track_type": r["track"],
-                "step": done, "n_steps": r["grid"].n_steps, "final": final}
+        vals = {"run_id": r.id, "phase": r.phase, "model": r.model, "max_acc_m_s2": peak,
+                "speed_kmh": float(r.speeds_kmh[i]), "limit_m_s2": r.limit, "track_type": r.track,
+                "step": done, "n_steps": r.grid.n_steps, "final": final}
         st.values = [KeyValue(key=k, value=str(v)) for k, v in vals.items()]
         arr = DiagnosticArray(status=[st])
-        arr.header.stamp = c.to_time_msg(self._sim_time(min(done, r["grid"].n_steps)))
+        arr.header.stamp = c.to_time_msg(self._sim_time(min(done, r.grid.n_steps)))
         self._publish(P.TOPIC_DIAGNOSTICS, arr, self.pub_diag_final if final else None)
 
     def _summary(self, done):
         """The per-passage summary (``/adm/run/summary``, latched): the monitored lane's passage."""
-        r, run = self.run, self.run["run"]
-        lane, grid = r["lane"], r["grid"]
-        peak, k = r["peak"]
+        r, run = self.run, self.run.run
+        lane, grid = r.lane, r.grid
+        peak, k = r.peak
         peak = float(run.max_acc_m_s2[lane])  # the same value, exactly (every step is folded in both)
         level = self._level(peak)
         i = int(np.argmax(run.max_acc_m_s2))
         vals = P.summary_values(
-            run_id=r["id"], phase=r["phase"], bridge=r["bridge"].describe(), train=r["train"], model=r["model"],
-            speed_kmh=float(r["speeds_kmh"][lane]), peak_acc_m_s2=peak, t_peak_s=self._sim_time(k),
-            run_time_peak_s=self._sim_time(k) - r["t0"], step_peak=k, x_front_peak_m=float(grid.front_m(k)),
-            limit_m_s2=r["limit"], track_type=r["track"], level=level, max_acc_all_lanes_m_s2=float(run.max_acc_m_s2[i]),
-            speed_at_max_kmh=float(r["speeds_kmh"][i]), n_lanes=grid.n_lanes, n_steps=grid.n_steps, steps_done=done,
-            t0_s=r["t0"], t1_s=self._sim_time(done), frame_id=r["frame"], samples=r["counts"])
-        return DiagnosticStatus(level=bytes([level]), name=P.SUMMARY_NAME, hardware_id=r["bridge"].name or "bridge",
-                                message=(f"run {r['id']} ({r['phase']}): peak {peak:.4f} m/s^2 at {vals['speed_kmh']} "
-                                         f"km/h, t = {vals['t_peak_s']} s, limit {r['limit']:g} m/s^2"),
+            run_id=r.id, phase=r.phase, bridge=r.bridge.describe(), train=r.train, model=r.model,
+            speed_kmh=float(r.speeds_kmh[lane]), peak_acc_m_s2=peak, t_peak_s=self._sim_time(k),
+            run_time_peak_s=self._sim_time(k) - r.t0, step_peak=k, x_front_peak_m=float(grid.front_m(k)),
+            limit_m_s2=r.limit, track_type=r.track, level=level, max_acc_all_lanes_m_s2=float(run.max_acc_m_s2[i]),
+            speed_at_max_kmh=float(r.speeds_kmh[i]), n_lanes=grid.n_lanes, n_steps=grid.n_steps, steps_done=done,
+            t0_s=r.t0, t1_s=self._sim_time(done), frame_id=r.frame, samples=r.counts)
+        return DiagnosticStatus(level=bytes([level]), name=P.SUMMARY_NAME, hardware_id=r.bridge.name or "bridge",
+                                message=(f"run {r.id} ({r.phase}): peak {peak:.4f} m/s^2 at {vals['speed_kmh']} "
+                                         f"km/h, t = {vals['t_peak_s']} s, limit {r.limit:g} m/s^2"),
                                 values=[KeyValue(key=k, value=v) for k, v in vals.items()])
 
     def _status(self, run_id, state, **extra):
@@ -525,10 +567,10 @@ class BridgeNode(c.LockstepNode):
     def _finish(self):
         """End of the run's steps: the last monitoring messages (the final progress record counts
         them), then, once every recorder has acknowledged them all, :meth:`_publish_end`."""
-        r, run = self.run, self.run["run"]
-        n = r["grid"].n_steps
-        done = n if run.status == "finished" else run.k
-        r["done_step"] = done
+        r, run = self.run, self.run.run
+        n = r.grid.n_steps
+        done = n if run.status == FINISHED else run.k
+        r.done_step = done
         self._progress(done)
         self._diagnostics(done, final=True)
         self._publish(P.TOPIC_CLOCK, Clock(clock=c.to_time_msg(self._sim_time(done))))
@@ -536,26 +578,26 @@ class BridgeNode(c.LockstepNode):
         if self._all_acked():
             self._publish_end()
         else:
-            self._pause("end")
+            self._pause(PAUSE_END)
 
     def _publish_end(self):
         """The run's summary, result and status ``done`` (or ``failed``, no result), after its data."""
-        r, run = self.run, self.run["run"]
-        done = r["done_step"]
-        ok = run.status == "finished"
+        r, run = self.run, self.run.run
+        done = r.done_step
+        ok = run.status == FINISHED
         t1 = self._sim_time(done)
         self.pub_summary.publish(self._summary(done))
         if ok:
-            res = np.vstack([r["speeds_kmh"], run.max_acc_m_s2, run.max_disp_m, r["dz"]])
+            res = np.vstack([r.speeds_kmh, run.max_acc_m_s2, run.max_disp_m, r.dz])
             self.pub_result.publish(c.matrix_msg(("quantity:" + ",".join(P.RESULT_ROWS), "lane"), res))
-        wall = time.perf_counter() - r["wall0"]
-        self._status(r["id"], P.DONE if ok else P.FAILED, **self._run_info(), wall_s=wall, t0_s=r["t0"], t1_s=t1,
-                     message=run.message, samples=dict(r["counts"]))
+        wall = time.perf_counter() - r.wall0
+        self._status(r.id, P.DONE if ok else P.FAILED, **self._run_info(), wall_s=wall, t0_s=r.t0, t1_s=t1,
+                     message=run.message, samples=dict(r.counts))
         if ok:
-            self.get_logger().info(f"run {r['id']} done in {wall:.2f} s: "
+            self.get_logger().info(f"run {r.id} done in {wall:.2f} s: "
                                    f"max |a| {np.max(run.max_acc_m_s2):.4f} m/s^2")
         else:
-            self.get_logger().error(f"run {r['id']} failed: {run.message}")
+            self.get_logger().error(f"run {r.id} failed: {run.message}")
         self.t_offset_s = t1
         self.run = None
         self.partner.clear()
@@ -566,7 +608,7 @@ class BridgeNode(c.LockstepNode):
         self._check_recorders()
 
     def report_failure(self, message):
-        rid = None if self.run is None else self.run["id"]
+        rid = None if self.run is None else self.run.id
         self._status(rid, P.FAILED, message=message)
 
 

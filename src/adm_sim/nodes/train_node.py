@@ -17,6 +17,7 @@ here too.
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 
 import numpy as np
@@ -27,9 +28,9 @@ from adm_sim import protocol as P
 from adm_sim.errors import InputError
 from adm_sim.limits import DEFAULT_SPEEDS
 from adm_sim.nodes import common as c
-from adm_sim.stepping import Grid, TrainHalf, TrainSide, check_model, half_step_positions, speeds_to_m_s
+from adm_sim.stepping import FINISHED, Grid, TrainHalf, TrainSide, check_model, half_step_positions, speeds_to_m_s
 from adm_sim.sweep import parse_speeds
-from adm_sim.trains import load_train
+from adm_sim.trains import Train, load_train
 
 TRAIN_SPECS = [
     c.param("train", "ICE-2", "train name (ICE-2, Eurostar, Railjet, ICE-4, Eurostar-table) or TOML file"),
@@ -47,6 +48,20 @@ def check_run_phase(value):
     if value and value not in P.PHASES:
         raise InputError(f"run_phase: {value!r} is not a run phase; allowed {', '.join(P.PHASES)} or empty")
     return value
+
+
+@dataclasses.dataclass
+class TrainRunState:
+    """The train node's active run (``TrainNode.run``; ``None`` between runs)."""
+
+    id: int
+    model: str
+    phase: str                    #: :data:`adm_sim.protocol.PHASES`
+    train: Train
+    v: np.ndarray                 #: (n_lanes,) speeds, m/s
+    block: int                    #: MLM steps per axle block
+    grid: Grid | None = None      #: from the bridge's /adm/run/ready
+    run: TrainHalf | None = None  #: step, stage, status
 
 
 class TrainNode(c.LockstepNode):
@@ -109,7 +124,7 @@ class TrainNode(c.LockstepNode):
     # ------------------------------------------------------------------ run control
     def _on_start(self, request, response):
         if self.run is not None:
-            response.success, response.message = False, f"run {self.run['id']} is in progress"
+            response.success, response.message = False, f"run {self.run.id} is in progress"
             return response
         missing = [t for t, n in ((P.TOPIC_SETUP, self.count_subscribers(P.relative(P.TOPIC_SETUP))),
                                   (P.TOPIC_RAIL, self.count_publishers(P.relative(P.TOPIC_RAIL)))) if n == 0]
@@ -128,7 +143,7 @@ class TrainNode(c.LockstepNode):
         v = speeds_to_m_s(speeds)
         dim = p["model"] == "dim"
         phase = p["run_phase"] or P.plain_run_phase(p["model"], *self._bridge_dz())
-        self.run = dict(id=run_id, model=p["model"], train=train, v=v, run=None, grid=None,
+        self.run = TrainRunState(id=run_id, model=p["model"], train=train, v=v, run=None, grid=None,
                         block=int(p["mlm_block_steps"]), phase=phase)
         self._pending = []
         self.pub_setup.publish(c.json_msg(P.setup_record(
@@ -142,21 +157,21 @@ class TrainNode(c.LockstepNode):
     def _on_ready(self, msg):
         cfg = P.decode(msg.data)
         r = self.run
-        if r is None or cfg.get("run_id") != r["id"]:
+        if r is None or cfg.get("run_id") != r.id:
             return  # another run's answer (e.g. a rejected request)
         if P.is_rejected(cfg):
-            self.get_logger().error(f"run {r['id']} rejected by the bridge: {cfg['error']}")
-            self.pub_status.publish(c.json_msg(P.status_record(P.TRAIN_NODE, r["id"], P.FAILED, phase=r["phase"],
+            self.get_logger().error(f"run {r.id} rejected by the bridge: {cfg['error']}")
+            self.pub_status.publish(c.json_msg(P.status_record(P.TRAIN_NODE, r.id, P.FAILED, phase=r.phase,
                                                                message=cfg["error"])))
             self.run = None
             self.partner.clear()
             return
-        r["grid"] = Grid(speeds_m_s=r["v"], ds_m=float(cfg["ds_m"]), n_steps=int(cfg["n_steps"]))
-        side = TrainSide(r["train"], r["grid"], float(cfg["span_m"])) if r["model"] == "dim" else None
-        r["run"] = TrainHalf(r["model"], r["grid"], train_side=side)
-        self.pub_status.publish(c.json_msg(P.status_record(P.TRAIN_NODE, r["id"], P.STARTED, model=r["model"],
-                                                           phase=r["phase"], n_steps=r["grid"].n_steps)))
-        self.partner.waiting(f"at step 0 of run {r['id']}", P.relative(P.TOPIC_RAIL))
+        r.grid = Grid(speeds_m_s=r.v, ds_m=float(cfg["ds_m"]), n_steps=int(cfg["n_steps"]))
+        side = TrainSide(r.train, r.grid, float(cfg["span_m"])) if r.model == "dim" else None
+        r.run = TrainHalf(r.model, r.grid, train_side=side)
+        self.pub_status.publish(c.json_msg(P.status_record(P.TRAIN_NODE, r.id, P.STARTED, model=r.model,
+                                                           phase=r.phase, n_steps=r.grid.n_steps)))
+        self.partner.waiting(f"at step 0 of run {r.id}", P.relative(P.TOPIC_RAIL))
         pending, self._pending = self._pending, []
         for m in pending:
             self._on_rail(m)
@@ -165,39 +180,39 @@ class TrainNode(c.LockstepNode):
         r = self.run
         if r is None:
             raise c.ExchangeError("train: rail state received with no run active")
-        if r["grid"] is None:
+        if r.grid is None:
             self._pending.append(msg)
             return
-        run = r["run"]
+        run = r.run
         run_id, k, stage, idx, payload = c.unpack(msg)
-        c.check_step("train", (run_id, k, stage), (r["id"], run.k, run.stage))
+        c.check_step("train", (run_id, k, stage), (r.id, run.k, run.stage))
         self.partner.clear()
-        if r["model"] == "dim":
+        if r.model == "dim":
             G = run.take_rail_state(idx, payload[0], payload[1])
             self.pub_forces.publish(c.pack(run_id, k, stage, G, ("lane", "axle_on"), idx))
         else:
             k0 = run.k
-            run.advance(r["block"])  # books the block whose axle positions are sent now
+            run.advance(r.block)  # books the block whose axle positions are sent now
             b = run.k - k0
-            x = half_step_positions(r["grid"].ds_m, r["train"].axle_offsets_m, k0, b)
-            block = np.vstack([x, r["train"].axle_loads_n[None, :]])
+            x = half_step_positions(r.grid.ds_m, r.train.axle_offsets_m, k0, b)
+            block = np.vstack([x, r.train.axle_loads_n[None, :]])
             self.pub_block.publish(c.pack(run_id, k0, 0, block, ("row:positions_m(2n+1),loads_n", "axle")))
-        if run.status == "finished":
-            self.pub_status.publish(c.json_msg(P.status_record(P.TRAIN_NODE, r["id"], P.DONE, model=r["model"],
-                                                               phase=r["phase"])))
+        if run.status == FINISHED:
+            self.pub_status.publish(c.json_msg(P.status_record(P.TRAIN_NODE, r.id, P.DONE, model=r.model,
+                                                               phase=r.phase)))
             self.run = None
             self.partner.clear()
         else:
-            self.partner.waiting(f"at step {run.k} stage {run.stage} of run {r['id']}", P.relative(P.TOPIC_RAIL))
+            self.partner.waiting(f"at step {run.k} stage {run.stage} of run {r.id}", P.relative(P.TOPIC_RAIL))
 
     def _on_status(self, msg):
         """End the exchanging run when the bridge reports it failed (its message is passed on)."""
         st = P.decode(msg.data)
         r = self.run
-        if r is None or r["run"] is None or st.get("node") != P.BRIDGE_NODE or not P.is_failure(st, r["id"]):
+        if r is None or r.run is None or st.get("node") != P.BRIDGE_NODE or not P.is_failure(st, r.id):
             return
-        self.get_logger().error(f"run {r['id']} failed on the bridge at step {r['run'].k}: {st.get('message', '')}")
-        self.pub_status.publish(c.json_msg(P.status_record(P.TRAIN_NODE, r["id"], P.FAILED, phase=r["phase"],
+        self.get_logger().error(f"run {r.id} failed on the bridge at step {r.run.k}: {st.get('message', '')}")
+        self.pub_status.publish(c.json_msg(P.status_record(P.TRAIN_NODE, r.id, P.FAILED, phase=r.phase,
                                                            message=st.get("message", ""))))
         self.run = None
         self.partner.clear()
@@ -207,7 +222,7 @@ class TrainNode(c.LockstepNode):
         self.partner.check()
 
     def report_failure(self, message):
-        rid = None if self.run is None else self.run["id"]
+        rid = None if self.run is None else self.run.id
         self.pub_status.publish(c.json_msg(P.status_record(P.TRAIN_NODE, rid, P.FAILED, message=message)))
 
 
