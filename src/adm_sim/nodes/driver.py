@@ -1,11 +1,14 @@
-"""Run driver node: requests runs of the bridge/train pair, records them (MCAP, rerun).
+"""Run driver node: requests runs of the bridge/train pair and has them recorded.
 
-:class:`RunDriver` is the client side of the node graph. From a worker thread (never inside a
+:class:`RunDriver` is the run client of the node graph. From a worker thread (never inside a
 callback) :meth:`RunDriver.request_run` sets parameters on the bridge and train nodes through their
-parameter services, calls ``/train/start_run`` and blocks until ``/adm/run/result`` arrives; the
-executor keeps spinning in the main thread. While it runs it records every monitoring topic to
-an MCAP file (``record_path``) and feeds them to :class:`adm_sim.recording.rerun_log.RunLogger` (rerun:
-``rrd_path``, ``rerun_spawn``, ``rerun_connect``; the recording carries the default blueprint).
+parameter services (the run's phase among them), calls ``/train/start_run`` and blocks until
+``/adm/run/result`` arrives; the executor keeps spinning in the main thread. The recording side,
+:class:`adm_sim.nodes.recorder.RunRecorder`, writes every monitoring topic to an MCAP file
+(``record_path``), acknowledges what it wrote (the bridge's flow control) and checks every run's
+sample counts; the driver feeds the messages to its rerun logger
+(:class:`adm_sim.recording.rerun_log.RunLogger`: ``rrd_path``, ``rerun_spawn``, ``rerun_connect``;
+the recording carries the default blueprint).
 
 ``python -m adm_sim.nodes.driver --ros-args -p summary_path:=run.json`` runs one crossing or sweep
 with the train node's current parameters (``launch_scripts/crossing.py`` starts it).
@@ -14,7 +17,6 @@ with the train node's current parameters (``launch_scripts/crossing.py`` starts 
 from __future__ import annotations
 
 import json
-import os
 import sys
 import threading
 import time
@@ -32,6 +34,7 @@ from std_srvs.srv import Trigger
 from adm_sim import protocol as P
 from adm_sim.errors import AdmSimError, InputError, RunError  # RunError: a run failed or its partners went away
 from adm_sim.nodes import common as c
+from adm_sim.nodes.recorder import RunRecorder
 
 
 #: Topics the driver records (topic, type); its own publications are recorded as it publishes.
@@ -39,8 +42,7 @@ RECORDED = [(P.TOPIC_CLOCK, Clock), (P.TOPIC_ACCEL, AccelStamped), (P.TOPIC_STAT
             (P.TOPIC_BEAM, Float64MultiArray), (P.TOPIC_AXLES, Float64MultiArray), (P.TOPIC_PROGRESS, String),
             (P.TOPIC_DIAGNOSTICS, DiagnosticArray), (P.TOPIC_RESULT, Float64MultiArray), (P.TOPIC_STATUS, String),
             (P.TOPIC_SUMMARY, DiagnosticStatus), (P.TOPIC_BRIDGE_DESC, String), (P.TOPIC_TRAIN_DESC, String)]
-#: Bridge ``/diagnostics`` statuses that belong to a run (counted with its samples).
-_RUN_DIAG_NAMES = (P.DIAG_NAME, P.DIAG_TRIAL_NAME)
+
 
 DRIVER_SPECS = [
     c.ParamSpec("record_path", "", "", "MCAP file to record to; empty = no recording"),
@@ -109,7 +111,6 @@ class RunDriver(c.NodeBase):
         self.error = None
         self.run = None  # the driver has no lockstep exchange of its own
         self._lock = threading.Lock()
-        self._rec_lock = threading.Lock()
         self._result = None
         self._status = {}
         self._event = threading.Event()
@@ -119,33 +120,11 @@ class RunDriver(c.NodeBase):
         self._current = None  # (run_id, model, lane label)
         self.n_runs = 0
         self._last_rx = time.monotonic()
-        self.recorder = None
-        self._beside_files = {}
-        if p["record_path"]:
-            from adm_sim.recording.mcap_log import McapRecorder
-
-            self.recorder = McapRecorder(self._beside("record_path"), chunk_size=int(p["chunk_size"]),
-                                         overwrite=True)
-        self.rerun = False
-        self.viz = None  # rerun_log.RunLogger
-        if p["rrd_path"] or p["rerun_spawn"] or p["rerun_connect"]:
-            from adm_sim.recording import rerun_log
-
-            rerun_log.init_rerun("adm_sim", spawn=bool(p["rerun_spawn"]), connect_url=p["rerun_connect"] or None,
-                                 save_path=self._beside("rrd_path") if p["rrd_path"] else None, overwrite=True)
-            self.rerun = True
-            self.viz = rerun_log.RunLogger()
-            self.viz.send_blueprint()  # sent again with the beam bounds once the span is known
-        # flow control (a recorder or a rerun logger is attached): what this run has received so far
-        self._rx = dict.fromkeys(P.SAMPLE_TOPICS, 0)
-        self._rx_total = 0
-        self._rx_acked = 0
-        self._expect = None  # (run_id, {topic: published}) from the run's final progress record
-        self.recorded = {}  # run_id -> {topic: received} of the runs received whole
-        self.incomplete = []  # runs not received whole: {"run_id", "phase", "missing": {topic: n}}
-        self.pub_ack = None
-        if self.recorder is not None or self.viz is not None:
-            self.pub_ack = self.create_publisher(String, P.relative(P.TOPIC_ACK), c.QOS_CONTROL)
+        #: the recording side (MCAP, rerun, acknowledgements, per-run counts)
+        self.rec = RunRecorder(self, self.outputs, chunk_size=p["chunk_size"], rerun_spawn=p["rerun_spawn"],
+                               rerun_connect=p["rerun_connect"])
+        self.recorder, self.viz = self.rec.mcap, self.rec.viz  # McapRecorder, rerun_log.RunLogger (or None)
+        self.rerun = self.viz is not None
         for topic, typ in RECORDED:
             qos = c.QOS_LATCHED if topic.endswith("description") else (
                 c.QOS_CONTROL if topic in (P.TOPIC_RESULT, P.TOPIC_STATUS, P.TOPIC_DIAGNOSTICS, P.TOPIC_SUMMARY)
@@ -166,66 +145,20 @@ class RunDriver(c.NodeBase):
         def cb(msg):
             self._last_rx = time.monotonic()
             if isinstance(msg, Clock):
-                self._clock_ns = msg.clock.sec * 1_000_000_000 + msg.clock.nanosec
-            t_ns = self._log_time_ns(msg)
-            if self.recorder is not None:
-                with self._rec_lock:
-                    self.recorder.write(topic, msg, t_ns)
+                self._clock_ns = self.rec.clock_ns = msg.clock.sec * 1_000_000_000 + msg.clock.nanosec
+            t_ns = self.rec.log_time_ns(msg)
+            self.rec.write(topic, msg, t_ns)
             if handler is not None:
                 handler(msg, t_ns)
-            if counted and self.pub_ack is not None:
-                self._count(topic, msg)
+            if counted:
+                self.rec.count(topic, msg, self._current[0] if self._current else None)
 
         return cb
-
-    def _log_time_ns(self, msg):
-        """Log time of a message: its stamp; for a record without a header the sim time it
-        describes (``t0_s`` of a ``started``, ``t1_s`` of a ``done``, ``sim_time_s`` of a progress
-        record), else the last ``/clock`` (a run's result and summary come after its last one)."""
-        stamp = getattr(getattr(msg, "header", None), "stamp", None)
-        if stamp is not None:
-            return stamp.sec * 1_000_000_000 + stamp.nanosec
-        if isinstance(msg, String) and msg.data.startswith("{"):
-            rec = json.loads(msg.data)
-            st = rec.get("state")
-            t = rec.get("t0_s") if st == P.STARTED else rec.get("t1_s") if st in (P.DONE, P.FAILED) else \
-                rec.get("sim_time_s")
-            if isinstance(t, (int, float)):
-                return c.time_ns(t)
-        return self._clock_ns
-
-    def _count(self, topic, msg):
-        """Count a monitoring message of the current run; acknowledge every
-        :data:`adm_sim.protocol.ACK_EVERY` and when the run's last one arrived (flow control)."""
-        if topic == P.TOPIC_DIAGNOSTICS and not any(st.name in _RUN_DIAG_NAMES for st in msg.status):
-            return  # a calibration verdict, not a run's message
-        with self._lock:
-            self._rx[topic] += 1
-            self._rx_total += 1
-            if topic == P.TOPIC_PROGRESS:
-                rec = json.loads(msg.data)
-                if rec.get("final"):
-                    self._expect = (rec["run_id"], rec["samples"])
-            whole = self._expect is not None and all(self._rx.get(t, 0) == n for t, n in self._expect[1].items())
-            if whole or self._rx_total - self._rx_acked >= P.ACK_EVERY:
-                run_id = self._expect[0] if self._expect else (self._current[0] if self._current else None)
-                self.pub_ack.publish(c.json_msg(P.ack_record(self.get_fully_qualified_name(), run_id, self._rx_total)))
-                self._rx_acked = self._rx_total
-            if whole:
-                self.recorded[self._expect[0]] = dict(self._rx)
-                self._reset_counts()
-
-    def _reset_counts(self):
-        self._rx = dict.fromkeys(P.SAMPLE_TOPICS, 0)
-        self._rx_total = self._rx_acked = 0
-        self._expect = None
 
     def publish_recorded(self, pub, topic, msg):
         """Publish and record one of the driver's own messages at the current sim time."""
         pub.publish(msg)
-        if self.recorder is not None:
-            with self._rec_lock:
-                self.recorder.write(topic, msg, self._clock_ns)
+        self.rec.write(topic, msg, self._clock_ns)
 
     def _on_adm_run_result(self, msg, t_ns):
         with self._lock:
@@ -418,8 +351,8 @@ class RunDriver(c.NodeBase):
             if time.perf_counter() - t0 > timeout:
                 raise RunError(f"run {run_id} took longer than run_timeout_s = {timeout:g} s")
         wall = time.perf_counter() - t0
-        if self.pub_ack is not None:
-            self._await_monitoring(run_id, phase)
+        if self.rec.attached:
+            self.rec.check_run(run_id, phase, lambda: self._bridge_status(run_id))
         if self.viz is not None:
             self.viz.run_done(res, phase, run_id)
         self._current = None
@@ -431,55 +364,14 @@ class RunDriver(c.NodeBase):
             max_acc_m_s2=float(res[1][i]), speed_kmh=float(res[0][i]), label=lab, phase=phase)
         return out
 
-    def _await_monitoring(self, run_id, phase, timeout_s=5.0):
-        """Check that every monitoring message of run ``run_id`` was received (and recorded).
+    def _bridge_status(self, run_id):
+        with self._lock:
+            return self._status.get((P.BRIDGE_NODE, run_id))
 
-        The bridge publishes ``done`` with the run's counts (``samples``) only after this node
-        acknowledged them all, so they are normally here already; a run that is not whole
-        ``timeout_s`` after its ``done`` is booked in :attr:`incomplete` (the job then ends with
-        exit status 1 and its summary names the run). The counts go into the MCAP's metadata
-        (``run_NN_samples``: ``published <topic>``, ``received <topic>``).
-        """
-        t_end = time.monotonic() + 60.0
-        done_at = None
-        while True:
-            with self._lock:
-                st = self._status.get((P.BRIDGE_NODE, run_id))
-                got = self.recorded.get(run_id)
-            st = st if st is not None and st.get("state") in (P.DONE, P.FAILED) else None
-            published = (st or {}).get("samples")
-            if st is not None and done_at is None:
-                done_at = time.monotonic()
-            if got is not None and published is not None:
-                break
-            now = time.monotonic()
-            if (done_at is not None and now - done_at > timeout_s) or now > t_end:
-                with self._lock:
-                    got = dict(self._rx)
-                    self._reset_counts()
-                break
-            time.sleep(0.005)
-        published = published or {}
-        missing = {t: int(n) - int(got.get(t, 0)) for t, n in published.items() if int(n) != int(got.get(t, 0))}
-        if not published:
-            missing = {P.TOPIC_STATUS: 1}  # no done record: nothing tells what the run published
-        if missing:
-            self.incomplete.append({"run_id": run_id, "phase": phase, "missing": missing})
-            self.get_logger().error(f"run {run_id}: recorded incomplete (missing {missing})")
-        if self.recorder is not None:
-            meta = {"run_id": run_id, "phase": phase, "whole": not missing}
-            meta.update({f"published {t}": published.get(t, "?") for t in P.SAMPLE_TOPICS})
-            meta.update({f"received {t}": got.get(t, 0) for t in P.SAMPLE_TOPICS})
-            with self._rec_lock:
-                self.recorder.write_metadata(f"{P.run_tag(run_id)}_samples", meta)
-
-    def incomplete_error(self):
-        """The one-line error of the runs not received whole (``None`` if every run was)."""
-        if not self.incomplete:
-            return None
-        runs = "; ".join(f"run {r['run_id']} ({r['phase']}) misses " + ", ".join(f"{n} {t}" for t, n in r["missing"].items())
-                         for r in self.incomplete)
-        return RunError(f"{len(self.incomplete)} run(s) not recorded whole: {runs}")
+    @property
+    def incomplete(self):
+        """Runs not recorded whole (:attr:`RunRecorder.incomplete`)."""
+        return self.rec.incomplete
 
     def _train_model(self):
         """The train node's ``model`` (its latched description)."""
@@ -493,7 +385,7 @@ class RunDriver(c.NodeBase):
         summary = {"run_id": r["run_id"], "model": r["model"], "bridge": self.description("bridge")["description"],
                    "train": self.description("train")["name"], "speeds_kmh": r["speeds_kmh"].tolist(),
                    "max_acc_m_s2": r["max_acc_m_s2"].tolist(), "max_disp_m": r["max_disp_m"].tolist(),
-                   "wall_s": r["wall_s"], "phase": r["phase"], "samples": self.recorded.get(r["run_id"]),
+                   "wall_s": r["wall_s"], "phase": r["phase"], "samples": self.rec.recorded.get(r["run_id"]),
                    "incomplete_runs": self.incomplete}
         return summary
 
@@ -511,7 +403,7 @@ class RunDriver(c.NodeBase):
         def work():
             try:
                 self.write_summary(self.job())
-                self.error = self.incomplete_error()  # outputs kept, exit status 1
+                self.error = self.rec.incomplete_error()  # outputs kept, exit status 1
                 self._keep_outputs = self.error is not None
             except Exception as exc:  # reported by end(); the process exits non-zero
                 self.error = exc
@@ -531,36 +423,12 @@ class RunDriver(c.NodeBase):
             raise self.error
         raise RunError(f"{type(self.error).__name__}: {self.error}")
 
-    def _beside(self, name):
-        """Where output ``name`` is written: the file itself when it is new (a killed recorder
-        leaves a salvageable file there), a temporary file beside it when an earlier one is
-        replaced (``overwrite``): the old file stays until :meth:`close` renames the new one,
-        which it does only when the job succeeded (else the temporary file is removed)."""
-        path = self.outputs[name]
-        if not path.exists():
-            return path
-        tmp = path.with_name(f".{path.stem}.tmp-{os.getpid()}{path.suffix}")
-        self._beside_files[name] = tmp
-        return tmp
-
     def close(self):
         from adm_sim.files import release
 
-        if self.recorder is not None:
-            with self._rec_lock:
-                self.recorder.finish()
-        if self.viz is not None:
-            from adm_sim.recording import rerun_log
-
-            self.viz.flush()
-            rerun_log.close_rerun()
         ok = self.finished and (self.error is None or getattr(self, "_keep_outputs", False))
-        for name, tmp in self._beside_files.items():  # only complete files replace the old ones
-            if ok:
-                os.replace(tmp, self.outputs[name])
-            else:
-                tmp.unlink(missing_ok=True)
-        self._beside_files = {}
+        if getattr(self, "rec", None) is not None:
+            self.rec.finish(keep=ok)
         for path in getattr(self, "outputs", {}).values():
             release(path)
         super().close()
