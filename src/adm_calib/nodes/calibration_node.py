@@ -31,8 +31,8 @@ from std_msgs.msg import Float64MultiArray, String
 from adm_calib.calibrate import CalibrationOptions, calibrate, calibration_step
 from adm_sim import protocol as P
 from adm_sim.bridge import Bridge
-from adm_sim.limits import DEFAULT_SPEEDS
 from adm_sim.nodes import common as c
+from adm_calib.nodes.params import CALIBRATION_SPECS
 from adm_sim.nodes.driver import RunDriver, say
 from adm_sim.stepping import StepOptions
 from adm_sim.sweep import parse_speeds
@@ -42,10 +42,6 @@ from adm_sim.trains import load_train
 PHASE_LABELS = {P.PHASE_DIM: "DIM", P.PHASE_BRACKETING: "MLM trial", P.PHASE_ROOT_SEARCH: "MLM trial",
                 P.PHASE_MLM_ZETA: "MLM zeta", P.PHASE_MLM_ZETA_DZ: "MLM zeta+dz"}
 
-CALIBRATION_SPECS = [
-    c.param("speeds_kmh", DEFAULT_SPEEDS, "MLM speed range: start:stop:step or a comma list"),
-    c.param("dim_grid", "paper", "paper (5 km/h + fine around the MLM peak) | full (every MLM speed)"),
-]
 
 
 class CalibrationNode(RunDriver):

@@ -33,17 +33,14 @@ from std_msgs.msg import Float64MultiArray, String
 
 from adm_sim.bridge import Bridge, resolve_bridge
 from adm_sim import protocol as P
-from adm_sim.fields import view
 from adm_sim.errors import InputError
-from adm_sim.limits import ACC_LIMITS_M_S2, TRACK_TYPES, check_delta_zeta, check_track_type
+from adm_sim.limits import ACC_LIMITS_M_S2, TRACK_TYPES
 from adm_sim.nodes import common as c
-from adm_sim.stepping import (FAILED, FINISHED, RUNNING, BridgeHalf, BridgeSide, Grid, StepOptions, make_grid,
+from adm_sim.nodes.params import MONITOR_SAMPLES_PER_PERIOD, bridge_from_params, bridge_specs, step_options
+from adm_sim.stepping import (FAILED, FINISHED, RUNNING, BridgeHalf, BridgeSide, Grid, make_grid,
                               modal_loads_at)
 
 __all__ = ["TRACK_TYPES", "MONITOR_SAMPLES_PER_PERIOD", "monitor_steps", "bridge_specs", "BridgeNode", "main"]
-#: Automatic monitoring decimation: at least this many samples per period of the highest retained
-#: mode, in the monitored lane's time.
-MONITOR_SAMPLES_PER_PERIOD = 8
 
 
 def monitor_steps(bridge, grid, lane, every, beam_every):
@@ -68,68 +65,6 @@ def frame_id(bridge, namespace="/"):
 
     name = bridge.name or namespace.strip("/") or "bridge"
     return re.sub(r"[^A-Za-z0-9_]", "_", name) + "/midspan"
-
-
-def bridge_specs(preset):
-    """Parameter specs of the bridge node; numeric defaults from the preset bridge."""
-    S = c.param
-    return [
-        S("span_m", float(preset.span_m)),
-        S("EJ_Nm2", float(preset.EJ_Nm2), "bending stiffness EJ (used when n0_hz is 0)"),
-        S("n0_hz", 0.0, "first natural frequency n0; 0 = from EJ_Nm2, else EJ from Eq. (18)"),
-        S("mu_kg_m", float(preset.mass_per_length_kg_m)),
-        S("zeta_pct", view("ros", "zeta_pct").from_core(preset.damping_ratio)),
-        S("n_modes", int(preset.n_modes)),
-        S("damping_model", preset.damping_model, "rayleigh (modes 1 and 3) | modal"),
-        S("delta_zeta", 0.0, "additional damping for every lane (fraction; zeta + delta_zeta >= 0)"),
-        S("delta_zeta_lanes", "",
-          "per-lane additional damping, comma list with one value per speed lane; empty = delta_zeta"),
-        S("steps_per_period", 16.0, "RK4 steps per period of the highest mode at the slowest lane"),
-        S("free_vibration_periods", 2.0),
-        S("ds_m", 0.0, "train advance per step; 0 = from steps_per_period"),
-        S("track_type", "ballasted", " | ".join(f"{t} ({a:g} m/s^2)" for t, a in ACC_LIMITS_M_S2.items())
-          + ", EN 1990 A2.4.4.2.1"),
-        S("warn_fraction", 0.8, f"{P.TOPIC_DIAGNOSTICS} WARN above this fraction of the acceleration limit"),
-        S("monitor_speed_kmh", 0.0, f"lane shown on {P.TOPIC_ACCEL} and {P.BEAM_NS}/*: nearest speed; "
-          "0 = first lane"),
-        S("monitor_every_steps", 0, f"decimation of {P.TOPIC_ACCEL} (every n-th step); 0 = auto: "
-          f"{MONITOR_SAMPLES_PER_PERIOD} samples per period of the highest mode at the monitored speed"),
-        S("beam_every_steps", 0, f"decimation of {P.TOPIC_CLOCK}, {P.BEAM_NS}/* and {P.TOPIC_STATE} (every "
-          "lane); 0 = auto: 4 x the monitoring step"),
-        S("beam_points", 21, f"points along the span on {P.TOPIC_BEAM}"),
-        S("partner_timeout_s", 5.0, "error when the train node sends nothing for this long during a run"),
-    ]
-
-
-def bridge_from_params(preset, p, defaults=None):
-    """The :class:`Bridge` of the bridge node's parameter values ``p`` (``{name: value}``, every
-    parameter of :func:`bridge_specs`): ``preset`` with the changed fields. The node checks its
-    start-up values and every later set with it; a launcher checks the values it will hand to the
-    node with it before starting anything.
-
-    Raises :class:`InputError` naming the parameter, value, unit and range.
-    """
-    specs = {s.name: s for s in bridge_specs(preset)}
-    d = {n: s.default for n, s in specs.items()} if defaults is None else defaults
-    kw = {}
-    for name in ("span_m", "mu_kg_m", "zeta_pct", "n_modes"):
-        if p[name] != d[name]:
-            view = specs[name].view
-            kw[view.field.name] = view.to_core(view.check(p[name], name=name))
-    if p["EJ_Nm2"] != d["EJ_Nm2"]:  # the core's range (> 0); the parameter's is narrower
-        kw["EJ_Nm2"] = specs["EJ_Nm2"].view.field.check(p["EJ_Nm2"], name="EJ_Nm2")
-    kw["damping_model"] = specs["damping_model"].view.check(p["damping_model"])
-    b = dataclasses.replace(preset, **kw)
-    if p["n0_hz"] != 0.0:
-        n0 = specs["n0_hz"].view.field.check(p["n0_hz"], name="n0_hz")
-        b = Bridge.from_frequency(b.span_m, n0, b.mass_per_length_kg_m, b.damping_ratio, n_modes=b.n_modes,
-                                  damping_model=b.damping_model, name=b.name, bridge_type=b.bridge_type)
-    check_delta_zeta("delta_zeta", p["delta_zeta"], b.damping_ratio)
-    for x in c.parse_float_list("delta_zeta_lanes", p["delta_zeta_lanes"], "- (fraction)"):
-        check_delta_zeta("delta_zeta_lanes", x, b.damping_ratio)
-    check_track_type("track_type", p["track_type"])
-    BridgeNode.step_options(p)
-    return b
 
 
 #: What a run waits for the recorders' acknowledgement before (flow control).
@@ -225,10 +160,7 @@ class BridgeNode(c.LockstepNode):
         """
         return bridge_from_params(self.preset, p, self._preset_defaults)
 
-    @staticmethod
-    def step_options(p):
-        return StepOptions(steps_per_period=p["steps_per_period"], free_vibration_periods=p["free_vibration_periods"],
-                           ds_m=p["ds_m"] if p["ds_m"] > 0.0 else None)
+    step_options = staticmethod(step_options)
 
     # the parameter life cycle (c.LockstepNode): validate, lock while a run is active, configure
     def validate(self, values):

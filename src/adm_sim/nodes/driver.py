@@ -34,6 +34,7 @@ from std_srvs.srv import Trigger
 from adm_sim import protocol as P
 from adm_sim.errors import AdmSimError, InputError, RunError  # RunError: a run failed or its partners went away
 from adm_sim.nodes import common as c
+from adm_sim.nodes.params import DRIVER_SPECS
 from adm_sim.nodes.recorder import RunRecorder
 
 
@@ -43,17 +44,6 @@ RECORDED = [(P.TOPIC_CLOCK, Clock), (P.TOPIC_ACCEL, AccelStamped), (P.TOPIC_STAT
             (P.TOPIC_DIAGNOSTICS, DiagnosticArray), (P.TOPIC_RESULT, Float64MultiArray), (P.TOPIC_STATUS, String),
             (P.TOPIC_SUMMARY, DiagnosticStatus), (P.TOPIC_BRIDGE_DESC, String), (P.TOPIC_TRAIN_DESC, String)]
 
-
-DRIVER_SPECS = [
-    c.ParamSpec("record_path", "", "", "MCAP file to record to; empty = no recording"),
-    c.ParamSpec("rrd_path", "", "", "rerun .rrd file to write; empty = none"),
-    c.ParamSpec("rerun_spawn", False, "", "spawn a rerun viewer bound to 127.0.0.1"),
-    c.ParamSpec("rerun_connect", "", "", "stream to a rerun viewer at this loopback URL"),
-    c.ParamSpec("summary_path", "", "", "JSON summary of the run(s); empty = none"),
-    c.param("run_timeout_s", 900.0),
-    c.param("chunk_size", 65536),
-    c.ParamSpec("overwrite", False, "", "replace existing record_path, rrd_path and summary_path files"),
-]
 
 #: The driver's output parameters and the suffix each must have (:func:`adm_sim.files.claim_output`).
 OUTPUT_PARAMS = (("record_path", ".mcap"), ("rrd_path", ".rrd"), ("summary_path", ".json"))

@@ -26,29 +26,10 @@ from std_srvs.srv import Trigger
 
 from adm_sim import protocol as P
 from adm_sim.errors import InputError
-from adm_sim.limits import DEFAULT_SPEEDS
 from adm_sim.nodes import common as c
-from adm_sim.stepping import FINISHED, Grid, TrainHalf, TrainSide, check_model, half_step_positions, speeds_to_m_s
-from adm_sim.sweep import parse_speeds
-from adm_sim.trains import Train, load_train
-
-TRAIN_SPECS = [
-    c.param("train", "ICE-2", "train name (ICE-2, Eurostar, Railjet, ICE-4, Eurostar-table) or TOML file"),
-    c.param("model", "dim", "dim (Detailed Interaction Model) | mlm (Moving Load Model)"),
-    c.param("speeds_kmh", DEFAULT_SPEEDS, "speed lanes: start:stop:step (stop included) or a comma list"),
-    c.param("mlm_block_steps", 2048),
-    c.param("partner_timeout_s", 5.0, "error when the bridge node sends nothing for this long during a run"),
-    c.ParamSpec("run_phase", "", "", "what the next run is for, handed to the bridge with the run request: "
-                + " | ".join(P.PHASES) + "; empty = named by the request (dim, mlm_zeta, mlm_zeta_dz, bracketing)"),
-]
-
-
-def check_run_phase(value):
-    """Raise :class:`InputError` unless ``value`` is empty or one of :data:`adm_sim.protocol.PHASES`."""
-    if value and value not in P.PHASES:
-        raise InputError(f"run_phase: {value!r} is not a run phase; allowed {', '.join(P.PHASES)} or empty")
-    return value
-
+from adm_sim.nodes.params import TRAIN_SPECS, check_run_phase, validate_train  # noqa: F401 (re-exported)
+from adm_sim.stepping import FINISHED, Grid, TrainHalf, TrainSide, half_step_positions, speeds_to_m_s
+from adm_sim.trains import Train
 
 @dataclasses.dataclass
 class TrainRunState:
@@ -91,13 +72,7 @@ class TrainNode(c.LockstepNode):
         self.publish_description()
 
     # ------------------------------------------------------------------ parameters
-    @staticmethod
-    def _validate(p):
-        train = load_train(p["train"])
-        check_model(p["model"], train)
-        check_run_phase(p["run_phase"])
-        speeds = parse_speeds(p["speeds_kmh"], ordered=False, field="speeds_kmh")  # lanes, not a user's grid
-        return train, speeds
+    _validate = staticmethod(validate_train)
 
     # the parameter life cycle (c.LockstepNode): validate, lock while a run is active, configure
     def validate(self, values):
