@@ -105,6 +105,9 @@ class BridgeRunState:
     paused: str | None = None  #: :data:`PAUSE_STEP` / :data:`PAUSE_END` while waiting for the recorders
     block: list | None = None  #: MLM block in progress: [modal loads, next index, steps]
     ack_wait_since: float | None = None
+    pause_since: float = 0.0
+    rx_at: float = 0.0         #: when the train's last exchange message came (it waits since then)
+    forced: bool = False       #: a pause outlasted half the partner timeout: on to the next exchange
     done_step: int = 0
 
 
@@ -258,7 +261,7 @@ class BridgeNode(c.LockstepNode):
     def _ahead(self):
         """Whether the run is more than the window ahead of the slowest recorder."""
         r = self.run
-        return bool(r.acked) and r.sent - min(r.acked.values()) >= P.FLOW_WINDOW
+        return not r.forced and bool(r.acked) and r.sent - min(r.acked.values()) >= P.FLOW_WINDOW
 
     def _all_acked(self):
         r = self.run
@@ -268,8 +271,12 @@ class BridgeNode(c.LockstepNode):
         """Wait for the recorders before ``what`` (``step``: the next exchange; ``end``: the result)."""
         r = self.run
         r.paused = what
+        r.pause_since = time.monotonic()
         if r.ack_wait_since is None:
             r.ack_wait_since = time.monotonic()
+        if what == PAUSE_STEP:  # the train waits meanwhile: a partner that dies now is still noticed
+            topic = P.TOPIC_FORCES if r.model == "dim" else P.TOPIC_AXLE_BLOCK
+            self.partner.waiting(f"at step {r.run.k} of run {r.id} (waiting for the recorders)", P.relative(topic), r.rx_at)
 
     def _resume(self):
         r = self.run
@@ -292,15 +299,26 @@ class BridgeNode(c.LockstepNode):
         """Between turns: a recorder that left the graph or acknowledged nothing for
         ``partner_timeout_s`` is dropped from the flow control of this run (with a warning)."""
         r = self.run
-        if r is None or r.paused is None or r.ack_wait_since is None:
+        if r is None or r.paused is None:
+            return
+        if r.paused == PAUSE_STEP and time.monotonic() - r.rx_at > 0.5 * self.partner.timeout_s:
+            # the train waits too: go on to the next exchange (at most one MLM block beyond the
+            # window; the recorders' queues hold it) rather than let the train's partner watch fire
+            r.forced, r.paused = True, None
+            if r.block is not None:
+                self._advance_block()
+            else:
+                self._ask_partner()
+            return
+        if r.ack_wait_since is None:
             return
         alive = set(self._recorders())
-        stale = time.monotonic() - r.ack_wait_since > self.partner.timeout_s
+        stale = time.monotonic() - r.ack_wait_since > 0.5 * self.partner.timeout_s
         for name in list(r.acked):
             if name not in alive or stale:
                 self.get_logger().warning(
                     f"run {r.id}: recorder '{name}' {'left' if name not in alive else 'acknowledged nothing for'}"
-                    f"{'' if name not in alive else f' {self.partner.timeout_s:g} s'}; it is no longer waited for "
+                    f"{'' if name not in alive else f' {0.5 * self.partner.timeout_s:g} s'}; it is no longer waited for "
                     f"({r.acked[name]} of {r.sent} messages acknowledged)")
                 del r.acked[name]
         r.ack_wait_since = None if not r.acked else time.monotonic()
@@ -309,16 +327,18 @@ class BridgeNode(c.LockstepNode):
     def _ask_partner(self):
         """Publish the rail state for the current (step, stage) (MLM: a token for the next block)."""
         r, run = self.run, self.run.run
+        since = r.rx_at if r.forced else None  # after a forced pause the train's silence began earlier
+        r.forced = False
         k, stage = run.k, run.stage
         if r.model == "dim":
             if stage == 0:
                 r.disp = run.disp_m
             idx, w, wd = run.rail_state()
             self.pub_rail.publish(c.pack(r.id, k, stage, np.stack([w, wd]), ("field", "lane", "axle_on"), idx))
-            self.partner.waiting(f"at step {k} stage {stage} of run {r.id}", P.relative(P.TOPIC_FORCES))
+            self.partner.waiting(f"at step {k} stage {stage} of run {r.id}", P.relative(P.TOPIC_FORCES), since)
         else:
             self.pub_rail.publish(c.pack(r.id, k, 0, np.zeros((r.grid.n_lanes, 0)), ("lane", "axle_on")))
-            self.partner.waiting(f"at step {k} of run {r.id}", P.relative(P.TOPIC_AXLE_BLOCK))
+            self.partner.waiting(f"at step {k} of run {r.id}", P.relative(P.TOPIC_AXLE_BLOCK), since)
 
     def _on_forces(self, msg):
         r = self.run
@@ -328,6 +348,7 @@ class BridgeNode(c.LockstepNode):
         run_id, k, stage, idx, G = c.unpack(msg)
         c.check_step("bridge", (run_id, k, stage), (r.id, run.k, run.stage))
         self.partner.clear()
+        r.rx_at = time.monotonic()
         run.take_forces(G)
         if stage == 0 and run.status != FAILED:
             self._step_done(k, r.disp, run.acc_m_s2)
@@ -346,6 +367,7 @@ class BridgeNode(c.LockstepNode):
         run_id, k0, stage, _, block = c.unpack(msg)
         c.check_step("bridge", (run_id, k0, stage), (r.id, run.k, 0))
         self.partner.clear()
+        r.rx_at = time.monotonic()
         n = (block.shape[0] - 2) // 2
         r.block = [modal_loads_at(r.bridge, block[:-1], block[-1]), 0, n]
         self._advance_block()
@@ -500,6 +522,7 @@ class BridgeNode(c.LockstepNode):
         """End of the run's steps: the last monitoring messages (the final progress record counts
         them), then, once every recorder has acknowledged them all, :meth:`_publish_end`."""
         r, run = self.run, self.run.run
+        self.partner.clear()  # the train has sent its last message
         n = r.grid.n_steps
         done = n if run.status == FINISHED else run.k
         r.done_step = done

@@ -245,8 +245,9 @@ class PartnerWatch:
         self.since = None
         self.what = ""
 
-    def waiting(self, what, topic=None):
-        self.since = self._now()
+    def waiting(self, what, topic=None, since=None):
+        """Expect a message (``since``: the partner's silence began earlier, a ``time.monotonic()``)."""
+        self.since = self._now() if since is None else since
         self.what = what
         if topic is not None:
             self.topic = topic
