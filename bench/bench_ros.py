@@ -2,12 +2,16 @@
 """In-process sweep vs the same sweep co-simulated by the bridge and train nodes (two processes).
 
     .venv/bin/python bench/bench_ros.py [--bridge B1] [--train ICE-2] [--speeds 160:350:1] [--repeat 1]
+        [--main-job] [--hogs 2]
 
 Prints for the MLM and the DIM: the in-process :func:`adm_sim.sweep.run_sweep` time, the
 co-simulated time (from the run request to the result: parameter set, set-up handshake, every
 exchange and the monitoring topics at their default decimation, no recorder), their ratio
 (targets: MLM <= 3x, DIM <= 10x), the lockstep round trips and lane-steps per second over ROS.
-The co-simulated maxima are checked against the in-process ones (1e-9 relative).
+The co-simulated maxima are checked against the in-process ones (1e-9 relative). ``--main-job``
+also times the main job (``launch_scripts/calibrate.py``, B1 x ICE-2, MCAP and ``.rrd`` recorded
+under flow control) from start to exit; ``--hogs N`` runs everything while N busy processes hog
+the cores (killed at the end).
 """
 
 from __future__ import annotations
@@ -38,7 +42,35 @@ def main(argv=None):
     ap.add_argument("--speeds", default="160:350:1")
     ap.add_argument("--models", default="mlm,dim")
     ap.add_argument("--repeat", type=int, default=1, help="co-simulated runs per model (best is kept)")
+    ap.add_argument("--main-job", action="store_true", help="also time launch_scripts/calibrate.py (B1 x ICE-2)")
+    ap.add_argument("--hogs", type=int, default=0, help="busy processes running meanwhile")
     args = ap.parse_args(argv)
+    import subprocess
+
+    hogs = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(args.hogs)]
+    try:
+        return _bench(args)
+    finally:
+        for h in hogs:
+            h.kill()
+            h.wait()
+
+
+def _main_job():
+    """Wall time (s) of the main job, process start to exit."""
+    import subprocess
+
+    out = Path(tempfile.mkdtemp(prefix="bench_ros_main_")) / "out"
+    t0 = time.perf_counter()
+    p = subprocess.run([sys.executable, str(ROOT / "launch_scripts" / "calibrate.py"), "--out", str(out), "--quiet"],
+                       capture_output=True, text=True, cwd=ROOT)
+    wall = time.perf_counter() - t0
+    if p.returncode != 0:
+        raise SystemExit(f"error: main job failed (exit status {p.returncode}): {p.stderr.strip()[-400:]}")
+    return wall
+
+
+def _bench(args):
 
     from ros_fixtures import NodeProcs, driver_node
 
@@ -85,6 +117,9 @@ def main(argv=None):
         ok &= rel <= 1e-9
         print(f"{model.upper():5} {t_in:10.2f}s {t_co:8.2f}s {t_co / t_in:6.2f}x {target:6.0f}x {n:7d} {trips:12d} "
               f"{trips / t_co:8.0f} {speeds.size * n / t_co:13.3g} {rel:13.1e}")
+    if args.main_job:
+        print(f"\nmain job (calibrate.py B1 x ICE-2, MCAP + .rrd): {_main_job():.1f} s wall"
+              f"{f' with {args.hogs} busy processes' if args.hogs else ''}")
     return 0 if ok else 1
 
 

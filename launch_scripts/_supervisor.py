@@ -79,12 +79,9 @@ def launch_param_specs():
     """``node -> parameter specs`` of every node a launch may start (params files are shared by
     the scripts, so all four nodes are allowed in any of them), and the value checks beyond
     type and range (``(node, name) -> callable``)."""
-    from adm_calib.nodes.calibration_node import CALIBRATION_SPECS
+    from adm_calib.nodes.params import CALIBRATION_SPECS
     from adm_sim.bridge import resolve_bridge
-    from adm_sim.nodes.bridge_node import bridge_specs
-    from adm_sim.nodes.common import param
-    from adm_sim.nodes.driver import DRIVER_SPECS
-    from adm_sim.nodes.train_node import TRAIN_SPECS
+    from adm_sim.nodes.params import DRIVER_SPECS, TRAIN_SPECS, bridge_specs, param
     from adm_sim.sweep import parse_speeds
     from adm_sim.trains import load_train
 
@@ -119,11 +116,11 @@ def check_inputs(bridge=None, train=None, speeds=None, params_file=None, model=N
     """Validate everything a launch hands to its nodes before any process starts or any folder
     is created; raise :class:`adm_sim.errors.InputError` with the one-line reason.
 
-    The params file is checked key by key (:func:`adm_sim.nodes.common.check_params_file`):
+    The params file is checked key by key (:func:`adm_sim.nodes.params.check_params_file`):
     nodes, parameter names, duplicate keys, types, ranges, the bridge preset, train and speeds in
     it. Then the values each node will start with (its defaults, the params file, the command
     line) are checked together, as the node itself will check them: the bridge's parameters
-    against its preset (:func:`adm_sim.nodes.bridge_node.bridge_from_params`), the train with its
+    against its preset (:func:`adm_sim.nodes.params.bridge_from_params`), the train with its
     model (the DIM needs a train with vehicles; ``dim=True`` when the launch runs the DIM
     whatever the train node's model, as the calibration does).
 
@@ -132,9 +129,7 @@ def check_inputs(bridge=None, train=None, speeds=None, params_file=None, model=N
     from adm_sim.bridge import resolve_bridge
     from adm_sim.errors import InputError
     from adm_sim.files import input_file
-    from adm_sim.nodes.bridge_node import bridge_from_params, bridge_specs
-    from adm_sim.nodes.common import check_params_file
-    from adm_sim.nodes.train_node import TRAIN_SPECS, TrainNode
+    from adm_sim.nodes.params import TRAIN_SPECS, bridge_from_params, bridge_specs, check_params_file, validate_train
     from adm_sim.run_contract import check_model
     from adm_sim.sweep import parse_speeds
     from adm_sim.trains import load_train
@@ -169,7 +164,7 @@ def check_inputs(bridge=None, train=None, speeds=None, params_file=None, model=N
     tv.update({k: v for k, v in file_values.get("train", {}).items() if k in tv})
     tv.update({k: v for k, v in (("train", train), ("model", model), ("speeds_kmh", speeds)) if v is not None})
     try:
-        t, _ = TrainNode._validate(tv)
+        t, _ = validate_train(tv)
         if dim:
             check_model("dim", t)
     except InputError as exc:

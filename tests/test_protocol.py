@@ -80,7 +80,7 @@ def test_topic_table_holds_every_topic_the_logger_and_the_recorder_read():
         assert re.fullmatch(r"/[a-z_]+(/[a-z_]+)*", name), name
         assert re.fullmatch(r"[a-z_]+/msg/[A-Za-z0-9]+", typ), typ
         assert qos in "CXML", (name, qos)
-    assert len({n for n in P.TOPICS}) == 18
+    assert len({n for n in P.TOPICS}) == 20
 
 
 def test_the_driver_records_only_topics_of_the_table():

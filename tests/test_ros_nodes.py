@@ -148,3 +148,18 @@ def test_core_does_not_import_rclpy():
     code = ("import sys, adm_sim.sweep, adm_sim.lockstep_runs, adm_calib.calibrate, adm_calib.peaks; "
             "assert 'rclpy' not in sys.modules, 'core imported rclpy'")
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_launchers_check_parameters_without_rclpy():
+    """The parameter specs and their mapping to a bridge and a train are ROS-free: the launchers'
+    checks import no node module and no rclpy."""
+    from pathlib import Path
+
+    code = ("import sys; sys.path.insert(0, 'launch_scripts'); import _supervisor as s; s.launch_param_specs(); "
+            "s.check_inputs(bridge='B1', train='ICE-2', speeds='200:300:5', params_file='ros_ws/params/b1_ice2.yaml'); "
+            "bad = [m for m in sys.modules if m == 'rclpy' or m.startswith(('adm_sim.nodes.', 'adm_calib.nodes.')) "
+            "and not m.endswith('.params')]; "
+            "print(bad)")
+    root = Path(__file__).resolve().parents[1]
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=root, check=True)
+    assert out.stdout.strip() == "[]", out.stdout + out.stderr

@@ -65,6 +65,16 @@ TOPIC_DIAGNOSTICS = "/diagnostics"
 TOPIC_CLOCK = "/clock"
 TOPIC_CAL_ITERATION = f"{NS}/calibration/iteration"  # calibration, Float64MultiArray
 TOPIC_CAL_RESULT = f"{NS}/calibration/result"        # calibration, std_msgs/String (JSON)
+TOPIC_ACK = f"{NS}/run/ack"                # recorder -> bridge, std_msgs/String (JSON): flow control
+TOPIC_SUMMARY = f"{NS}/run/summary"        # bridge, diagnostic_msgs/DiagnosticStatus, latched
+
+
+def relative(name: str) -> str:
+    """The name a node creates its publisher, subscription or client with: relative (no leading
+    ``/``), so that a namespace (``--ros-args -r __ns:=/b3``) moves the whole graph
+    (``/b3/adm/run/status``, ``/b3/clock``, ``/b3/train/start_run``). The names above are those
+    of the default namespace; recordings store them so (:mod:`adm_sim.recording.mcap_log`)."""
+    return name.lstrip("/")
 
 #: Description topic of the ``bridge`` and ``train`` node.
 DESCRIPTION_TOPICS = {BRIDGE_NODE: TOPIC_BRIDGE_DESC, TRAIN_NODE: TOPIC_TRAIN_DESC}
@@ -78,7 +88,7 @@ TOPICS = {
     TOPIC_RAIL: ("std_msgs/msg/Float64MultiArray", "X", BRIDGE_NODE),
     TOPIC_FORCES: ("std_msgs/msg/Float64MultiArray", "X", TRAIN_NODE),
     TOPIC_AXLE_BLOCK: ("std_msgs/msg/Float64MultiArray", "X", TRAIN_NODE),
-    TOPIC_RESULT: ("std_msgs/msg/Float64MultiArray", "C", BRIDGE_NODE),
+    TOPIC_RESULT: ("std_msgs/msg/Float64MultiArray", "L", BRIDGE_NODE),
     TOPIC_STATUS: ("std_msgs/msg/String", "C", f"{BRIDGE_NODE}, {TRAIN_NODE}, {DRIVER_NODE} / {CALIBRATION_NODE}"),
     TOPIC_ACCEL: ("geometry_msgs/msg/AccelStamped", "M", BRIDGE_NODE),
     TOPIC_STATE: ("std_msgs/msg/Float64MultiArray", "M", BRIDGE_NODE),
@@ -90,8 +100,28 @@ TOPICS = {
     TOPIC_DIAGNOSTICS: ("diagnostic_msgs/msg/DiagnosticArray", "C", f"{BRIDGE_NODE}, {CALIBRATION_NODE}"),
     TOPIC_CLOCK: ("rosgraph_msgs/msg/Clock", "M", BRIDGE_NODE),
     TOPIC_CAL_ITERATION: ("std_msgs/msg/Float64MultiArray", "C", CALIBRATION_NODE),
-    TOPIC_CAL_RESULT: ("std_msgs/msg/String", "C", CALIBRATION_NODE),
+    TOPIC_CAL_RESULT: ("std_msgs/msg/String", "L", CALIBRATION_NODE),
+    TOPIC_ACK: ("std_msgs/msg/String", "C", f"{DRIVER_NODE} / {CALIBRATION_NODE}"),
+    TOPIC_SUMMARY: ("diagnostic_msgs/msg/DiagnosticStatus", "L", BRIDGE_NODE),
 }
+
+# ---------------------------------------------------------------------- flow control
+#: Topics whose messages the bridge counts per run (``samples`` of its final progress record and
+#: of its ``done``): every monitoring message of a run. A recorder acknowledges how many of them
+#: it has written (:func:`ack_record`); the bridge never runs more than :data:`FLOW_WINDOW` of
+#: them ahead of the slowest acknowledging recorder, and publishes ``/adm/run/result`` and ``done``
+#: only once every recorder has acknowledged all of them.
+SAMPLE_TOPICS = (TOPIC_ACCEL, TOPIC_STATE, TOPIC_BEAM, TOPIC_AXLES, TOPIC_CLOCK, TOPIC_PROGRESS, TOPIC_DIAGNOSTICS)
+#: Messages (over :data:`SAMPLE_TOPICS`) a bridge may publish beyond the last acknowledgement.
+FLOW_WINDOW = 512
+#: A recorder acknowledges after every this many messages (and at the run's last one).
+ACK_EVERY = 32
+#: Status name of the bridge's ``/diagnostics`` (a run as specified: OK / WARN / ERROR).
+DIAG_NAME = "adm_sim/bridge: deck acceleration"
+#: Status name of a numerical trial's ``/diagnostics`` (:data:`TRIAL_PHASES`): never above WARN.
+DIAG_TRIAL_NAME = "adm_sim/bridge: deck acceleration (numerical trial)"
+#: Status name of the per-passage summary (``/adm/run/summary``).
+SUMMARY_NAME = "adm_sim/bridge: passage summary"
 
 #: Topics drawn by the rerun logger (:class:`adm_sim.recording.rerun_log.RunLogger`), live and in
 #: ``replay.py``; ``/clock`` and ``/adm/midspan/state`` (every lane) are read but not drawn.
@@ -126,8 +156,9 @@ def decode(text: str) -> dict:
 
 
 def setup_record(run_id, model, train, speeds_kmh, speeds_m_s, train_length_m, axle_offsets_m, axle_loads_n,
-                 wheel_mass_kg):
-    """``/adm/run/setup`` (train -> bridge): the run the train node asks for.
+                 wheel_mass_kg, phase=""):
+    """``/adm/run/setup`` (train -> bridge): the run the train node asks for, with its ``phase``
+    (:data:`PHASES`; empty: the bridge names it by the request, :func:`plain_run_phase`).
 
     Arrays (``(n_lanes,)`` speeds, ``(n_axles,)`` offsets in m, loads in N, wheelset masses in kg,
     ``None`` for the MLM) are sent as lists.
@@ -135,7 +166,7 @@ def setup_record(run_id, model, train, speeds_kmh, speeds_m_s, train_length_m, a
     return {"run_id": run_id, "model": model, "train": train, "speeds_kmh": _list(speeds_kmh),
             "speeds_m_s": _list(speeds_m_s), "train_length_m": train_length_m,
             "axle_offsets_m": _list(axle_offsets_m), "axle_loads_n": _list(axle_loads_n),
-            "wheel_mass_kg": None if wheel_mass_kg is None else _list(wheel_mass_kg)}
+            "wheel_mass_kg": None if wheel_mass_kg is None else _list(wheel_mass_kg), "phase": phase}
 
 
 def ready_record(run_id, ds_m, n_steps, span_m, n_lanes, t0_s):
@@ -163,6 +194,47 @@ def status_record(node, run_id, state, **extra):
     return {"node": node, "run_id": run_id, "state": state, **extra}
 
 
+#: Keys of the per-passage summary (``/adm/run/summary``, ``diagnostic_msgs/DiagnosticStatus``
+#: values, in this order; docs/ros.md, section "Topics", defines each), then ``samples/<topic>``.
+SUMMARY_KEYS = ("run_id", "phase", "bridge", "train", "model", "speed_kmh", "peak_acc_m_s2", "t_peak_s",
+                "run_time_peak_s", "step_peak", "x_front_peak_m", "limit_m_s2", "track_type", "level",
+                "max_acc_all_lanes_m_s2", "speed_at_max_kmh", "n_lanes", "n_steps", "steps_done", "t0_s", "t1_s",
+                "frame_id")
+
+
+def summary_values(samples, **values):
+    """The ``(key, text)`` pairs of a per-passage summary: :data:`SUMMARY_KEYS` in order (floats
+    as ``repr``, exact), then ``samples/<topic>`` per :data:`SAMPLE_TOPICS`."""
+    out = {}
+    for k in SUMMARY_KEYS:
+        v = values[k]
+        out[k] = repr(float(v)) if isinstance(v, float) else str(v)
+    for t in SAMPLE_TOPICS:
+        out[f"samples{t}"] = str(int(samples.get(t, 0)))
+    return out
+
+
+def summary_from_values(pairs) -> dict:
+    """A summary's ``{key: value}`` back from its ``(key, text)`` pairs (numbers parsed; the sample
+    counts as ``samples: {topic: n}``)."""
+    out: dict = {"samples": {}}
+    for k, v in pairs:
+        if k.startswith("samples/"):
+            out["samples"][k[len("samples"):]] = int(v)
+            continue
+        try:
+            out[k] = int(v) if v.lstrip("-").isdigit() else float(v)
+        except ValueError:
+            out[k] = v
+    return out
+
+
+def ack_record(node, run_id, received):
+    """``/adm/run/ack`` (recorder -> bridge): recorder ``node`` has written ``received`` messages of
+    :data:`SAMPLE_TOPICS` of the current run (``run_id`` once it knows it, else ``None``)."""
+    return {"node": node, "run_id": run_id, "received": int(received)}
+
+
 def request_record(node, run_id, model, phase, label):
     """``/adm/run/status`` ``requested`` (driver): run ``run_id`` (``model``) was asked for as part of
     ``phase`` (:data:`PHASES`), shown as ``label``. Published by the driver as soon as the train node
@@ -185,9 +257,14 @@ def is_bridge_start(st: dict) -> bool:
     return st.get("node") == BRIDGE_NODE and st.get("state") == STARTED and st.get("run_id") is not None
 
 
-def progress_record(run_id, model, step, n_steps, sim_time_s):
-    """``/adm/progress``: steps done of ``n_steps`` and the sim time reached (s)."""
-    return {"run_id": run_id, "model": model, "step": step, "n_steps": n_steps, "sim_time_s": sim_time_s}
+def progress_record(run_id, model, step, n_steps, sim_time_s, samples=None):
+    """``/adm/progress``: steps done of ``n_steps`` and the sim time reached (s); the run's last
+    one carries ``final`` and ``samples``, the messages of each of :data:`SAMPLE_TOPICS` the run
+    published (itself included)."""
+    rec = {"run_id": run_id, "model": model, "step": step, "n_steps": n_steps, "sim_time_s": sim_time_s}
+    if samples is not None:
+        rec.update(final=True, samples=dict(samples))
+    return rec
 
 
 def bridge_description_record(bridge, description, n0_hz, step, delta_zeta, delta_zeta_lanes, track_type,
@@ -361,7 +438,7 @@ def is_entity(path: str) -> bool:
 
 
 __all__ = [n for n in dir() if n.isupper() or n in (
-    "encode", "decode", "setup_record", "ready_record", "ready_error", "is_rejected", "status_record",
+    "relative", "ack_record", "summary_values", "summary_from_values", "encode", "decode", "setup_record", "ready_record", "ready_error", "is_rejected", "status_record",
     "is_failure", "is_bridge_start", "progress_record", "bridge_description_record", "train_description_record",
     "driver_line", "parse_driver_line", "request_record", "is_request", "plain_run_phase", "run_tag", "acceleration_path",
     "beam_path", "sweep_curve_path", "sweep_trial_path", "delta_zeta_path", "peak_path", "is_entity")]

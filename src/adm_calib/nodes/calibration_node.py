@@ -31,8 +31,8 @@ from std_msgs.msg import Float64MultiArray, String
 from adm_calib.calibrate import CalibrationOptions, calibrate, calibration_step
 from adm_sim import protocol as P
 from adm_sim.bridge import Bridge
-from adm_sim.limits import DEFAULT_SPEEDS
 from adm_sim.nodes import common as c
+from adm_calib.nodes.params import CALIBRATION_SPECS
 from adm_sim.nodes.driver import RunDriver, say
 from adm_sim.step_grid import StepOptions
 from adm_sim.sweep import parse_speeds
@@ -42,10 +42,6 @@ from adm_sim.trains import load_train
 PHASE_LABELS = {P.PHASE_DIM: "DIM", P.PHASE_BRACKETING: "MLM trial", P.PHASE_ROOT_SEARCH: "MLM trial",
                 P.PHASE_MLM_ZETA: "MLM zeta", P.PHASE_MLM_ZETA_DZ: "MLM zeta+dz"}
 
-CALIBRATION_SPECS = [
-    c.param("speeds_kmh", DEFAULT_SPEEDS, "MLM speed range: start:stop:step or a comma list"),
-    c.param("dim_grid", "paper", "paper (5 km/h + fine around the MLM peak) | full (every MLM speed)"),
-]
 
 
 class CalibrationNode(RunDriver):
@@ -53,9 +49,10 @@ class CalibrationNode(RunDriver):
 
     def __init__(self, **kw):
         super().__init__(name=P.CALIBRATION_NODE, extra_specs=CALIBRATION_SPECS, **kw)
-        self.pub_iter = self.create_publisher(Float64MultiArray, P.TOPIC_CAL_ITERATION, c.QOS_CONTROL)
-        self.pub_result = self.create_publisher(String, P.TOPIC_CAL_RESULT, c.QOS_CONTROL)
-        self.pub_diag = self.create_publisher(DiagnosticArray, P.TOPIC_DIAGNOSTICS, c.QOS_CONTROL)
+        R = P.relative
+        self.pub_iter = self.create_publisher(Float64MultiArray, R(P.TOPIC_CAL_ITERATION), c.QOS_CONTROL)
+        self.pub_result = self.create_publisher(String, R(P.TOPIC_CAL_RESULT), c.QOS_LATCHED)
+        self.pub_diag = self.create_publisher(DiagnosticArray, R(P.TOPIC_DIAGNOSTICS), c.QOS_LATCHED)
         self.iteration = 0
 
     # ------------------------------------------------------------------ co-simulated sweeps
@@ -137,7 +134,8 @@ class CalibrationNode(RunDriver):
         res = calibrate(bridge, train, v, options=opt, sweep=self._hook, on_trial=self._iteration)
         self._publish_result(res)
         summary = res.to_dict(curves=True)
-        summary["co_simulation"] = {"runs": self.n_runs, "delta_zeta_trials": self.iteration}
+        summary["co_simulation"] = {"runs": self.n_runs, "delta_zeta_trials": self.iteration,
+                                    "incomplete_runs": self.incomplete}
         return summary
 
     def _publish_result(self, res):

@@ -28,26 +28,22 @@ import time
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import AccelStamped
-from rcl_interfaces.msg import SetParametersResult
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64MultiArray, String
 
 from adm_sim.bridge import Bridge, resolve_bridge
 from adm_sim import protocol as P
-from adm_sim.fields import view
 from adm_sim.errors import InputError
-from adm_sim.limits import ACC_LIMITS_M_S2, TRACK_TYPES, check_track_type
-from adm_sim.fields import check_delta_zeta
-from adm_sim.nodes import common as c
+from adm_sim.limits import ACC_LIMITS_M_S2, TRACK_TYPES
 from adm_sim.lockstep_runs import BridgeHalf
 from adm_sim.mlm_loads import modal_loads_at
+from adm_sim.nodes import common as c
+from adm_sim.nodes.params import MONITOR_SAMPLES_PER_PERIOD, bridge_from_params, bridge_specs, step_options
 from adm_sim.rk4_sides import BridgeSide
-from adm_sim.step_grid import StepOptions, make_grid
+from adm_sim.run_contract import FAILED, FINISHED, RUNNING
+from adm_sim.step_grid import Grid, make_grid
 
 __all__ = ["TRACK_TYPES", "MONITOR_SAMPLES_PER_PERIOD", "monitor_steps", "bridge_specs", "BridgeNode", "main"]
-#: Automatic monitoring decimation: at least this many samples per period of the highest retained
-#: mode, in the monitored lane's time.
-MONITOR_SAMPLES_PER_PERIOD = 8
 
 
 def monitor_steps(bridge, grid, lane, every, beam_every):
@@ -65,69 +61,60 @@ def monitor_steps(bridge, grid, lane, every, beam_every):
     return int(every), int(beam_every)
 
 
-def bridge_specs(preset):
-    """Parameter specs of the bridge node; numeric defaults from the preset bridge."""
-    S = c.param
-    return [
-        S("span_m", float(preset.span_m)),
-        S("EJ_Nm2", float(preset.EJ_Nm2), "bending stiffness EJ (used when n0_hz is 0)"),
-        S("n0_hz", 0.0, "first natural frequency n0; 0 = from EJ_Nm2, else EJ from Eq. (18)"),
-        S("mu_kg_m", float(preset.mass_per_length_kg_m)),
-        S("zeta_pct", view("ros", "zeta_pct").from_core(preset.damping_ratio)),
-        S("n_modes", int(preset.n_modes)),
-        S("damping_model", preset.damping_model, "rayleigh (modes 1 and 3) | modal"),
-        S("delta_zeta", 0.0, "additional damping for every lane (fraction; zeta + delta_zeta >= 0)"),
-        S("delta_zeta_lanes", "",
-          "per-lane additional damping, comma list with one value per speed lane; empty = delta_zeta"),
-        S("steps_per_period", 16.0, "RK4 steps per period of the highest mode at the slowest lane"),
-        S("free_vibration_periods", 2.0),
-        S("ds_m", 0.0, "train advance per step; 0 = from steps_per_period"),
-        S("track_type", "ballasted", " | ".join(f"{t} ({a:g} m/s^2)" for t, a in ACC_LIMITS_M_S2.items())
-          + ", EN 1990 A2.4.4.2.1"),
-        S("warn_fraction", 0.8, f"{P.TOPIC_DIAGNOSTICS} WARN above this fraction of the acceleration limit"),
-        S("monitor_speed_kmh", 0.0, f"lane shown on {P.TOPIC_ACCEL} and {P.BEAM_NS}/*: nearest speed; "
-          "0 = first lane"),
-        S("monitor_every_steps", 0, f"decimation of {P.TOPIC_ACCEL} (every n-th step); 0 = auto: "
-          f"{MONITOR_SAMPLES_PER_PERIOD} samples per period of the highest mode at the monitored speed"),
-        S("beam_every_steps", 0, f"decimation of {P.TOPIC_CLOCK}, {P.BEAM_NS}/* and {P.TOPIC_STATE} (every "
-          "lane); 0 = auto: 4 x the monitoring step"),
-        S("beam_points", 21, f"points along the span on {P.TOPIC_BEAM}"),
-        S("partner_timeout_s", 5.0, "error when the train node sends nothing for this long during a run"),
-    ]
+def frame_id(bridge, namespace="/"):
+    """Frame id of a bridge's midspan: ``<bridge>/midspan`` (the bridge's name, else the node's
+    namespace, else ``bridge``), characters outside ``[A-Za-z0-9_]`` replaced by ``_``."""
+    import re
+
+    name = bridge.name or namespace.strip("/") or "bridge"
+    return re.sub(r"[^A-Za-z0-9_]", "_", name) + "/midspan"
 
 
-def bridge_from_params(preset, p, defaults=None):
-    """The :class:`Bridge` of the bridge node's parameter values ``p`` (``{name: value}``, every
-    parameter of :func:`bridge_specs`): ``preset`` with the changed fields. The node checks its
-    start-up values and every later set with it; a launcher checks the values it will hand to the
-    node with it before starting anything.
-
-    Raises :class:`InputError` naming the parameter, value, unit and range.
-    """
-    specs = {s.name: s for s in bridge_specs(preset)}
-    d = {n: s.default for n, s in specs.items()} if defaults is None else defaults
-    kw = {}
-    for name in ("span_m", "mu_kg_m", "zeta_pct", "n_modes"):
-        if p[name] != d[name]:
-            view = specs[name].view
-            kw[view.field.name] = view.to_core(view.check(p[name], name=name))
-    if p["EJ_Nm2"] != d["EJ_Nm2"]:  # the core's range (> 0); the parameter's is narrower
-        kw["EJ_Nm2"] = specs["EJ_Nm2"].view.field.check(p["EJ_Nm2"], name="EJ_Nm2")
-    kw["damping_model"] = specs["damping_model"].view.check(p["damping_model"])
-    b = dataclasses.replace(preset, **kw)
-    if p["n0_hz"] != 0.0:
-        n0 = specs["n0_hz"].view.field.check(p["n0_hz"], name="n0_hz")
-        b = Bridge.from_frequency(b.span_m, n0, b.mass_per_length_kg_m, b.damping_ratio, n_modes=b.n_modes,
-                                  damping_model=b.damping_model, name=b.name, bridge_type=b.bridge_type)
-    check_delta_zeta("delta_zeta", p["delta_zeta"], b.damping_ratio)
-    for x in c.parse_float_list("delta_zeta_lanes", p["delta_zeta_lanes"], "- (fraction)"):
-        check_delta_zeta("delta_zeta_lanes", x, b.damping_ratio)
-    check_track_type("track_type", p["track_type"])
-    BridgeNode.step_options(p)
-    return b
+#: What a run waits for the recorders' acknowledgement before (flow control).
+PAUSE_STEP, PAUSE_END = "step", "end"
 
 
-class BridgeNode(c.NodeBase):
+@dataclasses.dataclass
+class BridgeRunState:
+    """The bridge node's active run (``BridgeNode.run``; ``None`` between runs)."""
+
+    id: int
+    model: str
+    phase: str                 #: :data:`adm_sim.protocol.PHASES`
+    train: str
+    grid: Grid
+    run: BridgeHalf            #: step, stage, status, maxima
+    bridge: Bridge
+    speeds_kmh: np.ndarray     #: (n_lanes,) km/h
+    dz: np.ndarray             #: (n_lanes,) additional damping (fraction)
+    lane: int                  #: the monitored lane
+    every: int                 #: monitoring decimation (steps)
+    beam_every: int            #: beam, state and /clock decimation (steps)
+    frame: str                 #: frame id of the samples
+    v_mon: float               #: monitored lane's speed (m/s): sim time runs in its time
+    x_beam: np.ndarray
+    phi_beam: np.ndarray
+    limit: float               #: EN 1990 A2.4.4.2.1 limit (m/s^2)
+    track: str
+    warn: float
+    tick: int                  #: progress every this many steps
+    t0: float                  #: sim time at the start (s)
+    wall0: float
+    acked: dict                #: recorder -> messages it acknowledged (flow control)
+    disp: np.ndarray | None = None
+    peak: tuple = (-1.0, 0)    #: (exact max |a| of the monitored lane so far, its step)
+    counts: dict = dataclasses.field(default_factory=dict)  #: topic -> messages published
+    sent: int = 0              #: messages published over every counted topic
+    paused: str | None = None  #: :data:`PAUSE_STEP` / :data:`PAUSE_END` while waiting for the recorders
+    block: list | None = None  #: MLM block in progress: [modal loads, next index, steps]
+    ack_wait_since: float | None = None
+    pause_since: float = 0.0
+    rx_at: float = 0.0         #: when the train's last exchange message came (it waits since then)
+    forced: bool = False       #: a pause outlasted half the partner timeout: on to the next exchange
+    done_step: int = 0
+
+
+class BridgeNode(c.LockstepNode):
     """Owns the modal beam; see the module docstring."""
 
     def __init__(self, **kw):
@@ -140,33 +127,36 @@ class BridgeNode(c.NodeBase):
         self.preset = resolve_bridge(self.get_parameter("bridge").value)
         specs = bridge_specs(self.preset)
         self._preset_defaults = {s.name: s.default for s in specs}
-        self.declare_specs(specs, on_set=self._on_set)
-        self.bridge = self.build_bridge(self.param_values())  # validates the startup values
-        self.add_post_set_parameters_callback(self._after_set)
+        self.bridge = self.declare_run_parameters(specs)  # validates the startup values
 
-        self.pub_rail = self.create_publisher(Float64MultiArray, P.TOPIC_RAIL, c.QOS_EXCHANGE)
-        self.pub_ready = self.create_publisher(String, P.TOPIC_READY, c.QOS_CONTROL)
-        self.pub_result = self.create_publisher(Float64MultiArray, P.TOPIC_RESULT, c.QOS_CONTROL)
-        self.pub_status = self.create_publisher(String, P.TOPIC_STATUS, c.QOS_CONTROL)
-        self.pub_clock = self.create_publisher(Clock, P.TOPIC_CLOCK, c.QOS_MONITOR)
-        self.pub_accel = self.create_publisher(AccelStamped, P.TOPIC_ACCEL, c.QOS_MONITOR)
-        self.pub_state = self.create_publisher(Float64MultiArray, P.TOPIC_STATE, c.QOS_MONITOR)
-        self.pub_beam = self.create_publisher(Float64MultiArray, P.TOPIC_BEAM, c.QOS_MONITOR)
-        self.pub_axles = self.create_publisher(Float64MultiArray, P.TOPIC_AXLES, c.QOS_MONITOR)
-        self.pub_progress = self.create_publisher(String, P.TOPIC_PROGRESS, c.QOS_MONITOR)
-        self.pub_diag = self.create_publisher(DiagnosticArray, P.TOPIC_DIAGNOSTICS, c.QOS_CONTROL)
-        self.pub_desc = self.create_publisher(String, P.TOPIC_BRIDGE_DESC, c.QOS_LATCHED)
-        self.create_subscription(String, P.TOPIC_SETUP, self._on_setup, c.QOS_CONTROL)
+        R, pub = P.relative, self.create_publisher
+        self.pub_rail = pub(Float64MultiArray, R(P.TOPIC_RAIL), c.QOS_EXCHANGE)
+        self.pub_ready = pub(String, R(P.TOPIC_READY), c.QOS_CONTROL)
+        self.pub_result = pub(Float64MultiArray, R(P.TOPIC_RESULT), c.QOS_LATCHED)
+        self.pub_status = pub(String, R(P.TOPIC_STATUS), c.QOS_CONTROL)
+        self.pub_summary = pub(DiagnosticStatus, R(P.TOPIC_SUMMARY), c.QOS_LATCHED)
+        #: monitoring publishers, counted per run (:data:`adm_sim.protocol.SAMPLE_TOPICS`)
+        self.pubs = {t: pub(typ, R(t), c.QOS_CONTROL if t == P.TOPIC_DIAGNOSTICS else c.QOS_MONITOR)
+                     for t, typ in ((P.TOPIC_CLOCK, Clock), (P.TOPIC_ACCEL, AccelStamped),
+                                    (P.TOPIC_STATE, Float64MultiArray), (P.TOPIC_BEAM, Float64MultiArray),
+                                    (P.TOPIC_AXLES, Float64MultiArray), (P.TOPIC_PROGRESS, String),
+                                    (P.TOPIC_DIAGNOSTICS, DiagnosticArray))}
+        #: the run's final /diagnostics, latched (a late joiner gets the last verdict)
+        self.pub_diag_final = pub(DiagnosticArray, R(P.TOPIC_DIAGNOSTICS), c.QOS_LATCHED)
+        self.pub_desc = pub(String, R(P.TOPIC_BRIDGE_DESC), c.QOS_LATCHED)
+        self.create_subscription(String, R(P.TOPIC_SETUP), self._on_setup, c.QOS_CONTROL)
         self.exchange = c.ExchangeLane(self)
         self.exchange_subscriptions = [
-            self.exchange.subscribe(Float64MultiArray, P.TOPIC_FORCES, self._on_forces, c.QOS_EXCHANGE),
-            self.exchange.subscribe(Float64MultiArray, P.TOPIC_AXLE_BLOCK, self._on_axle_block, c.QOS_EXCHANGE)]
+            self.exchange.subscribe(Float64MultiArray, R(P.TOPIC_FORCES), self._on_forces, c.QOS_EXCHANGE),
+            self.exchange.subscribe(Float64MultiArray, R(P.TOPIC_AXLE_BLOCK), self._on_axle_block, c.QOS_EXCHANGE),
+            # acknowledgements of the recorders, served as fast as the exchange (flow control)
+            self.exchange.subscribe(String, R(P.TOPIC_ACK), self._on_ack, c.QOS_CONTROL)]
 
         self.run = None  # the active run (dict) or None
         self.t_offset_s = 0.0  # sim time continues across runs
-        self.partner = c.PartnerWatch(self, P.TRAIN_NODE, P.TOPIC_FORCES,
+        self.partner = c.PartnerWatch(self, P.TRAIN_NODE, P.relative(P.TOPIC_FORCES),
                                       self.get_parameter("partner_timeout_s").value)
-        self._publish_description()
+        self.publish_description()
 
     # ------------------------------------------------------------------ parameters
     def build_bridge(self, p):
@@ -176,35 +166,19 @@ class BridgeNode(c.NodeBase):
         """
         return bridge_from_params(self.preset, p, self._preset_defaults)
 
-    @staticmethod
-    def step_options(p):
-        return StepOptions(steps_per_period=p["steps_per_period"], free_vibration_periods=p["free_vibration_periods"],
-                           ds_m=p["ds_m"] if p["ds_m"] > 0.0 else None)
+    step_options = staticmethod(step_options)
 
-    def _on_set(self, params):
-        if self.run is not None:
-            return SetParametersResult(successful=False, reason=(
-                f"bridge: parameters are locked while run {self.run['id']} is in progress "
-                f"(step {self.run['run'].k} of {self.run['grid'].n_steps})"))
-        values = self.param_values()
-        values.update({p.name: p.value for p in params})
-        try:
-            self.build_bridge(values)
-        except InputError as exc:
-            return SetParametersResult(successful=False, reason=str(exc))
-        return SetParametersResult(successful=True)
+    # the parameter life cycle (c.LockstepNode): validate, lock while a run is active, configure
+    def validate(self, values):
+        return self.build_bridge(values)
 
-    def _after_set(self, params):
-        """Post-set callback, the one place a parameter set changes the node's state (as in ros2/demos
-        ``set_parameters_callback.py``; :meth:`_on_set` only validates): the bridge, the partner
-        timeout and the latched description follow the new values."""
-        values = self.param_values()
+    def configure(self, values):
         self.bridge = self.build_bridge(values)
-        if any(p.name == "partner_timeout_s" for p in params):
-            self.partner.timeout_s = float(values["partner_timeout_s"])
-        self._publish_description()
 
-    def _publish_description(self):
+    def lock_reason(self):
+        return f"run {self.run.id} is in progress (step {self.run.run.k} of {self.run.grid.n_steps})"
+
+    def publish_description(self):
         b, p = self.bridge, self.param_values()
         self.pub_desc.publish(c.json_msg(P.bridge_description_record(
             bridge={"span_m": b.span_m, "EJ_Nm2": b.EJ_Nm2, "mass_per_length_kg_m": b.mass_per_length_kg_m,
@@ -220,7 +194,7 @@ class BridgeNode(c.NodeBase):
     def _on_setup(self, msg):
         cfg = P.decode(msg.data)
         if self.run is not None:
-            raise c.ExchangeError(f"bridge: run {cfg.get('run_id')} requested while run {self.run['id']} is active")
+            raise c.ExchangeError(f"bridge: run {cfg.get('run_id')} requested while run {self.run.id} is active")
         p = self.param_values()
         try:
             bridge = self.build_bridge(p)
@@ -244,71 +218,184 @@ class BridgeNode(c.NodeBase):
         mon = 0 if p["monitor_speed_kmh"] <= 0.0 else int(np.argmin(np.abs(speeds_kmh - p["monitor_speed_kmh"])))
         every, beam_every = monitor_steps(bridge, grid, mon, int(p["monitor_every_steps"]), int(p["beam_every_steps"]))
         xb = np.linspace(0.0, bridge.span_m, int(p["beam_points"]))
-        self.run = dict(
+        phase = cfg.get("phase") or P.plain_run_phase(cfg["model"], p["delta_zeta"], p["delta_zeta_lanes"])
+        recorders = self._recorders()
+        self.run = BridgeRunState(
             id=int(cfg["run_id"]), model=cfg["model"], grid=grid, run=run, bridge=bridge, speeds_kmh=speeds_kmh,
             dz=np.broadcast_to(np.asarray(dz, dtype=float), (grid.n_lanes,)).copy(), lane=mon, disp=None,
-            every=every, beam_every=beam_every,
+            every=every, beam_every=beam_every, phase=phase, train=cfg.get("train", ""),
+            frame=frame_id(bridge, self.get_namespace()), v_mon=float(grid.speeds_m_s[mon]),
             x_beam=xb, phi_beam=bridge.shapes(xb)[0], limit=ACC_LIMITS_M_S2[p["track_type"]],
             track=p["track_type"], warn=float(p["warn_fraction"]), tick=max(1, grid.n_steps // 100),
-            t0=self.t_offset_s, wall0=time.perf_counter())
+            t0=self.t_offset_s, wall0=time.perf_counter(),
+            peak=(-1.0, 0),  # (exact max |a| of the monitored lane so far, its step)
+            counts={t: 0 for t in P.SAMPLE_TOPICS}, sent=0,
+            # flow control: recorder -> messages it acknowledged; what waits for an acknowledgement
+            acked={n: 0 for n in recorders}, paused=None, block=None, ack_wait_since=None)
         self.pub_ready.publish(c.json_msg(P.ready_record(
-            self.run["id"], ds_m=grid.ds_m, n_steps=grid.n_steps, span_m=bridge.span_m, n_lanes=grid.n_lanes,
+            self.run.id, ds_m=grid.ds_m, n_steps=grid.n_steps, span_m=bridge.span_m, n_lanes=grid.n_lanes,
             t0_s=self.t_offset_s)))
-        self._status(self.run["id"], P.STARTED, model=cfg["model"], n_steps=grid.n_steps, n_lanes=grid.n_lanes,
-                     ds_m=grid.ds_m, bridge=bridge.describe(), train=cfg.get("train", ""), **self._monitor_info())
-        self.get_logger().info(f"run {self.run['id']}: {cfg['model'].upper()} {bridge.describe()}, "
+        self._status(self.run.id, P.STARTED, **self._run_info(), **self._monitor_info())
+        self.get_logger().info(f"run {self.run.id}: {cfg['model'].upper()} {bridge.describe()}, "
                                f"{grid.n_lanes} lanes, {grid.n_steps} steps of {grid.ds_m * 1000:.2f} mm")
         self._ask_partner()
 
     # ------------------------------------------------------------------ lockstep
+    def _run_info(self):
+        r = self.run
+        return {"model": r.model, "phase": r.phase, "n_steps": r.grid.n_steps, "n_lanes": r.grid.n_lanes,
+                "ds_m": r.grid.ds_m, "bridge": r.bridge.describe(), "train": r.train}
+
+    # ------------------------------------------------------------------ flow control
+    def _recorders(self):
+        """Names of the nodes that acknowledge what they recorded (publishers of ``/adm/run/ack``)."""
+        return sorted({i.node_namespace.rstrip("/") + "/" + i.node_name
+                       for i in self.get_publishers_info_by_topic(self.resolve_topic_name(P.relative(P.TOPIC_ACK)))})
+
+    def _on_ack(self, msg):
+        r = self.run
+        ack = P.decode(msg.data)
+        if r is None or ack.get("node") not in r.acked:
+            return
+        r.acked[ack["node"]] = max(r.acked[ack["node"]], int(ack["received"]))
+        r.ack_wait_since = None
+        self._resume()
+
+    def _ahead(self):
+        """Whether the run is more than the window ahead of the slowest recorder."""
+        r = self.run
+        return not r.forced and bool(r.acked) and r.sent - min(r.acked.values()) >= P.FLOW_WINDOW
+
+    def _all_acked(self):
+        r = self.run
+        return not r.acked or min(r.acked.values()) >= r.sent
+
+    def _pause(self, what):
+        """Wait for the recorders before ``what`` (``step``: the next exchange; ``end``: the result)."""
+        r = self.run
+        r.paused = what
+        r.pause_since = time.monotonic()
+        if r.ack_wait_since is None:
+            r.ack_wait_since = time.monotonic()
+        if what == PAUSE_STEP:  # the train waits meanwhile: a partner that dies now is still noticed
+            topic = P.TOPIC_FORCES if r.model == "dim" else P.TOPIC_AXLE_BLOCK
+            self.partner.waiting(f"at step {r.run.k} of run {r.id} (waiting for the recorders)", P.relative(topic), r.rx_at)
+
+    def _resume(self):
+        r = self.run
+        if r is None or r.paused is None:
+            return
+        if r.paused == PAUSE_END:
+            if self._all_acked():
+                r.paused = None
+                self._publish_end()
+            return
+        if self._ahead():
+            return
+        r.paused = None
+        if r.block is not None:
+            self._advance_block()
+        else:
+            self._ask_partner()
+
+    def _check_recorders(self):
+        """Between turns: a recorder that left the graph or acknowledged nothing for
+        ``partner_timeout_s`` is dropped from the flow control of this run (with a warning)."""
+        r = self.run
+        if r is None or r.paused is None:
+            return
+        if r.paused == PAUSE_STEP and time.monotonic() - r.rx_at > 0.5 * self.partner.timeout_s:
+            # the train waits too: go on to the next exchange (at most one MLM block beyond the
+            # window; the recorders' queues hold it) rather than let the train's partner watch fire
+            r.forced, r.paused = True, None
+            if r.block is not None:
+                self._advance_block()
+            else:
+                self._ask_partner()
+            return
+        if r.ack_wait_since is None:
+            return
+        alive = set(self._recorders())
+        stale = time.monotonic() - r.ack_wait_since > 0.5 * self.partner.timeout_s
+        for name in list(r.acked):
+            if name not in alive or stale:
+                self.get_logger().warning(
+                    f"run {r.id}: recorder '{name}' {'left' if name not in alive else 'acknowledged nothing for'}"
+                    f"{'' if name not in alive else f' {0.5 * self.partner.timeout_s:g} s'}; it is no longer waited for "
+                    f"({r.acked[name]} of {r.sent} messages acknowledged)")
+                del r.acked[name]
+        r.ack_wait_since = None if not r.acked else time.monotonic()
+        self._resume()
+
     def _ask_partner(self):
         """Publish the rail state for the current (step, stage) (MLM: a token for the next block)."""
-        r, run = self.run, self.run["run"]
+        r, run = self.run, self.run.run
+        since = r.rx_at if r.forced else None  # after a forced pause the train's silence began earlier
+        r.forced = False
         k, stage = run.k, run.stage
-        if r["model"] == "dim":
+        if r.model == "dim":
             if stage == 0:
-                r["disp"] = run.disp_m
+                r.disp = run.disp_m
             idx, w, wd = run.rail_state()
-            self.pub_rail.publish(c.pack(r["id"], k, stage, np.stack([w, wd]), ("field", "lane", "axle_on"), idx))
-            self.partner.waiting(f"at step {k} stage {stage} of run {r['id']}", P.TOPIC_FORCES)
+            self.pub_rail.publish(c.pack(r.id, k, stage, np.stack([w, wd]), ("field", "lane", "axle_on"), idx))
+            self.partner.waiting(f"at step {k} stage {stage} of run {r.id}", P.relative(P.TOPIC_FORCES), since)
         else:
-            self.pub_rail.publish(c.pack(r["id"], k, 0, np.zeros((r["grid"].n_lanes, 0)), ("lane", "axle_on")))
-            self.partner.waiting(f"at step {k} of run {r['id']}", P.TOPIC_AXLE_BLOCK)
+            self.pub_rail.publish(c.pack(r.id, k, 0, np.zeros((r.grid.n_lanes, 0)), ("lane", "axle_on")))
+            self.partner.waiting(f"at step {k} of run {r.id}", P.relative(P.TOPIC_AXLE_BLOCK), since)
 
     def _on_forces(self, msg):
         r = self.run
-        if r is None or r["model"] != "dim":
+        if r is None or r.model != "dim":
             raise c.ExchangeError("bridge: interaction forces received with no DIM run active")
-        run = r["run"]
+        run = r.run
         run_id, k, stage, idx, G = c.unpack(msg)
-        c.check_step("bridge", (run_id, k, stage), (r["id"], run.k, run.stage))
+        c.check_step("bridge", (run_id, k, stage), (r.id, run.k, run.stage))
         self.partner.clear()
+        r.rx_at = time.monotonic()
         run.step(G)  # one RK4 stage with the partner's interaction forces
-        if stage == 0 and run.status != "failed":
-            self._step_done(k, r["disp"], run.acc_m_s2)
-        if run.status != "running":
+        if stage == 0 and run.status != FAILED:
+            self._step_done(k, r.disp, run.acc_m_s2)
+        if run.status != RUNNING:
             self._finish()
+        elif stage == 0 and self._ahead():
+            self._pause(PAUSE_STEP)
         else:
             self._ask_partner()
 
     def _on_axle_block(self, msg):
         r = self.run
-        if r is None or r["model"] != "mlm":
+        if r is None or r.model != "mlm":
             raise c.ExchangeError("bridge: axle block received with no MLM run active")
-        run = r["run"]
+        run = r.run
         run_id, k0, stage, _, block = c.unpack(msg)
-        c.check_step("bridge", (run_id, k0, stage), (r["id"], run.k, 0))
+        c.check_step("bridge", (run_id, k0, stage), (r.id, run.k, 0))
         self.partner.clear()
+        r.rx_at = time.monotonic()
         n = (block.shape[0] - 2) // 2
-        P = modal_loads_at(r["bridge"], block[:-1], block[-1])
-        for j in range(n):
+        r.block = [modal_loads_at(r.bridge, block[:-1], block[-1]), 0, n]
+        self._advance_block()
+
+    def _advance_block(self):
+        """Step through the MLM block of axle loads; pause when the recorders lag a window behind."""
+        r = self.run
+        run = r.run
+        loads, j, n = r.block
+        while j < n:
             k, disp = run.k, run.disp_m
-            run.step(P[2 * j], P[2 * j + 1], P[2 * j + 2])
-            if run.status == "failed":
+            run.step(loads[2 * j], loads[2 * j + 1], loads[2 * j + 2])
+            j += 1
+            if run.status == FAILED:
                 break
             self._step_done(k, disp, run.acc_m_s2)
-        if run.status != "running":
+            if j < n and self._ahead():
+                r.block[1] = j
+                self._pause(PAUSE_STEP)
+                return
+        r.block = None
+        if run.status != RUNNING:
             self._finish()
+        elif self._ahead():
+            self._pause(PAUSE_STEP)
         else:
             self._ask_partner()
 
@@ -316,96 +403,159 @@ class BridgeNode(c.NodeBase):
     def _step_done(self, k, disp, acc):
         """Monitoring after step ``k`` produced its midspan displacement and acceleration."""
         r = self.run
-        if k % r["every"] == 0:
+        a = abs(float(acc[r.lane]))
+        if a > r.peak[0]:
+            r.peak = (a, k)
+        if k % r.every == 0:
             self._monitor(k, disp, acc)
-        if k % r["beam_every"] == 0:
+        if k % r.beam_every == 0:
             self._beam(k, disp, acc)
-        if k % r["tick"] == 0:
+        if k % r.tick == 0:
             self._progress(k + 1)
 
     def _monitor_info(self):
         """What the monitoring topics of the run show: for the rerun run-time timeline and the run table."""
         r = self.run
-        return {"t0_s": r["t0"], "monitor_lane": r["lane"], "monitor_speed_kmh": float(r["speeds_kmh"][r["lane"]]),
-                "clock_speed_kmh": float(np.min(r["speeds_kmh"])), "monitor_every_steps": r["every"],
-                "beam_every_steps": r["beam_every"]}
+        return {"t0_s": r.t0, "monitor_lane": r.lane, "monitor_speed_kmh": float(r.speeds_kmh[r.lane]),
+                "time_lane": r.lane, "clock_speed_kmh": float(r.speeds_kmh[r.lane]),
+                "monitor_every_steps": r.every, "beam_every_steps": r.beam_every, "frame_id": r.frame,
+                "acc_sign": "z-up (REP 103)"}
 
     def _sim_time(self, k):
-        return self.t_offset_s + self.run["grid"].clock_time_s(k)
+        """Session sim time of step ``k``: the monitored lane's own time since its first axle
+        entered the bridge, plus the run's offset (``/clock`` and every stamp)."""
+        r = self.run
+        return r.t0 + r.grid.front_m(k) / r.v_mon
+
+    def _publish(self, topic, msg, pub=None):
+        """Publish a monitoring message and count it (flow control, the run's ``samples``)."""
+        r = self.run
+        (pub or self.pubs[topic]).publish(msg)
+        r.counts[topic] += 1
+        r.sent += 1
 
     def _monitor(self, k, disp, acc):
         r = self.run
-        stamp = c.to_time_msg(self._sim_time(k))
         a = AccelStamped()
-        a.header.stamp = stamp
-        a.header.frame_id = "midspan"
-        a.accel.linear.z = float(acc[r["lane"]])
-        self.pub_accel.publish(a)
+        a.header.stamp = c.to_time_msg(self._sim_time(k))
+        a.header.frame_id = r.frame
+        a.accel.linear.z = -float(acc[r.lane])  # the core's acceleration is positive downwards
+        self._publish(P.TOPIC_ACCEL, a)
 
     def _beam(self, k, disp, acc):
-        """Sim time, every lane's midspan state, the deflected beam and the axles of the monitored lane."""
-        self.pub_clock.publish(Clock(clock=c.to_time_msg(self._sim_time(k))))
-        m = c.matrix_msg(("lane", "quantity:disp_m,acc_m_s2"), np.column_stack([disp, acc]))
-        self.pub_state.publish(m)
-        r, side = self.run, self.run["run"].bridge_side
-        q = side.q[r["lane"]]
-        w = r["phi_beam"] @ q
+        """Sim time, every lane's midspan state, the deflected beam and the axles of the monitored lane;
+        the arrays carry the step ``k`` before their data (``layout.data_offset`` = 1)."""
+        self._publish(P.TOPIC_CLOCK, Clock(clock=c.to_time_msg(self._sim_time(k))))
+        self._publish(P.TOPIC_STATE, c.matrix_msg(("lane", "quantity:disp_m,acc_m_s2"), np.column_stack([disp, acc]),
+                                                  step=k))
+        r, side = self.run, self.run.run.bridge_side
+        q = side.q[r.lane]
+        w = r.phi_beam @ q
         _, xa = side.axles_on(k, 0)
-        wa = r["bridge"].shapes(xa)[0] @ q if xa.size else np.zeros(0)
-        self.pub_beam.publish(c.matrix_msg(("row:x_m,w_m", "point"), np.vstack([r["x_beam"], w])))
-        self.pub_axles.publish(c.matrix_msg(("row:x_m,w_m", "axle_on"), np.vstack([xa, wa])))
+        wa = r.bridge.shapes(xa)[0] @ q if xa.size else np.zeros(0)
+        self._publish(P.TOPIC_BEAM, c.matrix_msg(("row:x_m,w_m", "point"), np.vstack([r.x_beam, w]), step=k))
+        self._publish(P.TOPIC_AXLES, c.matrix_msg(("row:x_m,w_m", "axle_on"), np.vstack([xa, wa]), step=k))
 
-    def _progress(self, done):
+    def _progress(self, done, final=False):
         r = self.run
-        n = r["grid"].n_steps
-        self.pub_progress.publish(c.json_msg(P.progress_record(r["id"], r["model"], done, n,
-                                                               self._sim_time(min(done, n)))))
+        n = r.grid.n_steps
+        if final:  # the run's last progress record carries what the run published, itself included
+            r.counts[P.TOPIC_PROGRESS] += 1
+            r.sent += 1
+            self.pubs[P.TOPIC_PROGRESS].publish(c.json_msg(P.progress_record(
+                r.id, r.model, done, n, self._sim_time(min(done, n)), samples=r.counts)))
+            return
+        self._publish(P.TOPIC_PROGRESS, c.json_msg(P.progress_record(r.id, r.model, done, n,
+                                                                     self._sim_time(min(done, n)))))
         self._diagnostics(done, final=False)
+
+    def _level(self, peak):
+        """Diagnostic level of a peak: ERROR only for a run of the bridge as specified; a numerical
+        trial (:data:`adm_sim.protocol.TRIAL_PHASES`) reports at most WARN."""
+        r = self.run
+        level = c.acc_level(peak, r.limit, r.warn)
+        return min(level, 1) if r.phase in P.TRIAL_PHASES else level
 
     def _diagnostics(self, done, final):
         r = self.run
-        max_acc = r["run"].max_acc_m_s2
+        max_acc = r.run.max_acc_m_s2
         i = int(np.argmax(max_acc))
         peak = float(max_acc[i])
-        level = c.acc_level(peak, r["limit"], r["warn"])
-        word = {0: "within", 1: "near", 2: "above"}[level]
-        st = DiagnosticStatus(level=bytes([level]), name="adm_sim/bridge: deck acceleration",
-                              hardware_id=r["bridge"].name or "bridge",
-                              message=(f"max |a| {peak:.3f} m/s^2 at {r['speeds_kmh'][i]:g} km/h {word} the "
-                                       f"{r['limit']:g} m/s^2 limit ({r['track']} track, EN 1990 A2.4.4.2.1)"
+        level = self._level(peak)
+        trial = r.phase in P.TRIAL_PHASES
+        word = {0: "within", 1: "near", 2: "above"}[c.acc_level(peak, r.limit, r.warn)]
+        st = DiagnosticStatus(level=bytes([level]), name=P.DIAG_TRIAL_NAME if trial else P.DIAG_NAME,
+                              hardware_id=r.bridge.name or "bridge",
+                              message=(f"{'numerical trial (' + r.phase + '): ' if trial else ''}"
+                                       f"max |a| {peak:.3f} m/s^2 at {r.speeds_kmh[i]:g} km/h {word} the "
+                                       f"{r.limit:g} m/s^2 limit ({r.track} track, EN 1990 A2.4.4.2.1)"
                                        f"{'' if final else ' so far'}"))
-        vals = {"run_id": r["id"], "model": r["model"], "max_acc_m_s2": peak, "speed_kmh": float(r["speeds_kmh"][i]),
-                "limit_m_s2": r["limit"], "track_type": r["track"], "step": done, "n_steps": r["grid"].n_steps,
-                "final": final}
+        vals = {"run_id": r.id, "phase": r.phase, "model": r.model, "max_acc_m_s2": peak,
+                "speed_kmh": float(r.speeds_kmh[i]), "limit_m_s2": r.limit, "track_type": r.track,
+                "step": done, "n_steps": r.grid.n_steps, "final": final}
         st.values = [KeyValue(key=k, value=str(v)) for k, v in vals.items()]
         arr = DiagnosticArray(status=[st])
-        arr.header.stamp = c.to_time_msg(self._sim_time(min(done, r["grid"].n_steps)))
-        self.pub_diag.publish(arr)
+        arr.header.stamp = c.to_time_msg(self._sim_time(min(done, r.grid.n_steps)))
+        self._publish(P.TOPIC_DIAGNOSTICS, arr, self.pub_diag_final if final else None)
+
+    def _summary(self, done):
+        """The per-passage summary (``/adm/run/summary``, latched): the monitored lane's passage."""
+        r, run = self.run, self.run.run
+        lane, grid = r.lane, r.grid
+        peak, k = r.peak
+        peak = float(run.max_acc_m_s2[lane])  # the same value, exactly (every step is folded in both)
+        level = self._level(peak)
+        i = int(np.argmax(run.max_acc_m_s2))
+        vals = P.summary_values(
+            run_id=r.id, phase=r.phase, bridge=r.bridge.describe(), train=r.train, model=r.model,
+            speed_kmh=float(r.speeds_kmh[lane]), peak_acc_m_s2=peak, t_peak_s=self._sim_time(k),
+            run_time_peak_s=self._sim_time(k) - r.t0, step_peak=k, x_front_peak_m=float(grid.front_m(k)),
+            limit_m_s2=r.limit, track_type=r.track, level=level, max_acc_all_lanes_m_s2=float(run.max_acc_m_s2[i]),
+            speed_at_max_kmh=float(r.speeds_kmh[i]), n_lanes=grid.n_lanes, n_steps=grid.n_steps, steps_done=done,
+            t0_s=r.t0, t1_s=self._sim_time(done), frame_id=r.frame, samples=r.counts)
+        return DiagnosticStatus(level=bytes([level]), name=P.SUMMARY_NAME, hardware_id=r.bridge.name or "bridge",
+                                message=(f"run {r.id} ({r.phase}): peak {peak:.4f} m/s^2 at {vals['speed_kmh']} "
+                                         f"km/h, t = {vals['t_peak_s']} s, limit {r.limit:g} m/s^2"),
+                                values=[KeyValue(key=k, value=v) for k, v in vals.items()])
 
     def _status(self, run_id, state, **extra):
         self.pub_status.publish(c.json_msg(P.status_record(P.BRIDGE_NODE, run_id, state, **extra)))
 
     def _finish(self):
-        """End of the run: finished (result, status ``done``) or failed (status ``failed``, no result)."""
-        r, run = self.run, self.run["run"]
-        n = r["grid"].n_steps
-        ok = run.status == "finished"
-        done = n if ok else run.k
+        """End of the run's steps: the last monitoring messages (the final progress record counts
+        them), then, once every recorder has acknowledged them all, :meth:`_publish_end`."""
+        r, run = self.run, self.run.run
+        self.partner.clear()  # the train has sent its last message
+        n = r.grid.n_steps
+        done = n if run.status == FINISHED else run.k
+        r.done_step = done
         self._progress(done)
         self._diagnostics(done, final=True)
+        self._publish(P.TOPIC_CLOCK, Clock(clock=c.to_time_msg(self._sim_time(done))))
+        self._progress(done, final=True)
+        if self._all_acked():
+            self._publish_end()
+        else:
+            self._pause(PAUSE_END)
+
+    def _publish_end(self):
+        """The run's summary, result and status ``done`` (or ``failed``, no result), after its data."""
+        r, run = self.run, self.run.run
+        done = r.done_step
+        ok = run.status == FINISHED
         t1 = self._sim_time(done)
-        self.pub_clock.publish(Clock(clock=c.to_time_msg(t1)))
+        self.pub_summary.publish(self._summary(done))
         if ok:
-            res = np.vstack([r["speeds_kmh"], run.max_acc_m_s2, run.max_disp_m, r["dz"]])
+            res = np.vstack([r.speeds_kmh, run.max_acc_m_s2, run.max_disp_m, r.dz])
             self.pub_result.publish(c.matrix_msg(("quantity:" + ",".join(P.RESULT_ROWS), "lane"), res))
-        wall = time.perf_counter() - r["wall0"]
-        self._status(r["id"], P.DONE if ok else P.FAILED, model=r["model"], n_steps=n, n_lanes=r["grid"].n_lanes,
-                     ds_m=r["grid"].ds_m, wall_s=wall, t0_s=r["t0"], t1_s=t1, message=run.message)
+        wall = time.perf_counter() - r.wall0
+        self._status(r.id, P.DONE if ok else P.FAILED, **self._run_info(), wall_s=wall, t0_s=r.t0, t1_s=t1,
+                     message=run.message, samples=dict(r.counts))
         if ok:
-            self.get_logger().info(f"run {r['id']} done in {wall:.2f} s: "
+            self.get_logger().info(f"run {r.id} done in {wall:.2f} s: "
                                    f"max |a| {np.max(run.max_acc_m_s2):.4f} m/s^2")
         else:
-            self.get_logger().error(f"run {r['id']} failed: {run.message}")
+            self.get_logger().error(f"run {r.id} failed: {run.message}")
         self.t_offset_s = t1
         self.run = None
         self.partner.clear()
@@ -413,9 +563,10 @@ class BridgeNode(c.NodeBase):
     # ------------------------------------------------------------------ supervision
     def watch(self):
         self.partner.check()
+        self._check_recorders()
 
     def report_failure(self, message):
-        rid = None if self.run is None else self.run["id"]
+        rid = None if self.run is None else self.run.id
         self._status(rid, P.FAILED, message=message)
 
 

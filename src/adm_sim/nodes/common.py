@@ -21,13 +21,12 @@ import math
 
 import numpy as np
 from builtin_interfaces.msg import Time
-from rcl_interfaces.msg import ParameterDescriptor, ParameterType, SetParametersResult
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension, String
 
 from adm_sim.errors import InputError, RunError
-from adm_sim.fields import check_range
 from adm_sim.files import release_all
 from adm_sim.protocol import EXCHANGE_HEADER_LEN as HEADER_LEN
 from adm_sim.protocol import encode
@@ -111,16 +110,24 @@ def check_step(who, got, expected):
                             f"got {tuple(got)}")
 
 
-def matrix_msg(dims, array):
-    """Plain 2-D ``Float64MultiArray`` (no header) with labelled dimensions."""
+def matrix_msg(dims, array, step=None):
+    """Plain 2-D ``Float64MultiArray`` with labelled dimensions; with ``step``, the step index is
+    carried before the data (``data[0]``, ``layout.data_offset`` = 1; :func:`matrix_step`)."""
     a = np.ascontiguousarray(array, dtype=np.float64)
     msg = Float64MultiArray()
+    if step is not None:
+        msg.layout.data_offset = 1
     stride = a.size
     for label, size in zip(dims, a.shape):
         msg.layout.dim.append(MultiArrayDimension(label=label, size=int(size), stride=int(stride)))
         stride = stride // size if size else 0
-    msg.data = a.ravel()
+    msg.data = a.ravel() if step is None else np.concatenate([[float(step)], a.ravel()])
     return msg
+
+
+def matrix_step(msg):
+    """The step index a monitoring array carries (:func:`matrix_msg`), ``None`` if it has none."""
+    return int(msg.data[0]) if msg.layout.data_offset == 1 and len(msg.data) else None
 
 
 def matrix_from_msg(msg):
@@ -135,59 +142,10 @@ def json_msg(record):
 
 
 # ---------------------------------------------------------------------- parameters
-_TYPES = {float: ParameterType.PARAMETER_DOUBLE, int: ParameterType.PARAMETER_INTEGER,
-          str: ParameterType.PARAMETER_STRING, bool: ParameterType.PARAMETER_BOOL}
-
-
-class ParamSpec:
-    """One declared parameter: default, unit, range and description; a thin view of its field in
-    the registry (:mod:`adm_sim.fields`) when the registry spells it as a ROS parameter
-    (:func:`param`), so unit, range, special values and the check come from there.
-
-    The range is checked by :meth:`check` (the registry's :meth:`adm_sim.fields.View.check`, or the
-    core's :func:`adm_sim.fields.check_range` for a parameter outside the registry) in an
-    on-set parameter callback, not by a ``FloatingPointRange`` in the descriptor: rclpy applies
-    descriptor ranges before any callback with a reason that has no unit, and several ranges are
-    not one interval (``n0_hz``: 0 or [0.5, 100]; ``delta_zeta``: [-zeta, 0.2]). The descriptor
-    carries the unit in its description and the range as text in ``additional_constraints``.
-    """
-
-    def __init__(self, name, default, unit, description, lo=None, hi=None, read_only=False, view=None):
-        self.name, self.default, self.unit = name, default, unit
-        self.description, self.lo, self.hi, self.read_only = description, lo, hi, read_only
-        self.view = view
-
-    def descriptor(self):
-        typ = _TYPES[type(self.default)]
-        d = ParameterDescriptor(name=self.name, type=typ, read_only=self.read_only,
-                                description=f"{self.description} [{self.unit}]" if self.unit else self.description)
-        d.additional_constraints = "" if self.lo is None else f"{self.lo:g} <= {self.name} <= {self.hi:g} {self.unit}".strip()
-        if self.view is not None and self.view.specials_outside() and self.lo is not None:
-            d.additional_constraints = " or ".join(f"{self.name} = {v:g} ({what})"
-                                                   for v, what in self.view.specials_outside()) + \
-                f" or {d.additional_constraints}"
-        return d
-
-    def check(self, value):
-        """Raise :class:`InputError` naming the parameter, value, unit and range when out of range
-        (or not one of the choices)."""
-        if self.view is not None:
-            if self.view.spelling.many:  # a comma list of values, each checked by the node
-                return
-            self.view.check(value, name=self.name)
-        elif self.lo is not None:
-            check_range(self.name, value, self.unit or "-", self.lo, self.hi)
-
-
-def param(name, default, description=None, read_only=False):
-    """The :class:`ParamSpec` of ROS parameter ``name`` from the field registry (unit, range,
-    special values, check); ``description`` replaces the field's doc where the node says more."""
-    from adm_sim import fields
-
-    v = fields.view("ros", name)
-    lo, hi = (None, None) if v.field.type is str or v.spelling.many else (v.lo, v.hi)
-    return ParamSpec(name, default, v.unit, description or v.field.doc, lo, hi, read_only, view=v)
-
+# The specs, the params-file checks and the list helpers are ROS-free (adm_sim.nodes.params);
+# they are imported here for the nodes.
+from adm_sim.nodes.params import (RCLPY_PARAMETERS, ParamSpec, check_params_file,  # noqa: E402,F401
+                                  format_float_list, load_params_yaml, param, parse_float_list)
 
 class ParamNodeMixin:
     """Declares :class:`ParamSpec` parameters and refuses out-of-range values in the core's words.
@@ -259,125 +217,6 @@ class ParamNodeMixin:
 SHARED_PARAMETER_NAMES: set = set()
 
 
-def _unique_key_loader():
-    """A ``yaml.SafeLoader`` that refuses a key given twice in one mapping (plain YAML keeps the
-    last value silently)."""
-    import yaml
-
-    class UniqueKeyLoader(yaml.SafeLoader):
-        def construct_mapping(self, node, deep=False):
-            seen = {}
-            for key_node, _value in node.value:
-                key = self.construct_object(key_node, deep=deep)
-                try:
-                    hash(key)
-                except TypeError:
-                    continue  # the base class reports unhashable keys
-                if key in seen:
-                    raise yaml.constructor.ConstructorError(
-                        None, None, f"key {key!r} is given twice (lines {seen[key] + 1} and "
-                                    f"{key_node.start_mark.line + 1}); give it once", key_node.start_mark)
-                seen[key] = key_node.start_mark.line
-            return super().construct_mapping(node, deep=deep)
-
-    return UniqueKeyLoader
-
-
-def load_params_yaml(path):
-    """The parsed params YAML ``path``; :class:`InputError` naming the file (and the line) when it
-    cannot be read, is not a regular file, is not valid YAML or gives a key twice."""
-    from pathlib import Path
-
-    import yaml
-
-    from adm_sim.files import read_text, refuse_special
-
-    where = f"--params-file {str(path)!r}"
-    refuse_special(path, where)
-    text = read_text(Path(path), "--params-file")  # not UTF-8 (a binary file): one line
-    try:
-        return yaml.load(text, Loader=_unique_key_loader())  # noqa: S506 (a SafeLoader)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        at = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
-        raise InputError(f"{where}: not valid YAML{at} ({getattr(exc, 'problem', None) or exc})") from None
-
-
-#: Parameters every rclpy node declares itself (allowed in params files).
-RCLPY_PARAMETERS = {"use_sim_time": bool, "start_type_description_service": bool}
-
-
-def check_params_file(path, specs_by_node, extra_checks=None):
-    """Check a ROS 2 params YAML before any node starts; raise :class:`InputError` (one line
-    naming the file, the node and the key) on the first problem.
-
-    Parameters
-    ----------
-    path : path-like
-        The params file (``<node>: {ros__parameters: {name: value}}``; ``/**`` for every node).
-    specs_by_node : dict
-        ``node name -> list of ParamSpec`` of the nodes the launch starts.
-    extra_checks : dict or None
-        ``(node, name) -> callable(value)`` raising :class:`InputError` (e.g. the bridge preset,
-        the train name, the speeds).
-
-    Returns
-    -------
-    dict
-        ``node -> {name: value}`` as the file gives them (``/**`` merged into every node).
-    """
-    where = f"--params-file {str(path)!r}"
-    doc = load_params_yaml(path)
-    if not isinstance(doc, dict) or not doc:
-        raise InputError(f"{where}: expected '<node>: {{ros__parameters: {{name: value}}}}' entries, got {doc!r}")
-    nodes = sorted(specs_by_node)
-    values = {n: {} for n in nodes}
-    for node, body in doc.items():
-        if node not in specs_by_node and node != "/**":
-            raise InputError(f"{where}: {node!r} is not a node of this launch; allowed {', '.join(nodes)} or '/**'")
-        if not isinstance(body, dict) or set(body) != {"ros__parameters"} or not isinstance(body["ros__parameters"], dict):
-            raise InputError(f"{where}: {node}: expected exactly one key 'ros__parameters' holding 'name: value' "
-                             f"entries, got {body!r}")
-        targets = nodes if node == "/**" else [node]
-        for name, value in body["ros__parameters"].items():
-            key = f"{node}.ros__parameters.{name}"
-            owners = [n for n in targets if any(s.name == name for s in specs_by_node[n])]
-            if not owners and name not in RCLPY_PARAMETERS:
-                known = sorted({s.name for n in targets for s in specs_by_node[n]} | set(RCLPY_PARAMETERS))
-                raise InputError(f"{where}: {key}: unknown parameter; allowed {', '.join(known)}")
-            for n in owners:
-                spec = next(s for s in specs_by_node[n] if s.name == name)
-                want = type(spec.default)
-                if type(value) is not want:  # rclpy refuses 15 for a double and '15' for an int
-                    hint = " (quote text values)" if want is str else (" (write 15.0, not 15)" if want is float else "")
-                    raise InputError(f"{where}: {key}: {value!r} is a {type(value).__name__}; expected a "
-                                     f"{want.__name__}{hint}{f' in {spec.unit}' if spec.unit else ''}")
-                try:
-                    spec.check(value)
-                    if extra_checks and (n, name) in extra_checks:
-                        extra_checks[(n, name)](value)
-                except InputError as exc:
-                    raise InputError(f"{where}: {node}: {exc}") from None
-                values[n][name] = value
-            if name in RCLPY_PARAMETERS and type(value) is not RCLPY_PARAMETERS[name]:
-                raise InputError(f"{where}: {key}: {value!r} is not a boolean; expected true or false")
-    return values
-
-
-def parse_float_list(field, text, unit):
-    """Floats from a comma list (``"0.001,0.002"``); empty text gives an empty array."""
-    parts = [p.strip() for p in str(text).split(",") if p.strip()]
-    try:
-        return np.array([float(p) for p in parts], dtype=float)
-    except ValueError:
-        raise InputError(f"{field}: {text!r} is not a comma list of numbers ({unit})") from None
-
-
-def format_float_list(values):
-    """Comma list of floats that parses back exactly (``repr``)."""
-    return ",".join(repr(float(x)) for x in np.atleast_1d(values))
-
-
 def acc_level(max_acc, limit, warn_fraction):
     """Diagnostic level for a peak deck acceleration: 0 OK, 1 WARN, 2 ERROR (bytes)."""
     if not math.isfinite(max_acc) or max_acc > limit:
@@ -407,8 +246,9 @@ class PartnerWatch:
         self.since = None
         self.what = ""
 
-    def waiting(self, what, topic=None):
-        self.since = self._now()
+    def waiting(self, what, topic=None, since=None):
+        """Expect a message (``since``: the partner's silence began earlier, a ``time.monotonic()``)."""
+        self.since = self._now() if since is None else since
         self.what = what
         if topic is not None:
             self.topic = topic
@@ -450,7 +290,8 @@ class ExchangeLane:
         from rclpy.node import Node
         from rclpy.parameter import Parameter
 
-        self.node = Node(f"{node.get_name()}_exchange", context=node.context, use_global_arguments=False,
+        self.node = Node(f"{node.get_name()}_exchange", namespace=node.get_namespace(), context=node.context,
+                         use_global_arguments=False,
                          enable_rosout=False, start_parameter_services=False,
                          parameter_overrides=[Parameter("start_type_description_service", value=False)])
         self.executor = EventsExecutor(context=node.context)
@@ -527,6 +368,63 @@ class NodeBase(ParamNodeMixin, Node):
             self.exchange.destroy()
             self.exchange = None
         return super().destroy_node()
+
+
+class LockstepNode(NodeBase):
+    """Base of the bridge and train nodes: the parameter life cycle of a node that runs lockstep runs.
+
+    :meth:`declare_run_parameters` declares the specs; then every set passes three stages, in
+    the order of ros2/demos ``set_parameters_callback.py``:
+
+    1. the range of each value (:class:`ParamSpec`, in :class:`ParamNodeMixin`);
+    2. on-set, :meth:`_check_set`: refused while a run is active (``<node>: parameters are locked
+       while run 3 is in progress ...``, :meth:`lock_reason`) or when :meth:`validate` raises
+       :class:`InputError` for the new values taken together; nothing changes here;
+    3. post-set, :meth:`_apply_set`: :meth:`configure` with the new values, the partner timeout
+       and the latched description (:meth:`publish_description`) follow them.
+    """
+
+    partner = None
+
+    def declare_run_parameters(self, specs):
+        """Declare ``specs`` and install the on-set and post-set stages; returns
+        :meth:`validate` of the start-up values (they are checked before the node runs)."""
+        self.declare_specs(specs, on_set=self._check_set)
+        checked = self.validate(self.param_values())
+        self.add_post_set_parameters_callback(self._apply_set)
+        return checked
+
+    def validate(self, values):
+        """Raise :class:`InputError` when ``values`` (every parameter) do not make a valid node."""
+
+    def configure(self, values):
+        """Change the node's state to ``values`` (post-set; they passed :meth:`validate`)."""
+
+    def publish_description(self):
+        """Publish the node's latched description."""
+
+    def lock_reason(self):
+        """Why parameters are locked now (the run in progress)."""
+        return f"run {self.run['id']} is in progress"
+
+    def _check_set(self, params):
+        if self.run is not None:
+            return SetParametersResult(successful=False, reason=(
+                f"{self.get_name()}: parameters are locked while {self.lock_reason()}"))
+        values = self.param_values()
+        values.update({p.name: p.value for p in params})
+        try:
+            self.validate(values)
+        except InputError as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
+        return SetParametersResult(successful=True)
+
+    def _apply_set(self, params):
+        values = self.param_values()
+        self.configure(values)
+        if self.partner is not None and any(p.name == "partner_timeout_s" for p in params):
+            self.partner.timeout_s = float(values["partner_timeout_s"])
+        self.publish_description()
 
 
 def run_node(make_node, args=None, name="node"):

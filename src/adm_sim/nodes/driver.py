@@ -1,11 +1,14 @@
-"""Run driver node: requests runs of the bridge/train pair, records them (MCAP, rerun).
+"""Run driver node: requests runs of the bridge/train pair and has them recorded.
 
-:class:`RunDriver` is the client side of the node graph. From a worker thread (never inside a
+:class:`RunDriver` is the run client of the node graph. From a worker thread (never inside a
 callback) :meth:`RunDriver.request_run` sets parameters on the bridge and train nodes through their
-parameter services, calls ``/train/start_run`` and blocks until ``/adm/run/result`` arrives; the
-executor keeps spinning in the main thread. While it runs it records every monitoring topic to
-an MCAP file (``record_path``) and feeds them to :class:`adm_sim.recording.rerun_log.RunLogger` (rerun:
-``rrd_path``, ``rerun_spawn``, ``rerun_connect``; the recording carries the default blueprint).
+parameter services (the run's phase among them), calls ``/train/start_run`` and blocks until
+``/adm/run/result`` arrives; the executor keeps spinning in the main thread. The recording side,
+:class:`adm_sim.nodes.recorder.RunRecorder`, writes every monitoring topic to an MCAP file
+(``record_path``), acknowledges what it wrote (the bridge's flow control) and checks every run's
+sample counts; the driver feeds the messages to its rerun logger
+(:class:`adm_sim.recording.rerun_log.RunLogger`: ``rrd_path``, ``rerun_spawn``, ``rerun_connect``;
+the recording carries the default blueprint).
 
 ``python -m adm_sim.nodes.driver --ros-args -p summary_path:=run.json`` runs one crossing or sweep
 with the train node's current parameters (``launch_scripts/crossing.py`` starts it).
@@ -14,14 +17,13 @@ with the train node's current parameters (``launch_scripts/crossing.py`` starts 
 from __future__ import annotations
 
 import json
-import os
 import sys
 import threading
 import time
 from pathlib import Path
 
 import numpy as np
-from diagnostic_msgs.msg import DiagnosticArray
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import AccelStamped
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
@@ -32,24 +34,16 @@ from std_srvs.srv import Trigger
 from adm_sim import protocol as P
 from adm_sim.errors import AdmSimError, InputError, RunError  # RunError: a run failed or its partners went away
 from adm_sim.nodes import common as c
+from adm_sim.nodes.params import DRIVER_SPECS
+from adm_sim.nodes.recorder import RunRecorder
 
 
 #: Topics the driver records (topic, type); its own publications are recorded as it publishes.
 RECORDED = [(P.TOPIC_CLOCK, Clock), (P.TOPIC_ACCEL, AccelStamped), (P.TOPIC_STATE, Float64MultiArray),
             (P.TOPIC_BEAM, Float64MultiArray), (P.TOPIC_AXLES, Float64MultiArray), (P.TOPIC_PROGRESS, String),
             (P.TOPIC_DIAGNOSTICS, DiagnosticArray), (P.TOPIC_RESULT, Float64MultiArray), (P.TOPIC_STATUS, String),
-            (P.TOPIC_BRIDGE_DESC, String), (P.TOPIC_TRAIN_DESC, String)]
+            (P.TOPIC_SUMMARY, DiagnosticStatus), (P.TOPIC_BRIDGE_DESC, String), (P.TOPIC_TRAIN_DESC, String)]
 
-DRIVER_SPECS = [
-    c.ParamSpec("record_path", "", "", "MCAP file to record to; empty = no recording"),
-    c.ParamSpec("rrd_path", "", "", "rerun .rrd file to write; empty = none"),
-    c.ParamSpec("rerun_spawn", False, "", "spawn a rerun viewer bound to 127.0.0.1"),
-    c.ParamSpec("rerun_connect", "", "", "stream to a rerun viewer at this loopback URL"),
-    c.ParamSpec("summary_path", "", "", "JSON summary of the run(s); empty = none"),
-    c.param("run_timeout_s", 900.0),
-    c.param("chunk_size", 65536),
-    c.ParamSpec("overwrite", False, "", "replace existing record_path, rrd_path and summary_path files"),
-]
 
 #: The driver's output parameters and the suffix each must have (:func:`adm_sim.files.claim_output`).
 OUTPUT_PARAMS = (("record_path", ".mcap"), ("rrd_path", ".rrd"), ("summary_path", ".json"))
@@ -107,7 +101,6 @@ class RunDriver(c.NodeBase):
         self.error = None
         self.run = None  # the driver has no lockstep exchange of its own
         self._lock = threading.Lock()
-        self._rec_lock = threading.Lock()
         self._result = None
         self._status = {}
         self._event = threading.Event()
@@ -117,57 +110,45 @@ class RunDriver(c.NodeBase):
         self._current = None  # (run_id, model, lane label)
         self.n_runs = 0
         self._last_rx = time.monotonic()
-        self.recorder = None
-        self._beside_files = {}
-        if p["record_path"]:
-            from adm_sim.recording.mcap_log import McapRecorder
-
-            self.recorder = McapRecorder(self._beside("record_path"), chunk_size=int(p["chunk_size"]),
-                                         overwrite=True)
-        self.rerun = False
-        self.viz = None  # rerun_log.RunLogger
-        if p["rrd_path"] or p["rerun_spawn"] or p["rerun_connect"]:
-            from adm_sim.recording import rerun_log
-
-            rerun_log.init_rerun("adm_sim", spawn=bool(p["rerun_spawn"]), connect_url=p["rerun_connect"] or None,
-                                 save_path=self._beside("rrd_path") if p["rrd_path"] else None, overwrite=True)
-            self.rerun = True
-            self.viz = rerun_log.RunLogger()
-            self.viz.send_blueprint()  # sent again with the beam bounds once the span is known
+        #: the recording side (MCAP, rerun, acknowledgements, per-run counts)
+        self.rec = RunRecorder(self, self.outputs, chunk_size=p["chunk_size"], rerun_spawn=p["rerun_spawn"],
+                               rerun_connect=p["rerun_connect"])
+        self.recorder, self.viz = self.rec.mcap, self.rec.viz  # McapRecorder, rerun_log.RunLogger (or None)
+        self.rerun = self.viz is not None
         for topic, typ in RECORDED:
             qos = c.QOS_LATCHED if topic.endswith("description") else (
-                c.QOS_CONTROL if topic in (P.TOPIC_RESULT, P.TOPIC_STATUS, P.TOPIC_DIAGNOSTICS) else c.QOS_MONITOR)
-            self.create_subscription(typ, topic, self._make_cb(topic), qos)
+                c.QOS_CONTROL if topic in (P.TOPIC_RESULT, P.TOPIC_STATUS, P.TOPIC_DIAGNOSTICS, P.TOPIC_SUMMARY)
+                else c.QOS_MONITOR)
+            self.create_subscription(typ, P.relative(topic), self._make_cb(topic), qos)
         #: the driver's ``requested`` records (the run id with its phase); its own subscription records them
-        self.pub_request = self.create_publisher(String, P.TOPIC_STATUS, c.QOS_CONTROL)
+        self.pub_request = self.create_publisher(String, P.relative(P.TOPIC_STATUS), c.QOS_CONTROL)
         self.last_phase = None  # phase of the last run requested (the iterations that follow it)
-        self.cli_start = self.create_client(Trigger, P.SERVICE_START_RUN)
+        self.cli_start = self.create_client(Trigger, P.relative(P.SERVICE_START_RUN))
         self.params = {n: AsyncParameterClient(self, n) for n in (P.BRIDGE_NODE, P.TRAIN_NODE)}
 
     # ------------------------------------------------------------------ subscriptions
     def _make_cb(self, topic):
         handler = getattr(self, "_on_" + topic.strip("/").replace("/", "_"), None)
 
+        counted = topic in P.SAMPLE_TOPICS
+
         def cb(msg):
             self._last_rx = time.monotonic()
-            stamp = getattr(getattr(msg, "header", None), "stamp", None)
             if isinstance(msg, Clock):
-                self._clock_ns = msg.clock.sec * 1_000_000_000 + msg.clock.nanosec
-            t_ns = self._clock_ns if stamp is None else stamp.sec * 1_000_000_000 + stamp.nanosec
-            if self.recorder is not None:
-                with self._rec_lock:
-                    self.recorder.write(topic, msg, t_ns)
+                self._clock_ns = self.rec.clock_ns = msg.clock.sec * 1_000_000_000 + msg.clock.nanosec
+            t_ns = self.rec.log_time_ns(msg)
+            self.rec.write(topic, msg, t_ns)
             if handler is not None:
                 handler(msg, t_ns)
+            if counted:
+                self.rec.count(topic, msg, self._current[0] if self._current else None)
 
         return cb
 
     def publish_recorded(self, pub, topic, msg):
         """Publish and record one of the driver's own messages at the current sim time."""
         pub.publish(msg)
-        if self.recorder is not None:
-            with self._rec_lock:
-                self.recorder.write(topic, msg, self._clock_ns)
+        self.rec.write(topic, msg, self._clock_ns)
 
     def _on_adm_run_result(self, msg, t_ns):
         with self._lock:
@@ -254,13 +235,14 @@ class RunDriver(c.NodeBase):
     def wait_for_graph(self, timeout_s=30.0):
         """Block until both nodes, their services and the result topic are there."""
         t_end = time.monotonic() + timeout_s
-        while not (self.cli_start.service_is_ready() and self.count_publishers(P.TOPIC_RESULT) > 0):
+        while not (self.cli_start.service_is_ready() and self.count_publishers(P.relative(P.TOPIC_RESULT)) > 0):
             if time.monotonic() > t_end:
                 raise RunError(f"bridge/train nodes not found after {timeout_s:g} s")
             self._event.wait(0.05)
 
     def _check_alive(self):
-        names = set(self.get_node_names())
+        ns = self.get_namespace()
+        names = {n for n, n_ns in self.get_node_names_and_namespaces() if n_ns == ns}
         missing = [n for n in (P.BRIDGE_NODE, P.TRAIN_NODE) if n not in names]
         if not missing:
             return
@@ -313,6 +295,12 @@ class RunDriver(c.NodeBase):
             bp["delta_zeta"] = float(delta_zeta)
         if delta_zeta_lanes is not None:
             bp["delta_zeta_lanes"] = "" if len(delta_zeta_lanes) == 0 else c.format_float_list(delta_zeta_lanes)
+        if phase is None:
+            desc = self.description(P.BRIDGE_NODE)
+            phase = P.plain_run_phase(model or self._train_model(),
+                                      desc["delta_zeta"] if delta_zeta is None else delta_zeta,
+                                      desc["delta_zeta_lanes"] if delta_zeta_lanes is None else delta_zeta_lanes)
+        tp["run_phase"] = phase
         self.set_params(P.TRAIN_NODE, **tp)
         self.set_params(P.BRIDGE_NODE, **bp)
         with self._lock:
@@ -328,10 +316,6 @@ class RunDriver(c.NodeBase):
             self._event.wait(0.1)
         info = dict(kv.split("=", 1) for kv in resp.message.split())
         run_id, model = int(info["run_id"]), info["model"]
-        if phase is None:
-            desc = self.description(P.BRIDGE_NODE)
-            phase = P.plain_run_phase(model, desc["delta_zeta"] if delta_zeta is None else delta_zeta,
-                                      desc["delta_zeta_lanes"] if delta_zeta_lanes is None else delta_zeta_lanes)
         self.last_phase = phase
         t0 = time.perf_counter()
         timeout = self.get_parameter("run_timeout_s").value
@@ -357,8 +341,8 @@ class RunDriver(c.NodeBase):
             if time.perf_counter() - t0 > timeout:
                 raise RunError(f"run {run_id} took longer than run_timeout_s = {timeout:g} s")
         wall = time.perf_counter() - t0
-        if self.recorder is not None or self.viz is not None:
-            self._await_monitoring(run_id)
+        if self.rec.attached:
+            self.rec.check_run(run_id, phase, lambda: self._bridge_status(run_id))
         if self.viz is not None:
             self.viz.run_done(res, phase, run_id)
         self._current = None
@@ -370,21 +354,18 @@ class RunDriver(c.NodeBase):
             max_acc_m_s2=float(res[1][i]), speed_kmh=float(res[0][i]), label=lab, phase=phase)
         return out
 
-    def _await_monitoring(self, run_id, timeout_s=60.0):
-        """Wait until the run's monitoring stream has been received up to its last ``/clock`` (its end).
+    def _bridge_status(self, run_id):
+        with self._lock:
+            return self._status.get((P.BRIDGE_NODE, run_id))
 
-        The monitoring topics (QoS M) may lag behind the result; without this wait a busy recorder
-        would start the next run with a backlog and lose the end of the last one.
-        """
-        t_end = time.monotonic() + timeout_s
-        while time.monotonic() < t_end:
-            with self._lock:
-                st = self._status.get((P.BRIDGE_NODE, run_id))
-            if st is not None and st.get("state") == P.DONE and st.get("t1_s") is not None \
-                    and self._clock_ns >= int(round(float(st["t1_s"]) * 1e9)) - 1000:
-                return
-            time.sleep(0.02)
-        self.get_logger().warning(f"run {run_id}: monitoring stream incomplete after {timeout_s:g} s")
+    @property
+    def incomplete(self):
+        """Runs not recorded whole (:attr:`RunRecorder.incomplete`)."""
+        return self.rec.incomplete
+
+    def _train_model(self):
+        """The train node's ``model`` (its latched description)."""
+        return self.description(P.TRAIN_NODE)["model"]
 
     # ------------------------------------------------------------------ the driver's own job
     def job(self):
@@ -394,7 +375,8 @@ class RunDriver(c.NodeBase):
         summary = {"run_id": r["run_id"], "model": r["model"], "bridge": self.description("bridge")["description"],
                    "train": self.description("train")["name"], "speeds_kmh": r["speeds_kmh"].tolist(),
                    "max_acc_m_s2": r["max_acc_m_s2"].tolist(), "max_disp_m": r["max_disp_m"].tolist(),
-                   "wall_s": r["wall_s"]}
+                   "wall_s": r["wall_s"], "phase": r["phase"], "samples": self.rec.recorded.get(r["run_id"]),
+                   "incomplete_runs": self.incomplete}
         return summary
 
     def write_summary(self, summary):
@@ -411,6 +393,8 @@ class RunDriver(c.NodeBase):
         def work():
             try:
                 self.write_summary(self.job())
+                self.error = self.rec.incomplete_error()  # outputs kept, exit status 1
+                self._keep_outputs = self.error is not None
             except Exception as exc:  # reported by end(); the process exits non-zero
                 self.error = exc
             finally:
@@ -429,36 +413,12 @@ class RunDriver(c.NodeBase):
             raise self.error
         raise RunError(f"{type(self.error).__name__}: {self.error}")
 
-    def _beside(self, name):
-        """Where output ``name`` is written: the file itself when it is new (a killed recorder
-        leaves a salvageable file there), a temporary file beside it when an earlier one is
-        replaced (``overwrite``): the old file stays until :meth:`close` renames the new one,
-        which it does only when the job succeeded (else the temporary file is removed)."""
-        path = self.outputs[name]
-        if not path.exists():
-            return path
-        tmp = path.with_name(f".{path.stem}.tmp-{os.getpid()}{path.suffix}")
-        self._beside_files[name] = tmp
-        return tmp
-
     def close(self):
         from adm_sim.files import release
 
-        if self.recorder is not None:
-            with self._rec_lock:
-                self.recorder.finish()
-        if self.viz is not None:
-            from adm_sim.recording import rerun_log
-
-            self.viz.flush()
-            rerun_log.close_rerun()
-        ok = self.finished and self.error is None
-        for name, tmp in self._beside_files.items():  # only complete files replace the old ones
-            if ok:
-                os.replace(tmp, self.outputs[name])
-            else:
-                tmp.unlink(missing_ok=True)
-        self._beside_files = {}
+        ok = self.finished and (self.error is None or getattr(self, "_keep_outputs", False))
+        if getattr(self, "rec", None) is not None:
+            self.rec.finish(keep=ok)
         for path in getattr(self, "outputs", {}).values():
             release(path)
         super().close()

@@ -17,102 +17,96 @@ here too.
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 
 import numpy as np
-from rcl_interfaces.msg import SetParametersResult
 from std_msgs.msg import Float64MultiArray, String
 from std_srvs.srv import Trigger
 
 from adm_sim import protocol as P
 from adm_sim.errors import InputError
-from adm_sim.limits import DEFAULT_SPEEDS
 from adm_sim.nodes import common as c
 from adm_sim.lockstep_runs import TrainHalf
 from adm_sim.mlm_loads import half_step_positions
+from adm_sim.nodes.params import TRAIN_SPECS, check_run_phase, validate_train  # noqa: F401 (re-exported)
 from adm_sim.rk4_sides import TrainSide
-from adm_sim.run_contract import check_model
+from adm_sim.run_contract import FINISHED
 from adm_sim.step_grid import Grid, speeds_to_m_s
-from adm_sim.sweep import parse_speeds
-from adm_sim.trains import load_train
+from adm_sim.trains import Train
 
-TRAIN_SPECS = [
-    c.param("train", "ICE-2", "train name (ICE-2, Eurostar, Railjet, ICE-4, Eurostar-table) or TOML file"),
-    c.param("model", "dim", "dim (Detailed Interaction Model) | mlm (Moving Load Model)"),
-    c.param("speeds_kmh", DEFAULT_SPEEDS, "speed lanes: start:stop:step (stop included) or a comma list"),
-    c.param("mlm_block_steps", 2048),
-    c.param("partner_timeout_s", 5.0, "error when the bridge node sends nothing for this long during a run"),
-]
+@dataclasses.dataclass
+class TrainRunState:
+    """The train node's active run (``TrainNode.run``; ``None`` between runs)."""
+
+    id: int
+    model: str
+    phase: str                    #: :data:`adm_sim.protocol.PHASES`
+    train: Train
+    v: np.ndarray                 #: (n_lanes,) speeds, m/s
+    block: int                    #: MLM steps per axle block
+    grid: Grid | None = None      #: from the bridge's /adm/run/ready
+    run: TrainHalf | None = None  #: step, stage, status
 
 
-class TrainNode(c.NodeBase):
+class TrainNode(c.LockstepNode):
     """Owns the vehicles; see the module docstring."""
 
     def __init__(self, **kw):
         super().__init__(P.TRAIN_NODE, **kw)
-        self.declare_specs(TRAIN_SPECS, on_set=self._on_set)
-        self.train = self._validate(self.param_values())[0]
-        self.add_post_set_parameters_callback(self._after_set)
-        self.pub_setup = self.create_publisher(String, P.TOPIC_SETUP, c.QOS_CONTROL)
-        self.pub_forces = self.create_publisher(Float64MultiArray, P.TOPIC_FORCES, c.QOS_EXCHANGE)
-        self.pub_block = self.create_publisher(Float64MultiArray, P.TOPIC_AXLE_BLOCK, c.QOS_EXCHANGE)
-        self.pub_status = self.create_publisher(String, P.TOPIC_STATUS, c.QOS_CONTROL)
-        self.pub_desc = self.create_publisher(String, P.TOPIC_TRAIN_DESC, c.QOS_LATCHED)
-        self.create_subscription(String, P.TOPIC_READY, self._on_ready, c.QOS_CONTROL)
-        self.create_subscription(String, P.TOPIC_STATUS, self._on_status, c.QOS_CONTROL)
+        self.train = self.declare_run_parameters(TRAIN_SPECS)[0]  # validates the startup values
+        R = P.relative
+        self.pub_setup = self.create_publisher(String, R(P.TOPIC_SETUP), c.QOS_CONTROL)
+        self.pub_forces = self.create_publisher(Float64MultiArray, R(P.TOPIC_FORCES), c.QOS_EXCHANGE)
+        self.pub_block = self.create_publisher(Float64MultiArray, R(P.TOPIC_AXLE_BLOCK), c.QOS_EXCHANGE)
+        self.pub_status = self.create_publisher(String, R(P.TOPIC_STATUS), c.QOS_CONTROL)
+        self.pub_desc = self.create_publisher(String, R(P.TOPIC_TRAIN_DESC), c.QOS_LATCHED)
+        self.create_subscription(String, R(P.TOPIC_READY), self._on_ready, c.QOS_CONTROL)
+        self.create_subscription(String, R(P.TOPIC_STATUS), self._on_status, c.QOS_CONTROL)
         self.exchange = c.ExchangeLane(self)
         self.exchange_subscriptions = [
-            self.exchange.subscribe(Float64MultiArray, P.TOPIC_RAIL, self._on_rail, c.QOS_EXCHANGE)]
+            self.exchange.subscribe(Float64MultiArray, R(P.TOPIC_RAIL), self._on_rail, c.QOS_EXCHANGE)]
         self.create_service(Trigger, "~/start_run", self._on_start)
+        self._bridge_desc = None
+        self.create_subscription(String, R(P.TOPIC_BRIDGE_DESC), self._on_bridge_description, c.QOS_LATCHED)
         self.run = None
         self._pending = []  # rail messages that arrived before /adm/run/ready
         self.next_run_id = 1
-        self.partner = c.PartnerWatch(self, P.BRIDGE_NODE, P.TOPIC_RAIL, self.get_parameter("partner_timeout_s").value)
-        self._publish_description()
+        self.partner = c.PartnerWatch(self, P.BRIDGE_NODE, R(P.TOPIC_RAIL), self.get_parameter("partner_timeout_s").value)
+        self.publish_description()
 
     # ------------------------------------------------------------------ parameters
-    @staticmethod
-    def _validate(p):
-        train = load_train(p["train"])
-        check_model(p["model"], train)
-        speeds = parse_speeds(p["speeds_kmh"], ordered=False, field="speeds_kmh")  # lanes, not a user's grid
-        return train, speeds
+    _validate = staticmethod(validate_train)
 
-    def _on_set(self, params):
-        if self.run is not None:
-            return SetParametersResult(successful=False, reason=(
-                f"train: parameters are locked while run {self.run['id']} is in progress"))
-        values = self.param_values()
-        values.update({p.name: p.value for p in params})
-        try:
-            self._validate(values)
-        except InputError as exc:
-            return SetParametersResult(successful=False, reason=str(exc))
-        return SetParametersResult(successful=True)
+    # the parameter life cycle (c.LockstepNode): validate, lock while a run is active, configure
+    def validate(self, values):
+        return self._validate(values)
 
-    def _after_set(self, params):
-        """Post-set callback, the one place a parameter set changes the node's state (as in ros2/demos
-        ``set_parameters_callback.py``; :meth:`_on_set` only validates): the train, the partner
-        timeout and the latched description follow the new values."""
-        values = self.param_values()
+    def configure(self, values):
         self.train = self._validate(values)[0]
-        if any(p.name == "partner_timeout_s" for p in params):
-            self.partner.timeout_s = float(values["partner_timeout_s"])
-        self._publish_description()
 
-    def _publish_description(self):
+    def publish_description(self):
         t = self.train
         self.pub_desc.publish(c.json_msg(P.train_description_record(
             self.get_parameter("train").value, t.name, t.describe(), t.length_m, t.n_axles,
             self.get_parameter("model").value, self.get_parameter("speeds_kmh").value)))
 
+    def _bridge_dz(self):
+        """``(delta_zeta, delta_zeta_lanes)`` of the bridge's latched description (to name a run
+        requested without a phase as the bridge will); ``(0.0, "")`` before it arrived."""
+        d = self._bridge_desc or {}
+        return d.get("delta_zeta", 0.0), d.get("delta_zeta_lanes", "")
+
+    def _on_bridge_description(self, msg):
+        self._bridge_desc = P.decode(msg.data)
+
     # ------------------------------------------------------------------ run control
     def _on_start(self, request, response):
         if self.run is not None:
-            response.success, response.message = False, f"run {self.run['id']} is in progress"
+            response.success, response.message = False, f"run {self.run.id} is in progress"
             return response
-        missing = [t for t, n in ((P.TOPIC_SETUP, self.count_subscribers(P.TOPIC_SETUP)),
-                                  (P.TOPIC_RAIL, self.count_publishers(P.TOPIC_RAIL))) if n == 0]
+        missing = [t for t, n in ((P.TOPIC_SETUP, self.count_subscribers(P.relative(P.TOPIC_SETUP))),
+                                  (P.TOPIC_RAIL, self.count_publishers(P.relative(P.TOPIC_RAIL)))) if n == 0]
         if missing:
             response.success = False
             response.message = f"bridge node not connected yet (nothing on {', '.join(missing)}); retry"
@@ -127,33 +121,36 @@ class TrainNode(c.NodeBase):
         self.next_run_id += 1
         v = speeds_to_m_s(speeds)
         dim = p["model"] == "dim"
-        self.run = dict(id=run_id, model=p["model"], train=train, v=v, run=None, grid=None,
-                        block=int(p["mlm_block_steps"]))
+        phase = p["run_phase"] or P.plain_run_phase(p["model"], *self._bridge_dz())
+        self.run = TrainRunState(id=run_id, model=p["model"], train=train, v=v, run=None, grid=None,
+                        block=int(p["mlm_block_steps"]), phase=phase)
         self._pending = []
         self.pub_setup.publish(c.json_msg(P.setup_record(
             run_id, p["model"], train.name, speeds, v, train.length_m, train.axle_offsets_m, train.axle_loads_n,
-            train.wheel_mass_kg if dim else None)))
-        self.partner.waiting(f"before run {run_id} started", P.TOPIC_READY)
+            train.wheel_mass_kg if dim else None, phase=p["run_phase"])))
+        self.partner.waiting(f"before run {run_id} started", P.relative(P.TOPIC_READY))
         response.success = True
-        response.message = f"run_id={run_id} model={p['model']} lanes={v.size} train={train.name}"
+        response.message = f"run_id={run_id} model={p['model']} lanes={v.size} train={train.name} phase={phase}"
         return response
 
     def _on_ready(self, msg):
         cfg = P.decode(msg.data)
         r = self.run
-        if r is None or cfg.get("run_id") != r["id"]:
+        if r is None or cfg.get("run_id") != r.id:
             return  # another run's answer (e.g. a rejected request)
         if P.is_rejected(cfg):
-            self.get_logger().error(f"run {r['id']} rejected by the bridge: {cfg['error']}")
-            self.pub_status.publish(c.json_msg(P.status_record(P.TRAIN_NODE, r["id"], P.FAILED,
+            self.get_logger().error(f"run {r.id} rejected by the bridge: {cfg['error']}")
+            self.pub_status.publish(c.json_msg(P.status_record(P.TRAIN_NODE, r.id, P.FAILED, phase=r.phase,
                                                                message=cfg["error"])))
             self.run = None
             self.partner.clear()
             return
-        r["grid"] = Grid(speeds_m_s=r["v"], ds_m=float(cfg["ds_m"]), n_steps=int(cfg["n_steps"]))
-        side = TrainSide(r["train"], r["grid"], float(cfg["span_m"])) if r["model"] == "dim" else None
-        r["run"] = TrainHalf(r["model"], r["grid"], train_side=side)
-        self.partner.waiting(f"at step 0 of run {r['id']}", P.TOPIC_RAIL)
+        r.grid = Grid(speeds_m_s=r.v, ds_m=float(cfg["ds_m"]), n_steps=int(cfg["n_steps"]))
+        side = TrainSide(r.train, r.grid, float(cfg["span_m"])) if r.model == "dim" else None
+        r.run = TrainHalf(r.model, r.grid, train_side=side)
+        self.pub_status.publish(c.json_msg(P.status_record(P.TRAIN_NODE, r.id, P.STARTED, model=r.model,
+                                                           phase=r.phase, n_steps=r.grid.n_steps)))
+        self.partner.waiting(f"at step 0 of run {r.id}", P.relative(P.TOPIC_RAIL))
         pending, self._pending = self._pending, []
         for m in pending:
             self._on_rail(m)
@@ -162,39 +159,40 @@ class TrainNode(c.NodeBase):
         r = self.run
         if r is None:
             raise c.ExchangeError("train: rail state received with no run active")
-        if r["grid"] is None:
+        if r.grid is None:
             self._pending.append(msg)
             return
-        run = r["run"]
+        run = r.run
         run_id, k, stage, idx, payload = c.unpack(msg)
-        c.check_step("train", (run_id, k, stage), (r["id"], run.k, run.stage))
+        c.check_step("train", (run_id, k, stage), (r.id, run.k, run.stage))
         self.partner.clear()
-        if r["model"] == "dim":
+        if r.model == "dim":
             run.step(idx, payload[0], payload[1])  # one RK4 stage with the bridge's rail state
             G = run.interaction_n
             self.pub_forces.publish(c.pack(run_id, k, stage, G, ("lane", "axle_on"), idx))
         else:
             k0 = run.k
-            run.advance(r["block"])  # books the block whose axle positions are sent now
+            run.advance(r.block)  # books the block whose axle positions are sent now
             b = run.k - k0
-            x = half_step_positions(r["grid"].ds_m, r["train"].axle_offsets_m, k0, b)
-            block = np.vstack([x, r["train"].axle_loads_n[None, :]])
+            x = half_step_positions(r.grid.ds_m, r.train.axle_offsets_m, k0, b)
+            block = np.vstack([x, r.train.axle_loads_n[None, :]])
             self.pub_block.publish(c.pack(run_id, k0, 0, block, ("row:positions_m(2n+1),loads_n", "axle")))
-        if run.status == "finished":
-            self.pub_status.publish(c.json_msg(P.status_record(P.TRAIN_NODE, r["id"], P.DONE)))
+        if run.status == FINISHED:
+            self.pub_status.publish(c.json_msg(P.status_record(P.TRAIN_NODE, r.id, P.DONE, model=r.model,
+                                                               phase=r.phase)))
             self.run = None
             self.partner.clear()
         else:
-            self.partner.waiting(f"at step {run.k} stage {run.stage} of run {r['id']}", P.TOPIC_RAIL)
+            self.partner.waiting(f"at step {run.k} stage {run.stage} of run {r.id}", P.relative(P.TOPIC_RAIL))
 
     def _on_status(self, msg):
         """End the exchanging run when the bridge reports it failed (its message is passed on)."""
         st = P.decode(msg.data)
         r = self.run
-        if r is None or r["run"] is None or st.get("node") != P.BRIDGE_NODE or not P.is_failure(st, r["id"]):
+        if r is None or r.run is None or st.get("node") != P.BRIDGE_NODE or not P.is_failure(st, r.id):
             return
-        self.get_logger().error(f"run {r['id']} failed on the bridge at step {r['run'].k}: {st.get('message', '')}")
-        self.pub_status.publish(c.json_msg(P.status_record(P.TRAIN_NODE, r["id"], P.FAILED,
+        self.get_logger().error(f"run {r.id} failed on the bridge at step {r.run.k}: {st.get('message', '')}")
+        self.pub_status.publish(c.json_msg(P.status_record(P.TRAIN_NODE, r.id, P.FAILED, phase=r.phase,
                                                            message=st.get("message", ""))))
         self.run = None
         self.partner.clear()
@@ -204,7 +202,7 @@ class TrainNode(c.NodeBase):
         self.partner.check()
 
     def report_failure(self, message):
-        rid = None if self.run is None else self.run["id"]
+        rid = None if self.run is None else self.run.id
         self.pub_status.publish(c.json_msg(P.status_record(P.TRAIN_NODE, rid, P.FAILED, message=message)))
 
 

@@ -1,0 +1,315 @@
+"""Parameters of the adm-sim nodes, free of ROS: specs, params-file checks, parameter -> model.
+
+Everything a launcher checks before it starts a node (:mod:`launch_scripts._supervisor`) lives
+here, so that a launcher never imports a node module (nor rclpy): the parameter specs of the
+bridge, train and driver nodes (:class:`ParamSpec`, units and ranges from the field registry
+:mod:`adm_sim.fields`), the mapping of the bridge node's parameters to a
+:class:`adm_sim.bridge.Bridge` (:func:`bridge_from_params`) and of the train node's to a train and
+its speed lanes (:func:`validate_train`), and the check of a ROS 2 params YAML
+(:func:`check_params_file`). The nodes declare these specs (:mod:`adm_sim.nodes.common`); only
+:meth:`ParamSpec.descriptor` touches rclpy's interfaces, and only a node calls it. A test asserts
+that importing this module leaves ``rclpy`` out.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from adm_sim import protocol as P
+from adm_sim.bridge import Bridge
+from adm_sim.errors import InputError
+from adm_sim.fields import check_delta_zeta, check_range, view
+from adm_sim.limits import ACC_LIMITS_M_S2, DEFAULT_SPEEDS, check_track_type
+from adm_sim.run_contract import check_model
+from adm_sim.step_grid import StepOptions
+from adm_sim.sweep import parse_speeds
+from adm_sim.trains import load_train
+
+#: Automatic monitoring decimation: at least this many samples per period of the highest retained
+#: mode, in the monitored lane's time.
+MONITOR_SAMPLES_PER_PERIOD = 8
+
+
+
+
+class ParamSpec:
+    """One declared parameter: default, unit, range and description; a thin view of its field in
+    the registry (:mod:`adm_sim.fields`) when the registry spells it as a ROS parameter
+    (:func:`param`), so unit, range, special values and the check come from there.
+
+    The range is checked by :meth:`check` (the registry's :meth:`adm_sim.fields.View.check`, or the
+    core's :func:`adm_sim.errors.check_range` for a parameter outside the registry) in an
+    on-set parameter callback, not by a ``FloatingPointRange`` in the descriptor: rclpy applies
+    descriptor ranges before any callback with a reason that has no unit, and several ranges are
+    not one interval (``n0_hz``: 0 or [0.5, 100]; ``delta_zeta``: [-zeta, 0.2]). The descriptor
+    carries the unit in its description and the range as text in ``additional_constraints``.
+    """
+
+    def __init__(self, name, default, unit, description, lo=None, hi=None, read_only=False, view=None):
+        self.name, self.default, self.unit = name, default, unit
+        self.description, self.lo, self.hi, self.read_only = description, lo, hi, read_only
+        self.view = view
+
+    def descriptor(self):
+        """The ``rcl_interfaces/ParameterDescriptor`` (imports rclpy's interfaces: only a node calls it)."""
+        from rcl_interfaces.msg import ParameterDescriptor, ParameterType
+
+        typ = {float: ParameterType.PARAMETER_DOUBLE, int: ParameterType.PARAMETER_INTEGER,
+               str: ParameterType.PARAMETER_STRING, bool: ParameterType.PARAMETER_BOOL}[type(self.default)]
+        d = ParameterDescriptor(name=self.name, type=typ, read_only=self.read_only,
+                                description=f"{self.description} [{self.unit}]" if self.unit else self.description)
+        d.additional_constraints = "" if self.lo is None else f"{self.lo:g} <= {self.name} <= {self.hi:g} {self.unit}".strip()
+        if self.view is not None and self.view.specials_outside() and self.lo is not None:
+            d.additional_constraints = " or ".join(f"{self.name} = {v:g} ({what})"
+                                                   for v, what in self.view.specials_outside()) + \
+                f" or {d.additional_constraints}"
+        return d
+
+    def check(self, value):
+        """Raise :class:`InputError` naming the parameter, value, unit and range when out of range
+        (or not one of the choices)."""
+        if self.view is not None:
+            if self.view.spelling.many:  # a comma list of values, each checked by the node
+                return
+            self.view.check(value, name=self.name)
+        elif self.lo is not None:
+            check_range(self.name, value, self.unit or "-", self.lo, self.hi)
+
+
+def param(name, default, description=None, read_only=False):
+    """The :class:`ParamSpec` of ROS parameter ``name`` from the field registry (unit, range,
+    special values, check); ``description`` replaces the field's doc where the node says more."""
+    from adm_sim import fields
+
+    v = fields.view("ros", name)
+    lo, hi = (None, None) if v.field.type is str or v.spelling.many else (v.lo, v.hi)
+    return ParamSpec(name, default, v.unit, description or v.field.doc, lo, hi, read_only, view=v)
+
+
+def _unique_key_loader():
+    """A ``yaml.SafeLoader`` that refuses a key given twice in one mapping (plain YAML keeps the
+    last value silently)."""
+    import yaml
+
+    class UniqueKeyLoader(yaml.SafeLoader):
+        def construct_mapping(self, node, deep=False):
+            seen = {}
+            for key_node, _value in node.value:
+                key = self.construct_object(key_node, deep=deep)
+                try:
+                    hash(key)
+                except TypeError:
+                    continue  # the base class reports unhashable keys
+                if key in seen:
+                    raise yaml.constructor.ConstructorError(
+                        None, None, f"key {key!r} is given twice (lines {seen[key] + 1} and "
+                                    f"{key_node.start_mark.line + 1}); give it once", key_node.start_mark)
+                seen[key] = key_node.start_mark.line
+            return super().construct_mapping(node, deep=deep)
+
+    return UniqueKeyLoader
+
+
+def load_params_yaml(path):
+    """The parsed params YAML ``path``; :class:`InputError` naming the file (and the line) when it
+    cannot be read, is not a regular file, is not valid YAML or gives a key twice."""
+    from pathlib import Path
+
+    import yaml
+
+    from adm_sim.files import read_text, refuse_special
+
+    where = f"--params-file {str(path)!r}"
+    refuse_special(path, where)
+    text = read_text(Path(path), "--params-file")  # not UTF-8 (a binary file): one line
+    try:
+        return yaml.load(text, Loader=_unique_key_loader())  # noqa: S506 (a SafeLoader)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        at = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+        raise InputError(f"{where}: not valid YAML{at} ({getattr(exc, 'problem', None) or exc})") from None
+
+
+#: Parameters every rclpy node declares itself (allowed in params files).
+RCLPY_PARAMETERS = {"use_sim_time": bool, "start_type_description_service": bool}
+
+
+def check_params_file(path, specs_by_node, extra_checks=None):
+    """Check a ROS 2 params YAML before any node starts; raise :class:`InputError` (one line
+    naming the file, the node and the key) on the first problem.
+
+    Parameters
+    ----------
+    path : path-like
+        The params file (``<node>: {ros__parameters: {name: value}}``; ``/**`` for every node).
+    specs_by_node : dict
+        ``node name -> list of ParamSpec`` of the nodes the launch starts.
+    extra_checks : dict or None
+        ``(node, name) -> callable(value)`` raising :class:`InputError` (e.g. the bridge preset,
+        the train name, the speeds).
+
+    Returns
+    -------
+    dict
+        ``node -> {name: value}`` as the file gives them (``/**`` merged into every node).
+    """
+    where = f"--params-file {str(path)!r}"
+    doc = load_params_yaml(path)
+    if not isinstance(doc, dict) or not doc:
+        raise InputError(f"{where}: expected '<node>: {{ros__parameters: {{name: value}}}}' entries, got {doc!r}")
+    nodes = sorted(specs_by_node)
+    values = {n: {} for n in nodes}
+    for node, body in doc.items():
+        if node not in specs_by_node and node != "/**":
+            raise InputError(f"{where}: {node!r} is not a node of this launch; allowed {', '.join(nodes)} or '/**'")
+        if not isinstance(body, dict) or set(body) != {"ros__parameters"} or not isinstance(body["ros__parameters"], dict):
+            raise InputError(f"{where}: {node}: expected exactly one key 'ros__parameters' holding 'name: value' "
+                             f"entries, got {body!r}")
+        targets = nodes if node == "/**" else [node]
+        for name, value in body["ros__parameters"].items():
+            key = f"{node}.ros__parameters.{name}"
+            owners = [n for n in targets if any(s.name == name for s in specs_by_node[n])]
+            if not owners and name not in RCLPY_PARAMETERS:
+                known = sorted({s.name for n in targets for s in specs_by_node[n]} | set(RCLPY_PARAMETERS))
+                raise InputError(f"{where}: {key}: unknown parameter; allowed {', '.join(known)}")
+            for n in owners:
+                spec = next(s for s in specs_by_node[n] if s.name == name)
+                want = type(spec.default)
+                if type(value) is not want:  # rclpy refuses 15 for a double and '15' for an int
+                    hint = " (quote text values)" if want is str else (" (write 15.0, not 15)" if want is float else "")
+                    raise InputError(f"{where}: {key}: {value!r} is a {type(value).__name__}; expected a "
+                                     f"{want.__name__}{hint}{f' in {spec.unit}' if spec.unit else ''}")
+                try:
+                    spec.check(value)
+                    if extra_checks and (n, name) in extra_checks:
+                        extra_checks[(n, name)](value)
+                except InputError as exc:
+                    raise InputError(f"{where}: {node}: {exc}") from None
+                values[n][name] = value
+            if name in RCLPY_PARAMETERS and type(value) is not RCLPY_PARAMETERS[name]:
+                raise InputError(f"{where}: {key}: {value!r} is not a boolean; expected true or false")
+    return values
+
+
+def parse_float_list(field, text, unit):
+    """Floats from a comma list (``"0.001,0.002"``); empty text gives an empty array."""
+    parts = [p.strip() for p in str(text).split(",") if p.strip()]
+    try:
+        return np.array([float(p) for p in parts], dtype=float)
+    except ValueError:
+        raise InputError(f"{field}: {text!r} is not a comma list of numbers ({unit})") from None
+
+
+def format_float_list(values):
+    """Comma list of floats that parses back exactly (``repr``)."""
+    return ",".join(repr(float(x)) for x in np.atleast_1d(values))
+
+
+def step_options(p):
+    """The :class:`StepOptions` of the bridge node's parameter values ``p``."""
+    return StepOptions(steps_per_period=p["steps_per_period"], free_vibration_periods=p["free_vibration_periods"],
+                       ds_m=p["ds_m"] if p["ds_m"] > 0.0 else None)
+
+
+def bridge_specs(preset):
+    """Parameter specs of the bridge node; numeric defaults from the preset bridge."""
+    S = param
+    return [
+        S("span_m", float(preset.span_m)),
+        S("EJ_Nm2", float(preset.EJ_Nm2), "bending stiffness EJ (used when n0_hz is 0)"),
+        S("n0_hz", 0.0, "first natural frequency n0; 0 = from EJ_Nm2, else EJ from Eq. (18)"),
+        S("mu_kg_m", float(preset.mass_per_length_kg_m)),
+        S("zeta_pct", view("ros", "zeta_pct").from_core(preset.damping_ratio)),
+        S("n_modes", int(preset.n_modes)),
+        S("damping_model", preset.damping_model, "rayleigh (modes 1 and 3) | modal"),
+        S("delta_zeta", 0.0, "additional damping for every lane (fraction; zeta + delta_zeta >= 0)"),
+        S("delta_zeta_lanes", "",
+          "per-lane additional damping, comma list with one value per speed lane; empty = delta_zeta"),
+        S("steps_per_period", 16.0, "RK4 steps per period of the highest mode at the slowest lane"),
+        S("free_vibration_periods", 2.0),
+        S("ds_m", 0.0, "train advance per step; 0 = from steps_per_period"),
+        S("track_type", "ballasted", " | ".join(f"{t} ({a:g} m/s^2)" for t, a in ACC_LIMITS_M_S2.items())
+          + ", EN 1990 A2.4.4.2.1"),
+        S("warn_fraction", 0.8, f"{P.TOPIC_DIAGNOSTICS} WARN above this fraction of the acceleration limit"),
+        S("monitor_speed_kmh", 0.0, f"lane shown on {P.TOPIC_ACCEL} and {P.BEAM_NS}/*: nearest speed; "
+          "0 = first lane"),
+        S("monitor_every_steps", 0, f"decimation of {P.TOPIC_ACCEL} (every n-th step); 0 = auto: "
+          f"{MONITOR_SAMPLES_PER_PERIOD} samples per period of the highest mode at the monitored speed"),
+        S("beam_every_steps", 0, f"decimation of {P.TOPIC_CLOCK}, {P.BEAM_NS}/* and {P.TOPIC_STATE} (every "
+          "lane); 0 = auto: 4 x the monitoring step"),
+        S("beam_points", 21, f"points along the span on {P.TOPIC_BEAM}"),
+        S("partner_timeout_s", 5.0, "error when the train node sends nothing for this long during a run"),
+    ]
+
+
+def bridge_from_params(preset, p, defaults=None):
+    """The :class:`Bridge` of the bridge node's parameter values ``p`` (``{name: value}``, every
+    parameter of :func:`bridge_specs`): ``preset`` with the changed fields. The node checks its
+    start-up values and every later set with it; a launcher checks the values it will hand to the
+    node with it before starting anything.
+
+    Raises :class:`InputError` naming the parameter, value, unit and range.
+    """
+    specs = {s.name: s for s in bridge_specs(preset)}
+    d = {n: s.default for n, s in specs.items()} if defaults is None else defaults
+    kw = {}
+    for name in ("span_m", "mu_kg_m", "zeta_pct", "n_modes"):
+        if p[name] != d[name]:
+            view = specs[name].view
+            kw[view.field.name] = view.to_core(view.check(p[name], name=name))
+    if p["EJ_Nm2"] != d["EJ_Nm2"]:  # the core's range (> 0); the parameter's is narrower
+        kw["EJ_Nm2"] = specs["EJ_Nm2"].view.field.check(p["EJ_Nm2"], name="EJ_Nm2")
+    kw["damping_model"] = specs["damping_model"].view.check(p["damping_model"])
+    b = dataclasses.replace(preset, **kw)
+    if p["n0_hz"] != 0.0:
+        n0 = specs["n0_hz"].view.field.check(p["n0_hz"], name="n0_hz")
+        b = Bridge.from_frequency(b.span_m, n0, b.mass_per_length_kg_m, b.damping_ratio, n_modes=b.n_modes,
+                                  damping_model=b.damping_model, name=b.name, bridge_type=b.bridge_type)
+    check_delta_zeta("delta_zeta", p["delta_zeta"], b.damping_ratio)
+    for x in parse_float_list("delta_zeta_lanes", p["delta_zeta_lanes"], "- (fraction)"):
+        check_delta_zeta("delta_zeta_lanes", x, b.damping_ratio)
+    check_track_type("track_type", p["track_type"])
+    step_options(p)
+    return b
+
+
+TRAIN_SPECS = [
+    param("train", "ICE-2", "train name (ICE-2, Eurostar, Railjet, ICE-4, Eurostar-table) or TOML file"),
+    param("model", "dim", "dim (Detailed Interaction Model) | mlm (Moving Load Model)"),
+    param("speeds_kmh", DEFAULT_SPEEDS, "speed lanes: start:stop:step (stop included) or a comma list"),
+    param("mlm_block_steps", 2048),
+    param("partner_timeout_s", 5.0, "error when the bridge node sends nothing for this long during a run"),
+    ParamSpec("run_phase", "", "", "what the next run is for, handed to the bridge with the run request: "
+                + " | ".join(P.PHASES) + "; empty = named by the request (dim, mlm_zeta, mlm_zeta_dz, bracketing)"),
+]
+
+
+def check_run_phase(value):
+    """Raise :class:`InputError` unless ``value`` is empty or one of :data:`adm_sim.protocol.PHASES`."""
+    if value and value not in P.PHASES:
+        raise InputError(f"run_phase: {value!r} is not a run phase; allowed {', '.join(P.PHASES)} or empty")
+    return value
+
+
+def validate_train(p):
+    """``(train, speeds_kmh)`` of the train node's parameter values ``p``; raises
+    :class:`InputError` (train, model, phase, speed lanes)."""
+    train = load_train(p["train"])
+    check_model(p["model"], train)
+    check_run_phase(p["run_phase"])
+    speeds = parse_speeds(p["speeds_kmh"], ordered=False, field="speeds_kmh")  # lanes, not a user's grid
+    return train, speeds
+
+
+DRIVER_SPECS = [
+    ParamSpec("record_path", "", "", "MCAP file to record to; empty = no recording"),
+    ParamSpec("rrd_path", "", "", "rerun .rrd file to write; empty = none"),
+    ParamSpec("rerun_spawn", False, "", "spawn a rerun viewer bound to 127.0.0.1"),
+    ParamSpec("rerun_connect", "", "", "stream to a rerun viewer at this loopback URL"),
+    ParamSpec("summary_path", "", "", "JSON summary of the run(s); empty = none"),
+    param("run_timeout_s", 900.0),
+    param("chunk_size", 65536),
+    ParamSpec("overwrite", False, "", "replace existing record_path, rrd_path and summary_path files"),
+]

@@ -1,0 +1,93 @@
+"""A namespace moves a whole graph: two bridge/train pairs (``/b1``, ``/b3``) share one domain.
+
+Every node creates its topics, services and parameter clients with relative names, so
+``--ros-args -r __ns:=/b3`` moves the node and all it publishes (``/b3/adm/run/status``,
+``/b3/clock``, ``/b3/train/start_run``). Both pairs run at the same time, each driven by a
+driver node in its namespace, and each gets the exact result of its own in-process sweep.
+"""
+
+from __future__ import annotations
+
+import threading
+from contextlib import contextmanager
+
+import numpy as np
+import pytest
+
+pytest.importorskip("rclpy")
+from ros_fixtures import node_procs, ros_domain  # noqa: E402,F401
+
+from adm_sim.bridge import resolve_bridge  # noqa: E402
+from adm_sim.stepping import StepOptions  # noqa: E402
+from adm_sim.sweep import run_sweep  # noqa: E402
+from adm_sim.trains import load_train  # noqa: E402
+
+STEP = {"steps_per_period": 4.0, "free_vibration_periods": 1.0}
+PAIRS = {"/b1": ("B1", "200,250,290"), "/b3": ("B3", "230,300,350")}
+
+
+@contextmanager
+def namespaced_driver(domain_id, namespace):
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+
+    from adm_sim.nodes.driver import RunDriver
+
+    ctx = rclpy.context.Context()
+    rclpy.init(context=ctx, domain_id=int(domain_id))
+    node = RunDriver(context=ctx, namespace=namespace)
+    ex = SingleThreadedExecutor(context=ctx)
+    ex.add_node(node)
+    stop = threading.Event()
+
+    def spin():
+        while not stop.is_set() and ctx.ok():
+            ex.spin_once(timeout_sec=0.05)
+
+    th = threading.Thread(target=spin, daemon=True)
+    th.start()
+    try:
+        yield node
+    finally:
+        stop.set()
+        th.join(5)
+        node.close()
+        node.destroy_node()
+        rclpy.try_shutdown(context=ctx)
+
+
+def test_two_namespaced_pairs_in_one_domain_give_each_its_exact_result(node_procs, ros_domain):
+    for ns, (bridge, speeds) in PAIRS.items():
+        tag = ns.strip("/")
+        node_procs.start(f"bridge_{tag}", "adm_sim.nodes.bridge_node", {"bridge": bridge, **STEP},
+                         extra=["-r", f"__ns:={ns}"])
+        node_procs.start(f"train_{tag}", "adm_sim.nodes.train_node", {"speeds_kmh": speeds},
+                         extra=["-r", f"__ns:={ns}"])
+    results, errors = {}, []
+    with namespaced_driver(ros_domain.domain_id, "/b1") as d1, namespaced_driver(ros_domain.domain_id, "/b3") as d3:
+        def go(ns, d):
+            try:
+                d.wait_for_graph()
+                results[ns] = [d.request_run(model=m) for m in ("mlm", "dim")]
+                results[ns].append(d.description("bridge"))
+            except Exception as exc:  # reported below
+                errors.append(f"{ns}: {exc}")
+
+        threads = [threading.Thread(target=go, args=(ns, d)) for ns, d in (("/b1", d1), ("/b3", d3))]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join(300)
+        names = {n for n, _t in d1.get_topic_names_and_types()}
+    assert not errors, errors
+    assert {"/b1/adm/run/status", "/b3/adm/run/status", "/b1/clock", "/b3/clock", "/b1/adm/midspan/accel",
+            "/b3/adm/midspan/accel"} <= names
+    assert "/adm/run/status" not in names and "/clock" not in names
+    train = load_train("ICE-2")
+    for ns, (bridge, speeds) in PAIRS.items():
+        assert results[ns][-1]["bridge"]["name"] == bridge
+        for r in results[ns][:-1]:
+            ref = run_sweep(resolve_bridge(bridge), train, r["model"], r["speeds_kmh"], options=StepOptions(**STEP))
+            np.testing.assert_array_equal(r["speeds_kmh"], [float(v) for v in speeds.split(",")])
+            np.testing.assert_array_equal(r["max_acc_m_s2"], ref.max_acc_m_s2)  # bit for bit
+            np.testing.assert_array_equal(r["max_disp_m"], ref.max_disp_m)
