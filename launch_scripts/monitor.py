@@ -34,9 +34,8 @@ import time
 from pathlib import Path
 
 from adm_sim import protocol as P
-from adm_sim.cliutil import Parser, add_overwrite, run_cli
+from adm_sim.cliutil import Parser, add_overwrite, option_view, run_cli
 from adm_sim.errors import InputError
-from adm_sim.fields import check_int, check_range
 from adm_sim.limits import TRACK_TYPES
 
 ACCEL_TYPE = "geometry_msgs/msg/AccelStamped"
@@ -71,8 +70,8 @@ def check_args(args):
     if args.status_topic is not None and not args.status_topic.startswith("/"):
         raise InputError(f"--status-topic: {args.status_topic!r} is not an absolute topic name; give e.g. "
                          f"{P.TOPIC_STATUS}")
-    args.timeout = check_range("--timeout", args.timeout, "s", 0.1, 3600.0)
-    args.min_cycles = check_range("--min-cycles", args.min_cycles, "periods", 2.0, 1000.0)
+    args.timeout = option_view("--timeout").check(args.timeout)
+    args.min_cycles = option_view("--min-cycles").check(args.min_cycles)
     if args.mcap is not None:
         for opt in ("domain_id", "passages", "duration"):
             if getattr(args, opt) is not None:
@@ -80,9 +79,9 @@ def check_args(args):
         mcap_input(args.mcap, "--mcap")
     else:
         if args.passages is not None:
-            args.passages = check_int("--passages", args.passages, 1, 1_000_000)
+            args.passages = option_view("--passages").check(args.passages)
         if args.duration is not None:
-            args.duration = check_range("--duration", args.duration, "s", 0.1, 1e7)
+            args.duration = option_view("--duration").check(args.duration)
         args.domain_id = live_domain_id(args.domain_id)
     if args.json is not None:
         claim_output(args.json, "--json", args.overwrite, ".json", inputs={"--mcap": args.mcap})

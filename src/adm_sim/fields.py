@@ -434,6 +434,18 @@ _FIELDS = [
     _F("wait_subscribers_s", "s", float, "wait up to this long until every republished topic has a subscriber",
        "replay",
        _S("cli", "--wait-subscribers"), lo=0.0, hi=3600.0),
+    # -------------------------------------------------------------- monitor (monitor node, launch_scripts/monitor.py)
+    _F("topic_timeout_s", "s", float, "error when no publisher offers the monitored topic for this long", "monitor",
+       _S("ros", "topic_timeout_s"), _S("cli", "--timeout"), lo=0.1, hi=3600.0),
+    _F("settle_s", "s", float, "a run's passage completes this long after its done record when no later "
+       "sample came", "monitor", _S("ros", "settle_s"), lo=0.0, hi=600.0),
+    _F("quiet_s", "s", float, "without run records, a passage completes after this much quiet signal", "monitor",
+       _S("ros", "quiet_s"), lo=0.0, hi=3600.0),
+    _F("min_cycles", "periods", float, "free decay needed to identify damping", "monitor",
+       _S("ros", "min_cycles"), _S("cli", "--min-cycles"), lo=2.0, hi=1000.0),
+    _F("passages", "-", int, "stop after this many passages (live)", "monitor", _S("cli", "--passages"),
+       lo=1, hi=1_000_000),
+    _F("duration_s", "s", float, "stop after this long (live)", "monitor", _S("cli", "--duration"), lo=0.1, hi=1e7),
     # -------------------------------------------------------------- vehicle (train files, Appendix A)
     _F("m_c_kg", "kg", float, "car body mass", "vehicle", _S("toml", "m_c_kg"), lo=1.0, hi=5.0e5),
     _F("J_c_kgm2", "kg m^2", float, "car body pitch inertia", "vehicle", _S("toml", "J_c_kgm2"), lo=1.0, hi=1.0e8),
@@ -469,7 +481,7 @@ _FIELDS = [
 #: Every field, by its core name.
 FIELDS = {f.name: f for f in _FIELDS}
 #: The groups, in the order of docs/fields.md.
-GROUPS = ("bridge", "run", "outputs", "replay", "vehicle", "limits")
+GROUPS = ("bridge", "run", "outputs", "replay", "monitor", "vehicle", "limits")
 #: Vehicle-type fields of a train file, in the order of the file format (``r_m`` optional).
 VEHICLE_FIELDS = ("m_c_kg", "J_c_kgm2", "m_b_kg", "J_b_kgm2", "m_w_kg", "k_s_N_m", "c_s_Ns_m", "k_p_N_m",
                   "c_p_Ns_m", "d_m", "r_m", "b_m")

@@ -54,13 +54,11 @@ MONITOR_SPECS = [
                                         "topic when it ends in /adm/midspan/accel"),
     c.ParamSpec("track_type", "", "", f"limit of EN 1990 A2.4.4.2.1: {' | '.join(TRACK_TYPES)}; empty = the "
                                       "bridge description's, else ballasted"),
-    c.ParamSpec("warn_fraction", 0.8, "-", "level 'near' above this fraction of the limit", 0.0, 1.0),
-    c.ParamSpec("topic_timeout_s", 10.0, "s", "error when no publisher offers the topic for this long", 0.1, 3600.0),
-    c.ParamSpec("settle_s", 1.0, "s", "a run's passage completes this long after its done record when no "
-                                      "later sample came", 0.0, 600.0),
-    c.ParamSpec("quiet_s", 10.0, "s", "without run records, a passage completes after this much quiet signal",
-                0.0, 3600.0),
-    c.ParamSpec("min_cycles", 5.0, "periods", "free decay needed to identify damping", 2.0, 1000.0),
+    c.param("warn_fraction", 0.8, "level 'near' above this fraction of the limit"),
+    c.param("topic_timeout_s", 10.0),
+    c.param("settle_s", 1.0),
+    c.param("quiet_s", 10.0),
+    c.param("min_cycles", 5.0),
     c.ParamSpec("bandpass", True, "", "band-pass around the FFT peak before the fit"),
     c.ParamSpec("json_path", "", "", "JSON file of the passages, rewritten after each; empty = none"),
     c.ParamSpec("overwrite", False, "", "replace an existing json_path"),
