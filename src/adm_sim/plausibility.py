@@ -1,4 +1,4 @@
-"""Plausibility bounds: one table, each bound with the reason for it (issue 17, item 7).
+"""Plausibility bounds: one table, each bound with the reason for it.
 
 The input ranges of :mod:`adm_sim.bridge` and :mod:`adm_sim.trains` refuse what the model cannot
 compute. These bounds are wider questions: a value the model computes but no real railway bridge or

@@ -446,7 +446,8 @@ def _run_node(make_node, args, name):
     While the node has a run active (``node.run``) its :class:`ExchangeLane` is served in bursts
     of up to 50 ms, each followed by the partner watch and one turn of the node's executor;
     otherwise the executor spins with a 0.2 s timeout. Returns the process exit code: 0, 2 on
-    bad input (start-up parameters, params file) or a lockstep failure, 130 on Ctrl-C or SIGTERM.
+    bad input (start-up parameters, params file), 1 on a failed run or a lockstep failure (a
+    :class:`RunError`), 130 on Ctrl-C or SIGTERM.
     """
     import sys
     import time
