@@ -65,13 +65,17 @@ ROOT = os.path.dirname(os.path.abspath(__file__))
 #: CPU seconds of each test file run alone (cache warm, ``ADM_SIM_TEST_CPU_LOG``), measured on the
 #: 2-core machine of docs/benchmarks.md ("Test suite"); used only to order the files, costliest first.
 _FILE_CPU_S = {
+    "test_batch.py": 81,
     "test_ros_cosim.py": 72,
+    "test_hostile_inputs.py": 68,
     "test_ros_rerun_views.py": 57,
     "test_ros_faults.py": 48,
+    "test_calib_study.py": 46,
     "test_replay_integrity.py": 35,
     "test_monitor_cli.py": 30,
     "test_imports.py": 27,
     "test_entry_points.py": 25,
+    "test_calib_study_scheduler.py": 17,
     "test_ros_colcon.py": 15,
     "test_ros_startup_inputs.py": 15,
     "test_appendix_b_findings.py": 12,
@@ -82,8 +86,14 @@ _FILE_CPU_S = {
     "test_sweep_backends.py": 8,
     "test_ros_rerun_live.py": 9,
     "test_ros_monitoring.py": 8,
+    "test_ros_logging.py": 7,
+    "test_kernels_uncompiled.py": 6,
+    "test_inputs_cli.py": 5,
     "test_ros_nodes.py": 4,
+    "test_calib_workers.py": 4,
+    "test_ros_dds_profile.py": 4,
     "test_ros_exchange_errors.py": 3,
+    "test_lint.py": 2,
 }
 
 
