@@ -37,6 +37,7 @@ itself fails (:func:`adm_sim.cliutil.run_cli`).
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 import time
@@ -125,13 +126,122 @@ def parse_args(argv=None):
 
 
 # ---------------------------------------------------------------- rerun
+def spawn_checked_viewer(settle_s: float = 1.5, timeout_s: float = 20.0):
+    """Start a native rerun viewer bound to 127.0.0.1, check that it answers
+    (:func:`~adm_sim.recording.viewer_feed.check_viewer`) and is still alive ``settle_s`` later
+    (on a machine without a display it listens, then exits at once); return the process and its
+    URL. The viewer's own log goes to a file, and its last line into the one error line."""
+    import tempfile
+
+    from adm_sim.recording import rerun_log as rl
+    from adm_sim.recording.viewer_feed import check_viewer
+
+    port = rl._free_port()
+    url = f"rerun+http://127.0.0.1:{port}/proxy"
+    log = tempfile.TemporaryFile(prefix="adm_sim_viewer_")
+    proc = subprocess.Popen([rl.rerun_cli(), "--bind", "127.0.0.1", "--port", str(port), "--memory-limit", "25%"],
+                            env=rl.rerun_cli_env(dict(os.environ) | {"RERUN_APP_ONLY": "true"}),
+                            stdin=subprocess.DEVNULL, stdout=log, stderr=log, start_new_session=True)
+
+    def died(why: str) -> RunError:
+        try:  # a viewer on its way out: let it end and say why
+            proc.wait(1.0)
+            why = "exited at once"
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+        log.seek(0)
+        lines = [re.sub(r"\x1b\[[0-9;]*m", "", ln).strip() for ln in log.read().decode(errors="replace").splitlines()]
+        lines = [ln for ln in lines if ln] or ["no output"]
+        last = ([ln for ln in lines if "error" in ln.lower()] or lines)[-1]
+        last = last if len(last) <= 160 else "..." + last[-150:]
+        return RunError(f"--spawn: the rerun viewer {why} (exit status {proc.returncode}: {last}); is there a display?")
+
+    t_end = time.monotonic() + timeout_s
+    while not rl._wait_for_port(port, 0.2):
+        if proc.poll() is not None:
+            raise died("exited at once")
+        if time.monotonic() > t_end:
+            raise died(f"did not listen on 127.0.0.1:{port} within {timeout_s:g} s")
+    try:
+        check_viewer(url, what="--spawn")
+    except RunError:
+        raise died("does not answer") from None
+    t_end = time.monotonic() + settle_s
+    while time.monotonic() < t_end:
+        if proc.poll() is not None:
+            raise died("exited at once")
+        time.sleep(0.05)
+    return proc, url
+
+
+def viewer_still_there(url: str, proc=None, what: str = "--connect") -> bool:
+    """After logging: one ``warning:`` line when the viewer died or stopped answering (what it shows
+    may miss the end of the run); the replay itself stands."""
+    from adm_sim.recording.viewer_feed import check_viewer
+
+    if proc is not None and proc.poll() is not None:
+        print(f"warning: {what}: the rerun viewer exited during the replay (exit status {proc.returncode}); "
+              f"it may show only part of the run", file=sys.stderr)
+        return False
+    try:
+        check_viewer(url, timeout_s=2.0, what=what)
+    except RunError as exc:
+        print(f"warning: {exc}; it stopped answering during the replay and may show only part of the run",
+              file=sys.stderr)
+        return False
+    return True
+
+
+
+
+#: Seconds without progress after which a viewer that stopped answering is given up (one warning).
+VIEWER_STALL_S = 10.0
+#: Set when a stalled viewer was given up: rerun's own flush at exit would wait for it again.
+_abandoned: list[str] = []
 
 
 def show_in_rerun(args, found, save_path=None) -> dict[str, int]:
     """Decode the MCAP and log it in the adm-sim layout (into ``save_path``, a new ``.rrd``, if
     given) through the live driver's feed (:class:`adm_sim.recording.viewer_feed.ViewerFeed`);
     ``found`` is the checked :class:`~adm_sim.recording.mcap_log.Scan` of the recording; returns
-    message counts per topic."""
+    message counts per topic.
+
+    Streaming to a viewer (``--connect``), the work runs in a helper thread watched for progress:
+    a viewer that stops answering mid-run stalls rerun's sink, and after :data:`VIEWER_STALL_S`
+    without progress it is given up with one ``warning:`` line (with ``save_path`` too, the
+    ``.rrd`` is then incomplete: :class:`RunError`), never a hang."""
+    import threading
+
+    if not args.connect:
+        return _feed_all(args, found, save_path, [0.0, None])
+    beat, result = [time.monotonic(), None], []
+
+    def work():
+        try:
+            result.append(("ok", _feed_all(args, found, save_path, beat)))
+        except BaseException as exc:  # handed to the main thread as it is
+            result.append(("err", exc))
+
+    th = threading.Thread(target=work, name="rerun-feed", daemon=True)
+    th.start()
+    while th.is_alive():
+        th.join(0.2)
+        if th.is_alive() and time.monotonic() - beat[0] > VIEWER_STALL_S:
+            _abandoned.append(args.connect)
+            why = (f"--connect: the viewer at {args.connect} stopped answering (no progress for "
+                   f"{VIEWER_STALL_S:g} s) and was given up")
+            if save_path is not None:
+                raise RunError(f"{why}; the .rrd would be incomplete")
+            print(f"warning: {why}; it shows only part of the run", file=sys.stderr)
+            return {} if beat[1] is None else dict(beat[1].counts)
+    kind, value = result[0]
+    if kind == "err":
+        raise value
+    return value
+
+
+def _feed_all(args, found, save_path, beat) -> dict[str, int]:
     from adm_sim.recording import rerun_log as rl
     from adm_sim.recording.mcap_log import decode_messages, sorted_messages
     from adm_sim.recording.viewer_feed import RunPhases, ViewerFeed, stamp_ns
@@ -141,10 +251,13 @@ def show_in_rerun(args, found, save_path=None) -> dict[str, int]:
     viz.send_blueprint()
     _log_metadata(args.mcap)
     feed = ViewerFeed(viz, RunPhases(f"RUN.mcap: '{args.mcap}'"))
+    beat[1:] = [feed]
     messages = decode_messages(sorted_messages(found), args.mcap)  # damage was named by check_readable
     for topic, log_time_ns, msg in _status_first(_guarded(messages, args.mcap)):
         feed(topic, msg, stamp_ns(msg, log_time_ns))
+        beat[0] = time.monotonic()
     feed.finish()
+    beat[0] = time.monotonic()
     rl.close_rerun()
     return dict(feed.counts)
 
@@ -417,7 +530,12 @@ def republish(args, found) -> int:
 
 
 def main(argv=None) -> int:
-    return run_cli(lambda: _run(parse_args(argv)))
+    code = run_cli(lambda: _run(parse_args(argv)))
+    if _abandoned:  # rerun's flush at interpreter exit would wait for the given-up viewer again
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    return code
 
 
 def _run(args) -> int:
@@ -425,7 +543,14 @@ def _run(args) -> int:
 
     check_args(args)
     found = check_readable(args.mcap, args.skip_damaged)  # every reader: damage named before anything starts
-    env = None
+    env = viewer = None
+    if args.connect:  # a viewer that is not there (closed port, another server, silence): one line, exit 1
+        from adm_sim.recording.viewer_feed import check_viewer
+
+        check_viewer(args.connect)
+    elif args.spawn:  # a viewer that dies at once (no display) is the run's failure, not "logged"
+        viewer, url = spawn_checked_viewer()
+        args.spawn, args.connect = False, url
     if args.republish:
         from adm_sim.processes.dds_env import apply_local_ros_env
 
@@ -441,10 +566,12 @@ def _run(args) -> int:
         counts = {}
         write_atomic(args.rrd, lambda tmp: (counts.update(show_in_rerun(args, found, tmp)), verify_rrd(tmp, args.rrd)))
         print(f"logged {sum(counts.values())} messages on {len(counts)} topics to {args.rrd}")
-    elif args.spawn or args.connect:
+    elif args.connect:
         counts = show_in_rerun(args, found)
-        where = args.rrd or args.connect or "the spawned viewer"
+        where = args.connect if viewer is None else f"the spawned viewer ({args.connect})"
         print(f"logged {sum(counts.values())} messages on {len(counts)} topics to {where}")
+    if args.connect and not _abandoned:
+        viewer_still_there(args.connect, viewer, "--connect" if viewer is None else "--spawn")
     if args.republish:
         n = republish(args, found)
         print(f"republished {n} messages on domain {env.domain_id}")

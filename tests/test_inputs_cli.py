@@ -546,11 +546,14 @@ CASES = [
     ('adm-calib study-fit', ['study-fit', '--results', '{t}/r_empty.jsonl'],
      "error: --results: '{t}/r_empty.jsonl' holds no complete result line"),
     ('adm-calib study-fit', ['study-fit', '--results', '{t}/r_garb.jsonl'],
-     "error: results '{t}/r_garb.jsonl': line 1 is not valid JSON (only the last line may be truncated)"),
+     "error: results '{t}/r_garb.jsonl': damaged line 1 (byte 0, 8 bytes): not valid JSON"
+     "; a study resumed with the same --out drops damaged lines and computes those cases again"),
     ('adm-calib study-fit', ['study-fit', '--results', '{t}/r_nob.jsonl'],
-     "error: results '{t}/r_nob.jsonl': line 1 lacks 'bridge' and 'train'"),
+     "error: results '{t}/r_nob.jsonl': damaged line 1 (byte 0, 9 bytes): lacks 'bridge' and 'train'"
+     "; a study resumed with the same --out drops damaged lines and computes those cases again"),
     ('adm-calib study-fit', ['study-fit', '--results', '{t}/r_list.jsonl'],
-     "error: results '{t}/r_list.jsonl': line 1: 'bridge' and 'train' must be names (text), got ['L10'] and 'ICE-2'"),
+     "error: results '{t}/r_list.jsonl': damaged line 1 (byte 0, 265 bytes): 'bridge' and 'train' must be names "
+     "(text), got ['L10'] and 'ICE-2'; a study resumed with the same --out drops damaged lines and computes those cases again"),
     ('adm-calib study-fit', ['study-fit', '--results', '{t}/r_nan.jsonl', '--out', '{t}/sf'],
      "error: --results: '{t}/r_nan.jsonl': record 1 (L10-f1-mu1, ICE-2): delta_zeta_vbi_pct: nan % is not finite; allowed any finite value in %"),
     ('adm-calib study-fit', ['study-fit', '--results', '{t}/r_inf.jsonl', '--out', '{t}/sf'],

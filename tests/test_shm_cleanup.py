@@ -61,6 +61,17 @@ def _files_of(pid):
     return {n for n in out if os.path.exists(f"/dev/shm/{n}")}
 
 
+def _own_files(pid):
+    """The Fast DDS files whose ``_el`` lock ``pid`` holds (its own segment and ports, per /proc/locks)."""
+    inodes = set()
+    with open("/proc/locks") as f:
+        for line in f:
+            parts = line.split()
+            if "->" not in parts and len(parts) > 5 and parts[4] == str(pid):
+                inodes.add(int(parts[5].rsplit(":", 1)[1]))
+    return {e.name for e in os.scandir("/dev/shm") if e.name.startswith("fastrtps_") and e.inode() in inodes}
+
+
 def _wait(pred, timeout=60.0, what="condition"):
     t_end = time.monotonic() + timeout
     while not pred():
@@ -101,21 +112,24 @@ def test_sigkill_of_replay_republish_leaves_nothing_after_the_next_start(recordi
                   len(list(dds_env.SHM_LEDGER_DIR.glob(f"{victim.pid}-*.txt"))) == 1, what="replay participant")
             time.sleep(1.0)                      # mid-run: publishing at 1/20 of simulated time
             theirs = _files_of(victim.pid)
-            kept = _files_of(live.pid)
+            kept = _own_files(live.pid)
+            assert kept
             victim.send_signal(signal.SIGKILL)
             victim.wait(timeout=10)
-            stale = _stale(theirs)
-            assert any(n.startswith("fastrtps_") and len(n) == 25 for n in stale), stale  # its data segment left
+            # its data segment is left behind (a live peer may still map it until it notices the death:
+            # then it is not stale yet, and its note is kept for a later clean)
+            assert any(n.startswith("fastrtps_") and len(n) == 25 and os.path.exists(f"/dev/shm/{n}") for n in theirs)
             # the next start of a replay cleans what the killed one left
             r = subprocess.run([PY, str(REPLAY), str(recording), "--republish", "--rate", "0", "--topics",
                                 "/adm/midspan/accel"], env=env, capture_output=True, text=True, timeout=120)
             assert r.returncode == 0, r.stderr
             assert _stale(theirs) == set()
             assert all(os.path.exists(f"/dev/shm/{n}") for n in kept)   # the live participant's files stay
-            assert _files_of(live.pid) == kept
-            # what stays noted of the killed process is only what the live one still uses
+            assert _own_files(live.pid) >= kept
+            # what stays noted of the killed process is what a live process still used at the clean
+            # (a later clean removes it, or its user already did); none of it is stale now
             for ledger in dds_env.SHM_LEDGER_DIR.glob(f"{victim.pid}-*.txt"):
-                assert set(ledger.read_text().split()) <= kept
+                assert not _stale(set(ledger.read_text().split()))
         finally:
             for p in (live, victim):
                 if p.poll() is None:
@@ -152,5 +166,5 @@ def test_clean_dead_shm_keeps_files_of_live_processes(tmp_path):
         finally:
             p.kill()
             p.communicate(timeout=10)
-        removed, closed = dds_env.clean_dead_shm()
-        assert removed >= 2 and closed >= 1 and _stale(mine) == set()
+        removed, _ = dds_env.clean_dead_shm()
+        assert removed >= 2 and _stale(mine) == set()

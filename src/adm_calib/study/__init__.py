@@ -8,8 +8,11 @@ Study
     as tasks on a ``dask.distributed`` cluster: a loopback-only :class:`~distributed.LocalCluster` by default, or
     an existing scheduler. The client process appends one JSON object per finished case to
     ``results.jsonl`` (write, flush, ``os.fsync``), so a crash loses at most the cases still
-    running; a rerun skips the cases already in the file (key: bridge name and train) and drops a
-    truncated last line. A case that raises is recorded with ``status: "error"``.
+    running; a rerun skips the cases already in the file (key: bridge name and train). Each line
+    carries the CRC-32 of its JSON: readers refuse a damaged line naming its line number and byte
+    offset; a rerun drops damaged lines and a truncated last line, one line each, and computes those
+    cases again. A scheduler without a worker for 30 s stops the study (exit 1, resumable). A case
+    that raises is recorded with ``status: "error"``.
 
 Lower-bound fit (Section 4.2.1, Eq. 20)
     Per train and mass function, the n0 axis is cut into intervals (0.5 Hz from 2 to 8 Hz, then

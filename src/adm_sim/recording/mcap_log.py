@@ -24,6 +24,7 @@ damaged file into a clean one (command line: ``adm-sim salvage IN.mcap OUT.mcap`
 from __future__ import annotations
 
 import array
+import contextlib
 import os
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
@@ -32,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from adm_sim.errors import InputError
+from adm_sim.errors import InputError, RunError
 
 __all__ = [
     "McapRecorder",
@@ -294,7 +295,19 @@ class McapRecorder:
         self._channels: dict[str, tuple[int, type]] = {}
         self._sequence: dict[str, int] = {}
         self._finished = False
+        self.failed: str | None = None
         self.message_count = 0
+
+    def _failed(self, exc: OSError):
+        """A write that failed (a full disk, a file over ``ulimit -f``): the file cannot be whole,
+        so nothing stays under its name; one line for the run's failure."""
+        if self.failed is None:
+            self.failed = exc.strerror or str(exc)
+            self._finished = True
+            self._file.close()
+            with contextlib.suppress(OSError):
+                self.path.unlink()
+        return RunError(f"recording '{self.path}': cannot write ({self.failed}); the incomplete file was removed")
 
     # -- context manager
     def __enter__(self) -> McapRecorder:
@@ -309,6 +322,8 @@ class McapRecorder:
                 f"messages={self.message_count})")
 
     def _check_open(self) -> None:
+        if self.failed is not None:
+            raise RunError(f"recording '{self.path}': cannot write ({self.failed}); the incomplete file was removed")
         if self._finished:
             raise InputError(f"McapRecorder: '{self.path}' is finished; no more writes")
 
@@ -365,24 +380,40 @@ class McapRecorder:
         seq = self._sequence[topic]
         self._sequence[topic] = seq + 1
         data = _TYPESTORE.serialize_cdr(_Fields(msg), self._schemas[type(msg)][1])
-        self._writer.add_message(channel_id=self._channels[topic][0], log_time=log_time, data=data,
-                                 publish_time=log_time if publish_time_ns is None else int(publish_time_ns),
-                                 sequence=seq)
+        try:
+            self._writer.add_message(channel_id=self._channels[topic][0], log_time=log_time, data=data,
+                                     publish_time=log_time if publish_time_ns is None else int(publish_time_ns),
+                                     sequence=seq)
+        except OSError as exc:
+            raise self._failed(exc) from None
         self.message_count += 1
 
     def write_metadata(self, name: str, data: Mapping[str, object]) -> None:
         """Add a metadata record (run information: bridge, train, model, speeds); values are
         converted with ``str``."""
         self._check_open()
-        self._writer.add_metadata(str(name), {str(k): str(v) for k, v in data.items()})
+        try:
+            self._writer.add_metadata(str(name), {str(k): str(v) for k, v in data.items()})
+        except OSError as exc:
+            raise self._failed(exc) from None
 
     def finish(self) -> None:
-        """Write the summary and close the file (idempotent)."""
+        """Write the summary and close the file (idempotent).
+
+        Raises
+        ------
+        RunError
+            The summary could not be written (or an earlier write failed): the file is removed.
+        """
+        if self.failed is not None:
+            raise RunError(f"recording '{self.path}': cannot write ({self.failed}); the incomplete file was removed")
         if self._finished:
             return
         self._finished = True
         try:
             self._writer.finish()
+        except OSError as exc:
+            raise self._failed(exc) from None
         finally:
             self._file.close()
 
