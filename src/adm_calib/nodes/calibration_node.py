@@ -78,8 +78,6 @@ class CalibrationNode(RunDriver):
             ("quantity:" + ",".join(P.ITERATION_FIELDS),), [i, 100 * dz, mlm_peak, dim_peak]))
         say("iteration", i=i, delta_zeta_pct=100 * dz, mlm_peak_m_s2=mlm_peak, dim_peak_m_s2=dim_peak,
             ratio=mlm_peak / dim_peak, phase=self.last_phase)
-        if self.viz is not None:
-            self.viz.iteration(i, 100 * dz, mlm_peak, dim_peak, self.last_phase)
 
     def _hook(self, model, speeds, dz, step, phase):
         """``calibrate``'s sweep hook: one co-simulated run on the calibration's space step.
@@ -151,8 +149,6 @@ class CalibrationNode(RunDriver):
         arr = DiagnosticArray(status=[st])
         arr.header.stamp.sec, arr.header.stamp.nanosec = divmod(self._clock_ns, 1_000_000_000)
         self.publish_recorded(self.pub_diag, P.TOPIC_DIAGNOSTICS, arr)
-        if self.viz is not None:
-            self.viz.calibration_result(d)
 
 
 def main(args=None):
