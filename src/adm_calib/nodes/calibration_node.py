@@ -39,8 +39,7 @@ from adm_sim.sweep import parse_speeds
 from adm_sim.trains import load_train
 
 #: ``@run`` label of each run phase (:data:`adm_sim.protocol.PHASES`).
-PHASE_LABELS = {P.PHASE_DIM: "DIM", P.PHASE_BRACKETING: "MLM trial", P.PHASE_ROOT_SEARCH: "MLM trial",
-                P.PHASE_MLM_ZETA: "MLM zeta", P.PHASE_MLM_ZETA_DZ: "MLM zeta+dz"}
+PHASE_LABELS = {phase: P.PHASE_NAMES[phase][1] for phase in P.PHASES}
 
 
 

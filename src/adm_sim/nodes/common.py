@@ -60,10 +60,6 @@ def to_time_msg(t_s):
     return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
 
 
-def time_ns(t_s):
-    return int(round(float(t_s) * 1e9))
-
-
 # ---------------------------------------------------------------------- exchange messages
 def pack(run_id, k, stage, array, dims, index=None):
     """Exchange message: header ``[run_id, k, stage, n]``, ``n`` indices, then ``array`` row-major.

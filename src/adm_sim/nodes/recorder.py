@@ -93,7 +93,7 @@ class RunRecorder:
             t = rec.get("t0_s") if st == P.STARTED else rec.get("t1_s") if st in (P.DONE, P.FAILED) else \
                 rec.get("sim_time_s")
             if isinstance(t, (int, float)):
-                return c.time_ns(t)
+                return int(round(float(t) * 1e9))
         return self.clock_ns
 
     def write(self, topic, msg, t_ns):
