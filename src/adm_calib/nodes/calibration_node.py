@@ -26,8 +26,10 @@ import sys
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rclpy.parameter import parameter_value_to_python
 from std_msgs.msg import Float64MultiArray, String
 
+from adm_calib import peaks as pk
 from adm_calib.calibrate import CalibrationOptions, calibrate, calibration_step
 from adm_sim import protocol as P
 from adm_sim.bridge import Bridge
@@ -94,7 +96,6 @@ class CalibrationNode(RunDriver):
 
     def _monitor_peak(self, speeds, acc):
         """Monitor the MLM peak speed in every later run (when the user set no ``monitor_speed_kmh``)."""
-        from adm_calib import peaks as pk
 
         peak = pk.find_peak(np.asarray(speeds, float), acc)
         if peak.found:
@@ -103,7 +104,6 @@ class CalibrationNode(RunDriver):
 
     def _user_monitor_speed(self):
         """The bridge node's ``monitor_speed_kmh`` (0 = not chosen by the user)."""
-        from rclpy.parameter import parameter_value_to_python
 
         cli = self.params[P.BRIDGE_NODE]
         if not cli.wait_for_services(timeout_sec=10.0):

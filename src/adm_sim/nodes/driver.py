@@ -33,6 +33,7 @@ from std_srvs.srv import Trigger
 
 from adm_sim import protocol as P
 from adm_sim.errors import AdmSimError, InputError, RunError  # RunError: a run failed or its partners went away
+from adm_sim.files import claim_output, release, write_atomic
 from adm_sim.nodes import common as c
 from adm_sim.nodes.params import DRIVER_SPECS
 from adm_sim.nodes.recorder import RunRecorder
@@ -54,7 +55,6 @@ def claim_outputs(values):
     anything is created: the one rule of :mod:`adm_sim.files` (regular file, writable folder, not
     replaced unless ``overwrite``, two outputs never the same file, a second writer refused).
     Returns ``{param: Path}`` of the non-empty ones; raises :class:`InputError`."""
-    from adm_sim.files import claim_output, release
 
     out = {}
     try:
@@ -354,7 +354,6 @@ class RunDriver(c.NodeBase):
     def write_summary(self, summary):
         path = self.outputs.get("summary_path")
         if path is not None:
-            from adm_sim.files import write_atomic
 
             write_atomic(path, lambda tmp: tmp.write_text(json.dumps(summary, indent=2)))
         say("result", **{k: v for k, v in summary.items() if k != "curves"})
@@ -386,7 +385,6 @@ class RunDriver(c.NodeBase):
         raise RunError(f"{type(self.error).__name__}: {self.error}")
 
     def close(self):
-        from adm_sim.files import release
 
         ok = self.finished and (self.error is None or getattr(self, "_keep_outputs", False))
         if getattr(self, "rec", None) is not None:

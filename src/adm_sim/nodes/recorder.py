@@ -52,19 +52,19 @@ class RunRecorder:
         self._beside_files = {}
         self.mcap = None
         if "record_path" in outputs:
-            from adm_sim.recording.mcap_log import McapRecorder
+            from adm_sim.recording.mcap_log import McapRecorder  # noqa: PLC0415  mcap only when recording
 
             self.mcap = McapRecorder(self._beside("record_path"), chunk_size=int(chunk_size), overwrite=True)
         self.viz = None  # rerun_log.RunLogger
         self.feed = None  # viewer_feed.ViewerFeed drawing on it
         if "rrd_path" in outputs or rerun_spawn or rerun_connect:
-            from adm_sim.recording import rerun_log
+            from adm_sim.recording import rerun_log  # noqa: PLC0415  rerun only with a viewer or .rrd
 
             rerun_log.init_rerun("adm_sim", spawn=bool(rerun_spawn), connect_url=rerun_connect or None,
                                  save_path=self._beside("rrd_path") if "rrd_path" in outputs else None, overwrite=True)
             self.viz = rerun_log.RunLogger()
             self.viz.send_blueprint()  # sent again with the beam bounds once the span is known
-            from adm_sim.recording.viewer_feed import RunPhases, ViewerFeed
+            from adm_sim.recording.viewer_feed import RunPhases, ViewerFeed  # noqa: PLC0415  with rerun_log
 
             self.feed = ViewerFeed(self.viz, RunPhases("the live run"))
         self.recorded = {}    # run_id -> {topic: received} of the runs received whole
@@ -204,7 +204,7 @@ class RunRecorder:
             with self.write_lock:
                 self.mcap.finish()
         if self.feed is not None:
-            from adm_sim.recording import rerun_log
+            from adm_sim.recording import rerun_log  # noqa: PLC0415  rerun only with a viewer or .rrd
 
             with self.feed_lock:
                 self.feed.finish()
