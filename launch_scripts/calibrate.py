@@ -26,7 +26,8 @@ from pathlib import Path
 from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, discard_outputs, launch, preflight, release_out,
                          run_graph)
 
-from adm_sim.cliutil import Parser, add_domain_id, add_overwrite
+from adm_sim.cliutil import Parser, add_domain_id, add_overwrite, progress_bar
+from adm_sim.files import write_atomic
 from adm_sim.protocol import parse_driver_line
 
 
@@ -100,8 +101,6 @@ class Progress:
             self.write(f"calibrating {d['bridge']} x {d['train']}: {d['speeds']} speeds, ds = {1000 * d['ds_m']:.2f} mm")
 
     def _new_bar(self, d):
-        from adm_sim.cliutil import progress_bar
-
         self._close_bar()
         self.bar = progress_bar(getattr(self, "_label", f"run {d['run_id']}"), total=d["n_steps"])
 
@@ -158,8 +157,6 @@ def _main(args):
     release_out(out)
     summary = json.loads((out / "summary.json").read_text())
     summary["wall_s"] = time.perf_counter() - t_start
-    from adm_sim.files import write_atomic
-
     write_atomic(out / "summary.json", lambda tmp: tmp.write_text(json.dumps(summary, indent=2) + "\n"))
     if args.no_rrd and "run.rrd" in old:  # the earlier run's recording does not belong to this one
         (out / "run.rrd").unlink()

@@ -296,4 +296,4 @@ def test_docs_topic_table_matches_the_protocol():
     topics = {n: t for n, t in rows.items() if n != P.SERVICE_START_RUN}
     assert set(topics) == set(P.TOPICS)
     for name, typ in topics.items():
-        assert typ.strip() == P.TOPICS[name][0].replace("/msg/", "/"), name
+        assert typ.strip().replace("/msg/", "/") == P.TOPICS[name][0].replace("/msg/", "/"), name

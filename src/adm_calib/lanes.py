@@ -25,10 +25,11 @@ import inspect
 
 import numpy as np
 
+from adm_sim.protocol import CALIBRATION_PHASES
 from adm_sim.sweep import run_sweep
 
-#: Phases of a calibration, in the order they run.
-PHASES = ("mlm", "mlm_refine", "dim", "dim_refine", "dim_peak_refine", "ladder", "root", "check", "adapted")
+#: Phases of a calibration, in the order they run (named once, with their run phases, in the protocol).
+PHASES = tuple(CALIBRATION_PHASES)
 
 
 def _groups(case, sweep):

@@ -319,7 +319,12 @@ PHASE_ROOT_SEARCH = "root_search"  # MLM, one Δζ on fewer lanes than the full 
 PHASES = (PHASE_DIM, PHASE_MLM_ZETA, PHASE_MLM_ZETA_DZ, PHASE_BRACKETING, PHASE_ROOT_SEARCH)
 #: The phase of a run in a recording made before runs carried their phase (replay).
 PHASE_UNKNOWN = "unknown"
-#: The phase a calibration request carries (``adm_calib.lanes.PHASES``) -> the run phase above.
+#: The one table of the phases' names: run phase -> (its series in the viewer, its ``@run`` label).
+PHASE_NAMES = {PHASE_DIM: ("DIM", "DIM"), PHASE_MLM_ZETA: ("MLM ζ", "MLM zeta"),
+               PHASE_MLM_ZETA_DZ: ("MLM ζ+Δζ", "MLM zeta+dz"), PHASE_BRACKETING: ("bracketing", "MLM trial"),
+               PHASE_ROOT_SEARCH: ("root search", "MLM trial"), PHASE_UNKNOWN: ("phase unknown", None)}
+#: The phase a calibration request carries -> the run phase above (``adm_calib.lanes.PHASES`` are its keys,
+#: in the order a calibration runs them).
 #: The calibration names its phase with every lane request; the calibration node maps it here and
 #: hands it on with the run (:func:`request_record`).
 CALIBRATION_PHASES = {"mlm": PHASE_MLM_ZETA, "mlm_refine": PHASE_ROOT_SEARCH, "dim": PHASE_DIM,

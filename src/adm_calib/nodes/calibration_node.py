@@ -26,8 +26,10 @@ import sys
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rclpy.parameter import parameter_value_to_python
 from std_msgs.msg import Float64MultiArray, String
 
+from adm_calib import peaks as pk
 from adm_calib.calibrate import CalibrationOptions, calibrate, calibration_step
 from adm_sim import protocol as P
 from adm_sim.bridge import Bridge
@@ -39,8 +41,7 @@ from adm_sim.sweep import parse_speeds
 from adm_sim.trains import load_train
 
 #: ``@run`` label of each run phase (:data:`adm_sim.protocol.PHASES`).
-PHASE_LABELS = {P.PHASE_DIM: "DIM", P.PHASE_BRACKETING: "MLM trial", P.PHASE_ROOT_SEARCH: "MLM trial",
-                P.PHASE_MLM_ZETA: "MLM zeta", P.PHASE_MLM_ZETA_DZ: "MLM zeta+dz"}
+PHASE_LABELS = {phase: P.PHASE_NAMES[phase][1] for phase in P.PHASES}
 
 
 
@@ -78,8 +79,6 @@ class CalibrationNode(RunDriver):
             ("quantity:" + ",".join(P.ITERATION_FIELDS),), [i, 100 * dz, mlm_peak, dim_peak]))
         say("iteration", i=i, delta_zeta_pct=100 * dz, mlm_peak_m_s2=mlm_peak, dim_peak_m_s2=dim_peak,
             ratio=mlm_peak / dim_peak, phase=self.last_phase)
-        if self.viz is not None:
-            self.viz.iteration(i, 100 * dz, mlm_peak, dim_peak, self.last_phase)
 
     def _hook(self, model, speeds, dz, step, phase):
         """``calibrate``'s sweep hook: one co-simulated run on the calibration's space step.
@@ -97,7 +96,6 @@ class CalibrationNode(RunDriver):
 
     def _monitor_peak(self, speeds, acc):
         """Monitor the MLM peak speed in every later run (when the user set no ``monitor_speed_kmh``)."""
-        from adm_calib import peaks as pk
 
         peak = pk.find_peak(np.asarray(speeds, float), acc)
         if peak.found:
@@ -106,7 +104,6 @@ class CalibrationNode(RunDriver):
 
     def _user_monitor_speed(self):
         """The bridge node's ``monitor_speed_kmh`` (0 = not chosen by the user)."""
-        from rclpy.parameter import parameter_value_to_python
 
         cli = self.params[P.BRIDGE_NODE]
         if not cli.wait_for_services(timeout_sec=10.0):
@@ -151,8 +148,6 @@ class CalibrationNode(RunDriver):
         arr = DiagnosticArray(status=[st])
         arr.header.stamp.sec, arr.header.stamp.nanosec = divmod(self._clock_ns, 1_000_000_000)
         self.publish_recorded(self.pub_diag, P.TOPIC_DIAGNOSTICS, arr)
-        if self.viz is not None:
-            self.viz.calibration_result(d)
 
 
 def main(args=None):

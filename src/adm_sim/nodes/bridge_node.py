@@ -22,12 +22,14 @@ per-lane maxima on ``/adm/run/result``. Topics, layouts and QoS: docs/ros.md, se
 from __future__ import annotations
 
 import dataclasses
+import re
 import sys
 import time
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import AccelStamped
+from rcl_interfaces.msg import ParameterDescriptor
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64MultiArray, String
 
@@ -64,7 +66,6 @@ def monitor_steps(bridge, grid, lane, every, beam_every):
 def frame_id(bridge, namespace="/"):
     """Frame id of a bridge's midspan: ``<bridge>/midspan`` (the bridge's name, else the node's
     namespace, else ``bridge``), characters outside ``[A-Za-z0-9_]`` replaced by ``_``."""
-    import re
 
     name = bridge.name or namespace.strip("/") or "bridge"
     return re.sub(r"[^A-Za-z0-9_]", "_", name) + "/midspan"
@@ -119,7 +120,6 @@ class BridgeNode(c.LockstepNode):
 
     def __init__(self, **kw):
         super().__init__(P.BRIDGE_NODE, **kw)
-        from rcl_interfaces.msg import ParameterDescriptor
 
         self.declare_parameter("bridge", "B1", ParameterDescriptor(
             description="preset (B1..B4, spec 'L=15,n0=8.26,mu=19042,zeta_pct=1.85' or TOML file) giving the "

@@ -18,15 +18,24 @@ Every topic, its layout and its QoS: docs/ros.md, section "Topics"; their names 
 from __future__ import annotations
 
 import math
+import sys
+import time
 
 import numpy as np
+import rclpy
 from builtin_interfaces.msg import Time
 from rcl_interfaces.msg import SetParametersResult
+from rclpy.duration import Duration
+from rclpy.exceptions import InvalidParameterTypeException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension, String
 
-from adm_sim.errors import InputError, RunError
+from adm_sim.cliutil import one_line_warnings
+from adm_sim.errors import AdmSimError, InputError, RunError
 from adm_sim.files import release_all
 from adm_sim.protocol import EXCHANGE_HEADER_LEN as HEADER_LEN
 from adm_sim.protocol import encode
@@ -58,10 +67,6 @@ def to_time_msg(t_s):
     """``builtin_interfaces/Time`` from seconds (sim time)."""
     ns = int(round(float(t_s) * 1e9))
     return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
-
-
-def time_ns(t_s):
-    return int(round(float(t_s) * 1e9))
 
 
 # ---------------------------------------------------------------------- exchange messages
@@ -164,7 +169,6 @@ class ParamNodeMixin:
         ``on_set`` (a node's own on-set callback) runs after the range checks have passed; on-set
         callbacks only validate, state changes belong in a post-set callback (ros2/demos).
         """
-        from rclpy.exceptions import InvalidParameterTypeException
 
         self._specs = {s.name: s for s in specs}
         for s in specs:
@@ -239,9 +243,8 @@ class PartnerWatch:
     GRAPH_CHECK_AFTER_S = 0.5
 
     def __init__(self, node, partner, topic, timeout_s):
-        import time as _time
 
-        self._now = _time.monotonic
+        self._now = time.monotonic
         self.node, self.partner, self.topic, self.timeout_s = node, partner, topic, float(timeout_s)
         self.since = None
         self.what = ""
@@ -286,9 +289,6 @@ class ExchangeLane:
     """
 
     def __init__(self, node):
-        from rclpy.experimental import EventsExecutor
-        from rclpy.node import Node
-        from rclpy.parameter import Parameter
 
         self.node = Node(f"{node.get_name()}_exchange", namespace=node.get_namespace(), context=node.context,
                          use_global_arguments=False,
@@ -319,7 +319,6 @@ class ExchangeLane:
     def spin(self, until_s, active, turn_s=0.02):
         """Serve exchange messages until ``time.monotonic()`` passes ``until_s`` or ``active()``
         turns false; raises the exception of a callback."""
-        import time
 
         while active() and time.monotonic() < until_s:
             self.turn(turn_s)
@@ -434,7 +433,6 @@ def run_node(make_node, args=None, name="node"):
     printed as one line ``warning: <name>: ...`` on stderr, as the CLIs print theirs
     (:class:`adm_sim.cliutil.one_line_warnings`; Python's filters still print a repeated warning once).
     """
-    from adm_sim.cliutil import one_line_warnings
 
     with one_line_warnings(prefix=f"{name}: ", categories=(Warning,), repeat=False):
         return _run_node(make_node, args, name)
@@ -449,13 +447,8 @@ def _run_node(make_node, args, name):
     bad input (start-up parameters, params file), 1 on a failed run or a lockstep failure (a
     :class:`RunError`), 130 on Ctrl-C or SIGTERM.
     """
-    import sys
-    import time
 
-    import rclpy
-    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 
-    from adm_sim.errors import AdmSimError
 
     argv = sys.argv if args is None else list(args)
     try:  # a params file that is not YAML: our line, before rcl prints its own
@@ -503,7 +496,6 @@ def _run_node(make_node, args, name):
                 node.report_failure(str(exc))
                 pub = getattr(node, "pub_status", None)
                 if pub is not None:  # let the failure reach the other nodes before this one leaves
-                    from rclpy.duration import Duration
 
                     pub.wait_for_all_acked(Duration(seconds=1.0))
             except Exception:

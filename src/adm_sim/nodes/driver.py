@@ -33,6 +33,7 @@ from std_srvs.srv import Trigger
 
 from adm_sim import protocol as P
 from adm_sim.errors import AdmSimError, InputError, RunError  # RunError: a run failed or its partners went away
+from adm_sim.files import claim_output, release, write_atomic
 from adm_sim.nodes import common as c
 from adm_sim.nodes.params import DRIVER_SPECS
 from adm_sim.nodes.recorder import RunRecorder
@@ -54,7 +55,6 @@ def claim_outputs(values):
     anything is created: the one rule of :mod:`adm_sim.files` (regular file, writable folder, not
     replaced unless ``overwrite``, two outputs never the same file, a second writer refused).
     Returns ``{param: Path}`` of the non-empty ones; raises :class:`InputError`."""
-    from adm_sim.files import claim_output, release
 
     out = {}
     try:
@@ -106,15 +106,13 @@ class RunDriver(c.NodeBase):
         self._event = threading.Event()
         self._clock_ns = 0
         self._desc = {}
-        self._beam = None
         self._current = None  # (run_id, model, lane label)
         self.n_runs = 0
         self._last_rx = time.monotonic()
         #: the recording side (MCAP, rerun, acknowledgements, per-run counts)
         self.rec = RunRecorder(self, self.outputs, chunk_size=p["chunk_size"], rerun_spawn=p["rerun_spawn"],
                                rerun_connect=p["rerun_connect"])
-        self.recorder, self.viz = self.rec.mcap, self.rec.viz  # McapRecorder, rerun_log.RunLogger (or None)
-        self.rerun = self.viz is not None
+        self.recorder = self.rec.mcap  # McapRecorder (or None)
         for topic, typ in RECORDED:
             qos = c.QOS_LATCHED if topic.endswith("description") else (
                 c.QOS_CONTROL if topic in (P.TOPIC_RESULT, P.TOPIC_STATUS, P.TOPIC_DIAGNOSTICS, P.TOPIC_SUMMARY)
@@ -128,18 +126,21 @@ class RunDriver(c.NodeBase):
 
     # ------------------------------------------------------------------ subscriptions
     def _make_cb(self, topic):
-        handler = getattr(self, "_on_" + topic.strip("/").replace("/", "_"), None)
-
+        """Subscription callback of ``topic``: record the message (MCAP and viewer,
+        :meth:`RunRecorder.write`), then keep what the driver itself needs of it."""
+        own = {P.TOPIC_RESULT: self._take_result, P.TOPIC_STATUS: self._take_status,
+               P.TOPIC_BRIDGE_DESC: lambda msg: self._desc.__setitem__("bridge", json.loads(msg.data)),
+               P.TOPIC_TRAIN_DESC: lambda msg: self._desc.__setitem__("train", json.loads(msg.data)),
+               P.TOPIC_PROGRESS: self._say_progress}.get(topic)
         counted = topic in P.SAMPLE_TOPICS
 
         def cb(msg):
             self._last_rx = time.monotonic()
             if isinstance(msg, Clock):
                 self._clock_ns = self.rec.clock_ns = msg.clock.sec * 1_000_000_000 + msg.clock.nanosec
-            t_ns = self.rec.log_time_ns(msg)
-            self.rec.write(topic, msg, t_ns)
-            if handler is not None:
-                handler(msg, t_ns)
+            self.rec.write(topic, msg, self.rec.log_time_ns(msg))
+            if own is not None:
+                own(msg)
             if counted:
                 self.rec.count(topic, msg, self._current[0] if self._current else None)
 
@@ -150,49 +151,22 @@ class RunDriver(c.NodeBase):
         pub.publish(msg)
         self.rec.write(topic, msg, self._clock_ns)
 
-    def _on_adm_run_result(self, msg, t_ns):
+    def _take_result(self, msg):
         with self._lock:
             self._result = c.matrix_from_msg(msg)
         self._event.set()
 
-    def _on_adm_run_status(self, msg, t_ns):
+    def _take_status(self, msg):
         st = json.loads(msg.data)
         with self._lock:
             self._status[(st.get("node"), st.get("run_id"))] = st
-        if self.viz is not None:
-            self.viz.run_started(st)
         if P.is_failure(st):
             self._event.set()
 
-    def _on_adm_bridge_description(self, msg, t_ns):
-        self._desc["bridge"] = json.loads(msg.data)
-        if self.viz is not None:
-            self.viz.bridge_description(self._desc["bridge"])
-
-    def _on_adm_train_description(self, msg, t_ns):
-        self._desc["train"] = json.loads(msg.data)
-        if self.viz is not None:
-            self.viz.train_description(self._desc["train"])
-
-    def _on_adm_progress(self, msg, t_ns):
+    def _say_progress(self, msg):
         pr = json.loads(msg.data)
-        if self._current is None or pr.get("run_id") != self._current[0]:
-            return  # a late tick of a finished run
-        say("progress", **pr)
-        if self.viz is not None:
-            self.viz.flush()
-
-    def _on_adm_midspan_accel(self, msg, t_ns):
-        if self.viz is not None:
-            self.viz.accel(t_ns * 1e-9, msg.accel.linear.z)
-
-    def _on_adm_beam_deflection(self, msg, t_ns):
-        self._beam = c.matrix_from_msg(msg)
-
-    def _on_adm_beam_axles(self, msg, t_ns):
-        if self.viz is not None and self._beam is not None:
-            ax = c.matrix_from_msg(msg)
-            self.viz.beam(self._clock_ns * 1e-9, self._beam[0], self._beam[1], ax[0], ax[1])
+        if self._current is not None and pr.get("run_id") == self._current[0]:  # not a late tick of a finished run
+            say("progress", **pr)
 
     # ------------------------------------------------------------------ descriptions
     def description(self, which, timeout_s=10.0):
@@ -343,8 +317,6 @@ class RunDriver(c.NodeBase):
         wall = time.perf_counter() - t0
         if self.rec.attached:
             self.rec.check_run(run_id, phase, lambda: self._bridge_status(run_id))
-        if self.viz is not None:
-            self.viz.run_done(res, phase, run_id)
         self._current = None
         self.n_runs += 1
         out = {"run_id": run_id, "model": model, "speeds_kmh": res[0], "max_acc_m_s2": res[1],
@@ -382,7 +354,6 @@ class RunDriver(c.NodeBase):
     def write_summary(self, summary):
         path = self.outputs.get("summary_path")
         if path is not None:
-            from adm_sim.files import write_atomic
 
             write_atomic(path, lambda tmp: tmp.write_text(json.dumps(summary, indent=2)))
         say("result", **{k: v for k, v in summary.items() if k != "curves"})
@@ -414,7 +385,6 @@ class RunDriver(c.NodeBase):
         raise RunError(f"{type(self.error).__name__}: {self.error}")
 
     def close(self):
-        from adm_sim.files import release
 
         ok = self.finished and (self.error is None or getattr(self, "_keep_outputs", False))
         if getattr(self, "rec", None) is not None:

@@ -14,12 +14,16 @@ that importing this module leaves ``rclpy`` out.
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
+import yaml
 
+from adm_sim import fields
 from adm_sim import protocol as P
 from adm_sim.bridge import Bridge
 from adm_sim.errors import InputError
+from adm_sim.files import read_text, refuse_special
 from adm_sim.fields import check_delta_zeta, check_range, view
 from adm_sim.limits import ACC_LIMITS_M_S2, DEFAULT_SPEEDS, check_track_type
 from adm_sim.run_contract import check_model
@@ -54,7 +58,7 @@ class ParamSpec:
 
     def descriptor(self):
         """The ``rcl_interfaces/ParameterDescriptor`` (imports rclpy's interfaces: only a node calls it)."""
-        from rcl_interfaces.msg import ParameterDescriptor, ParameterType
+        from rcl_interfaces.msg import ParameterDescriptor, ParameterType  # noqa: PLC0415  the module stays ROS-free: only a node calls this
 
         typ = {float: ParameterType.PARAMETER_DOUBLE, int: ParameterType.PARAMETER_INTEGER,
                str: ParameterType.PARAMETER_STRING, bool: ParameterType.PARAMETER_BOOL}[type(self.default)]
@@ -81,7 +85,6 @@ class ParamSpec:
 def param(name, default, description=None, read_only=False):
     """The :class:`ParamSpec` of ROS parameter ``name`` from the field registry (unit, range,
     special values, check); ``description`` replaces the field's doc where the node says more."""
-    from adm_sim import fields
 
     v = fields.view("ros", name)
     lo, hi = (None, None) if v.field.type is str or v.spelling.many else (v.lo, v.hi)
@@ -91,7 +94,6 @@ def param(name, default, description=None, read_only=False):
 def _unique_key_loader():
     """A ``yaml.SafeLoader`` that refuses a key given twice in one mapping (plain YAML keeps the
     last value silently)."""
-    import yaml
 
     class UniqueKeyLoader(yaml.SafeLoader):
         def construct_mapping(self, node, deep=False):
@@ -115,11 +117,8 @@ def _unique_key_loader():
 def load_params_yaml(path):
     """The parsed params YAML ``path``; :class:`InputError` naming the file (and the line) when it
     cannot be read, is not a regular file, is not valid YAML or gives a key twice."""
-    from pathlib import Path
 
-    import yaml
 
-    from adm_sim.files import read_text, refuse_special
 
     where = f"--params-file {str(path)!r}"
     refuse_special(path, where)

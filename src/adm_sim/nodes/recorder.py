@@ -5,8 +5,9 @@ node's subscriptions hand it every message. It writes them to the MCAP file (log
 time the message describes, :meth:`RunRecorder.log_time_ns`), counts the monitoring messages of
 the current run and acknowledges them on ``/adm/run/ack`` (the bridge's flow control: docs/ros.md,
 "Flow control"), and checks at the end of every run that it received what the bridge published
-(:meth:`RunRecorder.check_run`; the counts go into the MCAP's metadata). The rerun logger
-(:class:`adm_sim.recording.rerun_log.RunLogger`) is :attr:`RunRecorder.viz`; the node feeds it.
+(:meth:`RunRecorder.check_run`; the counts go into the MCAP's metadata). Every message it writes
+also goes to the rerun viewer through the one topic -> viewer feed that ``replay.py`` uses
+(:class:`adm_sim.recording.viewer_feed.ViewerFeed`), so a live run and its replay draw alike.
 """
 
 from __future__ import annotations
@@ -46,21 +47,26 @@ class RunRecorder:
         self.outputs = outputs
         self.lock = threading.Lock()      # the counts (executor thread and the client's worker thread)
         self.write_lock = threading.Lock()  # the MCAP writer
+        self.feed_lock = threading.Lock()   # the viewer feed (subscriptions and the client's own messages)
         self.clock_ns = 0                 # the last /clock
         self._beside_files = {}
         self.mcap = None
         if "record_path" in outputs:
-            from adm_sim.recording.mcap_log import McapRecorder
+            from adm_sim.recording.mcap_log import McapRecorder  # noqa: PLC0415  mcap only when recording
 
             self.mcap = McapRecorder(self._beside("record_path"), chunk_size=int(chunk_size), overwrite=True)
         self.viz = None  # rerun_log.RunLogger
+        self.feed = None  # viewer_feed.ViewerFeed drawing on it
         if "rrd_path" in outputs or rerun_spawn or rerun_connect:
-            from adm_sim.recording import rerun_log
+            from adm_sim.recording import rerun_log  # noqa: PLC0415  rerun only with a viewer or .rrd
 
             rerun_log.init_rerun("adm_sim", spawn=bool(rerun_spawn), connect_url=rerun_connect or None,
                                  save_path=self._beside("rrd_path") if "rrd_path" in outputs else None, overwrite=True)
             self.viz = rerun_log.RunLogger()
             self.viz.send_blueprint()  # sent again with the beam bounds once the span is known
+            from adm_sim.recording.viewer_feed import RunPhases, ViewerFeed  # noqa: PLC0415  with rerun_log
+
+            self.feed = ViewerFeed(self.viz, RunPhases("the live run"))
         self.recorded = {}    # run_id -> {topic: received} of the runs received whole
         self.incomplete = []  # runs not received whole: {"run_id", "phase", "missing": {topic: n}}
         self._reset_counts()
@@ -87,14 +93,17 @@ class RunRecorder:
             t = rec.get("t0_s") if st == P.STARTED else rec.get("t1_s") if st in (P.DONE, P.FAILED) else \
                 rec.get("sim_time_s")
             if isinstance(t, (int, float)):
-                return c.time_ns(t)
+                return int(round(float(t) * 1e9))
         return self.clock_ns
 
     def write(self, topic, msg, t_ns):
-        """Write one message to the MCAP file (if any)."""
+        """Write one message to the MCAP file and the viewer (those there are), at log time ``t_ns``."""
         if self.mcap is not None:
             with self.write_lock:
                 self.mcap.write(topic, msg, t_ns)
+        if self.feed is not None:
+            with self.feed_lock:
+                self.feed(topic, msg, t_ns)
 
     def count(self, topic, msg, run_id=None):
         """Count a monitoring message of the current run (``run_id`` if the client knows it);
@@ -194,10 +203,11 @@ class RunRecorder:
         if self.mcap is not None:
             with self.write_lock:
                 self.mcap.finish()
-        if self.viz is not None:
-            from adm_sim.recording import rerun_log
+        if self.feed is not None:
+            from adm_sim.recording import rerun_log  # noqa: PLC0415  rerun only with a viewer or .rrd
 
-            self.viz.flush()
+            with self.feed_lock:
+                self.feed.finish()
             rerun_log.close_rerun()
         for name, tmp in self._beside_files.items():  # only complete files replace the old ones
             if keep:

@@ -56,7 +56,7 @@ def default_blueprint(span_m: float | None = None, exaggeration: float = BEAM_EX
     active_tab : str
         Tab shown first (one of :data:`TABS`); the time panel opens on its timeline.
     """
-    import rerun.blueprint as rrb
+    import rerun.blueprint as rrb  # noqa: PLC0415  rerun only when a blueprint is sent
 
     if active_tab not in TABS:
         raise ValueError(f"active_tab: {active_tab!r} is not one of {', '.join(TABS)}")

@@ -232,6 +232,8 @@ def init_rerun(app_id: str, spawn: bool = False, connect_url: str | None = None,
     return rec
 
 
+#: The spawned viewers, held until exit: a detached viewer outlives this process, and a collected
+#: ``Popen`` of a running process warns ``ResourceWarning: subprocess ... is still running``.
 _VIEWERS: list[subprocess.Popen] = []
 
 
@@ -250,15 +252,15 @@ def _part(label) -> str:
 
 # ---------------------------------------------------------------- run logger
 
-#: Series kinds of a run (the display name of its phase, handed on by the caller) and their colours.
-DIM, MLM_ZETA, MLM_ZETA_DZ, BRACKETING, ROOT_SEARCH = "DIM", "MLM ζ", "MLM ζ+Δζ", "bracketing", "root search"
-#: A run of a recording made before runs carried their phase (:data:`adm_sim.protocol.PHASE_UNKNOWN`).
-UNKNOWN = "phase unknown"
+#: Series kinds of a run (the viewer name of its phase, :data:`adm_sim.protocol.PHASE_NAMES`) and their
+#: colours; ``UNKNOWN``: a run of a recording made before runs carried their phase.
+DIM, MLM_ZETA, MLM_ZETA_DZ, BRACKETING, ROOT_SEARCH, UNKNOWN = (
+    P.PHASE_NAMES[p][0] for p in (P.PHASE_DIM, P.PHASE_MLM_ZETA, P.PHASE_MLM_ZETA_DZ, P.PHASE_BRACKETING,
+                                  P.PHASE_ROOT_SEARCH, P.PHASE_UNKNOWN))
 _COLORS = {DIM: (214, 39, 40), MLM_ZETA: (31, 119, 180), MLM_ZETA_DZ: (44, 160, 44),
            BRACKETING: (150, 150, 150), ROOT_SEARCH: (255, 127, 14), UNKNOWN: (90, 90, 90)}
 #: Series kind of each run phase (:data:`adm_sim.protocol.PHASES` and ``PHASE_UNKNOWN``).
-_KIND_OF_PHASE = {P.PHASE_DIM: DIM, P.PHASE_MLM_ZETA: MLM_ZETA, P.PHASE_MLM_ZETA_DZ: MLM_ZETA_DZ,
-                  P.PHASE_BRACKETING: BRACKETING, P.PHASE_ROOT_SEARCH: ROOT_SEARCH, P.PHASE_UNKNOWN: UNKNOWN}
+_KIND_OF_PHASE = {phase: names[0] for phase, names in P.PHASE_NAMES.items()}
 
 
 def run_kind(phase: str) -> str:
