@@ -18,7 +18,7 @@ pytest.importorskip("rclpy")
 from ros_fixtures import node_procs, ros_domain  # noqa: E402,F401
 
 from adm_sim.bridge import resolve_bridge  # noqa: E402
-from adm_sim.stepping import StepOptions  # noqa: E402
+from adm_sim.step_grid import StepOptions  # noqa: E402
 from adm_sim.sweep import run_sweep  # noqa: E402
 from adm_sim.trains import load_train  # noqa: E402
 
