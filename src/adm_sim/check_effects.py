@@ -85,24 +85,25 @@ def effects_of(span_m):
     return out
 
 
+def _line(e, L, u):
+    """Influence ordinate of effect ``e`` for a unit force at ``u`` (any shape, m from the left
+    support), without the off-span zero. Shear just right of the section for u > x, left for u < x."""
+    x = e.x_m
+    if e.kind == "RA":
+        return (L - u) / L
+    if e.kind == "RB":
+        return u / L
+    if e.kind == "M":
+        return np.where(u <= x, u * (L - x) / L, x * (L - u) / L)
+    return np.where(u > x, (L - u) / L, -u / L)
+
+
 def _influence(effects, L, u):
     """Static influence of a unit force at ``u`` (m from the left support), shape (len(u), n_effects);
-    zero off the span. Shear just right of the section for u > x, left for u < x."""
+    zero off the span (:func:`_line`)."""
     u = np.asarray(u, dtype=float)[:, None]
     on = (u >= 0.0) & (u <= L)
-    cols = []
-    for e in effects:
-        x = e.x_m
-        if e.kind == "RA":
-            c = (L - u) / L
-        elif e.kind == "RB":
-            c = u / L
-        elif e.kind == "M":
-            c = np.where(u <= x, u * (L - x) / L, x * (L - u) / L)
-        else:
-            c = np.where(u > x, (L - u) / L, -u / L)
-        cols.append(c)
-    return np.where(on, np.concatenate(cols, axis=1), 0.0)
+    return np.where(on, np.concatenate([_line(e, L, u) for e in effects], axis=1), 0.0)
 
 
 def modal_weights(effects, L, EJ, jj):
@@ -127,16 +128,7 @@ def _static(effects, L, s, offsets, loads):
     on = (u >= 0.0) & (u <= L)
     out = np.empty((s.size, len(effects)))
     for i, e in enumerate(effects):
-        x = e.x_m
-        if e.kind == "RA":
-            c = (L - u) / L
-        elif e.kind == "RB":
-            c = u / L
-        elif e.kind == "M":
-            c = np.where(u <= x, u * (L - x) / L, x * (L - u) / L)
-        else:
-            c = np.where(u > x, (L - u) / L, -u / L)
-        out[:, i] = np.where(on, c, 0.0) @ loads
+        out[:, i] = np.where(on, _line(e, L, u), 0.0) @ loads
     return out
 
 
