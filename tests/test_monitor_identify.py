@@ -194,6 +194,80 @@ def test_tracker_by_run_records_assigns_by_stamp():
     assert ", 3 of 3203 samples lost" in p1.line() and p2.info["samples_lost"] is None
 
 
+def _one_run(tr, t, a, *, started=True, done=True, wall0=0.0):
+    """Feed one run live (0.01 s of wall time a sample) with its records, some of them missed."""
+    rec = {"node": "bridge", "run_id": 1, "t0_s": 0.0, "monitor_speed_kmh": 263.0, "time_lane": 0}
+    if started:
+        tr.status({**rec, "state": "started"}, wall0)
+    for i, (ti, ai) in enumerate(zip(t, a)):
+        tr.sample(ti, ai, wall0 + 0.01 * i)
+    wall = wall0 + 0.01 * t.size
+    if done:
+        tr.status({**rec, "state": "done", "t1_s": 8.0, "samples": {"/adm/midspan/accel": t.size}}, wall)
+    return wall
+
+
+@pytest.mark.parametrize("records_expected", [True, False])
+def test_live_started_missed_the_done_places_the_run(records_expected):
+    """A monitor that matched the status publisher after ``started``: the ``done`` (which repeats
+    t0_s and the lane) places the run; nothing is segmented by the signal while records are expected."""
+    t = np.arange(0.0, 8.0, 1 / 400)
+    a = decay(t, amp=2.0)
+    tr = PassageTracker(settle_s=1.0, quiet_s=10.0)
+    tr.records_expected = records_expected
+    wall = _one_run(tr, t, a, started=False, done=False)
+    tr.poll(wall + 0.5)
+    assert tr.passages == [] and len(tr.loose_t) == t.size  # the run's samples wait for its records
+    tr.status({"node": "bridge", "run_id": 1, "state": "done", "t0_s": 0.0, "t1_s": 8.0, "time_lane": 0,
+               "monitor_speed_kmh": 263.0, "samples": {"/adm/midspan/accel": t.size}}, wall + 0.6)
+    tr.poll(wall + 0.6 + 1.0)
+    (p,) = tr.passages
+    assert (p.run_id, p.source, p.n_samples, p.info["samples_lost"]) == (1, "run records", t.size, 0)
+    assert p.peak_acc_m_s2 == np.abs(a).max() and p.identified
+    assert p.fit.zeta1 == pytest.approx(ZETA, rel=0.02)
+    tr.status({"node": "bridge", "run_id": 1, "state": "done", "t0_s": 0.0, "t1_s": 8.0}, wall + 3)  # repeated
+    tr.flush()
+    assert len(tr.passages) == 1 and tr.dropped == 0
+
+
+def test_live_done_lost_with_its_publisher():
+    """The ``done`` never arrives (the graph ended before delivering it): the run stays open while
+    a status publisher is on the graph, and is completed ``settle_s`` after its last sample once
+    none is."""
+    t = np.arange(0.0, 8.0, 1 / 400)
+    a = decay(t, amp=2.0)
+    tr = PassageTracker(settle_s=1.0)
+    tr.records_expected = True
+    wall = _one_run(tr, t, a, done=False)
+    tr.poll(wall + 30.0)
+    assert tr.passages == []
+    tr.records_expected = False
+    tr.poll(wall + 0.5)
+    assert tr.passages == []  # within settle_s of the last sample
+    tr.poll(wall + 1.5)
+    (p,) = tr.passages
+    assert (p.run_id, p.n_samples, p.t_end_s) == (1, t.size, t[-1])
+    assert p.identified and p.fit.zeta1 == pytest.approx(ZETA, rel=0.02)
+
+
+def test_live_signal_passage_ends_when_the_samples_stop():
+    """Without run records a passage also completes after ``quiet_s`` of wall time with no sample
+    (a crossing at the end of the stream has no quiet signal after it)."""
+    t = np.arange(0.0, 20.0, 1 / 400)
+    a = 0.002 * np.random.default_rng(6).standard_normal(t.size)
+    a[t >= 10.0] += decay(t[t >= 10.0] - 10.0, amp=1.5, zeta=0.01)
+    tr = PassageTracker(quiet_s=10.0)
+    for i, (ti, ai) in enumerate(zip(t, a)):
+        tr.sample(ti, ai, 0.001 * i)
+    wall = 0.001 * t.size
+    tr.poll(wall + 5.0)
+    assert tr.passages == []
+    tr.poll(wall + 10.5)
+    (p,) = tr.passages
+    assert p.source == "signal" and 9.7 <= p.t_start_s <= 10.0
+    assert p.identified and p.fit.zeta1 == pytest.approx(0.01, rel=0.02)
+
+
 # ---------------------------------------------------------------------- simulated crossings
 @pytest.fixture(scope="module")
 def ice2():

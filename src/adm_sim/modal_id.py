@@ -633,7 +633,14 @@ class PassageTracker:
     after its ``t1_s`` arrives, when :meth:`poll` finds no sample for ``settle_s`` of wall time after
     its ``done``, or at :meth:`flush`. Without any run record the samples are segmented by the
     signal (:func:`segment_signal`): at :meth:`flush`, or by :meth:`poll` for a passage followed by
-    ``quiet_s`` of quiet signal.
+    ``quiet_s`` of quiet signal or of no sample at all (wall time).
+
+    Live, records can be missed: a subscriber that matched the publisher after a run's ``started``
+    places the run from its ``done`` (which repeats ``t0_s`` and the monitored lane); a ``done``
+    lost with a publisher that has gone (its process ended) leaves a run open, which :meth:`poll`
+    completes ``settle_s`` after its last sample once :attr:`records_expected` is False. The live
+    monitor sets :attr:`records_expected` while the run-record topic has a publisher; while it is
+    True, samples without a run wait for their records instead of being segmented by the signal.
 
     Parameters
     ----------
@@ -660,6 +667,9 @@ class PassageTracker:
         self.loose_t: list[float] = []
         self.loose_a: list[float] = []
         self.dropped = 0  # samples outside every run (with run records)
+        self.records_expected = False  # live: a publisher of run records is on the graph
+        self.last_sample_wall_s = 0.0
+        self.completed: set[int] = set()  # run ids reported (a repeated done is ignored)
 
     # ------------------------------------------------------------------ inputs
     def bridge_description(self, rec):
@@ -700,6 +710,9 @@ class PassageTracker:
             self.loose_t, self.loose_a = keep_t, keep_a
         elif state in ("done", "failed"):
             run = self._run(run_id)
+            if run is None and run_id not in self.completed and rec.get("t0_s") is not None:
+                self.status({**rec, "state": "started"}, wall_s)  # its started record was missed
+                run = self._run(run_id)
             if run is None:
                 return
             run.last_wall_s = wall_s
@@ -709,12 +722,12 @@ class PassageTracker:
             if isinstance(counts, dict):  # per-topic counts of the run's done record
                 n = [v for k, v in counts.items() if str(k).endswith("midspan/accel")]
                 run.published = int(n[0]) if len(n) == 1 else None
-            run.t1_s = float(rec["t1_s"]) if rec.get("t1_s") is not None else run.t0_s + (
-                (run.t[-1] - run.t0_s) / run.scale if run.t else 0.0)
+            run.t1_s = float(rec["t1_s"]) if rec.get("t1_s") is not None else self._last_t1(run)
 
     def sample(self, t_s, a_m_s2, wall_s=0.0):
         """One acceleration sample (stamp in s, m/s²)."""
         t, a = float(t_s), float(a_m_s2)
+        self.last_sample_wall_s = wall_s
         for run in self.runs:
             if run.t0_s <= t and (run.t1_s is None or t < run.t1_s):
                 self._put(run, t, a)
@@ -731,21 +744,30 @@ class PassageTracker:
         """Complete what is due by wall time (live): runs ``settle_s`` after their last input, and
         without run records a passage followed by ``quiet_s`` of quiet signal."""
         for run in list(self.runs):
-            if run.t1_s is not None and wall_s - run.last_wall_s >= self.settle_s:
+            if wall_s - run.last_wall_s < self.settle_s:
+                continue
+            if run.t1_s is None and not self.records_expected:  # its done was lost with its publisher
+                run.t1_s = self._last_t1(run)
+            if run.t1_s is not None:
                 self._complete(run)
-        if not self.seen_records and self.loose_t:
-            self._signal_passages(final=False)
+        if not self.seen_records and self.loose_t and not self.records_expected:
+            self._signal_passages(final=wall_s - self.last_sample_wall_s >= self.quiet_s)
 
     def flush(self):
         """Complete everything (end of a recording or of the monitor)."""
         for run in list(self.runs):
             if run.t1_s is None:
-                run.t1_s = run.t0_s + ((run.t[-1] - run.t0_s) / run.scale if run.t else 0.0)
+                run.t1_s = self._last_t1(run)
             self._complete(run)
         if not self.seen_records and self.loose_t:
             self._signal_passages(final=True)
 
     # ------------------------------------------------------------------ internals
+    @staticmethod
+    def _last_t1(run):
+        """A run's end when its ``done`` never came: its last sample's stamp."""
+        return run.t0_s + ((run.t[-1] - run.t0_s) / run.scale if run.t else 0.0)
+
     def _run(self, run_id):
         return next((r for r in self.runs if r.run_id == run_id), None)
 
@@ -772,6 +794,7 @@ class PassageTracker:
 
     def _complete(self, run):
         self.runs.remove(run)
+        self.completed.add(run.run_id)
         if self.loose_t:  # samples left before this run's end belong to no run
             t = np.asarray(self.loose_t)
             keep = t >= run.t1_s

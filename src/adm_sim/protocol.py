@@ -188,8 +188,9 @@ def status_record(node, run_id, state, **extra):
 
     The bridge's ``started`` adds ``model, n_steps, n_lanes, ds_m, bridge, train`` and the
     monitoring of the run (``t0_s, monitor_lane, monitor_speed_kmh, clock_speed_kmh,
-    monitor_every_steps, beam_every_steps``); its ``done`` / ``failed`` add ``wall_s, t0_s, t1_s,
-    message``; a ``failed`` of a node carries the ``message``.
+    monitor_every_steps, beam_every_steps``); its ``done`` / ``failed`` repeat all of that (a client
+    that subscribed after ``started`` can still place the run's samples) and add ``wall_s, t1_s,
+    message, samples``; a ``failed`` of a node carries the ``message``.
     """
     return {"node": node, "run_id": run_id, "state": state, **extra}
 

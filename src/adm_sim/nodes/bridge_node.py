@@ -549,8 +549,9 @@ class BridgeNode(c.LockstepNode):
             res = np.vstack([r.speeds_kmh, run.max_acc_m_s2, run.max_disp_m, r.dz])
             self.pub_result.publish(c.matrix_msg(("quantity:" + ",".join(P.RESULT_ROWS), "lane"), res))
         wall = time.perf_counter() - r.wall0
-        self._status(r.id, P.DONE if ok else P.FAILED, **self._run_info(), wall_s=wall, t0_s=r.t0, t1_s=t1,
-                     message=run.message, samples=dict(r.counts))
+        # the monitoring of the run again: a client that missed ``started`` can still place its samples
+        self._status(r.id, P.DONE if ok else P.FAILED, **self._run_info(), **self._monitor_info(), wall_s=wall,
+                     t1_s=t1, message=run.message, samples=dict(r.counts))
         if ok:
             self.get_logger().info(f"run {r.id} done in {wall:.2f} s: "
                                    f"max |a| {np.max(run.max_acc_m_s2):.4f} m/s^2")

@@ -99,6 +99,7 @@ class MonitorNode(c.ParamNodeMixin, Node):
         self.best_effort = False
         ours = run_topics_for(self.topic)
         status = p["status_topic"] or (ours[0] if ours else "")
+        self.status_topic = self.resolve_topic_name(status) if status else ""
         if status:
             self.create_subscription(String, status, self._on_status, c.QOS_CONTROL)
         if ours:
@@ -127,6 +128,8 @@ class MonitorNode(c.ParamNodeMixin, Node):
 
     def _tick(self):
         self.check_topic()
+        # while a publisher of run records is on the graph, samples wait for their records
+        self.tracker.records_expected = bool(self.status_topic) and self.count_publishers(self.status_topic) > 0
         self.tracker.poll(time.monotonic())
 
     # ------------------------------------------------------------------ graph
