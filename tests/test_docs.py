@@ -48,9 +48,9 @@ def test_docs_are_one_tree():
 def test_readme_test_command_is_what_ci_runs():
     readme = (ROOT / "README.md").read_text()
     ci = (ROOT / ".ci" / "run").read_text()
-    test_cmd = "python3.11 -m venv .venv && .venv/bin/pip install -q -r requirements.txt && .venv/bin/python -m pytest -n 2"
+    test_cmd = ".ci/install-browser && python3.11 -m venv .venv && .venv/bin/pip install -q -r requirements.txt && .venv/bin/python -m pytest -n 2"
     assert f"\n    {test_cmd}\n" in readme
-    assert [line for line in ci.splitlines() if line.startswith("python3.11")] == [test_cmd]
+    assert [line for line in ci.splitlines() if line.startswith(".ci/install-browser")] == [test_cmd]
 
 
 @pytest.mark.parametrize("doc", DOCS, ids=lambda p: str(p.relative_to(ROOT)))
