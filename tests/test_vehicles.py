@@ -218,13 +218,14 @@ def test_stiff_suspension_is_a_moving_mass():
 
 def test_soft_suspension_is_the_moving_force_mlm():
     """k_V = 2e3 N/m (0.09 Hz): the body hardly follows the deck, the wheel force stays m_V g, the
-    DIM equals the MLM (moving constant force) within 0.2 % in deflection and acceleration."""
+    DIM equals the MLM (moving constant force) within 1e-3 in deflection and acceleration (measured
+    7.5e-5 and 2.3e-4)."""
     br = Bridge(span_m=25.0, EJ_Nm2=2.87e9 * 2.9, mass_per_length_kg_m=2303.0, damping_ratio=0.02, n_modes=3)
     tr = sprung_mass_train(5750.0, 2.0e3, 0.0)
     speeds = [80.0, 100.0, 160.0]
     d, f = run_sweep(br, tr, "dim", speeds), run_sweep(br, tr, "mlm", speeds)
-    np.testing.assert_allclose(d.max_disp_m, f.max_disp_m, rtol=2e-3)
-    np.testing.assert_allclose(d.max_acc_m_s2, f.max_acc_m_s2, rtol=2e-3)
+    np.testing.assert_allclose(d.max_disp_m, f.max_disp_m, rtol=1e-3)
+    np.testing.assert_allclose(d.max_acc_m_s2, f.max_acc_m_s2, rtol=1e-3)
 
 
 def test_sprung_mass_on_the_compiled_kernels_equals_numpy():
@@ -288,11 +289,31 @@ def _one(**over):
     ({"bodies__0__mass_kg": "20 t"}, r"bodies\[0\]\.mass_kg: '20 t'"),
     ({"wheelsets__1__x_m": 2.0}, r"wheelsets 'a' and 'b' stand at the same x_m = 2 m"),
     ({"wheelsets__0__static_load_kN": 100.0}, r"static_load_kN given for some wheelsets but not for 'b'"),
+    ({"stages__1__lower": "a"}, r"vehicles\.V: wheelset 'a' hangs on 2 stages; allowed exactly 1"),
+    ({"wheelsets__1__x_m": 12.0}, r"wheelset 'b' x_m = 12 m lies outside the vehicle; allowed \[0, length_m = 10\] m"),
 ])
 def test_bad_vehicle_files_one_line_naming_key_value_range(over, match):
     with pytest.raises(InputError, match=match) as exc:
         train_from_mapping(_one(**over), source="v.toml")
     assert "\n" not in str(exc.value)
+
+
+def test_coinciding_axles_of_successive_vehicles_are_refused():
+    data = _one(wheelsets__0__x_m=0.0, stages__0__x_m=0.0, wheelsets__1__x_m=10.0, stages__1__x_m=10.0)
+    data["composition"] = [{"vehicle": "V", "count": 2}]
+    with pytest.raises(InputError, match=r"v\.toml: composition: axles 1 and 2 are 0\.000 m apart \(vehicles 'V', 'V'\); "
+                                         r"allowed axles strictly one after another"):
+        train_from_mapping(data, source="v.toml")
+
+
+def test_example_vehicle_file():
+    """data/examples/my_vehicle_train.toml: a sprung mass (56.4 kN) and three wagons whose static
+    loads come from statics: (36000 / 2 + 1200) x 9.81 N per wheelset."""
+    p = resources.files("adm_sim").joinpath("data/examples/my_vehicle_train.toml")
+    t = load_train(str(p))
+    np.testing.assert_allclose(t.axle_offsets_m, [0.0, 5.5, 14.5, 19.5, 28.5, 33.5, 42.5], atol=1e-12)
+    np.testing.assert_allclose(t.axle_loads_n, [5750 * 9.81] + [19200 * 9.81] * 6, rtol=1e-12)
+    assert t.describe() == "test car + 3 wagons: 4 vehicles, 7 axles, 42.50 m first to last axle, 1186.5 kN total"
 
 
 def test_bodies_not_connected_are_refused():
