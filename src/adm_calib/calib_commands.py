@@ -29,6 +29,7 @@ import re
 import signal
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -236,8 +237,16 @@ def cmd_recommend(args):
                                "n0_hz": "--n0", "mu_kg_m": "--mu", "extrapolate": "--extrapolate"})
     rec = recommend(train, n0, mu_kg_m / 1000.0, args.type, span_m=span, interpolate=args.interpolate,
                     functions=args.functions, extrapolate=args.extrapolate)
+    from adm_sim.errors import PlausibilityWarning
+
+    from adm_calib.recommend_warnings import recommendation_warnings
+
+    study_warnings = recommendation_warnings(rec)
+    for w in study_warnings:  # one line "warning: ..." on stderr each (run_cli)
+        warnings.warn(w, PlausibilityWarning, stacklevel=2)
     if args.json:
         d = rec.to_dict()
+        d["study_warnings"] = study_warnings
         d["mu_kg_m"] = mu_kg_m
         d["mass_function_kg_m"] = {m: 1000.0 * v for m, v in rec.mass_function_t_m.items()}
         print(json.dumps(d, indent=2))

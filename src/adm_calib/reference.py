@@ -166,6 +166,9 @@ def eada_vehicle(train):
         return None, (f"EADA is not defined for {train.name}: a train with Jacobs bogies does not fit "
                       f"the half-coach model of Yau et al. (paper Section 4.4)")
     types = dict(train.vehicle_types)
+    if not types:
+        return None, (f"EADA is not defined for {train.name}: its vehicles are bodies and stages (a vehicle file), "
+                      f"not the coach types of the half-coach model of Yau et al. (paper Section 4.4)")
     unpowered = [k for k in types if "unpowered" in k.lower()]
     if unpowered:
         return unpowered[0], f"{train.name}: unpowered passenger car '{unpowered[0]}' (paper Section 4.4)"

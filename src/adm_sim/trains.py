@@ -51,6 +51,7 @@ from adm_sim.fields import VEHICLE_FIELDS, VEHICLE_OPTIONAL, check_count
 from adm_sim.fields import view as field_view
 from adm_sim.hslm import hslm_axles, hslm_name
 from adm_sim.plausibility import check_train as check_plausible
+from adm_sim.vehicles import compile_vehicle_file, vehicle_mapping
 
 G_M_S2 = 9.81  # gravitational acceleration used by the paper (Section 3.2.2)
 
@@ -107,12 +108,16 @@ class Unit:
 
     ``cars``: list of (type name, pivot offsets (front, rear)); ``bogies``: list of
     :class:`Bogie`; ``car_bogies``: for each car the indices of its (front, rear) bogie.
+    ``matrices``: the unit's :class:`VehicleMatrices` when it comes from a vehicle file
+    (:mod:`adm_sim.vehicles`; its ``cars`` are the bodies that carry no wheelset, its ``bogies``
+    the others); None: assembled from the vehicle types (:func:`_assemble`).
     """
 
     label: str
     cars: list
     bogies: list
     car_bogies: list
+    matrices: VehicleMatrices | None = None
 
     @property
     def n_dof(self):
@@ -193,7 +198,7 @@ class Train:
         return _assemble(self, self.units[i])
 
     def describe(self):
-        n_cars = sum(len(u.cars) for u in self.units)
+        n_cars = sum(len(u.cars) or 1 for u in self.units)  # a vehicle file's unit without car body (a sprung mass) counts once
         return (f"{self.name}: {n_cars} vehicles, {self.n_axles} axles, "
                 f"{self.length_m:.2f} m first to last axle, "
                 f"{self.axle_loads_n.sum() / 1000:.1f} kN total")
@@ -305,10 +310,14 @@ def train_from_mapping(data, source="train"):
     """Build and validate a :class:`Train` from a parsed TOML mapping.
 
     Unknown, misspelt and conflicting keys are refused; booleans must be booleans; axle loads must
-    agree with the masses within 0.5 % unless ``loads_differ_from_masses = true``.
+    agree with the masses within 0.5 % unless ``loads_differ_from_masses = true``. A mapping with
+    ``[vehicles.<NAME>]`` instead of ``[vehicle_types.<NAME>]`` is a vehicle file of bodies,
+    wheelsets and stages (:func:`adm_sim.vehicles.train_from_vehicle_mapping`).
     """
     if not isinstance(data, dict):
         raise InputError(f"{source}: not a table of train fields")
+    if "vehicles" in data and "vehicle_types" not in data:
+        return _train_from_vehicle_file(data, source)
     _unknown(data, _TRAIN_KEYS, source)
     if "name" not in data:
         raise InputError(f"{source}: missing field 'name'")
@@ -441,9 +450,33 @@ def train_from_mapping(data, source="train"):
     return train
 
 
+def _train_from_vehicle_file(data, source):
+    """A :class:`Train` of a vehicle file (bodies, wheelsets, stages; :mod:`adm_sim.vehicles`)."""
+    c = compile_vehicle_file(data, source, paper_trains=TRAIN_NAMES)
+    units = tuple(Unit(label=u.label, cars=u.cars, bogies=[Bogie(n, x, math.nan) for n, x in u.others],
+                       car_bogies=[() for _ in u.cars],
+                       matrices=VehicleMatrices(M=u.M, K_s=u.K_s, C_s=u.C_s, Lw=u.Lw, k_p=u.k_p, c_p=u.c_p))
+                  for u in c.units)
+    return Train(name=data["name"], vehicle_types={}, units=units, description=str(data.get("description", "")),
+                 source=str(data.get("source", source)), jacobs=any(len(u.cars) > 1 for u in units),
+                 paper_train=str(data.get("paper_train", "")), axle_offsets_m=c.axle_offsets_m,
+                 axle_loads_n=c.axle_loads_n, wheel_mass_kg=c.wheel_mass_kg, unit_of_axle=c.unit_of_axle)
+
+
+def vehicle_file_mapping(train):
+    """The vehicle-file mapping of a train built from vehicle types (:func:`adm_sim.vehicles.vehicle_mapping`
+    with its ``paper_train`` and whether its loads differ from its masses); :func:`adm_sim.vehicles.to_toml`
+    writes it. The shipped ``data/vehicles/*.toml`` are the paper's trains written so."""
+    differ = any(r.item.startswith("F ") and not r.ok for r in check_train(train, rel_tol=AXLE_LOAD_REL_TOL))
+    paper = train.paper_train or (train.name if train.name in TRAIN_NAMES else "")
+    return vehicle_mapping(train, paper_train=paper, loads_differ=differ)
+
+
 # ---------------------------------------------------------------------- vehicle matrices
 def _assemble(train, unit):
     """Mass, stiffness and damping of one unit (Eq. 11), wheels held fixed."""
+    if unit.matrices is not None:  # a vehicle file's unit: compiled by adm_sim.vehicles
+        return unit.matrices
     types = train.vehicle_types
     nc, nb = len(unit.cars), len(unit.bogies)
     n = 2 * (nc + nb)
@@ -513,6 +546,8 @@ def check_train(train, rel_tol=0.005):
     seen = set()
     types = train.vehicle_types
     for u in train.units:
+        if u.matrices is not None:  # vehicle files check their loads against statics when loaded
+            continue
         if len(u.cars) == 1:
             t = types[u.cars[0][0]]
             if t.name in seen:
