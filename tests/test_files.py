@@ -301,3 +301,31 @@ def test_path_component_over_255_bytes_is_refused_naming_the_option(tmp_path):
             claim_output(text, "--json")
     with pytest.raises(InputError, match="--out: a path component"):
         check_output_folder(f"{tmp_path}/{'b' * 300}", "--out")
+
+
+def test_a_signal_while_claiming_leaves_no_lock_file(tmp_path, monkeypatch):
+    """Ctrl-C arriving between the lock file's creation and the record of its claim (sent from
+    inside ``flock``) is delivered once the claim is recorded, so the claim is given up with its lock
+    file; without the signals held back the file stayed (seen under load with SIGTERM)."""
+    import fcntl
+    import signal
+
+    from adm_sim import files
+
+    real = fcntl.flock
+
+    def flock_then_signal(fd, op):
+        os.kill(os.getpid(), signal.SIGINT)  # the default handler raises KeyboardInterrupt
+        return real(fd, op)
+
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    monkeypatch.setattr(files.fcntl, "flock", flock_then_signal)
+    out = tmp_path / "r.json"
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            claim_output(str(out), "--json", suffix=".json")
+    finally:
+        monkeypatch.undo()
+        signal.signal(signal.SIGINT, previous)
+        files.release(out)
+    assert not lock_path(out).exists() and not claimed(out)

@@ -57,7 +57,9 @@ import re
 import signal
 import stat
 import tempfile
+import threading
 import tomllib
+from contextlib import contextmanager
 from pathlib import Path
 
 from adm_sim.errors import InputError, RunError
@@ -276,12 +278,46 @@ def _holder(lock):
     return f"process {pid}" if pid.isdigit() else "another process"
 
 
+#: Signals held back while a lock file exists but its claim is not yet recorded: a handler that
+#: raises there (Ctrl-C, the runner's SIGTERM) would leave the lock file behind.
+_HELD_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+
+@contextmanager
+def signals_deferred():
+    """Hold back SIGINT, SIGTERM and SIGHUP for the block; one that came meanwhile is delivered to
+    its handler at the end. Python runs signal handlers in the main thread, so the handlers are
+    swapped there (a thread mask would not do: another thread of the process takes the signal and
+    the main thread still runs the handler); elsewhere the block runs as it is."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    came = []
+    saved = {}
+    for sig in _HELD_SIGNALS:
+        handler = signal.getsignal(sig)
+        if handler is not None:  # None: set outside Python, left alone
+            saved[sig] = signal.signal(sig, lambda signum, _frame: came.append(signum))
+    try:
+        yield
+    finally:
+        for sig, handler in saved.items():
+            signal.signal(sig, handler)
+        for sig in came:
+            signal.raise_signal(sig)
+
+
 def _lock(p, option, text):
     key = p.resolve()
     if key in _CLAIMS:
         raise InputError(f"{option}: {text!r} is already being written by this process ({os.getpid()}); "
                          f"give each output once")
-    lock = lock_path(key)
+    with signals_deferred():
+        _lock_file(key, lock_path(key), option, text)
+
+
+def _lock_file(key, lock, option, text):
+    """Create, lock and claim ``lock`` (signals held back by :func:`_lock`)."""
     while True:
         try:
             fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
@@ -323,16 +359,18 @@ def claimed(path):
 
 
 def release(path):
-    """Give up the claim on ``path`` (idempotent): the lock file is removed, then unlocked."""
-    entry = _CLAIMS.pop(Path(path).resolve(), None)
-    if entry is None:
-        return
-    fd, lock = entry
-    try:
-        os.unlink(lock)
-    except OSError:
-        pass
-    os.close(fd)
+    """Give up the claim on ``path`` (idempotent): the lock file is removed, then unlocked
+    (signals held back meanwhile, as in :func:`_lock`)."""
+    with signals_deferred():
+        entry = _CLAIMS.pop(Path(path).resolve(), None)
+        if entry is None:
+            return
+        fd, lock = entry
+        try:
+            os.unlink(lock)
+        except OSError:
+            pass
+        os.close(fd)
 
 
 def release_all():
