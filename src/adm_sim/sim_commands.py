@@ -17,6 +17,7 @@ from adm_sim.cliutil import (Parser, add_choice, add_delta_zeta_pct, add_overwri
                              progress_callback)
 from adm_sim.errors import InputError
 from adm_sim.cliutil import run_cli
+from adm_sim.fields import FIELDS
 from adm_sim.files import OutputSet, claim_output, mcap_input
 from adm_sim.figures import plot_check, plot_sweep
 from adm_sim.limits import ACC_LIMITS_M_S2, TRACK_ALIASES, check_track_type
@@ -311,7 +312,7 @@ def add_check_arguments(c):
                    help="deck acceleration limit, EN 1990 A2.4.4.2.1: "
                         + ", ".join(f"{a:g} m/s2 {t}" for t, a in ACC_LIMITS_M_S2.items())
                         + "".join(f" ({k} = {v})" for k, v in TRACK_ALIASES.items()))
-    c.add_argument("--damping", choices=("none", "adm", "lb", "vbi"), default="none",
+    c.add_argument("--damping", choices=FIELDS["damping"].choices, default="none",
                    help="additional damping: none, Eurocode ADM (EN 1991-2 6.4.6.3.1), the paper's lower bounds or the "
                         "calibrated VBI (lb and vbi: adm-calib check only)")
     c.add_argument("--where", default="deck",
@@ -337,7 +338,8 @@ def add_check_arguments(c):
                    help="lower,upper bound of the bending stiffness EJ as fractions of the nominal "
                         "(--stiffness-bounds=-0.1,0; EN 1991-2 6.4.6.3.3)")
     c.add_argument("--speed-step", type=float, default=1.0, help=option_help("--speed-step", "speed step"))
-    c.add_argument("--modes", type=float, help="more modes than EN 1990 A2.4.4.2.1 asks for (default: exactly those)")
+    c.add_argument("--modes", type=float,
+                   help=option_help("--modes", "more modes than EN 1990 A2.4.4.2.1 asks for; default: exactly those"))
     c.add_argument("--comfort", action="store_true",
                    help="also run the DIM of the real trains: passenger comfort b_v (EN 1990 A2.4.4.3)")
     _output_options(c, {"json": "write the verdict and every curve as JSON",
