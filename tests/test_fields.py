@@ -453,3 +453,36 @@ def test_a_library_refusal_names_the_flag_on_the_command_line(argv, line, capsys
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith(line), err
 
+
+# ---------------------------------------------------------------- the Δζ sign rule: one check, one text
+def test_the_delta_zeta_sign_rule_has_one_text(capsys):
+    """ζ + Δζ >= 0 is the registry's range [-ζ, 0.2]; where the exact envelope needs ζ + Δζ > 0 the
+    refusal is the one text of :func:`adm_sim.fields.check_delta_zeta`, on the command line and in
+    the library alike."""
+    zeta = 0.01
+    assert fields.check_delta_zeta("delta_zeta", -zeta, zeta) == -zeta  # total 0: allowed by the range
+    assert fields.check_delta_zeta("delta_zeta", -0.009, zeta, positive_for="x") == -0.009
+    with pytest.raises(InputError) as err:
+        fields.check_delta_zeta("delta_zeta", -zeta, zeta, positive_for="the exact envelope")
+    assert str(err.value) == ("delta_zeta: zeta + delta_zeta = 0 %; the exact envelope needs damping > 0 % "
+                              "(allowed delta_zeta > -0.01 - (fraction))")
+    with pytest.raises(InputError, match=r"^delta_zeta: -0\.0101 - \(fraction\) is out of range; allowed "
+                                         r"\[-0\.01, 0\.2\] - \(fraction\)$"):
+        fields.check_delta_zeta("delta_zeta", -0.0101, zeta, positive_for="the exact envelope")
+    with pytest.raises(InputError) as err:  # a bridge without damping: no "-0" in the allowed range
+        fields.check_delta_zeta_pct("delta_zeta_pct", 0.0, 0.0, positive_for="the exact envelope")
+    assert str(err.value).endswith("(allowed delta_zeta_pct > 0 %)")
+    from adm_sim import sim_commands
+
+    argv = ["sweep", "--bridge", "L=15,n0=8,mu=10000,zeta_pct=1", "--delta-zeta-pct", "-1"]
+    assert sim_commands.main(argv) == 2
+    assert capsys.readouterr().err.strip() == (
+        "error: --delta-zeta-pct: zeta + delta_zeta = 0 %; the exact MLM envelope needs damping > 0 % "
+        "(allowed --delta-zeta-pct > -1 %, or --method rk4)")
+    from adm_sim.bridge import named_bridge
+    from adm_sim.envelope import moving_load_envelope
+
+    with pytest.raises(InputError) as err:  # refused before any kernel is compiled
+        moving_load_envelope(named_bridge("B1").with_damping(0.0), [0.0], [1e5], [200.0])
+    assert str(err.value) == ("delta_zeta_pct: zeta + delta_zeta = 0 %; the exact envelope needs damping > 0 % "
+                              "(allowed delta_zeta_pct > 0 %)")

@@ -546,16 +546,28 @@ def check_count(name, n, where, given):
     return n
 
 
-def check_delta_zeta(field, value, damping_ratio):
-    """``float(value)``, an additional damping Δζ as a fraction, or :class:`InputError` naming
-    ``field`` with the allowed ``[-ζ, 0.2]``; ``damping_ratio`` is the bridge's ζ (fraction)."""
-    return FIELDS["delta_zeta"].check(value, name=field, lo=-damping_ratio)
+def check_delta_zeta(field, value, damping_ratio, *, pct=False, positive_for=None, remedy=""):
+    """``float(value)``, an additional damping Δζ (a fraction; in % with ``pct``), or
+    :class:`InputError` naming ``field``: the one check of the Δζ sign rule.
+
+    Δζ lies in the registry's ``[-ζ, 0.2]`` (``[-100 ζ, 20] %``): total damping ζ + Δζ >= 0.
+    ``positive_for``: what needs ζ + Δζ > 0 (the exact envelope divides by the damping at
+    resonance), e.g. ``"the exact MLM envelope"``; then Δζ = -ζ is refused too, in the one text
+    ``<field>: zeta + delta_zeta = 0 %; <positive_for> needs damping > 0 % (allowed <field> > -1.85 %<remedy>)``.
+    ``damping_ratio`` is the bridge's ζ (fraction).
+    """
+    v = view("cli", "--delta-zeta-pct") if pct else FIELDS["delta_zeta"].view()
+    x = v.check(value, name=field, lo_core=-damping_ratio)
+    total = damping_ratio + v.to_core(x)
+    if positive_for is not None and total <= 0.0:
+        raise InputError(f"{field}: zeta + delta_zeta = {100 * total:g} %; {positive_for} needs damping > 0 % "
+                         f"(allowed {field} > {v.from_core(-damping_ratio) + 0.0:g} {v.unit}{remedy})")  # + 0.0: no "-0"
+    return x
 
 
-def check_delta_zeta_pct(field, value_pct, damping_ratio):
-    """``float(value_pct)``, an additional damping Δζ in %, or :class:`InputError` naming ``field``
-    with the allowed ``[-100 ζ, 20] %``; ``damping_ratio`` is the bridge's ζ (fraction)."""
-    return view("cli", "--delta-zeta-pct").check(value_pct, name=field, lo_core=-damping_ratio)
+def check_delta_zeta_pct(field, value_pct, damping_ratio, **kw):
+    """:func:`check_delta_zeta` of a Δζ in %: ``float(value_pct)`` in ``[-100 ζ, 20] %``."""
+    return check_delta_zeta(field, value_pct, damping_ratio, pct=True, **kw)
 
 
 __all__ = ["check_range", "check_number", "check_int", "check_choice", "check_count", "check_delta_zeta", "check_delta_zeta_pct",

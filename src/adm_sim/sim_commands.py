@@ -17,7 +17,7 @@ from adm_sim.cliutil import (Parser, add_choice, add_delta_zeta_pct, add_overwri
                              progress_callback)
 from adm_sim.errors import InputError
 from adm_sim.cliutil import run_cli
-from adm_sim.fields import FIELDS
+from adm_sim.fields import FIELDS, check_delta_zeta_pct
 from adm_sim.files import OutputSet, claim_output, mcap_input
 from adm_sim.figures import plot_check, plot_sweep
 from adm_sim.limits import ACC_LIMITS_M_S2, TRACK_ALIASES, check_track_type
@@ -56,9 +56,9 @@ def cmd_sweep(args):
     if method == "exact" and bridge.damping_ratio + dz <= 0.0 and dz == 0.0:  # the bridge's own damping is 0
         raise InputError(f"--bridge: {args.bridge!r} has zeta_pct = 0 % (damping ratio zeta); the exact MLM envelope "
                          f"needs damping > 0 % (give zeta_pct > 0 in the bridge, --delta-zeta-pct > 0, or --method rk4)")
-    if method == "exact" and bridge.damping_ratio + dz <= 0.0:
-        raise InputError(f"--delta-zeta-pct: zeta + delta_zeta = {100 * (bridge.damping_ratio + dz):g} %; the exact "
-                         f"MLM envelope needs damping > 0 % (allowed > {-100 * bridge.damping_ratio:g} %, or --method rk4)")
+    if method == "exact":
+        check_delta_zeta_pct("--delta-zeta-pct", args.delta_zeta_pct, bridge.damping_ratio,
+                             positive_for="the exact MLM envelope", remedy=", or --method rk4")
     print(bridge.describe())
     print(train.describe())
     zeta = bridge.modal_damping_ratios(dz)
