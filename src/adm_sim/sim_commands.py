@@ -21,15 +21,16 @@ from adm_sim.fields import FIELDS, check_delta_zeta_pct
 from adm_sim.files import OutputSet, claim_output, mcap_input
 from adm_sim.figures import plot_check, plot_sweep
 from adm_sim.limits import ACC_LIMITS_M_S2, TRACK_ALIASES, check_track_type
+from adm_sim import _jit
 
 
 def cmd_sweep(args):
-    from adm_sim.bridge import resolve_bridge
-    from adm_sim.envelope import parse_where, where_text
-    from adm_sim.step_grid import StepOptions
-    from adm_sim.sweep import parse_speeds, run_sweep, run_sweep_compiled, sweep_exact
-    from adm_sim.trains import load_train
-    from adm_sim.plausibility import check_response
+    from adm_sim.bridge import resolve_bridge  # noqa: PLC0415  start-up: only this subcommand (20 ms)
+    from adm_sim.envelope import parse_where, where_text  # noqa: PLC0415  numba kernels (~0.6 s): only this subcommand
+    from adm_sim.step_grid import StepOptions  # noqa: PLC0415  start-up: only this subcommand (6 ms)
+    from adm_sim.sweep import parse_speeds, run_sweep, run_sweep_compiled, sweep_exact  # noqa: PLC0415  start-up: only this subcommand (52 ms)
+    from adm_sim.trains import load_train  # noqa: PLC0415  start-up: only this subcommand (58 ms)
+    from adm_sim.plausibility import check_response  # noqa: PLC0415  start-up: only this subcommand (7 ms)
 
     inputs = {"--train": args.train, "--bridge": args.bridge}
     json_path = None if args.json is None else claim_output(args.json, "--json", args.overwrite, inputs=inputs)
@@ -125,9 +126,9 @@ def cmd_check(args, damping_provider=None):
     """EN 1991-2 dynamic check (:mod:`adm_sim.check`). ``--damping none|adm`` are the core's;
     ``lb|vbi`` need adm-calib's ``damping_provider`` (``adm-calib check`` passes it) and are refused
     here, before any work, without one. The core never imports adm_calib."""
-    from adm_sim.bridge import resolve_bridge
-    from adm_sim.check import CALIB_DAMPING_METHODS, DAMPING_MODELS, calib_methods_refusal, resolve_trains, run_check
-    from adm_sim.check_text import summary as check_summary
+    from adm_sim.bridge import resolve_bridge  # noqa: PLC0415  start-up: only this subcommand (20 ms)
+    from adm_sim.check import CALIB_DAMPING_METHODS, DAMPING_MODELS, calib_methods_refusal, resolve_trains, run_check  # noqa: PLC0415  start-up: only this subcommand (114 ms)
+    from adm_sim.check_text import summary as check_summary  # noqa: PLC0415  start-up: only this subcommand (138 ms)
 
     if args.damping in CALIB_DAMPING_METHODS and damping_provider is None:
         raise calib_methods_refusal(args.damping)
@@ -142,7 +143,7 @@ def cmd_check(args, damping_provider=None):
             outs[opt] = claim_output(text, f"--{opt}", args.overwrite, suffix, inputs)
             seen[outs[opt].resolve()] = opt
     bridge = resolve_bridge(args.bridge)
-    from adm_sim.envelope import parse_where
+    from adm_sim.envelope import parse_where  # noqa: PLC0415  numba kernels (~0.6 s): only this subcommand
 
     parse_where(args.where, bridge.span_m)  # refused before any work
     if args.damping_model is not None and args.damping_model not in DAMPING_MODELS:
@@ -153,13 +154,13 @@ def cmd_check(args, damping_provider=None):
                          f"without vehicles; passenger comfort b_v needs the DIM of a real train (add ICE-2, "
                          f"Eurostar, Railjet, ICE-4 or a .toml train to --trains) or omit --comfort")
     if args.lateral_frequency is not None:
-        from adm_sim.check_sls import check_lateral_frequency
+        from adm_sim.check_sls import check_lateral_frequency  # noqa: PLC0415  start-up: only this subcommand (16 ms)
 
         try:  # refused before any work, named by its flag
             check_lateral_frequency(args.lateral_frequency)
         except InputError as exc:
             raise InputError("--lateral-frequency" + str(exc)[len("lateral_frequency"):]) from None
-    from adm_sim.check import parse_bounds
+    from adm_sim.check import parse_bounds  # noqa: PLC0415  start-up: only this subcommand (114 ms)
 
     mass_bounds, stiffness_bounds = (parse_bounds(getattr(args, k), f"--{k.replace('_', '-')}")
                                      for k in ("mass_bounds", "stiffness_bounds"))
@@ -190,7 +191,7 @@ def cmd_check(args, damping_provider=None):
         if "plot" in outs:
             files.write(outs["plot"], lambda p: plot_check(res, p), "--plot", note=f"wrote {args.plot}")
         if "report" in outs:
-            from adm_sim.check_report import write_report
+            from adm_sim.check_report import write_report  # noqa: PLC0415  start-up: only this subcommand (138 ms)
 
             files.write(outs["report"], lambda p: write_report(res, p), "--report", note=f"wrote {args.report}")
     return 0
@@ -199,7 +200,7 @@ def cmd_check(args, damping_provider=None):
 def _check_plausible(res):
     """Plausibility warnings on a check's results: the largest acceleration and deflection over all
     trains and speeds, each named by its train and speed (:mod:`adm_sim.plausibility`)."""
-    from adm_sim.plausibility import check_response
+    from adm_sim.plausibility import check_response  # noqa: PLC0415  start-up: only this subcommand (7 ms)
 
     if not res.trains:
         return
@@ -212,7 +213,7 @@ def _check_plausible(res):
 
 
 def cmd_trains(args):
-    from adm_sim.trains import TRAIN_NAMES, check_train, load_train
+    from adm_sim.trains import TRAIN_NAMES, check_train, load_train  # noqa: PLC0415  start-up: only this subcommand (58 ms)
 
     if args.train is not None and not args.train.strip():
         raise InputError("--train: '' is empty; give a train name or a TOML train file (or omit --train for all)")
@@ -238,7 +239,7 @@ def cmd_trains(args):
 
 
 def cmd_bridges(args):
-    from adm_sim.bridge import TABLE3, named_bridge, parametric_field
+    from adm_sim.bridge import TABLE3, named_bridge, parametric_field  # noqa: PLC0415  start-up: only this subcommand (20 ms)
 
     if args.field:
         field = parametric_field()
@@ -255,7 +256,7 @@ def cmd_bridges(args):
 
 def cmd_salvage(args):
     try:
-        from adm_sim.recording.mcap_log import salvage
+        from adm_sim.recording.mcap_log import salvage  # noqa: PLC0415  start-up: only this subcommand (28 ms)
     except ImportError as exc:
         raise InputError(f"salvage needs the ROS/MCAP extras ({exc})") from None
     src = mcap_input(args.src, "salvage SRC")
@@ -277,8 +278,7 @@ def cmd_salvage(args):
 def cmd_compile(args):
     """Compile every numba kernel once (:mod:`adm_sim.precompile`), at set-up rather than in the first
     real command; with numba's cache in place it only loads the kernels."""
-    from adm_sim import _jit
-    from adm_sim.precompile import compile_kernels
+    from adm_sim.precompile import compile_kernels  # noqa: PLC0415  start-up: only this subcommand (113 ms)
 
     if not _jit.numba_available():
         print("numba is not installed: the kernels run as plain Python, nothing to compile")

@@ -41,6 +41,7 @@ import numpy as np
 from adm_sim import protocol as P  # topics, records, phases, entity paths, timelines
 from adm_sim.errors import InputError
 from adm_sim.protocol import RUN_TIME, SIM_TIME
+from adm_sim.recording import rerun_blueprint as bp
 from adm_sim.recording.viewer_process import check_loopback, ensure_analytics_disabled, spawn_viewer
 
 __all__ = [
@@ -79,7 +80,7 @@ def init_rerun(app_id: str, spawn: bool = False, connect_url: str | None = None,
 
     With no sink at all the data are buffered in memory (``rr.init`` default behaviour).
     """
-    import rerun as rr
+    import rerun as rr  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
 
     ensure_analytics_disabled()
     sinks: list = []
@@ -108,13 +109,13 @@ def init_rerun(app_id: str, spawn: bool = False, connect_url: str | None = None,
 
 def close_rerun(recording=None) -> None:
     """Flush and close the sinks of the recording (the ``.rrd`` file is complete afterwards)."""
-    import rerun as rr
+    import rerun as rr  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
 
     rr.disconnect(recording=recording)
 
 
 def _part(label) -> str:
-    import rerun as rr
+    import rerun as rr  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
 
     return rr.escape_entity_path_part(str(label))
 
@@ -212,7 +213,6 @@ class RunLogger:
     """
 
     def __init__(self, recording=None, exaggeration: float | None = None):
-        from adm_sim.recording import rerun_blueprint as bp
 
         self.rec = recording
         self.exaggeration = float(bp.BEAM_EXAGGERATION if exaggeration is None else exaggeration)
@@ -231,7 +231,7 @@ class RunLogger:
     # ------------------------------------------------------------ helpers
     def _style(self, path, lines=True, name=None, color=None, width=None, visible=None):
         """Name, colour and width of a series (static, once per entity)."""
-        import rerun as rr
+        import rerun as rr  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
 
         if path in self._styled:
             return
@@ -244,18 +244,17 @@ class RunLogger:
 
     def send_blueprint(self, active_tab: str = "Runs"):
         """Send the default blueprint (again, e.g. once the span is known)."""
-        import rerun as rr
+        import rerun as rr  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
 
-        from adm_sim.recording.rerun_blueprint import default_blueprint
 
-        rr.send_blueprint(default_blueprint(self._span_m, self.exaggeration, active_tab), make_active=True,
+        rr.send_blueprint(bp.default_blueprint(self._span_m, self.exaggeration, active_tab), make_active=True,
                           make_default=True, recording=self.rec)
         self.blueprint_sent = True
 
     # ------------------------------------------------------------ descriptions
     def bridge_description(self, desc: dict):
         """``/adm/bridge/description``: the span fixes the beam view and its supports."""
-        import rerun as rr
+        import rerun as rr  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
 
         self._bridge = desc
         span = float(desc.get("bridge", {}).get("span_m", 0.0)) or None
@@ -303,7 +302,7 @@ class RunLogger:
 
     def flush(self):
         """Log the buffered samples of every announced run; keep those of runs not yet announced."""
-        import rerun as rr
+        import rerun as rr  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
 
         if not self.runs:
             return
@@ -361,7 +360,7 @@ class RunLogger:
         run the result belongs to (default the last announced one). Returns the run's kind
         (:func:`run_kind`), ``None`` if the run was never announced.
         """
-        import rerun as rr
+        import rerun as rr  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
 
         self.flush()
         res = np.asarray(result, dtype=float)
@@ -413,7 +412,7 @@ class RunLogger:
         return f"{dt * 1e3:.2f} | {per}"
 
     def _log_run_table(self):
-        import rerun as rr
+        import rerun as rr  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
 
         b = self._bridge.get("description", "")
         t = self._train.get("name", self._train.get("train", ""))
@@ -450,7 +449,7 @@ class RunLogger:
             self._send_curve(path, v, acc)
 
     def _send_curve(self, path, speeds_kmh, max_acc_m_s2):
-        import rerun as rr
+        import rerun as rr  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
 
         v = np.asarray(speeds_kmh, dtype=float)
         order = np.argsort(v, kind="stable")
@@ -462,7 +461,7 @@ class RunLogger:
     def iteration(self, i: int, delta_zeta_pct: float, mlm_peak_m_s2: float, dim_peak_m_s2: float, phase: str):
         """``/adm/calibration/iteration``: one trial damping of the run of ``phase`` it came from
         (``bracketing``: points, ``root_search``: lines, handed on by the caller like the run's)."""
-        import rerun as rr
+        import rerun as rr  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
 
         kind = run_kind(phase)
         bracketing = phase == P.PHASE_BRACKETING
@@ -481,7 +480,7 @@ class RunLogger:
 
     def calibration_result(self, d: dict):
         """``/adm/calibration/result`` (``CalibrationResult.to_dict()``) as a markdown table."""
-        import rerun as rr
+        import rerun as rr  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
 
         units = {"zeta_pct": "%", "delta_zeta_vbi_pct": "%", "delta_zeta_adm_pct": "%", "delta_zeta_eada_pct": "%",
                  "delta_zeta_lb_pct": "%"}
