@@ -7,6 +7,8 @@ and shared-memory transport only; processes are started, stopped and cleaned up 
 
 from __future__ import annotations
 
+import subprocess
+import sys
 import threading
 from contextlib import contextmanager
 from pathlib import Path
@@ -55,9 +57,22 @@ def node_procs(ros_domain, tmp_path):
     procs.stop_all()
 
 
+@pytest.fixture(scope="session")
+def recording(tmp_path_factory):
+    """``run.mcap`` of one crossing (B3, ICE-2, MLM at 300 km/h) recorded by ``launch_scripts/crossing.py``,
+    once per session; the tests read it and write only into their own folders."""
+    out = tmp_path_factory.mktemp("crossing") / "run"
+    r = subprocess.run([sys.executable, str(ROOT / "launch_scripts" / "crossing.py"), "--bridge", "B3", "--train",
+                        "ICE-2", "--model", "mlm", "--speeds", "300", "--out", str(out)],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr[-2000:]
+    return out / "run.mcap"
+
+
 @contextmanager
-def driver_node(domain_id, cls=None, **params):
-    """A driver node in this process (isolated context), spun in a background thread."""
+def driver_node(domain_id, cls=None, namespace=None, **params):
+    """A driver node in this process (isolated context, in ``namespace`` if given), spun in a
+    background thread."""
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
@@ -66,7 +81,8 @@ def driver_node(domain_id, cls=None, **params):
 
     ctx = rclpy.context.Context()
     rclpy.init(context=ctx, domain_id=int(domain_id))
-    node = (cls or RunDriver)(context=ctx, parameter_overrides=[Parameter(k, value=v) for k, v in params.items()])
+    kw = {} if namespace is None else {"namespace": namespace}
+    node = (cls or RunDriver)(context=ctx, parameter_overrides=[Parameter(k, value=v) for k, v in params.items()], **kw)
     ex = SingleThreadedExecutor(context=ctx)
     ex.add_node(node)
     stop = threading.Event()

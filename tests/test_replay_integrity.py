@@ -18,6 +18,7 @@ import pytest
 
 pytest.importorskip("rclpy")
 pytest.importorskip("mcap")
+from ros_fixtures import recording  # noqa: E402,F401  (one crossing per session)
 
 from adm_sim import protocol as P  # noqa: E402
 from adm_sim.errors import InputError  # noqa: E402
@@ -28,16 +29,6 @@ ROOT = Path(__file__).resolve().parents[1]
 PY = sys.executable
 REPLAY = ROOT / "launch_scripts" / "replay.py"
 SIM = [PY, "-m", "adm_sim.sim_commands"]
-
-
-@pytest.fixture(scope="module")
-def recording(tmp_path_factory):
-    out = tmp_path_factory.mktemp("crossing") / "run"
-    r = subprocess.run([PY, str(ROOT / "launch_scripts" / "crossing.py"), "--bridge", "B3", "--train", "ICE-2",
-                        "--model", "mlm", "--speeds", "300", "--out", str(out)],
-                       capture_output=True, text=True, timeout=300)
-    assert r.returncode == 0, r.stderr[-2000:]
-    return out / "run.mcap"
 
 
 def _records(data: bytes):

@@ -19,6 +19,7 @@ import pytest
 
 pytest.importorskip("rerun")
 pytest.importorskip("mcap")
+from ros_fixtures import recording  # noqa: E402,F401  (one crossing per session)
 
 from adm_sim.errors import RunError  # noqa: E402
 from adm_sim.recording.viewer_feed import check_viewer  # noqa: E402
@@ -39,16 +40,6 @@ def _port():
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         return s.getsockname()[1]
-
-
-@pytest.fixture(scope="module")
-def recording(tmp_path_factory):
-    out = tmp_path_factory.mktemp("crossing") / "run"
-    r = subprocess.run([PY, str(ROOT / "launch_scripts" / "crossing.py"), "--bridge", "B3", "--train", "ICE-2",
-                        "--model", "mlm", "--speeds", "300", "--out", str(out)],
-                       capture_output=True, text=True, timeout=300)
-    assert r.returncode == 0, r.stderr[-2000:]
-    return out / "run.mcap"
 
 
 @pytest.fixture

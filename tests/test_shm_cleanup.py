@@ -17,6 +17,7 @@ import pytest
 
 pytest.importorskip("rclpy")
 pytest.importorskip("mcap")
+from ros_fixtures import recording  # noqa: E402,F401  (one crossing per session)
 
 from adm_sim.processes import dds_env  # noqa: E402
 from adm_sim.processes.supervisor import Supervisor  # noqa: E402
@@ -89,16 +90,6 @@ def _stale(names):
             except OSError:
                 pass
     return {n for n in names if os.path.exists(f"/dev/shm/{n}") and n not in live}
-
-
-@pytest.fixture(scope="module")
-def recording(tmp_path_factory):
-    out = tmp_path_factory.mktemp("crossing") / "run"
-    r = subprocess.run([PY, str(ROOT / "launch_scripts" / "crossing.py"), "--bridge", "B3", "--train", "ICE-2",
-                        "--model", "mlm", "--speeds", "300", "--out", str(out)],
-                       capture_output=True, text=True, timeout=300)
-    assert r.returncode == 0, r.stderr[-2000:]
-    return out / "run.mcap"
 
 
 def test_sigkill_of_replay_republish_leaves_nothing_after_the_next_start(recording, tmp_path):
