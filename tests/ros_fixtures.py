@@ -7,8 +7,6 @@ and shared-memory transport only; processes are started, stopped and cleaned up 
 
 from __future__ import annotations
 
-import subprocess
-import sys
 import threading
 from contextlib import contextmanager
 from pathlib import Path
@@ -55,18 +53,6 @@ def node_procs(ros_domain, tmp_path):
     procs = NodeProcs(ros_domain, tmp_path)
     yield procs
     procs.stop_all()
-
-
-@pytest.fixture(scope="session")
-def recording(tmp_path_factory):
-    """``run.mcap`` of one crossing (B3, ICE-2, MLM at 300 km/h) recorded by ``launch_scripts/crossing.py``,
-    once per session; the tests read it and write only into their own folders."""
-    out = tmp_path_factory.mktemp("crossing") / "run"
-    r = subprocess.run([sys.executable, str(ROOT / "launch_scripts" / "crossing.py"), "--bridge", "B3", "--train",
-                        "ICE-2", "--model", "mlm", "--speeds", "300", "--out", str(out)],
-                       capture_output=True, text=True, timeout=300)
-    assert r.returncode == 0, r.stderr[-2000:]
-    return out / "run.mcap"
 
 
 @contextmanager

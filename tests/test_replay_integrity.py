@@ -18,7 +18,6 @@ import pytest
 
 pytest.importorskip("rclpy")
 pytest.importorskip("mcap")
-from ros_fixtures import recording  # noqa: E402,F401  (one crossing per session)
 
 from adm_sim import protocol as P  # noqa: E402
 from adm_sim.errors import InputError  # noqa: E402

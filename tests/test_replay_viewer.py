@@ -19,7 +19,6 @@ import pytest
 
 pytest.importorskip("rerun")
 pytest.importorskip("mcap")
-from ros_fixtures import recording  # noqa: E402,F401  (one crossing per session)
 
 from adm_sim.errors import RunError  # noqa: E402
 from adm_sim.recording.viewer_feed import check_viewer  # noqa: E402

@@ -17,7 +17,6 @@ import pytest
 
 pytest.importorskip("rclpy")
 pytest.importorskip("mcap")
-from ros_fixtures import recording  # noqa: E402,F401  (one crossing per session)
 
 from adm_sim.processes import dds_env  # noqa: E402
 from adm_sim.processes.supervisor import Supervisor  # noqa: E402
