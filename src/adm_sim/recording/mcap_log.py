@@ -684,9 +684,7 @@ def scan(path) -> Scan:
     and CRC, so a broken record length does not end the reading). A file cut short (a killed
     writer) is ``truncated``. Nothing is decoded.
     """
-
-    from mcap.data_stream import ReadDataStream  # noqa: PLC0415  mcap/rosbags only when a log is read or written
-    from mcap.records import Channel, Header, Message, Metadata, Schema  # noqa: PLC0415  mcap/rosbags only when a log is read or written
+    from mcap.records import Channel, Schema  # noqa: PLC0415  mcap/rosbags only when a log is read or written
 
     path = Path(path)
     data = path.read_bytes()
@@ -781,20 +779,8 @@ def scan(path) -> Scan:
                                                "metadata or message indexes)", {}))
             break
         if op in (0x01, 0x03, 0x04, 0x05, 0x0C):
-            stream = ReadDataStream(io.BytesIO(data[pos + 9:rec_end]))
             try:
-                if op == 0x01:
-                    rec = Header.read(stream)
-                elif op == 0x03:
-                    rec = Schema.read(stream)
-                elif op == 0x04:
-                    rec = Channel.read(stream)
-                elif op == 0x0C:
-                    rec = Metadata.read(stream)
-                else:
-                    rec = Message.read(stream, length)
-                if op != 0x05 and stream.count != length:
-                    raise ValueError("record length")
+                rec = _read_record(data, pos, op, length)
             except Exception:
                 result.damage.append(Damage(pos, "record is damaged", None))
                 pos = resume(pos + 1)
@@ -804,6 +790,27 @@ def scan(path) -> Scan:
             elif op != 0x01:
                 take(rec)
         pos = rec_end
+    _settle_damage(result, data_end)
+    return result
+
+
+def _read_record(data, pos: int, op: int, length: int):
+    """The header, schema, channel, message or metadata record (``op``) at ``pos``, read by mcap's
+    own record readers; raises when it does not read back to its stated length."""
+    from mcap.data_stream import ReadDataStream  # noqa: PLC0415  mcap/rosbags only when a log is read or written
+    from mcap.records import Channel, Header, Message, Metadata, Schema  # noqa: PLC0415  mcap/rosbags only when a log is read or written
+
+    stream = ReadDataStream(io.BytesIO(data[pos + 9:pos + 9 + length]))
+    reader = {0x01: Header.read, 0x03: Schema.read, 0x04: Channel.read, 0x0C: Metadata.read}.get(op)
+    rec = Message.read(stream, length) if reader is None else reader(stream)
+    if op != 0x05 and stream.count != length:
+        raise ValueError("record length")
+    return rec
+
+
+def _settle_damage(result: Scan, data_end: int | None) -> None:
+    """After the walk: a file without the end of its data section is truncated, a lost summary or
+    footer is named, and the statistics say what the damaged places without an index held."""
     if data_end is None and not any(d.what == "broken record framing" for d in result.damage):
         result.truncated = True  # no end of the data section: the writer did not finish the file
     if data_end is not None and not result.footer_ok and not any(d.what.startswith(("summary", "footer"))
@@ -822,7 +829,6 @@ def scan(path) -> Scan:
                 d.lost = {}
         elif len(unknown) == 1:
             unknown[0].lost = rest
-    return result
 
 
 def _refusal(path, s: Scan) -> InputError:
