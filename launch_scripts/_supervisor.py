@@ -8,9 +8,16 @@ The processes are started, watched and stopped by :class:`adm_sim.processes.supe
 from __future__ import annotations
 
 import queue
+import shutil
 from pathlib import Path
 
+from adm_sim.cliutil import run_cli
+from adm_sim.errors import InputError
+from adm_sim.fields import view
+from adm_sim.files import check_output_folder, claim_folder, input_file, make_output_folder, release
+from adm_sim.processes.dds_env import local_ros_env
 from adm_sim.processes.supervisor import NodeDied, Supervisor, ros_args  # noqa: F401  (used by the scripts)
+from adm_sim.run_contract import check_model
 
 ROOT = Path(__file__).resolve().parents[1]
 PARAMS_DIR = ROOT / "ros_ws" / "params"
@@ -23,7 +30,6 @@ def launch(body, args):
     (:func:`adm_sim.cliutil.run_cli`): bad input ``error: ...`` and 2, a failed run 1, a refused
     write (full disk, ``ulimit -f``, read-only folder) 1, SIGINT/SIGTERM ``error: interrupted`` and
     130, plausibility warnings one ``warning: ...`` line each; the body's return value is the exit code."""
-    from adm_sim.cliutil import run_cli
 
     return run_cli(lambda: body(args))
 
@@ -40,8 +46,6 @@ def preflight(args, default_out, dim=False, model=None):
     Returns ``(out, env, created, old)``: the folder, the :class:`~adm_sim.processes.dds_env.LocalRosEnv`
     (release it at the end), whether the folder was created here, the earlier outputs in it.
     """
-    from adm_sim.errors import InputError
-    from adm_sim.processes.dds_env import local_ros_env
 
     domain_id = check_domain_id(args.domain_id)
     check_viewer(args.spawn, args.connect)
@@ -64,9 +68,8 @@ def preflight(args, default_out, dim=False, model=None):
 def check_calibration_speeds(text, option):
     """The speeds of a calibration, refused as ``adm-calib calibrate`` refuses them (a speed list
     of at least 3 speeds, each valid): one line naming ``option``."""
-    from adm_calib.calibration_options import check_speeds
-    from adm_sim.errors import InputError
-    from adm_sim.sweep import parse_speeds
+    from adm_calib.calibration_options import check_speeds  # noqa: PLC0415  start-up: only on this path (17 ms)
+    from adm_sim.sweep import parse_speeds  # noqa: PLC0415  start-up: only on this path (55 ms)
 
     v = parse_speeds(text, field=option)
     try:
@@ -79,11 +82,11 @@ def launch_param_specs():
     """``node -> parameter specs`` of every node a launch may start (params files are shared by
     the scripts, so all four nodes are allowed in any of them), and the value checks beyond
     type and range (``(node, name) -> callable``)."""
-    from adm_calib.nodes.params import CALIBRATION_SPECS
-    from adm_sim.bridge import resolve_bridge
-    from adm_sim.nodes.params import DRIVER_SPECS, TRAIN_SPECS, bridge_specs, param
-    from adm_sim.sweep import parse_speeds
-    from adm_sim.trains import load_train
+    from adm_calib.nodes.params import CALIBRATION_SPECS  # noqa: PLC0415  the parameter tables load yaml (~202 ms): pre-flight only
+    from adm_sim.bridge import resolve_bridge  # noqa: PLC0415  start-up: only on this path (56 ms)
+    from adm_sim.nodes.params import DRIVER_SPECS, TRAIN_SPECS, bridge_specs, param  # noqa: PLC0415  the parameter tables load yaml (~218 ms): pre-flight only
+    from adm_sim.sweep import parse_speeds  # noqa: PLC0415  start-up: only on this path (55 ms)
+    from adm_sim.trains import load_train  # noqa: PLC0415  start-up: only on this path (82 ms)
 
     # ranges and choices (track_type, damping_model, model, dim_grid) are the specs' own, from the
     # field registry (adm_sim.fields); what is left needs more than one field
@@ -105,7 +108,6 @@ def launch_param_specs():
 def _given(option, value):
     """``value`` unless it is an empty or blank string (then one line: an empty option never
     falls back to the default)."""
-    from adm_sim.errors import InputError
 
     if value is not None and not str(value).strip():
         raise InputError(f"{option}: '' is empty; give a value or omit {option}")
@@ -126,13 +128,10 @@ def check_inputs(bridge=None, train=None, speeds=None, params_file=None, model=N
 
     Returns ``{node: {name: value}}`` of the params file.
     """
-    from adm_sim.bridge import resolve_bridge
-    from adm_sim.errors import InputError
-    from adm_sim.files import input_file
-    from adm_sim.nodes.params import TRAIN_SPECS, bridge_from_params, bridge_specs, check_params_file, validate_train
-    from adm_sim.run_contract import check_model
-    from adm_sim.sweep import parse_speeds
-    from adm_sim.trains import load_train
+    from adm_sim.bridge import resolve_bridge  # noqa: PLC0415  start-up: only on this path (56 ms)
+    from adm_sim.nodes.params import TRAIN_SPECS, bridge_from_params, bridge_specs, check_params_file, validate_train  # noqa: PLC0415  the parameter tables load yaml (~218 ms): pre-flight only
+    from adm_sim.sweep import parse_speeds  # noqa: PLC0415  start-up: only on this path (55 ms)
+    from adm_sim.trains import load_train  # noqa: PLC0415  start-up: only on this path (82 ms)
 
     bridge, train, speeds = _given("--bridge", bridge), _given("--train", train), _given("--speeds", speeds)
     if bridge is not None:
@@ -174,22 +173,20 @@ def check_inputs(bridge=None, train=None, speeds=None, params_file=None, model=N
 
 def check_domain_id(domain_id):
     """``--domain-id`` in [0, 101] (Fast DDS ports, see :mod:`adm_sim.processes.dds_env`) or None."""
-    from adm_sim.fields import view
 
     return None if domain_id is None else view("cli", "--domain-id").check(domain_id)
 
 
 def check_viewer(spawn, connect):
     """``--spawn`` and ``--connect`` exclude each other; ``--connect`` is a loopback rerun URL."""
-    from adm_sim.errors import InputError
 
     if spawn and connect is not None:
         raise InputError(f"--connect: {connect!r} with --spawn; give --spawn or --connect, not both")
     if connect is not None:
-        from adm_sim.recording.rerun_log import _check_loopback
+        from adm_sim.recording.viewer_process import check_loopback  # noqa: PLC0415  start-up: only on this path (12 ms)
 
         try:
-            _check_loopback(_given("--connect", connect))
+            check_loopback(_given("--connect", connect))
         except InputError as exc:
             raise InputError(f"--connect: {str(exc).removeprefix('connect_url: ')}") from None
 
@@ -198,7 +195,6 @@ def check_out(out, inputs=None):
     """The output folder before anything is created (:func:`adm_sim.files.check_output_folder`): not
     a file, in a writable place, and none of its outputs an input of the launch (``inputs``:
     ``{option: path}``)."""
-    from adm_sim.files import check_output_folder
 
     return check_output_folder(out, "--out", OUTPUTS, inputs)
 
@@ -211,7 +207,6 @@ def prepare_out(out, overwrite):
 
     Returns ``(created, old)``: whether the folder was created here, and the earlier outputs in it.
     """
-    from adm_sim.files import claim_folder, make_output_folder
 
     created = make_output_folder(out, "--out")
     return created, set(claim_folder(out, "--out", OUTPUTS, overwrite))
@@ -219,7 +214,6 @@ def prepare_out(out, overwrite):
 
 def release_out(out):
     """Give up the claim of :func:`prepare_out` (its lock file is removed first)."""
-    from adm_sim.files import release
 
     release(out)
 
@@ -228,7 +222,6 @@ def discard_outputs(out, created, old=()):
     """After an interrupt: remove what the launch wrote (its new outputs and logs; the whole
     folder if the launch created it), so no partial output is left. Earlier outputs (``old``)
     were never replaced (the node renames only at a successful end) and stay."""
-    import shutil
 
     if created:
         shutil.rmtree(out, ignore_errors=True)

@@ -36,23 +36,28 @@ itself fails (:func:`adm_sim.cliutil.run_cli`).
 
 from __future__ import annotations
 
+import importlib
 import os
 import re
 import subprocess
 import sys
+import tempfile
+import threading
 import time
 from pathlib import Path
 
 from adm_sim import protocol as P
-from adm_sim.cliutil import Parser, add_domain_id, add_overwrite, option_help
+from adm_sim.cliutil import Parser, add_domain_id, add_overwrite, option_help, run_cli
 from adm_sim.errors import InputError, RunError
-from adm_sim.cliutil import run_cli
 from adm_sim.fields import view
+from adm_sim.files import claim_output, mcap_input, write_atomic
+from adm_sim.processes.dds_env import apply_local_ros_env, check_domain_id, clean_dead_shm, record_shm
+from adm_sim.recording import rerun_log as rl
+from adm_sim.recording import viewer_process as vp
 
 
 def check_args(args):
     """Check every option before anything is read, written or started; raises :class:`InputError`."""
-    from adm_sim.files import claim_output, mcap_input
 
     mcap_input(str(args.mcap), "RUN.mcap")
     if args.rrd is not None:
@@ -68,9 +73,7 @@ def check_args(args):
     if args.domain_id is not None:
         args.domain_id = view("cli", "--domain-id").check(args.domain_id)
     if args.republish:  # the transport's range (232 with shared memory only, else 101), an exported id too
-        import os
 
-        from adm_sim.processes.dds_env import check_domain_id
 
         env = {"FASTDDS_BUILTIN_TRANSPORTS": "SHM", **os.environ}
         if args.domain_id is not None:
@@ -131,16 +134,14 @@ def spawn_checked_viewer(settle_s: float = 1.5, timeout_s: float = 20.0):
     (:func:`~adm_sim.recording.viewer_feed.check_viewer`) and is still alive ``settle_s`` later
     (on a machine without a display it listens, then exits at once); return the process and its
     URL. The viewer's own log goes to a file, and its last line into the one error line."""
-    import tempfile
 
-    from adm_sim.recording import rerun_log as rl
-    from adm_sim.recording.viewer_feed import check_viewer
+    from adm_sim.recording.viewer_feed import check_viewer  # noqa: PLC0415  start-up: only on this path (17 ms)
 
-    port = rl._free_port()
+    port = vp.free_port()
     url = f"rerun+http://127.0.0.1:{port}/proxy"
     log = tempfile.TemporaryFile(prefix="adm_sim_viewer_")
-    proc = subprocess.Popen([rl.rerun_cli(), "--bind", "127.0.0.1", "--port", str(port), "--memory-limit", "25%"],
-                            env=rl.rerun_cli_env(dict(os.environ) | {"RERUN_APP_ONLY": "true"}),
+    proc = subprocess.Popen([vp.rerun_cli(), "--bind", "127.0.0.1", "--port", str(port), "--memory-limit", "25%"],
+                            env=vp.rerun_cli_env(dict(os.environ) | {"RERUN_APP_ONLY": "true"}),
                             stdin=subprocess.DEVNULL, stdout=log, stderr=log, start_new_session=True)
 
     def died(why: str) -> RunError:
@@ -158,7 +159,7 @@ def spawn_checked_viewer(settle_s: float = 1.5, timeout_s: float = 20.0):
         return RunError(f"--spawn: the rerun viewer {why} (exit status {proc.returncode}: {last}); is there a display?")
 
     t_end = time.monotonic() + timeout_s
-    while not rl._wait_for_port(port, 0.2):
+    while not vp.wait_for_port(port, 0.2):
         if proc.poll() is not None:
             raise died("exited at once")
         if time.monotonic() > t_end:
@@ -178,7 +179,7 @@ def spawn_checked_viewer(settle_s: float = 1.5, timeout_s: float = 20.0):
 def viewer_still_there(url: str, proc=None, what: str = "--connect") -> bool:
     """After logging: one ``warning:`` line when the viewer died or stopped answering (what it shows
     may miss the end of the run); the replay itself stands."""
-    from adm_sim.recording.viewer_feed import check_viewer
+    from adm_sim.recording.viewer_feed import check_viewer  # noqa: PLC0415  start-up: only on this path (17 ms)
 
     if proc is not None and proc.poll() is not None:
         print(f"warning: {what}: the rerun viewer exited during the replay (exit status {proc.returncode}); "
@@ -211,7 +212,6 @@ def show_in_rerun(args, found, save_path=None) -> dict[str, int]:
     a viewer that stops answering mid-run stalls rerun's sink, and after :data:`VIEWER_STALL_S`
     without progress it is given up with one ``warning:`` line (with ``save_path`` too, the
     ``.rrd`` is then incomplete: :class:`RunError`), never a hang."""
-    import threading
 
     if not args.connect:
         return _feed_all(args, found, save_path, [0.0, None])
@@ -242,9 +242,8 @@ def show_in_rerun(args, found, save_path=None) -> dict[str, int]:
 
 
 def _feed_all(args, found, save_path, beat) -> dict[str, int]:
-    from adm_sim.recording import rerun_log as rl
-    from adm_sim.recording.mcap_log import decode_messages, sorted_messages
-    from adm_sim.recording.viewer_feed import RunPhases, ViewerFeed, stamp_ns
+    from adm_sim.recording.mcap_log import decode_messages, sorted_messages  # noqa: PLC0415  start-up: only on this path (47 ms)
+    from adm_sim.recording.viewer_feed import RunPhases, ViewerFeed, stamp_ns  # noqa: PLC0415  start-up: only on this path (17 ms)
 
     rl.init_rerun("adm_sim_replay", spawn=args.spawn, connect_url=args.connect, save_path=save_path)
     viz = rl.RunLogger(exaggeration=args.exaggeration)
@@ -264,8 +263,8 @@ def _feed_all(args, found, save_path, beat) -> dict[str, int]:
 
 def _log_metadata(path: Path) -> None:
     """The MCAP's metadata records as a table (``metadata``), outside the default views."""
-    import rerun as rr
-    from mcap.reader import make_reader
+    import rerun as rr  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
+    from mcap.reader import make_reader  # noqa: PLC0415  mcap/rosbags only when a log is read or written
 
     info = {}
     with open(path, "rb") as f:
@@ -320,7 +319,7 @@ def check_readable(path, skip_damaged: bool = False):
     chunk's framing, decompression and CRC is checked; with ``skip_damaged`` its intact chunks are
     used and each skipped damage is named on stderr) or that holds no message: a replay of it would
     be an empty recording."""
-    from adm_sim.recording.mcap_log import checked_scan
+    from adm_sim.recording.mcap_log import checked_scan  # noqa: PLC0415  start-up: only on this path (47 ms)
 
     try:
         found = checked_scan(path, skip_damaged, _warn)
@@ -341,7 +340,7 @@ def verify_rrd(tmp, final) -> None:
     """``rerun rrd verify`` of the written recording: rerun's file sink reports a failed write (a
     full disk, a file size limit) only in its own log, so a recording that does not load whole is
     this run's failure (:class:`RunError`), and it is never renamed to its final name."""
-    from adm_sim.recording.rerun_log import rerun_cli, rerun_cli_env
+    from adm_sim.recording.viewer_process import rerun_cli, rerun_cli_env  # noqa: PLC0415  start-up: only on this path (17 ms)
 
     try:
         proc = subprocess.run([rerun_cli(), "rrd", "verify", str(tmp)], env=rerun_cli_env(), capture_output=True,
@@ -357,8 +356,8 @@ def verify_rrd(tmp, final) -> None:
 
 
 def convert(args, save_path) -> None:
-    from adm_sim.recording.mcap_log import salvage
-    from adm_sim.recording.rerun_log import ensure_analytics_disabled, rerun_cli, rerun_cli_env
+    from adm_sim.recording.mcap_log import salvage  # noqa: PLC0415  start-up: only on this path (47 ms)
+    from adm_sim.recording.viewer_process import ensure_analytics_disabled, rerun_cli, rerun_cli_env  # noqa: PLC0415  start-up: only on this path (17 ms)
 
     ensure_analytics_disabled()
     source = Path(args.mcap)
@@ -385,9 +384,9 @@ def _qos_profile(offered: str, topic: str):
     """The rclpy QoS a channel was offered with: its ``offered_qos_profiles`` (rosbag2's metadata,
     written by :class:`adm_sim.recording.mcap_log.McapRecorder`), else the class of its topic in
     :data:`adm_sim.protocol.TOPICS` (recordings made before channels carried it)."""
-    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy  # noqa: PLC0415  rclpy (~0.2 s) only when republishing
 
-    from adm_sim.recording.mcap_log import parse_qos_profiles, topic_qos
+    from adm_sim.recording.mcap_log import parse_qos_profiles, topic_qos  # noqa: PLC0415  start-up: only on this path (47 ms)
 
     history, depth, reliability, durability = parse_qos_profiles(offered) or topic_qos(topic)
     return QoSProfile(
@@ -414,7 +413,7 @@ class _FlowControl:
         self.outstanding: dict = {}
 
     def add(self, pub, topic: str, qos) -> None:
-        from rclpy.qos import ReliabilityPolicy
+        from rclpy.qos import ReliabilityPolicy  # noqa: PLC0415  rclpy (~0.2 s) only when republishing
 
         if qos.reliability != ReliabilityPolicy.RELIABLE:
             return  # best effort: nothing to wait for
@@ -436,7 +435,7 @@ class _FlowControl:
             self.drain(pub, topic)
 
     def drain(self, pub, topic: str) -> None:
-        from rclpy.duration import Duration
+        from rclpy.duration import Duration  # noqa: PLC0415  rclpy (~0.2 s) only when republishing
 
         if pub.get_subscription_count() and not pub.wait_for_all_acked(Duration(seconds=self.ack_timeout_s)):
             raise RunError(f"republish: the subscribers of '{topic}' acknowledged nothing for "
@@ -453,12 +452,11 @@ def republish(args, found) -> int:
     """Publish the recorded topics (``found``: the checked scan of the recording) and /clock in
     simulated time, each with the QoS it was recorded with (descriptions latched again),
     flow-controlled; returns messages published."""
-    import importlib
 
-    import rclpy
-    from rosgraph_msgs.msg import Clock
+    import rclpy  # noqa: PLC0415  rclpy (~0.2 s) only when republishing
+    from rosgraph_msgs.msg import Clock  # noqa: PLC0415  rclpy (~0.2 s) only when republishing
 
-    from adm_sim.recording.mcap_log import sorted_messages
+    from adm_sim.recording.mcap_log import sorted_messages  # noqa: PLC0415  start-up: only on this path (47 ms)
 
     def msg_class(schema_name: str):
         pkg, _, name = schema_name.partition("/msg/")
@@ -469,7 +467,6 @@ def republish(args, found) -> int:
     items = [m for m in sorted_messages(found, args.topics) if m[1].topic != P.TOPIC_CLOCK]
     if not items:
         raise InputError(f"--topics: none of {args.topics} is in '{args.mcap}'")
-    from adm_sim.processes.dds_env import clean_dead_shm, record_shm
 
     clean_dead_shm()  # what an earlier replay or node killed with SIGKILL left in /dev/shm
     context = rclpy.context.Context()
@@ -539,20 +536,18 @@ def main(argv=None) -> int:
 
 
 def _run(args) -> int:
-    from adm_sim.files import write_atomic
 
     check_args(args)
     found = check_readable(args.mcap, args.skip_damaged)  # every reader: damage named before anything starts
     env = viewer = None
     if args.connect:  # a viewer that is not there (closed port, another server, silence): one line, exit 1
-        from adm_sim.recording.viewer_feed import check_viewer
+        from adm_sim.recording.viewer_feed import check_viewer  # noqa: PLC0415  start-up: only on this path (17 ms)
 
         check_viewer(args.connect)
     elif args.spawn:  # a viewer that dies at once (no display) is the run's failure, not "logged"
         viewer, url = spawn_checked_viewer()
         args.spawn, args.connect = False, url
     if args.republish:
-        from adm_sim.processes.dds_env import apply_local_ros_env
 
         env = apply_local_ros_env(args.domain_id)  # before rclpy creates a participant
         print(f"ROS_DOMAIN_ID={env.domain_id}", flush=True)

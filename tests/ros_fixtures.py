@@ -56,8 +56,9 @@ def node_procs(ros_domain, tmp_path):
 
 
 @contextmanager
-def driver_node(domain_id, cls=None, **params):
-    """A driver node in this process (isolated context), spun in a background thread."""
+def driver_node(domain_id, cls=None, namespace=None, **params):
+    """A driver node in this process (isolated context, in ``namespace`` if given), spun in a
+    background thread."""
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
@@ -66,7 +67,8 @@ def driver_node(domain_id, cls=None, **params):
 
     ctx = rclpy.context.Context()
     rclpy.init(context=ctx, domain_id=int(domain_id))
-    node = (cls or RunDriver)(context=ctx, parameter_overrides=[Parameter(k, value=v) for k, v in params.items()])
+    kw = {} if namespace is None else {"namespace": namespace}
+    node = (cls or RunDriver)(context=ctx, parameter_overrides=[Parameter(k, value=v) for k, v in params.items()], **kw)
     ex = SingleThreadedExecutor(context=ctx)
     ex.add_node(node)
     stop = threading.Event()

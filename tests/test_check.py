@@ -214,7 +214,7 @@ def test_bad_input_api(kw, msg):
 @pytest.mark.parametrize("kw,flag", [
     (dict(max_line_speed_kmh=520.0), "--max-line-speed: 520 km/h is out of range"),
     (dict(max_line_speed_kmh=300.0, step_kmh=2.0), "--speed-step: 2 km/h is out of range"),
-    (dict(max_line_speed_kmh=300.0, track="slab"), "--track: 'slab' is not allowed"),
+    (dict(max_line_speed_kmh=300.0, alpha="7"), "--alpha: 7 is not a classification factor"),
     (dict(max_line_speed_kmh=300.0, damping="eada"), "--damping: 'eada' is not allowed"),
     (dict(max_line_speed_kmh=300.0, track_maintenance="poor"), "--track-maintenance: 'poor' is not one of"),
     (dict(max_line_speed_kmh=300.0, where="x=99"), "--where: 99 m is out of range"),

@@ -126,7 +126,7 @@ def test_envelope_bad_input():
         moving_load_envelope(bridge, [0.0], [1e5], [200.0], samples_per_period=2)
     with pytest.raises(InputError, match=r"speed_kmh: 700 km/h is out of range"):
         moving_load_envelope(bridge, [0.0], [1e5], [700.0])
-    with pytest.raises(InputError, match=r"damping: zeta \+ delta_zeta = 0 %; the exact envelope needs damping > 0 %"):
+    with pytest.raises(InputError, match=r"the exact envelope needs damping > 0 %"):  # text: test_fields
         moving_load_envelope(bridge.with_damping(0.0), [0.0], [1e5], [200.0])
 
 

@@ -309,7 +309,7 @@ def test_the_scan_finds_a_planted_range():
                'check_int("n_modes", v, 1, 20)']
     assert [bool(range_literals(s)) for s in planted] == [True] * len(planted)
     assert not range_literals('fields.view("cli", "--steps-per-period").check(x)')
-    assert not range_literals('check_range("alpha", a, "-")')
+    assert not range_literals('check_range("tolerance", a, "-")')  # not a registry name
 
 
 # ---------------------------------------------------------------- docs/fields.md
@@ -388,3 +388,101 @@ def test_a_key_is_spelled_by_one_field_per_surface():
     counts = Counter((s.surface, s.key) for f in fields._FIELDS for s in f.spellings)
     assert [k for k, n in counts.items() if n > 1] == []
     assert len(fields._VIEWS) == sum(counts.values())
+
+
+# ---------------------------------------------------------------- library argument -> flag
+def library_arguments():
+    """``{argument: [file:line, ...]}``: every library argument an :class:`InputError` names in ``src/``
+    (``InputError(..., field="x")``, ``check_range("x", ..., argument=True)``,
+    ``FIELDS["x"].check(..., argument=True)``); flags (``--x``) and non-literal names left out."""
+    out: dict = {}
+    for path in sorted((ROOT / "src").rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if not isinstance(node, ast.Call):
+                continue
+            kw = {k.arg: k.value for k in node.keywords}
+            name = None
+            if getattr(node.func, "id", None) == "InputError" and isinstance(kw.get("field"), ast.Constant):
+                name = kw["field"].value
+            elif isinstance(kw.get("argument"), ast.Constant) and kw["argument"].value is True:
+                f = node.func
+                if node.args and isinstance(node.args[0], ast.Constant):
+                    name = node.args[0].value
+                elif isinstance(f, ast.Attribute) and isinstance(f.value, ast.Subscript) \
+                        and isinstance(f.value.slice, ast.Constant):
+                    name = f.value.slice.value
+            if isinstance(name, str) and not name.startswith("--"):
+                out.setdefault(name, []).append(f"{path.relative_to(ROOT)}:{node.lineno}")
+    return out
+
+
+#: Library arguments with no flag of their own: the command checks them under its flag before the
+#: library sees them (``--damping-model`` speaks rayleigh13|modal, the library rayleigh|modal;
+#: ``--track`` is an argparse choice; ``--lateral-frequency`` is checked first in sim_commands).
+CHECKED_FIRST_BY_THE_COMMAND = {"damping_model", "track", "lateral_frequency"}
+
+
+def test_every_library_argument_has_its_flag_in_the_registry():
+    args = library_arguments()
+    assert {"max_line_speed_kmh", "step_kmh", "trains", "damping", "scheduler", "n_modes"} <= set(args)
+    unmapped = {a for a in args if fields.argument_flag(a) is None}
+    assert unmapped == CHECKED_FIRST_BY_THE_COMMAND, {a: args[a] for a in unmapped}
+    mapped = set(args) - unmapped | {"where"}  # envelope.parse_where names its argument through a variable
+    assert {a: fields.argument_flag(a) for a in sorted(mapped)} == {
+        "alpha": "--alpha", "damping": "--damping", "max_line_speed_kmh": "--max-line-speed", "n_modes": "--modes",
+        "scheduler": "--scheduler", "step_kmh": "--speed-step", "track_maintenance": "--track-maintenance",
+        "trains": "--trains", "where": "--where"}
+    # a field with two flags (--span, --spans) or none (a ROS parameter) names no flag
+    assert fields.argument_flag("span_m") is None and fields.argument_flag("ds_m") is None
+    assert fields.argument_flag(None) is None and fields.argument_flag("no_such_field") is None
+
+
+@pytest.mark.parametrize("argv,line", [
+    (["check", "--max-line-speed", "300", "--modes", "0.5"], "error: --modes: 0.5 - is out of range; allowed [3, 20] -"),
+    (["check", "--max-line-speed", "300", "--alpha", "7"],
+     "error: --alpha: 7 is not a classification factor of EN 1991-2 6.3.2(3); allowed 0.75, 0.83,"),
+    (["check", "--max-line-speed", "300", "--track-maintenance", "poor"],
+     "error: --track-maintenance: 'poor' is not one of EN 1991-2 6.4.5.2's; allowed careful, standard"),
+    (["check", "--max-line-speed", "300", "--damping-model", "foo"],
+     "error: --damping-model: 'foo' is not allowed; allowed rayleigh13, modal"),
+])
+def test_a_library_refusal_names_the_flag_on_the_command_line(argv, line, capsys):
+    from adm_sim import sim_commands
+
+    assert sim_commands.main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(line), err
+
+
+# ---------------------------------------------------------------- the Δζ sign rule: one check, one text
+def test_the_delta_zeta_sign_rule_has_one_text(capsys):
+    """ζ + Δζ >= 0 is the registry's range [-ζ, 0.2]; where the exact envelope needs ζ + Δζ > 0 the
+    refusal is the one text of :func:`adm_sim.fields.check_delta_zeta`, on the command line and in
+    the library alike."""
+    zeta = 0.01
+    assert fields.check_delta_zeta("delta_zeta", -zeta, zeta) == -zeta  # total 0: allowed by the range
+    assert fields.check_delta_zeta("delta_zeta", -0.009, zeta, positive_for="x") == -0.009
+    with pytest.raises(InputError) as err:
+        fields.check_delta_zeta("delta_zeta", -zeta, zeta, positive_for="the exact envelope")
+    assert str(err.value) == ("delta_zeta: zeta + delta_zeta = 0 %; the exact envelope needs damping > 0 % "
+                              "(allowed delta_zeta > -0.01 - (fraction))")
+    with pytest.raises(InputError, match=r"^delta_zeta: -0\.0101 - \(fraction\) is out of range; allowed "
+                                         r"\[-0\.01, 0\.2\] - \(fraction\)$"):
+        fields.check_delta_zeta("delta_zeta", -0.0101, zeta, positive_for="the exact envelope")
+    with pytest.raises(InputError) as err:  # a bridge without damping: no "-0" in the allowed range
+        fields.check_delta_zeta_pct("delta_zeta_pct", 0.0, 0.0, positive_for="the exact envelope")
+    assert str(err.value).endswith("(allowed delta_zeta_pct > 0 %)")
+    from adm_sim import sim_commands
+
+    argv = ["sweep", "--bridge", "L=15,n0=8,mu=10000,zeta_pct=1", "--delta-zeta-pct", "-1"]
+    assert sim_commands.main(argv) == 2
+    assert capsys.readouterr().err.strip() == (
+        "error: --delta-zeta-pct: zeta + delta_zeta = 0 %; the exact MLM envelope needs damping > 0 % "
+        "(allowed --delta-zeta-pct > -1 %, or --method rk4)")
+    from adm_sim.bridge import named_bridge
+    from adm_sim.envelope import moving_load_envelope
+
+    with pytest.raises(InputError) as err:  # refused before any kernel is compiled
+        moving_load_envelope(named_bridge("B1").with_damping(0.0), [0.0], [1e5], [200.0])
+    assert str(err.value) == ("delta_zeta_pct: zeta + delta_zeta = 0 %; the exact envelope needs damping > 0 % "
+                              "(allowed delta_zeta_pct > 0 %)")

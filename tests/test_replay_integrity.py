@@ -30,16 +30,6 @@ REPLAY = ROOT / "launch_scripts" / "replay.py"
 SIM = [PY, "-m", "adm_sim.sim_commands"]
 
 
-@pytest.fixture(scope="module")
-def recording(tmp_path_factory):
-    out = tmp_path_factory.mktemp("crossing") / "run"
-    r = subprocess.run([PY, str(ROOT / "launch_scripts" / "crossing.py"), "--bridge", "B3", "--train", "ICE-2",
-                        "--model", "mlm", "--speeds", "300", "--out", str(out)],
-                       capture_output=True, text=True, timeout=300)
-    assert r.returncode == 0, r.stderr[-2000:]
-    return out / "run.mcap"
-
-
 def _records(data: bytes):
     """``(offset, opcode, end)`` of the data section's records, by the specification's framing."""
     out, pos = [], 8

@@ -9,13 +9,12 @@ driver node in its namespace, and each gets the exact result of its own in-proce
 from __future__ import annotations
 
 import threading
-from contextlib import contextmanager
 
 import numpy as np
 import pytest
 
 pytest.importorskip("rclpy")
-from ros_fixtures import node_procs, ros_domain  # noqa: E402,F401
+from ros_fixtures import driver_node, node_procs, ros_domain  # noqa: E402,F401
 
 from adm_sim.bridge import resolve_bridge  # noqa: E402
 from adm_sim.step_grid import StepOptions  # noqa: E402
@@ -26,36 +25,6 @@ STEP = {"steps_per_period": 4.0, "free_vibration_periods": 1.0}
 PAIRS = {"/b1": ("B1", "200,250,290"), "/b3": ("B3", "230,300,350")}
 
 
-@contextmanager
-def namespaced_driver(domain_id, namespace):
-    import rclpy
-    from rclpy.executors import SingleThreadedExecutor
-
-    from adm_sim.nodes.driver import RunDriver
-
-    ctx = rclpy.context.Context()
-    rclpy.init(context=ctx, domain_id=int(domain_id))
-    node = RunDriver(context=ctx, namespace=namespace)
-    ex = SingleThreadedExecutor(context=ctx)
-    ex.add_node(node)
-    stop = threading.Event()
-
-    def spin():
-        while not stop.is_set() and ctx.ok():
-            ex.spin_once(timeout_sec=0.05)
-
-    th = threading.Thread(target=spin, daemon=True)
-    th.start()
-    try:
-        yield node
-    finally:
-        stop.set()
-        th.join(5)
-        node.close()
-        node.destroy_node()
-        rclpy.try_shutdown(context=ctx)
-
-
 def test_two_namespaced_pairs_in_one_domain_give_each_its_exact_result(node_procs, ros_domain):
     for ns, (bridge, speeds) in PAIRS.items():
         tag = ns.strip("/")
@@ -64,7 +33,7 @@ def test_two_namespaced_pairs_in_one_domain_give_each_its_exact_result(node_proc
         node_procs.start(f"train_{tag}", "adm_sim.nodes.train_node", {"speeds_kmh": speeds},
                          extra=["-r", f"__ns:={ns}"])
     results, errors = {}, []
-    with namespaced_driver(ros_domain.domain_id, "/b1") as d1, namespaced_driver(ros_domain.domain_id, "/b3") as d3:
+    with driver_node(ros_domain.domain_id, namespace="/b1") as d1, driver_node(ros_domain.domain_id, namespace="/b3") as d3:
         def go(ns, d):
             try:
                 d.wait_for_graph()

@@ -91,16 +91,6 @@ def _stale(names):
     return {n for n in names if os.path.exists(f"/dev/shm/{n}") and n not in live}
 
 
-@pytest.fixture(scope="module")
-def recording(tmp_path_factory):
-    out = tmp_path_factory.mktemp("crossing") / "run"
-    r = subprocess.run([PY, str(ROOT / "launch_scripts" / "crossing.py"), "--bridge", "B3", "--train", "ICE-2",
-                        "--model", "mlm", "--speeds", "300", "--out", str(out)],
-                       capture_output=True, text=True, timeout=300)
-    assert r.returncode == 0, r.stderr[-2000:]
-    return out / "run.mcap"
-
-
 def test_sigkill_of_replay_republish_leaves_nothing_after_the_next_start(recording, tmp_path):
     with dds_env.local_ros_env() as env:
         live = subprocess.Popen([PY, "-c", _PROBE], env=env, stdout=subprocess.PIPE, text=True)

@@ -41,6 +41,7 @@ from adm_sim.cliutil import (Parser, add_choice, add_dim_grid, add_overwrite, ad
 from adm_sim.errors import InputError
 from adm_sim.fields import check_range
 from adm_sim.limits import MAX_DELTA_ZETA_PCT
+from adm_sim.step_grid import StepOptions
 
 #: Range of recommend --mu (kg/m): the 0.5-100 t/m the lower-bound rules accept (the registry's).
 MU_RANGE_KG_M = (option_view("--mu").lo, option_view("--mu").hi)
@@ -72,11 +73,10 @@ def _list(text, field):
 
 
 def _options(args):
-    from adm_sim.step_grid import StepOptions
 
-    from adm_calib.calibrate import CalibrationOptions
+    from adm_calib.calibrate import CalibrationOptions  # noqa: PLC0415  scipy (~1.3 s): only this subcommand
 
-    from adm_calib.study.cases import REFINED_SPEED_STEP_KMH
+    from adm_calib.study.cases import REFINED_SPEED_STEP_KMH  # noqa: PLC0415  start-up: only this subcommand (316 ms)
 
     step = None
     if args.steps_per_period is not None or args.dense_maxima:
@@ -91,16 +91,16 @@ def _steps_per_period(text):
 
 
 def _speeds(text):
-    from adm_sim.sweep import parse_speeds
+    from adm_sim.sweep import parse_speeds  # noqa: PLC0415  start-up: only this subcommand (60 ms)
 
     return parse_speeds(text)
 
 
 def cmd_calibrate(args):
-    from adm_sim.bridge import resolve_bridge
-    from adm_sim.trains import load_train
+    from adm_sim.bridge import resolve_bridge  # noqa: PLC0415  start-up: only this subcommand (16 ms)
+    from adm_sim.trains import load_train  # noqa: PLC0415  start-up: only this subcommand (47 ms)
 
-    from adm_calib.calibrate import calibrate
+    from adm_calib.calibrate import calibrate  # noqa: PLC0415  scipy (~1.3 s): only this subcommand
 
     inputs = {"--bridge": args.bridge, "--train": args.train}
     json_path = claim_output(args.json, "--json", args.force, ".json", inputs) if args.json is not None else None
@@ -123,7 +123,7 @@ def cmd_calibrate(args):
         if json_path:
             outs.write(json_path, lambda p: p.write_text(res.to_json() + "\n"), "--json", note=f"wrote {json_path}")
         if plot_path:
-            from adm_calib.plots import plot_calibration
+            from adm_calib.plots import plot_calibration  # noqa: PLC0415  start-up: only this subcommand (239 ms)
 
             outs.write(plot_path, lambda p: plot_calibration(res, p), "--plot", note=f"wrote {plot_path}")
     return 0
@@ -132,7 +132,7 @@ def cmd_calibrate(args):
 def _check_plausible(res):
     """Plausibility warnings on a calibration's MLM and DIM curves: each curve's largest
     acceleration, named by bridge, train, model and speed (:mod:`adm_sim.plausibility`)."""
-    from adm_sim.plausibility import check_response
+    from adm_sim.plausibility import check_response  # noqa: PLC0415  start-up: only this subcommand (12 ms)
 
     for model, v, a in (("MLM", res.mlm_speeds_kmh, res.mlm_acc_m_s2), ("DIM", res.dim_speeds_kmh, res.dim_acc_m_s2)):
         if a.size:
@@ -142,11 +142,11 @@ def _check_plausible(res):
 
 
 def cmd_table4(args):
-    from adm_sim.bridge import named_bridge
-    from adm_sim.trains import load_train
+    from adm_sim.bridge import named_bridge  # noqa: PLC0415  start-up: only this subcommand (16 ms)
+    from adm_sim.trains import load_train  # noqa: PLC0415  start-up: only this subcommand (47 ms)
 
-    from adm_calib.plots import plot_total_damping
-    from adm_calib.table4 import run_table4
+    from adm_calib.plots import plot_total_damping  # noqa: PLC0415  start-up: only this subcommand (239 ms)
+    from adm_calib.table4 import run_table4  # noqa: PLC0415  scipy (~1.2 s): only this subcommand
 
     names = ("table4.csv", "table4.txt", "table4.json", "fig19_total_damping.png")
     out, paths = _out_dir(args.out, "--out", names, args.force)
@@ -203,16 +203,16 @@ def _as_option(option, label, fn, *args):
 
 def _study_train(text, option):
     """A study train's canonical name; the error names ``option`` as typed."""
-    from adm_calib.reference import canonical_train_name
+    from adm_calib.reference import canonical_train_name  # noqa: PLC0415  start-up: only this subcommand (91 ms)
 
     return _as_option(option, "train", canonical_train_name, text)
 
 
 def cmd_recommend(args):
-    from adm_sim.bridge import SPAN_RANGE_M
-    from adm_sim.plausibility import check_studied_field
+    from adm_sim.bridge import SPAN_RANGE_M  # noqa: PLC0415  start-up: only this subcommand (16 ms)
+    from adm_sim.plausibility import check_studied_field  # noqa: PLC0415  start-up: only this subcommand (12 ms)
 
-    from adm_calib.reference import (FUNCTION_SOURCES, STUDY_N0_MAX_HZ, STUDY_SPAN_RANGE_M, lower_bound_table,
+    from adm_calib.reference import (FUNCTION_SOURCES, STUDY_N0_MAX_HZ, STUDY_SPAN_RANGE_M, lower_bound_table,  # noqa: PLC0415  start-up: only this subcommand (91 ms)
                                      recommend, span_from_frequency_m)
 
     train = _study_train(args.train, "--train")
@@ -268,7 +268,7 @@ def cmd_recommend(args):
 
 # ---------------------------------------------------------------------- parametric study
 def _mass_functions(text):
-    from adm_calib.study import MASS_FUNCTION_NAMES
+    from adm_calib.study import MASS_FUNCTION_NAMES  # noqa: PLC0415  start-up: only this subcommand (370 ms)
 
     out = []
     for m in _list(text, "--mass-functions"):
@@ -297,13 +297,13 @@ def _freq_indices(text):
 def _scheduler(text):
     """``--scheduler``: an address like tcp://127.0.0.1:8786 where a dask scheduler answers
     (connected with a timeout and checked for the dask handshake before anything is written)."""
-    from adm_calib.study.execution import check_scheduler
+    from adm_calib.study.execution import check_scheduler  # noqa: PLC0415  start-up: only this subcommand (235 ms)
 
     return check_scheduler(text)
 
 
 def cmd_study(args):
-    from adm_calib.study import StudySettings, canonical_trains, run_study, select_cases
+    from adm_calib.study import StudySettings, canonical_trains, run_study, select_cases  # noqa: PLC0415  start-up: only this subcommand (370 ms)
 
     out, _ = _out_dir(args.out, "--out", (), True)
     trains = _once([canonical_trains([t], field="--trains")[0] for t in _list(args.trains, "--trains")],
@@ -356,7 +356,7 @@ def cmd_study(args):
 
 def _check_fit_records(records, option, path):
     """Refuse result lines the fit cannot use as they are: a NaN or text where a number belongs."""
-    from adm_calib.study import MASS_FUNCTION_NAMES
+    from adm_calib.study import MASS_FUNCTION_NAMES  # noqa: PLC0415  start-up: only this subcommand (370 ms)
 
     for no, rec in enumerate(records, start=1):
         where = f"{option}: {str(path)!r}: record {no} ({rec['bridge']}, {rec['train']})"
@@ -391,7 +391,7 @@ def _check_fit_records(records, option, path):
 
 def _fit_range_hz(text):
     """``--fit-range-hz lo:hi`` (Hz) -> the interval boundaries of the fit (:func:`fit_edges_hz`)."""
-    from adm_calib.study import fit_edges_hz
+    from adm_calib.study import fit_edges_hz  # noqa: PLC0415  start-up: only this subcommand (370 ms)
 
     parts = [p.strip() for p in str(text).split(":")]
     try:
@@ -411,9 +411,9 @@ def _tag(text):
 
 
 def cmd_study_fit(args):
-    from adm_calib import plots
-    from adm_calib import study as st
-    from adm_calib.study.conservative import conservative_markdown, conservative_study, conservative_toml
+    from adm_calib import plots  # noqa: PLC0415  start-up: only this subcommand (239 ms)
+    from adm_calib import study as st  # noqa: PLC0415  start-up: only this subcommand (370 ms)
+    from adm_calib.study.conservative import conservative_markdown, conservative_study, conservative_toml  # noqa: PLC0415  start-up: only this subcommand (261 ms)
 
     res = input_file(args.results, "--results", "results file")
     rule = "strict" if args.exclude_flagged else args.exclude
@@ -475,7 +475,7 @@ def cmd_study_fit(args):
 def cmd_check_calib(args):
     """``adm-calib check``: the core's EN 1991-2 check (:func:`adm_sim.sim_commands.cmd_check`) with all four
     damping methods; ``lb`` and ``vbi`` from :func:`adm_calib.check.calibrated_damping`."""
-    from adm_calib.check import calibrated_damping
+    from adm_calib.check import calibrated_damping  # noqa: PLC0415  start-up: only this subcommand (186 ms)
 
     return cmd_check(args, damping_provider=calibrated_damping)
 

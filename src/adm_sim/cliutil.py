@@ -19,7 +19,7 @@ import warnings
 
 from adm_sim import __version__
 from adm_sim.errors import EXIT_INPUT, EXIT_INTERRUPTED, EXIT_OK, EXIT_RUN, AdmSimError, InputError, PlausibilityWarning
-from adm_sim.fields import view
+from adm_sim.fields import argument_flag, view
 from adm_sim.files import release_all
 from adm_sim.limits import DEFAULT_SPEEDS
 
@@ -210,28 +210,11 @@ class Parser(argparse.ArgumentParser):
             self.exit(EXIT_INPUT, f"error: {one_line(exc)}\n")
 
 
-#: Library argument -> command-line flag: library messages name the argument
-#: (``max_line_speed_kmh: ...``), the command line shows the flag the user typed.
-ARGUMENT_FLAGS = {
-    "max_line_speed_kmh": "--max-line-speed",
-    "step_kmh": "--speed-step",
-    "trains": "--trains",
-    "damping": "--damping",
-    "damping_model": "--damping-model",
-    "track": "--track",
-    "track_maintenance": "--track-maintenance",
-    "alpha": "--alpha",
-    "n_modes": "--modes",
-    "where": "--where",
-    "scheduler": "--scheduler",
-}
-
-
 def cli_message(exc):
     """The message of :class:`InputError` ``exc`` as a command line shows it: a leading library
-    argument (``exc.field``) becomes its flag (:data:`ARGUMENT_FLAGS`)."""
+    argument (``exc.field``) becomes its flag in the field registry (:func:`adm_sim.fields.argument_flag`)."""
     msg, field = str(exc), getattr(exc, "field", None)
-    flag = ARGUMENT_FLAGS.get(field)
+    flag = argument_flag(field)
     if flag is not None and msg.startswith(field):
         return flag + msg[len(field):]
     return msg

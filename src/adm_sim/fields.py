@@ -367,7 +367,7 @@ _FIELDS = [
        *_toml_spec("zeta", "damping_ratio"), *_toml_spec("zeta_pct", unit="%"), _S("ros", "zeta_pct", "%"),
        lo=0.0, hi=0.20),
     _F("n_modes", "-", int, "retained modes (paper: 3, Section 2.3)", "bridge",
-       *_toml_spec("n_modes"), _S("ros", "n_modes"), lo=1, hi=20),
+       *_toml_spec("n_modes"), _S("ros", "n_modes"), _S("cli", "--modes"), lo=1, hi=20),
     _F("damping_model", "", str, "Rayleigh anchored at modes 1 and 3, or equal modal damping", "bridge",
        *_toml_spec("damping_model"), _S("ros", "damping_model"), choices=("rayleigh", "modal")),
     _F("bridge_type", "", str, "concrete/filler beam or steel/composite (Table 2 damping and class)", "bridge",
@@ -404,6 +404,18 @@ _FIELDS = [
        "run", _S("cli", "--max-line-speed"), lo=3.6 * CHECK_MIN_SPEED_M_S, hi=500.0, lo_open=True),
     _F("step_kmh", "km/h", float, "speed step of the EN 1991-2 check", "run", _S("cli", "--speed-step"),
        lo=0.0, hi=1.0, lo_open=True),
+    _F("trains", "", str, "trains of the EN 1991-2 check: hslm, HSLM-Ak, train names or TOML train files, "
+       "comma separated", "run", _S("cli", "--trains")),
+    _F("damping", "", str, "additional damping of the EN 1991-2 check: EN 1991-2 6.4.6.3.1 (adm), the paper's "
+       "lower bounds (lb) or the calibrated VBI (vbi); lb and vbi: adm-calib check only", "run",
+       _S("cli", "--damping"), choices=("none", "adm", "lb", "vbi")),
+    _F("track_maintenance", "", str, "EN 1991-2 6.4.5.2 track maintenance of the LM71 dynamic factor: careful "
+       "(Phi2) or standard (Phi3)", "run", _S("cli", "--track-maintenance")),
+    _F("alpha", "-", str, "LM71 classification factor alpha, one of EN 1991-2 6.3.2(3)", "run", _S("cli", "--alpha")),
+    _F("where", "", str, "where the acceleration is taken: deck, midspan or x=<m> with 0 < x < L", "run",
+       _S("cli", "--where")),
+    _F("scheduler", "", str, "address of a running dask scheduler on this machine (tcp://127.0.0.1:PORT)", "run",
+       _S("cli", "--scheduler")),
     _F("jobs", "processes", int, "worker processes of table4", "run", _S("cli", "--jobs"), lo=1, hi=64),
     _F("workers", "processes", int, "worker processes of the local study cluster", "run", _S("cli", "--workers"),
        lo=1, hi=64),
@@ -510,6 +522,16 @@ def core(name):
     return FIELDS[name].view()
 
 
+def argument_flag(name):
+    """The command-line flag of library argument ``name`` (an :class:`~adm_sim.errors.InputError`'s
+    ``field``): the one ``cli`` spelling of the field of that name; None when there is no such field
+    or it has no single flag. Library messages name the argument (``max_line_speed_kmh: ...``), the
+    command line shows the flag the user typed (:func:`adm_sim.cliutil.cli_message`)."""
+    f = FIELDS.get(name) if isinstance(name, str) else None
+    flags = [s.key for s in f.spellings if s.surface == "cli"] if f is not None else []
+    return flags[0] if len(flags) == 1 else None
+
+
 def check_count(name, n, where, given):
     """``n``, a size of one run's input (field ``name`` of group ``limits``), or :class:`InputError`
     refusing it up front, one line naming ``where`` (the flag, parameter or file the user typed),
@@ -524,18 +546,30 @@ def check_count(name, n, where, given):
     return n
 
 
-def check_delta_zeta(field, value, damping_ratio):
-    """``float(value)``, an additional damping Δζ as a fraction, or :class:`InputError` naming
-    ``field`` with the allowed ``[-ζ, 0.2]``; ``damping_ratio`` is the bridge's ζ (fraction)."""
-    return FIELDS["delta_zeta"].check(value, name=field, lo=-damping_ratio)
+def check_delta_zeta(field, value, damping_ratio, *, pct=False, positive_for=None, remedy=""):
+    """``float(value)``, an additional damping Δζ (a fraction; in % with ``pct``), or
+    :class:`InputError` naming ``field``: the one check of the Δζ sign rule.
+
+    Δζ lies in the registry's ``[-ζ, 0.2]`` (``[-100 ζ, 20] %``): total damping ζ + Δζ >= 0.
+    ``positive_for``: what needs ζ + Δζ > 0 (the exact envelope divides by the damping at
+    resonance), e.g. ``"the exact MLM envelope"``; then Δζ = -ζ is refused too, in the one text
+    ``<field>: zeta + delta_zeta = 0 %; <positive_for> needs damping > 0 % (allowed <field> > -1.85 %<remedy>)``.
+    ``damping_ratio`` is the bridge's ζ (fraction).
+    """
+    v = view("cli", "--delta-zeta-pct") if pct else FIELDS["delta_zeta"].view()
+    x = v.check(value, name=field, lo_core=-damping_ratio)
+    total = damping_ratio + v.to_core(x)
+    if positive_for is not None and total <= 0.0:
+        raise InputError(f"{field}: zeta + delta_zeta = {100 * total:g} %; {positive_for} needs damping > 0 % "
+                         f"(allowed {field} > {v.from_core(-damping_ratio) + 0.0:g} {v.unit}{remedy})")  # + 0.0: no "-0"
+    return x
 
 
-def check_delta_zeta_pct(field, value_pct, damping_ratio):
-    """``float(value_pct)``, an additional damping Δζ in %, or :class:`InputError` naming ``field``
-    with the allowed ``[-100 ζ, 20] %``; ``damping_ratio`` is the bridge's ζ (fraction)."""
-    return view("cli", "--delta-zeta-pct").check(value_pct, name=field, lo_core=-damping_ratio)
+def check_delta_zeta_pct(field, value_pct, damping_ratio, **kw):
+    """:func:`check_delta_zeta` of a Δζ in %: ``float(value_pct)`` in ``[-100 ζ, 20] %``."""
+    return check_delta_zeta(field, value_pct, damping_ratio, pct=True, **kw)
 
 
 __all__ = ["check_range", "check_number", "check_int", "check_choice", "check_count", "check_delta_zeta", "check_delta_zeta_pct",
            "SCALES", "SURFACES", "Spelling", "Field", "View", "FIELDS", "GROUPS", "VEHICLE_FIELDS",
-           "VEHICLE_OPTIONAL", "view", "spellings", "core"]
+           "VEHICLE_OPTIONAL", "view", "spellings", "core", "argument_flag"]

@@ -17,18 +17,20 @@ from adm_sim.cliutil import (Parser, add_choice, add_delta_zeta_pct, add_overwri
                              progress_callback)
 from adm_sim.errors import InputError
 from adm_sim.cliutil import run_cli
+from adm_sim.fields import FIELDS, check_delta_zeta_pct
 from adm_sim.files import OutputSet, claim_output, mcap_input
 from adm_sim.figures import plot_check, plot_sweep
 from adm_sim.limits import ACC_LIMITS_M_S2, TRACK_ALIASES, check_track_type
+from adm_sim import _jit
 
 
 def cmd_sweep(args):
-    from adm_sim.bridge import resolve_bridge
-    from adm_sim.envelope import parse_where, where_text
-    from adm_sim.step_grid import StepOptions
-    from adm_sim.sweep import parse_speeds, run_sweep, run_sweep_compiled, sweep_exact
-    from adm_sim.trains import load_train
-    from adm_sim.plausibility import check_response
+    from adm_sim.bridge import resolve_bridge  # noqa: PLC0415  start-up: only this subcommand (20 ms)
+    from adm_sim.envelope import parse_where, where_text  # noqa: PLC0415  numba kernels (~0.6 s): only this subcommand
+    from adm_sim.step_grid import StepOptions  # noqa: PLC0415  start-up: only this subcommand (6 ms)
+    from adm_sim.sweep import parse_speeds, run_sweep, run_sweep_compiled, sweep_exact  # noqa: PLC0415  start-up: only this subcommand (52 ms)
+    from adm_sim.trains import load_train  # noqa: PLC0415  start-up: only this subcommand (58 ms)
+    from adm_sim.plausibility import check_response  # noqa: PLC0415  start-up: only this subcommand (7 ms)
 
     inputs = {"--train": args.train, "--bridge": args.bridge}
     json_path = None if args.json is None else claim_output(args.json, "--json", args.overwrite, inputs=inputs)
@@ -55,9 +57,9 @@ def cmd_sweep(args):
     if method == "exact" and bridge.damping_ratio + dz <= 0.0 and dz == 0.0:  # the bridge's own damping is 0
         raise InputError(f"--bridge: {args.bridge!r} has zeta_pct = 0 % (damping ratio zeta); the exact MLM envelope "
                          f"needs damping > 0 % (give zeta_pct > 0 in the bridge, --delta-zeta-pct > 0, or --method rk4)")
-    if method == "exact" and bridge.damping_ratio + dz <= 0.0:
-        raise InputError(f"--delta-zeta-pct: zeta + delta_zeta = {100 * (bridge.damping_ratio + dz):g} %; the exact "
-                         f"MLM envelope needs damping > 0 % (allowed > {-100 * bridge.damping_ratio:g} %, or --method rk4)")
+    if method == "exact":
+        check_delta_zeta_pct("--delta-zeta-pct", args.delta_zeta_pct, bridge.damping_ratio,
+                             positive_for="the exact MLM envelope", remedy=", or --method rk4")
     print(bridge.describe())
     print(train.describe())
     zeta = bridge.modal_damping_ratios(dz)
@@ -124,9 +126,9 @@ def cmd_check(args, damping_provider=None):
     """EN 1991-2 dynamic check (:mod:`adm_sim.check`). ``--damping none|adm`` are the core's;
     ``lb|vbi`` need adm-calib's ``damping_provider`` (``adm-calib check`` passes it) and are refused
     here, before any work, without one. The core never imports adm_calib."""
-    from adm_sim.bridge import resolve_bridge
-    from adm_sim.check import CALIB_DAMPING_METHODS, DAMPING_MODELS, calib_methods_refusal, resolve_trains, run_check
-    from adm_sim.check_text import summary as check_summary
+    from adm_sim.bridge import resolve_bridge  # noqa: PLC0415  start-up: only this subcommand (20 ms)
+    from adm_sim.check import CALIB_DAMPING_METHODS, DAMPING_MODELS, calib_methods_refusal, resolve_trains, run_check  # noqa: PLC0415  start-up: only this subcommand (114 ms)
+    from adm_sim.check_text import summary as check_summary  # noqa: PLC0415  start-up: only this subcommand (138 ms)
 
     if args.damping in CALIB_DAMPING_METHODS and damping_provider is None:
         raise calib_methods_refusal(args.damping)
@@ -141,7 +143,7 @@ def cmd_check(args, damping_provider=None):
             outs[opt] = claim_output(text, f"--{opt}", args.overwrite, suffix, inputs)
             seen[outs[opt].resolve()] = opt
     bridge = resolve_bridge(args.bridge)
-    from adm_sim.envelope import parse_where
+    from adm_sim.envelope import parse_where  # noqa: PLC0415  numba kernels (~0.6 s): only this subcommand
 
     parse_where(args.where, bridge.span_m)  # refused before any work
     if args.damping_model is not None and args.damping_model not in DAMPING_MODELS:
@@ -152,13 +154,13 @@ def cmd_check(args, damping_provider=None):
                          f"without vehicles; passenger comfort b_v needs the DIM of a real train (add ICE-2, "
                          f"Eurostar, Railjet, ICE-4 or a .toml train to --trains) or omit --comfort")
     if args.lateral_frequency is not None:
-        from adm_sim.check_sls import check_lateral_frequency
+        from adm_sim.check_sls import check_lateral_frequency  # noqa: PLC0415  start-up: only this subcommand (16 ms)
 
         try:  # refused before any work, named by its flag
             check_lateral_frequency(args.lateral_frequency)
         except InputError as exc:
             raise InputError("--lateral-frequency" + str(exc)[len("lateral_frequency"):]) from None
-    from adm_sim.check import parse_bounds
+    from adm_sim.check import parse_bounds  # noqa: PLC0415  start-up: only this subcommand (114 ms)
 
     mass_bounds, stiffness_bounds = (parse_bounds(getattr(args, k), f"--{k.replace('_', '-')}")
                                      for k in ("mass_bounds", "stiffness_bounds"))
@@ -189,7 +191,7 @@ def cmd_check(args, damping_provider=None):
         if "plot" in outs:
             files.write(outs["plot"], lambda p: plot_check(res, p), "--plot", note=f"wrote {args.plot}")
         if "report" in outs:
-            from adm_sim.check_report import write_report
+            from adm_sim.check_report import write_report  # noqa: PLC0415  start-up: only this subcommand (138 ms)
 
             files.write(outs["report"], lambda p: write_report(res, p), "--report", note=f"wrote {args.report}")
     return 0
@@ -198,7 +200,7 @@ def cmd_check(args, damping_provider=None):
 def _check_plausible(res):
     """Plausibility warnings on a check's results: the largest acceleration and deflection over all
     trains and speeds, each named by its train and speed (:mod:`adm_sim.plausibility`)."""
-    from adm_sim.plausibility import check_response
+    from adm_sim.plausibility import check_response  # noqa: PLC0415  start-up: only this subcommand (7 ms)
 
     if not res.trains:
         return
@@ -211,7 +213,7 @@ def _check_plausible(res):
 
 
 def cmd_trains(args):
-    from adm_sim.trains import TRAIN_NAMES, check_train, load_train
+    from adm_sim.trains import TRAIN_NAMES, check_train, load_train  # noqa: PLC0415  start-up: only this subcommand (58 ms)
 
     if args.train is not None and not args.train.strip():
         raise InputError("--train: '' is empty; give a train name or a TOML train file (or omit --train for all)")
@@ -237,7 +239,7 @@ def cmd_trains(args):
 
 
 def cmd_bridges(args):
-    from adm_sim.bridge import TABLE3, named_bridge, parametric_field
+    from adm_sim.bridge import TABLE3, named_bridge, parametric_field  # noqa: PLC0415  start-up: only this subcommand (20 ms)
 
     if args.field:
         field = parametric_field()
@@ -254,7 +256,7 @@ def cmd_bridges(args):
 
 def cmd_salvage(args):
     try:
-        from adm_sim.recording.mcap_log import salvage
+        from adm_sim.recording.mcap_log import salvage  # noqa: PLC0415  start-up: only this subcommand (28 ms)
     except ImportError as exc:
         raise InputError(f"salvage needs the ROS/MCAP extras ({exc})") from None
     src = mcap_input(args.src, "salvage SRC")
@@ -276,8 +278,7 @@ def cmd_salvage(args):
 def cmd_compile(args):
     """Compile every numba kernel once (:mod:`adm_sim.precompile`), at set-up rather than in the first
     real command; with numba's cache in place it only loads the kernels."""
-    from adm_sim import _jit
-    from adm_sim.precompile import compile_kernels
+    from adm_sim.precompile import compile_kernels  # noqa: PLC0415  start-up: only this subcommand (113 ms)
 
     if not _jit.numba_available():
         print("numba is not installed: the kernels run as plain Python, nothing to compile")
@@ -311,7 +312,7 @@ def add_check_arguments(c):
                    help="deck acceleration limit, EN 1990 A2.4.4.2.1: "
                         + ", ".join(f"{a:g} m/s2 {t}" for t, a in ACC_LIMITS_M_S2.items())
                         + "".join(f" ({k} = {v})" for k, v in TRACK_ALIASES.items()))
-    c.add_argument("--damping", choices=("none", "adm", "lb", "vbi"), default="none",
+    c.add_argument("--damping", choices=FIELDS["damping"].choices, default="none",
                    help="additional damping: none, Eurocode ADM (EN 1991-2 6.4.6.3.1), the paper's lower bounds or the "
                         "calibrated VBI (lb and vbi: adm-calib check only)")
     c.add_argument("--where", default="deck",
@@ -337,7 +338,8 @@ def add_check_arguments(c):
                    help="lower,upper bound of the bending stiffness EJ as fractions of the nominal "
                         "(--stiffness-bounds=-0.1,0; EN 1991-2 6.4.6.3.3)")
     c.add_argument("--speed-step", type=float, default=1.0, help=option_help("--speed-step", "speed step"))
-    c.add_argument("--modes", type=float, help="more modes than EN 1990 A2.4.4.2.1 asks for (default: exactly those)")
+    c.add_argument("--modes", type=float,
+                   help=option_help("--modes", "more modes than EN 1990 A2.4.4.2.1 asks for; default: exactly those"))
     c.add_argument("--comfort", action="store_true",
                    help="also run the DIM of the real trains: passenger comfort b_v (EN 1990 A2.4.4.3)")
     _output_options(c, {"json": "write the verdict and every curve as JSON",

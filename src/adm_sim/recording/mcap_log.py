@@ -25,14 +25,17 @@ from __future__ import annotations
 
 import array
 import contextlib
+import io
 import os
+import zlib
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
-from typing import Any
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+from adm_sim import protocol as P
 from adm_sim.errors import InputError, RunError
 
 __all__ = [
@@ -87,7 +90,7 @@ def message_definition(msg_type) -> tuple[str, str]:
         ``rosbags.typesys`` ``Typestore.generate_msgdef``).
     """
     global _TYPESTORE
-    from rosbags.typesys import Stores, get_typestore
+    from rosbags.typesys import Stores, get_typestore  # noqa: PLC0415  mcap/rosbags only when a log is read or written
 
     pkg, name = type_name(msg_type)
     full = f"{pkg}/msg/{name}"
@@ -121,7 +124,6 @@ def topic_qos(topic: str) -> tuple[str, int, str, str]:
     """``(history, depth, reliability, durability)`` of an adm-sim topic by its class in
     :data:`adm_sim.protocol.TOPICS` (also under a namespace: ``/b1/adm/midspan/accel``), else
     :data:`QOS_DEFAULT`."""
-    from adm_sim import protocol as P
 
     entry = P.TOPICS.get(topic)
     if entry is None:
@@ -163,7 +165,7 @@ def parse_qos_profiles(text: str) -> tuple[str, int, str, str] | None:
     """The first profile of an ``offered_qos_profiles`` text as ``(history, depth, reliability,
     durability)`` (lower-case names; rosbag2 also writes the enums as integers in older versions),
     or ``None`` when the text holds none."""
-    import yaml
+    import yaml  # noqa: PLC0415  yaml only when a log is read or written
 
     try:
         items = yaml.safe_load(text) if text else None
@@ -266,7 +268,7 @@ class McapRecorder:
 
     def __init__(self, path, chunk_size: int = DEFAULT_CHUNK_SIZE, overwrite: bool = False,
                  compression: str = "zstd"):
-        from mcap.writer import CompressionType, Writer
+        from mcap.writer import CompressionType, Writer  # noqa: PLC0415  mcap/rosbags only when a log is read or written
 
         self.path = Path(path)
         if not isinstance(chunk_size, int) or chunk_size < 1024:
@@ -523,7 +525,7 @@ def _u(data, pos, n):
 
 
 def _decompress(compression: str, raw: bytes, size: int) -> bytes:
-    from mcap import stream_reader
+    from mcap import stream_reader  # noqa: PLC0415  mcap/rosbags only when a log is read or written
 
     if compression == "zstd":
         return stream_reader.zstandard.ZstdDecompressor().decompress(raw, max_output_size=size)
@@ -536,7 +538,6 @@ def _decompress(compression: str, raw: bytes, size: int) -> bytes:
 
 def _parse_chunk(data, pos: int, end: int, check_length: bool = True):
     """The records inside the Chunk record at ``pos`` (decompressed, CRC checked) or a reason."""
-    import zlib
 
     body = pos + 9
     length = _u(data, pos + 1, 8)
@@ -570,10 +571,9 @@ def _parse_chunk(data, pos: int, end: int, check_length: bool = True):
 
 
 def _inner_records(raw: bytes):
-    from mcap.data_stream import ReadDataStream
-    import io
+    from mcap.data_stream import ReadDataStream  # noqa: PLC0415  mcap/rosbags only when a log is read or written
 
-    from mcap.records import Channel, Message, Schema
+    from mcap.records import Channel, Message, Schema  # noqa: PLC0415  mcap/rosbags only when a log is read or written
 
     out, q = [], 0
     while q < len(raw):
@@ -632,11 +632,9 @@ def _message_index_counts(data, pos: int, end: int):
 def _read_summary(data, scan: Scan):
     """Schemas, channels and statistics of the summary section, if its CRC holds; the start of
     the summary (or of the footer) as the end of the data section."""
-    import io
-    import zlib
 
-    from mcap.data_stream import ReadDataStream
-    from mcap.records import Channel, Schema, Statistics
+    from mcap.data_stream import ReadDataStream  # noqa: PLC0415  mcap/rosbags only when a log is read or written
+    from mcap.records import Channel, Schema, Statistics  # noqa: PLC0415  mcap/rosbags only when a log is read or written
 
     n = len(data)
     foot = n - 8 - 29
@@ -686,11 +684,7 @@ def scan(path) -> Scan:
     and CRC, so a broken record length does not end the reading). A file cut short (a killed
     writer) is ``truncated``. Nothing is decoded.
     """
-    import zlib
-
-    from mcap.data_stream import ReadDataStream
-    from mcap.records import Channel, Header, Message, Metadata, Schema
-    import io
+    from mcap.records import Channel, Schema  # noqa: PLC0415  mcap/rosbags only when a log is read or written
 
     path = Path(path)
     data = path.read_bytes()
@@ -785,20 +779,8 @@ def scan(path) -> Scan:
                                                "metadata or message indexes)", {}))
             break
         if op in (0x01, 0x03, 0x04, 0x05, 0x0C):
-            stream = ReadDataStream(io.BytesIO(data[pos + 9:rec_end]))
             try:
-                if op == 0x01:
-                    rec = Header.read(stream)
-                elif op == 0x03:
-                    rec = Schema.read(stream)
-                elif op == 0x04:
-                    rec = Channel.read(stream)
-                elif op == 0x0C:
-                    rec = Metadata.read(stream)
-                else:
-                    rec = Message.read(stream, length)
-                if op != 0x05 and stream.count != length:
-                    raise ValueError("record length")
+                rec = _read_record(data, pos, op, length)
             except Exception:
                 result.damage.append(Damage(pos, "record is damaged", None))
                 pos = resume(pos + 1)
@@ -808,6 +790,27 @@ def scan(path) -> Scan:
             elif op != 0x01:
                 take(rec)
         pos = rec_end
+    _settle_damage(result, data_end)
+    return result
+
+
+def _read_record(data, pos: int, op: int, length: int):
+    """The header, schema, channel, message or metadata record (``op``) at ``pos``, read by mcap's
+    own record readers; raises when it does not read back to its stated length."""
+    from mcap.data_stream import ReadDataStream  # noqa: PLC0415  mcap/rosbags only when a log is read or written
+    from mcap.records import Channel, Header, Message, Metadata, Schema  # noqa: PLC0415  mcap/rosbags only when a log is read or written
+
+    stream = ReadDataStream(io.BytesIO(data[pos + 9:pos + 9 + length]))
+    reader = {0x01: Header.read, 0x03: Schema.read, 0x04: Channel.read, 0x0C: Metadata.read}.get(op)
+    rec = Message.read(stream, length) if reader is None else reader(stream)
+    if op != 0x05 and stream.count != length:
+        raise ValueError("record length")
+    return rec
+
+
+def _settle_damage(result: Scan, data_end: int | None) -> None:
+    """After the walk: a file without the end of its data section is truncated, a lost summary or
+    footer is named, and the statistics say what the damaged places without an index held."""
     if data_end is None and not any(d.what == "broken record framing" for d in result.damage):
         result.truncated = True  # no end of the data section: the writer did not finish the file
     if data_end is not None and not result.footer_ok and not any(d.what.startswith(("summary", "footer"))
@@ -826,7 +829,6 @@ def scan(path) -> Scan:
                 d.lost = {}
         elif len(unknown) == 1:
             unknown[0].lost = rest
-    return result
 
 
 def _refusal(path, s: Scan) -> InputError:
@@ -883,7 +885,7 @@ def sorted_messages(found: Scan, topics=None) -> list:
 
 def decode_messages(items, path="the recording") -> Iterator[tuple[str, int, object]]:
     """``(topic, log_time_ns, decoded message)`` of raw ``(schema, channel, message)`` items."""
-    from mcap_ros2.decoder import DecoderFactory
+    from mcap_ros2.decoder import DecoderFactory  # noqa: PLC0415  mcap/rosbags only when a log is read or written
 
     factory = DecoderFactory()
     decoders: dict = {}
@@ -937,7 +939,7 @@ def salvage(src, dst, overwrite: bool = False, report: dict | None = None) -> in
     InputError
         ``src`` missing, ``dst`` existing or equal to ``src``, or nothing recoverable.
     """
-    from mcap.writer import CompressionType, Writer
+    from mcap.writer import CompressionType, Writer  # noqa: PLC0415  mcap/rosbags only when a log is read or written
 
     src, dst = Path(src), Path(dst)
     if not src.is_file():

@@ -24,6 +24,7 @@ from urllib.parse import urlparse
 import numpy as np
 
 from adm_sim import protocol as P
+from adm_sim.errors import RunError
 
 __all__ = ["RunPhases", "ViewerFeed", "check_viewer", "matrix_of", "stamp_ns"]
 
@@ -41,7 +42,6 @@ def check_viewer(url: str, timeout_s: float = 5.0, what: str = "--connect") -> s
     (a plain HTTP/1.1 server answers ``HTTP/1.1 400``) or a socket that accepts and never answers
     (within ``timeout_s``) is refused here, instead of a run that logs into nothing or hangs.
     """
-    from adm_sim.errors import RunError
 
     u = urlparse(url)
     host, port = u.hostname, u.port
@@ -249,9 +249,9 @@ class ViewerFeed:
             lane[0].append(t_s)
             lane[1].append(msg.accel.linear.z)
         elif hasattr(msg, "status") and hasattr(msg, "header"):  # DiagnosticArray
-            import rerun as rr
+            import rerun as rr  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
 
-            from adm_sim.recording.rerun_log import _part
+            from adm_sim.recording.rerun_log import _part  # noqa: PLC0415  start-up: only on this path (28 ms)
 
             rr.set_time(P.SIM_TIME, duration=t_s)
             for st in msg.status:
@@ -279,9 +279,9 @@ class ViewerFeed:
 
     def finish(self) -> None:
         """Flush the logger and send the generic series gathered so far (as columns)."""
-        import rerun as rr
+        import rerun as rr  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
 
-        from adm_sim.recording.rerun_log import _part
+        from adm_sim.recording.rerun_log import _part  # noqa: PLC0415  start-up: only on this path (28 ms)
 
         self.viz.flush()
         for lane, (t, a) in self._accel.items():
