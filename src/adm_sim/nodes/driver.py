@@ -108,6 +108,7 @@ class RunDriver(c.NodeBase):
         self._desc = {}
         self._current = None  # (run_id, model, lane label)
         self.n_runs = 0
+        self._run_ids = []  # the runs requested, in order
         self._last_rx = time.monotonic()
         #: the recording side (MCAP, rerun, acknowledgements, per-run counts)
         self.rec = RunRecorder(self, self.outputs, chunk_size=p["chunk_size"], rerun_spawn=p["rerun_spawn"],
@@ -138,7 +139,11 @@ class RunDriver(c.NodeBase):
             self._last_rx = time.monotonic()
             if isinstance(msg, Clock):
                 self._clock_ns = self.rec.clock_ns = msg.clock.sec * 1_000_000_000 + msg.clock.nanosec
-            self.rec.write(topic, msg, self.rec.log_time_ns(msg))
+            try:
+                self.rec.write(topic, msg, self.rec.log_time_ns(msg))
+            except RunError as exc:  # a refused write (full disk, ulimit -f): the run's failure
+                self.recorder_failed(exc)
+                return
             if own is not None:
                 own(msg)
             if counted:
@@ -149,7 +154,28 @@ class RunDriver(c.NodeBase):
     def publish_recorded(self, pub, topic, msg):
         """Publish and record one of the driver's own messages at the current sim time."""
         pub.publish(msg)
-        self.rec.write(topic, msg, self._clock_ns)
+        try:
+            self.rec.write(topic, msg, self._clock_ns)
+        except RunError as exc:
+            raise self._named(exc) from None
+
+    def _named(self, exc):
+        """``exc`` (a recorder's failure) as the failure of the run it hit: the current run, else
+        the runs recorded so far."""
+        if str(exc).startswith("run"):
+            return exc
+        if self._current is not None:
+            return RunError(f"run {self._current[0]}: {exc}")
+        ids = self._run_ids
+        which = "" if not ids else f"run {ids[0]}: " if len(ids) == 1 else f"runs {ids[0]}-{ids[-1]}: "
+        return RunError(f"{which}{exc}")
+
+    def recorder_failed(self, exc):
+        """A write the recorder could not make (MCAP or rerun: a full disk, ``ulimit -f``) fails the
+        run it belongs to and ends the node's job: exit 1, one line naming the run."""
+        if self.error is None:
+            self.error = self._named(exc)
+        self.finished = True
 
     def _take_result(self, msg):
         with self._lock:
@@ -295,6 +321,7 @@ class RunDriver(c.NodeBase):
         timeout = self.get_parameter("run_timeout_s").value
         lab = label or model.upper()
         self._current = (run_id, model, f"{lab} run {run_id}")
+        self._run_ids.append(run_id)
         self.pub_request.publish(c.json_msg(P.request_record(self.get_name(), run_id, model, phase, lab)))
         say("run", run_id=run_id, model=model, lanes=int(info["lanes"]), state="started", label=lab, phase=phase)
         last_check = time.monotonic()
@@ -363,11 +390,14 @@ class RunDriver(c.NodeBase):
         finishes when it returns."""
         def work():
             try:
-                self.write_summary(self.job())
-                self.error = self.rec.incomplete_error()  # outputs kept, exit status 1
-                self._keep_outputs = self.error is not None
+                summary = self.job()
+                if self.error is None:  # not after a recorder's failure; written by end()
+                    self._summary = summary
+                    self.error = self.rec.incomplete_error()  # outputs kept, exit status 1
+                    self._keep_outputs = self.error is not None
             except Exception as exc:  # reported by end(); the process exits non-zero
-                self.error = exc
+                if self.error is None:  # the first failure is the one reported
+                    self.error = self._named(exc) if isinstance(exc, RunError) and str(exc).startswith("recording") else exc
             finally:
                 self.finished = True
 
@@ -378,6 +408,15 @@ class RunDriver(c.NodeBase):
         t_end = time.monotonic() + 3.0
         while self.context.ok() and time.monotonic() - self._last_rx < 0.3 and time.monotonic() < t_end:
             executor.spin_once(timeout_sec=0.05)
+        keep = self.error is None or getattr(self, "_keep_outputs", False)
+        try:  # the outputs are closed and checked here: one that is not whole fails the run
+            self.rec.finish(keep=self.finished and keep)
+            if keep and getattr(self, "_summary", None) is not None:  # the summary last: the recordings are whole
+                self.write_summary(self._summary)
+        except RunError as exc:
+            if keep:
+                self.error = self._named(exc)
+                self._keep_outputs = False
         if self.error is None:
             return 0
         if isinstance(self.error, AdmSimError):
@@ -388,7 +427,10 @@ class RunDriver(c.NodeBase):
 
         ok = self.finished and (self.error is None or getattr(self, "_keep_outputs", False))
         if getattr(self, "rec", None) is not None:
-            self.rec.finish(keep=ok)
+            try:  # after end(): nothing left to do; else (an error, an interrupt) the outputs are discarded
+                self.rec.finish(keep=ok)
+            except RunError:
+                pass  # the job's own error is the one reported; the output was not kept
         for path in getattr(self, "outputs", {}).values():
             release(path)
         super().close()
