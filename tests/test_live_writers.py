@@ -19,6 +19,7 @@ import pytest
 
 from adm_sim.errors import RunError
 from adm_sim.recording.rrd_check import check_rrd
+from ros_fixtures import driver_node, ros_domain  # noqa: F401  (fixture)
 
 ROOT = Path(__file__).resolve().parents[1]
 PY = sys.executable
@@ -88,3 +89,33 @@ def test_crossing_under_file_size_limit(tmp_path):
     assert "is the disk full or a file size limit set?" in errors[0]
     left = sorted(p.name for p in out.iterdir() if p.name != "logs")
     assert left == [], left  # no run.rrd cut at the limit, no run.mcap or summary.json, no .lock, no .tmp
+
+
+def test_driver_recorder_failure_is_the_run_failure(ros_domain, tmp_path):
+    """A write the MCAP recorder refuses inside a subscription callback (here: a file size limit)
+    is not an exception escaping the executor: it fails the run in progress (``run 3: ...``),
+    ends the node's job, and :meth:`RunDriver.end` reports it (exit 1 in :func:`run_node`)."""
+    from rosgraph_msgs.msg import Clock
+
+    from adm_sim import protocol as P
+
+    with driver_node(ros_domain.domain_id, record_path=str(tmp_path / "r.mcap")) as d:
+        def refused(*_a, **_k):
+            raise RunError(f"recording '{tmp_path / 'r.mcap'}': cannot write (File too large); the incomplete "
+                           "file was removed")
+
+        d.rec.mcap.write = refused
+        d._current = (3, "mlm", "MLM run 3")
+        cb = d._make_cb(P.TOPIC_CLOCK)
+        cb(Clock())
+        cb(Clock())  # the next message: still the first failure
+        assert d.finished
+        assert str(d.error) == (f"run 3: recording '{tmp_path / 'r.mcap'}': cannot write (File too large); the "
+                                "incomplete file was removed")
+
+        class NoSpin:
+            def spin_once(self, timeout_sec=0.0):
+                pass
+
+        with pytest.raises(RunError, match=r"^run 3: recording '.*r\.mcap': cannot write \(File too large\)"):
+            d.end(NoSpin())
