@@ -40,8 +40,8 @@ sys.path.insert(0, str(ROOT / "src"))
 
 from adm_sim.errors import InputError  # noqa: E402
 from adm_sim.recording import rerun_blueprint as bp  # noqa: E402
-from adm_sim.recording.rerun_log import (_free_port, _wait_for_port, ensure_analytics_disabled,  # noqa: E402
-                                   rerun_cli, rerun_cli_env)
+from adm_sim.recording.viewer_process import (ensure_analytics_disabled, free_port,  # noqa: E402
+                                             rerun_cli, rerun_cli_env, wait_for_port)
 
 CHROME_FLAGS = ["--headless=new", "--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
                 "--no-first-run", "--no-default-browser-check", "--disable-background-networking",
@@ -89,13 +89,13 @@ def recording_layout(rrd: Path) -> tuple[str, float | None, float]:
 
 def _start_viewer(rrd: Path) -> tuple[subprocess.Popen, str, str]:
     """``rerun --serve-web`` on 127.0.0.1 with the recording; returns it, the page URL and the gRPC URL."""
-    web, grpc = _free_port(), _free_port()
+    web, grpc = free_port(), free_port()
     proc = subprocess.Popen(
         [rerun_cli(), "--serve-web", "--bind", "127.0.0.1", "--web-viewer-port", str(web), "--port", str(grpc),
          str(rrd)],
         env=rerun_cli_env(), stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
         start_new_session=True)
-    if not (_wait_for_port(web, 30.0) and _wait_for_port(grpc, 30.0)):
+    if not (wait_for_port(web, 30.0) and wait_for_port(grpc, 30.0)):
         _stop(proc)
         raise InputError("rerun --serve-web did not listen on 127.0.0.1 within 30 s")
     proxy = f"rerun+http://127.0.0.1:{grpc}/proxy"
@@ -123,7 +123,7 @@ def _browser(size: tuple[int, int], profile: Path):
     for flag in CHROME_FLAGS + [f"--window-size={size[0]},{size[1]}", f"--user-data-dir={profile}"]:
         opts.add_argument(flag)
     # chromedriver listens on the loopback only by default (--allowed-ips would open it to all interfaces)
-    service = Service(executable_path=_which("chromedriver", "chromium-driver"), port=_free_port())
+    service = Service(executable_path=_which("chromedriver", "chromium-driver"), port=free_port())
     driver = webdriver.Chrome(service=service, options=opts)
     driver.set_window_size(*size)
     return driver

@@ -186,10 +186,10 @@ def check_viewer(spawn, connect):
     if spawn and connect is not None:
         raise InputError(f"--connect: {connect!r} with --spawn; give --spawn or --connect, not both")
     if connect is not None:
-        from adm_sim.recording.rerun_log import _check_loopback
+        from adm_sim.recording.viewer_process import check_loopback
 
         try:
-            _check_loopback(_given("--connect", connect))
+            check_loopback(_given("--connect", connect))
         except InputError as exc:
             raise InputError(f"--connect: {str(exc).removeprefix('connect_url: ')}") from None
 

@@ -133,14 +133,14 @@ def spawn_checked_viewer(settle_s: float = 1.5, timeout_s: float = 20.0):
     URL. The viewer's own log goes to a file, and its last line into the one error line."""
     import tempfile
 
-    from adm_sim.recording import rerun_log as rl
+    from adm_sim.recording import viewer_process as vp
     from adm_sim.recording.viewer_feed import check_viewer
 
-    port = rl._free_port()
+    port = vp.free_port()
     url = f"rerun+http://127.0.0.1:{port}/proxy"
     log = tempfile.TemporaryFile(prefix="adm_sim_viewer_")
-    proc = subprocess.Popen([rl.rerun_cli(), "--bind", "127.0.0.1", "--port", str(port), "--memory-limit", "25%"],
-                            env=rl.rerun_cli_env(dict(os.environ) | {"RERUN_APP_ONLY": "true"}),
+    proc = subprocess.Popen([vp.rerun_cli(), "--bind", "127.0.0.1", "--port", str(port), "--memory-limit", "25%"],
+                            env=vp.rerun_cli_env(dict(os.environ) | {"RERUN_APP_ONLY": "true"}),
                             stdin=subprocess.DEVNULL, stdout=log, stderr=log, start_new_session=True)
 
     def died(why: str) -> RunError:
@@ -158,7 +158,7 @@ def spawn_checked_viewer(settle_s: float = 1.5, timeout_s: float = 20.0):
         return RunError(f"--spawn: the rerun viewer {why} (exit status {proc.returncode}: {last}); is there a display?")
 
     t_end = time.monotonic() + timeout_s
-    while not rl._wait_for_port(port, 0.2):
+    while not vp.wait_for_port(port, 0.2):
         if proc.poll() is not None:
             raise died("exited at once")
         if time.monotonic() > t_end:
@@ -341,7 +341,7 @@ def verify_rrd(tmp, final) -> None:
     """``rerun rrd verify`` of the written recording: rerun's file sink reports a failed write (a
     full disk, a file size limit) only in its own log, so a recording that does not load whole is
     this run's failure (:class:`RunError`), and it is never renamed to its final name."""
-    from adm_sim.recording.rerun_log import rerun_cli, rerun_cli_env
+    from adm_sim.recording.viewer_process import rerun_cli, rerun_cli_env
 
     try:
         proc = subprocess.run([rerun_cli(), "rrd", "verify", str(tmp)], env=rerun_cli_env(), capture_output=True,
@@ -358,7 +358,7 @@ def verify_rrd(tmp, final) -> None:
 
 def convert(args, save_path) -> None:
     from adm_sim.recording.mcap_log import salvage
-    from adm_sim.recording.rerun_log import ensure_analytics_disabled, rerun_cli, rerun_cli_env
+    from adm_sim.recording.viewer_process import ensure_analytics_disabled, rerun_cli, rerun_cli_env
 
     ensure_analytics_disabled()
     source = Path(args.mcap)

@@ -262,7 +262,7 @@ def test_salvage_errors_and_cli(tmp_path, recording, capsys):
 
 
 def _rerun_env():
-    from adm_sim.recording.rerun_log import ensure_analytics_disabled, rerun_cli_env
+    from adm_sim.recording.viewer_process import ensure_analytics_disabled, rerun_cli_env
 
     ensure_analytics_disabled()
     return rerun_cli_env()
@@ -285,7 +285,7 @@ def test_rerun_mcap_convert_and_verify(recording, tmp_path):
 def test_analytics_disabled_in_config():
     import json
 
-    from adm_sim.recording.rerun_log import analytics_config_path, ensure_analytics_disabled
+    from adm_sim.recording.viewer_process import analytics_config_path, ensure_analytics_disabled
 
     path = ensure_analytics_disabled()
     assert path == analytics_config_path()

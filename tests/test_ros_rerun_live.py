@@ -13,20 +13,20 @@ from pathlib import Path
 
 from rrd_views import check_recording, view_entities
 
-from adm_sim.recording.rerun_log import _free_port, _wait_for_port
+from adm_sim.recording.viewer_process import free_port, wait_for_port
 
 ROOT = Path(__file__).resolve().parents[1]
 RERUN = Path(sys.executable).with_name("rerun")
 
 
 def test_crossing_streams_to_a_live_viewer(tmp_path):
-    port = _free_port()
+    port = free_port()
     recv = tmp_path / "received.rrd"
     env = dict(os.environ, CI="1")  # no analytics from the receiver
     viewer = subprocess.Popen([str(RERUN), "--bind", "127.0.0.1", "--port", str(port), "--save", str(recv)],
                               env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     try:
-        assert _wait_for_port(port, 20.0), "rerun receiver did not start"
+        assert wait_for_port(port, 20.0), "rerun receiver did not start"
         r = subprocess.run([sys.executable, str(ROOT / "launch_scripts" / "crossing.py"), "--model", "mlm",
                             "--speeds", "280", "--out", str(tmp_path / "run"),
                             "--connect", f"rerun+http://127.0.0.1:{port}/proxy"],

@@ -25,156 +25,33 @@ span is known. Entities
 ``calibration/delta_zeta_pct/*``, ``calibration/peak_m_s2/*``, ``calibration/result``
     Δζ per iteration, MLM and DIM peaks, bracketing and root search as separate series.
 
-Privacy and network
--------------------
-Rerun collects usage data by default. It reads its opt-out from its own config file
-(``$XDG_CONFIG_HOME/rerun/analytics.json``, written by ``rerun analytics disable``) and skips
-analytics whenever the environment variable ``CI`` is set; rerun 0.41 has no other switch (no
-``RERUN_ANALYTICS`` variable, no SDK argument). :func:`init_rerun` therefore calls
-:func:`ensure_analytics_disabled`, which runs ``rerun analytics disable`` (with ``CI=1`` so that this
-command records nothing itself) unless the config already says disabled. A viewer spawned here is
-bound to 127.0.0.1 (``rr.spawn`` would bind 0.0.0.0), and ``connect_url`` must be a loopback URL.
+Set-up
+------
+:func:`init_rerun` opens the recording with rerun's analytics off and every server on the loopback;
+the rerun processes beside it (the ``rerun`` executable, the analytics opt-out, a spawned viewer, its
+ports, the loopback check of a viewer URL) are :mod:`adm_sim.recording.viewer_process`.
 """
 
 from __future__ import annotations
 
-import json
-import os
-import shutil
-import socket
-import subprocess
-import sys
-import time
 from pathlib import Path
-from urllib.parse import urlparse
 
 import numpy as np
 
-from adm_sim.errors import InputError, RunError
+from adm_sim import protocol as P  # topics, records, phases, entity paths, timelines
+from adm_sim.errors import InputError
+from adm_sim.protocol import RUN_TIME, SIM_TIME
+from adm_sim.recording.viewer_process import check_loopback, ensure_analytics_disabled, spawn_viewer
 
 __all__ = [
-    "analytics_config_path",
     "close_rerun",
-    "ensure_analytics_disabled",
     "init_rerun",
     "RunLogger",
     "fmt_pct",
     "run_kind",
-    "rerun_cli",
-    "rerun_cli_env",
-    "spawn_viewer",
 ]
 
-from adm_sim import protocol as P  # noqa: E402  (topics, records, phases, entity paths, timelines)
-from adm_sim.protocol import RUN_TIME, SIM_TIME  # noqa: E402,F401  (timeline names, used by replay.py)
-
-_LOOPBACK = {"127.0.0.1", "localhost", "::1"}
-
-
-# ---------------------------------------------------------------- analytics, CLI
-
-
-def rerun_cli() -> str:
-    """Path of the ``rerun`` executable of this environment (the venv's ``bin/rerun``)."""
-    here = Path(sys.executable).with_name("rerun")
-    if here.is_file():
-        return str(here)
-    found = shutil.which("rerun")
-    if found is None:
-        raise RunError("rerun: no 'rerun' executable next to python or on PATH; "
-                         "install rerun-sdk==0.41.0")
-    return found
-
-
-def rerun_cli_env(base: dict | None = None) -> dict:
-    """Environment for a ``rerun`` CLI child process: ``CI=1`` (rerun skips analytics on CI)."""
-    env = dict(os.environ if base is None else base)
-    env.setdefault("CI", "1")
-    return env
-
-
-def analytics_config_path() -> Path:
-    """Rerun's analytics config file (``directories::ProjectDirs`` on Linux)."""
-    config_home = os.environ.get("XDG_CONFIG_HOME") or str(Path.home() / ".config")
-    return Path(config_home) / "rerun" / "analytics.json"
-
-
-def _analytics_disabled(path: Path) -> bool:
-    try:
-        return json.loads(path.read_text()).get("analytics_enabled") is False
-    except (OSError, ValueError):
-        return False
-
-
-def ensure_analytics_disabled() -> Path:
-    """Make rerun's usage analytics off for this user; return the config file.
-
-    Runs ``rerun analytics disable`` once (idempotent: nothing is run when the config already
-    says disabled). Raises :class:`RunError` if the config cannot be written.
-    """
-    path = analytics_config_path()
-    if _analytics_disabled(path):
-        return path
-    subprocess.run([rerun_cli(), "analytics", "disable"], env=rerun_cli_env(),
-                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, timeout=60, check=False)
-    if not _analytics_disabled(path):
-        raise RunError(
-            f"rerun analytics: could not disable usage analytics (config '{path}'); "
-            "run 'rerun analytics disable' by hand"
-        )
-    return path
-
-
 # ---------------------------------------------------------------- set-up
-
-
-def _free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def _wait_for_port(port: int, timeout_s: float) -> bool:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        try:
-            with socket.create_connection(("127.0.0.1", port), timeout=0.2):
-                return True
-        except OSError:
-            time.sleep(0.1)
-    return False
-
-
-def spawn_viewer(port: int | None = None, memory_limit: str = "25%",
-                 timeout_s: float = 20.0) -> tuple[subprocess.Popen, str]:
-    """Start a native rerun viewer bound to 127.0.0.1; return the process and its proxy URL.
-
-    ``rr.spawn`` cannot choose the bind address (the viewer would listen on 0.0.0.0), hence this.
-    """
-    port = _free_port() if port is None else int(port)
-    proc = subprocess.Popen(
-        [rerun_cli(), "--bind", "127.0.0.1", "--port", str(port),
-         "--memory-limit", memory_limit],
-        env=rerun_cli_env({k: v for k, v in os.environ.items()} | {"RERUN_APP_ONLY": "true"}),
-        stdin=subprocess.DEVNULL, start_new_session=True,
-    )
-    if not _wait_for_port(port, timeout_s):
-        proc.kill()
-        proc.wait()
-        raise RunError(f"spawn: the rerun viewer did not listen on 127.0.0.1:{port} "
-                         f"within {timeout_s:g} s (is there a display?)")
-    return proc, f"rerun+http://127.0.0.1:{port}/proxy"
-
-
-def _check_loopback(url: str) -> str:
-    host = urlparse(url).hostname
-    if urlparse(url).scheme not in ("rerun", "rerun+http", "rerun+https") or host is None:
-        raise InputError(f"connect_url: {url!r} is not a rerun URL "
-                         "(e.g. rerun+http://127.0.0.1:9876/proxy)")
-    if host not in _LOOPBACK and not host.startswith("127."):
-        raise InputError(f"connect_url: host {host!r} is not on this machine; "
-                         "allowed 127.0.0.0/8, localhost, ::1")
-    return url
 
 
 def init_rerun(app_id: str, spawn: bool = False, connect_url: str | None = None,
@@ -206,13 +83,12 @@ def init_rerun(app_id: str, spawn: bool = False, connect_url: str | None = None,
 
     ensure_analytics_disabled()
     sinks: list = []
-    viewer = None
     if spawn and connect_url is not None:
         raise InputError("init_rerun: give spawn=True or connect_url, not both")
     if spawn:
-        viewer, connect_url = spawn_viewer()
+        _, connect_url = spawn_viewer()  # the viewer process is held by viewer_process until exit
     if connect_url is not None:
-        sinks.append(rr.GrpcSink(_check_loopback(connect_url)))
+        sinks.append(rr.GrpcSink(check_loopback(connect_url)))
     if save_path is not None:
         save_path = Path(save_path)
         if save_path.exists() and not overwrite:
@@ -227,14 +103,7 @@ def init_rerun(app_id: str, spawn: bool = False, connect_url: str | None = None,
     rec = rr.get_global_data_recording()
     # simulated time only: no wall-clock ``log_time`` timeline in the picker (reproducible files)
     rr.set_log_time_enabled(False, recording=rec)
-    if viewer is not None:
-        _VIEWERS.append(viewer)
     return rec
-
-
-#: The spawned viewers, held until exit: a detached viewer outlives this process, and a collected
-#: ``Popen`` of a running process warns ``ResourceWarning: subprocess ... is still running``.
-_VIEWERS: list[subprocess.Popen] = []
 
 
 def close_rerun(recording=None) -> None:
