@@ -52,6 +52,7 @@ def preflight(args, default_out, dim=False, model=None):
         check_calibration_speeds(args.speeds, "--speeds")
     out = Path(args.out) if args.out else default_out
     check_out(out, {"--params-file": args.params_file, "--bridge": args.bridge, "--train": args.train})
+    viewer_ready(args)  # the viewer answers before anything starts (RunError, exit 1)
     env = local_ros_env(domain_id)  # reserved before the folder exists
     try:
         created, old = prepare_out(out, args.overwrite)
@@ -192,6 +193,21 @@ def check_viewer(spawn, connect):
             check_loopback(_given("--connect", connect))
         except InputError as exc:
             raise InputError(f"--connect: {str(exc).removeprefix('connect_url: ')}") from None
+
+
+def viewer_ready(args):
+    """The live viewer answers before any process starts or any folder is created: ``--connect``
+    must answer the handshake of a rerun viewer (a closed port, another server, a silent socket:
+    :class:`~adm_sim.errors.RunError`, one line, exit 1); ``--spawn`` starts the viewer here
+    (listening, answering and alive a moment later, or one line with its own last word) and the
+    driver streams to it as to ``--connect`` (``args.connect`` is set, ``args.spawn`` cleared)."""
+    from adm_sim.recording.viewer_process import handshake, spawn_viewer
+
+    if args.connect is not None:
+        handshake(args.connect, what="--connect")
+    elif args.spawn:
+        _, args.connect = spawn_viewer(what="--spawn")
+        args.spawn = False
 
 
 def check_out(out, inputs=None):

@@ -435,7 +435,11 @@ def run_node(make_node, args=None, name="node"):
     """
 
     with one_line_warnings(prefix=f"{name}: ", categories=(Warning,), repeat=False):
-        return _run_node(make_node, args, name)
+        code = _run_node(make_node, args, name)
+    from adm_sim.recording.viewer_process import exit_if_abandoned  # noqa: PLC0415  (no rerun import)
+
+    exit_if_abandoned(code)  # a rerun viewer given up: rerun's flush at exit would hang on it
+    return code
 
 
 def _run_node(make_node, args, name):

@@ -232,7 +232,7 @@ class RunRecorder:
                 try:
                     self.feed.finish()
                 finally:
-                    rerun_log.close_rerun()
+                    rerun_log.close_rerun(watch_viewer=True)  # a viewer that stopped answering: one warning
         tmp = self._beside_files.get("rrd_path")
         if keep and tmp is not None:
             from adm_sim.recording.rrd_check import check_rrd  # noqa: PLC0415  rerun only with a .rrd
