@@ -127,8 +127,10 @@ def check_inputs(bridge=None, train=None, speeds=None, params_file=None, model=N
 
     Returns ``{node: {name: value}}`` of the params file.
     """
+    import warnings
+
     from adm_sim.bridge import resolve_bridge
-    from adm_sim.errors import InputError
+    from adm_sim.errors import InputError, PlausibilityWarning
     from adm_sim.files import input_file
     from adm_sim.nodes.params import TRAIN_SPECS, bridge_from_params, bridge_specs, check_params_file, validate_train
     from adm_sim.run_contract import check_model
@@ -136,8 +138,10 @@ def check_inputs(bridge=None, train=None, speeds=None, params_file=None, model=N
     from adm_sim.trains import load_train
 
     bridge, train, speeds = _given("--bridge", bridge), _given("--train", train), _given("--speeds", speeds)
-    if bridge is not None:
-        resolve_bridge(bridge)
+    if bridge is not None:  # refused first; its warnings come once, with the preset below
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", PlausibilityWarning)
+            resolve_bridge(bridge)
     if train is not None:
         load_train(train)
     if speeds is not None:
@@ -160,6 +164,7 @@ def check_inputs(bridge=None, train=None, speeds=None, params_file=None, model=N
         bridge_from_params(preset, values)
     except InputError as exc:
         raise InputError(f"bridge node: {exc}") from None
+    warn_bridge_node(preset, values)
     # the train node: the train with its model and speed lanes
     tv = {s.name: s.default for s in TRAIN_SPECS}
     tv.update({k: v for k, v in file_values.get("train", {}).items() if k in tv})
@@ -171,6 +176,22 @@ def check_inputs(bridge=None, train=None, speeds=None, params_file=None, model=N
     except InputError as exc:
         raise InputError(f"train node: {exc}") from None
     return file_values
+
+
+def warn_bridge_node(preset, values):
+    """The plausibility warnings the bridge node will give its start-up values, here, where the
+    user sees them (the node's own go to its log): one ``warning: bridge node: <parameter>: ...``
+    line each (:func:`adm_sim.nodes.params.bridge_plausibility`)."""
+    import warnings
+
+    from adm_sim.errors import PlausibilityWarning
+    from adm_sim.nodes.params import bridge_plausibility
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", PlausibilityWarning)
+        bridge_plausibility(preset, values)
+    for w in caught:
+        warnings.warn(f"bridge node: {w.message}", PlausibilityWarning, stacklevel=2)
 
 
 def check_domain_id(domain_id):

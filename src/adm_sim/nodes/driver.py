@@ -371,7 +371,9 @@ class RunDriver(c.NodeBase):
         """One run with the train node's current parameters; writes ``summary_path``."""
         self.wait_for_graph()
         r = self.request_run()
-        summary = {"run_id": r["run_id"], "model": r["model"], "bridge": self.description("bridge")["description"],
+        bd = self.description("bridge")
+        summary = {"run_id": r["run_id"], "model": r["model"], "bridge": bd["description"],
+                   "span_m": bd["bridge"]["span_m"],
                    "train": self.description("train")["name"], "speeds_kmh": r["speeds_kmh"].tolist(),
                    "max_acc_m_s2": r["max_acc_m_s2"].tolist(), "max_disp_m": r["max_disp_m"].tolist(),
                    "wall_s": r["wall_s"], "phase": r["phase"], "samples": self.rec.recorded.get(r["run_id"]),
