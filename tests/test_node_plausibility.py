@@ -8,6 +8,7 @@ In-process nodes on an isolated context.
 
 import warnings
 
+import numpy as np
 import pytest
 
 rclpy = pytest.importorskip("rclpy")
@@ -15,6 +16,7 @@ from rclpy.parameter import Parameter  # noqa: E402
 
 from adm_sim.errors import PlausibilityWarning  # noqa: E402
 from adm_sim.nodes.bridge_node import BridgeNode  # noqa: E402
+from ros_fixtures import ros_domain  # noqa: E402,F401  (fixture)
 
 
 @pytest.fixture
@@ -71,3 +73,30 @@ def test_run_time_set_warned_once(ctx):
         assert back == []
     finally:
         node.destroy_node()
+
+
+def test_driver_warns_about_a_run_result_once(ros_domain):
+    """A run's result no real deck survives (4174 m/s², 0.07 m on a 4 m span): one warning per
+    bound, and one WARN status per warning on /diagnostics, carrying the run id."""
+    from diagnostic_msgs.msg import DiagnosticStatus
+
+    from adm_sim.nodes.driver import DIAG_PLAUSIBILITY
+    from ros_fixtures import driver_node
+
+    with driver_node(ros_domain.domain_id) as d:
+        d._desc["bridge"] = {"bridge": {"span_m": 4.0}}
+        sent = []
+        d.pub_plausibility.publish = sent.append
+        r = {"run_id": 7, "model": "dim", "speeds_kmh": np.array([250.0, 300.0]),
+             "max_acc_m_s2": np.array([12.0, 4173.5]), "max_disp_m": np.array([0.001, 0.07])}
+        texts, said = _said(lambda: d.warn_implausible(r))
+        assert said == texts and [t.split(" is outside")[0] for t in texts] == [
+            "run 7 (DIM) at 300 km/h: peak acceleration: 4174 m/s²", "run 7 (DIM) at 300 km/h: peak deflection: 0.07 m"]
+        assert len(sent) == 1
+        st = sent[0].status
+        assert [s.message for s in st] == texts
+        assert {s.level for s in st} == {DiagnosticStatus.WARN} and {s.name for s in st} == {DIAG_PLAUSIBILITY}
+        assert [(kv.key, kv.value) for kv in st[0].values] == [("run_id", "7")]
+        r.update(max_acc_m_s2=np.array([1.0, 2.6]), max_disp_m=np.array([0.001, 0.003]))
+        assert _said(lambda: d.warn_implausible(r)) == ([], [])
+        assert len(sent) == 1

@@ -20,10 +20,11 @@ import json
 import sys
 import threading
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import AccelStamped
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
@@ -32,11 +33,12 @@ from std_msgs.msg import Float64MultiArray, String
 from std_srvs.srv import Trigger
 
 from adm_sim import protocol as P
-from adm_sim.errors import AdmSimError, InputError, RunError  # RunError: a run failed or its partners went away
+from adm_sim.errors import AdmSimError, InputError, PlausibilityWarning, RunError  # RunError: a run failed or its partners went away
 from adm_sim.files import claim_output, release, write_atomic
 from adm_sim.nodes import common as c
 from adm_sim.nodes.params import DRIVER_SPECS
 from adm_sim.nodes.recorder import RunRecorder
+from adm_sim.plausibility import check_response
 
 
 #: Topics the driver records (topic, type); its own publications are recorded as it publishes.
@@ -44,6 +46,10 @@ RECORDED = [(P.TOPIC_CLOCK, Clock), (P.TOPIC_ACCEL, AccelStamped), (P.TOPIC_STAT
             (P.TOPIC_BEAM, Float64MultiArray), (P.TOPIC_AXLES, Float64MultiArray), (P.TOPIC_PROGRESS, String),
             (P.TOPIC_DIAGNOSTICS, DiagnosticArray), (P.TOPIC_RESULT, Float64MultiArray), (P.TOPIC_STATUS, String),
             (P.TOPIC_SUMMARY, DiagnosticStatus), (P.TOPIC_BRIDGE_DESC, String), (P.TOPIC_TRAIN_DESC, String)]
+
+
+#: ``/diagnostics`` status name of the plausibility warnings of a run's result (:meth:`RunDriver.warn_implausible`).
+DIAG_PLAUSIBILITY = "adm_sim/driver: plausibility of the result"
 
 
 #: The driver's output parameters and the suffix each must have (:func:`adm_sim.files.claim_output`).
@@ -121,6 +127,8 @@ class RunDriver(c.NodeBase):
             self.create_subscription(typ, P.relative(topic), self._make_cb(topic), qos)
         #: the driver's ``requested`` records (the run id with its phase); its own subscription records them
         self.pub_request = self.create_publisher(String, P.relative(P.TOPIC_STATUS), c.QOS_CONTROL)
+        #: the plausibility verdict of a run's result (:meth:`warn_implausible`)
+        self.pub_plausibility = self.create_publisher(DiagnosticArray, P.relative(P.TOPIC_DIAGNOSTICS), c.QOS_CONTROL)
         self.last_phase = None  # phase of the last run requested (the iterations that follow it)
         self.cli_start = self.create_client(Trigger, P.relative(P.SERVICE_START_RUN))
         self.params = {n: AsyncParameterClient(self, n) for n in (P.BRIDGE_NODE, P.TRAIN_NODE)}
@@ -348,10 +356,37 @@ class RunDriver(c.NodeBase):
         self.n_runs += 1
         out = {"run_id": run_id, "model": model, "speeds_kmh": res[0], "max_acc_m_s2": res[1],
                "max_disp_m": res[2], "delta_zeta": res[3], "wall_s": wall, "phase": phase}
+        self.warn_implausible(out)
         i = int(np.argmax(res[1]))
         say("run", run_id=run_id, model=model, state="done", wall_s=round(wall, 3),
             max_acc_m_s2=float(res[1][i]), speed_kmh=float(res[0][i]), label=lab, phase=phase)
         return out
+
+    def warn_implausible(self, r):
+        """The plausibility warnings of run ``r``'s result (:func:`adm_sim.plausibility.check_response`,
+        as ``adm-sim sweep`` gives them): its largest acceleration and deflection, named by the run,
+        its model and speed; once per run, each as one ``warning: <node>: ...`` line and as a WARN
+        status :data:`DIAG_PLAUSIBILITY` on ``/diagnostics`` (recorded with the run)."""
+        acc, disp, v = (np.asarray(r[k], dtype=float) for k in ("max_acc_m_s2", "max_disp_m", "speeds_kmh"))
+        if not acc.size:
+            return []
+        span = float(self.description(P.BRIDGE_NODE)["bridge"]["span_m"])
+        i, j = int(np.argmax(acc)), int(np.argmax(disp))
+        run = f"run {r['run_id']} ({str(r['model']).upper()})"
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", PlausibilityWarning)
+            check_response(span, acc[i], disp[j], f"{run} at {v[i]:g} km/h", f"{run} at {v[j]:g} km/h")
+        texts = [str(w.message) for w in caught if issubclass(w.category, PlausibilityWarning)]
+        for text in texts:
+            warnings.warn(text, PlausibilityWarning, stacklevel=2)
+        if texts:
+            st = [DiagnosticStatus(level=DiagnosticStatus.WARN, name=DIAG_PLAUSIBILITY, hardware_id=P.BRIDGE_NODE,
+                                   message=text, values=[KeyValue(key="run_id", value=str(r["run_id"]))])
+                  for text in texts]
+            arr = DiagnosticArray(status=st)
+            arr.header.stamp.sec, arr.header.stamp.nanosec = divmod(self._clock_ns, 1_000_000_000)
+            self.pub_plausibility.publish(arr)  # recorded by the driver's own /diagnostics subscription
+        return texts
 
     def _bridge_status(self, run_id):
         with self._lock:
