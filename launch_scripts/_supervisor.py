@@ -9,10 +9,11 @@ from __future__ import annotations
 
 import queue
 import shutil
+import warnings
 from pathlib import Path
 
 from adm_sim.cliutil import run_cli
-from adm_sim.errors import InputError
+from adm_sim.errors import InputError, PlausibilityWarning
 from adm_sim.fields import view
 from adm_sim.files import check_output_folder, claim_folder, input_file, make_output_folder, release
 from adm_sim.processes.dds_env import local_ros_env
@@ -56,6 +57,7 @@ def preflight(args, default_out, dim=False, model=None):
         check_calibration_speeds(args.speeds, "--speeds")
     out = Path(args.out) if args.out else default_out
     check_out(out, {"--params-file": args.params_file, "--bridge": args.bridge, "--train": args.train})
+    viewer_ready(args)  # the viewer answers before anything starts (RunError, exit 1)
     env = local_ros_env(domain_id)  # reserved before the folder exists
     try:
         created, old = prepare_out(out, args.overwrite)
@@ -134,8 +136,10 @@ def check_inputs(bridge=None, train=None, speeds=None, params_file=None, model=N
     from adm_sim.trains import load_train  # noqa: PLC0415  start-up: only on this path (82 ms)
 
     bridge, train, speeds = _given("--bridge", bridge), _given("--train", train), _given("--speeds", speeds)
-    if bridge is not None:
-        resolve_bridge(bridge)
+    if bridge is not None:  # refused first; its warnings come once, with the preset below
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", PlausibilityWarning)
+            resolve_bridge(bridge)
     if train is not None:
         load_train(train)
     if speeds is not None:
@@ -158,6 +162,7 @@ def check_inputs(bridge=None, train=None, speeds=None, params_file=None, model=N
         bridge_from_params(preset, values)
     except InputError as exc:
         raise InputError(f"bridge node: {exc}") from None
+    warn_bridge_node(preset, values)
     # the train node: the train with its model and speed lanes
     tv = {s.name: s.default for s in TRAIN_SPECS}
     tv.update({k: v for k, v in file_values.get("train", {}).items() if k in tv})
@@ -169,6 +174,19 @@ def check_inputs(bridge=None, train=None, speeds=None, params_file=None, model=N
     except InputError as exc:
         raise InputError(f"train node: {exc}") from None
     return file_values
+
+
+def warn_bridge_node(preset, values):
+    """The plausibility warnings the bridge node will give its start-up values, here, where the
+    user sees them (the node's own go to its log): one ``warning: bridge node: <parameter>: ...``
+    line each (:func:`adm_sim.nodes.params.bridge_plausibility`)."""
+    from adm_sim.nodes.params import bridge_plausibility  # noqa: PLC0415  the parameter tables load yaml (~218 ms): pre-flight only
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", PlausibilityWarning)
+        bridge_plausibility(preset, values)
+    for w in caught:
+        warnings.warn(f"bridge node: {w.message}", PlausibilityWarning, stacklevel=2)
 
 
 def check_domain_id(domain_id):
@@ -189,6 +207,21 @@ def check_viewer(spawn, connect):
             check_loopback(_given("--connect", connect))
         except InputError as exc:
             raise InputError(f"--connect: {str(exc).removeprefix('connect_url: ')}") from None
+
+
+def viewer_ready(args):
+    """The live viewer answers before any process starts or any folder is created: ``--connect``
+    must answer the handshake of a rerun viewer (a closed port, another server, a silent socket:
+    :class:`~adm_sim.errors.RunError`, one line, exit 1); ``--spawn`` starts the viewer here
+    (listening, answering and alive a moment later, or one line with its own last word) and the
+    driver streams to it as to ``--connect`` (``args.connect`` is set, ``args.spawn`` cleared)."""
+    from adm_sim.recording.viewer_process import handshake, spawn_viewer  # noqa: PLC0415  start-up: only on this path (12 ms)
+
+    if args.connect is not None:
+        handshake(args.connect, what="--connect")
+    elif args.spawn:
+        _, args.connect = spawn_viewer(what="--spawn")
+        args.spawn = False
 
 
 def check_out(out, inputs=None):

@@ -28,6 +28,7 @@ from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, discard_outputs
 
 from adm_sim.cliutil import Parser, add_domain_id, add_overwrite, progress_bar
 from adm_sim.files import write_atomic
+from adm_sim.plausibility import check_response
 from adm_sim.protocol import parse_driver_line
 
 
@@ -123,6 +124,17 @@ def print_result(summary):
     print(f"  dz_EADA     {pct(summary['delta_zeta_eada_pct'])}\n  dz_LB       {pct(summary['delta_zeta_lb_pct'])}")
 
 
+def warn_implausible(summary):
+    """The plausibility warnings of the calibration's MLM and DIM peaks (as ``adm-calib calibrate``
+    gives them, :func:`adm_sim.plausibility.check_response`): one line each peak no real deck
+    survives, named by bridge, train, model and speed; once per run."""
+    for model in ("mlm", "dim"):
+        p = summary.get(f"{model}_peak")
+        if p and p.get("acc_m_s2") is not None:
+            check_response(None, p["acc_m_s2"], None,
+                           f"{summary['bridge']} x {summary['train']}: {model.upper()} at {p['speed_kmh']:g} km/h")
+
+
 def main(argv=None):
     args = parse_args(argv)
     return launch(_main, args)
@@ -160,6 +172,7 @@ def _main(args):
     write_atomic(out / "summary.json", lambda tmp: tmp.write_text(json.dumps(summary, indent=2) + "\n"))
     if args.no_rrd and "run.rrd" in old:  # the earlier run's recording does not belong to this one
         (out / "run.rrd").unlink()
+    warn_implausible(summary)
     print_result(summary)
     print(f"\nwrote {out / 'summary.json'}, {out / 'run.mcap'}" + ("" if args.no_rrd else f", {out / 'run.rrd'}"))
     print(f"wall time {summary['wall_s']:.1f} s (processes started and stopped included)")

@@ -23,10 +23,12 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, discard_outputs, launch, preflight, release_out,
                          run_graph)
 
 from adm_sim.cliutil import Parser, add_choice, add_domain_id, add_overwrite
+from adm_sim.plausibility import check_response
 from adm_sim.protocol import parse_driver_line
 
 
@@ -87,6 +89,7 @@ def _main(args):
         env.release()
     release_out(out)
     s = json.loads((out / "summary.json").read_text())
+    warn_implausible(s)
     print(f"{s['bridge']}\ntrain {s['train']}, {s['model'].upper()}: run {s['run_id']} in {s['wall_s']:.2f} s")
     for v, a in zip(s["speeds_kmh"][:20], s["max_acc_m_s2"][:20]):
         print(f"  {v:7.1f} km/h   max |a| {a:.4f} m/s^2")
@@ -94,6 +97,18 @@ def _main(args):
         print(f"  ... {len(s['speeds_kmh'])} speeds, max {max(s['max_acc_m_s2']):.4f} m/s^2")
     print(f"wrote {out}/summary.json, run.mcap, run.rrd; wall time {time.perf_counter() - t0:.1f} s")
     return 0
+
+
+def warn_implausible(s):
+    """The plausibility warnings of the run's result (:func:`adm_sim.plausibility.check_response`,
+    as ``adm-sim sweep`` gives them): its largest acceleration and deflection, named by the run,
+    its model and speed; once per run."""
+    acc, disp, v = (np.asarray(s[k], dtype=float) for k in ("max_acc_m_s2", "max_disp_m", "speeds_kmh"))
+    if acc.size:
+        i, j = int(np.argmax(acc)), int(np.argmax(disp))
+        run = f"run {s['run_id']} ({s['model'].upper()})"
+        check_response(s.get("span_m"), acc[i], disp[j] if s.get("span_m") else None, f"{run} at {v[i]:g} km/h",
+                       f"{run} at {v[j]:g} km/h")
 
 
 if __name__ == "__main__":

@@ -38,7 +38,7 @@ from adm_sim.files import OutputSet, check_output_folder, claim_output, input_fi
 from adm_sim.sim_commands import add_check_arguments, cmd_check
 from adm_sim.cliutil import (Parser, add_choice, add_dim_grid, add_overwrite, add_progress, add_speeds,
                              add_steps_per_period, check_option, option_help, option_view, progress_callback, run_cli)
-from adm_sim.errors import InputError
+from adm_sim.errors import InputError, PlausibilityWarning
 from adm_sim.fields import check_range
 from adm_sim.limits import MAX_DELTA_ZETA_PCT
 from adm_sim.step_grid import StepOptions
@@ -237,9 +237,7 @@ def cmd_recommend(args):
                                "n0_hz": "--n0", "mu_kg_m": "--mu", "extrapolate": "--extrapolate"})
     rec = recommend(train, n0, mu_kg_m / 1000.0, args.type, span_m=span, interpolate=args.interpolate,
                     functions=args.functions, extrapolate=args.extrapolate)
-    from adm_sim.errors import PlausibilityWarning
-
-    from adm_calib.recommend_warnings import recommendation_warnings
+    from adm_calib.recommend_warnings import recommendation_warnings  # noqa: PLC0415  start-up: only this subcommand (reads the study's cases)
 
     study_warnings = recommendation_warnings(rec)
     for w in study_warnings:  # one line "warning: ..." on stderr each (run_cli)

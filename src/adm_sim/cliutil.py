@@ -44,12 +44,34 @@ def run_cli(call):
     Every output claimed during the call (:func:`adm_sim.files.claim_output`) is released at its end.
     A :class:`~adm_sim.plausibility.PlausibilityWarning` raised during the call is printed as one
     line ``warning: ...`` on stderr, each time it occurs (:func:`plausibility_warnings`).
+
+    A signal has no window: once ``call()`` has returned (or raised), SIGINT and SIGTERM no longer
+    raise but mark the run interrupted (its last line and the release of its claims are not cut,
+    no traceback); a run that had succeeded then ends ``error: interrupted``, 130. Past the return
+    of this function (the way out of the process) they print ``error: interrupted`` and end the
+    process with 130 at once, instead of the default death by the signal (:class:`interrupt_signals`).
     """
-    with interrupt_signals(), plausibility_warnings():
+    with interrupt_signals() as sigs, plausibility_warnings():
         try:
-            return _run(call)
+            code = _run(lambda: _deferring(call, sigs))
+        except KeyboardInterrupt:  # between the end of call() and the deferral
+            print("error: interrupted", file=sys.stderr)
+            code = EXIT_INTERRUPTED
         finally:
+            sigs.defer()
             release_all()
+        if sigs.late and code == EXIT_OK:
+            print("error: interrupted", file=sys.stderr)
+            code = EXIT_INTERRUPTED
+        return code
+
+
+def _deferring(call, sigs):
+    """``call()``; whatever way it ends, later signals are deferred (:meth:`interrupt_signals.defer`)."""
+    try:
+        return call()
+    finally:
+        sigs.defer()
 
 
 class one_line_warnings:
@@ -99,24 +121,48 @@ class plausibility_warnings(one_line_warnings):
 
 class interrupt_signals:
     """Within the block, SIGTERM and SIGINT both raise ``KeyboardInterrupt`` in the main thread
-    (SIGINT too when a non-interactive shell started the process with SIGINT ignored); the old
-    handlers come back at its end. Off the main thread it does nothing."""
+    (SIGINT too when a non-interactive shell started the process with SIGINT ignored), until
+    :meth:`defer`: from then on they only set :attr:`late`. At its end the old handlers come back,
+    except the interpreter's defaults (SIGTERM's death by the signal, SIGINT's
+    ``KeyboardInterrupt`` with a traceback from wherever the process is on its way out): in their
+    place a signal prints ``error: interrupted`` and ends the process with 130 at once. Off the
+    main thread it does nothing."""
 
     def __enter__(self):
         self._old = {}
+        self.late = False
         if threading.current_thread() is threading.main_thread():
             for sig in (signal.SIGINT, signal.SIGTERM):
                 self._old[sig] = signal.signal(sig, _raise_interrupt)
         return self
 
+    def defer(self):
+        """From now on a signal marks the block interrupted (:attr:`late`) instead of raising."""
+        def mark(signum, frame):
+            self.late = True
+
+        for sig in self._old:
+            signal.signal(sig, mark)
+
     def __exit__(self, *exc):
         for sig, handler in self._old.items():
-            signal.signal(sig, handler)
+            default = handler is signal.SIG_DFL or handler is signal.default_int_handler
+            signal.signal(sig, _exit_interrupted if default else handler)
         return False
 
 
 def _raise_interrupt(signum, frame):
     raise KeyboardInterrupt
+
+
+def _exit_interrupted(signum, frame):
+    """A signal on the way out of a command: one line and 130 now (stdout flushed if it can be)."""
+    try:
+        sys.stdout.flush()
+    except Exception:  # a flush cut by this very signal: what it held is lost either way
+        pass
+    os.write(2, b"error: interrupted\n")
+    os._exit(EXIT_INTERRUPTED)
 
 
 def check_environment(environ=None):

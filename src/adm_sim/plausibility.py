@@ -183,14 +183,20 @@ def warn(key, label, value, ctx=None, hint="", stacklevel=3):
 
 
 # ---------------------------------------------------------------------- entry points
-def check_bridge(bridge, source="bridge", zeta_pct_given=None):
+def check_bridge(bridge, source="bridge", zeta_pct_given=None, labels=None):
     """Warn about a bridge read from user input: n0 off the Fig. 8 band, mu off Table 1, damping that
-    looks like a fraction (``zeta_pct_given``, the value typed for ``zeta_pct``) or tiny on a light deck."""
+    looks like a fraction (``zeta_pct_given``, the value typed for ``zeta_pct``) or tiny on a light deck.
+
+    ``labels``: how the caller's input names n0, mu and zeta_pct (``{"n0": ..., "mu": ...,
+    "zeta_pct": ...}``, the ROS parameters ``n0_hz``, ``mu_kg_m``, ``zeta_pct`` for the bridge
+    node); default the spec keys after ``source``. A label is used as it is."""
+    lab = {"n0": f"{source}: n0", "mu": f"{source}: mu", "zeta_pct": f"{source}.zeta_pct"} | (labels or {})
     ctx = {"span_m": bridge.span_m, "mu_kg_m": bridge.mass_per_length_kg_m}
-    warn("n0", f"{source}: n0", bridge.n0_hz, ctx)
-    warn("mu", f"{source}: mu", bridge.mass_per_length_kg_m, ctx)
-    if zeta_pct_given is not None and warn("zeta_pct_fraction", f"{source}.zeta_pct", zeta_pct_given, ctx,
-                                           hint=f" (if {zeta_pct_given:g} is a fraction, write zeta_pct={100 * zeta_pct_given:g})"):
+    warn("n0", lab["n0"], bridge.n0_hz, ctx)
+    warn("mu", lab["mu"], bridge.mass_per_length_kg_m, ctx)
+    key = lab["zeta_pct"].rsplit(".", 1)[-1].rsplit(" ", 1)[-1]
+    if zeta_pct_given is not None and warn("zeta_pct_fraction", lab["zeta_pct"], zeta_pct_given, ctx,
+                                           hint=f" (if {zeta_pct_given:g} is a fraction, write {key}={100 * zeta_pct_given:g})"):
         return
     mu3 = _mu_kg_m(MU3, bridge.span_m)
     warn("zeta_light", f"{source}: damping of a light deck (mu = {_fmt(bridge.mass_per_length_kg_m)} kg/m < "

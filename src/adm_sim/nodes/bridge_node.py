@@ -40,7 +40,8 @@ from adm_sim.limits import ACC_LIMITS_M_S2, TRACK_TYPES
 from adm_sim.lockstep_runs import BridgeHalf
 from adm_sim.mlm_loads import modal_loads_at
 from adm_sim.nodes import common as c
-from adm_sim.nodes.params import MONITOR_SAMPLES_PER_PERIOD, bridge_from_params, bridge_specs, step_options
+from adm_sim.nodes.params import (MONITOR_SAMPLES_PER_PERIOD, bridge_from_params, bridge_plausibility, bridge_specs,
+                                   step_options)
 from adm_sim.rk4_sides import BridgeSide
 from adm_sim.run_contract import FAILED, FINISHED, RUNNING
 from adm_sim.step_grid import Grid, make_grid
@@ -174,6 +175,9 @@ class BridgeNode(c.LockstepNode):
 
     def configure(self, values):
         self.bridge = self.build_bridge(values)
+
+    def plausibility(self, values):
+        bridge_plausibility(self.preset, values, self._preset_defaults)
 
     def lock_reason(self):
         return f"run {self.run.id} is in progress (step {self.run.run.k} of {self.run.grid.n_steps})"

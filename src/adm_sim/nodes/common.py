@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 import sys
 import time
+import warnings
 
 import numpy as np
 import rclpy
@@ -35,7 +36,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension, String
 
 from adm_sim.cliutil import one_line_warnings
-from adm_sim.errors import AdmSimError, InputError, RunError
+from adm_sim.errors import AdmSimError, InputError, PlausibilityWarning, RunError
 from adm_sim.files import release_all
 from adm_sim.protocol import EXCHANGE_HEADER_LEN as HEADER_LEN
 from adm_sim.protocol import encode
@@ -390,8 +391,29 @@ class LockstepNode(NodeBase):
         :meth:`validate` of the start-up values (they are checked before the node runs)."""
         self.declare_specs(specs, on_set=self._check_set)
         checked = self.validate(self.param_values())
+        self._warn_implausible(self.param_values())
         self.add_post_set_parameters_callback(self._apply_set)
         return checked
+
+    def plausibility(self, values):
+        """Issue the :class:`~adm_sim.errors.PlausibilityWarning` of the valid values ``values``
+        (:mod:`adm_sim.plausibility`: a value the model computes but no real bridge has)."""
+
+    def _warn_implausible(self, values):
+        """:meth:`plausibility` of ``values`` at start-up and after every set, each warning once
+        per node (the same value set again is not warned again); :func:`run_node` prints each as
+        one line ``warning: <node>: ...``."""
+        said = self.__dict__.setdefault("_plausibility_said", set())
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", PlausibilityWarning)
+            self.plausibility(values)
+        for w in caught:
+            text = str(w.message)
+            if not issubclass(w.category, PlausibilityWarning):
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+            elif text not in said:
+                said.add(text)
+                warnings.warn(text, PlausibilityWarning, stacklevel=2)
 
     def validate(self, values):
         """Raise :class:`InputError` when ``values`` (every parameter) do not make a valid node."""
@@ -421,6 +443,7 @@ class LockstepNode(NodeBase):
     def _apply_set(self, params):
         values = self.param_values()
         self.configure(values)
+        self._warn_implausible(values)
         if self.partner is not None and any(p.name == "partner_timeout_s" for p in params):
             self.partner.timeout_s = float(values["partner_timeout_s"])
         self.publish_description()
@@ -435,7 +458,11 @@ def run_node(make_node, args=None, name="node"):
     """
 
     with one_line_warnings(prefix=f"{name}: ", categories=(Warning,), repeat=False):
-        return _run_node(make_node, args, name)
+        code = _run_node(make_node, args, name)
+    from adm_sim.recording.viewer_process import exit_if_abandoned  # noqa: PLC0415  (no rerun import)
+
+    exit_if_abandoned(code)  # a rerun viewer given up: rerun's flush at exit would hang on it
+    return code
 
 
 def _run_node(make_node, args, name):

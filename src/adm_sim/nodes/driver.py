@@ -20,10 +20,11 @@ import json
 import sys
 import threading
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import AccelStamped
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
@@ -32,11 +33,12 @@ from std_msgs.msg import Float64MultiArray, String
 from std_srvs.srv import Trigger
 
 from adm_sim import protocol as P
-from adm_sim.errors import AdmSimError, InputError, RunError  # RunError: a run failed or its partners went away
+from adm_sim.errors import AdmSimError, InputError, PlausibilityWarning, RunError  # RunError: a run failed or its partners went away
 from adm_sim.files import claim_output, release, write_atomic
 from adm_sim.nodes import common as c
 from adm_sim.nodes.params import DRIVER_SPECS
 from adm_sim.nodes.recorder import RunRecorder
+from adm_sim.plausibility import check_response
 
 
 #: Topics the driver records (topic, type); its own publications are recorded as it publishes.
@@ -44,6 +46,10 @@ RECORDED = [(P.TOPIC_CLOCK, Clock), (P.TOPIC_ACCEL, AccelStamped), (P.TOPIC_STAT
             (P.TOPIC_BEAM, Float64MultiArray), (P.TOPIC_AXLES, Float64MultiArray), (P.TOPIC_PROGRESS, String),
             (P.TOPIC_DIAGNOSTICS, DiagnosticArray), (P.TOPIC_RESULT, Float64MultiArray), (P.TOPIC_STATUS, String),
             (P.TOPIC_SUMMARY, DiagnosticStatus), (P.TOPIC_BRIDGE_DESC, String), (P.TOPIC_TRAIN_DESC, String)]
+
+
+#: ``/diagnostics`` status name of the plausibility warnings of a run's result (:meth:`RunDriver.warn_implausible`).
+DIAG_PLAUSIBILITY = "adm_sim/driver: plausibility of the result"
 
 
 #: The driver's output parameters and the suffix each must have (:func:`adm_sim.files.claim_output`).
@@ -108,6 +114,7 @@ class RunDriver(c.NodeBase):
         self._desc = {}
         self._current = None  # (run_id, model, lane label)
         self.n_runs = 0
+        self._run_ids = []  # the runs requested, in order
         self._last_rx = time.monotonic()
         #: the recording side (MCAP, rerun, acknowledgements, per-run counts)
         self.rec = RunRecorder(self, self.outputs, chunk_size=p["chunk_size"], rerun_spawn=p["rerun_spawn"],
@@ -120,6 +127,8 @@ class RunDriver(c.NodeBase):
             self.create_subscription(typ, P.relative(topic), self._make_cb(topic), qos)
         #: the driver's ``requested`` records (the run id with its phase); its own subscription records them
         self.pub_request = self.create_publisher(String, P.relative(P.TOPIC_STATUS), c.QOS_CONTROL)
+        #: the plausibility verdict of a run's result (:meth:`warn_implausible`)
+        self.pub_plausibility = self.create_publisher(DiagnosticArray, P.relative(P.TOPIC_DIAGNOSTICS), c.QOS_CONTROL)
         self.last_phase = None  # phase of the last run requested (the iterations that follow it)
         self.cli_start = self.create_client(Trigger, P.relative(P.SERVICE_START_RUN))
         self.params = {n: AsyncParameterClient(self, n) for n in (P.BRIDGE_NODE, P.TRAIN_NODE)}
@@ -138,7 +147,11 @@ class RunDriver(c.NodeBase):
             self._last_rx = time.monotonic()
             if isinstance(msg, Clock):
                 self._clock_ns = self.rec.clock_ns = msg.clock.sec * 1_000_000_000 + msg.clock.nanosec
-            self.rec.write(topic, msg, self.rec.log_time_ns(msg))
+            try:
+                self.rec.write(topic, msg, self.rec.log_time_ns(msg))
+            except RunError as exc:  # a refused write (full disk, ulimit -f): the run's failure
+                self.recorder_failed(exc)
+                return
             if own is not None:
                 own(msg)
             if counted:
@@ -149,7 +162,28 @@ class RunDriver(c.NodeBase):
     def publish_recorded(self, pub, topic, msg):
         """Publish and record one of the driver's own messages at the current sim time."""
         pub.publish(msg)
-        self.rec.write(topic, msg, self._clock_ns)
+        try:
+            self.rec.write(topic, msg, self._clock_ns)
+        except RunError as exc:
+            raise self._named(exc) from None
+
+    def _named(self, exc):
+        """``exc`` (a recorder's failure) as the failure of the run it hit: the current run, else
+        the runs recorded so far."""
+        if str(exc).startswith("run"):
+            return exc
+        if self._current is not None:
+            return RunError(f"run {self._current[0]}: {exc}")
+        ids = self._run_ids
+        which = "" if not ids else f"run {ids[0]}: " if len(ids) == 1 else f"runs {ids[0]}-{ids[-1]}: "
+        return RunError(f"{which}{exc}")
+
+    def recorder_failed(self, exc):
+        """A write the recorder could not make (MCAP or rerun: a full disk, ``ulimit -f``) fails the
+        run it belongs to and ends the node's job: exit 1, one line naming the run."""
+        if self.error is None:
+            self.error = self._named(exc)
+        self.finished = True
 
     def _take_result(self, msg):
         with self._lock:
@@ -295,6 +329,7 @@ class RunDriver(c.NodeBase):
         timeout = self.get_parameter("run_timeout_s").value
         lab = label or model.upper()
         self._current = (run_id, model, f"{lab} run {run_id}")
+        self._run_ids.append(run_id)
         self.pub_request.publish(c.json_msg(P.request_record(self.get_name(), run_id, model, phase, lab)))
         say("run", run_id=run_id, model=model, lanes=int(info["lanes"]), state="started", label=lab, phase=phase)
         last_check = time.monotonic()
@@ -321,10 +356,37 @@ class RunDriver(c.NodeBase):
         self.n_runs += 1
         out = {"run_id": run_id, "model": model, "speeds_kmh": res[0], "max_acc_m_s2": res[1],
                "max_disp_m": res[2], "delta_zeta": res[3], "wall_s": wall, "phase": phase}
+        self.warn_implausible(out)
         i = int(np.argmax(res[1]))
         say("run", run_id=run_id, model=model, state="done", wall_s=round(wall, 3),
             max_acc_m_s2=float(res[1][i]), speed_kmh=float(res[0][i]), label=lab, phase=phase)
         return out
+
+    def warn_implausible(self, r):
+        """The plausibility warnings of run ``r``'s result (:func:`adm_sim.plausibility.check_response`,
+        as ``adm-sim sweep`` gives them): its largest acceleration and deflection, named by the run,
+        its model and speed; once per run, each as one ``warning: <node>: ...`` line and as a WARN
+        status :data:`DIAG_PLAUSIBILITY` on ``/diagnostics`` (recorded with the run)."""
+        acc, disp, v = (np.asarray(r[k], dtype=float) for k in ("max_acc_m_s2", "max_disp_m", "speeds_kmh"))
+        if not acc.size:
+            return []
+        span = float(self.description(P.BRIDGE_NODE)["bridge"]["span_m"])
+        i, j = int(np.argmax(acc)), int(np.argmax(disp))
+        run = f"run {r['run_id']} ({str(r['model']).upper()})"
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", PlausibilityWarning)
+            check_response(span, acc[i], disp[j], f"{run} at {v[i]:g} km/h", f"{run} at {v[j]:g} km/h")
+        texts = [str(w.message) for w in caught if issubclass(w.category, PlausibilityWarning)]
+        for text in texts:
+            warnings.warn(text, PlausibilityWarning, stacklevel=2)
+        if texts:
+            st = [DiagnosticStatus(level=DiagnosticStatus.WARN, name=DIAG_PLAUSIBILITY, hardware_id=P.BRIDGE_NODE,
+                                   message=text, values=[KeyValue(key="run_id", value=str(r["run_id"]))])
+                  for text in texts]
+            arr = DiagnosticArray(status=st)
+            arr.header.stamp.sec, arr.header.stamp.nanosec = divmod(self._clock_ns, 1_000_000_000)
+            self.pub_plausibility.publish(arr)  # recorded by the driver's own /diagnostics subscription
+        return texts
 
     def _bridge_status(self, run_id):
         with self._lock:
@@ -344,7 +406,9 @@ class RunDriver(c.NodeBase):
         """One run with the train node's current parameters; writes ``summary_path``."""
         self.wait_for_graph()
         r = self.request_run()
-        summary = {"run_id": r["run_id"], "model": r["model"], "bridge": self.description("bridge")["description"],
+        bd = self.description("bridge")
+        summary = {"run_id": r["run_id"], "model": r["model"], "bridge": bd["description"],
+                   "span_m": bd["bridge"]["span_m"],
                    "train": self.description("train")["name"], "speeds_kmh": r["speeds_kmh"].tolist(),
                    "max_acc_m_s2": r["max_acc_m_s2"].tolist(), "max_disp_m": r["max_disp_m"].tolist(),
                    "wall_s": r["wall_s"], "phase": r["phase"], "samples": self.rec.recorded.get(r["run_id"]),
@@ -363,11 +427,14 @@ class RunDriver(c.NodeBase):
         finishes when it returns."""
         def work():
             try:
-                self.write_summary(self.job())
-                self.error = self.rec.incomplete_error()  # outputs kept, exit status 1
-                self._keep_outputs = self.error is not None
+                summary = self.job()
+                if self.error is None:  # not after a recorder's failure; written by end()
+                    self._summary = summary
+                    self.error = self.rec.incomplete_error()  # outputs kept, exit status 1
+                    self._keep_outputs = self.error is not None
             except Exception as exc:  # reported by end(); the process exits non-zero
-                self.error = exc
+                if self.error is None:  # the first failure is the one reported
+                    self.error = self._named(exc) if isinstance(exc, RunError) and str(exc).startswith("recording") else exc
             finally:
                 self.finished = True
 
@@ -378,6 +445,15 @@ class RunDriver(c.NodeBase):
         t_end = time.monotonic() + 3.0
         while self.context.ok() and time.monotonic() - self._last_rx < 0.3 and time.monotonic() < t_end:
             executor.spin_once(timeout_sec=0.05)
+        keep = self.error is None or getattr(self, "_keep_outputs", False)
+        try:  # the outputs are closed and checked here: one that is not whole fails the run
+            self.rec.finish(keep=self.finished and keep)
+            if keep and getattr(self, "_summary", None) is not None:  # the summary last: the recordings are whole
+                self.write_summary(self._summary)
+        except RunError as exc:
+            if keep:
+                self.error = self._named(exc)
+                self._keep_outputs = False
         if self.error is None:
             return 0
         if isinstance(self.error, AdmSimError):
@@ -388,7 +464,10 @@ class RunDriver(c.NodeBase):
 
         ok = self.finished and (self.error is None or getattr(self, "_keep_outputs", False))
         if getattr(self, "rec", None) is not None:
-            self.rec.finish(keep=ok)
+            try:  # after end(): nothing left to do; else (an error, an interrupt) the outputs are discarded
+                self.rec.finish(keep=ok)
+            except RunError:
+                pass  # the job's own error is the one reported; the output was not kept
         for path in getattr(self, "outputs", {}).values():
             release(path)
         super().close()

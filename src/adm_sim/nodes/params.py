@@ -14,6 +14,7 @@ that importing this module leaves ``rclpy`` out.
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -22,10 +23,11 @@ import yaml
 from adm_sim import fields
 from adm_sim import protocol as P
 from adm_sim.bridge import Bridge
-from adm_sim.errors import InputError
+from adm_sim.errors import InputError, PlausibilityWarning
 from adm_sim.files import read_text, refuse_special
 from adm_sim.fields import check_delta_zeta, check_range, view
 from adm_sim.limits import ACC_LIMITS_M_S2, DEFAULT_SPEEDS, check_track_type
+from adm_sim.plausibility import check_bridge
 from adm_sim.run_contract import check_model
 from adm_sim.step_grid import StepOptions
 from adm_sim.sweep import parse_speeds
@@ -272,6 +274,36 @@ def bridge_from_params(preset, p, defaults=None):
     check_track_type("track_type", p["track_type"])
     step_options(p)
     return b
+
+
+#: How the bridge node's parameters name the quantities of the plausibility table.
+BRIDGE_PARAM_LABELS = {"n0": "n0_hz", "mu": "mu_kg_m", "zeta_pct": "zeta_pct"}
+
+
+def bridge_plausibility(preset, p, defaults=None):
+    """The plausibility warnings (:func:`adm_sim.plausibility.check_bridge`) of the bridge the
+    node's parameter values ``p`` give, each naming its parameter (``mu_kg_m: 150 kg/m is outside
+    the plausible range ...``); a typed ``zeta_pct`` below 0.1 % is named as a fraction typed as
+    percent. n0 derived from ``EJ_Nm2`` (``n0_hz`` = 0) is named so. Warnings only, never a refusal;
+    ``p`` must have passed :func:`bridge_from_params`. What the preset itself gives (its own
+    warnings came with it, :func:`adm_sim.bridge.resolve_bridge`) is not said again: only the
+    warnings the parameter values add to those of the preset's defaults."""
+    d = {sp.name: sp.default for sp in bridge_specs(preset)} if defaults is None else defaults
+
+    def said(values):
+        b = bridge_from_params(preset, values, d)
+        labels = dict(BRIDGE_PARAM_LABELS)
+        if values["n0_hz"] == 0.0:
+            labels["n0"] = "n0 (from EJ_Nm2 and mu_kg_m)"
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", PlausibilityWarning)
+            check_bridge(b, "bridge", zeta_pct_given=float(values["zeta_pct"]), labels=labels)
+        return [str(w.message) for w in caught if issubclass(w.category, PlausibilityWarning)]
+
+    preset_said = set(said({**p, **d}))
+    for text in said(p):
+        if text not in preset_said:
+            warnings.warn(text, PlausibilityWarning, stacklevel=2)
 
 
 TRAIN_SPECS = [

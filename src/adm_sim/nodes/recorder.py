@@ -50,6 +50,8 @@ class RunRecorder:
         self.feed_lock = threading.Lock()   # the viewer feed (subscriptions and the client's own messages)
         self.clock_ns = 0                 # the last /clock
         self._beside_files = {}
+        self._finished = False
+        self._direct = set()  # outputs written under their final name (new files)
         self.mcap = None
         if "record_path" in outputs:
             from adm_sim.recording.mcap_log import McapRecorder  # noqa: PLC0415  mcap only when recording
@@ -187,31 +189,68 @@ class RunRecorder:
 
     # ------------------------------------------------------------------ files
     def _beside(self, name):
-        """Where output ``name`` is written: the file itself when it is new (a killed recorder
-        leaves a salvageable file there), a temporary file beside it when an earlier one is
-        replaced (``overwrite``): the old file stays until :meth:`finish` renames the new one,
-        which it does only when the job succeeded (else the temporary file is removed)."""
+        """Where output ``name`` is written. The ``.rrd`` always goes to a temporary file beside its
+        final name: rerun's file sink reports a refused write only in its log, so the recording is
+        read back (:func:`adm_sim.recording.rrd_check.check_rrd`) and renamed by :meth:`finish`
+        only when it is whole. The MCAP file goes to its final name when it is new (a killed
+        recorder leaves a salvageable file there; a refused write removes it, see
+        :class:`~adm_sim.recording.mcap_log.McapRecorder`), to a temporary file beside it when an
+        earlier one is replaced (``overwrite``): the old file stays until :meth:`finish` renames
+        the new one, which it does only when the job succeeded (else the temporary file is removed)."""
         path = self.outputs[name]
-        if not path.exists():
+        if name != "rrd_path" and not path.exists():
+            self._direct.add(name)
             return path
         tmp = path.with_name(f".{path.stem}.tmp-{os.getpid()}{path.suffix}")
         self._beside_files[name] = tmp
         return tmp
 
     def finish(self, keep):
-        """Close the MCAP file and the rerun recording; an earlier file is replaced only if ``keep``."""
+        """Close the MCAP file and the rerun recording; rename the outputs into place only if
+        ``keep`` and each was written whole (idempotent).
+
+        Raises :class:`RunError` (one line, naming the file) when an output could not be written
+        whole: the MCAP writer failed, or the ``.rrd`` does not read back. No output of the set
+        is then left under its final name (temporary files and new files removed), and no earlier
+        file is replaced.
+        """
+        if self._finished:
+            return
+        self._finished = True
+        errors = []
         if self.mcap is not None:
             with self.write_lock:
-                self.mcap.finish()
+                try:
+                    self.mcap.finish()
+                except RunError as exc:
+                    errors.append(exc)
+                    self._beside_files.pop("record_path", None)  # the writer removed its file
         if self.feed is not None:
             from adm_sim.recording import rerun_log  # noqa: PLC0415  rerun only with a viewer or .rrd
 
             with self.feed_lock:
-                self.feed.finish()
-            rerun_log.close_rerun()
+                try:
+                    self.feed.finish()
+                finally:
+                    rerun_log.close_rerun(watch_viewer=True)  # a viewer that stopped answering: one warning
+        tmp = self._beside_files.get("rrd_path")
+        if keep and tmp is not None:
+            from adm_sim.recording.rrd_check import check_rrd  # noqa: PLC0415  rerun only with a .rrd
+
+            try:
+                check_rrd(tmp, self.outputs["rrd_path"], option="rrd_path")
+            except RunError as exc:
+                errors.append(exc)
+                tmp.unlink(missing_ok=True)
+                del self._beside_files["rrd_path"]
         for name, tmp in self._beside_files.items():  # only complete files replace the old ones
-            if keep:
+            if keep and not errors:
                 os.replace(tmp, self.outputs[name])
             else:
                 tmp.unlink(missing_ok=True)
         self._beside_files = {}
+        if keep and errors:  # the outputs are a set: none of a run that failed to write one stays
+            for name in self._direct:
+                self.outputs[name].unlink(missing_ok=True)
+        if errors:
+            raise errors[0]

@@ -42,7 +42,7 @@ from adm_sim import protocol as P  # topics, records, phases, entity paths, time
 from adm_sim.errors import InputError
 from adm_sim.protocol import RUN_TIME, SIM_TIME
 from adm_sim.recording import rerun_blueprint as bp
-from adm_sim.recording.viewer_process import check_loopback, ensure_analytics_disabled, spawn_viewer
+from adm_sim.recording.viewer_process import check_loopback, close_watched, ensure_analytics_disabled, handshake, spawn_viewer
 
 __all__ = [
     "close_rerun",
@@ -86,8 +86,10 @@ def init_rerun(app_id: str, spawn: bool = False, connect_url: str | None = None,
     sinks: list = []
     if spawn and connect_url is not None:
         raise InputError("init_rerun: give spawn=True or connect_url, not both")
-    if spawn:
+    if spawn:  # listening, answering the handshake and still alive a moment later, or RunError
         _, connect_url = spawn_viewer()  # the viewer process is held by viewer_process until exit
+    elif connect_url is not None:  # a closed port, another server or silence: RunError, one line
+        handshake(check_loopback(connect_url), what="connect_url")
     if connect_url is not None:
         sinks.append(rr.GrpcSink(check_loopback(connect_url)))
     if save_path is not None:
@@ -104,14 +106,29 @@ def init_rerun(app_id: str, spawn: bool = False, connect_url: str | None = None,
     rec = rr.get_global_data_recording()
     # simulated time only: no wall-clock ``log_time`` timeline in the picker (reproducible files)
     rr.set_log_time_enabled(False, recording=rec)
+    _VIEWER_URL[0] = connect_url
     return rec
 
 
-def close_rerun(recording=None) -> None:
-    """Flush and close the sinks of the recording (the ``.rrd`` file is complete afterwards)."""
+#: The viewer the global recording streams to (set by :func:`init_rerun`).
+_VIEWER_URL: list[str | None] = [None]
+
+
+def close_rerun(recording=None, watch_viewer: bool = False) -> bool:
+    """Flush and close the sinks of the recording (the ``.rrd`` file is complete afterwards).
+
+    ``watch_viewer``: when the recording streams to a viewer, the flush runs under
+    :func:`~adm_sim.recording.viewer_process.close_watched`: a viewer that stopped answering is
+    given up with one ``warning:`` line instead of a hang (returns ``False``; the process should
+    then end with :func:`~adm_sim.recording.viewer_process.exit_if_abandoned`).
+    """
     import rerun as rr  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
 
-    rr.disconnect(recording=recording)
+    url, _VIEWER_URL[0] = _VIEWER_URL[0], None
+    if not watch_viewer or url is None:
+        rr.disconnect(recording=recording)
+        return True
+    return close_watched(lambda: rr.disconnect(recording=recording), url)
 
 
 def _part(label) -> str:

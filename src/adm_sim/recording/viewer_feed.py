@@ -16,65 +16,15 @@ driver's ``requested`` record of that run id on ``/adm/run/status``.
 
 from __future__ import annotations
 
-import socket
 import sys
 from collections import defaultdict
-from urllib.parse import urlparse
 
 import numpy as np
 
 from adm_sim import protocol as P
-from adm_sim.errors import RunError
+from adm_sim.recording.viewer_process import check_viewer  # the viewer handshake (its home)
 
 __all__ = ["RunPhases", "ViewerFeed", "check_viewer", "matrix_of", "stamp_ns"]
-
-#: The HTTP/2 client connection preface and an empty SETTINGS frame (RFC 9113, 3.4 and 6.5).
-_H2_PREFACE = b"PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n" + b"\x00\x00\x00\x04\x00\x00\x00\x00\x00"
-_H2_SETTINGS = 0x04
-
-
-def check_viewer(url: str, timeout_s: float = 5.0, what: str = "--connect") -> str:
-    """Check that a rerun viewer answers at ``url`` (``rerun+http://127.0.0.1:PORT/proxy``) before
-    anything is logged to it; raise :class:`~adm_sim.errors.RunError` (one line) otherwise.
-
-    A rerun viewer serves gRPC, which is HTTP/2: on a new connection it answers the client's
-    connection preface with its own SETTINGS frame. A closed port, a server of another protocol
-    (a plain HTTP/1.1 server answers ``HTTP/1.1 400``) or a socket that accepts and never answers
-    (within ``timeout_s``) is refused here, instead of a run that logs into nothing or hangs.
-    """
-
-    u = urlparse(url)
-    host, port = u.hostname, u.port
-    if host is None or port is None:
-        raise RunError(f"{what}: {url!r} names no host and port")
-    try:
-        sock = socket.create_connection((host, port), timeout=timeout_s)
-    except TimeoutError:
-        raise RunError(f"{what}: no viewer at {url} (no connection within {timeout_s:g} s)") from None
-    except OSError as exc:
-        raise RunError(f"{what}: no viewer at {url} ({exc.strerror or exc}); start one with 'rerun' "
-                       f"or use --spawn") from None
-    with sock:
-        sock.settimeout(timeout_s)
-        try:
-            sock.sendall(_H2_PREFACE)
-            head = b""
-            while len(head) < 9:
-                chunk = sock.recv(9 - len(head))
-                if not chunk:
-                    raise RunError(f"{what}: {url} is not a rerun viewer (it closed the connection "
-                                   f"without an HTTP/2 answer)")
-                head += chunk
-        except TimeoutError:
-            raise RunError(f"{what}: the viewer at {url} does not answer (no HTTP/2 answer within "
-                           f"{timeout_s:g} s)") from None
-        except OSError as exc:
-            raise RunError(f"{what}: {url} is not a rerun viewer ({exc.strerror or exc})") from None
-    if head[3] != _H2_SETTINGS or head[5:9] != b"\x00\x00\x00\x00":
-        raise RunError(f"{what}: {url} is not a rerun viewer (it answered {head!r}, not an HTTP/2 "
-                       f"SETTINGS frame)")
-    return url
-
 
 def stamp_ns(msg, log_time_ns: int) -> int:
     """``header.stamp`` of ``msg`` in ns, else ``log_time_ns``."""

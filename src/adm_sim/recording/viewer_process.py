@@ -20,10 +20,13 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import socket
 import subprocess
 import sys
+import tempfile
+import threading
 import time
 from pathlib import Path
 from urllib.parse import urlparse
@@ -33,8 +36,12 @@ from adm_sim.errors import InputError, RunError
 __all__ = [
     "analytics_config_path",
     "check_loopback",
+    "check_viewer",
     "ensure_analytics_disabled",
+    "close_watched",
+    "exit_if_abandoned",
     "free_port",
+    "handshake",
     "rerun_cli",
     "rerun_cli_env",
     "spawn_viewer",
@@ -126,28 +133,186 @@ def wait_for_port(port: int, timeout_s: float) -> bool:
 _VIEWERS: list[subprocess.Popen] = []
 
 
-def spawn_viewer(port: int | None = None, memory_limit: str = "25%",
-                 timeout_s: float = 20.0) -> tuple[subprocess.Popen, str]:
-    """Start a native rerun viewer bound to 127.0.0.1; return the process and its proxy URL.
+def spawn_viewer(port: int | None = None, memory_limit: str = "25%", timeout_s: float = 20.0,
+                 settle_s: float = 1.5, what: str = "spawn") -> tuple[subprocess.Popen, str]:
+    """Start a native rerun viewer bound to 127.0.0.1, check it; return the process and its proxy URL.
 
     ``rr.spawn`` cannot choose the bind address (the viewer would listen on 0.0.0.0), hence this.
-    The viewer runs in its own session (it outlives this process); the process object is held
-    until exit.
+    The viewer must listen within ``timeout_s``, answer the handshake of :func:`handshake` and be
+    alive ``settle_s`` later (on a machine without a display it listens, then exits at once);
+    otherwise :class:`RunError`, one line with the viewer's own last word (its log goes to a
+    temporary file). The viewer runs in its own session (it outlives this process); the
+    process object is held until exit.
     """
     port = free_port() if port is None else int(port)
+    url = f"rerun+http://127.0.0.1:{port}/proxy"
+    log = tempfile.TemporaryFile(prefix="adm_sim_viewer_")
     proc = subprocess.Popen(
         [rerun_cli(), "--bind", "127.0.0.1", "--port", str(port),
          "--memory-limit", memory_limit],
         env=rerun_cli_env(dict(os.environ) | {"RERUN_APP_ONLY": "true"}),
-        stdin=subprocess.DEVNULL, start_new_session=True,
+        stdin=subprocess.DEVNULL, stdout=log, stderr=log, start_new_session=True,
     )
-    if not wait_for_port(port, timeout_s):
-        proc.kill()
-        proc.wait()
-        raise RunError(f"spawn: the rerun viewer did not listen on 127.0.0.1:{port} "
-                       f"within {timeout_s:g} s (is there a display?)")
+
+    def died(why: str) -> RunError:
+        try:  # a viewer on its way out: let it end and say why
+            proc.wait(1.0)
+            why = "exited at once"
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+        log.seek(0)
+        lines = [re.sub(r"\x1b\[[0-9;]*m", "", ln).strip() for ln in log.read().decode(errors="replace").splitlines()]
+        lines = [ln for ln in lines if ln] or ["no output"]
+        last = ([ln for ln in lines if "error" in ln.lower()] or lines)[-1]
+        last = last if len(last) <= 160 else "..." + last[-150:]
+        log.close()
+        return RunError(f"{what}: the rerun viewer {why} (exit status {proc.returncode}: {last}); is there a display?")
+
+    t_end = time.monotonic() + timeout_s
+    while not wait_for_port(port, 0.2):
+        if proc.poll() is not None:
+            raise died("exited at once")
+        if time.monotonic() > t_end:
+            raise died(f"did not listen on 127.0.0.1:{port} within {timeout_s:g} s")
+    try:
+        handshake(url, what=what)
+    except RunError:
+        raise died("does not answer") from None
+    t_end = time.monotonic() + settle_s
+    while time.monotonic() < t_end:
+        if proc.poll() is not None:
+            raise died("exited at once")
+        time.sleep(0.05)
     _VIEWERS.append(proc)
-    return proc, f"rerun+http://127.0.0.1:{port}/proxy"
+    return proc, url
+
+
+# ---------------------------------------------------------------- handshake and watchdog
+
+#: Seconds a viewer has to answer the handshake (:func:`handshake`).
+HANDSHAKE_S = 5.0
+#: While a recording is flushed to a viewer (:func:`close_watched`), the viewer is asked every
+#: this many seconds whether it still answers.
+WATCH_EVERY_S = 2.0
+#: The longest a flush to a viewer that keeps answering may take.
+CLOSE_LIMIT_S = 600.0
+#: URLs of the viewers given up during this process (rerun's own flush at interpreter exit would
+#: wait for them again: :func:`exit_if_abandoned`).
+ABANDONED: list[str] = []
+
+
+#: The HTTP/2 client connection preface and an empty SETTINGS frame (RFC 9113, 3.4 and 6.5).
+_H2_PREFACE = b"PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n" + b"\x00\x00\x00\x04\x00\x00\x00\x00\x00"
+_H2_SETTINGS = 0x04
+
+
+def check_viewer(url: str, timeout_s: float = 5.0, what: str = "--connect") -> str:
+    """Check that a rerun viewer answers at ``url`` (``rerun+http://127.0.0.1:PORT/proxy``) before
+    anything is logged to it; raise :class:`~adm_sim.errors.RunError` (one line) otherwise.
+
+    A rerun viewer serves gRPC, which is HTTP/2: on a new connection it answers the client's
+    connection preface with its own SETTINGS frame. A closed port, a server of another protocol
+    (a plain HTTP/1.1 server answers ``HTTP/1.1 400``) or a socket that accepts and never answers
+    (within ``timeout_s``) is refused here, instead of a run that logs into nothing or hangs.
+    """
+    u = urlparse(url)
+    host, port = u.hostname, u.port
+    if host is None or port is None:
+        raise RunError(f"{what}: {url!r} names no host and port")
+    try:
+        sock = socket.create_connection((host, port), timeout=timeout_s)
+    except TimeoutError:
+        raise RunError(f"{what}: no viewer at {url} (no connection within {timeout_s:g} s)") from None
+    except OSError as exc:
+        raise RunError(f"{what}: no viewer at {url} ({exc.strerror or exc}); start one with 'rerun' "
+                       f"or use --spawn") from None
+    with sock:
+        sock.settimeout(timeout_s)
+        try:
+            sock.sendall(_H2_PREFACE)
+            head = b""
+            while len(head) < 9:
+                chunk = sock.recv(9 - len(head))
+                if not chunk:
+                    raise RunError(f"{what}: {url} is not a rerun viewer (it closed the connection "
+                                   f"without an HTTP/2 answer)")
+                head += chunk
+        except TimeoutError:
+            raise RunError(f"{what}: the viewer at {url} does not answer (no HTTP/2 answer within "
+                           f"{timeout_s:g} s)") from None
+        except OSError as exc:
+            raise RunError(f"{what}: {url} is not a rerun viewer ({exc.strerror or exc})") from None
+    if head[3] != _H2_SETTINGS or head[5:9] != b"\x00\x00\x00\x00":
+        raise RunError(f"{what}: {url} is not a rerun viewer (it answered {head!r}, not an HTTP/2 "
+                       f"SETTINGS frame)")
+    return url
+
+
+def handshake(url: str, what: str = "connect_url", timeout_s: float = HANDSHAKE_S) -> str:
+    """``url`` if a rerun viewer answers there within ``timeout_s`` (the HTTP/2 preface of gRPC,
+    :func:`check_viewer`); else :class:`RunError`, one line: a
+    closed port, a server of another protocol, a socket that accepts and never answers."""
+    return check_viewer(url, timeout_s=timeout_s, what=what)
+
+
+def close_watched(close, url: str, what: str = "connect_url", every_s: float | None = None,
+                  limit_s: float | None = None) -> bool:
+    """Call ``close()`` (rerun's flush and disconnect, which waits for the viewer at ``url``) and
+    return ``True`` when it returns; never hang on a viewer that stopped answering.
+
+    ``close()`` runs in a helper thread. Every ``every_s`` while it runs the viewer is asked for a
+    handshake: a viewer that does not answer any more (stopped, a silent peer) is given up at once,
+    one ``warning:`` line on stderr, ``False``; so is one that answers but has not taken the
+    recording after ``limit_s``. A viewer given up is kept in :data:`ABANDONED`.
+    """
+    every_s = WATCH_EVERY_S if every_s is None else float(every_s)
+    limit_s = CLOSE_LIMIT_S if limit_s is None else float(limit_s)
+    failed: list[BaseException] = []
+
+    def work():
+        try:
+            close()
+        except BaseException as exc:  # handed to the caller as it is
+            failed.append(exc)
+
+    th = threading.Thread(target=work, name="rerun-close", daemon=True)
+    th.start()
+    t_end = time.monotonic() + limit_s
+    why = None
+    while True:
+        th.join(every_s)
+        if not th.is_alive():
+            break
+        if time.monotonic() > t_end:
+            why = f"took the recording for longer than {limit_s:g} s"
+            break
+        try:
+            handshake(url, what=what, timeout_s=min(HANDSHAKE_S, every_s + 1.0))
+        except RunError as exc:
+            why = f"stopped answering ({str(exc).removeprefix(what + ': ')})"
+            break
+    if why is not None:
+        ABANDONED.append(url)
+        print(f"warning: {what}: the rerun viewer at {url} {why}; it was given up and may miss the end of "
+              "the run", file=sys.stderr, flush=True)
+        return False
+    if failed:
+        raise failed[0]
+    return True
+
+
+def exit_if_abandoned(code: int) -> None:
+    """End the process now with ``code`` when a viewer was given up (:data:`ABANDONED`): rerun's
+    flush at interpreter exit would wait for it again, and hang. Otherwise return."""
+    if not ABANDONED:
+        return
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(code)
 
 
 def check_loopback(url: str) -> str:

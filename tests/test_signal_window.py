@@ -1,0 +1,76 @@
+"""A signal at the end of a command is never a death by the signal nor a traceback.
+
+:func:`adm_sim.cliutil.run_cli` maps SIGINT/SIGTERM during the work to ``error: interrupted``, 130.
+At the end of the work (its last line, the release of its claims) and on the way out of the process
+(after ``run_cli`` returned) a signal is still ``error: interrupted`` and 130, or the run's own
+result when the signal came too late to matter: never ``-15`` (the default SIGTERM death) and never
+a ``KeyboardInterrupt`` traceback. Each case runs a small command in a subprocess and signals it
+as its work ends, many times over.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: The command: its work prints 'done' and returns; then 'returned' once run_cli is back, and a
+#: slow way out (0.3 s: threads joined, modules torn down on a loaded machine).
+_CMD = """
+import sys, time
+from adm_sim.cliutil import run_cli
+
+def work():
+    print("done", flush=True)
+    return 0
+
+code = run_cli(work)
+print("returned", flush=True)
+time.sleep(float(sys.argv[1]))
+sys.exit(code)
+"""
+
+
+def _run(sig, wait_for, exit_s):
+    env = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
+    p = subprocess.Popen([sys.executable, "-c", _CMD, str(exit_s)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                         text=True, env=env)
+    try:
+        while True:
+            line = p.stdout.readline()
+            assert line, p.stderr.read()
+            if line.strip() == wait_for:
+                break
+        p.send_signal(sig)
+        out, err = p.communicate(timeout=60)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    return p.returncode, err
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
+def test_signal_after_run_cli_returned(sig):
+    """On the way out (run_cli returned, the process not yet gone): 130 and one line."""
+    code, err = _run(sig, "returned", 0.3)
+    assert "Traceback" not in err, err
+    assert code == 130, (code, err)
+    assert err.splitlines() == ["error: interrupted"], err
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
+def test_signal_as_the_work_ends(sig):
+    """Signalled the moment the work printed its last line: the signal lands in the end of the
+    work, in run_cli's release of the claims or on the way out; 8 times each."""
+    for _ in range(8):
+        code, err = _run(sig, "done", 0.0)
+        assert "Traceback" not in err, err
+        assert code in (0, 130), (code, err)  # never -15 (death by SIGTERM) nor -2
+        assert err.splitlines() == ([] if code == 0 else ["error: interrupted"]), (code, err)
