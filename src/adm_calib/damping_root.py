@@ -15,7 +15,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import elementwise
 
 from adm_sim.limits import MAX_DELTA_ZETA
 
@@ -126,6 +125,8 @@ def solve_delta_zetas(evaluate, windows, peak_speeds_kmh, targets_m_s2, zetas, *
             roots[c], iters[c], calls[c] = exact, 0, 0
     open_ = [c for c in brackets if brackets[c][2] is None]
     if open_:
+        from scipy.optimize import elementwise  # noqa: PLC0415  scipy.optimize (~0.3-1 s) when a root is searched, not at a node's start
+
         def f(x, idx):
             x = np.atleast_1d(x)
             idx = np.broadcast_to(np.atleast_1d(idx), x.shape)
