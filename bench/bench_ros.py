@@ -133,9 +133,13 @@ def _compare(args, argv):
           f"after {load1[0]:.2f}/{load1[1]:.2f}/{load1[2]:.2f}; best of {args.rounds} per tree\n")
     keys = [k for k in got["this"][0] if isinstance(got["this"][0][k], (int, float))]
     print(f"{'figure':22} {'this':>10} {'baseline':>10} {'this/base':>10}")
+    def best(rows, k):  # times: the least; rates: the most; ratios and counts: the last round's
+        if k.endswith("_per_s"):
+            return max(r[k] for r in rows)
+        return min(r[k] for r in rows) if k.endswith("_s") else rows[-1][k]
+
     for k in keys:
-        a = min(r[k] for r in got["this"]) if k.endswith("_s") else got["this"][-1][k]
-        b = min(r[k] for r in got["baseline"]) if k.endswith("_s") else got["baseline"][-1][k]
+        a, b = best(got["this"], k), best(got["baseline"], k)
         print(f"{k:22} {a:10.4g} {b:10.4g} {a / b if b else float('nan'):10.3f}")
     return 0
 
