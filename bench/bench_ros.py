@@ -10,14 +10,22 @@ exchange and the monitoring topics at their default decimation, no recorder), th
 (targets: MLM <= 3x, DIM <= 10x), the lockstep round trips and lane-steps per second over ROS.
 The co-simulated maxima are checked against the in-process ones (1e-9 relative). ``--main-job``
 also times the main job (``launch_scripts/calibrate.py``, B1 x ICE-2, MCAP and ``.rrd`` recorded
-under flow control) from start to exit; ``--hogs N`` runs everything while N busy processes hog
-the cores (killed at the end).
+under flow control) from start to exit, and splits it: start-up (process start to the end of the
+first run, less that run), the runs, the gaps between runs, the stop (end of the last run to
+exit); ``--hogs N`` runs everything while N busy processes hog the cores (killed at the end).
+
+``--baseline TREE`` measures this tree and another checkout (e.g. ``git archive <commit>``
+unpacked, its numba cache warmed) alternately, ``--rounds`` times each, every measurement in a
+process of its own with that tree's ``src`` first on ``PYTHONPATH`` (the bench and its fixtures are
+this tree's); prints both, the best of the rounds, and the load average before and after.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
+import re
 import sys
 import tempfile
 import time
@@ -44,7 +52,13 @@ def main(argv=None):
     ap.add_argument("--repeat", type=int, default=1, help="co-simulated runs per model (best is kept)")
     ap.add_argument("--main-job", action="store_true", help="also time launch_scripts/calibrate.py (B1 x ICE-2)")
     ap.add_argument("--hogs", type=int, default=0, help="busy processes running meanwhile")
+    ap.add_argument("--root", default=str(ROOT), help="checkout whose launch scripts the main job runs")
+    ap.add_argument("--json", help="write the figures to this file")
+    ap.add_argument("--baseline", help="another checkout measured alternately with this one")
+    ap.add_argument("--rounds", type=int, default=2, help="with --baseline: measurements per tree")
     args = ap.parse_args(argv)
+    if args.baseline:
+        return _compare(args, argv if argv is not None else sys.argv[1:])
     import subprocess
 
     hogs = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(args.hogs)]
@@ -56,18 +70,78 @@ def main(argv=None):
             h.wait()
 
 
-def _main_job():
-    """Wall time (s) of the main job, process start to exit."""
+RUN_LINE = re.compile(r"^run\s+(\d+)\s+(.*?)\s+([0-9.]+) s\s+max")
+
+
+def _main_job(root=ROOT):
+    """The main job from process start to exit: ``{"wall_s", "start_s", "runs_s", "gaps_s", "stop_s",
+    "n_runs", "dz_vbi_pct"}`` (times of the run lines as they are printed)."""
     import subprocess
 
     out = Path(tempfile.mkdtemp(prefix="bench_ros_main_")) / "out"
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
     t0 = time.perf_counter()
-    p = subprocess.run([sys.executable, str(ROOT / "launch_scripts" / "calibrate.py"), "--out", str(out), "--quiet"],
-                       capture_output=True, text=True, cwd=ROOT)
+    p = subprocess.Popen([sys.executable, str(Path(root) / "launch_scripts" / "calibrate.py"), "--out", str(out),
+                          "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=root, env=env)
+    runs = []  # (time the line came, run wall)
+    for line in p.stdout:
+        m = RUN_LINE.match(line)
+        if m:
+            runs.append((time.perf_counter() - t0, float(m.group(3))))
+    err = p.stderr.read()
+    p.wait()
     wall = time.perf_counter() - t0
-    if p.returncode != 0:
-        raise SystemExit(f"error: main job failed (exit status {p.returncode}): {p.stderr.strip()[-400:]}")
-    return wall
+    if p.returncode != 0 or not runs:
+        raise SystemExit(f"error: main job failed (exit status {p.returncode}): {err.strip()[-400:]}")
+    summary = json.loads((out / "summary.json").read_text())
+    runs_s = sum(w for _, w in runs)
+    start_s = runs[0][0] - runs[0][1]
+    stop_s = wall - runs[-1][0]
+    return {"wall_s": wall, "start_s": start_s, "runs_s": runs_s, "gaps_s": wall - start_s - stop_s - runs_s,
+            "stop_s": stop_s, "n_runs": len(runs), "dz_vbi_pct": summary["delta_zeta_vbi_pct"]}
+
+
+def _compare(args, argv):
+    """This tree and ``--baseline`` alternately, one process per measurement; prints both."""
+    import subprocess
+
+    drop = {"--baseline", "--rounds", "--json", "--root"}
+    child, skip = [], False
+    for a in argv:
+        if skip:
+            skip = False
+            continue
+        if a.split("=")[0] in drop:
+            skip = "=" not in a
+            continue
+        child.append(a)
+    trees = {"this": ROOT, "baseline": Path(args.baseline).resolve()}
+    got = {name: [] for name in trees}
+    load0 = os.getloadavg()
+    for _ in range(args.rounds):
+        for name, tree in trees.items():
+            out = Path(tempfile.mkdtemp(prefix="bench_ros_cmp_")) / "r.json"
+            env = dict(os.environ, PYTHONPATH=str(tree / "src"))
+            p = subprocess.run([sys.executable, __file__, *child, "--root", str(tree), "--json", str(out)], env=env,
+                               capture_output=True, text=True)
+            if p.returncode not in (0, 1) or not out.exists():
+                raise SystemExit(f"error: bench of {tree} failed (exit status {p.returncode}): {p.stderr.strip()[-400:]}")
+            got[name].append(json.loads(out.read_text()))
+            print(f"[{name}] load {os.getloadavg()[0]:.2f}\n{p.stdout}", flush=True)
+    load1 = os.getloadavg()
+    print(f"load average (1/5/15 min) before {load0[0]:.2f}/{load0[1]:.2f}/{load0[2]:.2f}, "
+          f"after {load1[0]:.2f}/{load1[1]:.2f}/{load1[2]:.2f}; best of {args.rounds} per tree\n")
+    keys = [k for k in got["this"][0] if isinstance(got["this"][0][k], (int, float))]
+    print(f"{'figure':22} {'this':>10} {'baseline':>10} {'this/base':>10}")
+    def best(rows, k):  # times: the least; rates: the most; ratios and counts: the last round's
+        if k.endswith("_per_s"):
+            return max(r[k] for r in rows)
+        return min(r[k] for r in rows) if k.endswith("_s") else rows[-1][k]
+
+    for k in keys:
+        a, b = best(got["this"], k), best(got["baseline"], k)
+        print(f"{k:22} {a:10.4g} {b:10.4g} {a / b if b else float('nan'):10.3f}")
+    return 0
 
 
 def _bench(args):
@@ -83,6 +157,7 @@ def _bench(args):
     bridge, train = resolve_bridge(args.bridge), load_train(args.train)
     speeds = parse_speeds(args.speeds)
     rows = []
+    figures = {}
     with local_ros_env() as env:
         env["OPENBLAS_NUM_THREADS"] = "1"
         procs = NodeProcs(env, tempfile.mkdtemp(prefix="bench_ros_"))
@@ -105,6 +180,9 @@ def _bench(args):
                     n = ref.n_steps
                     trips = 4 * n if model == "dim" else -(-n // 2048)
                     rows.append((model, t_in, best["wall_s"], n, trips, rel))
+                    figures.update({f"{model}_in_process_s": t_in, f"{model}_cosim_s": best["wall_s"],
+                                    f"{model}_ratio": best["wall_s"] / t_in, f"{model}_trips_per_s": trips / best["wall_s"],
+                                    f"{model}_max_rel_diff": rel})
         finally:
             procs.stop_all()
     print(f"{bridge.describe()}\n{train.describe()}\n{speeds.size} speed lanes {speeds.min():g}..{speeds.max():g} km/h; "
@@ -117,9 +195,16 @@ def _bench(args):
         ok &= rel <= 1e-9
         print(f"{model.upper():5} {t_in:10.2f}s {t_co:8.2f}s {t_co / t_in:6.2f}x {target:6.0f}x {n:7d} {trips:12d} "
               f"{trips / t_co:8.0f} {speeds.size * n / t_co:13.3g} {rel:13.1e}")
+    figures["graph_up_s"] = t_graph
     if args.main_job:
-        print(f"\nmain job (calibrate.py B1 x ICE-2, MCAP + .rrd): {_main_job():.1f} s wall"
-              f"{f' with {args.hogs} busy processes' if args.hogs else ''}")
+        mj = _main_job(args.root)
+        figures.update({f"main_{k}": v for k, v in mj.items()})
+        print(f"\nmain job (calibrate.py B1 x ICE-2, MCAP + .rrd): {mj['wall_s']:.1f} s wall"
+              f"{f' with {args.hogs} busy processes' if args.hogs else ''}: start-up {mj['start_s']:.1f} s, "
+              f"{mj['n_runs']} runs {mj['runs_s']:.1f} s, between runs {mj['gaps_s']:.1f} s, stop {mj['stop_s']:.1f} s; "
+              f"dz_VBI {mj['dz_vbi_pct']:.7f} %")
+    if args.json:
+        Path(args.json).write_text(json.dumps(figures, indent=1) + "\n")
     return 0 if ok else 1
 
 

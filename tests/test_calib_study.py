@@ -73,7 +73,8 @@ def _assert_processes_end(procs, timeout=20.0):
 def test_tiny_study_equals_in_process_calibrate(tmp_path):
     from adm_sim.trains import load_train
 
-    from adm_calib.calibrate import calibrate
+    from adm_calib.calibrate import CalibrationOptions, calibrate
+    from adm_calib.calibration_options import XTOL_STUDY
 
     cases = st.select_cases(["ice2"], ["mu1", "mu2", "mu3"], (40, 40), [1])
     assert [c.key for c in cases] == [(f"L40-f1-mu{m}", "ICE-2") for m in (1, 2, 3)]
@@ -86,7 +87,7 @@ def test_tiny_study_equals_in_process_calibrate(tmp_path):
     recs = {r["bridge"]: r for r in map(json.loads, lines)}
     train = load_train("ICE-2")
     for c in cases:
-        ref = calibrate(c.bridge, train, adapted_curve=False)
+        ref = calibrate(c.bridge, train, adapted_curve=False, options=CalibrationOptions(xtol=XTOL_STUDY))
         r = recs[c.bridge.name]
         assert r["status"] == ref.status == "ok"
         # batched (compiled lanes, find_root) vs one case alone (numpy stepper, brentq), same ds:

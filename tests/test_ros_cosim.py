@@ -107,12 +107,19 @@ def test_calibrate_launch_matches_in_process_calibration(tmp_path, ros_domain):
     for key in ("delta_zeta_vbi_pct", "delta_zeta_adm_pct", "delta_zeta_eada_pct", "delta_zeta_lb_pct"):
         assert got[key] == pytest.approx(ref[key], rel=1e-9, abs=0) if ref[key] is not None else got[key] is None
     assert got["mlm_peak"] == ref["mlm_peak"] and got["dim_peak"] == ref["dim_peak"]
+    # the same runs give the same root bit for bit, and the compiled in-process calibration
+    # (adm-calib calibrate) prints the same Δζ (four decimals in percent, the root tolerance's digits)
+    assert got["delta_zeta_vbi_pct"] == ref["delta_zeta_vbi_pct"]
+    b3 = resolve_bridge("B3")
+    compiled = calibrate(b3, load_train("ICE-2"), np.arange(230.0, 291.0, 2.0),
+                         options=CalibrationOptions(step=StepOptions(**STEP)))
+    assert f"{got['delta_zeta_vbi_pct']:.4f}" == f"{100 * compiled.delta_zeta_vbi:.4f}"
     # every co-simulated run recorded in the MCAP is the core's run_sweep with the calibration's
     # step, bit for bit (as in test_ros_colcon.py): MLM zeta, DIM, ladder, root search, MLM zeta + dz
     from adm_calib.calibrate import calibration_step
     from adm_sim.recording.mcap_log import read_messages
 
-    b3, ice2 = resolve_bridge("B3"), load_train("ICE-2")
+    ice2 = load_train("ICE-2")
     step = calibration_step(b3, ice2, np.arange(230.0, 291.0, 2.0), CalibrationOptions(step=StepOptions(**STEP)))
     started, results = [], []
     for topic, _ns, msg in read_messages(out / "run.mcap", topics=["/adm/run/status", "/adm/run/result"]):

@@ -36,3 +36,24 @@ def test_stray_exchange_message_ends_the_node(node_procs, ros_domain):
     assert "Traceback" not in err and "FATAL" not in err, err
     assert node_procs.stderr("bridge").splitlines()[-1] == (
         "error: bridge: bridge: interaction forces received with no DIM run active")
+
+
+def test_exchange_messages_carry_the_array_bytes_exactly():
+    """pack/unpack and matrix_msg hand the float64 bytes over unchanged (the co-simulation's bit for bit
+    rests on it), the message's data an ``array.array('d')`` filled from the bytes, not value by value."""
+    import array
+
+    from rclpy.serialization import deserialize_message, serialize_message
+    from std_msgs.msg import Float64MultiArray
+
+    rng = np.random.default_rng(7)
+    a = rng.standard_normal((2, 191, 5)) * 10.0 ** rng.integers(-300, 300, (2, 191, 5))
+    a[0, 0, 0], a[1, 2, 3] = -0.0, 5e-324
+    msg = c.pack(3, 17, 2, a, ("field", "lane", "axle_on"), np.array([4, 5, 6, 7, 8]))
+    assert isinstance(msg.data, array.array) and msg.data.typecode == "d"
+    back = deserialize_message(serialize_message(msg), Float64MultiArray)
+    run_id, k, stage, idx, payload = c.unpack(back)
+    assert (run_id, k, stage, idx.tolist()) == (3, 17, 2, [4, 5, 6, 7, 8])
+    assert payload.tobytes() == a.tobytes()
+    m = c.matrix_msg(("lane", "quantity"), a[0], step=12)
+    assert np.frombuffer(m.data).tobytes() == np.concatenate([[12.0], a[0].ravel()]).tobytes()

@@ -279,8 +279,8 @@ def test_calibration_recording_every_view_has_data_and_monitors_the_peak(tmp_pat
     dz_logged = (ents["/calibration/delta_zeta_pct/bracketing"]["values"]
                  + ents["/calibration/delta_zeta_pct/root_search"]["values"])
     assert dz_logged == [float(d[1]) for d in iters]
-    assert ents["/calibration/delta_zeta_pct/root_search"]["values"][-1] == pytest.approx(
-        summary["delta_zeta_vbi_pct"], abs=1e-6)
+    # the root is one of the dampings the search ran (each damping is run once, none again at the root)
+    assert min(abs(v - summary["delta_zeta_vbi_pct"]) for v in dz_logged) <= 1e-12
     # each run is drawn where protocol puts its recorded phase: one trial per Δζ of a bracketing or
     # root-search run (Δζ from the run's result), one curve per other phase
     status = [json.loads(m.data) for _t, _ns, m in read_messages(out / "run.mcap", topics=[P.TOPIC_STATUS])]

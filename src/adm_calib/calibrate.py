@@ -12,7 +12,8 @@ Steps (Section 4, steps 1-3):
    peak speed (a max over a fixed window is continuous in ``dz``). The root is bracketed by one
    vectorised MLM run over a ladder of trial dampings (negative down to ``-0.95 zeta``, positive
    up to 20 %), then found by :func:`scipy.optimize.elementwise.find_root` (Chandrupatla,
-   vectorised over the cases of a batch) to ``xtol`` (1e-8 = 1e-6 %), well inside the paper's
+   vectorised over the cases of a batch) to ``xtol`` (5e-7 = 0.00005 %, half a unit of the fourth
+   decimal of Δζ in percent that a calibration prints; the study 1e-8), well inside the paper's
    acceptance of 0.1 % in the peak value, which is checked.
 4. A given speed grid that cannot show the resonance (too coarse, or a range without one) is a
    status of its own (:func:`speed_grid_finding`), not "ok".

@@ -22,6 +22,15 @@ from adm_calib import peaks as pk
 #: Default speed range (km/h), Section 3.3 (one home: :mod:`adm_sim.limits`).
 DEFAULT_SPEEDS_KMH = default_speeds_kmh()
 
+#: Root tolerance on Δζ (fraction) fitted to the digits a calibration prints: Δζ in percent to four
+#: decimals (0.5533 %), so the search stops when the bracket is narrower than half a unit of the
+#: last digit, 0.00005 % = 5e-7. The root returned is an end of that bracket, so it lies within
+#: 0.00005 % of the exact root (B1 x ICE-2: 0.55331 % against 0.5532986 % at 1e-8, in 3 root
+#: runs instead of 6).
+XTOL_DELTA_ZETA = 5e-7
+#: Root tolerance of the parametric study (its results are compared case by case to 1e-6 %).
+XTOL_STUDY = 1e-8
+
 
 @dataclass(frozen=True)
 class CalibrationOptions:
@@ -40,7 +49,8 @@ class CalibrationOptions:
     relocation_window_kmh : float
         Half width of the window in which the MLM peak is re-located at trial dampings.
     xtol : float
-        Absolute tolerance of the root in Δζ (fraction).
+        Absolute tolerance of the root in Δζ (fraction); default :data:`XTOL_DELTA_ZETA`
+        (half a unit of the printed fourth decimal of Δζ in percent).
     match_rtol : float
         Acceptance of the peak match (paper: 0.1 %).
     min_prominence_rel : float
@@ -58,7 +68,7 @@ class CalibrationOptions:
     dim_refine_kmh: tuple = (20.0, 5.0)
     association_window_kmh: tuple = pk.ASSOCIATION_WINDOW_KMH
     relocation_window_kmh: float = 5.0
-    xtol: float = 1e-8
+    xtol: float = XTOL_DELTA_ZETA
     match_rtol: float = 1e-3
     min_prominence_rel: float = pk.MIN_PROMINENCE_REL
     step: StepOptions | None = None

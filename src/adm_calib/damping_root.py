@@ -4,6 +4,10 @@ For case ``c``, ``f_c(dz) = max_{|v - v_c| <= h} a_MLM(v; zeta_c + dz) / target_
 speed window; the roots are bracketed over a ladder of trial dampings (``-0.95 zeta`` .. 20 %) and
 found by :func:`scipy.optimize.elementwise.find_root` (Chandrupatla, vectorised over cases) to
 ``xtol``; each root is checked against the paper's 0.1 % peak match.
+
+Every damping is evaluated once: the finder's first two evaluations are the ends of the bracket,
+whose maxima the ladder run already holds, and its root is one of the dampings it evaluated, so
+neither is run again (the maxima are the ones of the run that computed them, the same numbers).
 """
 
 from __future__ import annotations
@@ -11,7 +15,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import elementwise
 
 from adm_sim.limits import MAX_DELTA_ZETA
 
@@ -92,8 +95,20 @@ def solve_delta_zetas(evaluate, windows, peak_speeds_kmh, targets_m_s2, zetas, *
             on_trial(c, float(dz), float(value), float(targets_m_s2[c]))
 
     ladders = {c: _ladder(zetas[c]) for c in todo}
+    known = {}  # (case, dz) -> maxima over the case's window: every damping is run once
+
+    def run(requests, phase):
+        """Maxima of each ``(case, dz)``: the known ones as they are, the others in one request."""
+        todo_ = [(c, dz) for c, dz in requests if (c, dz) not in known]
+        if todo_:
+            for (c, dz), acc in zip(todo_, evaluate([(c, np.array([dz])) for c, dz in todo_], phase)):
+                known[(c, dz)] = acc[0]
+                trial(c, dz, peak(c, acc[0]))
+        return [known[(c, dz)] for c, dz in requests]
+
     brackets = {}
     for c, acc in zip(todo, evaluate([(c, ladders[c]) for c in todo], "ladder")):
+        known.update({(c, float(dz)): row for dz, row in zip(ladders[c], acc)})
         values = np.array([peak(c, row) for row in acc])
         for dz, value in zip(ladders[c], values):
             trial(c, dz, value)
@@ -110,14 +125,13 @@ def solve_delta_zetas(evaluate, windows, peak_speeds_kmh, targets_m_s2, zetas, *
             roots[c], iters[c], calls[c] = exact, 0, 0
     open_ = [c for c in brackets if brackets[c][2] is None]
     if open_:
+        from scipy.optimize import elementwise  # noqa: PLC0415  scipy.optimize (~0.3-1 s) when a root is searched, not at a node's start
+
         def f(x, idx):
             x = np.atleast_1d(x)
             idx = np.broadcast_to(np.atleast_1d(idx), x.shape)
-            cs, dzs = [int(c) for c in idx.ravel()], x.ravel()
-            vals = []
-            for c, dz, acc in zip(cs, dzs, evaluate([(c, np.array([dz])) for c, dz in zip(cs, dzs)], "root")):
-                vals.append(peak(c, acc[0]))
-                trial(c, dz, vals[-1])
+            cs, dzs = [int(c) for c in idx.ravel()], [float(dz) for dz in x.ravel()]
+            vals = [peak(c, acc) for c, acc in zip(cs, run(list(zip(cs, dzs)), "root"))]
             return (np.array(vals) / np.array([targets_m_s2[c] for c in cs]) - 1.0).reshape(x.shape)
 
         res = elementwise.find_root(
@@ -127,10 +141,9 @@ def solve_delta_zetas(evaluate, windows, peak_speeds_kmh, targets_m_s2, zetas, *
         for k, c in enumerate(open_):
             roots[c], iters[c], calls[c] = float(res.x[k]), int(res.nit[k]), int(res.nfev[k])
     order = sorted(roots)
-    for c, acc in zip(order, evaluate([(c, np.array([roots[c]])) for c in order], "check")):
+    for c, acc in zip(order, run([(c, roots[c]) for c in order], "check")):
         lo, hi, exact = brackets[c]
-        trial(c, roots[c], peak(c, acc[0]))
-        out[c] = finish_solve(roots[c], windows[c], acc[0], peak_speeds_kmh[c], targets_m_s2[c], bracket=(lo, hi),
+        out[c] = finish_solve(roots[c], windows[c], acc, peak_speeds_kmh[c], targets_m_s2[c], bracket=(lo, hi),
                               iterations=iters[c], calls=calls[c], options=opt, method="exact" if exact is not None else "find_root")
     return out
 

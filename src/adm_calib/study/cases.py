@@ -181,6 +181,7 @@ class StudySettings:
 
     def calibration_options(self):
         from adm_calib.calibrate import CalibrationOptions  # noqa: PLC0415  scipy.optimize only when a study runs
+        from adm_calib.calibration_options import XTOL_STUDY  # noqa: PLC0415
 
         step = None
         if self.steps_per_period is not None or self.dense_maxima:
@@ -188,7 +189,7 @@ class StudySettings:
             step = StepOptions(steps_per_period=spp,
                                dense_maxima=bool(self.dense_maxima))
         refine = REFINED_SPEED_STEP_KMH if self.refine_speed else None
-        return CalibrationOptions(dim_grid=self.dim_grid, step=step, speed_refinement_kmh=refine)
+        return CalibrationOptions(dim_grid=self.dim_grid, step=step, speed_refinement_kmh=refine, xtol=XTOL_STUDY)
 
     def to_dict(self):
         return asdict(self)

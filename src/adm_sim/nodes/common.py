@@ -17,6 +17,7 @@ Every topic, its layout and its QoS: docs/ros.md, section "Topics"; their names 
 
 from __future__ import annotations
 
+import array
 import math
 import sys
 import time
@@ -92,8 +93,17 @@ def pack(run_id, k, stage, array, dims, index=None):
     for label, size in zip(dims, a.shape):
         msg.layout.dim.append(MultiArrayDimension(label=label, size=int(size), stride=int(stride)))
         stride = stride // size if size else 0
-    msg.data = np.concatenate([head, idx, a.ravel()])
+    msg.data = float64_data(np.concatenate([head, idx, a.ravel()]))
     return msg
+
+
+def float64_data(values):
+    """``values`` (ndarray of float64) as the ``array.array('d')`` a ``float64[]`` field holds, copied
+    as bytes: assigning an ndarray makes the message build that array value by value (about
+    0.5 us a value: 1.6 ms for 3000 doubles, against 17 us so). The same bytes either way."""
+    out = array.array("d")
+    out.frombytes(np.ascontiguousarray(values, dtype=np.float64).tobytes())
+    return out
 
 
 def unpack(msg):
@@ -127,7 +137,7 @@ def matrix_msg(dims, array, step=None):
     for label, size in zip(dims, a.shape):
         msg.layout.dim.append(MultiArrayDimension(label=label, size=int(size), stride=int(stride)))
         stride = stride // size if size else 0
-    msg.data = a.ravel() if step is None else np.concatenate([[float(step)], a.ravel()])
+    msg.data = float64_data(a.ravel() if step is None else np.concatenate([[float(step)], a.ravel()]))
     return msg
 
 
