@@ -247,14 +247,20 @@ class TrainSide:
     """The vehicles of the DIM (Eq. 11) advanced in lockstep with a :class:`BridgeSide`.
 
     Only units (vehicles, Jacobs sets) with an axle on the bridge during a step are integrated:
-    on a rigid track without irregularities a unit rests until its first axle enters, and once
-    its last axle has left it no longer acts on the bridge.
+    on a rigid track a unit rests until its first axle enters, and once its last axle has left
+    it no longer acts on the bridge.
+
+    ``irregularity`` (:class:`adm_sim.irregularity.Profile` or None): the track profile on the
+    deck; every wheel on the bridge then follows rail plus profile (Eq. 9 gains ``r(x)`` and
+    ``v r'(x)``, :meth:`take_rail_state`). The profile is zero off the deck, so the units still
+    rest until they enter.
     """
 
-    def __init__(self, train, grid, span_m):
+    def __init__(self, train, grid, span_m, irregularity=None):
         self.train = train
         self.grid = grid
         self.span = float(span_m)
+        self.irregularity = irregularity
         self.offsets = train.axle_offsets_m
         self.vehicles = vehicle_tables(train)  # the tables of adm_sim.kernels
         self.n_dof = self.vehicles.minv_dof.size
@@ -315,8 +321,14 @@ class TrainSide:
         pos = np.searchsorted(axles, idx_on)
         W = np.zeros((self.grid.n_lanes, len(axles)))
         Wd = np.zeros_like(W)
-        W[:, pos] = w
-        Wd[:, pos] = wd
+        if self.irregularity is None:
+            W[:, pos] = w
+            Wd[:, pos] = wd
+        else:  # the profile under the wheels (Eq. 9 with r(x), v r'(x)); positions as tables.axle_rows
+            x = self.grid.front_m(self.k, self.rk.stage) - np.asarray(self.offsets, dtype=float)[idx_on]
+            r, s = self.irregularity.evaluate(x)
+            W[:, pos] = w + r
+            Wd[:, pos] = wd + self.grid.speeds_m_s[:, None] * s
         zb, zbd = u @ LwT, ud @ LwT
         f = kp * (W - zb) + cp * (Wd - zbd)  # primary stage force on the bogies (Eq. 7 terms)
         udd = (f @ Lw - u @ KsT - ud @ CsT) * minv
