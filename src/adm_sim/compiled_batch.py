@@ -108,17 +108,17 @@ class BatchRunner:
         self._rows = int(n_steps)
 
     def _track_table(self, rows, n_rows):
-        """:class:`adm_sim.kernels.Track` of every entry of ``rows``: the profile's elevation and
-        slope at the axle, at the position :func:`adm_sim.tables.axle_rows` puts it (bit for bit
+        """:class:`adm_sim.kernels.Track` of every entry of ``rows``: the profile's elevation, slope
+        and curvature at the axle, at the position :func:`adm_sim.tables.axle_rows` puts it (bit for bit
         the position ``TrainSide`` evaluates the profile at)."""
         n = rows.axle.size
         if self.irregularity is None:
-            return kernels.Track(np.zeros(n), np.zeros(n))
+            return kernels.Track(np.zeros(n), np.zeros(n), np.zeros(n))
         r = np.repeat(np.arange(n_rows), np.diff(rows.ptr))
         front = (r // 2 + 0.5 * (r % 2)) * self.ds_m
         x = front - np.asarray(self.train.axle_offsets_m, dtype=float)[rows.axle]
-        elev, slope = self.irregularity.evaluate(x)
-        return kernels.Track(np.ascontiguousarray(elev), np.ascontiguousarray(slope))
+        elev, slope, curv = self.irregularity.evaluate(x, curvature=True)
+        return kernels.Track(np.ascontiguousarray(elev), np.ascontiguousarray(slope), np.ascontiguousarray(curv))
 
     def vehicles(self):
         """The train's :class:`adm_sim.tables.VehicleTables` (built on first use)."""

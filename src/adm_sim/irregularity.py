@@ -154,17 +154,21 @@ class Profile:
     def __repr__(self):
         return f"Profile({self.description or 'samples'}, {self.x_m.size} points, x {self.x_m[0]:g}..{self.x_m[-1]:g} m)"
 
-    def evaluate(self, x_m):
-        """``(r, r')`` at positions ``x_m`` (any shape): elevation (m) and slope (-), 0 outside."""
+    def evaluate(self, x_m, curvature=False):
+        """``(r, r')`` at positions ``x_m`` (any shape): elevation (m) and slope (-), 0 outside;
+        with ``curvature`` also ``r''`` (1/m)."""
         x = np.asarray(x_m, dtype=float)
         inside = (x >= self.x_m[0]) & (x <= self.x_m[-1])
         r = np.zeros(x.shape)
         s = np.zeros(x.shape)
+        c = np.zeros(x.shape)
         if np.any(inside):
             xi = x[inside]
             r[inside] = self._spline(xi)
             s[inside] = self._spline(xi, 1)
-        return r, s
+            if curvature:
+                c[inside] = self._spline(xi, 2)
+        return (r, s, c) if curvature else (r, s)
 
     def rms_m(self):
         return float(np.sqrt(np.mean(self.r_m ** 2)))

@@ -164,11 +164,12 @@ def start_units(vehicles, units, a0, a1, u, ud, su, sud):
 
 class Track(NamedTuple):
     """Track irregularity under the axles of :class:`adm_sim.tables.AxleRows`, entry by entry:
-    elevation ``r`` (m) and slope ``s`` (-) of the profile at the axle (n_entries,); zeros for a
-    smooth track (:mod:`adm_sim.irregularity`)."""
+    elevation ``r`` (m), slope ``s`` (-) and curvature ``c`` (1/m) of the profile at the axle
+    (n_entries,); zeros for a smooth track (:mod:`adm_sim.irregularity`)."""
 
     r: np.ndarray
     s: np.ndarray
+    c: np.ndarray
 
 
 @njit(cache=True, inline="always")
@@ -271,9 +272,10 @@ def vehicle_accelerations(vehicles, units, a0, a1, su, sud, W, Wd, f, udd, t1, t
 
 
 @njit(cache=True, inline="always")
-def bridge_accelerations(rows, r, bridge, c, vehicles, sq, sqd, v, Z, f, W, Wd, p, rhs, qdd, t1, t2, t3):
+def bridge_accelerations(rows, r, bridge, c, vehicles, sq, sqd, v, Z, f, W, Wd, p, rhs, qdd, t1, t2, t3, track):
     """Train -> bridge (``BridgeSide.take_forces``): interaction ``G = F - F_k1 - F_c1`` (Eq. 7)
-    less the wheelset inertia of the convective terms (Eq. 9), modal load ``p`` (Eq. 14) and
+    less the wheelset inertia on the profile ``m_w v^2 r''(x)`` (``TrainSide.take_rail_state``;
+    ``track``, :class:`Track`) and of the convective terms (Eq. 9), modal load ``p`` (Eq. 14) and
     ``qdd = M_mod^-1 (p - Z qd - K q)`` (Eq. 15) of bridge ``c`` at half-step row ``r``; the rail
     state ``W``, ``Wd`` of the axles on the bridge is cleared (rigid track off the bridge)."""
     ptr = rows.ptr
@@ -285,6 +287,7 @@ def bridge_accelerations(rows, r, bridge, c, vehicles, sq, sqd, v, Z, f, W, Wd, 
     K = bridge.K
     axle_load = vehicles.axle_load_n
     wheel_mass = vehicles.wheel_mass_kg
+    tc = track.c
     nm, nb = sq.shape
     for j in range(nm):
         for b in range(nb):
@@ -302,8 +305,9 @@ def bridge_accelerations(rows, r, bridge, c, vehicles, sq, sqd, v, Z, f, W, Wd, 
                 t2[b] += sq[j, b] * xxj
         fa = axle_load[a]
         mwa = wheel_mass[a]
+        ce = tc[e]
         for b in range(nb):
-            t3[b] = (fa - f[a, b]) - mwa * (2.0 * v[b] * t1[b] + v[b] * v[b] * t2[b])
+            t3[b] = ((fa - f[a, b]) - mwa * (v[b] * v[b]) * ce) - mwa * (2.0 * v[b] * t1[b] + v[b] * v[b] * t2[b])
         for j in range(nm):
             pj = phi[e, j]
             for b in range(nb):
@@ -432,7 +436,7 @@ def dim_blocks(blocks, k0, k1, lanes, bridge, rows, units, vehicles, state, dens
                 rail_state(rows, r, sq, sqd, vl, W, Wd, t1, t2, t3, track)
                 vehicle_accelerations(vehicles, act_units, a0, a1, su, sud, W, Wd, f, udd, t1, t2, t3)
                 bridge_accelerations(rows, r, bridge, c, vehicles, sq, sqd, vl, Zb, f, W, Wd, p, rhs, qdd,
-                                     t1, t2, t3)
+                                     t1, t2, t3, track)
                 if st == 0:
                     midspan_acceleration(qdd, phi_mid, acc0)
                 # 4. RK4 bookkeeping of both subsystems (as rk4_sides._Rk4State.push), inline: as a

@@ -313,7 +313,9 @@ class TrainSide:
         Returns
         -------
         G : ndarray (n_lanes, n_on)
-            Interaction forces ``F_i - F_k1,i - F_c1,i`` (N) for the bridge.
+            Interaction forces ``F_i - F_k1,i - F_c1,i`` (N) for the bridge; on a rough track less
+            the wheelset's inertia on the profile ``m_w,i v^2 r''(x_i)`` (the bridge carries the
+            wheelset's inertia of its own motion, Eq. 13).
         """
         dofs, axles, KsT, CsT, Lw, LwT, kp, cp, minv = self._active()
         u, ud = self.rk.stage_state()
@@ -321,18 +323,22 @@ class TrainSide:
         pos = np.searchsorted(axles, idx_on)
         W = np.zeros((self.grid.n_lanes, len(axles)))
         Wd = np.zeros_like(W)
+        curv = None
         if self.irregularity is None:
             W[:, pos] = w
             Wd[:, pos] = wd
         else:  # the profile under the wheels (Eq. 9 with r(x), v r'(x)); positions as tables.axle_rows
             x = self.grid.front_m(self.k, self.rk.stage) - np.asarray(self.offsets, dtype=float)[idx_on]
-            r, s = self.irregularity.evaluate(x)
+            r, s, curv = self.irregularity.evaluate(x, curvature=True)
             W[:, pos] = w + r
             Wd[:, pos] = wd + self.grid.speeds_m_s[:, None] * s
         zb, zbd = u @ LwT, ud @ LwT
         f = kp * (W - zb) + cp * (Wd - zbd)  # primary stage force on the bogies (Eq. 7 terms)
         udd = (f @ Lw - u @ KsT - ud @ CsT) * minv
         G = self.train.axle_loads_n[idx_on] - f[:, pos]
+        if curv is not None:  # the wheelset's inertia on the profile, m_w v^2 r''(x), acts on the bridge
+            v = self.grid.speeds_m_s[:, None]
+            G = G - np.asarray(self.train.wheel_mass_kg, dtype=float)[idx_on] * (v * v) * curv
         if self.rk.push(ud, udd):
             self.x[:, dofs] = self.rk.x
             self.xd[:, dofs] = self.rk.xd
