@@ -181,7 +181,7 @@ def _check_samples(x, r, what):
     bad = np.flatnonzero(~np.isfinite(x) | ~np.isfinite(r))
     if bad.size:
         i = int(bad[0])
-        raise InputError(f"{what}: row {i + 1} has position {x[i]!r} m, elevation {r[i]!r} m; "
+        raise InputError(f"{what}: row {i + 1} has position {float(x[i])!r} m, elevation {float(r[i])!r} m; "
                          f"allowed finite numbers (no NaN or inf)")
     step = np.diff(x)
     if np.any(step <= 0.0):
