@@ -86,8 +86,8 @@ _GERMAN_SRC = ("German high-speed track spectra (vertical profile), as tabulated
                "literature (e.g. Zhai, Vehicle-Track Coupled Dynamics; Guo, Xia, De Roeck, Liu, Comput. Struct. "
                "112-113 (2012) 205-216)")
 _FRA_SRC = ("FRA track classes (vertical profile), k = 0.25, A_v in cm^2 rad/m converted to m^2 rad/m "
-            "(Fryba, Dynamics of Railway Bridges, 1996; Berawi, PhD thesis, Porto; the TTB-2D tool, "
-            "Cantero, SoftwareX 20 (2022) 101253)")
+            "(Fryba, Dynamics of Railway Bridges, 1996; Berawi, PhD thesis, Porto; as in TTB-2D, "
+            "github.com/DanielCanteroNTNU/TTB-2D A04_Options.m, Cantero, SoftwareX 20 (2022) 101253)")
 
 #: FRA A_v per class, cm^2 rad/m (class 1 poorest .. class 6 best).
 FRA_AV_CM2 = {1: 1.2107, 2: 1.0181, 3: 0.6816, 4: 0.5376, 5: 0.2095, 6: 0.0339}
