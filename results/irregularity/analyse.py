@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from adm_calib.reference import lower_bound_table
-from adm_calib.study import read_results
+from adm_calib.study import read_results, select_cases
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
@@ -105,8 +105,6 @@ def main():
 
 def extension(paper, cons):
     """German high seed 1 over the whole mu2 set (185 bridges x 2 trains), if it is there."""
-    from adm_calib.study import select_cases
-
     keys = {(c.bridge.name, c.train) for c in select_cases(trains=("ICE-2", "Railjet"), mass_functions=("mu2",))}
     f = HERE / "runs" / "german-high-s1" / "results.jsonl"
     recs = [r for r in read_results(f).records if (r["bridge"], r["train"]) in keys]
