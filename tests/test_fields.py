@@ -102,9 +102,10 @@ def test_every_ros_parameter_with_a_range_is_its_registry_field():
         else:
             assert (s.lo, s.hi) == (v.lo, v.hi), s.name
             assert type(s.default) is v.field.type, s.name
-    # what stays outside: paths, switches and URLs of the driver (no range, no unit)
-    assert sorted(outside) == ["overwrite", "record_path", "rerun_connect", "rerun_spawn", "rrd_path", "run_phase",
-                              "summary_path"]
+    # what stays outside: paths, switches and URLs of the driver (no range, no unit), and the train
+    # node's track profile spec (checked by adm_sim.irregularity.parse)
+    assert sorted(outside) == ["irregularity", "overwrite", "record_path", "rerun_connect", "rerun_spawn", "rrd_path",
+                              "run_phase", "summary_path"]
 
 
 def test_parameter_refusals_are_the_registry_messages():

@@ -314,8 +314,14 @@ def cmd_study(args):
     scheduler = None if args.scheduler is None else _scheduler(args.scheduler)
     spp = None if args.steps_per_period is None else _steps_per_period(args.steps_per_period)
     _speeds(args.speeds)
+    if args.irregularity:
+        from adm_sim.irregularity import parse  # noqa: PLC0415  scipy.interpolate only for rough-track studies
+
+        for span in (4.0, 40.0):  # bad input (spectrum, class, band, file) refused before anything is written
+            parse(args.irregularity, span)
     settings = StudySettings(speeds=args.speeds, dim_grid=args.dim_grid, steps_per_period=spp,
-                             dense_maxima=args.dense_maxima, refine_speed=args.refine_speed)
+                             dense_maxima=args.dense_maxima, refine_speed=args.refine_speed,
+                             irregularity=args.irregularity)
     cases = select_cases(trains, mfs, spans, fis)
     if not cases:
         raise InputError(f"--spans/--freq-index: the options select no case (spans are the integers "
@@ -557,6 +563,10 @@ def build_parser():
     add_dim_grid(s)
     add_steps_per_period(s, "integration steps per period of the highest mode (core default 16)")
     peaks_options(s)
+    s.add_argument("--irregularity", default="", help="track irregularity on every deck (DIM only), e.g. "
+                   "german-high:seed=3, fra-6:seed=1, german-low:seed=2:band=2:80, file=profile.csv, "
+                   "ramp:at=0:length=3:height=0.002 (parts joined by +); default: smooth track as the paper "
+                   "(docs/irregularities.md)")
     s.set_defaults(func=cmd_study)
 
     f = sub.add_parser("study-fit", help="lower-bound functions (Section 4.2.1, Tables B1-B4) from study results")

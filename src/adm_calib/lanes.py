@@ -65,7 +65,8 @@ class CompiledLanes:
     def __init__(self, bridges, train, step):
         from adm_sim.compiled_batch import BatchRunner  # noqa: PLC0415  numba kernels: the stepped backends run without
 
-        self.runner = BatchRunner(bridges, train, step.ds_m, step.free_vibration_periods, step.dense_maxima)
+        self.runner = BatchRunner(bridges, train, step.ds_m, step.free_vibration_periods, step.dense_maxima,
+                                  irregularity=step.irregularity)
 
     def run(self, model, case, speeds_kmh, delta_zeta=0.0, sweep=None, phase=""):
         """Max |midspan acceleration| (m/s^2) of every lane, shape (n_lanes,)."""

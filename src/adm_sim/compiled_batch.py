@@ -46,9 +46,12 @@ class BatchRunner:
         As :class:`~adm_sim.step_grid.StepOptions`.
     dense_maxima : bool
         As :class:`~adm_sim.step_grid.StepOptions`: also the maxima between the steps.
+    irregularity : adm_sim.irregularity.Profile or None
+        Track irregularity on the deck under every DIM wheel (Eq. 9 with the profile's terms);
+        ``None``: smooth track. The MLM is unaffected.
     """
 
-    def __init__(self, bridges, train, ds_m, free_vibration_periods=2.0, dense_maxima=False):
+    def __init__(self, bridges, train, ds_m, free_vibration_periods=2.0, dense_maxima=False, irregularity=None):
         self.bridges = list(bridges)
         if not self.bridges:
             raise InputError("bridges: need at least one bridge for a batch")
@@ -61,6 +64,7 @@ class BatchRunner:
         self.options = StepOptions(free_vibration_periods=free_vibration_periods,
                                    ds_m=FIELDS["ds_m"].check(ds_m), dense_maxima=bool(dense_maxima))
         self.dense_maxima = bool(dense_maxima)
+        self.irregularity = irregularity
         self.ds_m = float(ds_m)
         self.span_m = float(b0.span_m)
         self.n_modes = b0.n_modes
@@ -100,7 +104,21 @@ class BatchRunner:
         self._axle_rows = axle_rows(self.bridges, tr.axle_offsets_m, self.ds_m, 0, 2 * n_steps + 1,
                                     tr.wheel_mass_kg)
         self._units = active_units(self.vehicles(), self.span_m, self.ds_m, 0, n_steps)
+        self._track = self._track_table(self._axle_rows, 2 * n_steps + 1)
         self._rows = int(n_steps)
+
+    def _track_table(self, rows, n_rows):
+        """:class:`adm_sim.kernels.Track` of every entry of ``rows``: the profile's elevation, slope
+        and curvature at the axle, at the position :func:`adm_sim.tables.axle_rows` puts it (bit for bit
+        the position ``TrainSide`` evaluates the profile at)."""
+        n = rows.axle.size
+        if self.irregularity is None:
+            return kernels.Track(np.zeros(n), np.zeros(n), np.zeros(n))
+        r = np.repeat(np.arange(n_rows), np.diff(rows.ptr))
+        front = (r // 2 + 0.5 * (r % 2)) * self.ds_m
+        x = front - np.asarray(self.train.axle_offsets_m, dtype=float)[rows.axle]
+        elev, slope, curv = self.irregularity.evaluate(x, curvature=True)
+        return kernels.Track(np.ascontiguousarray(elev), np.ascontiguousarray(slope), np.ascontiguousarray(curv))
 
     def vehicles(self):
         """The train's :class:`adm_sim.tables.VehicleTables` (built on first use)."""
@@ -236,7 +254,7 @@ class BatchRun(AdvancingRun):
             state = (self._q, self._qd)
         else:
             kernels.dim_blocks(self._blocks_t, k0, k1, self._lanes, r.tables, r._axle_rows, r._units, r.vehicles(),
-                               self._state, r.dense_maxima)
+                               self._state, r.dense_maxima, r._track)
             state = (self._q, self._qd, self._u, self._ud)
         self.k = k1
         def names():

@@ -162,14 +162,28 @@ def start_units(vehicles, units, a0, a1, u, ud, su, sud):
                 sud[dd, b] = ud[dd, b]
 
 
+class Track(NamedTuple):
+    """Track irregularity under the axles of :class:`adm_sim.tables.AxleRows`, entry by entry:
+    elevation ``r`` (m), slope ``s`` (-) and curvature ``c`` (1/m) of the profile at the axle
+    (n_entries,); zeros for a smooth track (:mod:`adm_sim.irregularity`)."""
+
+    r: np.ndarray
+    s: np.ndarray
+    c: np.ndarray
+
+
 @njit(cache=True, inline="always")
-def rail_state(rows, r, sq, sqd, v, W, Wd, t1, t2, t3):
-    """Bridge -> train (``BridgeSide.rail_state``): rail displacement ``W`` and velocity ``Wd``
-    (n_axles, n_lanes) under every axle on the bridge at half-step row ``r`` (Eqs. 4, 9)."""
+def rail_state(rows, r, sq, sqd, v, W, Wd, t1, t2, t3, track):
+    """Bridge -> train (``BridgeSide.rail_state`` and the profile terms of
+    ``TrainSide.take_rail_state``): rail displacement plus irregularity ``W = phi q + r(x)`` and
+    velocity ``Wd = phi qd + v phi' q + v r'(x)`` (n_axles, n_lanes) under every axle on the bridge
+    at half-step row ``r`` (Eqs. 4, 9 with the profile ``track``, :class:`Track`)."""
     ptr = rows.ptr
     axle = rows.axle
     phi = rows.phi
     phx = rows.phx
+    tr = track.r
+    ts = track.s
     nm, nb = sq.shape
     for e in range(ptr[r], ptr[r + 1]):
         a = axle[e]
@@ -184,9 +198,11 @@ def rail_state(rows, r, sq, sqd, v, W, Wd, t1, t2, t3):
                 t1[b] += sq[j, b] * pj
                 t2[b] += sqd[j, b] * pj
                 t3[b] += sq[j, b] * xj
+        re_ = tr[e]
+        se = ts[e]
         for b in range(nb):
-            W[a, b] = t1[b]
-            Wd[a, b] = t2[b] + v[b] * t3[b]
+            W[a, b] = t1[b] + re_
+            Wd[a, b] = (t2[b] + v[b] * t3[b]) + v[b] * se
 
 
 @njit(cache=True, inline="always")
@@ -256,9 +272,10 @@ def vehicle_accelerations(vehicles, units, a0, a1, su, sud, W, Wd, f, udd, t1, t
 
 
 @njit(cache=True, inline="always")
-def bridge_accelerations(rows, r, bridge, c, vehicles, sq, sqd, v, Z, f, W, Wd, p, rhs, qdd, t1, t2, t3):
+def bridge_accelerations(rows, r, bridge, c, vehicles, sq, sqd, v, Z, f, W, Wd, p, rhs, qdd, t1, t2, t3, track):
     """Train -> bridge (``BridgeSide.take_forces``): interaction ``G = F - F_k1 - F_c1`` (Eq. 7)
-    less the wheelset inertia of the convective terms (Eq. 9), modal load ``p`` (Eq. 14) and
+    less the wheelset inertia on the profile ``m_w v^2 r''(x)`` (``TrainSide.take_rail_state``;
+    ``track``, :class:`Track`) and of the convective terms (Eq. 9), modal load ``p`` (Eq. 14) and
     ``qdd = M_mod^-1 (p - Z qd - K q)`` (Eq. 15) of bridge ``c`` at half-step row ``r``; the rail
     state ``W``, ``Wd`` of the axles on the bridge is cleared (rigid track off the bridge)."""
     ptr = rows.ptr
@@ -270,6 +287,7 @@ def bridge_accelerations(rows, r, bridge, c, vehicles, sq, sqd, v, Z, f, W, Wd, 
     K = bridge.K
     axle_load = vehicles.axle_load_n
     wheel_mass = vehicles.wheel_mass_kg
+    tc = track.c
     nm, nb = sq.shape
     for j in range(nm):
         for b in range(nb):
@@ -287,8 +305,9 @@ def bridge_accelerations(rows, r, bridge, c, vehicles, sq, sqd, v, Z, f, W, Wd, 
                 t2[b] += sq[j, b] * xxj
         fa = axle_load[a]
         mwa = wheel_mass[a]
+        ce = tc[e]
         for b in range(nb):
-            t3[b] = (fa - f[a, b]) - mwa * (2.0 * v[b] * t1[b] + v[b] * v[b] * t2[b])
+            t3[b] = ((fa - f[a, b]) - mwa * (v[b] * v[b]) * ce) - mwa * (2.0 * v[b] * t1[b] + v[b] * v[b] * t2[b])
         for j in range(nm):
             pj = phi[e, j]
             for b in range(nb):
@@ -341,7 +360,7 @@ def dense_maxima(k, l0, acc, d, vel, h, amax, prev):
 
 # ---------------------------------------------------------------------- the whole-run kernels
 @njit(cache=True, nogil=True)
-def dim_blocks(blocks, k0, k1, lanes, bridge, rows, units, vehicles, state, dense):
+def dim_blocks(blocks, k0, k1, lanes, bridge, rows, units, vehicles, state, dense, track):
     """DIM (Eqs. 7-17) with one exchange per RK stage, every lane over all its steps.
 
     ``blocks`` (:class:`Blocks`): lanes of one bridge and one step count advance together,
@@ -349,7 +368,8 @@ def dim_blocks(blocks, k0, k1, lanes, bridge, rows, units, vehicles, state, dens
     (:class:`DimLanes`); ``bridge`` (:class:`adm_sim.tables.BridgeTables`); ``rows``
     (:class:`adm_sim.tables.AxleRows` of every half-step row from 0, with ``minv``); ``units``
     (:class:`adm_sim.tables.ActiveUnits` of every step from 0); ``vehicles``
-    (:class:`adm_sim.tables.VehicleTables`). A stage is the numpy stepper's, helper by helper:
+    (:class:`adm_sim.tables.VehicleTables`); ``track`` (:class:`Track`) the irregularity under
+    the axles of ``rows`` (zeros: smooth track). A stage is the numpy stepper's, helper by helper:
     :func:`rail_state`, :func:`vehicle_accelerations`, :func:`bridge_accelerations`, (stage 0)
     :func:`midspan_acceleration`, the RK4 bookkeeping of both subsystems; a step starts with
     :func:`start_step` and ends with the maxima (:func:`dense_maxima` with ``dense``).
@@ -413,10 +433,10 @@ def dim_blocks(blocks, k0, k1, lanes, bridge, rows, units, vehicles, state, dens
             start_units(vehicles, act_units, a0, a1, u, ud, su, sud)
             for st in range(4):
                 r = 2 * k + STAGE_ROW[st]
-                rail_state(rows, r, sq, sqd, vl, W, Wd, t1, t2, t3)
+                rail_state(rows, r, sq, sqd, vl, W, Wd, t1, t2, t3, track)
                 vehicle_accelerations(vehicles, act_units, a0, a1, su, sud, W, Wd, f, udd, t1, t2, t3)
                 bridge_accelerations(rows, r, bridge, c, vehicles, sq, sqd, vl, Zb, f, W, Wd, p, rhs, qdd,
-                                     t1, t2, t3)
+                                     t1, t2, t3, track)
                 if st == 0:
                     midspan_acceleration(qdd, phi_mid, acc0)
                 # 4. RK4 bookkeeping of both subsystems (as rk4_sides._Rk4State.push), inline: as a

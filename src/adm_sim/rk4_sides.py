@@ -247,14 +247,20 @@ class TrainSide:
     """The vehicles of the DIM (Eq. 11) advanced in lockstep with a :class:`BridgeSide`.
 
     Only units (vehicles, Jacobs sets) with an axle on the bridge during a step are integrated:
-    on a rigid track without irregularities a unit rests until its first axle enters, and once
-    its last axle has left it no longer acts on the bridge.
+    on a rigid track a unit rests until its first axle enters, and once its last axle has left
+    it no longer acts on the bridge.
+
+    ``irregularity`` (:class:`adm_sim.irregularity.Profile` or None): the track profile on the
+    deck; every wheel on the bridge then follows rail plus profile (Eq. 9 gains ``r(x)`` and
+    ``v r'(x)``, :meth:`take_rail_state`). The profile is zero off the deck, so the units still
+    rest until they enter.
     """
 
-    def __init__(self, train, grid, span_m):
+    def __init__(self, train, grid, span_m, irregularity=None):
         self.train = train
         self.grid = grid
         self.span = float(span_m)
+        self.irregularity = irregularity
         self.offsets = train.axle_offsets_m
         self.vehicles = vehicle_tables(train)  # the tables of adm_sim.kernels
         self.n_dof = self.vehicles.minv_dof.size
@@ -307,7 +313,9 @@ class TrainSide:
         Returns
         -------
         G : ndarray (n_lanes, n_on)
-            Interaction forces ``F_i - F_k1,i - F_c1,i`` (N) for the bridge.
+            Interaction forces ``F_i - F_k1,i - F_c1,i`` (N) for the bridge; on a rough track less
+            the wheelset's inertia on the profile ``m_w,i v^2 r''(x_i)`` (the bridge carries the
+            wheelset's inertia of its own motion, Eq. 13).
         """
         dofs, axles, KsT, CsT, Lw, LwT, kp, cp, minv = self._active()
         u, ud = self.rk.stage_state()
@@ -315,12 +323,22 @@ class TrainSide:
         pos = np.searchsorted(axles, idx_on)
         W = np.zeros((self.grid.n_lanes, len(axles)))
         Wd = np.zeros_like(W)
-        W[:, pos] = w
-        Wd[:, pos] = wd
+        curv = None
+        if self.irregularity is None:
+            W[:, pos] = w
+            Wd[:, pos] = wd
+        else:  # the profile under the wheels (Eq. 9 with r(x), v r'(x)); positions as tables.axle_rows
+            x = self.grid.front_m(self.k, self.rk.stage) - np.asarray(self.offsets, dtype=float)[idx_on]
+            r, s, curv = self.irregularity.evaluate(x, curvature=True)
+            W[:, pos] = w + r
+            Wd[:, pos] = wd + self.grid.speeds_m_s[:, None] * s
         zb, zbd = u @ LwT, ud @ LwT
         f = kp * (W - zb) + cp * (Wd - zbd)  # primary stage force on the bogies (Eq. 7 terms)
         udd = (f @ Lw - u @ KsT - ud @ CsT) * minv
         G = self.train.axle_loads_n[idx_on] - f[:, pos]
+        if curv is not None:  # the wheelset's inertia on the profile, m_w v^2 r''(x), acts on the bridge
+            v = self.grid.speeds_m_s[:, None]
+            G = G - np.asarray(self.train.wheel_mass_kg, dtype=float)[idx_on] * (v * v) * curv
         if self.rk.push(ud, udd):
             self.x[:, dofs] = self.rk.x
             self.xd[:, dofs] = self.rk.xd

@@ -44,12 +44,16 @@ class StepOptions:
         Also take the maximum |midspan acceleration| *between* the steps, from the integrator's
         dense output (:func:`adm_sim.dense_output.hermite_max_abs_acc`), not only at the step points. Off by default:
         the paper's numbers and the shipped study are the sampled maxima.
+    irregularity : adm_sim.irregularity.Profile or None
+        Track irregularity on the deck under the DIM wheels (:mod:`adm_sim.irregularity`);
+        ``None`` (default): the paper's smooth track. The MLM ignores it.
     """
 
     steps_per_period: float = 16.0
     free_vibration_periods: float = 2.0
     ds_m: float | None = None
     dense_maxima: bool = False
+    irregularity: object = None
 
     def __post_init__(self):
         FIELDS["steps_per_period"].check(self.steps_per_period)
@@ -62,7 +66,7 @@ class StepOptions:
         ds = None if self.ds_m is None else 0.5 * self.ds_m
         return StepOptions(steps_per_period=2.0 * self.steps_per_period,
                            free_vibration_periods=self.free_vibration_periods, ds_m=ds,
-                           dense_maxima=self.dense_maxima)
+                           dense_maxima=self.dense_maxima, irregularity=self.irregularity)
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -223,7 +223,8 @@ def run_sweep(bridge, train, model, speeds_kmh, delta_zeta=0.0, options=None, hi
                          f"ask histories for at most a few speeds")
     b = BridgeSide(bridge, grid, train.axle_offsets_m, train.wheel_mass_kg if dim else None, dz)
     if dim:
-        run = InProcessRun(model, grid, b, train_side=TrainSide(train, grid, bridge.span_m),
+        run = InProcessRun(model, grid, b, train_side=TrainSide(train, grid, bridge.span_m,
+                                                                     irregularity=options.irregularity),
                            dense_maxima=options.dense_maxima)
     else:
         run = InProcessRun(model, grid, b, dense_maxima=options.dense_maxima,

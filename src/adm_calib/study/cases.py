@@ -166,6 +166,9 @@ class StudySettings:
     :class:`~adm_sim.step_grid.StepOptions`); ``refine_speed`` locates both peaks to 0.05 km/h
     (:class:`~adm_calib.calibrate.CalibrationOptions` ``speed_refinement_kmh``). Both off: the
     paper's rules. Settings written by a version without these two read as off.
+    ``irregularity`` a track profile spec of :func:`adm_sim.irregularity.parse` (e.g.
+    ``german-high:seed=3``) applied on the deck of every case (DIM only); empty: smooth track,
+    as the paper (and settings written before it existed).
     """
 
     speeds: str = DEFAULT_SPEEDS
@@ -173,21 +176,31 @@ class StudySettings:
     steps_per_period: float | None = None
     dense_maxima: bool = False
     refine_speed: bool = False
+    irregularity: str = ""
 
     def speeds_kmh(self):
         from adm_sim.sweep import parse_speeds  # noqa: PLC0415  scipy.signal (peaks) only when a study runs
 
         return parse_speeds(self.speeds)
 
-    def calibration_options(self):
+    def calibration_options(self, span_m=None):
+        """The calibration options; with an irregularity, ``span_m`` (the cases' span) sets the
+        deck the profile is generated on."""
         from adm_calib.calibrate import CalibrationOptions  # noqa: PLC0415  scipy.optimize only when a study runs
         from adm_calib.calibration_options import XTOL_STUDY  # noqa: PLC0415
 
         step = None
-        if self.steps_per_period is not None or self.dense_maxima:
+        profile = None
+        if self.irregularity:
+            from adm_sim.irregularity import parse  # noqa: PLC0415  scipy.interpolate only for rough-track studies
+
+            if span_m is None:
+                raise ValueError("calibration_options: an irregularity needs the span of the cases")
+            profile = parse(self.irregularity, span_m)
+        if self.steps_per_period is not None or self.dense_maxima or profile is not None:
             spp = StepOptions.steps_per_period if self.steps_per_period is None else self.steps_per_period
             step = StepOptions(steps_per_period=spp,
-                               dense_maxima=bool(self.dense_maxima))
+                               dense_maxima=bool(self.dense_maxima), irregularity=profile)
         refine = REFINED_SPEED_STEP_KMH if self.refine_speed else None
         return CalibrationOptions(dim_grid=self.dim_grid, step=step, speed_refinement_kmh=refine, xtol=XTOL_STUDY)
 

@@ -51,7 +51,7 @@ def run_batch(cases, settings=StudySettings()):
     try:
         train = _train(cases[0].train)
         res = calibrate_batch([c.bridge for c in cases], train, speeds_kmh=settings.speeds_kmh(),
-                              options=settings.calibration_options())
+                              options=settings.calibration_options(cases[0].span_m))
         wall = (time.perf_counter() - t0) / len(cases)
         recs = [result_record(c, r, wall) for c, r in zip(cases, res)]
         for rec in recs:

@@ -314,6 +314,9 @@ TRAIN_SPECS = [
     param("partner_timeout_s", 5.0, "error when the bridge node sends nothing for this long during a run"),
     ParamSpec("run_phase", "", "", "what the next run is for, handed to the bridge with the run request: "
                 + " | ".join(P.PHASES) + "; empty = named by the request (dim, mlm_zeta, mlm_zeta_dz, bracketing)"),
+    ParamSpec("irregularity", "", "", "track irregularity on the deck under the DIM wheels: a profile spec "
+              "(german-high:seed=3, fra-6:seed=1, file=PROFILE.csv, ramp:at=0:length=3:height=0.002, parts "
+              "joined by +; docs/irregularities.md); empty = smooth track"),
 ]
 
 
@@ -331,6 +334,10 @@ def validate_train(p):
     check_model(p["model"], train)
     check_run_phase(p["run_phase"])
     speeds = parse_speeds(p["speeds_kmh"], ordered=False, field="speeds_kmh")  # lanes, not a user's grid
+    if p.get("irregularity"):
+        from adm_sim.irregularity import parse  # noqa: PLC0415  scipy.interpolate only on a rough track
+
+        parse(p["irregularity"], 40.0)  # spectrum, class, band, file: refused before a run starts
     return train, speeds
 
 

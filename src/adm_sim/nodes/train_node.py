@@ -26,6 +26,7 @@ from std_srvs.srv import Trigger
 
 from adm_sim import protocol as P
 from adm_sim.errors import InputError
+from adm_sim.irregularity import parse as parse_irregularity
 from adm_sim.nodes import common as c
 from adm_sim.lockstep_runs import TrainHalf
 from adm_sim.mlm_loads import half_step_positions
@@ -45,6 +46,7 @@ class TrainRunState:
     train: Train
     v: np.ndarray                 #: (n_lanes,) speeds, m/s
     block: int                    #: MLM steps per axle block
+    irregularity: str = ""        #: track profile spec (:func:`adm_sim.irregularity.parse`)
     grid: Grid | None = None      #: from the bridge's /adm/run/ready
     run: TrainHalf | None = None  #: step, stage, status
 
@@ -123,7 +125,7 @@ class TrainNode(c.LockstepNode):
         dim = p["model"] == "dim"
         phase = p["run_phase"] or P.plain_run_phase(p["model"], *self._bridge_dz())
         self.run = TrainRunState(id=run_id, model=p["model"], train=train, v=v, run=None, grid=None,
-                        block=int(p["mlm_block_steps"]), phase=phase)
+                        block=int(p["mlm_block_steps"]), phase=phase, irregularity=p["irregularity"])
         self._pending = []
         self.pub_setup.publish(c.json_msg(P.setup_record(
             run_id, p["model"], train.name, speeds, v, train.length_m, train.axle_offsets_m, train.axle_loads_n,
@@ -146,7 +148,10 @@ class TrainNode(c.LockstepNode):
             self.partner.clear()
             return
         r.grid = Grid(speeds_m_s=r.v, ds_m=float(cfg["ds_m"]), n_steps=int(cfg["n_steps"]))
-        side = TrainSide(r.train, r.grid, float(cfg["span_m"])) if r.model == "dim" else None
+        side = None
+        if r.model == "dim":  # the profile on this deck (the same spec gives the same profile, bit for bit)
+            span = float(cfg["span_m"])
+            side = TrainSide(r.train, r.grid, span, irregularity=parse_irregularity(r.irregularity, span))
         r.run = TrainHalf(r.model, r.grid, train_side=side)
         self.pub_status.publish(c.json_msg(P.status_record(P.TRAIN_NODE, r.id, P.STARTED, model=r.model,
                                                            phase=r.phase, n_steps=r.grid.n_steps)))
