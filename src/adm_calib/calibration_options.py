@@ -29,8 +29,10 @@ class CalibrationOptions:
 
     Parameters
     ----------
-    dim_grid : {"paper", "full"}
-        DIM speeds as in Section 3.3 (coarse + refined) or at every MLM speed.
+    dim_grid : {"paper", "window", "full"}
+        DIM speeds as in Section 3.3 (coarse + refined), the part of them where the associated DIM
+        peak can lie (:func:`adm_calib.speed_grids.dim_speeds_window`: the same result, about half the
+        DIM lanes), or at every MLM speed.
     dim_coarse_step_kmh : float
         Coarse DIM step (paper: 5 km/h).
     dim_refine_kmh : (float, float)
