@@ -24,6 +24,10 @@ DIM speeds (``dim_grid="paper"``, Section 3.3): 5 km/h steps over the range plus
 (1 km/h) on ``[v_max - 20, v_max + 5]`` around the MLM peak, all in one run; if the associated DIM
 value lies where only the coarse grid was run, the DIM is run again at the fine step on
 ``+-5 km/h`` around it (``dim_refined``). ``dim_grid="full"`` runs the DIM at every MLM speed.
+``dim_grid="window"`` (the study's default) runs only the paper's speeds where the associated peak
+can lie (:func:`~adm_calib.speed_grids.dim_speeds_window`), and the rest of the paper grid for a case
+whose association that part cannot decide (:func:`adm_calib.peaks.association_decided`): the same
+DIM values, peaks and Δζ as ``paper``, with about half the DIM lanes.
 
 All runs of one calibration share one space step ``ds`` (the one the full MLM speed range needs),
 so the MLM curves at different dampings and the DIM curve are discretised alike.
