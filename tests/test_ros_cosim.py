@@ -94,12 +94,14 @@ def test_calibrate_launch_matches_in_process_calibration(tmp_path, ros_domain):
     # the co-simulation is the numpy stepper split in two processes: the same numbers bit for bit
     # the reference runs every sweep on the numpy stepper through a hook that notes the phase the
     # calibration sends with it (HookLanes, as the calibration node gets them)
-    sent = []
+    sent, ref_runs = [], []
 
     def numpy_sweep(model, speeds, dz, step, phase):
         sent.append(phase)
-        return run_sweep(resolve_bridge("B3"), load_train("ICE-2"), model, speeds, delta_zeta=dz,
-                         options=step).max_acc_m_s2
+        r = run_sweep(resolve_bridge("B3"), load_train("ICE-2"), model, speeds, delta_zeta=dz, options=step)
+        ref_runs.append((model, np.array(speeds, dtype=float), np.broadcast_to(dz, np.shape(speeds)).copy(),
+                         step, r))
+        return r.max_acc_m_s2
 
     ref = calibrate(resolve_bridge("B3"), load_train("ICE-2"), np.arange(230.0, 291.0, 2.0),
                     options=CalibrationOptions(step=StepOptions(**STEP)), sweep=numpy_sweep).to_dict()
@@ -141,9 +143,13 @@ def test_calibrate_launch_matches_in_process_calibration(tmp_path, ros_domain):
     assert [s["model"] for s in requested] == [s["model"] for s in started]
     models = [s["model"] for s in started]
     assert models[:2] == ["mlm", "dim"] and set(models[2:]) == {"mlm"}
-    for s, (v, acc, disp, dz) in zip(started, results):
-        assert s["ds_m"] == step.ds_m
-        ref_run = run_sweep(b3, ice2, s["model"], v, delta_zeta=dz, options=step)
+    # run k of the launch is run k of the in-process reference (the same phases in the same order,
+    # above): each is the reference's run_sweep (same model, speeds, damping and step), bit for bit
+    assert len(ref_runs) == len(started)
+    for s, (v, acc, disp, dz), (model, v_ref, dz_ref, step_ref, ref_run) in zip(started, results, ref_runs):
+        assert s["ds_m"] == step.ds_m == step_ref.ds_m and s["model"] == model
+        np.testing.assert_array_equal(v, v_ref)
+        np.testing.assert_array_equal(dz, dz_ref)
         np.testing.assert_array_equal(acc, ref_run.max_acc_m_s2, err_msg=f"run {s['run_id']} {s['model']}")
         np.testing.assert_array_equal(disp, ref_run.max_disp_m, err_msg=f"run {s['run_id']} {s['model']}")
     np.testing.assert_array_equal(results[0][0], np.arange(230.0, 291.0, 2.0))

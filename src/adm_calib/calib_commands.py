@@ -560,14 +560,15 @@ def build_parser():
                                                      "tcp://127.0.0.1:8786 (instead of a local cluster)")
     s.add_argument("--retry-errors", action="store_true", help="run the cases recorded with status error again")
     add_speeds(s, "MLM speeds in km/h, start:stop:step", show_default=True)
-    add_dim_grid(s)
+    add_dim_grid(s, "DIM speeds: window (default) = the paper's speeds where the associated DIM peak can lie, "
+                    "the same results in half the time; paper = the paper's whole grid (Section 3.3); full = all")
     add_steps_per_period(s, "integration steps per period of the highest mode (core default 16)")
     peaks_options(s)
     s.add_argument("--irregularity", default="", help="track irregularity on every deck (DIM only), e.g. "
                    "german-high:seed=3, fra-6:seed=1, german-low:seed=2:band=2:80, file=profile.csv, "
                    "ramp:at=0:length=3:height=0.002 (parts joined by +); default: smooth track as the paper "
                    "(docs/irregularities.md)")
-    s.set_defaults(func=cmd_study)
+    s.set_defaults(func=cmd_study, dim_grid="window")
 
     f = sub.add_parser("study-fit", help="lower-bound functions (Section 4.2.1, Tables B1-B4) from study results")
     f.add_argument("--results", required=True, help="results.jsonl of a study")

@@ -25,6 +25,10 @@ DIM speeds (``dim_grid="paper"``, Section 3.3): 5 km/h steps over the range plus
 (1 km/h) on ``[v_max - 20, v_max + 5]`` around the MLM peak, all in one run; if the associated DIM
 value lies where only the coarse grid was run, the DIM is run again at the fine step on
 ``+-5 km/h`` around it (``dim_refined``). ``dim_grid="full"`` runs the DIM at every MLM speed.
+``dim_grid="window"`` (the study's default) runs only the paper's speeds where the associated peak
+can lie (:func:`~adm_calib.speed_grids.dim_speeds_window`), and the rest of the paper grid for a case
+whose association that part cannot decide (:func:`adm_calib.peaks.association_decided`): the same
+DIM values, peaks and Δζ as ``paper``, with about half the DIM lanes.
 
 All runs of one calibration share one space step ``ds`` (the one the full MLM speed range needs),
 so the MLM curves at different dampings and the DIM curve are discretised alike.
@@ -53,8 +57,8 @@ from adm_calib.calibration_options import CalibrationOptions, check_speeds
 from adm_calib.calibration_result import make_result
 from adm_calib.damping_root import solve_delta_zetas
 from adm_calib.lanes import CompiledLanes, HookLanes, ProgressLanes, Requests, SteppedLanes
-from adm_calib.speed_grids import (REFINE_COARSE_KMH, dim_refinement, dim_speeds_paper, merge_curve, relocate_peaks,
-                                   relocation_speeds, speed_grid_finding)
+from adm_calib.speed_grids import (REFINE_COARSE_KMH, dim_refinement, dim_speeds_paper, dim_speeds_window, merge_curve,
+                                   relocate_peaks, relocation_speeds, speed_grid_finding)
 
 
 def calibration_step(bridge, train, speeds_kmh=None, options=None):
@@ -155,17 +159,38 @@ def calibrate_cases(bridges, train, lanes, speeds_kmh=None, *, options=None, ste
     else:
         vd = [v if opt.dim_grid == "full" else dim_speeds_paper(v, p.speed_kmh if p.found else None, opt)
               for p in sampled_peaks]
+        run_v = list(vd)
+        if opt.dim_grid == "window":  # the paper's speeds where the associated peak can lie
+            for c, p in enumerate(sampled_peaks):
+                vd[c], run_v[c] = dim_speeds_window(vd[c], p.speed_kmh, opt) if p.found else (vd[c][:0], vd[c][:0])
         req = Requests()
         for c in range(n):
-            req.add(c, vd[c])
-        dim = req.run(lanes, "dim", "dim")
+            req.add(c, run_v[c])
+        dim = [acc[:vd[c].size] for c, acc in enumerate(req.run(lanes, "dim", "dim"))]
     dim_peaks = [pk.Peak(found=False, reason="no MLM peak to associate with")] * n
     refined = [False] * n
+    # window grid: the paper speeds not run yet, per case (None: the curve holds the whole paper grid)
+    missing = [None] * n
+    if opt.dim_grid == "window" and not given:
+        missing = [np.setdiff1d(dim_speeds_paper(v, p.speed_kmh, opt), vd[c]) if p.found else None
+                   for c, p in enumerate(sampled_peaks)]
 
     def associate(c):
         return pk.associate_peak(vd[c], dim[c], sampled_peaks[c].speed_kmh, opt.association_window_kmh,
                                  opt.min_prominence_rel)
 
+    def complete_undecided(cases):
+        """Run the rest of the paper grid for the window-grid cases whose association is not certain."""
+        todo = [c for c in cases if missing[c] is not None and missing[c].size and not pk.association_decided(
+            vd[c], dim[c], sampled_peaks[c].speed_kmh, opt.association_window_kmh, opt.min_prominence_rel)]
+        req = Requests()
+        for c in todo:
+            req.add(c, missing[c])
+        for c, acc in zip(todo, req.run(lanes, "dim", "dim_refine")):
+            vd[c], dim[c] = merge_curve(vd[c], dim[c], missing[c], acc)
+            missing[c] = None
+
+    complete_undecided([c for c in range(n) if mlm_peaks[c].found])
     for c in range(n):
         if mlm_peaks[c].found:
             dim_peaks[c] = associate(c)
@@ -183,10 +208,15 @@ def calibrate_cases(bridges, train, lanes, speeds_kmh=None, *, options=None, ste
         for (c, extra), acc in zip(which, req.run(lanes, "dim", "dim_refine")):
             vd[c], dim[c] = merge_curve(vd[c], dim[c], extra, acc)
             refined[c] = True
+        complete_undecided([c for c, _ in which])
+        for c, _ in which:
             dim_peaks[c] = associate(c)
     if opt.speed_refinement_kmh is not None and not given:
         vd, dim, dim_peaks = relocate_peaks(lanes, "dim", "dim_peak_refine", vd, dim, dim_peaks,
                                              resolution_kmh=opt.speed_refinement_kmh)
+    for c in range(n):  # a window grid's curve does not reach the ends of the range: the flag is unknown
+        if missing[c] is not None and dim_peaks[c].found:
+            dim_peaks[c] = replace(dim_peaks[c], max_at_range_end=None)
     timings["dim_sweep"] = time.perf_counter() - t0
 
     # step 3: damping ladder (bracket), then all roots together

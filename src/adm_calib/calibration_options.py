@@ -38,8 +38,10 @@ class CalibrationOptions:
 
     Parameters
     ----------
-    dim_grid : {"paper", "full"}
-        DIM speeds as in Section 3.3 (coarse + refined) or at every MLM speed.
+    dim_grid : {"paper", "window", "full"}
+        DIM speeds as in Section 3.3 (coarse + refined), the part of them where the associated DIM
+        peak can lie (:func:`adm_calib.speed_grids.dim_speeds_window`: the same result, about half the
+        DIM lanes), or at every MLM speed.
     dim_coarse_step_kmh : float
         Coarse DIM step (paper: 5 km/h).
     dim_refine_kmh : (float, float)
@@ -57,6 +59,11 @@ class CalibrationOptions:
         Smallest relative prominence of a peak.
     step : adm_sim.step_grid.StepOptions or None
         Time-integration settings of the core (``None``: its defaults).
+    ladder_first_stage : float or None
+        Damping ladder of the root's bracket in two requests: the trial dampings up to this value
+        (fraction) first, the rest only for the cases without a sign change in them (the bracket is
+        the first sign change, so it is the same; fewer MLM lanes). ``None`` (default): the whole
+        ladder in one request.
     speed_refinement_kmh : float or None
         Refined mode: locate the MLM peak and the DIM peak to this speed resolution (e.g. 0.05
         km/h) between the neighbours of the peak on the MLM speed grid (:func:`refine_peaks`).
@@ -73,6 +80,7 @@ class CalibrationOptions:
     min_prominence_rel: float = pk.MIN_PROMINENCE_REL
     step: StepOptions | None = None
     speed_refinement_kmh: float | None = None
+    ladder_first_stage: float | None = None
 
     def __post_init__(self):
         FIELDS["dim_grid"].check(self.dim_grid)

@@ -80,7 +80,8 @@ class CalibrationResult:
             "adapted_mlm_peak": self.adapted_peak.to_dict(),
             "mlm_max_at_range_end": bool(self.mlm_peak.max_at_range_end),
             "dim_is_local_max": bool(self.dim_peak.found and self.dim_peak.is_local_max),
-            "dim_max_at_range_end": bool(self.dim_peak.max_at_range_end),
+            "dim_max_at_range_end": (None if self.dim_peak.max_at_range_end is None
+                                     else bool(self.dim_peak.max_at_range_end)),
             "dim_speed_shift_kmh": (_f(self.dim_peak.speed_kmh - self.mlm_peak.speed_kmh)
                                     if self.mlm_peak.found and self.dim_peak.found else None),
             "adapted_is_local_max": bool(self.adapted_peak.found and self.adapted_peak.is_local_max),

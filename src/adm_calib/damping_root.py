@@ -107,13 +107,12 @@ def solve_delta_zetas(evaluate, windows, peak_speeds_kmh, targets_m_s2, zetas, *
         return [known[(c, dz)] for c, dz in requests]
 
     brackets = {}
-    for c, acc in zip(todo, evaluate([(c, ladders[c]) for c in todo], "ladder")):
-        known.update({(c, float(dz)): row for dz, row in zip(ladders[c], acc)})
-        values = np.array([peak(c, row) for row in acc])
-        for dz, value in zip(ladders[c], values):
+    for c, ladder, values in _ladder_values(evaluate, todo, ladders, peak, opt.ladder_first_stage,
+                                            lambda c, v: v / targets_m_s2[c] - 1.0, known):
+        for dz, value in zip(ladder, values):
             trial(c, dz, value)
         fl = values / targets_m_s2[c] - 1.0
-        b = ladder_bracket(ladders[c], fl)
+        b = ladder_bracket(ladder, fl)
         if isinstance(b, DampingSolve):  # not bracketed
             out[c] = b
             continue
@@ -146,6 +145,35 @@ def solve_delta_zetas(evaluate, windows, peak_speeds_kmh, targets_m_s2, zetas, *
         out[c] = finish_solve(roots[c], windows[c], acc, peak_speeds_kmh[c], targets_m_s2[c], bracket=(lo, hi),
                               iterations=iters[c], calls=calls[c], options=opt, method="exact" if exact is not None else "find_root")
     return out
+
+
+def _ladder_values(evaluate, todo, ladders, peak, first_stage, ratio, known):
+    """The re-located MLM peak over each case's ladder: ``(case, ladder, values)`` per case; the
+    maxima of every damping run go into ``known`` (``{(case, dz): maxima}``, run once).
+
+    ``first_stage`` None: the whole ladder of every case in one request. Else the dampings up to
+    ``first_stage`` first; the rest only for the cases whose values change sign nowhere in that
+    part (``ratio(case, values)`` is the function whose sign changes). :func:`ladder_bracket` takes the first sign change, which depends on the ladder up to it
+    alone, so both give the same bracket (the returned ladder is then the part that was run).
+    """
+    def values(c, dzs, acc):
+        known.update({(c, float(dz)): row for dz, row in zip(dzs, acc)})
+        return np.array([peak(c, row) for row in acc])
+
+    if first_stage is None:
+        return [(c, ladders[c], values(c, ladders[c], acc))
+                for c, acc in zip(todo, evaluate([(c, ladders[c]) for c in todo], "ladder"))]
+    head = {c: ladders[c][ladders[c] <= first_stage + 1e-15] for c in todo}
+    vals = {c: values(c, head[c], acc) for c, acc in zip(todo, evaluate([(c, head[c]) for c in todo], "ladder"))}
+    rest = []
+    for c in todo:
+        s = np.sign(ratio(c, vals[c]))
+        if head[c].size < ladders[c].size and not np.any(s[:-1] * s[1:] <= 0):
+            rest.append(c)
+    out = {c: (head[c], vals[c]) for c in todo}
+    for c, acc in zip(rest, evaluate([(c, ladders[c][head[c].size:]) for c in rest], "ladder")):
+        out[c] = (ladders[c], np.concatenate([vals[c], values(c, ladders[c][head[c].size:], acc)]))
+    return [(c, *out[c]) for c in todo]
 
 
 def solve_delta_zeta(mlm_eval, peak_speed_kmh, speed_window_kmh, target_acc_m_s2, zeta, *, options=None):

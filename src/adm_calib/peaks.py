@@ -25,7 +25,8 @@ import numpy as np
 from adm_sim.peaks import MIN_PROMINENCE_REL, RANGE_END_RTOL, Peak, find_peak, largest_interior_peak, local_maxima, max_at_range_end
 from adm_sim.peaks import check_curve as _check_curve
 
-__all__ = ["ASSOCIATION_WINDOW_KMH", "MIN_PROMINENCE_REL", "RANGE_END_RTOL", "Peak", "associate_peak", "find_peak",
+__all__ = ["ASSOCIATION_WINDOW_KMH", "MIN_PROMINENCE_REL", "RANGE_END_RTOL", "Peak", "associate_peak",
+           "association_decided", "find_peak",
            "largest_interior_peak", "local_maxima", "max_at_range_end", "window_max"]
 
 #: Association window around the MLM peak speed (km/h): (below, above).
@@ -64,6 +65,39 @@ def associate_peak(speeds_kmh, acc_m_s2, ref_speed_kmh, window_kmh=ASSOCIATION_W
     return Peak(found=True, index=i, speed_kmh=float(v[i]), acc_m_s2=float(a[i]), is_local_max=False,
                 max_at_range_end=at_end,
                 reason=f"no local maximum in the window [{lo:g}, {hi:g}] km/h: largest value in it")
+
+
+def association_decided(speeds_kmh, acc_m_s2, ref_speed_kmh, window_kmh=ASSOCIATION_WINDOW_KMH,
+                        min_prominence_rel=MIN_PROMINENCE_REL):
+    """Whether :func:`associate_peak` on this part of a curve gives what it gives on the whole curve.
+
+    The part is a contiguous run of the whole curve's samples that holds every sample of the window
+    and at least one more beyond each end of the window (or the curve's own end). Then a sample of
+    the window is a local maximum of the part exactly when it is one of the whole curve, and its
+    prominence on the part is at most its prominence on the whole curve (the part ends the search
+    for the lowest value sooner), so a maximum kept on the part is kept on the whole curve, and only
+    a maximum dropped on the part for its prominence might be kept on the whole curve. The result is
+    the same when no such maximum can win: each is lower than the highest maximum kept on the part.
+    Runs of equal samples (plateaus) are not decided here.
+
+    Returns
+    -------
+    bool
+        False: run the whole curve before associating.
+    """
+    v, a = _check_curve(speeds_kmh, acc_m_s2)
+    lo, hi = ref_speed_kmh - window_kmh[0], ref_speed_kmh + window_kmh[1]
+    in_win = (v >= lo - 1e-9) & (v <= hi + 1e-9)
+    if a.size and np.any(a[1:] == a[:-1]):
+        return False
+    every = local_maxima(a, 0.0)
+    every = every[in_win[every]]
+    kept = local_maxima(a, min_prominence_rel)
+    kept = kept[in_win[kept]]
+    dropped = np.setdiff1d(every, kept)
+    if dropped.size == 0:
+        return True
+    return bool(kept.size) and bool(a[dropped].max() < a[kept].max())
 
 
 def window_max(speeds_kmh, acc_m_s2, ref_speed_kmh, window_kmh=ASSOCIATION_WINDOW_KMH):

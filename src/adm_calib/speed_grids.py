@@ -52,6 +52,52 @@ def dim_speeds_paper(speeds_kmh, mlm_peak_kmh, options=None):
     return _merge(*parts)
 
 
+#: Margin (km/h) of the window grid beyond the association window on each side: the half width of
+#: :func:`dim_refinement`'s extra speeds, so every refinement lies inside the window grid.
+WINDOW_MARGIN_KMH = 5.0
+
+
+def dim_speeds_window(paper_kmh, mlm_peak_kmh, options=None):
+    """The ``window`` DIM grid: the paper's DIM speeds only where the associated DIM peak can lie.
+
+    Rule: by the association rule (:func:`adm_calib.peaks.associate_peak`) the DIM peak is taken
+    inside the window ``[v_m - 20, v_m + 10]`` km/h around the MLM peak ``v_m``, so only the DIM
+    values there, the refinement speeds around them (:data:`WINDOW_MARGIN_KMH`) and one more paper
+    speed beyond each end (the neighbours that decide whether a speed of the window is a local
+    maximum) can change the result. The window grid is that contiguous part of the paper grid
+    ``paper_kmh`` (the 5 km/h coarse points far from the MLM peak are dropped); the run also holds the
+    paper grid's fastest speed, which sets the sweep's number of steps (:func:`adm_sim.step_grid.make_grid`),
+    so every DIM value is the paper grid's value bit for bit. Whether the association on this part
+    equals the one on the whole paper curve is checked case by case
+    (:func:`adm_calib.peaks.association_decided`); where it is not certain the rest of the paper grid is run.
+
+    Parameters
+    ----------
+    paper_kmh : ndarray (n,)
+        The paper's DIM speeds of the case (:func:`dim_speeds_paper`), increasing.
+    mlm_peak_kmh : float
+    options : CalibrationOptions, optional
+
+    Returns
+    -------
+    curve_kmh : ndarray (m,)
+        The speeds of the DIM curve (a contiguous part of ``paper_kmh``).
+    run_kmh : ndarray (m,) or (m + 1,)
+        The speeds to run: ``curve_kmh`` and the fastest paper speed.
+    """
+    opt = options or CalibrationOptions()
+    p = np.asarray(paper_kmh, dtype=float)
+    lo = mlm_peak_kmh - opt.association_window_kmh[0] - WINDOW_MARGIN_KMH
+    hi = mlm_peak_kmh + opt.association_window_kmh[1] + WINDOW_MARGIN_KMH
+    inside = np.flatnonzero((p >= lo - 1e-9) & (p <= hi + 1e-9))
+    if inside.size == 0:
+        return p, p
+    i0, i1 = max(int(inside[0]) - 1, 0), min(int(inside[-1]) + 1, p.size - 1)
+    curve = p[i0:i1 + 1]
+    run = curve if i1 == p.size - 1 else np.append(curve, p[-1])
+    return curve, run
+
+
 def dim_refinement(v, vd, dim_peak):
     """Extra DIM speeds when the associated DIM value lies where only the coarse grid ran, or None.
 

@@ -36,6 +36,9 @@ TRAIN_VARIANTS = {"Eurostar-table": "Eurostar"}
 MASS_FUNCTION_NAMES = ("mu1", "mu2", "mu3", "mu4", "mu5", "mu6")
 #: Interval boundaries of Section 4.2.1 (Hz): 0.5 Hz from 2 to 8 Hz, then 9, 10, 11, 13, 16, 21.
 INTERVAL_EDGES_HZ = tuple(float(x) for x in np.arange(2.0, 8.0 + 1e-9, 0.5)) + (9.0, 10.0, 11.0, 13.0, 16.0, FIT_RANGE_MAX_HZ)
+#: The study's damping ladder runs up to this Δζ (fraction) first, the rest only where the root
+#: lies above (:class:`~adm_calib.calibrate.CalibrationOptions` ``ladder_first_stage``; same brackets).
+LADDER_FIRST_STAGE = 0.01
 #: Environment of the worker processes: one BLAS/OpenMP thread each (one case per core).
 WORKER_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 
@@ -161,7 +164,8 @@ class StudySettings:
 
     ``speeds`` is the MLM speed grid ``start:stop:step`` in km/h (Section 3.3: 160:350:1),
     ``dim_grid`` and ``steps_per_period`` as for :class:`~adm_calib.calibrate.CalibrationOptions`
-    (``None``: the core's default). The adapted MLM curve is never computed (not needed here).
+    (``None``: the core's default; ``dim_grid`` ``window`` by default: the paper's DIM speeds where
+    the associated peak can lie, the same Δζ as ``paper``, the shipped study's grid). The adapted MLM curve is never computed (not needed here).
     ``dense_maxima`` takes the maxima between time samples (dense output,
     :class:`~adm_sim.step_grid.StepOptions`); ``refine_speed`` locates both peaks to 0.05 km/h
     (:class:`~adm_calib.calibrate.CalibrationOptions` ``speed_refinement_kmh``). Both off: the
@@ -172,7 +176,7 @@ class StudySettings:
     """
 
     speeds: str = DEFAULT_SPEEDS
-    dim_grid: str = "paper"
+    dim_grid: str = "window"
     steps_per_period: float | None = None
     dense_maxima: bool = False
     refine_speed: bool = False
@@ -202,7 +206,8 @@ class StudySettings:
             step = StepOptions(steps_per_period=spp,
                                dense_maxima=bool(self.dense_maxima), irregularity=profile)
         refine = REFINED_SPEED_STEP_KMH if self.refine_speed else None
-        return CalibrationOptions(dim_grid=self.dim_grid, step=step, speed_refinement_kmh=refine, xtol=XTOL_STUDY)
+        return CalibrationOptions(dim_grid=self.dim_grid, step=step, speed_refinement_kmh=refine, xtol=XTOL_STUDY,
+                                  ladder_first_stage=LADDER_FIRST_STAGE)
 
     def to_dict(self):
         return asdict(self)
