@@ -57,9 +57,7 @@ import re
 import signal
 import stat
 import tempfile
-import threading
 import tomllib
-from contextlib import contextmanager
 from pathlib import Path
 
 from adm_sim.errors import InputError, RunError
@@ -278,46 +276,18 @@ def _holder(lock):
     return f"process {pid}" if pid.isdigit() else "another process"
 
 
-#: Signals held back while a lock file exists but its claim is not yet recorded: a handler that
-#: raises there (Ctrl-C, the runner's SIGTERM) would leave the lock file behind.
-_HELD_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
-
-
-@contextmanager
-def signals_deferred():
-    """Hold back SIGINT, SIGTERM and SIGHUP for the block; one that came meanwhile is delivered to
-    its handler at the end. Python runs signal handlers in the main thread, so the handlers are
-    swapped there (a thread mask would not do: another thread of the process takes the signal and
-    the main thread still runs the handler); elsewhere the block runs as it is."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    came = []
-    saved = {}
-    for sig in _HELD_SIGNALS:
-        handler = signal.getsignal(sig)
-        if handler is not None:  # None: set outside Python, left alone
-            saved[sig] = signal.signal(sig, lambda signum, _frame: came.append(signum))
-    try:
-        yield
-    finally:
-        for sig, handler in saved.items():
-            signal.signal(sig, handler)
-        for sig in came:
-            signal.raise_signal(sig)
-
-
 def _lock(p, option, text):
     key = p.resolve()
     if key in _CLAIMS:
         raise InputError(f"{option}: {text!r} is already being written by this process ({os.getpid()}); "
                          f"give each output once")
-    with signals_deferred():
-        _lock_file(key, lock_path(key), option, text)
+    _lock_file(key, lock_path(key), option, text)
 
 
 def _lock_file(key, lock, option, text):
-    """Create, lock and claim ``lock`` (signals held back by :func:`_lock`)."""
+    """Create, lock and claim ``lock``. An exception on the way (an interrupt: Ctrl-C, the runner's
+    SIGTERM) before the claim is recorded gives the lock file up (:func:`_abandon`), so none is
+    left behind."""
     while True:
         try:
             fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
@@ -325,20 +295,41 @@ def _lock_file(key, lock, option, text):
             raise InputError(f"{option}: {text!r}: cannot create its lock file {str(lock)!r} "
                              f"({exc.strerror})") from None
         try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError as exc:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError as exc:
+                os.close(fd)
+                fd = None
+                if exc.errno in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+                    raise InputError(f"{option}: {text!r} is being written by {_holder(lock)} (lock "
+                                     f"{str(lock)!r}); wait for it to finish or choose another file") from None
+                raise InputError(f"{option}: {text!r}: cannot lock {str(lock)!r} ({exc.strerror})") from None
+            try:  # the holder we waited for may have removed the file we locked: lock the current one
+                same = os.fstat(fd).st_ino == os.stat(lock).st_ino
+            except FileNotFoundError:
+                same = False
+            if same:
+                _claimed(key, fd, lock)
+                return
             os.close(fd)
-            if exc.errno in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
-                raise InputError(f"{option}: {text!r} is being written by {_holder(lock)} (lock {str(lock)!r}); "
-                                 f"wait for it to finish or choose another file") from None
-            raise InputError(f"{option}: {text!r}: cannot lock {str(lock)!r} ({exc.strerror})") from None
-        try:  # the holder we waited for may have removed the file we locked: lock the current one
-            if os.fstat(fd).st_ino == os.stat(lock).st_ino:
-                break
-        except FileNotFoundError:
-            pass
+            fd = None
+        except BaseException:
+            if fd is not None and key not in _CLAIMS:
+                _abandon(fd, lock)
+            raise
+
+
+def _abandon(fd, lock):
+    """A lock file opened but not claimed when an exception came: removed when this process holds
+    or can take its lock (then it is nobody else's), closed either way."""
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        if os.fstat(fd).st_ino == os.stat(lock).st_ino:
+            os.unlink(lock)
+    except OSError:
+        pass
+    finally:
         os.close(fd)
-    _claimed(key, fd, lock)
 
 
 def _claimed(key, fd, lock):
@@ -359,17 +350,18 @@ def claimed(path):
 
 
 def release(path):
-    """Give up the claim on ``path`` (idempotent): the lock file is removed, then unlocked
-    (signals held back meanwhile, as in :func:`_lock`)."""
-    with signals_deferred():
-        entry = _CLAIMS.pop(Path(path).resolve(), None)
-        if entry is None:
-            return
-        fd, lock = entry
-        try:
-            os.unlink(lock)
-        except OSError:
-            pass
+    """Give up the claim on ``path`` (idempotent): the lock file is removed, then the claim dropped
+    and unlocked (in that order, so an interrupt in between leaves no lock file)."""
+    key = Path(path).resolve()
+    entry = _CLAIMS.get(key)
+    if entry is None:
+        return
+    fd, lock = entry
+    try:
+        os.unlink(lock)
+    except OSError:
+        pass
+    if _CLAIMS.pop(key, None) is not None:
         os.close(fd)
 
 
