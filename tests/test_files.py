@@ -318,7 +318,8 @@ def test_a_signal_while_claiming_leaves_no_lock_file(tmp_path, monkeypatch):
 
     def flock_then_signal(fd, op):
         if not sent:  # once: the default handler raises KeyboardInterrupt
-            sent.append(os.kill(os.getpid(), signal.SIGINT))
+            sent.append(signal.SIGINT)
+            os.kill(os.getpid(), signal.SIGINT)
         return real(fd, op)
 
     previous = signal.signal(signal.SIGINT, signal.default_int_handler)
