@@ -87,3 +87,14 @@ def driver_node(domain_id, cls=None, namespace=None, **params):
         node.close()
         node.destroy_node()
         rclpy.try_shutdown(context=ctx)
+
+
+@pytest.fixture
+def ctx():
+    """An isolated rclpy context for in-process nodes (no other process involved)."""
+    import rclpy  # noqa: PLC0415  rclpy only for the ROS tests that use it
+
+    c = rclpy.context.Context()
+    rclpy.init(context=c, domain_id=0)
+    yield c
+    rclpy.try_shutdown(context=c)

@@ -16,15 +16,8 @@ from rclpy.parameter import Parameter  # noqa: E402
 
 from adm_sim.errors import PlausibilityWarning  # noqa: E402
 from adm_sim.nodes.bridge_node import BridgeNode  # noqa: E402
-from ros_fixtures import ros_domain  # noqa: E402,F401  (fixture)
+from ros_fixtures import ctx, ros_domain  # noqa: E402,F401  (fixtures)
 
-
-@pytest.fixture
-def ctx():
-    c = rclpy.context.Context()
-    rclpy.init(context=c, domain_id=0)
-    yield c
-    rclpy.try_shutdown(context=c)
 
 
 def _said(call):

@@ -14,14 +14,8 @@ from rclpy.parameter import Parameter  # noqa: E402
 
 from adm_sim.nodes.bridge_node import BridgeNode  # noqa: E402
 from adm_sim.nodes.train_node import TrainNode  # noqa: E402
+from ros_fixtures import ctx  # noqa: E402,F401  (fixture)
 
-
-@pytest.fixture
-def ctx():
-    c = rclpy.context.Context()
-    rclpy.init(context=c, domain_id=0)
-    yield c
-    rclpy.try_shutdown(context=c)
 
 
 @pytest.fixture
