@@ -135,7 +135,6 @@ class interrupt_signals:
         self._hook = None
         if threading.current_thread() is threading.main_thread():
             _LAST_SIGNAL[0] = None
-            _HANDLED[0] = False
             for sig in (signal.SIGINT, signal.SIGTERM):
                 self._old[sig] = signal.signal(sig, _raise_interrupt)
             self._hook = sys.unraisablehook
@@ -161,13 +160,9 @@ class interrupt_signals:
 
 #: The signal that :func:`_raise_interrupt` turned into a ``KeyboardInterrupt`` last.
 _LAST_SIGNAL: list = [None]
-#: Whether the command's runner has caught the interrupt (a later signal is then the same one).
-_HANDLED: list = [False]
 
 
 def _raise_interrupt(signum, frame):
-    if _HANDLED[0]:  # the interrupt is being reported already
-        return
     _LAST_SIGNAL[0] = signum
     raise KeyboardInterrupt
 
@@ -190,8 +185,7 @@ def _interrupt_again(hook):
 
 def _send_again(signum):
     time.sleep(0.005)  # the unraisable hook has returned by then
-    if not _HANDLED[0]:
-        os.kill(os.getpid(), signum)
+    os.kill(os.getpid(), signum)
 
 
 def _exit_interrupted(signum, frame):
@@ -238,7 +232,6 @@ def _run(call):
         print(f"error: {one_line(os_message(exc))}", file=sys.stderr)
         return EXIT_INPUT if exc.errno == errno.ENAMETOOLONG else EXIT_RUN  # a path the user typed
     except KeyboardInterrupt:
-        _HANDLED[0] = True
         print("error: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
 
