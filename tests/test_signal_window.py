@@ -77,35 +77,3 @@ def test_signal_as_the_work_ends(sig):
         assert "Traceback" not in err, err
         assert code in (0, 130), (code, err)  # never -15 (death by SIGTERM) nor -2
         assert err.splitlines() == ([] if code == 0 else ["error: interrupted"]), (code, err)
-
-
-_DEL_CMD = """
-import os, signal, sys
-from adm_sim.cliutil import run_cli
-
-class Finaliser:
-    def __del__(self):  # the signal lands where Python cannot raise (as in importlib's weakref callbacks)
-        os.kill(os.getpid(), signal.SIGTERM)
-        sum(range(1000))
-
-def work():
-    import time
-    Finaliser()
-    t_end = time.monotonic() + 10.0
-    while time.monotonic() < t_end:  # the interrupt, delivered again, must stop this
-        sum(range(100))
-    print("not interrupted", flush=True)
-    return 0
-
-sys.exit(run_cli(work))
-"""
-
-
-def test_signal_raised_where_python_cannot_pass_it_on():
-    """A SIGTERM whose KeyboardInterrupt is raised inside a ``__del__`` (under load it once landed in
-    a weakref callback of the import machinery): not "Exception ignored ... Traceback" and a run
-    that goes on, but the interrupt, delivered again at the next line: one line, exit 130."""
-    env = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
-    p = subprocess.run([sys.executable, "-c", _DEL_CMD], capture_output=True, text=True, env=env, timeout=120)
-    assert "Traceback" not in p.stderr and "Exception ignored" not in p.stderr, p.stderr
-    assert (p.returncode, p.stderr, p.stdout) == (130, "error: interrupted\n", "")

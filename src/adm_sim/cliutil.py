@@ -15,7 +15,6 @@ import os
 import signal
 import sys
 import threading
-import time
 import warnings
 
 from adm_sim import __version__
@@ -132,13 +131,9 @@ class interrupt_signals:
     def __enter__(self):
         self._old = {}
         self.late = False
-        self._hook = None
         if threading.current_thread() is threading.main_thread():
-            _LAST_SIGNAL[0] = None
             for sig in (signal.SIGINT, signal.SIGTERM):
                 self._old[sig] = signal.signal(sig, _raise_interrupt)
-            self._hook = sys.unraisablehook
-            sys.unraisablehook = _interrupt_again(self._hook)
         return self
 
     def defer(self):
@@ -150,42 +145,14 @@ class interrupt_signals:
             signal.signal(sig, mark)
 
     def __exit__(self, *exc):
-        if self._hook is not None:
-            sys.unraisablehook = self._hook
         for sig, handler in self._old.items():
             default = handler is signal.SIG_DFL or handler is signal.default_int_handler
             signal.signal(sig, _exit_interrupted if default else handler)
         return False
 
 
-#: The signal that :func:`_raise_interrupt` turned into a ``KeyboardInterrupt`` last.
-_LAST_SIGNAL: list = [None]
-
-
 def _raise_interrupt(signum, frame):
-    _LAST_SIGNAL[0] = signum
     raise KeyboardInterrupt
-
-
-def _interrupt_again(hook):
-    """An ``sys.unraisablehook`` for the block of :class:`interrupt_signals`: a signal whose
-    ``KeyboardInterrupt`` was raised where Python cannot pass it on (a weakref callback of the
-    import machinery, a ``__del__``) would print "Exception ignored ... Traceback" and be lost;
-    it is sent again instead, a moment later from another thread (sent from here it would be
-    raised here again), to be raised at an ordinary line of the main thread. Anything else goes to
-    ``hook``."""
-    def handle(unraisable):
-        if isinstance(unraisable.exc_value, KeyboardInterrupt) and _LAST_SIGNAL[0] is not None:
-            threading.Thread(target=_send_again, args=(_LAST_SIGNAL[0],), daemon=True).start()
-            return
-        hook(unraisable)
-
-    return handle
-
-
-def _send_again(signum):
-    time.sleep(0.005)  # the unraisable hook has returned by then
-    os.kill(os.getpid(), signum)
 
 
 def _exit_interrupted(signum, frame):
