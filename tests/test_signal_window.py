@@ -77,3 +77,70 @@ def test_signal_as_the_work_ends(sig):
         assert "Traceback" not in err, err
         assert code in (0, 130), (code, err)  # never -15 (death by SIGTERM) nor -2
         assert err.splitlines() == ([] if code == 0 else ["error: interrupted"]), (code, err)
+
+
+#: The command's work meets the signal inside a weakref callback (as the import machinery's module
+#: locks have one): the handler's KeyboardInterrupt cannot propagate from there (Python prints
+#: "Exception ignored ... Traceback" and runs on). ``landings`` callbacks in a row each take the
+#: signal (sent from within the callback, so it lands there every time); the work then loops on
+#: until it is interrupted, or says it was not within 30 s.
+_LOST_CMD = """
+import os, signal, sys, time, weakref
+from adm_sim.cliutil import run_cli
+
+class Thing:
+    pass
+
+landings = int(sys.argv[1])
+
+def cb(ref):
+    global landings
+    if landings > 0:
+        landings -= 1
+        os.kill(os.getpid(), signal.SIGTERM)
+        for _ in range(1000):  # the handler runs here, inside the callback
+            pass
+
+def work():
+    t_end = time.monotonic() + 30
+    while time.monotonic() < t_end:
+        thing = Thing()
+        ref = weakref.ref(thing, cb)
+        del thing
+    print("not interrupted", file=sys.stderr)
+    return 0
+
+sys.exit(run_cli(work))
+"""
+
+
+@pytest.mark.parametrize("landings", [1, 3])
+def test_signal_landing_in_a_weakref_callback_still_interrupts_once(landings):
+    env = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
+    r = subprocess.run([sys.executable, "-c", _LOST_CMD, str(landings)], capture_output=True, text=True, env=env,
+                       timeout=120)
+    assert (r.returncode, r.stderr) == (130, "error: interrupted\n")
+
+
+def test_signal_within_a_held_block_is_raised_at_its_end():
+    """A signal that the main thread's handler meets inside :func:`adm_sim.interrupts.held` (here
+    tripped as if another thread had taken it, which a thread's signal mask cannot stop) does not
+    cut the block: every step runs, then the one ``KeyboardInterrupt``."""
+    import _thread
+
+    from adm_sim.interrupts import held, raise_interrupt
+
+    steps = []
+    old = signal.signal(signal.SIGTERM, raise_interrupt)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            with held():
+                _thread.interrupt_main(signal.SIGTERM)
+                for i in range(1000):
+                    steps.append(i)
+        assert len(steps) == 1000
+        with held():  # nothing pending is left: a later block ends quietly
+            steps.append("later")
+    finally:
+        signal.signal(signal.SIGTERM, old)
+    assert steps[-1] == "later"

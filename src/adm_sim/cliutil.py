@@ -21,6 +21,7 @@ from adm_sim import __version__
 from adm_sim.errors import EXIT_INPUT, EXIT_INTERRUPTED, EXIT_OK, EXIT_RUN, AdmSimError, InputError, PlausibilityWarning
 from adm_sim.fields import argument_flag, view
 from adm_sim.files import release_all
+from adm_sim.interrupts import armed, raise_interrupt
 from adm_sim.limits import DEFAULT_SPEEDS
 
 
@@ -121,7 +122,9 @@ class plausibility_warnings(one_line_warnings):
 
 class interrupt_signals:
     """Within the block, SIGTERM and SIGINT both raise ``KeyboardInterrupt`` in the main thread
-    (SIGINT too when a non-interactive shell started the process with SIGINT ignored), until
+    (SIGINT too when a non-interactive shell started the process with SIGINT ignored; one that lands
+    where Python cannot pass it on, a weakref callback or a ``__del__``, is raised again at the next
+    line that can: :mod:`adm_sim.interrupts`), until
     :meth:`defer`: from then on they only set :attr:`late`. At its end the old handlers come back,
     except the interpreter's defaults (SIGTERM's death by the signal, SIGINT's
     ``KeyboardInterrupt`` with a traceback from wherever the process is on its way out): in their
@@ -131,9 +134,11 @@ class interrupt_signals:
     def __enter__(self):
         self._old = {}
         self.late = False
+        self._armed = armed()
+        self._armed.__enter__()
         if threading.current_thread() is threading.main_thread():
             for sig in (signal.SIGINT, signal.SIGTERM):
-                self._old[sig] = signal.signal(sig, _raise_interrupt)
+                self._old[sig] = signal.signal(sig, raise_interrupt)
         return self
 
     def defer(self):
@@ -148,11 +153,8 @@ class interrupt_signals:
         for sig, handler in self._old.items():
             default = handler is signal.SIG_DFL or handler is signal.default_int_handler
             signal.signal(sig, _exit_interrupted if default else handler)
+        self._armed.__exit__(None, None, None)
         return False
-
-
-def _raise_interrupt(signum, frame):
-    raise KeyboardInterrupt
 
 
 def _exit_interrupted(signum, frame):

@@ -54,13 +54,13 @@ import errno
 import fcntl
 import os
 import re
-import signal
 import stat
 import tempfile
 import tomllib
 from pathlib import Path
 
 from adm_sim.errors import InputError, RunError
+from adm_sim.interrupts import held
 
 __all__ = ["check_path", "read_text", "check_output_folder", "claim_folder", "claim_output", "claimed", "input_file", "is_input", "lock_path",
            "make_output_folder", "mcap_input", "OutputSet", "probe_writable", "read_toml", "refuse_special", "release", "release_all",
@@ -471,19 +471,17 @@ class OutputSet:
     def commit(self):
         """Rename every written output into place (signals held back meanwhile), release the
         claims, print the notes."""
-        held = {signal.SIGINT, signal.SIGTERM}
-        old = signal.pthread_sigmask(signal.SIG_BLOCK, held)
-        try:
-            for tmp, p, option in self._staged:
-                try:
-                    os.replace(tmp, p)
-                except OSError as exc:
-                    raise RunError(f"{option}: {str(p)!r}: cannot write ({exc.strerror or exc})") from None
-                self.written.append(p)
-        finally:
-            if len(self.written) != len(self._staged):
-                self.abort()
-            signal.pthread_sigmask(signal.SIG_SETMASK, old)
+        with held():  # a signal now is raised after the last rename, whichever thread took it
+            try:
+                for tmp, p, option in self._staged:
+                    try:
+                        os.replace(tmp, p)
+                    except OSError as exc:
+                        raise RunError(f"{option}: {str(p)!r}: cannot write ({exc.strerror or exc})") from None
+                    self.written.append(p)
+            finally:
+                if len(self.written) != len(self._staged):
+                    self.abort()
         self._release()
         for note in self._notes:
             print(note)
