@@ -285,38 +285,47 @@ def _lock(p, option, text):
 
 
 def _lock_file(key, lock, option, text):
-    """Create, lock and claim ``lock``. An exception on the way (an interrupt: Ctrl-C, the runner's
-    SIGTERM) before the claim is recorded gives the lock file up (:func:`_abandon`), so none is
-    left behind."""
+    """Create, lock and claim ``lock``, signals held back meanwhile (:func:`adm_sim.interrupts.held`:
+    one that comes is raised once the claim is recorded, which the runner then releases; between
+    the file's creation and the claim it would leave the file behind). Any other exception on the
+    way gives the lock file up (:func:`_abandon`)."""
     while True:
-        try:
-            fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
-        except OSError as exc:
-            raise InputError(f"{option}: {text!r}: cannot create its lock file {str(lock)!r} "
-                             f"({exc.strerror})") from None
-        try:
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except OSError as exc:
-                os.close(fd)
-                fd = None
-                if exc.errno in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
-                    raise InputError(f"{option}: {text!r} is being written by {_holder(lock)} (lock "
-                                     f"{str(lock)!r}); wait for it to finish or choose another file") from None
-                raise InputError(f"{option}: {text!r}: cannot lock {str(lock)!r} ({exc.strerror})") from None
-            try:  # the holder we waited for may have removed the file we locked: lock the current one
-                same = os.fstat(fd).st_ino == os.stat(lock).st_ino
-            except FileNotFoundError:
-                same = False
-            if same:
-                _claimed(key, fd, lock)
+        with held():
+            if _lock_file_once(key, lock, option, text):
                 return
+
+
+def _lock_file_once(key, lock, option, text):
+    """One try of :func:`_lock_file`: True once claimed, False when the file locked was replaced."""
+    try:
+        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError as exc:
+        raise InputError(f"{option}: {text!r}: cannot create its lock file {str(lock)!r} "
+                         f"({exc.strerror})") from None
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as exc:
             os.close(fd)
             fd = None
-        except BaseException:
-            if fd is not None and key not in _CLAIMS:
-                _abandon(fd, lock)
-            raise
+            if exc.errno in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+                raise InputError(f"{option}: {text!r} is being written by {_holder(lock)} (lock "
+                                 f"{str(lock)!r}); wait for it to finish or choose another file") from None
+            raise InputError(f"{option}: {text!r}: cannot lock {str(lock)!r} ({exc.strerror})") from None
+        try:  # the holder we waited for may have removed the file we locked: lock the current one
+            same = os.fstat(fd).st_ino == os.stat(lock).st_ino
+        except FileNotFoundError:
+            same = False
+        if same:
+            _claimed(key, fd, lock)
+            return True
+        os.close(fd)
+        fd = None
+        return False
+    except BaseException:
+        if fd is not None and key not in _CLAIMS:
+            _abandon(fd, lock)
+        raise
 
 
 def _abandon(fd, lock):
