@@ -150,8 +150,10 @@ def check_inputs(bridge=None, train=None, speeds=None, params_file=None, model=N
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", PlausibilityWarning)
             resolve_bridge(bridge)
-    if train is not None:
-        load_train(train)
+    if train is not None:  # refused first; its warnings come once, with the train node's values below
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", PlausibilityWarning)
+            load_train(train)
     if speeds is not None:
         parse_speeds(speeds)
     file_values = {}

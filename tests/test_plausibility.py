@@ -239,6 +239,42 @@ def test_docs_hold_the_table():
     assert text.endswith(plausibility.markdown_table())
 
 
+#: Row -> bridge node parameter values (over the B3 preset's) that cross it, and how its line starts.
+BRIDGE_NODE_ROWS = {
+    "n0": ({"n0_hz": 100.0}, "n0_hz: 100 Hz is outside the plausible range [2.795, 23.82] Hz for L = 15 m"),
+    "mu": ({"mu_kg_m": 150.0}, "mu_kg_m: 150 kg/m is outside the plausible range [1995, 46190] kg/m for L = 15 m"),
+    "zeta_pct_fraction": ({"zeta_pct": 0.0185}, "zeta_pct: 0.0185 % is outside the plausible range >= 0.1 %"),
+    "zeta_light": ({"zeta_pct": 0.0}, "zeta_pct: damping of a light deck (mu = 7739 kg/m < mu3(L) = 15003 kg/m): "
+                                      "0 % is outside the plausible range >= 0.1 % for L = 15 m"),
+}
+
+
+def test_checked_in_names_the_node_parameters_and_they_warn(tmp_path):
+    """The table's "checked in" column names the node parameters a row is checked on, and each of
+    them warns, naming the parameter: the bridge node's check (``bridge_plausibility``, as the node
+    and the launchers' pre-flight call it) on the B3 preset, and the train node's ``train``
+    parameter (``validate_train``) naming a train file; no other row claims a node parameter."""
+    from adm_sim.bridge import resolve_bridge
+    from adm_sim.nodes.params import TRAIN_SPECS, bridge_plausibility, bridge_specs, validate_train
+
+    claimed = {k for k, r in plausibility.ROWS.items() if "bridge node parameter" in r.checked_in}
+    assert claimed == set(BRIDGE_NODE_ROWS)
+    preset = resolve_bridge("B3")
+    defaults = {sp.name: sp.default for sp in bridge_specs(preset)}
+    assert _caught(lambda v: bridge_plausibility(preset, defaults), None) == []  # the preset itself: quiet
+    for key, (values, start) in BRIDGE_NODE_ROWS.items():
+        row = plausibility.ROWS[key]
+        assert all(name in row.checked_in for name in values), (key, row.checked_in)
+        said = [t for t in _caught(lambda v: bridge_plausibility(preset, defaults | v), values) if row.reason in t]
+        assert len(said) == 1 and said[0].startswith(start), (key, said)
+    train_rows = {k for k, r in plausibility.ROWS.items() if "train node parameter train" in r.checked_in}
+    assert train_rows == {"axle_load", "car_body_mass"}
+    values = {sp.name: sp.default for sp in TRAIN_SPECS} | {"train": str(_train_file(tmp_path, 400.0, 120000.0))}
+    said = _caught(validate_train, values)
+    assert [t.split(" is outside")[0] for t in said] == [
+        "train file t.toml: largest axle load: 400 kN", "train file t.toml: vehicle_types.V.m_c_kg: 120 t"]
+
+
 def test_calibrate_warns_about_peaks_no_bridge_survives(capsys):
     """A 4 m deck of 1.4 t/m at 0.5 % (the lightest corner of Table 1 and below): the MLM and DIM
     peaks are hundreds to thousands of m/s²; one warning per curve, named by bridge, train, model
