@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 
 from adm_sim.errors import PlausibilityWarning
+from train_files import two_car_train_file
 
 SCRIPTS = Path(__file__).resolve().parents[1] / "launch_scripts"
 
@@ -20,29 +21,6 @@ def scripts():
         yield {name: importlib.import_module(name) for name in ("_supervisor", "crossing", "calibrate")}
     finally:
         sys.path.remove(str(SCRIPTS))
-
-
-#: A two-car train file whose axles carry 400 kN (the masses say otherwise: loads_differ_from_masses).
-TRAIN_400_KN = """name = "T"
-loads_differ_from_masses = true
-[vehicle_types.V]
-m_c_kg = 40000
-J_c_kgm2 = 2e6
-m_b_kg = 3000
-J_b_kgm2 = 3000
-m_w_kg = 1500
-k_s_N_m = 3e5
-c_s_Ns_m = 2e4
-k_p_N_m = 1.6e6
-c_p_Ns_m = 2e4
-d_m = 26
-r_m = 19
-b_m = 2.5
-axle_load_kN = 400
-[[composition]]
-vehicle = "V"
-count = 2
-"""
 
 
 def _said(call):
@@ -67,8 +45,7 @@ def test_bridge_node_values_warned_before_start(scripts, tmp_path):
 def test_train_file_warned_once_before_start(scripts, tmp_path):
     """``--train FILE.toml`` with 400 kN axles: the launcher loads it to refuse it early and again
     as the train node will; the warning comes once."""
-    train = tmp_path / "t.toml"
-    train.write_text(TRAIN_400_KN)
+    train = two_car_train_file(tmp_path, axle_kn=400.0)
     said = _said(lambda: scripts["_supervisor"].check_inputs(train=str(train)))
     assert len(said) == 1 and said[0].startswith("train file t.toml: largest axle load: 400 kN is outside"), said
 

@@ -15,6 +15,7 @@ from adm_sim.bridge import parse_bridge_spec
 from adm_sim.errors import InputError, PlausibilityWarning
 from adm_sim.plausibility import check_response, check_studied_field
 from adm_sim.trains import load_train
+from train_files import two_car_train_file as _train_file
 
 #: Relative step from a bound to "just inside" / "just outside".
 EPS = 1e-3
@@ -39,31 +40,6 @@ def _bridge(**kw):
     spec = dict(L=L, n0=8.26, mu=19042, zeta_pct=1.85)
     spec.update(kw)
     return lambda v: parse_bridge_spec(",".join(f"{k}={v if x is None else x}" for k, x in spec.items()))
-
-
-def _train_file(tmp_path, axle_kn=190.0, m_c_kg=40000.0):
-    p = tmp_path / "t.toml"
-    p.write_text(f"""name = "T"
-loads_differ_from_masses = true
-[vehicle_types.V]
-m_c_kg = {m_c_kg}
-J_c_kgm2 = 2e6
-m_b_kg = 3000
-J_b_kgm2 = 3000
-m_w_kg = 1500
-k_s_N_m = 3e5
-c_s_Ns_m = 2e4
-k_p_N_m = 1.6e6
-c_p_Ns_m = 2e4
-d_m = 26
-r_m = 19
-b_m = 2.5
-axle_load_kN = {axle_kn}
-[[composition]]
-vehicle = "V"
-count = 2
-""")
-    return p
 
 
 def _field(key, **base):
