@@ -67,14 +67,12 @@ def fake_viewer(tmp_path, monkeypatch):
     """``make(mode)`` puts a fake viewer in place (``"viewer"`` answers, ``"no-display"`` exits 1);
     ``pids()`` lists the pids of the fakes started. Whatever is left alive is killed at the end."""
     pid_file = tmp_path / "viewer_pids"
-    made = {}
 
     def make(mode="viewer"):
         exe = tmp_path / f"rerun_{mode}"
         exe.write_text(FAKE.format(python=sys.executable, pids=str(pid_file), mode=mode))
         exe.chmod(0o755)
         monkeypatch.setattr(vp, "rerun_cli", lambda: str(exe))
-        made["exe"] = exe
 
     def pids():
         return [int(x) for x in pid_file.read_text().split()] if pid_file.exists() else []
