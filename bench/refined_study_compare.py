@@ -1,17 +1,18 @@
 """Default (1 km/h) study against the refined-speed study: does the μ4-μ6 scatter shrink?
 
 Run: ``.venv/bin/python bench/refined_study_compare.py [DEFAULT_RESULTS] [REFINED_RESULTS]``
-(default ``results/study/results.jsonl.gz`` and ``results/study_refined/results.jsonl``). Cases are
+(default ``results/study/results.jsonl.gz`` and ``results/study_refined/results.jsonl.gz``). Cases are
 compared on the keys both files hold, with the fit's default exclusion rule (``step2``). Per set
 (train x mass function): the standard deviation of Δζ_VBI over the used cases, the interval
 minima (Section 4.2.1: 18 n0 intervals), the R² and residual spread of the cubic through them, and
-the change of Δζ case by case.
+the change of Δζ case by case (:func:`study_pairs.compare_cases`).
 """
 
 import sys
 from pathlib import Path
 
 import numpy as np
+import study_pairs as sp
 
 from adm_calib import study as st
 from adm_calib.study.fit import fit_study
@@ -19,10 +20,9 @@ from adm_calib.study.fit import fit_study
 
 def main():
     a = Path(sys.argv[1] if len(sys.argv) > 1 else "results/study/results.jsonl.gz")
-    b = Path(sys.argv[2] if len(sys.argv) > 2 else "results/study_refined/results.jsonl")
-    old = {st.record_key(r): r for r in st.read_results(a).records}
-    new = {st.record_key(r): r for r in st.read_results(b).records}
-    keys = sorted(set(old) & set(new))
+    b = Path(sys.argv[2] if len(sys.argv) > 2 else "results/study_refined/results.jsonl.gz")
+    old, new, keys = sp.matched(a, b)
+    cases = sp.compare_cases(old, new, keys)
     print(f"{len(keys)} cases in both ({len(old)} default, {len(new)} refined)")
     fo = fit_study([old[k] for k in keys])
     fn = fit_study([new[k] for k in keys])
@@ -36,9 +36,8 @@ def main():
         y0 = np.array([old[st.record_key(r)]["delta_zeta_vbi_pct"] for r in fo.records_used
                        if (r["train"], r["mass_function"]) == key])
         y1 = np.array([r["delta_zeta_vbi_pct"] for r in fn.records_used if (r["train"], r["mass_function"]) == key])
-        both = [k for k in keys if (old[k]["train"], old[k]["mass_function"]) == key
-                and old[k]["delta_zeta_vbi_pct"] is not None and new[k]["delta_zeta_vbi_pct"] is not None]
-        d = np.array([new[k]["delta_zeta_vbi_pct"] - old[k]["delta_zeta_vbi_pct"] for k in both])
+        d = np.array([c.dz_change_pct for c in cases
+                      if (old[c.key]["train"], old[c.key]["mass_function"]) == key and c.dz_change_pct is not None])
         m0 = {(p.lo_hz, p.hi_hz): p.delta_zeta_pct for p in f0.minima}
         m1 = {(p.lo_hz, p.hi_hz): p.delta_zeta_pct for p in f1.minima}
         dm = np.array([m1[i] - m0[i] for i in m0 if i in m1])

@@ -12,15 +12,14 @@ ones that describe the run rather than the result (timings, wall time, host, pid
 range, so the window study records it as unknown, ``null``). Floats are compared to 1e-9
 relative or 1e-12 absolute (the DIM values of both grids are the same lanes; the shipped study was computed by an
 earlier build, whose numbers differ from today's by round-off). The wall times of both studies
-come from their ``study.json``.
+come from their ``study.json``. The case-by-case loop is :func:`study_pairs.compare_cases`.
 """
 
 import json
-import math
 import sys
 from pathlib import Path
 
-from adm_calib import study as st
+import study_pairs as sp
 
 #: Fields of a result line that describe the run, not the result.
 RUN_FIELDS = {"timings_s", "wall_s", "host", "pid", "batch_size", "dim_grid", "dim_max_at_range_end"}
@@ -30,20 +29,6 @@ DZ_TOL_PCT = 1e-6
 #: residual ``residual_rel`` is ~1e-8, and round-off moves it by ~1e-15 absolute).
 RTOL = 1e-9
 ATOL = 1e-12
-
-
-def _diff(a, b, path=""):
-    """Paths where two JSON values differ (floats to RTOL)."""
-    if isinstance(a, dict) and isinstance(b, dict):
-        out = []
-        for k in sorted(set(a) | set(b)):
-            out += _diff(a.get(k), b.get(k), f"{path}.{k}" if path else k)
-        return out
-    if isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
-        return [d for i, (x, y) in enumerate(zip(a, b)) for d in _diff(x, y, f"{path}[{i}]")]
-    if isinstance(a, float) and isinstance(b, float):
-        return [] if math.isclose(a, b, rel_tol=RTOL, abs_tol=ATOL) else [path]
-    return [] if a == b else [path]
 
 
 def _wall(results_path):
@@ -58,27 +43,22 @@ def _wall(results_path):
 def main():
     a = Path(sys.argv[1] if len(sys.argv) > 1 else "results/study/results.jsonl.gz")
     b = Path(sys.argv[2] if len(sys.argv) > 2 else "results/study_window/results.jsonl.gz")
-    old = {st.record_key(r): r for r in st.read_results(a).records}
-    new = {st.record_key(r): r for r in st.read_results(b).records}
-    keys = sorted(set(old) & set(new))
+    old, new, keys = sp.matched(a, b)
     print(f"paper grid: {a} ({len(old)} cases); window grid: {b} ({len(new)} cases); {len(keys)} in both")
     for name, p in (("paper grid", a), ("window grid", b)):
         w = _wall(p)
         if w is not None:
             print(f"{name}: {w[1]} cases in {w[0]:.1f} s wall ({w[0] / 60:.1f} min; dim_grid {w[2]})")
     changes, status_changed, fields = [], [], {}
-    for k in keys:
-        r0, r1 = old[k], new[k]
-        if r0["status"] != r1["status"]:
-            status_changed.append((k, r0["status"], r1["status"]))
-        d0, d1 = r0.get("delta_zeta_vbi_pct"), r1.get("delta_zeta_vbi_pct")
-        if (d0 is None) != (d1 is None):
-            status_changed.append((k, f"dz {d0}", f"dz {d1}"))
-        elif d0 is not None:
-            changes.append((abs(d1 - d0), k))
-        for f in _diff({x: r0.get(x) for x in r0 if x not in RUN_FIELDS and x != "delta_zeta_vbi_pct"},
-                       {x: r1.get(x) for x in r1 if x not in RUN_FIELDS and x != "delta_zeta_vbi_pct"}):
-            fields.setdefault(f, []).append(k)
+    for c in sp.compare_cases(old, new, keys, other_fields_except=RUN_FIELDS, rtol=RTOL, atol=ATOL):
+        if c.status_changed:
+            status_changed.append((c.key, *c.status))
+        if c.dz_presence_changed:
+            status_changed.append((c.key, f"dz {c.dz_pct[0]}", f"dz {c.dz_pct[1]}"))
+        elif c.dz_change_pct is not None:
+            changes.append((abs(c.dz_change_pct), c.key))
+        for f in c.fields:
+            fields.setdefault(f, []).append(c.key)
     worst, worst_key = max(changes) if changes else (0.0, None)
     print(f"Δζ_VBI in both: {len(changes)} cases; largest |change| {worst:.3e} % ({worst_key}); "
           f"acceptance {DZ_TOL_PCT:g} %: {'PASS' if worst <= DZ_TOL_PCT and not status_changed else 'FAIL'}")

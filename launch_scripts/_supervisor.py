@@ -36,13 +36,17 @@ def launch(body, args):
 
 
 def preflight(args, default_out, dim=False, model=None):
-    """Everything a launch checks before any process starts, then its output folder and its domain id.
+    """Everything a launch checks before any process starts, then its output folder, its domain id
+    and its viewer.
 
     The domain id and the viewer options, the inputs each node will start with
     (:func:`check_inputs`), the output folder ``args.out`` (``default_out`` when not given) by the
-    folder rule of :mod:`adm_sim.files` (:func:`check_out`); then a ROS domain id is reserved and
-    the folder created and claimed (:func:`prepare_out`). Bad input raises
-    :class:`adm_sim.errors.InputError` before anything is created.
+    folder rule of :mod:`adm_sim.files` (:func:`check_out`); then a ROS domain id is reserved, the
+    folder created and claimed (:func:`prepare_out`), and last the viewer checked or spawned
+    (:func:`viewer_ready`), so a refused folder never leaves a spawned viewer open. Bad input
+    raises :class:`adm_sim.errors.InputError` before anything is created; a viewer that is not
+    there raises :class:`~adm_sim.errors.RunError` with the claim released and a folder created
+    here removed again.
 
     Returns ``(out, env, created, old)``: the folder, the :class:`~adm_sim.processes.dds_env.LocalRosEnv`
     (release it at the end), whether the folder was created here, the earlier outputs in it.
@@ -57,11 +61,17 @@ def preflight(args, default_out, dim=False, model=None):
         check_calibration_speeds(args.speeds, "--speeds")
     out = Path(args.out) if args.out else default_out
     check_out(out, {"--params-file": args.params_file, "--bridge": args.bridge, "--train": args.train})
-    viewer_ready(args)  # the viewer answers before anything starts (RunError, exit 1)
     env = local_ros_env(domain_id)  # reserved before the folder exists
     try:
         created, old = prepare_out(out, args.overwrite)
     except BaseException:
+        env.release()
+        raise
+    try:  # the folder first: one refused (an earlier run, another launch's) starts no viewer
+        viewer_ready(args)  # the viewer answers before any node starts (RunError, exit 1)
+    except BaseException:  # the claim and a folder created here go again: nothing is left
+        release_out(out)
+        discard_outputs(out, created, old)
         env.release()
         raise
     return out, env, created, old
@@ -140,8 +150,10 @@ def check_inputs(bridge=None, train=None, speeds=None, params_file=None, model=N
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", PlausibilityWarning)
             resolve_bridge(bridge)
-    if train is not None:
-        load_train(train)
+    if train is not None:  # refused first; its warnings come once, with the train node's values below
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", PlausibilityWarning)
+            load_train(train)
     if speeds is not None:
         parse_speeds(speeds)
     file_values = {}
@@ -210,8 +222,7 @@ def check_viewer(spawn, connect):
 
 
 def viewer_ready(args):
-    """The live viewer answers before any process starts or any folder is created: ``--connect``
-    must answer the handshake of a rerun viewer (a closed port, another server, a silent socket:
+    """The live viewer answers before any node starts: ``--connect`` must answer the handshake of a rerun viewer (a closed port, another server, a silent socket:
     :class:`~adm_sim.errors.RunError`, one line, exit 1); ``--spawn`` starts the viewer here
     (listening, answering and alive a moment later, or one line with its own last word) and the
     driver streams to it as to ``--connect`` (``args.connect`` is set, ``args.spawn`` cleared)."""

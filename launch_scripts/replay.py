@@ -38,10 +38,8 @@ from __future__ import annotations
 
 import importlib
 import os
-import re
 import subprocess
 import sys
-import tempfile
 import threading
 import time
 from pathlib import Path
@@ -129,64 +127,15 @@ def parse_args(argv=None):
 
 
 # ---------------------------------------------------------------- rerun
-def spawn_checked_viewer(settle_s: float = 1.5, timeout_s: float = 20.0):
-    """Start a native rerun viewer bound to 127.0.0.1, check that it answers
-    (:func:`~adm_sim.recording.viewer_feed.check_viewer`) and is still alive ``settle_s`` later
-    (on a machine without a display it listens, then exits at once); return the process and its
-    URL. The viewer's own log goes to a file, and its last line into the one error line."""
-
-    from adm_sim.recording.viewer_feed import check_viewer  # noqa: PLC0415  start-up: only on this path (17 ms)
-
-    port = vp.free_port()
-    url = f"rerun+http://127.0.0.1:{port}/proxy"
-    log = tempfile.TemporaryFile(prefix="adm_sim_viewer_")
-    proc = subprocess.Popen([vp.rerun_cli(), "--bind", "127.0.0.1", "--port", str(port), "--memory-limit", "25%"],
-                            env=vp.rerun_cli_env(dict(os.environ) | {"RERUN_APP_ONLY": "true"}),
-                            stdin=subprocess.DEVNULL, stdout=log, stderr=log, start_new_session=True)
-
-    def died(why: str) -> RunError:
-        try:  # a viewer on its way out: let it end and say why
-            proc.wait(1.0)
-            why = "exited at once"
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
-        log.seek(0)
-        lines = [re.sub(r"\x1b\[[0-9;]*m", "", ln).strip() for ln in log.read().decode(errors="replace").splitlines()]
-        lines = [ln for ln in lines if ln] or ["no output"]
-        last = ([ln for ln in lines if "error" in ln.lower()] or lines)[-1]
-        last = last if len(last) <= 160 else "..." + last[-150:]
-        return RunError(f"--spawn: the rerun viewer {why} (exit status {proc.returncode}: {last}); is there a display?")
-
-    t_end = time.monotonic() + timeout_s
-    while not vp.wait_for_port(port, 0.2):
-        if proc.poll() is not None:
-            raise died("exited at once")
-        if time.monotonic() > t_end:
-            raise died(f"did not listen on 127.0.0.1:{port} within {timeout_s:g} s")
-    try:
-        check_viewer(url, what="--spawn")
-    except RunError:
-        raise died("does not answer") from None
-    t_end = time.monotonic() + settle_s
-    while time.monotonic() < t_end:
-        if proc.poll() is not None:
-            raise died("exited at once")
-        time.sleep(0.05)
-    return proc, url
-
-
 def viewer_still_there(url: str, proc=None, what: str = "--connect") -> bool:
     """After logging: one ``warning:`` line when the viewer died or stopped answering (what it shows
     may miss the end of the run); the replay itself stands."""
-    from adm_sim.recording.viewer_feed import check_viewer  # noqa: PLC0415  start-up: only on this path (17 ms)
-
     if proc is not None and proc.poll() is not None:
         print(f"warning: {what}: the rerun viewer exited during the replay (exit status {proc.returncode}); "
               f"it may show only part of the run", file=sys.stderr)
         return False
     try:
-        check_viewer(url, timeout_s=2.0, what=what)
+        vp.check_viewer(url, timeout_s=2.0, what=what)
     except RunError as exc:
         print(f"warning: {exc}; it stopped answering during the replay and may show only part of the run",
               file=sys.stderr)
@@ -541,15 +490,17 @@ def _run(args) -> int:
     found = check_readable(args.mcap, args.skip_damaged)  # every reader: damage named before anything starts
     env = viewer = None
     if args.connect:  # a viewer that is not there (closed port, another server, silence): one line, exit 1
-        from adm_sim.recording.viewer_feed import check_viewer  # noqa: PLC0415  start-up: only on this path (17 ms)
-
-        check_viewer(args.connect)
-    elif args.spawn:  # a viewer that dies at once (no display) is the run's failure, not "logged"
-        viewer, url = spawn_checked_viewer()
-        args.spawn, args.connect = False, url
+        vp.check_viewer(args.connect, what="--connect")
+    elif args.spawn:  # listening, answering and alive a moment later, or one line with its last word, exit 1
+        viewer, args.connect = vp.spawn_viewer(what="--spawn")
+        args.spawn = False
     if args.republish:
-
-        env = apply_local_ros_env(args.domain_id)  # before rclpy creates a participant
+        try:
+            env = apply_local_ros_env(args.domain_id)  # before rclpy creates a participant
+        except BaseException:  # refused before anything was shown: the spawned viewer goes too
+            if viewer is not None:
+                vp.stop_viewer(viewer)
+            raise
         print(f"ROS_DOMAIN_ID={env.domain_id}", flush=True)
     if args.rrd and args.via_convert:
         write_atomic(args.rrd, lambda tmp: (convert(args, tmp), verify_rrd(tmp, args.rrd)))  # a failed replay leaves no stub

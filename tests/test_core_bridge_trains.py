@@ -221,3 +221,26 @@ def test_train_file_missing_and_unknown(tmp_path):
     bad.write_text("name = [\n")
     with pytest.raises(InputError, match="not valid TOML"):
         load_train(str(bad))
+
+
+@pytest.mark.parametrize("change, words", [
+    (lambda d: d.pop("name"), "missing field 'name'"),
+    (lambda d: d.update(name=5), "name: 5 must be a non-empty string"),
+    (lambda d: d.update(name="  "), "name: '  ' must be a non-empty string"),
+    (lambda d: d.update(description=5), "description: 5 must be text in quotes"),
+    (lambda d: d.update(paper_train="TGV"),
+     "paper_train: 'TGV' is not a train of the paper; allowed ICE-2, Eurostar, Railjet, ICE-4 (or omit it)"),
+    (lambda d: d.update(loads_differ_from_masses=1), "loads_differ_from_masses: 1 must be true or false"),
+    (lambda d: d.update(colour="red"), "unknown key(s) 'colour'; allowed name, description, source, paper_train, "),
+])
+def test_both_train_file_forms_check_their_fields_alike(change, words):
+    """A train file of vehicle types and a vehicle file (bodies, wheelsets, stages) share their
+    top-level fields, checked by one checker: the same fault, the same line."""
+    from adm_sim.trains import vehicle_file_mapping
+
+    forms = {"types.toml": _minimal(), "vehicles.toml": vehicle_file_mapping(load_train("ICE-2"))}
+    for source, data in forms.items():
+        change(data)
+        with pytest.raises(InputError) as exc:
+            train_from_mapping(data, source=source)
+        assert str(exc.value).startswith(f"{source}: {words}"), (source, str(exc.value))

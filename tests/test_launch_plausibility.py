@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 
 from adm_sim.errors import PlausibilityWarning
+from train_files import two_car_train_file
 
 SCRIPTS = Path(__file__).resolve().parents[1] / "launch_scripts"
 
@@ -39,6 +40,14 @@ def test_bridge_node_values_warned_before_start(scripts, tmp_path):
     # a spec that carries the damping itself: its own warning once, not again for the node's parameter
     said = _said(lambda: scripts["_supervisor"].check_inputs(bridge="L=15,n0=8.26,mu=19042,zeta_pct=0.0185"))
     assert len(said) == 1 and said[0].startswith("bridge spec.zeta_pct: 0.0185 % is outside"), said
+
+
+def test_train_file_warned_once_before_start(scripts, tmp_path):
+    """``--train FILE.toml`` with 400 kN axles: the launcher loads it to refuse it early and again
+    as the train node will; the warning comes once."""
+    train = two_car_train_file(tmp_path, axle_kn=400.0)
+    said = _said(lambda: scripts["_supervisor"].check_inputs(train=str(train)))
+    assert len(said) == 1 and said[0].startswith("train file t.toml: largest axle load: 400 kN is outside"), said
 
 
 def test_crossing_summary_warned(scripts):

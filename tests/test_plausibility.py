@@ -15,6 +15,7 @@ from adm_sim.bridge import parse_bridge_spec
 from adm_sim.errors import InputError, PlausibilityWarning
 from adm_sim.plausibility import check_response, check_studied_field
 from adm_sim.trains import load_train
+from train_files import two_car_train_file as _train_file
 
 #: Relative step from a bound to "just inside" / "just outside".
 EPS = 1e-3
@@ -39,31 +40,6 @@ def _bridge(**kw):
     spec = dict(L=L, n0=8.26, mu=19042, zeta_pct=1.85)
     spec.update(kw)
     return lambda v: parse_bridge_spec(",".join(f"{k}={v if x is None else x}" for k, x in spec.items()))
-
-
-def _train_file(tmp_path, axle_kn=190.0, m_c_kg=40000.0):
-    p = tmp_path / "t.toml"
-    p.write_text(f"""name = "T"
-loads_differ_from_masses = true
-[vehicle_types.V]
-m_c_kg = {m_c_kg}
-J_c_kgm2 = 2e6
-m_b_kg = 3000
-J_b_kgm2 = 3000
-m_w_kg = 1500
-k_s_N_m = 3e5
-c_s_Ns_m = 2e4
-k_p_N_m = 1.6e6
-c_p_Ns_m = 2e4
-d_m = 26
-r_m = 19
-b_m = 2.5
-axle_load_kN = {axle_kn}
-[[composition]]
-vehicle = "V"
-count = 2
-""")
-    return p
 
 
 def _field(key, **base):
@@ -237,6 +213,42 @@ def test_docs_hold_the_table():
 
     text = (Path(__file__).resolve().parents[1] / "docs" / "plausibility.md").read_text()
     assert text.endswith(plausibility.markdown_table())
+
+
+#: Row -> bridge node parameter values (over the B3 preset's) that cross it, and how its line starts.
+BRIDGE_NODE_ROWS = {
+    "n0": ({"n0_hz": 100.0}, "n0_hz: 100 Hz is outside the plausible range [2.795, 23.82] Hz for L = 15 m"),
+    "mu": ({"mu_kg_m": 150.0}, "mu_kg_m: 150 kg/m is outside the plausible range [1995, 46190] kg/m for L = 15 m"),
+    "zeta_pct_fraction": ({"zeta_pct": 0.0185}, "zeta_pct: 0.0185 % is outside the plausible range >= 0.1 %"),
+    "zeta_light": ({"zeta_pct": 0.0}, "zeta_pct: damping of a light deck (mu = 7739 kg/m < mu3(L) = 15003 kg/m): "
+                                      "0 % is outside the plausible range >= 0.1 % for L = 15 m"),
+}
+
+
+def test_checked_in_names_the_node_parameters_and_they_warn(tmp_path):
+    """The table's "checked in" column names the node parameters a row is checked on, and each of
+    them warns, naming the parameter: the bridge node's check (``bridge_plausibility``, as the node
+    and the launchers' pre-flight call it) on the B3 preset, and the train node's ``train``
+    parameter (``validate_train``) naming a train file; no other row claims a node parameter."""
+    from adm_sim.bridge import resolve_bridge
+    from adm_sim.nodes.params import TRAIN_SPECS, bridge_plausibility, bridge_specs, validate_train
+
+    claimed = {k for k, r in plausibility.ROWS.items() if "bridge node parameter" in r.checked_in}
+    assert claimed == set(BRIDGE_NODE_ROWS)
+    preset = resolve_bridge("B3")
+    defaults = {sp.name: sp.default for sp in bridge_specs(preset)}
+    assert _caught(lambda v: bridge_plausibility(preset, defaults), None) == []  # the preset itself: quiet
+    for key, (values, start) in BRIDGE_NODE_ROWS.items():
+        row = plausibility.ROWS[key]
+        assert all(name in row.checked_in for name in values), (key, row.checked_in)
+        said = [t for t in _caught(lambda v: bridge_plausibility(preset, defaults | v), values) if row.reason in t]
+        assert len(said) == 1 and said[0].startswith(start), (key, said)
+    train_rows = {k for k, r in plausibility.ROWS.items() if "train node parameter train" in r.checked_in}
+    assert train_rows == {"axle_load", "car_body_mass"}
+    values = {sp.name: sp.default for sp in TRAIN_SPECS} | {"train": str(_train_file(tmp_path, 400.0, 120000.0))}
+    said = _caught(validate_train, values)
+    assert [t.split(" is outside")[0] for t in said] == [
+        "train file t.toml: largest axle load: 400 kN", "train file t.toml: vehicle_types.V.m_c_kg: 120 t"]
 
 
 def test_calibrate_warns_about_peaks_no_bridge_survives(capsys):

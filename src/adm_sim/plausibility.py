@@ -110,43 +110,45 @@ TABLE = (
     Bound("n0", "first natural frequency n0", "Hz", "0.5 x n0_LB(L) .. 2 x n0_UB(L)",
           "the Fig. 8 band of real bridges, n0_LB = 82.43 L^-0.9937 .. n0_UB = 113.1 L^-0.8312 Hz (paper "
           "Section 3.1.1); a factor 2 beyond it is another structure or a typing error (rad/s for Hz?)",
-          "bridge specs and files",
+          "bridge specs and files; bridge node parameters n0_hz (or EJ_Nm2 with mu_kg_m)",
           lambda c: (0.5 * n0_lb_hz(c["span_m"]), 2.0 * n0_ub_hz(c["span_m"])), per_span=True),
     Bound("mu", "mass per length mu", "kg/m", "0.5 x mu6(L) .. 2 x mu1(L)",
           "Table 1 (Eq. 19) spans the real bridges from mu6 = 0.1214 L + 2.1691 t/m (lightest, steel/composite) "
           "to mu1 = 0.843 L + 10.45 t/m (heaviest, concrete); a factor 2 beyond it is no railway bridge",
-          "bridge specs and files",
+          "bridge specs and files; bridge node parameter mu_kg_m",
           lambda c: (0.5 * _mu_kg_m(MU6, c["span_m"]), 2.0 * _mu_kg_m(MU1, c["span_m"])), per_span=True),
     Bound("zeta_pct_fraction", "damping given as zeta_pct", "%", "0 or >= 0.1 %",
           "EN 1991-2 Table 6.6 lower limits are 0.5 .. 4 %, so a value below 0.1 % looks like a fraction "
           "typed into the % key",
-          "bridge specs and files (zeta_pct)",
+          "bridge specs and files (zeta_pct); bridge node parameter zeta_pct",
           lambda c: (0.1, None), exempt=(0.0,)),
     Bound("zeta_light", "damping of a light bridge (mu < mu3(L))", "%", ">= 0.1 % when mu < mu3(L)",
           "a deck lighter than the lightest concrete mass function mu3 = 0.5584 L + 6.627 t/m (Table 1) with "
           "almost no damping resonates to hundreds of m/s²; EN 1991-2 Table 6.6 gives steel/composite "
           "bridges >= 0.5 %",
-          "bridge specs and files",
+          "bridge specs and files; bridge node parameter zeta_pct (with mu_kg_m)",
           lambda c: (0.1, None), applies=_light, per_span=True),
     Bound("axle_load", "axle load", "kN", "20 .. 300 kN",
           "European lines carry axles up to 25 t (EN 15528 line category E, 245 kN), LM71 (EN 1991-2 6.3.2) "
           "has 250 kN, HSLM 170 .. 210 kN; below 2 t an axle carries no rail vehicle",
-          "train files",
+          "train files (--train FILE.toml; train node parameter train)",
           lambda c: (20.0, 300.0)),
     Bound("car_body_mass", "car body mass m_c", "t", "<= 100 t",
           "a four-axle vehicle at the 25 t axles of EN 15528 weighs about 100 t with its bogies, so its car "
           "body alone is lighter",
-          "train files",
+          "train files (--train FILE.toml; train node parameter train)",
           lambda c: (None, 100.0)),
     Bound("acceleration", "peak deck acceleration", "m/s²", "<= 50 m/s²",
           "about 5 g, ten times the EN 1990 A2.4.4.2.1(4)P limits (3.5 / 5 m/s²); no real deck survives it "
           "(check the damping, mass and frequency)",
-          "adm-sim sweep and check results, adm-calib calibrate and table4 peaks",
+          "adm-sim sweep and check results, adm-calib calibrate and table4 peaks; every run of the driver and "
+          "calibration nodes (and /diagnostics), the crossing.py and calibrate.py summaries",
           lambda c: (None, 50.0)),
     Bound("deflection", "peak midspan deflection", "m", "<= L/100",
           "six times the L/600 of EN 1990 A2.4.4.2.3 and far beyond the small deflections of the linear "
           "beam model (Eq. 4)",
-          "adm-sim sweep and check results",
+          "adm-sim sweep and check results; every run of the driver and calibration nodes (and /diagnostics), "
+          "the crossing.py summary",
           lambda c: (None, c["span_m"] / 100.0), per_span=True),
 )
 
@@ -189,7 +191,8 @@ def check_bridge(bridge, source="bridge", zeta_pct_given=None, labels=None):
 
     ``labels``: how the caller's input names n0, mu and zeta_pct (``{"n0": ..., "mu": ...,
     "zeta_pct": ...}``, the ROS parameters ``n0_hz``, ``mu_kg_m``, ``zeta_pct`` for the bridge
-    node); default the spec keys after ``source``. A label is used as it is."""
+    node, and ``"zeta_light"`` for the light-deck damping row); default the spec keys after
+    ``source``. A label is used as it is."""
     lab = {"n0": f"{source}: n0", "mu": f"{source}: mu", "zeta_pct": f"{source}.zeta_pct"} | (labels or {})
     ctx = {"span_m": bridge.span_m, "mu_kg_m": bridge.mass_per_length_kg_m}
     warn("n0", lab["n0"], bridge.n0_hz, ctx)
@@ -199,8 +202,9 @@ def check_bridge(bridge, source="bridge", zeta_pct_given=None, labels=None):
                                            hint=f" (if {zeta_pct_given:g} is a fraction, write {key}={100 * zeta_pct_given:g})"):
         return
     mu3 = _mu_kg_m(MU3, bridge.span_m)
-    warn("zeta_light", f"{source}: damping of a light deck (mu = {_fmt(bridge.mass_per_length_kg_m)} kg/m < "
-                       f"mu3(L) = {_fmt(mu3)} kg/m)", 100.0 * bridge.damping_ratio, ctx)
+    light = lab.get("zeta_light", f"{source}: damping of a light deck")
+    warn("zeta_light", f"{light} (mu = {_fmt(bridge.mass_per_length_kg_m)} kg/m < mu3(L) = {_fmt(mu3)} kg/m)",
+         100.0 * bridge.damping_ratio, ctx)
 
 
 def check_train(train, source="train"):

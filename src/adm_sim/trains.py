@@ -51,7 +51,7 @@ from adm_sim.fields import VEHICLE_FIELDS, VEHICLE_OPTIONAL, check_count
 from adm_sim.fields import view as field_view
 from adm_sim.hslm import hslm_axles, hslm_name
 from adm_sim.plausibility import check_train as check_plausible
-from adm_sim.vehicles import compile_vehicle_file, vehicle_mapping
+from adm_sim.vehicles import check_file_fields, check_keys, compile_vehicle_file, vehicle_mapping
 
 G_M_S2 = 9.81  # gravitational acceleration used by the paper (Section 3.2.2)
 
@@ -288,13 +288,6 @@ _JACOBS_ENTRY_KEYS = ("jacobs_set", "bogies", "axle_loads_kN", "reversed")
 AXLE_LOAD_REL_TOL = 0.005
 
 
-def _unknown(keys, allowed, where):
-    extra = [k for k in keys if k not in allowed]
-    if extra:
-        raise InputError(f"{where}: unknown key(s) {', '.join(repr(k) for k in extra)}; "
-                         f"allowed {', '.join(allowed)}")
-
-
 def _check_loads(train, source):
     """Refuse axle loads that disagree with the vehicle masses (the MLM and the DIM would carry
     different trains) beyond :data:`AXLE_LOAD_REL_TOL`."""
@@ -318,20 +311,7 @@ def train_from_mapping(data, source="train"):
         raise InputError(f"{source}: not a table of train fields")
     if "vehicles" in data and "vehicle_types" not in data:
         return _train_from_vehicle_file(data, source)
-    _unknown(data, _TRAIN_KEYS, source)
-    if "name" not in data:
-        raise InputError(f"{source}: missing field 'name'")
-    if not isinstance(data["name"], str) or not data["name"].strip():
-        raise InputError(f"{source}: name: {data['name']!r} must be a non-empty string")
-    for key in ("description", "source", "paper_train"):
-        if key in data and not isinstance(data[key], str):
-            raise InputError(f"{source}: {key}: {data[key]!r} must be text in quotes")
-    if data.get("paper_train", "") not in ("",) + TRAIN_NAMES:
-        raise InputError(f"{source}: paper_train: {data['paper_train']!r} is not a train of the paper; "
-                         f"allowed {', '.join(TRAIN_NAMES)} (or omit it)")
-    differ = data.get("loads_differ_from_masses", False)
-    if not isinstance(differ, bool):
-        raise InputError(f"{source}: loads_differ_from_masses: {differ!r} must be true or false")
+    differ = check_file_fields(data, _TRAIN_KEYS, source, TRAIN_NAMES)
     vt_raw = data.get("vehicle_types")
     if not isinstance(vt_raw, dict) or not vt_raw:
         raise InputError(f"{source}: missing table [vehicle_types.<NAME>]")
@@ -355,7 +335,7 @@ def train_from_mapping(data, source="train"):
         if "vehicle" in entry and "jacobs_set" in entry:
             raise InputError(f"{source}: {where}: has both 'vehicle' and 'jacobs_set'; give one per entry")
         if "vehicle" in entry:
-            _unknown(entry, _VEHICLE_ENTRY_KEYS, f"{source}: {where}")
+            check_keys(entry, _VEHICLE_ENTRY_KEYS, f"{source}: {where}")
             vt = _type(entry["vehicle"], where)
             if math.isnan(vt.r_m):
                 raise InputError(f"{source}: {where}: vehicle type {vt.name!r} has no r_m (m) "
@@ -374,7 +354,7 @@ def train_from_mapping(data, source="train"):
                                   car_bogies=[(0, 1)]))
                 front += vt.d_m
         elif "jacobs_set" in entry:
-            _unknown(entry, _JACOBS_ENTRY_KEYS, f"{source}: {where}")
+            check_keys(entry, _JACOBS_ENTRY_KEYS, f"{source}: {where}")
             if not isinstance(entry["jacobs_set"], list) or not isinstance(entry.get("bogies", []), list):
                 raise InputError(f"{source}: {where}: 'jacobs_set' and 'bogies' must be lists of vehicle types")
             if not isinstance(entry.get("axle_loads_kN", []), list):

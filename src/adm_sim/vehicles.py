@@ -66,18 +66,43 @@ ENTRY_KEYS = ("vehicle", "count", "reversed")
 LOAD_REL_TOL = 0.005
 
 
-def _unknown(d, allowed, where):
+def check_keys(d, allowed, where):
+    """Refuse the keys of ``d`` not in ``allowed`` (a misspelt key is never ignored), naming them
+    and the allowed ones after ``where``."""
     extra = [k for k in d if k not in allowed]
     if extra:
         raise InputError(f"{where}: unknown key(s) {', '.join(repr(k) for k in extra)}; "
                          f"allowed {', '.join(allowed)}")
 
 
+def check_file_fields(data, allowed, source, paper_trains=()):
+    """The top-level fields both train file forms share, checked once for both (the form with
+    ``[vehicle_types.<NAME>]`` of :func:`adm_sim.trains.train_from_mapping` and the vehicle file of
+    :func:`compile_vehicle_file`): no key outside ``allowed``, a non-empty ``name``, text in
+    ``description``, ``source`` and ``paper_train`` (one of ``paper_trains`` or empty), a boolean
+    ``loads_differ_from_masses``; returns that boolean (default ``False``)."""
+    check_keys(data, allowed, source)
+    if "name" not in data:
+        raise InputError(f"{source}: missing field 'name'")
+    if not isinstance(data["name"], str) or not data["name"].strip():
+        raise InputError(f"{source}: name: {data['name']!r} must be a non-empty string")
+    for key in ("description", "source", "paper_train"):
+        if key in data and not isinstance(data[key], str):
+            raise InputError(f"{source}: {key}: {data[key]!r} must be text in quotes")
+    if data.get("paper_train", "") not in ("",) + tuple(paper_trains):
+        raise InputError(f"{source}: paper_train: {data['paper_train']!r} is not a train of the paper; "
+                         f"allowed {', '.join(paper_trains)} (or omit it)")
+    differ = data.get("loads_differ_from_masses", False)
+    if not isinstance(differ, bool):
+        raise InputError(f"{source}: loads_differ_from_masses: {differ!r} must be true or false")
+    return differ
+
+
 def _table(d, spec, where):
     """Checked values of one body/wheelset/stage table (``None`` for an omitted optional key)."""
     if not isinstance(d, dict):
         raise InputError(f"{where}: {d!r} is not a table; allowed keys {', '.join(spec)}")
-    _unknown(d, tuple(spec), where)
+    check_keys(d, tuple(spec), where)
     out = {}
     for key, (unit, lo, hi, required) in spec.items():
         if key not in d:
@@ -103,7 +128,7 @@ class _Group:
         if not isinstance(d, dict):
             raise InputError(f"{where}: {d!r} is not a table; write [vehicles.{name}] with "
                              f"{', '.join(VEHICLE_KEYS)}")
-        _unknown(d, VEHICLE_KEYS, where)
+        check_keys(d, VEHICLE_KEYS, where)
         self.name = name
         if "length_m" not in d:
             raise InputError(f"{where}.length_m: missing (m, allowed [{LENGTH_RANGE_M[0]:g}, {LENGTH_RANGE_M[1]:g}])")
@@ -278,18 +303,7 @@ class CompiledTrain(NamedTuple):
 def compile_vehicle_file(data, source="vehicle file", paper_trains=()):
     """A parsed vehicle file (the ``[vehicles.<NAME>]`` schema) checked and compiled to
     :class:`CompiledTrain`; ``paper_trains``: the names ``paper_train`` may take."""
-    _unknown(data, FILE_KEYS, source)
-    if not isinstance(data.get("name"), str) or not data["name"].strip():
-        raise InputError(f"{source}: name: {data.get('name')!r} must be a non-empty string")
-    for key in ("description", "source", "paper_train"):
-        if key in data and not isinstance(data[key], str):
-            raise InputError(f"{source}: {key}: {data[key]!r} must be text in quotes")
-    if data.get("paper_train", "") not in ("",) + tuple(paper_trains):
-        raise InputError(f"{source}: paper_train: {data['paper_train']!r} is not a train of the paper; "
-                         f"allowed {', '.join(paper_trains)} (or omit it)")
-    differ = data.get("loads_differ_from_masses", False)
-    if not isinstance(differ, bool):
-        raise InputError(f"{source}: loads_differ_from_masses: {differ!r} must be true or false")
+    differ = check_file_fields(data, FILE_KEYS, source, paper_trains)
     raw = data.get("vehicles")
     if not isinstance(raw, dict) or not raw:
         raise InputError(f"{source}: vehicles: missing table [vehicles.<NAME>]")
@@ -309,7 +323,7 @@ def compile_vehicle_file(data, source="vehicle file", paper_trains=()):
         where = f"{source}: composition[{n}]"
         if not isinstance(entry, dict):
             raise InputError(f"{where}: not a table")
-        _unknown(entry, ENTRY_KEYS, where)
+        check_keys(entry, ENTRY_KEYS, where)
         name = entry.get("vehicle")
         if name not in groups:
             raise InputError(f"{where}.vehicle: {name!r} is not defined; defined: {', '.join(groups)}")

@@ -277,7 +277,8 @@ def bridge_from_params(preset, p, defaults=None):
 
 
 #: How the bridge node's parameters name the quantities of the plausibility table.
-BRIDGE_PARAM_LABELS = {"n0": "n0_hz", "mu": "mu_kg_m", "zeta_pct": "zeta_pct"}
+BRIDGE_PARAM_LABELS = {"n0": "n0_hz", "mu": "mu_kg_m", "zeta_pct": "zeta_pct",
+                       "zeta_light": "zeta_pct: damping of a light deck"}
 
 
 def bridge_plausibility(preset, p, defaults=None):

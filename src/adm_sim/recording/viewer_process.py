@@ -45,6 +45,7 @@ __all__ = [
     "rerun_cli",
     "rerun_cli_env",
     "spawn_viewer",
+    "stop_viewer",
     "wait_for_port",
 ]
 
@@ -142,7 +143,9 @@ def spawn_viewer(port: int | None = None, memory_limit: str = "25%", timeout_s: 
     alive ``settle_s`` later (on a machine without a display it listens, then exits at once);
     otherwise :class:`RunError`, one line with the viewer's own last word (its log goes to a
     temporary file). The viewer runs in its own session (it outlives this process); the
-    process object is held until exit.
+    process object is held until exit. Interrupted while it is checked (Ctrl-C, SIGTERM), the
+    viewer is ended before the interrupt goes on; :func:`stop_viewer` ends one that the run it
+    was spawned for no longer needs.
     """
     port = free_port() if port is None else int(port)
     url = f"rerun+http://127.0.0.1:{port}/proxy"
@@ -169,23 +172,41 @@ def spawn_viewer(port: int | None = None, memory_limit: str = "25%", timeout_s: 
         log.close()
         return RunError(f"{what}: the rerun viewer {why} (exit status {proc.returncode}: {last}); is there a display?")
 
-    t_end = time.monotonic() + timeout_s
-    while not wait_for_port(port, 0.2):
-        if proc.poll() is not None:
-            raise died("exited at once")
-        if time.monotonic() > t_end:
-            raise died(f"did not listen on 127.0.0.1:{port} within {timeout_s:g} s")
     try:
-        handshake(url, what=what)
-    except RunError:
-        raise died("does not answer") from None
-    t_end = time.monotonic() + settle_s
-    while time.monotonic() < t_end:
-        if proc.poll() is not None:
-            raise died("exited at once")
-        time.sleep(0.05)
+        t_end = time.monotonic() + timeout_s
+        while not wait_for_port(port, 0.2):
+            if proc.poll() is not None:
+                raise died("exited at once")
+            if time.monotonic() > t_end:
+                raise died(f"did not listen on 127.0.0.1:{port} within {timeout_s:g} s")
+        try:
+            handshake(url, what=what)
+        except RunError:
+            raise died("does not answer") from None
+        t_end = time.monotonic() + settle_s
+        while time.monotonic() < t_end:
+            if proc.poll() is not None:
+                raise died("exited at once")
+            time.sleep(0.05)
+    except BaseException:  # an interrupt while it is checked: the viewer is not left behind
+        stop_viewer(proc)
+        log.close()
+        raise
     _VIEWERS.append(proc)
     return proc, url
+
+
+def stop_viewer(proc: subprocess.Popen) -> None:
+    """End a viewer of :func:`spawn_viewer` that was given nothing to show (the run it was started
+    for was refused or interrupted before it began): killed, waited for, no longer held."""
+    if proc.poll() is None:
+        proc.kill()
+        try:
+            proc.wait(10.0)
+        except subprocess.TimeoutExpired:  # a kill not yet delivered; the kernel ends it
+            pass
+    if proc in _VIEWERS:
+        _VIEWERS.remove(proc)
 
 
 # ---------------------------------------------------------------- handshake and watchdog
