@@ -63,12 +63,13 @@ from adm_sim.design_loads import (MAINTENANCE, adm_delta_zeta_pct, check_alpha, 
                                   governing, phi_dd_factor, phi_dyn_prime)
 from adm_sim.errors import InputError
 from adm_sim.fields import FIELDS, check_count, check_range
-from adm_sim.hslm import HSLM_A_NAMES, HSLM_A_TABLE, regular_coach_length_m
+from adm_sim.hslm import (HSLM_A_NAMES, HSLM_A_TABLE, HSLM_B_SYNTAX, hslm_b_axles, hslm_b_spec, hslm_b_train_name,
+                          is_hslm_b_name, regular_spacing_m)
 from adm_sim.peaks import local_maxima  # the project's one peak rule, every maximum kept
 from adm_sim.lockstep_runs import InProcessRun
 from adm_sim.rk4_sides import BridgeSide, TrainSide
 from adm_sim.step_grid import StepOptions, make_grid, speeds_to_m_s
-from adm_sim.trains import load_train
+from adm_sim.trains import load_train, moving_loads
 # the speed range (EN 1991-2 6.4.6.2(1)) and the deck acceleration limits (EN 1990 A2.4.4.2.1(4)P)
 from adm_sim.limits import ACC_LIMITS_M_S2, DESIGN_SPEED_FACTOR
 from adm_sim.limits import CHECK_MIN_SPEED_M_S as MIN_SPEED_M_S
@@ -364,16 +365,26 @@ def resolve_trains(spec):
             continue
         names.extend(HSLM_A_NAMES if part.lower() == "hslm" else [part])
     if not names:
-        raise InputError(f"trains: {spec!r} names no train; allowed hslm, HSLM-A1 .. HSLM-A10, ICE-2, Eurostar, "
-                         f"Railjet, ICE-4, Eurostar-table or .toml train files, comma separated", field="trains")
+        raise InputError(f"trains: {spec!r} names no train; allowed hslm, HSLM-A1 .. HSLM-A10, {HSLM_B_SYNTAX}, "
+                         f"ICE-2, Eurostar, Railjet, ICE-4, Eurostar-table or .toml train files, comma separated",
+                         field="trains")
     check_count("n_trains", len(names), "--trains", repr(spec))
-    trains = [load_train(n) for n in names]
+    trains = [_load_check_train(n) for n in names]
     seen = set()
     for t in trains:
         if t.name in seen:
             raise InputError(f"trains: {t.name!r} is given twice in {spec!r}; give every train once", field="trains")
         seen.add(t.name)
     return trains
+
+
+def _load_check_train(name):
+    """A train of the check: HSLM-B written ``HSLM-B:N=<n>:d=<m>`` (:func:`adm_sim.hslm.hslm_b_spec`), else
+    :func:`adm_sim.trains.load_train`."""
+    spec = hslm_b_spec(name)
+    if spec is None:
+        return load_train(name)
+    return moving_loads(*hslm_b_axles(*spec), name=hslm_b_train_name(*spec))
 
 
 #: Allowed range of the lower and of the upper bound (fractions of the nominal value).
@@ -421,7 +432,24 @@ def bound_cases(bridge, mass_bounds=None, stiffness_bounds=None):
 
 
 def _is_hslm(train):
-    return train.name in HSLM_A_TABLE and not train.units
+    """HSLM-A or HSLM-B: a universal load train of EN 1991-2, not a vehicle."""
+    return (train.name in HSLM_A_TABLE or is_hslm_b_name(train.name)) and not train.units
+
+
+def check_hslm_span(span_m, trains):
+    """EN 1991-2 6.4.6.1.1(5): HSLM-A for spans of at least 7 m, HSLM-B for simply supported spans below
+    7 m. Refuses (one line) HSLM-A on a shorter span and HSLM-B on a longer one."""
+    a = [t.name for t in trains if _is_hslm(t) and not is_hslm_b_name(t.name)]
+    b = [t.name for t in trains if _is_hslm(t) and is_hslm_b_name(t.name)]
+    if span_m < HSLM_B_SPAN_M and a:
+        raise InputError(f"trains: HSLM-A applies to spans >= {HSLM_B_SPAN_M:g} m; this bridge spans {span_m:g} m, "
+                         f"where EN 1991-2 6.4.6.1.1(5) asks for HSLM-B: give {HSLM_B_SYNTAX}, N and d read off "
+                         f"the standard's HSLM-B figure for L = {span_m:g} m (adm-sim does not include that figure), "
+                         f"or check real trains only", field="trains")
+    if span_m >= HSLM_B_SPAN_M and b:
+        raise InputError(f"trains: {b[0]}: HSLM-B applies to simply supported spans < {HSLM_B_SPAN_M:g} m "
+                         f"(EN 1991-2 6.4.6.1.1(5)); this bridge spans {span_m:g} m: check it with hslm "
+                         f"(HSLM-A1 .. HSLM-A10)", field="trains")
 
 
 def calib_methods_refusal(method):
@@ -641,10 +669,7 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
         raise InputError(f"alpha: {str(exc).partition(': ')[2]}", field="alpha") from None
     if lateral_frequency_hz is not None:
         lateral_frequency_hz = check_lateral_frequency(lateral_frequency_hz)
-    if bridge.span_m < HSLM_B_SPAN_M and any(_is_hslm(t) for t in trains):
-        raise InputError(f"trains: HSLM-A applies to spans >= {HSLM_B_SPAN_M:g} m; this bridge spans "
-                         f"{bridge.span_m:g} m, where EN 1991-2 6.4.6.1.1(5) asks for HSLM-B, which adm-sim "
-                         f"does not include (see the README); check real trains only", field="trains")
+    check_hslm_span(bridge.span_m, trains)
     cases = bound_cases(bridge, mass_bounds, stiffness_bounds)
     bounds = tuple((label, run_check(bb, max_line_speed_kmh, trains, track=track, damping=damping, step_kmh=step_kmh,
                                      calibrate_options=calibrate_options, n_modes=n_modes, where=where,
@@ -677,8 +702,8 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
         env = moving_load_envelope(b, t.axle_offsets_m, t.axle_loads_n, speeds, delta_zeta=dz_pct / 100.0,
                                    where=where)
         extra = np.array([])
-        if _is_hslm(t):
-            D = regular_coach_length_m(t.name)
+        if _is_hslm(t):  # resonances v = n0 D / i (HSLM-A coach length D, HSLM-B spacing d)
+            D = regular_spacing_m(t.name)
             i = np.arange(1, 50)
             extra = 3.6 * b.n0_hz * D / i
         fine = _refinement(speeds, env.max_acc_m_s2, extra, vmin, vmax)
