@@ -391,11 +391,93 @@ def _load_check_train(name):
 BOUND_RANGES = ((-0.5, 0.0), (0.0, 1.0))
 
 
+#: EN 1991-2 6.4.6.3.2(3) as we read it: the lower bound of mass takes the minimum likely dry clean
+#: ballast density (the NOTE: 1700 kg/m3) at the minimum (design) ballast depth; the upper bound the
+#: maximum saturated density of dirty ballast with an allowance for future track lifts, +30 % depth.
+#: Not checked against a public copy of the clause (none was found); 2100 kg/m3 for saturated dirty
+#: ballast is our reading and can be replaced by a third number of ``standard:B,RHO,RHO_MAX``.
+BALLAST_DENSITY_MIN_KG_M3 = 1700.0
+BALLAST_DENSITY_MAX_KG_M3 = 2100.0
+BALLAST_DEPTH_FACTOR_UPPER = 1.30
+#: Largest ballast density the user may give (kg/m3): an input sanity limit, not the standard's.
+BALLAST_DENSITY_LIMIT_KG_M3 = 3000.0
+_STANDARD_SYNTAX = ("standard:B,RHO[,RHO_MAX] (B the ballast mass per length in the nominal mass, kg/m; RHO the "
+                    "density it was computed with and RHO_MAX the saturated dirty ballast density, kg/m3)")
+
+
+@dataclass(frozen=True)
+class StandardMassBounds:
+    """The mass bounds of EN 1991-2 6.4.6.3.2 from the ballast: ``ballast_kg_m`` of the nominal mass per
+    length at ``density_kg_m3``; lower bound at :data:`BALLAST_DENSITY_MIN_KG_M3` and the same depth,
+    upper bound at ``density_max_kg_m3`` and :data:`BALLAST_DEPTH_FACTOR_UPPER` times the depth."""
+
+    ballast_kg_m: float
+    density_kg_m3: float
+    density_max_kg_m3: float = BALLAST_DENSITY_MAX_KG_M3
+    field: str = dataclasses.field(default="mass_bounds", compare=False)  # named in a refusal
+
+    def ballast_bounds_kg_m(self):
+        """Ballast mass per length (kg/m) at the lower and at the upper bound."""
+        lo = self.ballast_kg_m * BALLAST_DENSITY_MIN_KG_M3 / self.density_kg_m3
+        hi = self.ballast_kg_m * BALLAST_DEPTH_FACTOR_UPPER * self.density_max_kg_m3 / self.density_kg_m3
+        return lo, hi
+
+    def fractions(self, mass_per_length_kg_m):
+        """``(lower, upper)`` fractions of the bridge's nominal mass per length; refuses a ballast mass
+        that is not below the bridge's (one line naming :attr:`field`)."""
+        m, field = float(mass_per_length_kg_m), self.field
+        if not self.ballast_kg_m < m:
+            raise InputError(f"{field}: ballast {self.ballast_kg_m:g} kg/m is not below the bridge's mass per length "
+                             f"{m:g} kg/m; allowed (0, {m:g}) kg/m", field=field)
+        lo, hi = self.ballast_bounds_kg_m()
+        return (lo - self.ballast_kg_m) / m, (hi - self.ballast_kg_m) / m
+
+    def labels(self):
+        return (f"ballast {BALLAST_DENSITY_MIN_KG_M3:g} kg/m3 at the design depth",
+                f"ballast {self.density_max_kg_m3:g} kg/m3, depth +{100 * (BALLAST_DEPTH_FACTOR_UPPER - 1):g} %")
+
+
+def _parse_standard_bounds(value, field):
+    """:class:`StandardMassBounds` from ``"standard:B,RHO[,RHO_MAX]"``; one-line refusals naming ``field``."""
+    text = str(value).strip()
+    rest = text.partition(":")[2]
+    parts = [p.strip() for p in rest.split(",")] if rest.strip() else []
+    if field.lstrip("-").startswith("stiffness"):
+        raise InputError(f"{field}: {text!r}: EN 1991-2 6.4.6.3.3 gives no standard fraction for the stiffness (it "
+                         f"asks for lower and upper estimates of the Young's modulus of the materials); give "
+                         f"lower,upper fractions, e.g. -0.10,0", field=field)
+    if len(parts) not in (2, 3):
+        raise InputError(f"{field}: {text!r} does not give the ballast; write {_STANDARD_SYNTAX}", field=field)
+    vals = []
+    for x, what in zip(parts, ("ballast mass per length", "ballast density", "saturated dirty ballast density")):
+        try:
+            v = float(x)
+        except ValueError:
+            raise InputError(f"{field}: {what} {x!r} is not a number; write {_STANDARD_SYNTAX}", field=field) from None
+        vals.append(v)
+    if not (math.isfinite(vals[0]) and vals[0] > 0.0):
+        raise InputError(f"{field}: ballast mass per length {vals[0]:g} kg/m is out of range; allowed (0, the "
+                         f"bridge's mass per length) kg/m", field=field)
+    hi = BALLAST_DENSITY_LIMIT_KG_M3
+    rho_max = vals[2] if len(vals) == 3 else BALLAST_DENSITY_MAX_KG_M3
+    if not (math.isfinite(rho_max) and BALLAST_DENSITY_MIN_KG_M3 <= rho_max <= hi):
+        raise InputError(f"{field}: saturated dirty ballast density {rho_max:g} kg/m3 is out of range; allowed "
+                         f"[{BALLAST_DENSITY_MIN_KG_M3:g}, {hi:g}] kg/m3", field=field)
+    if not (math.isfinite(vals[1]) and BALLAST_DENSITY_MIN_KG_M3 <= vals[1] <= rho_max):
+        raise InputError(f"{field}: ballast density {vals[1]:g} kg/m3 is out of range; allowed "
+                         f"[{BALLAST_DENSITY_MIN_KG_M3:g}, {rho_max:g}] kg/m3 (between the lower-bound density of "
+                         f"EN 1991-2 6.4.6.3.2 and the saturated dirty ballast density)", field=field)
+    return StandardMassBounds(vals[0], vals[1], rho_max, field=field)
+
+
 def parse_bounds(value, field):
     """``(lower, upper)`` fractions from ``"-0.1,0.15"`` or a pair; lower in [-0.5, 0], upper in [0, 1];
-    ``None`` stays None. One-line InputError naming ``field`` otherwise."""
-    if value is None:
-        return None
+    ``"standard:B,RHO[,RHO_MAX]"`` (mass only) gives a :class:`StandardMassBounds`, the bounds of EN 1991-2
+    6.4.6.3.2 from the ballast; ``None`` stays None. One-line InputError naming ``field`` otherwise."""
+    if value is None or isinstance(value, StandardMassBounds):
+        return value
+    if isinstance(value, str) and value.strip().lower().startswith("standard"):
+        return _parse_standard_bounds(value, field)
     parts = str(value).split(",") if isinstance(value, str) else list(value)
     if len(parts) != 2:
         raise InputError(f"{field}: {value!r} is not two fractions; give lower,upper, e.g. -0.10,0.15 "
@@ -423,11 +505,16 @@ def bound_cases(bridge, mass_bounds=None, stiffness_bounds=None):
                                   ("stiffness", "EJ_Nm2", sb, "6.4.6.3.3")):
         if fr is None:
             continue
-        for which, f in zip(("lower", "upper"), fr):
+        notes = ("", "")
+        if isinstance(fr, StandardMassBounds):
+            notes = tuple(f": {n}" for n in fr.labels())
+            fr = fr.fractions(bridge.mass_per_length_kg_m)
+        for which, f, note in zip(("lower", "upper"), fr, notes):
             if f == 0.0:
                 continue
             bb = dataclasses.replace(bridge, **{key: getattr(bridge, key) * (1.0 + f)})
-            out.append((f"{name} {which} bound {100 * f:+g} % ({clause})", bb))
+            pct = f"{100 * f:+.3g}" if note else f"{100 * f:+g}"
+            out.append((f"{name} {which} bound {pct} % ({clause}{note})", bb))
     return out
 
 
