@@ -676,6 +676,12 @@ def test_standard_mass_bounds_from_the_ballast():
     label, _, _, a = res.envelope_governing()
     assert label.startswith("mass lower bound") and a == pytest.approx(3.5036, abs=1e-4) and not res.passed
     assert "governed by mass lower bound -3.15 %" in summary(res)
+    # the effects of 6.4.6.5(3) are computed at every bound too; the largest ratio over the cases is named
+    per_case = [r.largest_effect_ratio()[1].ratio for r in [res, lo_res, hi_res]]
+    case, _, d = res.effects_envelope_governing()
+    assert d.ratio == max(per_case) and case in ["nominal", *cases] and 0.5 < d.ratio < 1.0
+    assert res.to_dict()["effects_envelope_governing"]["ratio"] == d.ratio
+    assert f"6.4.6.5(3) over the bounds: largest ratio {d.ratio:.3f}" in summary(res)
     # a third number replaces the saturated dirty ballast density
     assert parse_bounds("standard:4000,2000,2200", "m").ballast_bounds_kg_m() == pytest.approx((3400.0, 5720.0))
     with pytest.raises(InputError, match=r"^mass_bounds: ballast 20000 kg/m is not below the bridge's mass per "

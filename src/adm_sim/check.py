@@ -283,6 +283,26 @@ class CheckResult:
         t, v, a = res.governing
         return label, t, v, a
 
+    def largest_effect_ratio(self):
+        """``(train check, EffectComparison)`` of the largest ratio of EN 1991-2 6.4.6.5(3) over every
+        effect and train, or None when no effect was computed."""
+        gov = self.effects_governing()
+        if not gov:
+            return None
+        t, d, _ = max(gov, key=lambda g: g[1].ratio)
+        return t, d
+
+    def effects_envelope_governing(self):
+        """``(case label, train check, EffectComparison)`` of the largest 6.4.6.5(3) ratio over the nominal
+        bridge and every mass and stiffness bound (a bound moves the resonances and changes φ'_dyn), or
+        None when no effect was computed."""
+        cases = [(label, r.largest_effect_ratio()) for label, r in [("nominal", self)] + list(self.bounds)]
+        cases = [(label, g) for label, g in cases if g is not None]
+        if not cases:
+            return None
+        label, (t, d) = max(cases, key=lambda c: c[1][1].ratio)
+        return label, t, d
+
     def to_dict(self):
         t, sp, acc = self.governing
         return {"bridge": self.bridge.describe(), "max_line_speed_kmh": self.max_line_speed_kmh,
@@ -313,7 +333,14 @@ class CheckResult:
                 "en1990_a2_4_4_serviceability": None if self.sls is None else self.sls.to_dict(),
                 "bounds": [{"case": label, "n0_hz": r.bridge.n0_hz, "mass_per_length_kg_m": r.bridge.mass_per_length_kg_m,
                             "EJ_Nm2": r.bridge.EJ_Nm2, "governing_train": r.governing[0].name,
-                            "speed_kmh": r.governing[1], "acc_m_s2": r.governing[2]} for label, r in self.bounds],
+                            "speed_kmh": r.governing[1], "acc_m_s2": r.governing[2],
+                            **({} if r.largest_effect_ratio() is None else dict(zip(
+                                ("largest_effect_ratio_train", "largest_effect_ratio_effect", "largest_effect_ratio"),
+                                (lambda g: (g[0].name, g[1].effect.label, g[1].ratio))(r.largest_effect_ratio()))))}
+                           for label, r in self.bounds],
+                "effects_envelope_governing": None if self.effects_envelope_governing() is None else dict(zip(
+                    ("case", "train", "effect", "ratio"),
+                    (lambda g: (g[0], g[1].name, g[2].effect.label, g[2].ratio))(self.effects_envelope_governing()))),
                 "envelope_governing": dict(zip(("case", "train", "speed_kmh", "acc_m_s2"),
                                                (lambda g: (g[0], g[1].name, g[2], g[3]))(self.envelope_governing()))),
                 "not_checked": list(self.not_checked()),

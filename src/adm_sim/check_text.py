@@ -175,10 +175,17 @@ def bounds_lines(res):
     out = ["mass and stiffness bounds (EN 1991-2 6.4.6.3.2, 6.4.6.3.3): the check at every bound"]
     for label, r in [("nominal", res)] + list(res.bounds):
         t, v, a = r.governing
-        out.append(f"  {label:38s} n0 {r.bridge.n0_hz:7.3f} Hz: {t.name} {a:.4f} m/s2 at {v:g} km/h")
+        g = r.largest_effect_ratio()
+        eff = "" if g is None else f"; 6.4.6.5(3) largest ratio {g[1].ratio:.3f} ({g[1].effect.label}, {g[0].name})"
+        out.append(f"  {label:38s} n0 {r.bridge.n0_hz:7.3f} Hz: {t.name} {a:.4f} m/s2 at {v:g} km/h{eff}")
     label, t, v, a = res.envelope_governing()
     out.append(f"envelope over the bounds: {a:.4f} m/s2, {t.name} at {v:g} km/h, governed by {label}; limit "
                f"{res.limit_m_s2:g} m/s2: {'PASS' if res.passed else 'FAIL'}")
+    ge = res.effects_envelope_governing()
+    if ge is not None:
+        label, t, d = ge
+        out.append(f"6.4.6.5(3) over the bounds: largest ratio {d.ratio:.3f} ({d.effect.label}, {t.name}), at {label}: "
+                   f"{'Phi x alpha x LM71 governs' if d.ratio <= 1.0 else 'the train governs'}")
     return out
 
 
