@@ -15,8 +15,8 @@ from scipy.integrate import solve_ivp
 from adm_sim.check_text import summary
 
 from adm_calib.check import calibrated_damping
-from adm_sim.check import (TrainCheck, check_speeds_kmh, delta_zeta_for, resolve_trains, run_check, screening,
-                           static_midspan_max_m)
+from adm_sim.check import (TrainCheck, check_speeds_kmh, delta_zeta_for, parse_bounds, resolve_trains, run_check,
+                           screening, static_midspan_max_m)
 from adm_sim.bridge import Bridge, named_bridge
 from adm_sim.envelope import moving_load_envelope
 from adm_sim.errors import InputError
@@ -652,6 +652,66 @@ def test_mass_and_stiffness_bounds_follow_the_scaling_laws():
     assert label.startswith("mass lower bound") and a == lo.governing[2] and not res.passed
     assert res.to_dict()["verdict"] == "fail" and "mass and stiffness bounds" not in " ".join(res.not_checked())
     assert "envelope over the bounds: 3.770" in summary(res)
+
+
+def test_standard_mass_bounds_from_the_ballast():
+    """--mass-bounds standard:B,RHO[,RHO_MAX]: EN 1991-2 6.4.6.3.2's two masses from the ballast (B kg/m
+    of the nominal mass at RHO kg/m3): lower bound at 1700 kg/m3 and the same depth, upper bound at
+    RHO_MAX (2100 kg/m3 unless given) and +30 % depth. B1 (19042 kg/m) with 4000 kg/m of ballast at
+    2000 kg/m3: 18442 kg/m (-3.15 %) and 20502 kg/m (+7.67 %); the acceleration scales as 1/mass
+    (HSLM-A7 3.3932 -> 3.5036 m/s2, which FAILs the envelope: the lower bound governs)."""
+    b = named_bridge("B1")
+    sb = parse_bounds("standard:4000,2000", "--mass-bounds")
+    lo, hi = sb.fractions(b.mass_per_length_kg_m)
+    assert b.mass_per_length_kg_m * (1 + lo) == pytest.approx(19042.0 - 4000.0 + 3400.0, rel=1e-12)
+    assert b.mass_per_length_kg_m * (1 + hi) == pytest.approx(19042.0 - 4000.0 + 4000.0 * 1.3 * 2100 / 2000, rel=1e-12)
+    res = run_check(b, 250.0, resolve_trains("HSLM-A7"), mass_bounds=sb)
+    cases = dict(res.bounds)
+    assert list(cases) == ["mass lower bound -3.15 % (6.4.6.3.2: ballast 1700 kg/m3 at the design depth)",
+                           "mass upper bound +7.67 % (6.4.6.3.2: ballast 2100 kg/m3, depth +30 %)"]
+    nominal = res.governing[2]
+    lo_res, hi_res = cases.values()
+    assert lo_res.governing[2] == pytest.approx(nominal * 19042.0 / 18442.0, rel=2e-4)
+    assert hi_res.governing[2] == pytest.approx(nominal * 19042.0 / 20502.0, rel=2e-4)
+    label, _, _, a = res.envelope_governing()
+    assert label.startswith("mass lower bound") and a == pytest.approx(3.5036, abs=1e-4) and not res.passed
+    assert "governed by mass lower bound -3.15 %" in summary(res)
+    # the effects of 6.4.6.5(3) are computed at every bound too; the largest ratio over the cases is named
+    per_case = [r.largest_effect_ratio()[1].ratio for r in [res, lo_res, hi_res]]
+    case, _, d = res.effects_envelope_governing()
+    assert d.ratio == max(per_case) and case in ["nominal", *cases] and 0.5 < d.ratio < 1.0
+    assert res.to_dict()["effects_envelope_governing"]["ratio"] == d.ratio
+    assert f"6.4.6.5(3) over the bounds: largest ratio {d.ratio:.3f}" in summary(res)
+    # a third number replaces the saturated dirty ballast density
+    assert parse_bounds("standard:4000,2000,2200", "m").ballast_bounds_kg_m() == pytest.approx((3400.0, 5720.0))
+    with pytest.raises(InputError, match=r"^mass_bounds: ballast 20000 kg/m is not below the bridge's mass per "
+                                         r"length 19042 kg/m; allowed \(0, 19042\) kg/m$"):
+        run_check(b, 250.0, resolve_trains("HSLM-A7"), mass_bounds="standard:20000,2000")
+
+
+@pytest.mark.parametrize("args,line", [
+    (["--mass-bounds", "standard"], "error: --mass-bounds: 'standard' does not give the ballast; write "
+                                    "standard:B,RHO[,RHO_MAX] (B the ballast mass per length in the nominal mass, "
+                                    "kg/m; RHO the density it was computed with and RHO_MAX the saturated dirty "
+                                    "ballast density, kg/m3)\n"),
+    (["--mass-bounds", "standard:4000,1600"], "error: --mass-bounds: ballast density 1600 kg/m3 is out of range; "
+                                              "allowed [1700, 2100] kg/m3 (between the lower-bound density of EN "
+                                              "1991-2 6.4.6.3.2 and the saturated dirty ballast density)\n"),
+    (["--mass-bounds", "standard:x,2000"], "error: --mass-bounds: ballast mass per length 'x' is not a number; write "
+                                           "standard:B,RHO[,RHO_MAX] (B the ballast mass per length in the nominal "
+                                           "mass, kg/m; RHO the density it was computed with and RHO_MAX the "
+                                           "saturated dirty ballast density, kg/m3)\n"),
+    (["--mass-bounds", "standard:30000,2000"], "error: --mass-bounds: ballast 30000 kg/m is not below the bridge's "
+                                               "mass per length 19042 kg/m; allowed (0, 19042) kg/m\n"),
+    (["--stiffness-bounds", "standard:1,2"], "error: --stiffness-bounds: 'standard:1,2': EN 1991-2 6.4.6.3.3 gives no "
+                                             "standard fraction for the stiffness (it asks for lower and upper "
+                                             "estimates of the Young's modulus of the materials); give lower,upper "
+                                             "fractions, e.g. -0.10,0\n"),
+])
+def test_standard_bounds_bad_input(tmp_path, args, line):
+    js = tmp_path / "c.json"
+    r = run("check", "--max-line-speed", "250", "--trains", "HSLM-A1", "--json", str(js), *args)
+    assert r.returncode == 2 and r.stderr == line and not js.exists()
 
 
 @pytest.mark.parametrize("args,line", [

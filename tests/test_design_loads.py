@@ -338,3 +338,21 @@ def test_bad_input_one_line(call, match):
     with pytest.raises(InputError, match=match) as exc:
         call()
     assert "\n" not in str(exc.value)
+
+
+@pytest.mark.parametrize("n0,L,v,standard,careful", [
+    (8.262, 15.0, 250 / 3.6, 1.6013895031306409, 1.4936572218457267),
+    (5.0, 10.0, 20.0, 1.3040349436677368, 1.2767679708358644),
+    (3.0, 30.0, 300 / 3.6, 1.8007932717226882, 1.7974649912099858),
+    (12.0, 6.0, 160 / 3.6, 1.7856470559107875, 1.6131459642426795),
+])
+def test_annex_c_pairing_matches_an_independent_implementation(n0, L, v, standard, careful):
+    """EN 1991-2 Annex C: the dynamic factor of a real train is 1 + φ' + 0.5 φ'' on carefully maintained
+    track (C.1) and 1 + φ' + φ'' with standard maintenance (C.2): ``phi_dd_factor`` pairs 1/2 with
+    careful and 1 with standard maintenance. Reference values from an independent public
+    implementation of the same formulas, bacadra/bacadra ``bacadra/bicad/railb/en155.py`` (class
+    ``dfact``, mode 'clea' 1 + φ' + 0.50 φ'', mode 'stan' 1 + φ' + φ''), commit
+    0399243f004dadfdd5ce5294cb8c37d1d8373b76, evaluated for these (n0 Hz, LΦ m, v m/s)."""
+    for maintenance, ref in (("standard", standard), ("careful", careful)):
+        ours = 1.0 + dl.phi_prime(L, n0, v) + dl.phi_dd_factor(maintenance) * dl.phi_double_prime(L, n0, v)
+        assert ours == pytest.approx(ref, rel=1e-12)

@@ -63,12 +63,13 @@ from adm_sim.design_loads import (MAINTENANCE, adm_delta_zeta_pct, check_alpha, 
                                   governing, phi_dd_factor, phi_dyn_prime)
 from adm_sim.errors import InputError
 from adm_sim.fields import FIELDS, check_count, check_range
-from adm_sim.hslm import HSLM_A_NAMES, HSLM_A_TABLE, regular_coach_length_m
+from adm_sim.hslm import (HSLM_A_NAMES, HSLM_A_TABLE, HSLM_B_SYNTAX, hslm_b_axles, hslm_b_spec, hslm_b_train_name,
+                          is_hslm_b_name, regular_spacing_m)
 from adm_sim.peaks import local_maxima  # the project's one peak rule, every maximum kept
 from adm_sim.lockstep_runs import InProcessRun
 from adm_sim.rk4_sides import BridgeSide, TrainSide
 from adm_sim.step_grid import StepOptions, make_grid, speeds_to_m_s
-from adm_sim.trains import load_train
+from adm_sim.trains import load_train, moving_loads
 # the speed range (EN 1991-2 6.4.6.2(1)) and the deck acceleration limits (EN 1990 A2.4.4.2.1(4)P)
 from adm_sim.limits import ACC_LIMITS_M_S2, DESIGN_SPEED_FACTOR
 from adm_sim.limits import CHECK_MIN_SPEED_M_S as MIN_SPEED_M_S
@@ -282,6 +283,26 @@ class CheckResult:
         t, v, a = res.governing
         return label, t, v, a
 
+    def largest_effect_ratio(self):
+        """``(train check, EffectComparison)`` of the largest ratio of EN 1991-2 6.4.6.5(3) over every
+        effect and train, or None when no effect was computed."""
+        gov = self.effects_governing()
+        if not gov:
+            return None
+        t, d, _ = max(gov, key=lambda g: g[1].ratio)
+        return t, d
+
+    def effects_envelope_governing(self):
+        """``(case label, train check, EffectComparison)`` of the largest 6.4.6.5(3) ratio over the nominal
+        bridge and every mass and stiffness bound (a bound moves the resonances and changes φ'_dyn), or
+        None when no effect was computed."""
+        cases = [(label, r.largest_effect_ratio()) for label, r in [("nominal", self)] + list(self.bounds)]
+        cases = [(label, g) for label, g in cases if g is not None]
+        if not cases:
+            return None
+        label, (t, d) = max(cases, key=lambda c: c[1][1].ratio)
+        return label, t, d
+
     def to_dict(self):
         t, sp, acc = self.governing
         return {"bridge": self.bridge.describe(), "max_line_speed_kmh": self.max_line_speed_kmh,
@@ -312,7 +333,14 @@ class CheckResult:
                 "en1990_a2_4_4_serviceability": None if self.sls is None else self.sls.to_dict(),
                 "bounds": [{"case": label, "n0_hz": r.bridge.n0_hz, "mass_per_length_kg_m": r.bridge.mass_per_length_kg_m,
                             "EJ_Nm2": r.bridge.EJ_Nm2, "governing_train": r.governing[0].name,
-                            "speed_kmh": r.governing[1], "acc_m_s2": r.governing[2]} for label, r in self.bounds],
+                            "speed_kmh": r.governing[1], "acc_m_s2": r.governing[2],
+                            **({} if r.largest_effect_ratio() is None else dict(zip(
+                                ("largest_effect_ratio_train", "largest_effect_ratio_effect", "largest_effect_ratio"),
+                                (lambda g: (g[0].name, g[1].effect.label, g[1].ratio))(r.largest_effect_ratio()))))}
+                           for label, r in self.bounds],
+                "effects_envelope_governing": None if self.effects_envelope_governing() is None else dict(zip(
+                    ("case", "train", "effect", "ratio"),
+                    (lambda g: (g[0], g[1].name, g[2].effect.label, g[2].ratio))(self.effects_envelope_governing()))),
                 "envelope_governing": dict(zip(("case", "train", "speed_kmh", "acc_m_s2"),
                                                (lambda g: (g[0], g[1].name, g[2], g[3]))(self.envelope_governing()))),
                 "not_checked": list(self.not_checked()),
@@ -364,10 +392,11 @@ def resolve_trains(spec):
             continue
         names.extend(HSLM_A_NAMES if part.lower() == "hslm" else [part])
     if not names:
-        raise InputError(f"trains: {spec!r} names no train; allowed hslm, HSLM-A1 .. HSLM-A10, ICE-2, Eurostar, "
-                         f"Railjet, ICE-4, Eurostar-table or .toml train files, comma separated", field="trains")
+        raise InputError(f"trains: {spec!r} names no train; allowed hslm, HSLM-A1 .. HSLM-A10, {HSLM_B_SYNTAX}, "
+                         f"ICE-2, Eurostar, Railjet, ICE-4, Eurostar-table or .toml train files, comma separated",
+                         field="trains")
     check_count("n_trains", len(names), "--trains", repr(spec))
-    trains = [load_train(n) for n in names]
+    trains = [_load_check_train(n) for n in names]
     seen = set()
     for t in trains:
         if t.name in seen:
@@ -376,15 +405,106 @@ def resolve_trains(spec):
     return trains
 
 
+def _load_check_train(name):
+    """A train of the check: HSLM-B written ``HSLM-B:N=<n>:d=<m>`` (:func:`adm_sim.hslm.hslm_b_spec`), else
+    :func:`adm_sim.trains.load_train`."""
+    spec = hslm_b_spec(name)
+    if spec is None:
+        return load_train(name)
+    return moving_loads(*hslm_b_axles(*spec), name=hslm_b_train_name(*spec))
+
+
 #: Allowed range of the lower and of the upper bound (fractions of the nominal value).
 BOUND_RANGES = ((-0.5, 0.0), (0.0, 1.0))
 
 
+#: EN 1991-2 6.4.6.3.2(3) as we read it: the lower bound of mass takes the minimum likely dry clean
+#: ballast density (the NOTE: 1700 kg/m3) at the minimum (design) ballast depth; the upper bound the
+#: maximum saturated density of dirty ballast with an allowance for future track lifts, +30 % depth.
+#: Not checked against a public copy of the clause (none was found); 2100 kg/m3 for saturated dirty
+#: ballast is our reading and can be replaced by a third number of ``standard:B,RHO,RHO_MAX``.
+BALLAST_DENSITY_MIN_KG_M3 = 1700.0
+BALLAST_DENSITY_MAX_KG_M3 = 2100.0
+BALLAST_DEPTH_FACTOR_UPPER = 1.30
+#: Largest ballast density the user may give (kg/m3): an input sanity limit, not the standard's.
+BALLAST_DENSITY_LIMIT_KG_M3 = 3000.0
+_STANDARD_SYNTAX = ("standard:B,RHO[,RHO_MAX] (B the ballast mass per length in the nominal mass, kg/m; RHO the "
+                    "density it was computed with and RHO_MAX the saturated dirty ballast density, kg/m3)")
+
+
+@dataclass(frozen=True)
+class StandardMassBounds:
+    """The mass bounds of EN 1991-2 6.4.6.3.2 from the ballast: ``ballast_kg_m`` of the nominal mass per
+    length at ``density_kg_m3``; lower bound at :data:`BALLAST_DENSITY_MIN_KG_M3` and the same depth,
+    upper bound at ``density_max_kg_m3`` and :data:`BALLAST_DEPTH_FACTOR_UPPER` times the depth."""
+
+    ballast_kg_m: float
+    density_kg_m3: float
+    density_max_kg_m3: float = BALLAST_DENSITY_MAX_KG_M3
+    field: str = dataclasses.field(default="mass_bounds", compare=False)  # named in a refusal
+
+    def ballast_bounds_kg_m(self):
+        """Ballast mass per length (kg/m) at the lower and at the upper bound."""
+        lo = self.ballast_kg_m * BALLAST_DENSITY_MIN_KG_M3 / self.density_kg_m3
+        hi = self.ballast_kg_m * BALLAST_DEPTH_FACTOR_UPPER * self.density_max_kg_m3 / self.density_kg_m3
+        return lo, hi
+
+    def fractions(self, mass_per_length_kg_m):
+        """``(lower, upper)`` fractions of the bridge's nominal mass per length; refuses a ballast mass
+        that is not below the bridge's (one line naming :attr:`field`)."""
+        m, field = float(mass_per_length_kg_m), self.field
+        if not self.ballast_kg_m < m:
+            raise InputError(f"{field}: ballast {self.ballast_kg_m:g} kg/m is not below the bridge's mass per length "
+                             f"{m:g} kg/m; allowed (0, {m:g}) kg/m", field=field)
+        lo, hi = self.ballast_bounds_kg_m()
+        return (lo - self.ballast_kg_m) / m, (hi - self.ballast_kg_m) / m
+
+    def labels(self):
+        return (f"ballast {BALLAST_DENSITY_MIN_KG_M3:g} kg/m3 at the design depth",
+                f"ballast {self.density_max_kg_m3:g} kg/m3, depth +{100 * (BALLAST_DEPTH_FACTOR_UPPER - 1):g} %")
+
+
+def _parse_standard_bounds(value, field):
+    """:class:`StandardMassBounds` from ``"standard:B,RHO[,RHO_MAX]"``; one-line refusals naming ``field``."""
+    text = str(value).strip()
+    rest = text.partition(":")[2]
+    parts = [p.strip() for p in rest.split(",")] if rest.strip() else []
+    if field.lstrip("-").startswith("stiffness"):
+        raise InputError(f"{field}: {text!r}: EN 1991-2 6.4.6.3.3 gives no standard fraction for the stiffness (it "
+                         f"asks for lower and upper estimates of the Young's modulus of the materials); give "
+                         f"lower,upper fractions, e.g. -0.10,0", field=field)
+    if len(parts) not in (2, 3):
+        raise InputError(f"{field}: {text!r} does not give the ballast; write {_STANDARD_SYNTAX}", field=field)
+    vals = []
+    for x, what in zip(parts, ("ballast mass per length", "ballast density", "saturated dirty ballast density")):
+        try:
+            v = float(x)
+        except ValueError:
+            raise InputError(f"{field}: {what} {x!r} is not a number; write {_STANDARD_SYNTAX}", field=field) from None
+        vals.append(v)
+    if not (math.isfinite(vals[0]) and vals[0] > 0.0):
+        raise InputError(f"{field}: ballast mass per length {vals[0]:g} kg/m is out of range; allowed (0, the "
+                         f"bridge's mass per length) kg/m", field=field)
+    hi = BALLAST_DENSITY_LIMIT_KG_M3
+    rho_max = vals[2] if len(vals) == 3 else BALLAST_DENSITY_MAX_KG_M3
+    if not (math.isfinite(rho_max) and BALLAST_DENSITY_MIN_KG_M3 <= rho_max <= hi):
+        raise InputError(f"{field}: saturated dirty ballast density {rho_max:g} kg/m3 is out of range; allowed "
+                         f"[{BALLAST_DENSITY_MIN_KG_M3:g}, {hi:g}] kg/m3", field=field)
+    if not (math.isfinite(vals[1]) and BALLAST_DENSITY_MIN_KG_M3 <= vals[1] <= rho_max):
+        raise InputError(f"{field}: ballast density {vals[1]:g} kg/m3 is out of range; allowed "
+                         f"[{BALLAST_DENSITY_MIN_KG_M3:g}, {rho_max:g}] kg/m3 (between the lower-bound density of "
+                         f"EN 1991-2 6.4.6.3.2 and the saturated dirty ballast density)", field=field)
+    return StandardMassBounds(vals[0], vals[1], rho_max, field=field)
+
+
 def parse_bounds(value, field):
     """``(lower, upper)`` fractions from ``"-0.1,0.15"`` or a pair; lower in [-0.5, 0], upper in [0, 1];
-    ``None`` stays None. One-line InputError naming ``field`` otherwise."""
-    if value is None:
-        return None
+    ``"standard:B,RHO[,RHO_MAX]"`` (mass only) gives a :class:`StandardMassBounds`, the bounds of EN 1991-2
+    6.4.6.3.2 from the ballast; ``None`` stays None. One-line InputError naming ``field`` otherwise."""
+    if value is None or isinstance(value, StandardMassBounds):
+        return value
+    if isinstance(value, str) and value.strip().lower().startswith("standard"):
+        return _parse_standard_bounds(value, field)
     parts = str(value).split(",") if isinstance(value, str) else list(value)
     if len(parts) != 2:
         raise InputError(f"{field}: {value!r} is not two fractions; give lower,upper, e.g. -0.10,0.15 "
@@ -412,16 +532,38 @@ def bound_cases(bridge, mass_bounds=None, stiffness_bounds=None):
                                   ("stiffness", "EJ_Nm2", sb, "6.4.6.3.3")):
         if fr is None:
             continue
-        for which, f in zip(("lower", "upper"), fr):
+        notes = ("", "")
+        if isinstance(fr, StandardMassBounds):
+            notes = tuple(f": {n}" for n in fr.labels())
+            fr = fr.fractions(bridge.mass_per_length_kg_m)
+        for which, f, note in zip(("lower", "upper"), fr, notes):
             if f == 0.0:
                 continue
             bb = dataclasses.replace(bridge, **{key: getattr(bridge, key) * (1.0 + f)})
-            out.append((f"{name} {which} bound {100 * f:+g} % ({clause})", bb))
+            pct = f"{100 * f:+.3g}" if note else f"{100 * f:+g}"
+            out.append((f"{name} {which} bound {pct} % ({clause}{note})", bb))
     return out
 
 
 def _is_hslm(train):
-    return train.name in HSLM_A_TABLE and not train.units
+    """HSLM-A or HSLM-B: a universal load train of EN 1991-2, not a vehicle."""
+    return (train.name in HSLM_A_TABLE or is_hslm_b_name(train.name)) and not train.units
+
+
+def check_hslm_span(span_m, trains):
+    """EN 1991-2 6.4.6.1.1(5): HSLM-A for spans of at least 7 m, HSLM-B for simply supported spans below
+    7 m. Refuses (one line) HSLM-A on a shorter span and HSLM-B on a longer one."""
+    a = [t.name for t in trains if _is_hslm(t) and not is_hslm_b_name(t.name)]
+    b = [t.name for t in trains if _is_hslm(t) and is_hslm_b_name(t.name)]
+    if span_m < HSLM_B_SPAN_M and a:
+        raise InputError(f"trains: HSLM-A applies to spans >= {HSLM_B_SPAN_M:g} m; this bridge spans {span_m:g} m, "
+                         f"where EN 1991-2 6.4.6.1.1(5) asks for HSLM-B: give {HSLM_B_SYNTAX}, N and d read off "
+                         f"the standard's HSLM-B figure for L = {span_m:g} m (adm-sim does not include that figure), "
+                         f"or check real trains only", field="trains")
+    if span_m >= HSLM_B_SPAN_M and b:
+        raise InputError(f"trains: {b[0]}: HSLM-B applies to simply supported spans < {HSLM_B_SPAN_M:g} m "
+                         f"(EN 1991-2 6.4.6.1.1(5)); this bridge spans {span_m:g} m: check it with hslm "
+                         f"(HSLM-A1 .. HSLM-A10)", field="trains")
 
 
 def calib_methods_refusal(method):
@@ -641,10 +783,7 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
         raise InputError(f"alpha: {str(exc).partition(': ')[2]}", field="alpha") from None
     if lateral_frequency_hz is not None:
         lateral_frequency_hz = check_lateral_frequency(lateral_frequency_hz)
-    if bridge.span_m < HSLM_B_SPAN_M and any(_is_hslm(t) for t in trains):
-        raise InputError(f"trains: HSLM-A applies to spans >= {HSLM_B_SPAN_M:g} m; this bridge spans "
-                         f"{bridge.span_m:g} m, where EN 1991-2 6.4.6.1.1(5) asks for HSLM-B, which adm-sim "
-                         f"does not include (see the README); check real trains only", field="trains")
+    check_hslm_span(bridge.span_m, trains)
     cases = bound_cases(bridge, mass_bounds, stiffness_bounds)
     bounds = tuple((label, run_check(bb, max_line_speed_kmh, trains, track=track, damping=damping, step_kmh=step_kmh,
                                      calibrate_options=calibrate_options, n_modes=n_modes, where=where,
@@ -677,8 +816,8 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
         env = moving_load_envelope(b, t.axle_offsets_m, t.axle_loads_n, speeds, delta_zeta=dz_pct / 100.0,
                                    where=where)
         extra = np.array([])
-        if _is_hslm(t):
-            D = regular_coach_length_m(t.name)
+        if _is_hslm(t):  # resonances v = n0 D / i (HSLM-A coach length D, HSLM-B spacing d)
+            D = regular_spacing_m(t.name)
             i = np.arange(1, 50)
             extra = 3.6 * b.n0_hz * D / i
         fine = _refinement(speeds, env.max_acc_m_s2, extra, vmin, vmax)

@@ -115,10 +115,11 @@ def verdict_rows(res):
         label, tb, vb, ab = res.envelope_governing()
         rows.append(("EN 1991-2 6.4.6.3.2/3", f"envelope over the bounds ({label}, {tb.name}, {vb:g} km/h)",
                      f"{ab:.4f} m/s²", f"{res.limit_m_s2:g} m/s²", "PASS" if res.passed else "FAIL"))
-    gov = res.effects_governing()
-    if gov:
-        tt, d, _ = max(gov, key=lambda g: g[1].ratio)
-        rows.append(("EN 1991-2 6.4.6.5(3)", f"largest train / (Φ α LM71) ratio ({d.effect.label}, {tt.name})",
+    ge = res.effects_envelope_governing()
+    if ge is not None:
+        case, tt, d = ge
+        where = f", {case}" if res.bounds else ""
+        rows.append(("EN 1991-2 6.4.6.5(3)", f"largest train / (Φ α LM71) ratio ({d.effect.label}, {tt.name}{where})",
                      f"{d.ratio:.3f}", "1", "Φ α LM71 governs" if d.ratio <= 1.0 else "the train governs"))
     if res.sls is not None:
         s = res.sls

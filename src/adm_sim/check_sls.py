@@ -50,7 +50,8 @@ NOT_CHECKED = (
     "gives b_v for real trains with vehicles",
     "horizontal deflection (EN 1990 A2.4.4.2.4(2))",
     "continuous and multi-span decks, joints between decks (one simply supported span only)",
-    "HSLM-B for simply supported spans under 7 m (EN 1991-2 Annex E) and the Annex F screening",
+    "the N and d of HSLM-B from the span (EN 1991-2 6.4.6.1.1(5), spans under 7 m: give HSLM-B:N=<forces>:d=<m> "
+    "read off the standard's figure) and the Annex F screening (when a dynamic analysis is not required)",
     "mass and stiffness bounds (EN 1991-2 6.4.6.3.2, 6.4.6.3.3)",
 )
 

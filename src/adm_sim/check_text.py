@@ -53,15 +53,21 @@ def header_lines(res):
             f"damping: zeta = {100 * b.damping_ratio:.3g} % plus, per train:"]
 
 
+def _name_width(names, least):
+    """Width of a column of train names: ``least``, or wider for a longer name (HSLM-B:N=..:d=..)."""
+    return max([least] + [len(n) for n in names])
+
+
 def train_table_lines(res):
     xs = res.where != "midspan"
-    out = [f"{'train':14s} {'max acc':>9s} {'at':>8s}" + (f" {'x':>7s}" if xs else "")
+    w = _name_width([c.name for c in res.trains], 14)
+    out = [f"{'train':{w}s} {'max acc':>9s} {'at':>8s}" + (f" {'x':>7s}" if xs else "")
            + f" {'max disp':>9s} {'phi_dyn':>8s} {'dzeta':>7s}  zeta per mode",
-           f"{'':14s} {'(m/s2)':>9s} {'(km/h)':>8s}" + (f" {'(m)':>7s}" if xs else "")
+           f"{'':{w}s} {'(m/s2)':>9s} {'(km/h)':>8s}" + (f" {'(m)':>7s}" if xs else "")
            + f" {'(mm)':>9s} {'(-)':>8s} {'(%)':>7s}  (%)"]
     for c in res.trains:
         i = c.i_max
-        out.append(f"{c.name:14s} {c.max_acc_m_s2[i]:9.4f} {c.speeds_kmh[i]:8.1f}"
+        out.append(f"{c.name:{w}s} {c.max_acc_m_s2[i]:9.4f} {c.speeds_kmh[i]:8.1f}"
                    + (f" {c.x_max_m:7.3f}" if xs else "")
                    + f" {1000 * c.midspan_disp_m.max():9.3f} {c.phi_dyn:8.3f} {c.delta_zeta_pct:7.3f}  "
                    f"{c.zeta_text()}")
@@ -76,20 +82,21 @@ def design_lines(res):
     if not comps:
         return []
     d0 = comps[0]
+    w = _name_width([c.name for c in res.trains], 14)
     phi = "Phi2 (careful maintenance, 6.4.5.2(2))" if res.track_maintenance == "careful" else \
         "Phi3 (standard maintenance, 6.4.5.2(3))"
     out = [f"EN 1991-2 6.4.6.5(3), midspan of the simply supported span: (1 + phi'_dyn + phi''/2) x train "
            f"vs {phi} = {d0.Phi:.3f} x alpha = {d0.alpha:g} x LM71 (6.3.2); phi'' = {d0.phi_dd:.4f} (Annex C, "
            f"v = {res.max_line_speed_kmh:g} km/h); alpha x LM71 static: M {d0.lm71_static_moment_Nm / 1e3:.1f} kNm, "
            f"w {1e3 * d0.lm71_static_deflection_m:.3f} mm",
-           f"{'train':14s} {'phi_M':>7s} {'M design':>10s} {'M/LM71':>7s} {'phi_w':>7s} {'w design':>9s} "
+           f"{'train':{w}s} {'phi_M':>7s} {'M design':>10s} {'M/LM71':>7s} {'phi_w':>7s} {'w design':>9s} "
            f"{'w/LM71':>7s}",
-           f"{'':14s} {'(-)':>7s} {'(kNm)':>10s} {'(-)':>7s} {'(-)':>7s} {'(mm)':>9s} {'(-)':>7s}"]
+           f"{'':{w}s} {'(-)':>7s} {'(kNm)':>10s} {'(-)':>7s} {'(-)':>7s} {'(mm)':>9s} {'(-)':>7s}"]
     for c in res.trains:
         d = c.design
         if d is None:
             continue
-        out.append(f"{c.name:14s} {d.phi_dyn_moment:7.3f} {d.train_design_moment_Nm / 1e3:10.1f} "
+        out.append(f"{c.name:{w}s} {d.phi_dyn_moment:7.3f} {d.train_design_moment_Nm / 1e3:10.1f} "
                    f"{d.ratio_moment:7.3f} {d.phi_dyn_deflection:7.3f} {1e3 * d.train_design_deflection_m:9.3f} "
                    f"{d.ratio_deflection:7.3f}")
     for e, d in res.design_governing().items():
@@ -106,17 +113,18 @@ def effects_lines(res):
         return []
     t0 = gov[0][0]
     d0 = gov[0][1]
+    w = _name_width([t.name for t, _, _ in gov], 10)
     share = "phi''/2 (careful maintenance, Annex C (C.1))" if d0.phi_dd_factor == 0.5 else \
         "phi'' (standard maintenance, Annex C (C.2))"
     out = [f"EN 1991-2 6.4.6.5(3), every effect: (1 + phi'_dyn + {share}) x train vs Phi = {d0.Phi:.3f} x alpha "
            f"x LM71 (distributed load on the unfavourable part of each influence line); phi'_dyn by the "
            f"mode-acceleration method: {t0.effects.n_modes} modes dynamic plus the exact static effect "
            f"(every mode), sections every L/10; M in kNm, V and reactions in kN",
-           f"{'effect':16s} {'train':10s} {'phi_dyn':>8s} {'at':>7s} {'static':>9s} {'design':>9s} "
+           f"{'effect':16s} {'train':{w}s} {'phi_dyn':>8s} {'at':>7s} {'static':>9s} {'design':>9s} "
            f"{'Phi LM71':>9s} {'ratio':>6s}",
-           f"{'':16s} {'':10s} {'(-)':>8s} {'(km/h)':>7s} {'':>9s} {'':>9s} {'':>9s} {'(-)':>6s}"]
+           f"{'':16s} {'':{w}s} {'(-)':>8s} {'(km/h)':>7s} {'':>9s} {'':>9s} {'':>9s} {'(-)':>6s}"]
     for t, d, i in gov:
-        out.append(f"{d.effect.label:16s} {t.name:10s} {d.phi_dyn:8.3f} {t.effects.at_speed_kmh[i]:7.1f} "
+        out.append(f"{d.effect.label:16s} {t.name:{w}s} {d.phi_dyn:8.3f} {t.effects.at_speed_kmh[i]:7.1f} "
                    f"{d.train_static / 1e3:9.1f} {d.train_design / 1e3:9.1f} {d.lm71_design / 1e3:9.1f} "
                    f"{d.ratio:6.3f}")
     t, d, _ = max(gov, key=lambda g: g[1].ratio)
@@ -175,10 +183,17 @@ def bounds_lines(res):
     out = ["mass and stiffness bounds (EN 1991-2 6.4.6.3.2, 6.4.6.3.3): the check at every bound"]
     for label, r in [("nominal", res)] + list(res.bounds):
         t, v, a = r.governing
-        out.append(f"  {label:38s} n0 {r.bridge.n0_hz:7.3f} Hz: {t.name} {a:.4f} m/s2 at {v:g} km/h")
+        g = r.largest_effect_ratio()
+        eff = "" if g is None else f"; 6.4.6.5(3) largest ratio {g[1].ratio:.3f} ({g[1].effect.label}, {g[0].name})"
+        out.append(f"  {label:38s} n0 {r.bridge.n0_hz:7.3f} Hz: {t.name} {a:.4f} m/s2 at {v:g} km/h{eff}")
     label, t, v, a = res.envelope_governing()
     out.append(f"envelope over the bounds: {a:.4f} m/s2, {t.name} at {v:g} km/h, governed by {label}; limit "
                f"{res.limit_m_s2:g} m/s2: {'PASS' if res.passed else 'FAIL'}")
+    ge = res.effects_envelope_governing()
+    if ge is not None:
+        label, t, d = ge
+        out.append(f"6.4.6.5(3) over the bounds: largest ratio {d.ratio:.3f} ({d.effect.label}, {t.name}), at {label}: "
+                   f"{'Phi x alpha x LM71 governs' if d.ratio <= 1.0 else 'the train governs'}")
     return out
 
 

@@ -206,7 +206,9 @@ def phi_dd_factor(maintenance):
     real train as ``1 + φ' + 0.5 φ''`` for carefully maintained track (C.1) and ``1 + φ' + φ''`` for
     standard maintenance (C.2); 6.4.6.5(3) Eq. (6.15) writes ``φ''/2``, the careful-track case,
     the one its Φ2 alternative pairs with. With standard maintenance (Φ3) the full φ'' goes with
-    it, as in (C.2). Returns 0.5 for ``"careful"``, 1.0 for ``"standard"``."""
+    it, as in (C.2). Returns 0.5 for ``"careful"``, 1.0 for ``"standard"``. An independent public
+    implementation pairs them the same way (bacadra/bacadra ``bacadra/bicad/railb/en155.py``, commit
+    0399243f: mode 'clea' ``1 + φ' + 0.50 φ''``, mode 'stan' ``1 + φ' + φ''``; tested to 1e-12)."""
     m = check_choice("maintenance", maintenance, MAINTENANCE)
     return 0.5 if m == "careful" else 1.0
 

@@ -1,4 +1,5 @@
-"""HSLM-A universal load trains of EN 1991-2, generated from their table, not typed out.
+"""HSLM-A universal load trains of EN 1991-2, generated from their table, not typed out; HSLM-B built
+from the N and d the user reads off the standard.
 
 EN 1991-2:2003 6.4.6.1.1 defines the High Speed Load Model HSLM-A as ten universal trains
 HSLM-A1 ... HSLM-A10 (Table 6.3: number of intermediate coaches N, coach length D, bogie axle
@@ -23,10 +24,17 @@ resonances ``v = n0 D / i``, and a first-to-last axle distance of 2 x 18.7625 + 
 axle of A1 .. A10 with independent public implementations (Karoumi's ``HSLMA.m``, KTH; caldintav's
 ``a01 .. a10.def``, UPM; SincBridgeDynamics.jl ``A_1 .. A_10``); ``tests/test_hslm.py`` holds
 that table as literals.
+
+HSLM-B (EN 1991-2 6.4.6.1.1, for simply supported spans below 7 m): N point forces of 170 kN at a
+uniform spacing d, N and d read off the standard's figure for the span. We found no public copy or
+implementation of that figure to take N(L) and d(L) from or to test against, so adm-sim does not
+choose them: the user gives them, ``HSLM-B:N=<n>:d=<m>`` (:func:`hslm_b_spec`), and the check uses
+that train for spans below 7 m and refuses HSLM-A there.
 """
 
 from __future__ import annotations
 
+import math
 import re
 
 import numpy as np
@@ -97,3 +105,82 @@ def hslm_axles(name):
 def regular_coach_length_m(name):
     """Coach length D (m) of universal train ``name``: the regular spacing of its Jacobs bogies."""
     return HSLM_A_TABLE[hslm_name(name)][1]
+
+
+#: HSLM-B: the point force of every axle (kN), EN 1991-2 6.4.6.1.1.
+HSLM_B_FORCE_KN = 170.0
+#: Input sanity limits of HSLM-B's N (forces) and d (m); not the standard's range, which the user's
+#: figure gives: outside them a typing error is far more likely than a reading of the figure.
+HSLM_B_N_RANGE = (2, 100)
+HSLM_B_D_RANGE_M = (0.5, 30.0)
+_B_RE = re.compile(r"^hslm-?b(?::(.*))?$")
+_B_ITEM_RE = re.compile(r"^(n|d)=(.*)$")
+#: How to write an HSLM-B train (shown in refusals).
+HSLM_B_SYNTAX = "HSLM-B:N=<forces>:d=<spacing m>"
+
+
+def hslm_b_spec(text):
+    """``(N, d_m)`` of an HSLM-B train written ``HSLM-B:N=<n>:d=<m>`` (case and blanks ignored), or None
+    if ``text`` is not an HSLM-B name. A malformed one raises :class:`InputError` (one line)."""
+    key = re.sub(r"\s", "", str(text)).lower()
+    m = _B_RE.match(key)
+    if m is None:
+        return None
+    hint = (f"give {HSLM_B_SYNTAX}, N and d read off EN 1991-2's HSLM-B figure for the span (adm-sim does not "
+            f"include that figure)")
+    if not m.group(1):
+        raise InputError(f"train: {text!r} gives no N and d; {hint}")
+    items = {}
+    for part in m.group(1).split(":"):
+        mi = _B_ITEM_RE.match(part)
+        if mi is None or mi.group(1) in items:
+            raise InputError(f"train: {text!r}: {part!r} is not N=<forces> or d=<spacing m> (each once); {hint}")
+        items[mi.group(1)] = mi.group(2)
+    if set(items) != {"n", "d"}:
+        raise InputError(f"train: {text!r} needs both N and d; {hint}")
+    lo, hi = HSLM_B_N_RANGE
+    try:
+        n = float(items["n"])
+    except ValueError:
+        n = math.nan
+    if not (math.isfinite(n) and n == int(n) and lo <= n <= hi):
+        raise InputError(f"train: HSLM-B N = {items['n']!r} is not a whole number of forces in [{lo}, {hi}]; {hint}")
+    dlo, dhi = HSLM_B_D_RANGE_M
+    try:
+        d = float(items["d"])
+    except ValueError:
+        raise InputError(f"train: HSLM-B d = {items['d']!r} is not a number; allowed [{dlo:g}, {dhi:g}] m; "
+                         f"{hint}") from None
+    if not (math.isfinite(d) and dlo <= d <= dhi):
+        raise InputError(f"train: HSLM-B d = {d:g} m is out of range; allowed [{dlo:g}, {dhi:g}] m; {hint}")
+    return int(n), d
+
+
+def hslm_b_train_name(n_forces, spacing_m):
+    """The canonical name of HSLM-B with ``n_forces`` forces at ``spacing_m``: ``HSLM-B:N=10:d=3.5``."""
+    return f"HSLM-B:N={int(n_forces)}:d={spacing_m:g}"
+
+
+def hslm_b_axles(n_forces, spacing_m):
+    """Axle offsets behind the first force (m) and loads (N) of HSLM-B: ``n_forces`` forces of 170 kN
+    at the uniform spacing ``spacing_m`` (EN 1991-2 6.4.6.1.1).
+
+    Returns
+    -------
+    offsets_m, loads_n : ndarray, shape (n_forces,)
+    """
+    offsets = spacing_m * np.arange(int(n_forces), dtype=float)
+    return offsets, np.full(offsets.shape, 1000.0 * HSLM_B_FORCE_KN)
+
+
+def is_hslm_b_name(name):
+    """True for a canonical HSLM-B name (:func:`hslm_b_train_name`)."""
+    return str(name).startswith("HSLM-B:")
+
+
+def regular_spacing_m(name):
+    """The regular spacing of the loads of universal train ``name`` (m): D of HSLM-A, d of HSLM-B. Its
+    resonances lie at ``v = n0 spacing / i``."""
+    if is_hslm_b_name(name):
+        return hslm_b_spec(name)[1]
+    return regular_coach_length_m(name)

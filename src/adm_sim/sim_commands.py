@@ -332,8 +332,9 @@ def add_check_arguments(c):
                         "(EN 1990 A2.4.4.2.4(3)); not checked without it")
     c.add_argument("--mass-bounds", default=None,
                    help="lower,upper bound of the mass per length as fractions of the nominal (write "
-                        "--mass-bounds=-0.1,0.15; EN 1991-2 6.4.6.3.2): the check runs at each, the verdict is "
-                        "the envelope")
+                        "--mass-bounds=-0.1,0.15; EN 1991-2 6.4.6.3.2), or standard:B,RHO[,RHO_MAX] for the "
+                        "standard's bounds from B kg/m of ballast at RHO kg/m3: the check runs at each, the verdict "
+                        "is the envelope")
     c.add_argument("--stiffness-bounds", default=None,
                    help="lower,upper bound of the bending stiffness EJ as fractions of the nominal "
                         "(--stiffness-bounds=-0.1,0; EN 1991-2 6.4.6.3.3)")
