@@ -307,7 +307,8 @@ def add_check_arguments(c):
     c.add_argument("--max-line-speed", type=float, required=True,
                    help=option_help("--max-line-speed", "maximum line speed V; speeds 40 m/s .. 1.2 V are checked"))
     c.add_argument("--trains", default="hslm",
-                   help="comma list: hslm (HSLM-A1..A10), HSLM-Ak, ICE-2, Eurostar, Railjet, ICE-4, .toml files")
+                   help="comma list: hslm (HSLM-A1..A10), HSLM-Ak, HSLM-B:N=<forces>:d=<spacing m> (spans "
+                        "under 7 m; N and d from EN 1991-2 Fig. E.8), ICE-2, Eurostar, Railjet, ICE-4, .toml files")
     c.add_argument("--track", choices=(*ACC_LIMITS_M_S2, *TRACK_ALIASES), default="ballasted",
                    help="deck acceleration limit, EN 1990 A2.4.4.2.1: "
                         + ", ".join(f"{a:g} m/s2 {t}" for t, a in ACC_LIMITS_M_S2.items())
