@@ -94,8 +94,11 @@ def test_defects_closed_form():
     x = np.linspace(0.0, 10.0, 1001)
     p = irr.parse("ramp:at=2:length=4:height=0.01", 10.0)
     r, s = p.evaluate(np.array([1.0, 4.0, 7.0]))
-    np.testing.assert_allclose(r, [0.0, 0.005, 0.01], atol=1e-12)
-    assert s[1] == pytest.approx(0.01 / 4, rel=1e-9)
+    # a rising ramp lifts the wheel: r is the downward displacement, r = -elevation
+    np.testing.assert_allclose(r, [0.0, -0.005, -0.01], atol=1e-12)
+    assert s[1] == pytest.approx(-0.01 / 4, rel=1e-9)
+    rj = irr.parse("joint:at=5:length=2:depth=0.003", 10.0).evaluate(np.array([5.0]))[0]
+    assert rj[0] == pytest.approx(0.003, rel=1e-9)  # a dip lowers it
     j = irr.joint(x, 5.0, 2.0, 0.003)
     assert j.min() == pytest.approx(-0.003, rel=1e-12) and j[0] == 0.0 and j[-1] == 0.0
 
@@ -110,6 +113,7 @@ def test_profile_files(tmp_path):
     a, b = irr.parse(f"file={csvf}", 15.0), irr.parse(f"file={tomlf}", 15.0)
     np.testing.assert_array_equal(a.r_m, b.r_m)
     assert a.evaluate(np.array([-1.0, 16.0]))[0].tolist() == [0.0, 0.0]  # zero off the file
+    np.testing.assert_array_equal(a.r_m, -r)  # elevations up in the file, r = -elevation
 
 
 # ---------------------------------------------------------------------- bad input: one line, key, value, range

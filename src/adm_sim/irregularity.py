@@ -7,8 +7,14 @@ track the wheel follows rail *plus* irregularity; Eq. (9) gains the profile's te
     w_i      = sum_j phi_j(x_i) q_j                  + r(x_i)
     w_dot_i  = sum_j phi_j(x_i) q_dot_j + v (sum_j phi_j'(x_i) q_j + r'(x_i))
 
-(``r`` the elevation of the profile at the wheel, m; ``v r'`` the vertical velocity the profile
-imposes on a wheel moving at speed ``v``). The MLM carries no wheel and is unaffected.
+(``r`` the profile's displacement of the rail top at the wheel, m, positive *downwards* like the
+deck deflection ``w`` (z down, Section 2); ``v r'`` the vertical velocity the profile imposes on a
+wheel moving at speed ``v``). The MLM carries no wheel and is unaffected.
+
+Sign. Inputs are elevations (up): a measured file's ``elevation_m``, a ramp's ``height`` (rising
+by ``height`` m) and a joint's ``depth`` (a dip). They enter as ``r = -elevation``, so a 10 mm ramp
+lifts the wheel by 10 mm (VBI-2D's verification case with the 10 mm ramp, ``tests/test_vehicles.py``).
+A random profile is symmetric in distribution; its ``r`` is the harmonic sum as generated.
 
 Where the profile lives. The model of the paper has a rigid, smooth track off the bridge (a unit
 rests until its first axle enters, :class:`adm_sim.rk4_sides.TrainSide`); here the profile is
@@ -157,7 +163,8 @@ def check_band(spec, band_m):
 # ---------------------------------------------------------------------- profiles
 @dataclass(frozen=True, eq=False)
 class Profile:
-    """An elevation profile ``r(x)`` (m) sampled at increasing positions ``x_m`` (m from the left
+    """A profile ``r(x)`` (m, the rail top's displacement *downwards*, the sign of the deck
+    deflection: ``r = -elevation``) sampled at increasing positions ``x_m`` (m from the left
     support); zero outside ``[x_m[0], x_m[-1]]``. ``description`` names how it was made (a spec
     that rebuilds it)."""
 
@@ -180,7 +187,7 @@ class Profile:
         return f"Profile({self.description or 'samples'}, {self.x_m.size} points, x {self.x_m[0]:g}..{self.x_m[-1]:g} m)"
 
     def evaluate(self, x_m, curvature=False):
-        """``(r, r')`` at positions ``x_m`` (any shape): elevation (m) and slope (-), 0 outside;
+        """``(r, r')`` at positions ``x_m`` (any shape): downward displacement (m) and its slope (-), 0 outside;
         with ``curvature`` also ``r''`` (1/m)."""
         x = np.asarray(x_m, dtype=float)
         inside = (x >= self.x_m[0]) & (x <= self.x_m[-1])
@@ -258,13 +265,15 @@ def random_profile(spec_name, seed, length_m, band_m=DEFAULT_BAND_M, dx_m=None):
 
 
 def ramp(x_m, at_m, length_m, height_m):
-    """A ramp: 0 before ``at_m``, linear to ``height_m`` over ``length_m``, then ``height_m`` (m)."""
+    """A ramp's elevation: 0 before ``at_m``, linear to ``height_m`` over ``length_m``, then
+    ``height_m`` (m, up; it enters a profile as ``r = -ramp``)."""
     x = np.asarray(x_m, dtype=float)
     return height_m * np.clip((x - at_m) / length_m, 0.0, 1.0)
 
 
 def joint(x_m, at_m, length_m, depth_m):
-    """A joint: a cosine dip of depth ``depth_m`` (m) and length ``length_m`` centred at ``at_m``."""
+    """A joint's elevation: a cosine dip of depth ``depth_m`` (m) and length ``length_m`` centred at
+    ``at_m`` (negative: it enters a profile as ``r = -joint``, a downward displacement)."""
     x = np.asarray(x_m, dtype=float)
     u = (x - at_m) / length_m + 0.5
     inside = (u > 0.0) & (u < 1.0)
@@ -273,7 +282,8 @@ def joint(x_m, at_m, length_m, depth_m):
 
 def read_profile(path):
     """A measured profile from a CSV (two columns ``position_m, elevation_m``, a header line
-    allowed) or a TOML file (arrays ``position_m`` and ``elevation_m``)."""
+    allowed) or a TOML file (arrays ``position_m`` and ``elevation_m``); elevations up, the
+    profile's ``r`` is their negative."""
     p = Path(path)
     if not p.is_file():
         raise InputError(f"irregularity: file = {str(path)!r} does not exist; allowed a CSV or TOML profile file")
@@ -307,7 +317,8 @@ def read_profile(path):
                                          f"allowed two numbers position_m, elevation_m") from None
         a = np.asarray(rows, dtype=float).reshape(-1, 2)
         x, r = a[:, 0], a[:, 1]
-    return Profile(x, r, description=f"file={p}")
+    _check_samples(x, r, "profile")  # on the file's own values (elevations)
+    return Profile(x, -r, description=f"file={p}")
 
 
 # ---------------------------------------------------------------------- the spec string
@@ -366,9 +377,9 @@ def parse(text, length_m):
         at = _float_opt(opts, "at", kind, 0.0, None)
         ln = _float_opt(opts, "length", kind, 1e-3, 100.0)
         if kind == "ramp":
-            r = r + ramp(x, at, ln, _float_opt(opts, "height", kind, -0.05, 0.05))
+            r = r - ramp(x, at, ln, _float_opt(opts, "height", kind, -0.05, 0.05))
         else:
-            r = r + joint(x, at, ln, _float_opt(opts, "depth", kind, 0.0, 0.05))
+            r = r - joint(x, at, ln, _float_opt(opts, "depth", kind, 0.0, 0.05))
     return Profile(x, r, description=text)
 
 
