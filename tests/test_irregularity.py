@@ -32,7 +32,31 @@ def test_coefficients_pinned():
         0.25 * 0.0339e-4 * 0.8245**2 / (0.25 * (0.25 + 0.8245**2)), rel=1e-14)
 
 
-@pytest.mark.parametrize("name", ["german-high", "fra-6"])  # the two forms (German low: German high scaled)
+def test_iso8608_coefficients_pinned():
+    """ISO 8608 classes A..H: G_d(n0) the geometric mean of the class limits 2^(3:2:17) 1e-6 m^3
+    (VBI-2D B07_OptionsProcessing.m), i.e. 16, 64, ..., 262144 1e-6 m^3; n0 = 0.1 cycle/m, w = 2;
+    band 0.01..10 cycle/m. S(Omega) = G_d(n) / (2 pi), n = Omega / (2 pi)."""
+    limits = [2.0 ** e for e in range(3, 18, 2)]
+    assert list(irr.ISO_LIMITS_UM3) == limits
+    gd = {"a": 16, "b": 64, "c": 256, "d": 1024, "e": 4096, "f": 16384, "g": 65536, "h": 262144}
+    for i, (c, g) in enumerate(gd.items()):
+        s = irr.SPECTRA[f"iso-{c}"]
+        assert s.a_v == pytest.approx(g * 1e-6, rel=1e-15)
+        if i < 7:
+            assert g == pytest.approx(np.sqrt(limits[i] * limits[i + 1]), rel=1e-15)
+        assert (s.kind, s.n0_cyc_m, s.waviness, s.band_m) == ("iso", 0.1, 2.0, (0.1, 100.0))
+    c = irr.SPECTRA["iso-c"]
+    # at n0 the PSD is G_d(n0) per cycle/m, i.e. G_d(n0) / (2 pi) per rad/m; at 2 n0 a quarter of it
+    assert c.psd(2 * np.pi * 0.1) == pytest.approx(256e-6 / (2 * np.pi), rel=1e-14)
+    assert c.psd(2 * np.pi * 0.2) == pytest.approx(256e-6 / 4 / (2 * np.pi), rel=1e-14)
+    # variance over the band 2..80 m, closed form G_d(n0) n0^2 (1/n1 - 1/n2) = 1.95e-4 m^2, against a
+    # generated profile over one full period (2000 m: its variance is the sum of the harmonics' a^2/2)
+    x = np.arange(0.0, 2000.0, 0.4)
+    var = np.var(irr.harmonic_sum(c, (2.0, 80.0), 1, x, length_m=2000.0))
+    assert var == pytest.approx(256e-6 * 0.01 * (80.0 - 2.0), rel=0.002)  # measured 1.6e-4
+
+
+@pytest.mark.parametrize("name", ["german-high", "fra-6", "iso-c"])  # the three forms (German low: German high scaled)
 def test_generated_psd_matches_target(name):
     """Welch PSD of 5 generated 2 km profiles (seeds 1..5, band 2..80 m), averaged, against
     S(Omega): each of 6 bands of equal log width between 2.5 m and 40 m wavelength within 12 %
@@ -70,8 +94,11 @@ def test_defects_closed_form():
     x = np.linspace(0.0, 10.0, 1001)
     p = irr.parse("ramp:at=2:length=4:height=0.01", 10.0)
     r, s = p.evaluate(np.array([1.0, 4.0, 7.0]))
-    np.testing.assert_allclose(r, [0.0, 0.005, 0.01], atol=1e-12)
-    assert s[1] == pytest.approx(0.01 / 4, rel=1e-9)
+    # a rising ramp lifts the wheel: r is the downward displacement, r = -elevation
+    np.testing.assert_allclose(r, [0.0, -0.005, -0.01], atol=1e-12)
+    assert s[1] == pytest.approx(-0.01 / 4, rel=1e-9)
+    rj = irr.parse("joint:at=5:length=2:depth=0.003", 10.0).evaluate(np.array([5.0]))[0]
+    assert rj[0] == pytest.approx(0.003, rel=1e-9)  # a dip lowers it
     j = irr.joint(x, 5.0, 2.0, 0.003)
     assert j.min() == pytest.approx(-0.003, rel=1e-12) and j[0] == 0.0 and j[-1] == 0.0
 
@@ -86,12 +113,14 @@ def test_profile_files(tmp_path):
     a, b = irr.parse(f"file={csvf}", 15.0), irr.parse(f"file={tomlf}", 15.0)
     np.testing.assert_array_equal(a.r_m, b.r_m)
     assert a.evaluate(np.array([-1.0, 16.0]))[0].tolist() == [0.0, 0.0]  # zero off the file
+    np.testing.assert_array_equal(a.r_m, -r)  # elevations up in the file, r = -elevation
 
 
 # ---------------------------------------------------------------------- bad input: one line, key, value, range
 @pytest.mark.parametrize("spec, match", [
     ("fra-7:seed=1", r"spectrum = 'fra-7' .*allowed german-low, german-high, fra-1"),
-    ("iso-a:seed=1", r"spectrum = 'iso-a'"),
+    ("iso-i:seed=1", r"spectrum = 'iso-i' .*allowed .*iso-a, iso-b, .*iso-h$"),
+    ("iso-c:band=0.05:80", r"band = 0.05:80 m is outside the iso-c spectrum; allowed lo < hi within \[0.1, 100\] m"),
     ("german-high:band=0.2:80", r"band = 0.2:80 m is outside the german-high spectrum; allowed lo < hi within \[0.5, 80\] m"),
     ("fra-6:band=2:400", r"band = 2:400 m .*\[1.524, 304.8\] m"),
     ("german-low:seed=-1", r"seed = '-1' .*allowed an integer >= 0"),
@@ -112,17 +141,18 @@ def test_bad_files(tmp_path):
         irr.parse(f"file={f}", 15.0)
 
 
-def test_cli_bad_input_exit_2(tmp_path, capsys):
+@pytest.mark.parametrize("bad", ["fra-9", "iso-z"])
+def test_cli_bad_input_exit_2(tmp_path, capsys, bad):
     from adm_calib.calib_commands import main
 
     out = tmp_path / "s"
     code = None
     try:
-        code = main(["study", "--out", str(out), "--trains", "ICE-2", "--irregularity", "fra-9:seed=1"])
+        code = main(["study", "--out", str(out), "--trains", "ICE-2", "--irregularity", f"{bad}:seed=1"])
     except SystemExit as exc:
         code = exc.code
     err = capsys.readouterr().err.strip().splitlines()
-    assert code == 2 and len(err) == 1 and err[0].startswith("error: irregularity: spectrum = 'fra-9'")
+    assert code == 2 and len(err) == 1 and err[0].startswith(f"error: irregularity: spectrum = '{bad}'")
     assert not out.exists()
 
 

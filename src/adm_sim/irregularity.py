@@ -7,8 +7,14 @@ track the wheel follows rail *plus* irregularity; Eq. (9) gains the profile's te
     w_i      = sum_j phi_j(x_i) q_j                  + r(x_i)
     w_dot_i  = sum_j phi_j(x_i) q_dot_j + v (sum_j phi_j'(x_i) q_j + r'(x_i))
 
-(``r`` the elevation of the profile at the wheel, m; ``v r'`` the vertical velocity the profile
-imposes on a wheel moving at speed ``v``). The MLM carries no wheel and is unaffected.
+(``r`` the profile's displacement of the rail top at the wheel, m, positive *downwards* like the
+deck deflection ``w`` (z down, Section 2); ``v r'`` the vertical velocity the profile imposes on a
+wheel moving at speed ``v``). The MLM carries no wheel and is unaffected.
+
+Sign. Inputs are elevations (up): a measured file's ``elevation_m``, a ramp's ``height`` (rising
+by ``height`` m) and a joint's ``depth`` (a dip). They enter as ``r = -elevation``, so a 10 mm ramp
+lifts the wheel by 10 mm (VBI-2D's verification case with the 10 mm ramp, ``tests/test_vehicles.py``).
+A random profile is symmetric in distribution; its ``r`` is the harmonic sum as generated.
 
 Where the profile lives. The model of the paper has a rigid, smooth track off the bridge (a unit
 rests until its first axle enters, :class:`adm_sim.rk4_sides.TrainSide`); here the profile is
@@ -23,7 +29,10 @@ rad/m, variance ``int_0^inf S dOmega``):
 * German low / high disturbance (vertical profile, the spectra of the train-track-bridge
   literature): ``S = A_v Omega_c^2 / ((Omega^2 + Omega_r^2)(Omega^2 + Omega_c^2))``;
 * FRA classes 1..6 (US Federal Railroad Administration, vertical profile):
-  ``S = k A_v Omega_c^2 / (Omega^2 (Omega^2 + Omega_c^2))``, ``k = 0.25``.
+  ``S = k A_v Omega_c^2 / (Omega^2 (Omega^2 + Omega_c^2))``, ``k = 0.25``;
+* ISO 8608 classes A..H (road surface profiles, the form VBI codes use for a rough deck surface):
+  ``G_d(n) = G_d(n0) (n / n0)^-w`` in m^3 (m^2/(cycle/m)), ``n0 = 0.1`` cycle/m, waviness
+  ``w = 2``; here ``S(Omega) = G_d(Omega / 2 pi) / (2 pi)`` (same variance).
 
 The coefficients are in :data:`SPECTRA` (one table, easy to swap) with their sources; see
 ``docs/irregularities.md`` for the item-by-item comparison of two independent public
@@ -60,8 +69,10 @@ class Spectrum:
 
     ``kind`` ``"german"``: ``A_v Omega_c^2 / ((Omega^2 + Omega_r^2)(Omega^2 + Omega_c^2))``;
     ``"fra"``: ``k A_v Omega_c^2 / (Omega^2 (Omega^2 + Omega_c^2))``. ``A_v`` in m^2 rad/m (m rad
-    for the German form, whose S is m^2/(rad/m) as well), ``Omega`` in rad/m. ``band_m`` the
-    wavelength range (m) the standard defines the spectrum over.
+    for the German form, whose S is m^2/(rad/m) as well), ``Omega`` in rad/m. ``"iso"`` (ISO 8608):
+    ``G_d(n0) (n / n0)^-w / (2 pi)`` with ``n = Omega / 2 pi``, ``a_v = G_d(n0)`` in m^3,
+    ``n0_cyc_m`` in cycle/m, ``waviness`` ``w``. ``band_m`` the wavelength range (m) the standard
+    defines the spectrum over.
     """
 
     name: str
@@ -72,6 +83,8 @@ class Spectrum:
     k: float = 1.0
     band_m: tuple = (1.0, 80.0)
     source: str = ""
+    n0_cyc_m: float = 0.1
+    waviness: float = 2.0
 
     def psd(self, omega):
         """One-sided PSD (m^2/(rad/m)) at spatial angular frequency ``omega`` (rad/m)."""
@@ -79,6 +92,9 @@ class Spectrum:
         oc2 = self.omega_c ** 2
         if self.kind == "german":
             return self.a_v * oc2 / ((w2 + self.omega_r ** 2) * (w2 + oc2))
+        if self.kind == "iso":
+            n = np.sqrt(w2) / (2.0 * np.pi)
+            return self.a_v * (n / self.n0_cyc_m) ** (-self.waviness) / (2.0 * np.pi)
         return self.k * self.a_v * oc2 / (w2 * (w2 + oc2))
 
 
@@ -89,8 +105,20 @@ _FRA_SRC = ("FRA track classes (vertical profile), k = 0.25, A_v in cm^2 rad/m c
             "(Fryba, Dynamics of Railway Bridges, 1996; Berawi, PhD thesis, Porto; as in TTB-2D, "
             "github.com/DanielCanteroNTNU/TTB-2D A04_Options.m, Cantero, SoftwareX 20 (2022) 101253)")
 
+_ISO_SRC = ("ISO 8608 (Mechanical vibration - Road surface profiles - Reporting of measured data), classes A..H "
+            "by G_d(n0) at n0 = 0.1 cycle/m, w = 2: the geometric mean of each class's limits; limits "
+            "2^(3:2:17) 1e-6 m^3 as in VBI-2D, github.com/DanielCanteroNTNU/VBI-2D "
+            "Functions/B07_OptionsProcessing.m and B21_ISO_Profile.m, D. Cantero, NTNU); band "
+            "0.01..10 cycle/m, the standard's notes on the lower and upper spatial-frequency limits for on-road use")
+
 #: FRA A_v per class, cm^2 rad/m (class 1 poorest .. class 6 best).
 FRA_AV_CM2 = {1: 1.2107, 2: 1.0181, 3: 0.6816, 4: 0.5376, 5: 0.2095, 6: 0.0339}
+
+#: ISO 8608 class limits of G_d(n0), 1e-6 m^3: lower limit of A, A/B, ..., G/H (H has no upper limit;
+#: its geometric mean continues the factor 4 of the others).
+ISO_LIMITS_UM3 = (8.0, 32.0, 128.0, 512.0, 2048.0, 8192.0, 32768.0, 131072.0)
+#: ISO 8608 G_d(n0) per class, 1e-6 m^3 (geometric mean of the class limits: 16, 64, ..., 262144).
+ISO_GD_UM3 = {c: 16.0 * 4.0 ** i for i, c in enumerate("abcdefgh")}
 
 #: Every spectrum by name: the one place the coefficients live.
 SPECTRA = {
@@ -100,6 +128,8 @@ SPECTRA = {
                             band_m=(0.5, 80.0), source=_GERMAN_SRC),
     **{f"fra-{c}": Spectrum(f"fra-{c}", "fra", a_v=av * 1e-4, omega_c=0.8245, k=0.25,
                             band_m=(1.524, 304.8), source=_FRA_SRC) for c, av in FRA_AV_CM2.items()},
+    **{f"iso-{c}": Spectrum(f"iso-{c}", "iso", a_v=gd * 1e-6, omega_c=0.0, band_m=(0.1, 100.0),
+                            source=_ISO_SRC, n0_cyc_m=0.1, waviness=2.0) for c, gd in ISO_GD_UM3.items()},
 }
 
 #: Default wavelength band of a generated profile (m): within every spectrum's own band; the
@@ -112,7 +142,8 @@ def _err(key, value, allowed):
 
 
 def spectrum(name):
-    """The :class:`Spectrum` called ``name`` (``german-low``, ``german-high``, ``fra-1`` .. ``fra-6``)."""
+    """The :class:`Spectrum` called ``name`` (``german-low``, ``german-high``, ``fra-1`` .. ``fra-6``,
+    ``iso-a`` .. ``iso-h``)."""
     s = SPECTRA.get(str(name).strip().lower())
     if s is None:
         raise _err("spectrum", name, ", ".join(SPECTRA))
@@ -132,7 +163,8 @@ def check_band(spec, band_m):
 # ---------------------------------------------------------------------- profiles
 @dataclass(frozen=True, eq=False)
 class Profile:
-    """An elevation profile ``r(x)`` (m) sampled at increasing positions ``x_m`` (m from the left
+    """A profile ``r(x)`` (m, the rail top's displacement *downwards*, the sign of the deck
+    deflection: ``r = -elevation``) sampled at increasing positions ``x_m`` (m from the left
     support); zero outside ``[x_m[0], x_m[-1]]``. ``description`` names how it was made (a spec
     that rebuilds it)."""
 
@@ -155,7 +187,7 @@ class Profile:
         return f"Profile({self.description or 'samples'}, {self.x_m.size} points, x {self.x_m[0]:g}..{self.x_m[-1]:g} m)"
 
     def evaluate(self, x_m, curvature=False):
-        """``(r, r')`` at positions ``x_m`` (any shape): elevation (m) and slope (-), 0 outside;
+        """``(r, r')`` at positions ``x_m`` (any shape): downward displacement (m) and its slope (-), 0 outside;
         with ``curvature`` also ``r''`` (1/m)."""
         x = np.asarray(x_m, dtype=float)
         inside = (x >= self.x_m[0]) & (x <= self.x_m[-1])
@@ -233,13 +265,15 @@ def random_profile(spec_name, seed, length_m, band_m=DEFAULT_BAND_M, dx_m=None):
 
 
 def ramp(x_m, at_m, length_m, height_m):
-    """A ramp: 0 before ``at_m``, linear to ``height_m`` over ``length_m``, then ``height_m`` (m)."""
+    """A ramp's elevation: 0 before ``at_m``, linear to ``height_m`` over ``length_m``, then
+    ``height_m`` (m, up; it enters a profile as ``r = -ramp``)."""
     x = np.asarray(x_m, dtype=float)
     return height_m * np.clip((x - at_m) / length_m, 0.0, 1.0)
 
 
 def joint(x_m, at_m, length_m, depth_m):
-    """A joint: a cosine dip of depth ``depth_m`` (m) and length ``length_m`` centred at ``at_m``."""
+    """A joint's elevation: a cosine dip of depth ``depth_m`` (m) and length ``length_m`` centred at
+    ``at_m`` (negative: it enters a profile as ``r = -joint``, a downward displacement)."""
     x = np.asarray(x_m, dtype=float)
     u = (x - at_m) / length_m + 0.5
     inside = (u > 0.0) & (u < 1.0)
@@ -248,7 +282,8 @@ def joint(x_m, at_m, length_m, depth_m):
 
 def read_profile(path):
     """A measured profile from a CSV (two columns ``position_m, elevation_m``, a header line
-    allowed) or a TOML file (arrays ``position_m`` and ``elevation_m``)."""
+    allowed) or a TOML file (arrays ``position_m`` and ``elevation_m``); elevations up, the
+    profile's ``r`` is their negative."""
     p = Path(path)
     if not p.is_file():
         raise InputError(f"irregularity: file = {str(path)!r} does not exist; allowed a CSV or TOML profile file")
@@ -282,7 +317,8 @@ def read_profile(path):
                                          f"allowed two numbers position_m, elevation_m") from None
         a = np.asarray(rows, dtype=float).reshape(-1, 2)
         x, r = a[:, 0], a[:, 1]
-    return Profile(x, r, description=f"file={p}")
+    _check_samples(x, r, "profile")  # on the file's own values (elevations)
+    return Profile(x, -r, description=f"file={p}")
 
 
 # ---------------------------------------------------------------------- the spec string
@@ -291,7 +327,7 @@ def parse(text, length_m):
 
     Parts joined by ``+`` add up:
 
-    * ``german-low|german-high|fra-1..fra-6[:seed=N][:band=LO:HI]`` a random profile (seed 0,
+    * ``german-low|german-high|fra-1..fra-6|iso-a..iso-h[:seed=N][:band=LO:HI]`` a random profile (seed 0,
       band :data:`DEFAULT_BAND_M` by default);
     * ``file=PATH`` a measured profile (CSV or TOML);
     * ``ramp:at=X:length=L:height=H`` and ``joint:at=X:length=L:depth=D`` discrete defects (m).
@@ -341,9 +377,9 @@ def parse(text, length_m):
         at = _float_opt(opts, "at", kind, 0.0, None)
         ln = _float_opt(opts, "length", kind, 1e-3, 100.0)
         if kind == "ramp":
-            r = r + ramp(x, at, ln, _float_opt(opts, "height", kind, -0.05, 0.05))
+            r = r - ramp(x, at, ln, _float_opt(opts, "height", kind, -0.05, 0.05))
         else:
-            r = r + joint(x, at, ln, _float_opt(opts, "depth", kind, 0.0, 0.05))
+            r = r - joint(x, at, ln, _float_opt(opts, "depth", kind, 0.0, 0.05))
     return Profile(x, r, description=text)
 
 
