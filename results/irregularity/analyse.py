@@ -9,6 +9,7 @@ row per bridge, train, spectrum and seed).
 """
 
 import csv
+import re
 import sys
 from pathlib import Path
 
@@ -22,6 +23,10 @@ sys.path.insert(0, str(HERE))
 from run_slice import SPECTRA, slice_cases  # noqa: E402
 
 SMOOTH = HERE.parent / "study" / "results.jsonl.gz"
+MU2_SEEDS = (1, 2)  # seeds run over the whole mu2 set (run_mu2_seed1.sh, run_mu2_seed2.sh)
+SPAN_GROUPS_M = ((4.0, 12.0), (13.0, 24.0), (25.0, 40.0))
+TOP_CASES = 5
+SEED_HEADING = "## Seed 2 against seed 1 over the whole mu2 set"
 
 
 def dz(rec):
@@ -99,25 +104,27 @@ def main():
         out.append(f"| {b} | {t} | {c.bridge.n0_hz:.2f} | {'-' if s is None else f'{s:.2f}'} | {lbp:.2f} | {lbc:.2f} | "
                    + " | ".join(cells) + " |")
     out += extension(paper, cons)
+    out += seed_comparison(paper, cons)
+    out += seeds_needed(rows)
     (HERE / "summary.md").write_text("\n".join(out) + "\n")
-    print("\n".join(out[:8] + out[-8:]))
+    print("\n".join(out[:8] + out[out.index(SEED_HEADING):]))
 
 
 def extension(paper, cons):
-    """Seed 1 over the whole mu2 set (185 bridges x 2 trains), per spectrum whose run is complete."""
+    """Seeds 1 and 2 over the whole mu2 set (185 bridges x 2 trains), per spectrum whose run is complete."""
     keys = {(c.bridge.name, c.train) for c in select_cases(trains=("ICE-2", "Railjet"), mass_functions=("mu2",))}
     smooth = {(r["bridge"], r["train"]): r for r in read_results(SMOOTH).records if (r["bridge"], r["train"]) in keys}
-    out = ["", f"Seed 1 over the whole mu2 set ({len(keys)} cases: 185 bridges x ICE-2, Railjet); counts over the cases "
+    out = ["", f"Seeds 1 and 2 over the whole mu2 set ({len(keys)} cases: 185 bridges x ICE-2, Railjet); counts over the cases "
            "with a Δζ_VBI on both tracks:", "",
            "| track | cases with Δζ_VBI on both (not bracketed rough) | shift rough - smooth, median [5 %, 95 %] (% points) "
            "| lower than smooth | Δζ_VBI < 0 rough / smooth | below the paper's bound rough / smooth "
            "| below the conservative bound rough / smooth |",
            "|---|---|---|---|---|---|---|"]
-    for spec in SPECTRA:
-        f = HERE / "runs" / f"{spec}-s1" / "results.jsonl"
+    for seed, spec in ((seed, spec) for seed in MU2_SEEDS for spec in SPECTRA):
+        f = HERE / "runs" / f"{spec}-s{seed}" / "results.jsonl"
         recs = [r for r in read_results(f).records if (r["bridge"], r["train"]) in keys]
         if len(recs) < len(keys):
-            out.append(f"| {spec} seed 1 | {len(recs)} of {len(keys)} finished | | | | | |")
+            out.append(f"| {spec} seed {seed} | {len(recs)} of {len(keys)} finished | | | | | |")
             continue
         ok = [(r, smooth[(r["bridge"], r["train"])]) for r in recs
               if dz(r) is not None and dz(smooth[(r["bridge"], r["train"])]) is not None]
@@ -127,11 +134,157 @@ def extension(paper, cons):
             return dz(rec) < float(table[rec["train"]]["mu2"].value_pct(rec["n0_hz"]))
 
         q = np.percentile(sh, [50, 5, 95])
-        out.append(f"| {spec} seed 1 | {len(ok)} ({sum(dz(r) is None for r in recs)}) | "
+        out.append(f"| {spec} seed {seed} | {len(ok)} ({sum(dz(r) is None for r in recs)}) | "
                    f"{q[0]:+.3f} [{q[1]:+.3f}, {q[2]:+.3f}] | {int(np.sum(sh < 0))} | "
                    f"{sum(dz(r) < 0 for r, _ in ok)} / {sum(dz(s) < 0 for _, s in ok)} | "
                    f"{sum(below(r, paper) for r, _ in ok)} / {sum(below(s, paper) for _, s in ok)} | "
                    f"{sum(below(r, cons) for r, _ in ok)} / {sum(below(s, cons) for _, s in ok)} |")
+    return out
+
+
+def run_log_times(log):
+    """Per spectrum (submitted cases, study seconds) and the wall time start..last done (s) of a run_mu2_*.sh log."""
+    per, stamps = {}, []
+    spec = None
+    for line in log.read_text().splitlines():
+        m = re.match(r"== (\d\d):(\d\d):(\d\d) (\S+) seed \d+: (start|done)", line)
+        if m:
+            h, mi, se = (int(x) for x in m.group(1, 2, 3))
+            stamps.append(h * 3600 + mi * 60 + se)
+            spec = m.group(4)
+            continue
+        m = re.match(r"study: (\d+) of (\d+) submitted cases finished in ([0-9.]+) s", line)
+        if m and spec:
+            per[spec] = (int(m.group(1)), float(m.group(3)))
+    wall = (stamps[-1] - stamps[0]) % 86400 if len(stamps) > 1 else None
+    return per, wall
+
+
+def at_window_edge(rec):
+    """True when the DIM peak speed is a bound of the association window ('... window [a, b] km/h')."""
+    m = re.search(r"window \[([0-9.]+), ([0-9.]+)\] km/h", rec.get("association_rule") or "")
+    v = (rec.get("dim_peak") or {}).get("speed_kmh")
+    return bool(m and v is not None and v in (float(m.group(1)), float(m.group(2))))
+
+
+def seed_comparison(paper, cons):
+    """Seed 2 against seed 1 per case over the whole mu2 set; writes seeds_mu2.csv (one row per case and spectrum)."""
+    cases = {(c.bridge.name, c.train): c for c in select_cases(trains=("ICE-2", "Railjet"), mass_functions=("mu2",))}
+    smooth = {(r["bridge"], r["train"]): r for r in read_results(SMOOTH).records if (r["bridge"], r["train"]) in cases}
+    out = ["", SEED_HEADING, "",
+           f"Per case ({len(cases)}: 185 bridges x ICE-2, Railjet), d = Δζ_VBI(seed 2) - Δζ_VBI(seed 1) on the same "
+           "spectrum, over the cases with a Δζ_VBI in both seeds (% points):", "",
+           "| spectrum | cases in both seeds (finished seed 2) | median abs(d) [5 %, 95 %] | max abs(d) | median d "
+           "| abs(d) > 0.25 / > 0.5 | correlation seed 1 vs seed 2 of the shift rough - smooth "
+           "| median abs(d) by span " + ", ".join(f"{a:.0f}..{b:.0f} m" for a, b in SPAN_GROUPS_M)
+           + " | median abs(d) ICE-2 / Railjet |",
+           "|---|---|---|---|---|---|---|---|---|"]
+    bounds = ["", "Below the smooth-track bounds per seed and over both seeds (a case whose rough-track DIM is not "
+              "bracketed counts as below; 'either' = the lower of the two seeds is below, the design value a "
+              "two-realisation minimum would give; smooth = the shipped study on the same cases):", "",
+              "| spectrum | bound | smooth | seed 1 | seed 2 | either seed | both seeds | below in one seed only |",
+              "|---|---|---|---|---|---|---|---|"]
+    csv_rows, stats = [], {}
+    tops = ["", f"The {TOP_CASES} cases with the largest abs(d) per spectrum, Δζ_VBI smooth / seed 1 / seed 2 (%):", ""]
+    for spec in SPECTRA:
+        by_seed = {}
+        for seed in MU2_SEEDS:
+            f = HERE / "runs" / f"{spec}-s{seed}" / "results.jsonl"
+            by_seed[seed] = {(r["bridge"], r["train"]): r for r in read_results(f).records
+                             if (r["bridge"], r["train"]) in cases}
+        both = [k for k in cases if all(k in by_seed[s] for s in MU2_SEEDS)]
+        for k in both:
+            r1, r2, c = by_seed[1][k], by_seed[2][k], cases[k]
+            n0 = c.bridge.n0_hz
+            csv_rows.append({"spectrum": spec, "bridge": k[0], "train": k[1], "span_m": c.span_m, "n0_hz": n0,
+                             "dz_smooth_pct": dz(smooth[k]), "dz_seed1_pct": dz(r1), "dz_seed2_pct": dz(r2),
+                             "status_seed1": r1["status"], "status_seed2": r2["status"],
+                             "lb_paper_pct": float(paper[k[1]]["mu2"].value_pct(n0)),
+                             "lb_conservative_pct": float(cons[k[1]]["mu2"].value_pct(n0))})
+        ok = [k for k in both if dz(by_seed[1][k]) is not None and dz(by_seed[2][k]) is not None]
+        if not ok:
+            out.append(f"| {spec} | 0 ({len(by_seed[2])} of {len(cases)}) | | | | | | | |")
+            continue
+        d = np.array([dz(by_seed[2][k]) - dz(by_seed[1][k]) for k in ok])
+        a = np.abs(d)
+        sm_ok = [k for k in ok if dz(smooth[k]) is not None]
+        sh1 = np.array([dz(by_seed[1][k]) - dz(smooth[k]) for k in sm_ok])
+        sh2 = np.array([dz(by_seed[2][k]) - dz(smooth[k]) for k in sm_ok])
+        rho = float(np.corrcoef(sh1, sh2)[0, 1])
+        q = np.percentile(a, [50, 5, 95])
+        spans = np.array([cases[k].span_m for k in ok])
+        trains = np.array([k[1] for k in ok])
+        by_span = [np.median(a[(spans >= lo) & (spans <= hi)]) for lo, hi in SPAN_GROUPS_M]
+        out.append(f"| {spec} | {len(ok)} ({len(by_seed[2])} of {len(cases)}) | {q[0]:.3f} [{q[1]:.3f}, {q[2]:.3f}] | "
+                   f"{a.max():.3f} | {np.median(d):+.3f} | {int(np.sum(a > 0.25))} / {int(np.sum(a > 0.5))} | "
+                   f"{rho:.2f} | " + " / ".join(f"{v:.3f}" for v in by_span) + " | "
+                   f"{np.median(a[trains == 'ICE-2']):.3f} / {np.median(a[trains == 'Railjet']):.3f} |")
+        stats[spec] = {"n": len(ok), "median": q[0], "p95": q[2], "max": a.max()}
+        top = sorted(range(len(ok)), key=lambda i: -a[i])[:TOP_CASES]
+        tops.append(f"* {spec}: " + "; ".join(
+            f"{ok[i][0]} x {ok[i][1]} {dz(smooth[ok[i]]):+.2f} / {dz(by_seed[1][ok[i]]):+.2f} / {dz(by_seed[2][ok[i]]):+.2f}"
+            + "".join(f" (seed {sd}: DIM peak at the edge of its association window)" for sd in MU2_SEEDS
+                      if at_window_edge(by_seed[sd][ok[i]]))
+            for i in top)
+            + "; DIM peak at the edge of its association window in "
+            + ", ".join(f"{sum(at_window_edge(by_seed[sd][k]) for k in ok)} (seed {sd})" for sd in MU2_SEEDS)
+            + f" of the {len(ok)} cases")
+
+        def below(rec, k, table):
+            v = dz(rec)
+            return v is None or v < float(table[k[1]]["mu2"].value_pct(cases[k].bridge.n0_hz))
+
+        for name, table in (("paper", paper), ("conservative", cons)):
+            b1 = {k for k in both if below(by_seed[1][k], k, table)}
+            b2 = {k for k in both if below(by_seed[2][k], k, table)}
+            bs = sum(dz(smooth[k]) is not None and below(smooth[k], k, table) for k in both)
+            bounds.append(f"| {spec} ({len(both)} cases) | {name} | {bs} | {len(b1)} | {len(b2)} | {len(b1 | b2)} "
+                          f"({100 * len(b1 | b2) / len(both):.0f} %) | {len(b1 & b2)} | {len(b1 ^ b2)} |")
+            stats[spec][name] = (len(b1), len(b2), len(b1 | b2), bs, len(both))
+    if csv_rows:
+        with open(HERE / "seeds_mu2.csv", "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=list(csv_rows[0]))
+            w.writeheader()
+            w.writerows(csv_rows)
+    out += bounds + (tops if len(tops) > 3 else [])
+    log = HERE / "run_mu2_seed2.log"
+    per, wall = run_log_times(log) if log.exists() else ({}, None)
+    if per:
+        out += ["", "Seed 2 run (`run_mu2_seed2.sh`, one worker process, `run_mu2_seed2.log`): "
+                + "; ".join(f"{spec} {n} cases in {t:.0f} s ({t / n:.2f} s per case)" for spec, (n, t) in per.items())
+                + (f"; wall time start to last done {wall // 60:.0f} min {wall % 60:.0f} s" if wall is not None else "")
+                + "."]
+    if stats:
+        lines = []
+        for spec, st in stats.items():
+            txt = (f"{spec}: seed 2 moves Δζ_VBI of a case by a median {st['median']:.2f} % points "
+                   f"(95 % quantile {st['p95']:.2f}, max {st['max']:.2f}; {st['n']} cases)")
+            if "conservative" in st:
+                c1, c2, ce, cs, n = st["conservative"]
+                txt += (f"; below the conservative bound: seed 1 {c1}, seed 2 {c2}, either seed {ce} of {n} "
+                        f"(smooth {cs})")
+            lines.append(txt + ".")
+        out += [""] + [f"* {t}" for t in lines]
+    return out
+
+
+def seeds_needed(rows):
+    """Slice (60 cases, seeds 1..5): cases below each bound in at least one of the first k seeds, k = 1..5."""
+    out = ["", "Slice (60 cases, 5 seeds): cases below the bound in at least one of the first k seeds (not bracketed "
+           "counts as below), i.e. how the count under a k-realisation minimum grows with k:", "",
+           "| spectrum | bound | " + " | ".join(f"k = {k}" for k in range(1, 6)) + " |", "|---|---|" + "---|" * 5]
+    for spec in SPECTRA:
+        rs = [r for r in rows if r["spectrum"] == spec]
+        for name, col in (("paper", "lb_paper_pct"), ("conservative", "lb_conservative_pct")):
+            cells = []
+            for k in range(1, 6):
+                sel = [r for r in rs if r["seed"] <= k]
+                if len({r["seed"] for r in sel}) < k:
+                    cells.append("-")
+                    continue
+                cells.append(str(len({(r["bridge"], r["train"]) for r in sel
+                                      if r["dz_rough_pct"] is None or r["dz_rough_pct"] < r[col]})))
+            out.append(f"| {spec} | {name} | " + " | ".join(cells) + " |")
     return out
 
 
