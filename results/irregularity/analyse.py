@@ -11,6 +11,7 @@ row per bridge, train, spectrum and seed).
 import csv
 import re
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -143,7 +144,8 @@ def extension(paper, cons):
 
 
 def run_log_times(log):
-    """Per spectrum (submitted cases, study seconds) and the wall time start..last done (s) of a run_mu2_*.sh log."""
+    """Per spectrum (submitted cases, study seconds), the wall time start..last done (s) and those two
+    clock times of a run_mu2_*.sh log."""
     per, stamps = {}, []
     spec = None
     for line in log.read_text().splitlines():
@@ -157,7 +159,8 @@ def run_log_times(log):
         if m and spec:
             per[spec] = (int(m.group(1)), float(m.group(3)))
     wall = (stamps[-1] - stamps[0]) % 86400 if len(stamps) > 1 else None
-    return per, wall
+    span = tuple(time.strftime("%H:%M:%S", time.gmtime(t)) for t in (stamps[0], stamps[-1])) if stamps else None
+    return per, wall, span
 
 
 def at_window_edge(rec):
@@ -248,12 +251,19 @@ def seed_comparison(paper, cons):
             w.writerows(csv_rows)
     out += bounds + (tops if len(tops) > 3 else [])
     log = HERE / "run_mu2_seed2.log"
-    per, wall = run_log_times(log) if log.exists() else ({}, None)
+    per, wall, span = run_log_times(log) if log.exists() else ({}, None, None)
     if per:
         out += ["", "Seed 2 run (`run_mu2_seed2.sh`, one worker process, `run_mu2_seed2.log`): "
                 + "; ".join(f"{spec} {n} cases in {t:.0f} s ({t / n:.2f} s per case)" for spec, (n, t) in per.items())
-                + (f"; wall time start to last done {wall // 60:.0f} min {wall % 60:.0f} s" if wall is not None else "")
+                + (f"; wall time start to last done {wall // 60:.0f} min {wall % 60:.0f} s ({span[0]} to {span[1]} UTC)"
+                   if wall is not None else "")
                 + "."]
+    if csv_rows:
+        lbs = {name: np.array([r[col] for r in csv_rows if r["spectrum"] == SPECTRA[0]])
+               for name, col in (("paper", "lb_paper_pct"), ("conservative", "lb_conservative_pct"))}
+        out += ["", "The bounds at these cases' n0 (% points): " + "; ".join(
+            f"{name} median {np.median(v):.2f}, max {v.max():.2f}, zero in {int(np.sum(v == 0))} of {len(v)}"
+            for name, v in lbs.items()) + "."]
     if stats:
         lines = []
         for spec, st in stats.items():
