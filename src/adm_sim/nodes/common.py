@@ -357,6 +357,10 @@ class NodeBase(ParamNodeMixin, Node):
     exchange = None
     finished = False
 
+    def make_executor(self):
+        """The executor :func:`run_node` spins the node with: a ``SingleThreadedExecutor``."""
+        return SingleThreadedExecutor(context=self.context)
+
     def begin(self):
         """Called once before the main loop (a driver starts its job here)."""
 
@@ -508,7 +512,7 @@ def _run_node(make_node, args, name):
     code = 0
     try:
         node = make_node()
-        executor = SingleThreadedExecutor()
+        executor = node.make_executor()
         executor.add_node(node)
         node.begin()
         lane = node.exchange
