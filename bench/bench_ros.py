@@ -98,7 +98,7 @@ def _main_job(root=ROOT):
     for line in p.stdout:
         m = RUN_LINE.match(line)
         if m:
-            runs.append((time.perf_counter() - t0, float(m.group(3))))
+            runs.append((time.perf_counter() - t0, float(m.group(3)), m.group(2).split()[0]))
     err = p.stderr.read()
     p.wait()
     wall = time.perf_counter() - t0
@@ -106,11 +106,12 @@ def _main_job(root=ROOT):
     if p.returncode != 0 or not runs:
         raise SystemExit(f"error: main job failed (exit status {p.returncode}): {err.strip()[-400:]}")
     summary = json.loads((out / "summary.json").read_text())
-    runs_s = sum(w for _, w in runs)
+    runs_s = sum(r[1] for r in runs)
     start_s = runs[0][0] - runs[0][1]
     stop_s = wall - runs[-1][0]
     return {"wall_s": wall, "start_s": start_s, "runs_s": runs_s, "gaps_s": wall - start_s - stop_s - runs_s,
             "stop_s": stop_s, "n_runs": len(runs), "dz_vbi_pct": summary["delta_zeta_vbi_pct"],
+            "dim_runs_s": sum(r[1] for r in runs if r[2] == "DIM"), "mlm_runs_s": sum(r[1] for r in runs if r[2] == "MLM"),
             **{f"cpu_{name}_s": v for name, v in sorted(cpu.items())}}
 
 
@@ -235,7 +236,7 @@ def _bench(args):
         figures.update({f"main_{k}": v for k, v in mj.items()})
         print(f"\nmain job (calibrate.py B1 x ICE-2, MCAP + .rrd): {mj['wall_s']:.1f} s wall"
               f"{f' with {args.hogs} busy processes' if args.hogs else ''}: start-up {mj['start_s']:.1f} s, "
-              f"{mj['n_runs']} runs {mj['runs_s']:.1f} s, between runs {mj['gaps_s']:.1f} s, stop {mj['stop_s']:.1f} s; "
+              f"{mj['n_runs']} runs {mj['runs_s']:.1f} s (DIM {mj['dim_runs_s']:.1f} s, MLM {mj['mlm_runs_s']:.1f} s), between runs {mj['gaps_s']:.1f} s, stop {mj['stop_s']:.1f} s; "
               f"dz_VBI {mj['dz_vbi_pct']:.7f} %")
         print("main job CPU (user + system): " + ", ".join(f"{k[4:-2]} {v:.1f} s" for k, v in mj.items()
                                                            if k.startswith("cpu_")))
