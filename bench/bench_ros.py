@@ -12,7 +12,8 @@ The co-simulated maxima are checked against the in-process ones (1e-9 relative).
 also times the main job (``launch_scripts/calibrate.py``, B1 x ICE-2, MCAP and ``.rrd`` recorded
 under flow control) from start to exit, and splits it: start-up (process start to the end of the
 first run, less that run), the runs, the gaps between runs, the stop (end of the last run to
-exit); ``--hogs N`` runs everything while N busy processes hog the cores (killed at the end).
+exit), and the CPU time of each of its processes (launcher, bridge, train and calibration node;
+read from /proc, less sensitive to the load of the machine than the wall times); ``--hogs N`` runs everything while N busy processes hog the cores (killed at the end).
 
 ``--baseline TREE`` measures this tree and another checkout (e.g. ``git archive <commit>``
 unpacked, its numba cache warmed) alternately, ``--rounds`` times each, every measurement in a
@@ -28,6 +29,7 @@ import os
 import re
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -84,21 +86,54 @@ def _main_job(root=ROOT):
     p = subprocess.Popen([sys.executable, str(Path(root) / "launch_scripts" / "calibrate.py"), "--out", str(out),
                           "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=root, env=env)
     runs = []  # (time the line came, run wall)
+    cpu = {}  # process -> CPU seconds (user + system), sampled while it lives
+    stop = threading.Event()
+
+    def sample():
+        while not stop.is_set():
+            cpu.update(_tree_cpu_s(p.pid))
+            stop.wait(0.25)
+
+    threading.Thread(target=sample, daemon=True).start()
     for line in p.stdout:
         m = RUN_LINE.match(line)
         if m:
-            runs.append((time.perf_counter() - t0, float(m.group(3))))
+            runs.append((time.perf_counter() - t0, float(m.group(3)), m.group(2).split()[0]))
     err = p.stderr.read()
     p.wait()
     wall = time.perf_counter() - t0
+    stop.set()
     if p.returncode != 0 or not runs:
         raise SystemExit(f"error: main job failed (exit status {p.returncode}): {err.strip()[-400:]}")
     summary = json.loads((out / "summary.json").read_text())
-    runs_s = sum(w for _, w in runs)
+    runs_s = sum(r[1] for r in runs)
     start_s = runs[0][0] - runs[0][1]
     stop_s = wall - runs[-1][0]
     return {"wall_s": wall, "start_s": start_s, "runs_s": runs_s, "gaps_s": wall - start_s - stop_s - runs_s,
-            "stop_s": stop_s, "n_runs": len(runs), "dz_vbi_pct": summary["delta_zeta_vbi_pct"]}
+            "stop_s": stop_s, "n_runs": len(runs), "dz_vbi_pct": summary["delta_zeta_vbi_pct"],
+            "dim_runs_s": sum(r[1] for r in runs if r[2] == "DIM"), "mlm_runs_s": sum(r[1] for r in runs if r[2] == "MLM"),
+            **{f"cpu_{name}_s": v for name, v in sorted(cpu.items())}}
+
+
+def _tree_cpu_s(pid):
+    """CPU seconds (user + system) of process ``pid`` and its children, by name (``launcher`` or
+    the node module's last part, e.g. ``calibration_node``), from /proc; what cannot be read is left out."""
+    tck = os.sysconf("SC_CLK_TCK")
+    try:
+        kids = [int(x) for x in Path(f"/proc/{pid}/task/{pid}/children").read_text().split()]
+    except OSError:
+        kids = []
+    out = {}
+    for q in [pid, *kids]:
+        try:
+            cmd = Path(f"/proc/{q}/cmdline").read_text().split("\0")
+            f = Path(f"/proc/{q}/stat").read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        name = next((a.rsplit(".", 1)[-1] for a in cmd if ".nodes." in a), "launcher" if q == pid else None)
+        if name:
+            out[name] = (int(f[11]) + int(f[12])) / tck
+    return out
 
 
 def _compare(args, argv):
@@ -201,8 +236,10 @@ def _bench(args):
         figures.update({f"main_{k}": v for k, v in mj.items()})
         print(f"\nmain job (calibrate.py B1 x ICE-2, MCAP + .rrd): {mj['wall_s']:.1f} s wall"
               f"{f' with {args.hogs} busy processes' if args.hogs else ''}: start-up {mj['start_s']:.1f} s, "
-              f"{mj['n_runs']} runs {mj['runs_s']:.1f} s, between runs {mj['gaps_s']:.1f} s, stop {mj['stop_s']:.1f} s; "
+              f"{mj['n_runs']} runs {mj['runs_s']:.1f} s (DIM {mj['dim_runs_s']:.1f} s, MLM {mj['mlm_runs_s']:.1f} s), between runs {mj['gaps_s']:.1f} s, stop {mj['stop_s']:.1f} s; "
               f"dz_VBI {mj['dz_vbi_pct']:.7f} %")
+        print("main job CPU (user + system): " + ", ".join(f"{k[4:-2]} {v:.1f} s" for k, v in mj.items()
+                                                           if k.startswith("cpu_")))
     if args.json:
         Path(args.json).write_text(json.dumps(figures, indent=1) + "\n")
     return 0 if ok else 1

@@ -2,7 +2,8 @@
 """Δζ calibration over ROS 2: bridge, train and calibration nodes as separate processes.
 
     .venv/bin/python launch_scripts/calibrate.py [--bridge B1 --train ICE-2] [--out DIR]
-        [--params-file ros_ws/params/b1_ice2.yaml] [--speeds 160:350:1] [--spawn | --connect URL]
+        [--params-file ros_ws/params/b1_ice2.yaml] [--speeds 160:350:1] [--dim-grid window|paper|full]
+        [--spawn | --connect URL]
 
 Writes into ``DIR`` (default ``runs/calibrate_<bridge>_<train>_<time>``): ``run.mcap`` (every
 monitoring topic, ROS 2 profile), ``run.rrd`` (rerun), ``summary.json`` (the keys of
@@ -26,7 +27,7 @@ from pathlib import Path
 from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, discard_outputs, launch, preflight, release_out,
                          run_graph)
 
-from adm_sim.cliutil import Parser, add_domain_id, add_overwrite, progress_bar
+from adm_sim.cliutil import Parser, add_choice, add_domain_id, add_overwrite, progress_bar
 from adm_sim.files import write_atomic
 from adm_sim.plausibility import check_response
 from adm_sim.protocol import parse_driver_line
@@ -37,6 +38,9 @@ def parse_args(argv=None):
     ap.add_argument("--bridge", help="bridge preset for the bridge node (B1..B4, spec or TOML file)")
     ap.add_argument("--train", help="train name or TOML file for the train node")
     ap.add_argument("--speeds", help="MLM speed range, start:stop:step (km/h)")
+    add_choice(ap, "--dim-grid", "DIM speeds of the calibration node (default: the params file's, window): window = "
+               "the paper's speeds where the associated DIM peak can lie (the same result, about half the DIM lanes); "
+               "paper = the paper's whole grid (Section 3.3); full = every MLM speed")
     ap.add_argument("--params-file", default=str(PARAMS_DIR / "b1_ice2.yaml"),
                     help="ROS 2 params YAML applied to every node (default ros_ws/params/b1_ice2.yaml)")
     ap.add_argument("--out", help="output folder")
@@ -61,6 +65,8 @@ def node_params(args, out):
         cal["rerun_connect"] = args.connect
     if args.speeds is not None:
         cal["speeds_kmh"] = args.speeds
+    if args.dim_grid is not None:
+        cal["dim_grid"] = args.dim_grid
     return bridge, train, cal
 
 

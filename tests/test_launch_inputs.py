@@ -45,3 +45,25 @@ def test_node_rejects_a_wrongly_typed_startup_parameter():
     assert "Traceback" not in r.stderr
     assert "error: train: speeds_kmh: the given value has the wrong type" in r.stderr
     assert "expected a str (km/h)" in r.stderr
+
+
+def test_calibrate_dim_grid_reaches_the_calibration_node(tmp_path):
+    """``--dim-grid`` sets the calibration node's ``dim_grid`` (default: the params file's, window);
+    a value not in the registry is refused before anything starts."""
+    r = subprocess.run([sys.executable, str(SCRIPTS / "calibrate.py"), "--out", str(tmp_path / "o"), "--dim-grid",
+                        "coarse"], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2 and "ROS_DOMAIN_ID" not in r.stdout
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "--dim-grid" in lines[0] and "'coarse'" in lines[0] and "window" in lines[0]
+    sys.path.insert(0, str(SCRIPTS))
+    try:
+        import calibrate
+    finally:
+        sys.path.remove(str(SCRIPTS))
+    for given, expected in ((["--dim-grid", "paper"], "paper"), ([], None)):
+        _, _, cal = calibrate.node_params(calibrate.parse_args(given), tmp_path)
+        assert cal.get("dim_grid") == expected
+    import yaml
+
+    doc = yaml.safe_load((SCRIPTS.parent / "ros_ws" / "params" / "b1_ice2.yaml").read_text())
+    assert doc["calibration"]["ros__parameters"]["dim_grid"] == "window"

@@ -103,8 +103,9 @@ def test_calibrate_launch_matches_in_process_calibration(tmp_path, ros_domain):
                          step, r))
         return r.max_acc_m_s2
 
+    # the calibration node's default DIM grid is the window grid: the reference runs the same grid
     ref = calibrate(resolve_bridge("B3"), load_train("ICE-2"), np.arange(230.0, 291.0, 2.0),
-                    options=CalibrationOptions(step=StepOptions(**STEP)), sweep=numpy_sweep).to_dict()
+                    options=CalibrationOptions(dim_grid="window", step=StepOptions(**STEP)), sweep=numpy_sweep).to_dict()
     assert got["status"] == ref["status"]
     for key in ("delta_zeta_vbi_pct", "delta_zeta_adm_pct", "delta_zeta_eada_pct", "delta_zeta_lb_pct"):
         assert got[key] == pytest.approx(ref[key], rel=1e-9, abs=0) if ref[key] is not None else got[key] is None
@@ -116,6 +117,7 @@ def test_calibrate_launch_matches_in_process_calibration(tmp_path, ros_domain):
     compiled = calibrate(b3, load_train("ICE-2"), np.arange(230.0, 291.0, 2.0),
                          options=CalibrationOptions(step=StepOptions(**STEP)))
     assert f"{got['delta_zeta_vbi_pct']:.4f}" == f"{100 * compiled.delta_zeta_vbi:.4f}"
+    assert got["dim_grid"] == "window" and compiled.to_dict()["dim_grid"] == "paper"
     # every co-simulated run recorded in the MCAP is the core's run_sweep with the calibration's
     # step, bit for bit (as in test_ros_colcon.py): MLM zeta, DIM, ladder, root search, MLM zeta + dz
     from adm_calib.calibrate import calibration_step

@@ -55,5 +55,14 @@ def test_exchange_messages_carry_the_array_bytes_exactly():
     run_id, k, stage, idx, payload = c.unpack(back)
     assert (run_id, k, stage, idx.tolist()) == (3, 17, 2, [4, 5, 6, 7, 8])
     assert payload.tobytes() == a.tobytes()
+    assert [(d.label, d.size, d.stride) for d in back.layout.dim] == [("field", 2, 1910), ("lane", 191, 955),
+                                                                       ("axle_on", 5, 5)]
+    assert back.layout.data_offset == 4 + 5
+    # the layout of a shape is kept between messages: a message's own list, the same dimensions
+    again = c.pack(3, 18, 0, a, ("field", "lane", "axle_on"))
+    again.layout.dim.pop()
+    assert [d.size for d in c.pack(3, 19, 0, a, ("field", "lane", "axle_on")).layout.dim] == [2, 191, 5]
+    assert c.unpack(deserialize_message(serialize_message(c.pack(3, 19, 0, a[0], ("lane", "axle_on"))),
+                                        Float64MultiArray))[4].tobytes() == a[0].tobytes()
     m = c.matrix_msg(("lane", "quantity"), a[0], step=12)
     assert np.frombuffer(m.data).tobytes() == np.concatenate([[12.0], a[0].ravel()]).tobytes()

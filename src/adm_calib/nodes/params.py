@@ -7,5 +7,5 @@ from adm_sim.nodes.params import param
 
 CALIBRATION_SPECS = [
     param("speeds_kmh", DEFAULT_SPEEDS, "MLM speed range: start:stop:step or a comma list"),
-    param("dim_grid", "paper", "paper (5 km/h + fine around the MLM peak) | window (the paper's speeds near the association window) | full (every MLM speed)"),
+    param("dim_grid", "window", "window (the paper's speeds where the associated DIM peak can lie: the paper grid's result) | paper (5 km/h + fine around the MLM peak) | full (every MLM speed)"),
 ]

@@ -84,17 +84,37 @@ def pack(run_id, k, stage, array, dims, index=None):
     index : ndarray (n,) of int, optional
         Axle indices carried before the payload.
     """
-    a = np.ascontiguousarray(array, dtype=np.float64)
-    idx = np.zeros(0) if index is None else np.asarray(index, dtype=np.float64)
-    head = np.array([run_id, k, stage, idx.size], dtype=np.float64)
+    a = np.asarray(array, dtype=np.float64)
+    n = 0 if index is None else len(index)
+    buf = np.empty(HEADER_LEN + n + a.size)
+    buf[:HEADER_LEN] = (run_id, k, stage, n)
+    if n:
+        buf[HEADER_LEN:HEADER_LEN + n] = index
+    buf[HEADER_LEN + n:] = a.reshape(-1)
     msg = Float64MultiArray()
-    msg.layout.data_offset = HEADER_LEN + idx.size
-    stride = a.size
-    for label, size in zip(dims, a.shape):
-        msg.layout.dim.append(MultiArrayDimension(label=label, size=int(size), stride=int(stride)))
-        stride = stride // size if size else 0
-    msg.data = float64_data(np.concatenate([head, idx, a.ravel()]))
+    msg.layout.data_offset = HEADER_LEN + n
+    msg.layout.dim = _layout_dims(tuple(dims), a.shape)
+    msg.data = float64_data(buf)
     return msg
+
+
+_DIMS = {}
+
+
+def _layout_dims(labels, shape):
+    """The ``MultiArrayDimension`` list of a payload (kept per labels and shape: a DIM run sends a few
+    shapes tens of thousands of times; the messages only read them)."""
+    key = (labels, shape)
+    dims = _DIMS.get(key)
+    if dims is None:
+        dims, stride = [], int(np.prod(shape)) if shape else 0
+        for label, size in zip(labels, shape):
+            dims.append(MultiArrayDimension(label=label, size=int(size), stride=int(stride)))
+            stride = stride // size if size else 0
+        if len(_DIMS) > 256:
+            _DIMS.clear()
+        _DIMS[key] = dims
+    return list(dims)
 
 
 def float64_data(values):
@@ -357,6 +377,10 @@ class NodeBase(ParamNodeMixin, Node):
     exchange = None
     finished = False
 
+    def make_executor(self):
+        """The executor :func:`run_node` spins the node with: a ``SingleThreadedExecutor``."""
+        return SingleThreadedExecutor(context=self.context)
+
     def begin(self):
         """Called once before the main loop (a driver starts its job here)."""
 
@@ -508,7 +532,7 @@ def _run_node(make_node, args, name):
     code = 0
     try:
         node = make_node()
-        executor = SingleThreadedExecutor()
+        executor = node.make_executor()
         executor.add_node(node)
         node.begin()
         lane = node.exchange

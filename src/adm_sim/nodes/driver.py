@@ -422,6 +422,17 @@ class RunDriver(c.NodeBase):
             write_atomic(path, lambda tmp: tmp.write_text(json.dumps(summary, indent=2)))
         say("result", **{k: v for k, v in summary.items() if k != "curves"})
 
+    def make_executor(self):
+        """rclpy's ``EventsExecutor`` (public API, in C++; as the exchange's :class:`~adm_sim.nodes.common.ExchangeLane`).
+
+        The driver takes every monitoring message of a run (it records them) on a node with a
+        dozen subscriptions, parameter services and clients: a ``SingleThreadedExecutor``
+        rebuilds its wait set of all of them for every message it takes, which made the driver
+        the busiest process of the main job; the events executor queues each message as it
+        arrives. Callbacks and their order are those of a single-threaded executor.
+        """
+        return c.EventsExecutor(context=self.context)
+
     def begin(self):
         """Run :meth:`job` in a worker thread (the executor spins in the main thread); the node
         finishes when it returns."""

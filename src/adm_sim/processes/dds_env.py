@@ -328,6 +328,8 @@ def mapped_shm(pid: int) -> set[str]:
     names = set()
     try:
         for line in Path(f"/proc/{pid}/maps").read_text().splitlines():
+            if "/dev/shm/" not in line:  # most of the ~1000 lines of a ROS process: its libraries
+                continue
             parts = line.split(maxsplit=5)
             path = parts[5] if len(parts) == 6 else ""
             if path.startswith("/dev/shm/"):
