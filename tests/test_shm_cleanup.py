@@ -140,7 +140,10 @@ def test_sigkill_of_a_supervised_node_is_cleaned_at_the_launcher_end(tmp_path):
         assert p.returncode == -signal.SIGKILL
         assert _stale(theirs)                    # SIGKILL leaves them ...
     assert _stale(theirs) == set()               # ... the supervisor's end removes them
-    assert not list(dds_env.SHM_LEDGER_DIR.glob(f"{p.pid}-*.txt"))
+    # its note is closed, or keeps only what a live process still used at the clean (a port file of
+    # its domain that a participant of a parallel test maps, seen once in a CI run): none of it stale
+    for ledger in dds_env.SHM_LEDGER_DIR.glob(f"{p.pid}-*.txt"):
+        assert not _stale(set(ledger.read_text().split()))
 
 
 def test_clean_dead_shm_keeps_files_of_live_processes(tmp_path):
