@@ -151,13 +151,33 @@ def pytest_configure(config):
         _precompile_kernels()
 
 
-def _module_scoped(item):
+#: Module-scoped fixtures too cheap to keep their file on one worker: a ROS domain reservation (a
+#: lock file), a folder of small input files. Grouping by them made test_hostile_inputs.py (118
+#: tests, about 70 s of CPU) and test_entry_points.py one work unit each, the longest of the run.
+_CHEAP_MODULE_FIXTURES = {"ros_env", "inputs"}
+
+
+def _group_of(item):
+    """The xdist group a test must join so that a fixture it needs is built once: the name of a
+    session fixture of ``tests/conftest.py`` in its closure (a recorded crossing, a calibration
+    launch: its users in every file share it), else its file's name if it uses a module-scoped
+    fixture of its own file, else None (handed out alone)."""
     info = getattr(item, "_fixtureinfo", None)
     if info is None:
-        return False
-    return any(defs and defs[-1].scope in ("module", "package", "session") and
-               defs[-1].baseid.split("::")[0].endswith(".py") and item.nodeid.startswith(defs[-1].baseid.split("::")[0])
-               for defs in info.name2fixturedefs.values())
+        return None
+    shared, own = [], False
+    for name in info.names_closure:
+        defs = info.name2fixturedefs.get(name)
+        if not defs or defs[-1].scope not in ("module", "package", "session") or name in _CHEAP_MODULE_FIXTURES:
+            continue
+        where = defs[-1].baseid.split("::")[0]
+        if where.endswith(".py"):
+            own = own or item.nodeid.startswith(where)
+        elif defs[-1].scope == "session" and os.path.basename(where) == "tests":
+            shared.append(name)
+    if shared:
+        return "shared:" + min(shared)
+    return os.path.basename(str(item.path)) if own else None
 
 
 @pytest.hookimpl(tryfirst=True)
@@ -166,5 +186,6 @@ def pytest_collection_modifyitems(config, items):
     items.sort(key=lambda it: (rank.get(os.path.basename(str(it.path)), len(rank)), str(it.path)))
     if getattr(config.option, "loadgroup", False):  # set on the workers by xdist under --dist loadgroup
         for it in items:
-            if _module_scoped(it) and not it.get_closest_marker("xdist_group"):
-                it.add_marker(pytest.mark.xdist_group(os.path.basename(str(it.path))))
+            group = _group_of(it)
+            if group is not None and not it.get_closest_marker("xdist_group"):
+                it.add_marker(pytest.mark.xdist_group(group))
