@@ -101,10 +101,21 @@ def _xdist_controller(config):
     return bool(getattr(config.option, "numprocesses", None)) and not hasattr(config, "workerinput")
 
 
+def _default_dist(config):
+    """No ``--dist`` on the command line: this file's choice (loadgroup) applies."""
+    return not any(a.startswith(("--dist", "-d")) for a in config.invocation_params.args)
+
+
 def pytest_cmdline_main(config):
-    if _xdist_controller(config) and not any(a.startswith(("--dist", "-d")) for a in config.invocation_params.args):
+    if _xdist_controller(config) and _default_dist(config):
         config.option.dist = "loadgroup"
         config.option.loadscopereorder = False  # keep the collection's order (costliest first)
+    elif hasattr(config, "workerinput") and _default_dist(config):
+        # A worker parses the command line again and does not see the controller's choice above:
+        # without this it would not name its tests' groups (xdist appends ``@group`` to a test's id
+        # only when ``loadgroup`` is set on the worker) and every test would be scheduled alone,
+        # each worker building every module fixture it meets.
+        config.option.loadgroup = True
 
 
 _COMPILE_PARTS = (
@@ -151,10 +162,12 @@ def pytest_configure(config):
         _precompile_kernels()
 
 
-#: Module-scoped fixtures too cheap to keep their file on one worker: a ROS domain reservation (a
-#: lock file), a folder of small input files. Grouping by them made test_hostile_inputs.py (118
-#: tests, about 70 s of CPU) and test_entry_points.py one work unit each, the longest of the run.
-_CHEAP_MODULE_FIXTURES = {"ros_env", "inputs"}
+#: Module-scoped fixtures too cheap to keep their file on one worker (by name, or file::name): a ROS
+#: domain reservation (a lock file), a folder of small input files, a bridge and a train, imported
+#: launch scripts. Grouping by the first made test_hostile_inputs.py (118 tests, about 70 s of CPU)
+#: one work unit.
+_CHEAP_MODULE_FIXTURES = {"ros_env", "inputs", "test_calib_grid.py::b1_ice2", "test_monitor_identify.py::ice2",
+                          "test_launch_plausibility.py::scripts"}
 
 
 def _group_of(item):
@@ -168,9 +181,11 @@ def _group_of(item):
     shared, own = [], False
     for name in info.names_closure:
         defs = info.name2fixturedefs.get(name)
-        if not defs or defs[-1].scope not in ("module", "package", "session") or name in _CHEAP_MODULE_FIXTURES:
+        if not defs or defs[-1].scope not in ("module", "package", "session"):
             continue
         where = defs[-1].baseid.split("::")[0]
+        if name in _CHEAP_MODULE_FIXTURES or f"{os.path.basename(where)}::{name}" in _CHEAP_MODULE_FIXTURES:
+            continue
         if where.endswith(".py"):
             own = own or item.nodeid.startswith(where)
         elif defs[-1].scope == "session" and os.path.basename(where) == "tests":
@@ -185,7 +200,17 @@ def pytest_collection_modifyitems(config, items):
     rank = {name: k for k, name in enumerate(sorted(_FILE_CPU_S, key=lambda n: -_FILE_CPU_S[n]))}
     items.sort(key=lambda it: (rank.get(os.path.basename(str(it.path)), len(rank)), str(it.path)))
     if getattr(config.option, "loadgroup", False):  # set on the workers by xdist under --dist loadgroup
+        from _pytest.nodeid import NodeId  # noqa: PLC0415  pytest 9's structured test id; only under xdist
+
         for it in items:
-            group = _group_of(it)
-            if group is not None and not it.get_closest_marker("xdist_group"):
+            mark = it.get_closest_marker("xdist_group")
+            if mark is None and (group := _group_of(it)) is not None:
                 it.add_marker(pytest.mark.xdist_group(group))
+                mark = it.get_closest_marker("xdist_group")
+            if mark is not None and "@" not in it.nodeid:
+                # Name the group in the test's id (``<id>@<group>``, what the controller schedules
+                # by), as xdist's loadgroup does after this hook: it sets ``item._nodeid``, which
+                # pytest 9 no longer reads (the id is ``item._id``), so without this every test
+                # was scheduled alone and each worker built every module fixture it met.
+                name = mark.args[0] if mark.args else mark.kwargs.get("name", "default")
+                it._id = NodeId.parse(f"{it.nodeid}@{name}")
