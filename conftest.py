@@ -57,8 +57,9 @@ if _CPU_LOG:
 #    first (``_FILE_CPU_S``; a file not in the table comes after them, alphabetically).
 # 3. A module-scoped fixture (a crossing recorded through the ROS graph, a table of calibrations)
 #    is built once per worker that runs one of its tests. Scheduling by group (``--dist loadgroup``)
-#    keeps every test that uses a module-scoped fixture of its file on one worker; the other tests
-#    are still handed out one by one.
+#    keeps every test that uses a costly module-scoped fixture of its file on one worker, and every
+#    test that uses a session fixture of ``tests/conftest.py`` (in any file) on one worker; the
+#    other tests are still handed out one by one.
 
 ROOT = os.path.dirname(os.path.abspath(__file__))
 
@@ -87,13 +88,31 @@ _FILE_CPU_S = {
     "test_ros_rerun_live.py": 9,
     "test_ros_monitoring.py": 8,
     "test_ros_logging.py": 7,
-    "test_kernels_uncompiled.py": 6,
+    "test_kernels_uncompiled.py": 9,
     "test_inputs_cli.py": 5,
     "test_ros_nodes.py": 4,
     "test_calib_workers.py": 4,
     "test_ros_dds_profile.py": 4,
     "test_ros_exchange_errors.py": 3,
-    "test_lint.py": 2,
+    "test_lint.py": 22,        # 2 s was ruff alone; mypy over the core: 65 s of wall in the whole suite at load 8-11
+    # Files added since the table above, estimated from the whole suite at load 8-11 (-n 2,
+    # --durations; wall divided by 3, the ratio of wall to CPU of the tests above at that load):
+    "test_check.py": 67,
+    "test_core_dim.py": 59,
+    "test_envelope.py": 31,
+    "test_calib_conservative.py": 30,  # the LP of the shipped study's 24 sets: 28 s of CPU, measured
+    "test_ros_flow.py": 24,
+    "test_calib_calibrate.py": 20,
+    "test_check_report_browser.py": 16,
+    "test_core_dense_maxima.py": 11,
+    "test_calib_cli.py": 8,
+    "test_core_cli.py": 8,
+    "test_files.py": 7,
+    "test_check_report.py": 7,
+    "test_ros_namespaces.py": 7,
+    "test_irregularity_ros.py": 7,
+    "test_core_dim_reference.py": 6,
+    "test_irregularity.py": 6,
 }
 
 
