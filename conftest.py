@@ -219,14 +219,17 @@ def pytest_collection_modifyitems(config, items):
     rank = {name: k for k, name in enumerate(sorted(_FILE_CPU_S, key=lambda n: -_FILE_CPU_S[n]))}
     items.sort(key=lambda it: (rank.get(os.path.basename(str(it.path)), len(rank)), str(it.path)))
     if getattr(config.option, "loadgroup", False):  # set on the workers by xdist under --dist loadgroup
-        from _pytest.nodeid import NodeId  # noqa: PLC0415  pytest 9's structured test id; only under xdist
+        try:
+            from _pytest.nodeid import NodeId  # noqa: PLC0415  pytest 9's structured test id; only under xdist
+        except ImportError:  # pytest 8: xdist's own renaming of ``item._nodeid`` works
+            NodeId = None  # noqa: N806
 
         for it in items:
             mark = it.get_closest_marker("xdist_group")
             if mark is None and (group := _group_of(it)) is not None:
                 it.add_marker(pytest.mark.xdist_group(group))
                 mark = it.get_closest_marker("xdist_group")
-            if mark is not None and "@" not in it.nodeid:
+            if mark is not None and NodeId is not None and "@" not in it.nodeid:
                 # Name the group in the test's id (``<id>@<group>``, what the controller schedules
                 # by), as xdist's loadgroup does after this hook: it sets ``item._nodeid``, which
                 # pytest 9 no longer reads (the id is ``item._id``), so without this every test
