@@ -57,8 +57,9 @@ if _CPU_LOG:
 #    first (``_FILE_CPU_S``; a file not in the table comes after them, alphabetically).
 # 3. A module-scoped fixture (a crossing recorded through the ROS graph, a table of calibrations)
 #    is built once per worker that runs one of its tests. Scheduling by group (``--dist loadgroup``)
-#    keeps every test that uses a module-scoped fixture of its file on one worker; the other tests
-#    are still handed out one by one.
+#    keeps every test that uses a costly module-scoped fixture of its file on one worker, and every
+#    test that uses a session fixture of ``tests/conftest.py`` (in any file) on one worker; the
+#    other tests are still handed out one by one.
 
 ROOT = os.path.dirname(os.path.abspath(__file__))
 
@@ -87,13 +88,31 @@ _FILE_CPU_S = {
     "test_ros_rerun_live.py": 9,
     "test_ros_monitoring.py": 8,
     "test_ros_logging.py": 7,
-    "test_kernels_uncompiled.py": 6,
+    "test_kernels_uncompiled.py": 9,
     "test_inputs_cli.py": 5,
     "test_ros_nodes.py": 4,
     "test_calib_workers.py": 4,
     "test_ros_dds_profile.py": 4,
     "test_ros_exchange_errors.py": 3,
-    "test_lint.py": 2,
+    "test_lint.py": 22,        # 2 s was ruff alone; mypy over the core: 65 s of wall in the whole suite at load 8-11
+    # Files added since the table above, estimated from the whole suite at load 8-11 (-n 2,
+    # --durations; wall divided by 3, the ratio of wall to CPU of the tests above at that load):
+    "test_check.py": 67,
+    "test_core_dim.py": 59,
+    "test_envelope.py": 31,
+    "test_calib_conservative.py": 30,  # the LP of the shipped study's 24 sets: 28 s of CPU, measured
+    "test_ros_flow.py": 24,
+    "test_calib_calibrate.py": 20,
+    "test_check_report_browser.py": 16,
+    "test_core_dense_maxima.py": 11,
+    "test_calib_cli.py": 8,
+    "test_core_cli.py": 8,
+    "test_files.py": 7,
+    "test_check_report.py": 7,
+    "test_ros_namespaces.py": 7,
+    "test_irregularity_ros.py": 7,
+    "test_core_dim_reference.py": 6,
+    "test_irregularity.py": 6,
 }
 
 
@@ -101,10 +120,21 @@ def _xdist_controller(config):
     return bool(getattr(config.option, "numprocesses", None)) and not hasattr(config, "workerinput")
 
 
+def _default_dist(config):
+    """No ``--dist`` on the command line: this file's choice (loadgroup) applies."""
+    return not any(a.startswith(("--dist", "-d")) for a in config.invocation_params.args)
+
+
 def pytest_cmdline_main(config):
-    if _xdist_controller(config) and not any(a.startswith(("--dist", "-d")) for a in config.invocation_params.args):
+    if _xdist_controller(config) and _default_dist(config):
         config.option.dist = "loadgroup"
         config.option.loadscopereorder = False  # keep the collection's order (costliest first)
+    elif hasattr(config, "workerinput") and _default_dist(config):
+        # A worker parses the command line again and does not see the controller's choice above:
+        # without this it would not name its tests' groups (xdist appends ``@group`` to a test's id
+        # only when ``loadgroup`` is set on the worker) and every test would be scheduled alone,
+        # each worker building every module fixture it meets.
+        config.option.loadgroup = True
 
 
 _COMPILE_PARTS = (
@@ -151,13 +181,37 @@ def pytest_configure(config):
         _precompile_kernels()
 
 
-def _module_scoped(item):
+#: Module-scoped fixtures too cheap to keep their file on one worker (by name, or file::name): a ROS
+#: domain reservation (a lock file), a folder of small input files, a bridge and a train, imported
+#: launch scripts. Grouping by the first made test_hostile_inputs.py (118 tests, about 70 s of CPU)
+#: one work unit.
+_CHEAP_MODULE_FIXTURES = {"ros_env", "inputs", "test_calib_grid.py::b1_ice2", "test_monitor_identify.py::ice2",
+                          "test_launch_plausibility.py::scripts"}
+
+
+def _group_of(item):
+    """The xdist group a test must join so that a fixture it needs is built once: the name of a
+    session fixture of ``tests/conftest.py`` in its closure (a recorded crossing, a calibration
+    launch: its users in every file share it), else its file's name if it uses a module-scoped
+    fixture of its own file, else None (handed out alone)."""
     info = getattr(item, "_fixtureinfo", None)
     if info is None:
-        return False
-    return any(defs and defs[-1].scope in ("module", "package", "session") and
-               defs[-1].baseid.split("::")[0].endswith(".py") and item.nodeid.startswith(defs[-1].baseid.split("::")[0])
-               for defs in info.name2fixturedefs.values())
+        return None
+    shared, own = [], False
+    for name in info.names_closure:
+        defs = info.name2fixturedefs.get(name)
+        if not defs or defs[-1].scope not in ("module", "package", "session"):
+            continue
+        where = defs[-1].baseid.split("::")[0]
+        if name in _CHEAP_MODULE_FIXTURES or f"{os.path.basename(where)}::{name}" in _CHEAP_MODULE_FIXTURES:
+            continue
+        if where.endswith(".py"):
+            own = own or item.nodeid.startswith(where)
+        elif defs[-1].scope == "session" and os.path.basename(where) == "tests":
+            shared.append(name)
+    if shared:
+        return "shared:" + min(shared)
+    return os.path.basename(str(item.path)) if own else None
 
 
 @pytest.hookimpl(tryfirst=True)
@@ -165,6 +219,20 @@ def pytest_collection_modifyitems(config, items):
     rank = {name: k for k, name in enumerate(sorted(_FILE_CPU_S, key=lambda n: -_FILE_CPU_S[n]))}
     items.sort(key=lambda it: (rank.get(os.path.basename(str(it.path)), len(rank)), str(it.path)))
     if getattr(config.option, "loadgroup", False):  # set on the workers by xdist under --dist loadgroup
+        try:
+            from _pytest.nodeid import NodeId  # noqa: PLC0415  pytest 9's structured test id; only under xdist
+        except ImportError:  # pytest 8: xdist's own renaming of ``item._nodeid`` works
+            NodeId = None  # noqa: N806
+
         for it in items:
-            if _module_scoped(it) and not it.get_closest_marker("xdist_group"):
-                it.add_marker(pytest.mark.xdist_group(os.path.basename(str(it.path))))
+            mark = it.get_closest_marker("xdist_group")
+            if mark is None and (group := _group_of(it)) is not None:
+                it.add_marker(pytest.mark.xdist_group(group))
+                mark = it.get_closest_marker("xdist_group")
+            if mark is not None and NodeId is not None and "@" not in it.nodeid:
+                # Name the group in the test's id (``<id>@<group>``, what the controller schedules
+                # by), as xdist's loadgroup does after this hook: it sets ``item._nodeid``, which
+                # pytest 9 no longer reads (the id is ``item._id``), so without this every test
+                # was scheduled alone and each worker built every module fixture it met.
+                name = mark.args[0] if mark.args else mark.kwargs.get("name", "default")
+                it._id = NodeId.parse(f"{it.nodeid}@{name}")

@@ -22,3 +22,37 @@ def recording(tmp_path_factory):
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr[-2000:]
     return out / "run.mcap"
+
+
+#: The small co-simulated calibration: B3 x ICE-2 at 230..290 km/h every 2 km/h, 4 steps per period
+#: of mode 3 and one fundamental period of free vibration (coarse steps: the launch, not the numbers'
+#: accuracy, is under test).
+CALIBRATION_SPEEDS = "230:290:2"
+CALIBRATION_PARAMS = ("bridge:\n  ros__parameters:\n    bridge: B3\n    steps_per_period: 4.0\n"
+                      "    free_vibration_periods: 1.0\ntrain:\n  ros__parameters:\n    train: ICE-2\n")
+
+
+@pytest.fixture(scope="session")
+def calibration_launch(tmp_path_factory):
+    """The output folder (``summary.json``, ``run.mcap``, ``run.rrd``) of ``launch_scripts/calibrate.py``
+    (bridge, train and calibration nodes in three processes) on the small case above, run once per
+    session on its own ROS domain: ``test_ros_cosim.py`` checks its numbers against the in-process
+    calibration, ``test_ros_rerun_views.py`` its recording as a user opens it. The tests read it and
+    write only into their own folders."""
+    from adm_sim.processes.dds_env import local_ros_env
+
+    base = tmp_path_factory.mktemp("calibration")
+    params = base / "case.yaml"
+    params.write_text(CALIBRATION_PARAMS)
+    out = base / "out"
+    env = local_ros_env()
+    try:
+        r = subprocess.run([sys.executable, str(ROOT / "launch_scripts" / "calibrate.py"), "--params-file",
+                            str(params), "--speeds", CALIBRATION_SPEEDS, "--out", str(out), "--quiet",
+                            "--domain-id", str(env.domain_id)],
+                           env=dict(env), capture_output=True, text=True, timeout=600, cwd=ROOT)
+    finally:
+        env.release()
+    assert r.returncode == 0, r.stderr
+    assert "dz iteration" in r.stdout and "dz_VBI" in r.stdout
+    return out

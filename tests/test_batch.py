@@ -31,7 +31,9 @@ def _group(span, fi, mfs=("mu1", "mu2", "mu3", "mu4", "mu5", "mu6"), train="ICE-
 def test_batch_lanes_equal_run_sweep(train, span, fi):
     bridges = _group(span, fi, ("mu1", "mu4", "mu6"))
     tr = load_train(train)
-    ds = batch_step(bridges, tr).ds_m
+    # 8 steps per period of the highest mode (the core's default is 16) on both paths, as below: the
+    # numpy stepper's cost is its number of steps, and lane and run_sweep are compared on one ds
+    ds = batch_step(bridges, tr, options=CalibrationOptions(step=StepOptions(steps_per_period=8.0))).ds_m
     runner = BatchRunner(bridges, tr, ds)
     speeds = np.array([170.0, 230.0, 290.0, 345.0])
     case = np.repeat(np.arange(3), speeds.size)
@@ -96,7 +98,10 @@ def test_calibrate_batch_reproduces_calibrate(train, span, fi, mfs, speeds):
 def _small_batch(train="Eurostar"):
     bridges = _group(25, 2, ("mu1", "mu6"), train)
     tr = load_train(train)
-    runner = BatchRunner(bridges, tr, batch_step(bridges, tr).ds_m)
+    # 8 steps per period (half the core's default): advancing one step at a time is a Python call per
+    # step, and the blocks must equal one call at any step
+    runner = BatchRunner(bridges, tr, batch_step(bridges, tr, options=CalibrationOptions(
+        step=StepOptions(steps_per_period=8.0))).ds_m)
     case = np.repeat([0, 1], 3)
     speeds = np.tile([180.0, 250.0, 320.0], 2)
     sweep = np.array([0, 0, 1, 0, 1, 1])  # two sweeps per bridge: lanes of different step counts

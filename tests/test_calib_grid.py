@@ -55,9 +55,14 @@ def test_a_quasi_static_range_holds_no_resonance(b1_ice2):
 
 
 def test_calibration_status_carries_the_finding(b1_ice2):
-    """The calibration still reports its numbers, but its status is not "ok"."""
+    """The calibration still reports its numbers, but its status is not "ok".
+
+    80..100 km/h holds the third sub-resonance (88 km/h, 28.8 % of the 2.2472 m/s^2 at 263 km/h), so
+    every phase of the calibration finds its peak and the finding alone sets the status. The
+    quasi-static 1..10 km/h range gives the same finding (test above) but needs a step ten times
+    finer (the step follows the highest speed): 41 s of CPU for this calibration instead of 0.4 s."""
     b, t = b1_ice2
-    res = calibrate(b, t, speeds_kmh=np.arange(1.0, 11.0), adapted_curve=False)
+    res = calibrate(b, t, speeds_kmh=np.arange(80.0, 101.0), adapted_curve=False)
     assert res.status == "no_resonance_in_range"
     assert res.to_dict(curves=False)["status"] == "no_resonance_in_range"
     ok = calibrate(b, t, speeds_kmh=np.arange(250.0, 276.0), adapted_curve=False)

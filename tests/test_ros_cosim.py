@@ -71,25 +71,17 @@ def test_wrong_lane_count_is_reported(node_procs, ros_domain):
     assert all(p.poll() is None for p in node_procs.procs.values())
 
 
-def test_calibrate_launch_matches_in_process_calibration(tmp_path, ros_domain):
-    """launch_scripts/calibrate.py (three processes) gives the Δζ of adm_calib.calibrate."""
-    import json
-    import subprocess
-    import sys
+def test_calibrate_launch_matches_in_process_calibration(calibration_launch):
+    """launch_scripts/calibrate.py (three processes) gives the Δζ of adm_calib.calibrate.
 
-    from ros_fixtures import ROOT
+    The launch is conftest's ``calibration_launch`` (B3 x ICE-2, 230..290 km/h every 2 km/h, 4 steps
+    per period, one period of free vibration), run once for this test and the recording test of
+    test_ros_rerun_views.py; the fixture asserts that its stdout printed the iterations and the result."""
+    import json
 
     from adm_calib.calibrate import CalibrationOptions, calibrate
 
-    params = tmp_path / "case.yaml"
-    params.write_text("bridge:\n  ros__parameters:\n    bridge: B3\n    steps_per_period: 4.0\n"
-                      "    free_vibration_periods: 1.0\ntrain:\n  ros__parameters:\n    train: ICE-2\n")
-    out = tmp_path / "out"
-    p = subprocess.run([sys.executable, str(ROOT / "launch_scripts" / "calibrate.py"), "--params-file", str(params),
-                        "--speeds", "230:290:2", "--out", str(out), "--quiet", "--domain-id", str(ros_domain.domain_id)],
-                       env=dict(ros_domain), capture_output=True, text=True, timeout=240, cwd=ROOT)
-    assert p.returncode == 0, p.stderr
-    assert "dz iteration" in p.stdout and "dz_VBI" in p.stdout
+    out = calibration_launch
     got = json.loads((out / "summary.json").read_text())
     # the co-simulation is the numpy stepper split in two processes: the same numbers bit for bit
     # the reference runs every sweep on the numpy stepper through a hook that notes the phase the

@@ -248,20 +248,14 @@ def test_replay_of_a_recording_without_phases_shows_phase_unknown(crossing_run, 
                                   live["/runs/acceleration/run_01"]["values"])
 
 
-def test_calibration_recording_every_view_has_data_and_monitors_the_peak(tmp_path):
-    """A small co-simulated calibration (B3 x ICE-2, coarse steps): the recording as a user opens it."""
+def test_calibration_recording_every_view_has_data_and_monitors_the_peak(calibration_launch, tmp_path):
+    """A small co-simulated calibration (B3 x ICE-2, coarse steps; conftest's ``calibration_launch``,
+    whose numbers test_ros_cosim.py checks): the recording as a user opens it."""
     import json
 
     from adm_sim.recording.mcap_log import read_messages
 
-    params = tmp_path / "case.yaml"
-    params.write_text("bridge:\n  ros__parameters:\n    bridge: B3\n    steps_per_period: 4.0\n"
-                      "    free_vibration_periods: 1.0\ntrain:\n  ros__parameters:\n    train: ICE-2\n")
-    out = tmp_path / "out"
-    r = subprocess.run([PY, str(ROOT / "launch_scripts" / "calibrate.py"), "--params-file", str(params),
-                        "--speeds", "230:290:2", "--out", str(out), "--quiet"],
-                       capture_output=True, text=True, timeout=600, cwd=ROOT)
-    assert r.returncode == 0, r.stderr
+    out = calibration_launch
     summary = json.loads((out / "summary.json").read_text())
     ents, blue = check_recording(out / "run.rrd")
     for view in blue["views"]:  # every view of every tab shows data of this recording
