@@ -334,13 +334,9 @@ class CheckResult:
                 "bounds": [{"case": label, "n0_hz": r.bridge.n0_hz, "mass_per_length_kg_m": r.bridge.mass_per_length_kg_m,
                             "EJ_Nm2": r.bridge.EJ_Nm2, "governing_train": r.governing[0].name,
                             "speed_kmh": r.governing[1], "acc_m_s2": r.governing[2],
-                            **({} if r.largest_effect_ratio() is None else dict(zip(
-                                ("largest_effect_ratio_train", "largest_effect_ratio_effect", "largest_effect_ratio"),
-                                (lambda g: (g[0].name, g[1].effect.label, g[1].ratio))(r.largest_effect_ratio()))))}
+                            **_largest_effect_dict(r.largest_effect_ratio())}
                            for label, r in self.bounds],
-                "effects_envelope_governing": None if self.effects_envelope_governing() is None else dict(zip(
-                    ("case", "train", "effect", "ratio"),
-                    (lambda g: (g[0], g[1].name, g[2].effect.label, g[2].ratio))(self.effects_envelope_governing()))),
+                "effects_envelope_governing": _effects_envelope_dict(self.effects_envelope_governing()),
                 "envelope_governing": dict(zip(("case", "train", "speed_kmh", "acc_m_s2"),
                                                (lambda g: (g[0], g[1].name, g[2], g[3]))(self.envelope_governing()))),
                 "not_checked": list(self.not_checked()),
@@ -381,6 +377,23 @@ def check_speeds_kmh(max_line_speed_kmh, step_kmh=1.0):
     if hi - v[-1] > 1e-9:
         v = np.append(v, hi)
     return v
+
+
+def _largest_effect_dict(g):
+    """The JSON fields of :meth:`CheckResult.largest_effect_ratio` (none when no effect was computed)."""
+    if g is None:
+        return {}
+    t, d = g
+    return {"largest_effect_ratio_train": t.name, "largest_effect_ratio_effect": d.effect.label,
+            "largest_effect_ratio": d.ratio}
+
+
+def _effects_envelope_dict(g):
+    """The JSON form of :meth:`CheckResult.effects_envelope_governing` (None when no effect was computed)."""
+    if g is None:
+        return None
+    label, t, d = g
+    return {"case": label, "train": t.name, "effect": d.effect.label, "ratio": d.ratio}
 
 
 def resolve_trains(spec):
