@@ -114,6 +114,7 @@ class BridgeRunState:
     rx_at: float = 0.0         #: when the train's last exchange message came (it waits since then)
     forced: bool = False       #: a pause outlasted half the partner timeout: on to the next exchange
     done_step: int = 0
+    accel_msg: AccelStamped | None = None  #: the message of the midspan acceleration samples
 
 
 class BridgeNode(c.LockstepNode):
@@ -265,10 +266,11 @@ class BridgeNode(c.LockstepNode):
         r.ack_wait_since = None
         self._resume()
 
-    def _ahead(self):
-        """Whether the run is more than the window ahead of the slowest recorder."""
+    def _ahead(self, pending=0):
+        """Whether the run is more than the window ahead of the slowest recorder (with ``pending``
+        messages more published)."""
         r = self.run
-        return not r.forced and bool(r.acked) and r.sent - min(r.acked.values()) >= P.FLOW_WINDOW
+        return not r.forced and bool(r.acked) and r.sent + pending - min(r.acked.values()) >= P.FLOW_WINDOW
 
     def _all_acked(self):
         r = self.run
@@ -357,14 +359,21 @@ class BridgeNode(c.LockstepNode):
         self.partner.clear()
         r.rx_at = time.monotonic()
         run.step(G)  # one RK4 stage with the partner's interaction forces
-        if stage == 0 and run.status != FAILED:
-            self._step_done(k, r.disp, run.acc_m_s2)
         if run.status != RUNNING:
+            if stage == 0 and run.status != FAILED:
+                self._step_done(k, r.disp, run.acc_m_s2)
             self._finish()
-        elif stage == 0 and self._ahead():
+        elif stage != 0:
+            self._ask_partner()
+        elif self._ahead(self._step_messages(k)):
+            self._step_done(k, r.disp, run.acc_m_s2)
             self._pause(PAUSE_STEP)
         else:
+            # the exchange first: the train computes the next stage while step k's monitoring is
+            # published (stage 1's rail state leaves step k's state, acceleration and deflection
+            # as they are; the window is checked with step k's messages counted, as before)
             self._ask_partner()
+            self._step_done(k, r.disp, run.acc_m_s2)
 
     def _on_axle_block(self, msg):
         r = self.run
@@ -417,6 +426,11 @@ class BridgeNode(c.LockstepNode):
         if k % r.tick == 0:
             self._progress(k + 1)
 
+    def _step_messages(self, k):
+        """How many monitoring messages :meth:`_step_done` publishes for step ``k``."""
+        r = self.run
+        return (k % r.every == 0) + 4 * (k % r.beam_every == 0) + 2 * (k % r.tick == 0)
+
     def _monitor_info(self):
         """What the monitoring topics of the run show: for the rerun run-time timeline and the run table."""
         r = self.run
@@ -440,9 +454,11 @@ class BridgeNode(c.LockstepNode):
 
     def _monitor(self, k, disp, acc):
         r = self.run
-        a = AccelStamped()
+        a = r.accel_msg  # one message per run, its stamp and value set per sample (publish copies it)
+        if a is None:
+            a = r.accel_msg = AccelStamped()
+            a.header.frame_id = r.frame
         a.header.stamp = c.to_time_msg(self._sim_time(k))
-        a.header.frame_id = r.frame
         a.accel.linear.z = -float(acc[r.lane])  # the core's acceleration is positive downwards
         self._publish(P.TOPIC_ACCEL, a)
 

@@ -149,15 +149,17 @@ def check_step(who, got, expected):
 def matrix_msg(dims, array, step=None):
     """Plain 2-D ``Float64MultiArray`` with labelled dimensions; with ``step``, the step index is
     carried before the data (``data[0]``, ``layout.data_offset`` = 1; :func:`matrix_step`)."""
-    a = np.ascontiguousarray(array, dtype=np.float64)
+    a = np.asarray(array, dtype=np.float64)
     msg = Float64MultiArray()
-    if step is not None:
+    msg.layout.dim = _layout_dims(tuple(dims), a.shape)
+    if step is None:
+        msg.data = float64_data(a)
+    else:
         msg.layout.data_offset = 1
-    stride = a.size
-    for label, size in zip(dims, a.shape):
-        msg.layout.dim.append(MultiArrayDimension(label=label, size=int(size), stride=int(stride)))
-        stride = stride // size if size else 0
-    msg.data = float64_data(a.ravel() if step is None else np.concatenate([[float(step)], a.ravel()]))
+        buf = np.empty(a.size + 1)
+        buf[0] = step
+        buf[1:] = a.reshape(-1)
+        msg.data = float64_data(buf)
     return msg
 
 
