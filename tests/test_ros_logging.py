@@ -168,6 +168,44 @@ def test_overwrite_refused_and_allowed(tmp_path):
         rec.write("/a", Float64(data=4.0), 7)
 
 
+def test_serialized_messages_written_as_they_came(tmp_path):
+    """The recorder's path for messages taken serialised (the driver's subscriptions): the CDR bytes
+    go into the file unchanged, and both independent readers decode the message that was sent."""
+    from geometry_msgs.msg import AccelStamped
+    from rclpy.serialization import serialize_message
+    from rosbags.highlevel import AnyReader
+    from std_msgs.msg import Float64MultiArray
+
+    from adm_sim.nodes.common import matrix_msg
+
+    acc = AccelStamped()
+    acc.header.stamp.sec, acc.header.stamp.nanosec = 3, 250_000_000
+    acc.header.frame_id = "B1/midspan"
+    acc.accel.linear.z = -0.123456789
+    arr = matrix_msg(("lane", "quantity:disp_m,acc_m_s2"), np.arange(10.0).reshape(5, 2) / 7.0, step=12)
+    raw = [serialize_message(acc), serialize_message(arr)]
+    path = tmp_path / "s.mcap"
+    with McapRecorder(path) as rec:
+        rec.write_serialized("/adm/midspan/accel", AccelStamped, raw[0], 3_250_000_000)
+        rec.write_serialized("/adm/midspan/state", Float64MultiArray, raw[1], 3_250_000_000)
+        rec.write("/adm/midspan/accel", acc, 3_300_000_000)  # the same channel, the message path
+    from mcap.reader import make_reader
+
+    with open(path, "rb") as f:
+        stored = [m.data for _, _, m in make_reader(f).iter_messages(log_time_order=False)]
+    assert stored[:2] == raw
+    got = list(read_messages(path))
+    assert [t for t, _, _ in got] == ["/adm/midspan/accel", "/adm/midspan/state", "/adm/midspan/accel"]
+    for _, _, m in (got[0], got[2]):
+        assert (m.header.stamp.sec, m.header.stamp.nanosec, m.header.frame_id) == (3, 250_000_000, "B1/midspan")
+        assert m.accel.linear.z == -0.123456789
+    np.testing.assert_array_equal(np.asarray(got[1][2].data), [12.0, *(np.arange(10.0) / 7.0)])
+    with AnyReader([path]) as reader:
+        msgs = [reader.deserialize(raw_, c.msgtype) for c, _, raw_ in reader.messages()]
+    assert msgs[0].accel.linear.z == -0.123456789 and msgs[1].layout.data_offset == 1
+    np.testing.assert_array_equal(msgs[1].data, [12.0, *(np.arange(10.0) / 7.0)])
+
+
 def test_bad_inputs_are_named(tmp_path):
     from std_msgs.msg import Float64, String
 

@@ -28,6 +28,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import AccelStamped
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
+from rclpy.serialization import deserialize_message
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64MultiArray, String
 from std_srvs.srv import Trigger
@@ -124,7 +125,8 @@ class RunDriver(c.NodeBase):
             qos = c.QOS_LATCHED if topic.endswith("description") else (
                 c.QOS_CONTROL if topic in (P.TOPIC_RESULT, P.TOPIC_STATUS, P.TOPIC_DIAGNOSTICS, P.TOPIC_SUMMARY)
                 else c.QOS_MONITOR)
-            self.create_subscription(typ, P.relative(topic), self._make_cb(topic), qos)
+            # taken serialised: the MCAP file gets the bytes as they came, the rest the message
+            self.create_subscription(typ, P.relative(topic), self._make_cb(topic, typ), qos, raw=True)
         #: the driver's ``requested`` records (the run id with its phase); its own subscription records them
         self.pub_request = self.create_publisher(String, P.relative(P.TOPIC_STATUS), c.QOS_CONTROL)
         #: the plausibility verdict of a run's result (:meth:`warn_implausible`)
@@ -134,21 +136,23 @@ class RunDriver(c.NodeBase):
         self.params = {n: AsyncParameterClient(self, n) for n in (P.BRIDGE_NODE, P.TRAIN_NODE)}
 
     # ------------------------------------------------------------------ subscriptions
-    def _make_cb(self, topic):
-        """Subscription callback of ``topic``: record the message (MCAP and viewer,
-        :meth:`RunRecorder.write`), then keep what the driver itself needs of it."""
+    def _make_cb(self, topic, msg_type):
+        """Subscription callback of ``topic`` (messages of ``msg_type`` taken serialised): record the
+        message (its bytes to MCAP, the message to the viewer, :meth:`RunRecorder.write`), then keep
+        what the driver itself needs of it."""
         own = {P.TOPIC_RESULT: self._take_result, P.TOPIC_STATUS: self._take_status,
                P.TOPIC_BRIDGE_DESC: lambda msg: self._desc.__setitem__("bridge", json.loads(msg.data)),
                P.TOPIC_TRAIN_DESC: lambda msg: self._desc.__setitem__("train", json.loads(msg.data)),
                P.TOPIC_PROGRESS: self._say_progress}.get(topic)
         counted = topic in P.SAMPLE_TOPICS
 
-        def cb(msg):
+        def cb(data):
             self._last_rx = time.monotonic()
+            msg = deserialize_message(data, msg_type)
             if isinstance(msg, Clock):
                 self._clock_ns = self.rec.clock_ns = msg.clock.sec * 1_000_000_000 + msg.clock.nanosec
             try:
-                self.rec.write(topic, msg, self.rec.log_time_ns(msg))
+                self.rec.write(topic, msg, self.rec.log_time_ns(msg), serialized=data)
             except RunError as exc:  # a refused write (full disk, ulimit -f): the run's failure
                 self.recorder_failed(exc)
                 return

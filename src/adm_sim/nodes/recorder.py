@@ -98,11 +98,15 @@ class RunRecorder:
                 return int(round(float(t) * 1e9))
         return self.clock_ns
 
-    def write(self, topic, msg, t_ns):
-        """Write one message to the MCAP file and the viewer (those there are), at log time ``t_ns``."""
+    def write(self, topic, msg, t_ns, serialized=None):
+        """Write one message to the MCAP file and the viewer (those there are), at log time ``t_ns``;
+        ``serialized``: the message's CDR bytes as received, written to MCAP as they are."""
         if self.mcap is not None:
             with self.write_lock:
-                self.mcap.write(topic, msg, t_ns)
+                if serialized is None:
+                    self.mcap.write(topic, msg, t_ns)
+                else:
+                    self.mcap.write_serialized(topic, type(msg), serialized, t_ns)
         if self.feed is not None:
             with self.feed_lock:
                 self.feed(topic, msg, t_ns)

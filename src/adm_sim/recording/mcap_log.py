@@ -390,6 +390,27 @@ class McapRecorder:
             raise self._failed(exc) from None
         self.message_count += 1
 
+    def write_serialized(self, topic: str, msg_type, data: bytes, log_time_ns: int) -> None:
+        """Write a message already serialised (CDR, e.g. as a subscription with ``raw=True`` takes
+        it from the middleware) into ``topic`` of type ``msg_type``: the bytes as they came,
+        nothing decoded or encoded again (as rosbag2 records). Otherwise as :meth:`write`."""
+        known = self._channels.get(topic)
+        if known is None or known[1] is not msg_type:
+            self.register(topic, msg_type)
+        else:
+            self._check_open()
+        log_time = int(log_time_ns)
+        if log_time < 0:
+            raise InputError(f"log_time_ns: {log_time} ns is out of range; allowed >= 0 ns")
+        seq = self._sequence[topic]
+        self._sequence[topic] = seq + 1
+        try:
+            self._writer.add_message(channel_id=self._channels[topic][0], log_time=log_time, data=bytes(data),
+                                     publish_time=log_time, sequence=seq)
+        except OSError as exc:
+            raise self._failed(exc) from None
+        self.message_count += 1
+
     def write_metadata(self, name: str, data: Mapping[str, object]) -> None:
         """Add a metadata record (run information: bridge, train, model, speeds); values are
         converted with ``str``."""
