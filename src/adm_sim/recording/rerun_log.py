@@ -345,27 +345,42 @@ class RunLogger:
         # beam frames carry no stamp: the j-th frame of a run is its step j * beam_every (frames of
         # one topic arrive in order), so frames are dealt to the announced runs in turn
         k = self.exaggeration
-        while self._beam:
+        frames: dict[int, tuple] = {}  # run id -> (run, [(sim ns, run ns, strip, axle points)])
+        n_taken = 0
+        while n_taken < len(self._beam):
             while self._beam_run < len(self.runs) and self.runs[self._beam_run].frames_left() == 0:
                 self._beam_run += 1
             if self._beam_run >= len(self.runs):
                 break
             r = self.runs[self._beam_run]
-            _, x, w, ax, aw = self._beam.pop(0)
+            _, x, w, ax, aw = self._beam[n_taken]
+            n_taken += 1
             step = r.n_frames * int(r.beam_every)
             r.n_frames += 1
             if w.size and (r.peak is None or np.max(np.abs(w)) > r.peak[0]):
                 r.peak = (float(np.max(np.abs(w))), x, w, ax, aw)
             t = r.t0 + step * r.dt_clock
-            rr.set_time(SIM_TIME, duration=t, recording=self.rec)
-            rr.set_time(RUN_TIME, duration=float(r.run_time(t)), recording=self.rec)
+            # rerun's 2D y axis points down: a sag (w > 0, downward) is drawn below the axis
+            frames.setdefault(r.id, (r, []))[1].append((
+                round(1e9 * float(t)), round(1e9 * float(r.run_time(t))),  # as rr.set_time rounds
+                np.column_stack([x, k * w]), np.column_stack([ax, k * aw]).reshape(-1, 2)))
+        del self._beam[:n_taken]
+        # one column of frames per run and part (rr.send_columns): the rows rr.log would write, one
+        # per frame with its strip or axle points, colour and radius, at the same two times
+        for r, fr in frames.values():
             path = P.beam_path(r.id)
             color = _COLORS.get(r.kind, (90, 90, 90))
-            # rerun's 2D y axis points down: a sag (w > 0, downward) is drawn below the axis
-            rr.log(f"{path}/deflection", rr.LineStrips2D([np.column_stack([x, k * w])], colors=color, radii=0.03),
-                   recording=self.rec)
-            rr.log(f"{path}/axles", rr.Points2D(np.column_stack([ax, k * aw]).reshape(-1, 2), colors=color,
-                                                radii=0.12), recording=self.rec)
+            n = len(fr)
+            index = [rr.TimeColumn(SIM_TIME, duration=np.array([f[0] for f in fr], dtype="timedelta64[ns]")),
+                     rr.TimeColumn(RUN_TIME, duration=np.array([f[1] for f in fr], dtype="timedelta64[ns]"))]
+            rr.send_columns(f"{path}/deflection", indexes=index, recording=self.rec,
+                            columns=rr.LineStrips2D.columns(strips=[f[2] for f in fr], colors=[color] * n,
+                                                            radii=[0.03] * n))
+            points = [f[3] for f in fr]
+            rr.send_columns(f"{path}/axles", indexes=index, recording=self.rec,
+                            columns=[*rr.Points2D.columns(positions=np.concatenate(points)).partition(
+                                         [len(p) for p in points]),
+                                     *rr.Points2D.columns(colors=[color] * n, radii=[0.12] * n)])
         rr.reset_time(recording=self.rec)
 
     # ------------------------------------------------------------ end of a run
