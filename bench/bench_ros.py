@@ -50,7 +50,7 @@ def main(argv=None):
     ap.add_argument("--bridge", default="B1")
     ap.add_argument("--train", default="ICE-2")
     ap.add_argument("--speeds", default="160:350:1")
-    ap.add_argument("--models", default="mlm,dim")
+    ap.add_argument("--models", default="mlm,dim", help="co-simulated sweeps to time (none: only --main-job)")
     ap.add_argument("--repeat", type=int, default=1, help="co-simulated runs per model (best is kept)")
     ap.add_argument("--main-job", action="store_true", help="also time launch_scripts/calibrate.py (B1 x ICE-2)")
     ap.add_argument("--hogs", type=int, default=0, help="busy processes running meanwhile")
@@ -203,7 +203,7 @@ def _bench(args):
             with driver_node(env.domain_id) as d:
                 d.wait_for_graph()
                 t_graph = time.perf_counter() - t_start
-                for model in args.models.split(","):
+                for model in [m for m in args.models.split(",") if m not in ("", "none")]:
                     t0 = time.perf_counter()
                     ref = run_sweep(bridge, train, model, speeds, options=StepOptions())
                     t_in = time.perf_counter() - t0
