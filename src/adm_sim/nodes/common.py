@@ -422,6 +422,14 @@ class LockstepNode(NodeBase):
 
     partner = None
 
+    def make_executor(self):
+        """rclpy's ``EventsExecutor`` for the node's own entities (parameter services, run control),
+        as for the exchange lane: while a run is active :func:`run_node` gives it a turn every 50 ms,
+        and a ``SingleThreadedExecutor`` rebuilt its wait set of a dozen services, subscriptions and
+        publishers' events for each turn even with nothing to do. Callbacks and their order are
+        those of a single-threaded executor."""
+        return EventsExecutor(context=self.context)
+
     def declare_run_parameters(self, specs):
         """Declare ``specs`` and install the on-set and post-set stages; returns
         :meth:`validate` of the start-up values (they are checked before the node runs)."""
