@@ -139,3 +139,40 @@ def test_no_sample_lost_under_load(tmp_path, ros_domain):
 def P_matrix(msg):
     shape = tuple(d.size for d in msg.layout.dim)
     return np.asarray(msg.data[msg.layout.data_offset:], dtype=float).reshape(shape)
+
+
+def test_step_messages_counts_what_a_step_publishes():
+    """The bridge checks the flow-control window before a DIM step's monitoring (it publishes the
+    rail state first): :meth:`BridgeNode._step_messages` must count exactly the messages
+    :meth:`BridgeNode._step_done` then publishes, so the window is never passed. Checked on every
+    step of a B1 x ICE-2 run's grid with the automatic decimation, no ROS context needed."""
+    from adm_sim.bridge import resolve_bridge
+    from adm_sim.limits import ACC_LIMITS_M_S2
+    from adm_sim.lockstep_runs import BridgeHalf
+    from adm_sim.nodes.bridge_node import BridgeNode, BridgeRunState, monitor_steps
+    from adm_sim.rk4_sides import BridgeSide
+    from adm_sim.step_grid import StepOptions, make_grid
+    from adm_sim.trains import load_train
+
+    bridge, train = resolve_bridge("B1"), load_train("ICE-2")
+    grid = make_grid(bridge, train.length_m, np.array([250.0, 263.0]) / 3.6, StepOptions())
+    side = BridgeSide(bridge, grid, train.axle_offsets_m, None, 0.0)
+    half = BridgeHalf("mlm", grid, side)
+    every, beam_every = monitor_steps(bridge, grid, 1, 0, 0)
+    xb = np.linspace(0.0, bridge.span_m, 11)
+    node = BridgeNode.__new__(BridgeNode)  # the run's bookkeeping only: no node, no publishers
+    node.run = BridgeRunState(
+        id=1, model="mlm", phase=P.PHASE_MLM_ZETA, train="ICE-2", grid=grid, run=half, bridge=bridge,
+        speeds_kmh=np.array([250.0, 263.0]), dz=np.zeros(2), lane=1, every=every, beam_every=beam_every,
+        frame="B1/midspan", v_mon=float(grid.speeds_m_s[1]), x_beam=xb, phi_beam=bridge.shapes(xb)[0],
+        limit=ACC_LIMITS_M_S2["ballasted"], track="ballasted", warn=0.8, tick=max(1, grid.n_steps // 100),
+        t0=0.0, wall0=0.0, acked={})
+    published = []
+    node._publish = lambda topic, msg, pub=None: published.append(topic)
+    assert every > 1 and beam_every > every
+    acc = np.array([0.1, 0.2])
+    for k in range(grid.n_steps):
+        before = len(published)
+        node._step_done(k, half.disp_m, acc)
+        assert len(published) - before == node._step_messages(k), k
+    assert len(published) > grid.n_steps // every
