@@ -95,6 +95,7 @@ def test_driver_recorder_failure_is_the_run_failure(ros_domain, tmp_path):
     """A write the MCAP recorder refuses inside a subscription callback (here: a file size limit)
     is not an exception escaping the executor: it fails the run in progress (``run 3: ...``),
     ends the node's job, and :meth:`RunDriver.end` reports it (exit 1 in :func:`run_node`)."""
+    from rclpy.serialization import serialize_message
     from rosgraph_msgs.msg import Clock
 
     from adm_sim import protocol as P
@@ -104,11 +105,11 @@ def test_driver_recorder_failure_is_the_run_failure(ros_domain, tmp_path):
             raise RunError(f"recording '{tmp_path / 'r.mcap'}': cannot write (File too large); the incomplete "
                            "file was removed")
 
-        d.rec.mcap.write = refused
+        d.rec.mcap.write = d.rec.mcap.write_serialized = refused
         d._current = (3, "mlm", "MLM run 3")
-        cb = d._make_cb(P.TOPIC_CLOCK)
-        cb(Clock())
-        cb(Clock())  # the next message: still the first failure
+        cb = d._make_cb(P.TOPIC_CLOCK, Clock)  # the driver takes monitoring messages serialised
+        cb(serialize_message(Clock()))
+        cb(serialize_message(Clock()))  # the next message: still the first failure
         assert d.finished
         assert str(d.error) == (f"run 3: recording '{tmp_path / 'r.mcap'}': cannot write (File too large); the "
                                 "incomplete file was removed")
