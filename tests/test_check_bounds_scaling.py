@@ -116,3 +116,30 @@ def test_the_bounds_with_the_closed_form_of_one_force():
             assert d.max_moment_Nm[0] == pytest.approx(n.max_moment_Nm[0], rel=REL)
             assert d.t_acc_s[0] == pytest.approx(n.t_acc_s[0] * (math.sqrt(k) if key.startswith("mass")
                                                                    else 1.0 / math.sqrt(k)), rel=1e-8)
+
+
+def test_threads_and_memo_change_no_number(monkeypatch):
+    """The trains run in threads and the static effects are memoised: one thread and empty memos give
+    the same result, bit for bit (B1, HSLM-A7 and ICE-2, V = 200 km/h, a mass bound)."""
+    import adm_sim.check as chk
+    from adm_sim import design_loads
+
+    trains = resolve_trains("HSLM-A7,ICE-2")
+    b = named_bridge("B1")
+    two = run_check(b, 200.0, trains, mass_bounds=(-0.1, 0.0))
+    monkeypatch.setattr(chk, "CHECK_THREADS", 1)
+    monkeypatch.setattr(design_loads, "_MEMO", {})
+    one = run_check(b, 200.0, trains, mass_bounds=(-0.1, 0.0))
+    for r2, r1 in [(two, one), (two.bounds[0][1], one.bounds[0][1])]:
+        for c2, c1 in zip(r2.trains, r1.trains):
+            for name in ("speeds_kmh", "max_acc_m_s2", "x_acc_m", "max_disp_m", "max_moment_Nm"):
+                assert np.array_equal(getattr(c2, name), getattr(c1, name)), name
+            assert np.array_equal(c2.effects.dynamic_max, c1.effects.dynamic_max)
+            assert np.array_equal(c2.effects.static_max, c1.effects.static_max)
+            assert c2.static_disp_m == c1.static_disp_m and c2.design == c1.design
+    # a mass bound takes the nominal bridge's memoised static midspan maxima: equal to a fresh
+    # computation on the bound's own bridge to round-off
+    bb = dict(two.bounds)[two.bounds[0][0]].bridge
+    t = trains[0]
+    fresh = chk._static_midspan_max(bb, t.axle_offsets_m, t.axle_loads_n, 2000)
+    np.testing.assert_allclose(chk.static_midspan_max(bb, t.axle_offsets_m, t.axle_loads_n), fresh, rtol=1e-14)
