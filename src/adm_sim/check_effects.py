@@ -39,6 +39,7 @@ numpy only; no ROS.
 from __future__ import annotations
 
 import cmath
+import math
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -123,14 +124,64 @@ def modal_weights(effects, L, EJ, jj):
     return np.stack(cols, axis=1)
 
 
+#: Effect kinds as the kernel :func:`_static_sum` numbers them.
+_KINDS = {"RA": 0, "RB": 1, "M": 2, "V": 3}
+
+
 def _static(effects, L, s, offsets, loads):
-    """Exact static effects of the axles at every front-axle position s, shape (len(s), n_effects)."""
-    u = s[:, None] - offsets[None, :]  # (samples, axles): each axle's position on the span
-    on = (u >= 0.0) & (u <= L)
-    out = np.empty((s.size, len(effects)))
-    for i, e in enumerate(effects):
-        out[:, i] = np.where(on, _line(e, L, u), 0.0) @ loads
+    """Exact static effects of the axles at every front-axle position s, shape (len(s), n_effects):
+    the influence ordinates of :func:`_line` summed over the axles on the span (:func:`_static_sum`)."""
+    kind = np.array([_KINDS[e.kind] for e in effects], dtype=np.int64)
+    xs = np.array([e.x_m for e in effects], dtype=float)
+    out = np.zeros((s.size, len(effects)))
+    _static_sum(kind, xs, float(L), np.ascontiguousarray(s, dtype=float), np.ascontiguousarray(offsets, dtype=float),
+                np.ascontiguousarray(loads, dtype=float), out)
     return out
+
+
+@njit(cache=True, nogil=True)
+def _static_sum(kind, xs, L, s, offsets, loads, out):
+    """out[i, e] += sum over the axles a on the span (0 <= u <= L, u = s_i - offset_a) of load_a times
+    the ordinate of :func:`_line` (kind 0 R_A, 1 R_B, 2 M at xs[e], 3 V at xs[e])."""
+    for i in range(s.size):
+        for a in range(offsets.size):
+            u = s[i] - offsets[a]
+            if u < 0.0 or u > L:
+                continue
+            P = loads[a]
+            for e in range(kind.size):
+                k = kind[e]
+                x = xs[e]
+                if k == 0:
+                    y = (L - u) / L
+                elif k == 1:
+                    y = u / L
+                elif k == 2:
+                    y = u * (L - x) / L if u <= x else x * (L - u) / L
+                else:
+                    y = (L - u) / L if u > x else -u / L
+                out[i, e] += P * y
+
+
+@njit(cache=True, nogil=True)
+def midspan_modal_sum(s, offsets, loads, L, jj, gain, mgain, w, m):
+    """w[i] += F_a sum_j gain_j sin(j pi x / L), m[i] likewise with ``mgain``, x = s_i - offset_a, over
+    the axles on the span (0 <= x <= L): the static midspan deflection and moment on the modes
+    (:func:`adm_sim.check.static_midspan_max`)."""
+    for a in range(offsets.size):
+        F = loads[a]
+        for i in range(s.size):
+            x = s[i] - offsets[a]
+            if x < 0.0 or x > L:
+                continue
+            tw = 0.0
+            tm = 0.0
+            for j in range(jj.size):
+                sh = math.sin(x * jj[j] * math.pi / L)
+                tw += sh * gain[j]
+                tm += sh * mgain[j]
+            w[i] += F * tw
+            m[i] += F * tm
 
 
 def _positions(offsets, L, effects, samples_per_span):
