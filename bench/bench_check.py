@@ -8,6 +8,10 @@ here the core's RK4 MLM run lane by lane).
 Prints times and ratios measured in this run; asserts nothing about time. The loop baseline runs on
 every ``--every``-th speed for all trains and is scaled to all speeds (said in the output).
 Run: .venv/bin/python bench/bench_check.py [--every 12]
+
+``--compare SRC`` prints the whole check with the standard's mass bounds and the HTML report before
+(the ``src`` directory SRC of another tree, e.g. a detached worktree of the main branch) and after (this
+tree) side by side: each in its own process, warmed up, alternating, best of ``--repeat``.
 """
 
 import os
@@ -15,7 +19,11 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
+import json  # noqa: E402
 import math  # noqa: E402
+import pathlib  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
 import time  # noqa: E402
 
 import numpy as np  # noqa: E402
@@ -41,11 +49,70 @@ def timed(fn, repeat=1):
     return best, cpu, out
 
 
+#: The bounds of the target: EN 1991-2 6.4.6.3.2's from 4000 kg/m of ballast at 2000 kg/m3.
+STANDARD_BOUNDS = "standard:4000,2000"
+
+
+def worker(repeat):
+    """One tree's times (JSON on stdout): the whole check; with the standard's mass bounds and the HTML
+    report; best wall and CPU of ``repeat`` after a warm-up."""
+    from adm_sim.check_report import report_html
+
+    bridge = named_bridge("B1")
+    trains = resolve_trains(TRAINS)
+    res = run_check(bridge, V_LINE_KMH, trains, mass_bounds=STANDARD_BOUNDS)  # warm-up (numba cache, imports)
+    report_html(res)
+    out = {}
+    out["check"] = timed(lambda: run_check(bridge, V_LINE_KMH, trains), repeat)[:2]
+    w, c, html = timed(lambda: report_html(run_check(bridge, V_LINE_KMH, trains, mass_bounds=STANDARD_BOUNDS)), repeat)
+    out["bounds_report"] = (w, c)
+    res = run_check(bridge, V_LINE_KMH, trains, mass_bounds=STANDARD_BOUNDS)
+    lab, gt, gv, ga = res.envelope_governing()
+    out["envelope"] = f"{gt.name} {ga:.4f} m/s2 at {gv:g} km/h, governed by {lab}"
+    out["report_kib"] = len(html) / 1024
+    print(json.dumps(out))
+
+
+def compare(baseline_src, repeat, rounds=2):
+    """Before (``baseline_src``) and after (this tree) side by side, alternating ``rounds`` times."""
+    here = str(pathlib.Path(__file__).resolve().parents[1] / "src")
+    trees = {"before": str(pathlib.Path(baseline_src).resolve()), "after": here}
+    best = {k: {} for k in trees}
+    for _ in range(rounds):
+        for name, src in trees.items():
+            env = dict(os.environ, PYTHONPATH=src)
+            r = subprocess.run([sys.executable, __file__, "--worker", "--repeat", str(repeat)], env=env,
+                               capture_output=True, text=True, check=True)
+            got = json.loads(r.stdout.strip().splitlines()[-1])
+            for k, v in got.items():
+                if isinstance(v, list):
+                    old = best[name].get(k, [math.inf, math.inf])
+                    best[name][k] = [min(old[0], v[0]), min(old[1], v[1])]
+                else:
+                    best[name][k] = v
+    print(f"B1, {TRAINS}, V = {V_LINE_KMH:g} km/h (144 .. 420 km/h), every effect and the SLS; load average "
+          f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} cores; wall / CPU s, best of {rounds} x {repeat}, "
+          f"before = {trees['before']}, after = {here}")
+    print(f"{'':58s} {'before':>17s} {'after':>17s}")
+    for k, what in (("check", "whole check"),
+                    ("bounds_report", f"whole check, mass bounds {STANDARD_BOUNDS}, HTML report")):
+        b, a = best["before"][k], best["after"][k]
+        print(f"{what:58s} {b[0]:7.3f} / {b[1]:7.3f} {a[0]:7.3f} / {a[1]:7.3f}  (target <= 3 s)")
+    for name in trees:
+        print(f"{name}: envelope {best[name]['envelope']}; report {best[name]['report_kib']:.0f} KiB")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--every", type=int, default=12, help="loop baseline on every n-th speed (scaled to all)")
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--compare", metavar="SRC", help="before/after against the src directory of another tree")
+    ap.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.worker:
+        return worker(args.repeat)
+    if args.compare:
+        return compare(args.compare, args.repeat)
     bridge = named_bridge("B1")
     trains = resolve_trains(TRAINS)
     speeds = np.arange(144.0, 421.0, 1.0)

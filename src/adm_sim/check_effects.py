@@ -39,6 +39,7 @@ numpy only; no ROS.
 from __future__ import annotations
 
 import cmath
+import math
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -46,7 +47,8 @@ import numpy as np
 
 from adm_sim._jit import njit
 from adm_sim.envelope import _events
-from adm_sim.design_loads import LM71_AXLE_LOAD_N, LM71_AXLES_M, LM71_HALF_WINDOW_M, LM71_UDL_N_M, phi_dyn_prime
+from adm_sim.design_loads import (LM71_AXLE_LOAD_N, LM71_AXLES_M, LM71_HALF_WINDOW_M, LM71_UDL_N_M, memo,
+                                  phi_dyn_prime)
 
 #: Sections of the shear (x/L); the ends are the support reactions.
 SHEAR_SECTIONS = tuple(np.round(np.linspace(0.0, 1.0, 11), 10))
@@ -122,14 +124,64 @@ def modal_weights(effects, L, EJ, jj):
     return np.stack(cols, axis=1)
 
 
+#: Effect kinds as the kernel :func:`_static_sum` numbers them.
+_KINDS = {"RA": 0, "RB": 1, "M": 2, "V": 3}
+
+
 def _static(effects, L, s, offsets, loads):
-    """Exact static effects of the axles at every front-axle position s, shape (len(s), n_effects)."""
-    u = s[:, None] - offsets[None, :]  # (samples, axles): each axle's position on the span
-    on = (u >= 0.0) & (u <= L)
-    out = np.empty((s.size, len(effects)))
-    for i, e in enumerate(effects):
-        out[:, i] = np.where(on, _line(e, L, u), 0.0) @ loads
+    """Exact static effects of the axles at every front-axle position s, shape (len(s), n_effects):
+    the influence ordinates of :func:`_line` summed over the axles on the span (:func:`_static_sum`)."""
+    kind = np.array([_KINDS[e.kind] for e in effects], dtype=np.int64)
+    xs = np.array([e.x_m for e in effects], dtype=float)
+    out = np.zeros((s.size, len(effects)))
+    _static_sum(kind, xs, float(L), np.ascontiguousarray(s, dtype=float), np.ascontiguousarray(offsets, dtype=float),
+                np.ascontiguousarray(loads, dtype=float), out)
     return out
+
+
+@njit(cache=True, nogil=True)
+def _static_sum(kind, xs, L, s, offsets, loads, out):
+    """out[i, e] += sum over the axles a on the span (0 <= u <= L, u = s_i - offset_a) of load_a times
+    the ordinate of :func:`_line` (kind 0 R_A, 1 R_B, 2 M at xs[e], 3 V at xs[e])."""
+    for i in range(s.size):
+        for a in range(offsets.size):
+            u = s[i] - offsets[a]
+            if u < 0.0 or u > L:
+                continue
+            P = loads[a]
+            for e in range(kind.size):
+                k = kind[e]
+                x = xs[e]
+                if k == 0:
+                    y = (L - u) / L
+                elif k == 1:
+                    y = u / L
+                elif k == 2:
+                    y = u * (L - x) / L if u <= x else x * (L - u) / L
+                else:
+                    y = (L - u) / L if u > x else -u / L
+                out[i, e] += P * y
+
+
+@njit(cache=True, nogil=True)
+def midspan_modal_sum(s, offsets, loads, L, jj, gain, mgain, w, m):
+    """w[i] += F_a sum_j gain_j sin(j pi x / L), m[i] likewise with ``mgain``, x = s_i - offset_a, over
+    the axles on the span (0 <= x <= L): the static midspan deflection and moment on the modes
+    (:func:`adm_sim.check.static_midspan_max`)."""
+    for a in range(offsets.size):
+        F = loads[a]
+        for i in range(s.size):
+            x = s[i] - offsets[a]
+            if x < 0.0 or x > L:
+                continue
+            tw = 0.0
+            tm = 0.0
+            for j in range(jj.size):
+                sh = math.sin(x * jj[j] * math.pi / L)
+                tw += sh * gain[j]
+                tm += sh * mgain[j]
+            w[i] += F * tw
+            m[i] += F * tm
 
 
 def _positions(offsets, L, effects, samples_per_span):
@@ -144,6 +196,26 @@ def _positions(offsets, L, effects, samples_per_span):
         s.append(offsets + x + eps)
     s = np.concatenate(s)
     return np.unique(s[(s >= 0.0) & (s <= end)])
+
+
+def _sample_statics(effects, L, offs, loads, bps, jj, n_per_span):
+    """Per sample of the front-axle position (:func:`_positions`): its interval ``k_of`` between the
+    breakpoints ``bps``, its offset ``ds`` in it, ``E1 = e^(i j pi ds / L)`` (samples, modes) and the
+    exact static effects (samples, effects). Memoised (:func:`adm_sim.design_loads.memo`: a check with
+    mass or stiffness bounds samples every train once per bound; these do not depend on the bridge's
+    mass or stiffness); the arrays are shared, never modified."""
+
+    def compute():
+        s = _positions(offs, L, effects, n_per_span)
+        infl = _static(effects, L, s, offs, loads)
+        k_of = np.clip(np.searchsorted(bps, s, side="right") - 1, 0, bps.size - 2)
+        ds = s - bps[k_of]
+        E1 = np.exp(1j * np.pi * np.outer(ds, jj) / L)  # speed independent (samples, modes)
+        return k_of, ds, E1, infl
+
+    key = ("effect_samples", float(L), tuple(effects), offs.tobytes(), loads.tobytes(), bps.tobytes(), jj.tobytes(),
+           int(n_per_span))
+    return memo(key, compute)
 
 
 @dataclass
@@ -166,10 +238,44 @@ class EffectsResult:
 
 
 @njit(cache=True, nogil=True)
-def _scan(k_of, ds, E1, P, H, lam, v, W, base, best):
+def _exp_modes(lam, tau, squares, re, im):
+    """re + i im = e^(lam_j tau) for every mode j. ``squares``: lam_j = (j + 1)^2 lam_0 (modes 1, 2, ..
+    with one ζ: the simply supported beam's omega_j = j^2 omega_1), so one complex exponential and two
+    products per further mode, z^(j^2) = z^((j-1)^2) z^(2j-1) (equal to the exponentials to 1e-15
+    relative); else one exponential per mode."""
+    if squares:
+        z = cmath.exp(lam[0] * tau)
+        z2 = z * z
+        odd = z  # z^(2j - 1)
+        p = z
+        re[0] = p.real
+        im[0] = p.imag
+        for j in range(1, lam.size):
+            odd = odd * z2
+            p = p * odd
+            re[j] = p.real
+            im[j] = p.imag
+    else:
+        for j in range(lam.size):
+            z = cmath.exp(lam[j] * tau)
+            re[j] = z.real
+            im[j] = z.imag
+
+
+def _modes_are_squares(jj, lam):
+    """True when the modes are 1, 2, .. n and lam_j = j^2 lam_1 to 1e-12 (one ζ on every mode):
+    :func:`_exp_modes` may then raise one exponential to the powers j^2."""
+    n = jj.size
+    return bool(np.array_equal(jj, np.arange(1, n + 1)) and
+                np.all(np.abs(lam - jj**2 * lam[0]) <= 1e-12 * np.abs(lam)))
+
+
+@njit(cache=True, nogil=True)
+def _scan(k_of, ds, E1, P, H, lam, v, W, base, best, squares):
     """best[l, e] = max over samples i of |base[i, e] + sum_j W[e, j] q_j(i, l)|, with
     q_j = Im[P[k, l, j] E1[i, j]] + Im[H[k, l, j] e^(lam_j ds_i / v_l)], k = k_of[i]. Along the
-    samples of one interval e^(lam tau) is advanced by multiplication where the step repeats."""
+    samples of one interval e^(lam tau) is advanced by multiplication where the step repeats
+    (``squares``: :func:`_exp_modes`)."""
     ns = k_of.size
     nm = lam.size
     ne = W.shape[0]
@@ -187,18 +293,12 @@ def _scan(k_of, ds, E1, P, H, lam, v, W, base, best):
             k = k_of[i]
             d = ds[i]
             if k != last_k:
-                for j in range(nm):
-                    z = cmath.exp(lam[j] * (d * inv_v))
-                    eLr[j] = z.real
-                    eLi[j] = z.imag
+                _exp_modes(lam, d * inv_v, squares, eLr, eLi)
                 last_h = -1.0
             else:
                 h = d - last_ds
                 if abs(h - last_h) > 1e-12 * (1.0 + abs(h)):
-                    for j in range(nm):
-                        z = cmath.exp(lam[j] * (h * inv_v))
-                        sr[j] = z.real
-                        si[j] = z.imag
+                    _exp_modes(lam, h * inv_v, squares, sr, si)
                     last_h = h
                 for j in range(nm):
                     r = eLr[j] * sr[j] - eLi[j] * si[j]
@@ -251,6 +351,7 @@ def train_effects(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, delta_zeta=0
     mass = bridge.modal_mass_kg
     lam = -zeta * om + 1j * om * np.sqrt(1.0 - zeta**2)
     W = modal_weights(effects, L, EJ, jj)  # (modes, effects)
+    squares = _modes_are_squares(jj, lam)
 
     bps, G = _events(offs, loads, L, jj, mass[0])
     G = G * (mass[0] / mass)
@@ -258,11 +359,7 @@ def train_effects(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, delta_zeta=0
 
     def samples(n_per_span):
         """Positions, their interval, offset in it, e^(i Om tau), the static part and its maximum."""
-        s = _positions(offs, L, effects, n_per_span)
-        infl = _static(effects, L, s, offs, loads)
-        k_of = np.clip(np.searchsorted(bps, s, side="right") - 1, 0, bps.size - 2)
-        ds = s - bps[k_of]
-        E1 = np.exp(1j * np.pi * np.outer(ds, jj) / L)  # speed independent (samples, modes)
+        k_of, ds, E1, infl = _sample_statics(effects, L, offs, loads, bps, jj, n_per_span)
         q_stat = (Gk[k_of] * E1).imag / om**2  # q_j^stat at every sample
         base = infl - q_stat @ W if static_correction else np.zeros_like(infl)
         return k_of, ds, E1, np.ascontiguousarray(base), np.abs(infl).max(0)
@@ -303,14 +400,14 @@ def train_effects(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, delta_zeta=0
     k_of, ds, E1, base, _ = samples(COARSE_SAMPLES_PER_SPAN)
     coarse = np.zeros((sel.size, len(effects)))
     _scan(k_of, ds, E1, np.ascontiguousarray(P[:, sel]), np.ascontiguousarray(H[:, sel]), lam, v[sel], Wc, base,
-          coarse)
+          coarse, squares)
     coarse = np.maximum(coarse, free[sel])
     cand = sel[(coarse >= (1.0 - COARSE_MARGIN) * coarse.max(0)[None, :]).any(1)]
     keep = np.nonzero((np.abs(kmh[:, None] - kmh[cand][None, :]) <= COARSE_STEP_KMH + 1e-9).any(1))[0]
     k_of, ds, E1, base, static_max = samples(samples_per_span)
     fine = np.zeros((keep.size, len(effects)))
     _scan(k_of, ds, E1, np.ascontiguousarray(P[:, keep]), np.ascontiguousarray(H[:, keep]), lam, v[keep], Wc,
-          base, fine)
+          base, fine, squares)
     best = free.copy()
     best[sel] = np.maximum(best[sel], coarse)
     best[keep] = np.maximum(best[keep], fine)
@@ -394,5 +491,6 @@ class EffectComparison:
 
 def lm71_effects(span_m, alpha, effects=None):
     """α x LM71 static maximum of every effect (cached per span and α by the caller)."""
-    effects = effects_of(span_m) if effects is None else effects
-    return np.array([lm71_effect_max(e, span_m, alpha) for e in effects])
+    effects = tuple(effects_of(span_m) if effects is None else effects)
+    return memo(("lm71_effects", float(span_m), float(alpha), effects),
+                 lambda: np.array([lm71_effect_max(e, span_m, alpha) for e in effects])).copy()

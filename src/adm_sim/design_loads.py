@@ -63,6 +63,7 @@ numpy only; no ROS.
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -362,6 +363,27 @@ def _best(f, candidates):
     return float(v[i]), float(s[i])
 
 
+#: Static results already computed, by their exact inputs (the check computes the same train's and
+#: LM71's static effects once per train, not again per mass or stiffness bound: they do not depend on
+#: the mass); the oldest entries are dropped beyond :data:`_MEMO_SIZE`. Values are never modified.
+_MEMO: dict = {}
+_MEMO_SIZE = 256
+_MEMO_LOCK = threading.Lock()
+
+
+def memo(key, compute):
+    """``compute()`` once per hashable ``key`` (thread safe; at most :data:`_MEMO_SIZE` entries kept).
+    Used by this module, :mod:`adm_sim.check_effects` and :mod:`adm_sim.check`."""
+    value = _MEMO.get(key)
+    if value is None:
+        value = compute()
+        with _MEMO_LOCK:
+            while len(_MEMO) >= _MEMO_SIZE:
+                del _MEMO[next(iter(_MEMO))]
+            _MEMO[key] = value
+    return value
+
+
 @dataclass(frozen=True)
 class MidspanMax:
     """Largest static midspan effects and where the load stood.
@@ -420,6 +442,11 @@ def train_midspan_max(span_m, EJ_Nm2, axle_offsets_m, axle_loads_n):
     """
     L, EJ = _span_ej(span_m, EJ_Nm2)
     a, P = _train_arrays(axle_offsets_m, axle_loads_n)
+    return memo(("train_midspan", L, EJ, a.tobytes(), P.tobytes()), lambda: _train_midspan_max(L, EJ, a, P))
+
+
+def _train_midspan_max(L, EJ, a, P):
+    """:func:`train_midspan_max` of checked arrays (memoised by its caller)."""
 
     def moment(s):
         s = np.atleast_1d(s)
@@ -483,6 +510,11 @@ def lm71_midspan(span_m, EJ_Nm2, alpha=1.0):
     """
     L, EJ = _span_ej(span_m, EJ_Nm2)
     al = check_alpha(alpha)
+    return memo(("lm71_midspan", L, EJ, al), lambda: _lm71_midspan(L, EJ, al))
+
+
+def _lm71_midspan(L, EJ, al):
+    """:func:`lm71_midspan` of checked values (memoised by its caller)."""
     moment, deflection = _lm71_effects(L, EJ)
     ends = np.array([-L / 2.0, 0.0, L / 2.0])
     rel = np.concatenate([LM71_AXLES_M, [-LM71_HALF_WINDOW_M, LM71_HALF_WINDOW_M]])
