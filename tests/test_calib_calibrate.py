@@ -10,7 +10,7 @@ import pytest
 
 from adm_sim.bridge import named_bridge
 from adm_sim.step_grid import StepOptions
-from adm_sim.sweep import run_sweep
+from adm_sim.sweep import run_sweep, run_sweep_compiled
 from adm_sim.trains import load_train
 from adm_calib.calibrate import CalibrationOptions, calibrate, calibration_step
 
@@ -224,16 +224,16 @@ def test_no_reasonable_peak_is_reported():
 
 
 def test_external_sweep_hook_is_used_for_every_run():
-    """The ``sweep`` hook replaces every in-process run (here: a counting wrapper of run_sweep)."""
+    """The ``sweep`` hook replaces every in-process run (here: a counting wrapper of the compiled sweep)."""
     b, t = named_bridge("B1"), load_train("ICE-2")
     calls = []
 
     def counted(model, speeds, dz, step):
         calls.append(model)
-        return run_sweep(b, t, model, speeds, delta_zeta=dz, options=step).max_acc_m_s2
+        return run_sweep_compiled(b, t, model, speeds, delta_zeta=dz, options=step).max_acc_m_s2
 
     step = calibration_step(b, t, V_B1)
-    target = run_sweep(b, t, "mlm", V_B1, delta_zeta=0.002, options=step).max_acc_m_s2
+    target = run_sweep_compiled(b, t, "mlm", V_B1, delta_zeta=0.002, options=step).max_acc_m_s2
     r = calibrate(b, t, V_B1, dim_curve=(V_B1, target), sweep=counted)
     assert r.delta_zeta_vbi == pytest.approx(0.002, abs=0.005e-2)
     # full MLM + ladder + the root finder's calls but its first two (the ends of the bracket, which
@@ -248,7 +248,7 @@ def test_phase_travels_with_the_lanes_to_a_hook():
 
     def hook(model, speeds, dz, step, phase):
         phases.append((model, phase, np.size(speeds)))
-        return run_sweep(b, t, model, speeds, delta_zeta=dz, options=step).max_acc_m_s2
+        return run_sweep_compiled(b, t, model, speeds, delta_zeta=dz, options=step).max_acc_m_s2
 
     r = calibrate(b, t, V_B1, sweep=hook)
     n_root = r.solve.function_calls
@@ -260,7 +260,8 @@ def test_phase_travels_with_the_lanes_to_a_hook():
     assert [p[1] for p in trials] == ["ladder"] + ["root"] * (n_root - 2)
     assert trials[0][2] == 17 * n_win and all(p[2] == n_win for p in trials[1:])   # 17 ladder rungs
     assert phases[-1] == ("mlm", "adapted", V_B1.size)
-    # the same numbers as the compiled backend
+    # the same numbers as the compiled backend's own lanes (the numpy stepper's calibration equals
+    # the compiled one case by case in tests/test_batch.py)
     ref = calibrate(b, t, V_B1)
     assert r.delta_zeta_vbi == pytest.approx(ref.delta_zeta_vbi, abs=1e-10)
 
@@ -275,7 +276,7 @@ def test_every_damping_is_run_once_and_the_root_within_the_printed_digits():
     def hook(model, speeds, dz, step, phase):
         if phase in ("ladder", "root", "check"):
             runs.append((phase, tuple(np.unique(np.atleast_1d(dz)))))
-        return run_sweep(b, t, model, speeds, delta_zeta=dz, options=step).max_acc_m_s2
+        return run_sweep_compiled(b, t, model, speeds, delta_zeta=dz, options=step).max_acc_m_s2
 
     r = calibrate(b, t, V_B1, sweep=hook)
     dampings = [d for phase, dz in runs for d in (dz if phase == "ladder" else dz[:1])]
@@ -296,10 +297,10 @@ def test_progress_is_reported_once_per_request_with_its_phase():
 
     def hook(model, speeds, dz, step, phase):
         seen.append(phase)
-        return run_sweep(b, t, model, speeds, delta_zeta=dz, options=step).max_acc_m_s2
+        return run_sweep_compiled(b, t, model, speeds, delta_zeta=dz, options=step).max_acc_m_s2
 
     step = calibration_step(b, t, V_B1)
-    target = run_sweep(b, t, "mlm", V_B1, delta_zeta=0.002, options=step).max_acc_m_s2
+    target = run_sweep_compiled(b, t, "mlm", V_B1, delta_zeta=0.002, options=step).max_acc_m_s2
     calibrate(b, t, V_B1, dim_curve=(V_B1, target), sweep=hook, progress=lambda *a: reported.append(a))
     assert seen[0] == "mlm" and "ladder" in seen and seen[-1] == "adapted"
     assert reported == [(i, None, ph) for i, ph in enumerate(seen, start=1)]

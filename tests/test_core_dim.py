@@ -1,5 +1,10 @@
 """DIM solver: limiting cases (soft and rigid suspensions, conventional and Jacobs trains),
-step convergence and contact-force balance."""
+step convergence and contact-force balance.
+
+The limiting cases and the convergence run on the compiled kernels (``run_sweep_compiled``: the
+numpy stepper's grid and maxima to ~1e-13 relative, held to 1e-12 by ``tests/test_sweep_backends.py``
+and ``tests/test_batch.py``), at a sixth of the numpy stepper's CPU; the contact forces need the
+histories only the numpy stepper keeps."""
 
 import tomllib
 from importlib import resources
@@ -9,7 +14,7 @@ import pytest
 
 from adm_sim.bridge import named_bridge
 from adm_sim.step_grid import StepOptions
-from adm_sim.sweep import run_sweep
+from adm_sim.sweep import run_sweep, run_sweep_compiled
 from adm_sim.trains import load_train, train_from_mapping
 
 
@@ -33,8 +38,8 @@ def test_soft_suspension_massless_wheels_give_the_mlm(train_name):
     # so the DIM must reproduce the MLM (differences ~ k_p w / F ~ 1e-8).
     b = named_bridge("B3")
     speeds = [200.0, 265.0, 300.0]
-    dim = run_sweep(b, _modified(train_name, **SOFT), "dim", speeds).max_acc_m_s2
-    mlm = run_sweep(b, load_train(train_name), "mlm", speeds).max_acc_m_s2
+    dim = run_sweep_compiled(b, _modified(train_name, **SOFT), "dim", speeds).max_acc_m_s2
+    mlm = run_sweep_compiled(b, load_train(train_name), "mlm", speeds).max_acc_m_s2
     np.testing.assert_allclose(dim, mlm, rtol=1e-6)
 
 
@@ -55,9 +60,9 @@ def test_rigid_primary_stage_equals_masses_carried_by_the_wheels(train_name):
     lumped = _modified(train_name, m_w_kg=lambda vt: vt["m_w_kg"] + vt["m_b_kg"] / 2,
                        m_b_kg=1.0, J_b_kgm2=1.0, k_p_N_m=1.0, c_p_Ns_m=0.0, **body)
     opts = StepOptions(steps_per_period=32)
-    a_rigid = run_sweep(b, rigid, "dim", speeds, options=opts).max_acc_m_s2
-    a_lumped = run_sweep(b, lumped, "dim", speeds, options=opts).max_acc_m_s2
-    a_mlm = run_sweep(b, load_train(train_name), "mlm", speeds, options=opts).max_acc_m_s2
+    a_rigid = run_sweep_compiled(b, rigid, "dim", speeds, options=opts).max_acc_m_s2
+    a_lumped = run_sweep_compiled(b, lumped, "dim", speeds, options=opts).max_acc_m_s2
+    a_mlm = run_sweep_compiled(b, load_train(train_name), "mlm", speeds, options=opts).max_acc_m_s2
     np.testing.assert_allclose(a_rigid, a_lumped, rtol=3e-3)
     # the carried masses matter: the check above is not a trivial MLM = MLM
     assert np.max(np.abs(a_lumped / a_mlm - 1)) > 0.01
@@ -71,8 +76,8 @@ def test_dim_step_convergence(bridge_name, train_name, lo, hi):
     b, t = named_bridge(bridge_name), load_train(train_name)
     speeds = np.arange(lo, hi, 1.0)
     opts = StepOptions()
-    p1 = run_sweep(b, t, "dim", speeds, options=opts).peak()
-    p2 = run_sweep(b, t, "dim", speeds, options=opts.halved()).peak()
+    p1 = run_sweep_compiled(b, t, "dim", speeds, options=opts).peak()
+    p2 = run_sweep_compiled(b, t, "dim", speeds, options=opts.halved()).peak()
     assert p1["speed_kmh"] == p2["speed_kmh"]
     assert abs(p1["acc_m_s2"] / p2["acc_m_s2"] - 1) < 1e-3
 
@@ -81,8 +86,8 @@ def test_interaction_lowers_the_resonance_peak_b1_ice2():
     # Section 1: vehicle-bridge interaction reduces the resonant response (Fig. 15).
     b, t = named_bridge("B1"), load_train("ICE-2")
     speeds = np.arange(250.0, 276.0, 1.0)
-    mlm = run_sweep(b, t, "mlm", speeds).peak()
-    dim = run_sweep(b, t, "dim", speeds).peak()
+    mlm = run_sweep_compiled(b, t, "mlm", speeds).peak()
+    dim = run_sweep_compiled(b, t, "dim", speeds).peak()
     assert dim["acc_m_s2"] < 0.95 * mlm["acc_m_s2"]
     assert abs(dim["speed_kmh"] - mlm["speed_kmh"]) <= 5.0
 

@@ -78,6 +78,27 @@ def check_every_sample(out):
     return done, started
 
 
+#: The main job's parameters (ros_ws/params/b1_ice2.yaml) at 4 RK4 steps per period of the highest
+#: mode (not 16), one fundamental period of free vibration (not 2) and a monitoring sample at every
+#: step (not every second one): a quarter of the DIM round trips, half the monitoring messages per
+#: run (the flow control and the counts, not the numbers' accuracy, are under test).
+COARSE_PARAMS = """\
+bridge:
+  ros__parameters:
+    bridge: B1
+    steps_per_period: 4.0
+    free_vibration_periods: 1.0
+    monitor_every_steps: 1
+train:
+  ros__parameters:
+    train: ICE-2
+    model: dim
+calibration:
+  ros__parameters:
+    dim_grid: window
+"""
+
+
 def test_no_sample_lost_under_load(tmp_path, ros_domain):
     from ros_fixtures import ROOT
 
@@ -85,8 +106,11 @@ def test_no_sample_lost_under_load(tmp_path, ros_domain):
     try:
         cal, cross = tmp_path / "cal", tmp_path / "cross"
         common = ["--domain-id", str(ros_domain.domain_id)]
+        params = tmp_path / "b1_ice2_coarse.yaml"
+        params.write_text(COARSE_PARAMS)
         p = subprocess.run([sys.executable, str(ROOT / "launch_scripts" / "calibrate.py"), "--bridge", "B1",
-                            "--train", "ICE-2", "--speeds", "240:290:2", "--out", str(cal), "--quiet"] + common,
+                            "--train", "ICE-2", "--speeds", "240:290:2", "--params-file", str(params),
+                            "--out", str(cal), "--quiet"] + common,
                            env=dict(ros_domain), capture_output=True, text=True, timeout=600, cwd=ROOT)
         assert p.returncode == 0, p.stderr
         q = subprocess.run([sys.executable, str(ROOT / "launch_scripts" / "crossing.py"), "--bridge", "B1",

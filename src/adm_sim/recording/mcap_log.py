@@ -557,8 +557,9 @@ def _decompress(compression: str, raw: bytes, size: int) -> bytes:
     raise ValueError(f"unknown compression {compression!r}")
 
 
-def _parse_chunk(data, pos: int, end: int, check_length: bool = True):
-    """The records inside the Chunk record at ``pos`` (decompressed, CRC checked) or a reason."""
+def _parse_chunk(data, pos: int, end: int, check_length: bool = True, records_end: int | None = None):
+    """The records inside the Chunk record at ``pos`` (decompressed, CRC checked) or a reason.
+    ``records_end``: read the compressed records up to there instead of by their own length field."""
 
     body = pos + 9
     length = _u(data, pos + 1, 8)
@@ -573,8 +574,8 @@ def _parse_chunk(data, pos: int, end: int, check_length: bool = True):
     except UnicodeDecodeError:
         return None, "chunk header is damaged"
     at = body + 32 + n_comp
-    n_rec = _u(data, at, 8)
-    if at + 8 + n_rec > end or (check_length and at + 8 + n_rec != body + length):
+    n_rec = _u(data, at, 8) if records_end is None else records_end - (at + 8)
+    if n_rec < 0 or at + 8 + n_rec > end or (check_length and at + 8 + n_rec != body + length):
         return None, "broken record framing"
     if size > 1 << 34:
         return None, "chunk header is damaged"
@@ -627,6 +628,14 @@ def _next_chunk(data, start: int, end: int) -> int | None:
             if why is None:
                 return pos
         pos += 1
+
+
+def _record_starts_at(data, pos: int, end: int) -> bool:
+    """A data-section record's framing at ``pos``: a known opcode and a length within ``end``."""
+    if pos + 9 > end or data[pos] not in _DATA_OPS:
+        return False
+    length = _u(data, pos + 1, 8)
+    return pos + 9 + length <= end and (data[pos] != _MESSAGE_INDEX or _index_ok(data, pos, length))
 
 
 def _index_ok(data, pos: int, length: int) -> bool:
@@ -766,11 +775,20 @@ def scan(path) -> Scan:
             inner_end = rec_end
             if why == "broken record framing":  # the record length disagrees with the chunk's own sizes
                 raw, why2 = _parse_chunk(data, pos, end, check_length=False)
-                if why2 is None:  # the contents check out: only the outer length is damaged
+                if why2 is None:  # the contents check out by their own length: one of the two lengths is damaged
                     n_comp = _u(data, pos + 9 + 28, 4)
                     inner_end = pos + 9 + 32 + n_comp + 8 + _u(data, pos + 9 + 32 + n_comp, 8)
-                    result.damage.append(Damage(pos, "chunk record length is damaged (its contents pass "
-                                                     "their CRC and are kept)", {}))
+                    what = "chunk record length is damaged"
+                    # zstd stops at the end of its frame, so a records length enlarged by damage still
+                    # decompresses: when the outer length also holds the contents, it is the records
+                    # length that is damaged, and the chunk ends where its record says (a reading on
+                    # from the enlarged length would jump over intact chunks)
+                    raw_outer, why3 = None, "not tried"
+                    if not _record_starts_at(data, inner_end, end) and _record_starts_at(data, rec_end, end):
+                        raw_outer, why3 = _parse_chunk(data, pos, end, records_end=rec_end)
+                    if why3 is None:
+                        raw, inner_end, what = raw_outer, rec_end, "chunk's records length is damaged"
+                    result.damage.append(Damage(pos, f"{what} (its contents pass their CRC and are kept)", {}))
                     why = None
             records: list = []
             if why is None:
