@@ -88,7 +88,7 @@ def test_axles_on_the_bridge_equal_a_test_of_every_row(train, span, ds, r0, n):
 
 @pytest.mark.parametrize("speeds,msg", [([200.0, 700.0], r"^speed_kmh: 700 km/h is out of range; allowed \[1, 600\] km/h"),
                                         ([0.5, 200.0], r"^speed_kmh: 0.5 km/h is out of range"),
-                                        ([200.0, np.nan], r"^speed_kmh: nan km/h is not finite")])
+                                        ([200.0, np.nan], r"^speed_kmh: .*nan.* km/h is not finite")])
 def test_speed_errors_name_the_first_bad_speed(speeds, msg):
     with pytest.raises(InputError, match=msg):
         speeds_to_m_s(speeds)
