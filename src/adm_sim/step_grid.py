@@ -109,8 +109,10 @@ def speeds_to_m_s(speeds_kmh):
     v = np.atleast_1d(np.asarray(speeds_kmh, dtype=float))
     if v.ndim != 1 or v.size == 0:
         raise InputError("speeds_kmh: need a non-empty list of speeds (km/h)")
-    for x in v:
-        check_range("speed_kmh", x, "km/h", *SPEED_RANGE_KMH)
+    lo, hi = SPEED_RANGE_KMH
+    if not (np.all(np.isfinite(v)) and v.min() >= lo and v.max() <= hi):  # the first bad speed's message
+        for x in v:
+            check_range("speed_kmh", x, "km/h", lo, hi)
     return v / 3.6
 
 
