@@ -87,7 +87,7 @@ def check_calibration_speeds(text, option):
     try:
         return check_speeds(v)
     except InputError as exc:
-        raise InputError(f"{option}: {text!r}: {str(exc).removeprefix('speeds: ')}", field=option) from None
+        raise InputError(f"{option}: {text!r}: {str(exc).removeprefix('speeds_kmh: ')}", field=option) from None
 
 
 def launch_param_specs():
@@ -155,7 +155,7 @@ def check_inputs(bridge=None, train=None, speeds=None, params_file=None, model=N
             warnings.simplefilter("ignore", PlausibilityWarning)
             load_train(train)
     if speeds is not None:
-        parse_speeds(speeds)
+        parse_speeds(speeds, field="--speeds")
     file_values = {}
     if params_file is not None:
         try:

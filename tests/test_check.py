@@ -232,7 +232,7 @@ def test_library_names_the_argument_the_cli_the_flag(kw, flag):
 
 
 def test_bad_trains():
-    with pytest.raises(InputError, match=r"train: 'TGV' is unknown; allowed ICE-2, Eurostar, Railjet, ICE-4, "
+    with pytest.raises(InputError, match=r"^trains: 'TGV' is unknown; allowed ICE-2, Eurostar, Railjet, ICE-4, "
                                          r"Eurostar-table, HSLM-A1 \.\. HSLM-A10, or a \.toml train file"):
         resolve_trains("hslm,TGV")
     with pytest.raises(InputError, match=r"^trains: 'HSLM-A3' is given twice"):
@@ -249,7 +249,7 @@ def test_bad_trains():
                                   "(the check runs from 40 m/s = 144 km/h up to 1.2 V, EN 1991-2 6.4.6.2; 1.2 V at "
                                   "most 600 km/h)\n"),
     (["--max-line-speed", "300", "--trains", "hslm,Thalys"],
-     "error: train: 'Thalys' is unknown; allowed ICE-2, Eurostar, Railjet, ICE-4, Eurostar-table, "
+     "error: --trains: 'Thalys' is unknown; allowed ICE-2, Eurostar, Railjet, ICE-4, Eurostar-table, "
      "HSLM-A1 .. HSLM-A10, or a .toml train file\n"),
     (["--bridge", "B2", "--max-line-speed", "300", "--damping", "adm"],
      "error: --damping adm: the Eurocode ADM applies to spans < 30 m (EN 1991-2 6.4.6.3.1); this bridge "

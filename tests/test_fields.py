@@ -430,9 +430,9 @@ def test_every_library_argument_has_its_flag_in_the_registry():
     assert unmapped == CHECKED_FIRST_BY_THE_COMMAND, {a: args[a] for a in unmapped}
     mapped = set(args) - unmapped | {"where"}  # envelope.parse_where names its argument through a variable
     assert {a: fields.argument_flag(a) for a in sorted(mapped)} == {
-        "alpha": "--alpha", "damping": "--damping", "max_line_speed_kmh": "--max-line-speed", "n_modes": "--modes",
-        "scheduler": "--scheduler", "step_kmh": "--speed-step", "track_maintenance": "--track-maintenance",
-        "trains": "--trains", "where": "--where"}
+        "alpha": "--alpha", "bridge": "--bridge", "damping": "--damping", "max_line_speed_kmh": "--max-line-speed",
+        "n_modes": "--modes", "scheduler": "--scheduler", "speeds_kmh": "--speeds", "step_kmh": "--speed-step",
+        "track_maintenance": "--track-maintenance", "train": "--train", "trains": "--trains", "where": "--where"}
     # a field with two flags (--span, --spans) or none (a ROS parameter) names no flag
     assert fields.argument_flag("span_m") is None and fields.argument_flag("ds_m") is None
     assert fields.argument_flag(None) is None and fields.argument_flag("no_such_field") is None

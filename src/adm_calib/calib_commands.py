@@ -93,7 +93,7 @@ def _steps_per_period(text):
 def _speeds(text):
     from adm_sim.sweep import parse_speeds  # noqa: PLC0415  start-up: only this subcommand (60 ms)
 
-    return parse_speeds(text)
+    return parse_speeds(text, field="--speeds")
 
 
 def cmd_calibrate(args):

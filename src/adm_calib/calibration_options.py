@@ -97,7 +97,7 @@ def check_speeds(speeds_kmh):
     (at least 3, each a valid speed)."""
     v = DEFAULT_SPEEDS_KMH if speeds_kmh is None else np.asarray(speeds_kmh, dtype=float)
     if v.ndim != 1 or v.size < 3:
-        raise InputError(f"speeds: need at least 3 speeds (km/h), got {v.size}")
+        raise InputError(f"speeds_kmh: need at least 3 speeds (km/h), got {v.size}", field="speeds_kmh")
     v = np.unique(v)
     speeds_to_m_s(v)
     return v

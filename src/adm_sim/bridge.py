@@ -379,4 +379,4 @@ def resolve_bridge(text):
     if "=" in text:
         return parse_bridge_spec(text)
     raise InputError(f"bridge: {text!r} is neither a named bridge ({', '.join(TABLE3)}), "
-                     f"a spec like L=15,n0=8.26,mu=19042,zeta_pct=1.85, nor a file")
+                     f"a spec like L=15,n0=8.26,mu=19042,zeta_pct=1.85, nor a file", field="bridge")

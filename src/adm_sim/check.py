@@ -414,7 +414,12 @@ def resolve_trains(spec):
                          f"ICE-2, Eurostar, Railjet, ICE-4, Eurostar-table or .toml train files, comma separated",
                          field="trains")
     check_count("n_trains", len(names), "--trains", repr(spec))
-    trains = [_load_check_train(n) for n in names]
+    try:
+        trains = [_load_check_train(n) for n in names]
+    except InputError as exc:  # a train's own refusal names the one train: here it came from the list
+        if getattr(exc, "field", None) != "train":
+            raise
+        raise InputError("trains" + str(exc)[len("train"):], field="trains") from None
     seen = set()
     for t in trains:
         if t.name in seen:

@@ -39,7 +39,7 @@ def cmd_sweep(args):
     plot_path = None if args.plot is None else claim_output(args.plot, "--plot", args.overwrite, ".png", inputs)
     bridge = resolve_bridge(args.bridge)
     train = load_train(args.train)
-    speeds = parse_speeds(args.speeds)
+    speeds = parse_speeds(args.speeds, field="--speeds")
     dz_pct = option_view("--delta-zeta-pct")  # % on the command line, a fraction in the core
     dz = dz_pct.to_core(dz_pct.check(args.delta_zeta_pct, lo_core=-bridge.damping_ratio))  # dz >= -zeta
     opts = StepOptions(steps_per_period=check_option("--steps-per-period", args.steps_per_period))

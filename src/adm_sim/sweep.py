@@ -35,20 +35,20 @@ def parse_speeds(text, ordered=True, field="speeds"):
     """
     text = str(text).strip()
     if ":" in text and "," in text:
-        raise InputError(f"{field}: {text!r} mixes ':' and ','; give start:stop:step or a comma list (km/h)")
+        raise InputError(f"{field}: {text!r} mixes ':' and ','; give start:stop:step or a comma list (km/h)", field=field)
     try:
         parts = [float(p) for p in text.replace(":", ",").split(",") if p.strip()]
     except ValueError:
         parts = None
     if not parts or (":" in text and len(parts) not in (2, 3)):
-        raise InputError(f"{field}: {text!r} is not start:stop:step or a comma list (km/h)")
+        raise InputError(f"{field}: {text!r} is not start:stop:step or a comma list (km/h)", field=field)
     bad = [p for p in parts if not math.isfinite(p)]
     if bad:
-        raise InputError(f"{field}: {text!r} holds {bad[0]!r}; every speed and step must be a finite number (km/h)")
+        raise InputError(f"{field}: {text!r} holds {bad[0]!r}; every speed and step must be a finite number (km/h)", field=field)
     if ":" in text:
         a, b, st = parts if len(parts) == 3 else parts + [1.0]
         if st <= 0 or b < a:
-            raise InputError(f"{field}: {text!r} needs start <= stop and step > 0 (km/h)")
+            raise InputError(f"{field}: {text!r} needs start <= stop and step > 0 (km/h)", field=field)
         n = int(math.floor((b - a) / st + 1e-9)) + 1
         check_count("n_speeds" if ordered else "n_lanes", n, field, repr(text))  # before any array
         v = a + st * np.arange(n)
@@ -56,11 +56,11 @@ def parse_speeds(text, ordered=True, field="speeds"):
         check_count("n_speeds" if ordered else "n_lanes", len(parts), field, repr(text))
         v = np.array(parts)
         if ordered and np.any(np.diff(v) <= 0):
-            raise InputError(f"{field}: {text!r} must increase strictly (km/h), e.g. 200,250,263")
+            raise InputError(f"{field}: {text!r} must increase strictly (km/h), e.g. 200,250,263", field=field)
     lo, hi = SPEED_RANGE_KMH
     out = v[(v < lo) | (v > hi)]
     if out.size:
-        raise InputError(f"{field}: {text!r} gives {out[0]:g} km/h; allowed speeds in [{lo:g}, {hi:g}] km/h")
+        raise InputError(f"{field}: {text!r} gives {out[0]:g} km/h; allowed speeds in [{lo:g}, {hi:g}] km/h", field=field)
     return v
 
 

@@ -240,7 +240,7 @@ def load_train(name_or_path):
         check_plausible(train, source=f"train file {p.name}")  # warnings, not refusals
         return train
     raise InputError(f"train: {text!r} is unknown; allowed {', '.join(TRAIN_NAMES)}, "
-                     f"Eurostar-table, HSLM-A1 .. HSLM-A10, or a .toml train file")
+                     f"Eurostar-table, HSLM-A1 .. HSLM-A10, or a .toml train file", field="train")
 
 
 def _vehicle_type(name, d, source):
