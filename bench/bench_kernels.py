@@ -1,9 +1,10 @@
 """Time of the compiled kernels (``kernels.dim_blocks``, ``kernels.mlm_blocks``) on one batch.
 
-Run: ``.venv/bin/python bench/bench_kernels.py [--rounds N] [--reps N] [--baseline SRC] [--numpy]``.
+Run: ``.venv/bin/python bench/bench_kernels.py [--rounds N] [--reps N] [--speeds N] [--baseline SRC] [--numpy]``.
 
 The case: the six mass functions of the 20 m, f-index 3 bridges of the study (L20-f3-mu1..mu6)
-under ICE-2 at 8 speeds 160..350 km/h = 48 lanes of one :class:`adm_sim.compiled_batch.BatchRunner`
+under ICE-2 at 8 speeds 160..350 km/h = 48 lanes (``--speeds 32``: 32 speeds, 192 lanes in blocks of
+32, the size of most of the study's DIM blocks) of one :class:`adm_sim.compiled_batch.BatchRunner`
 on the calibration step of the group, run as DIM and MLM, with and without dense maxima. Every
 timing runs in a worker subprocess (``PYTHONPATH=<src>``) that first runs every configuration
 once untimed (numba compile or cache load), then ``--reps`` timed repetitions, the four
@@ -44,13 +45,14 @@ def _case():
     return bridges, train, batch_step(bridges, train).ds_m
 
 
-def worker(reps):
+def worker(reps, n_speeds=8):
     """Warm-up, then ``reps`` interleaved timed runs of every configuration; JSON on stdout."""
     from adm_sim.compiled_batch import BatchRunner
 
     bridges, train, ds = _case()
-    case = np.repeat(np.arange(len(bridges)), SPEEDS_KMH.size)
-    speeds = np.tile(SPEEDS_KMH, len(bridges))
+    grid = np.linspace(SPEEDS_KMH[0], SPEEDS_KMH[-1], n_speeds)
+    case = np.repeat(np.arange(len(bridges)), grid.size)
+    speeds = np.tile(grid, len(bridges))
     runners = {dense: BatchRunner(bridges, train, ds, dense_maxima=dense) for dense in (False, True)}
     out = {}
     for model, dense in CONFIGS:  # warm-up: compile or load, build the tables
@@ -64,9 +66,9 @@ def worker(reps):
     print(json.dumps(out))
 
 
-def _spawn(src, reps, cache_dir):
+def _spawn(src, reps, cache_dir, n_speeds=8):
     env = dict(os.environ, PYTHONPATH=src, NUMBA_CACHE_DIR=cache_dir)
-    res = subprocess.run([sys.executable, __file__, "--worker", "--reps", str(reps)], env=env,
+    res = subprocess.run([sys.executable, __file__, "--worker", "--reps", str(reps), "--speeds", str(n_speeds)], env=env,
                          capture_output=True, text=True, timeout=1800)
     if res.returncode != 0:
         sys.exit(f"worker for {src} failed:\n{res.stderr[-3000:]}")
@@ -91,12 +93,13 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rounds", type=int, default=3, help="alternating worker rounds (default 3)")
     ap.add_argument("--reps", type=int, default=3, help="timed repetitions per worker (default 3)")
+    ap.add_argument("--speeds", type=int, default=8, help="speeds per bridge, 160..350 km/h (default 8)")
     ap.add_argument("--baseline", default=None, help="src directory of the baseline checkout")
     ap.add_argument("--numpy", action="store_true", help="also time the numpy stepper once")
     ap.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.worker:
-        worker(args.reps)
+        worker(args.reps, args.speeds)
         return
     trees = {"this": HERE_SRC} if args.baseline is None else {"baseline": args.baseline, "this": HERE_SRC}
     runs = {name: [] for name in trees}
@@ -104,9 +107,9 @@ def main():
         caches = {name: os.path.join(tmp, name) for name in trees}
         for i in range(args.rounds):  # alternate which tree goes first
             for name, src in (list(trees.items()) if i % 2 == 0 else list(trees.items())[::-1]):
-                runs[name].append(_spawn(src, args.reps, caches[name]))
+                runs[name].append(_spawn(src, args.reps, caches[name], args.speeds))
     bridges, train, ds = _case()
-    print(f"48 lanes: {len(bridges)} bridges L20-f3-mu1..6 x ICE-2 x {SPEEDS_KMH.size} speeds 160..350 km/h, "
+    print(f"{len(bridges) * args.speeds} lanes: {len(bridges)} bridges L20-f3-mu1..6 x ICE-2 x {args.speeds} speeds 160..350 km/h, "
           f"ds = {ds:.4g} m; min CPU time of {args.rounds} x {args.reps} runs after a warm-up")
     for key in runs["this"][0]:
         best = {name: min(t for r in rs for t in r[key]["times"]) for name, rs in runs.items()}

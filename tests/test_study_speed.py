@@ -1,6 +1,9 @@
 """What makes the study's batches cheaper gives the numbers it gave before.
 
 * the MLM kernel (block-local copies, vectorised over lanes) equals the numpy stepper bit for bit;
+* the DIM kernel advances the bridges of a batch that share a number of steps as one block of
+  lanes, each lane with its own bridge's stiffness and Eq. (13) inverses: every lane's maxima equal
+  those of its bridge run alone, bit for bit (dense maxima, added damping, in chunks of steps);
 * the Eq. (13) inverses by the adjugate equal LAPACK's to round-off (7e-16 relative measured;
   asserted 1e-14 relative to the largest entry of each inverse);
 * the axles on the bridge found by bisection are the rows and entries of a test of every row, bit
@@ -40,6 +43,33 @@ def test_mlm_kernel_equals_the_numpy_stepper_bit_for_bit(dense):
         ref = run_sweep(b, tr, "mlm", speeds, delta_zeta=dz, options=StepOptions(ds_m=ds, dense_maxima=dense))
         assert np.array_equal(acc[case == c], ref.max_acc_m_s2)
         assert np.array_equal(disp[case == c], ref.max_disp_m)
+
+
+def test_dim_bridges_advancing_together_equal_each_bridge_alone_bit_for_bit():
+    bridges = _bridges("ICE-2", 12, 4, ("mu1", "mu5", "mu6"))
+    tr = load_train("ICE-2")
+    ds = batch_step(bridges, tr, options=CalibrationOptions(step=StepOptions(steps_per_period=8.0))).ds_m
+    # mu1 and mu5 share their speeds, so their steps (one block of lanes); mu6's fastest speed is
+    # lower, so it takes fewer steps (its own block)
+    speeds = [np.array([165.0, 240.0, 301.0, 350.0])] * 2 + [np.array([120.0, 240.0, 301.0, 330.0])]
+    dz = np.array([0.0, 0.003, -0.002, 0.02])
+    case = np.repeat([0, 1, 2], 4)
+
+    def run(runner, case, v, dz):
+        r = runner.start("dim", case, v, dz)
+        while r.status == "running":
+            r.advance(301)
+        assert r.status == "finished"
+        return r.max_acc_m_s2, r.max_disp_m, r.lane_steps
+
+    together = run(BatchRunner(bridges, tr, ds, dense_maxima=True), case, np.concatenate(speeds), np.tile(dz, 3))
+    steps = together[2]
+    assert steps[0] == steps[4] > steps[8]  # mu1 and mu5 advance as one block, mu6 apart
+    for c, b in enumerate(bridges):
+        alone = run(BatchRunner([b], tr, ds, dense_maxima=True), np.zeros(4, int), speeds[c], dz)
+        assert np.all(alone[0] > 0.0)
+        assert np.array_equal(together[0][case == c], alone[0])
+        assert np.array_equal(together[1][case == c], alone[1])
 
 
 @pytest.mark.parametrize("m", [1, 2, 3, 4])
