@@ -24,7 +24,7 @@ from adm_sim.step_grid import SPEED_RANGE_KMH, StepOptions, make_grid, speeds_to
 MAX_HISTORY_VALUES = 300_000_000
 
 
-def parse_speeds(text, ordered=True, field="speeds"):
+def parse_speeds(text, ordered=True, field="speeds_kmh"):
     """Speeds (km/h) from ``"160:350:1"`` (start:stop:step, stop included) or ``"200,250"``.
 
     Every number must be finite; each speed lies in [1, 600] km/h. With ``ordered`` (every user
