@@ -726,3 +726,27 @@ def test_bounds_bad_input(tmp_path, args, line):
     js = tmp_path / "c.json"
     r = run("check", "--max-line-speed", "250", "--trains", "HSLM-A1", "--json", str(js), *args)
     assert r.returncode == 2 and r.stderr == line and not js.exists()
+
+
+def test_interrupted_check_runs_no_train_not_yet_started(monkeypatch):
+    """An interrupt in one train's envelope ends the check: the trains not yet started are not run
+    (before, the thread pool ran all 14 before the interrupt came out)."""
+    import threading
+
+    from adm_sim import envelope
+
+    real, started, lock = envelope.moving_load_envelope, set(), threading.Lock()
+
+    def interrupted(b, offsets, loads, speeds, **kw):
+        with lock:
+            first = not started
+            started.add(id(offsets))
+        if first:
+            raise KeyboardInterrupt
+        return real(b, offsets, loads, speeds, **kw)
+
+    monkeypatch.setattr(envelope, "moving_load_envelope", interrupted)
+    trains = resolve_trains("hslm,ICE-2,Eurostar,Railjet,ICE-4")
+    with pytest.raises(KeyboardInterrupt):
+        run_check(named_bridge("B1"), 300.0, trains)
+    assert 1 <= len(started) < len(trains), len(started)  # the trains in flight when it came, not all 14

@@ -880,13 +880,17 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
     out = []
     with ThreadPoolExecutor(max_workers=CHECK_THREADS) as pool:
         futures = [pool.submit(one, t, dz_pct, note) for t, (dz_pct, note) in zip(trains, dz)]
-        for n, (t, fut) in enumerate(zip(trains, futures)):
-            tc = fut.result()
-            if comfort and t.units:  # the DIM, in this thread
-                tc.comfort_b_v_m_s2 = comfort_b_v(b, t, speeds)
-            out.append(tc)
-            if progress is not None:
-                progress(n + 1, len(trains))
+        try:
+            for n, (t, fut) in enumerate(zip(trains, futures)):
+                tc = fut.result()
+                if comfort and t.units:  # the DIM, in this thread
+                    tc.comfort_b_v_m_s2 = comfort_b_v(b, t, speeds)
+                out.append(tc)
+                if progress is not None:
+                    progress(n + 1, len(trains))
+        except BaseException:  # an interrupt or a refusal: the trains not yet started are not run
+            pool.shutdown(wait=False, cancel_futures=True)
+            raise
     sls = serviceability(b, dynamic_factor(b.span_m, track_maintenance), alpha, track, lateral_frequency_hz)
     t_nominal = time.perf_counter() - t_start
     # the bounds after the nominal bridge: they reuse its static effects (memoised; independent of the mass)
