@@ -371,42 +371,36 @@ class McapRecorder:
         publish_time_ns : int or None
             Publication time in ns; default ``log_time_ns``.
         """
-        known = self._channels.get(topic)
-        if known is None or known[1] is not type(msg):
-            self.register(topic, type(msg))
-        else:
-            self._check_open()
-        log_time = int(log_time_ns)
-        if log_time < 0:
-            raise InputError(f"log_time_ns: {log_time} ns is out of range; allowed >= 0 ns")
-        seq = self._sequence[topic]
-        self._sequence[topic] = seq + 1
+        self._channel(topic, type(msg))
         data = _TYPESTORE.serialize_cdr(_Fields(msg), self._schemas[type(msg)][1])
-        try:
-            self._writer.add_message(channel_id=self._channels[topic][0], log_time=log_time, data=data,
-                                     publish_time=log_time if publish_time_ns is None else int(publish_time_ns),
-                                     sequence=seq)
-        except OSError as exc:
-            raise self._failed(exc) from None
-        self.message_count += 1
+        self._add(topic, data, log_time_ns, publish_time_ns)
 
     def write_serialized(self, topic: str, msg_type, data: bytes, log_time_ns: int) -> None:
         """Write a message already serialised (CDR, e.g. as a subscription with ``raw=True`` takes
         it from the middleware) into ``topic`` of type ``msg_type``: the bytes as they came,
         nothing decoded or encoded again (as rosbag2 records). Otherwise as :meth:`write`."""
+        self._channel(topic, msg_type)
+        self._add(topic, bytes(data), log_time_ns, None)
+
+    def _channel(self, topic, msg_type):
+        """Register ``topic`` for ``msg_type`` on first use (or a new type), else check the writer is open."""
         known = self._channels.get(topic)
         if known is None or known[1] is not msg_type:
             self.register(topic, msg_type)
         else:
             self._check_open()
+
+    def _add(self, topic, data, log_time_ns, publish_time_ns):
+        """Add the serialised ``data`` to ``topic`` with the next sequence number; a refused write fails the writer."""
         log_time = int(log_time_ns)
         if log_time < 0:
             raise InputError(f"log_time_ns: {log_time} ns is out of range; allowed >= 0 ns")
         seq = self._sequence[topic]
         self._sequence[topic] = seq + 1
         try:
-            self._writer.add_message(channel_id=self._channels[topic][0], log_time=log_time, data=bytes(data),
-                                     publish_time=log_time, sequence=seq)
+            self._writer.add_message(channel_id=self._channels[topic][0], log_time=log_time, data=data,
+                                     publish_time=log_time if publish_time_ns is None else int(publish_time_ns),
+                                     sequence=seq)
         except OSError as exc:
             raise self._failed(exc) from None
         self.message_count += 1
