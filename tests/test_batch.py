@@ -31,13 +31,16 @@ def _group(span, fi, mfs=("mu1", "mu2", "mu3", "mu4", "mu5", "mu6"), train="ICE-
 def test_batch_lanes_equal_run_sweep(train, span, fi):
     bridges = _group(span, fi, ("mu1", "mu4", "mu6"))
     tr = load_train(train)
-    # 8 steps per period of the highest mode (the core's default is 16) on both paths, as below: the
-    # numpy stepper's cost is its number of steps, and lane and run_sweep are compared on one ds
-    ds = batch_step(bridges, tr, options=CalibrationOptions(step=StepOptions(steps_per_period=8.0))).ds_m
+    # 4 steps per period of the highest mode (the core's default is 16; RK4 is stable up to h omega =
+    # 2.8, here pi / 2) on both paths: the numpy stepper's cost is its number of steps, and lane and run_sweep are
+    # compared on one ds, which need not be accurate for the two to agree
+    ds = batch_step(bridges, tr, options=CalibrationOptions(step=StepOptions(steps_per_period=4.0))).ds_m
     runner = BatchRunner(bridges, tr, ds)
-    speeds = np.array([170.0, 230.0, 290.0, 345.0])
+    # two speeds per bridge, the ends of the study's range (each a full numpy-stepper run below);
+    # every lane has its own additional damping, zero and negative among them
+    speeds = np.array([170.0, 345.0])
     case = np.repeat(np.arange(3), speeds.size)
-    dz = np.tile([0.0, 0.002, -0.001, 0.01], 3)  # a different additional damping per lane
+    dz = np.array([0.0, 0.002, -0.001, 0.01, 0.004, -0.0005])
     for model in ("mlm", "dim"):
         acc, disp = runner.run(model, case, np.tile(speeds, 3), dz)
         for c, b in enumerate(bridges):
@@ -59,7 +62,7 @@ def test_group_shares_the_step_of_every_case():
 
 # Each case's MLM resonance (1 km/h) lies inside its range (the shipped study's MLM peaks: 321, 240,
 # 211-212 km/h), so every phase runs as on the default 160..350 km/h range (MLM curve, the paper's
-# coarse and fine DIM grid, ladder, root, check); 8 steps per period of the highest mode (the core's
+# coarse and fine DIM grid, ladder, root, check); 4 steps per period of the highest mode (the core's
 # default is 16) on both paths: the numpy stepper's cost is its number of steps per sweep, and the
 # comparison holds at any step.
 @pytest.mark.parametrize("train,span,fi,mfs,speeds", [
@@ -71,7 +74,7 @@ def test_calibrate_batch_reproduces_calibrate(train, span, fi, mfs, speeds):
     bridges = _group(span, fi, mfs, train)
     tr = load_train(train)
     v = np.arange(speeds[0], speeds[1] + 0.5, 1.0)
-    opt = CalibrationOptions(step=StepOptions(steps_per_period=8.0))
+    opt = CalibrationOptions(step=StepOptions(steps_per_period=4.0))
     step = batch_step(bridges, tr, v, opt)
     batch = calibrate_batch(bridges, tr, v, options=opt, step=step)
     assert all(r.status == "ok" and r.mlm_peak.found for r in batch)  # the resonance is inside the range
