@@ -6,6 +6,8 @@ import sys
 
 import pytest
 
+from adm_sim.sim_commands import main
+
 CLI = [sys.executable, "-m", "adm_sim.sim_commands"]
 
 
@@ -63,14 +65,29 @@ def test_sweep_reports_missing_interior_peak(tmp_path):
     (["sweep", "--model", "dim", "--method", "exact"], "--method: 'exact' is the closed-form MLM envelope"),
     (["sweep", "--bridge", "L=15,n0=8,mu=10000,zeta_pct=0"], "the exact MLM envelope needs damping > 0 %"),
 ])
-def test_bad_input_is_one_line_exit_2(args, match):
-    r = run(*args)
-    assert r.returncode == 2
+def test_bad_input_is_one_line_exit_2(args, match, capsys):
+    # in this process (the command's main, as the console script calls it); the process itself:
+    # test_bad_input_exit_code_of_the_process below
+    assert main(list(args)) == 2
+    out, err = capsys.readouterr()
     # plausibility warnings (docs/plausibility.md) may precede the error: an undamped light deck warns
-    lines = [ln for ln in r.stderr.strip().splitlines() if not ln.startswith("warning: ")]
+    lines = [ln for ln in err.strip().splitlines() if not ln.startswith("warning: ")]
     assert len(lines) == 1 and lines[0].startswith("error:")
     assert match in lines[0]
-    assert "Traceback" not in r.stderr
+    assert "Traceback" not in err and out == ""
+
+
+@pytest.mark.parametrize("args,match", [
+    (["sweep", "--model", "fem"], "invalid choice: 'fem'"),                                   # the parser's
+    (["sweep", "--bridge", "L=15,n0=8,mu=10000,zeta_pct=0"], "the exact MLM envelope needs damping > 0 %"),  # a check's
+])
+def test_bad_input_exit_code_of_the_process(args, match):
+    """The process exits 2 with one error line (after any warning), no traceback."""
+    r = run(*args)
+    assert r.returncode == 2
+    lines = [ln for ln in r.stderr.strip().splitlines() if not ln.startswith("warning: ")]
+    assert len(lines) == 1 and lines[0].startswith("error:") and match in lines[0]
+    assert "Traceback" not in r.stderr and r.stdout == ""
 
 
 def test_trains_check_prints_the_checks():
