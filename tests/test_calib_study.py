@@ -10,6 +10,7 @@ import signal
 import subprocess
 import sys
 import time
+import tomllib
 
 import numpy as np
 import psutil
@@ -17,6 +18,7 @@ import pytest
 from scipy.optimize import brentq
 
 from adm_calib import study as st
+from adm_calib.study import conservative
 from adm_calib.study.store import _exclusive
 from adm_calib.calib_commands import main
 from adm_calib.reference import lower_bound_table, span_from_frequency_m
@@ -337,7 +339,7 @@ def test_interval_minima_edges_and_ties():
         (2.0, 2.5, 2, "c"), (2.5, 3.0, 2, "d"), (16.0, 21.0, 2, "g")]
 
 
-def test_study_fit_cli_end_to_end(tmp_path, capsys):
+def test_study_fit_cli_end_to_end(tmp_path, capsys, monkeypatch):
     lbs = lower_bound_table()
     recs = []
     for t in ("ICE-2", "Eurostar"):
@@ -352,6 +354,10 @@ def test_study_fit_cli_end_to_end(tmp_path, capsys):
     res = tmp_path / "results.jsonl"
     res.write_text("".join(json.dumps(r) + "\n" for r in recs) + '{"bridge": "cut')
     out = tmp_path / "fit"
+    # the conservative bound's linear programmes (about 990 linprog calls for these four sets, 5 s of
+    # CPU per fit) run in the default-rule fit below, whose conservative files are checked; in the
+    # fits with rules none and strict they are left out (no set), their files still written
+    monkeypatch.setattr(conservative, "conservative_study", lambda fit: [])
     assert main(["study-fit", "--results", str(res), "--out", str(out), "--exclude", "none"]) == 0
     text = capsys.readouterr().out
     assert "excluded     1: status error" in text and "excluded     1: no dz_VBI" in text
@@ -364,6 +370,7 @@ def test_study_fit_cli_end_to_end(tmp_path, capsys):
     # with rule none the flagged cases (dz = -3 %) are used: they pull the ICE-2 mu2 minimum down
     assert float(rows[1].split(",")[11]) < -1.0                    # min residual
     # default rule step2: the DIM value that is not a local maximum is dropped, the MLM-end case stays
+    monkeypatch.undo()
     assert main(["study-fit", "--results", str(res), "--out", str(out)]) == 0
     text = capsys.readouterr().out
     assert "excluded     1: associated DIM value" in text and "largest MLM value at an end" not in text
@@ -376,10 +383,18 @@ def test_study_fit_cli_end_to_end(tmp_path, capsys):
     row = next(r for r in (out / "appendix_b_comparison.md").read_text().splitlines() if r.startswith("| ICE-2 mu2 |"))
     cells = [c.strip() for c in row.strip("|").split("|")]
     assert cells[1:5] == ["76", "2", "1", "1"] and float(cells[5]) > 1.0 and cells[7] == "0.000"
+    # the conservative bound of every set, as a table and as a lower-bound file
+    sets = [r.split("|")[1].strip() for r in (out / "conservative_lower_bounds.md").read_text().splitlines()
+            if r.startswith("| ") and not r.startswith("| set ")]
+    assert sets == ["ICE-2 mu2", "ICE-2 mu5", "Eurostar mu2", "Eurostar mu5"]
+    toml = tomllib.loads((out / "lower_bounds_conservative.toml").read_text())
+    assert {t: sorted(m for m in tab if m.startswith("mu")) for t, tab in toml["tables"].items()} == {
+        "ICE-2": ["mu2", "mu5"], "Eurostar": ["mu2", "mu5"]}
     # never overwrite silently
     assert main(["study-fit", "--results", str(res), "--out", str(out)]) == 2
     assert f"--out: {str(out / 'lower_bounds_fit.csv')!r} exists; use --overwrite to replace it" in capsys.readouterr().err
     # --exclude-flagged (= strict): both flagged cases are dropped and counted; the fit is exact again
+    monkeypatch.setattr(conservative, "conservative_study", lambda fit: [])
     assert main(["study-fit", "--results", str(res), "--out", str(out), "--exclude-flagged"]) == 0
     text = capsys.readouterr().out
     assert "excluded     1: largest MLM value at an end" in text and "excluded     1: associated DIM value" in text
