@@ -66,24 +66,24 @@ ROOT = os.path.dirname(os.path.abspath(__file__))
 #: CPU seconds of each test file run alone (cache warm, ``ADM_SIM_TEST_CPU_LOG``), measured on the
 #: 2-core machine of docs/benchmarks.md ("Test suite"); used only to order the files, costliest first.
 _FILE_CPU_S = {
-    "test_ros_cosim.py": 58,   # 72 before the calibration launch reused its reference's runs
+    "test_ros_cosim.py": 41,   # with the session's calibration launch (~17 s, shared with test_ros_rerun_views.py)
     "test_batch.py": 54,       # 81 before the batched calibration ran on short ranges at 8 steps per period
-    "test_hostile_inputs.py": 68,
-    "test_ros_rerun_views.py": 57,
-    "test_ros_faults.py": 48,
+    "test_hostile_inputs.py": 80,
+    "test_ros_rerun_views.py": 32,
+    "test_ros_faults.py": 33,
     "test_calib_study.py": 46,
-    "test_replay_integrity.py": 35,
-    "test_monitor_cli.py": 30,
-    "test_imports.py": 27,
+    "test_replay_integrity.py": 27,
+    "test_monitor_cli.py": 28,
+    "test_imports.py": 23,
     "test_entry_points.py": 25,
     "test_calib_study_scheduler.py": 17,
-    "test_ros_colcon.py": 15,
-    "test_ros_startup_inputs.py": 15,
+    "test_ros_colcon.py": 20,
+    "test_ros_startup_inputs.py": 10,
     "test_appendix_b_findings.py": 12,
-    "test_monitor_identify.py": 11,
+    "test_monitor_identify.py": 10,
     "test_paper_findings.py": 8,
     "test_check_effects.py": 8,
-    "test_monitor_node.py": 8,
+    "test_monitor_node.py": 7,
     "test_sweep_backends.py": 8,
     "test_ros_rerun_live.py": 9,
     "test_ros_monitoring.py": 8,
@@ -101,7 +101,7 @@ _FILE_CPU_S = {
     "test_core_dim.py": 6,     # 59 before its limiting cases ran on the compiled sweep
     "test_envelope.py": 31,
     "test_calib_conservative.py": 30,  # the LP of the shipped study's 24 sets: 28 s of CPU, measured
-    "test_ros_flow.py": 60,    # ~24 s of its own CPU, but its two hogs hold both cores for its whole wall: early, not a tail
+    "test_ros_flow.py": 100,   # ~35 s of CPU, one core for 70 s of wall at load 8 (its graph confined to one core): first, not a tail
     "test_calib_calibrate.py": 12,  # 20 before its hooks ran the compiled sweep
     "test_check_report_browser.py": 16,
     "test_core_dense_maxima.py": 11,
@@ -113,6 +113,8 @@ _FILE_CPU_S = {
     "test_irregularity_ros.py": 7,
     "test_core_dim_reference.py": 6,
     "test_irregularity.py": 6,
+    "test_launch_inputs.py": 6,
+    "test_launch_plausibility.py": 2,
 }
 
 

@@ -690,7 +690,7 @@ def test_refused_cleanly(case, tmp_path, ros_env):
 class SignalCase:
     ident: str
     argv: object   # callable(t) -> list
-    ready: object  # text on stdout once the work is under way ("" any line; None: wait 4 s)
+    ready: object  # text on stdout once the work is under way ("" any line; None: see _computing)
     ros: bool = False
 
 
@@ -712,6 +712,45 @@ SIGNAL_ENTRIES = [
 SIGNAL_CASES = [(e, s) for e in SIGNAL_ENTRIES for s in (signal.SIGTERM, signal.SIGINT)]
 
 
+#: CPU a command without a ready line spends after its interrupt handling is in place, before it is
+#: signalled: past its deferred imports and loads (scipy.optimize, the kernels: 1.4-1.6 s of CPU for
+#: ``adm-calib calibrate``, measured), inside the work. A fixed 4 s + 1 s of wall (the former wait)
+#: was 5 s of the command's CPU on a quiet machine and about 1 s, still in the imports, at load 9.
+WORKING_CPU_S = 2.0
+
+
+def _signals_caught(pid):
+    """The signals process ``pid`` has a handler for (``SigCgt`` of ``/proc/<pid>/status``)."""
+    try:
+        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+            if line.startswith("SigCgt:"):
+                mask = int(line.split()[1], 16)
+                return {s for s in range(1, 65) if mask >> (s - 1) & 1}
+    except OSError:
+        pass
+    return set()
+
+
+def _cpu_s(pid):
+    """User + system CPU seconds of process ``pid`` so far (``/proc/<pid>/stat``)."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def _computing(p, timeout_s=120.0):
+    """Wait until the command ``p`` catches SIGTERM (``adm_sim.cliutil.run_command`` has set its
+    interrupt handling: the process is past its start-up) and has then spent :data:`WORKING_CPU_S`
+    of CPU: an event, not a fixed time, so a loaded machine delays the signal as much as the work."""
+    t_end = time.monotonic() + timeout_s
+    while signal.SIGTERM not in _signals_caught(p.pid):
+        assert p.poll() is None and time.monotonic() < t_end, p.stderr.read() if p.poll() is not None else "no handler"
+        time.sleep(0.02)
+    cpu0 = _cpu_s(p.pid)
+    while _cpu_s(p.pid) - cpu0 < WORKING_CPU_S:
+        assert p.poll() is None and time.monotonic() < t_end, p.stderr.read() if p.poll() is not None else "no work"
+        time.sleep(0.05)
+
+
 @pytest.mark.parametrize("entry,sig", SIGNAL_CASES,
                          ids=[f"signals:{e.ident}-{signal.Signals(s).name}" for e, s in SIGNAL_CASES])
 def test_interrupted_cleanly(entry, sig, tmp_path, ros_env):
@@ -723,7 +762,7 @@ def test_interrupted_cleanly(entry, sig, tmp_path, ros_env):
                          env=_env(ros_env if entry.ros else os.environ, marker), stdin=subprocess.DEVNULL)
     try:
         if entry.ready is None:
-            time.sleep(4.0)
+            _computing(p)
         else:
             t_end = time.monotonic() + 60
             while time.monotonic() < t_end:
@@ -731,7 +770,7 @@ def test_interrupted_cleanly(entry, sig, tmp_path, ros_env):
                 assert line, p.stderr.read()
                 if entry.ready in line:
                     break
-        time.sleep(1.0)  # inside the computation
+            time.sleep(1.0)  # inside the computation
         assert p.poll() is None, p.stderr.read()
         p.send_signal(sig)
         out, err = p.communicate(timeout=30)

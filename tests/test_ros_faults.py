@@ -148,6 +148,10 @@ def test_launch_script_stops_everything_when_a_node_dies(tmp_path, ros_domain):
     assert salvage(tmp_path / "run.mcap", tmp_path / "salvaged.mcap") == len(topics)
 
 
+#: Short runs for the cross-talk test (the run ids and results, not the numbers' accuracy, are under test).
+SHORT_RUN = {"steps_per_period": 4.0, "free_vibration_periods": 1.0}
+
+
 def test_two_launches_do_not_cross_talk(tmp_path):
     """Two bridge/train pairs on their own domains, run at the same time, each gets its result."""
     cases = [("B1", "200,250,263"), ("B3", "200,250,263")]
@@ -158,7 +162,7 @@ def test_two_launches_do_not_cross_talk(tmp_path):
             _HELD.append(env)  # never reused by a later test of the session
             env["OPENBLAS_NUM_THREADS"] = "1"
             procs = NodeProcs(env, tmp_path / bridge)
-            procs.start("bridge", "adm_sim.nodes.bridge_node", {"bridge": bridge, "steps_per_period": 8.0})
+            procs.start("bridge", "adm_sim.nodes.bridge_node", {"bridge": bridge, **SHORT_RUN})
             procs.start("train", "adm_sim.nodes.train_node", {"speeds_kmh": speeds, "model": "mlm"})
             launches.append((bridge, env, procs))
         assert launches[0][1].domain_id != launches[1][1].domain_id
@@ -183,7 +187,7 @@ def test_two_launches_do_not_cross_talk(tmp_path):
     train = load_train("ICE-2")
     for bridge, speeds in cases:
         ref = run_sweep(resolve_bridge(bridge), train, "mlm", [float(v) for v in speeds.split(",")],
-                        options=StepOptions(steps_per_period=8.0))
+                        options=StepOptions(**SHORT_RUN))
         runs = results[bridge]
         assert [r["run_id"] for r in runs] == [1, 2, 3]  # no foreign run ids
         for r in runs:
@@ -305,12 +309,15 @@ def test_overwrite_keeps_the_earlier_run_until_the_new_one_is_complete(tmp_path,
     out = tmp_path / "o"
     cmd = [sys.executable, str(ROOT / "launch_scripts" / "crossing.py"), "--out", str(out),
            "--domain-id", str(ros_domain.domain_id)]
+    params = tmp_path / "coarse.yaml"  # the complete runs: 4 steps per period, one period of free vibration
+    params.write_text("bridge:\n  ros__parameters:\n    steps_per_period: 4.0\n    free_vibration_periods: 1.0\n")
+    coarse = ["--params-file", str(params)]
     env = dict(ros_domain)
 
     def digests():
         return {f: hashlib.sha256((out / f).read_bytes()).hexdigest() for f in ("run.mcap", "run.rrd", "summary.json")}
 
-    r = subprocess.run(cmd + ["--model", "mlm", "--speeds", "200:300:10"], env=env, capture_output=True, text=True,
+    r = subprocess.run(cmd + coarse + ["--model", "mlm", "--speeds", "200:300:10"], env=env, capture_output=True, text=True,
                        timeout=120, cwd=ROOT)
     assert r.returncode == 0, r.stderr
     first = digests()
@@ -329,7 +336,7 @@ def test_overwrite_keeps_the_earlier_run_until_the_new_one_is_complete(tmp_path,
     assert p.returncode == 130 and err.splitlines()[-1].startswith("error: interrupted"), err
     assert digests() == first
     assert sorted(f.name for f in out.iterdir()) == ["logs", "run.mcap", "run.rrd", "summary.json"]
-    r = subprocess.run(cmd + ["--model", "mlm", "--speeds", "200:300:20", "--overwrite"], env=env,
+    r = subprocess.run(cmd + coarse + ["--model", "mlm", "--speeds", "200:300:20", "--overwrite"], env=env,
                        capture_output=True, text=True, timeout=120, cwd=ROOT)
     assert r.returncode == 0, r.stderr
     again = digests()
