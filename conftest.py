@@ -67,11 +67,11 @@ ROOT = os.path.dirname(os.path.abspath(__file__))
 #: 2-core machine of docs/benchmarks.md ("Test suite"); used only to order the files, costliest first.
 _FILE_CPU_S = {
     "test_ros_cosim.py": 41,   # with the session's calibration launch (~17 s, shared with test_ros_rerun_views.py)
-    "test_batch.py": 54,       # 81 before the batched calibration ran on short ranges at 8 steps per period
+    "test_batch.py": 21,       # 81, then 54, before the batch/numpy comparisons ran at 4 steps per period
     "test_hostile_inputs.py": 80,
     "test_ros_rerun_views.py": 32,
     "test_ros_faults.py": 33,
-    "test_calib_study.py": 46,
+    "test_calib_study.py": 40,
     "test_replay_integrity.py": 27,
     "test_monitor_cli.py": 28,
     "test_imports.py": 23,
@@ -100,19 +100,19 @@ _FILE_CPU_S = {
     "test_check.py": 67,
     "test_core_dim.py": 6,     # 59 before its limiting cases ran on the compiled sweep
     "test_envelope.py": 31,
-    "test_calib_conservative.py": 30,  # the LP of the shipped study's 24 sets: 28 s of CPU, measured
-    "test_ros_flow.py": 100,   # ~35 s of CPU, one core for 70 s of wall at load 8 (its graph confined to one core): first, not a tail
+    "test_calib_conservative.py": 9,  # the LP re-solved for 10 of the shipped study's 24 sets
+    "test_ros_flow.py": 100,   # ~44 s of CPU with its two busy processes, 70-80 s of wall at load 4-8: first, not a tail
     "test_calib_calibrate.py": 12,  # 20 before its hooks ran the compiled sweep
     "test_check_report_browser.py": 16,
     "test_core_dense_maxima.py": 11,
     "test_calib_cli.py": 8,
-    "test_core_cli.py": 8,
+    "test_core_cli.py": 9,
     "test_files.py": 7,
     "test_check_report.py": 7,
     "test_ros_namespaces.py": 7,
     "test_irregularity_ros.py": 7,
     "test_core_dim_reference.py": 6,
-    "test_irregularity.py": 6,
+    "test_irregularity.py": 16,
     "test_launch_inputs.py": 6,
     "test_launch_plausibility.py": 2,
 }
