@@ -109,19 +109,41 @@ class StudyRun:
                 f"interrupted={self.interrupted})")
 
 
+#: dask settings of the local cluster, for a cluster that runs long compute tasks and shows no
+#: dashboard. dask's defaults would cost the study ~10 % of its CPU (``bench/bench_study_cluster.py``,
+#: docs/benchmarks.md): the workers' statistical profiler samples the running task every 10 ms (its
+#: only reader is the dashboard); the event-loop health tick (20 ms), the system monitor (0.5 s)
+#: and the worker memory check (0.1 s) run in every process, scheduler and nannies included.
+CLUSTER_CONFIG = {
+    "distributed.worker.profile.enabled": False,
+    "distributed.admin.tick.interval": "1s",
+    "distributed.admin.system-monitor.interval": "5s",
+    "distributed.worker.memory.monitor-interval": "1s",
+}
+#: glibc malloc settings that dask's nanny sets in its workers' environment and a local cluster
+#: leaves unset: ``MALLOC_TRIM_THRESHOLD_=65536`` returns freed memory to the system at once and
+#: fixes the mmap threshold at 128 kB, so every large table of a batch (the DIM's Eq. (13) inverses,
+#: up to ~40 MB for a short span) comes from fresh pages again: ~20000 page faults per batch, 8 % of
+#: the study's CPU as system time. A value exported in the environment is still passed on.
+UNSET_WORKER_ENV = ("MALLOC_TRIM_THRESHOLD_",)
+
+
 def local_cluster(workers=2):
     """A loopback-only :class:`distributed.LocalCluster`: ``workers`` processes of one thread each.
 
     Scheduler, nannies and workers listen on 127.0.0.1 only (also their small HTTP servers for
     health and metrics, on free ports); no dashboard; one BLAS thread per worker (set in the
-    environment before the worker process starts).
+    environment before the worker process starts); :data:`CLUSTER_CONFIG` (no task profiler,
+    rarer housekeeping) and glibc's own malloc settings (:data:`UNSET_WORKER_ENV`).
     """
     import dask  # noqa: PLC0415  dask and distributed: only a study on a local cluster needs them
     from distributed import LocalCluster  # noqa: PLC0415  as dask
 
     env = dict(dask.config.get("distributed.nanny.pre-spawn-environ", {}) or {})
+    for k in UNSET_WORKER_ENV:
+        env[k] = None  # dask: None leaves the variable unset (an exported value still wins)
     env.update(WORKER_ENV)
-    with dask.config.set({"distributed.nanny.pre-spawn-environ": env}), _workers_ignore_sigint():
+    with dask.config.set({"distributed.nanny.pre-spawn-environ": env, **CLUSTER_CONFIG}), _workers_ignore_sigint():
         return LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True, host="127.0.0.1",
                             dashboard_address=None, worker_dashboard_address=None, silence_logs=logging.CRITICAL,
                             env=dict(WORKER_ENV),
@@ -148,6 +170,13 @@ def _workers_ignore_sigint():
 
 def _worker_env():
     return {k: os.environ.get(k) for k in WORKER_ENV}
+
+
+def _worker_settings():
+    """What a worker runs with of :data:`CLUSTER_CONFIG` and :data:`UNSET_WORKER_ENV` (``None``: unset)."""
+    import dask  # noqa: PLC0415  runs in a worker, which has dask
+
+    return {**{k: dask.config.get(k, None) for k in CLUSTER_CONFIG}, **{k: os.environ.get(k) for k in UNSET_WORKER_ENV}}
 
 
 #: The first message a dask scheduler sends on a new TCP connection is its comm handshake, a
@@ -351,7 +380,8 @@ def _run_on_dask(pending, settings, writer, run, workers, scheduler, progress, e
         entry["cluster"] = {"scheduler": run.scheduler, "local": cluster is not None,
                             "workers": {a: {"nanny": w.get("nanny"), "nthreads": w.get("nthreads")}
                                         for a, w in info.get("workers", {}).items()},
-                            "worker_env": client.run(_worker_env)}
+                            "worker_env": client.run(_worker_env),
+                            "worker_settings": client.run(_worker_settings)}
         # longest batches first (cost grows with n0: the time step follows the highest mode)
         batches = sorted(make_batches(pending), key=lambda b: -b[0].bridge.n0_hz)
         by_future = {}
