@@ -185,3 +185,34 @@ def test_a_process_that_compiles_says_so_once_on_stderr(tmp_path, quiet):
         assert lines == []
     else:
         assert len(lines) == 1 and lines[0].startswith("compiling kernels (once): adm_sim_probe.twice and the kernels")
+
+
+REFUSED = """
+import contextlib, importlib, io, json, sys
+m = importlib.import_module("adm_sim.sim_commands")
+err = io.StringIO()
+with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
+    rc = m.main(json.loads(sys.argv[1]))
+print(json.dumps({"rc": rc, "err": err.getvalue(), "numba": "numba" in sys.modules}))
+"""
+
+
+@pytest.mark.parametrize("argv, named", [
+    (["sweep", "--speeds", "abc"], "--speeds"),
+    (["sweep", "--where", "roof"], "--where"),
+    (["sweep", "--bridge", "B9"], "--bridge"),
+    (["check", "--bridge", "B1", "--max-line-speed", "200", "--where", "x=99"], "--where"),
+    (["check", "--bridge", "B1", "--max-line-speed", "200", "--trains", "HSLM-A11"], "--trains"),
+])
+def test_a_refused_command_does_not_load_numba(argv, named):
+    """Bad input is refused (one line naming the flag, exit 2) before the compiled kernels load:
+    the user waits for the refusal, not for numba (~0.4-0.6 s of CPU a process)."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
+    p = subprocess.run([sys.executable, "-c", REFUSED, json.dumps(argv)], capture_output=True, text=True,
+                       env=env, timeout=600)
+    assert p.returncode == 0, p.stderr
+    out = json.loads(p.stdout.strip().splitlines()[-1])
+    assert out["rc"] == 2, out
+    lines = out["err"].strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"error: {named}"), lines
+    assert out["numba"] is False

@@ -72,6 +72,7 @@ from adm_sim._jit import njit  # numba compiles the search loop; without it the 
 from adm_sim.errors import InputError
 from adm_sim.fields import check_delta_zeta_pct, check_range
 from adm_sim.step_grid import speeds_to_m_s
+from adm_sim.where import WHERE_KEYWORDS, parse_where, where_text  # noqa: F401  re-exported: the envelope's positions
 
 #: Longest free vibration followed after the last axle has left, in fundamental periods.
 MAX_FREE_PERIODS = 30.0
@@ -79,10 +80,6 @@ MAX_FREE_PERIODS = 30.0
 NEWTON_ITERATIONS = 8
 #: Largest number of joint (t, x) Newton iterations of the whole-deck refinement.
 NEWTON_ITERATIONS_2D = 16
-#: Keywords of ``where`` (besides a position in metres).
-WHERE_KEYWORDS = ("deck", "midspan")
-
-
 def check_frequency_limit_hz(bridge):
     """Highest frequency to include (Hz): max(30 Hz, 1.5 n0, n3), EN 1990 A2.4.4.2.1."""
     return max(30.0, 1.5 * bridge.n0_hz, 9.0 * bridge.n0_hz)
@@ -92,25 +89,6 @@ def check_mode_count(bridge, f_limit_hz=None):
     """Number of modes with ``n_j = j^2 n0 <= f_limit`` (default: :func:`check_frequency_limit_hz`)."""
     f = check_frequency_limit_hz(bridge) if f_limit_hz is None else float(f_limit_hz)
     return max(1, int(math.floor(math.sqrt(f / bridge.n0_hz) + 1e-9)))
-
-
-def parse_where(where, span_m, field="where"):
-    """``"deck"``, ``"midspan"`` or a position x (m, 0 < x < L) from ``"deck"``, ``"midspan"``,
-    ``"x=<m>"`` or a number; anything else raises :class:`InputError` (one line, naming ``field``)."""
-    if isinstance(where, str):
-        w = where.strip().lower()
-        if w in WHERE_KEYWORDS:
-            return w
-        if not w.startswith("x="):
-            raise InputError(f"{field}: {where!r} is not allowed; allowed deck, midspan or x=<position in m> "
-                             f"with 0 < x < {span_m:g} m", field=field)
-        where = where.strip()[2:]
-    return check_range(field, where, "m", 0.0, span_m, lo_open=True, hi_open=True, argument=True)
-
-
-def where_text(where):
-    """``"deck"``, ``"midspan"`` or ``"x=3.75 m"``."""
-    return where if isinstance(where, str) else f"x={where:g} m"
 
 
 @dataclass(frozen=True)

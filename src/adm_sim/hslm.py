@@ -77,7 +77,7 @@ def hslm_name(text):
     name = f"HSLM-A{int(m.group(1))}"
     if name not in HSLM_A_TABLE:
         raise InputError(f"train: {text!r} is not an HSLM-A universal train; allowed HSLM-A1 .. HSLM-A10 "
-                         f"(EN 1991-2 Table 6.3)")
+                         f"(EN 1991-2 Table 6.3)", field="train")
     return name
 
 
@@ -129,30 +129,30 @@ def hslm_b_spec(text):
     hint = (f"give {HSLM_B_SYNTAX}, N and d read off EN 1991-2's HSLM-B figure for the span (adm-sim does not "
             f"include that figure)")
     if not m.group(1):
-        raise InputError(f"train: {text!r} gives no N and d; {hint}")
+        raise InputError(f"train: {text!r} gives no N and d; {hint}", field="train")
     items = {}
     for part in m.group(1).split(":"):
         mi = _B_ITEM_RE.match(part)
         if mi is None or mi.group(1) in items:
-            raise InputError(f"train: {text!r}: {part!r} is not N=<forces> or d=<spacing m> (each once); {hint}")
+            raise InputError(f"train: {text!r}: {part!r} is not N=<forces> or d=<spacing m> (each once); {hint}", field="train")
         items[mi.group(1)] = mi.group(2)
     if set(items) != {"n", "d"}:
-        raise InputError(f"train: {text!r} needs both N and d; {hint}")
+        raise InputError(f"train: {text!r} needs both N and d; {hint}", field="train")
     lo, hi = HSLM_B_N_RANGE
     try:
         n = float(items["n"])
     except ValueError:
         n = math.nan
     if not (math.isfinite(n) and n == int(n) and lo <= n <= hi):
-        raise InputError(f"train: HSLM-B N = {items['n']!r} is not a whole number of forces in [{lo}, {hi}]; {hint}")
+        raise InputError(f"train: HSLM-B N = {items['n']!r} is not a whole number of forces in [{lo}, {hi}]; {hint}", field="train")
     dlo, dhi = HSLM_B_D_RANGE_M
     try:
         d = float(items["d"])
     except ValueError:
         raise InputError(f"train: HSLM-B d = {items['d']!r} is not a number; allowed [{dlo:g}, {dhi:g}] m; "
-                         f"{hint}") from None
+                         f"{hint}", field="train") from None
     if not (math.isfinite(d) and dlo <= d <= dhi):
-        raise InputError(f"train: HSLM-B d = {d:g} m is out of range; allowed [{dlo:g}, {dhi:g}] m; {hint}")
+        raise InputError(f"train: HSLM-B d = {d:g} m is out of range; allowed [{dlo:g}, {dhi:g}] m; {hint}", field="train")
     return int(n), d
 
 

@@ -21,12 +21,12 @@ from adm_sim.fields import FIELDS, check_delta_zeta_pct
 from adm_sim.files import OutputSet, claim_output, mcap_input
 from adm_sim.figures import plot_check, plot_sweep
 from adm_sim.limits import ACC_LIMITS_M_S2, TRACK_ALIASES, check_track_type
+from adm_sim.where import parse_where, where_text
 from adm_sim import _jit
 
 
 def cmd_sweep(args):
     from adm_sim.bridge import resolve_bridge  # noqa: PLC0415  start-up: only this subcommand (20 ms)
-    from adm_sim.envelope import parse_where, where_text  # noqa: PLC0415  numba kernels (~0.6 s): only this subcommand
     from adm_sim.step_grid import StepOptions  # noqa: PLC0415  start-up: only this subcommand (6 ms)
     from adm_sim.sweep import parse_speeds, run_sweep, run_sweep_compiled, sweep_exact  # noqa: PLC0415  start-up: only this subcommand (52 ms)
     from adm_sim.trains import load_train  # noqa: PLC0415  start-up: only this subcommand (58 ms)
@@ -143,8 +143,6 @@ def cmd_check(args, damping_provider=None):
             outs[opt] = claim_output(text, f"--{opt}", args.overwrite, suffix, inputs)
             seen[outs[opt].resolve()] = opt
     bridge = resolve_bridge(args.bridge)
-    from adm_sim.envelope import parse_where  # noqa: PLC0415  numba kernels (~0.6 s): only this subcommand
-
     parse_where(args.where, bridge.span_m)  # refused before any work
     if args.damping_model is not None and args.damping_model not in DAMPING_MODELS:
         raise InputError(f"--damping-model: {args.damping_model!r} is not allowed; allowed {', '.join(DAMPING_MODELS)}")
