@@ -54,6 +54,8 @@ def main(argv=None):
     ap.add_argument("--repeat", type=int, default=1, help="co-simulated runs per model (best is kept)")
     ap.add_argument("--main-job", action="store_true", help="also time launch_scripts/calibrate.py (B1 x ICE-2)")
     ap.add_argument("--hogs", type=int, default=0, help="busy processes running meanwhile")
+    ap.add_argument("--separate-nodes", action="store_true",
+                    help="main job: the bridge and train nodes as two processes (calibrate.py --separate-nodes)")
     ap.add_argument("--root", default=str(ROOT), help="checkout whose launch scripts the main job runs")
     ap.add_argument("--json", help="write the figures to this file")
     ap.add_argument("--baseline", help="another checkout measured alternately with this one")
@@ -75,7 +77,7 @@ def main(argv=None):
 RUN_LINE = re.compile(r"^run\s+(\d+)\s+(.*?)\s+([0-9.]+) s\s+max")
 
 
-def _main_job(root=ROOT):
+def _main_job(root=ROOT, extra=()):
     """The main job from process start to exit: ``{"wall_s", "start_s", "runs_s", "gaps_s", "stop_s",
     "n_runs", "dz_vbi_pct"}`` (times of the run lines as they are printed)."""
     import subprocess
@@ -84,7 +86,7 @@ def _main_job(root=ROOT):
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     t0 = time.perf_counter()
     p = subprocess.Popen([sys.executable, str(Path(root) / "launch_scripts" / "calibrate.py"), "--out", str(out),
-                          "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=root, env=env)
+                          "--quiet", *extra], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=root, env=env)
     runs = []  # (time the line came, run wall)
     cpu = {}  # process -> CPU seconds (user + system), sampled while it lives
     stop = threading.Event()
@@ -95,10 +97,12 @@ def _main_job(root=ROOT):
             stop.wait(0.25)
 
     threading.Thread(target=sample, daemon=True).start()
+    snaps = [{}]  # CPU of each process when each run line came
     for line in p.stdout:
         m = RUN_LINE.match(line)
         if m:
             runs.append((time.perf_counter() - t0, float(m.group(3)), m.group(2).split()[0]))
+            snaps.append(_tree_cpu_s(p.pid))
     err = p.stderr.read()
     p.wait()
     wall = time.perf_counter() - t0
@@ -112,7 +116,10 @@ def _main_job(root=ROOT):
     return {"wall_s": wall, "start_s": start_s, "runs_s": runs_s, "gaps_s": wall - start_s - stop_s - runs_s,
             "stop_s": stop_s, "n_runs": len(runs), "dz_vbi_pct": summary["delta_zeta_vbi_pct"],
             "dim_runs_s": sum(r[1] for r in runs if r[2] == "DIM"), "mlm_runs_s": sum(r[1] for r in runs if r[2] == "MLM"),
-            **{f"cpu_{name}_s": v for name, v in sorted(cpu.items())}}
+            **{f"cpu_{name}_s": v for name, v in sorted(cpu.items())},
+            # CPU from the run line before the DIM run to the DIM run's line (the DIM run and its set-up)
+            **{f"dimcpu_{name}_s": snaps[i + 1].get(name, 0.0) - snaps[i].get(name, 0.0)
+               for i, r in enumerate(runs) if r[2] == "DIM" for name in sorted(snaps[i + 1])}}
 
 
 def _tree_cpu_s(pid):
@@ -232,7 +239,7 @@ def _bench(args):
               f"{trips / t_co:8.0f} {speeds.size * n / t_co:13.3g} {rel:13.1e}")
     figures["graph_up_s"] = t_graph
     if args.main_job:
-        mj = _main_job(args.root)
+        mj = _main_job(args.root, ["--separate-nodes"] if args.separate_nodes else [])
         figures.update({f"main_{k}": v for k, v in mj.items()})
         print(f"\nmain job (calibrate.py B1 x ICE-2, MCAP + .rrd): {mj['wall_s']:.1f} s wall"
               f"{f' with {args.hogs} busy processes' if args.hogs else ''}: start-up {mj['start_s']:.1f} s, "
@@ -240,6 +247,8 @@ def _bench(args):
               f"dz_VBI {mj['dz_vbi_pct']:.7f} %")
         print("main job CPU (user + system): " + ", ".join(f"{k[4:-2]} {v:.1f} s" for k, v in mj.items()
                                                            if k.startswith("cpu_")))
+        print("its DIM run's CPU (41 840 round trips), us a trip: " + ", ".join(
+            f"{k[7:-2]} {1e6 * v / 41840:.0f}" for k, v in mj.items() if k.startswith("dimcpu_")))
     if args.json:
         Path(args.json).write_text(json.dumps(figures, indent=1) + "\n")
     return 0 if ok else 1

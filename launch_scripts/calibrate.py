@@ -47,6 +47,9 @@ def parse_args(argv=None):
     ap.add_argument("--spawn", action="store_true", help="spawn a live rerun viewer (127.0.0.1)")
     ap.add_argument("--connect", help="stream to a running rerun viewer (loopback URL)")
     ap.add_argument("--no-rrd", action="store_true", help="do not write run.rrd")
+    ap.add_argument("--separate-nodes", action="store_true",
+                    help="run the bridge and train nodes as two processes (default: one process hosting both, "
+                         "as ROS composition does; the same nodes, topics and results, the DIM round trips cheaper)")
     add_domain_id(ap)
     ap.add_argument("--quiet", action="store_true", help="no progress bars")
     add_overwrite(ap, "replace the outputs of an earlier run in --out")
@@ -157,7 +160,7 @@ def _main(args):
         with Supervisor(out / "logs", env=env) as sup:
             print(f"ROS_DOMAIN_ID={sup.domain_id} (shared memory only); output in {out}", flush=True)
             run_graph(sup, args.params_file, pb, pt, "calibration", "adm_calib.nodes.calibration_node", pc,
-                      prog.handle)
+                      prog.handle, composed=not args.separate_nodes)
     except KeyboardInterrupt:
         prog._close_bar()
         release_out(out)
