@@ -55,7 +55,8 @@ def main(argv=None):
     ap.add_argument("--main-job", action="store_true", help="also time launch_scripts/calibrate.py (B1 x ICE-2)")
     ap.add_argument("--hogs", type=int, default=0, help="busy processes running meanwhile")
     ap.add_argument("--separate-nodes", action="store_true",
-                    help="main job: the bridge and train nodes as two processes (calibrate.py --separate-nodes)")
+                    help="the bridge and train nodes as two processes (the main job: calibrate.py --separate-nodes; "
+                         "default: one process hosting both)")
     ap.add_argument("--root", default=str(ROOT), help="checkout whose launch scripts the main job runs")
     ap.add_argument("--json", help="write the figures to this file")
     ap.add_argument("--baseline", help="another checkout measured alternately with this one")
@@ -143,6 +144,15 @@ def _tree_cpu_s(pid):
     return out
 
 
+def _cpu_s(pid):
+    """CPU seconds (user + system) of process ``pid`` so far (0.0 when it cannot be read)."""
+    try:
+        f = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return 0.0
+    return (int(f[11]) + int(f[12])) / os.sysconf("SC_CLK_TCK")
+
+
 def _compare(args, argv):
     """This tree and ``--baseline`` alternately, one process per measurement; prints both."""
     import subprocess
@@ -204,8 +214,12 @@ def _bench(args):
         env["OPENBLAS_NUM_THREADS"] = "1"
         procs = NodeProcs(env, tempfile.mkdtemp(prefix="bench_ros_"))
         t_start = time.perf_counter()
-        procs.start("bridge", "adm_sim.nodes.bridge_node", {"bridge": args.bridge})
-        procs.start("train", "adm_sim.nodes.train_node", {"train": args.train, "speeds_kmh": args.speeds})
+        if args.separate_nodes:
+            procs.start("bridge", "adm_sim.nodes.bridge_node", {"bridge": args.bridge})
+            procs.start("train", "adm_sim.nodes.train_node", {"train": args.train, "speeds_kmh": args.speeds})
+        else:  # one process hosting both (as calibrate.py runs them)
+            procs.start("bridge_train", "adm_sim.nodes.composed",
+                        {"bridge:bridge": args.bridge, "train:train": args.train, "train:speeds_kmh": args.speeds})
         try:
             with driver_node(env.domain_id) as d:
                 d.wait_for_graph()
@@ -216,11 +230,16 @@ def _bench(args):
                     t_in = time.perf_counter() - t0
                     best = None
                     for _ in range(args.repeat):
+                        cpu0 = {k: _cpu_s(p.pid) for k, p in procs.procs.items()}
                         r = d.request_run(model=model)
+                        cpu = {k: _cpu_s(p.pid) - cpu0[k] for k, p in procs.procs.items()}
                         best = r if best is None or r["wall_s"] < best["wall_s"] else best
-                    rel = float(np.max(np.abs(best["max_acc_m_s2"] / ref.max_acc_m_s2 - 1.0)))
                     n = ref.n_steps
                     trips = 4 * n if model == "dim" else -(-n // 2048)
+                    print(f"{model.upper()} co-simulation CPU a round trip (last run): "
+                          + ", ".join(f"{k} {1e6 * v / trips:.0f} us" for k, v in cpu.items()), flush=True)
+                    figures.update({f"{model}_cpu_{k}_us_per_trip": 1e6 * v / trips for k, v in cpu.items()})
+                    rel = float(np.max(np.abs(best["max_acc_m_s2"] / ref.max_acc_m_s2 - 1.0)))
                     rows.append((model, t_in, best["wall_s"], n, trips, rel))
                     figures.update({f"{model}_in_process_s": t_in, f"{model}_cosim_s": best["wall_s"],
                                     f"{model}_ratio": best["wall_s"] / t_in, f"{model}_trips_per_s": trips / best["wall_s"],

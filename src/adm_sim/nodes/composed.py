@@ -27,13 +27,17 @@ NAME = "bridge+train"
 
 
 def make_nodes():
-    """The bridge node, then the train node (one context: the process's)."""
+    """The bridge node, then the train node (one context: the process's). Their partner watches
+    stand down (:attr:`~adm_sim.nodes.common.PartnerWatch.same_process`): each one's partner
+    lives and dies with it, and the time one spends in a callback is the other's silence."""
     bridge = BridgeNode()
     try:
-        return bridge, TrainNode()
+        train = TrainNode()
     except BaseException:
         bridge.destroy_node()
         raise
+    bridge.partner.same_process = train.partner.same_process = True
+    return bridge, train
 
 
 def main(args=None):
