@@ -1,8 +1,12 @@
 #!/usr/bin/env python
-"""In-process sweep vs the same sweep co-simulated by the bridge and train nodes (two processes).
+"""In-process sweep vs the same sweep co-simulated by the bridge and train nodes.
 
     .venv/bin/python bench/bench_ros.py [--bridge B1] [--train ICE-2] [--speeds 160:350:1] [--repeat 1]
-        [--main-job] [--hogs 2]
+        [--main-job] [--hogs 2] [--separate-nodes]
+
+The bridge and train nodes run in one process (:mod:`adm_sim.nodes.composed`, as ``calibrate.py``
+runs them) or, with ``--separate-nodes``, in two (the main job then gets ``--separate-nodes`` too);
+the CPU time of each node process per round trip of the last co-simulated run is printed.
 
 Prints for the MLM and the DIM: the in-process :func:`adm_sim.sweep.run_sweep` time, the
 co-simulated time (from the run request to the result: parameter set, set-up handshake, every
