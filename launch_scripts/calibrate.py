@@ -1,9 +1,12 @@
 #!/usr/bin/env python
-"""Δζ calibration over ROS 2: bridge, train and calibration nodes as separate processes.
+"""Δζ calibration over ROS 2: the bridge and train nodes in one process, the calibration node in another.
 
     .venv/bin/python launch_scripts/calibrate.py [--bridge B1 --train ICE-2] [--out DIR]
         [--params-file ros_ws/params/b1_ice2.yaml] [--speeds 160:350:1] [--dim-grid window|paper|full]
-        [--spawn | --connect URL]
+        [--spawn | --connect URL] [--separate-nodes]
+
+The bridge and train nodes share a process (:mod:`adm_sim.nodes.composed`, one executor: a DIM
+round trip wakes no other process); ``--separate-nodes`` starts each in a process of its own.
 
 Writes into ``DIR`` (default ``runs/calibrate_<bridge>_<train>_<time>``): ``run.mcap`` (every
 monitoring topic, ROS 2 profile), ``run.rrd`` (rerun), ``summary.json`` (the keys of
