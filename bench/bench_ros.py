@@ -1,8 +1,12 @@
 #!/usr/bin/env python
-"""In-process sweep vs the same sweep co-simulated by the bridge and train nodes (two processes).
+"""In-process sweep vs the same sweep co-simulated by the bridge and train nodes.
 
     .venv/bin/python bench/bench_ros.py [--bridge B1] [--train ICE-2] [--speeds 160:350:1] [--repeat 1]
-        [--main-job] [--hogs 2]
+        [--main-job] [--hogs 2] [--separate-nodes]
+
+The bridge and train nodes run in one process (:mod:`adm_sim.nodes.composed`, as ``calibrate.py``
+runs them) or, with ``--separate-nodes``, in two (the main job then gets ``--separate-nodes`` too);
+the CPU time of each node process per round trip of the last co-simulated run is printed.
 
 Prints for the MLM and the DIM: the in-process :func:`adm_sim.sweep.run_sweep` time, the
 co-simulated time (from the run request to the result: parameter set, set-up handshake, every
@@ -54,6 +58,9 @@ def main(argv=None):
     ap.add_argument("--repeat", type=int, default=1, help="co-simulated runs per model (best is kept)")
     ap.add_argument("--main-job", action="store_true", help="also time launch_scripts/calibrate.py (B1 x ICE-2)")
     ap.add_argument("--hogs", type=int, default=0, help="busy processes running meanwhile")
+    ap.add_argument("--separate-nodes", action="store_true",
+                    help="the bridge and train nodes as two processes (the main job: calibrate.py --separate-nodes; "
+                         "default: one process hosting both)")
     ap.add_argument("--root", default=str(ROOT), help="checkout whose launch scripts the main job runs")
     ap.add_argument("--json", help="write the figures to this file")
     ap.add_argument("--baseline", help="another checkout measured alternately with this one")
@@ -75,7 +82,7 @@ def main(argv=None):
 RUN_LINE = re.compile(r"^run\s+(\d+)\s+(.*?)\s+([0-9.]+) s\s+max")
 
 
-def _main_job(root=ROOT):
+def _main_job(root=ROOT, extra=()):
     """The main job from process start to exit: ``{"wall_s", "start_s", "runs_s", "gaps_s", "stop_s",
     "n_runs", "dz_vbi_pct"}`` (times of the run lines as they are printed)."""
     import subprocess
@@ -84,7 +91,7 @@ def _main_job(root=ROOT):
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     t0 = time.perf_counter()
     p = subprocess.Popen([sys.executable, str(Path(root) / "launch_scripts" / "calibrate.py"), "--out", str(out),
-                          "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=root, env=env)
+                          "--quiet", *extra], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=root, env=env)
     runs = []  # (time the line came, run wall)
     cpu = {}  # process -> CPU seconds (user + system), sampled while it lives
     stop = threading.Event()
@@ -95,10 +102,12 @@ def _main_job(root=ROOT):
             stop.wait(0.25)
 
     threading.Thread(target=sample, daemon=True).start()
+    snaps = [{}]  # CPU of each process when each run line came
     for line in p.stdout:
         m = RUN_LINE.match(line)
         if m:
             runs.append((time.perf_counter() - t0, float(m.group(3)), m.group(2).split()[0]))
+            snaps.append(_tree_cpu_s(p.pid))
     err = p.stderr.read()
     p.wait()
     wall = time.perf_counter() - t0
@@ -112,7 +121,10 @@ def _main_job(root=ROOT):
     return {"wall_s": wall, "start_s": start_s, "runs_s": runs_s, "gaps_s": wall - start_s - stop_s - runs_s,
             "stop_s": stop_s, "n_runs": len(runs), "dz_vbi_pct": summary["delta_zeta_vbi_pct"],
             "dim_runs_s": sum(r[1] for r in runs if r[2] == "DIM"), "mlm_runs_s": sum(r[1] for r in runs if r[2] == "MLM"),
-            **{f"cpu_{name}_s": v for name, v in sorted(cpu.items())}}
+            **{f"cpu_{name}_s": v for name, v in sorted(cpu.items())},
+            # CPU from the run line before the DIM run to the DIM run's line (the DIM run and its set-up)
+            **{f"dimcpu_{name}_s": snaps[i + 1].get(name, 0.0) - snaps[i].get(name, 0.0)
+               for i, r in enumerate(runs) if r[2] == "DIM" for name in sorted(snaps[i + 1])}}
 
 
 def _tree_cpu_s(pid):
@@ -134,6 +146,15 @@ def _tree_cpu_s(pid):
         if name:
             out[name] = (int(f[11]) + int(f[12])) / tck
     return out
+
+
+def _cpu_s(pid):
+    """CPU seconds (user + system) of process ``pid`` so far (0.0 when it cannot be read)."""
+    try:
+        f = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return 0.0
+    return (int(f[11]) + int(f[12])) / os.sysconf("SC_CLK_TCK")
 
 
 def _compare(args, argv):
@@ -197,8 +218,12 @@ def _bench(args):
         env["OPENBLAS_NUM_THREADS"] = "1"
         procs = NodeProcs(env, tempfile.mkdtemp(prefix="bench_ros_"))
         t_start = time.perf_counter()
-        procs.start("bridge", "adm_sim.nodes.bridge_node", {"bridge": args.bridge})
-        procs.start("train", "adm_sim.nodes.train_node", {"train": args.train, "speeds_kmh": args.speeds})
+        if args.separate_nodes:
+            procs.start("bridge", "adm_sim.nodes.bridge_node", {"bridge": args.bridge})
+            procs.start("train", "adm_sim.nodes.train_node", {"train": args.train, "speeds_kmh": args.speeds})
+        else:  # one process hosting both (as calibrate.py runs them)
+            procs.start("bridge_train", "adm_sim.nodes.composed",
+                        {"bridge:bridge": args.bridge, "train:train": args.train, "train:speeds_kmh": args.speeds})
         try:
             with driver_node(env.domain_id) as d:
                 d.wait_for_graph()
@@ -209,11 +234,16 @@ def _bench(args):
                     t_in = time.perf_counter() - t0
                     best = None
                     for _ in range(args.repeat):
+                        cpu0 = {k: _cpu_s(p.pid) for k, p in procs.procs.items()}
                         r = d.request_run(model=model)
+                        cpu = {k: _cpu_s(p.pid) - cpu0[k] for k, p in procs.procs.items()}
                         best = r if best is None or r["wall_s"] < best["wall_s"] else best
-                    rel = float(np.max(np.abs(best["max_acc_m_s2"] / ref.max_acc_m_s2 - 1.0)))
                     n = ref.n_steps
                     trips = 4 * n if model == "dim" else -(-n // 2048)
+                    print(f"{model.upper()} co-simulation CPU a round trip (last run): "
+                          + ", ".join(f"{k} {1e6 * v / trips:.0f} us" for k, v in cpu.items()), flush=True)
+                    figures.update({f"{model}_cpu_{k}_us_per_trip": 1e6 * v / trips for k, v in cpu.items()})
+                    rel = float(np.max(np.abs(best["max_acc_m_s2"] / ref.max_acc_m_s2 - 1.0)))
                     rows.append((model, t_in, best["wall_s"], n, trips, rel))
                     figures.update({f"{model}_in_process_s": t_in, f"{model}_cosim_s": best["wall_s"],
                                     f"{model}_ratio": best["wall_s"] / t_in, f"{model}_trips_per_s": trips / best["wall_s"],
@@ -232,7 +262,7 @@ def _bench(args):
               f"{trips / t_co:8.0f} {speeds.size * n / t_co:13.3g} {rel:13.1e}")
     figures["graph_up_s"] = t_graph
     if args.main_job:
-        mj = _main_job(args.root)
+        mj = _main_job(args.root, ["--separate-nodes"] if args.separate_nodes else [])
         figures.update({f"main_{k}": v for k, v in mj.items()})
         print(f"\nmain job (calibrate.py B1 x ICE-2, MCAP + .rrd): {mj['wall_s']:.1f} s wall"
               f"{f' with {args.hogs} busy processes' if args.hogs else ''}: start-up {mj['start_s']:.1f} s, "
@@ -240,6 +270,8 @@ def _bench(args):
               f"dz_VBI {mj['dz_vbi_pct']:.7f} %")
         print("main job CPU (user + system): " + ", ".join(f"{k[4:-2]} {v:.1f} s" for k, v in mj.items()
                                                            if k.startswith("cpu_")))
+        print("its DIM run's CPU (41 840 round trips), us a trip: " + ", ".join(
+            f"{k[7:-2]} {1e6 * v / 41840:.0f}" for k, v in mj.items() if k.startswith("dimcpu_")))
     if args.json:
         Path(args.json).write_text(json.dumps(figures, indent=1) + "\n")
     return 0 if ok else 1

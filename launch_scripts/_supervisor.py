@@ -278,14 +278,33 @@ def discard_outputs(out, created, old=()):
                 pass
 
 
-def run_graph(sup, params_file, bridge_params, train_params, driver, driver_module, driver_params, on_line):
+#: Process name (log ``logs/bridge_train.log``) of the bridge and train nodes composed in one process.
+COMPOSED = "bridge_train"
+
+
+def composed_args(params_file, bridge_params, train_params):
+    """``--ros-args`` of :mod:`adm_sim.nodes.composed`: each node's overrides named by its node
+    (``-p bridge:ds_m:=0.05``), so neither takes the other's."""
+    return ros_args(params_file, {**{f"bridge:{k}": v for k, v in bridge_params.items()},
+                                  **{f"train:{k}": v for k, v in train_params.items()}})
+
+
+def run_graph(sup, params_file, bridge_params, train_params, driver, driver_module, driver_params, on_line,
+              composed=False):
     """Start the bridge, train and driver nodes and follow the driver until it exits.
 
-    Every stdout line of the driver goes to ``on_line``. Raises :class:`NodeDied` naming the node
-    when the bridge or the train dies, or when the driver fails.
+    ``composed``: the bridge and train nodes in one process (:mod:`adm_sim.nodes.composed`,
+    process name :data:`COMPOSED`) instead of one each. Every stdout line of the driver goes to
+    ``on_line``. Raises :class:`NodeDied` naming the node when the bridge or the train dies, or
+    when the driver fails.
     """
-    sup.start("bridge", "adm_sim.nodes.bridge_node", ros_args(params_file, bridge_params))
-    sup.start("train", "adm_sim.nodes.train_node", ros_args(params_file, train_params))
+    if composed:
+        sup.start(COMPOSED, "adm_sim.nodes.composed", composed_args(params_file, bridge_params, train_params))
+        pair = (COMPOSED,)
+    else:
+        sup.start("bridge", "adm_sim.nodes.bridge_node", ros_args(params_file, bridge_params))
+        sup.start("train", "adm_sim.nodes.train_node", ros_args(params_file, train_params))
+        pair = ("bridge", "train")
     sup.start(driver, driver_module, ros_args(params_file, driver_params), capture=True)
     while True:
         try:
@@ -294,9 +313,10 @@ def run_graph(sup, params_file, bridge_params, train_params, driver, driver_modu
             line = None
         if line is not None:
             on_line(line)
-        died = sup.dead(("bridge", "train"))
+        died = sup.dead(pair)
         if died:
-            raise NodeDied(f"node '{died[0]}' died (exit status {died[1]}): {sup.log_tail(died[0])}")
+            who = "nodes 'bridge' and 'train' (one process)" if died[0] == COMPOSED else f"node '{died[0]}'"
+            raise NodeDied(f"{who} died (exit status {died[1]}): {sup.log_tail(died[0])}")
         done = sup.dead((driver,))
         if done and sup.lines.empty():
             if done[1] != 0:

@@ -1,9 +1,12 @@
 #!/usr/bin/env python
-"""Δζ calibration over ROS 2: bridge, train and calibration nodes as separate processes.
+"""Δζ calibration over ROS 2: the bridge and train nodes in one process, the calibration node in another.
 
     .venv/bin/python launch_scripts/calibrate.py [--bridge B1 --train ICE-2] [--out DIR]
         [--params-file ros_ws/params/b1_ice2.yaml] [--speeds 160:350:1] [--dim-grid window|paper|full]
-        [--spawn | --connect URL]
+        [--spawn | --connect URL] [--separate-nodes]
+
+The bridge and train nodes share a process (:mod:`adm_sim.nodes.composed`, one executor: a DIM
+round trip wakes no other process); ``--separate-nodes`` starts each in a process of its own.
 
 Writes into ``DIR`` (default ``runs/calibrate_<bridge>_<train>_<time>``): ``run.mcap`` (every
 monitoring topic, ROS 2 profile), ``run.rrd`` (rerun), ``summary.json`` (the keys of
@@ -47,6 +50,9 @@ def parse_args(argv=None):
     ap.add_argument("--spawn", action="store_true", help="spawn a live rerun viewer (127.0.0.1)")
     ap.add_argument("--connect", help="stream to a running rerun viewer (loopback URL)")
     ap.add_argument("--no-rrd", action="store_true", help="do not write run.rrd")
+    ap.add_argument("--separate-nodes", action="store_true",
+                    help="run the bridge and train nodes as two processes (default: one process hosting both, "
+                         "as ROS composition does; the same nodes, topics and results, the DIM round trips cheaper)")
     add_domain_id(ap)
     ap.add_argument("--quiet", action="store_true", help="no progress bars")
     add_overwrite(ap, "replace the outputs of an earlier run in --out")
@@ -157,7 +163,7 @@ def _main(args):
         with Supervisor(out / "logs", env=env) as sup:
             print(f"ROS_DOMAIN_ID={sup.domain_id} (shared memory only); output in {out}", flush=True)
             run_graph(sup, args.params_file, pb, pt, "calibration", "adm_calib.nodes.calibration_node", pc,
-                      prog.handle)
+                      prog.handle, composed=not args.separate_nodes)
     except KeyboardInterrupt:
         prog._close_bar()
         release_out(out)

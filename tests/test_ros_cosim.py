@@ -171,3 +171,35 @@ def test_non_finite_run_fails_with_the_message_and_nodes_stay_up(node_procs, ros
         ref_ok = run_sweep(bridge, train, "mlm", r["speeds_kmh"], options=StepOptions(**STEP))
         np.testing.assert_array_equal(r["max_acc_m_s2"], ref_ok.max_acc_m_s2)
     assert all(p.poll() is None for p in node_procs.procs.values())
+
+
+def test_composed_nodes_reproduce_run_sweep(node_procs, ros_domain):
+    """The bridge and train nodes in one process (adm_sim.nodes.composed, as calibrate.py runs them)
+    give the core's runs bit for bit; each ``-p node:name:=value`` reaches its own node only."""
+    node_procs.start("bridge_train", "adm_sim.nodes.composed",
+                     {"bridge:bridge": "B3", **{f"bridge:{k}": v for k, v in STEP.items()}, "train:speeds_kmh": SPEEDS})
+    bridge, train = resolve_bridge("B3"), load_train("ICE-2")
+    opts = StepOptions(**STEP)
+    with driver_node(ros_domain.domain_id) as d:
+        d.wait_for_graph()
+        for model, dz in (("dim", 0.0), ("mlm", 0.004), ("dim", 0.0)):
+            r = d.request_run(model=model, delta_zeta=dz)
+            ref = run_sweep(bridge, train, model, r["speeds_kmh"], delta_zeta=dz, options=opts)
+            np.testing.assert_array_equal(r["speeds_kmh"], [200, 250, 290, 330, 350])
+            np.testing.assert_array_equal(r["max_acc_m_s2"], ref.max_acc_m_s2)
+            np.testing.assert_array_equal(r["max_disp_m"], ref.max_disp_m)
+    assert node_procs.procs["bridge_train"].poll() is None
+    log = (node_procs.log_dir / "bridge_train.log").read_text()
+    assert "[bridge]: run 3 done" in log and "error" not in log.lower()
+
+
+def test_composed_nodes_refuse_a_parameter_of_the_other_node(tmp_path, ros_domain):
+    """``-p train:span_m:=20.0``: the train node has no span: one line naming it, exit 2."""
+    import subprocess
+    import sys
+
+    r = subprocess.run([sys.executable, "-m", "adm_sim.nodes.composed", "--ros-args", "-p", "train:span_m:=20.0"],
+                       env=dict(ros_domain), capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2, r.stderr
+    assert r.stderr.strip().splitlines()[-1].startswith(
+        "error: bridge+train: span_m: unknown parameter of node 'train'; allowed ")

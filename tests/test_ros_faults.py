@@ -113,31 +113,37 @@ def _children(pid):
     return out
 
 
-def test_launch_script_stops_everything_when_a_node_dies(tmp_path, ros_domain):
+@pytest.mark.parametrize("separate,module,n_kids,said", [
+    (True, "train_node", 3, "node 'train' died (exit status -9)"),
+    (False, "nodes.composed", 2, "nodes 'bridge' and 'train' (one process) died (exit status -9)"),
+])
+def test_launch_script_stops_everything_when_a_node_dies(separate, module, n_kids, said, tmp_path, ros_domain):
+    """The train node killed (its own process, ``--separate-nodes``; or the process hosting the
+    bridge and the train node, the default): the launcher names it, stops the rest, exit 1."""
     env = dict(ros_domain)
     p = subprocess.Popen([sys.executable, str(ROOT / "launch_scripts" / "calibrate.py"), "--bridge", "B3",
                           "--speeds", "240:300:2", "--out", str(tmp_path), "--no-rrd", "--quiet",
-                          "--domain-id", str(ros_domain.domain_id)],
+                          "--domain-id", str(ros_domain.domain_id)] + (["--separate-nodes"] if separate else []),
                          env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
     try:
         t_end = time.monotonic() + 30
         kids = []
-        while len(kids) < 3 and time.monotonic() < t_end:
+        while len(kids) < n_kids and time.monotonic() < t_end:
             kids = _children(p.pid)
             time.sleep(0.1)
-        assert len(kids) == 3
+        assert len(kids) == n_kids
         line = ""
         while not line.startswith("calibrating"):
             line = p.stdout.readline()
             assert line, p.stderr.read()
-        train = [k for k in kids if "train_node" in Path(f"/proc/{k}/cmdline").read_text()][0]
+        train = [k for k in kids if module in Path(f"/proc/{k}/cmdline").read_text()][0]
         os.kill(train, signal.SIGKILL)
         _, err = p.communicate(timeout=15)
     finally:
         if p.poll() is None:
             p.kill()
     assert p.returncode == 1
-    assert "node 'train' died (exit status -9)" in err
+    assert said in err
     assert all(group_gone(k) for k in kids)
     # the calibration node was stopped with SIGTERM: it finished its recording, a complete file
     # (its salvage holds every message) with the latched descriptions it had received
@@ -221,11 +227,11 @@ def _alive(pid):
     return stat.rsplit(")", 1)[1].split()[0] != "Z"
 
 
-@pytest.mark.parametrize("script,args", [
-    ("crossing.py", ["--model", "dim", "--speeds", "200:300:5"]),
-    ("calibrate.py", ["--bridge", "B3", "--speeds", "240:300:2", "--no-rrd", "--quiet"]),
+@pytest.mark.parametrize("script,args,n_kids", [
+    ("crossing.py", ["--model", "dim", "--speeds", "200:300:5"], 3),
+    ("calibrate.py", ["--bridge", "B3", "--speeds", "240:300:2", "--no-rrd", "--quiet"], 2),  # bridge + train composed
 ])
-def test_launcher_killed_with_sigkill_takes_every_node_with_it(script, args, tmp_path, ros_domain):
+def test_launcher_killed_with_sigkill_takes_every_node_with_it(script, args, n_kids, tmp_path, ros_domain):
     """SIGKILL of the launcher mid-run: every node it started ends within 5 s (PR_SET_PDEATHSIG ->
     SIGTERM, a clean rclpy shutdown) and removes its own Fast DDS segments from /dev/shm."""
     p = subprocess.Popen([sys.executable, str(ROOT / "launch_scripts" / script), "--out", str(tmp_path / "o"),
@@ -234,10 +240,10 @@ def test_launcher_killed_with_sigkill_takes_every_node_with_it(script, args, tmp
     kids = []
     try:
         t_end = time.monotonic() + 60
-        while len(kids) < 3 and time.monotonic() < t_end:
+        while len(kids) < n_kids and time.monotonic() < t_end:
             kids = _children(p.pid)
             time.sleep(0.1)
-        assert len(kids) == 3, p.stderr.read() if p.poll() is not None else kids
+        assert len(kids) == n_kids, p.stderr.read() if p.poll() is not None else kids
         line = ""
         while not ("step" in line or line.startswith("calibrating")):  # mid-run: the nodes exchange
             line = p.stdout.readline()

@@ -275,6 +275,11 @@ class PartnerWatch:
 
     GRAPH_CHECK_AFTER_S = 0.5
 
+    #: The partner is hosted by this process (:mod:`adm_sim.nodes.composed`): it cannot vanish
+    #: without this node, and its silence is this process's own work (an MLM block of a few
+    #: seconds under load), so :meth:`check` does nothing.
+    same_process = False
+
     def __init__(self, node, partner, topic, timeout_s):
 
         self._now = time.monotonic
@@ -293,7 +298,7 @@ class PartnerWatch:
         self.since = None
 
     def check(self):
-        if self.since is None:
+        if self.since is None or self.same_process:
             return
         dt = self._now() - self.since
         if dt < self.GRAPH_CHECK_AFTER_S:
@@ -329,7 +334,17 @@ class ExchangeLane:
                          parameter_overrides=[Parameter("start_type_description_service", value=False)])
         self.executor = EventsExecutor(context=node.context)
         self.executor.add_node(self.node)
+        self._own_executor = True
         self.error = None
+
+    def share(self, executor):
+        """Serve the lane's node by ``executor`` (the one executor of a process hosting several
+        nodes, :func:`run_node` with a tuple of nodes) instead of its own; :meth:`raise_error`
+        then passes on a callback's exception."""
+        self.executor.remove_node(self.node)
+        self.executor.shutdown()
+        executor.add_node(self.node)
+        self.executor, self._own_executor = executor, False
 
     def subscribe(self, msg_type, topic, callback, qos):
         """An exchange subscription (on the lane's node).
@@ -359,12 +374,17 @@ class ExchangeLane:
     def turn(self, timeout_s=0.0):
         """One turn of the lane's executor (``timeout_s`` 0: handle what is there, do not wait)."""
         self.executor.spin_once(timeout_sec=timeout_s)
+        self.raise_error()
+
+    def raise_error(self):
+        """Raise the exception a callback of the lane kept, if any."""
         if self.error is not None:
             exc, self.error = self.error, None
             raise exc
 
     def destroy(self):
-        self.executor.shutdown()
+        if self._own_executor:
+            self.executor.shutdown()
         self.node.destroy_node()
 
 
@@ -496,6 +516,10 @@ class LockstepNode(NodeBase):
 def run_node(make_node, args=None, name="node"):
     """The ``main`` of every node: init, spin until finished, one-line errors and warnings, clean shutdown.
 
+    ``make_node`` may also return a tuple of nodes: they are hosted by this one process (as ROS
+    composition hosts nodes), every entity of theirs, exchange lanes included, served by one
+    executor (:func:`_spin_composed`).
+
     Every Python warning raised in the node (start-up, parameter callbacks, the driver's job) is
     printed as one line ``warning: <name>: ...`` on stderr, as the CLIs print theirs
     (:class:`adm_sim.cliutil.one_line_warnings`; Python's filters still print a repeated warning once).
@@ -538,31 +562,37 @@ def _run_node(make_node, args, name):
         reason = " ".join(str(exc).split())
         print(f"error: {name}: cannot start: {reason}", file=sys.stderr, flush=True)
         return 2
-    node = None
+    nodes = []
     code = 0
     try:
-        node = make_node()
+        made = make_node()
+        nodes = list(made) if isinstance(made, tuple) else [made]
+        node = nodes[0]
         executor = node.make_executor()
-        executor.add_node(node)
-        node.begin()
-        lane = node.exchange
-        while rclpy.ok() and not node.finished:
-            if lane is not None and node.run is not None:
-                lane.spin(time.monotonic() + 0.05, lambda: node.run is not None)
+        for n in nodes:
+            executor.add_node(n)
+        if len(nodes) > 1:
+            code = _spin_composed(nodes, executor)
+        else:
+            node.begin()
+            lane = node.exchange
+            while rclpy.ok() and not node.finished:
+                if lane is not None and node.run is not None:
+                    lane.spin(time.monotonic() + 0.05, lambda: node.run is not None)
+                    node.watch()
+                    executor.spin_once(timeout_sec=0.0)
+                else:
+                    executor.spin_once(timeout_sec=0.2)
+                    if lane is not None:  # a stray exchange message with no run active is an error now
+                        lane.turn()
                 node.watch()
-                executor.spin_once(timeout_sec=0.0)
-            else:
-                executor.spin_once(timeout_sec=0.2)
-                if lane is not None:  # a stray exchange message with no run active is an error now
-                    lane.turn()
-            node.watch()
-        code = node.end(executor)
+            code = node.end(executor)
     except (KeyboardInterrupt, ExternalShutdownException):
         code = 130
     except AdmSimError as exc:  # ExchangeError is a RunError
         print(f"error: {name}: {exc}", file=sys.stderr, flush=True)
         code = 2 if isinstance(exc, InputError) else 1  # the CLIs' mapping (adm_sim.cliutil.run_cli)
-        if node is not None:
+        for node in nodes:
             try:
                 node.report_failure(str(exc))
                 pub = getattr(node, "pub_status", None)
@@ -576,9 +606,42 @@ def _run_node(make_node, args, name):
             raise
         code = 130  # shut down (SIGINT/SIGTERM) while a callback was publishing
     finally:
-        if node is not None:
+        for node in nodes:
             node.close()
             node.destroy_node()
         rclpy.try_shutdown()
         release_all()  # every output this node claimed, however it ended (no stray lock file)
     return code
+
+
+#: How often the composed loop runs the nodes' :meth:`NodeBase.watch` (s).
+WATCH_EVERY_S = 0.05
+
+
+def _spin_composed(nodes, executor):
+    """The main loop of several nodes in one process: one executor serves every entity of theirs
+    (their exchange lanes moved onto it, :meth:`ExchangeLane.share`), one event per turn in the
+    order they came, so a message one node publishes to another is taken on the next turn with
+    no other process to wake. Between turns the kept exceptions of the lanes are raised and,
+    every :data:`WATCH_EVERY_S`, every node's :meth:`NodeBase.watch` runs. Returns the exit code
+    (the largest of the nodes' :meth:`NodeBase.end`)."""
+
+    lanes = [n.exchange for n in nodes if n.exchange is not None]
+    for lane in lanes:
+        lane.share(executor)
+    for n in nodes:
+        n.begin()
+    next_watch, timeout_s, now = 0.0, 0.2, time.monotonic
+    while True:  # per event: one turn, the lanes' errors; the rest every WATCH_EVERY_S
+        executor.spin_once(timeout_sec=timeout_s)
+        for lane in lanes:
+            if lane.error is not None:
+                lane.raise_error()
+        if now() >= next_watch:
+            next_watch = now() + WATCH_EVERY_S
+            for n in nodes:
+                n.watch()
+            if not rclpy.ok() or any(n.finished for n in nodes):
+                break
+            timeout_s = 0.05 if any(n.run is not None for n in nodes) else 0.2
+    return max(n.end(executor) for n in nodes)

@@ -320,6 +320,9 @@ class RunDriver(c.NodeBase):
         self._event.clear()
         t_end = time.monotonic() + 15.0
         while True:
+            # the run's time counts from the request that started it: the response can come after the
+            # run ended when this node's executor is behind with the monitoring it takes
+            t0 = time.perf_counter()
             resp = self._wait_future(self.cli_start.call_async(Trigger.Request()), P.SERVICE_START_RUN)
             if resp.success:
                 break
@@ -329,7 +332,6 @@ class RunDriver(c.NodeBase):
         info = dict(kv.split("=", 1) for kv in resp.message.split())
         run_id, model = int(info["run_id"]), info["model"]
         self.last_phase = phase
-        t0 = time.perf_counter()
         timeout = self.get_parameter("run_timeout_s").value
         lab = label or model.upper()
         self._current = (run_id, model, f"{lab} run {run_id}")
