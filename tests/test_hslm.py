@@ -220,5 +220,5 @@ def test_hslm_b_cli_refusals(tmp_path):
     assert r.returncode == 2 and r.stderr.startswith("error: --trains: HSLM-A applies to spans >= 7 m; this bridge "
                                                      "spans 5 m") and r.stderr.count("\n") == 1 and not js.exists()
     r = subprocess.run(base + ["--trains", "HSLM-B:N=12:d=abc"], capture_output=True, text=True, timeout=300)
-    assert r.returncode == 2 and r.stderr.startswith("error: train: HSLM-B d = 'abc' is not a number")
+    assert r.returncode == 2 and r.stderr.startswith("error: --trains: HSLM-B d = 'abc' is not a number")
     assert not js.exists()

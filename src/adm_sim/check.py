@@ -431,10 +431,16 @@ def resolve_trains(spec):
 def _load_check_train(name):
     """A train of the check: HSLM-B written ``HSLM-B:N=<n>:d=<m>`` (:func:`adm_sim.hslm.hslm_b_spec`), else
     :func:`adm_sim.trains.load_train`."""
-    spec = hslm_b_spec(name)
-    if spec is None:
-        return load_train(name)
-    return moving_loads(*hslm_b_axles(*spec), name=hslm_b_train_name(*spec))
+    try:
+        spec = hslm_b_spec(name)
+        if spec is None:
+            return load_train(name)
+        offsets, loads = hslm_b_axles(*spec)
+    except InputError as exc:  # HSLM-B's own refusals start "train: " without naming the field
+        if getattr(exc, "field", None) is None and str(exc).startswith("train: "):
+            raise InputError(str(exc), field="train") from None
+        raise
+    return moving_loads(offsets, loads, name=hslm_b_train_name(*spec))
 
 
 #: Allowed range of the lower and of the upper bound (fractions of the nominal value).
