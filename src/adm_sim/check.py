@@ -52,6 +52,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import functools
 import math
 import os
 import time
@@ -61,8 +62,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from adm_sim.check_sls import NOT_CHECKED, check_lateral_frequency, serviceability
-from adm_sim.design_loads import (MAINTENANCE, adm_delta_zeta_pct, check_alpha, design_comparison, dynamic_factor,
-                                  governing, memo, phi_dd_factor, phi_dyn_prime)
+from adm_sim.design_loads import (CACHE_SIZE, MAINTENANCE, adm_delta_zeta_pct, array_from_key, array_key, check_alpha,
+                                  design_comparison, dynamic_factor, governing, phi_dd_factor, phi_dyn_prime)
 from adm_sim.errors import InputError
 from adm_sim.fields import FIELDS, check_count, check_range
 from adm_sim.hslm import (HSLM_A_NAMES, HSLM_A_TABLE, HSLM_B_SYNTAX, hslm_b_axles, hslm_b_spec, hslm_b_train_name,
@@ -635,26 +636,31 @@ def static_midspan_max(bridge, offsets, loads, n_per_span=2000):
     φ'_dyn of Eq. (6.14) without a modal-truncation bias): ``q_j = F sin(j pi a / L) / K_j``,
     ``w = sum_j q_j sin(j pi / 2)``, ``M = EJ sum_j q_j (j pi / L)^2 sin(j pi / 2)``.
 
-    Memoised by span, EJ, modes and axles: ``K_j = (L / 2) (j pi / L)^4 EJ`` does not depend on the
-    mass, so a mass bound takes the nominal bridge's values (equal to round-off, 1e-16)."""
-    key = ("static_midspan", bridge.span_m, bridge.EJ_Nm2, bridge.mode_numbers.tobytes(),
-           np.asarray(offsets, dtype=float).tobytes(), np.asarray(loads, dtype=float).tobytes(), n_per_span)
-    return memo(key, lambda: _static_midspan_max(bridge, offsets, loads, n_per_span))
+    ``K_j = (L / 2) (j pi / L)^4 EJ`` does not depend on the mass: cached by span, EJ, modes and axles,
+    so a mass bound takes the nominal bridge's values (the same number: it is computed without the mass)."""
+    return _static_midspan_max_cached(float(bridge.span_m), float(bridge.EJ_Nm2), array_key(bridge.mode_numbers),
+                                      array_key(np.asarray(offsets, dtype=float)),
+                                      array_key(np.asarray(loads, dtype=float)), int(n_per_span))
 
 
-def _static_midspan_max(bridge, offsets, loads, n_per_span):
-    """:func:`static_midspan_max`, computed."""
-    L = bridge.span_m
+@functools.lru_cache(maxsize=CACHE_SIZE)
+def _static_midspan_max_cached(L, EJ, j_key, offsets_key, loads_key, n_per_span):
+    """:func:`_static_midspan_max` of its keys (:func:`adm_sim.design_loads.array_key`)."""
+    return _static_midspan_max(L, EJ, *(np.array(array_from_key(k)) for k in (j_key, offsets_key, loads_key)),
+                               n_per_span)
+
+
+def _static_midspan_max(L, EJ, j, offsets, loads, n_per_span):
+    """:func:`static_midspan_max` of span ``L`` (m), stiffness ``EJ`` (N m^2) and modes ``j``, computed."""
     s = np.arange(0.0, offsets[-1] + L, L / n_per_span)
-    j = bridge.mode_numbers
-    gain = np.sin(j * np.pi / 2) / bridge.modal_stiffness_N_m  # midspan per unit modal force
-    mgain = gain * bridge.EJ_Nm2 * (j * np.pi / L) ** 2
+    K = 0.5 * L * EJ * (j * np.pi / L) ** 4  # modal stiffness K_j = M_j omega_j^2 (N/m)
+    gain = np.sin(j * np.pi / 2) / K  # midspan per unit modal force
+    mgain = gain * EJ * (j * np.pi / L) ** 2
     w = np.zeros_like(s)
     m = np.zeros_like(s)
     from adm_sim.check_effects import midspan_modal_sum  # noqa: PLC0415  numba kernels
 
-    midspan_modal_sum(s, np.asarray(offsets, dtype=float), np.asarray(loads, dtype=float), float(L),
-                      np.asarray(j, dtype=float), gain, mgain, w, m)
+    midspan_modal_sum(s, offsets, loads, float(L), j, gain, mgain, w, m)
     return float(np.abs(w).max()), float(np.abs(m).max())
 
 
@@ -899,7 +905,7 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
             raise
     sls = serviceability(b, dynamic_factor(b.span_m, track_maintenance), alpha, track, lateral_frequency_hz)
     t_nominal = time.perf_counter() - t_start
-    # the bounds after the nominal bridge: they reuse its static effects (memoised; independent of the mass)
+    # the bounds after the nominal bridge: they reuse its static effects (cached; independent of the mass)
     bounds = tuple((label, run_check(bb, max_line_speed_kmh, trains, track=track, damping=damping, step_kmh=step_kmh,
                                      calibrate_options=calibrate_options, n_modes=n_modes, where=where,
                                      damping_model=damping_model, track_maintenance=track_maintenance, alpha=alpha,

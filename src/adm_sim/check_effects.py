@@ -39,6 +39,7 @@ numpy only; no ROS.
 from __future__ import annotations
 
 import cmath
+import functools
 import math
 from dataclasses import dataclass
 from functools import cached_property
@@ -47,8 +48,8 @@ import numpy as np
 
 from adm_sim._jit import njit
 from adm_sim.envelope import _events
-from adm_sim.design_loads import (LM71_AXLE_LOAD_N, LM71_AXLES_M, LM71_HALF_WINDOW_M, LM71_UDL_N_M, memo,
-                                  phi_dyn_prime)
+from adm_sim.design_loads import (CACHE_SIZE, LM71_AXLE_LOAD_N, LM71_AXLES_M, LM71_HALF_WINDOW_M, LM71_UDL_N_M,
+                                  array_from_key, array_key, phi_dyn_prime, read_only)
 
 #: Sections of the shear (x/L); the ends are the support reactions.
 SHEAR_SECTIONS = tuple(np.round(np.linspace(0.0, 1.0, 11), 10))
@@ -201,21 +202,23 @@ def _positions(offsets, L, effects, samples_per_span):
 def _sample_statics(effects, L, offs, loads, bps, jj, n_per_span):
     """Per sample of the front-axle position (:func:`_positions`): its interval ``k_of`` between the
     breakpoints ``bps``, its offset ``ds`` in it, ``E1 = e^(i j pi ds / L)`` (samples, modes) and the
-    exact static effects (samples, effects). Memoised (:func:`adm_sim.design_loads.memo`: a check with
-    mass or stiffness bounds samples every train once per bound; these do not depend on the bridge's
-    mass or stiffness); the arrays are shared, never modified."""
+    exact static effects (samples, effects). Cached (a check with mass or stiffness bounds samples every
+    train once per bound; these do not depend on the bridge's mass or stiffness); the arrays are shared
+    and read-only."""
+    return _sample_statics_cached(tuple(effects), float(L), array_key(offs), array_key(loads), array_key(bps),
+                                  array_key(jj), int(n_per_span))
 
-    def compute():
-        s = _positions(offs, L, effects, n_per_span)
-        infl = _static(effects, L, s, offs, loads)
-        k_of = np.clip(np.searchsorted(bps, s, side="right") - 1, 0, bps.size - 2)
-        ds = s - bps[k_of]
-        E1 = np.exp(1j * np.pi * np.outer(ds, jj) / L)  # speed independent (samples, modes)
-        return k_of, ds, E1, infl
 
-    key = ("effect_samples", float(L), tuple(effects), offs.tobytes(), loads.tobytes(), bps.tobytes(), jj.tobytes(),
-           int(n_per_span))
-    return memo(key, compute)
+@functools.lru_cache(maxsize=CACHE_SIZE)
+def _sample_statics_cached(effects, L, offs_key, loads_key, bps_key, jj_key, n_per_span):
+    """:func:`_sample_statics` of its keys (:func:`adm_sim.design_loads.array_key`), read-only arrays."""
+    offs, loads, bps, jj = (np.array(array_from_key(k)) for k in (offs_key, loads_key, bps_key, jj_key))
+    s = _positions(offs, L, effects, n_per_span)
+    infl = _static(effects, L, s, offs, loads)
+    k_of = np.clip(np.searchsorted(bps, s, side="right") - 1, 0, bps.size - 2)
+    ds = s - bps[k_of]
+    E1 = np.exp(1j * np.pi * np.outer(ds, jj) / L)  # speed independent (samples, modes)
+    return read_only(k_of, ds, E1, infl)
 
 
 @dataclass
@@ -360,6 +363,7 @@ def train_effects(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, delta_zeta=0
     def samples(n_per_span):
         """Positions, their interval, offset in it, e^(i Om tau), the static part and its maximum."""
         k_of, ds, E1, infl = _sample_statics(effects, L, offs, loads, bps, jj, n_per_span)
+        k_of, ds, E1 = np.array(k_of), np.array(ds), np.array(E1)  # writable: the kernel's compiled types
         q_stat = (Gk[k_of] * E1).imag / om**2  # q_j^stat at every sample
         base = infl - q_stat @ W if static_correction else np.zeros_like(infl)
         return k_of, ds, E1, np.ascontiguousarray(base), np.abs(infl).max(0)
@@ -490,7 +494,13 @@ class EffectComparison:
 
 
 def lm71_effects(span_m, alpha, effects=None):
-    """α x LM71 static maximum of every effect (cached per span and α by the caller)."""
+    """α x LM71 static maximum of every effect, ``(n_effects,)`` (cached per span, α and effects; the
+    array is shared and read-only)."""
     effects = tuple(effects_of(span_m) if effects is None else effects)
-    return memo(("lm71_effects", float(span_m), float(alpha), effects),
-                 lambda: np.array([lm71_effect_max(e, span_m, alpha) for e in effects])).copy()
+    return _lm71_effects_cached(float(span_m), float(alpha), effects)
+
+
+@functools.lru_cache(maxsize=CACHE_SIZE)
+def _lm71_effects_cached(span_m, alpha, effects):
+    """:func:`lm71_effects`, read-only (shared by every caller)."""
+    return read_only(np.array([lm71_effect_max(e, span_m, alpha) for e in effects]))
