@@ -274,24 +274,30 @@ def _modes_are_squares(jj, lam):
 
 
 @njit(cache=True, nogil=True)
-def _scan(k_of, ds, E1, P, H, lam, v, W, base, best, squares):
-    """best[l, e] = max over samples i of |base[i, e] + sum_j W[e, j] q_j(i, l)|, with
+def _scan(k_of, ds, E1, P, H, lam, v, WT, base, best, squares):
+    """best[l, e] = max over samples i of |base[i, e] + sum_j WT[j, e] q_j(i, l)|, with
     q_j = Im[P[k, l, j] E1[i, j]] + Im[H[k, l, j] e^(lam_j ds_i / v_l)], k = k_of[i]. Along the
     samples of one interval e^(lam tau) is advanced by multiplication where the step repeats
-    (``squares``: :func:`_exp_modes`)."""
+    (``squares``: :func:`_exp_modes`). The sum over the modes runs for all effects at once (a loop over
+    the effects innermost, contiguous in ``WT`` (modes, effects), which the compiler vectorises); every
+    effect's sum is still ``base + w_1 q_1 + w_2 q_2 + ...`` in that order."""
     ns = k_of.size
     nm = lam.size
-    ne = W.shape[0]
+    ne = WT.shape[1]
     eLr = np.empty(nm)
     eLi = np.empty(nm)
     sr = np.empty(nm)
     si = np.empty(nm)
     qd = np.empty(nm)
+    y = np.empty(ne)
+    top = np.empty(ne)
     for l in range(v.size):
         inv_v = 1.0 / v[l]
         last_k = -1
         last_ds = 0.0
         last_h = -1.0
+        for e in range(ne):
+            top[e] = best[l, e]
         for i in range(ns):
             k = k_of[i]
             d = ds[i]
@@ -315,12 +321,16 @@ def _scan(k_of, ds, E1, P, H, lam, v, W, base, best, squares):
                 hh = H[k, l, j]
                 qd[j] = p.real * e1.imag + p.imag * e1.real + hh.real * eLi[j] + hh.imag * eLr[j]
             for e in range(ne):
-                y = base[i, e]
-                for j in range(nm):
-                    y += W[e, j] * qd[j]
-                y = abs(y)
-                if y > best[l, e]:
-                    best[l, e] = y
+                y[e] = base[i, e]
+            for j in range(nm):
+                w = qd[j]
+                for e in range(ne):
+                    y[e] += WT[j, e] * w
+            for e in range(ne):
+                a = abs(y[e])
+                top[e] = a if a > top[e] else top[e]
+        for e in range(ne):
+            best[l, e] = top[e]
 
 
 def train_effects(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, delta_zeta=0.0, effects=None,
@@ -387,7 +397,7 @@ def train_effects(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, delta_zeta=0
             eL = np.exp(lam * T)
             q = (p * eW).imag + (H[k] * eL).imag
             dq = (1j * Om * p * eW).imag + (lam * H[k] * eL).imag
-    Wc = np.ascontiguousarray(W.T)
+    WT = np.ascontiguousarray(W)  # (modes, effects)
     # free vibration after the last exit: q = Im[H_K e^(lam t)], static part zero (every speed, cheap)
     qf = (H[K - 1][None] * np.exp(lam[None, None, :] * t_free[:, None, None])).imag  # (t, lanes, modes)
     free = np.abs(qf @ W).max(0)  # (lanes, effects)
@@ -403,14 +413,14 @@ def train_effects(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, delta_zeta=0
     sel = np.sort(np.asarray(sel, dtype=np.int64))
     k_of, ds, E1, base, _ = samples(COARSE_SAMPLES_PER_SPAN)
     coarse = np.zeros((sel.size, len(effects)))
-    _scan(k_of, ds, E1, np.ascontiguousarray(P[:, sel]), np.ascontiguousarray(H[:, sel]), lam, v[sel], Wc, base,
+    _scan(k_of, ds, E1, np.ascontiguousarray(P[:, sel]), np.ascontiguousarray(H[:, sel]), lam, v[sel], WT, base,
           coarse, squares)
     coarse = np.maximum(coarse, free[sel])
     cand = sel[(coarse >= (1.0 - COARSE_MARGIN) * coarse.max(0)[None, :]).any(1)]
     keep = np.nonzero((np.abs(kmh[:, None] - kmh[cand][None, :]) <= COARSE_STEP_KMH + 1e-9).any(1))[0]
     k_of, ds, E1, base, static_max = samples(samples_per_span)
     fine = np.zeros((keep.size, len(effects)))
-    _scan(k_of, ds, E1, np.ascontiguousarray(P[:, keep]), np.ascontiguousarray(H[:, keep]), lam, v[keep], Wc,
+    _scan(k_of, ds, E1, np.ascontiguousarray(P[:, keep]), np.ascontiguousarray(H[:, keep]), lam, v[keep], WT,
           base, fine, squares)
     best = free.copy()
     best[sel] = np.maximum(best[sel], coarse)
