@@ -367,7 +367,9 @@ def _prepare(iv, qs):
     the amplitude bound ``sum_j w_j (|c1_j| + |c2_j|)`` and curvature bound
     ``sum_j w_j (|c1_j| Om_j^2 + |c2_j| |lam_j|^2)`` of every interval (w_j = max |weight|, 1 on the
     deck), and the amplitude bound of the free vibration. ``iv``: :class:`Intervals`, ``qs``:
-    :class:`Quantities`; returns the fields of :class:`Maxima` and the free-vibration bound."""
+    :class:`Quantities`; returns the fields of :class:`Maxima` and the free-vibration bound. The moduli
+    of the coefficients are taken once per family (acceleration, deflection) and shared by its
+    quantities; intervals outermost, lanes inside (the coefficients' memory order)."""
     ca1, ca2, cd1, cd2, Om, lam2, t0 = iv.acc_c1, iv.acc_c2, iv.disp_c1, iv.disp_c2, iv.Om, iv.lam2, iv.t0
     W, xp, npos, fam, deck, odd, span = qs.W, qs.xp, qs.npos, qs.fam, qs.deck, qs.odd, qs.span_m
     K, nl, nm = ca1.shape
@@ -378,34 +380,43 @@ def _prepare(iv, qs):
     bound = np.empty((nq, K, nl))
     curv = np.empty((nq, K, nl))
     b_free = np.zeros((nq, nl))
-    g = np.empty(nm)
-    amp = np.empty(nm)
-    cur = np.empty(nm)
-    wmax = np.empty(nm)
+    top = np.full((nq, nl), -1.0)
+    g = np.empty((2, nm))
+    amp = np.empty((2, nm))
+    cur = np.empty((2, nm))
+    a2s = np.empty((2, nm))
+    wmax = np.empty((nq, nm))
+    used = np.zeros(2, dtype=np.bool_)
     for q in range(nq):
+        used[fam[q]] = True
         for j in range(nm):
-            wmax[j] = 1.0 if deck[q] else abs(W[q, 0, j])
+            wmax[q, j] = 1.0 if deck[q] else abs(W[q, 0, j])
+    for k in range(K):
         for l in range(nl):
-            top = -1.0
-            for k in range(K):
+            for f in range(2):
+                if not used[f]:
+                    continue
                 for j in range(nm):
-                    c1 = ca1[k, l, j] if fam[q] == 0 else cd1[k, l, j]
-                    c2 = ca2[k, l, j] if fam[q] == 0 else cd2[k, l, j]
-                    g[j] = (c1 + c2).imag
+                    c1 = ca1[k, l, j] if f == 0 else cd1[k, l, j]
+                    c2 = ca2[k, l, j] if f == 0 else cd2[k, l, j]
+                    g[f, j] = (c1 + c2).imag
                     a1, a2 = abs(c1), abs(c2)
-                    amp[j] = a1 + a2
-                    cur[j] = a1 * Om[l, j] ** 2 + a2 * lam2[j]
+                    amp[f, j] = a1 + a2
+                    cur[f, j] = a1 * Om[l, j] ** 2 + a2 * lam2[j]
+                    a2s[f, j] = a2
+            for q in range(nq):
+                f = fam[q]
                 b = 0.0
                 c = 0.0
                 for j in range(nm):
-                    b += amp[j] * wmax[j]
-                    c += cur[j] * wmax[j]
+                    b += amp[f, j] * wmax[q, j]
+                    c += cur[f, j] * wmax[q, j]
                 bound[q, k, l] = b
                 curv[q, k, l] = c
                 if k == K - 1:
                     bf = 0.0
                     for j in range(nm):
-                        bf += abs(ca2[k, l, j] if fam[q] == 0 else cd2[k, l, j]) * wmax[j]
+                        bf += a2s[f, j] * wmax[q, j]
                     b_free[q, l] = bf
                 for pp in range(npos[q]):
                     o = 0.0
@@ -413,12 +424,12 @@ def _prepare(iv, qs):
                     y = 0.0
                     for j in range(nm):
                         if deck[q] and not odd[j]:
-                            e += g[j] * W[q, pp, j]
+                            e += g[f, j] * W[q, pp, j]
                         else:
-                            o += g[j] * W[q, pp, j]
+                            o += g[f, j] * W[q, pp, j]
                     y = abs(o) + abs(e) if deck[q] else abs(o)
-                    if y > top:
-                        top = y
+                    if y > top[q, l]:
+                        top[q, l] = y
                         best[q, l] = y
                         when[q, l] = t0[k, l]
                         xat[q, l] = span - xp[q, pp] if deck[q] and abs(o + e) < abs(o - e) else xp[q, pp]
