@@ -189,3 +189,31 @@ def test_envelope_bounds_equal_their_former_form(monkeypatch, small_cases):
             for x, y, z in zip(before, after, compiled):
                 assert np.array_equal(x, y)
                 np.testing.assert_allclose(z, y, rtol=1e-13, atol=0)
+
+
+@pytest.mark.parametrize("delta_zeta", [0.0, 0.0047])
+def test_effects_on_the_envelope_lanes_equal_their_own(delta_zeta):
+    """train_effects on the coefficients the envelope kept (two envelope runs merged as the check merges its
+    1 km/h grid and its refinement) gives the numbers it computes on its own, bit for bit."""
+    b = named_bridge("B1")
+    t = resolve_trains("HSLM-A7")[0]
+    coarse, fine = np.arange(150.0, 300.0, 10.0), np.array([204.3, 238.1, 238.2])
+    e1, e2 = (env.moving_load_envelope(b, t.axle_offsets_m, t.axle_loads_n, v, delta_zeta=delta_zeta, where="deck",
+                                       keep_intervals=True) for v in (coarse, fine))
+    v_all = np.concatenate([coarse, fine])
+    order = np.argsort(v_all, kind="stable")
+    lanes = e1.intervals._replace(P=np.concatenate([e1.intervals.P, e2.intervals.P], axis=1)[:, order],
+                                  H=np.concatenate([e1.intervals.H, e2.intervals.H], axis=1)[:, order])
+    shared = ce.train_effects(b, t.axle_offsets_m, t.axle_loads_n, v_all[order], delta_zeta=delta_zeta,
+                              intervals=lanes)
+    own = ce.train_effects(b, t.axle_offsets_m, t.axle_loads_n, v_all[order], delta_zeta=delta_zeta)
+    for name in ("static_max", "dynamic_max", "at_speed_kmh"):
+        assert np.array_equal(getattr(shared, name), getattr(own, name)), name
+    # midspan skips the even modes: nothing is kept; other damping: the lanes are propagated anew
+    mid = env.moving_load_envelope(b, t.axle_offsets_m, t.axle_loads_n, coarse, where="midspan", keep_intervals=True)
+    assert mid.intervals is None and e1.intervals is not None and env.moving_load_envelope(
+        b, t.axle_offsets_m, t.axle_loads_n, coarse, where="deck").intervals is None
+    other = ce.train_effects(b, t.axle_offsets_m, t.axle_loads_n, v_all[order], delta_zeta=delta_zeta + 0.001,
+                             intervals=lanes)
+    assert np.array_equal(other.dynamic_max, ce.train_effects(b, t.axle_offsets_m, t.axle_loads_n, v_all[order],
+                                                              delta_zeta=delta_zeta + 0.001).dynamic_max)

@@ -853,7 +853,7 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
     def one(t, dz_pct, note):
         """Every envelope and effect of one train (threads: the numba kernels release the GIL)."""
         env = moving_load_envelope(b, t.axle_offsets_m, t.axle_loads_n, speeds, delta_zeta=dz_pct / 100.0,
-                                   where=where)
+                                   where=where, keep_intervals=True)
         extra = np.array([])
         if _is_hslm(t):  # resonances v = n0 D / i (HSLM-A coach length D, HSLM-B spacing d)
             D = regular_spacing_m(t.name)
@@ -862,17 +862,23 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
         fine = _refinement(speeds, env.max_acc_m_s2, extra, vmin, vmax)
         v_all = speeds
         cols = [env.max_acc_m_s2, env.max_disp_m, env.x_acc_m, env.max_disp_midspan_m, env.max_moment_Nm]
+        lanes = env.intervals  # every lane's coefficients, taken by the effects (not propagated twice)
         if fine.size:
             ef = moving_load_envelope(b, t.axle_offsets_m, t.axle_loads_n, fine, delta_zeta=dz_pct / 100.0,
-                                      where=where)
+                                      where=where, keep_intervals=True)
             v_all = np.concatenate([speeds, fine])
             order = np.argsort(v_all, kind="stable")
             v_all = v_all[order]
             cols = [np.concatenate([c, f])[order] for c, f in zip(cols, [
                 ef.max_acc_m_s2, ef.max_disp_m, ef.x_acc_m, ef.max_disp_midspan_m, ef.max_moment_Nm])]
+            if lanes is not None and ef.intervals is not None:
+                lanes = lanes._replace(P=np.concatenate([lanes.P, ef.intervals.P], axis=1)[:, order],
+                                       H=np.concatenate([lanes.H, ef.intervals.H], axis=1)[:, order])
+            else:
+                lanes = None
         acc, disp, x_acc, disp_mid, moment = cols
         y_stat, m_stat = static_midspan_max(b, t.axle_offsets_m, t.axle_loads_n)
-        eff = train_effects(b, t.axle_offsets_m, t.axle_loads_n, v_all, delta_zeta=dz_pct / 100.0)
+        eff = train_effects(b, t.axle_offsets_m, t.axle_loads_n, v_all, delta_zeta=dz_pct / 100.0, intervals=lanes)
         tc = TrainCheck(name=t.name, kind="hslm" if _is_hslm(t) else "train", speeds_kmh=v_all,
                         max_acc_m_s2=acc, max_disp_m=disp, delta_zeta_pct=float(dz_pct),
                         damping_note=note, static_disp_m=y_stat, static_moment_Nm=m_stat,

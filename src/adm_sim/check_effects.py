@@ -334,7 +334,7 @@ def _scan(k_of, ds, E1, P, H, lam, v, WT, base, best, squares):
 
 
 def train_effects(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, delta_zeta=0.0, effects=None,
-                  static_correction=True, samples_per_span=100):
+                  static_correction=True, samples_per_span=100, intervals=None):
     """Largest static and dynamic value of every effect of ``effects`` (default :func:`effects_of`).
 
     Parameters
@@ -348,6 +348,11 @@ def train_effects(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, delta_zeta=0
         truncation).
     samples_per_span : int
         Uniform samples of the front-axle position per span length (kinks and jumps added).
+    intervals : adm_sim.envelope.LaneIntervals, optional
+        The coefficients of these lanes from :func:`adm_sim.envelope.moving_load_envelope`
+        (``keep_intervals=True``, the same bridge, axles and speeds in this order), used instead of
+        propagating the lanes again when they were computed with the same damping ratio of every mode
+        (the same numbers: the same operations on the same values).
 
     Returns
     -------
@@ -382,21 +387,25 @@ def train_effects(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, delta_zeta=0
     t_free = np.linspace(0.0, FREE_PERIODS * T1, 64)
     Om = jj[None, :] * np.pi * v[:, None] / L  # (lanes, modes)
     dyn = 1.0 / (om**2 - Om**2 + 2j * zeta * om * Om)
-    P = Gk[:, None, :] * dyn[None]  # (K, lanes, modes)
-    H = np.empty_like(P)
-    q = np.zeros((v.size, jj.size))
-    dq = np.zeros_like(q)
     K = bps.size
-    for k in range(K):
-        p = P[k]
-        hi = q - p.imag
-        H[k] = (dq - Om * p.real - lam.real * hi) / lam.imag + 1j * hi
-        if k < K - 1:
-            T = (bps[k + 1] - bps[k]) / v[:, None]
-            eW = np.exp(1j * Om * T)
-            eL = np.exp(lam * T)
-            q = (p * eW).imag + (H[k] * eL).imag
-            dq = (1j * Om * p * eW).imag + (lam * H[k] * eL).imag
+    if (intervals is not None and tuple(float(z) for z in zeta) == tuple(intervals.zeta)
+            and intervals.P.shape == (K, v.size, jj.size)):
+        P, H = intervals.P, intervals.H
+    else:
+        P = Gk[:, None, :] * dyn[None]  # (K, lanes, modes)
+        H = np.empty_like(P)
+        q = np.zeros((v.size, jj.size))
+        dq = np.zeros_like(q)
+        for k in range(K):
+            p = P[k]
+            hi = q - p.imag
+            H[k] = (dq - Om * p.real - lam.real * hi) / lam.imag + 1j * hi
+            if k < K - 1:
+                T = (bps[k + 1] - bps[k]) / v[:, None]
+                eW = np.exp(1j * Om * T)
+                eL = np.exp(lam * T)
+                q = (p * eW).imag + (H[k] * eL).imag
+                dq = (1j * Om * p * eW).imag + (lam * H[k] * eL).imag
     WT = np.ascontiguousarray(W)  # (modes, effects)
     # free vibration after the last exit: q = Im[H_K e^(lam t)], static part zero (every speed, cheap)
     qf = (H[K - 1][None] * np.exp(lam[None, None, :] * t_free[:, None, None])).imag  # (t, lanes, modes)

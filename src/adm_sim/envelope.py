@@ -63,7 +63,7 @@ from __future__ import annotations
 
 import cmath
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
@@ -113,6 +113,16 @@ def where_text(where):
     return where if isinstance(where, str) else f"x={where:g} m"
 
 
+class LaneIntervals(NamedTuple):
+    """Per interval ``k``, lane and mode ``j`` the modal coordinate ``q_j = Im[P e^(i Om tau) + H e^(lam tau)]``
+    (the module doc), and the damping ratio of every mode they were computed with; every mode of the bridge.
+    :func:`adm_sim.check_effects.train_effects` takes them instead of propagating the same lanes again."""
+
+    P: np.ndarray  #: (K, lanes, modes) complex
+    H: np.ndarray  #: (K, lanes, modes) complex
+    zeta: tuple  #: damping ratio of every mode (fractions)
+
+
 @dataclass(frozen=True)
 class Envelope:
     """Exact MLM maxima per speed.
@@ -138,6 +148,9 @@ class Envelope:
         Damping ratio of every mode used (fractions, ``bridge.modal_damping_ratios`` with Δζ).
     refined : int
         Number of candidate maxima refined by Newton's method.
+    intervals : LaneIntervals or None
+        The closed-form coefficients of every lane and interval, kept only when asked for
+        (``keep_intervals=True``) and every mode was used (not ``"midspan"``).
     """
 
     speeds_kmh: np.ndarray
@@ -154,6 +167,7 @@ class Envelope:
     modes: tuple
     zeta: tuple
     refined: int
+    intervals: LaneIntervals | None = field(default=None, repr=False, compare=False)
 
 
 def _events(offsets, loads, span, jj, mass):
@@ -176,7 +190,7 @@ def deck_positions_m(span_m, n_modes, samples_per_period=4.0):
 
 
 def moving_load_envelope(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, *, delta_zeta=0.0,
-                         samples_per_period=4.0, where="midspan"):
+                         samples_per_period=4.0, where="midspan", keep_intervals=False):
     """Exact max |acceleration|, |deflection| (at ``where``) and |midspan moment| at every speed.
 
     Parameters
@@ -194,6 +208,9 @@ def moving_load_envelope(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, *, de
     where : {"midspan", "deck"} or float
         Midspan (default), anywhere on the deck (EN 1990 A2.4.4.2.1 limits the peak deck
         acceleration), or a position x in metres, 0 < x < L; text ``"x=<m>"`` is accepted.
+    keep_intervals : bool
+        Keep the coefficients of every lane and interval in ``Envelope.intervals`` (every mode used:
+        not at midspan), for :func:`adm_sim.check_effects.train_effects` on the same lanes.
 
     Returns
     -------
@@ -240,13 +257,14 @@ def moving_load_envelope(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, *, de
 
     res = _all_lanes(v_all, L, jj, om, zeta, lam, bps, G, ppp, quants)
     q_mid = 1 if where == "midspan" else 3
+    zeta_used = tuple(float(z) for z in np.ravel(zeta_all))
+    kept = LaneIntervals(P=res["P"], H=res["H"], zeta=zeta_used) if keep_intervals and keep.all() else None
     return Envelope(speeds_kmh=np.atleast_1d(np.asarray(speeds_kmh, dtype=float)).copy(),
                     max_acc_m_s2=res["best"][0], max_disp_m=res["best"][1], t_acc_s=res["when"][0],
                     t_disp_s=res["when"][1], x_acc_m=res["xat"][0], x_disp_m=res["xat"][1],
                     max_moment_Nm=res["best"][2], t_moment_s=res["when"][2],
                     max_disp_midspan_m=res["best"][q_mid].copy(), where=where,
-                    modes=tuple(int(j) for j in jall), zeta=tuple(float(z) for z in np.ravel(zeta_all)),
-                    refined=res["refined"])
+                    modes=tuple(int(j) for j in jall), zeta=zeta_used, refined=res["refined"], intervals=kept)
 
 
 class Intervals(NamedTuple):
@@ -358,7 +376,7 @@ def _all_lanes(v, L, jj, om, zeta, lam, bps, G, ppp, quants):
     f_lane = np.maximum(np.abs(lam).max(), Om.max(1)) / (2.0 * np.pi)  # fastest component per lane
     m = np.ceil(T[kk[order], ll[order]] * f_lane[ll[order]] * ppp).astype(np.int64) + 1
     refined = _search_kernel(Pairs(k=kk[order], l=ll[order], m=m), iv, qs, mx)
-    return {"best": best, "when": when, "xat": xat, "refined": int(refined)}
+    return {"best": best, "when": when, "xat": xat, "refined": int(refined), "P": P, "H": H}
 
 
 @njit(cache=True, nogil=True)
@@ -706,5 +724,5 @@ def _refine_deck(q, pp, t, h, T_, k, l, iv, qs, mx):
     return 1
 
 
-__all__ = ["Envelope", "moving_load_envelope", "check_mode_count", "check_frequency_limit_hz",
+__all__ = ["Envelope", "LaneIntervals", "moving_load_envelope", "check_mode_count", "check_frequency_limit_hz",
            "parse_where", "where_text", "deck_positions_m", "MAX_FREE_PERIODS", "WHERE_KEYWORDS"]
