@@ -239,6 +239,9 @@ def test_bad_trains():
         resolve_trains("hslm,HSLM-A3")
     with pytest.raises(InputError, match=r"^trains: ' , ' names no train"):
         resolve_trains(" , ")
+    with pytest.raises(InputError, match=r"^trains: HSLM-B d = 'x' is not a number; allowed \[0\.5, 30\] m") as err:
+        resolve_trains("ICE-2,HSLM-B:N=10:d=x")
+    assert err.value.field == "trains"
     short = Bridge.from_frequency(5.0, 20.0, 10000.0, 0.02)
     with pytest.raises(InputError, match=r"HSLM-A applies to spans >= 7 m; this bridge spans 5 m.*HSLM-B"):
         run_check(short, 300.0, resolve_trains("hslm"))
@@ -251,6 +254,17 @@ def test_bad_trains():
     (["--max-line-speed", "300", "--trains", "hslm,Thalys"],
      "error: --trains: 'Thalys' is unknown; allowed ICE-2, Eurostar, Railjet, ICE-4, Eurostar-table, "
      "HSLM-A1 .. HSLM-A10, or a .toml train file\n"),
+    # HSLM-B's own refusals name the flag the user typed, like every other --trains refusal
+    (["--max-line-speed", "300", "--trains", "hslm,HSLM-B:N=x"],
+     "error: --trains: 'HSLM-B:N=x' needs both N and d; give HSLM-B:N=<forces>:d=<spacing m>, N and d read off "
+     "EN 1991-2's HSLM-B figure for the span (adm-sim does not include that figure)\n"),
+    (["--max-line-speed", "300", "--trains", "HSLM-B:N=10:d=99"],
+     "error: --trains: HSLM-B d = 99 m is out of range; allowed [0.5, 30] m; give HSLM-B:N=<forces>:d=<spacing m>, "
+     "N and d read off EN 1991-2's HSLM-B figure for the span (adm-sim does not include that figure)\n"),
+    (["--max-line-speed", "300", "--trains", "HSLM-B:N=1:d=3"],
+     "error: --trains: HSLM-B N = '1' is not a whole number of forces in [2, 100]; give "
+     "HSLM-B:N=<forces>:d=<spacing m>, N and d read off EN 1991-2's HSLM-B figure for the span (adm-sim does not "
+     "include that figure)\n"),
     (["--bridge", "B2", "--max-line-speed", "300", "--damping", "adm"],
      "error: --damping adm: the Eurocode ADM applies to spans < 30 m (EN 1991-2 6.4.6.3.1); this bridge "
      "spans 30 m; allowed --damping none\n"),

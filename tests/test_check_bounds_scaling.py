@@ -118,17 +118,26 @@ def test_the_bounds_with_the_closed_form_of_one_force():
                                                                    else 1.0 / math.sqrt(k)), rel=1e-8)
 
 
-def test_threads_and_memo_change_no_number(monkeypatch):
-    """The trains run in threads and the static effects are memoised: one thread and empty memos give
-    the same result, bit for bit (B1, HSLM-A7 and ICE-2, V = 200 km/h, a mass bound)."""
+def _clear_static_caches():
+    """Empty every cache of static results (the check's, the effects' and design_loads')."""
     import adm_sim.check as chk
     from adm_sim import design_loads
+
+    for f in (chk._static_midspan_max_cached, ce._sample_statics_cached, ce._lm71_effects_cached,
+              design_loads._train_midspan_max_cached, design_loads._lm71_midspan):
+        f.cache_clear()
+
+
+def test_threads_and_caches_change_no_number(monkeypatch):
+    """The trains run in threads and the static effects are cached: one thread and empty caches give
+    the same result, bit for bit (B1, HSLM-A7 and ICE-2, V = 200 km/h, a mass bound)."""
+    import adm_sim.check as chk
 
     trains = resolve_trains("HSLM-A7,ICE-2")
     b = named_bridge("B1")
     two = run_check(b, 200.0, trains, mass_bounds=(-0.1, 0.0))
     monkeypatch.setattr(chk, "CHECK_THREADS", 1)
-    monkeypatch.setattr(design_loads, "_MEMO", {})
+    _clear_static_caches()
     one = run_check(b, 200.0, trains, mass_bounds=(-0.1, 0.0))
     for r2, r1 in [(two, one), (two.bounds[0][1], one.bounds[0][1])]:
         for c2, c1 in zip(r2.trains, r1.trains):
@@ -137,9 +146,50 @@ def test_threads_and_memo_change_no_number(monkeypatch):
             assert np.array_equal(c2.effects.dynamic_max, c1.effects.dynamic_max)
             assert np.array_equal(c2.effects.static_max, c1.effects.static_max)
             assert c2.static_disp_m == c1.static_disp_m and c2.design == c1.design
-    # a mass bound takes the nominal bridge's memoised static midspan maxima: equal to a fresh
-    # computation on the bound's own bridge to round-off
+    # a mass bound takes the nominal bridge's cached static midspan maxima: they are computed without the
+    # mass, so a fresh computation for the bound's own bridge is the same number
     bb = dict(two.bounds)[two.bounds[0][0]].bridge
     t = trains[0]
-    fresh = chk._static_midspan_max(bb, t.axle_offsets_m, t.axle_loads_n, 2000)
-    np.testing.assert_allclose(chk.static_midspan_max(bb, t.axle_offsets_m, t.axle_loads_n), fresh, rtol=1e-14)
+    fresh = chk._static_midspan_max(bb.span_m, bb.EJ_Nm2, bb.mode_numbers, t.axle_offsets_m, t.axle_loads_n, 2000)
+    assert chk.static_midspan_max(bb, t.axle_offsets_m, t.axle_loads_n) == fresh
+
+
+def test_static_midspan_max_against_the_bridge_modal_stiffness():
+    """The static midspan maxima take K_j = (L/2) (j pi/L)^4 EJ, without the mass; the former computation took
+    the bridge's M_j omega_j^2 (the same value up to round-off): every train on B1 and B2, 3 and 5 modes,
+    agree to 2e-15 relative (measured 6.7e-16)."""
+    import adm_sim.check as chk
+    from adm_sim.check_effects import midspan_modal_sum
+
+    for name in ("B1", "B2"):
+        for n in (3, 5):
+            b = dataclasses.replace(named_bridge(name), n_modes=n)
+            L, j = b.span_m, b.mode_numbers
+            for t in resolve_trains("hslm,ICE-2,Eurostar,Railjet,ICE-4"):
+                offs, loads = np.asarray(t.axle_offsets_m, dtype=float), np.asarray(t.axle_loads_n, dtype=float)
+                s = np.arange(0.0, offs[-1] + L, L / 2000)
+                gain = np.sin(j * np.pi / 2) / b.modal_stiffness_N_m
+                mgain = gain * b.EJ_Nm2 * (j * np.pi / L) ** 2
+                w, m = np.zeros_like(s), np.zeros_like(s)
+                midspan_modal_sum(s, offs, loads, float(L), j, gain, mgain, w, m)
+                np.testing.assert_allclose(chk.static_midspan_max(b, offs, loads), (np.abs(w).max(), np.abs(m).max()),
+                                           rtol=2e-15, atol=0)
+
+
+def test_cached_arrays_are_read_only():
+    """A cached static array is shared by every caller: writing into it raises instead of changing it."""
+    b = named_bridge("B1")
+    lm = ce.lm71_effects(b.span_m, 1.0)
+    with pytest.raises(ValueError, match="read-only"):
+        lm[0] = 0.0
+    assert ce.lm71_effects(b.span_m, 1.0) is lm  # the same object, not a copy
+    t = resolve_trains("HSLM-A7")[0]
+    effects = ce.effects_of(b.span_m)
+    offs, loads = np.asarray(t.axle_offsets_m, dtype=float), np.asarray(t.axle_loads_n, dtype=float)
+    bps = np.unique(np.concatenate([offs, offs + b.span_m]))
+    arrays = ce._sample_statics(effects, b.span_m, offs, loads, bps, b.mode_numbers, 20)
+    for a in arrays:
+        with pytest.raises(ValueError, match="read-only"):
+            a[0] = a[0]
+    again = ce._sample_statics(effects, b.span_m, offs.copy(), loads.copy(), bps.copy(), b.mode_numbers, 20)
+    assert all(x is y for x, y in zip(arrays, again))  # cached by value, not by identity

@@ -356,3 +356,20 @@ def test_annex_c_pairing_matches_an_independent_implementation(n0, L, v, standar
     for maintenance, ref in (("standard", standard), ("careful", careful)):
         ours = 1.0 + dl.phi_prime(L, n0, v) + dl.phi_dd_factor(maintenance) * dl.phi_double_prime(L, n0, v)
         assert ours == pytest.approx(ref, rel=1e-12)
+
+
+def test_static_maxima_cached_by_value():
+    """train_midspan_max and lm71_midspan are cached by their values (arrays by bytes, shape and dtype): the same
+    axles give the same result object; other axles, span or stiffness are computed anew."""
+    offs, loads = hslm_axles("HSLM-A7")
+    a = dl.train_midspan_max(15.0, 7.694e9, offs, loads)
+    assert dl.train_midspan_max(15.0, 7.694e9, np.array(offs, copy=True), list(loads)) is a
+    b = dl.train_midspan_max(15.0, 7.694e9, offs[:-1], loads[:-1])
+    assert b is not a and b == dl._train_midspan_max(15.0, 7.694e9, np.asarray(offs[:-1], dtype=float),
+                                                      np.asarray(loads[:-1], dtype=float))
+    assert dl.lm71_midspan(20.0, 1e10, 1.33) is dl.lm71_midspan(20.0, 1e10, 1.33)
+    assert dl.lm71_midspan(20.0, 2e10, 1.33).deflection_m == pytest.approx(
+        dl.lm71_midspan(20.0, 1e10, 1.33).deflection_m / 2, rel=1e-12)
+    key = dl.array_key(np.arange(6.0).reshape(2, 3))
+    back = dl.array_from_key(key)
+    assert back.shape == (2, 3) and np.array_equal(back, np.arange(6.0).reshape(2, 3)) and not back.flags.writeable

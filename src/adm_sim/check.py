@@ -52,6 +52,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import functools
 import math
 import os
 import time
@@ -61,8 +62,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from adm_sim.check_sls import NOT_CHECKED, check_lateral_frequency, serviceability
-from adm_sim.design_loads import (MAINTENANCE, adm_delta_zeta_pct, check_alpha, design_comparison, dynamic_factor,
-                                  governing, memo, phi_dd_factor, phi_dyn_prime)
+from adm_sim.design_loads import (CACHE_SIZE, MAINTENANCE, adm_delta_zeta_pct, array_from_key, array_key, check_alpha,
+                                  design_comparison, dynamic_factor, governing, phi_dd_factor, phi_dyn_prime)
 from adm_sim.errors import InputError
 from adm_sim.fields import FIELDS, check_count, check_range
 from adm_sim.hslm import (HSLM_A_NAMES, HSLM_A_TABLE, HSLM_B_SYNTAX, hslm_b_axles, hslm_b_spec, hslm_b_train_name,
@@ -431,10 +432,11 @@ def resolve_trains(spec):
 def _load_check_train(name):
     """A train of the check: HSLM-B written ``HSLM-B:N=<n>:d=<m>`` (:func:`adm_sim.hslm.hslm_b_spec`), else
     :func:`adm_sim.trains.load_train`."""
-    spec = hslm_b_spec(name)
+    spec = hslm_b_spec(name)  # hslm's refusals carry field "train": resolve_trains names --trains
     if spec is None:
         return load_train(name)
-    return moving_loads(*hslm_b_axles(*spec), name=hslm_b_train_name(*spec))
+    offsets, loads = hslm_b_axles(*spec)
+    return moving_loads(offsets, loads, name=hslm_b_train_name(*spec))
 
 
 #: Allowed range of the lower and of the upper bound (fractions of the nominal value).
@@ -629,26 +631,31 @@ def static_midspan_max(bridge, offsets, loads, n_per_span=2000):
     φ'_dyn of Eq. (6.14) without a modal-truncation bias): ``q_j = F sin(j pi a / L) / K_j``,
     ``w = sum_j q_j sin(j pi / 2)``, ``M = EJ sum_j q_j (j pi / L)^2 sin(j pi / 2)``.
 
-    Memoised by span, EJ, modes and axles: ``K_j = (L / 2) (j pi / L)^4 EJ`` does not depend on the
-    mass, so a mass bound takes the nominal bridge's values (equal to round-off, 1e-16)."""
-    key = ("static_midspan", bridge.span_m, bridge.EJ_Nm2, bridge.mode_numbers.tobytes(),
-           np.asarray(offsets, dtype=float).tobytes(), np.asarray(loads, dtype=float).tobytes(), n_per_span)
-    return memo(key, lambda: _static_midspan_max(bridge, offsets, loads, n_per_span))
+    ``K_j = (L / 2) (j pi / L)^4 EJ`` does not depend on the mass: cached by span, EJ, modes and axles,
+    so a mass bound takes the nominal bridge's values (the same number: it is computed without the mass)."""
+    return _static_midspan_max_cached(float(bridge.span_m), float(bridge.EJ_Nm2), array_key(bridge.mode_numbers),
+                                      array_key(np.asarray(offsets, dtype=float)),
+                                      array_key(np.asarray(loads, dtype=float)), int(n_per_span))
 
 
-def _static_midspan_max(bridge, offsets, loads, n_per_span):
-    """:func:`static_midspan_max`, computed."""
-    L = bridge.span_m
+@functools.lru_cache(maxsize=CACHE_SIZE)
+def _static_midspan_max_cached(L, EJ, j_key, offsets_key, loads_key, n_per_span):
+    """:func:`_static_midspan_max` of its keys (:func:`adm_sim.design_loads.array_key`)."""
+    return _static_midspan_max(L, EJ, *(np.array(array_from_key(k)) for k in (j_key, offsets_key, loads_key)),
+                               n_per_span)
+
+
+def _static_midspan_max(L, EJ, j, offsets, loads, n_per_span):
+    """:func:`static_midspan_max` of span ``L`` (m), stiffness ``EJ`` (N m^2) and modes ``j``, computed."""
     s = np.arange(0.0, offsets[-1] + L, L / n_per_span)
-    j = bridge.mode_numbers
-    gain = np.sin(j * np.pi / 2) / bridge.modal_stiffness_N_m  # midspan per unit modal force
-    mgain = gain * bridge.EJ_Nm2 * (j * np.pi / L) ** 2
+    K = 0.5 * L * EJ * (j * np.pi / L) ** 4  # modal stiffness K_j = M_j omega_j^2 (N/m)
+    gain = np.sin(j * np.pi / 2) / K  # midspan per unit modal force
+    mgain = gain * EJ * (j * np.pi / L) ** 2
     w = np.zeros_like(s)
     m = np.zeros_like(s)
     from adm_sim.check_effects import midspan_modal_sum  # noqa: PLC0415  numba kernels
 
-    midspan_modal_sum(s, np.asarray(offsets, dtype=float), np.asarray(loads, dtype=float), float(L),
-                      np.asarray(j, dtype=float), gain, mgain, w, m)
+    midspan_modal_sum(s, offsets, loads, float(L), j, gain, mgain, w, m)
     return float(np.abs(w).max()), float(np.abs(m).max())
 
 
@@ -841,7 +848,7 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
     def one(t, dz_pct, note):
         """Every envelope and effect of one train (threads: the numba kernels release the GIL)."""
         env = moving_load_envelope(b, t.axle_offsets_m, t.axle_loads_n, speeds, delta_zeta=dz_pct / 100.0,
-                                   where=where)
+                                   where=where, keep_intervals=True)
         extra = np.array([])
         if _is_hslm(t):  # resonances v = n0 D / i (HSLM-A coach length D, HSLM-B spacing d)
             D = regular_spacing_m(t.name)
@@ -850,17 +857,23 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
         fine = _refinement(speeds, env.max_acc_m_s2, extra, vmin, vmax)
         v_all = speeds
         cols = [env.max_acc_m_s2, env.max_disp_m, env.x_acc_m, env.max_disp_midspan_m, env.max_moment_Nm]
+        lanes = env.intervals  # every lane's coefficients, taken by the effects (not propagated twice)
         if fine.size:
             ef = moving_load_envelope(b, t.axle_offsets_m, t.axle_loads_n, fine, delta_zeta=dz_pct / 100.0,
-                                      where=where)
+                                      where=where, keep_intervals=True)
             v_all = np.concatenate([speeds, fine])
             order = np.argsort(v_all, kind="stable")
             v_all = v_all[order]
             cols = [np.concatenate([c, f])[order] for c, f in zip(cols, [
                 ef.max_acc_m_s2, ef.max_disp_m, ef.x_acc_m, ef.max_disp_midspan_m, ef.max_moment_Nm])]
+            if lanes is not None and ef.intervals is not None:
+                lanes = lanes._replace(P=np.concatenate([lanes.P, ef.intervals.P], axis=1)[:, order],
+                                       H=np.concatenate([lanes.H, ef.intervals.H], axis=1)[:, order])
+            else:
+                lanes = None
         acc, disp, x_acc, disp_mid, moment = cols
         y_stat, m_stat = static_midspan_max(b, t.axle_offsets_m, t.axle_loads_n)
-        eff = train_effects(b, t.axle_offsets_m, t.axle_loads_n, v_all, delta_zeta=dz_pct / 100.0)
+        eff = train_effects(b, t.axle_offsets_m, t.axle_loads_n, v_all, delta_zeta=dz_pct / 100.0, intervals=lanes)
         tc = TrainCheck(name=t.name, kind="hslm" if _is_hslm(t) else "train", speeds_kmh=v_all,
                         max_acc_m_s2=acc, max_disp_m=disp, delta_zeta_pct=float(dz_pct),
                         damping_note=note, static_disp_m=y_stat, static_moment_Nm=m_stat,
@@ -893,7 +906,7 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
             raise
     sls = serviceability(b, dynamic_factor(b.span_m, track_maintenance), alpha, track, lateral_frequency_hz)
     t_nominal = time.perf_counter() - t_start
-    # the bounds after the nominal bridge: they reuse its static effects (memoised; independent of the mass)
+    # the bounds after the nominal bridge: they reuse its static effects (cached; independent of the mass)
     bounds = tuple((label, run_check(bb, max_line_speed_kmh, trains, track=track, damping=damping, step_kmh=step_kmh,
                                      calibrate_options=calibrate_options, n_modes=n_modes, where=where,
                                      damping_model=damping_model, track_maintenance=track_maintenance, alpha=alpha,

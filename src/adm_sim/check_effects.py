@@ -39,6 +39,7 @@ numpy only; no ROS.
 from __future__ import annotations
 
 import cmath
+import functools
 import math
 from dataclasses import dataclass
 from functools import cached_property
@@ -47,8 +48,8 @@ import numpy as np
 
 from adm_sim._jit import njit
 from adm_sim.envelope import _events
-from adm_sim.design_loads import (LM71_AXLE_LOAD_N, LM71_AXLES_M, LM71_HALF_WINDOW_M, LM71_UDL_N_M, memo,
-                                  phi_dyn_prime)
+from adm_sim.design_loads import (CACHE_SIZE, LM71_AXLE_LOAD_N, LM71_AXLES_M, LM71_HALF_WINDOW_M, LM71_UDL_N_M,
+                                  array_from_key, array_key, phi_dyn_prime, read_only)
 
 #: Sections of the shear (x/L); the ends are the support reactions.
 SHEAR_SECTIONS = tuple(np.round(np.linspace(0.0, 1.0, 11), 10))
@@ -201,21 +202,23 @@ def _positions(offsets, L, effects, samples_per_span):
 def _sample_statics(effects, L, offs, loads, bps, jj, n_per_span):
     """Per sample of the front-axle position (:func:`_positions`): its interval ``k_of`` between the
     breakpoints ``bps``, its offset ``ds`` in it, ``E1 = e^(i j pi ds / L)`` (samples, modes) and the
-    exact static effects (samples, effects). Memoised (:func:`adm_sim.design_loads.memo`: a check with
-    mass or stiffness bounds samples every train once per bound; these do not depend on the bridge's
-    mass or stiffness); the arrays are shared, never modified."""
+    exact static effects (samples, effects). Cached (a check with mass or stiffness bounds samples every
+    train once per bound; these do not depend on the bridge's mass or stiffness); the arrays are shared
+    and read-only."""
+    return _sample_statics_cached(tuple(effects), float(L), array_key(offs), array_key(loads), array_key(bps),
+                                  array_key(jj), int(n_per_span))
 
-    def compute():
-        s = _positions(offs, L, effects, n_per_span)
-        infl = _static(effects, L, s, offs, loads)
-        k_of = np.clip(np.searchsorted(bps, s, side="right") - 1, 0, bps.size - 2)
-        ds = s - bps[k_of]
-        E1 = np.exp(1j * np.pi * np.outer(ds, jj) / L)  # speed independent (samples, modes)
-        return k_of, ds, E1, infl
 
-    key = ("effect_samples", float(L), tuple(effects), offs.tobytes(), loads.tobytes(), bps.tobytes(), jj.tobytes(),
-           int(n_per_span))
-    return memo(key, compute)
+@functools.lru_cache(maxsize=CACHE_SIZE)
+def _sample_statics_cached(effects, L, offs_key, loads_key, bps_key, jj_key, n_per_span):
+    """:func:`_sample_statics` of its keys (:func:`adm_sim.design_loads.array_key`), read-only arrays."""
+    offs, loads, bps, jj = (np.array(array_from_key(k)) for k in (offs_key, loads_key, bps_key, jj_key))
+    s = _positions(offs, L, effects, n_per_span)
+    infl = _static(effects, L, s, offs, loads)
+    k_of = np.clip(np.searchsorted(bps, s, side="right") - 1, 0, bps.size - 2)
+    ds = s - bps[k_of]
+    E1 = np.exp(1j * np.pi * np.outer(ds, jj) / L)  # speed independent (samples, modes)
+    return read_only(k_of, ds, E1, infl)
 
 
 @dataclass
@@ -271,24 +274,30 @@ def _modes_are_squares(jj, lam):
 
 
 @njit(cache=True, nogil=True)
-def _scan(k_of, ds, E1, P, H, lam, v, W, base, best, squares):
-    """best[l, e] = max over samples i of |base[i, e] + sum_j W[e, j] q_j(i, l)|, with
+def _scan(k_of, ds, E1, P, H, lam, v, WT, base, best, squares):
+    """best[l, e] = max over samples i of |base[i, e] + sum_j WT[j, e] q_j(i, l)|, with
     q_j = Im[P[k, l, j] E1[i, j]] + Im[H[k, l, j] e^(lam_j ds_i / v_l)], k = k_of[i]. Along the
     samples of one interval e^(lam tau) is advanced by multiplication where the step repeats
-    (``squares``: :func:`_exp_modes`)."""
+    (``squares``: :func:`_exp_modes`). The sum over the modes runs for all effects at once (a loop over
+    the effects innermost, contiguous in ``WT`` (modes, effects), which the compiler vectorises); every
+    effect's sum is still ``base + w_1 q_1 + w_2 q_2 + ...`` in that order."""
     ns = k_of.size
     nm = lam.size
-    ne = W.shape[0]
+    ne = WT.shape[1]
     eLr = np.empty(nm)
     eLi = np.empty(nm)
     sr = np.empty(nm)
     si = np.empty(nm)
     qd = np.empty(nm)
+    y = np.empty(ne)
+    top = np.empty(ne)
     for l in range(v.size):
         inv_v = 1.0 / v[l]
         last_k = -1
         last_ds = 0.0
         last_h = -1.0
+        for e in range(ne):
+            top[e] = best[l, e]
         for i in range(ns):
             k = k_of[i]
             d = ds[i]
@@ -312,16 +321,20 @@ def _scan(k_of, ds, E1, P, H, lam, v, W, base, best, squares):
                 hh = H[k, l, j]
                 qd[j] = p.real * e1.imag + p.imag * e1.real + hh.real * eLi[j] + hh.imag * eLr[j]
             for e in range(ne):
-                y = base[i, e]
-                for j in range(nm):
-                    y += W[e, j] * qd[j]
-                y = abs(y)
-                if y > best[l, e]:
-                    best[l, e] = y
+                y[e] = base[i, e]
+            for j in range(nm):
+                w = qd[j]
+                for e in range(ne):
+                    y[e] += WT[j, e] * w
+            for e in range(ne):
+                a = abs(y[e])
+                top[e] = a if a > top[e] else top[e]
+        for e in range(ne):
+            best[l, e] = top[e]
 
 
 def train_effects(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, delta_zeta=0.0, effects=None,
-                  static_correction=True, samples_per_span=100):
+                  static_correction=True, samples_per_span=100, intervals=None):
     """Largest static and dynamic value of every effect of ``effects`` (default :func:`effects_of`).
 
     Parameters
@@ -335,6 +348,11 @@ def train_effects(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, delta_zeta=0
         truncation).
     samples_per_span : int
         Uniform samples of the front-axle position per span length (kinks and jumps added).
+    intervals : adm_sim.envelope.LaneIntervals, optional
+        The coefficients of these lanes from :func:`adm_sim.envelope.moving_load_envelope`
+        (``keep_intervals=True``, the same bridge, axles and speeds in this order), used instead of
+        propagating the lanes again when they were computed with the same damping ratio of every mode
+        (the same numbers: the same operations on the same values).
 
     Returns
     -------
@@ -360,6 +378,7 @@ def train_effects(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, delta_zeta=0
     def samples(n_per_span):
         """Positions, their interval, offset in it, e^(i Om tau), the static part and its maximum."""
         k_of, ds, E1, infl = _sample_statics(effects, L, offs, loads, bps, jj, n_per_span)
+        k_of, ds, E1 = np.array(k_of), np.array(ds), np.array(E1)  # writable: the kernel's compiled types
         q_stat = (Gk[k_of] * E1).imag / om**2  # q_j^stat at every sample
         base = infl - q_stat @ W if static_correction else np.zeros_like(infl)
         return k_of, ds, E1, np.ascontiguousarray(base), np.abs(infl).max(0)
@@ -368,22 +387,26 @@ def train_effects(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, delta_zeta=0
     t_free = np.linspace(0.0, FREE_PERIODS * T1, 64)
     Om = jj[None, :] * np.pi * v[:, None] / L  # (lanes, modes)
     dyn = 1.0 / (om**2 - Om**2 + 2j * zeta * om * Om)
-    P = Gk[:, None, :] * dyn[None]  # (K, lanes, modes)
-    H = np.empty_like(P)
-    q = np.zeros((v.size, jj.size))
-    dq = np.zeros_like(q)
     K = bps.size
-    for k in range(K):
-        p = P[k]
-        hi = q - p.imag
-        H[k] = (dq - Om * p.real - lam.real * hi) / lam.imag + 1j * hi
-        if k < K - 1:
-            T = (bps[k + 1] - bps[k]) / v[:, None]
-            eW = np.exp(1j * Om * T)
-            eL = np.exp(lam * T)
-            q = (p * eW).imag + (H[k] * eL).imag
-            dq = (1j * Om * p * eW).imag + (lam * H[k] * eL).imag
-    Wc = np.ascontiguousarray(W.T)
+    if (intervals is not None and tuple(float(z) for z in zeta) == tuple(intervals.zeta)
+            and intervals.P.shape == (K, v.size, jj.size)):
+        P, H = intervals.P, intervals.H
+    else:
+        P = Gk[:, None, :] * dyn[None]  # (K, lanes, modes)
+        H = np.empty_like(P)
+        q = np.zeros((v.size, jj.size))
+        dq = np.zeros_like(q)
+        for k in range(K):
+            p = P[k]
+            hi = q - p.imag
+            H[k] = (dq - Om * p.real - lam.real * hi) / lam.imag + 1j * hi
+            if k < K - 1:
+                T = (bps[k + 1] - bps[k]) / v[:, None]
+                eW = np.exp(1j * Om * T)
+                eL = np.exp(lam * T)
+                q = (p * eW).imag + (H[k] * eL).imag
+                dq = (1j * Om * p * eW).imag + (lam * H[k] * eL).imag
+    WT = np.ascontiguousarray(W)  # (modes, effects)
     # free vibration after the last exit: q = Im[H_K e^(lam t)], static part zero (every speed, cheap)
     qf = (H[K - 1][None] * np.exp(lam[None, None, :] * t_free[:, None, None])).imag  # (t, lanes, modes)
     free = np.abs(qf @ W).max(0)  # (lanes, effects)
@@ -399,14 +422,14 @@ def train_effects(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, delta_zeta=0
     sel = np.sort(np.asarray(sel, dtype=np.int64))
     k_of, ds, E1, base, _ = samples(COARSE_SAMPLES_PER_SPAN)
     coarse = np.zeros((sel.size, len(effects)))
-    _scan(k_of, ds, E1, np.ascontiguousarray(P[:, sel]), np.ascontiguousarray(H[:, sel]), lam, v[sel], Wc, base,
+    _scan(k_of, ds, E1, np.ascontiguousarray(P[:, sel]), np.ascontiguousarray(H[:, sel]), lam, v[sel], WT, base,
           coarse, squares)
     coarse = np.maximum(coarse, free[sel])
     cand = sel[(coarse >= (1.0 - COARSE_MARGIN) * coarse.max(0)[None, :]).any(1)]
     keep = np.nonzero((np.abs(kmh[:, None] - kmh[cand][None, :]) <= COARSE_STEP_KMH + 1e-9).any(1))[0]
     k_of, ds, E1, base, static_max = samples(samples_per_span)
     fine = np.zeros((keep.size, len(effects)))
-    _scan(k_of, ds, E1, np.ascontiguousarray(P[:, keep]), np.ascontiguousarray(H[:, keep]), lam, v[keep], Wc,
+    _scan(k_of, ds, E1, np.ascontiguousarray(P[:, keep]), np.ascontiguousarray(H[:, keep]), lam, v[keep], WT,
           base, fine, squares)
     best = free.copy()
     best[sel] = np.maximum(best[sel], coarse)
@@ -490,7 +513,13 @@ class EffectComparison:
 
 
 def lm71_effects(span_m, alpha, effects=None):
-    """α x LM71 static maximum of every effect (cached per span and α by the caller)."""
+    """α x LM71 static maximum of every effect, ``(n_effects,)`` (cached per span, α and effects; the
+    array is shared and read-only)."""
     effects = tuple(effects_of(span_m) if effects is None else effects)
-    return memo(("lm71_effects", float(span_m), float(alpha), effects),
-                 lambda: np.array([lm71_effect_max(e, span_m, alpha) for e in effects])).copy()
+    return _lm71_effects_cached(float(span_m), float(alpha), effects)
+
+
+@functools.lru_cache(maxsize=CACHE_SIZE)
+def _lm71_effects_cached(span_m, alpha, effects):
+    """:func:`lm71_effects`, read-only (shared by every caller)."""
+    return read_only(np.array([lm71_effect_max(e, span_m, alpha) for e in effects]))

@@ -62,8 +62,8 @@ numpy only; no ROS.
 
 from __future__ import annotations
 
+import functools
 import math
-import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -363,25 +363,30 @@ def _best(f, candidates):
     return float(v[i]), float(s[i])
 
 
-#: Static results already computed, by their exact inputs (the check computes the same train's and
-#: LM71's static effects once per train, not again per mass or stiffness bound: they do not depend on
-#: the mass); the oldest entries are dropped beyond :data:`_MEMO_SIZE`. Values are never modified.
-_MEMO: dict = {}
-_MEMO_SIZE = 256
-_MEMO_LOCK = threading.Lock()
+#: Entries kept by every cache of static results (functools.lru_cache on private functions of this
+#: module, :mod:`adm_sim.check_effects` and :mod:`adm_sim.check`): the check computes the same train's
+#: and LM71's static effects once per train, not again per mass or stiffness bound (they do not depend
+#: on the mass). Arrays enter a cache as :func:`array_key` and leave it read-only.
+CACHE_SIZE = 256
 
 
-def memo(key, compute):
-    """``compute()`` once per hashable ``key`` (thread safe; at most :data:`_MEMO_SIZE` entries kept).
-    Used by this module, :mod:`adm_sim.check_effects` and :mod:`adm_sim.check`."""
-    value = _MEMO.get(key)
-    if value is None:
-        value = compute()
-        with _MEMO_LOCK:
-            while len(_MEMO) >= _MEMO_SIZE:
-                del _MEMO[next(iter(_MEMO))]
-            _MEMO[key] = value
-    return value
+def array_key(a):
+    """An exact, hashable key of an array: ``(bytes, shape, dtype)``; :func:`array_from_key` rebuilds it."""
+    a = np.ascontiguousarray(a)
+    return a.tobytes(), a.shape, a.dtype.str
+
+
+def array_from_key(key):
+    """The array of an :func:`array_key` (read-only: it shares the key's bytes)."""
+    data, shape, dtype = key
+    return np.frombuffer(data, dtype=np.dtype(dtype)).reshape(shape)
+
+
+def read_only(*arrays):
+    """Mark ``arrays`` read-only (a cached value is shared by every caller) and return them."""
+    for a in arrays:
+        a.flags.writeable = False
+    return arrays[0] if len(arrays) == 1 else arrays
 
 
 @dataclass(frozen=True)
@@ -442,11 +447,17 @@ def train_midspan_max(span_m, EJ_Nm2, axle_offsets_m, axle_loads_n):
     """
     L, EJ = _span_ej(span_m, EJ_Nm2)
     a, P = _train_arrays(axle_offsets_m, axle_loads_n)
-    return memo(("train_midspan", L, EJ, a.tobytes(), P.tobytes()), lambda: _train_midspan_max(L, EJ, a, P))
+    return _train_midspan_max_cached(L, EJ, array_key(a), array_key(P))
+
+
+@functools.lru_cache(maxsize=CACHE_SIZE)
+def _train_midspan_max_cached(L, EJ, a_key, P_key):
+    """:func:`_train_midspan_max` once per span, stiffness and axles (:func:`array_key`)."""
+    return _train_midspan_max(L, EJ, array_from_key(a_key), array_from_key(P_key))
 
 
 def _train_midspan_max(L, EJ, a, P):
-    """:func:`train_midspan_max` of checked arrays (memoised by its caller)."""
+    """:func:`train_midspan_max` of checked arrays."""
 
     def moment(s):
         s = np.atleast_1d(s)
@@ -510,11 +521,12 @@ def lm71_midspan(span_m, EJ_Nm2, alpha=1.0):
     """
     L, EJ = _span_ej(span_m, EJ_Nm2)
     al = check_alpha(alpha)
-    return memo(("lm71_midspan", L, EJ, al), lambda: _lm71_midspan(L, EJ, al))
+    return _lm71_midspan(L, EJ, al)
 
 
+@functools.lru_cache(maxsize=CACHE_SIZE)
 def _lm71_midspan(L, EJ, al):
-    """:func:`lm71_midspan` of checked values (memoised by its caller)."""
+    """:func:`lm71_midspan` of checked values (cached: a frozen result of three floats)."""
     moment, deflection = _lm71_effects(L, EJ)
     ends = np.array([-L / 2.0, 0.0, L / 2.0])
     rel = np.concatenate([LM71_AXLES_M, [-LM71_HALF_WINDOW_M, LM71_HALF_WINDOW_M]])

@@ -63,7 +63,7 @@ from __future__ import annotations
 
 import cmath
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
@@ -91,6 +91,16 @@ def check_mode_count(bridge, f_limit_hz=None):
     return max(1, int(math.floor(math.sqrt(f / bridge.n0_hz) + 1e-9)))
 
 
+class LaneIntervals(NamedTuple):
+    """Per interval ``k``, lane and mode ``j`` the modal coordinate ``q_j = Im[P e^(i Om tau) + H e^(lam tau)]``
+    (the module doc), and the damping ratio of every mode they were computed with; every mode of the bridge.
+    :func:`adm_sim.check_effects.train_effects` takes them instead of propagating the same lanes again."""
+
+    P: np.ndarray  #: (K, lanes, modes) complex
+    H: np.ndarray  #: (K, lanes, modes) complex
+    zeta: tuple  #: damping ratio of every mode (fractions)
+
+
 @dataclass(frozen=True)
 class Envelope:
     """Exact MLM maxima per speed.
@@ -116,6 +126,9 @@ class Envelope:
         Damping ratio of every mode used (fractions, ``bridge.modal_damping_ratios`` with Δζ).
     refined : int
         Number of candidate maxima refined by Newton's method.
+    intervals : LaneIntervals or None
+        The closed-form coefficients of every lane and interval, kept only when asked for
+        (``keep_intervals=True``) and every mode was used (not ``"midspan"``).
     """
 
     speeds_kmh: np.ndarray
@@ -132,6 +145,7 @@ class Envelope:
     modes: tuple
     zeta: tuple
     refined: int
+    intervals: LaneIntervals | None = field(default=None, repr=False, compare=False)
 
 
 def _events(offsets, loads, span, jj, mass):
@@ -154,7 +168,7 @@ def deck_positions_m(span_m, n_modes, samples_per_period=4.0):
 
 
 def moving_load_envelope(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, *, delta_zeta=0.0,
-                         samples_per_period=4.0, where="midspan"):
+                         samples_per_period=4.0, where="midspan", keep_intervals=False):
     """Exact max |acceleration|, |deflection| (at ``where``) and |midspan moment| at every speed.
 
     Parameters
@@ -172,6 +186,9 @@ def moving_load_envelope(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, *, de
     where : {"midspan", "deck"} or float
         Midspan (default), anywhere on the deck (EN 1990 A2.4.4.2.1 limits the peak deck
         acceleration), or a position x in metres, 0 < x < L; text ``"x=<m>"`` is accepted.
+    keep_intervals : bool
+        Keep the coefficients of every lane and interval in ``Envelope.intervals`` (every mode used:
+        not at midspan), for :func:`adm_sim.check_effects.train_effects` on the same lanes.
 
     Returns
     -------
@@ -218,13 +235,14 @@ def moving_load_envelope(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, *, de
 
     res = _all_lanes(v_all, L, jj, om, zeta, lam, bps, G, ppp, quants)
     q_mid = 1 if where == "midspan" else 3
+    zeta_used = tuple(float(z) for z in np.ravel(zeta_all))
+    kept = LaneIntervals(P=res["P"], H=res["H"], zeta=zeta_used) if keep_intervals and keep.all() else None
     return Envelope(speeds_kmh=np.atleast_1d(np.asarray(speeds_kmh, dtype=float)).copy(),
                     max_acc_m_s2=res["best"][0], max_disp_m=res["best"][1], t_acc_s=res["when"][0],
                     t_disp_s=res["when"][1], x_acc_m=res["xat"][0], x_disp_m=res["xat"][1],
                     max_moment_Nm=res["best"][2], t_moment_s=res["when"][2],
                     max_disp_midspan_m=res["best"][q_mid].copy(), where=where,
-                    modes=tuple(int(j) for j in jall), zeta=tuple(float(z) for z in np.ravel(zeta_all)),
-                    refined=res["refined"])
+                    modes=tuple(int(j) for j in jall), zeta=zeta_used, refined=res["refined"], intervals=kept)
 
 
 class Intervals(NamedTuple):
@@ -336,7 +354,7 @@ def _all_lanes(v, L, jj, om, zeta, lam, bps, G, ppp, quants):
     f_lane = np.maximum(np.abs(lam).max(), Om.max(1)) / (2.0 * np.pi)  # fastest component per lane
     m = np.ceil(T[kk[order], ll[order]] * f_lane[ll[order]] * ppp).astype(np.int64) + 1
     refined = _search_kernel(Pairs(k=kk[order], l=ll[order], m=m), iv, qs, mx)
-    return {"best": best, "when": when, "xat": xat, "refined": int(refined)}
+    return {"best": best, "when": when, "xat": xat, "refined": int(refined), "P": P, "H": H}
 
 
 @njit(cache=True, nogil=True)
@@ -345,7 +363,9 @@ def _prepare(iv, qs):
     the amplitude bound ``sum_j w_j (|c1_j| + |c2_j|)`` and curvature bound
     ``sum_j w_j (|c1_j| Om_j^2 + |c2_j| |lam_j|^2)`` of every interval (w_j = max |weight|, 1 on the
     deck), and the amplitude bound of the free vibration. ``iv``: :class:`Intervals`, ``qs``:
-    :class:`Quantities`; returns the fields of :class:`Maxima` and the free-vibration bound."""
+    :class:`Quantities`; returns the fields of :class:`Maxima` and the free-vibration bound. The moduli
+    of the coefficients are taken once per family (acceleration, deflection) and shared by its
+    quantities; intervals outermost, lanes inside (the coefficients' memory order)."""
     ca1, ca2, cd1, cd2, Om, lam2, t0 = iv.acc_c1, iv.acc_c2, iv.disp_c1, iv.disp_c2, iv.Om, iv.lam2, iv.t0
     W, xp, npos, fam, deck, odd, span = qs.W, qs.xp, qs.npos, qs.fam, qs.deck, qs.odd, qs.span_m
     K, nl, nm = ca1.shape
@@ -356,34 +376,43 @@ def _prepare(iv, qs):
     bound = np.empty((nq, K, nl))
     curv = np.empty((nq, K, nl))
     b_free = np.zeros((nq, nl))
-    g = np.empty(nm)
-    amp = np.empty(nm)
-    cur = np.empty(nm)
-    wmax = np.empty(nm)
+    top = np.full((nq, nl), -1.0)
+    g = np.empty((2, nm))
+    amp = np.empty((2, nm))
+    cur = np.empty((2, nm))
+    a2s = np.empty((2, nm))
+    wmax = np.empty((nq, nm))
+    used = np.zeros(2, dtype=np.bool_)
     for q in range(nq):
+        used[fam[q]] = True
         for j in range(nm):
-            wmax[j] = 1.0 if deck[q] else abs(W[q, 0, j])
+            wmax[q, j] = 1.0 if deck[q] else abs(W[q, 0, j])
+    for k in range(K):
         for l in range(nl):
-            top = -1.0
-            for k in range(K):
+            for f in range(2):
+                if not used[f]:
+                    continue
                 for j in range(nm):
-                    c1 = ca1[k, l, j] if fam[q] == 0 else cd1[k, l, j]
-                    c2 = ca2[k, l, j] if fam[q] == 0 else cd2[k, l, j]
-                    g[j] = (c1 + c2).imag
+                    c1 = ca1[k, l, j] if f == 0 else cd1[k, l, j]
+                    c2 = ca2[k, l, j] if f == 0 else cd2[k, l, j]
+                    g[f, j] = (c1 + c2).imag
                     a1, a2 = abs(c1), abs(c2)
-                    amp[j] = a1 + a2
-                    cur[j] = a1 * Om[l, j] ** 2 + a2 * lam2[j]
+                    amp[f, j] = a1 + a2
+                    cur[f, j] = a1 * Om[l, j] ** 2 + a2 * lam2[j]
+                    a2s[f, j] = a2
+            for q in range(nq):
+                f = fam[q]
                 b = 0.0
                 c = 0.0
                 for j in range(nm):
-                    b += amp[j] * wmax[j]
-                    c += cur[j] * wmax[j]
+                    b += amp[f, j] * wmax[q, j]
+                    c += cur[f, j] * wmax[q, j]
                 bound[q, k, l] = b
                 curv[q, k, l] = c
                 if k == K - 1:
                     bf = 0.0
                     for j in range(nm):
-                        bf += abs(ca2[k, l, j] if fam[q] == 0 else cd2[k, l, j]) * wmax[j]
+                        bf += a2s[f, j] * wmax[q, j]
                     b_free[q, l] = bf
                 for pp in range(npos[q]):
                     o = 0.0
@@ -391,12 +420,12 @@ def _prepare(iv, qs):
                     y = 0.0
                     for j in range(nm):
                         if deck[q] and not odd[j]:
-                            e += g[j] * W[q, pp, j]
+                            e += g[f, j] * W[q, pp, j]
                         else:
-                            o += g[j] * W[q, pp, j]
+                            o += g[f, j] * W[q, pp, j]
                     y = abs(o) + abs(e) if deck[q] else abs(o)
-                    if y > top:
-                        top = y
+                    if y > top[q, l]:
+                        top[q, l] = y
                         best[q, l] = y
                         when[q, l] = t0[k, l]
                         xat[q, l] = span - xp[q, pp] if deck[q] and abs(o + e) < abs(o - e) else xp[q, pp]
@@ -673,5 +702,5 @@ def _refine_deck(q, pp, t, h, T_, k, l, iv, qs, mx):
     return 1
 
 
-__all__ = ["Envelope", "moving_load_envelope", "check_mode_count", "check_frequency_limit_hz",
+__all__ = ["Envelope", "LaneIntervals", "moving_load_envelope", "check_mode_count", "check_frequency_limit_hz",
            "parse_where", "where_text", "deck_positions_m", "MAX_FREE_PERIODS", "WHERE_KEYWORDS"]
