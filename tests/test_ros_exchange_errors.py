@@ -66,3 +66,40 @@ def test_exchange_messages_carry_the_array_bytes_exactly():
                                         Float64MultiArray))[4].tobytes() == a[0].tobytes()
     m = c.matrix_msg(("lane", "quantity"), a[0], step=12)
     assert np.frombuffer(m.data).tobytes() == np.concatenate([[12.0], a[0].ravel()]).tobytes()
+
+
+def test_exchange_writer_sends_the_bytes_of_pack():
+    """The nodes' ExchangeWriter (one message refilled per stage, rows written straight into its
+    buffer) sends what pack makes: the same layout and the same data bytes, through shape changes
+    and back (compared after serialization; its padding bytes are not defined)."""
+    from rclpy.serialization import deserialize_message, serialize_message
+    from std_msgs.msg import Float64MultiArray
+
+    def content(msg):
+        back = deserialize_message(serialize_message(msg), Float64MultiArray)
+        return ([(d.label, d.size, d.stride) for d in back.layout.dim], back.layout.data_offset,
+                np.frombuffer(back.data).tobytes())
+
+    sent = []
+
+    class Pub:
+        def publish(self, msg):
+            sent.append(content(msg))
+
+    rng = np.random.default_rng(3)
+    w = rng.standard_normal((191, 5)) * 1e-3
+    wd = rng.standard_normal((191, 5))
+    wd[0, 0] = -0.0
+    dims = ("field", "lane", "axle_on")
+    writer = c.ExchangeWriter(Pub())
+    cases = [(3, 17, 2, (w, wd), dims, np.array([4, 5, 6, 7, 8])),
+             (3, 17, 3, (w[:, :2], wd[:, :2]), dims, np.array([7, 8])),
+             (3, 18, 0, (w[:, :0], wd[:, :0]), dims, np.zeros(0, int)),
+             (3, 18, 1, (w, wd), dims, np.array([4, 5, 6, 7, 8]))]
+    for run_id, k, stage, rows, d, idx in cases:
+        writer.publish(run_id, k, stage, rows, d, idx)
+        assert sent[-1] == content(c.pack(run_id, k, stage, np.stack(rows), d, idx))
+    writer = c.ExchangeWriter(Pub())
+    writer.publish(1, 0, 0, w, ("lane", "axle_on"), np.arange(5))
+    assert sent[-1] == content(c.pack(1, 0, 0, w, ("lane", "axle_on"), np.arange(5)))
+    assert len(sent) == 5

@@ -72,6 +72,9 @@ def frame_id(bridge, namespace="/"):
     return re.sub(r"[^A-Za-z0-9_]", "_", name) + "/midspan"
 
 
+#: The layout labels of the DIM rail state; the forces topic the bridge waits on (relative name).
+RAIL_DIMS, TOPIC_FORCES = ("field", "lane", "axle_on"), P.relative(P.TOPIC_FORCES)
+
 #: What a run waits for the recorders' acknowledgement before (flow control).
 PAUSE_STEP, PAUSE_END = "step", "end"
 
@@ -133,6 +136,7 @@ class BridgeNode(c.LockstepNode):
 
         R, pub = P.relative, self.create_publisher
         self.pub_rail = pub(Float64MultiArray, R(P.TOPIC_RAIL), c.QOS_EXCHANGE)
+        self.rail_writer = c.ExchangeWriter(self.pub_rail)
         self.pub_ready = pub(String, R(P.TOPIC_READY), c.QOS_CONTROL)
         self.pub_result = pub(Float64MultiArray, R(P.TOPIC_RESULT), c.QOS_LATCHED)
         self.pub_status = pub(String, R(P.TOPIC_STATUS), c.QOS_CONTROL)
@@ -343,8 +347,8 @@ class BridgeNode(c.LockstepNode):
             if stage == 0:
                 r.disp = run.disp_m
             idx, w, wd = run.rail_state()
-            self.pub_rail.publish(c.pack(r.id, k, stage, np.stack([w, wd]), ("field", "lane", "axle_on"), idx))
-            self.partner.waiting(f"at step {k} stage {stage} of run {r.id}", P.relative(P.TOPIC_FORCES), since)
+            self.rail_writer.publish(r.id, k, stage, (w, wd), RAIL_DIMS, idx)
+            self.partner.waiting(("at step {} stage {} of run {}", k, stage, r.id), TOPIC_FORCES, since)
         else:
             self.pub_rail.publish(c.pack(r.id, k, 0, np.zeros((r.grid.n_lanes, 0)), ("lane", "axle_on")))
             self.partner.waiting(f"at step {k} of run {r.id}", P.relative(P.TOPIC_AXLE_BLOCK), since)

@@ -131,12 +131,61 @@ def unpack(msg):
     data = np.frombuffer(msg.data, dtype=np.float64) if not isinstance(msg.data, np.ndarray) else msg.data
     if data.size < HEADER_LEN:
         raise ExchangeError(f"exchange message too short ({data.size} values)")
-    run_id, k, stage, n = (int(x) for x in data[:HEADER_LEN])
-    off = msg.layout.data_offset
+    run_id, k, stage, n = map(int, data[:HEADER_LEN].tolist())
+    layout = msg.layout
     index = data[HEADER_LEN:HEADER_LEN + n].astype(np.intp)
-    shape = tuple(d.size for d in msg.layout.dim)
-    payload = np.array(data[off:], dtype=np.float64).reshape(shape)
+    shape = tuple([d.size for d in layout.dim])
+    payload = data[layout.data_offset:].reshape(shape).copy()
     return run_id, k, stage, index, payload
+
+
+class ExchangeWriter:
+    """The exchange messages of one publisher, as :func:`pack` makes them, with less work a message.
+
+    One ``Float64MultiArray`` is kept and refilled (``publish`` converts it before it returns, so
+    the next stage may change it); its layout dimensions are set again only when the payload's
+    shape or labels change; the payload is written straight into the message's buffer (rows of
+    one shape, e.g. the rail displacement and velocity, need no stacking first). The message's
+    data are the bytes :func:`pack` gives, bit for bit.
+    """
+
+    def __init__(self, publisher):
+        self.publisher = publisher
+        self.msg = Float64MultiArray()
+        self._key = None
+
+    def publish(self, run_id, k, stage, rows, dims, index=None):
+        """Publish ``[run_id, k, stage, n]``, the ``n`` indices, then ``rows``: one array, or a
+        tuple of arrays of one shape sent as one array of a leading dimension of their count."""
+        if isinstance(rows, tuple):
+            shape = (len(rows),) + rows[0].shape
+        else:
+            shape = rows.shape
+        n = 0 if index is None else len(index)
+        off = HEADER_LEN + n
+        size = 1
+        for s in shape:
+            size *= s
+        buf = np.empty(off + size)
+        buf[:HEADER_LEN] = (run_id, k, stage, n)
+        if n:
+            buf[HEADER_LEN:off] = index
+        view = buf[off:].reshape(shape)
+        if isinstance(rows, tuple):
+            for i, row in enumerate(rows):
+                view[i] = row
+        else:
+            view[...] = rows
+        msg = self.msg
+        key = (dims, shape)
+        if key != self._key:
+            msg.layout.dim = _layout_dims(tuple(dims), shape)
+            self._key = key
+        msg.layout.data_offset = off
+        data = array.array("d")
+        data.frombytes(buf.view(np.uint8))  # the float64 bytes, no copy on the way
+        msg.data = data
+        self.publisher.publish(msg)
 
 
 def check_step(who, got, expected):
@@ -288,7 +337,10 @@ class PartnerWatch:
         self.what = ""
 
     def waiting(self, what, topic=None, since=None):
-        """Expect a message (``since``: the partner's silence began earlier, a ``time.monotonic()``)."""
+        """Expect a message (``since``: the partner's silence began earlier, a ``time.monotonic()``).
+
+        ``what`` (where the node waits, for the error) is a string or ``(format, *args)``, formatted
+        only when the partner is reported vanished (the nodes call this once per exchange)."""
         self.since = self._now() if since is None else since
         self.what = what
         if topic is not None:
@@ -303,11 +355,12 @@ class PartnerWatch:
         dt = self._now() - self.since
         if dt < self.GRAPH_CHECK_AFTER_S:
             return
+        what = self.what if isinstance(self.what, str) else self.what[0].format(*self.what[1:])
         if self.node.count_publishers(self.topic) == 0:
-            raise ExchangeError(f"partner node '{self.partner}' vanished {self.what} "
+            raise ExchangeError(f"partner node '{self.partner}' vanished {what} "
                                 f"(no publisher left on {self.topic})")
         if dt > self.timeout_s:
-            raise ExchangeError(f"partner node '{self.partner}' vanished {self.what} "
+            raise ExchangeError(f"partner node '{self.partner}' vanished {what} "
                                 f"(no message on {self.topic} for {self.timeout_s:g} s)")
 
 

@@ -36,6 +36,10 @@ from adm_sim.run_contract import FINISHED
 from adm_sim.step_grid import Grid, speeds_to_m_s
 from adm_sim.trains import Train
 
+#: The layout labels of the DIM interaction forces; the rail topic the train waits on (relative name).
+FORCES_DIMS, TOPIC_RAIL = ("lane", "axle_on"), P.relative(P.TOPIC_RAIL)
+
+
 @dataclasses.dataclass
 class TrainRunState:
     """The train node's active run (``TrainNode.run``; ``None`` between runs)."""
@@ -60,6 +64,7 @@ class TrainNode(c.LockstepNode):
         R = P.relative
         self.pub_setup = self.create_publisher(String, R(P.TOPIC_SETUP), c.QOS_CONTROL)
         self.pub_forces = self.create_publisher(Float64MultiArray, R(P.TOPIC_FORCES), c.QOS_EXCHANGE)
+        self.forces_writer = c.ExchangeWriter(self.pub_forces)
         self.pub_block = self.create_publisher(Float64MultiArray, R(P.TOPIC_AXLE_BLOCK), c.QOS_EXCHANGE)
         self.pub_status = self.create_publisher(String, R(P.TOPIC_STATUS), c.QOS_CONTROL)
         self.pub_desc = self.create_publisher(String, R(P.TOPIC_TRAIN_DESC), c.QOS_LATCHED)
@@ -174,7 +179,7 @@ class TrainNode(c.LockstepNode):
         if r.model == "dim":
             run.step(idx, payload[0], payload[1])  # one RK4 stage with the bridge's rail state
             G = run.interaction_n
-            self.pub_forces.publish(c.pack(run_id, k, stage, G, ("lane", "axle_on"), idx))
+            self.forces_writer.publish(run_id, k, stage, G, FORCES_DIMS, idx)
         else:
             k0 = run.k
             run.advance(r.block)  # books the block whose axle positions are sent now
@@ -188,7 +193,7 @@ class TrainNode(c.LockstepNode):
             self.run = None
             self.partner.clear()
         else:
-            self.partner.waiting(f"at step {run.k} stage {run.stage} of run {r.id}", P.relative(P.TOPIC_RAIL))
+            self.partner.waiting(("at step {} stage {} of run {}", run.k, run.stage, r.id), TOPIC_RAIL)
 
     def _on_status(self, msg):
         """End the exchanging run when the bridge reports it failed (its message is passed on)."""
