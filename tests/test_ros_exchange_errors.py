@@ -70,13 +70,14 @@ def test_exchange_messages_carry_the_array_bytes_exactly():
 
 def test_exchange_writer_sends_the_bytes_of_pack():
     """The nodes' ExchangeWriter (one message refilled per stage, rows written straight into its
-    buffer) sends what pack makes: the same layout and the same data bytes, through shape changes
-    and back (compared after serialization; its padding bytes are not defined)."""
+    buffer, published serialized) sends what pack makes: the same layout and the same data bytes,
+    through shape changes and back (compared deserialized; padding bytes are not defined); unpack
+    reads the serialized bytes (a raw subscription's) as it reads the message."""
     from rclpy.serialization import deserialize_message, serialize_message
     from std_msgs.msg import Float64MultiArray
 
     def content(msg):
-        back = deserialize_message(serialize_message(msg), Float64MultiArray)
+        back = deserialize_message(msg if isinstance(msg, bytes) else serialize_message(msg), Float64MultiArray)
         return ([(d.label, d.size, d.stride) for d in back.layout.dim], back.layout.data_offset,
                 np.frombuffer(back.data).tobytes())
 
@@ -96,9 +97,17 @@ def test_exchange_writer_sends_the_bytes_of_pack():
              (3, 17, 3, (w[:, :2], wd[:, :2]), dims, np.array([7, 8])),
              (3, 18, 0, (w[:, :0], wd[:, :0]), dims, np.zeros(0, int)),
              (3, 18, 1, (w, wd), dims, np.array([4, 5, 6, 7, 8]))]
+    raw = []
+    writer.publisher.publish = lambda b: (raw.append(b), sent.append(content(b)))
     for run_id, k, stage, rows, d, idx in cases:
         writer.publish(run_id, k, stage, rows, d, idx)
+        assert isinstance(raw[-1], bytes)
         assert sent[-1] == content(c.pack(run_id, k, stage, np.stack(rows), d, idx))
+        got = c.unpack(raw[-1])
+        assert got[:3] == (run_id, k, stage) and got[3].tolist() == idx.tolist()
+        assert got[4].shape == np.stack(rows).shape and got[4].tobytes() == np.stack(rows).tobytes()
+    with pytest.raises(c.ExchangeError, match="not a Float64MultiArray"):
+        c.unpack(raw[0][:40])
     writer = c.ExchangeWriter(Pub())
     writer.publish(1, 0, 0, w, ("lane", "axle_on"), np.arange(5))
     assert sent[-1] == content(c.pack(1, 0, 0, w, ("lane", "axle_on"), np.arange(5)))

@@ -153,8 +153,8 @@ class BridgeNode(c.LockstepNode):
         self.create_subscription(String, R(P.TOPIC_SETUP), self._on_setup, c.QOS_CONTROL)
         self.exchange = c.ExchangeLane(self)
         self.exchange_subscriptions = [
-            self.exchange.subscribe(Float64MultiArray, R(P.TOPIC_FORCES), self._on_forces, c.QOS_EXCHANGE),
-            self.exchange.subscribe(Float64MultiArray, R(P.TOPIC_AXLE_BLOCK), self._on_axle_block, c.QOS_EXCHANGE),
+            self.exchange.subscribe(Float64MultiArray, R(P.TOPIC_FORCES), self._on_forces, c.QOS_EXCHANGE, raw=True),
+            self.exchange.subscribe(Float64MultiArray, R(P.TOPIC_AXLE_BLOCK), self._on_axle_block, c.QOS_EXCHANGE, raw=True),
             # acknowledgements of the recorders, served as fast as the exchange (flow control)
             self.exchange.subscribe(String, R(P.TOPIC_ACK), self._on_ack, c.QOS_CONTROL)]
 

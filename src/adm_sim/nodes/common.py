@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import array
 import math
+import struct
 import sys
 import time
 import warnings
@@ -34,6 +35,7 @@ from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import serialize_message
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension, String
 
 from adm_sim.cliutil import one_line_warnings
@@ -127,40 +129,88 @@ def float64_data(values):
 
 
 def unpack(msg):
-    """``(run_id, k, stage, index (n,) int, payload ndarray)`` of an exchange message (copies)."""
-    data = np.frombuffer(msg.data, dtype=np.float64) if not isinstance(msg.data, np.ndarray) else msg.data
+    """``(run_id, k, stage, index (n,) int, payload ndarray)`` of an exchange message (copies).
+
+    ``msg`` is the message or, from a raw subscription (:meth:`ExchangeLane.subscribe`), its
+    serialized bytes (:func:`parse_cdr`)."""
+    if isinstance(msg, bytes):
+        shape, off, data = parse_cdr(msg)
+    else:
+        data = np.frombuffer(msg.data, dtype=np.float64) if not isinstance(msg.data, np.ndarray) else msg.data
+        layout = msg.layout
+        shape, off = tuple([d.size for d in layout.dim]), layout.data_offset
     if data.size < HEADER_LEN:
         raise ExchangeError(f"exchange message too short ({data.size} values)")
     run_id, k, stage, n = map(int, data[:HEADER_LEN].tolist())
-    layout = msg.layout
     index = data[HEADER_LEN:HEADER_LEN + n].astype(np.intp)
-    shape = tuple([d.size for d in layout.dim])
-    payload = data[layout.data_offset:].reshape(shape).copy()
+    payload = data[off:].reshape(shape).copy()
     return run_id, k, stage, index, payload
 
 
-class ExchangeWriter:
-    """The exchange messages of one publisher, as :func:`pack` makes them, with less work a message.
+_U32 = struct.Struct("<I")
 
-    One ``Float64MultiArray`` is kept and refilled (``publish`` converts it before it returns, so
-    the next stage may change it); its layout dimensions are set again only when the payload's
-    shape or labels change; the payload is written straight into the message's buffer (rows of
-    one shape, e.g. the rail displacement and velocity, need no stacking first). The message's
-    data are the bytes :func:`pack` gives, bit for bit.
+
+def parse_cdr(raw):
+    """``(shape, data_offset, data ndarray)`` of a serialized ``std_msgs/Float64MultiArray``
+    (little-endian CDR, as rmw_fastrtps writes it on this machine: a 4-byte encapsulation header,
+    then ``layout.dim`` (count; per dimension its label string, size and stride),
+    ``layout.data_offset``, ``data`` (count, aligned to 8, the doubles)). ``data`` is a view of
+    ``raw``; the labels and strides are not read (:func:`pack` writes them from the shape)."""
+    if len(raw) < 12 or raw[1] != 1:
+        raise ExchangeError(f"exchange message is not little-endian CDR ({len(raw)} bytes)")
+    b = memoryview(raw)[4:]
+    u = _U32.unpack_from
+    try:
+        (nd,) = u(b, 0)
+        pos, sizes = 4, []
+        for _ in range(nd):
+            (ln,) = u(b, pos)
+            pos = (pos + 4 + ln + 3) & ~3
+            sizes.append(u(b, pos)[0])
+            pos += 8
+        off, count = u(b, pos)[0], u(b, pos + 4)[0]
+        pos += 8
+        if count:
+            pos = (pos + 7) & ~7
+        data = np.frombuffer(b, dtype="<f8", count=count, offset=pos)
+    except (struct.error, ValueError) as exc:
+        raise ExchangeError(f"exchange message is not a Float64MultiArray ({len(raw)} bytes: {exc})") from None
+    return tuple(sizes), off, data
+
+
+class ExchangeWriter:
+    """The exchange messages of one publisher, as :func:`pack` makes them, serialized with less work.
+
+    The serialized layout (dimensions, data offset, value count) is made once per payload shape
+    and index count by ``rclpy.serialization.serialize_message`` and kept; a message is then
+    that prefix and the float64 bytes of header, indices and payload, published as
+    serialized bytes (``Publisher.publish`` of ``bytes``). Receivers get the message of
+    :func:`pack`: the same layout and the same data bytes. Rows of one shape (the rail
+    displacement and velocity) are written straight into the buffer, no stacking first.
     """
 
     def __init__(self, publisher):
         self.publisher = publisher
-        self.msg = Float64MultiArray()
-        self._key = None
+        self._prefixes = {}
+
+    def _prefix(self, dims, shape, n, total):
+        msg = Float64MultiArray()
+        msg.layout.dim = _layout_dims(tuple(dims), shape)
+        msg.layout.data_offset = HEADER_LEN + n
+        msg.data = array.array("d", bytes(8 * total))
+        raw = serialize_message(msg)
+        if sys.byteorder != "little" or raw[1] != 1:  # not little-endian CDR: the message itself each time
+            return None
+        if len(self._prefixes) > 256:
+            self._prefixes.clear()
+        prefix = self._prefixes[(dims, shape, n)] = raw[:len(raw) - 8 * total]
+        return prefix
 
     def publish(self, run_id, k, stage, rows, dims, index=None):
         """Publish ``[run_id, k, stage, n]``, the ``n`` indices, then ``rows``: one array, or a
         tuple of arrays of one shape sent as one array of a leading dimension of their count."""
-        if isinstance(rows, tuple):
-            shape = (len(rows),) + rows[0].shape
-        else:
-            shape = rows.shape
+        tup = isinstance(rows, tuple)
+        shape = (len(rows),) + rows[0].shape if tup else rows.shape
         n = 0 if index is None else len(index)
         off = HEADER_LEN + n
         size = 1
@@ -171,21 +221,18 @@ class ExchangeWriter:
         if n:
             buf[HEADER_LEN:off] = index
         view = buf[off:].reshape(shape)
-        if isinstance(rows, tuple):
+        if tup:
             for i, row in enumerate(rows):
                 view[i] = row
         else:
             view[...] = rows
-        msg = self.msg
-        key = (dims, shape)
-        if key != self._key:
-            msg.layout.dim = _layout_dims(tuple(dims), shape)
-            self._key = key
-        msg.layout.data_offset = off
-        data = array.array("d")
-        data.frombytes(buf.view(np.uint8))  # the float64 bytes, no copy on the way
-        msg.data = data
-        self.publisher.publish(msg)
+        prefix = self._prefixes.get((dims, shape, n))
+        if prefix is None:
+            prefix = self._prefix(dims, shape, n, buf.size)
+            if prefix is None:
+                self.publisher.publish(pack(run_id, k, stage, view, dims, index))
+                return
+        self.publisher.publish(prefix + buf.tobytes())
 
 
 def check_step(who, got, expected):
@@ -399,8 +446,9 @@ class ExchangeLane:
         executor.add_node(self.node)
         self.executor, self._own_executor = executor, False
 
-    def subscribe(self, msg_type, topic, callback, qos):
-        """An exchange subscription (on the lane's node).
+    def subscribe(self, msg_type, topic, callback, qos, raw=False):
+        """An exchange subscription (on the lane's node); ``raw``: ``callback`` gets the serialized
+        bytes (rclpy builds no message object; :func:`unpack` reads them).
 
         An exception of ``callback`` is kept and raised by :meth:`spin` (the executor would log
         it with its stack first); one raised because the context is shutting down (Ctrl-C,
@@ -415,7 +463,7 @@ class ExchangeLane:
                 if self.node.context.ok():
                     self.error = exc
 
-        return self.node.create_subscription(msg_type, topic, guarded, qos)
+        return self.node.create_subscription(msg_type, topic, guarded, qos, raw=raw)
 
     def spin(self, until_s, active, turn_s=0.02):
         """Serve exchange messages until ``time.monotonic()`` passes ``until_s`` or ``active()``

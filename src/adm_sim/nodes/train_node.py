@@ -72,7 +72,7 @@ class TrainNode(c.LockstepNode):
         self.create_subscription(String, R(P.TOPIC_STATUS), self._on_status, c.QOS_CONTROL)
         self.exchange = c.ExchangeLane(self)
         self.exchange_subscriptions = [
-            self.exchange.subscribe(Float64MultiArray, R(P.TOPIC_RAIL), self._on_rail, c.QOS_EXCHANGE)]
+            self.exchange.subscribe(Float64MultiArray, R(P.TOPIC_RAIL), self._on_rail, c.QOS_EXCHANGE, raw=True)]
         self.create_service(Trigger, "~/start_run", self._on_start)
         self._bridge_desc = None
         self.create_subscription(String, R(P.TOPIC_BRIDGE_DESC), self._on_bridge_description, c.QOS_LATCHED)
