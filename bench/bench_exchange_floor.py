@@ -2,9 +2,12 @@
 """The exchange's floor: two processes, one DIM-sized message each way per round trip, no physics.
 
     .venv/bin/python bench/bench_exchange_floor.py [--trips 10000] [--lanes 32] [--axles 5] [--one-process]
+        [--message-objects]
 
-The same messages (:func:`adm_sim.nodes.common.pack`: the rail state ``2 x lanes x axles`` one
-way, the forces ``lanes x axles`` back), QoS (``QOS_EXCHANGE``) and executor (rclpy's
+The same messages (the rail state ``2 x lanes x axles`` one way, the forces ``lanes x axles``
+back), sent as the nodes send them (:class:`adm_sim.nodes.common.ExchangeWriter`: serialized
+bytes, raw subscriptions, :func:`~adm_sim.nodes.common.unpack`; ``--message-objects``: a
+``Float64MultiArray`` of :func:`~adm_sim.nodes.common.pack` per message, as before), QoS (``QOS_EXCHANGE``) and executor (rclpy's
 ``EventsExecutor``) as the bridge and train nodes, shared memory only, a domain of its own. Prints
 the wall time per round trip and the CPU time per trip of each process: what a co-simulated DIM
 round trip costs before any physics or monitoring (compare ``bench_ros.py``'s DIM trips/s).
@@ -22,6 +25,10 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
+
+
+#: ``--message-objects``: a Float64MultiArray per message (pack) instead of serialized bytes.
+OBJECTS = False
 
 
 def _node(role, lanes, axles, ex=None):
@@ -47,14 +54,18 @@ def _pong_node(lanes, axles, ex=None):
     """The answering end: takes the rail state, answers with the forces; returns its count of trips."""
     rclpy, node, ex, Msg, c, _rail, forces, idx = _node("pong", lanes, axles, ex)
     pub = node.create_publisher(Msg, "/floor/forces", c.QOS_EXCHANGE)
+    writer = c.ExchangeWriter(pub)
     seen = [0]
 
     def on_rail(msg):
         c.unpack(msg)
         seen[0] += 1
-        pub.publish(c.pack(1, seen[0], 0, forces, ("lane", "axle_on"), idx))
+        if OBJECTS:
+            pub.publish(c.pack(1, seen[0], 0, forces, ("lane", "axle_on"), idx))
+        else:
+            writer.publish(1, seen[0], 0, forces, ("lane", "axle_on"), idx)
 
-    node.create_subscription(Msg, "/floor/rail", on_rail, c.QOS_EXCHANGE)
+    node.create_subscription(Msg, "/floor/rail", on_rail, c.QOS_EXCHANGE, raw=not OBJECTS)
     return rclpy, ex, seen
 
 
@@ -74,8 +85,12 @@ def main(argv=None):
     ap.add_argument("--lanes", type=int, default=32)
     ap.add_argument("--axles", type=int, default=5)
     ap.add_argument("--one-process", action="store_true", help="both ends in this process, one executor")
+    ap.add_argument("--message-objects", action="store_true",
+                    help="a message object per message (pack), not serialized bytes as the nodes send")
     ap.add_argument("--pong", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
+    global OBJECTS
+    OBJECTS = args.message_objects
     warm = 100
     if args.pong:
         return pong(args.trips + warm, args.lanes, args.axles)
@@ -87,16 +102,18 @@ def main(argv=None):
         _, ex, _ = _pong_node(args.lanes, args.axles)
     else:
         other = subprocess.Popen([sys.executable, __file__, "--pong", "--trips", str(args.trips), "--lanes",
-                                  str(args.lanes), "--axles", str(args.axles)], env=env, stdout=subprocess.PIPE, text=True)
+                                  str(args.lanes), "--axles", str(args.axles)] + ["--message-objects"] * OBJECTS,
+                                 env=env, stdout=subprocess.PIPE, text=True)
     rclpy, node, ex, Msg, c, rail, _forces, idx = _node("ping", args.lanes, args.axles, ex)
     pub = node.create_publisher(Msg, "/floor/rail", c.QOS_EXCHANGE)
+    writer = c.ExchangeWriter(pub)
     got = [False]
 
     def on_forces(msg):
         c.unpack(msg)
         got[0] = True
 
-    node.create_subscription(Msg, "/floor/forces", on_forces, c.QOS_EXCHANGE)
+    node.create_subscription(Msg, "/floor/forces", on_forces, c.QOS_EXCHANGE, raw=not OBJECTS)
     t_end = time.monotonic() + 60.0
     while pub.get_subscription_count() == 0 or node.count_publishers("/floor/forces") == 0:
         if time.monotonic() > t_end:
@@ -107,7 +124,10 @@ def main(argv=None):
 
     def trip(k):
         got[0] = False
-        pub.publish(c.pack(1, k, 0, rail, ("field", "lane", "axle_on"), idx))
+        if OBJECTS:
+            pub.publish(c.pack(1, k, 0, rail, ("field", "lane", "axle_on"), idx))
+        else:
+            writer.publish(1, k, 0, (rail[0], rail[1]), ("field", "lane", "axle_on"), idx)
         while not got[0]:
             ex.spin_once(timeout_sec=1.0)
 
