@@ -18,6 +18,7 @@ Every topic, its layout and its QoS: docs/ros.md, section "Topics"; their names 
 from __future__ import annotations
 
 import array
+import functools
 import math
 import struct
 import sys
@@ -87,36 +88,52 @@ def pack(run_id, k, stage, array, dims, index=None):
         Axle indices carried before the payload.
     """
     a = np.asarray(array, dtype=np.float64)
-    n = 0 if index is None else len(index)
-    buf = np.empty(HEADER_LEN + n + a.size)
-    buf[:HEADER_LEN] = (run_id, k, stage, n)
-    if n:
-        buf[HEADER_LEN:HEADER_LEN + n] = index
-    buf[HEADER_LEN + n:] = a.reshape(-1)
+    buf, payload = _exchange_buffer(run_id, k, stage, a.shape, index)
+    payload[...] = a
     msg = Float64MultiArray()
-    msg.layout.data_offset = HEADER_LEN + n
-    msg.layout.dim = _layout_dims(tuple(dims), a.shape)
+    msg.layout.data_offset = buf.size - a.size
+    msg.layout.dim = list(_layout_dims(tuple(dims), a.shape))
     msg.data = float64_data(buf)
     return msg
 
 
-_DIMS = {}
+def _exchange_buffer(run_id, k, stage, shape, index):
+    """``(buffer, payload view)`` of an exchange message: the header ``[run_id, k, stage, n]`` and the
+    ``n`` indices written, the payload (of ``shape``, row-major) left for the caller to fill."""
+    n = 0 if index is None else len(index)
+    off = HEADER_LEN + n
+    buf = np.empty(off + math.prod(shape))
+    buf[:HEADER_LEN] = (run_id, k, stage, n)
+    if n:
+        buf[HEADER_LEN:off] = index
+    return buf, buf[off:].reshape(shape)
 
 
+@functools.lru_cache(maxsize=256)
 def _layout_dims(labels, shape):
-    """The ``MultiArrayDimension`` list of a payload (kept per labels and shape: a DIM run sends a few
+    """The ``MultiArrayDimension``s of a payload (kept per labels and shape: a DIM run sends a few
     shapes tens of thousands of times; the messages only read them)."""
-    key = (labels, shape)
-    dims = _DIMS.get(key)
-    if dims is None:
-        dims, stride = [], int(np.prod(shape)) if shape else 0
-        for label, size in zip(labels, shape):
-            dims.append(MultiArrayDimension(label=label, size=int(size), stride=int(stride)))
-            stride = stride // size if size else 0
-        if len(_DIMS) > 256:
-            _DIMS.clear()
-        _DIMS[key] = dims
-    return list(dims)
+    dims, stride = [], int(np.prod(shape)) if shape else 0
+    for label, size in zip(labels, shape):
+        dims.append(MultiArrayDimension(label=label, size=int(size), stride=int(stride)))
+        stride = stride // size if size else 0
+    return tuple(dims)
+
+
+@functools.lru_cache(maxsize=256)
+def _cdr_prefix(dims, shape, n):
+    """The serialized bytes of an exchange message before its doubles (:func:`pack`'s layout for
+    payload ``shape`` after ``n`` indices, by ``rclpy.serialization.serialize_message``), or None
+    where the serialization is not little-endian CDR (the message is then sent itself)."""
+    total = HEADER_LEN + n + math.prod(shape)
+    msg = Float64MultiArray()
+    msg.layout.dim = list(_layout_dims(dims, shape))
+    msg.layout.data_offset = HEADER_LEN + n
+    msg.data = array.array("d", bytes(8 * total))
+    raw = serialize_message(msg)
+    if sys.byteorder != "little" or raw[1] != 1:
+        return None
+    return raw[:len(raw) - 8 * total]
 
 
 def float64_data(values):
@@ -191,48 +208,23 @@ class ExchangeWriter:
 
     def __init__(self, publisher):
         self.publisher = publisher
-        self._prefixes = {}
-
-    def _prefix(self, dims, shape, n, total):
-        msg = Float64MultiArray()
-        msg.layout.dim = _layout_dims(tuple(dims), shape)
-        msg.layout.data_offset = HEADER_LEN + n
-        msg.data = array.array("d", bytes(8 * total))
-        raw = serialize_message(msg)
-        if sys.byteorder != "little" or raw[1] != 1:  # not little-endian CDR: the message itself each time
-            return None
-        if len(self._prefixes) > 256:
-            self._prefixes.clear()
-        prefix = self._prefixes[(dims, shape, n)] = raw[:len(raw) - 8 * total]
-        return prefix
 
     def publish(self, run_id, k, stage, rows, dims, index=None):
         """Publish ``[run_id, k, stage, n]``, the ``n`` indices, then ``rows``: one array, or a
         tuple of arrays of one shape sent as one array of a leading dimension of their count."""
         tup = isinstance(rows, tuple)
         shape = (len(rows),) + rows[0].shape if tup else rows.shape
-        n = 0 if index is None else len(index)
-        off = HEADER_LEN + n
-        size = 1
-        for s in shape:
-            size *= s
-        buf = np.empty(off + size)
-        buf[:HEADER_LEN] = (run_id, k, stage, n)
-        if n:
-            buf[HEADER_LEN:off] = index
-        view = buf[off:].reshape(shape)
+        buf, view = _exchange_buffer(run_id, k, stage, shape, index)
         if tup:
             for i, row in enumerate(rows):
                 view[i] = row
         else:
             view[...] = rows
-        prefix = self._prefixes.get((dims, shape, n))
+        prefix = _cdr_prefix(tuple(dims), shape, buf.size - view.size - HEADER_LEN)
         if prefix is None:
-            prefix = self._prefix(dims, shape, n, buf.size)
-            if prefix is None:
-                self.publisher.publish(pack(run_id, k, stage, view, dims, index))
-                return
-        self.publisher.publish(prefix + buf.tobytes())
+            self.publisher.publish(pack(run_id, k, stage, view, dims, index))
+        else:
+            self.publisher.publish(prefix + buf.tobytes())
 
 
 def check_step(who, got, expected):
@@ -247,7 +239,7 @@ def matrix_msg(dims, array, step=None):
     carried before the data (``data[0]``, ``layout.data_offset`` = 1; :func:`matrix_step`)."""
     a = np.asarray(array, dtype=np.float64)
     msg = Float64MultiArray()
-    msg.layout.dim = _layout_dims(tuple(dims), a.shape)
+    msg.layout.dim = list(_layout_dims(tuple(dims), a.shape))
     if step is None:
         msg.data = float64_data(a)
     else:
