@@ -377,6 +377,40 @@ def test_rerun_refuses_remote_viewer():
         init_rerun("adm_sim_test", connect_url="rerun+http://192.0.2.1:9876/proxy")
 
 
+def test_run_logger_gives_a_sample_that_comes_before_its_runs_start_to_that_run(tmp_path):
+    """Runs follow each other on the session clock (run 2 starts at run 1's t1). The first sample
+    of run 2 can arrive, and be flushed, before run 2's ``started`` record (two topics, no order
+    between them): it is kept for run 2, not logged as a 501st sample of run 1 (the flow test saw
+    1680 samples of a run that published 1679 beside two busy processes)."""
+    from adm_sim.recording import rerun_log as rl
+
+    out = tmp_path / "two_runs.rrd"
+    rl.init_rerun("adm_sim_test", save_path=out, recording_id="two_runs")
+    viz = rl.RunLogger()
+    n, ds, v_kmh = 500, 0.02, 100.0
+    dt = ds / (v_kmh / 3.6)
+    t1 = n * dt
+
+    def started(rid, t0):
+        viz.run_started({"node": "bridge", "run_id": rid, "state": "started", "model": "mlm", "n_steps": n,
+                         "n_lanes": 1, "ds_m": ds, "t0_s": t0, "monitor_speed_kmh": v_kmh,
+                         "clock_speed_kmh": v_kmh, "monitor_every_steps": 1, "beam_every_steps": 0})
+
+    started(1, 0.0)
+    for k in range(n):
+        viz.accel(k * dt, 1.0)
+    viz.accel(t1, 2.0)  # run 2's step 0, before run 2 is announced
+    viz.flush()
+    started(2, t1)
+    for k in range(1, n):
+        viz.accel(t1 + k * dt, 2.0)
+    viz.flush()
+    rl.close_rerun()
+    rows = _entity_rows(out)
+    assert rows["/runs/acceleration/run_01"] == n
+    assert rows["/runs/acceleration/run_02"] == n
+
+
 # ---------------------------------------------------------------- replay
 
 

@@ -205,7 +205,11 @@ class _Run:
         return (self.n_steps - 1) // int(self.beam_every) + 1 - self.n_frames
 
     def contains(self, t_s: float) -> bool:
-        return self.t0 - 1e-9 <= t_s <= self.t1 + 1e-9
+        """A sample stamped ``t_s`` is this run's: its steps 0 .. n_steps - 1 lie in [t0, t1), and
+        the next run starts at this run's t1 (the session clock goes on), so the bound is half a
+        step below t1: a first sample of the next run that arrives before the next run's
+        ``started`` record is kept for it, not given to this run."""
+        return self.t0 - 1e-9 <= t_s < self.t1 - 0.5 * self.dt_clock
 
     def run_time(self, t_s):
         return (np.asarray(t_s, dtype=float) - self.t0) * self.scale
