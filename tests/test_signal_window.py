@@ -27,8 +27,13 @@ ROOT = Path(__file__).resolve().parents[1]
 #: at load 10-16 took 3.4 s to deliver it, past a 3 s way out). The signal ends the sleep, so a long
 #: way out costs nothing when the signal is on time.
 EXIT_S = 20.0
+#: The command starts as a terminal starts it, SIGINT raising KeyboardInterrupt: a run of the suite
+#: in the background of a non-interactive shell (``pytest ... &``) hands its children SIGINT
+#: ignored, and a way out that honours that ignores the test's SIGINT (exit 0 after the whole way
+#: out). When the signal was already taken (the run ends 130), there is no way out to wait through.
 _CMD = """
-import sys, time
+import signal, sys, time
+signal.signal(signal.SIGINT, signal.default_int_handler)
 from adm_sim.cliutil import run_cli
 
 def work():
@@ -37,7 +42,8 @@ def work():
 
 code = run_cli(work)
 print("returned", flush=True)
-time.sleep(float(sys.argv[1]))
+if code == 0:
+    time.sleep(float(sys.argv[1]))
 sys.exit(code)
 """
 
