@@ -6,11 +6,11 @@ bitwise). Small case for speed: B3 x ICE-2, 5 speeds from 290 km/h (the slowest 
 step: a DIM run is 1400 steps, 2030 from 200 km/h), 4 steps per period of mode 3, one
 fundamental period of free vibration. The in-process references of a model and damping are
 computed once per module (:func:`reference`): the two graphs below, two processes and one, are
-held to the same runs. Their bridge publishes the monitoring topics every 16th step and the beam
-and clock every 64th (:data:`SPARSE`: the in-process driver receives and deserialises each
-message, 1.4 s of CPU a DIM run at every step, 0.35 s thinned); the results are of every step
-whatever is published, and the same exactness with every step published is the calibration
-launch's (its runs, DIM included, bit for bit below).
+held to the same runs. The bridge nodes here publish the monitoring topics every 16th step and
+the beam and clock every 64th (:data:`SPARSE`: the in-process driver receives and deserialises
+each message, 1.4 s of CPU a DIM run at every step, 0.35 s thinned); the results are of every
+step whatever is published, and the same exactness with every step published is the
+calibration launch's (its runs, DIM included, bit for bit below).
 """
 
 import functools
@@ -75,7 +75,7 @@ def test_wrong_lane_count_is_reported(node_procs, ros_domain):
     """A bad run request fails with the bridge's reason and both nodes stay up."""
     from adm_sim.nodes.driver import RunError
 
-    node_procs.start("bridge", "adm_sim.nodes.bridge_node", {"bridge": "B3", **STEP})
+    node_procs.start("bridge", "adm_sim.nodes.bridge_node", {"bridge": "B3", **STEP, **SPARSE})
     node_procs.start("train", "adm_sim.nodes.train_node", {"speeds_kmh": "250,300", "model": "mlm"})
     with driver_node(ros_domain.domain_id) as d:
         d.wait_for_graph()
@@ -176,7 +176,7 @@ def test_non_finite_run_fails_with_the_message_and_nodes_stay_up(node_procs, ros
     from adm_sim import errors
     from adm_sim.nodes.driver import RunError
 
-    node_procs.start("bridge", "adm_sim.nodes.bridge_node", {"bridge": "B1", "ds_m": 5.0})
+    node_procs.start("bridge", "adm_sim.nodes.bridge_node", {"bridge": "B1", "ds_m": 5.0, **SPARSE})
     node_procs.start("train", "adm_sim.nodes.train_node", {"speeds_kmh": "160,250,350"})
     bridge, train = resolve_bridge("B1"), load_train("ICE-2")
     with np.errstate(all="ignore"), pytest.raises(errors.RunError) as ref:
