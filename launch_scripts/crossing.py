@@ -3,14 +3,16 @@
 
     .venv/bin/python launch_scripts/crossing.py [--params-file ros_ws/params/crossing_b3_300.yaml]
         [--bridge B3] [--train ICE-2] [--model dim|mlm] [--speeds 300] [--out DIR] [--overwrite]
-        [--spawn | --connect URL]
+        [--spawn | --connect URL] [--separate-nodes]
 
-Starts the bridge and train nodes and a driver node (records ``run.mcap`` and ``run.rrd`` in
-``DIR``, writes ``summary.json``) as separate processes; every topic of the graph is live while it
-runs (``/adm/midspan/accel``, ``/diagnostics``, ``/clock``...), so a monitoring client on the same
-``ROS_DOMAIN_ID`` (printed; ``--domain-id`` to choose it) sees the crossing. Stops every process on
-exit, Ctrl-C, SIGTERM or when a node dies; the nodes end with the launcher however it ends
-(SIGKILL included). Bad input, the params file and the values each node will start with
+Starts the bridge and train nodes in one process (:mod:`adm_sim.nodes.composed`, one executor: a
+DIM round trip wakes no other process; ``--separate-nodes`` starts each in a process of its own)
+and a driver node in another (records ``run.mcap`` and ``run.rrd`` in ``DIR``, writes
+``summary.json``); every topic of the graph is live while it runs (``/adm/midspan/accel``,
+``/diagnostics``, ``/clock``...), so a monitoring client on the same ``ROS_DOMAIN_ID`` (printed;
+``--domain-id`` to choose it) sees the crossing. Stops every process on exit, Ctrl-C, SIGTERM or
+when a node dies (exit status 1, naming the node); the nodes end with the launcher however it
+ends (SIGKILL included). Bad input, the params file and the values each node will start with
 included, is refused before any process starts or any folder is created (exit 2); an earlier run
 in ``--out`` is kept unless ``--overwrite``, a folder another launch is writing is refused.
 Ctrl-C or SIGTERM: ``error: interrupted``, exit 130, the outputs of the interrupted run removed.
@@ -42,6 +44,9 @@ def main(argv=None):
     ap.add_argument("--out")
     ap.add_argument("--spawn", action="store_true")
     ap.add_argument("--connect")
+    ap.add_argument("--separate-nodes", action="store_true",
+                    help="run the bridge and train nodes as two processes (default: one process hosting both, "
+                         "as ROS composition does; the same nodes, topics and results, the DIM round trips cheaper)")
     add_domain_id(ap)
     add_overwrite(ap, "replace the outputs of an earlier run in --out")
     args = ap.parse_args_or_exit(argv)
@@ -75,7 +80,8 @@ def _main(args):
                 elif kind is None:
                     print(line, flush=True)
 
-            run_graph(sup, args.params_file, pb, pt, "driver", "adm_sim.nodes.driver", pd, on_line)
+            run_graph(sup, args.params_file, pb, pt, "driver", "adm_sim.nodes.driver", pd, on_line,
+                      composed=not args.separate_nodes)
     except KeyboardInterrupt:
         release_out(out)
         discard_outputs(out, created, old)

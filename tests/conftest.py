@@ -35,7 +35,7 @@ CALIBRATION_PARAMS = ("bridge:\n  ros__parameters:\n    bridge: B3\n    steps_pe
 @pytest.fixture(scope="session")
 def calibration_launch(tmp_path_factory):
     """The output folder (``summary.json``, ``run.mcap``, ``run.rrd``) of ``launch_scripts/calibrate.py``
-    (bridge, train and calibration nodes in three processes) on the small case above, run once per
+    (the bridge and train nodes in one process, the calibration node in another) on the small case above, run once per
     session on its own ROS domain: ``test_ros_cosim.py`` checks its numbers against the in-process
     calibration, ``test_ros_rerun_views.py`` its recording as a user opens it. The tests read it and
     write only into their own folders."""

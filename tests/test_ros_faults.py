@@ -228,7 +228,7 @@ def _alive(pid):
 
 
 @pytest.mark.parametrize("script,args,n_kids", [
-    ("crossing.py", ["--model", "dim", "--speeds", "200:300:5"], 3),
+    ("crossing.py", ["--model", "dim", "--speeds", "200:300:5", "--separate-nodes"], 3),  # bridge, train, driver
     ("calibrate.py", ["--bridge", "B3", "--speeds", "240:300:2", "--no-rrd", "--quiet"], 2),  # bridge + train composed
 ])
 def test_launcher_killed_with_sigkill_takes_every_node_with_it(script, args, n_kids, tmp_path, ros_domain):
