@@ -376,6 +376,33 @@ def test_republish_latches_the_descriptions_and_loses_nothing_at_rate_0(recordin
     assert len(got) == len(want) > 2000 and stamps == sorted(stamps)
 
 
+def test_republish_writers_heartbeat_fast_unless_a_profile_is_exported(monkeypatch, tmp_path):
+    """The participant of ``--republish`` is created with a Fast DDS profile file whose writers send
+    a heartbeat every 0.1 s (the end's wait for every acknowledgement lasts one period; 3 s by
+    Fast DDS's default); the file is gone afterwards. A profile file the user exported is left as
+    it is (its heartbeat applies). The republish tests above run through the first path."""
+    import importlib
+    import xml.etree.ElementTree as ET
+
+    monkeypatch.syspath_prepend(str(ROOT / "launch_scripts"))
+    replay = importlib.import_module("replay")
+    for k in replay._PROFILE_VARS:
+        monkeypatch.delenv(k, raising=False)
+    with replay._writer_profile():
+        path = Path(os.environ["FASTRTPS_DEFAULT_PROFILES_FILE"])
+        ns = "{http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles}"
+        writer = ET.parse(path).getroot().find(f"{ns}profiles/{ns}data_writer")
+        assert writer.get("is_default_profile") == "true"
+        period = writer.find(f"{ns}times/{ns}heartbeatPeriod")
+        assert (period.find(f"{ns}sec").text, period.find(f"{ns}nanosec").text) == ("0", "100000000")
+    assert not path.exists() and "FASTRTPS_DEFAULT_PROFILES_FILE" not in os.environ
+    mine = tmp_path / "mine.xml"
+    monkeypatch.setenv("FASTDDS_DEFAULT_PROFILES_FILE", str(mine))
+    with replay._writer_profile():
+        assert "FASTRTPS_DEFAULT_PROFILES_FILE" not in os.environ
+        assert os.environ["FASTDDS_DEFAULT_PROFILES_FILE"] == str(mine)
+
+
 # ---------------------------------------------------------------- rerun's writer failing
 
 
