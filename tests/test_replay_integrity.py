@@ -57,8 +57,10 @@ def layout(recording):
     base = scan(recording)
     assert not base.damaged and base.chunks >= 10
     keys = [_key(m) for m in base.messages]
-    with recording.open("rb") as f:  # the scan reads what mcap's own reader reads, in file order
-        assert keys == [_key(m) for m in make_reader(f).iter_messages(log_time_order=False)]
+    with recording.open("rb") as f:  # the scan reads what mcap's own reader reads, in file order, field by field
+        assert [(c.topic, m.channel_id, m.log_time, m.publish_time, m.sequence, m.data) for _s, c, m in base.messages] \
+            == [(c.topic, m.channel_id, m.log_time, m.publish_time, m.sequence, m.data)
+                for _s, c, m in make_reader(f).iter_messages(log_time_order=False)]
     channels = {m[1].id: m[1] for m in base.messages}
     chunks = []
     for pos, op, end in _records(data):

@@ -585,7 +585,8 @@ def _parse_chunk(data, pos: int, end: int, check_length: bool = True, records_en
     return raw, None
 
 
-_MESSAGE_HEAD = struct.Struct("<HIQQ")  # a Message record's channel id, sequence, log time, publish time
+_RECORD_HEAD = struct.Struct("<BQ")  # a record's opcode and length
+_MESSAGE_HEAD = struct.Struct("<BQHIQQ")  # ... and a Message's channel id, sequence, log time, publish time
 
 
 def _inner_records(raw: bytes):
@@ -597,25 +598,27 @@ def _inner_records(raw: bytes):
 
     from mcap.records import Channel, Message, Schema  # noqa: PLC0415  mcap/rosbags only when a log is read or written
 
-    out, q, n = [], 0, len(raw)
-    head = _MESSAGE_HEAD.unpack_from
+    out: list = []
+    append, record_head, message_head = out.append, _RECORD_HEAD.unpack_from, _MESSAGE_HEAD.unpack_from
+    q, n = 0, len(raw)
     while q < n:
         if q + 9 > n:
             raise ValueError("record cut short inside a chunk")
-        op, length = raw[q], int.from_bytes(raw[q + 1:q + 9], "little")
-        body, q = q + 9, q + 9 + length
-        if q > n:
+        op, length = record_head(raw, q)
+        body, end = q + 9, q + 9 + length
+        if end > n:
             raise ValueError("record cut short inside a chunk")
         if op == 0x05:
             if length < 22:
                 raise ValueError("message record shorter than its head")
-            channel_id, sequence, log_time, publish_time = head(raw, body)
-            out.append(Message(channel_id=channel_id, log_time=log_time, data=raw[body + 22:q],
-                               publish_time=publish_time, sequence=sequence))
+            _op, _length, channel_id, sequence, log_time, publish_time = message_head(raw, q)
+            # Message's fields in mcap's order: channel_id, log_time, data, publish_time, sequence
+            append(Message(channel_id, log_time, raw[body + 22:end], publish_time, sequence))
         elif op == 0x04:
-            out.append(Channel.read(ReadDataStream(io.BytesIO(raw[body:q]))))
+            append(Channel.read(ReadDataStream(io.BytesIO(raw[body:end]))))
         elif op == 0x03:
-            out.append(Schema.read(ReadDataStream(io.BytesIO(raw[body:q]))))
+            append(Schema.read(ReadDataStream(io.BytesIO(raw[body:end]))))
+        q = end
     return out
 
 
