@@ -26,7 +26,11 @@ line ``warning: ...`` on stderr.
 simulated time (0: as fast as possible). DDS stays on this machine: ``FASTDDS_BUILTIN_TRANSPORTS=SHM``
 unless already set, ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, and ``--domain-id``, else an exported
 ``ROS_DOMAIN_ID``, else a free, locked id (printed on the first line); ids up to 232 with shared memory
-only, 101 with a UDP transport.
+only, 101 with a UDP transport. Its writers send a heartbeat every 0.1 s while a sample is not
+acknowledged (Fast DDS sends one every 3 s by default, and the replay's end waits for every
+subscriber's acknowledgement, which answers a heartbeat), unless a Fast DDS profile file is
+exported (``FASTRTPS_DEFAULT_PROFILES_FILE`` or ``FASTDDS_DEFAULT_PROFILES_FILE``): then its
+settings are used as they are.
 
 Exit status 0 on success, 2 with one line ``error: ...`` on bad input (checked before anything is
 read, written or started: RUN.mcap must be an MCAP file, OUT.rrd a new ``.rrd`` file in an existing
@@ -36,10 +40,12 @@ itself fails (:func:`adm_sim.cliutil.run_cli`).
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import os
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 from pathlib import Path
@@ -345,6 +351,40 @@ def _qos_profile(offered: str, topic: str):
         durability=DurabilityPolicy.TRANSIENT_LOCAL if durability == "transient_local" else DurabilityPolicy.VOLATILE)
 
 
+#: Heartbeat period of the replay's writers (s): a subscriber acknowledges samples when a heartbeat
+#: asks, so the wait for every acknowledgement (:class:`_FlowControl`) lasts up to one period.
+HEARTBEAT_S = 0.1
+_PROFILE_VARS = ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE")
+_WRITER_PROFILE = """<?xml version="1.0" encoding="UTF-8" ?>
+<dds xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">
+  <profiles>
+    <data_writer profile_name="adm_replay_writer" is_default_profile="true">
+      <times><heartbeatPeriod><sec>0</sec><nanosec>{ns}</nanosec></heartbeatPeriod></times>
+    </data_writer>
+  </profiles>
+</dds>
+"""
+
+
+@contextlib.contextmanager
+def _writer_profile():
+    """While the participant is created: a Fast DDS profile file whose writers send a heartbeat
+    every :data:`HEARTBEAT_S` (the transport stays the one the environment names), unless the
+    user exported a profile file; the file is removed afterwards (Fast DDS reads it once)."""
+    if any(os.environ.get(k) for k in _PROFILE_VARS):
+        yield
+        return
+    fd, path = tempfile.mkstemp(prefix="adm_replay_", suffix=".xml")
+    try:
+        with os.fdopen(fd, "w") as fh:
+            fh.write(_WRITER_PROFILE.format(ns=round(HEARTBEAT_S * 1e9)))
+        os.environ[_PROFILE_VARS[0]] = path
+        yield
+    finally:
+        os.environ.pop(_PROFILE_VARS[0], None)
+        os.unlink(path)
+
+
 class _FlowControl:
     """Publish without outrunning the subscribers: at most ``window`` messages of a reliable
     publisher are unacknowledged (``window`` = half the history depth of the publisher, the
@@ -419,8 +459,9 @@ def republish(args, found) -> int:
 
     clean_dead_shm()  # what an earlier replay or node killed with SIGKILL left in /dev/shm
     context = rclpy.context.Context()
-    rclpy.init(context=context)
-    node = rclpy.create_node("adm_replay", context=context)
+    with _writer_profile():
+        rclpy.init(context=context)
+        node = rclpy.create_node("adm_replay", context=context)
     noted = [0.0]
 
     def note_shm():  # this process's Fast DDS files, noted while it lives (a SIGKILL gives no later chance)

@@ -51,10 +51,16 @@ def _key(item):
 def layout(recording):
     """The intact file: its bytes, its messages (keys) in file order, and each chunk's byte range
     with its messages (decompressed by the chunk parser, independent of the scan's walk)."""
+    from mcap.reader import make_reader
+
     data = recording.read_bytes()
     base = scan(recording)
     assert not base.damaged and base.chunks >= 10
     keys = [_key(m) for m in base.messages]
+    with recording.open("rb") as f:  # the scan reads what mcap's own reader reads, in file order, field by field
+        assert [(c.topic, m.channel_id, m.log_time, m.publish_time, m.sequence, m.data) for _s, c, m in base.messages] \
+            == [(c.topic, m.channel_id, m.log_time, m.publish_time, m.sequence, m.data)
+                for _s, c, m in make_reader(f).iter_messages(log_time_order=False)]
     channels = {m[1].id: m[1] for m in base.messages}
     chunks = []
     for pos, op, end in _records(data):
@@ -259,7 +265,7 @@ def test_flipped_and_zeroed_bytes_never_pass_silently(tmp_path_factory, layout):
         path = folder / "m.mcap"
         path.write_bytes(bytes(d))
         s = scan(path)
-        got = [_key(m) for m in s.messages]
+        got = [(c.topic, m.log_time, m.sequence, bytes(m.data)) for _s, c, m in s.messages]  # _key, inlined
         got_set = set(got)  # once per example (and each chunk's set once), not once per chunk and example
         assert got_set <= original, f"{kind} at {off}: a corrupt message was read"
         for start, end, msgs in chunk_sets:
@@ -330,12 +336,30 @@ def test_republish_latches_the_descriptions_and_loses_nothing_at_rate_0(recordin
         proc = subprocess.Popen([PY, str(REPLAY), str(recording), "--republish", "--rate", "0",
                                  "--topics", P.TOPIC_ACCEL, P.TOPIC_BRIDGE_DESC, "--wait-subscribers", "10"],
                                 env=dict(env), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        spinner = threading.Thread(target=ex.spin, daemon=True)  # a subscriber that takes what arrives
+        stop = threading.Event()
+
+        def spin():  # a subscriber that takes what arrives
+            while not stop.is_set():
+                ex.spin_once(timeout_sec=0.05)
+
+        spinner = threading.Thread(target=spin, daemon=True)
         spinner.start()
         try:
             out, err = proc.communicate(timeout=120)
-            time.sleep(1.0)
+            # every reliable sample was acknowledged before the replay ended: it is in this reader's
+            # history; wait (bounded) until the executor has taken it all, then until nothing more comes
+            deadline = time.monotonic() + 30.0
+            while (len(got) < len(want) or not desc) and time.monotonic() < deadline and proc.returncode == 0:
+                time.sleep(0.02)
+            stop.set()
+            spinner.join(timeout=10)
+            while True:  # one turn of 0.2 s that takes nothing: no sample is left behind a duplicate
+                n = len(got) + len(desc)
+                ex.spin_once(timeout_sec=0.2)
+                if len(got) + len(desc) == n or time.monotonic() > deadline:
+                    break
         finally:
+            stop.set()
             if proc.poll() is None:
                 proc.kill()
                 proc.wait()
@@ -352,6 +376,33 @@ def test_republish_latches_the_descriptions_and_loses_nothing_at_rate_0(recordin
     assert len(desc) == 1 and P.decode(desc[0].data)["bridge"]["span_m"] == 15.0
     stamps = [m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec for m in got]
     assert len(got) == len(want) > 2000 and stamps == sorted(stamps)
+
+
+def test_republish_writers_heartbeat_fast_unless_a_profile_is_exported(monkeypatch, tmp_path):
+    """The participant of ``--republish`` is created with a Fast DDS profile file whose writers send
+    a heartbeat every 0.1 s (the end's wait for every acknowledgement lasts one period; 3 s by
+    Fast DDS's default); the file is gone afterwards. A profile file the user exported is left as
+    it is (its heartbeat applies). The republish tests above run through the first path."""
+    import importlib
+    import xml.etree.ElementTree as ET
+
+    monkeypatch.syspath_prepend(str(ROOT / "launch_scripts"))
+    replay = importlib.import_module("replay")
+    for k in replay._PROFILE_VARS:
+        monkeypatch.delenv(k, raising=False)
+    with replay._writer_profile():
+        path = Path(os.environ["FASTRTPS_DEFAULT_PROFILES_FILE"])
+        ns = "{http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles}"
+        writer = ET.parse(path).getroot().find(f"{ns}profiles/{ns}data_writer")
+        assert writer.get("is_default_profile") == "true"
+        period = writer.find(f"{ns}times/{ns}heartbeatPeriod")
+        assert (period.find(f"{ns}sec").text, period.find(f"{ns}nanosec").text) == ("0", "100000000")
+    assert not path.exists() and "FASTRTPS_DEFAULT_PROFILES_FILE" not in os.environ
+    mine = tmp_path / "mine.xml"
+    monkeypatch.setenv("FASTDDS_DEFAULT_PROFILES_FILE", str(mine))
+    with replay._writer_profile():
+        assert "FASTRTPS_DEFAULT_PROFILES_FILE" not in os.environ
+        assert os.environ["FASTDDS_DEFAULT_PROFILES_FILE"] == str(mine)
 
 
 # ---------------------------------------------------------------- rerun's writer failing

@@ -100,9 +100,10 @@ def test_sigkill_of_replay_republish_leaves_nothing_after_the_next_start(recordi
             assert live.stdout.readline().strip() == "ready"
             _wait(lambda: any(n.startswith("fastrtps_port") for n in _files_of(victim.pid)) and
                   len(list(dds_env.SHM_LEDGER_DIR.glob(f"{victim.pid}-*.txt"))) == 1, what="replay participant")
-            time.sleep(1.0)                      # mid-run: publishing at 1/20 of simulated time
-            theirs = _files_of(victim.pid)
             kept = _own_files(live.pid)
+            # mid-run: the replay has found the live participant (it maps the live one's files)
+            _wait(lambda: _files_of(victim.pid) & kept, what="replay mapping the live participant's files")
+            theirs = _files_of(victim.pid)
             assert kept
             victim.send_signal(signal.SIGKILL)
             victim.wait(timeout=10)
@@ -110,8 +111,10 @@ def test_sigkill_of_replay_republish_leaves_nothing_after_the_next_start(recordi
             # then it is not stale yet, and its note is kept for a later clean)
             assert any(n.startswith("fastrtps_") and len(n) == 25 and os.path.exists(f"/dev/shm/{n}") for n in theirs)
             # the next start of a replay cleans what the killed one left
+            # (no subscriber: no wait for one; the clean comes first, at the start)
             r = subprocess.run([PY, str(REPLAY), str(recording), "--republish", "--rate", "0", "--topics",
-                                "/adm/midspan/accel"], env=env, capture_output=True, text=True, timeout=120)
+                                "/adm/midspan/accel", "--wait-subscribers", "0"], env=env, capture_output=True,
+                               text=True, timeout=120)
             assert r.returncode == 0, r.stderr
             assert _stale(theirs) == set()
             assert all(os.path.exists(f"/dev/shm/{n}") for n in kept)   # the live participant's files stay

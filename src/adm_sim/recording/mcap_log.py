@@ -27,7 +27,9 @@ import array
 import contextlib
 import io
 import os
+import struct
 import zlib
+from collections import Counter
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -504,10 +506,7 @@ class Scan:
         return sum(d.what.startswith("chunk") or d.what.startswith("broken") for d in self.damage)
 
     def recovered(self) -> dict:
-        counts: dict = {}
-        for _s, ch, _m in self.messages:
-            counts[ch.topic] = counts.get(ch.topic, 0) + 1
-        return counts
+        return dict(Counter(ch.topic for _s, ch, _m in self.messages))
 
     def missing(self) -> dict | None:
         """Messages per topic the statistics count and no intact chunk holds (``None`` without
@@ -586,26 +585,40 @@ def _parse_chunk(data, pos: int, end: int, check_length: bool = True, records_en
     return raw, None
 
 
+_RECORD_HEAD = struct.Struct("<BQ")  # a record's opcode and length
+_MESSAGE_HEAD = struct.Struct("<BQHIQQ")  # ... and a Message's channel id, sequence, log time, publish time
+
+
 def _inner_records(raw: bytes):
+    """The schema, channel and message records inside a decompressed chunk, in order. Messages
+    (nearly every record) are read here by the specification's layout, into mcap's own
+    ``Message``, as mcap's ``Message.read`` reads them (a record shorter than its 22-byte head is
+    damaged); schemas and channels by mcap's readers. Raises on a record cut short."""
     from mcap.data_stream import ReadDataStream  # noqa: PLC0415  mcap/rosbags only when a log is read or written
 
     from mcap.records import Channel, Message, Schema  # noqa: PLC0415  mcap/rosbags only when a log is read or written
 
-    out, q = [], 0
-    while q < len(raw):
-        if q + 9 > len(raw):
+    out: list = []
+    append, record_head, message_head = out.append, _RECORD_HEAD.unpack_from, _MESSAGE_HEAD.unpack_from
+    q, n = 0, len(raw)
+    while q < n:
+        if q + 9 > n:
             raise ValueError("record cut short inside a chunk")
-        op, length = raw[q], _u(raw, q + 1, 8)
-        if q + 9 + length > len(raw):
+        op, length = record_head(raw, q)
+        body, end = q + 9, q + 9 + length
+        if end > n:
             raise ValueError("record cut short inside a chunk")
-        stream = ReadDataStream(io.BytesIO(raw[q + 9:q + 9 + length]))
-        if op == 0x04:
-            out.append(Channel.read(stream))
-        elif op == 0x05:
-            out.append(Message.read(stream, length))
+        if op == 0x05:
+            if length < 22:
+                raise ValueError("message record shorter than its head")
+            _op, _length, channel_id, sequence, log_time, publish_time = message_head(raw, q)
+            # Message's fields in mcap's order: channel_id, log_time, data, publish_time, sequence
+            append(Message(channel_id, log_time, raw[body + 22:end], publish_time, sequence))
+        elif op == 0x04:
+            append(Channel.read(ReadDataStream(io.BytesIO(raw[body:end]))))
         elif op == 0x03:
-            out.append(Schema.read(stream))
-        q += 9 + length
+            append(Schema.read(ReadDataStream(io.BytesIO(raw[body:end]))))
+        q = end
     return out
 
 
@@ -708,7 +721,7 @@ def scan(path) -> Scan:
     and CRC, so a broken record length does not end the reading). A file cut short (a killed
     writer) is ``truncated``. Nothing is decoded.
     """
-    from mcap.records import Channel, Schema  # noqa: PLC0415  mcap/rosbags only when a log is read or written
+    from mcap.records import Channel, Message, Schema  # noqa: PLC0415  mcap/rosbags only when a log is read or written
 
     path = Path(path)
     data = path.read_bytes()
@@ -792,7 +805,11 @@ def scan(path) -> Scan:
                     why = "chunk's records are damaged"
             if why is None:
                 for rec in records:
-                    take(rec)
+                    ch = channels.get(rec.channel_id) if type(rec) is Message else None
+                    if ch is None:
+                        take(rec)  # a schema, a channel or a message on no known channel
+                    else:  # a message (nearly every record), as take() files it
+                        result.messages.append((schemas.get(ch.schema_id), ch, rec))
                 pos = verified = inner_end
                 continue
             if why == "broken record framing":

@@ -134,13 +134,19 @@ def wait_for_port(port: int, timeout_s: float) -> bool:
 _VIEWERS: list[subprocess.Popen] = []
 
 
+#: Seconds a spawned viewer must stay alive after its first answer (:func:`spawn_viewer`): on a
+#: machine without a display the rerun viewer listens and answers, then exits.
+SPAWN_SETTLE_S = 1.5
+
+
 def spawn_viewer(port: int | None = None, memory_limit: str = "25%", timeout_s: float = 20.0,
-                 settle_s: float = 1.5, what: str = "spawn") -> tuple[subprocess.Popen, str]:
+                 settle_s: float | None = None, what: str = "spawn") -> tuple[subprocess.Popen, str]:
     """Start a native rerun viewer bound to 127.0.0.1, check it; return the process and its proxy URL.
 
     ``rr.spawn`` cannot choose the bind address (the viewer would listen on 0.0.0.0), hence this.
     The viewer must listen within ``timeout_s``, answer the handshake of :func:`handshake` and be
-    alive ``settle_s`` later (on a machine without a display it listens, then exits at once);
+    alive ``settle_s`` (default :data:`SPAWN_SETTLE_S`) later (on a machine without a display it
+    listens, then exits at once);
     otherwise :class:`RunError`, one line with the viewer's own last word (its log goes to a
     temporary file). The viewer runs in its own session (it outlives this process); the
     process object is held until exit. Interrupted while it is checked (Ctrl-C, SIGTERM), the
@@ -183,7 +189,7 @@ def spawn_viewer(port: int | None = None, memory_limit: str = "25%", timeout_s: 
             handshake(url, what=what)
         except RunError:
             raise died("does not answer") from None
-        t_end = time.monotonic() + settle_s
+        t_end = time.monotonic() + (SPAWN_SETTLE_S if settle_s is None else settle_s)
         while time.monotonic() < t_end:
             if proc.poll() is not None:
                 raise died("exited at once")
