@@ -708,12 +708,13 @@ def _in_process(case, argv):
 
 def _patched_argv(argv, patches):
     """A process that applies ``patches`` and then runs the entry point of ``argv`` (``python -c``)."""
+    import inspect
+
     module, args = _entry_of(argv)
     code = ("import sys\n"
             f"sys.path.insert(0, {str(ROOT / 'launch_scripts')!r})\n"
-            f"sys.path.insert(0, {str(ROOT / 'tests')!r})\n"
-            "from test_hostile_inputs import _apply\n"
-            f"for patch in {patches!r}:\n"
+            + inspect.getsource(_failing_writer) + inspect.getsource(_apply)
+            + f"for patch in {patches!r}:\n"
             "    _apply(patch, setattr)\n"
             f"from {module} import main\n"
             "sys.exit(main(sys.argv[1:]))\n")
