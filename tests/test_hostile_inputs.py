@@ -1,8 +1,10 @@
 """Hostile and borderline inputs at every entry point, table-driven (issue 17).
 
-Every case runs one entry point as a user would (a subprocess: ``adm-sim``, ``adm-calib``,
-``replay.py``, ``crossing.py``, ``calibrate.py``, a node started by hand) in a fresh folder, and
-asserts the properties every refusal must have, whatever the class:
+Every case runs one entry point as a user would (``adm-sim``, ``adm-calib``, ``replay.py``,
+``crossing.py``, ``calibrate.py``, a node started by hand) in a fresh folder: a process of its own
+for nodes, signals, cases that set the environment and at least one plain case per entry point;
+the other refusals call the entry point's ``main(argv)`` in this process (:func:`_in_process`).
+It asserts the properties every refusal must have, whatever the class:
 
 * the exit code (2 for bad input, 130 for an interrupt);
 * no ``Traceback`` on stderr, and stderr is exactly one line ``error: ...`` holding the expected
@@ -10,7 +12,7 @@ asserts the properties every refusal must have, whatever the class:
 * the folder is unchanged: every file (inputs included) has the same name, size and content, no
   run folder, temporary file or lock file is left;
 * no process is left: each case's processes carry a marker in their environment, and none may
-  be alive once the entry point has exited.
+  be alive once the entry point has exited (in this process: no new child is alive).
 
 The classes (column ``cls``) are those of issue 17; ``python tests/test_hostile_inputs.py``
 prints the table of classes and counts that ``docs/bad_input.md`` holds.
