@@ -834,8 +834,9 @@ SIGNAL_ENTRIES = [
     # place of 21 (200:300:5) take the same steps at less CPU a step
     SignalCase("crossing.py", lambda t: CROSS + ["--out", f"{t}/run", "--speeds", "200:210:5"], "step", ros=True,
                settle_s=0.0),
+    # the calibration node's first line: the graph is up and the calibration under way, signalled at once
     SignalCase("calibrate.py", lambda t: CALIB + ["--out", f"{t}/run", "--bridge", "B3", "--speeds", "240:300:2",
-                                                  "--no-rrd", "--quiet"], "calibrating", ros=True),
+                                                  "--no-rrd", "--quiet"], "calibrating", ros=True, settle_s=0.0),
     SignalCase("adm-calib-table4", lambda t: CAL + ["table4", "--out", f"{t}/t4", "--steps-per-period", "64",
                                                     "--refine-speed", "--dense-maxima"], None),
 ]
