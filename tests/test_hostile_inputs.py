@@ -754,8 +754,9 @@ class Result:
     stderr: str
 
 
-def _run_in_process(case, argv, t, monkeypatch, capsys):
-    """The entry point's ``main(argv)`` in this process, in folder ``t``, as its process would call it."""
+def _run_in_process(case, argv, t, monkeypatch, capfd):
+    """The entry point's ``main(argv)`` in this process, in folder ``t``, as its process would call it
+    (stdout and stderr read at the file descriptors: a line written past ``sys.stderr`` counts too)."""
     import importlib
 
     module, args = _entry_of(argv)
@@ -764,17 +765,17 @@ def _run_in_process(case, argv, t, monkeypatch, capsys):
         _apply(patch, monkeypatch.setattr)
     main = importlib.import_module(module).main
     monkeypatch.chdir(t)
-    capsys.readouterr()
+    capfd.readouterr()
     try:
         code = main(args)
     except SystemExit as exc:
         code = exc.code
-    out, err = capsys.readouterr()
+    out, err = capfd.readouterr()
     return Result(code, out, err)
 
 
 @pytest.mark.parametrize("case", CASES, ids=[f"{c.cls}:{c.ident}" for c in CASES])
-def test_refused_cleanly(case, tmp_path, ros_env, monkeypatch, capsys, signal_handlers):
+def test_refused_cleanly(case, tmp_path, ros_env, monkeypatch, capfd, signal_handlers):
     """The case's refusal: in its own process, or (:func:`_in_process`) by its entry point's ``main``
     in this one (then "no process left" means no child of this process is left)."""
     t = tmp_path / "case"
@@ -787,7 +788,7 @@ def test_refused_cleanly(case, tmp_path, ros_env, monkeypatch, capsys, signal_ha
         before = snapshot(t)
         if _in_process(case, argv):
             kids = set(_children())
-            r = _run_in_process(case, argv, t, monkeypatch, capsys)
+            r = _run_in_process(case, argv, t, monkeypatch, capfd)
             left = sorted(set(_children()) - kids)
         else:
             marker = uuid.uuid4().hex

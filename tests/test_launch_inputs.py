@@ -12,22 +12,22 @@ SCRIPTS = Path(__file__).resolve().parents[1] / "launch_scripts"
 
 
 @pytest.fixture
-def launcher(monkeypatch, capsys):
-    """``run(script, argv) -> (exit code, stdout, stderr)``: the launch script's ``main(argv)`` in this
-    process (the script's process: test_refuses_to_overwrite_an_earlier_run below), the SIGINT and
-    SIGTERM handlers its runner sets on the way out (:class:`adm_sim.cliutil.interrupt_signals`)
-    put back after the test."""
+def launcher(monkeypatch, capfd):
+    """``run(script, argv) -> (exit code, stdout, stderr)``, read at the file descriptors: the launch
+    script's ``main(argv)`` in this process (the script's process: test_refuses_to_overwrite_an_earlier_run
+    below); the SIGINT and SIGTERM handlers its runner sets on the way out
+    (:class:`adm_sim.cliutil.interrupt_signals`) put back after the test."""
     old = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
     monkeypatch.syspath_prepend(str(SCRIPTS))
 
     def run(script, argv):
         main = importlib.import_module(Path(script).stem).main
-        capsys.readouterr()
+        capfd.readouterr()
         try:
             code = main(argv)
         except SystemExit as exc:
             code = exc.code
-        out, err = capsys.readouterr()
+        out, err = capfd.readouterr()
         return code, out, err
 
     yield run
