@@ -3,8 +3,10 @@
 import csv
 import json
 import re
+import signal
 import subprocess
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
@@ -16,8 +18,38 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def run_cli(*args, cwd=None):
+    """The command in its own process (test_bad_input_exit_code_of_the_process)."""
     return subprocess.run([sys.executable, "-m", "adm_calib.calib_commands", *args], capture_output=True, text=True,
                           cwd=cwd, timeout=300)
+
+
+@dataclass
+class Done:
+    returncode: int
+    stdout: str
+    stderr: str
+
+
+@pytest.fixture
+def call(capsys):
+    """``call(*args)``: the command's ``main`` in this process, as the console script calls it (exit
+    code, stdout, stderr); the process itself: test_bad_input_exit_code_of_the_process."""
+    def call(*args):
+        capsys.readouterr()
+        code = main(list(args))
+        out, err = capsys.readouterr()
+        return Done(code, out, err)
+    return call
+
+
+@pytest.fixture(autouse=True)
+def signal_handlers():
+    """SIGINT and SIGTERM handlers as they were: ``run_cli`` in this process sets its own on the way
+    out (:class:`adm_sim.cliutil.interrupt_signals`)."""
+    old = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    yield
+    for s, h in old.items():
+        signal.signal(s, h)
 
 
 def png_size(path):
@@ -27,12 +59,12 @@ def png_size(path):
     return int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big")
 
 
-def test_calibrate_writes_json_and_plot_readme_headline(tmp_path):
+def test_calibrate_writes_json_and_plot_readme_headline(tmp_path, call):
     """The README's headline numbers (the main job's case, B1 x ICE-2, default speeds 160:350:1 km/h):
     MLM peak 2.2465 m/s² at 263 km/h, DIM peak 1.8108 m/s² at 262 km/h, dz_VBI 0.553 %, each to the
     last printed digit (half a unit: 5e-5 m/s², 5e-4 %)."""
     js, png = tmp_path / "b1.json", tmp_path / "b1.png"
-    p = run_cli("calibrate", "--bridge", "B1", "--train", "ice2", "--json", str(js), "--plot", str(png))
+    p = call("calibrate", "--bridge", "B1", "--train", "ice2", "--json", str(js), "--plot", str(png))
     assert p.returncode == 0, p.stderr
     assert "dz_VBI         0.553 %" in p.stdout and "MLM peak       2.2465 m/s^2 at 263 km/h" in p.stdout
     d = json.loads(js.read_text())
@@ -50,13 +82,13 @@ def test_calibrate_writes_json_and_plot_readme_headline(tmp_path):
     assert d["delta_zeta_eada_pct"] == pytest.approx(0.1010, abs=5e-5)
     assert png_size(png) == (960, 540)  # 8 x 4.5 in at 120 dpi (plots.plot_calibration)
     # never overwrite silently
-    p2 = run_cli("calibrate", "--bridge", "B1", "--train", "ICE-2", "--json", str(js))
+    p2 = call("calibrate", "--bridge", "B1", "--train", "ICE-2", "--json", str(js))
     assert p2.returncode == 2
     assert p2.stderr.strip().splitlines() == [f"error: --json: '{js}' exists; use --overwrite to replace it"]
 
 
-def test_table4_subset_eurostar_has_no_eada(tmp_path):
-    p = run_cli("table4", "--out", str(tmp_path), "--bridges", "B3", "--trains", "Eurostar", "--speeds", "250:300:1")
+def test_table4_subset_eurostar_has_no_eada(tmp_path, call):
+    p = call("table4", "--out", str(tmp_path), "--bridges", "B3", "--trains", "Eurostar", "--speeds", "250:300:1")
     assert p.returncode == 0, p.stderr
     rows = list(csv.reader((tmp_path / "table4.csv").open()))
     assert rows[0] == ["approach", "Eurostar B3"]

@@ -1,8 +1,10 @@
 """The adm-sim command line: outputs, JSON keys and one-line errors with exit code 2."""
 
 import json
+import signal
 import subprocess
 import sys
+from dataclasses import dataclass
 
 import pytest
 
@@ -12,16 +14,46 @@ CLI = [sys.executable, "-m", "adm_sim.sim_commands"]
 
 
 def run(*args):
+    """The command in its own process (test_bad_input_exit_code_of_the_process)."""
     return subprocess.run(CLI + list(args), capture_output=True, text=True, timeout=300)
 
 
-def test_sweep_json_and_plot(tmp_path):
+@dataclass
+class Done:
+    returncode: int
+    stdout: str
+    stderr: str
+
+
+@pytest.fixture
+def call(capsys):
+    """``call(*args)``: the command's ``main`` in this process, as the console script calls it (exit
+    code, stdout, stderr); the process itself: test_bad_input_exit_code_of_the_process."""
+    def call(*args):
+        capsys.readouterr()
+        code = main(list(args))
+        out, err = capsys.readouterr()
+        return Done(code, out, err)
+    return call
+
+
+@pytest.fixture(autouse=True)
+def signal_handlers():
+    """SIGINT and SIGTERM handlers as they were: ``run_cli`` in this process sets its own on the way
+    out (:class:`adm_sim.cliutil.interrupt_signals`)."""
+    old = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    yield
+    for s, h in old.items():
+        signal.signal(s, h)
+
+
+def test_sweep_json_and_plot(tmp_path, call):
     js, png = tmp_path / "s.json", tmp_path / "s.png"
     # default speeds 160:350:1 km/h; the MLM sweep is the exact envelope (adm_sim.envelope), so its
     # peak is the true maximum at 263 km/h, which tests/test_envelope.py checks against the closed
     # form of every axle (2.24716 m/s²); the RK4 run (--method rk4, 16 steps per period) samples it
     # at its steps and sits just below (the README's 2.2465 m/s²)
-    r = run("sweep", "--bridge", "B1", "--train", "ICE-2", "--model", "mlm", "--json", str(js), "--plot", str(png))
+    r = call("sweep", "--bridge", "B1", "--train", "ICE-2", "--model", "mlm", "--json", str(js), "--plot", str(png))
     assert r.returncode == 0, r.stderr
     assert "peak:" in r.stdout and "exact envelope" in r.stdout
     assert "damping per mode (rayleigh): zeta_1 = 1.85 %, zeta_2 = 1.156 %, zeta_3 = 1.85 %" in r.stdout
@@ -31,7 +63,7 @@ def test_sweep_json_and_plot(tmp_path):
     pk = d["peak"]
     assert pk["speed_kmh"] == 263.0 and pk["acc_m_s2"] == pytest.approx(2.24716, abs=5e-6)
     rk = tmp_path / "rk4.json"
-    r = run("sweep", "--bridge", "B1", "--train", "ICE-2", "--model", "mlm", "--method", "rk4", "--json", str(rk))
+    r = call("sweep", "--bridge", "B1", "--train", "ICE-2", "--model", "mlm", "--method", "rk4", "--json", str(rk))
     d4 = json.loads(rk.read_text())
     assert d4["method"] == "rk4" and d4["peak"]["acc_m_s2"] == pytest.approx(2.2465, abs=5e-5)
     assert d4["peak"]["acc_m_s2"] < pk["acc_m_s2"]
@@ -41,10 +73,10 @@ def test_sweep_json_and_plot(tmp_path):
     assert data[:8] == b"\x89PNG\r\n\x1a\n" and (int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big")) == (840, 480)
 
 
-def test_sweep_reports_missing_interior_peak(tmp_path):
+def test_sweep_reports_missing_interior_peak(tmp_path, call):
     js = tmp_path / "s.json"
     # 250..260 km/h climbs towards the 263 km/h resonance of B1 x ICE-2: no interior maximum
-    r = run("sweep", "--bridge", "B1", "--speeds", "250:260:2", "--json", str(js))
+    r = call("sweep", "--bridge", "B1", "--speeds", "250:260:2", "--json", str(js))
     assert r.returncode == 0
     d = json.loads(js.read_text())
     assert d["peak"] is None
@@ -90,8 +122,8 @@ def test_bad_input_exit_code_of_the_process(args, match):
     assert "Traceback" not in r.stderr and r.stdout == ""
 
 
-def test_trains_check_prints_the_checks():
-    r = run("trains", "--check")
+def test_trains_check_prints_the_checks(call):
+    r = call("trains", "--check")
     assert r.returncode == 0
     assert "n_p PC 2-8 (Eq. 1)" in r.stdout and "MISMATCH" in r.stdout  # Eurostar-table
     assert r.stdout.count("ok ") >= 12

@@ -175,7 +175,14 @@ def _wait_until_running(p, entry, out, timeout_s=120.0):
         time.sleep(0.005)
 
 
-@pytest.mark.parametrize("entry", ENTRIES, ids=[e.name for e in ENTRIES])
+#: SIGTERM mid-run of ``crossing.py`` (a launch of four processes, ~5 s of CPU) is
+#: tests/test_hostile_inputs.py::test_interrupted_cleanly[signals:crossing.py-SIGTERM], with these
+#: checks and more (the folder unchanged, no process left); here ``calibrate.py`` stands for the
+#: launchers at the moment the graph has started (both run through ``launch_scripts/_supervisor.py``).
+SIGTERM_ENTRIES = [e for e in ENTRIES if e.name != "crossing.py"]
+
+
+@pytest.mark.parametrize("entry", SIGTERM_ENTRIES, ids=[e.name for e in SIGTERM_ENTRIES])
 def test_sigterm_mid_run_is_one_line_and_exit_130(entry, folder, ros_env):
     t, out = folder, folder / "out"
     if entry.setup is not None:

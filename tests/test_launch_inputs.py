@@ -1,5 +1,7 @@
 """launch_scripts/calibrate.py refuses bad input before starting any process (exit 2, one line)."""
 
+import importlib
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -9,6 +11,30 @@ import pytest
 SCRIPTS = Path(__file__).resolve().parents[1] / "launch_scripts"
 
 
+@pytest.fixture
+def launcher(monkeypatch, capfd):
+    """``run(script, argv) -> (exit code, stdout, stderr)``, read at the file descriptors: the launch
+    script's ``main(argv)`` in this process (the script's process: test_refuses_to_overwrite_an_earlier_run
+    below); the SIGINT and SIGTERM handlers its runner sets on the way out
+    (:class:`adm_sim.cliutil.interrupt_signals`) put back after the test."""
+    old = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    monkeypatch.syspath_prepend(str(SCRIPTS))
+
+    def run(script, argv):
+        main = importlib.import_module(Path(script).stem).main
+        capfd.readouterr()
+        try:
+            code = main(argv)
+        except SystemExit as exc:
+            code = exc.code
+        out, err = capfd.readouterr()
+        return code, out, err
+
+    yield run
+    for s, h in old.items():
+        signal.signal(s, h)
+
+
 @pytest.mark.parametrize("script", ["calibrate.py", "crossing.py"])
 @pytest.mark.parametrize("args,match", [
     (["--train", "TGV"], "train: 'TGV' is unknown; allowed ICE-2"),
@@ -16,13 +42,14 @@ SCRIPTS = Path(__file__).resolve().parents[1] / "launch_scripts"
     (["--speeds", "100:50"], "needs start <= stop"),
     (["--params-file", "nope.yaml"], "--params-file: 'nope.yaml' does not exist"),
 ])
-def test_bad_input_exit_2(script, args, match, tmp_path):
-    r = subprocess.run([sys.executable, str(SCRIPTS / script), "--out", str(tmp_path / "o")] + args,
-                       capture_output=True, text=True, timeout=60)
-    assert r.returncode == 2
-    lines = r.stderr.strip().splitlines()
-    assert len(lines) == 1 and match in lines[0], r.stderr
-    assert "ROS_DOMAIN_ID" not in r.stdout  # nothing was started
+def test_bad_input_exit_2(script, args, match, tmp_path, launcher):
+    code, out, err = launcher(script, ["--out", str(tmp_path / "o")] + args)
+    assert code == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and match in lines[0], err
+    assert "Traceback" not in err
+    assert "ROS_DOMAIN_ID" not in out  # nothing was started
+    assert list(tmp_path.iterdir()) == []  # no output folder
 
 
 @pytest.mark.parametrize("script", ["calibrate.py", "crossing.py"])
@@ -47,19 +74,14 @@ def test_node_rejects_a_wrongly_typed_startup_parameter():
     assert "expected a str (km/h)" in r.stderr
 
 
-def test_calibrate_dim_grid_reaches_the_calibration_node(tmp_path):
+def test_calibrate_dim_grid_reaches_the_calibration_node(tmp_path, launcher):
     """``--dim-grid`` sets the calibration node's ``dim_grid`` (default: the params file's, window);
     a value not in the registry is refused before anything starts."""
-    r = subprocess.run([sys.executable, str(SCRIPTS / "calibrate.py"), "--out", str(tmp_path / "o"), "--dim-grid",
-                        "coarse"], capture_output=True, text=True, timeout=60)
-    assert r.returncode == 2 and "ROS_DOMAIN_ID" not in r.stdout
-    lines = r.stderr.strip().splitlines()
+    code, out, err = launcher("calibrate.py", ["--out", str(tmp_path / "o"), "--dim-grid", "coarse"])
+    assert code == 2 and "ROS_DOMAIN_ID" not in out
+    lines = err.strip().splitlines()
     assert len(lines) == 1 and "--dim-grid" in lines[0] and "'coarse'" in lines[0] and "window" in lines[0]
-    sys.path.insert(0, str(SCRIPTS))
-    try:
-        import calibrate
-    finally:
-        sys.path.remove(str(SCRIPTS))
+    import calibrate  # on sys.path while the launcher fixture is
     for given, expected in ((["--dim-grid", "paper"], "paper"), ([], None)):
         _, _, cal = calibrate.node_params(calibrate.parse_args(given), tmp_path)
         assert cal.get("dim_grid") == expected

@@ -2,6 +2,8 @@
 and a node started by hand with a bad parameter prints one line and exits 2 (never a traceback).
 """
 
+import importlib
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -41,30 +43,58 @@ SCRIPTS = ROOT / "launch_scripts"
     ("/**:\n  ros__parameters:\n    partner_timeout_s: 0.1\n",
      "/**: partner_timeout_s: 0.1 s is out of range; allowed [0.5, 600] s"),
 ])
-def test_launch_checks_params_file_before_start(yaml_text, line, tmp_path):
-    check_launch("calibrate.py", yaml_text, line, tmp_path)
+def test_launch_checks_params_file_before_start(yaml_text, line, tmp_path, launcher):
+    check_launch("calibrate.py", yaml_text, line, tmp_path, launcher)
 
 
 def test_crossing_checks_params_file_too(tmp_path):
+    """The launch script's own process (the cases above call ``calibrate.py``'s ``main`` in this one)."""
+    def process(script, argv):
+        r = subprocess.run([sys.executable, str(SCRIPTS / script)] + argv, capture_output=True, text=True, timeout=60)
+        return r.returncode, r.stdout, r.stderr
+
     check_launch("crossing.py", "bridge:\n  ros__parameters:\n    span_m: -5.0\n",
-                 "bridge: span_m: -5 m is out of range; allowed [1, 150] m", tmp_path)
+                 "bridge: span_m: -5 m is out of range; allowed [1, 150] m", tmp_path, process)
 
 
-def check_launch(script, yaml_text, line, tmp_path):
+@pytest.fixture
+def launcher(monkeypatch, capfd):
+    """``run(script, argv) -> (exit code, stdout, stderr)``, read at the file descriptors: the launch
+    script's ``main(argv)`` in this process; the SIGINT and SIGTERM handlers its runner sets on the
+    way out (:class:`adm_sim.cliutil.interrupt_signals`) put back after the test."""
+    old = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    monkeypatch.syspath_prepend(str(SCRIPTS))
+
+    def run(script, argv):
+        main = importlib.import_module(Path(script).stem).main
+        capfd.readouterr()
+        try:
+            code = main(argv)
+        except SystemExit as exc:
+            code = exc.code
+        out, err = capfd.readouterr()
+        return code, out, err
+
+    yield run
+    for s, h in old.items():
+        signal.signal(s, h)
+
+
+def check_launch(script, yaml_text, line, tmp_path, run):
     params = tmp_path / "case.yaml"
     params.write_text(yaml_text)
-    r = subprocess.run([sys.executable, str(SCRIPTS / script), "--out", str(tmp_path / "o"), "--params-file",
-                        str(params)], capture_output=True, text=True, timeout=60)
-    assert r.returncode == 2, r.stderr
-    lines = r.stderr.splitlines()
-    assert len(lines) == 1, r.stderr
+    code, out, err = run(script, ["--out", str(tmp_path / "o"), "--params-file", str(params)])
+    assert code == 2, err
+    assert "Traceback" not in err
+    lines = err.splitlines()
+    assert len(lines) == 1, err
     head = f"error: --params-file {str(params)!r}: "
     if "not valid YAML" in line:
         assert lines[0].startswith(head + line)
     else:
         assert lines[0] == head + line
-    assert "ROS_DOMAIN_ID" not in r.stdout  # nothing was started
-    assert not (tmp_path / "o" / "logs").exists()
+    assert "ROS_DOMAIN_ID" not in out  # nothing was started
+    assert not (tmp_path / "o").exists()
 
 
 def test_shipped_params_files_pass_the_check():
@@ -108,7 +138,6 @@ def test_node_warns_in_one_line_and_runs_on(tmp_path):
     """A bridge node started with an implausible but allowed bridge (a damping typed as a fraction
     into the % key, docs/plausibility.md) prints the CLIs' one-line warning with its name, as its
     errors (``error: bridge: ...``), never Python's ``file:line: Category:`` + source line; and it runs on."""
-    import signal
     import time
 
     doc = (ROOT / "docs" / "plausibility.md").read_text().splitlines()
