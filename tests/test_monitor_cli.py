@@ -86,8 +86,8 @@ def _wait_line(lines, seen, words, timeout_s):
 
 @pytest.fixture(scope="module")
 def crossing_run(tmp_path_factory):
-    """One crossing on a domain of its own, monitored live: ``monitor.py --passages 1`` subscribes,
-    the bridge and train node processes start, and once the monitor has found the bridge's
+    """One crossing on a domain of its own, monitored live: ``monitor.py --passages 1`` and the bridge
+    and train node processes start, and once the monitor has subscribed and found the bridge's
     acceleration publisher the driver node process runs the crossing (it records ``run.mcap`` and
     writes ``summary.json``, as under ``crossing.py``). The run starts after the monitor matched,
     so the live monitor is owed every sample. Returns the run folder and what the monitor did;
@@ -107,9 +107,9 @@ def crossing_run(tmp_path_factory):
     lines = queue.Queue()
     threading.Thread(target=_read_lines, args=(mon.stdout, lines), daemon=True).start()
     try:
-        live["subscribed"] = _wait_line(lines, live["lines"], "subscribed to /adm/midspan/accel", 120)
-        procs.start("bridge", "adm_sim.nodes.bridge_node", BRIDGE)
+        procs.start("bridge", "adm_sim.nodes.bridge_node", BRIDGE)  # no run before the driver starts
         procs.start("train", "adm_sim.nodes.train_node", TRAIN)
+        live["subscribed"] = _wait_line(lines, live["lines"], "subscribed to /adm/midspan/accel", 120)
         live["found"] = _wait_line(lines, live["lines"], "publisher(s) found", 120)
         driver = procs.start("driver", "adm_sim.nodes.driver",
                              {"record_path": str(run / "run.mcap"), "summary_path": str(run / "summary.json")})
