@@ -16,7 +16,10 @@ the fit null and the reason given when a passage's free decay cannot identify da
 
 Live: the monitor node (:class:`adm_sim.nodes.monitor_node.MonitorNode`) runs in this process on
 ``--domain-id`` (or an exported ``ROS_DOMAIN_ID``), shared memory only, until ``--passages`` passages
-were reported or ``--duration`` seconds passed; the JSON is rewritten after each passage. Ctrl-C
+were reported or ``--duration`` seconds passed; the JSON is rewritten after each passage. It prints
+one line once subscribed and one when the topic's publishers are found: a run started after that
+line is monitored from its first sample (the subscription is volatile: what was published before
+it matched is not delivered). Ctrl-C
 or SIGTERM: ``error: interrupted``, exit 130; the JSON then holds the passages completed before.
 
 Bad input, one line ``error: ...`` and exit 2, nothing written: an option out of range, a domain
@@ -188,8 +191,13 @@ def monitor_live(args, on_passage):
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(node)
         t_end = None if args.duration is None else time.monotonic() + args.duration
+        found = False
         while context.ok():
             executor.spin_once(timeout_sec=0.1)
+            if node.seen and not found:  # the topic's publishers are on the graph: samples from now on
+                found = True
+                print(f"{node.topic}: {node.count_publishers(node.topic)} publisher(s) found"
+                      + (", subscribed best effort" if node.best_effort else ""), flush=True)
             if args.passages is not None and len(node.tracker.passages) >= args.passages:
                 break
             if t_end is not None and time.monotonic() >= t_end:

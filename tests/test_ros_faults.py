@@ -228,26 +228,25 @@ def _alive(pid):
 
 
 @pytest.mark.parametrize("script,args,n_kids", [
-    ("crossing.py", ["--model", "dim", "--speeds", "200:300:5", "--separate-nodes"], 3),  # bridge, train, driver
-    ("calibrate.py", ["--bridge", "B3", "--speeds", "240:300:2", "--no-rrd", "--quiet"], 2),  # bridge + train composed
+    # bridge, train and driver as three processes (--separate-nodes); calibrate.py composes the pair
+    ("crossing.py", ["--model", "dim", "--speeds", "200:300:5", "--separate-nodes"], (3,)),
+    ("calibrate.py", ["--bridge", "B3", "--speeds", "240:300:2", "--no-rrd", "--quiet"], (2,)),  # bridge + train composed
 ])
 def test_launcher_killed_with_sigkill_takes_every_node_with_it(script, args, n_kids, tmp_path, ros_domain):
     """SIGKILL of the launcher mid-run: every node it started ends within 5 s (PR_SET_PDEATHSIG ->
-    SIGTERM, a clean rclpy shutdown) and removes its own Fast DDS segments from /dev/shm."""
+    SIGTERM, a clean rclpy shutdown) and removes its own Fast DDS segments from /dev/shm. The node
+    processes are counted once the run is under way (the driver, started last, reports it)."""
     p = subprocess.Popen([sys.executable, str(ROOT / "launch_scripts" / script), "--out", str(tmp_path / "o"),
                           "--domain-id", str(ros_domain.domain_id)] + args,
                          env=dict(ros_domain), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
     kids = []
     try:
-        t_end = time.monotonic() + 60
-        while len(kids) < n_kids and time.monotonic() < t_end:
-            kids = _children(p.pid)
-            time.sleep(0.1)
-        assert len(kids) == n_kids, p.stderr.read() if p.poll() is not None else kids
         line = ""
         while not ("step" in line or line.startswith("calibrating")):  # mid-run: the nodes exchange
             line = p.stdout.readline()
             assert line, p.stderr.read()
+        kids = _children(p.pid)
+        assert len(kids) in n_kids, kids
         segments = {k: _own_shm_segments(k) for k in kids}
         assert all(segments.values()), segments  # each node holds segments of its own
         os.kill(p.pid, signal.SIGKILL)
@@ -305,9 +304,11 @@ def test_death_signal_survives_the_ros_bootstrap_reexec(tmp_path):
 
 
 def test_overwrite_keeps_the_earlier_run_until_the_new_one_is_complete(tmp_path, ros_domain):
-    """crossing.py --overwrite into a folder with a finished run: SIGTERM mid-run leaves the earlier
-    files byte for byte (the driver wrote beside them and renames only at a successful end); a
-    complete run then replaces all three."""
+    """crossing.py --overwrite into a folder with the outputs of an earlier run: SIGTERM mid-run leaves
+    the earlier files byte for byte (the driver wrote beside them and renames only at a successful
+    end); a complete run then replaces all three. The earlier outputs are written by the test
+    (a launch whose only use was to produce them cost 4.5 s of CPU): the launcher and the driver
+    take files of those names as an earlier run's whatever they hold."""
     import hashlib
 
     from adm_sim.recording.mcap_log import read_messages
@@ -315,7 +316,7 @@ def test_overwrite_keeps_the_earlier_run_until_the_new_one_is_complete(tmp_path,
     out = tmp_path / "o"
     cmd = [sys.executable, str(ROOT / "launch_scripts" / "crossing.py"), "--out", str(out),
            "--domain-id", str(ros_domain.domain_id)]
-    params = tmp_path / "coarse.yaml"  # the complete runs: 4 steps per period, one period of free vibration
+    params = tmp_path / "coarse.yaml"  # the complete run: 4 steps per period, one period of free vibration
     params.write_text("bridge:\n  ros__parameters:\n    steps_per_period: 4.0\n    free_vibration_periods: 1.0\n")
     coarse = ["--params-file", str(params)]
     env = dict(ros_domain)
@@ -323,9 +324,9 @@ def test_overwrite_keeps_the_earlier_run_until_the_new_one_is_complete(tmp_path,
     def digests():
         return {f: hashlib.sha256((out / f).read_bytes()).hexdigest() for f in ("run.mcap", "run.rrd", "summary.json")}
 
-    r = subprocess.run(cmd + coarse + ["--model", "mlm", "--speeds", "200:300:10"], env=env, capture_output=True, text=True,
-                       timeout=120, cwd=ROOT)
-    assert r.returncode == 0, r.stderr
+    out.mkdir()  # the earlier run's three outputs (their bytes, not their contents, are under test)
+    for f in ("run.mcap", "run.rrd", "summary.json"):
+        (out / f).write_bytes(f"an earlier run's {f}\n".encode())
     first = digests()
     p = subprocess.Popen(cmd + ["--model", "dim", "--speeds", "200:300:5", "--overwrite"], env=env,
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
