@@ -1,8 +1,10 @@
 """Commands start fast: each command imports only the heavy modules its work uses.
 
-Every case runs in a fresh interpreter (a subprocess: ``sys.modules`` starts empty), imports a
-command module and, for a subcommand, runs it on a small case; then it lists which of
-:data:`HEAVY` were imported. The test asserts which are absent (and, for the numerical paths,
+Every case runs in a fresh process that has imported nothing of the project and none of
+:data:`HEAVY` (a child forked from :data:`FORK_SERVER`, an interpreter that started as a probe's
+own would and imported only the standard library and numpy, which every command imports first;
+it checks that of itself before serving), imports a command module and, for a subcommand, runs it
+on a small case; then it lists which of :data:`HEAVY` were imported. The test asserts which are absent (and, for the numerical paths,
 that the one they need is present, so the probe can fail both ways), not a time: times are in
 ``bench/bench_cli.py`` and docs/benchmarks.md. What each heavy module costs at the start of a
 process on the 2-core machine (``python -X importtime``, quiet): scipy.signal ~1 s (it pulls
@@ -19,8 +21,11 @@ from __future__ import annotations
 
 import json
 import os
+import select
+import signal
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -46,12 +51,118 @@ print(json.dumps({"rc": rc, "loaded": [h for h in json.loads(sys.argv[3]) if h i
 """
 
 
+#: Serves probes: for each request line (code, argv, environment, working directory, output files)
+#: a child is forked that runs the code as ``python -c code *argv`` would, as ``__main__``, and its
+#: exit code is answered. The server itself imports the standard library and numpy only and
+#: refuses to serve if any heavy module or any module of the project is loaded: a child starts as
+#: a fresh probe interpreter would, less ~0.2 s of CPU (start-up and numpy) each.
+FORK_SERVER = """
+import json, os, sys, traceback, types
+import numpy
+bad = [m for m in sys.modules if m in json.loads(sys.argv[1]) or m.split('.')[0] in ('adm_sim', 'adm_calib')]
+print(json.dumps(bad), flush=True)
+for line in sys.stdin:
+    req = json.loads(line)
+    pid = os.fork()
+    if pid == 0:
+        code = 1
+        try:
+            os.dup2(os.open(os.devnull, os.O_RDONLY), 0)
+            os.dup2(os.open(req["stdout"], os.O_WRONLY | os.O_CREAT | os.O_TRUNC), 1)
+            os.dup2(os.open(req["stderr"], os.O_WRONLY | os.O_CREAT | os.O_TRUNC), 2)
+            os.environ.clear()
+            os.environ.update(req["env"])
+            os.chdir(req["cwd"])
+            sys.argv = ["-c", *req["argv"]]
+            main = types.ModuleType("__main__")
+            sys.modules["__main__"] = main
+            exec(compile(req["code"], "<string>", "exec"), main.__dict__)
+            code = 0
+        except SystemExit as exc:
+            code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+        except BaseException:
+            traceback.print_exc()
+        finally:  # the end of an interpreter: non-daemon threads joined, atexit handlers run
+            try:
+                if "threading" in sys.modules:
+                    sys.modules["threading"]._shutdown()
+                import atexit
+                atexit._run_exitfuncs()
+                sys.stdout.flush()
+                sys.stderr.flush()
+            finally:
+                os._exit(code)
+    print(json.dumps(os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1])), flush=True)
+"""
+
+_server = None
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _stop_fork_server():
+    yield
+    global _server
+    if _server is not None:
+        _server.stdin.close()
+        try:
+            _server.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            os.killpg(_server.pid, signal.SIGKILL)
+            _server.wait(timeout=10)
+        _server = None
+
+
+def _answer(timeout):
+    ready, _, _ = select.select([_server.stdout], [], [], timeout)
+    if not ready:
+        os.killpg(_server.pid, signal.SIGKILL)   # the server and a probe still running
+        pytest.fail(f"no answer from the probe server within {timeout} s")
+    return json.loads(_server.stdout.readline())
+
+
+def probe(code, *argv, env, cwd=None, timeout=600):
+    """``python -c code *argv`` with ``env`` (its PYTHONPATH must be this checkout's src) in a
+    forked child of the probe server: ``CompletedProcess`` with the exit code and the output."""
+    global _server
+    assert env["PYTHONPATH"] == str(ROOT / "src")
+    if _server is None:
+        _server = subprocess.Popen([sys.executable, "-c", FORK_SERVER, json.dumps(HEAVY)], stdin=subprocess.PIPE,
+                                   stdout=subprocess.PIPE, text=True, env=dict(os.environ, PYTHONPATH=env["PYTHONPATH"]),
+                                   start_new_session=True)
+        bad = _answer(120)
+        if bad:
+            os.killpg(_server.pid, signal.SIGKILL)
+            _server.wait(timeout=10)
+            _server = None
+            pytest.fail(f"the probe server started with heavy or project modules loaded: {bad}")
+    with tempfile.TemporaryDirectory() as d:
+        out, err = Path(d) / "stdout", Path(d) / "stderr"
+        _server.stdin.write(json.dumps({"code": code, "argv": list(argv), "env": env, "cwd": str(cwd or os.getcwd()),
+                                        "stdout": str(out), "stderr": str(err)}) + "\n")
+        _server.stdin.flush()
+        rc = _answer(timeout)
+        return subprocess.CompletedProcess([sys.executable, "-c", code, *argv], rc, out.read_text(), err.read_text())
+
+
+def test_the_probe_server_gives_a_fresh_process():
+    """A probe sees none of the server's own state: its own ``__main__``, pid, arguments and
+    environment, and no module of the project."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT / "src"), PROBE_VAR="x")
+    code = ("import json, os, sys; print(json.dumps([__name__, os.getpid(), sys.argv[1:], os.environ['PROBE_VAR'], "
+            "sorted(m for m in sys.modules if m.split('.')[0] in ('adm_sim', 'adm_calib', 'scipy', 'numba'))]))")
+    a = probe(code, "1", env=env)
+    b = probe(code + "; sys.exit(3)", "2", env=dict(env, PROBE_VAR="y"))
+    assert (a.returncode, b.returncode) == (0, 3), (a.stderr, b.stderr)
+    pa, pb = json.loads(a.stdout), json.loads(b.stdout)
+    assert pa[0] == pb[0] == "__main__" and pa[1] != pb[1] and pa[1] != os.getpid()
+    assert (pa[2], pa[3], pb[2], pb[3]) == (["1"], "x", ["2"], "y") and pa[4] == pb[4] == []
+
+
 def loaded(module, argv=(), cwd=None):
-    """Heavy modules in ``sys.modules`` of a fresh interpreter after importing ``module`` (and
+    """Heavy modules in ``sys.modules`` of a fresh process after importing ``module`` (and
     running ``main(argv)``); asserts exit code 0."""
     env = dict(os.environ, ADM_SIM_QUIET_COMPILE="1", PYTHONPATH=str(ROOT / "src"))
-    p = subprocess.run([sys.executable, "-c", PROBE, module, json.dumps(list(argv)), json.dumps(HEAVY)],
-                       capture_output=True, text=True, env=env, cwd=cwd, timeout=600)
+    p = probe(PROBE, module, json.dumps(list(argv)), json.dumps(HEAVY), env=env, cwd=cwd)
     assert p.returncode == 0, p.stderr
     out = json.loads(p.stdout.strip().splitlines()[-1])
     assert out["rc"] in (None, 0), p.stderr
@@ -141,8 +252,7 @@ print(json.dumps({"before": before, "after": signatures()}))
 
 def test_compile_step_compiles_every_signature_the_commands_use():
     env = dict(os.environ, ADM_SIM_QUIET_COMPILE="1", PYTHONPATH=str(ROOT / "src"))
-    p = subprocess.run([sys.executable, "-c", CHECK_SIGNATURES], capture_output=True, text=True, env=env,
-                       timeout=900)
+    p = probe(CHECK_SIGNATURES, env=env, timeout=900)
     assert p.returncode == 0, p.stderr
     d = json.loads(p.stdout.strip().splitlines()[-1])
     assert d["after"] == d["before"]
@@ -176,8 +286,7 @@ def test_a_process_that_compiles_says_so_once_on_stderr(tmp_path, quiet):
     kernels: one line), and ADM_SIM_QUIET_COMPILE=1 silences it."""
     (tmp_path / "adm_sim_probe.py").write_text(PROBE_MODULE)
     env = dict(os.environ, ADM_SIM_QUIET_COMPILE=quiet, PYTHONPATH=str(ROOT / "src"))
-    p = subprocess.run([sys.executable, "-c", NOTICE_PROBE, str(tmp_path)], capture_output=True, text=True,
-                       env=env, timeout=300)
+    p = probe(NOTICE_PROBE, str(tmp_path), env=env, timeout=300)
     assert p.returncode == 0, p.stderr
     assert p.stdout.split() == ["4.0", "6.0", "3.0"]
     lines = [ln for ln in p.stderr.splitlines() if ln.strip()]
@@ -208,8 +317,7 @@ def test_a_refused_command_does_not_load_numba(argv, named):
     """Bad input is refused (one line naming the flag, exit 2) before the compiled kernels load:
     the user waits for the refusal, not for numba (~0.4-0.6 s of CPU a process)."""
     env = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
-    p = subprocess.run([sys.executable, "-c", REFUSED, json.dumps(argv)], capture_output=True, text=True,
-                       env=env, timeout=600)
+    p = probe(REFUSED, json.dumps(argv), env=env)
     assert p.returncode == 0, p.stderr
     out = json.loads(p.stdout.strip().splitlines()[-1])
     assert out["rc"] == 2, out

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import ast
 import collections
+import functools
 import pathlib
 import re
 
@@ -60,14 +61,18 @@ def layer(module):
     return "adm_calib" if module.split(".")[0] == "adm_calib" else "adm_sim"
 
 
+@functools.cache
 def _imports(path):
+    """Every module name an import of ``path`` names (parsed once per process: four scans read it)."""
+    names = []
     for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), filename=str(path))):
         if isinstance(node, ast.Import):
-            yield from (a.name for a in node.names)
+            names += (a.name for a in node.names)
         elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
             # ``from adm_sim import recording`` imports the subpackage: count the names too
-            yield node.module
-            yield from (f"{node.module}.{a.name}" for a in node.names)
+            names.append(node.module)
+            names += (f"{node.module}.{a.name}" for a in node.names)
+    return tuple(names)
 
 
 def measured_arrows():
