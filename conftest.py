@@ -66,27 +66,27 @@ ROOT = os.path.dirname(os.path.abspath(__file__))
 #: CPU seconds of each test file run alone (cache warm, ``ADM_SIM_TEST_CPU_LOG``), measured on the
 #: 2-core machine of docs/benchmarks.md ("Test suite"); used only to order the files, costliest first.
 _FILE_CPU_S = {
-    "test_ros_cosim.py": 41,   # with the session's calibration launch (~17 s, shared with test_ros_rerun_views.py)
+    "test_ros_cosim.py": 29,   # with the session's calibration launch (~17 s, shared with test_ros_rerun_views.py)
     "test_batch.py": 21,       # 81, then 54, before the batch/numpy comparisons ran at 4 steps per period
-    "test_hostile_inputs.py": 80,
+    "test_hostile_inputs.py": 50,
     "test_ros_rerun_views.py": 32,
-    "test_ros_faults.py": 33,
-    "test_calib_study.py": 40,
-    "test_replay_integrity.py": 27,
-    "test_monitor_cli.py": 28,
-    "test_imports.py": 23,
-    "test_entry_points.py": 25,
-    "test_calib_study_scheduler.py": 17,
+    "test_ros_faults.py": 30,
+    "test_calib_study.py": 19,
+    "test_replay_integrity.py": 22,
+    "test_monitor_cli.py": 18,
+    "test_imports.py": 14,
+    "test_entry_points.py": 9,
+    "test_calib_study_scheduler.py": 10,
     "test_ros_colcon.py": 20,
-    "test_ros_startup_inputs.py": 10,
+    "test_ros_startup_inputs.py": 5,
     "test_appendix_b_findings.py": 12,
     "test_monitor_identify.py": 10,
     "test_paper_findings.py": 8,
     "test_check_effects.py": 8,
     "test_monitor_node.py": 7,
     "test_sweep_backends.py": 8,
-    "test_ros_rerun_live.py": 9,
-    "test_ros_monitoring.py": 8,
+    "test_ros_rerun_live.py": 6,
+    "test_ros_monitoring.py": 6,
     "test_ros_logging.py": 7,
     "test_kernels_uncompiled.py": 9,
     "test_inputs_cli.py": 5,
@@ -94,27 +94,28 @@ _FILE_CPU_S = {
     "test_calib_workers.py": 4,
     "test_ros_dds_profile.py": 4,
     "test_ros_exchange_errors.py": 3,
-    "test_lint.py": 22,        # 2 s was ruff alone; mypy over the core: 65 s of wall in the whole suite at load 8-11
+    "test_lint.py": 12,        # 2 s was ruff alone; mypy over the core: 65 s of wall in the whole suite at load 8-11
     # Files added since the table above, estimated from the whole suite at load 8-11 (-n 2,
     # --durations; wall divided by 3, the ratio of wall to CPU of the tests above at that load):
     "test_check.py": 67,
     "test_core_dim.py": 6,     # 59 before its limiting cases ran on the compiled sweep
     "test_envelope.py": 31,
-    "test_calib_conservative.py": 9,  # the LP re-solved for 10 of the shipped study's 24 sets
+    "test_calib_conservative.py": 6,  # the LP re-solved for 10 of the shipped study's 24 sets
     "test_ros_flow.py": 100,   # ~44 s of CPU with its two busy processes, 70-80 s of wall at load 4-8: first, not a tail
     "test_calib_calibrate.py": 12,  # 20 before its hooks ran the compiled sweep
     "test_check_report_browser.py": 16,
     "test_core_dense_maxima.py": 11,
-    "test_calib_cli.py": 8,
-    "test_core_cli.py": 9,
-    "test_files.py": 7,
+    "test_calib_cli.py": 4,
+    "test_core_cli.py": 3,
+    "test_files.py": 1,
     "test_check_report.py": 7,
-    "test_ros_namespaces.py": 7,
-    "test_irregularity_ros.py": 7,
+    "test_ros_namespaces.py": 6,
+    "test_irregularity_ros.py": 6,
     "test_core_dim_reference.py": 6,
     "test_irregularity.py": 16,
-    "test_launch_inputs.py": 6,
+    "test_launch_inputs.py": 2,
     "test_launch_plausibility.py": 2,
+    "test_layers.py": 2,
 }
 
 
@@ -177,10 +178,22 @@ def _kernels_cached():
     return True
 
 
+def _compile_bytecode():
+    """Write the bytecode of the project's sources once (``src``, ``launch_scripts``, the test helpers).
+    Python reads an up-to-date ``__pycache__`` file even when ``PYTHONDONTWRITEBYTECODE`` is set (as on
+    this machine), but never writes one then: without this, each of the suite's several hundred
+    subprocesses compiles every project module it imports again."""
+    import compileall  # noqa: PLC0415  only in the controller of an xdist run
+
+    for folder in ("src", "launch_scripts", "tests"):
+        compileall.compile_dir(os.path.join(ROOT, folder), quiet=1, workers=1)
+
+
 def pytest_configure(config):
-    if (_xdist_controller(config) and not config.option.collectonly
-            and os.environ.get("ADM_SIM_TEST_PRECOMPILE", "1") != "0" and not _kernels_cached()):
-        _precompile_kernels()
+    if _xdist_controller(config) and not config.option.collectonly:
+        _compile_bytecode()
+        if os.environ.get("ADM_SIM_TEST_PRECOMPILE", "1") != "0" and not _kernels_cached():
+            _precompile_kernels()
 
 
 #: Module-scoped fixtures too cheap to keep their file on one worker (by name, or file::name): a ROS
