@@ -70,3 +70,23 @@ def static_midspan_deflection_modal(bridge, force_n, x_m):
     j = bridge.mode_numbers
     k = bridge.modal_stiffness_N_m
     return (force_n * np.sin(j * math.pi * x / bridge.span_m) / k * np.sin(j * math.pi / 2)).sum(-1)
+
+
+def moving_forces_modal(bridge, offsets_m, forces_n, speed_m_s, t_s, chunk=16):
+    """Sum over a train of forces (the first at ``offsets_m[0]`` behind t = 0's entry, each entering
+    the span at ``offset / v``) of :func:`moving_force_modal`'s q_j, q_j' and F_j / M_j, each of shape
+    (n_modes, len(t)). The closed form is linear in the force, so every axle is the unit force's
+    response at its own shifted times scaled by its load: the same superposition as a loop over the
+    axles, evaluated ``chunk`` axles at a time as one array."""
+    t = np.asarray(t_s, dtype=float).ravel()
+    offs = np.asarray(offsets_m, dtype=float)
+    loads = np.asarray(forces_n, dtype=float)
+    out = np.zeros((3, bridge.n_modes, t.size))
+    for s in range(0, offs.size, chunk):
+        shifted = t[None, :] - offs[s:s + chunk, None] / speed_m_s
+        q, qd, f = moving_force_modal(bridge, 1.0, speed_m_s, shifted)  # (n_modes, n_axles, len(t))
+        w = loads[s:s + chunk, None]
+        out[0] += (q * w).sum(1)
+        out[1] += (qd * w).sum(1)
+        out[2] += (f * w).sum(1)
+    return out[0], out[1], out[2]

@@ -14,7 +14,7 @@ import pytest
 from scipy.optimize import minimize_scalar
 
 from adm_sim.bridge import named_bridge
-from analytic import moving_force_modal
+from analytic import moving_forces_modal
 from adm_sim.envelope import MAX_FREE_PERIODS, check_mode_count, moving_load_envelope
 from adm_sim.errors import InputError
 from adm_sim.trains import load_train
@@ -29,13 +29,8 @@ def closed_form_midspan(bridge, offsets, loads, v, t):
     om = bridge.omega_rad_s[:, None]
     zeta = bridge.modal_damping_ratios(0.0)[:, None]
     mid = np.sin(bridge.mode_numbers * math.pi / 2)
-    w = np.zeros_like(t)
-    a = np.zeros_like(t)
-    for a_i, F in zip(offsets, loads):
-        q, qd, f = moving_force_modal(bridge, F, v, t - a_i / v)
-        w += mid @ q
-        a += mid @ (f - 2 * zeta * om * qd - om**2 * q)
-    return w, a
+    q, qd, f = moving_forces_modal(bridge, offsets, loads, v, t)
+    return mid @ q, mid @ (f - 2 * zeta * om * qd - om**2 * q)
 
 
 def reference_maxima(bridge, offsets, loads, v):
@@ -137,13 +132,8 @@ def closed_form_modes(bridge, offsets, loads, v, t):
     t = np.asarray(t, dtype=float)
     om = bridge.omega_rad_s[:, None]
     zeta = bridge.modal_damping_ratios(0.0)[:, None]
-    Q = np.zeros((bridge.n_modes, t.size))
-    A = np.zeros((bridge.n_modes, t.size))
-    for a_i, F in zip(offsets, loads):
-        q, qd, f = moving_force_modal(bridge, F, v, t - a_i / v)
-        Q += q
-        A += f - 2 * zeta * om * qd - om**2 * q
-    return Q, A
+    Q, Qd, F = moving_forces_modal(bridge, offsets, loads, v, t)
+    return Q, F - 2 * zeta * om * Qd - om**2 * Q
 
 
 def reference_deck(bridge, offsets, loads, v, which, x_fixed=None, nx=121, per_period=24, keep=0.9, zooms=10):

@@ -11,6 +11,8 @@ order, so in practice they agree bit for bit).
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import os
 import subprocess
@@ -49,9 +51,19 @@ def _run(disable_jit):
     return json.loads(res.stdout.strip().splitlines()[-1])
 
 
+def _run_here():
+    """The same script in this process, on the compiled kernels (no second Python start for the
+    compiled side: only the plain-Python side needs its own process, NUMBA_DISABLE_JIT being read
+    at import)."""
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        exec(compile(SCRIPT, "<compiled side>", "exec"), {"__name__": "compiled_side"})
+    return json.loads(out.getvalue().strip().splitlines()[-1])
+
+
 @pytest.fixture(scope="module")
 def both():
-    return _run(False), _run(True)
+    return _run_here(), _run(True)
 
 
 @pytest.mark.parametrize("model", ["mlm", "dim"])
