@@ -20,16 +20,47 @@ by block of steps.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from adm_sim import kernels
 from adm_sim.errors import InputError, RunError
 from adm_sim.fields import FIELDS, check_delta_zeta_pct
-from adm_sim.mlm_loads import half_step_positions, modal_loads_at
 from adm_sim.rk4_sides import mlm_rk4_coefficients
 from adm_sim.run_contract import FAILED, RUNNING, AdvancingRun, check_model
 from adm_sim.step_grid import StepOptions, make_grid, speeds_to_m_s
 from adm_sim.tables import active_units, axle_rows, bridge_tables, vehicle_tables
+
+
+def modal_load_table(bridge, ds_m, axle_offsets_m, axle_loads_n, n_steps):
+    """Modal loads of Eq. (6) on the half-step grid of steps ``0..n_steps``, shape (2 n + 1, n_modes).
+
+    Bit for bit :func:`adm_sim.mlm_loads.modal_loads_at` of
+    :func:`adm_sim.mlm_loads.half_step_positions` (the same positions ``s - offset``, the same rows
+    on the span, the same sums in the same axle order) without the table of every axle's position at
+    every row ((2 n + 1) x n_axles: 47 MB for ICE-2 on a 4 m span), whose making and reading per
+    column cost more than the loads: each axle's position is computed only on the rows where it can
+    be on the span.
+    """
+    s = 0.5 * ds_m * np.arange(0, 2 * n_steps + 1)
+    out = np.zeros((s.size, bridge.n_modes))
+    span = bridge.span_m
+    j = bridge.mode_numbers * math.pi / span
+    loads = np.asarray(axle_loads_n, dtype=float)
+    for i, off in enumerate(np.asarray(axle_offsets_m, dtype=float)):
+        # s - off >= 0 exactly where s >= off (the sign of a rounded difference is exact); the upper
+        # end by the test itself on a few rows beyond s = off + span
+        r0 = int(np.searchsorted(s, off, side="left"))
+        r1 = min(int(np.searchsorted(s, off + span, side="right")) + 2, s.size)
+        if r0 >= r1:
+            continue
+        x = s[r0:r1] - off
+        on = np.flatnonzero((x >= 0.0) & (x <= span))
+        if on.size:
+            lo, hi = on[0], on[-1] + 1
+            out[r0 + lo:r0 + hi] += loads[i] * np.sin(np.outer(x[lo:hi], j))
+    return out
 
 
 class BatchRunner:
@@ -90,9 +121,9 @@ class BatchRunner:
 
     # ------------------------------------------------------------------ tables
     def _mlm_table(self, n_steps):
-        if n_steps > self._mlm_rows:  # as mlm_modal_load_table on a grid of n_steps steps
-            x = half_step_positions(self.ds_m, self.train.axle_offsets_m, 0, int(n_steps))
-            self._P = modal_loads_at(self.bridges[0], x, np.asarray(self.train.axle_loads_n, dtype=float))
+        if n_steps > self._mlm_rows:  # mlm_modal_load_table on a grid of n_steps steps, bit for bit
+            self._P = modal_load_table(self.bridges[0], self.ds_m, self.train.axle_offsets_m,
+                                       self.train.axle_loads_n, int(n_steps))
             self._mlm_rows = int(n_steps)
         return self._P
 
@@ -136,11 +167,11 @@ class BatchRunner:
         block_ptr = np.r_[starts, order.size].astype(np.int64)
         return order, block_ptr, key[starts, 0].copy(), key[starts, 1].copy()
 
-    def start(self, model, case, speeds_kmh, delta_zeta=0.0, sweep=None):
+    def start(self, model, case, speeds_kmh, delta_zeta=0.0, sweep=None, pace=None):
         """A :class:`BatchRun` of these lanes at step 0 (see :meth:`run` for the arguments)."""
-        return BatchRun(self, model, case, speeds_kmh, delta_zeta, sweep)
+        return BatchRun(self, model, case, speeds_kmh, delta_zeta, sweep, pace)
 
-    def run(self, model, case, speeds_kmh, delta_zeta=0.0, sweep=None):
+    def run(self, model, case, speeds_kmh, delta_zeta=0.0, sweep=None, pace=None):
         """Max |midspan acceleration| (m/s^2) and |deflection| (m) of every lane.
 
         Starts a :class:`BatchRun` and advances it to its end.
@@ -154,6 +185,9 @@ class BatchRunner:
         sweep : array_like of int (n_lanes,), optional
             Lanes of one bridge with equal ``sweep`` form one sweep (the fastest of them sets its
             number of steps, as in ``run_sweep``); default: all lanes of a bridge form one sweep.
+        pace : array_like of bool (n_lanes,), optional
+            Lanes that only set their sweep's number of steps: not run, their maxima NaN (a sweep's
+            fastest speed, wanted for the steps it gives the others and not for its own maximum).
 
         Returns
         -------
@@ -164,12 +198,16 @@ class BatchRunner:
         RunError
             The solution of a lane is not finite (the run's one-line message).
         """
-        run = self.start(model, case, speeds_kmh, delta_zeta, sweep)
+        run = self.start(model, case, speeds_kmh, delta_zeta, sweep, pace)
         while run.status == RUNNING:
             run.advance()
         if run.status == FAILED:
             raise RunError(run.message)
-        return run.max_acc_m_s2, run.max_disp_m
+        if run.kept is None:
+            return run.max_acc_m_s2, run.max_disp_m
+        acc, disp = np.full(run.kept.size, np.nan), np.full(run.kept.size, np.nan)
+        acc[run.kept], disp[run.kept] = run.max_acc_m_s2, run.max_disp_m
+        return acc, disp
 
 
 class BatchRun(AdvancingRun):
@@ -190,6 +228,9 @@ class BatchRun(AdvancingRun):
         of every step) over the steps done, in the caller's lane order.
     lane_steps : ndarray of int (n_lanes,)
         Number of steps of every lane.
+    kept : ndarray of bool or None
+        With ``pace``: which of the caller's lanes are run (the attributes above are theirs, in
+        their order); ``None``: every lane.
     """
 
     #: Steps per :meth:`advance` by default: the finite check runs this often; one kernel call
@@ -197,7 +238,7 @@ class BatchRun(AdvancingRun):
     BLOCK_STEPS = 4096
     ADVANCE_STEPS = BLOCK_STEPS
 
-    def __init__(self, runner, model, case, speeds_kmh, delta_zeta=0.0, sweep=None):
+    def __init__(self, runner, model, case, speeds_kmh, delta_zeta=0.0, sweep=None, pace=None):
         check_model(model, runner.train)
         self.runner = runner
         self.model = model
@@ -217,6 +258,14 @@ class BatchRun(AdvancingRun):
                 check_delta_zeta_pct("delta_zeta_pct", 100 * x, b.damping_ratio)
             Z[lanes] = b.modal_damping_Ns_m(dz[lanes])
         self.lane_steps = runner._lane_steps(case, v_kmh, sweep)
+        self.kept = None
+        if pace is not None and np.any(pace):  # lanes that only set their sweep's steps: not run
+            keep = ~np.broadcast_to(np.asarray(pace, dtype=bool), (n_l,))
+            if not keep.any():
+                raise InputError("pace: every lane only sets steps; need at least one lane to run")
+            self.kept = keep
+            case, v, dz, sweep, Z, self.lane_steps = (a[keep] for a in (case, v, dz, sweep, Z, self.lane_steps))
+            n_l = case.size
         self._case, self._v = case, v
         order, self._block_ptr, self._bcase, self._bsteps = runner._blocks(case, sweep, self.lane_steps)
         self._order = order
