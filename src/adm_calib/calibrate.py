@@ -164,9 +164,8 @@ def calibrate_cases(bridges, train, lanes, speeds_kmh=None, *, options=None, ste
             for c, p in enumerate(sampled_peaks):
                 vd[c], run_v[c] = dim_speeds_window(vd[c], p.speed_kmh, opt) if p.found else (vd[c][:0], vd[c][:0])
         req = Requests()
-        for c in range(n):  # the fastest paper speed beside a window only sets the sweep's steps: a pace lane
-            pace = run_v[c][vd[c].size:]
-            req.add(c, vd[c], pace_kmh=float(pace[0]) if pace.size else None)
+        for c in range(n):
+            req.add(c, run_v[c])
         dim = [acc[:vd[c].size] for c, acc in enumerate(req.run(lanes, "dim", "dim"))]
     dim_peaks = [pk.Peak(found=False, reason="no MLM peak to associate with")] * n
     refined = [False] * n

@@ -8,10 +8,6 @@ one speed sweep: the fastest of them sets its number of steps, exactly as
 also names its **phase** (what the calibration is doing: ``"mlm"``, ``"dim"``, ``"dim_refine"``,
 ``"ladder"``, ``"root"``, ``"check"``, ``"adapted"``, ``"mlm_refine"``, ``"dim_peak_refine"``) so
 that a backend that records or shows its runs (the ROS co-simulation) need not guess it.
-A sweep may hold a **pace** speed, one that is run only for the number of steps it gives the
-sweep (the paper grid's fastest speed beside a window of its speeds): a backend whose
-``skips_pace`` is true takes ``pace=`` (a mask of such lanes), does not run them and returns NaN
-there; every other backend runs them as ordinary lanes. Either way the other lanes are the same.
 
 Backends (all give the same numbers: the compiled lanes equal the numpy stepper to ~1e-13
 relative, the co-simulation equals it bit for bit):
@@ -65,7 +61,6 @@ class CompiledLanes:
     """
 
     name = "compiled"
-    skips_pace = True
 
     def __init__(self, bridges, train, step):
         from adm_sim.compiled_batch import BatchRunner  # noqa: PLC0415  numba kernels: the stepped backends run without
@@ -73,14 +68,12 @@ class CompiledLanes:
         self.runner = BatchRunner(bridges, train, step.ds_m, step.free_vibration_periods, step.dense_maxima,
                                   irregularity=step.irregularity)
 
-    def run(self, model, case, speeds_kmh, delta_zeta=0.0, sweep=None, phase="", pace=None):
-        """Max |midspan acceleration| (m/s^2) of every lane, shape (n_lanes,); NaN for ``pace`` lanes."""
+    def run(self, model, case, speeds_kmh, delta_zeta=0.0, sweep=None, phase=""):
+        """Max |midspan acceleration| (m/s^2) of every lane, shape (n_lanes,)."""
         case, v, dz, sw = _lane_arrays(case, speeds_kmh, delta_zeta, sweep)
         if case.size == 0:
             return np.zeros(0)
-        if pace is not None and np.all(pace):
-            return np.full(case.size, np.nan)
-        return self.runner.run(model, case, v, dz, sweep=sw, pace=pace)[0]
+        return self.runner.run(model, case, v, dz, sweep=sw)[0]
 
 
 class SteppedLanes:
@@ -137,32 +130,23 @@ class Requests:
     def __init__(self):
         self.parts = []
 
-    def add(self, case, speeds, dz=0.0, pace_kmh=None):
-        """One sweep of ``case``; ``pace_kmh``: a speed of the sweep wanted only for the number of
-        steps it sets (the maxima returned are those of ``speeds`` alone)."""
+    def add(self, case, speeds, dz=0.0):
         speeds = np.asarray(speeds, dtype=float)
-        dz = np.broadcast_to(np.asarray(dz, float), speeds.shape)
-        if pace_kmh is not None:
-            dz = np.append(dz, dz[-1] if dz.size else 0.0)
-        self.parts.append((case, speeds, dz, pace_kmh))
+        self.parts.append((case, speeds, np.broadcast_to(np.asarray(dz, float), speeds.shape)))
 
     def run(self, lanes, model, phase):
         """Run every sweep as lanes of one request (sweep id = its index); the maxima per sweep."""
         if not self.parts:
             return []
-        runs = [p[1] if p[3] is None else np.append(p[1], p[3]) for p in self.parts]
-        case = np.concatenate([np.full(r.size, p[0]) for p, r in zip(self.parts, runs)])
-        v = np.concatenate(runs)
+        case = np.concatenate([np.full(p[1].size, p[0]) for p in self.parts])
+        v = np.concatenate([p[1] for p in self.parts])
         dz = np.concatenate([p[2] for p in self.parts])
-        sw = np.concatenate([np.full(r.size, k) for k, r in enumerate(runs)])
-        kw = {}
-        if getattr(lanes, "skips_pace", False) and any(p[3] is not None for p in self.parts):
-            kw["pace"] = np.concatenate([np.arange(r.size) >= p[1].size for p, r in zip(self.parts, runs)])
-        acc = np.asarray(lanes.run(model, case, v, dz, sweep=sw, phase=phase, **kw), dtype=float)
+        sw = np.concatenate([np.full(p[1].size, k) for k, p in enumerate(self.parts)])
+        acc = np.asarray(lanes.run(model, case, v, dz, sweep=sw, phase=phase), dtype=float)
         out, i = [], 0
-        for p, r in zip(self.parts, runs):
+        for p in self.parts:
             out.append(acc[i:i + p[1].size])
-            i += r.size
+            i += p[1].size
         return out
 
 
@@ -171,10 +155,9 @@ class ProgressLanes:
 
     def __init__(self, lanes, progress):
         self.lanes, self.progress, self.done = lanes, progress, 0
-        self.skips_pace = getattr(lanes, "skips_pace", False)
 
-    def run(self, model, case, speeds_kmh, delta_zeta=0.0, sweep=None, phase="", **kw):
-        out = self.lanes.run(model, case, speeds_kmh, delta_zeta, sweep, phase, **kw)
+    def run(self, model, case, speeds_kmh, delta_zeta=0.0, sweep=None, phase=""):
+        out = self.lanes.run(model, case, speeds_kmh, delta_zeta, sweep, phase)
         self.done += 1
         self.progress(self.done, None, phase)
         return out

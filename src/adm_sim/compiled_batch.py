@@ -167,11 +167,11 @@ class BatchRunner:
         block_ptr = np.r_[starts, order.size].astype(np.int64)
         return order, block_ptr, key[starts, 0].copy(), key[starts, 1].copy()
 
-    def start(self, model, case, speeds_kmh, delta_zeta=0.0, sweep=None, pace=None):
+    def start(self, model, case, speeds_kmh, delta_zeta=0.0, sweep=None):
         """A :class:`BatchRun` of these lanes at step 0 (see :meth:`run` for the arguments)."""
-        return BatchRun(self, model, case, speeds_kmh, delta_zeta, sweep, pace)
+        return BatchRun(self, model, case, speeds_kmh, delta_zeta, sweep)
 
-    def run(self, model, case, speeds_kmh, delta_zeta=0.0, sweep=None, pace=None):
+    def run(self, model, case, speeds_kmh, delta_zeta=0.0, sweep=None):
         """Max |midspan acceleration| (m/s^2) and |deflection| (m) of every lane.
 
         Starts a :class:`BatchRun` and advances it to its end.
@@ -185,9 +185,6 @@ class BatchRunner:
         sweep : array_like of int (n_lanes,), optional
             Lanes of one bridge with equal ``sweep`` form one sweep (the fastest of them sets its
             number of steps, as in ``run_sweep``); default: all lanes of a bridge form one sweep.
-        pace : array_like of bool (n_lanes,), optional
-            Lanes that only set their sweep's number of steps: not run, their maxima NaN (a sweep's
-            fastest speed, wanted for the steps it gives the others and not for its own maximum).
 
         Returns
         -------
@@ -198,16 +195,12 @@ class BatchRunner:
         RunError
             The solution of a lane is not finite (the run's one-line message).
         """
-        run = self.start(model, case, speeds_kmh, delta_zeta, sweep, pace)
+        run = self.start(model, case, speeds_kmh, delta_zeta, sweep)
         while run.status == RUNNING:
             run.advance()
         if run.status == FAILED:
             raise RunError(run.message)
-        if run.kept is None:
-            return run.max_acc_m_s2, run.max_disp_m
-        acc, disp = np.full(run.kept.size, np.nan), np.full(run.kept.size, np.nan)
-        acc[run.kept], disp[run.kept] = run.max_acc_m_s2, run.max_disp_m
-        return acc, disp
+        return run.max_acc_m_s2, run.max_disp_m
 
 
 class BatchRun(AdvancingRun):
@@ -228,9 +221,6 @@ class BatchRun(AdvancingRun):
         of every step) over the steps done, in the caller's lane order.
     lane_steps : ndarray of int (n_lanes,)
         Number of steps of every lane.
-    kept : ndarray of bool or None
-        With ``pace``: which of the caller's lanes are run (the attributes above are theirs, in
-        their order); ``None``: every lane.
     """
 
     #: Steps per :meth:`advance` by default: the finite check runs this often; one kernel call
@@ -238,7 +228,7 @@ class BatchRun(AdvancingRun):
     BLOCK_STEPS = 4096
     ADVANCE_STEPS = BLOCK_STEPS
 
-    def __init__(self, runner, model, case, speeds_kmh, delta_zeta=0.0, sweep=None, pace=None):
+    def __init__(self, runner, model, case, speeds_kmh, delta_zeta=0.0, sweep=None):
         check_model(model, runner.train)
         self.runner = runner
         self.model = model
@@ -258,14 +248,6 @@ class BatchRun(AdvancingRun):
                 check_delta_zeta_pct("delta_zeta_pct", 100 * x, b.damping_ratio)
             Z[lanes] = b.modal_damping_Ns_m(dz[lanes])
         self.lane_steps = runner._lane_steps(case, v_kmh, sweep)
-        self.kept = None
-        if pace is not None and np.any(pace):  # lanes that only set their sweep's steps: not run
-            keep = ~np.broadcast_to(np.asarray(pace, dtype=bool), (n_l,))
-            if not keep.any():
-                raise InputError("pace: every lane only sets steps; need at least one lane to run")
-            self.kept = keep
-            case, v, dz, sweep, Z, self.lane_steps = (a[keep] for a in (case, v, dz, sweep, Z, self.lane_steps))
-            n_l = case.size
         self._case, self._v = case, v
         order, self._block_ptr, self._bcase, self._bsteps = runner._blocks(case, sweep, self.lane_steps)
         self._order = order
