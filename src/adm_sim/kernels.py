@@ -356,6 +356,11 @@ def dense_maxima(k, l0, acc, d, vel, h, amax, prev):
 
 
 # ---------------------------------------------------------------------- the whole-run kernels
+#: Lanes of one chunk of :func:`mlm_blocks` at most: a sweep's 191 lanes run as 3 chunks of <= 64,
+#: whose arrays stay in the first-level cache (0.74-0.90x the CPU of one block of 191).
+MLM_CHUNK_LANES = 64
+
+
 @njit(cache=True, nogil=True)
 def dim_blocks(blocks, k0, k1, lanes, bridge, rows, units, vehicles, state, dense, track):
     """DIM (Eqs. 7-17) with one exchange per RK stage, every lane over all its steps.
@@ -528,10 +533,13 @@ def mlm_blocks(blocks, k0, k1, lanes, bridge, P, state, dense):
     ``state`` as in :func:`dim_blocks` (``state.u``, ``state.ud`` unused). A step is
     ``BridgeSide.step_mlm`` (inline) then the maxima (:func:`dense_maxima` with ``dense``); resumable as :func:`dim_blocks`.
 
-    Each block works on copies made inside the kernel (its recurrence coefficients ``cf``, its
-    state ``s``, its midspan values and maxima ``o``): arrays the compiler knows to be distinct, so
-    the loop over the block's lanes is vectorised (SIMD) with the same operations per lane in the
-    same order (bit for bit the loop over the lanes' own arrays, ~6x faster; ``bench/bench_kernels.py``).
+    Each block advances in chunks of at most :data:`MLM_CHUNK_LANES` lanes (balanced, a multiple of
+    8), each on copies made inside the kernel (its recurrence coefficients ``cf``, its state ``s``,
+    its midspan values and maxima ``o``): arrays the compiler knows to be distinct, so the loop over
+    the chunk's lanes is vectorised (SIMD) with the same operations per lane in the same order (bit
+    for bit the loop over the lanes' own arrays, ~6x faster; ``bench/bench_kernels.py``), and a
+    chunk's arrays stay in the first-level cache (a sweep's 191 lanes as 3 chunks of <= 64:
+    0.74-0.90x the CPU of one block, docs/benchmarks.md).
     """
     K = bridge.K
     M = bridge.M
@@ -539,62 +547,65 @@ def mlm_blocks(blocks, k0, k1, lanes, bridge, P, state, dense):
     nm = P.shape[1]
     block_ptr = blocks.ptr
     for bi in range(block_ptr.shape[0] - 1):
-        l0 = block_ptr[bi]
-        l1 = block_ptr[bi + 1]
-        nb = l1 - l0
         c = blocks.case[bi]
         k_end = min(k1, blocks.steps[bi])
         if k0 >= k_end:
             continue
-        # cf[0] Z, cf[1..10] ax, axd, bx, bxd, c0, c0d, ch, chd, c1, c1d (each (n_modes, nb))
-        cf = np.empty((11, nm, nb))
-        for i, arr in enumerate((lanes.Z, lanes.ax, lanes.axd, lanes.bx, lanes.bxd, lanes.c0, lanes.c0d, lanes.ch,
-                                 lanes.chd, lanes.c1, lanes.c1d)):
+        n_chunks = (block_ptr[bi + 1] - block_ptr[bi] + MLM_CHUNK_LANES - 1) // MLM_CHUNK_LANES
+        width = (block_ptr[bi + 1] - block_ptr[bi] + n_chunks - 1) // n_chunks
+        width = min((width + 7) // 8 * 8, MLM_CHUNK_LANES)
+        for l0 in range(block_ptr[bi], block_ptr[bi + 1], width):
+            l1 = min(l0 + width, block_ptr[bi + 1])
+            nb = l1 - l0
+            # cf[0] Z, cf[1..10] ax, axd, bx, bxd, c0, c0d, ch, chd, c1, c1d (each (n_modes, nb))
+            cf = np.empty((11, nm, nb))
+            for i, arr in enumerate((lanes.Z, lanes.ax, lanes.axd, lanes.bx, lanes.bxd, lanes.c0, lanes.c0d, lanes.ch,
+                                     lanes.chd, lanes.c1, lanes.c1d)):
+                for j in range(nm):
+                    for b in range(nb):
+                        cf[i, j, b] = arr[j, l0 + b]
+            s = np.empty((2, nm, nb))  # q, qd
             for j in range(nm):
                 for b in range(nb):
-                    cf[i, j, b] = arr[j, l0 + b]
-        s = np.empty((2, nm, nb))  # q, qd
-        for j in range(nm):
+                    s[0, j, b] = state.q[j, l0 + b]
+                    s[1, j, b] = state.qd[j, l0 + b]
+            o = np.zeros((5, nb))  # midspan deflection, velocity, acceleration; max |acc|, max |deflection|
             for b in range(nb):
-                s[0, j, b] = state.q[j, l0 + b]
-                s[1, j, b] = state.qd[j, l0 + b]
-        o = np.zeros((5, nb))  # midspan deflection, velocity, acceleration; max |acc|, max |deflection|
-        for b in range(nb):
-            o[3, b] = state.max_acc[l0 + b]
-            o[4, b] = state.max_disp[l0 + b]
-        hl = lanes.h[l0:l1].copy()
-        for k in range(k0, k_end):
-            # BridgeSide.step_mlm (Eq. 12): midspan deflection, velocity and acceleration at step k,
-            # then the exact RK4 recurrence with the modal loads of rows 2k, 2k + 1, 2k + 2 (inline:
-            # as a helper it costs ~6 % with dense maxima, see docs/benchmarks.md)
-            for b in range(nb):
-                o[0, b] = 0.0
-                o[1, b] = 0.0
-                o[2, b] = 0.0
-            for j in range(nm):
-                p0, ph, p1 = P[2 * k, j], P[2 * k + 1, j], P[2 * k + 2, j]
-                kj, mj, pm = K[c, j], M[c, j], phi_mid[j]
+                o[3, b] = state.max_acc[l0 + b]
+                o[4, b] = state.max_disp[l0 + b]
+            hl = lanes.h[l0:l1].copy()
+            for k in range(k0, k_end):
+                # BridgeSide.step_mlm (Eq. 12): midspan deflection, velocity and acceleration at step k,
+                # then the exact RK4 recurrence with the modal loads of rows 2k, 2k + 1, 2k + 2 (inline:
+                # as a helper it costs ~6 % with dense maxima, see docs/benchmarks.md)
                 for b in range(nb):
-                    x = s[0, j, b]
-                    xd = s[1, j, b]
-                    o[0, b] += x * pm
-                    o[1, b] += xd * pm
-                    o[2, b] += ((p0 - cf[0, j, b] * xd - kj * x) / mj) * pm
-                    s[0, j, b] = cf[1, j, b] * x + cf[3, j, b] * xd + cf[5, j, b] * p0 + cf[7, j, b] * ph + cf[9, j, b] * p1
-                    s[1, j, b] = (cf[2, j, b] * x + cf[4, j, b] * xd + cf[6, j, b] * p0 + cf[8, j, b] * ph
-                                  + cf[10, j, b] * p1)
-            # the sampled maxima (stage 0 of every step, _BridgeRun), then the dense ones
+                    o[0, b] = 0.0
+                    o[1, b] = 0.0
+                    o[2, b] = 0.0
+                for j in range(nm):
+                    p0, ph, p1 = P[2 * k, j], P[2 * k + 1, j], P[2 * k + 2, j]
+                    kj, mj, pm = K[c, j], M[c, j], phi_mid[j]
+                    for b in range(nb):
+                        x = s[0, j, b]
+                        xd = s[1, j, b]
+                        o[0, b] += x * pm
+                        o[1, b] += xd * pm
+                        o[2, b] += ((p0 - cf[0, j, b] * xd - kj * x) / mj) * pm
+                        s[0, j, b] = cf[1, j, b] * x + cf[3, j, b] * xd + cf[5, j, b] * p0 + cf[7, j, b] * ph + cf[9, j, b] * p1
+                        s[1, j, b] = (cf[2, j, b] * x + cf[4, j, b] * xd + cf[6, j, b] * p0 + cf[8, j, b] * ph
+                                      + cf[10, j, b] * p1)
+                # the sampled maxima (stage 0 of every step, _BridgeRun), then the dense ones
+                for b in range(nb):
+                    if abs(o[2, b]) > o[3, b]:
+                        o[3, b] = abs(o[2, b])
+                    if abs(o[0, b]) > o[4, b]:
+                        o[4, b] = abs(o[0, b])
+                if dense:
+                    dense_maxima(k, l0, o[2], o[0], o[1], hl, o[3], state.prev)
+            for j in range(nm):
+                for b in range(nb):
+                    state.q[j, l0 + b] = s[0, j, b]
+                    state.qd[j, l0 + b] = s[1, j, b]
             for b in range(nb):
-                if abs(o[2, b]) > o[3, b]:
-                    o[3, b] = abs(o[2, b])
-                if abs(o[0, b]) > o[4, b]:
-                    o[4, b] = abs(o[0, b])
-            if dense:
-                dense_maxima(k, l0, o[2], o[0], o[1], hl, o[3], state.prev)
-        for j in range(nm):
-            for b in range(nb):
-                state.q[j, l0 + b] = s[0, j, b]
-                state.qd[j, l0 + b] = s[1, j, b]
-        for b in range(nb):
-            state.max_acc[l0 + b] = o[3, b]
-            state.max_disp[l0 + b] = o[4, b]
+                state.max_acc[l0 + b] = o[3, b]
+                state.max_disp[l0 + b] = o[4, b]
