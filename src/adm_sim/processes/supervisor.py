@@ -40,6 +40,7 @@ import time
 from pathlib import Path
 
 from adm_sim.errors import AdmSimError, RunError
+from adm_sim.interrupts import held, raise_interrupt
 from adm_sim.processes.dds_env import clean_dead_shm, local_ros_env, record_shm
 
 __all__ = ["NodeDied", "Supervisor", "child_setup", "ros_args"]
@@ -191,11 +192,17 @@ class Supervisor:
         return (self.log_dir / f"{name}.out").read_text()
 
     def dead(self, names=None):
-        """``(name, returncode)`` of the first supervised process that has exited, or None."""
-        self._note_shm()
-        for name, p in self.procs.items():
-            if (names is None or name in names) and p.poll() is not None:
-                return name, p.returncode
+        """``(name, returncode)`` of the first supervised process that has exited, or None.
+
+        Polled with SIGINT and SIGTERM held (:func:`adm_sim.interrupts.held`; one that comes is
+        raised at the end): ``Popen.poll`` takes a lock before its ``try``, and an interrupt raised
+        between the two leaves it taken, after which every ``wait`` of that process times out,
+        even once the process is gone (seen as a launcher's traceback on SIGTERM)."""
+        with held():
+            self._note_shm()
+            for name, p in self.procs.items():
+                if (names is None or name in names) and p.poll() is not None:
+                    return name, p.returncode
         return None
 
     def _note_shm(self, every_s=0.5):
@@ -218,14 +225,22 @@ class Supervisor:
         """Send ``sig`` to the process group of node ``name`` and wait for it."""
         p = self.procs[name]
         os.killpg(p.pid, sig)
-        p.wait(10)
+        with held():
+            p.wait(10)
 
     def stop(self, grace_s=5.0):
         """Stop every process (SIGTERM, then SIGKILL after ``grace_s``); clean shared memory.
 
         SIGTERM rather than SIGINT: a launcher started in the background of a non-interactive
-        shell passes SIGINT on as ignored, and rclpy handles both the same way.
+        shell passes SIGINT on as ignored, and rclpy handles both the same way. SIGINT and SIGTERM
+        are held meanwhile (one that comes is raised once every process is stopped): the stop is
+        bounded (``grace_s`` + 5 s a process), and an interrupt inside ``Popen.wait`` could leave
+        the process's wait lock taken (see :meth:`dead`).
         """
+        with held():
+            self._stop(grace_s)
+
+    def _stop(self, grace_s):
         self._note_shm(every_s=0.0)
         live = [p for p in self.procs.values() if p.poll() is None]
         for p in live:
@@ -252,11 +267,10 @@ class Supervisor:
 
     # -- signals: SIGTERM behaves like Ctrl-C
     def __enter__(self):
-        def on_term(signum, frame):
-            raise KeyboardInterrupt
-
-        self._old[signal.SIGTERM] = signal.signal(signal.SIGTERM, on_term)
-        self._old[signal.SIGINT] = signal.signal(signal.SIGINT, signal.default_int_handler)
+        # KeyboardInterrupt for both, as in a command (adm_sim.interrupts.raise_interrupt): held
+        # where the supervisor polls and waits on its processes
+        self._old[signal.SIGTERM] = signal.signal(signal.SIGTERM, raise_interrupt)
+        self._old[signal.SIGINT] = signal.signal(signal.SIGINT, raise_interrupt)
         return self
 
     def __exit__(self, *exc):
