@@ -3,6 +3,7 @@ imported into several modules is a new fixture in each)."""
 
 from __future__ import annotations
 
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -10,6 +11,16 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(autouse=True)
+def signal_handlers():
+    """SIGINT and SIGTERM handlers as they were before each test: a command's ``main`` called in the
+    test process (``run_cli``) sets its own on the way out (:class:`adm_sim.cliutil.interrupt_signals`)."""
+    old = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    yield
+    for s, h in old.items():
+        signal.signal(s, h)
 
 
 @pytest.fixture(scope="session")

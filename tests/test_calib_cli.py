@@ -3,7 +3,6 @@
 import csv
 import json
 import re
-import signal
 import subprocess
 import sys
 from dataclasses import dataclass
@@ -41,15 +40,6 @@ def call(capsys):
         return Done(code, out, err)
     return call
 
-
-@pytest.fixture(autouse=True)
-def signal_handlers():
-    """SIGINT and SIGTERM handlers as they were: ``run_cli`` in this process sets its own on the way
-    out (:class:`adm_sim.cliutil.interrupt_signals`)."""
-    old = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
-    yield
-    for s, h in old.items():
-        signal.signal(s, h)
 
 
 def png_size(path):

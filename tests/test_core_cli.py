@@ -1,7 +1,6 @@
 """The adm-sim command line: outputs, JSON keys and one-line errors with exit code 2."""
 
 import json
-import signal
 import subprocess
 import sys
 from dataclasses import dataclass
@@ -36,15 +35,6 @@ def call(capsys):
         return Done(code, out, err)
     return call
 
-
-@pytest.fixture(autouse=True)
-def signal_handlers():
-    """SIGINT and SIGTERM handlers as they were: ``run_cli`` in this process sets its own on the way
-    out (:class:`adm_sim.cliutil.interrupt_signals`)."""
-    old = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
-    yield
-    for s, h in old.items():
-        signal.signal(s, h)
 
 
 def test_sweep_json_and_plot(tmp_path, call):

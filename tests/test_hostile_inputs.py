@@ -737,16 +737,6 @@ def _children():
     return found
 
 
-@pytest.fixture
-def signal_handlers():
-    """SIGINT and SIGTERM handlers as they were: a command's ``run_cli`` called in this process sets
-    its own on the way out (:class:`adm_sim.cliutil.interrupt_signals`)."""
-    old = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
-    yield
-    for s, h in old.items():
-        signal.signal(s, h)
-
-
 @dataclass
 class Result:
     returncode: int

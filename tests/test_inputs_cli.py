@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import importlib.util
 import json
-import signal
 from collections import Counter
 from pathlib import Path
 
@@ -21,15 +20,6 @@ import pytest
 from adm_calib.calib_commands import main as calib_main
 from adm_sim.sim_commands import main as sim_main
 
-
-@pytest.fixture(autouse=True)
-def signal_handlers():
-    """SIGINT and SIGTERM handlers as they were: ``run_cli`` in this process sets its own on the way
-    out (:class:`adm_sim.cliutil.interrupt_signals`)."""
-    old = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
-    yield
-    for s, h in old.items():
-        signal.signal(s, h)
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import signal
 
 import numpy as np
 import pytest
@@ -12,15 +11,6 @@ from adm_sim.errors import AdmSimError, InputError, RunError
 from adm_sim.fields import check_choice, check_int, check_number, check_range
 from adm_sim.cliutil import run_cli
 
-
-@pytest.fixture(autouse=True)
-def signal_handlers():
-    """SIGINT and SIGTERM handlers as they were: ``run_cli`` in this process sets its own on the way
-    out (:class:`adm_sim.cliutil.interrupt_signals`)."""
-    old = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
-    yield
-    for s, h in old.items():
-        signal.signal(s, h)
 
 
 def _raise(exc):

@@ -7,24 +7,13 @@ from __future__ import annotations
 
 import json
 import math
-import signal
 
-import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
 from adm_sim.sim_commands import main
 from adm_sim.errors import InputError
 from adm_sim.sweep import parse_speeds
 
-
-@pytest.fixture(autouse=True)
-def signal_handlers():
-    """SIGINT and SIGTERM handlers as they were: ``run_cli`` in this process sets its own on the way
-    out (:class:`adm_sim.cliutil.interrupt_signals`)."""
-    old = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
-    yield
-    for s, h in old.items():
-        signal.signal(s, h)
 
 NUM = st.one_of(st.floats(allow_nan=True, allow_infinity=True, width=32), st.integers(-10**6, 10**12),
                 st.sampled_from(["abc", "", "1e", "--3", "nan", "inf"]))

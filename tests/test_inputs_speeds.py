@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import signal
 
 import pytest
 
@@ -11,15 +10,6 @@ from adm_sim.sim_commands import main as sim_main
 from adm_sim.errors import InputError
 from adm_sim.sweep import parse_speeds
 
-
-@pytest.fixture(autouse=True)
-def signal_handlers():
-    """SIGINT and SIGTERM handlers as they were: ``run_cli`` in this process sets its own on the way
-    out (:class:`adm_sim.cliutil.interrupt_signals`)."""
-    old = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
-    yield
-    for s, h in old.items():
-        signal.signal(s, h)
 
 BAD = [
     ("300:nan:1", "speeds_kmh: '300:nan:1' holds nan; every speed and step must be a finite number (km/h)"),
