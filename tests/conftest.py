@@ -3,9 +3,11 @@ imported into several modules is a new fixture in each)."""
 
 from __future__ import annotations
 
+import importlib
 import signal
 import subprocess
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
@@ -21,6 +23,47 @@ def signal_handlers():
     yield
     for s, h in old.items():
         signal.signal(s, h)
+
+
+@dataclass
+class Done:
+    """What a command's ``main`` called in the test process gave: exit code, stdout, stderr."""
+
+    returncode: int
+    stdout: str
+    stderr: str
+
+
+@pytest.fixture
+def call_main(capsys):
+    """``call_main(main, *args)``: a command's ``main`` in this process, as its console script calls
+    it (:class:`Done`); each file keeps one test of the command's own process."""
+    def call(main, *args):
+        capsys.readouterr()
+        code = main(list(args))
+        out, err = capsys.readouterr()
+        return Done(code, out, err)
+    return call
+
+
+@pytest.fixture
+def launcher(monkeypatch, capfd):
+    """``run(script, argv) -> (exit code, stdout, stderr)``, read at the file descriptors: a launch
+    script's ``main(argv)`` in this process (its signal handlers are put back by
+    :func:`signal_handlers`)."""
+    monkeypatch.syspath_prepend(str(ROOT / "launch_scripts"))
+
+    def run(script, argv):
+        main = importlib.import_module(Path(script).stem).main
+        capfd.readouterr()
+        try:
+            code = main(argv)
+        except SystemExit as exc:
+            code = exc.code
+        out, err = capfd.readouterr()
+        return code, out, err
+
+    return run
 
 
 @pytest.fixture(scope="session")

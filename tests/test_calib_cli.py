@@ -5,7 +5,6 @@ import json
 import re
 import subprocess
 import sys
-from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
@@ -22,23 +21,11 @@ def run_cli(*args, cwd=None):
                           cwd=cwd, timeout=300)
 
 
-@dataclass
-class Done:
-    returncode: int
-    stdout: str
-    stderr: str
-
-
 @pytest.fixture
-def call(capsys):
-    """``call(*args)``: the command's ``main`` in this process, as the console script calls it (exit
-    code, stdout, stderr); the process itself: test_bad_input_exit_code_of_the_process."""
-    def call(*args):
-        capsys.readouterr()
-        code = main(list(args))
-        out, err = capsys.readouterr()
-        return Done(code, out, err)
-    return call
+def call(call_main):
+    """``call(*args)``: the command's ``main`` in this process (the process itself:
+    test_bad_input_exit_code_of_the_process)."""
+    return lambda *args: call_main(main, *args)
 
 
 

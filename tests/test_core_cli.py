@@ -3,7 +3,6 @@
 import json
 import subprocess
 import sys
-from dataclasses import dataclass
 
 import pytest
 
@@ -17,23 +16,11 @@ def run(*args):
     return subprocess.run(CLI + list(args), capture_output=True, text=True, timeout=300)
 
 
-@dataclass
-class Done:
-    returncode: int
-    stdout: str
-    stderr: str
-
-
 @pytest.fixture
-def call(capsys):
-    """``call(*args)``: the command's ``main`` in this process, as the console script calls it (exit
-    code, stdout, stderr); the process itself: test_bad_input_exit_code_of_the_process."""
-    def call(*args):
-        capsys.readouterr()
-        code = main(list(args))
-        out, err = capsys.readouterr()
-        return Done(code, out, err)
-    return call
+def call(call_main):
+    """``call(*args)``: the command's ``main`` in this process (the process itself:
+    test_bad_input_exit_code_of_the_process)."""
+    return lambda *args: call_main(main, *args)
 
 
 

@@ -1,7 +1,5 @@
 """launch_scripts/calibrate.py refuses bad input before starting any process (exit 2, one line)."""
 
-import importlib
-import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -9,30 +7,6 @@ from pathlib import Path
 import pytest
 
 SCRIPTS = Path(__file__).resolve().parents[1] / "launch_scripts"
-
-
-@pytest.fixture
-def launcher(monkeypatch, capfd):
-    """``run(script, argv) -> (exit code, stdout, stderr)``, read at the file descriptors: the launch
-    script's ``main(argv)`` in this process (the script's process: test_refuses_to_overwrite_an_earlier_run
-    below); the SIGINT and SIGTERM handlers its runner sets on the way out
-    (:class:`adm_sim.cliutil.interrupt_signals`) put back after the test."""
-    old = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
-    monkeypatch.syspath_prepend(str(SCRIPTS))
-
-    def run(script, argv):
-        main = importlib.import_module(Path(script).stem).main
-        capfd.readouterr()
-        try:
-            code = main(argv)
-        except SystemExit as exc:
-            code = exc.code
-        out, err = capfd.readouterr()
-        return code, out, err
-
-    yield run
-    for s, h in old.items():
-        signal.signal(s, h)
 
 
 @pytest.mark.parametrize("script", ["calibrate.py", "crossing.py"])

@@ -2,7 +2,6 @@
 and a node started by hand with a bad parameter prints one line and exits 2 (never a traceback).
 """
 
-import importlib
 import signal
 import subprocess
 import sys
@@ -55,29 +54,6 @@ def test_crossing_checks_params_file_too(tmp_path):
 
     check_launch("crossing.py", "bridge:\n  ros__parameters:\n    span_m: -5.0\n",
                  "bridge: span_m: -5 m is out of range; allowed [1, 150] m", tmp_path, process)
-
-
-@pytest.fixture
-def launcher(monkeypatch, capfd):
-    """``run(script, argv) -> (exit code, stdout, stderr)``, read at the file descriptors: the launch
-    script's ``main(argv)`` in this process; the SIGINT and SIGTERM handlers its runner sets on the
-    way out (:class:`adm_sim.cliutil.interrupt_signals`) put back after the test."""
-    old = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
-    monkeypatch.syspath_prepend(str(SCRIPTS))
-
-    def run(script, argv):
-        main = importlib.import_module(Path(script).stem).main
-        capfd.readouterr()
-        try:
-            code = main(argv)
-        except SystemExit as exc:
-            code = exc.code
-        out, err = capfd.readouterr()
-        return code, out, err
-
-    yield run
-    for s, h in old.items():
-        signal.signal(s, h)
 
 
 def check_launch(script, yaml_text, line, tmp_path, run):
