@@ -142,14 +142,14 @@ def pytest_cmdline_main(config):
 
 
 _COMPILE_PARTS = (
-    # (which of adm_sim.precompile's code paths, by the start of their name): about half of the
+    # (which of adm_sim.cli.precompile's code paths, by the start of their name): about half of the
     # compile time each on one core.
     ("exact", "EN 1991-2"),
     ("compiled",),
 )
 _COMPILE_PROBE = (
     "import sys\n"
-    "from adm_sim.precompile import _paths\n"
+    "from adm_sim.cli.precompile import _paths\n"
     "for name, run in _paths():\n"
     "    if name.startswith(tuple(sys.argv[1:])):\n"
     "        run()\n"

@@ -11,8 +11,8 @@ table4 <= 15 s (16 calibrations, one process).
 import argparse
 import time
 
-from adm_sim.bridge import named_bridge
-from adm_sim.trains import load_train
+from adm_sim.model.bridge import named_bridge
+from adm_sim.model.trains import load_train
 
 from adm_calib.calibrate import calibrate
 from adm_calib.table4 import run_table4

@@ -31,10 +31,10 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from adm_sim.check import resolve_trains, run_check  # noqa: E402
-from adm_sim.bridge import named_bridge  # noqa: E402
-from adm_sim.envelope import moving_load_envelope  # noqa: E402
-from adm_sim.sweep import run_sweep  # noqa: E402
+from adm_sim.design.check import resolve_trains, run_check  # noqa: E402
+from adm_sim.model.bridge import named_bridge  # noqa: E402
+from adm_sim.integrate.envelope import moving_load_envelope  # noqa: E402
+from adm_sim.integrate.sweep import run_sweep  # noqa: E402
 
 TRAINS = "hslm,ICE-2,Eurostar,Railjet,ICE-4"
 V_LINE_KMH = 350.0  # 1.2 x 350 = 420 km/h
@@ -59,7 +59,7 @@ STANDARD_BOUNDS = "standard:4000,2000"
 def worker(repeat):
     """One tree's times (JSON on stdout): the whole check; with the standard's mass bounds and the HTML
     report; best wall and CPU of ``repeat`` after a warm-up."""
-    from adm_sim.check_report import report_html
+    from adm_sim.design.check_report import report_html
 
     bridge = named_bridge("B1")
     trains = resolve_trains(TRAINS)
@@ -140,13 +140,13 @@ def main():
                                                             where="deck") for t in trains], args.repeat)
     t_check, c_check, res = timed(lambda: run_check(bridge, V_LINE_KMH, trains), args.repeat)
     t_mid, c_mid, res_mid = timed(lambda: run_check(bridge, V_LINE_KMH, trains, where="midspan"), args.repeat)
-    import adm_sim.check_effects as ce
+    import adm_sim.design.check_effects as ce
 
     t_eff, c_eff, _ = timed(lambda: [ce.train_effects(bridge, t.axle_offsets_m, t.axle_loads_n, c.speeds_kmh)
                                      for t, c in zip(trains, res.trains)], args.repeat)
     t_bnd, c_bnd, _ = timed(lambda: run_check(bridge, V_LINE_KMH, trains, mass_bounds=(-0.1, 0.15)), 1)
     # EN 1991-2 6.4.6.3.2's bounds from the ballast (4000 kg/m at 2000 kg/m3) and the HTML report
-    from adm_sim.check_report import report_html
+    from adm_sim.design.check_report import report_html
 
     t_std, c_std, res_std = timed(lambda: run_check(bridge, V_LINE_KMH, trains, mass_bounds="standard:4000,2000"), 1)
     t_rep, c_rep, html = timed(lambda: report_html(res_std), 1)

@@ -45,7 +45,7 @@ COMMANDS = {
 def adm_sim_script(python):
     """The ``adm-sim`` console script beside the interpreter (what the user types), else ``-m``."""
     script = Path(python).with_name("adm-sim")
-    return [str(script)] if script.exists() else [python, "-m", "adm_sim.sim_commands"]
+    return [str(script)] if script.exists() else [python, "-m", "adm_sim.cli.sim_commands"]
 
 
 def _children_cpu_s():

@@ -1,4 +1,4 @@
-"""Speed of the exact moving-load envelope (:func:`adm_sim.envelope.moving_load_envelope`), and
+"""Speed of the exact moving-load envelope (:func:`adm_sim.integrate.envelope.moving_load_envelope`), and
 the same numbers against another source tree in the same run.
 
 B1 with HSLM-A1..A10 and ICE-2, 144 to 420 km/h at 1 km/h: midspan, whole deck and x = 5 m.
@@ -30,9 +30,9 @@ WHERE = ("midspan", "deck", 5.0)
 
 def child(out, repeat):
     """In this interpreter: warm up, time ``repeat`` passes over every train and position, keep the arrays."""
-    from adm_sim.bridge import named_bridge
-    from adm_sim.check import resolve_trains
-    from adm_sim.envelope import moving_load_envelope
+    from adm_sim.model.bridge import named_bridge
+    from adm_sim.design.check import resolve_trains
+    from adm_sim.integrate.envelope import moving_load_envelope
 
     bridge = named_bridge("B1")
     trains = resolve_trains("hslm,ICE-2")

@@ -3,7 +3,7 @@
 Run: ``.venv/bin/python bench/bench_irregularity.py [--reps N]``.
 
 The case: the six mass functions of the 20 m, f-index 3 bridges of the study (L20-f3-mu1..mu6)
-under ICE-2 at 8 speeds 160..350 km/h = 48 lanes of one :class:`adm_sim.compiled_batch.BatchRunner`
+under ICE-2 at 8 speeds 160..350 km/h = 48 lanes of one :class:`adm_sim.integrate.compiled_batch.BatchRunner`
 on the group's calibration step (as ``bench/bench_kernels.py``), as a DIM run on the smooth track
 and on a German high disturbance profile (seed 1). One process: both runners are built and run
 once untimed (numba compile or cache load, tables), then ``--reps`` timed repetitions, the two
@@ -26,9 +26,9 @@ def main(argv=None):
     args = ap.parse_args(argv)
     from adm_calib.calibrate import batch_step
     from adm_calib.study import select_cases
-    from adm_sim.compiled_batch import BatchRunner
-    from adm_sim.irregularity import parse
-    from adm_sim.trains import load_train
+    from adm_sim.integrate.compiled_batch import BatchRunner
+    from adm_sim.model.irregularity import parse
+    from adm_sim.model.trains import load_train
 
     bridges = [c.bridge for c in select_cases(["ICE-2"], ["mu1", "mu2", "mu3", "mu4", "mu5", "mu6"], (20, 20), [3])]
     train = load_train("ICE-2")

@@ -4,7 +4,7 @@ Run: ``.venv/bin/python bench/bench_kernels.py [--rounds N] [--reps N] [--speeds
 
 The case: the six mass functions of the 20 m, f-index 3 bridges of the study (L20-f3-mu1..mu6)
 under ICE-2 at 8 speeds 160..350 km/h = 48 lanes (``--speeds 32``: 32 speeds, 192 lanes in blocks of
-32, the size of most of the study's DIM blocks) of one :class:`adm_sim.compiled_batch.BatchRunner`
+32, the size of most of the study's DIM blocks) of one :class:`adm_sim.integrate.compiled_batch.BatchRunner`
 on the calibration step of the group, run as DIM and MLM, with and without dense maxima. Every
 timing runs in a worker subprocess (``PYTHONPATH=<src>``) that first runs every configuration
 once untimed (numba compile or cache load), then ``--reps`` timed repetitions, the four
@@ -14,7 +14,7 @@ baseline's and this tree's workers alternate for ``--rounds`` rounds (first one,
 time of each (over all rounds and repetitions), the ratio this/baseline and whether the per-lane
 maxima of both are equal bit for bit (``np.array_equal``). numba's cache goes to a temporary
 directory, so no other checkout is written to. ``--numpy`` also times the numpy stepper
-(:func:`adm_sim.sweep.run_sweep`, one sweep per bridge) on the DIM and MLM lanes once, in process.
+(:func:`adm_sim.integrate.sweep.run_sweep`, one sweep per bridge) on the DIM and MLM lanes once, in process.
 """
 
 from __future__ import annotations
@@ -38,7 +38,7 @@ CONFIGS = [("dim", False), ("dim", True), ("mlm", False), ("mlm", True)]
 def _case():
     from adm_calib.calibrate import batch_step
     from adm_calib.study import select_cases
-    from adm_sim.trains import load_train
+    from adm_sim.model.trains import load_train
 
     bridges = [c.bridge for c in select_cases(["ICE-2"], ["mu1", "mu2", "mu3", "mu4", "mu5", "mu6"], (20, 20), [3])]
     train = load_train("ICE-2")
@@ -47,7 +47,7 @@ def _case():
 
 def worker(reps, n_speeds=8):
     """Warm-up, then ``reps`` interleaved timed runs of every configuration; JSON on stdout."""
-    from adm_sim.compiled_batch import BatchRunner
+    from adm_sim.integrate.compiled_batch import BatchRunner
 
     bridges, train, ds = _case()
     grid = np.linspace(SPEEDS_KMH[0], SPEEDS_KMH[-1], n_speeds)
@@ -76,8 +76,8 @@ def _spawn(src, reps, cache_dir, n_speeds=8):
 
 
 def _numpy_times():
-    from adm_sim.step_grid import StepOptions
-    from adm_sim.sweep import run_sweep
+    from adm_sim.integrate.step_grid import StepOptions
+    from adm_sim.integrate.sweep import run_sweep
 
     bridges, train, ds = _case()
     out = {}

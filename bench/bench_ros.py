@@ -8,7 +8,7 @@ The bridge and train nodes run in one process (:mod:`adm_sim.nodes.composed`, as
 runs them) or, with ``--separate-nodes``, in two (the main job then gets ``--separate-nodes`` too);
 the CPU time of each node process per round trip of the last co-simulated run is printed.
 
-Prints for the MLM and the DIM: the in-process :func:`adm_sim.sweep.run_sweep` time, the
+Prints for the MLM and the DIM: the in-process :func:`adm_sim.integrate.sweep.run_sweep` time, the
 co-simulated time (from the run request to the result: parameter set, set-up handshake, every
 exchange and the monitoring topics at their default decimation, no recorder), their ratio
 (targets: MLM <= 3x, DIM <= 10x), the lockstep round trips and lane-steps per second over ROS.
@@ -43,10 +43,10 @@ sys.path.insert(0, str(ROOT / "tests"))
 
 import numpy as np  # noqa: E402
 
-from adm_sim.bridge import resolve_bridge  # noqa: E402
-from adm_sim.step_grid import StepOptions  # noqa: E402
-from adm_sim.sweep import parse_speeds, run_sweep  # noqa: E402
-from adm_sim.trains import load_train  # noqa: E402
+from adm_sim.model.bridge import resolve_bridge  # noqa: E402
+from adm_sim.integrate.step_grid import StepOptions  # noqa: E402
+from adm_sim.integrate.sweep import parse_speeds, run_sweep  # noqa: E402
+from adm_sim.model.trains import load_train  # noqa: E402
 
 
 def main(argv=None):

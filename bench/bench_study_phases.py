@@ -29,7 +29,7 @@ import numpy as np
 from adm_calib import lanes as L
 from adm_calib import study as st
 from adm_calib.study.execution import run_batch
-from adm_sim import compiled_batch, tables
+from adm_sim.integrate import compiled_batch, tables
 
 #: (span m, frequency index, train): every train, short spans (many steps, costly DIM tables) and long.
 BATCHES = ((15, 3, "ICE-2"), (4, 5, "ICE-2"), (30, 1, "Railjet"), (8, 2, "Eurostar"), (25, 4, "ICE-4"),

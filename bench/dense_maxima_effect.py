@@ -10,7 +10,7 @@ import time
 
 import numpy as np
 
-from adm_sim.step_grid import StepOptions
+from adm_sim.integrate.step_grid import StepOptions
 
 from adm_calib.calibrate import CalibrationOptions
 from adm_calib import study as st

@@ -32,7 +32,7 @@ from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, discard_outputs
 
 from adm_sim.cliutil import Parser, add_choice, add_domain_id, add_overwrite, progress_bar
 from adm_sim.files import write_atomic
-from adm_sim.plausibility import check_response
+from adm_sim.model.plausibility import check_response
 from adm_sim.protocol import parse_driver_line
 
 
@@ -138,7 +138,7 @@ def print_result(summary):
 
 def warn_implausible(summary):
     """The plausibility warnings of the calibration's MLM and DIM peaks (as ``adm-calib calibrate``
-    gives them, :func:`adm_sim.plausibility.check_response`): one line each peak no real deck
+    gives them, :func:`adm_sim.model.plausibility.check_response`): one line each peak no real deck
     survives, named by bridge, train, model and speed; once per run."""
     for model in ("mlm", "dim"):
         p = summary.get(f"{model}_peak")

@@ -30,7 +30,7 @@ from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, discard_outputs
                          run_graph)
 
 from adm_sim.cliutil import Parser, add_choice, add_domain_id, add_overwrite
-from adm_sim.plausibility import check_response
+from adm_sim.model.plausibility import check_response
 from adm_sim.protocol import parse_driver_line
 
 
@@ -106,7 +106,7 @@ def _main(args):
 
 
 def warn_implausible(s):
-    """The plausibility warnings of the run's result (:func:`adm_sim.plausibility.check_response`,
+    """The plausibility warnings of the run's result (:func:`adm_sim.model.plausibility.check_response`,
     as ``adm-sim sweep`` gives them): its largest acceleration and deflection, named by the run,
     its model and speed; once per run."""
     acc, disp, v = (np.asarray(s[k], dtype=float) for k in ("max_acc_m_s2", "max_disp_m", "speeds_kmh"))

@@ -9,7 +9,7 @@ Usage::
 
 The topic is any ``geometry_msgs/AccelStamped`` topic (ours, or a real accelerometer's); the run
 records beside one of ours (``/adm/run/status``, the bridge and train descriptions) cut the
-passages where they exist, the signal where they do not (:mod:`adm_sim.modal_id`). Each passage
+passages where they exist, the signal where they do not (:mod:`adm_sim.monitoring.modal_id`). Each passage
 is printed as one line; ``--json F`` writes ``{"passages": [{"peak_acc_m_s2", "t_peak_s", "level",
 "f1_hz", "zeta1_pct", "f1_std_hz", "zeta1_std_pct", "identified", "reason", ...}]}`` (numbers of
 the fit null and the reason given when a passage's free decay cannot identify damping).
@@ -142,7 +142,7 @@ def check_mcap_topic(path, topic):
 
 def monitor_mcap(args, tracker):
     """Feed the MCAP's samples and run records to ``tracker`` in log-time order."""
-    from adm_sim.modal_id import run_topics_for
+    from adm_sim.monitoring.modal_id import run_topics_for
     from adm_sim.recording.mcap_log import read_messages
 
     channels = check_mcap_topic(args.mcap, args.topic)
@@ -217,7 +217,7 @@ def main(argv=None) -> int:
 
 def _run(args) -> int:
     from adm_sim.files import write_atomic
-    from adm_sim.modal_id import IdentifySettings, PassageTracker
+    from adm_sim.monitoring.modal_id import IdentifySettings, PassageTracker
 
     check_args(args)
     settings = IdentifySettings(min_cycles=args.min_cycles, bandpass=not args.no_bandpass)

@@ -1,6 +1,6 @@
 """Batched runs and batched calibration against the single-case paths.
 
-* :class:`adm_sim.compiled_batch.BatchRunner` lanes equal :func:`adm_sim.sweep.run_sweep` (numpy stepper)
+* :class:`adm_sim.integrate.compiled_batch.BatchRunner` lanes equal :func:`adm_sim.integrate.sweep.run_sweep` (numpy stepper)
   with the same ``ds`` to 1e-12 relative, MLM and DIM, conventional and Jacobs trains;
 * :func:`adm_calib.calibrate.calibrate_batch` reproduces :func:`adm_calib.calibrate.calibrate` to
   1e-9 relative on its peaks and 1e-5 % on Δζ_VBI (spans 4, 20 and 40 m; ICE-2, ICE-4, Eurostar;
@@ -16,11 +16,11 @@ import pytest
 from adm_calib.calibrate import batch_step, calibrate_batch
 from adm_calib.calibrate import CalibrationOptions, calibrate, calibration_step
 from adm_calib.study import select_cases
-from adm_sim.compiled_batch import BatchRunner
+from adm_sim.integrate.compiled_batch import BatchRunner
 from adm_sim.errors import RunError
-from adm_sim.step_grid import StepOptions
-from adm_sim.sweep import run_sweep
-from adm_sim.trains import load_train
+from adm_sim.integrate.step_grid import StepOptions
+from adm_sim.integrate.sweep import run_sweep
+from adm_sim.model.trains import load_train
 
 
 def _group(span, fi, mfs=("mu1", "mu2", "mu3", "mu4", "mu5", "mu6"), train="ICE-2"):

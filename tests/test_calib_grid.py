@@ -5,9 +5,9 @@ or missed peak."""
 import numpy as np
 import pytest
 
-from adm_sim.bridge import named_bridge
-from adm_sim.sweep import sweep_exact
-from adm_sim.trains import load_train
+from adm_sim.model.bridge import named_bridge
+from adm_sim.integrate.sweep import sweep_exact
+from adm_sim.model.trains import load_train
 
 from adm_calib.calibrate import calibrate
 from adm_calib.speed_grids import GRID_RTOL, NO_RESONANCE_FRACTION, speed_grid_finding

@@ -4,9 +4,9 @@ import types
 
 import pytest
 
-from adm_sim.bridge import named_bridge
+from adm_sim.model.bridge import named_bridge
 from adm_sim.errors import InputError
-from adm_sim.trains import load_train
+from adm_sim.model.trains import load_train
 from adm_calib import reference as ref
 
 # ---------------------------------------------------------------------- ADM

@@ -12,21 +12,21 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from adm_sim.check_text import summary
+from adm_sim.design.check_text import summary
 
 from adm_calib.calib_commands import main as calib_main
 from adm_calib.check import calibrated_damping
-from adm_sim.check import (TrainCheck, check_speeds_kmh, delta_zeta_for, parse_bounds, resolve_trains, run_check,
+from adm_sim.design.check import (TrainCheck, check_speeds_kmh, delta_zeta_for, parse_bounds, resolve_trains, run_check,
                            screening, static_midspan_max_m)
-from adm_sim.bridge import Bridge, named_bridge
-from adm_sim.envelope import moving_load_envelope
+from adm_sim.model.bridge import Bridge, named_bridge
+from adm_sim.integrate.envelope import moving_load_envelope
 from adm_sim.errors import InputError
-from adm_sim.sim_commands import main as sim_main
-from adm_sim.trains import load_train, moving_loads
+from adm_sim.cli.sim_commands import main as sim_main
+from adm_sim.model.trains import load_train, moving_loads
 from analytic import moving_force_modal
 from test_envelope import reference_maxima
 
-CLI = [sys.executable, "-m", "adm_sim.sim_commands"]
+CLI = [sys.executable, "-m", "adm_sim.cli.sim_commands"]
 CALIB_CLI = [sys.executable, "-m", "adm_calib.calib_commands"]
 
 
@@ -132,7 +132,7 @@ def test_static_deflection_against_beam_formula():
 def test_static_modal_moment_and_deflection_closed_form():
     """One axle F crossing B1 on modes 1-3: the largest static midspan effects are the modal series at
     a = L/2, w = sum_odd 2 F L^3 / (j^4 pi^4 EJ), M = sum_odd 2 F L / (j^2 pi^2) (written out here)."""
-    from adm_sim.check import static_midspan_max
+    from adm_sim.design.check import static_midspan_max
 
     b = named_bridge("B1")
     F, L, EJ = 1.0e5, b.span_m, b.EJ_Nm2
@@ -147,7 +147,7 @@ def test_design_comparison_6_4_6_5_by_hand():
     Phi2 (Eq. 6.4) = 1.44 / (sqrt(15) - 0.2) + 0.82 = 1.21205; phi'' (Annex C, v > 22 m/s so alpha = 1)
     = [56 e^-(1.5^2) + 50 (15 n0 / 80 - 1) e^-(0.75^2)] / 100; LM71 midspan moment on 15 m with an axle
     at midspan (4 x 250 kN at 1.6 m, 80 kN/m beyond the 6.4 m group), 3715.2 kNm, worked out below; the train side (1 + phi'_dyn + phi''/2) x its exact static moment."""
-    from adm_sim.design_loads import train_midspan_max
+    from adm_sim.design.design_loads import train_midspan_max
 
     b = named_bridge("B1")
     res = run_check(b, 250.0, resolve_trains("HSLM-A9,ICE-2"), step_kmh=1.0)
@@ -163,7 +163,7 @@ def test_design_comparison_6_4_6_5_by_hand():
     assert d.phi_dd == pytest.approx(phi_dd, rel=1e-12)
     assert d.lm71_static_moment_Nm == pytest.approx(m_points + m_udl, rel=1e-9)
     c = res.trains[0]
-    # the midspan moment's phi'_dyn by the mode-acceleration method (adm_sim.check_effects), not the
+    # the midspan moment's phi'_dyn by the mode-acceleration method (adm_sim.design.check_effects), not the
     # 3-mode sum divided by the 3-mode static moment (0.482, truncated)
     mid = next(i for i, e in enumerate(c.effects.effects) if e.kind == "M" and e.x_m == 7.5)
     assert d.phi_dyn_moment == c.effects.phi_dyn[mid] == pytest.approx(0.524, abs=1e-3)  # speeds refined at 0.1 km/h
@@ -302,7 +302,7 @@ def test_bad_input_cli_lines(args, line, capsys):
 
 
 def test_bad_input_exit_code_of_the_process():
-    """One refusal through a real `python -m adm_sim.sim_commands check` process: exit 2, the one
+    """One refusal through a real `python -m adm_sim.cli.sim_commands check` process: exit 2, the one
     line on stderr, nothing on stdout (the in-process cases above share its run_cli path)."""
     r = run("check", "--max-line-speed", "300", "--where", "top")
     assert r.returncode == 2 and r.stdout == ""
@@ -363,11 +363,11 @@ def test_calib_check_lb_matches_the_lower_bound():
 
 
 def test_core_api_calib_methods_need_a_provider():
-    """adm_sim.check.run_check: lb/vbi without a damping_provider are refused before any work; with
+    """adm_sim.design.check.run_check: lb/vbi without a damping_provider are refused before any work; with
     one, the provider's Δζ is used exactly as the ADM's: a provider returning the Eurocode ADM value
     (EN 1991-2 6.4.6.3.1 Eq. 6.13) reproduces --damping adm to the last bit."""
-    from adm_sim import check as core
-    from adm_sim.design_loads import adm_delta_zeta_pct
+    from adm_sim.design import check as core
+    from adm_sim.design.design_loads import adm_delta_zeta_pct
 
     b1, axle = named_bridge("B1"), moving_loads([0.0], [100e3], name="one axle")
     for method in ("lb", "vbi"):
@@ -414,7 +414,7 @@ def test_cli_outputs_and_no_overwrite(tmp_path):
     assert d["margin_m_s2"] == pytest.approx(3.5 - g["acc_m_s2"])
     rows = list(csv.DictReader(cs.open()))
     assert len(rows) == sum(len(t["curve"]["speeds_kmh"]) for t in d["trains"])
-    data = png.read_bytes()  # a PNG of 9 x 5 in at 120 dpi (adm_sim.figures.plot_check)
+    data = png.read_bytes()  # a PNG of 9 x 5 in at 120 dpi (adm_sim.cli.figures.plot_check)
     assert data[:8] == b"\x89PNG\r\n\x1a\n"
     assert (int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big")) == (1080, 600)
     r = run("check", "--bridge", "B1", "--max-line-speed", "250", "--trains", "HSLM-A7", "--where", "midspan",
@@ -501,7 +501,7 @@ def test_comfort_b_v_against_an_independent_integration(tmp_path, name):
     steps per period, velocities differenced over the step) equals the coupled bridge-vehicle ODE
     written out in this file and integrated by scipy's DOP853 (rtol 1e-10) to 5e-4 (measured:
     <= 8e-5; 1e-5 at 64 steps per period)."""
-    from adm_sim.check import comfort_b_v
+    from adm_sim.design.check import comfort_b_v
 
     f = tmp_path / "one_pc.toml"
     f.write_text('name = "one PC"\n[vehicle_types.PC]\n' + "\n".join(f"{k} = {v}" for k, v in ONE_PC.items())
@@ -522,8 +522,8 @@ def test_comfort_b_v_limits_and_convergence():
     and 263 km/h, 6269 for 263 km/h alone), and the comparisons are with B1's maximum. Not proven
     here any more: the rigid bridge's ~0 at 200 km/h (measured 2.3e-5 m/s2; 2.4e-5 at 263 km/h), and
     B3 above B1 at 200 km/h (measured 0.294 against 0.116 m/s2)."""
-    from adm_sim.check import comfort_b_v, comfort_level
-    from adm_sim.step_grid import StepOptions
+    from adm_sim.design.check import comfort_b_v, comfort_level
+    from adm_sim.integrate.step_grid import StepOptions
 
     t = load_train("ICE-2")
     v = np.array([200.0, 263.0])
@@ -557,8 +557,8 @@ def test_more_modes_on_request():
 
 def test_core_does_not_import_adm_calib():
     """The core's check and its CLI load without adm_calib, and `adm-sim check` runs without it."""
-    code = ("import sys, adm_sim.sim_commands, adm_sim.check, adm_sim.envelope, adm_sim.hslm, adm_sim.trains\n"
-            "adm_sim.sim_commands.main(['check', '--max-line-speed', '250', '--trains', 'HSLM-A1', '--speed-step', '1'])\n"
+    code = ("import sys, adm_sim.cli.sim_commands, adm_sim.design.check, adm_sim.integrate.envelope, adm_sim.model.hslm, adm_sim.model.trains\n"
+            "adm_sim.cli.sim_commands.main(['check', '--max-line-speed', '250', '--trains', 'HSLM-A1', '--speed-step', '1'])\n"
             "print('adm_calib' in sys.modules)")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert r.stdout.strip().splitlines()[-1] == "False", r.stderr
@@ -573,7 +573,7 @@ def test_no_import_of_adm_calib_anywhere_in_adm_sim():
 
     root = pathlib.Path(__file__).resolve().parents[1] / "src" / "adm_sim"
     files = sorted(root.rglob("*.py"))
-    assert root / "sim_commands.py" in files and root / "check.py" in files
+    assert root / "cli" / "sim_commands.py" in files and root / "design" / "check.py" in files
     bad = []
     for f in files:
         tree = ast.parse(f.read_text(encoding="utf-8"), filename=str(f))
@@ -775,7 +775,7 @@ def test_interrupted_check_runs_no_train_not_yet_started(monkeypatch):
     (before, the thread pool ran all 14 before the interrupt came out)."""
     import threading
 
-    from adm_sim import envelope
+    from adm_sim.integrate import envelope
 
     real, started, lock = envelope.moving_load_envelope, set(), threading.Lock()
 

@@ -23,10 +23,10 @@ import math
 import numpy as np
 import pytest
 
-from adm_sim import check_effects as ce
-from adm_sim.bridge import named_bridge
-from adm_sim.check import resolve_trains, run_check
-from adm_sim.envelope import moving_load_envelope
+from adm_sim.design import check_effects as ce
+from adm_sim.model.bridge import named_bridge
+from adm_sim.design.check import resolve_trains, run_check
+from adm_sim.integrate.envelope import moving_load_envelope
 
 REL = 1e-9
 
@@ -81,7 +81,7 @@ def test_every_bound_is_the_nominal_bridge_at_mapped_speeds(checked):
 def test_every_effect_of_every_bound_is_the_nominal_one_at_mapped_speeds(checked, monkeypatch):
     """φ'_dyn of the moment and shear at every section and the reactions (EN 1991-2 6.4.6.5(3)): the
     forces do not scale (mass or stiffness), so the largest dynamic value of every effect is the nominal
-    one at the mapped speeds; the two passes of :func:`adm_sim.check_effects.train_effects` keep their
+    one at the mapped speeds; the two passes of :func:`adm_sim.design.check_effects.train_effects` keep their
     speed steps in the bound's own km/h (the coarse step maps to sqrt(kappa) km/h)."""
     res = checked
     for label, r in res.bounds:
@@ -120,8 +120,8 @@ def test_the_bounds_with_the_closed_form_of_one_force():
 
 def _clear_static_caches():
     """Empty every cache of static results (the check's, the effects' and design_loads')."""
-    import adm_sim.check as chk
-    from adm_sim import design_loads
+    import adm_sim.design.check as chk
+    from adm_sim.design import design_loads
 
     for f in (chk._static_midspan_max_cached, ce._sample_statics_cached, ce._lm71_effects_cached,
               design_loads._train_midspan_max_cached, design_loads._lm71_midspan):
@@ -131,7 +131,7 @@ def _clear_static_caches():
 def test_threads_and_caches_change_no_number(monkeypatch):
     """The trains run in threads and the static effects are cached: one thread and empty caches give
     the same result, bit for bit (B1, HSLM-A7 and ICE-2, V = 200 km/h, a mass bound)."""
-    import adm_sim.check as chk
+    import adm_sim.design.check as chk
 
     trains = resolve_trains("HSLM-A7,ICE-2")
     b = named_bridge("B1")
@@ -158,8 +158,8 @@ def test_static_midspan_max_against_the_bridge_modal_stiffness():
     """The static midspan maxima take K_j = (L/2) (j pi/L)^4 EJ, without the mass; the former computation took
     the bridge's M_j omega_j^2 (the same value up to round-off): every train on B1 and B2, 3 and 5 modes,
     agree to 2e-15 relative (measured 6.7e-16)."""
-    import adm_sim.check as chk
-    from adm_sim.check_effects import midspan_modal_sum
+    import adm_sim.design.check as chk
+    from adm_sim.design.check_effects import midspan_modal_sum
 
     for name in ("B1", "B2"):
         for n in (3, 5):

@@ -1,4 +1,4 @@
-"""EN 1991-2 6.4.6.5(3) for every effect along the span (adm_sim.check_effects): statics by hand, LM71 by
+"""EN 1991-2 6.4.6.5(3) for every effect along the span (adm_sim.design.check_effects): statics by hand, LM71 by
 hand, the mode-acceleration method against the closed form of one moving force, modal convergence
 (3, 5, 9, 15 modes), the two-pass speed search against one fine pass, and the φ'' share per maintenance."""
 
@@ -8,11 +8,11 @@ import math
 import numpy as np
 import pytest
 
-from adm_sim import check_effects as ce
-from adm_sim.bridge import named_bridge
-from adm_sim.check import check_speeds_kmh
-from adm_sim.design_loads import lm71_midspan, phi_dd_factor
-from adm_sim.trains import load_train
+from adm_sim.design import check_effects as ce
+from adm_sim.model.bridge import named_bridge
+from adm_sim.design.check import check_speeds_kmh
+from adm_sim.design.design_loads import lm71_midspan, phi_dd_factor
+from adm_sim.model.trains import load_train
 from analytic import moving_force_modal
 
 B1 = dataclasses.replace(named_bridge("B1"), damping_model="modal")
@@ -98,7 +98,7 @@ def test_two_passes_equal_one_fine_pass(monkeypatch):
     """The coarse pass only chooses the speeds of the fine one: with every speed refined (margin 1, step 0)
     the results are the same to round-off for HSLM-A9 and ICE-2 on B1, V = 350 km/h, at the check's own
     speeds (1 km/h and the 0.1 km/h refinement around every acceleration peak)."""
-    from adm_sim.check import run_check
+    from adm_sim.design.check import run_check
 
     res = run_check(named_bridge("B1"), 350.0, [load_train("HSLM-A9"), load_train("ICE-2")])
     for c in res.trains:
@@ -144,7 +144,7 @@ def test_lm71_deflection_and_end_rotation_by_hand():
     formula's antiderivative checked against scipy's quad."""
     from scipy.integrate import quad
 
-    from adm_sim import check_sls as sls
+    from adm_sim.design import check_sls as sls
 
     L, EJ = 15.0, 1e10
     w, x = sls.lm71_max_deflection(L, EJ)
@@ -189,7 +189,7 @@ def test_lateral_frequency_bad_input(tmp_path, value, line):
     import sys
 
     js = tmp_path / "c.json"
-    r = subprocess.run([sys.executable, "-m", "adm_sim.sim_commands", "check", "--max-line-speed", "250",
+    r = subprocess.run([sys.executable, "-m", "adm_sim.cli.sim_commands", "check", "--max-line-speed", "250",
                         "--trains", "HSLM-A1", "--lateral-frequency", value, "--json", str(js)],
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 2 and r.stderr == line and not js.exists()

@@ -1,6 +1,6 @@
 """The check's compiled kernels against their former form, kept here verbatim as plain Python.
 
-:func:`adm_sim.check_effects._scan` (the effect scan) and :func:`adm_sim.envelope._prepare` (the bounds of
+:func:`adm_sim.design.check_effects._scan` (the effect scan) and :func:`adm_sim.integrate.envelope._prepare` (the bounds of
 the exact envelope) were restructured for speed (loops reordered, shared moduli, a vectorisable loop over
 the effects) with every operation of every value kept in the same order. Their uncompiled form must equal
 the former code bit for bit on inputs captured from a real run (B1, 3 modes, the first 8 axles of ICE-2 and
@@ -11,10 +11,10 @@ compiled and the Python complex exponential may differ in the last bit).
 import numpy as np
 import pytest
 
-from adm_sim import check_effects as ce
-from adm_sim import envelope as env
-from adm_sim.bridge import named_bridge
-from adm_sim.check import resolve_trains
+from adm_sim.design import check_effects as ce
+from adm_sim.integrate import envelope as env
+from adm_sim.model.bridge import named_bridge
+from adm_sim.design.check import resolve_trains
 
 _EXP_MODES = ce._exp_modes  # the compiled helper, as both forms of the scan call it
 

@@ -6,11 +6,11 @@ from html.parser import HTMLParser
 
 import pytest
 
-from adm_sim.bridge import named_bridge
-from adm_sim.check import resolve_trains, run_check
-from adm_sim.check_report import report_html
+from adm_sim.model.bridge import named_bridge
+from adm_sim.design.check import resolve_trains, run_check
+from adm_sim.design.check_report import report_html
 
-CLI = [sys.executable, "-m", "adm_sim.sim_commands"]
+CLI = [sys.executable, "-m", "adm_sim.cli.sim_commands"]
 
 
 class Page(HTMLParser):

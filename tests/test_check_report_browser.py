@@ -18,7 +18,7 @@ import sys
 import numpy as np
 import pytest
 
-CLI = [sys.executable, "-m", "adm_sim.sim_commands"]
+CLI = [sys.executable, "-m", "adm_sim.cli.sim_commands"]
 CHROMIUM, DRIVER = shutil.which("chromium"), shutil.which("chromedriver")
 pytestmark = pytest.mark.skipif(CHROMIUM is None or DRIVER is None,
                                 reason="no headless Chromium (.ci/install-browser installs Debian's chromium "

@@ -5,11 +5,11 @@ import math
 import numpy as np
 import pytest
 
-from adm_sim.bridge import (Bridge, TABLE3, eurocode_damping_pct, load_bridge_file, named_bridge, parametric_field,
+from adm_sim.model.bridge import (Bridge, TABLE3, eurocode_damping_pct, load_bridge_file, named_bridge, parametric_field,
                             parse_bridge_spec, resolve_bridge)
 from adm_sim.errors import InputError
-from adm_sim.parametric import field_frequencies_hz
-from adm_sim.trains import check_train, load_train, train_from_mapping
+from adm_sim.model.parametric import field_frequencies_hz
+from adm_sim.model.trains import check_train, load_train, train_from_mapping
 
 
 @pytest.mark.parametrize("name", list(TABLE3))
@@ -236,7 +236,7 @@ def test_train_file_missing_and_unknown(tmp_path):
 def test_both_train_file_forms_check_their_fields_alike(change, words):
     """A train file of vehicle types and a vehicle file (bodies, wheelsets, stages) share their
     top-level fields, checked by one checker: the same fault, the same line."""
-    from adm_sim.trains import vehicle_file_mapping
+    from adm_sim.model.trains import vehicle_file_mapping
 
     forms = {"types.toml": _minimal(), "vehicles.toml": vehicle_file_mapping(load_train("ICE-2"))}
     for source, data in forms.items():

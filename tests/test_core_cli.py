@@ -6,9 +6,9 @@ import sys
 
 import pytest
 
-from adm_sim.sim_commands import main
+from adm_sim.cli.sim_commands import main
 
-CLI = [sys.executable, "-m", "adm_sim.sim_commands"]
+CLI = [sys.executable, "-m", "adm_sim.cli.sim_commands"]
 
 
 def run(*args):
@@ -26,7 +26,7 @@ def call(call_main):
 
 def test_sweep_json_and_plot(tmp_path, call):
     js, png = tmp_path / "s.json", tmp_path / "s.png"
-    # default speeds 160:350:1 km/h; the MLM sweep is the exact envelope (adm_sim.envelope), so its
+    # default speeds 160:350:1 km/h; the MLM sweep is the exact envelope (adm_sim.integrate.envelope), so its
     # peak is the true maximum at 263 km/h, which tests/test_envelope.py checks against the closed
     # form of every axle (2.24716 m/s²); the RK4 run (--method rk4, 16 steps per period) samples it
     # at its steps and sits just below (the README's 2.2465 m/s²)
@@ -107,7 +107,7 @@ def test_trains_check_prints_the_checks(call):
 
 
 def test_sweep_outputs_checked_before_the_run(tmp_path, capsys):
-    from adm_sim.sim_commands import main
+    from adm_sim.cli.sim_commands import main
 
     base = ["sweep", "--bridge", "B4", "--model", "mlm", "--speeds", "200,260"]
     j = tmp_path / "r.json"
@@ -133,7 +133,7 @@ def test_sweep_outputs_checked_before_the_run(tmp_path, capsys):
 
 
 def test_bridges_field_is_pure_csv(capsys):
-    from adm_sim.sim_commands import main
+    from adm_sim.cli.sim_commands import main
 
     assert main(["bridges", "--field"]) == 0
     out = capsys.readouterr()

@@ -15,13 +15,13 @@ import math
 import numpy as np
 import pytest
 
-from adm_sim import kernels
-from adm_sim.compiled_batch import BatchRunner
-from adm_sim.bridge import named_bridge
-from adm_sim.dense_output import hermite_max_abs_acc
-from adm_sim.step_grid import StepOptions, make_grid, speeds_to_m_s
-from adm_sim.sweep import run_sweep
-from adm_sim.trains import load_train, moving_loads
+from adm_sim.integrate import kernels
+from adm_sim.integrate.compiled_batch import BatchRunner
+from adm_sim.model.bridge import named_bridge
+from adm_sim.integrate.dense_output import hermite_max_abs_acc
+from adm_sim.integrate.step_grid import StepOptions, make_grid, speeds_to_m_s
+from adm_sim.integrate.sweep import run_sweep
+from adm_sim.model.trains import load_train, moving_loads
 
 from analytic import moving_force_modal
 

@@ -12,10 +12,10 @@ from importlib import resources
 import numpy as np
 import pytest
 
-from adm_sim.bridge import named_bridge
-from adm_sim.step_grid import StepOptions
-from adm_sim.sweep import run_sweep, run_sweep_compiled
-from adm_sim.trains import load_train, train_from_mapping
+from adm_sim.model.bridge import named_bridge
+from adm_sim.integrate.step_grid import StepOptions
+from adm_sim.integrate.sweep import run_sweep, run_sweep_compiled
+from adm_sim.model.trains import load_train, train_from_mapping
 
 
 def _modified(name, **changes):
@@ -108,7 +108,7 @@ def test_contact_forces_balance_the_static_loads(train_name):
 
 def test_dim_rejects_load_trains():
     from adm_sim.errors import InputError
-    from adm_sim.trains import moving_loads
+    from adm_sim.model.trains import moving_loads
 
     with pytest.raises(InputError, match="model: 'dim' needs a train with vehicles"):
         run_sweep(named_bridge("B1"), moving_loads([0.0], [1e5]), "dim", [200.0])

@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from adm_sim.bridge import named_bridge
-from adm_sim.step_grid import StepOptions
-from adm_sim.sweep import run_sweep
-from adm_sim.trains import load_train, train_from_mapping
+from adm_sim.model.bridge import named_bridge
+from adm_sim.integrate.step_grid import StepOptions
+from adm_sim.integrate.sweep import run_sweep
+from adm_sim.model.trains import load_train, train_from_mapping
 
 
 def _one_vehicle_train():

@@ -6,10 +6,10 @@ import pytest
 
 from analytic import (moving_force_midspan_deflection, static_midspan_deflection,
                       static_midspan_deflection_modal)
-from adm_sim.bridge import named_bridge
-from adm_sim.step_grid import StepOptions
-from adm_sim.sweep import run_sweep
-from adm_sim.trains import load_train, moving_loads
+from adm_sim.model.bridge import named_bridge
+from adm_sim.integrate.step_grid import StepOptions
+from adm_sim.integrate.sweep import run_sweep
+from adm_sim.model.trains import load_train, moving_loads
 
 ONE_FORCE = moving_loads([0.0], [100e3], "one force")
 

@@ -1,4 +1,4 @@
-"""The one peak rule (adm_sim.peaks): sweep and calibration name the same peak of one curve.
+"""The one peak rule (adm_sim.integrate.peaks): sweep and calibration name the same peak of one curve.
 
 Curves are built so that the answer is known by construction: a resonance bump, a ripple below
 0.1 % prominence, a rising plateau (not a maximum), a flat-topped peak (its middle sample).
@@ -7,9 +7,9 @@ Curves are built so that the answer is known by construction: a resonance bump, 
 import numpy as np
 import pytest
 
-from adm_sim import peaks as core
-from adm_sim.bridge import named_bridge
-from adm_sim.sweep import SweepResult
+from adm_sim.integrate import peaks as core
+from adm_sim.model.bridge import named_bridge
+from adm_sim.integrate.sweep import SweepResult
 from adm_calib import peaks as calib
 
 V = np.arange(160.0, 351.0, 1.0)

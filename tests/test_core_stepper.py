@@ -9,14 +9,14 @@ period of mode 3, one period of free vibration) to keep it quick. Maxima are com
 import numpy as np
 import pytest
 
-from adm_sim.bridge import named_bridge
+from adm_sim.model.bridge import named_bridge
 from adm_sim.errors import InputError, RunError
-from adm_sim.lockstep_runs import BridgeHalf, InProcessRun, TrainHalf
-from adm_sim.mlm_loads import half_step_positions, mlm_modal_load_table, modal_loads_at
-from adm_sim.rk4_sides import BridgeSide, TrainSide
-from adm_sim.step_grid import StepOptions, make_grid, speeds_to_m_s
-from adm_sim.sweep import run_sweep
-from adm_sim.trains import load_train
+from adm_sim.integrate.lockstep_runs import BridgeHalf, InProcessRun, TrainHalf
+from adm_sim.integrate.mlm_loads import half_step_positions, mlm_modal_load_table, modal_loads_at
+from adm_sim.integrate.rk4_sides import BridgeSide, TrainSide
+from adm_sim.integrate.step_grid import StepOptions, make_grid, speeds_to_m_s
+from adm_sim.integrate.sweep import run_sweep
+from adm_sim.model.trains import load_train
 
 SPEEDS_KMH = [160.0, 250.0, 350.0]
 DIM_OPTIONS = StepOptions(steps_per_period=4.0, free_vibration_periods=1.0)

@@ -1,4 +1,4 @@
-"""EN 1991-2 6.4.6.5(3) design comparison (adm_sim.design_loads) against independent references.
+"""EN 1991-2 6.4.6.5(3) design comparison (adm_sim.design.design_loads) against independent references.
 
 References, none of them the code under test:
 * hand calculations written out below (Φ2/Φ3 of 6.4.5.2, φ'' and φ' of Annex C, LM71 on 20 m);
@@ -17,9 +17,9 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize_scalar
 
-from adm_sim import design_loads as dl
+from adm_sim.design import design_loads as dl
 from adm_sim.errors import InputError
-from adm_sim.hslm import hslm_axles
+from adm_sim.model.hslm import hslm_axles
 
 # ---------------------------------------------------------------- independent references
 

@@ -31,7 +31,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 PY = sys.executable
-SIM = [PY, "-m", "adm_sim.sim_commands"]
+SIM = [PY, "-m", "adm_sim.cli.sim_commands"]
 CAL = [PY, "-m", "adm_calib.calib_commands"]
 LAUNCH = ROOT / "launch_scripts"
 

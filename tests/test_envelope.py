@@ -1,4 +1,4 @@
-"""Exact MLM envelopes (adm_sim.envelope) against an independent closed form.
+"""Exact MLM envelopes (adm_sim.integrate.envelope) against an independent closed form.
 
 Reference: every axle is one moving force (Fryba's closed form per mode: forced response from
 zero rest while it is on the span, free vibration afterwards), superposed in time; midspan
@@ -13,11 +13,11 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize_scalar
 
-from adm_sim.bridge import named_bridge
+from adm_sim.model.bridge import named_bridge
 from analytic import moving_forces_modal
-from adm_sim.envelope import MAX_FREE_PERIODS, check_mode_count, moving_load_envelope
+from adm_sim.integrate.envelope import MAX_FREE_PERIODS, check_mode_count, moving_load_envelope
 from adm_sim.errors import InputError
-from adm_sim.trains import load_train
+from adm_sim.model.trains import load_train
 
 REL_TOL = 1e-5
 
@@ -91,7 +91,7 @@ def test_envelope_converged_in_its_sampling():
 def test_envelope_agrees_with_rk4_sweep_near_peak():
     """The RK4 MLM sweep (16 steps per period) samples the history at its steps, so it sits just
     below the exact maximum (0.04 % at the B1 x ICE-2 peak)."""
-    from adm_sim.sweep import run_sweep
+    from adm_sim.integrate.sweep import run_sweep
 
     bridge = named_bridge("B1")
     t = load_train("ICE-2")
@@ -109,7 +109,7 @@ def test_check_modes_en1990():
     """EN 1990 A2.4.4.2.1: modes up to max(30 Hz, 1.5 n0, n3)."""
     assert check_mode_count(named_bridge("B1")) == 3  # n3 = 74.3 Hz, n4 = 132 Hz
     assert check_mode_count(named_bridge("B2")) == 3  # n3 = 32.4 Hz > 30 Hz
-    from adm_sim.bridge import Bridge
+    from adm_sim.model.bridge import Bridge
 
     low = Bridge.from_frequency(40.0, 1.2, 20000.0, 0.01)  # 30 Hz governs: j^2 1.2 <= 30 -> j <= 5
     assert check_mode_count(low) == 5
@@ -261,7 +261,7 @@ def test_issue_case_b1_v250_deck_fails_where_midspan_passes(model, expect):
     alone (3.2275 m/s2) passes under both."""
     import dataclasses
 
-    from adm_sim.check import resolve_trains, run_check
+    from adm_sim.design.check import resolve_trains, run_check
 
     bridge = named_bridge("B1", damping_model=model)
     trains = resolve_trains("hslm,ICE-2,Eurostar,Railjet,ICE-4")
@@ -303,8 +303,8 @@ def test_compiled_kernels_equal_their_python_source():
     import subprocess
     import sys
 
-    code = ("import json, numpy as np; from adm_sim.bridge import named_bridge; "
-            "from adm_sim.envelope import moving_load_envelope as f; b = named_bridge('B1'); "
+    code = ("import json, numpy as np; from adm_sim.model.bridge import named_bridge; "
+            "from adm_sim.integrate.envelope import moving_load_envelope as f; b = named_bridge('B1'); "
             "e = f(b, [0.0, 3.0], [1e5, 1e5], [180.0, 260.0], where='deck'); "
             "m = f(b, [0.0, 3.0], [1e5, 1e5], [180.0, 260.0]); "
             "print(json.dumps([e.max_acc_m_s2.tolist(), e.x_acc_m.tolist(), e.max_moment_Nm.tolist(), "

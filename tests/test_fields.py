@@ -76,7 +76,7 @@ def test_lower_bound_set_by_another_value():
 def all_param_specs():
     pytest.importorskip("rclpy")
     from adm_calib.nodes.calibration_node import CALIBRATION_SPECS
-    from adm_sim.bridge import named_bridge
+    from adm_sim.model.bridge import named_bridge
     from adm_sim.nodes.bridge_node import bridge_specs
     from adm_sim.nodes.driver import DRIVER_SPECS
     from adm_sim.nodes.train_node import TRAIN_SPECS
@@ -103,7 +103,7 @@ def test_every_ros_parameter_with_a_range_is_its_registry_field():
             assert (s.lo, s.hi) == (v.lo, v.hi), s.name
             assert type(s.default) is v.field.type, s.name
     # what stays outside: paths, switches and URLs of the driver (no range, no unit), and the train
-    # node's track profile spec (checked by adm_sim.irregularity.parse)
+    # node's track profile spec (checked by adm_sim.model.irregularity.parse)
     assert sorted(outside) == ["irregularity", "overwrite", "record_path", "rerun_connect", "rerun_spawn", "rrd_path",
                               "run_phase", "summary_path"]
 
@@ -127,7 +127,7 @@ def test_parameter_refusals_are_the_registry_messages():
 # ---------------------------------------------------------------- CLI options
 def parsers():
     from adm_calib.calib_commands import build_parser as calib_parser
-    from adm_sim.sim_commands import build_parser as sim_parser
+    from adm_sim.cli.sim_commands import build_parser as sim_parser
 
     sys.path.insert(0, str(ROOT / "launch_scripts"))
     try:
@@ -163,7 +163,7 @@ def test_help_of_every_registry_flag_states_its_range():
 
 
 def test_sweep_help_printed_shows_the_registry_range():
-    r = subprocess.run([sys.executable, "-m", "adm_sim.sim_commands", "sweep", "--help"], capture_output=True,
+    r = subprocess.run([sys.executable, "-m", "adm_sim.cli.sim_commands", "sweep", "--help"], capture_output=True,
                        text=True, timeout=60)
     assert r.returncode == 0
     text = " ".join(r.stdout.split())
@@ -186,8 +186,8 @@ def test_launch_script_domain_id_help_and_check_from_the_registry():
 # ---------------------------------------------------------------- one field, three surfaces
 def test_span_out_of_range_same_message_from_toml_cli_and_ros(tmp_path, capsys):
     """span = 200 m as a TOML key, in a --bridge spec on the command line, and as a ROS parameter."""
-    from adm_sim.bridge import load_bridge_file
-    from adm_sim.sim_commands import main
+    from adm_sim.model.bridge import load_bridge_file
+    from adm_sim.cli.sim_commands import main
 
     toml = tmp_path / "b.toml"
     toml.write_text("L = 200.0\nn0 = 5.0\nmu = 10000.0\nzeta_pct = 1.0\n")
@@ -196,7 +196,7 @@ def test_span_out_of_range_same_message_from_toml_cli_and_ros(tmp_path, capsys):
     m_cli = capsys.readouterr().err.strip().removeprefix("error: ")
     m_ros = refusal(lambda: fields.view("ros", "span_m").check(200.0))
     if _has_rclpy():  # the bridge node's own check of its parameters (start-up, on-set, launchers)
-        from adm_sim.bridge import named_bridge
+        from adm_sim.model.bridge import named_bridge
         from adm_sim.nodes.bridge_node import bridge_from_params, bridge_specs
 
         values = {sp.name: sp.default for sp in bridge_specs(named_bridge("B1"))}
@@ -209,14 +209,14 @@ def test_span_out_of_range_same_message_from_toml_cli_and_ros(tmp_path, capsys):
 
 
 def test_steps_per_period_same_message_from_cli_ros_and_core(capsys):
-    from adm_sim.sim_commands import main
-    from adm_sim.step_grid import StepOptions
+    from adm_sim.cli.sim_commands import main
+    from adm_sim.integrate.step_grid import StepOptions
 
     assert main(["sweep", "--model", "dim", "--speeds", "200", "--steps-per-period", "3"]) == 2
     m_cli = capsys.readouterr().err.strip().removeprefix("error: ")
     m_ros = refusal(lambda: fields.view("ros", "steps_per_period").check(3.0))
     if _has_rclpy():
-        from adm_sim.bridge import named_bridge
+        from adm_sim.model.bridge import named_bridge
         from adm_sim.nodes.bridge_node import bridge_specs
 
         spec = next(sp for sp in bridge_specs(named_bridge("B1")) if sp.name == "steps_per_period")
@@ -229,7 +229,7 @@ def test_steps_per_period_same_message_from_cli_ros_and_core(capsys):
 def test_damping_in_percent_and_as_fraction_are_one_field(tmp_path, capsys):
     """zeta_pct = 25 (TOML, %) and the bridge node's zeta_pct; zeta = 0.25 (TOML, fraction): the
     same bound, 20 % = 0.2, converted by the one table."""
-    from adm_sim.bridge import load_bridge_file
+    from adm_sim.model.bridge import load_bridge_file
 
     pct, frac = tmp_path / "p.toml", tmp_path / "f.toml"
     pct.write_text("L = 15.0\nn0 = 8.0\nmu = 10000.0\nzeta_pct = 25.0\n")
@@ -243,11 +243,11 @@ def test_damping_in_percent_and_as_fraction_are_one_field(tmp_path, capsys):
 
 # ---------------------------------------------------------------- no range literal left in the surfaces
 #: The surfaces: the modules that read what a user typed (TOML, CLI, ROS parameters, launchers).
-SURFACES = [*(ROOT / "src" / "adm_sim").glob("bridge.py"), ROOT / "src/adm_sim/trains.py",
-            ROOT / "src/adm_sim/step_grid.py", ROOT / "src/adm_sim/run_contract.py",
-            ROOT / "src/adm_sim/rk4_sides.py", ROOT / "src/adm_sim/sweep.py", ROOT / "src/adm_sim/limits.py",
-            ROOT / "src/adm_sim/sim_commands.py", ROOT / "src/adm_sim/cliutil.py", ROOT / "src/adm_sim/check.py",
-            ROOT / "src/adm_sim/compiled_batch.py", ROOT / "src/adm_sim/processes/dds_env.py",
+SURFACES = [*(ROOT / "src" / "adm_sim").glob("model/bridge.py"), ROOT / "src/adm_sim/model/trains.py",
+            ROOT / "src/adm_sim/integrate/step_grid.py", ROOT / "src/adm_sim/integrate/run_contract.py",
+            ROOT / "src/adm_sim/integrate/rk4_sides.py", ROOT / "src/adm_sim/integrate/sweep.py", ROOT / "src/adm_sim/limits.py",
+            ROOT / "src/adm_sim/cli/sim_commands.py", ROOT / "src/adm_sim/cliutil.py", ROOT / "src/adm_sim/design/check.py",
+            ROOT / "src/adm_sim/integrate/compiled_batch.py", ROOT / "src/adm_sim/processes/dds_env.py",
             *sorted((ROOT / "src/adm_sim/nodes").glob("*.py")), ROOT / "src/adm_calib/calib_commands.py",
             *sorted((ROOT / "src/adm_calib/nodes").glob("*.py")),
             *sorted((ROOT / "launch_scripts").glob("*.py"))]
@@ -256,7 +256,7 @@ CHECKS = {"check_range", "check_number", "check_int", "check_choice", "ParamSpec
 EXEMPT = {
     # adm-sim check --modes: the lower bound is the bridge's EN 1990 A2.4.4.2.1 mode count, the upper
     # the registry's (FIELDS["n_modes"].hi); its float-then-integer message is the check's documented one
-    ("src/adm_sim/check.py", "check_range('n_modes', ...)"),
+    ("src/adm_sim/design/check.py", "check_range('n_modes', ...)"),
     # the monitor's track_type: empty means "the bridge description's, else ballasted"; the choices are
     # the registry's, checked by limits.check_track_type
     ("src/adm_sim/nodes/monitor_node.py", "ParamSpec('track_type', ...)"),
@@ -448,7 +448,7 @@ def test_every_library_argument_has_its_flag_in_the_registry():
      "error: --damping-model: 'foo' is not allowed; allowed rayleigh13, modal"),
 ])
 def test_a_library_refusal_names_the_flag_on_the_command_line(argv, line, capsys):
-    from adm_sim import sim_commands
+    from adm_sim.cli import sim_commands
 
     assert sim_commands.main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()
@@ -473,15 +473,15 @@ def test_the_delta_zeta_sign_rule_has_one_text(capsys):
     with pytest.raises(InputError) as err:  # a bridge without damping: no "-0" in the allowed range
         fields.check_delta_zeta_pct("delta_zeta_pct", 0.0, 0.0, positive_for="the exact envelope")
     assert str(err.value).endswith("(allowed delta_zeta_pct > 0 %)")
-    from adm_sim import sim_commands
+    from adm_sim.cli import sim_commands
 
     argv = ["sweep", "--bridge", "L=15,n0=8,mu=10000,zeta_pct=1", "--delta-zeta-pct", "-1"]
     assert sim_commands.main(argv) == 2
     assert capsys.readouterr().err.strip() == (
         "error: --delta-zeta-pct: zeta + delta_zeta = 0 %; the exact MLM envelope needs damping > 0 % "
         "(allowed --delta-zeta-pct > -1 %, or --method rk4)")
-    from adm_sim.bridge import named_bridge
-    from adm_sim.envelope import moving_load_envelope
+    from adm_sim.model.bridge import named_bridge
+    from adm_sim.integrate.envelope import moving_load_envelope
 
     with pytest.raises(InputError) as err:  # refused before any kernel is compiled
         moving_load_envelope(named_bridge("B1").with_damping(0.0), [0.0], [1e5], [200.0])

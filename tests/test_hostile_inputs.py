@@ -37,7 +37,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 PY = sys.executable
-SIM = [PY, "-m", "adm_sim.sim_commands"]
+SIM = [PY, "-m", "adm_sim.cli.sim_commands"]
 CAL = [PY, "-m", "adm_calib.calib_commands"]
 REPLAY = [PY, str(ROOT / "launch_scripts" / "replay.py")]
 CROSS = [PY, str(ROOT / "launch_scripts" / "crossing.py")]
@@ -531,11 +531,11 @@ CASES = [
     # the process: the way out of a real process after the interrupt (the rest in this process)
     Case("output-set", "sweep-json-plot-interrupted-in-plot",
          lambda t: SIM + ["sweep", "--speeds", "200:300:5", "--json", f"{t}/r.json", "--plot", f"{t}/r.png"],
-         "error: interrupted", code=130, patches=(_failing("adm_sim.sim_commands", "plot_sweep"),), process=True),
+         "error: interrupted", code=130, patches=(_failing("adm_sim.cli.sim_commands", "plot_sweep"),), process=True),
     Case("output-set", "check-four-outputs-interrupted-in-report",
          lambda t: SIM + ["check", "--max-line-speed", "160", "--trains", "HSLM-A1", "--json", f"{t}/c.json",
                           "--csv", f"{t}/c.csv", "--plot", f"{t}/c.png", "--report", f"{t}/c.html"],
-         "error: interrupted", code=130, patches=(_failing("adm_sim.check_report", "write_report"),)),
+         "error: interrupted", code=130, patches=(_failing("adm_sim.design.check_report", "write_report"),)),
     Case("output-set", "table4-interrupted-in-figure",
          lambda t: CAL + ["table4", "--bridges", "B1", "--trains", "ICE-2", "--out", f"{t}/t4"],
          "error: interrupted", code=130, timeout_s=120, patches=(_failing("adm_calib.plots", "plot_total_damping"),)),
@@ -686,9 +686,9 @@ def _cleanup(ctx):
 
 #: The entry points whose ``main(argv)`` a case may call in this process: the command line's prefix
 #: in the table and the module that holds the ``main`` its console script or ``__main__`` calls.
-ENTRY_MODULES = [(SIM, "adm_sim.sim_commands"), (CAL, "adm_calib.calib_commands"), (REPLAY, "replay"),
+ENTRY_MODULES = [(SIM, "adm_sim.cli.sim_commands"), (CAL, "adm_calib.calib_commands"), (REPLAY, "replay"),
                  (CALIB, "calibrate"), (CROSS, "crossing")]
-IN_PROCESS = {"adm_sim.sim_commands", "adm_calib.calib_commands", "replay", "crossing", "calibrate"}
+IN_PROCESS = {"adm_sim.cli.sim_commands", "adm_calib.calib_commands", "replay", "crossing", "calibrate"}
 
 
 def _entry_of(argv):

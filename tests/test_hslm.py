@@ -6,15 +6,15 @@ import sys
 import numpy as np
 import pytest
 
-from adm_sim.bridge import named_bridge
-from adm_sim.envelope import moving_load_envelope
+from adm_sim.model.bridge import named_bridge
+from adm_sim.integrate.envelope import moving_load_envelope
 from adm_sim.errors import InputError
-from adm_sim.bridge import Bridge
-from adm_sim.check import resolve_trains, run_check
-from adm_sim.hslm import HSLM_A_TABLE, hslm_b_axles, hslm_b_spec, hslm_name
-from adm_sim.trains import load_train
+from adm_sim.model.bridge import Bridge
+from adm_sim.design.check import resolve_trains, run_check
+from adm_sim.model.hslm import HSLM_A_TABLE, hslm_b_axles, hslm_b_spec, hslm_name
+from adm_sim.model.trains import load_train
 
-CLI = [sys.executable, "-m", "adm_sim.sim_commands"]
+CLI = [sys.executable, "-m", "adm_sim.cli.sim_commands"]
 
 #: Table 6.3 as printed: (N, D m, d m, P kN).
 TABLE_6_3 = {

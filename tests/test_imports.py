@@ -12,7 +12,7 @@ scipy.stats), numba ~0.4 s plus ~0.3 s the first time a kernel is loaded (its CP
 imports scipy.linalg for BLAS), matplotlib ~0.3 s, rerun ~0.3 s, dask ~0.3 s, rclpy ~0.2 s,
 scipy.optimize ~0.3 s, tqdm ~30 ms.
 
-Also here: after :func:`adm_sim.precompile.compile_kernels` (``adm-sim compile``) the sweeps, the
+Also here: after :func:`adm_sim.cli.precompile.compile_kernels` (``adm-sim compile``) the sweeps, the
 checks and a calibration add no signature to any kernel, so the compile step compiles everything
 they need.
 """
@@ -169,14 +169,14 @@ def loaded(module, argv=(), cwd=None):
     return set(out["loaded"])
 
 
-@pytest.mark.parametrize("module", ["adm_sim.sim_commands", "adm_calib.calib_commands"])
+@pytest.mark.parametrize("module", ["adm_sim.cli.sim_commands", "adm_calib.calib_commands"])
 def test_importing_a_command_module_loads_nothing_heavy(module):
     assert loaded(module) == set()
 
 
 @pytest.mark.parametrize("argv", [["trains", "--check"], ["bridges"], ["bridges", "--field"]])
 def test_table_commands_load_nothing_heavy(argv):
-    assert loaded("adm_sim.sim_commands", argv) == set()
+    assert loaded("adm_sim.cli.sim_commands", argv) == set()
 
 
 def test_recommend_loads_nothing_heavy():
@@ -194,16 +194,16 @@ def test_recommend_loads_nothing_heavy():
 def test_compiled_paths_load_numba_and_nothing_else_heavy(argv):
     """The sweep (exact envelope and compiled RK4 lanes) and the check need numba (whose CPU target
     imports scipy.linalg for BLAS) and nothing else: no scipy.signal (the peak rule is written out
-    in adm_sim.peaks), no optimiser, no plotting, no ROS, no progress-bar library when stderr is
+    in adm_sim.integrate.peaks), no optimiser, no plotting, no ROS, no progress-bar library when stderr is
     not a terminal."""
-    got = loaded("adm_sim.sim_commands", argv)
+    got = loaded("adm_sim.cli.sim_commands", argv)
     assert "numba" in got
     assert got.isdisjoint(NEVER), got & set(NEVER)
     assert "scipy.optimize" not in got
 
 
 def test_numpy_backend_sweep_does_not_start_numbas_cpu_target():
-    got = loaded("adm_sim.sim_commands", ["sweep", "--model", "dim", "--speeds", "250,300", "--backend", "numpy"])
+    got = loaded("adm_sim.cli.sim_commands", ["sweep", "--model", "dim", "--speeds", "250,300", "--backend", "numpy"])
     assert got.isdisjoint(NEVER) and "scipy.linalg" not in got, got
 
 
@@ -215,15 +215,15 @@ def test_calibrate_loads_the_optimiser_and_no_signal_processing():
 
 def test_plot_loads_matplotlib_only_when_asked(tmp_path):
     """The one place matplotlib belongs: --plot (the probe can see it)."""
-    got = loaded("adm_sim.sim_commands", ["sweep", "--speeds", "250:270:5", "--plot", str(tmp_path / "s.png")])
+    got = loaded("adm_sim.cli.sim_commands", ["sweep", "--speeds", "250:270:5", "--plot", str(tmp_path / "s.png")])
     assert "matplotlib" in got and (tmp_path / "s.png").stat().st_size > 1000
 
 
 CHECK_SIGNATURES = """
 import contextlib, io, json
-from adm_sim import envelope, kernels
-from adm_sim.precompile import compile_kernels
-from adm_sim.sim_commands import main
+from adm_sim.integrate import envelope, kernels
+from adm_sim.cli.precompile import compile_kernels
+from adm_sim.cli.sim_commands import main
 
 def signatures():
     out = {}
@@ -266,7 +266,7 @@ import adm_sim_probe  # a module of this package's name prefix, one uncached ker
 print(adm_sim_probe.twice(2.0), adm_sim_probe.twice(3.0), adm_sim_probe.thrice(1.0))
 """
 PROBE_MODULE = """
-from adm_sim._jit import njit
+from adm_sim.integrate._jit import njit
 
 
 @njit
@@ -298,7 +298,7 @@ def test_a_process_that_compiles_says_so_once_on_stderr(tmp_path, quiet):
 
 REFUSED = """
 import contextlib, importlib, io, json, sys
-m = importlib.import_module("adm_sim.sim_commands")
+m = importlib.import_module("adm_sim.cli.sim_commands")
 err = io.StringIO()
 with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
     rc = m.main(json.loads(sys.argv[1]))

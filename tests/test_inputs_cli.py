@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 
 from adm_calib.calib_commands import main as calib_main
-from adm_sim.sim_commands import main as sim_main
+from adm_sim.cli.sim_commands import main as sim_main
 
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -6,9 +6,9 @@ from __future__ import annotations
 import pytest
 
 from adm_calib.calib_commands import main as calib_main
-from adm_sim.sim_commands import main as sim_main
+from adm_sim.cli.sim_commands import main as sim_main
 from adm_sim.errors import InputError
-from adm_sim.sweep import parse_speeds
+from adm_sim.integrate.sweep import parse_speeds
 
 
 BAD = [

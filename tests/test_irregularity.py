@@ -1,4 +1,4 @@
-"""Track irregularity in the DIM (adm_sim.irregularity): spectra, generated profiles, defects,
+"""Track irregularity in the DIM (adm_sim.model.irregularity): spectra, generated profiles, defects,
 files, the wheel terms of Eq. (9) in the numpy stepper and the compiled kernels, bad input."""
 
 from __future__ import annotations
@@ -6,13 +6,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from adm_sim import irregularity as irr
-from adm_sim.bridge import Bridge
-from adm_sim.compiled_batch import BatchRunner
+from adm_sim.model import irregularity as irr
+from adm_sim.model.bridge import Bridge
+from adm_sim.integrate.compiled_batch import BatchRunner
 from adm_sim.errors import InputError
-from adm_sim.step_grid import StepOptions, make_grid, speeds_to_m_s
-from adm_sim.sweep import run_sweep
-from adm_sim.trains import load_train, train_from_mapping
+from adm_sim.integrate.step_grid import StepOptions, make_grid, speeds_to_m_s
+from adm_sim.integrate.sweep import run_sweep
+from adm_sim.model.trains import load_train, train_from_mapping
 
 
 # ---------------------------------------------------------------------- coefficients (sources: docs/irregularities.md)

@@ -1,7 +1,7 @@
 """The compiled kernels run as plain Python give the compiled result (the promise of
-:mod:`adm_sim.kernels`: one source, numba optional).
+:mod:`adm_sim.integrate.kernels`: one source, numba optional).
 
-A subprocess with ``NUMBA_DISABLE_JIT=1`` runs :class:`adm_sim.compiled_batch.BatchRunner` (so
+A subprocess with ``NUMBA_DISABLE_JIT=1`` runs :class:`adm_sim.integrate.compiled_batch.BatchRunner` (so
 ``kernels.dim_blocks``, ``kernels.mlm_blocks`` and the inlined ``hermite_max_abs_acc`` as plain
 Python) on a small case: a 10 m bridge (f_1 = 5 Hz, two mass factors) under ICE-2 at 200 and
 300 km/h, dense maxima on, advanced in blocks of 97 steps. Its per-lane maxima must equal the
@@ -26,9 +26,9 @@ import json
 import numpy as np
 from adm_calib.calibrate import batch_step
 from adm_calib.study import select_cases
-from adm_sim import kernels
-from adm_sim.compiled_batch import BatchRunner
-from adm_sim.trains import load_train
+from adm_sim.integrate import kernels
+from adm_sim.integrate.compiled_batch import BatchRunner
+from adm_sim.model.trains import load_train
 
 bridges = [c.bridge for c in select_cases(["ICE-2"], ["mu1", "mu6"], (10, 10), [5])]
 train = load_train("ICE-2")

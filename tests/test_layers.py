@@ -35,7 +35,7 @@ RANK = {
     "adm_sim.commands": 2, "adm_calib.commands": 2, "adm_sim.nodes": 2, "adm_calib.nodes": 2,
     "launch_scripts": 3,
 }
-COMMANDS = {"adm_sim.sim_commands": "adm_sim.commands", "adm_calib.calib_commands": "adm_calib.commands"}
+COMMANDS = {"adm_sim.cli.sim_commands": "adm_sim.commands", "adm_calib.calib_commands": "adm_calib.commands"}
 
 
 def module_name(path):
@@ -202,7 +202,7 @@ def test_readme_table_is_the_measured_one():
 
 
 #: the only modules that draw: the progress bar of the command line and the figure modules
-DRAWING = {"adm_sim.cliutil", "adm_sim.figures", "adm_calib.plots"}
+DRAWING = {"adm_sim.cliutil", "adm_sim.cli.figures", "adm_calib.plots"}
 
 
 def test_only_the_command_layer_draws():

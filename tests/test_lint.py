@@ -65,4 +65,4 @@ def test_mypy_checks_the_core_and_not_the_ros_layer():
                       for p in [line.split("path='", 1)[-1].split("'", 1)[0]]})
     expected = sorted(p.relative_to(base).as_posix() for p in base.rglob("*.py") if p.relative_to(base).parts[0] != "nodes")
     assert checked == expected
-    assert {"recording/mcap_log.py", "processes/supervisor.py", "check.py"} <= set(checked)
+    assert {"recording/mcap_log.py", "processes/supervisor.py", "design/check.py"} <= set(checked)

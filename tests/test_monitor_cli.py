@@ -134,7 +134,7 @@ def crossing_run(tmp_path_factory):
 def test_mcap_of_a_real_crossing(crossing_run, tmp_path):
     """f1 within 0.5 % of n0 and ζ1 within 5 % of mode 1's 1 % (measured: 8.2630 Hz for n0 8.2621 Hz,
     ζ1 0.994 %; 0.999 % from 30 periods of free vibration), the peak the one of the recorded samples, its level against 3.5 m/s²."""
-    from adm_sim.bridge import named_bridge
+    from adm_sim.model.bridge import named_bridge
 
     run, _live = crossing_run
     out = tmp_path / "passages.json"
@@ -295,7 +295,7 @@ def test_live_crossing(crossing_run):
     monitor's subscription matched the bridge's publisher (discovery of a new participant, slower
     under load), and what was published before the match never reached the monitor (a volatile
     subscription): a passage of few samples, or none."""
-    from adm_sim.bridge import named_bridge
+    from adm_sim.model.bridge import named_bridge
 
     run, live = crossing_run
     assert live["subscribed"] and live["found"], live

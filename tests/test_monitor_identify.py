@@ -1,4 +1,4 @@
-"""First-mode identification from the free decay (adm_sim.modal_id): closed form, simulated
+"""First-mode identification from the free decay (adm_sim.monitoring.modal_id): closed form, simulated
 crossings with known damping, the passages of a record, the refusals.
 
 Tolerances: closed form (a decaying sinusoid plus white noise) f1 to 1e-4 and ζ1 to 1 % relative,
@@ -16,7 +16,7 @@ import math
 import numpy as np
 import pytest
 
-from adm_sim.modal_id import (IdentifySettings, PassageTracker, acc_level, analyse_passage, analyse_record,
+from adm_sim.monitoring.modal_id import (IdentifySettings, PassageTracker, acc_level, analyse_passage, analyse_record,
                               identify_first_mode, segment_signal)
 
 F_HZ, ZETA = 8.26, 0.0185
@@ -271,7 +271,7 @@ def test_live_signal_passage_ends_when_the_samples_stop():
 # ---------------------------------------------------------------------- simulated crossings
 @pytest.fixture(scope="module")
 def ice2():
-    from adm_sim.trains import load_train
+    from adm_sim.model.trains import load_train
 
     return load_train("ICE-2")
 
@@ -282,9 +282,9 @@ def test_simulated_crossing_known_damping(ice2, zeta_pct):
     the samples every 2nd step as the bridge node publishes them (8 per period of mode 3). f1
     within 0.5 % of n0, ζ1 within 5 % of mode 1's ratio (Rayleigh at modes 1 and 3: ζ itself),
     with the train's departure from the run (as the run records give it) and from the signal alone."""
-    from adm_sim.bridge import named_bridge
-    from adm_sim.step_grid import StepOptions
-    from adm_sim.sweep import run_sweep
+    from adm_sim.model.bridge import named_bridge
+    from adm_sim.integrate.step_grid import StepOptions
+    from adm_sim.integrate.sweep import run_sweep
 
     b = named_bridge("B1").with_damping(zeta_pct / 100)
     zeta1 = float(b.modal_damping_ratios()[0])
@@ -321,9 +321,9 @@ def test_sweep_stamps_in_the_clock_lane_are_rescaled(record, scale):
 def test_simulated_dim_crossing_known_damping(ice2, zeta_pct):
     """The same with the Detailed Interaction Model (B3 x ICE-2 at 300 km/h): once the train has
     left, the bridge vibrates alone (measured: f1 within 5e-5 of n0, ζ1 within 0.5 %)."""
-    from adm_sim.bridge import named_bridge
-    from adm_sim.step_grid import StepOptions
-    from adm_sim.sweep import run_sweep
+    from adm_sim.model.bridge import named_bridge
+    from adm_sim.integrate.step_grid import StepOptions
+    from adm_sim.integrate.sweep import run_sweep
 
     b = named_bridge("B3").with_damping(zeta_pct / 100)
     r = run_sweep(b, ice2, "dim", [300.0], options=StepOptions(free_vibration_periods=30), histories=True)

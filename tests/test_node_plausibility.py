@@ -1,6 +1,6 @@
 """The bridge node's parameters get the plausibility warnings a bridge spec gets on the command line.
 
-A value the model computes but no real bridge has (:mod:`adm_sim.plausibility`) is warned once,
+A value the model computes but no real bridge has (:mod:`adm_sim.model.plausibility`) is warned once,
 naming the parameter, its value, unit and plausible range, at start-up and when it is set at run
 time; the same value set again is not warned again; a plausible preset is not warned at all.
 In-process nodes on an isolated context.

@@ -27,7 +27,7 @@ from adm_sim.recording.mcap_log import (QOS_CLASSES, _inner_records, _parse_chun
 ROOT = Path(__file__).resolve().parents[1]
 PY = sys.executable
 REPLAY = ROOT / "launch_scripts" / "replay.py"
-SIM = [PY, "-m", "adm_sim.sim_commands"]
+SIM = [PY, "-m", "adm_sim.cli.sim_commands"]
 
 
 def _records(data: bytes):

@@ -1,7 +1,7 @@
 """A co-simulated run (bridge and train nodes in separate processes) reproduces the core.
 
 The exchange carries float64 exactly and both nodes call the core's BridgeSide/TrainSide methods
-in the order of :func:`adm_sim.sweep.run_sweep`, so the peaks agree to 1e-9 relative (in practice
+in the order of :func:`adm_sim.integrate.sweep.run_sweep`, so the peaks agree to 1e-9 relative (in practice
 bitwise). Small case for speed: B3 x ICE-2, 5 speeds from 290 km/h (the slowest speed sets the
 step: a DIM run is 1400 steps, 2030 from 200 km/h), 4 steps per period of mode 3, one
 fundamental period of free vibration. The in-process references of a model and damping are
@@ -21,10 +21,10 @@ import pytest
 pytest.importorskip("rclpy")
 from ros_fixtures import driver_node, node_procs, ros_domain  # noqa: E402,F401
 
-from adm_sim.bridge import resolve_bridge  # noqa: E402
-from adm_sim.step_grid import StepOptions  # noqa: E402
-from adm_sim.sweep import run_sweep  # noqa: E402
-from adm_sim.trains import load_train  # noqa: E402
+from adm_sim.model.bridge import resolve_bridge  # noqa: E402
+from adm_sim.integrate.step_grid import StepOptions  # noqa: E402
+from adm_sim.integrate.sweep import run_sweep  # noqa: E402
+from adm_sim.model.trains import load_train  # noqa: E402
 
 SPEEDS = "290,305,320,335,350"
 SPEEDS_KMH = [290.0, 305.0, 320.0, 335.0, 350.0]

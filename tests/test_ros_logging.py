@@ -282,14 +282,14 @@ def test_salvage_errors_and_cli(tmp_path, recording, capsys):
         salvage(junk, tmp_path / "o.mcap")
     assert not (tmp_path / "o.mcap").exists() and not list(tmp_path.glob("o.mcap.part*"))
     # the one salvage command: adm-sim salvage
-    from adm_sim.sim_commands import main as adm_sim
+    from adm_sim.cli.sim_commands import main as adm_sim
 
     assert adm_sim(["salvage", str(recording), str(tmp_path / "copy.mcap")]) == 0
     assert capsys.readouterr().out.strip() == f"recovered {5 * N_STEPS} messages into {tmp_path / 'copy.mcap'}"
     assert adm_sim(["salvage", str(recording), str(tmp_path / "copy.mcap")]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("error: ") and "copy.mcap" in err
-    out = subprocess.run([PY, "-c", "import sys; from adm_sim.sim_commands import main; sys.exit(main())", "salvage",
+    out = subprocess.run([PY, "-c", "import sys; from adm_sim.cli.sim_commands import main; sys.exit(main())", "salvage",
                           str(tmp_path / "no.mcap"), str(tmp_path / "p.mcap")], capture_output=True, text=True,
                          timeout=60)
     assert out.returncode == 2
@@ -565,7 +565,7 @@ def test_cleanup_shm_removes_only_dead_process_files():
 
 
 def test_core_does_not_import_rclpy():
-    code = ("import sys, adm_sim.bridge, adm_sim.trains, adm_sim.lockstep_runs, adm_sim.sweep, "
+    code = ("import sys, adm_sim.model.bridge, adm_sim.model.trains, adm_sim.integrate.lockstep_runs, adm_sim.integrate.sweep, "
             "adm_sim.processes.dds_env; assert 'rclpy' not in sys.modules, 'rclpy imported'")
     assert subprocess.run([PY, "-c", code], timeout=60).returncode == 0
 
@@ -656,7 +656,7 @@ def test_damaged_chunk_is_skipped_and_counted(tmp_path):
                                      f"decompress or fail their CRC; {damage[0]}); replay its intact chunks with "
                                      f"--skip-damaged or recover them with: adm-sim salvage {src} OUT.mcap"]
     assert not (tmp_path / "o.rrd").exists()
-    r = subprocess.run([PY, "-m", "adm_sim.sim_commands", "salvage", str(src), str(tmp_path / "cli.mcap")],
+    r = subprocess.run([PY, "-m", "adm_sim.cli.sim_commands", "salvage", str(src), str(tmp_path / "cli.mcap")],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 0
     assert r.stdout.splitlines() == [f"recovered {n} messages into {tmp_path / 'cli.mcap'}",

@@ -49,7 +49,7 @@ def test_descriptors_carry_units_and_ranges(bridge, train):
 def test_preset_gives_defaults(bridge):
     assert bridge.get_parameter("span_m").value == 15.0
     assert bridge.get_parameter("mu_kg_m").value == pytest.approx(19042.0)
-    from adm_sim.bridge import resolve_bridge
+    from adm_sim.model.bridge import resolve_bridge
 
     assert bridge.bridge == resolve_bridge("B1")  # exactly the preset: no % round trip
 
@@ -139,7 +139,7 @@ def test_bad_preset_fails_at_start(ctx):
 
 
 def test_core_does_not_import_rclpy():
-    code = ("import sys, adm_sim.sweep, adm_sim.lockstep_runs, adm_calib.calibrate, adm_calib.peaks; "
+    code = ("import sys, adm_sim.integrate.sweep, adm_sim.integrate.lockstep_runs, adm_calib.calibrate, adm_calib.peaks; "
             "assert 'rclpy' not in sys.modules, 'core imported rclpy'")
     subprocess.run([sys.executable, "-c", code], check=True)
 

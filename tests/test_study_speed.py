@@ -16,12 +16,12 @@ import pytest
 
 from adm_calib.calibrate import CalibrationOptions, batch_step
 from adm_calib.study import MASS_FUNCTION_NAMES, select_cases
-from adm_sim.compiled_batch import BatchRunner
+from adm_sim.integrate.compiled_batch import BatchRunner
 from adm_sim.errors import InputError
-from adm_sim.step_grid import StepOptions, speeds_to_m_s
-from adm_sim.sweep import run_sweep
-from adm_sim.tables import _axles_on, axle_rows, small_inverse
-from adm_sim.trains import load_train
+from adm_sim.integrate.step_grid import StepOptions, speeds_to_m_s
+from adm_sim.integrate.sweep import run_sweep
+from adm_sim.integrate.tables import _axles_on, axle_rows, small_inverse
+from adm_sim.model.trains import load_train
 
 
 def _bridges(train, span, fi, mfs=MASS_FUNCTION_NAMES):

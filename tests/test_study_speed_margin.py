@@ -12,12 +12,12 @@ import pytest
 
 from adm_calib.calibrate import CalibrationOptions, batch_step
 from adm_calib.study import MASS_FUNCTION_NAMES, select_cases
-from adm_sim import kernels
-from adm_sim.compiled_batch import BatchRunner, modal_load_table
-from adm_sim.mlm_loads import half_step_positions, modal_loads_at
-from adm_sim.step_grid import StepOptions
-from adm_sim.sweep import run_sweep
-from adm_sim.trains import load_train
+from adm_sim.integrate import kernels
+from adm_sim.integrate.compiled_batch import BatchRunner, modal_load_table
+from adm_sim.integrate.mlm_loads import half_step_positions, modal_loads_at
+from adm_sim.integrate.step_grid import StepOptions
+from adm_sim.integrate.sweep import run_sweep
+from adm_sim.model.trains import load_train
 
 
 def _bridges(train, span, fi, mfs=MASS_FUNCTION_NAMES):

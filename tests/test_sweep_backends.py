@@ -1,7 +1,7 @@
 """``adm-sim sweep`` on its two RK4 backends: the compiled kernels (default) and the numpy stepper.
 
-The compiled sweep (:func:`adm_sim.sweep.run_sweep_compiled`) runs every speed as a lane of one
-:class:`adm_sim.compiled_batch.BatchRun` on the grid :func:`adm_sim.sweep.run_sweep` makes; the
+The compiled sweep (:func:`adm_sim.integrate.sweep.run_sweep_compiled`) runs every speed as a lane of one
+:class:`adm_sim.integrate.compiled_batch.BatchRun` on the grid :func:`adm_sim.integrate.sweep.run_sweep` makes; the
 maxima agree with the numpy stepper (the reference) to 1e-12 relative (measured: ~1e-14; the
 summation order of a few small dot products differs), with the same step and number of steps.
 """
@@ -13,11 +13,11 @@ import json
 import numpy as np
 import pytest
 
-from adm_sim.bridge import named_bridge
-from adm_sim.sim_commands import main
-from adm_sim.step_grid import StepOptions
-from adm_sim.sweep import BACKENDS, run_sweep, run_sweep_compiled
-from adm_sim.trains import load_train
+from adm_sim.model.bridge import named_bridge
+from adm_sim.cli.sim_commands import main
+from adm_sim.integrate.step_grid import StepOptions
+from adm_sim.integrate.sweep import BACKENDS, run_sweep, run_sweep_compiled
+from adm_sim.model.trains import load_train
 
 COARSE = StepOptions(steps_per_period=8.0)  # half the default step count: the same code, cheaper
 
@@ -72,7 +72,7 @@ def test_backend_numpy_is_refused_with_the_exact_envelope(tmp_path, capsys):
 
 
 def test_parser_offers_the_sweep_backends():
-    from adm_sim.sim_commands import build_parser
+    from adm_sim.cli.sim_commands import build_parser
 
     sweep = build_parser()._subparsers._group_actions[0].choices["sweep"]
     action = next(a for a in sweep._actions if a.dest == "backend")

@@ -1,4 +1,4 @@
-"""The tables shared by the numpy stepper and the kernels (:mod:`adm_sim.tables`) against brute force.
+"""The tables shared by the numpy stepper and the kernels (:mod:`adm_sim.integrate.tables`) against brute force.
 
 * :func:`vehicle_tables`: the stacked matrices are the units' own (Eq. 11) block by block, zero
   between units, and every CSR table expands back to its dense matrix exactly;
@@ -16,9 +16,9 @@ import math
 import numpy as np
 import pytest
 
-from adm_sim.bridge import named_bridge
-from adm_sim.tables import axle_rows, bridge_tables, vehicle_tables
-from adm_sim.trains import load_train
+from adm_sim.model.bridge import named_bridge
+from adm_sim.integrate.tables import axle_rows, bridge_tables, vehicle_tables
+from adm_sim.model.trains import load_train
 
 
 def _dense(ptr, col, val, shape):

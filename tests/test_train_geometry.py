@@ -1,4 +1,4 @@
-"""Vehicle geometry that no rail vehicle has is refused with the keys named (``adm_sim.trains``):
+"""Vehicle geometry that no rail vehicle has is refused with the keys named (``adm_sim.model.trains``):
 bogies whose axles interleave or coincide, within a vehicle, between coupled vehicles and in a
 Jacobs set. Before, a train with b_m = 9.5 m > r_m = 9 m ran through the MLM and the DIM."""
 
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from adm_sim.errors import InputError
-from adm_sim.trains import load_train, train_from_mapping
+from adm_sim.model.trains import load_train, train_from_mapping
 
 TRAINS = __import__("pathlib").Path(__file__).resolve().parents[1] / "src" / "adm_sim" / "data" / "trains"
 

@@ -31,11 +31,11 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from adm_sim.bridge import Bridge, named_bridge
+from adm_sim.model.bridge import Bridge, named_bridge
 from adm_sim.errors import InputError
-from adm_sim.sweep import run_sweep, run_sweep_compiled
-from adm_sim.trains import load_train, train_from_mapping, vehicle_file_mapping
-from adm_sim.vehicles import to_toml
+from adm_sim.integrate.sweep import run_sweep, run_sweep_compiled
+from adm_sim.model.trains import load_train, train_from_mapping, vehicle_file_mapping
+from adm_sim.model.vehicles import to_toml
 
 PAPER = {"ICE-2": "ice2", "Eurostar": "eurostar", "Railjet": "railjet", "ICE-4": "ice4"}
 
@@ -112,7 +112,7 @@ def test_vehicle_file_runs_through_load_train_and_the_checks(tmp_path):
     p.write_text(_shipped("railjet").read_text())
     t = load_train(str(p))
     assert t.n_axles == load_train("Railjet").n_axles
-    from adm_sim.trains import check_train
+    from adm_sim.model.trains import check_train
 
     assert all(r.item.startswith("n_p") for r in check_train(t))
 
@@ -239,8 +239,8 @@ def test_sprung_mass_vbi2d_ramp(case, c_v, peak_mm, hist_tol):
     output (Newmark at 1 ms, 100 modes): peak within 2e-3 (measured 3.9e-4, 1.3e-3) and the samples
     every 0.1 s within 1 % of the peak (measured 0.17 %, 0.50 %): the shipped solution's own time
     step, as its Newmark scheme at 0.1 ms moves onto this reference (docs/vehicles.md)."""
-    from adm_sim.irregularity import parse
-    from adm_sim.step_grid import StepOptions
+    from adm_sim.model.irregularity import parse
+    from adm_sim.integrate.step_grid import StepOptions
 
     L, EI, m, v = 25.0, 3.5e10 * 1.3901, 18358.0, 25.0
     br = Bridge(span_m=L, EJ_Nm2=EI, mass_per_length_kg_m=m, damping_ratio=0.0, n_modes=N_MODES,
@@ -437,7 +437,7 @@ def test_bad_vehicle_file_on_the_command_line_exits_2(tmp_path):
     p = tmp_path / "bad_vehicle.toml"
     p.write_text(to_toml(_one(bodies__0__mass_kg=-5.0)))
     out = tmp_path / "out"
-    r = subprocess.run([sys.executable, "-m", "adm_sim.sim_commands", "sweep", "--bridge", "B1", "--train", str(p),
+    r = subprocess.run([sys.executable, "-m", "adm_sim.cli.sim_commands", "sweep", "--bridge", "B1", "--train", str(p),
                         "--model", "dim", "--speeds", "200", "--json", str(out)],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 2, r.stderr

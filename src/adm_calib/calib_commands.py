@@ -35,13 +35,13 @@ from pathlib import Path
 import numpy as np
 
 from adm_sim.files import OutputSet, check_output_folder, claim_output, input_file, make_output_folder
-from adm_sim.sim_commands import add_check_arguments, cmd_check
+from adm_sim.cli.sim_commands import add_check_arguments, cmd_check
 from adm_sim.cliutil import (Parser, add_choice, add_dim_grid, add_overwrite, add_progress, add_speeds,
                              add_steps_per_period, check_option, option_help, option_view, progress_callback, run_cli)
 from adm_sim.errors import InputError, PlausibilityWarning
 from adm_sim.fields import check_range
 from adm_sim.limits import MAX_DELTA_ZETA_PCT
-from adm_sim.step_grid import StepOptions
+from adm_sim.integrate.step_grid import StepOptions
 
 #: Range of recommend --mu (kg/m): the 0.5-100 t/m the lower-bound rules accept (the registry's).
 MU_RANGE_KG_M = (option_view("--mu").lo, option_view("--mu").hi)
@@ -91,14 +91,14 @@ def _steps_per_period(text):
 
 
 def _speeds(text):
-    from adm_sim.sweep import parse_speeds  # noqa: PLC0415  start-up: only this subcommand (60 ms)
+    from adm_sim.integrate.sweep import parse_speeds  # noqa: PLC0415  start-up: only this subcommand (60 ms)
 
     return parse_speeds(text, field="--speeds")
 
 
 def cmd_calibrate(args):
-    from adm_sim.bridge import resolve_bridge  # noqa: PLC0415  start-up: only this subcommand (16 ms)
-    from adm_sim.trains import load_train  # noqa: PLC0415  start-up: only this subcommand (47 ms)
+    from adm_sim.model.bridge import resolve_bridge  # noqa: PLC0415  start-up: only this subcommand (16 ms)
+    from adm_sim.model.trains import load_train  # noqa: PLC0415  start-up: only this subcommand (47 ms)
 
     from adm_calib.calibrate import calibrate  # noqa: PLC0415  scipy (~1.3 s): only this subcommand
 
@@ -131,8 +131,8 @@ def cmd_calibrate(args):
 
 def _check_plausible(res):
     """Plausibility warnings on a calibration's MLM and DIM curves: each curve's largest
-    acceleration, named by bridge, train, model and speed (:mod:`adm_sim.plausibility`)."""
-    from adm_sim.plausibility import check_response  # noqa: PLC0415  start-up: only this subcommand (12 ms)
+    acceleration, named by bridge, train, model and speed (:mod:`adm_sim.model.plausibility`)."""
+    from adm_sim.model.plausibility import check_response  # noqa: PLC0415  start-up: only this subcommand (12 ms)
 
     for model, v, a in (("MLM", res.mlm_speeds_kmh, res.mlm_acc_m_s2), ("DIM", res.dim_speeds_kmh, res.dim_acc_m_s2)):
         if a.size:
@@ -142,8 +142,8 @@ def _check_plausible(res):
 
 
 def cmd_table4(args):
-    from adm_sim.bridge import named_bridge  # noqa: PLC0415  start-up: only this subcommand (16 ms)
-    from adm_sim.trains import load_train  # noqa: PLC0415  start-up: only this subcommand (47 ms)
+    from adm_sim.model.bridge import named_bridge  # noqa: PLC0415  start-up: only this subcommand (16 ms)
+    from adm_sim.model.trains import load_train  # noqa: PLC0415  start-up: only this subcommand (47 ms)
 
     from adm_calib.plots import plot_total_damping  # noqa: PLC0415  start-up: only this subcommand (239 ms)
     from adm_calib.table4 import run_table4  # noqa: PLC0415  scipy (~1.2 s): only this subcommand
@@ -209,8 +209,8 @@ def _study_train(text, option):
 
 
 def cmd_recommend(args):
-    from adm_sim.bridge import SPAN_RANGE_M  # noqa: PLC0415  start-up: only this subcommand (16 ms)
-    from adm_sim.plausibility import check_studied_field  # noqa: PLC0415  start-up: only this subcommand (12 ms)
+    from adm_sim.model.bridge import SPAN_RANGE_M  # noqa: PLC0415  start-up: only this subcommand (16 ms)
+    from adm_sim.model.plausibility import check_studied_field  # noqa: PLC0415  start-up: only this subcommand (12 ms)
 
     from adm_calib.reference import (FUNCTION_SOURCES, STUDY_N0_MAX_HZ, STUDY_SPAN_RANGE_M, lower_bound_table,  # noqa: PLC0415  start-up: only this subcommand (91 ms)
                                      recommend, span_from_frequency_m)
@@ -315,7 +315,7 @@ def cmd_study(args):
     spp = None if args.steps_per_period is None else _steps_per_period(args.steps_per_period)
     _speeds(args.speeds)
     if args.irregularity:
-        from adm_sim.irregularity import parse  # noqa: PLC0415  scipy.interpolate only for rough-track studies
+        from adm_sim.model.irregularity import parse  # noqa: PLC0415  scipy.interpolate only for rough-track studies
 
         for span in (4.0, 40.0):  # bad input (spectrum, class, band, file) refused before anything is written
             parse(args.irregularity, span)
@@ -477,7 +477,7 @@ def cmd_study_fit(args):
 
 
 def cmd_check_calib(args):
-    """``adm-calib check``: the core's EN 1991-2 check (:func:`adm_sim.sim_commands.cmd_check`) with all four
+    """``adm-calib check``: the core's EN 1991-2 check (:func:`adm_sim.cli.sim_commands.cmd_check`) with all four
     damping methods; ``lb`` and ``vbi`` from :func:`adm_calib.check.calibrated_damping`."""
     from adm_calib.check import calibrated_damping  # noqa: PLC0415  start-up: only this subcommand (186 ms)
 

@@ -50,7 +50,7 @@ from dataclasses import replace
 import numpy as np
 
 from adm_sim.errors import InputError
-from adm_sim.step_grid import StepOptions, make_grid, speeds_to_m_s
+from adm_sim.integrate.step_grid import StepOptions, make_grid, speeds_to_m_s
 
 from adm_calib import peaks as pk
 from adm_calib.calibration_options import CalibrationOptions, check_speeds
@@ -107,14 +107,14 @@ def calibrate_cases(bridges, train, lanes, speeds_kmh=None, *, options=None, ste
 
     Parameters
     ----------
-    bridges : sequence of adm_sim.bridge.Bridge
-    train : adm_sim.trains.Train
+    bridges : sequence of adm_sim.model.bridge.Bridge
+    train : adm_sim.model.trains.Train
     lanes : lane runner
         A backend of :mod:`adm_calib.lanes` built on ``bridges``, ``train`` and ``step``.
     speeds_kmh : array_like, optional
         MLM speeds (km/h); default 160..350 at 1 km/h.
     options : CalibrationOptions, optional
-    step : adm_sim.step_grid.StepOptions, optional
+    step : adm_sim.integrate.step_grid.StepOptions, optional
         The shared step (``ds_m`` set), for the results; default :func:`batch_step`.
     adapted_curve : bool
     dim_curves : sequence of (ndarray, ndarray) or None, optional
@@ -282,8 +282,8 @@ def calibrate(bridge, train, speeds_kmh=None, *, options=None, progress=None, ad
 
     Parameters
     ----------
-    bridge : adm_sim.bridge.Bridge
-    train : adm_sim.trains.Train
+    bridge : adm_sim.model.bridge.Bridge
+    train : adm_sim.model.trains.Train
     speeds_kmh : array_like (n_speeds,), optional
         MLM speeds (km/h); default 160..350 at 1 km/h.
     options : CalibrationOptions, optional
@@ -301,7 +301,7 @@ def calibrate(bridge, train, speeds_kmh=None, *, options=None, progress=None, ad
         Runs one speed sweep and returns the maximum midspan accelerations (m/s^2): a hook for
         sweeps run elsewhere (co-simulation, a cluster), used through
         :class:`adm_calib.lanes.HookLanes`; ``step`` is the shared
-        :class:`~adm_sim.step_grid.StepOptions`, ``phase`` (if the hook takes it) the phase.
+        :class:`~adm_sim.integrate.step_grid.StepOptions`, ``phase`` (if the hook takes it) the phase.
     on_trial : callable(delta_zeta, mlm_peak_m_s2, dim_peak_m_s2), optional
         Called for every trial damping of the root finder (fraction, re-located MLM peak, target):
         progress displays and logs of the iterations.
@@ -336,7 +336,7 @@ def calibrate_batch(bridges, train, speeds_kmh=None, options=None, step=None):
     """Calibrate Δζ_VBI for every bridge (one span) under ``train``, all in lockstep.
 
     Runs :func:`calibrate_cases` (the one calibration) over :class:`adm_calib.lanes.CompiledLanes`: every sweep of every bridge is a lane of one compiled
-    run (:class:`adm_sim.compiled_batch.BatchRunner`):
+    run (:class:`adm_sim.integrate.compiled_batch.BatchRunner`):
 
     1. one MLM run: every bridge x every speed;
     2. one DIM run over every bridge's Section 3.3 speeds, then at most two refinement runs;
@@ -351,13 +351,13 @@ def calibrate_batch(bridges, train, speeds_kmh=None, options=None, step=None):
 
     Parameters
     ----------
-    bridges : sequence of adm_sim.bridge.Bridge
+    bridges : sequence of adm_sim.model.bridge.Bridge
         Same span, mode count and damping model.
-    train : adm_sim.trains.Train
+    train : adm_sim.model.trains.Train
     speeds_kmh : array_like, optional
         MLM speeds (km/h); default 160..350 at 1 km/h.
     options : CalibrationOptions, optional
-    step : adm_sim.step_grid.StepOptions, optional
+    step : adm_sim.integrate.step_grid.StepOptions, optional
         Shared step (``ds_m`` set); default :func:`batch_step`.
 
     Returns

@@ -15,7 +15,7 @@ from adm_sim.errors import InputError
 from adm_sim.fields import check_range
 from adm_sim.fields import FIELDS
 from adm_sim.limits import default_speeds_kmh
-from adm_sim.step_grid import StepOptions, speeds_to_m_s
+from adm_sim.integrate.step_grid import StepOptions, speeds_to_m_s
 
 from adm_calib import peaks as pk
 
@@ -57,7 +57,7 @@ class CalibrationOptions:
         Acceptance of the peak match (paper: 0.1 %).
     min_prominence_rel : float
         Smallest relative prominence of a peak.
-    step : adm_sim.step_grid.StepOptions or None
+    step : adm_sim.integrate.step_grid.StepOptions or None
         Time-integration settings of the core (``None``: its defaults).
     ladder_first_stage : float or None
         Damping ladder of the root's bracket in two requests: the trial dampings up to this value

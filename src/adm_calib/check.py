@@ -2,10 +2,10 @@
 
 The check itself (speeds, envelopes, refinement, static effects, the EN 1991-2 6.4.6.5(3)
 comparison, screening, comfort, outputs) and the damping methods ``none`` and ``adm`` (the Eurocode
-ADM, EN 1991-2 6.4.6.3.1 Eq. (6.13)) live in the core, :mod:`adm_sim.check`, which never imports
+ADM, EN 1991-2 6.4.6.3.1 Eq. (6.13)) live in the core, :mod:`adm_sim.design.check`, which never imports
 adm_calib. This module holds only what adm-calib adds, :func:`calibrated_damping`, passed to the
 core as its ``damping_provider``
-(``adm_sim.check.run_check(..., damping_provider=calibrated_damping)``):
+(``adm_sim.design.check.run_check(..., damping_provider=calibrated_damping)``):
 
 * ``lb``: the paper's lower-bound functions (Eq. 20, Tables B1-B4, Section 4.3), only for the four
   trains of the study and bridges inside the studied field (:func:`adm_calib.reference.lower_bound_for`);
@@ -15,7 +15,7 @@ core as its ``damping_provider``
 
 from __future__ import annotations
 
-from adm_sim.check import CALIB_DAMPING_METHODS
+from adm_sim.design.check import CALIB_DAMPING_METHODS
 from adm_sim.errors import InputError
 
 from adm_calib.reference import lower_bound_for

@@ -4,7 +4,7 @@ A calibration (paper Section 4, :mod:`adm_calib.calibrate`) needs nothing from a
 largest midspan acceleration of many independent runs, each a **lane**: a case (a bridge of the
 batch), a speed, an additional damping Δζ and a sweep id. Lanes of one case with one sweep id form
 one speed sweep: the fastest of them sets its number of steps, exactly as
-:func:`adm_sim.sweep.run_sweep` does, so every backend discretises a lane alike. Every request
+:func:`adm_sim.integrate.sweep.run_sweep` does, so every backend discretises a lane alike. Every request
 also names its **phase** (what the calibration is doing: ``"mlm"``, ``"dim"``, ``"dim_refine"``,
 ``"ladder"``, ``"root"``, ``"check"``, ``"adapted"``, ``"mlm_refine"``, ``"dim_peak_refine"``) so
 that a backend that records or shows its runs (the ROS co-simulation) need not guess it.
@@ -13,8 +13,8 @@ Backends (all give the same numbers: the compiled lanes equal the numpy stepper 
 relative, the co-simulation equals it bit for bit):
 
 * :class:`CompiledLanes`: every lane of a request as lanes of one compiled run
-  (:class:`adm_sim.compiled_batch.BatchRunner`); the default of ``calibrate`` and the study.
-* :class:`SteppedLanes`: the numpy stepper, one :func:`adm_sim.sweep.run_sweep` per sweep.
+  (:class:`adm_sim.integrate.compiled_batch.BatchRunner`); the default of ``calibrate`` and the study.
+* :class:`SteppedLanes`: the numpy stepper, one :func:`adm_sim.integrate.sweep.run_sweep` per sweep.
 * :class:`HookLanes`: any ``sweep(model, speeds_kmh, delta_zeta, step[, phase=...])`` callable
   of one case, one call per sweep: the ROS calibration node (co-simulated runs), a cluster.
 """
@@ -26,7 +26,7 @@ import inspect
 import numpy as np
 
 from adm_sim.protocol import CALIBRATION_PHASES
-from adm_sim.sweep import run_sweep
+from adm_sim.integrate.sweep import run_sweep
 
 #: Phases of a calibration, in the order they run (named once, with their run phases, in the protocol).
 PHASES = tuple(CALIBRATION_PHASES)
@@ -49,21 +49,21 @@ def _lane_arrays(case, speeds_kmh, delta_zeta, sweep):
 
 
 class CompiledLanes:
-    """Lanes as one compiled batched run (:class:`adm_sim.compiled_batch.BatchRunner`).
+    """Lanes as one compiled batched run (:class:`adm_sim.integrate.compiled_batch.BatchRunner`).
 
     Parameters
     ----------
-    bridges : sequence of adm_sim.bridge.Bridge
+    bridges : sequence of adm_sim.model.bridge.Bridge
         The cases (one span, mode count and damping model).
-    train : adm_sim.trains.Train
-    step : adm_sim.step_grid.StepOptions
+    train : adm_sim.model.trains.Train
+    step : adm_sim.integrate.step_grid.StepOptions
         With ``ds_m`` set: the space step shared by every lane.
     """
 
     name = "compiled"
 
     def __init__(self, bridges, train, step):
-        from adm_sim.compiled_batch import BatchRunner  # noqa: PLC0415  numba kernels: the stepped backends run without
+        from adm_sim.integrate.compiled_batch import BatchRunner  # noqa: PLC0415  numba kernels: the stepped backends run without
 
         self.runner = BatchRunner(bridges, train, step.ds_m, step.free_vibration_periods, step.dense_maxima,
                                   irregularity=step.irregularity)
@@ -77,7 +77,7 @@ class CompiledLanes:
 
 
 class SteppedLanes:
-    """Lanes on the numpy stepper: one :func:`adm_sim.sweep.run_sweep` per (case, sweep)."""
+    """Lanes on the numpy stepper: one :func:`adm_sim.integrate.sweep.run_sweep` per (case, sweep)."""
 
     name = "numpy"
 

@@ -1,7 +1,7 @@
 """Association of the DIM peak with the MLM peak (paper Section 4, step 2).
 
 The peak rule itself (interior local maxima with 0.1 % prominence, the highest one, the
-``max_at_range_end`` flag, :class:`Peak`) lives in :mod:`adm_sim.peaks`, the one home of the rule,
+``max_at_range_end`` flag, :class:`Peak`) lives in :mod:`adm_sim.integrate.peaks`, the one home of the rule,
 and is re-exported here. This module adds the calibration's rules on top of it:
 
 * the **MLM peak** is the highest peak of the MLM curve (:func:`find_peak`). If the curve's
@@ -22,8 +22,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from adm_sim.peaks import MIN_PROMINENCE_REL, RANGE_END_RTOL, Peak, find_peak, largest_interior_peak, local_maxima, max_at_range_end
-from adm_sim.peaks import check_curve as _check_curve
+from adm_sim.integrate.peaks import MIN_PROMINENCE_REL, RANGE_END_RTOL, Peak, find_peak, largest_interior_peak, local_maxima, max_at_range_end
+from adm_sim.integrate.peaks import check_curve as _check_curve
 
 __all__ = ["ASSOCIATION_WINDOW_KMH", "MIN_PROMINENCE_REL", "RANGE_END_RTOL", "Peak", "associate_peak",
            "association_decided", "find_peak",

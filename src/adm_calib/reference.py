@@ -5,7 +5,7 @@ All functions return the additional damping in percent of critical (``*_pct``).
 Eurocode ADM (EN 1991-2 6.4.6.3.1, Fig. 6.15; paper Fig. 4)
     ``dz = (0.0187 L - 0.00064 L^2) / (1 - 0.0441 L - 0.0044 L^2 + 0.000255 L^3)`` in % for
     ``L < 30 m``, ``0`` for ``L >= 30 m``. The function lives in the core
-    (:func:`adm_sim.design_loads.adm_delta_zeta_pct`, EN 1991-2 Eq. (6.13)) and is re-exported here.
+    (:func:`adm_sim.design.design_loads.adm_delta_zeta_pct`, EN 1991-2 Eq. (6.13)) and is re-exported here.
 
 Equivalent Additional Damping Approach, EADA (Yau et al., paper Eq. 3)
     ``dz ~= mu_1 r_1 sqrt(r_1^2 + (2 zeta_1)^2)`` with ``mu_1 = m_1 / M_1``, ``r_1 = omega_1 / Omega_1``
@@ -60,11 +60,11 @@ from importlib import resources
 import numpy as np
 
 from adm_sim.fields import view
-from adm_sim.bridge import SPAN_RANGE_M
-from adm_sim.design_loads import adm_delta_zeta_pct  # noqa: F401  (the Eurocode ADM lives in the core; re-exported)
+from adm_sim.model.bridge import SPAN_RANGE_M
+from adm_sim.design.design_loads import adm_delta_zeta_pct  # noqa: F401  (the Eurocode ADM lives in the core; re-exported)
 from adm_sim.errors import InputError
 from adm_sim.fields import check_range
-from adm_sim.parametric import MASS_FUNCTIONS, N0_FIT, N0_UB, mass_function_t_m
+from adm_sim.model.parametric import MASS_FUNCTIONS, N0_FIT, N0_UB, mass_function_t_m
 
 from adm_calib.lower_bound import FIT_RANGE_MAX_HZ, LOWER_LIMIT_HZ, first_root_hz, lower_bound_pct, zero_from_hz
 
@@ -438,7 +438,7 @@ def recommend(train, n0_hz, mu_t_m, bridge_type, *, span_m=None, interpolate=Fal
 
 
 def lower_bound_for(bridge, train):
-    """Lower-bound Δζ for a :class:`~adm_sim.bridge.Bridge` and a train (name or ``Train``).
+    """Lower-bound Δζ for a :class:`~adm_sim.model.bridge.Bridge` and a train (name or ``Train``).
 
     Returns ``(pct or None, note)``.
 

@@ -9,7 +9,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from adm_sim.sweep import sweep_exact
+from adm_sim.integrate.sweep import sweep_exact
 
 from adm_calib.calibration_options import DEFAULT_SPEEDS_KMH, CalibrationOptions
 from adm_calib.lanes import Requests
@@ -66,7 +66,7 @@ def dim_speeds_window(paper_kmh, mlm_peak_kmh, options=None):
     speed beyond each end (the neighbours that decide whether a speed of the window is a local
     maximum) can change the result. The window grid is that contiguous part of the paper grid
     ``paper_kmh`` (the 5 km/h coarse points far from the MLM peak are dropped); the run also holds the
-    paper grid's fastest speed, which sets the sweep's number of steps (:func:`adm_sim.step_grid.make_grid`),
+    paper grid's fastest speed, which sets the sweep's number of steps (:func:`adm_sim.integrate.step_grid.make_grid`),
     so every DIM value is the paper grid's value bit for bit. Whether the association on this part
     equals the one on the whole paper curve is checked case by case
     (:func:`adm_calib.peaks.association_decided`); where it is not certain the rest of the paper grid is run.
@@ -223,7 +223,7 @@ def speed_grid_finding(bridge, train, speeds_kmh):
 
     The reference is the paper's grid (Section 3.3: 1 km/h, 160..350 km/h) widened to the given
     range, with the given speeds added; the MLM maxima come from the exact envelope
-    (:func:`adm_sim.sweep.sweep_exact`, ~0.1 s for 350 speeds). A grid that holds every reference
+    (:func:`adm_sim.integrate.sweep.sweep_exact`, ~0.1 s for 350 speeds). A grid that holds every reference
     speed is fine as it is (the default grid, and any finer or wider one): no computation.
 
     * ``grid_too_coarse``: the grid's MLM maximum lies more than :data:`GRID_RTOL` below the

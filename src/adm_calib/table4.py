@@ -15,8 +15,8 @@ import os
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 
-from adm_sim.bridge import named_bridge
-from adm_sim.trains import load_train
+from adm_sim.model.bridge import named_bridge
+from adm_sim.model.trains import load_train
 
 from adm_calib.calibrate import calibrate
 from adm_calib.reference import STUDY_TRAINS

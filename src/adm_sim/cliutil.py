@@ -43,7 +43,7 @@ def run_cli(call):
     (``ENAMETOOLONG``) is bad input, exit 2. :func:`check_environment` runs first. Anything else is
     a bug and keeps its traceback.
     Every output claimed during the call (:func:`adm_sim.files.claim_output`) is released at its end.
-    A :class:`~adm_sim.plausibility.PlausibilityWarning` raised during the call is printed as one
+    A :class:`~adm_sim.model.plausibility.PlausibilityWarning` raised during the call is printed as one
     line ``warning: ...`` on stderr, each time it occurs (:func:`plausibility_warnings`).
 
     A signal has no window: once ``call()`` has returned (or raised), SIGINT and SIGTERM no longer
@@ -77,7 +77,7 @@ def _deferring(call, sigs):
 
 class one_line_warnings:
     """Within the block, every warning of ``categories`` is printed as one line on stderr:
-    ``warning: <prefix><message>`` for a :class:`~adm_sim.plausibility.PlausibilityWarning`,
+    ``warning: <prefix><message>`` for a :class:`~adm_sim.model.plausibility.PlausibilityWarning`,
     ``warning: <prefix><Category>: <message>`` for any other (no ``file:line:`` and source line as
     Python's own display). ``repeat``: print every occurrence (``always``), else Python's filters
     decide (``default``: once per message and place). Other warnings keep their usual display;
@@ -114,7 +114,7 @@ class one_line_warnings:
 
 
 class plausibility_warnings(one_line_warnings):
-    """Within the block, every :class:`~adm_sim.plausibility.PlausibilityWarning` is printed as one
+    """Within the block, every :class:`~adm_sim.model.plausibility.PlausibilityWarning` is printed as one
     line ``warning: <message>`` on stderr (not deduplicated); other warnings keep their usual display.
     The warning filters and ``warnings.showwarning`` come back at its end: :class:`one_line_warnings`
     with its defaults, the form of the command lines."""
@@ -310,7 +310,7 @@ def progress_bar(desc, total=None, enabled=None, unit="step", leave=False, **kwa
 def progress_callback(desc, enabled=None, **kwargs):
     """A ``progress(done, total, note=None)`` callback drawing a :func:`progress_bar`, and its ``close``.
 
-    This is how the library reports progress (:func:`adm_sim.sweep.run_sweep`, the check, the
+    This is how the library reports progress (:func:`adm_sim.integrate.sweep.run_sweep`, the check, the
     calibration, Table 4, the study): it calls ``progress`` and never draws; the command line hands it
     this callback. ``total`` None: not known (a count without a bar); ``note``: a short status shown
     beside the count (the calibration's run phase).

@@ -42,4 +42,4 @@ class RunError(AdmSimError, RuntimeError):
 
 class PlausibilityWarning(UserWarning):
     """A value the model computes but no real bridge or train has: a warning, not an error
-    (the bounds and their reasons: :mod:`adm_sim.plausibility`)."""
+    (the bounds and their reasons: :mod:`adm_sim.model.plausibility`)."""

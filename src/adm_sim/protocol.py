@@ -270,7 +270,7 @@ def progress_record(run_id, model, step, n_steps, sim_time_s, samples=None):
 
 def bridge_description_record(bridge, description, n0_hz, step, delta_zeta, delta_zeta_lanes, track_type,
                               acc_limit_m_s2):
-    """``/adm/bridge/description`` (latched): ``bridge`` the exact fields of :class:`adm_sim.bridge.Bridge`
+    """``/adm/bridge/description`` (latched): ``bridge`` the exact fields of :class:`adm_sim.model.bridge.Bridge`
     (``Bridge(**record["bridge"])`` rebuilds it), ``description`` its one-line text, ``n0_hz``, ``step``
     the step settings (``steps_per_period, free_vibration_periods, ds_m``), the Δζ parameters
     (fraction; ``delta_zeta_lanes`` a comma list), the track type and its limit (m/s²)."""

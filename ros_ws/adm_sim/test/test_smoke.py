@@ -3,8 +3,8 @@
 import math
 
 import numpy as np
-from adm_sim.bridge import eurocode_damping_pct, named_bridge
-from adm_sim.envelope import moving_load_envelope
+from adm_sim.model.bridge import eurocode_damping_pct, named_bridge
+from adm_sim.integrate.envelope import moving_load_envelope
 
 
 def test_slow_load_gives_the_static_midspan_deflection():

@@ -32,13 +32,13 @@ from std_msgs.msg import Float64MultiArray, String
 from adm_calib import peaks as pk
 from adm_calib.calibrate import CalibrationOptions, calibrate, calibration_step
 from adm_sim import protocol as P
-from adm_sim.bridge import Bridge
+from adm_sim.model.bridge import Bridge
 from adm_sim.nodes import common as c
 from adm_calib.nodes.params import CALIBRATION_SPECS
 from adm_sim.nodes.driver import RunDriver, say
-from adm_sim.step_grid import StepOptions
-from adm_sim.sweep import parse_speeds
-from adm_sim.trains import load_train
+from adm_sim.integrate.step_grid import StepOptions
+from adm_sim.integrate.sweep import parse_speeds
+from adm_sim.model.trains import load_train
 
 #: ``@run`` label of each run phase (:data:`adm_sim.protocol.PHASES`).
 PHASE_LABELS = {phase: P.PHASE_NAMES[phase][1] for phase in P.PHASES}

@@ -1,7 +1,7 @@
 """The parametric study of paper Section 3.3 and the lower-bound fit of Section 4.2.1.
 
 Study
-    Every (bridge, train) case of the 1110-bridge field (:func:`adm_sim.bridge.parametric_field`,
+    Every (bridge, train) case of the 1110-bridge field (:func:`adm_sim.model.bridge.parametric_field`,
     185 (L, n0) pairs x 6 mass functions, Table 2 damping) times the four trains is calibrated by
     the rules of :func:`adm_calib.calibrate.calibrate` (Section 4, steps 1-3), in batches of the
     six mass functions of one (L, n0) pair (:func:`adm_calib.calibrate.calibrate_batch`). Batches run

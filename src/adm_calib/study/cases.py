@@ -1,7 +1,7 @@
 """Study cases: the (bridge, train) pairs of the field (paper Section 3.3) and the study settings.
 
 A case carries its identity as fields (train, span, frequency index, mass function) next to its
-:class:`adm_sim.bridge.Bridge`; nothing is parsed back out of bridge names.
+:class:`adm_sim.model.bridge.Bridge`; nothing is parsed back out of bridge names.
 """
 
 from __future__ import annotations
@@ -12,13 +12,13 @@ from functools import lru_cache
 
 import numpy as np
 
-from adm_sim.bridge import parametric_field
+from adm_sim.model.bridge import parametric_field
 from adm_sim.errors import InputError
 from adm_sim.fields import check_range
 from adm_sim.limits import DEFAULT_SPEEDS
-from adm_sim.parametric import FIELD_SPANS_M, MASS_FUNCTIONS
-from adm_sim.step_grid import StepOptions
-from adm_sim.trains import load_train
+from adm_sim.model.parametric import FIELD_SPANS_M, MASS_FUNCTIONS
+from adm_sim.integrate.step_grid import StepOptions
+from adm_sim.model.trains import load_train
 
 from adm_calib.lower_bound import FIT_RANGE_MAX_HZ, LOWER_LIMIT_HZ  # noqa: F401  (re-exported for the study package)
 from adm_calib.reference import STUDY_TRAINS, canonical_train_name
@@ -46,7 +46,7 @@ WORKER_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THRE
 # ====================================================================== cases
 @dataclass(frozen=True)
 class StudyCase:
-    """One (bridge, train) pair of the study; ``bridge`` is an :class:`adm_sim.bridge.Bridge`.
+    """One (bridge, train) pair of the study; ``bridge`` is an :class:`adm_sim.model.bridge.Bridge`.
 
     The identity is carried as fields: ``train``, ``span_m``, ``freq_index`` (1..5, LB to UB power
     law of n0) and ``mass_function`` (mu1..mu6, Table 1).
@@ -144,7 +144,7 @@ def select_cases(trains=STUDY_TRAINS, mass_functions=MASS_FUNCTION_NAMES, spans_
 @lru_cache(maxsize=1)
 def _field():
     """The field as ``(span_m, freq_index, mass_function, bridge)``, in the order of
-    :func:`adm_sim.bridge.parametric_field` (span, frequency index, mass function)."""
+    :func:`adm_sim.model.bridge.parametric_field` (span, frequency index, mass function)."""
     ids = [(float(L), fi, m) for L in FIELD_SPANS_M for fi in FREQ_INDICES for m in MASS_FUNCTIONS]
     field = parametric_field()
     if len(ids) != len(field):
@@ -167,10 +167,10 @@ class StudySettings:
     (``None``: the core's default; ``dim_grid`` ``window`` by default: the paper's DIM speeds where
     the associated peak can lie, the same Δζ as ``paper``, the shipped study's grid). The adapted MLM curve is never computed (not needed here).
     ``dense_maxima`` takes the maxima between time samples (dense output,
-    :class:`~adm_sim.step_grid.StepOptions`); ``refine_speed`` locates both peaks to 0.05 km/h
+    :class:`~adm_sim.integrate.step_grid.StepOptions`); ``refine_speed`` locates both peaks to 0.05 km/h
     (:class:`~adm_calib.calibrate.CalibrationOptions` ``speed_refinement_kmh``). Both off: the
     paper's rules. Settings written by a version without these two read as off.
-    ``irregularity`` a track profile spec of :func:`adm_sim.irregularity.parse` (e.g.
+    ``irregularity`` a track profile spec of :func:`adm_sim.model.irregularity.parse` (e.g.
     ``german-high:seed=3``) applied on the deck of every case (DIM only); empty: smooth track,
     as the paper (and settings written before it existed).
     """
@@ -183,7 +183,7 @@ class StudySettings:
     irregularity: str = ""
 
     def speeds_kmh(self):
-        from adm_sim.sweep import parse_speeds  # noqa: PLC0415  scipy.signal (peaks) only when a study runs
+        from adm_sim.integrate.sweep import parse_speeds  # noqa: PLC0415  scipy.signal (peaks) only when a study runs
 
         return parse_speeds(self.speeds)
 
@@ -196,7 +196,7 @@ class StudySettings:
         step = None
         profile = None
         if self.irregularity:
-            from adm_sim.irregularity import parse  # noqa: PLC0415  scipy.interpolate only for rough-track studies
+            from adm_sim.model.irregularity import parse  # noqa: PLC0415  scipy.interpolate only for rough-track studies
 
             if span_m is None:
                 raise ValueError("calibration_options: an irregularity needs the span of the cases")

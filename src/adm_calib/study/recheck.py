@@ -47,7 +47,7 @@ def range_end_recheck(records, settings=StudySettings(), rtol=pk.RANGE_END_RTOL,
     list of RangeEndRow
         ``peak_matches``: the recomputed MLM peak equals the shipped one (speed, and value to 1e-9).
     """
-    from adm_sim.compiled_batch import BatchRunner  # noqa: PLC0415  numba kernels, only for the re-check
+    from adm_sim.integrate.compiled_batch import BatchRunner  # noqa: PLC0415  numba kernels, only for the re-check
 
     from adm_calib.calibrate import batch_step  # noqa: PLC0415  scipy.optimize and scipy.signal, only for the re-check
 

@@ -1,13 +1,13 @@
-"""Bridge node: the modal beam (:class:`adm_sim.rk4_sides.BridgeSide`) in lockstep with the train node.
+"""Bridge node: the modal beam (:class:`adm_sim.integrate.rk4_sides.BridgeSide`) in lockstep with the train node.
 
 Per run (requested by the train node on ``/adm/run/setup``) the node builds the bridge from its
-parameters, the shared space grid (:func:`adm_sim.step_grid.make_grid`) and a ``BridgeSide`` for
-all speed lanes, held by a :class:`adm_sim.lockstep_runs.BridgeHalf` (step, stage,
+parameters, the shared space grid (:func:`adm_sim.integrate.step_grid.make_grid`) and a ``BridgeSide`` for
+all speed lanes, held by a :class:`adm_sim.integrate.lockstep_runs.BridgeHalf` (step, stage,
 status, maxima, finite-value check), then
 
 * DIM: for every RK4 stage publishes the rail displacement/velocity under the axles on the bridge
   (``/adm/exchange/rail``) and advances the stage with the train's interaction forces
-  (``/adm/exchange/forces``): the calls and their order are those of :func:`adm_sim.sweep.run_sweep`.
+  (``/adm/exchange/forces``): the calls and their order are those of :func:`adm_sim.integrate.sweep.run_sweep`.
 * MLM: asks for a block of steps (``/adm/exchange/rail`` with no axles) and advances it with the
   axle positions and loads of ``/adm/exchange/axle_block`` (modal loads at the stage points).
 
@@ -33,18 +33,18 @@ from rcl_interfaces.msg import ParameterDescriptor
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64MultiArray, String
 
-from adm_sim.bridge import Bridge, resolve_bridge
+from adm_sim.model.bridge import Bridge, resolve_bridge
 from adm_sim import protocol as P
 from adm_sim.errors import InputError
 from adm_sim.limits import ACC_LIMITS_M_S2, TRACK_TYPES
-from adm_sim.lockstep_runs import BridgeHalf
-from adm_sim.mlm_loads import modal_loads_at
+from adm_sim.integrate.lockstep_runs import BridgeHalf
+from adm_sim.integrate.mlm_loads import modal_loads_at
 from adm_sim.nodes import common as c
 from adm_sim.nodes.params import (MONITOR_SAMPLES_PER_PERIOD, bridge_from_params, bridge_plausibility, bridge_specs,
                                    step_options)
-from adm_sim.rk4_sides import BridgeSide
-from adm_sim.run_contract import FAILED, FINISHED, RUNNING
-from adm_sim.step_grid import Grid, make_grid
+from adm_sim.integrate.rk4_sides import BridgeSide
+from adm_sim.integrate.run_contract import FAILED, FINISHED, RUNNING
+from adm_sim.integrate.step_grid import Grid, make_grid
 
 __all__ = ["TRACK_TYPES", "MONITOR_SAMPLES_PER_PERIOD", "monitor_steps", "bridge_specs", "BridgeNode", "main"]
 

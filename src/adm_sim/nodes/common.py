@@ -1,6 +1,6 @@
 """Shared pieces of the ROS 2 node graph: topic names, QoS, exchange message layout, parameters.
 
-The exchange between the bridge and the train node is the one of :mod:`adm_sim.rk4_sides`
+The exchange between the bridge and the train node is the one of :mod:`adm_sim.integrate.rk4_sides`
 (paper Section 2.3): one message each way per RK4 stage for the DIM, one block of axle positions
 per many steps for the MLM. Every exchange message is a ``std_msgs/Float64MultiArray`` whose
 ``data`` starts with a small header of ``layout.data_offset`` doubles (integers carried exactly in
@@ -554,7 +554,7 @@ class LockstepNode(NodeBase):
 
     def plausibility(self, values):
         """Issue the :class:`~adm_sim.errors.PlausibilityWarning` of the valid values ``values``
-        (:mod:`adm_sim.plausibility`: a value the model computes but no real bridge has)."""
+        (:mod:`adm_sim.model.plausibility`: a value the model computes but no real bridge has)."""
 
     def _warn_implausible(self, values):
         """:meth:`plausibility` of ``values`` at start-up and after every set, each warning once

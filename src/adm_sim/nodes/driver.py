@@ -39,7 +39,7 @@ from adm_sim.files import claim_output, release, write_atomic
 from adm_sim.nodes import common as c
 from adm_sim.nodes.params import DRIVER_SPECS
 from adm_sim.nodes.recorder import RunRecorder
-from adm_sim.plausibility import check_response
+from adm_sim.model.plausibility import check_response
 
 
 #: Topics the driver records (topic, type); its own publications are recorded as it publishes.
@@ -369,7 +369,7 @@ class RunDriver(c.NodeBase):
         return out
 
     def warn_implausible(self, r):
-        """The plausibility warnings of run ``r``'s result (:func:`adm_sim.plausibility.check_response`,
+        """The plausibility warnings of run ``r``'s result (:func:`adm_sim.model.plausibility.check_response`,
         as ``adm-sim sweep`` gives them): its largest acceleration and deflection, named by the run,
         its model and speed; once per run, each as one ``warning: <node>: ...`` line and as a WARN
         status :data:`DIAG_PLAUSIBILITY` on ``/diagnostics`` (recorded with the run)."""

@@ -1,13 +1,13 @@
 """Monitor node: the passages of any ``geometry_msgs/AccelStamped`` topic, their EN 1990 level and
 the first mode (f1, ζ1) identified from each free decay.
 
-A thin adapter over :class:`adm_sim.modal_id.PassageTracker` (ROS-free): it subscribes to the
+A thin adapter over :class:`adm_sim.monitoring.modal_id.PassageTracker` (ROS-free): it subscribes to the
 acceleration ``topic`` (ours, ``/adm/midspan/accel``, or a real accelerometer's), to the run
 records on ``status_topic`` when a graph publishes them (one passage per run, samples assigned by
 stamp) and to the latched bridge and train descriptions (span, train length, track type and
 limit); without run records it segments passages by the signal. ``|a|`` is used, so the sign
 convention of the sensor does not matter. Each passage is logged as one line and, with
-``json_path``, the JSON file (``{"passages": [...]}``, :meth:`adm_sim.modal_id.Passage.to_dict`)
+``json_path``, the JSON file (``{"passages": [...]}``, :meth:`adm_sim.monitoring.modal_id.Passage.to_dict`)
 is rewritten after each one (written beside and renamed: always complete).
 
 QoS: the samples RELIABLE, KEEP_LAST 5000 (the depth of the bridge's monitoring topics); when the
@@ -34,7 +34,7 @@ from std_msgs.msg import String
 from adm_sim import protocol as P
 from adm_sim.errors import InputError
 from adm_sim.limits import TRACK_TYPES, check_track_type
-from adm_sim.modal_id import IdentifySettings, PassageTracker, run_topics_for
+from adm_sim.monitoring.modal_id import IdentifySettings, PassageTracker, run_topics_for
 from adm_sim.nodes import common as c
 
 __all__ = ["ACCEL_TYPE", "MONITOR_SPECS", "MonitorNode", "main", "passages_document"]
@@ -68,7 +68,7 @@ MONITOR_SPECS = [
 class MonitorNode(c.ParamNodeMixin, Node):
     """Subscribes, tracks passages, reports them; see the module docstring.
 
-    ``on_passage`` (optional) is called with every :class:`adm_sim.modal_id.Passage` after it is
+    ``on_passage`` (optional) is called with every :class:`adm_sim.monitoring.modal_id.Passage` after it is
     logged; ``quiet``: log nothing (the launcher prints the lines itself, on stdout).
     """
 

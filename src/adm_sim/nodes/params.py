@@ -4,7 +4,7 @@ Everything a launcher checks before it starts a node (:mod:`launch_scripts._supe
 here, so that a launcher never imports a node module (nor rclpy): the parameter specs of the
 bridge, train and driver nodes (:class:`ParamSpec`, units and ranges from the field registry
 :mod:`adm_sim.fields`), the mapping of the bridge node's parameters to a
-:class:`adm_sim.bridge.Bridge` (:func:`bridge_from_params`) and of the train node's to a train and
+:class:`adm_sim.model.bridge.Bridge` (:func:`bridge_from_params`) and of the train node's to a train and
 its speed lanes (:func:`validate_train`), and the check of a ROS 2 params YAML
 (:func:`check_params_file`). The nodes declare these specs (:mod:`adm_sim.nodes.common`); only
 :meth:`ParamSpec.descriptor` touches rclpy's interfaces, and only a node calls it. A test asserts
@@ -22,16 +22,16 @@ import yaml
 
 from adm_sim import fields
 from adm_sim import protocol as P
-from adm_sim.bridge import Bridge
+from adm_sim.model.bridge import Bridge
 from adm_sim.errors import InputError, PlausibilityWarning
 from adm_sim.files import read_text, refuse_special
 from adm_sim.fields import check_delta_zeta, check_range, view
 from adm_sim.limits import ACC_LIMITS_M_S2, DEFAULT_SPEEDS, check_track_type
-from adm_sim.plausibility import check_bridge
-from adm_sim.run_contract import check_model
-from adm_sim.step_grid import StepOptions
-from adm_sim.sweep import parse_speeds
-from adm_sim.trains import load_train
+from adm_sim.model.plausibility import check_bridge
+from adm_sim.integrate.run_contract import check_model
+from adm_sim.integrate.step_grid import StepOptions
+from adm_sim.integrate.sweep import parse_speeds
+from adm_sim.model.trains import load_train
 
 #: Automatic monitoring decimation: at least this many samples per period of the highest retained
 #: mode, in the monitored lane's time.
@@ -282,12 +282,12 @@ BRIDGE_PARAM_LABELS = {"n0": "n0_hz", "mu": "mu_kg_m", "zeta_pct": "zeta_pct",
 
 
 def bridge_plausibility(preset, p, defaults=None):
-    """The plausibility warnings (:func:`adm_sim.plausibility.check_bridge`) of the bridge the
+    """The plausibility warnings (:func:`adm_sim.model.plausibility.check_bridge`) of the bridge the
     node's parameter values ``p`` give, each naming its parameter (``mu_kg_m: 150 kg/m is outside
     the plausible range ...``); a typed ``zeta_pct`` below 0.1 % is named as a fraction typed as
     percent. n0 derived from ``EJ_Nm2`` (``n0_hz`` = 0) is named so. Warnings only, never a refusal;
     ``p`` must have passed :func:`bridge_from_params`. What the preset itself gives (its own
-    warnings came with it, :func:`adm_sim.bridge.resolve_bridge`) is not said again: only the
+    warnings came with it, :func:`adm_sim.model.bridge.resolve_bridge`) is not said again: only the
     warnings the parameter values add to those of the preset's defaults."""
     d = {sp.name: sp.default for sp in bridge_specs(preset)} if defaults is None else defaults
 
@@ -336,7 +336,7 @@ def validate_train(p):
     check_run_phase(p["run_phase"])
     speeds = parse_speeds(p["speeds_kmh"], ordered=False, field="speeds_kmh")  # lanes, not a user's grid
     if p.get("irregularity"):
-        from adm_sim.irregularity import parse  # noqa: PLC0415  scipy.interpolate only on a rough track
+        from adm_sim.model.irregularity import parse  # noqa: PLC0415  scipy.interpolate only on a rough track
 
         parse(p["irregularity"], 40.0)  # spectrum, class, band, file: refused before a run starts
     return train, speeds

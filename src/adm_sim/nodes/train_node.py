@@ -1,4 +1,4 @@
-"""Train node: the vehicles (:class:`adm_sim.rk4_sides.TrainSide`) in lockstep with the bridge node.
+"""Train node: the vehicles (:class:`adm_sim.integrate.rk4_sides.TrainSide`) in lockstep with the bridge node.
 
 A run starts with the ``~/start_run`` service (std_srvs/Trigger): the node validates its
 parameters, publishes the run set-up (``/adm/run/setup``: speeds, axle offsets, loads and wheelset
@@ -10,7 +10,7 @@ masses) and waits for the bridge's grid (``/adm/run/ready``). Then
   a block of ``mlm_block_steps`` steps and the axle loads (``/adm/exchange/axle_block``); the
   MLM needs no feedback from the bridge.
 
-Step and stage are kept by a :class:`adm_sim.lockstep_runs.TrainHalf`. A run that
+Step and stage are kept by a :class:`adm_sim.integrate.lockstep_runs.TrainHalf`. A run that
 the bridge reports ``failed`` on ``/adm/run/status`` (e.g. a solution that is not finite) ends
 here too.
 """
@@ -26,15 +26,15 @@ from std_srvs.srv import Trigger
 
 from adm_sim import protocol as P
 from adm_sim.errors import InputError
-from adm_sim.irregularity import parse as parse_irregularity
+from adm_sim.model.irregularity import parse as parse_irregularity
 from adm_sim.nodes import common as c
-from adm_sim.lockstep_runs import TrainHalf
-from adm_sim.mlm_loads import half_step_positions
+from adm_sim.integrate.lockstep_runs import TrainHalf
+from adm_sim.integrate.mlm_loads import half_step_positions
 from adm_sim.nodes.params import TRAIN_SPECS, check_run_phase, validate_train  # noqa: F401 (re-exported)
-from adm_sim.rk4_sides import TrainSide
-from adm_sim.run_contract import FINISHED
-from adm_sim.step_grid import Grid, speeds_to_m_s
-from adm_sim.trains import Train
+from adm_sim.integrate.rk4_sides import TrainSide
+from adm_sim.integrate.run_contract import FINISHED
+from adm_sim.integrate.step_grid import Grid, speeds_to_m_s
+from adm_sim.model.trains import Train
 
 #: The layout labels of the DIM interaction forces; the rail topic the train waits on (relative name).
 FORCES_DIMS, TOPIC_RAIL = ("lane", "axle_on"), P.relative(P.TOPIC_RAIL)
@@ -50,7 +50,7 @@ class TrainRunState:
     train: Train
     v: np.ndarray                 #: (n_lanes,) speeds, m/s
     block: int                    #: MLM steps per axle block
-    irregularity: str = ""        #: track profile spec (:func:`adm_sim.irregularity.parse`)
+    irregularity: str = ""        #: track profile spec (:func:`adm_sim.model.irregularity.parse`)
     grid: Grid | None = None      #: from the bridge's /adm/run/ready
     run: TrainHalf | None = None  #: step, stage, status
 

@@ -1,0 +1,1 @@
+"""The ``adm-sim`` command line: its subcommands, figures and the kernel precompilation."""

@@ -1,0 +1,184 @@
+"""A self-contained HTML report of the EN 1991-2 dynamic check (``adm-sim check --report F.html``).
+
+One page, no network: the figures are inline SVG, the style sheet is inline, nothing is fetched.
+It holds the inputs, the clause-by-clause verdict table, the acceleration envelopes over speed,
+the 6.4.6.5(3) ratios over the deck, the governing cases, the damping per mode, the modes used,
+what is not checked, and the software version and commit. Formatting only: every number comes from
+the :class:`adm_sim.design.check.CheckResult`.
+"""
+
+from __future__ import annotations
+
+import html
+import subprocess
+from pathlib import Path
+
+import numpy as np
+from adm_sim import __version__
+from adm_sim.design.check_text import summary
+
+_COLORS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
+           "#bcbd22", "#17becf", "#393b79", "#637939", "#8c6d31", "#843c39")
+
+
+def _commit():
+    """The git commit of the source tree, or "unknown" (no repository, no git)."""
+    try:
+        out = subprocess.run(["git", "rev-parse", "HEAD"], cwd=Path(__file__).resolve().parent,
+                             capture_output=True, text=True, timeout=5)
+        return out.stdout.strip() or "unknown"
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+
+
+def _e(x):
+    return html.escape(str(x))
+
+
+def _svg_envelopes(res, width=860, height=360):
+    """Largest deck acceleration over speed per train, the limit as a dashed line."""
+    ml, mr, mt, mb = 60, 150, 20, 45
+    v0, v1 = float(res.speeds_kmh[0]), float(res.speeds_kmh[-1])
+    top = max(res.limit_m_s2, max(float(c.max_acc_m_s2.max()) for c in res.trains)) * 1.08
+    X = lambda v: ml + (v - v0) / (v1 - v0) * (width - ml - mr)  # noqa: E731
+    Y = lambda a: mt + (1 - a / top) * (height - mt - mb)  # noqa: E731
+    out = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" '
+           f'viewBox="0 0 {width} {height}" role="img" aria-label="acceleration envelopes">',
+           f'<rect x="{ml}" y="{mt}" width="{width - ml - mr}" height="{height - mt - mb}" fill="none" stroke="#444"/>']
+    for k in range(6):
+        a = top * k / 5
+        out.append(f'<text x="{ml - 6}" y="{Y(a) + 4:.1f}" font-size="11" text-anchor="end">{a:.1f}</text>')
+    for v in np.linspace(v0, v1, 7):
+        out.append(f'<text x="{X(v):.1f}" y="{height - mb + 16}" font-size="11" text-anchor="middle">{v:.0f}</text>')
+    out.append(f'<text x="{(ml + width - mr) / 2}" y="{height - 8}" font-size="12" text-anchor="middle">speed (km/h)</text>')
+    out.append(f'<text x="14" y="{(mt + height - mb) / 2}" font-size="12" transform="rotate(-90 14 '
+               f'{(mt + height - mb) / 2})" text-anchor="middle">max deck acceleration (m/s²)</text>')
+    for i, c in enumerate(res.trains):
+        col = _COLORS[i % len(_COLORS)]
+        pts = " ".join(f"{X(v):.1f},{Y(a):.1f}" for v, a in zip(c.speeds_kmh, c.max_acc_m_s2))
+        out.append(f'<polyline points="{pts}" fill="none" stroke="{col}" stroke-width="1.3"/>')
+        out.append(f'<text x="{width - mr + 8}" y="{mt + 12 + 14 * i}" font-size="11" fill="{col}">{_e(c.name)}</text>')
+    yl = Y(res.limit_m_s2)
+    out.append(f'<line x1="{ml}" y1="{yl:.1f}" x2="{width - mr}" y2="{yl:.1f}" stroke="#c00" stroke-dasharray="6,4"/>')
+    out.append(f'<text x="{ml + 4}" y="{yl - 4:.1f}" font-size="11" fill="#c00">limit {res.limit_m_s2:g} m/s²</text>')
+    t, v, a = res.governing
+    out.append(f'<circle cx="{X(v):.1f}" cy="{Y(a):.1f}" r="4" fill="#000"/>')
+    out.append("</svg>")
+    return "\n".join(out)
+
+
+def _svg_effects(res, width=860, height=300):
+    """The largest 6.4.6.5(3) ratio over the trains at every section: moment and shear over x / L."""
+    gov = res.effects_governing()
+    if not gov:
+        return ""
+    ml, mr, mt, mb = 60, 150, 20, 45
+    L = res.bridge.span_m
+    top = max(1.05, max(d.ratio for _, d, _ in gov) * 1.1)
+    X = lambda x: ml + x / L * (width - ml - mr)  # noqa: E731
+    Y = lambda r: mt + (1 - r / top) * (height - mt - mb)  # noqa: E731
+    out = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" '
+           f'viewBox="0 0 {width} {height}" role="img" aria-label="ratios over the deck">',
+           f'<rect x="{ml}" y="{mt}" width="{width - ml - mr}" height="{height - mt - mb}" fill="none" stroke="#444"/>',
+           f'<line x1="{ml}" y1="{Y(1.0):.1f}" x2="{width - mr}" y2="{Y(1.0):.1f}" stroke="#c00" stroke-dasharray="6,4"/>']
+    for k in range(6):
+        r = top * k / 5
+        out.append(f'<text x="{ml - 6}" y="{Y(r) + 4:.1f}" font-size="11" text-anchor="end">{r:.2f}</text>')
+    for f in np.linspace(0, 1, 11):
+        out.append(f'<text x="{X(f * L):.1f}" y="{height - mb + 16}" font-size="11" text-anchor="middle">{f:.1f}</text>')
+    out.append(f'<text x="{(ml + width - mr) / 2}" y="{height - 8}" font-size="12" text-anchor="middle">x / L</text>')
+    for kind, col, name in (("M", "#1f77b4", "moment"), ("V", "#ff7f0e", "shear, reactions")):
+        pts = sorted((d.effect.x_m, d.ratio) for _, d, _ in gov
+                     if d.effect.kind == kind or (kind == "V" and d.effect.kind in ("RA", "RB")))
+        out.append(f'<polyline points="{" ".join(f"{X(x):.1f},{Y(r):.1f}" for x, r in pts)}" fill="none" '
+                   f'stroke="{col}" stroke-width="1.6"/>')
+        for x, r in pts:
+            out.append(f'<circle cx="{X(x):.1f}" cy="{Y(r):.1f}" r="3" fill="{col}"/>')
+        out.append(f'<text x="{width - mr + 8}" y="{mt + (12 if kind == "M" else 26)}" font-size="11" '
+                   f'fill="{col}">{name}</text>')
+    out.append("</svg>")
+    return "\n".join(out)
+
+
+def _table(header, rows):
+    h = "".join(f"<th>{_e(x)}</th>" for x in header)
+    body = "".join("<tr>" + "".join(f"<td>{_e(x)}</td>" for x in r) + "</tr>" for r in rows)
+    return f"<table><thead><tr>{h}</tr></thead><tbody>{body}</tbody></table>"
+
+
+def verdict_rows(res):
+    """(clause, what, value, limit, verdict) per checked clause."""
+    t, v, a = res.governing
+    rows = [("EN 1990 A2.4.4.2.1", f"peak deck acceleration ({t.name}, {v:g} km/h)", f"{a:.4f} m/s²",
+             f"{res.limit_m_s2:g} m/s²", "PASS" if a <= res.limit_m_s2 else "FAIL")]
+    if res.bounds:
+        label, tb, vb, ab = res.envelope_governing()
+        rows.append(("EN 1991-2 6.4.6.3.2/3", f"envelope over the bounds ({label}, {tb.name}, {vb:g} km/h)",
+                     f"{ab:.4f} m/s²", f"{res.limit_m_s2:g} m/s²", "PASS" if res.passed else "FAIL"))
+    ge = res.effects_envelope_governing()
+    if ge is not None:
+        case, tt, d = ge
+        where = f", {case}" if res.bounds else ""
+        rows.append(("EN 1991-2 6.4.6.5(3)", f"largest train / (Φ α LM71) ratio ({d.effect.label}, {tt.name}{where})",
+                     f"{d.ratio:.3f}", "1", "Φ α LM71 governs" if d.ratio <= 1.0 else "the train governs"))
+    if res.sls is not None:
+        s = res.sls
+        rows.append(("EN 1990 A2.4.4.2.3(1)", "vertical deflection under Φ α LM71", f"{1e3 * s.deflection_m:.3f} mm",
+                     f"L/600 = {1e3 * s.deflection_limit_m:.3f} mm", "PASS" if s.deflection_ok else "FAIL"))
+        ok = s.end_rotation_ok
+        rows.append(("EN 1990 A2.4.4.2.3", "deck end rotation under Φ α LM71", f"{1e3 * s.end_rotation_rad:.3f} mrad",
+                     "6.5 mrad" if s.track == "ballasted" else "relevant authority",
+                     "not judged" if ok is None else ("PASS" if ok else "FAIL")))
+        rows.append(("EN 1990 A2.4.4.2.4(3)", "first lateral frequency", "not given" if s.lateral_frequency_hz is None
+                     else f"{s.lateral_frequency_hz:g} Hz", ">= 1.2 Hz",
+                     "not checked" if s.lateral_ok is None else ("PASS" if s.lateral_ok else "FAIL")))
+    return rows
+
+
+def report_html(res, version=None, commit=None):
+    """The page as one string."""
+    version = __version__ if version is None else version
+    commit = _commit() if commit is None else commit
+    b = res.bridge
+    verdict = "PASS" if res.passed else "FAIL"
+    zeta = ", ".join(f"{100 * z:.4g} %" for z in b.modal_damping_ratios(0.0))
+    inputs = [("bridge", b.describe()), ("maximum line speed V", f"{res.max_line_speed_kmh:g} km/h"),
+              ("speeds", f"{res.speeds_kmh[0]:g} .. {res.speeds_kmh[-1]:g} km/h"), ("track", res.track),
+              ("damping", res.damping), ("damping model", res.damping_model), ("ζ per mode", zeta),
+              ("modes", ", ".join(str(j) for j in res.modes)), ("track maintenance", res.track_maintenance),
+              ("α", f"{res.alpha:g}"), ("trains", ", ".join(c.name for c in res.trains))]
+    near = [(c.name, f"{c.max_acc_m_s2.max():.4f}", f"{c.speeds_kmh[c.i_max]:g}",
+             "" if c.x_max_m is None else f"{c.x_max_m:.3f}") for c in res.near_governing()]
+    warn = "".join(f"<p class='warn'>The largest acceleration of {_e(', '.join(c.name for c in cs))} lies at the "
+                   f"{_e(end)} of the checked range: the resonance may lie outside it.</p>"
+                   for end, cs in res.range_end_maxima().items())
+    effects = [(d.effect.label, t.name, f"{d.phi_dyn:.3f}", f"{d.train_static / 1e3:.1f}",
+                f"{d.train_design / 1e3:.1f}", f"{d.lm71_design / 1e3:.1f}", f"{d.ratio:.3f}")
+               for t, d, _ in res.effects_governing()]
+    parts = [
+        "<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
+        f"<title>EN 1991-2 dynamic check: {_e(verdict)}</title>",
+        "<style>body{font-family:sans-serif;margin:2em;max-width:60em}table{border-collapse:collapse;"
+        "margin:.5em 0}td,th{border:1px solid #999;padding:2px 6px;font-size:90%}th{background:#eee}"
+        ".pass{color:#070}.fail{color:#b00}.warn{color:#b60}pre{font-size:75%;white-space:pre-wrap}"
+        "@media print{body{margin:1cm}}</style></head><body>",
+        "<h1>EN 1991-2 dynamic check</h1>",
+        f'<p id="verdict" class="{verdict.lower()}"><b>Verdict: {verdict}</b></p>',
+        "<h2>Inputs</h2>", _table(("item", "value"), inputs),
+        "<h2>Verdict, clause by clause</h2>",
+        _table(("clause", "what", "value", "limit", "verdict"), verdict_rows(res)),
+        "<h2>Governing cases</h2>",
+        _table(("train within 5 % of the governing value", "max acc (m/s²)", "at (km/h)", "x (m)"), near), warn,
+        "<h2>Acceleration envelopes over speed</h2>", _svg_envelopes(res),
+        "<h2>EN 1991-2 6.4.6.5(3) over the deck</h2>", _svg_effects(res),
+        _table(("effect", "train", "φ'_dyn", "static (kNm, kN)", "design (kNm, kN)", "Φ α LM71 (kNm, kN)", "ratio"),
+               effects),
+        "<h2>Not checked</h2>", "<ul>" + "".join(f"<li>{_e(x)}</li>" for x in res.not_checked()) + "</ul>",
+        "<h2>Full output</h2>", f"<pre>{_e(summary(res))}</pre>",
+        f"<p>adm-sim {_e(version)}, commit {_e(commit)}</p>", "</body></html>"]
+    return "\n".join(parts)
+
+
+def write_report(res, path):
+    """Write :func:`report_html` to ``path`` (UTF-8)."""
+    Path(path).write_text(report_html(res), encoding="utf-8")

@@ -1,0 +1,611 @@
+"""Compiled whole-run kernels: every lane of a batch integrated over all its steps in one call.
+
+These are the per-stage computations of :class:`adm_sim.integrate.rk4_sides.BridgeSide` and
+:class:`adm_sim.integrate.rk4_sides.TrainSide` (same equations, same RK4 bookkeeping, same operation order),
+written as loops over lanes and steps so that numba compiles them: the Python overhead of ~40
+small numpy calls per RK stage (~100 us) disappears, and a lane costs only its arithmetic.
+Each lane carries its own bridge (modal stiffness, damping, the wheelset-modified mass matrix of
+Eq. 13) and its own number of steps; the span, the space step ``ds`` and the train are shared,
+so the axles on the bridge and the mode shapes under them are tabulated once per batch.
+
+Arguments are named structures (``typing.NamedTuple`` of arrays): the tables of
+:mod:`adm_sim.integrate.tables` (``BridgeTables``, ``AxleRows``, ``ActiveUnits``, ``VehicleTables``, built
+by the same functions the numpy stepper uses) and, here, :class:`Blocks`, :class:`DimLanes`,
+:class:`MlmLanes`, :class:`LaneState`. A DIM stage calls one helper per numpy step:
+:func:`rail_state` (``BridgeSide.rail_state``), :func:`vehicle_accelerations`
+(``TrainSide.take_rail_state``), :func:`bridge_accelerations` (``BridgeSide.take_forces``),
+:func:`midspan_acceleration`; a step starts with :func:`start_step`, :func:`start_units` and
+ends with the maxima, whose dense part (:func:`dense_maxima`) both kernels share. The RK4
+bookkeeping (``_Rk4State.push``) and the MLM step (``BridgeSide.step_mlm``) stay inline in their
+kernels: as helpers they cost ~20 % and ~6 % of the kernel's time (``bench/bench_kernels.py``,
+``docs/benchmarks.md``).
+
+One source: without numba the same functions run as plain Python (slow, for debugging;
+``tests/test_kernels_uncompiled.py``). The numpy stepper stays the reference (the ROS nodes use
+it); ``tests/test_batch.py`` holds the two together to 1e-12 relative.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+# numba compiles these loops; the plain-Python path is the same source (adm_sim.integrate._jit.njit)
+from adm_sim.integrate._jit import RK4_C_ARRAY as RK4_C
+from adm_sim.integrate._jit import RK4_W_ARRAY as RK4_W
+from adm_sim.integrate._jit import STAGE_ROW, njit
+
+
+@njit(cache=True, inline="always")
+def hermite_max_abs_acc(d0, v0, a0, d1, v1, a1, h):
+    """Largest |acceleration| strictly inside one step from the dense output, 0 if none.
+
+    One lane, scalar arithmetic of :func:`adm_sim.integrate.dense_output.hermite_max_abs_acc` operation for
+    operation (the cubic second derivative of the quintic Hermite interpolant of the deflection).
+    """
+    D = (d1 - d0) / (h * h)
+    V0 = v0 / h
+    V1 = v1 / h
+    c1 = 60.0 * D - 36.0 * V0 - 24.0 * V1 - 9.0 * a0 + 3.0 * a1
+    c2 = -180.0 * D + 96.0 * V0 + 84.0 * V1 + 18.0 * a0 - 12.0 * a1
+    c3 = 120.0 * D - 60.0 * V0 - 60.0 * V1 - 10.0 * a0 + 10.0 * a1
+    A = 3.0 * c3
+    B = 2.0 * c2
+    C = c1
+    s1 = -1.0
+    s2 = -1.0
+    disc = B * B - 4.0 * A * C
+    if A != 0.0:
+        if disc >= 0.0:
+            sq = np.sqrt(disc)
+            q = -0.5 * (B + sq) if B >= 0.0 else -0.5 * (B - sq)
+            if q != 0.0:
+                s1 = q / A
+                s2 = C / q
+    elif B != 0.0:
+        s1 = -C / B
+    best = 0.0
+    if s1 > 0.0 and s1 < 1.0:
+        val = abs(a0 + s1 * (c1 + s1 * (c2 + s1 * c3)))
+        if val > best:
+            best = val
+    if s2 > 0.0 and s2 < 1.0:
+        val = abs(a0 + s2 * (c1 + s2 * (c2 + s2 * c3)))
+        if val > best:
+            best = val
+    return best
+
+
+class Blocks(NamedTuple):
+    """Lanes in block order: block ``i`` is lanes ``ptr[i]:ptr[i+1]`` (n_blocks + 1,), all on bridge
+    ``case[i]`` with ``steps[i]`` steps (n_blocks,); they advance together, innermost."""
+
+    ptr: np.ndarray
+    case: np.ndarray
+    steps: np.ndarray
+
+
+class DimLanes(NamedTuple):
+    """Per lane (block order): speed ``v`` (m/s), time step ``h`` (s) (n_lanes,), modal damping
+    ``Z`` (n_lanes, n_modes) (Ns/m)."""
+
+    v: np.ndarray
+    h: np.ndarray
+    Z: np.ndarray
+
+
+class MlmLanes(NamedTuple):
+    """Per lane (block order): time step ``h`` (s) (n_lanes,); modal damping ``Z`` and the exact
+    RK4 recurrence of :func:`adm_sim.integrate.rk4_sides.mlm_rk4_coefficients`, each (n_modes, n_lanes)."""
+
+    h: np.ndarray
+    Z: np.ndarray
+    ax: np.ndarray
+    axd: np.ndarray
+    bx: np.ndarray
+    bxd: np.ndarray
+    c0: np.ndarray
+    c0d: np.ndarray
+    ch: np.ndarray
+    chd: np.ndarray
+    c1: np.ndarray
+    c1d: np.ndarray
+
+
+class LaneState(NamedTuple):
+    """State of every lane (block order), updated in place: modal ``q``, ``qd`` (n_modes, n_lanes),
+    vehicle ``u``, ``ud`` (n_dof, n_lanes; n_dof = 0 for the MLM), the running maxima of |midspan
+    acceleration| ``max_acc`` and |deflection| ``max_disp`` (n_lanes,), and ``prev`` (3, n_lanes)
+    the midspan deflection, velocity and acceleration of the last step done (dense maxima)."""
+
+    q: np.ndarray
+    qd: np.ndarray
+    u: np.ndarray
+    ud: np.ndarray
+    max_acc: np.ndarray
+    max_disp: np.ndarray
+    prev: np.ndarray
+
+
+# ---------------------------------------------------------------------- the steps, one helper each
+@njit(cache=True, inline="always")
+def start_step(q, qd, phi_mid, d, vel, sq, sqd):
+    """Start of a step: midspan deflection ``d`` and velocity ``vel`` (n_lanes,) of the modal state
+    (``BridgeSide.midspan_displacement`` / ``midspan_velocity``); the stage state ``sq``, ``sqd``
+    is the step's state (``_Rk4State.reset``)."""
+    nm, nb = q.shape
+    for b in range(nb):
+        d[b] = 0.0
+        vel[b] = 0.0
+    for j in range(nm):
+        pm = phi_mid[j]
+        for b in range(nb):
+            d[b] += q[j, b] * pm
+            vel[b] += qd[j, b] * pm
+            sq[j, b] = q[j, b]
+            sqd[j, b] = qd[j, b]
+
+
+@njit(cache=True, inline="always")
+def start_units(vehicles, units, a0, a1, u, ud, su, sud):
+    """Start of a step for the active units ``units[a0:a1]``: stage state = step state
+    (``TrainSide._active`` / ``_Rk4State.reset``)."""
+    dof0 = vehicles.unit_dof0
+    ndof = vehicles.unit_ndof
+    nb = u.shape[1]
+    for ia in range(a0, a1):
+        un = units[ia]
+        for dd in range(dof0[un], dof0[un] + ndof[un]):
+            for b in range(nb):
+                su[dd, b] = u[dd, b]
+                sud[dd, b] = ud[dd, b]
+
+
+class Track(NamedTuple):
+    """Track irregularity under the axles of :class:`adm_sim.integrate.tables.AxleRows`, entry by entry:
+    elevation ``r`` (m), slope ``s`` (-) and curvature ``c`` (1/m) of the profile at the axle
+    (n_entries,); zeros for a smooth track (:mod:`adm_sim.model.irregularity`)."""
+
+    r: np.ndarray
+    s: np.ndarray
+    c: np.ndarray
+
+
+@njit(cache=True, inline="always")
+def rail_state(rows, r, sq, sqd, v, W, Wd, t1, t2, t3, track):
+    """Bridge -> train (``BridgeSide.rail_state`` and the profile terms of
+    ``TrainSide.take_rail_state``): rail displacement plus irregularity ``W = phi q + r(x)`` and
+    velocity ``Wd = phi qd + v phi' q + v r'(x)`` (n_axles, n_lanes) under every axle on the bridge
+    at half-step row ``r`` (Eqs. 4, 9 with the profile ``track``, :class:`Track`)."""
+    ptr = rows.ptr
+    axle = rows.axle
+    phi = rows.phi
+    phx = rows.phx
+    tr = track.r
+    ts = track.s
+    nm, nb = sq.shape
+    for e in range(ptr[r], ptr[r + 1]):
+        a = axle[e]
+        for b in range(nb):
+            t1[b] = 0.0
+            t2[b] = 0.0
+            t3[b] = 0.0
+        for j in range(nm):
+            pj = phi[e, j]
+            xj = phx[e, j]
+            for b in range(nb):
+                t1[b] += sq[j, b] * pj
+                t2[b] += sqd[j, b] * pj
+                t3[b] += sq[j, b] * xj
+        re_ = tr[e]
+        se = ts[e]
+        for b in range(nb):
+            W[a, b] = t1[b] + re_
+            Wd[a, b] = (t2[b] + v[b] * t3[b]) + v[b] * se
+
+
+@njit(cache=True, inline="always")
+def vehicle_accelerations(vehicles, units, a0, a1, su, sud, W, Wd, f, udd, t1, t2, t3):
+    """Train (``TrainSide.take_rail_state``): primary stage forces ``f = k_p (W - Lw u) + c_p (Wd -
+    Lw ud)`` (n_axles, n_lanes) and vehicle accelerations ``udd = (Lw^T f - K_s u - C_s ud) / M``
+    (Eq. 11) of the active units ``units[a0:a1]``."""
+    dof0 = vehicles.unit_dof0
+    ndof = vehicles.unit_ndof
+    ax0 = vehicles.unit_ax0
+    nax = vehicles.unit_nax
+    lw_ptr = vehicles.lw_ptr
+    lw_col = vehicles.lw_col
+    lw_val = vehicles.lw_val
+    lwt_ptr = vehicles.lwt_ptr
+    lwt_col = vehicles.lwt_col
+    lwt_val = vehicles.lwt_val
+    ks_ptr = vehicles.ks_ptr
+    ks_col = vehicles.ks_col
+    ks_val = vehicles.ks_val
+    cs_ptr = vehicles.cs_ptr
+    cs_col = vehicles.cs_col
+    cs_val = vehicles.cs_val
+    kp = vehicles.kp
+    cp = vehicles.cp
+    minv_dof = vehicles.minv_dof
+    nb = su.shape[1]
+    for ia in range(a0, a1):
+        un = units[ia]
+        for ax_ in range(ax0[un], ax0[un] + nax[un]):
+            for b in range(nb):
+                t1[b] = 0.0
+                t2[b] = 0.0
+            for t in range(lw_ptr[ax_], lw_ptr[ax_ + 1]):
+                col = lw_col[t]
+                val = lw_val[t]
+                for b in range(nb):
+                    t1[b] += su[col, b] * val
+                    t2[b] += sud[col, b] * val
+            kpa = kp[ax_]
+            cpa = cp[ax_]
+            for b in range(nb):
+                f[ax_, b] = kpa * (W[ax_, b] - t1[b]) + cpa * (Wd[ax_, b] - t2[b])
+        for dd in range(dof0[un], dof0[un] + ndof[un]):
+            for b in range(nb):
+                t1[b] = 0.0
+                t2[b] = 0.0
+                t3[b] = 0.0
+            for t in range(lwt_ptr[dd], lwt_ptr[dd + 1]):
+                col = lwt_col[t]
+                val = lwt_val[t]
+                for b in range(nb):
+                    t1[b] += f[col, b] * val
+            for t in range(ks_ptr[dd], ks_ptr[dd + 1]):
+                col = ks_col[t]
+                val = ks_val[t]
+                for b in range(nb):
+                    t2[b] += su[col, b] * val
+            for t in range(cs_ptr[dd], cs_ptr[dd + 1]):
+                col = cs_col[t]
+                val = cs_val[t]
+                for b in range(nb):
+                    t3[b] += sud[col, b] * val
+            md = minv_dof[dd]
+            for b in range(nb):
+                udd[dd, b] = (t1[b] - t2[b] - t3[b]) * md
+
+
+@njit(cache=True, inline="always")
+def bridge_accelerations(rows, r, cl, Kl, vehicles, sq, sqd, v, Z, f, W, Wd, p, rhs, qdd, t1, t2, t3, track):
+    """Train -> bridge (``BridgeSide.take_forces``): interaction ``G = F - F_k1 - F_c1`` (Eq. 7)
+    less the wheelset inertia on the profile ``m_w v^2 r''(x)`` (``TrainSide.take_rail_state``;
+    ``track``, :class:`Track`) and of the convective terms (Eq. 9), modal load ``p`` (Eq. 14) and
+    ``qdd = M_mod^-1 (p - Z qd - K q)`` (Eq. 15) at half-step row ``r``, lane ``b`` on bridge ``cl[b]``
+    with modal stiffness ``Kl[:, b]``; the rail state ``W``, ``Wd`` of the axles on the bridge is cleared (rigid track off the bridge)."""
+    ptr = rows.ptr
+    axle = rows.axle
+    phi = rows.phi
+    phx = rows.phx
+    phxx = rows.phxx
+    minv = rows.minv
+    axle_load = vehicles.axle_load_n
+    wheel_mass = vehicles.wheel_mass_kg
+    tc = track.c
+    nm, nb = sq.shape
+    for j in range(nm):
+        for b in range(nb):
+            p[j, b] = 0.0
+    for e in range(ptr[r], ptr[r + 1]):
+        a = axle[e]
+        for b in range(nb):
+            t1[b] = 0.0
+            t2[b] = 0.0
+        for j in range(nm):
+            xj = phx[e, j]
+            xxj = phxx[e, j]
+            for b in range(nb):
+                t1[b] += sqd[j, b] * xj
+                t2[b] += sq[j, b] * xxj
+        fa = axle_load[a]
+        mwa = wheel_mass[a]
+        ce = tc[e]
+        for b in range(nb):
+            t3[b] = ((fa - f[a, b]) - mwa * (v[b] * v[b]) * ce) - mwa * (2.0 * v[b] * t1[b] + v[b] * v[b] * t2[b])
+        for j in range(nm):
+            pj = phi[e, j]
+            for b in range(nb):
+                p[j, b] += t3[b] * pj
+        for b in range(nb):
+            W[a, b] = 0.0
+            Wd[a, b] = 0.0
+    for j in range(nm):
+        for b in range(nb):
+            rhs[j, b] = p[j, b] - Z[j, b] * sqd[j, b] - Kl[j, b] * sq[j, b]
+    for i in range(nm):
+        for b in range(nb):
+            qdd[i, b] = 0.0
+        for j in range(nm):
+            for b in range(nb):
+                qdd[i, b] += rhs[j, b] * minv[cl[b], r, j, i]
+
+
+@njit(cache=True, inline="always")
+def midspan_acceleration(qdd, phi_mid, acc):
+    """Midspan acceleration ``acc = phi_mid qdd`` (n_lanes,) (``BridgeSide.last_acc``)."""
+    nm, nb = qdd.shape
+    for b in range(nb):
+        acc[b] = 0.0
+    for j in range(nm):
+        pm = phi_mid[j]
+        for b in range(nb):
+            acc[b] += qdd[j, b] * pm
+
+
+@njit(cache=True, inline="always")
+def dense_maxima(k, l0, acc, d, vel, h, amax, prev):
+    """Dense maxima of a block (lanes ``l0 ..``) at step ``k`` (``_BridgeRun._take_acc``): the
+    largest |acceleration| between steps ``k - 1`` and ``k`` from the dense output
+    (:func:`hermite_max_abs_acc`) folded into ``amax``; ``prev`` (3, n_lanes) then carries the
+    midspan deflection ``d``, velocity ``vel`` and acceleration ``acc`` to the next step."""
+    nb = acc.shape[0]
+    for b in range(nb):
+        lb = l0 + b
+        if k > 0:
+            inner = hermite_max_abs_acc(prev[0, lb], prev[1, lb], prev[2, lb], d[b], vel[b], acc[b], h[b])
+            if inner > amax[b]:
+                amax[b] = inner
+        prev[0, lb] = d[b]
+        prev[1, lb] = vel[b]
+        prev[2, lb] = acc[b]
+
+
+# ---------------------------------------------------------------------- the whole-run kernels
+#: Lanes of one chunk of :func:`mlm_blocks` at most: a sweep's 191 lanes run as 3 chunks of <= 64,
+#: whose arrays stay in the first-level cache (0.74-0.90x the CPU of one block of 191).
+MLM_CHUNK_LANES = 64
+
+
+@njit(cache=True, nogil=True)
+def dim_blocks(blocks, k0, k1, lanes, bridge, rows, units, vehicles, state, dense, track):
+    """DIM (Eqs. 7-17) with one exchange per RK stage, every lane over all its steps.
+
+    ``blocks`` (:class:`Blocks`): lanes of one bridge and one step count; consecutive blocks with
+    the same step count (the bridges of one span in a batch, as a rule) advance together, innermost,
+    each lane with its own bridge's modal stiffness and Eq. (13) inverses, so every inner loop runs
+    over one long run of contiguous lanes (SIMD; per lane the same operations in the same order as
+    block by block, so bit for bit the same maxima, ~2.4x faster for 6 bridges x 8 speeds,
+    ``bench/bench_kernels.py``); ``lanes``
+    (:class:`DimLanes`); ``bridge`` (:class:`adm_sim.integrate.tables.BridgeTables`); ``rows``
+    (:class:`adm_sim.integrate.tables.AxleRows` of every half-step row from 0, with ``minv``); ``units``
+    (:class:`adm_sim.integrate.tables.ActiveUnits` of every step from 0); ``vehicles``
+    (:class:`adm_sim.integrate.tables.VehicleTables`); ``track`` (:class:`Track`) the irregularity under
+    the axles of ``rows`` (zeros: smooth track). A stage is the numpy stepper's, helper by helper:
+    :func:`rail_state`, :func:`vehicle_accelerations`, :func:`bridge_accelerations`, (stage 0)
+    :func:`midspan_acceleration`, the RK4 bookkeeping of both subsystems; a step starts with
+    :func:`start_step` and ends with the maxima (:func:`dense_maxima` with ``dense``).
+
+    Resumable: advances every lane from step ``k0`` to ``min(k1, its block's steps)``; ``state``
+    (:class:`LaneState`) is updated in place, so chunks give bit for bit what one call gives.
+    """
+    nm = bridge.K.shape[1]
+    n_dof = vehicles.minv_dof.shape[0]
+    n_axles = vehicles.axle_load_n.shape[0]
+    phi_mid = bridge.phi_mid
+    act_ptr = units.ptr
+    act_units = units.units
+    unit_dof0 = vehicles.unit_dof0
+    unit_ndof = vehicles.unit_ndof
+    block_ptr = blocks.ptr
+    n_blocks = block_ptr.shape[0] - 1
+    be = 0
+    while be < n_blocks:
+        # a run of consecutive blocks with the same number of steps (the bridges of a batch, as a
+        # rule) advances as one: longer loops over lanes (bench/bench_kernels.py, docs/benchmarks.md)
+        bi = be
+        be = bi + 1
+        while be < n_blocks and blocks.steps[be] == blocks.steps[bi]:
+            be += 1
+        l0 = block_ptr[bi]
+        nb = block_ptr[be] - l0
+        k_end = min(k1, blocks.steps[bi])
+        if k0 >= k_end:
+            continue
+        cl = np.empty(nb, np.int64)
+        for g in range(bi, be):
+            for b in range(block_ptr[g] - l0, block_ptr[g + 1] - l0):
+                cl[b] = blocks.case[g]
+        Kl = np.empty((nm, nb))
+        for j in range(nm):
+            for b in range(nb):
+                Kl[j, b] = bridge.K[cl[b], j]
+        vl = lanes.v[l0:l0 + nb].copy()
+        hl = lanes.h[l0:l0 + nb].copy()
+        Zb = np.empty((nm, nb))
+        for j in range(nm):
+            for b in range(nb):
+                Zb[j, b] = lanes.Z[l0 + b, j]
+        q = state.q[:, l0:l0 + nb].copy()
+        qd = state.qd[:, l0:l0 + nb].copy()
+        sq = np.zeros((nm, nb))
+        sqd = np.zeros((nm, nb))
+        aq = np.zeros((nm, nb))
+        aqd = np.zeros((nm, nb))
+        qdd = np.zeros((nm, nb))
+        p = np.zeros((nm, nb))
+        rhs = np.zeros((nm, nb))
+        u = state.u[:, l0:l0 + nb].copy()
+        ud = state.ud[:, l0:l0 + nb].copy()
+        su = np.zeros((n_dof, nb))
+        sud = np.zeros((n_dof, nb))
+        au = np.zeros((n_dof, nb))
+        aud = np.zeros((n_dof, nb))
+        udd = np.zeros((n_dof, nb))
+        W = np.zeros((n_axles, nb))
+        Wd = np.zeros((n_axles, nb))
+        f = np.zeros((n_axles, nb))
+        t1 = np.zeros(nb)
+        t2 = np.zeros(nb)
+        t3 = np.zeros(nb)
+        acc0 = np.zeros(nb)
+        d = np.zeros(nb)
+        vel = np.zeros(nb)
+        amax = state.max_acc[l0:l0 + nb].copy()
+        dmax = state.max_disp[l0:l0 + nb].copy()
+        for k in range(k0, k_end):
+            a0 = act_ptr[k]
+            a1 = act_ptr[k + 1]
+            start_step(q, qd, phi_mid, d, vel, sq, sqd)
+            start_units(vehicles, act_units, a0, a1, u, ud, su, sud)
+            for st in range(4):
+                r = 2 * k + STAGE_ROW[st]
+                rail_state(rows, r, sq, sqd, vl, W, Wd, t1, t2, t3, track)
+                vehicle_accelerations(vehicles, act_units, a0, a1, su, sud, W, Wd, f, udd, t1, t2, t3)
+                bridge_accelerations(rows, r, cl, Kl, vehicles, sq, sqd, vl, Zb, f, W, Wd, p, rhs, qdd,
+                                     t1, t2, t3, track)
+                if st == 0:
+                    midspan_acceleration(qdd, phi_mid, acc0)
+                # 4. RK4 bookkeeping of both subsystems (as rk4_sides._Rk4State.push), inline: as a
+                # helper it costs ~20 % of the kernel's time (bench/bench_kernels.py, docs/benchmarks.md)
+                wgt = RK4_W[st]
+                for j in range(nm):
+                    for b in range(nb):
+                        if st == 0:
+                            aq[j, b] = wgt * sqd[j, b]
+                            aqd[j, b] = wgt * qdd[j, b]
+                        else:
+                            aq[j, b] = aq[j, b] + wgt * sqd[j, b]
+                            aqd[j, b] = aqd[j, b] + wgt * qdd[j, b]
+                for ia in range(a0, a1):
+                    un = act_units[ia]
+                    for dd in range(unit_dof0[un], unit_dof0[un] + unit_ndof[un]):
+                        for b in range(nb):
+                            if st == 0:
+                                au[dd, b] = wgt * sud[dd, b]
+                                aud[dd, b] = wgt * udd[dd, b]
+                            else:
+                                au[dd, b] = au[dd, b] + wgt * sud[dd, b]
+                                aud[dd, b] = aud[dd, b] + wgt * udd[dd, b]
+                if st < 3:
+                    cst = RK4_C[st + 1]
+                    for j in range(nm):
+                        for b in range(nb):
+                            cc = cst * hl[b]
+                            x_new = q[j, b] + cc * sqd[j, b]
+                            sqd[j, b] = qd[j, b] + cc * qdd[j, b]
+                            sq[j, b] = x_new
+                    for ia in range(a0, a1):
+                        un = act_units[ia]
+                        for dd in range(unit_dof0[un], unit_dof0[un] + unit_ndof[un]):
+                            for b in range(nb):
+                                cc = cst * hl[b]
+                                x_new = u[dd, b] + cc * sud[dd, b]
+                                sud[dd, b] = ud[dd, b] + cc * udd[dd, b]
+                                su[dd, b] = x_new
+                else:
+                    for j in range(nm):
+                        for b in range(nb):
+                            q[j, b] = q[j, b] + hl[b] * aq[j, b]
+                            qd[j, b] = qd[j, b] + hl[b] * aqd[j, b]
+                    for ia in range(a0, a1):
+                        un = act_units[ia]
+                        for dd in range(unit_dof0[un], unit_dof0[un] + unit_ndof[un]):
+                            for b in range(nb):
+                                u[dd, b] = u[dd, b] + hl[b] * au[dd, b]
+                                ud[dd, b] = ud[dd, b] + hl[b] * aud[dd, b]
+            # the sampled maxima (stage 0 of every step, _BridgeRun), then the dense ones
+            for b in range(nb):
+                if abs(acc0[b]) > amax[b]:
+                    amax[b] = abs(acc0[b])
+                if abs(d[b]) > dmax[b]:
+                    dmax[b] = abs(d[b])
+            if dense:
+                dense_maxima(k, l0, acc0, d, vel, hl, amax, state.prev)
+        state.q[:, l0:l0 + nb] = q
+        state.qd[:, l0:l0 + nb] = qd
+        state.u[:, l0:l0 + nb] = u
+        state.ud[:, l0:l0 + nb] = ud
+        state.max_acc[l0:l0 + nb] = amax
+        state.max_disp[l0:l0 + nb] = dmax
+
+
+@njit(cache=True, nogil=True)
+def mlm_blocks(blocks, k0, k1, lanes, bridge, P, state, dense):
+    """MLM (Eq. 12) by the exact RK4 recurrence of every lane-mode oscillator.
+
+    ``P`` (2 n + 1, n_modes) modal loads on the half-step grid (shared); ``bridge``
+    (:class:`adm_sim.integrate.tables.BridgeTables`); ``lanes`` (:class:`MlmLanes`), ``blocks`` and
+    ``state`` as in :func:`dim_blocks` (``state.u``, ``state.ud`` unused). A step is
+    ``BridgeSide.step_mlm`` (inline) then the maxima (:func:`dense_maxima` with ``dense``); resumable as :func:`dim_blocks`.
+
+    Each block advances in chunks of at most :data:`MLM_CHUNK_LANES` lanes (balanced, a multiple of
+    8), each on copies made inside the kernel (its recurrence coefficients ``cf``, its state ``s``,
+    its midspan values and maxima ``o``): arrays the compiler knows to be distinct, so the loop over
+    the chunk's lanes is vectorised (SIMD) with the same operations per lane in the same order (bit
+    for bit the loop over the lanes' own arrays, ~6x faster; ``bench/bench_kernels.py``), and a
+    chunk's arrays stay in the first-level cache (a sweep's 191 lanes as 3 chunks of <= 64:
+    0.74-0.90x the CPU of one block, docs/benchmarks.md).
+    """
+    K = bridge.K
+    M = bridge.M
+    phi_mid = bridge.phi_mid
+    nm = P.shape[1]
+    block_ptr = blocks.ptr
+    for bi in range(block_ptr.shape[0] - 1):
+        c = blocks.case[bi]
+        k_end = min(k1, blocks.steps[bi])
+        if k0 >= k_end:
+            continue
+        n_chunks = (block_ptr[bi + 1] - block_ptr[bi] + MLM_CHUNK_LANES - 1) // MLM_CHUNK_LANES
+        width = (block_ptr[bi + 1] - block_ptr[bi] + n_chunks - 1) // n_chunks
+        width = min((width + 7) // 8 * 8, MLM_CHUNK_LANES)
+        for l0 in range(block_ptr[bi], block_ptr[bi + 1], width):
+            l1 = min(l0 + width, block_ptr[bi + 1])
+            nb = l1 - l0
+            # cf[0] Z, cf[1..10] ax, axd, bx, bxd, c0, c0d, ch, chd, c1, c1d (each (n_modes, nb))
+            cf = np.empty((11, nm, nb))
+            for i, arr in enumerate((lanes.Z, lanes.ax, lanes.axd, lanes.bx, lanes.bxd, lanes.c0, lanes.c0d, lanes.ch,
+                                     lanes.chd, lanes.c1, lanes.c1d)):
+                for j in range(nm):
+                    for b in range(nb):
+                        cf[i, j, b] = arr[j, l0 + b]
+            s = np.empty((2, nm, nb))  # q, qd
+            for j in range(nm):
+                for b in range(nb):
+                    s[0, j, b] = state.q[j, l0 + b]
+                    s[1, j, b] = state.qd[j, l0 + b]
+            o = np.zeros((5, nb))  # midspan deflection, velocity, acceleration; max |acc|, max |deflection|
+            for b in range(nb):
+                o[3, b] = state.max_acc[l0 + b]
+                o[4, b] = state.max_disp[l0 + b]
+            hl = lanes.h[l0:l1].copy()
+            for k in range(k0, k_end):
+                # BridgeSide.step_mlm (Eq. 12): midspan deflection, velocity and acceleration at step k,
+                # then the exact RK4 recurrence with the modal loads of rows 2k, 2k + 1, 2k + 2 (inline:
+                # as a helper it costs ~6 % with dense maxima, see docs/benchmarks.md)
+                for b in range(nb):
+                    o[0, b] = 0.0
+                    o[1, b] = 0.0
+                    o[2, b] = 0.0
+                for j in range(nm):
+                    p0, ph, p1 = P[2 * k, j], P[2 * k + 1, j], P[2 * k + 2, j]
+                    kj, mj, pm = K[c, j], M[c, j], phi_mid[j]
+                    for b in range(nb):
+                        x = s[0, j, b]
+                        xd = s[1, j, b]
+                        o[0, b] += x * pm
+                        o[1, b] += xd * pm
+                        o[2, b] += ((p0 - cf[0, j, b] * xd - kj * x) / mj) * pm
+                        s[0, j, b] = cf[1, j, b] * x + cf[3, j, b] * xd + cf[5, j, b] * p0 + cf[7, j, b] * ph + cf[9, j, b] * p1
+                        s[1, j, b] = (cf[2, j, b] * x + cf[4, j, b] * xd + cf[6, j, b] * p0 + cf[8, j, b] * ph
+                                      + cf[10, j, b] * p1)
+                # the sampled maxima (stage 0 of every step, _BridgeRun), then the dense ones
+                for b in range(nb):
+                    if abs(o[2, b]) > o[3, b]:
+                        o[3, b] = abs(o[2, b])
+                    if abs(o[0, b]) > o[4, b]:
+                        o[4, b] = abs(o[0, b])
+                if dense:
+                    dense_maxima(k, l0, o[2], o[0], o[1], hl, o[3], state.prev)
+            for j in range(nm):
+                for b in range(nb):
+                    state.q[j, l0 + b] = s[0, j, b]
+                    state.qd[j, l0 + b] = s[1, j, b]
+            for b in range(nb):
+                state.max_acc[l0 + b] = o[3, b]
+                state.max_disp[l0 + b] = o[4, b]

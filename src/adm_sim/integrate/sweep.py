@@ -1,0 +1,257 @@
+"""Whole speed sweeps in one call: every speed is a lane of one vectorised lockstep run.
+
+``run_sweep`` advances one :class:`adm_sim.integrate.lockstep_runs.InProcessRun` a whole step at a time; the ROS
+bridge and train nodes each drive their half of the same object stage by stage (one exchange per
+RK4 stage), so a co-simulation reproduces these numbers bit for bit.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from adm_sim.errors import InputError, RunError
+from adm_sim.fields import check_count, check_delta_zeta_pct
+from adm_sim.integrate.peaks import largest_interior_peak
+from adm_sim.integrate.lockstep_runs import InProcessRun
+from adm_sim.integrate.mlm_loads import mlm_modal_load_table
+from adm_sim.integrate.rk4_sides import BridgeSide, TrainSide
+from adm_sim.integrate.run_contract import FAILED, RUNNING, check_model
+from adm_sim.integrate.step_grid import SPEED_RANGE_KMH, StepOptions, make_grid, speeds_to_m_s
+
+MAX_HISTORY_VALUES = 300_000_000
+
+
+def parse_speeds(text, ordered=True, field="speeds_kmh"):
+    """Speeds (km/h) from ``"160:350:1"`` (start:stop:step, stop included) or ``"200,250"``.
+
+    Every number must be finite; each speed lies in [1, 600] km/h. With ``ordered`` (every user
+    input) a comma list must increase strictly, because a peak over speed is only meaningful on an
+    ordered grid; lanes of a run (the train node's ``speeds_kmh``, e.g. a damping ladder that
+    repeats its speeds) take ``ordered=False``. ``field`` names the input in messages (the ROS
+    nodes pass their parameter name ``speeds_kmh``).
+    """
+    text = str(text).strip()
+    if ":" in text and "," in text:
+        raise InputError(f"{field}: {text!r} mixes ':' and ','; give start:stop:step or a comma list (km/h)", field=field)
+    try:
+        parts = [float(p) for p in text.replace(":", ",").split(",") if p.strip()]
+    except ValueError:
+        parts = None
+    if not parts or (":" in text and len(parts) not in (2, 3)):
+        raise InputError(f"{field}: {text!r} is not start:stop:step or a comma list (km/h)", field=field)
+    bad = [p for p in parts if not math.isfinite(p)]
+    if bad:
+        raise InputError(f"{field}: {text!r} holds {bad[0]!r}; every speed and step must be a finite number (km/h)", field=field)
+    if ":" in text:
+        a, b, st = parts if len(parts) == 3 else parts + [1.0]
+        if st <= 0 or b < a:
+            raise InputError(f"{field}: {text!r} needs start <= stop and step > 0 (km/h)", field=field)
+        n = int(math.floor((b - a) / st + 1e-9)) + 1
+        check_count("n_speeds" if ordered else "n_lanes", n, field, repr(text))  # before any array
+        v = a + st * np.arange(n)
+    else:
+        check_count("n_speeds" if ordered else "n_lanes", len(parts), field, repr(text))
+        v = np.array(parts)
+        if ordered and np.any(np.diff(v) <= 0):
+            raise InputError(f"{field}: {text!r} must increase strictly (km/h), e.g. 200,250,263", field=field)
+    lo, hi = SPEED_RANGE_KMH
+    out = v[(v < lo) | (v > hi)]
+    if out.size:
+        raise InputError(f"{field}: {text!r} gives {out[0]:g} km/h; allowed speeds in [{lo:g}, {hi:g}] km/h", field=field)
+    return v
+
+
+@dataclass(frozen=True, repr=False)
+class SweepResult:
+    """Result of a speed sweep.
+
+    Attributes
+    ----------
+    speeds_kmh : ndarray (n_lanes,)
+    max_acc_m_s2 : ndarray (n_lanes,)
+        Max |midspan acceleration| over the crossing and the free vibration.
+    max_disp_m : ndarray (n_lanes,)
+        Max |midspan deflection|.
+    time_s, midspan_disp_m, midspan_acc_m_s2 : ndarray (n_lanes, n_steps) or None
+        Histories (``histories=True``).
+    contact_force_n : ndarray (n_lanes, n_steps, n_axles) or None
+        DIM wheel-rail contact forces (Eq. 7; zero off the bridge), with histories.
+    """
+
+    model: str
+    bridge: object
+    train_name: str
+    speeds_kmh: np.ndarray
+    max_acc_m_s2: np.ndarray
+    max_disp_m: np.ndarray
+    delta_zeta: np.ndarray
+    ds_m: float
+    n_steps: int
+    time_s: np.ndarray | None = field(default=None)
+    midspan_disp_m: np.ndarray | None = field(default=None)
+    midspan_acc_m_s2: np.ndarray | None = field(default=None)
+    contact_force_n: np.ndarray | None = field(default=None)
+    method: str = "rk4"
+
+    def peak(self):
+        """``{"speed_kmh", "acc_m_s2", "index"}`` of the peak of the curve, or None.
+
+        The peak rule of :mod:`adm_sim.integrate.peaks` (highest interior local maximum, 0.1 % prominence),
+        the one ``adm-calib calibrate`` uses.
+        """
+        i = largest_interior_peak(self.max_acc_m_s2)
+        if i is None:
+            return None
+        return {"speed_kmh": float(self.speeds_kmh[i]), "acc_m_s2": float(self.max_acc_m_s2[i]), "index": i}
+
+    def to_dict(self):
+        pk = self.peak()
+        return {
+            "model": self.model,
+            "method": self.method,
+            "bridge": self.bridge.describe(),
+            "train": self.train_name,
+            "delta_zeta_pct": (100.0 * self.delta_zeta).tolist() if np.ndim(self.delta_zeta) else 100.0 * float(self.delta_zeta),
+            "ds_m": self.ds_m,
+            "n_steps": self.n_steps,
+            "speeds_kmh": self.speeds_kmh.tolist(),
+            "max_acc_m_s2": self.max_acc_m_s2.tolist(),
+            "max_disp_m": self.max_disp_m.tolist(),
+            "peak": None if pk is None else {"speed_kmh": pk["speed_kmh"], "acc_m_s2": pk["acc_m_s2"]},
+        }
+
+    def __repr__(self):
+        pk = self.peak()
+        where = "no interior peak" if pk is None else f"peak {pk['acc_m_s2']:.4f} m/s2 at {pk['speed_kmh']:g} km/h"
+        how = "exact envelope" if self.method == "exact" else f"{self.n_steps} steps of {self.ds_m * 1000:.2f} mm"
+        return (f"SweepResult({self.model.upper()}, {self.bridge.name or 'bridge'} x {self.train_name}, "
+                f"{len(self.speeds_kmh)} speeds {self.speeds_kmh.min():g}..{self.speeds_kmh.max():g} km/h, "
+                f"{where}, {how})")
+
+
+def sweep_exact(bridge, train, speeds_kmh, delta_zeta=0.0, where="midspan"):
+    """The MLM sweep by the exact envelope (:func:`adm_sim.integrate.envelope.moving_load_envelope`): the true
+    maximum per speed, not the largest RK4 step sample (which sits up to 0.66 % below it on B1 x
+    ICE-2 at 16 steps per period). Returns ``(SweepResult, Envelope)``; the result's
+    ``max_acc_m_s2`` / ``max_disp_m`` are taken at ``where`` (``"midspan"``, ``"deck"`` or x in m).
+    """
+    from adm_sim.integrate.envelope import moving_load_envelope  # noqa: PLC0415  numba kernels: only the exact sweep needs them
+
+    env = moving_load_envelope(bridge, train.axle_offsets_m, train.axle_loads_n, speeds_kmh,
+                               delta_zeta=delta_zeta, where=where)
+    res = SweepResult(model="mlm", bridge=bridge, train_name=train.name, speeds_kmh=env.speeds_kmh.copy(),
+                      max_acc_m_s2=env.max_acc_m_s2, max_disp_m=env.max_disp_m,
+                      delta_zeta=np.asarray(delta_zeta, dtype=float), ds_m=0.0, n_steps=0, method="exact")
+    return res, env
+
+
+#: Backends of a sweep: the compiled kernels (default) and the numpy stepper they are tested against.
+BACKENDS = ("compiled", "numpy")
+
+
+def run_sweep_compiled(bridge, train, model, speeds_kmh, delta_zeta=0.0, options=None, progress=None):
+    """:func:`run_sweep` on the compiled kernels: every speed a lane of one
+    :class:`adm_sim.integrate.compiled_batch.BatchRun`, on the grid ``run_sweep`` makes (its ``ds`` and
+    number of steps), so the maxima equal the numpy stepper's to ~1e-13 relative (the summation
+    order of a few small dot products differs; ``tests/test_sweep_backends.py`` holds them to
+    1e-12). No histories. ``progress(done_steps, n_steps)`` is called after every block of steps
+    (about 100 per run).
+    """
+    from adm_sim.integrate.compiled_batch import BatchRunner  # noqa: PLC0415  deferred: heavy import (numba, ~0.4 s)
+
+    check_model(model, train)
+    options = options or StepOptions()
+    v_kmh = np.atleast_1d(np.asarray(speeds_kmh, dtype=float)).copy()
+    v = speeds_to_m_s(v_kmh)
+    dz = np.broadcast_to(np.asarray(delta_zeta, dtype=float), v.shape)
+    for x in np.unique(dz):
+        check_delta_zeta_pct("delta_zeta_pct", 100 * x, bridge.damping_ratio)
+    grid = make_grid(bridge, train.length_m, v, options)
+    runner = BatchRunner([bridge], train, grid.ds_m, options.free_vibration_periods, options.dense_maxima)
+    run = runner.start(model, np.zeros(v.size, dtype=np.int64), v_kmh, dz)
+    if run.n_steps != grid.n_steps:  # pragma: no cover - the same make_grid on both sides
+        raise RunError(f"compiled sweep: {run.n_steps} steps where the grid has {grid.n_steps}")
+    block = None if progress is None else max(1, -(-run.n_steps // 100))
+    while run.status == RUNNING:
+        run.advance(block)
+        if progress is not None:
+            progress(run.k, run.n_steps)
+    if run.status == FAILED:
+        raise RunError(run.message)
+    return SweepResult(model=model, bridge=bridge, train_name=train.name, speeds_kmh=v_kmh,
+                       max_acc_m_s2=run.max_acc_m_s2, max_disp_m=run.max_disp_m,
+                       delta_zeta=np.asarray(delta_zeta, dtype=float), ds_m=grid.ds_m, n_steps=grid.n_steps)
+
+
+def run_sweep(bridge, train, model, speeds_kmh, delta_zeta=0.0, options=None, histories=False,
+              progress=None):
+    """Max midspan acceleration of a bridge under a train for every speed, in one vectorised run.
+
+    Parameters
+    ----------
+    bridge : adm_sim.model.bridge.Bridge
+    train : adm_sim.model.trains.Train
+    model : {"mlm", "dim"}
+        Moving Load Model (Eqs. 5, 6, 12) or Detailed Interaction Model (Eqs. 7-17).
+    speeds_kmh : array_like (n_lanes,)
+    delta_zeta : float or array_like (n_lanes,)
+        Additional damping (fraction) on top of ``bridge.damping_ratio``.
+    options : StepOptions, optional
+    histories : bool
+        Keep time histories (memory: ``n_lanes * n_steps`` per quantity).
+    progress : callable(done_steps, n_steps) or None
+        Called about 100 times during the run.
+
+    Returns
+    -------
+    SweepResult
+    """
+    check_model(model, train)
+    v = speeds_to_m_s(speeds_kmh)
+    dz = np.broadcast_to(np.asarray(delta_zeta, dtype=float), v.shape)
+    for x in np.unique(dz):
+        check_delta_zeta_pct("delta_zeta_pct", 100 * x, bridge.damping_ratio)
+    options = options or StepOptions()
+    grid = make_grid(bridge, train.length_m, v, options)
+    n, nl = grid.n_steps, grid.n_lanes
+    dim = model == "dim"
+    if histories and nl * n * (1 + (train.n_axles if dim else 0)) > MAX_HISTORY_VALUES:
+        raise InputError(f"histories: {nl} speeds x {n} steps is too much to keep; "
+                         f"ask histories for at most a few speeds")
+    b = BridgeSide(bridge, grid, train.axle_offsets_m, train.wheel_mass_kg if dim else None, dz)
+    if dim:
+        run = InProcessRun(model, grid, b, train_side=TrainSide(train, grid, bridge.span_m,
+                                                                     irregularity=options.irregularity),
+                           dense_maxima=options.dense_maxima)
+    else:
+        run = InProcessRun(model, grid, b, dense_maxima=options.dense_maxima,
+                           modal_loads=mlm_modal_load_table(bridge, grid, train.axle_offsets_m, train.axle_loads_n))
+    acc = np.empty((n, nl)) if histories else None
+    disp = np.empty((n, nl)) if histories else None
+    forces = np.zeros((n, nl, train.n_axles), dtype=np.float64) if (histories and dim) else None
+    tick = max(1, n // 100)
+    for k in range(n):
+        if disp is not None:
+            disp[k] = run.disp_m
+        if run.step() is not None:
+            raise RunError(run.message)
+        if acc is not None:
+            acc[k] = run.acc_m_s2
+        if forces is not None:
+            idx, f = run.contact_forces_n()
+            if len(idx):
+                forces[k][:, idx] = f
+        if progress is not None and (k % tick == 0 or k == n - 1):
+            progress(k + 1, n)
+    kw = {}
+    if histories:
+        kw = dict(time_s=np.outer(1.0 / v, np.arange(n) * grid.ds_m), midspan_disp_m=disp.T.copy(),
+                  midspan_acc_m_s2=acc.T.copy(),
+                  contact_force_n=None if forces is None else forces.transpose(1, 0, 2).copy())
+    return SweepResult(model=model, bridge=bridge, train_name=train.name,
+                       speeds_kmh=np.atleast_1d(np.asarray(speeds_kmh, dtype=float)).copy(), max_acc_m_s2=run.max_acc_m_s2,
+                       max_disp_m=run.max_disp_m, delta_zeta=np.asarray(delta_zeta, dtype=float),
+                       ds_m=grid.ds_m, n_steps=n, **kw)
