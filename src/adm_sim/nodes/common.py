@@ -582,8 +582,9 @@ class LockstepNode(NodeBase):
         """Publish the node's latched description."""
 
     def lock_reason(self):
-        """Why parameters are locked now (the run in progress)."""
-        return f"run {self.run['id']} is in progress"
+        """Why parameters are locked now: the run in progress (``self.run``, a run-state dataclass
+        with an ``id``, as :class:`~adm_sim.nodes.train_node.TrainRunState`)."""
+        return f"run {self.run.id} is in progress"
 
     def _check_set(self, params):
         if self.run is not None:
