@@ -36,14 +36,15 @@ from adm_sim.protocol import parse_driver_line
 
 def main(argv=None):
     ap = Parser(prog=Path(__file__).name, description=__doc__.split("\n\n")[0])
-    ap.add_argument("--params-file", default=str(PARAMS_DIR / "crossing_b3_300.yaml"))
-    ap.add_argument("--bridge")
-    ap.add_argument("--train")
-    add_choice(ap, "--model")
+    ap.add_argument("--params-file", default=str(PARAMS_DIR / "crossing_b3_300.yaml"),
+                    help="ROS 2 params YAML applied to every node (default ros_ws/params/crossing_b3_300.yaml)")
+    ap.add_argument("--bridge", help="bridge preset for the bridge node (B1..B4, spec or TOML file)")
+    ap.add_argument("--train", help="train name or TOML file for the train node")
+    add_choice(ap, "--model", "mlm: moving loads; dim: the detailed vehicles (default: the params file's)")
     ap.add_argument("--speeds", help="km/h: one speed, a comma list or start:stop:step")
-    ap.add_argument("--out")
-    ap.add_argument("--spawn", action="store_true")
-    ap.add_argument("--connect")
+    ap.add_argument("--out", help="output folder (default runs/crossing_<time>/)")
+    ap.add_argument("--spawn", action="store_true", help="spawn a live rerun viewer (127.0.0.1)")
+    ap.add_argument("--connect", help="stream to a running rerun viewer (loopback URL)")
     ap.add_argument("--separate-nodes", action="store_true",
                     help="run the bridge and train nodes as two processes (default: one process hosting both, "
                          "as ROS composition does; the same nodes, topics and results, the DIM round trips cheaper)")

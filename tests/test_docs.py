@@ -4,7 +4,11 @@ the CHANGELOG and the study README leads somewhere."""
 
 from __future__ import annotations
 
+import argparse
+import concurrent.futures
 import re
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -68,3 +72,105 @@ def test_relative_links_resolve(doc):
         if anchor and dest.suffix == ".md" and anchor not in anchors(dest):
             bad.append(f"{target}: no heading with that anchor in {dest.relative_to(ROOT)}")
     assert not bad, bad
+
+
+# ---------------------------------------------------------------- docs/cli.md: every option of every command
+BIN = Path(sys.executable).parent
+CLI_MD = ROOT / "docs" / "cli.md"
+
+
+def cli_commands():
+    """Every subcommand of ``adm-sim`` and ``adm-calib`` (read from their parsers) and every launch script."""
+    from adm_calib.calib_commands import build_parser as calib_parser
+    from adm_sim.cli.sim_commands import build_parser as sim_parser
+
+    out = []
+    for prog, build in (("adm-sim", sim_parser), ("adm-calib", calib_parser)):
+        sub = next(a for a in build()._actions if isinstance(a, argparse._SubParsersAction))
+        out += [f"{prog} {name}" for name in sub.choices]
+    scripts = sorted((ROOT / "launch_scripts").glob("*.py"))
+    return out + [f"launch_scripts/{p.name}" for p in scripts if not p.name.startswith("_")]
+
+
+def help_text(cmd):
+    """What ``cmd --help`` prints, run as a user runs it."""
+    if cmd.startswith("launch_scripts/"):
+        argv = [sys.executable, str(ROOT / cmd), "--help"]
+    else:
+        prog, sub = cmd.split()
+        argv = [str(BIN / prog), sub, "--help"]
+    done = subprocess.run(argv, capture_output=True, text=True, timeout=300, cwd=ROOT)
+    assert done.returncode == 0, f"{cmd} --help: exit {done.returncode}\n{done.stderr}"
+    return done.stdout
+
+
+OPTION_LINE = re.compile(r"^  (-\S.*?)(?:\s{2,}(\S.*))?$")
+
+
+def help_options(text):
+    """``{option: help}`` of an argparse help text (``--help`` itself left out; an option's aliases
+    each get the same text; a help that is empty stays empty)."""
+    body = text.split("\noptions:\n", 1)[-1]
+    opts, cur = {}, []
+    for line in body.splitlines():
+        m = OPTION_LINE.match(line)
+        if m:
+            cur = [n.split()[0] for n in m.group(1).split(", ")]
+            cur = [n for n in cur if n.startswith("--") and n != "--help"]
+            for n in cur:
+                opts[n] = (m.group(2) or "").strip()
+        elif cur and line.startswith(" " * 10) and line.strip():
+            for n in cur:
+                opts[n] = (opts[n] + " " + line.strip()).strip()
+        else:
+            cur = []
+    return opts
+
+
+def doc_options(text):
+    """``{command: {option, ...}}`` of docs/cli.md's "Every option" section: one ``### `command```
+    heading per command, the options in backticks in the first column of its table."""
+    block = text.split("\n## Every option\n", 1)[1].split("\n## ", 1)[0]
+    out = {}
+    for part in re.split(r"^### ", block, flags=re.M)[1:]:
+        head, _, body = part.partition("\n")
+        cmd = head.strip().strip("`")
+        rows = re.findall(r"^\| ([^|]*) \|", body, flags=re.M)
+        out[cmd] = {o for r in rows for o in re.findall(r"`(--[\w-]+)`", r)}
+    return out
+
+
+def option_row(options, text):
+    return "| " + ", ".join(f"`{o}`" for o in options) + " | " + text.replace("|", "\\|") + " |"
+
+
+def test_help_parser_reads_aliases_and_continuation_lines():
+    text = ("usage: x\n\noptions:\n  -h, --help            show this help message and exit\n"
+            "  --overwrite, --force  replace\n  --long-option-name LONG_OPTION_NAME\n"
+            "                        first part\n                        second part\n  --bare\n")
+    assert help_options(text) == {"--overwrite": "replace", "--force": "replace",
+                                  "--long-option-name": "first part second part", "--bare": ""}
+
+
+def test_cli_md_lists_every_option_of_every_command():
+    """docs/cli.md has a section per subcommand and launch script and a row for each of its options,
+    and no row for an option that is gone; every option has a help text. The failure names the
+    command, the option and the row to add."""
+    commands = cli_commands()
+    assert len(commands) >= 16
+    with concurrent.futures.ThreadPoolExecutor(2) as pool:
+        helps = dict(zip(commands, pool.map(help_text, commands)))
+    documented = doc_options(CLI_MD.read_text(encoding="utf-8"))
+    problems = []
+    for cmd in commands:
+        opts = help_options(helps[cmd])
+        problems += [f"`{cmd} --help`: {o} has no help text" for o, h in opts.items() if not h]
+        if cmd not in documented:
+            problems.append(f"docs/cli.md: no section '### `{cmd}`' under '## Every option'")
+            continue
+        problems += [f"docs/cli.md, section `{cmd}`: {o} is missing; add the row  {option_row([o], h)}"
+                     for o, h in opts.items() if o not in documented[cmd]]
+        problems += [f"docs/cli.md, section `{cmd}`: {o} is listed but `{cmd} --help` has no such option"
+                     for o in sorted(documented[cmd] - set(opts))]
+    problems += [f"docs/cli.md: section `{c}` is not a command" for c in sorted(set(documented) - set(commands))]
+    assert not problems, "\n".join(problems)

@@ -518,8 +518,9 @@ def build_parser():
 
     t = sub.add_parser("table4", help="Table 4 and Fig. 19 for the bridges B1-B4 and the four trains")
     t.add_argument("--out", default="table4_out", help="output directory (default table4_out)")
-    t.add_argument("--bridges", default="B1,B2,B3,B4")
-    t.add_argument("--trains", default="ICE-2,Eurostar,Railjet,ICE-4")
+    t.add_argument("--bridges", default="B1,B2,B3,B4", help="comma list of B1..B4 (default B1,B2,B3,B4)")
+    t.add_argument("--trains", default="ICE-2,Eurostar,Railjet,ICE-4",
+                   help="comma list of ICE-2, Eurostar, Railjet, ICE-4 (default all four)")
     t.add_argument("--jobs", default="1", help=option_help("--jobs", "worker processes (default 1)"))
     common(t)
     t.set_defaults(func=cmd_table4)
@@ -547,7 +548,9 @@ def build_parser():
     s = sub.add_parser("study", help="the parametric study (Section 3.3) on a dask cluster, resumable")
     s.add_argument("--out", required=True, help="study directory: results.jsonl (one line per case) and study.json; "
                                                 "rerun with the same --out to resume")
-    s.add_argument("--trains", default="ICE-2,Eurostar,Railjet,ICE-4")
+    s.add_argument("--trains", default="ICE-2,Eurostar,Railjet,ICE-4",
+                   help="comma list of the study's trains: ICE-2, Eurostar, Railjet, ICE-4, or Eurostar-table "
+                        "(the Eurostar with Table A1's printed PC 2-8 suspension values) (default the four without it)")
     s.add_argument("--mass-functions", default="mu1,mu2,mu3,mu4,mu5,mu6", help="Table 1 mass functions")
     s.add_argument("--spans", default="4:40", help=option_help("--spans", "span range lo:hi (integer spans of the "
                                                                           "field), each end"))

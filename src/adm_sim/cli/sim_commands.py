@@ -361,7 +361,7 @@ def build_parser():
                    "EJ N m^2, mu kg/m, zeta_pct %% or type=cfb|sc for the Table 2 damping; class=cfb|sc classes a bridge "
                    "of given damping), or a TOML file with these keys")
     s.add_argument("--train", default="ICE-2", help="ICE-2, Eurostar, Railjet, ICE-4, Eurostar-table, HSLM-A1..A10 (MLM only), or a TOML file")
-    add_choice(s, "--model", default="mlm")
+    add_choice(s, "--model", "mlm (default): moving loads; dim: the detailed vehicles (Detailed Interaction Model)", default="mlm")
     add_speeds(s, "km/h, start:stop:step or a comma list")
     add_delta_zeta_pct(s)
     add_steps_per_period(s, "RK4 steps per period of the highest bridge mode (DIM and --method rk4)", default="16")
