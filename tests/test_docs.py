@@ -5,6 +5,7 @@ the CHANGELOG and the study README leads somewhere."""
 from __future__ import annotations
 
 import argparse
+import os
 import concurrent.futures
 import re
 import subprocess
@@ -174,3 +175,68 @@ def test_cli_md_lists_every_option_of_every_command():
                      for o in sorted(documented[cmd] - set(opts))]
     problems += [f"docs/cli.md: section `{c}` is not a command" for c in sorted(set(documented) - set(commands))]
     assert not problems, "\n".join(problems)
+
+
+# ---------------------------------------------------------------- docs/python.md: the examples and the public names
+PYTHON_MD = ROOT / "docs" / "python.md"
+EXAMPLE = re.compile(r"```python\n(.*?)```\n+(?:```text\n(.*?)```)?", flags=re.S)
+#: the library wings: each names its public API in ``__all__``
+LIBRARY_WINGS = ("adm_sim", "adm_sim.model", "adm_sim.integrate", "adm_sim.design", "adm_sim.monitoring",
+                 "adm_calib", "adm_calib.study")
+
+
+def run_examples(text):
+    """``[(code, shown output, printed output)]`` of every ``python`` block of ``text``: all run in one
+    fresh interpreter from the repository root, in page order, each in its own namespace."""
+    blocks = EXAMPLE.findall(text)
+    marker = "----- example {} -----"
+    script = "".join(f"print({marker.format(i)!r})\nexec({code!r}, {{}})\n" for i, (code, _) in enumerate(blocks))
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=900, cwd=ROOT,
+                          env={**os.environ, "ADM_SIM_QUIET_COMPILE": "1"})
+    assert done.returncode == 0, done.stderr
+    printed = re.split(r"----- example \d+ -----\n", done.stdout)[1:]
+    return [(code, shown, out) for (code, shown), out in zip(blocks, printed, strict=True)]
+
+
+def test_python_md_examples_run_and_print_what_the_page_shows():
+    """A sweep, a calibration, a check and the study's fit, as a researcher types them: each runs
+    and prints exactly the output the page shows below it, and the page's B1 x ICE-2 numbers are the
+    README's headline (DIM peak, Δζ_VBI; the exact envelope's MLM peak 2.2472 m/s² lies above the RK4
+    samples' 2.2465 m/s² there, tests/test_envelope.py)."""
+    runs = run_examples(PYTHON_MD.read_text(encoding="utf-8"))
+    assert len(runs) >= 4
+    for code, shown, out in runs:
+        assert shown, f"docs/python.md: no ```text block with the output after\n{code}"
+        assert out == shown, f"docs/python.md: the example\n{code}\nprints\n{out}\nbut the page shows\n{shown}"
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    dz = re.search(r"Δζ_VBI = (\d\.\d{3}) %", readme).group(1)
+    dim = re.search(r"DIM peak (\d\.\d{4}) m/s² at\s+(\d+) km/h", readme).groups()
+    printed = "".join(out for _, _, out in runs)
+    assert f"ok {dz} %" in printed and f"DIM peak {dim[0]} m/s2 at {dim[1]} km/h" in printed
+
+
+def public_names(text):
+    """``{wing: [names]}`` of the "Public names" tables of docs/python.md."""
+    block = text.split("\n## Public names\n", 1)[1].split("\n## ", 1)[0]
+    out = {}
+    for part in re.split(r"^### ", block, flags=re.M)[1:]:
+        head, _, body = part.partition("\n")
+        out[head.strip().strip("`")] = re.findall(r"^\| `(\w+)` \|", body, flags=re.M)
+    return out
+
+
+def test_python_md_lists_each_wings_public_names():
+    """Each library wing has an ``__all__``; the page lists exactly its names, and each resolves
+    (a wing imports the module of a name on first use)."""
+    import importlib
+
+    listed = public_names(PYTHON_MD.read_text(encoding="utf-8"))
+    assert set(listed) == set(LIBRARY_WINGS)
+    for wing in LIBRARY_WINGS:
+        module = importlib.import_module(wing)
+        assert sorted(listed[wing]) == sorted(module.__all__), wing
+        for name in module.__all__:
+            assert getattr(module, name) is not None
+    # a name no wing offers is refused as Python refuses it
+    with pytest.raises(AttributeError, match="has no attribute 'nothing_here'"):
+        _ = importlib.import_module("adm_sim.model").nothing_here
