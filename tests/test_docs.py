@@ -1,6 +1,8 @@
-"""The documentation holds together: the README orients in at most 250 lines, its test command is
-the one ``.ci/run`` runs, and every relative link (file and ``#anchor``) of the README, ``docs/``,
-the CHANGELOG and the study README leads somewhere."""
+"""The documentation holds together: the README is a front door (at most 150 lines, the two set-up
+commands within its first 40 and no timings beside them), its test command is the one ``.ci/run``
+runs, every relative link (file and ``#anchor``) of the README, ``docs/``, the CHANGELOG and the
+study README leads somewhere, cli.md
+lists every option of every command, and python.md's examples run and print what it shows."""
 
 from __future__ import annotations
 
@@ -48,6 +50,31 @@ def test_docs_are_one_tree():
     pages = {p.name for p in (ROOT / "docs").glob("*.md")} - {"index.md"}
     assert pages - linked == set(), f"pages not in docs/index.md: {sorted(pages - linked)}"
     assert "](docs/index.md)" in (ROOT / "README.md").read_text()
+
+
+MAIN_JOB = ("python3.11 -m venv .venv && .venv/bin/pip install -q -r requirements.txt && "
+            ".venv/bin/python launch_scripts/calibrate.py")
+#: a time or a duration as the README's set-up once gave them ("14.6-19 s", "4 min 11 s", "13:26 UTC")
+TIMING = re.compile(r"\d\s*(?:s|ms|min|minutes|seconds|h)\b|\d\d:\d\d|\bUTC\b")
+
+
+def test_timing_pattern_finds_what_it_should():
+    assert TIMING.search("14.6-19 s after the install") and TIMING.search("4 min 11 s")
+    assert TIMING.search("(13:26 UTC)") and not TIMING.search("B1 x ICE-2, 160..350 km/h, 4440 cases")
+
+
+def test_readme_is_a_front_door():
+    """At most 150 lines; both set-up commands (the main job, the whole suite) as indented command
+    lines within the first 40; no time or duration in the set-up section."""
+    lines = (ROOT / "README.md").read_text(encoding="utf-8").splitlines()
+    assert len(lines) <= 150, f"README.md has {len(lines)} lines; at most 150"
+    first = lines[:40]
+    test_cmd = ".ci/install-browser && python3.11 -m venv .venv && .venv/bin/pip install -q -r requirements.txt && .venv/bin/python -m pytest -n 2"
+    assert f"    {MAIN_JOB}" in first and f"    {test_cmd}" in first
+    start = lines.index("## Set-up: two commands")
+    end = next(i for i in range(start + 1, len(lines)) if lines[i].startswith("## "))
+    timed = [line for line in lines[start:end] if TIMING.search(line)]
+    assert not timed, f"timings in the README's set-up section: {timed}"
 
 
 def test_readme_test_command_is_what_ci_runs():
