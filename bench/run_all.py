@@ -1,0 +1,194 @@
+"""Every bench that carries its own baseline, run once, and one table of the results.
+
+    .venv/bin/python bench/run_all.py [--table] [--only NAME ...] [--all] [--write docs/benchmarks.md]
+        [--log DIR]
+
+Each bench script of ``bench/`` runs in its own process, one after the other (a 2-core machine:
+nothing runs beside them but what the bench itself starts), with short settings; every figure
+is read from what the script prints. Each row sets a figure against a baseline **measured in the
+same run** (the paper's way of integrating, a per-speed loop, the numpy stepper, the in-process
+sweep, the smooth track), so the ratio holds on a machine whose speed varies from hour to hour
+even when the absolute times do not. Asserts nothing about time.
+
+The default run takes a few minutes on a quiet machine (the first run of a fresh checkout also
+compiles the numba kernels: ``adm-sim compile`` first). ``--all`` adds the study bench (batched
+against one-by-one cases: several minutes more). ``--table`` prints the Markdown table of
+docs/benchmarks.md; ``--write FILE`` also replaces the table between the ``<!-- bench-table -->``
+markers of FILE (asked for explicitly: nothing is written otherwise). ``--log DIR`` keeps each
+bench's whole output in ``DIR/<name>.out`` (an existing file is not replaced).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import os
+import re
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+NUMBER = r"([0-9][0-9,]*\.?[0-9]*(?:e[-+]?\d+)?)"
+MARK = "<!-- bench-table -->"
+
+
+@dataclasses.dataclass(frozen=True)
+class Row:
+    """One figure against its baseline: ``a / b`` is the ratio printed."""
+
+    measure: str
+    a: str        #: what the first number is
+    a_re: str     #: regex whose group 1 is it (in the bench's output)
+    b: str
+    b_re: str
+    target: str = ""
+
+
+@dataclasses.dataclass(frozen=True)
+class Bench:
+    name: str
+    argv: tuple
+    rows: tuple
+    default: bool = True
+
+
+BENCHES = (
+    Bench("calibrate", ("bench_calibrate.py", "--no-table4", "--numpy"), (
+        Row("one calibration, B1 x ICE-2 (Section 4), s of compute",
+            "numpy stepper", r"on the numpy stepper: " + NUMBER + " s",
+            "compiled kernels", r"best " + NUMBER + " s of compute", "compiled <= 1 s"),)),
+    Bench("core", ("bench_core.py",), (
+        Row("MLM sweep, B1 x ICE-2, 191 speeds (RK4, converged), s",
+            "LSODA, one integration per speed (the paper's way)", r"-> " + NUMBER + " s for 191 speeds",
+            "one vectorised sweep", r"MLM sweep\s+" + NUMBER + " s", ">= 200x"),)),
+    Bench("kernels", ("bench_kernels.py", "--rounds", "1", "--reps", "2", "--numpy"), (
+        Row("DIM batch, 48 lanes (6 bridges x 8 speeds), s CPU",
+            "numpy stepper", r"numpy stepper dim: " + NUMBER + " s",
+            "compiled kernel", r"^dim\s+this " + NUMBER + " s"),
+        Row("MLM batch, 48 lanes, s CPU",
+            "numpy stepper", r"numpy stepper mlm: " + NUMBER + " s",
+            "compiled kernel", r"^mlm\s+this " + NUMBER + " s"))),
+    Bench("check", ("bench_check.py", "--every", "48", "--repeat", "1"), (
+        Row("EN 1991-2 check, B1, 14 trains x 277 speeds, whole deck, every effect, s CPU",
+            "per-speed, per-train RK4 loop (scaled)", r"per-speed per-train RK4 loop:\s+\S+ / +" + NUMBER + " s",
+            "whole check (exact envelopes)", r"whole check, whole deck [^:]*:\s+\S+ /\s+" + NUMBER + " s",
+            "check <= 3 s"),)),
+    Bench("irregularity", ("bench_irregularity.py", "--reps", "2"), (
+        Row("DIM batch on a rough track (German high), 48 lanes, s CPU",
+            "rough track", r"German high, s1\s+" + NUMBER + " s",
+            "smooth track", r"smooth track\s+" + NUMBER + " s", "<= 1.2x"),)),
+    Bench("ros", ("bench_ros.py", "--models", "mlm,dim"), (
+        Row("MLM sweep over ROS 2 (bridge and train nodes), 191 lanes, s",
+            "co-simulated", r"^MLM\s+\S+s\s+" + NUMBER + "s",
+            "in-process", r"^MLM\s+" + NUMBER + "s", "<= 3x"),
+        Row("DIM sweep over ROS 2 (one round trip per RK4 stage), 191 lanes, s",
+            "co-simulated", r"^DIM\s+\S+s\s+" + NUMBER + "s",
+            "in-process", r"^DIM\s+" + NUMBER + "s", "<= 10x"))),
+    Bench("study", ("bench_study.py", "--sample-spans", "15", "--worker-spans", "39,40"), (
+        Row("study cases of L = 15 m (ICE-2), cases/s",
+            "batched (one kernel run per batch of six)", r"^  \(a\) batched[^\n]*?\s" + NUMBER + " case/s",
+            "one by one", r"^  \(a\) one by one[^\n]*?\s" + NUMBER + " case/s", ">= 10x"),
+        Row("study cases of L = 39 + 40 m on a local dask cluster, s",
+            "1 worker", r"^  \(b\) run_study, 1 worker[^\n]*?\s" + NUMBER + " s",
+            "2 workers", r"^  \(b\) run_study, 2 workers\s+" + NUMBER + " s", ">= 1.8x")), default=False),
+)
+
+
+def number(text):
+    return float(text.replace(",", ""))
+
+
+def read_rows(bench, out):
+    """``[(row, a, b)]`` from a bench's output; a figure that is missing is ``None`` (said in the table)."""
+    found = []
+    for row in bench.rows:
+        a, b = (re.search(rx, out, flags=re.M) for rx in (row.a_re, row.b_re))
+        found.append((row, number(a.group(1)) if a else None, number(b.group(1)) if b else None))
+    return found
+
+
+def run(bench, log_dir=None):
+    """Run one bench script; returns ``(output, seconds)``."""
+    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "ADM_SIM_QUIET_COMPILE": "1",
+           "FASTDDS_BUILTIN_TRANSPORTS": "SHM", "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
+    t0 = time.perf_counter()
+    done = subprocess.run([sys.executable, str(ROOT / "bench" / bench.argv[0]), *bench.argv[1:]], cwd=ROOT,
+                          env=env, capture_output=True, text=True)
+    seconds = time.perf_counter() - t0
+    out = done.stdout + done.stderr
+    if log_dir is not None:
+        path = Path(log_dir) / f"{bench.name}.out"
+        with open(path, "x", encoding="utf-8") as f:  # never replaces an earlier log
+            f.write(out)
+    if done.returncode != 0:
+        out += f"\n(exit {done.returncode})"
+    return out, seconds
+
+
+def commit():
+    def git(*a):
+        return subprocess.run(["git", *a], cwd=ROOT, capture_output=True, text=True).stdout.strip()
+    return git("rev-parse", "--short", "HEAD") + ("+changes" if git("status", "--porcelain", "--", "src", "bench") else "")
+
+
+def fmt(x):
+    if x is None:
+        return "missing"
+    return f"{x:.3g}" if x < 100 else f"{x:,.0f}"
+
+
+def table(results, load):
+    lines = [f"Measured at commit `{commit()}` on {os.cpu_count()} cores, load average {load[0]:.1f} before and "
+             f"{load[1]:.1f} after (`bench/run_all.py --table`).", "",
+             "| measure | A | B, the baseline in the same run | A / B | target | bench |", "|---|---|---|---|---|---|"]
+    for bench, rows in results:
+        for row, a, b in rows:
+            ratio = f"**{a / b:.3g}x**" if a and b else "n/a"
+            lines.append(f"| {row.measure} | {row.a}: {fmt(a)} | {row.b}: {fmt(b)} | {ratio} | {row.target} | "
+                         f"`bench/{bench.argv[0]}` |")
+    return "\n".join(lines)
+
+
+def write_table(path, text):
+    page = Path(path).read_text(encoding="utf-8")
+    parts = page.split(MARK)
+    if len(parts) != 3:
+        raise SystemExit(f"error: --write: {path} needs exactly two '{MARK}' markers; found {len(parts) - 1}")
+    Path(path).write_text(parts[0] + MARK + "\n" + text + "\n" + MARK + parts[2], encoding="utf-8")
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--table", action="store_true", help="print the Markdown table of docs/benchmarks.md")
+    ap.add_argument("--only", action="append", choices=[b.name for b in BENCHES], help="run only these benches")
+    ap.add_argument("--all", action="store_true", help="also the benches left out of the default run (the study)")
+    ap.add_argument("--write", metavar="FILE", help="replace the table between the bench-table markers of FILE")
+    ap.add_argument("--log", metavar="DIR", help="keep each bench's output in DIR/<name>.out")
+    args = ap.parse_args(argv)
+    if args.log:
+        Path(args.log).mkdir(parents=True, exist_ok=True)
+    chosen = [b for b in BENCHES if (b.name in args.only if args.only else (b.default or args.all))]
+    load0 = os.getloadavg()[0]
+    results = []
+    for bench in chosen:
+        print(f"running bench/{bench.argv[0]} {' '.join(bench.argv[1:])} ...", file=sys.stderr, flush=True)
+        out, seconds = run(bench, args.log)
+        rows = read_rows(bench, out)
+        results.append((bench, rows))
+        for row, a, b in rows:
+            ratio = f"{a / b:.3g}x" if a and b else "n/a (figure missing: see --log)"
+            print(f"  {row.measure}: {row.a} {fmt(a)}, {row.b} {fmt(b)}, ratio {ratio}"
+                  f"{'; target ' + row.target if row.target else ''}", file=sys.stderr, flush=True)
+        print(f"  ({seconds:.0f} s)", file=sys.stderr, flush=True)
+    text = table(results, (load0, os.getloadavg()[0]))
+    if args.table or not args.write:
+        print(text)
+    if args.write:
+        write_table(args.write, text)
+    return 0 if all(a and b for _, rows in results for _, a, b in rows) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
