@@ -263,6 +263,14 @@ def test_architecture_table_is_the_measured_one():
     assert drawn_arrows() == measured, "rewrite it with: .venv/bin/python tests/test_layers.py\n" + arrows_markdown()
 
 
+def module_row(path):
+    """The row of docs/architecture.md's module table for ``path``: the first sentence of its docstring."""
+    doc = (ast.get_docstring(ast.parse(path.read_text(encoding="utf-8"))) or "").split("\n\n")[0].replace("\n", " ")
+    first = re.split(r"(?<=[a-z)`]\.)\s", doc)[0].rstrip(".").replace("``", "`")
+    wing = layer(module_name(path))
+    return f"| `{path.relative_to(ROOT)}` | {wing} ({RANK.get(wing, '?')}) | {first} |"
+
+
 MODULE_ROW = re.compile(r"^\| `((?:src/|launch_scripts/)[\w/]+\.py)` \|", flags=re.M)
 
 
@@ -271,7 +279,8 @@ def test_architecture_lists_every_module():
     ``launch_scripts/`` (``__init__.py`` aside), and no row for a file that is gone."""
     listed = set(MODULE_ROW.findall(ARCH.read_text(encoding="utf-8")))
     files = {str(f.relative_to(ROOT)) for f in source_files() if f.name != "__init__.py"}
-    assert not files - listed, f"modules missing from docs/architecture.md: {sorted(files - listed)}"
+    assert not files - listed, "modules missing from docs/architecture.md's \"Every module\"; add the rows\n" + \
+        "\n".join(module_row(ROOT / f) for f in sorted(files - listed))
     assert not listed - files, f"docs/architecture.md lists modules that do not exist: {sorted(listed - files)}"
 
 
