@@ -139,13 +139,18 @@ def fmt(x):
     return f"{x:.3g}" if x < 100 else f"{x:,.0f}"
 
 
+def fmt_ratio(a, b):
+    r = a / b
+    return f"{r:.2f}" if r < 10 else f"{r:.3g}"
+
+
 def table(results, load):
     lines = [f"Measured at commit `{commit()}` on {os.cpu_count()} cores, load average {load[0]:.1f} before and "
              f"{load[1]:.1f} after (`bench/run_all.py --table`).", "",
              "| measure | A | B, the baseline in the same run | A / B | target | bench |", "|---|---|---|---|---|---|"]
     for bench, rows in results:
         for row, a, b in rows:
-            ratio = f"**{a / b:.3g}x**" if a and b else "n/a"
+            ratio = f"**{fmt_ratio(a, b)}x**" if a and b else "n/a"
             lines.append(f"| {row.measure} | {row.a}: {fmt(a)} | {row.b}: {fmt(b)} | {ratio} | {row.target} | "
                          f"`bench/{bench.argv[0]}` |")
     return "\n".join(lines)
@@ -159,6 +164,21 @@ def write_table(path, text):
     Path(path).write_text(parts[0] + MARK + "\n" + text + "\n" + MARK + parts[2], encoding="utf-8")
 
 
+def check_outputs(args, chosen):
+    """Why the outputs cannot be written (one line), before any bench runs; ``None`` when they can."""
+    if args.write:
+        page = Path(args.write)
+        if not page.is_file():
+            return f"--write: {args.write} is not a file"
+        if page.read_text(encoding="utf-8").count(MARK) != 2:
+            return f"--write: {args.write} needs exactly two '{MARK}' markers"
+    if args.log:
+        taken = [str(Path(args.log) / f"{b.name}.out") for b in chosen if (Path(args.log) / f"{b.name}.out").exists()]
+        if taken:
+            return f"--log: {', '.join(taken)} exists (an earlier log is never replaced)"
+    return None
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--table", action="store_true", help="print the Markdown table of docs/benchmarks.md")
@@ -167,9 +187,13 @@ def main(argv=None):
     ap.add_argument("--write", metavar="FILE", help="replace the table between the bench-table markers of FILE")
     ap.add_argument("--log", metavar="DIR", help="keep each bench's output in DIR/<name>.out")
     args = ap.parse_args(argv)
+    chosen = [b for b in BENCHES if (b.name in args.only if args.only else (b.default or args.all))]
+    refusal = check_outputs(args, chosen)
+    if refusal:
+        print(f"error: {refusal}", file=sys.stderr)
+        return 2
     if args.log:
         Path(args.log).mkdir(parents=True, exist_ok=True)
-    chosen = [b for b in BENCHES if (b.name in args.only if args.only else (b.default or args.all))]
     load0 = os.getloadavg()[0]
     results = []
     for bench in chosen:
@@ -178,7 +202,7 @@ def main(argv=None):
         rows = read_rows(bench, out)
         results.append((bench, rows))
         for row, a, b in rows:
-            ratio = f"{a / b:.3g}x" if a and b else "n/a (figure missing: see --log)"
+            ratio = f"{fmt_ratio(a, b)}x" if a and b else "n/a (figure missing: see --log)"
             print(f"  {row.measure}: {row.a} {fmt(a)}, {row.b} {fmt(b)}, ratio {ratio}"
                   f"{'; target ' + row.target if row.target else ''}", file=sys.stderr, flush=True)
         print(f"  ({seconds:.0f} s)", file=sys.stderr, flush=True)

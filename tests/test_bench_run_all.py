@@ -56,9 +56,10 @@ def test_the_table_prints_the_ratio_and_names_a_missing_figure():
     text = run_all.table([(calibrate, run_all.read_rows(calibrate, OUTPUTS["calibrate"])),
                           (core, run_all.read_rows(core, "MLM sweep    0.260 s\n"))], (1.0, 2.0))
     rows = [line for line in text.splitlines() if line.startswith("| one calibration") or line.startswith("| MLM")]
-    assert f"**{4.55 / 0.182:.3g}x**" in rows[0] and "**25x**" in rows[0]
+    assert f"**{4.55 / 0.182:.3g}x**" in rows[0] and "**25x**" in rows[0]  # 25.0: three digits from 10 up
     assert "missing" in rows[1] and "n/a" in rows[1]
     assert "load average 1.0 before and 2.0 after" in text
+    assert run_all.fmt_ratio(0.071, 0.068) == "1.04" and run_all.fmt_ratio(114.6, 0.26) == "441"
 
 
 def test_write_replaces_only_the_table_between_the_markers(tmp_path):
@@ -78,3 +79,20 @@ def test_docs_benchmarks_table_has_every_row_of_the_default_run():
     table = text.split(run_all.MARK)[1]
     missing = [row.measure for b in run_all.BENCHES if b.default for row in b.rows if f"| {row.measure} |" not in table]
     assert not missing, f"docs/benchmarks.md: rows missing (bench/run_all.py --write docs/benchmarks.md): {missing}"
+
+
+def test_outputs_are_refused_before_any_bench_runs(tmp_path, capsys):
+    """A page without markers, a missing page and a log that exists: one line, exit 2, nothing run
+    or written (the refusal comes before the first bench)."""
+    page = tmp_path / "page.md"
+    page.write_text("no markers\n", encoding="utf-8")
+    (tmp_path / "logs").mkdir()
+    (tmp_path / "logs" / "irregularity.out").write_text("earlier\n", encoding="utf-8")
+    for argv, words in ((["--write", str(page)], "needs exactly two"),
+                        (["--write", str(tmp_path / "none.md")], "is not a file"),
+                        (["--log", str(tmp_path / "logs")], "irregularity.out exists")):
+        assert run_all.main(["--only", "irregularity", *argv]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and err.startswith("error: --") and words in err, err
+    assert page.read_text(encoding="utf-8") == "no markers\n"
+    assert (tmp_path / "logs" / "irregularity.out").read_text(encoding="utf-8") == "earlier\n"
