@@ -1,7 +1,7 @@
 """Every bench that carries its own baseline, run once, and one table of the results.
 
     .venv/bin/python bench/run_all.py [--table] [--only NAME ...] [--all] [--write docs/benchmarks.md]
-        [--log DIR]
+        [--log DIR] [--baseline REV]
 
 Each bench script of ``bench/`` runs in its own process, one after the other (a 2-core machine:
 nothing runs beside them but what the bench itself starts), with short settings; every figure
@@ -16,6 +16,12 @@ against one-by-one cases: several minutes more). ``--table`` prints the Markdown
 docs/benchmarks.md; ``--write FILE`` also replaces the table between the ``<!-- bench-table -->``
 markers of FILE (asked for explicitly: nothing is written otherwise). ``--log DIR`` keeps each
 bench's whole output in ``DIR/<name>.out`` (an existing file is not replaced).
+
+``--baseline REV`` runs every bench also on the code of git revision REV (``src``, ``bench``,
+``launch_scripts`` and ``ros_ws`` unpacked once into ``<tmp>/adm-sim-bench-<commit>``, its ``src``
+first on ``PYTHONPATH``), the two trees alternating which goes first, and prints a second table:
+per row the project's own figure on both trees and their ratio, and the A / B ratio of each tree.
+Its first run compiles the baseline's numba kernels; later runs reuse them.
 """
 
 from __future__ import annotations
@@ -44,6 +50,7 @@ class Row:
     b: str
     b_re: str
     target: str = ""
+    ours: str = "b"  #: which figure is the project's own path ("a" or "b"): compared across trees
 
 
 @dataclasses.dataclass(frozen=True)
@@ -78,21 +85,21 @@ BENCHES = (
     Bench("irregularity", ("bench_irregularity.py", "--reps", "2"), (
         Row("DIM batch on a rough track (German high), 48 lanes, s CPU",
             "rough track", r"German high, s1\s+" + NUMBER + " s",
-            "smooth track", r"smooth track\s+" + NUMBER + " s", "<= 1.2x"),)),
+            "smooth track", r"smooth track\s+" + NUMBER + " s", "<= 1.2x", ours="a"),)),
     Bench("ros", ("bench_ros.py", "--models", "mlm,dim"), (
         Row("MLM sweep over ROS 2 (bridge and train nodes), 191 lanes, s",
             "co-simulated", r"^MLM\s+\S+s\s+" + NUMBER + "s",
-            "in-process", r"^MLM\s+" + NUMBER + "s", "<= 3x"),
+            "in-process", r"^MLM\s+" + NUMBER + "s", "<= 3x", ours="a"),
         Row("DIM sweep over ROS 2 (one round trip per RK4 stage), 191 lanes, s",
             "co-simulated", r"^DIM\s+\S+s\s+" + NUMBER + "s",
-            "in-process", r"^DIM\s+" + NUMBER + "s", "<= 10x"))),
+            "in-process", r"^DIM\s+" + NUMBER + "s", "<= 10x", ours="a"))),
     Bench("study", ("bench_study.py", "--sample-spans", "15", "--worker-spans", "39,40"), (
         Row("study cases of L = 15 m (ICE-2), cases/s",
             "batched (one kernel run per batch of six)", r"^  \(a\) batched[^\n]*?\s" + NUMBER + " case/s",
-            "one by one", r"^  \(a\) one by one[^\n]*?\s" + NUMBER + " case/s", ">= 10x"),
+            "one by one", r"^  \(a\) one by one[^\n]*?\s" + NUMBER + " case/s", ">= 10x", ours="a"),
         Row("study cases of L = 39 + 40 m on a local dask cluster, s",
             "1 worker", r"^  \(b\) run_study, 1 worker[^\n]*?\s" + NUMBER + " s",
-            "2 workers", r"^  \(b\) run_study, 2 workers\s+" + NUMBER + " s", ">= 1.8x")), default=False),
+            "2 workers", r"^  \(b\) run_study, 2 workers\s+" + NUMBER + " s", ">= 1.8x", ours="b")), default=False),
 )
 
 
@@ -109,22 +116,66 @@ def read_rows(bench, out):
     return found
 
 
-def run(bench, log_dir=None):
-    """Run one bench script; returns ``(output, seconds)``."""
+def run(bench, log_dir=None, tree=None):
+    """Run one bench script of this checkout, or of ``tree`` (a baseline unpacked by
+    :func:`baseline_tree`, its ``src`` first on the path); returns ``(output, seconds)``."""
     env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "ADM_SIM_QUIET_COMPILE": "1",
            "FASTDDS_BUILTIN_TRANSPORTS": "SHM", "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
+    root = ROOT if tree is None else Path(tree)
+    if tree is not None:
+        env["PYTHONPATH"] = os.pathsep.join([str(root / "src"), *filter(None, [env.get("PYTHONPATH")])])
     t0 = time.perf_counter()
-    done = subprocess.run([sys.executable, str(ROOT / "bench" / bench.argv[0]), *bench.argv[1:]], cwd=ROOT,
+    done = subprocess.run([sys.executable, str(root / "bench" / bench.argv[0]), *bench.argv[1:]], cwd=root,
                           env=env, capture_output=True, text=True)
     seconds = time.perf_counter() - t0
     out = done.stdout + done.stderr
     if log_dir is not None:
-        path = Path(log_dir) / f"{bench.name}.out"
+        path = Path(log_dir) / f"{bench.name}{'' if tree is None else '.baseline'}.out"
         with open(path, "x", encoding="utf-8") as f:  # never replaces an earlier log
             f.write(out)
     if done.returncode != 0:
         out += f"\n(exit {done.returncode})"
     return out, seconds
+
+
+#: what a baseline tree needs of the checkout (the benches, the code, the launch scripts and params of bench_ros)
+BASELINE_PARTS = ("src", "bench", "launch_scripts", "ros_ws")
+
+
+def resolve(rev):
+    """The full commit of ``rev``, or ``None`` when git does not know it."""
+    done = subprocess.run(["git", "rev-parse", "--verify", "--quiet", f"{rev}^{{commit}}"], cwd=ROOT,
+                          capture_output=True, text=True)
+    return done.stdout.strip() or None
+
+
+def baseline_tree(sha):
+    """``src``, ``bench``, ``launch_scripts`` and ``ros_ws`` of commit ``sha`` unpacked once into a folder
+    of the temporary directory that later runs reuse (its numba cache included)."""
+    import tempfile
+
+    tree = Path(tempfile.gettempdir()) / f"adm-sim-bench-{sha[:12]}"
+    if not (tree / ".complete").exists():
+        tree.mkdir(exist_ok=True)
+        archive = subprocess.run(["git", "archive", sha, *BASELINE_PARTS], cwd=ROOT, capture_output=True, check=True)
+        subprocess.run(["tar", "-x", "-C", str(tree)], input=archive.stdout, check=True)
+        (tree / ".complete").write_text(sha + "\n", encoding="utf-8")
+    return tree
+
+
+def compare_table(results, base_results, rev):
+    """This tree against the baseline tree, row by row: the project's own figure of each row and the
+    A / B ratio of each tree."""
+    lines = [f"Against `{rev}` (each bench run on both trees, one after the other, in this run):", "",
+             "| measure | ours, this tree | ours, baseline tree | this / baseline | A / B this | A / B baseline |",
+             "|---|---|---|---|---|---|"]
+    for (_, rows), (_, base_rows) in zip(results, base_results, strict=True):
+        for (row, a, b), (_, a0, b0) in zip(rows, base_rows, strict=True):
+            mine, theirs = (a, a0) if row.ours == "a" else (b, b0)
+            lines.append(f"| {row.measure} | {getattr(row, row.ours)}: {fmt(mine)} | {fmt(theirs)} | "
+                         f"{f'**{mine / theirs:.3f}**' if mine and theirs else 'n/a'} | "
+                         f"{fmt_ratio(a, b) + 'x' if a and b else 'n/a'} | {fmt_ratio(a0, b0) + 'x' if a0 and b0 else 'n/a'} |")
+    return "\n".join(lines)
 
 
 def commit():
@@ -173,7 +224,8 @@ def check_outputs(args, chosen):
         if page.read_text(encoding="utf-8").count(MARK) != 2:
             return f"--write: {args.write} needs exactly two '{MARK}' markers"
     if args.log:
-        taken = [str(Path(args.log) / f"{b.name}.out") for b in chosen if (Path(args.log) / f"{b.name}.out").exists()]
+        names = [f"{b.name}{suffix}.out" for b in chosen for suffix in ("", ".baseline")]
+        taken = [str(Path(args.log) / n) for n in names if (Path(args.log) / n).exists()]
         if taken:
             return f"--log: {', '.join(taken)} exists (an earlier log is never replaced)"
     return None
@@ -186,27 +238,38 @@ def main(argv=None):
     ap.add_argument("--all", action="store_true", help="also the benches left out of the default run (the study)")
     ap.add_argument("--write", metavar="FILE", help="replace the table between the bench-table markers of FILE")
     ap.add_argument("--log", metavar="DIR", help="keep each bench's output in DIR/<name>.out")
+    ap.add_argument("--baseline", metavar="REV", help="also run every bench on the code of git revision REV and "
+                                                      "compare (its tree unpacked once into the temporary directory)")
     args = ap.parse_args(argv)
     chosen = [b for b in BENCHES if (b.name in args.only if args.only else (b.default or args.all))]
     refusal = check_outputs(args, chosen)
+    sha = None
+    if not refusal and args.baseline is not None:
+        sha = resolve(args.baseline)
+        refusal = None if sha else f"--baseline: {args.baseline!r} is not a revision of this repository"
     if refusal:
         print(f"error: {refusal}", file=sys.stderr)
         return 2
     if args.log:
         Path(args.log).mkdir(parents=True, exist_ok=True)
+    tree = None if sha is None else baseline_tree(sha)
     load0 = os.getloadavg()[0]
-    results = []
-    for bench in chosen:
+    results, base_results = [], []
+    for i, bench in enumerate(chosen):
         print(f"running bench/{bench.argv[0]} {' '.join(bench.argv[1:])} ...", file=sys.stderr, flush=True)
-        out, seconds = run(bench, args.log)
-        rows = read_rows(bench, out)
-        results.append((bench, rows))
-        for row, a, b in rows:
-            ratio = f"{fmt_ratio(a, b)}x" if a and b else "n/a (figure missing: see --log)"
-            print(f"  {row.measure}: {row.a} {fmt(a)}, {row.b} {fmt(b)}, ratio {ratio}"
-                  f"{'; target ' + row.target if row.target else ''}", file=sys.stderr, flush=True)
-        print(f"  ({seconds:.0f} s)", file=sys.stderr, flush=True)
+        trees = [None] if tree is None else ([None, tree] if i % 2 == 0 else [tree, None])  # alternate who goes first
+        for t in trees:
+            out, seconds = run(bench, args.log, t)
+            rows = read_rows(bench, out)
+            (results if t is None else base_results).append((bench, rows))
+            for row, a, b in rows:
+                ratio = f"{fmt_ratio(a, b)}x" if a and b else "n/a (figure missing: see --log)"
+                print(f"  {'' if t is None else '[baseline] '}{row.measure}: {row.a} {fmt(a)}, {row.b} {fmt(b)}, "
+                      f"ratio {ratio}{'; target ' + row.target if row.target else ''}", file=sys.stderr, flush=True)
+            print(f"  ({seconds:.0f} s)", file=sys.stderr, flush=True)
     text = table(results, (load0, os.getloadavg()[0]))
+    if tree is not None:
+        text += "\n\n" + compare_table(results, base_results, f"{args.baseline}` = `{sha[:12]}")
     if args.table or not args.write:
         print(text)
     if args.write:

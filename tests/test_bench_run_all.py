@@ -96,3 +96,23 @@ def test_outputs_are_refused_before_any_bench_runs(tmp_path, capsys):
         assert err.count("\n") == 1 and err.startswith("error: --") and words in err, err
     assert page.read_text(encoding="utf-8") == "no markers\n"
     assert (tmp_path / "logs" / "irregularity.out").read_text(encoding="utf-8") == "earlier\n"
+
+
+def test_baseline_comparison_sets_our_figure_of_each_tree_side_by_side():
+    """Per row the project's own figure (the compiled calibration; the co-simulated sweep) on both
+    trees and their ratio, and each tree's A / B."""
+    calibrate = next(b for b in run_all.BENCHES if b.name == "calibrate")
+    ros = next(b for b in run_all.BENCHES if b.name == "ros")
+    this = [(calibrate, run_all.read_rows(calibrate, OUTPUTS["calibrate"])), (ros, run_all.read_rows(ros, OUTPUTS["ros"]))]
+    slower = OUTPUTS["calibrate"].replace("best 0.182 s", "best 0.364 s")
+    base = [(calibrate, run_all.read_rows(calibrate, slower)), (ros, run_all.read_rows(ros, ""))]
+    rows = run_all.compare_table(this, base, "main").splitlines()[4:]
+    assert rows[0].split(" | ")[1:4] == ["compiled kernels: 0.182", "0.364", "**0.500**"]
+    assert rows[0].endswith(f"| {4.55 / 0.182:.3g}x | {4.55 / 0.364:.3g}x |")
+    assert rows[1].split(" | ")[1:4] == ["co-simulated: 0.78", "missing", "n/a"]  # ours is A for the graph
+
+
+def test_an_unknown_baseline_is_refused_before_any_bench_runs(capsys):
+    assert run_all.main(["--only", "irregularity", "--baseline", "no-such-revision-here"]) == 2
+    err = capsys.readouterr().err
+    assert err == "error: --baseline: 'no-such-revision-here' is not a revision of this repository\n"
