@@ -13,6 +13,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+import pytest
 
 G = 9.80665
 
@@ -77,3 +78,16 @@ def sensor_record(fs_hz=500.0, *, f1_hz=5.0, zeta=0.02, passages=(5.0, 45.0, 85.
         sel = (ts >= p["t_enter_s"]) & (ts < p["t_left_s"] + 20.0)
         p["peak_m_s2"] = float(np.max(np.abs(ds[sel])))
     return SensorRecord(ts, a, ds, info, f1_hz, zeta)
+
+
+def check_passages(passages, rec):
+    """Each passage of ``rec`` found once (:class:`adm_sim.monitoring.modal_id.Passage`), its dynamic
+    peak within 1 %, f1 within 0.5 %, ζ1 within 5 % of the set values, 10 cycles of decay or more."""
+    assert len(passages) == len(rec.passages)
+    for p, true in zip(passages, rec.passages):
+        assert p.t_start_s <= true["t_enter_s"] + 0.1 and p.t_end_s > true["t_left_s"]
+        assert p.peak_acc_m_s2 == pytest.approx(true["peak_m_s2"], rel=0.01)
+        assert p.identified, p.reason
+        assert p.fit.f1_hz == pytest.approx(rec.f1_hz, rel=0.005)
+        assert p.fit.zeta1 == pytest.approx(rec.zeta, rel=0.05)
+        assert p.fit.n_cycles >= 10

@@ -217,7 +217,7 @@ def _refused(res, *words):
 
 
 @pytest.mark.parametrize("case, args, words", [
-    ("no such topic", ["--topic", "/nope"], ["--topic: '/nope' is not in", "AccelStamped topics: /adm/midspan/accel"]),
+    ("no such topic", ["--topic", "/nope"], ["--topic: '/nope' is not in", "AccelStamped and Imu topics: /adm/midspan/accel"]),
     ("another type", ["--topic", "/adm/run/status"], ["has type std_msgs/msg/String, not geometry_msgs/msg/AccelStamped"]),
     ("relative topic", ["--topic", "adm/x"], ["--topic: 'adm/x' is not an absolute topic name"]),
     ("domain id with mcap", ["--domain-id", "5"], ["--domain-id: only used live"]),
@@ -235,7 +235,7 @@ def test_bad_input_mcap(case, args, words, with_accel, tmp_path):
 def test_mcap_without_the_topic(status_only, tmp_path):
     before = sorted(tmp_path.iterdir())
     _refused(monitor("--mcap", status_only, "--json", tmp_path / "p.json"),
-             "'/adm/midspan/accel' is not in", "it holds no AccelStamped topic")
+             "'/adm/midspan/accel' is not in", "it holds no AccelStamped or Imu topic")
     assert sorted(tmp_path.iterdir()) == before
 
 

@@ -15,7 +15,7 @@ import math
 import numpy as np
 import pytest
 
-from sensor_signals import G, sensor_record
+from sensor_signals import G, check_passages, sensor_record
 
 from adm_sim.monitoring.modal_id import (BASELINE_BOTH, BASELINE_RAW, FIT_GAP_FREE, FIT_PRESENT, LEVEL_TRIAL,
                                          IdentifySettings, PassageTracker, analyse_passage, analyse_record,
@@ -28,18 +28,6 @@ DROPOUTS = ((6.3, 0.05), (50.1, 0.05), (91.0, 0.04))
 @pytest.fixture(scope="module", params=[200.0, 500.0], ids=["200Hz", "500Hz"])
 def record(request):
     return sensor_record(request.param, dropouts=DROPOUTS)
-
-
-def check_passages(passages, rec):
-    """Each passage of ``rec`` found once, its dynamic peak within 1 %, f1 within 0.5 %, ζ1 within 5 %."""
-    assert len(passages) == len(rec.passages)
-    for p, true in zip(passages, rec.passages):
-        assert p.t_start_s <= true["t_enter_s"] + 0.1 and p.t_end_s > true["t_left_s"]
-        assert p.peak_acc_m_s2 == pytest.approx(true["peak_m_s2"], rel=0.01)
-        assert p.identified, p.reason
-        assert p.fit.f1_hz == pytest.approx(rec.f1_hz, rel=0.005)
-        assert p.fit.zeta1 == pytest.approx(rec.zeta, rel=0.05)
-        assert p.fit.n_cycles >= 10
 
 
 def test_sensor_record_each_passage(record):

@@ -913,6 +913,8 @@ class PassageTracker:
         self.records_expected = False  # live: a publisher of run records is on the graph
         self.last_sample_wall_s = 0.0
         self.completed: set[int] = set()  # run ids reported (a repeated done is ignored)
+        self._reported_until: float | None = None  # signal passages: the last reported one's end stamp
+        self._segmented_n = -1  # samples seen at the last live segmentation
 
     # ------------------------------------------------------------------ inputs
     def bridge_description(self, rec):
@@ -994,7 +996,11 @@ class PassageTracker:
             if run.t1_s is not None:
                 self._complete(run)
         if not self.seen_records and self.loose_t and not self.records_expected:
-            self._signal_passages(final=wall_s - self.last_sample_wall_s >= self.quiet_s)
+            final = wall_s - self.last_sample_wall_s >= self.quiet_s
+            n = len(self.loose_t)
+            if final or n != self._segmented_n:  # nothing new: nothing to segment again
+                self._segmented_n = n
+                self._signal_passages(final=final)
 
     def flush(self):
         """Complete everything (end of a recording or of the monitor)."""
@@ -1056,22 +1062,28 @@ class PassageTracker:
                    self.phases.get(run.run_id), info)
 
     def _signal_passages(self, final):
+        """Segment the samples without a run; report the passages followed by ``quiet_s`` of quiet
+        signal (all at ``final``). The last reported passage stays in the buffer, so the trigger of
+        the next segmentation (``min(trigger_snr σ_n, trigger_fraction max)``) sees it as the
+        segmentation of the whole record would, and is not pulled down to its decaying tail."""
         t, a = np.asarray(self.loose_t), np.asarray(self.loose_a)
         segs = segment_signal(t, a, self.settings)
         order = np.argsort(t, kind="stable")
         t, a = t[order], a[order]
-        done_until = None
-        for (_b, e), (tp, ap, bf, af) in zip(segs, _signal_analyses(t, a, segs, self.settings)):
+        last_b = None
+        for (b, e), (tp, ap, bf, af) in zip(segs, _signal_analyses(t, a, segs, self.settings)):
+            if self._reported_until is not None and t[b] <= self._reported_until:
+                continue  # reported before (its end may move a little as the buffer grows)
             if not final and t[-1] - t[e - 1] < self.quiet_s:
                 break  # may go on
             self._emit(tp, ap, None, "signal", before=bf, after=af)
-            done_until = e
+            self._reported_until, last_b = float(t[e - 1]), b
         if final:
             self.loose_t, self.loose_a = [], []
-        elif done_until is not None or (t.size and t[-1] - t[0] > self.max_buffer_s):
-            # keep some quiet signal for the noise level, drop what was reported or too old
-            start = done_until if done_until is not None else 0
-            keep = t >= max(t[start - 1] if start else t[0], t[-1] - self.max_buffer_s)
+            self._reported_until = None
+        elif last_b is not None or (t.size and t[-1] - t[0] > self.max_buffer_s):
+            # keep the last reported passage and what follows; drop what is older or too old
+            keep = t >= max(t[last_b] if last_b is not None else t[0], t[-1] - self.max_buffer_s)
             self.loose_t, self.loose_a = t[keep].tolist(), a[keep].tolist()
 
 
