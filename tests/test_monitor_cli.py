@@ -153,7 +153,7 @@ def test_mcap_of_a_real_crossing(crossing_run, tmp_path):
     assert 0.99 * exact <= p["peak_acc_m_s2"] <= exact
     assert p["level"] == ("above" if p["peak_acc_m_s2"] > 3.5 else "near" if p["peak_acc_m_s2"] > 2.8 else "within")
     assert p["free_decay"]["t_start_s"] >= p["t_train_left_s"]
-    assert f"passage 1 (run 1, mlm_zeta): peak |a| {p['peak_acc_m_s2']:.4f} m/s^2" in res.stdout
+    assert f"passage 1 (run 1, mlm_zeta): dynamic peak |a| {p['peak_acc_m_s2']:.4f} m/s^2" in res.stdout
     assert doc["dropped_samples"] == 0
 
 

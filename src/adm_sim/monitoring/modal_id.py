@@ -906,6 +906,7 @@ class PassageTracker:
         self.train_length_m: float | None = None
         self.bridge_track: str | None = None
         self.bridge_limit: float | None = None
+        self.bridge_name: str | None = None
         self.seen_records = False
         self.loose_t: list[float] = []
         self.loose_a: list[float] = []
@@ -921,6 +922,8 @@ class PassageTracker:
         b = rec.get("bridge") or {}
         if "span_m" in b:
             self.span_m = float(b["span_m"])
+        if b.get("name"):
+            self.bridge_name = str(b["name"])
         self.bridge_track = rec.get("track_type") or self.bridge_track
         if rec.get("acc_limit_m_s2") is not None:
             self.bridge_limit = float(rec["acc_limit_m_s2"])
@@ -1056,7 +1059,7 @@ class PassageTracker:
         t_free = None
         if run.speed_m_s and self.span_m is not None and self.train_length_m is not None:
             t_free = run.t0_s + (self.train_length_m + self.span_m) / run.speed_m_s
-        info = {"t_train_left_s": t_free, "samples_published": run.published,
+        info = {"bridge": self.bridge_name, "t_train_left_s": t_free, "samples_published": run.published,
                 "samples_lost": None if run.published is None else max(run.published - len(run.t), 0)}
         self._emit(np.asarray(run.t), np.asarray(run.a), t_free, "run records", run.run_id,
                    self.phases.get(run.run_id), info)
