@@ -100,7 +100,7 @@ def test_refused(passages, words, tmp_path):
 # ---------------------------------------------------------------------- end to end
 TRUE_N0 = 1.04 * named_bridge("B1").n0_hz
 TRUE_ZETA_PCT = 2.4
-SPEEDS_KMH = (180.0, 200.0, 215.0, 230.0, 245.0)
+SPEEDS_KMH = (266.0, 272.0, 278.0, 288.0, 295.0)  # about the third sub-resonance, 272 km/h
 
 
 def true_bridge():
@@ -113,8 +113,8 @@ def true_bridge():
 @pytest.fixture(scope="module")
 def passages_json(tmp_path_factory):
     """Five passages of ICE-2 over the true bridge (MLM, 30 periods of free vibration), as a z-up
-    sensor at 500 Hz would log them (gravity, white noise 5 mm/s^2, 20 s of quiet between them),
-    through ``monitor.py --csv ... --json``."""
+    sensor at 500 Hz would log them (gravity, white noise 5 mm/s^2, 20 s of quiet after each, then
+    the logger pauses 20 s: no sample), through ``monitor.py --csv ... --json``."""
     from adm_sim.integrate.step_grid import StepOptions
     from adm_sim.integrate.sweep import run_sweep
     from adm_sim.model.trains import load_train
@@ -169,3 +169,47 @@ def test_monitored_bridge_to_its_check(passages_json, call_main, tmp_path):
             assert "measured bridge from" in res.stdout and "median of f1" in res.stdout
     assert gov["measured"] == pytest.approx(gov["true"], rel=0.02)
     assert abs(gov["design"] / gov["true"] - 1) > 0.05  # the measurement matters
+
+
+# ---------------------------------------------------------------------- the other commands' hooks
+def test_recommend_takes_n0_from_the_passages(tmp_path, call_main):
+    """``adm-calib recommend --measured``: the answer of ``--n0 <median f1>``, and the measured values said."""
+    from adm_calib.calib_commands import main
+
+    path = write(tmp_path, [passage(f, 2.0) for f in (6.48, 6.50, 6.53)])
+    common = ["recommend", "--train", "ICE-2", "--type", "cfb", "--mu", "15000", "--json"]
+    by_file = call_main(main, *common, "--measured", str(path))
+    by_value = call_main(main, *common, "--n0", "6.5")
+    assert by_file.returncode == by_value.returncode == 0, by_file.stderr
+    a, b = json.loads(by_file.stdout), json.loads(by_value.stdout)
+    assert a["delta_zeta_lb_pct"] == b["delta_zeta_lb_pct"] and a["measured"]["n0_hz"] == 6.5
+    assert a["measured"]["n_passages_used"] == 3 and "measured" not in b
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--n0", "6.5", "--measured", "M"], "--n0: '6.5' given with --measured"),
+    ([], "--n0: not given; give the first natural frequency (Hz) or --measured PASSAGES.json"),
+    (["--measured", "missing.json"], "--measured: 'missing.json' is not a file"),
+])
+def test_recommend_bad_measured(args, words, tmp_path, call_main):
+    from adm_calib.calib_commands import main
+
+    path = write(tmp_path, [passage(6.5, 2.0)] * 3)
+    args = [str(path) if a == "M" else a for a in args]
+    res = call_main(main, "recommend", "--train", "ICE-2", "--type", "cfb", "--mu", "15000", *args)
+    assert res.returncode == 2 and res.stderr.startswith("error: ") and words in res.stderr, res.stderr
+    assert len(res.stderr.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("command", [["calibrate", "--train", "ICE-2"], ["check", "--max-line-speed", "200"]])
+def test_calibrate_and_check_refuse_a_bad_file_before_any_work(command, tmp_path, call_main):
+    """Two identified passages: one line, exit 2, no --json written (adm-calib calibrate and check)."""
+    from adm_calib.calib_commands import main
+
+    path = write(tmp_path, [passage(8.6, 2.0)] * 2)
+    out = tmp_path / "out.json"
+    res = call_main(main, *command, "--bridge", "B1", "--measured", str(path), "--json", str(out))
+    assert res.returncode == 2, res.stderr
+    assert res.stderr.strip().splitlines() == [f"error: --measured: {str(path)!r} has 2 identified passage(s) of 2; "
+                                               f"at least 3 are needed for a measured n0 and zeta"]
+    assert not out.exists()

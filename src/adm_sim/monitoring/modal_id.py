@@ -810,7 +810,11 @@ def segment_signal(t_s, a_m_s2, settings=None):
     n_win = max(2, int(round(s.window_s / dt)))
     env = _moving_max(x, n_win)
     n_blocks = max(1, x.size // n_win)
-    noise = float(np.percentile(x[:n_blocks * n_win].reshape(n_blocks, -1).max(axis=1), 10))
+    blocks = x[:n_blocks * n_win].reshape(n_blocks, -1).max(axis=1)
+    # the noise level from blocks of samples present: a dropout's interpolated line has no noise
+    miss = _missing_on_grid(t, find_gaps(np.unique(t_all[fin]), dt), dt)[:n_blocks * n_win]
+    whole = ~miss.reshape(n_blocks, -1).any(axis=1)
+    noise = float(np.percentile(blocks[whole] if whole.any() else blocks, 10))
     trigger = s.threshold_m_s2 if s.threshold_m_s2 is not None else min(s.trigger_snr * noise,
                                                                          s.trigger_fraction * float(x.max()))
     release = min(s.release_snr * noise, trigger)
