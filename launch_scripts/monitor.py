@@ -241,7 +241,7 @@ def monitor_live(args, on_passage):
         found = False
         while context.ok():
             executor.spin_once(timeout_sec=0.1)
-            if node.seen and not found:  # the topic's publishers are on the graph: samples from now on
+            if node.sub is not None and node.sub.get_publisher_count() > 0 and not found:  # matched: samples from now on
                 found = True
                 print(f"{node.topic}: {node.count_publishers(node.topic)} publisher(s) found"
                       + (", subscribed best effort" if node.best_effort else ""), flush=True)
@@ -271,10 +271,10 @@ def _run(args) -> int:
     reported = []
     offline = args.mcap is not None or args.csv is not None
 
-    def write(dropped=0):
+    def write(dropped=0, nonfinite=0):
         doc = {"passages": [p.to_dict() for p in reported], "topic": None if args.csv else args.topic,
-               "axis": args.axis,
-               "source": args.csv or args.mcap or f"live, ROS_DOMAIN_ID {args.domain_id}", "dropped_samples": dropped}
+               "axis": args.axis, "source": args.csv or args.mcap or f"live, ROS_DOMAIN_ID {args.domain_id}",
+               "dropped_samples": dropped, "nonfinite_samples": nonfinite}
         if args.csv:
             doc["columns"] = {"time": args.time_column, "accel": args.accel_column}
         write_atomic(Path(args.json), lambda tmp: tmp.write_text(json.dumps(doc, indent=1) + "\n"), "--json")
@@ -300,10 +300,15 @@ def _run(args) -> int:
         monitor_mcap(args, tracker)
     else:
         tracker = monitor_live(args, on_passage).tracker
+    outside = tracker.nonfinite - sum(p.n_nonfinite for p in reported)
+    if outside > 0:
+        print(f"warning: {outside} non-finite samples (NaN or inf) outside every passage excluded", file=sys.stderr,
+              flush=True)
     if args.json is not None:
-        write(tracker.dropped)
+        write(tracker.dropped, tracker.nonfinite)
     n_id = sum(p.identified for p in reported)
     print(f"{len(reported)} passages, {n_id} with the first mode identified"
+          + (f", {tracker.nonfinite} non-finite samples excluded" if tracker.nonfinite else "")
           + (f"; wrote {args.json}" if args.json else ""), flush=True)
     return 0
 

@@ -61,7 +61,11 @@ def test_csv_of_a_data_logger(fs, tmp_path):
     assert doc["passages"][0]["nonfinite_samples"] == int(nan_in.sum()) > 0
     assert f"warning: passage 1: {int(nan_in.sum())} non-finite samples" in res.stderr
     assert doc["source"] == str(csv) and doc["columns"] == {"time": "time_s", "accel": "az"}
-    assert "3 passages, 3 with the first mode identified" in res.stdout
+    # the empty cells in the quiet signal belong to no passage: counted and said, not lost silently
+    n_bad = int(empty.sum() + nan_in.sum())
+    assert doc["nonfinite_samples"] == n_bad
+    assert f"warning: {int(empty.sum())} non-finite samples (NaN or inf) outside every passage" in res.stderr
+    assert f"3 passages, 3 with the first mode identified, {n_bad} non-finite samples excluded" in res.stdout
 
 
 def write_imu_mcap(path, t_s, a_m_s2, topic="/sensor/imu", covariance=None):

@@ -915,6 +915,7 @@ class PassageTracker:
         self.loose_t: list[float] = []
         self.loose_a: list[float] = []
         self.dropped = 0  # samples outside every run (with run records)
+        self.nonfinite = 0  # NaN or infinite samples received (each passage counts its own)
         self.records_expected = False  # live: a publisher of run records is on the graph
         self.last_sample_wall_s = 0.0
         self.completed: set[int] = set()  # run ids reported (a repeated done is ignored)
@@ -980,6 +981,8 @@ class PassageTracker:
         """One acceleration sample (stamp in s, m/s²)."""
         t, a = float(t_s), float(a_m_s2)
         self.last_sample_wall_s = wall_s
+        if not math.isfinite(a):
+            self.nonfinite += 1
         for run in self.runs:  # [t0_s, t1_s), a stamp within 1 ns below a boundary on its later side
             if run.t0_s - STAMP_TOLERANCE_S <= t and (run.t1_s is None or t < run.t1_s - STAMP_TOLERANCE_S):
                 self._put(run, t, a)

@@ -219,7 +219,7 @@ class MonitorNode(c.ParamNodeMixin, Node):
 def passages_document(tracker, topic, source):
     """The JSON document of the passages: ``{"passages": [...], "topic", "source", "dropped_samples"}``."""
     return {"passages": [p.to_dict() for p in tracker.passages], "topic": topic, "source": source,
-            "dropped_samples": tracker.dropped}
+            "dropped_samples": tracker.dropped, "nonfinite_samples": tracker.nonfinite}
 
 
 def main(args=None):
