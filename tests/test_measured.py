@@ -213,3 +213,24 @@ def test_calibrate_and_check_refuse_a_bad_file_before_any_work(command, tmp_path
     assert res.stderr.strip().splitlines() == [f"error: --measured: {str(path)!r} has 2 identified passage(s) of 2; "
                                                f"at least 3 are needed for a measured n0 and zeta"]
     assert not out.exists()
+
+
+def test_calibrate_the_measured_bridge(passages_json, call_main, tmp_path):
+    """``adm-calib calibrate --measured``: the calibration of the bridge spec with the measured n0
+    and ζ, to the last digit, and the measured values in its JSON."""
+    from adm_calib.calib_commands import main
+
+    m = read_measured(str(passages_json))
+    common = ["calibrate", "--train", "ICE-2", "--speeds", "262:282:1"]
+    spec = f"L=15,n0={m.f1_hz!r},mu=19042,zeta_pct={m.zeta1_pct!r}"
+    res = {}
+    for name, bridge in (("measured", ["--bridge", "B1", "--measured", str(passages_json)]),
+                         ("spec", ["--bridge", spec])):
+        out = tmp_path / f"{name}.json"
+        done = call_main(main, *common, *bridge, "--json", str(out))
+        assert done.returncode == 0, done.stderr
+        res[name] = json.loads(out.read_text())
+    assert res["measured"]["delta_zeta_vbi_pct"] == res["spec"]["delta_zeta_vbi_pct"]
+    assert res["measured"]["mlm_peak"] == res["spec"]["mlm_peak"]
+    assert res["measured"]["measured"]["n0_hz"] == m.f1_hz and "measured" not in res["spec"]
+    assert res["measured"]["zeta_pct"] == pytest.approx(m.zeta1_pct, rel=1e-12)
