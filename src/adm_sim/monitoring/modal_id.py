@@ -1,7 +1,7 @@
 """Passages of trains in a midspan acceleration record: peak, EN 1990 level, first mode from the free decay.
 
-A monitoring record (``/adm/midspan/accel``, a real accelerometer's ``AccelStamped`` topic, an
-MCAP of either) is cut into *passages*; for each one this module reports the peak ``|a|`` and its
+A monitoring record (``/adm/midspan/accel``, a real accelerometer's ``AccelStamped`` or ``Imu``
+topic, an MCAP of either, a data logger's CSV) is cut into *passages*; for each one this module reports the peak ``|a|`` and its
 time, its level against the deck acceleration limit of EN 1990 A2.4.4.2.1(4)P (3.5 m/s² ballasted,
 5 m/s² direct fastening, :mod:`adm_sim.limits`) and the first bending mode's natural frequency
 ``f1`` and damping ratio ``ζ1`` identified from the free vibration after the train has left.
@@ -10,7 +10,8 @@ Numpy and scipy only (no ROS); the monitor node and ``launch_scripts/monitor.py`
 Passages
 --------
 *From run records* (:class:`PassageTracker` with ``/adm/run/status``): one passage per run, the
-samples whose stamp lies in ``[t0_s, t1_s)`` of the bridge's ``started`` / ``done`` records,
+samples whose stamp lies in ``[t0_s, t1_s)`` of the bridge's ``started`` / ``done`` records (each
+end :data:`STAMP_TOLERANCE_S` early: a first sample stamped ``t0_s`` rounded to the ns is the run's),
 assigned by stamp, not by arrival (a ``done`` may arrive before the last samples). The train has
 left at ``t0_s + (train length + span) / v`` (the latched descriptions); the free decay is taken
 from ``settle_periods`` (3) periods after that. Stamps are in the monitored lane's time (a
@@ -52,11 +53,27 @@ First mode (:func:`identify_first_mode`)
    covariance by first-order propagation. Valid for one dominant mode in the band; two close modes
    beat and are refused by the scatter rule.
 
-A passage whose free decay is too short (fewer than ``min_cycles`` periods), has samples missing
-(a gap of more than 1.5 sample intervals inside the fit window), too noisy
-(amplitude at its start below ``min_snr`` times the residual RMS), not exponential, or whose ζ1
-is not positive or more uncertain than ``max_rel_std`` gets no numbers: ``identified`` false and
-a one-line ``reason``.
+Real sensors (:func:`analyse_passage`)
+--------------------------------------
+* Static offset: the peak and the level are those of the dynamic signal ``a - offset(t)``; the
+  offset (gravity, bias, drift) comes from the quiet signal before and after a passage found in
+  the signal (:func:`static_offset`: the line through the two medians, one median, or the median
+  of the passage's tail), none for the bridge's own topic (run records: the dynamic acceleration)
+  or with ``raw``. Segmentation works on ``|a - trend|`` (:func:`_trend`).
+* Dropouts: a stamp interval above 1.5 sample intervals (:func:`find_gaps`); non-finite samples
+  are excluded, counted and count as dropouts. The fit of step 4 uses the samples present only;
+  for the band-pass each dropout is filled with the first mode fitted to the samples within one
+  period on either side (:func:`_fill_gaps`), then refilled with the fitted mode and fitted again.
+  A dropout longer than ``max_gap_periods`` inside the fit window refuses the passage.
+* Plausibility (:func:`sensor_warnings`): a dynamic peak above 50 m/s² or a static offset near
+  neither 0 nor g is warned with its likely cause (units).
+* A run of a numerical trial (:data:`adm_sim.protocol.TRIAL_PHASES`) has the level
+  :data:`LEVEL_TRIAL`, never compared with the limit.
+
+A passage whose free decay is too short (fewer than ``min_cycles`` periods), has a dropout longer
+than ``max_gap_periods`` periods inside the fit window, too noisy (amplitude at its start below
+``min_snr`` times the residual RMS), not exponential, or whose ζ1 is not positive or more
+uncertain than ``max_rel_std`` gets no numbers: ``identified`` false and a one-line ``reason``.
 """
 
 from __future__ import annotations
@@ -70,7 +87,8 @@ from adm_sim import protocol as P
 from adm_sim.limits import acc_limit_m_s2
 
 __all__ = ["IdentifySettings", "ModalFit", "Passage", "PassageTracker", "acc_level", "analyse_passage",
-           "analyse_record", "identify_first_mode", "run_topics_for", "segment_signal", "uniform_samples"]
+           "analyse_record", "find_gaps", "identify_first_mode", "run_topics_for", "segment_signal", "sensor_warnings",
+           "static_offset", "uniform_samples"]
 
 #: Level words of a peak against the limit: within (<= warn fraction), near (<= limit), above.
 LEVELS = ("within", "near", "above")
