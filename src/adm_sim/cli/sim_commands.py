@@ -134,7 +134,7 @@ def cmd_check(args, damping_provider=None):
     if args.damping in CALIB_DAMPING_METHODS and damping_provider is None:
         raise calib_methods_refusal(args.damping)
     outs = {}
-    inputs = [("--bridge", args.bridge), ("--measured", args.measured)] + [
+    inputs = [("--bridge", args.bridge), ("--measured", getattr(args, "measured", None))] + [
         ("--trains", t.strip()) for t in str(args.trains).split(",")]
     seen = {}
     for opt, suffix in (("json", None), ("csv", ".csv"), ("plot", ".png"), ("report", ".html")):
