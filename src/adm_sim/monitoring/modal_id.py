@@ -779,8 +779,8 @@ def analyse_passage(t_s, a_m_s2, *, index=1, limit_m_s2=None, track_type="ballas
     i = int(np.argmax(absx))
     peak = float(absx[i])
     offset = float(off_fn(tf[i]))
-    _, _, dt, _ = uniform_samples(tf, af)
-    gaps = find_gaps(np.unique(tf), dt) if tf.size > 1 else ()
+    stamps = np.unique(tf)
+    gaps = find_gaps(stamps, float(np.median(np.diff(stamps)))) if stamps.size > 1 else ()
     fit, reason = identify_first_mode(tf, x, t_free_s, s)
     warns = list(sensor_warnings(peak, offset, baseline, f"passage {index}"))
     if n_bad:
