@@ -311,3 +311,6 @@ def test_live_crossing(crossing_run):
     assert p["samples_published"] == p["n_samples"] and p["samples_lost"] == 0
     assert doc["dropped_samples"] == 0
     assert any(ln.startswith("passage 1 (run 1") for ln in live["lines"]), live["lines"]
+    # no rclpy "offering incompatible QoS ... No messages will be received" beside a monitor that receives
+    assert "incompatible" not in live["stderr"].lower(), live["stderr"]
+    assert p["bridge"] == "B1" and p["offset_m_s2"] == 0.0 and p["signal"] == "dynamic"
