@@ -231,3 +231,23 @@ def test_node_process_best_effort_sensor_without_qos_warning(ros_domain, monkeyp
         rclpy.try_shutdown(context=c)
     assert "incompatible" not in err.lower(), err
     assert "best effort" in err and "passage 1: dynamic peak |a| 1.4" in err and "f1 8.26" in err, err
+
+
+def test_imu_without_linear_acceleration_is_refused(ctx):
+    """An Imu whose ``linear_acceleration_covariance[0]`` is -1 (REP 145: no linear acceleration):
+    the first message ends the monitor with one line naming the topic (exit 2 in ``main``)."""
+    from adm_sim.nodes.monitor_node import QOS_SAMPLES
+
+    mon = make_monitor(ctx, topic="/sensor/imu")
+    src = __import__("rclpy").create_node("imu_driver", context=ctx)
+    pub = src.create_publisher(type(imu_msg(0, 0)), "/sensor/imu", QOS_SAMPLES)
+    spin_until(ctx, [mon, src], lambda: pub.get_subscription_count() > 0, 10)
+    m = imu_msg(0.0, 9.81)
+    m.linear_acceleration_covariance[0] = -1.0
+    pub.publish(m)
+    with pytest.raises(InputError, match=r"topic: '/sensor/imu': the Imu messages carry no linear acceleration "
+                                         r"\(linear_acceleration_covariance\[0\] = -1, REP 145\)"):
+        spin_until(ctx, [mon, src], lambda: False, 10)
+    assert mon.tracker.passages == [] and mon.samples == 0
+    src.destroy_node()
+    mon.destroy_node()
