@@ -6,13 +6,19 @@ Usage::
 
     monitor.py --domain-id 42 [--topic /adm/midspan/accel] [--passages N | --duration S] [--json F]
     monitor.py --mcap RUN.mcap [--topic /adm/midspan/accel] [--json F]
+    monitor.py --csv LOGGER.csv [--time-column t] [--accel-column a] [--json F]
 
-The topic is any ``geometry_msgs/AccelStamped`` topic (ours, or a real accelerometer's); the run
-records beside one of ours (``/adm/run/status``, the bridge and train descriptions) cut the
-passages where they exist, the signal where they do not (:mod:`adm_sim.monitoring.modal_id`). Each passage
-is printed as one line; ``--json F`` writes ``{"passages": [{"peak_acc_m_s2", "t_peak_s", "level",
-"f1_hz", "zeta1_pct", "f1_std_hz", "zeta1_std_pct", "identified", "reason", ...}]}`` (numbers of
-the fit null and the reason given when a passage's free decay cannot identify damping).
+The topic is any ``geometry_msgs/AccelStamped`` or ``sensor_msgs/Imu`` topic (ours, or a real
+accelerometer's; ``--axis``: the component and its sign, z up by default); the run records beside
+one of ours (``/adm/run/status``, the bridge and train descriptions) cut the passages where they
+exist, the signal where they do not (:mod:`adm_sim.monitoring.modal_id`); ``--csv`` reads a data
+logger's export (:mod:`adm_sim.inputs.sensor_csv`). The peak and the level are those of the dynamic
+signal: a sensor's static offset (gravity, bias, drift) is removed from the quiet signal before and
+after each passage (``--raw`` keeps it). Each passage is printed as one line; ``--json F`` writes
+``{"passages": [{"peak_acc_m_s2", "offset_m_s2", "t_peak_s", "level", "f1_hz", "zeta1_pct",
+"f1_std_hz", "zeta1_std_pct", "identified", "reason", ...}]}`` (numbers of the fit null and the
+reason given when a passage's free decay cannot identify damping). Plausibility warnings (units,
+non-finite samples) are printed as ``warning: ...`` lines on stderr and kept in the JSON.
 
 Live: the monitor node (:class:`adm_sim.nodes.monitor_node.MonitorNode`) runs in this process on
 ``--domain-id`` (or an exported ``ROS_DOMAIN_ID``), shared memory only, until ``--passages`` passages
@@ -24,8 +30,9 @@ or SIGTERM: ``error: interrupted``, exit 130; the JSON then holds the passages c
 
 Bad input, one line ``error: ...`` and exit 2, nothing written: an option out of range, a domain
 id out of range, an MCAP that is not one, a topic the MCAP does not hold or that has another type,
-a live topic that no publisher offers within ``--timeout`` seconds or that has another type, a
-JSON file that exists (without ``--overwrite``).
+a live topic that no publisher offers within ``--timeout`` seconds or that has another type, an Imu
+without the chosen axis, a CSV file without the named columns or with times that do not increase,
+a JSON file that exists (without ``--overwrite``).
 """
 
 from __future__ import annotations
@@ -40,14 +47,23 @@ from adm_sim import protocol as P
 from adm_sim.cliutil import Parser, add_overwrite, option_view, run_cli
 from adm_sim.errors import InputError
 from adm_sim.limits import TRACK_TYPES
-
-ACCEL_TYPE = "geometry_msgs/msg/AccelStamped"
+from adm_sim.monitoring.sensors import AXES, IMU_TYPE, SENSOR_TYPES
 
 
 def parse_args(argv=None):
     p = Parser(prog="monitor.py", description=__doc__.split("\n\n")[0])
     p.add_argument("--mcap", metavar="RUN.mcap", help="read a recording instead of subscribing live")
-    p.add_argument("--topic", default=P.TOPIC_ACCEL, help=f"the AccelStamped topic (default {P.TOPIC_ACCEL})")
+    p.add_argument("--csv", metavar="FILE", help="read a data logger's CSV export instead (header line; time in s, "
+                                                  "acceleration in m/s^2)")
+    p.add_argument("--time-column", default=None, metavar="NAME", help="--csv: the time column (default t)")
+    p.add_argument("--accel-column", default=None, metavar="NAME",
+                   help="--csv: the acceleration column (default a)")
+    p.add_argument("--topic", default=P.TOPIC_ACCEL,
+                   help=f"the AccelStamped or Imu topic (default {P.TOPIC_ACCEL})")
+    p.add_argument("--axis", default="z", metavar="AXIS",
+                   help=f"the sensor's vertical axis and sign: {', '.join(AXES)} (default z: z up)")
+    p.add_argument("--raw", action="store_true",
+                   help="keep the raw signal: no static offset (gravity, bias) removed before the peak")
     p.add_argument("--status-topic", default=None,
                    help="run records (default: the one beside the topic when it is one of ours)")
     p.add_argument("--domain-id", default=None, help="live: ROS_DOMAIN_ID of the graph (default: the exported one)")
@@ -61,6 +77,12 @@ def parse_args(argv=None):
     p.add_argument("--no-bandpass", action="store_true", help="fit the raw samples (no band-pass around f1)")
     p.add_argument("--json", metavar="F", help="write the passages as JSON")
     add_overwrite(p, "replace the JSON file if it exists")
+    given, argv = list(sys.argv[1:] if argv is None else argv), []
+    while given:  # "--axis -z" read as "--axis=-z" (argparse would take "-z" for an option)
+        arg = given.pop(0)
+        if arg == "--axis" and given and given[0] in AXES:
+            arg = f"--axis={given.pop(0)}"
+        argv.append(arg)
     return p.parse_args(argv)
 
 
@@ -68,6 +90,21 @@ def check_args(args):
     """Every option before anything is read, written or started; raises :class:`InputError`."""
     from adm_sim.files import claim_output, mcap_input
 
+    from adm_sim.monitoring.sensors import parse_axis
+
+    args.axis_component, args.axis_sign = parse_axis(args.axis)
+    if args.csv is not None:
+        for opt in ("mcap", "domain_id", "passages", "duration", "status_topic"):
+            if getattr(args, opt) is not None:
+                raise InputError(f"--{opt.replace('_', '-')}: not used with --csv; drop it or drop --csv")
+        args.time_column = args.time_column if args.time_column is not None else "t"
+        args.accel_column = args.accel_column if args.accel_column is not None else "a"
+        for opt, v in (("--time-column", args.time_column), ("--accel-column", args.accel_column)):
+            if not v.strip():
+                raise InputError(f"{opt}: '' is empty; give the column's name in the header line")
+    elif args.time_column is not None or args.accel_column is not None:
+        raise InputError(f"{'--time-column' if args.time_column is not None else '--accel-column'}: only used with "
+                         f"--csv; drop it or give --csv FILE")
     if not args.topic or not args.topic.startswith("/"):
         raise InputError(f"--topic: {args.topic!r} is not an absolute topic name; give e.g. {P.TOPIC_ACCEL}")
     if args.status_topic is not None and not args.status_topic.startswith("/"):
@@ -75,7 +112,11 @@ def check_args(args):
                          f"{P.TOPIC_STATUS}")
     args.timeout = option_view("--timeout").check(args.timeout)
     args.min_cycles = option_view("--min-cycles").check(args.min_cycles)
-    if args.mcap is not None:
+    if args.csv is not None:
+        from adm_sim.files import input_file
+
+        input_file(args.csv, "--csv", "CSV file")
+    elif args.mcap is not None:
         for opt in ("domain_id", "passages", "duration"):
             if getattr(args, opt) is not None:
                 raise InputError(f"--{opt.replace('_', '-')}: only used live; drop it or drop --mcap")
@@ -87,7 +128,7 @@ def check_args(args):
             args.duration = option_view("--duration").check(args.duration)
         args.domain_id = live_domain_id(args.domain_id)
     if args.json is not None:
-        claim_output(args.json, "--json", args.overwrite, ".json", inputs={"--mcap": args.mcap})
+        claim_output(args.json, "--json", args.overwrite, ".json", inputs={"--mcap": args.mcap, "--csv": args.csv})
     return args
 
 
@@ -128,34 +169,39 @@ def mcap_channels(path):
 
 
 def check_mcap_topic(path, topic):
-    """The topic is in the MCAP with type AccelStamped; else one line naming the ones that are."""
+    """The topic is in the MCAP with type AccelStamped or Imu; else one line naming the ones that are."""
     channels = mcap_channels(path)
-    accel = sorted(t for t, s in channels.items() if s == ACCEL_TYPE)
-    hint = f"its AccelStamped topics: {', '.join(accel)}" if accel else "it holds no AccelStamped topic"
+    accel = sorted(t for t, s in channels.items() if s in SENSOR_TYPES)
+    hint = f"its AccelStamped and Imu topics: {', '.join(accel)}" if accel else "it holds no AccelStamped or Imu topic"
     if topic not in channels:
         raise InputError(f"--topic: {topic!r} is not in '{path}'; {hint}")
-    if channels[topic] != ACCEL_TYPE:
-        raise InputError(f"--topic: {topic!r} in '{path}' has type {channels[topic] or 'unknown'}, not {ACCEL_TYPE}; "
-                         f"{hint}")
+    if channels[topic] not in SENSOR_TYPES:
+        raise InputError(f"--topic: {topic!r} in '{path}' has type {channels[topic] or 'unknown'}, not "
+                         f"{' or '.join(SENSOR_TYPES)}; {hint}")
     return channels
 
 
 def monitor_mcap(args, tracker):
     """Feed the MCAP's samples and run records to ``tracker`` in log-time order."""
     from adm_sim.monitoring.modal_id import run_topics_for
+    from adm_sim.monitoring.sensors import check_imu, sample_of
     from adm_sim.recording.mcap_log import read_messages
 
     channels = check_mcap_topic(args.mcap, args.topic)
+    kind = channels[args.topic]
     if args.status_topic is not None and channels.get(args.status_topic) != "std_msgs/msg/String":
         raise InputError(f"--status-topic: {args.status_topic!r} is not a std_msgs/String topic of '{args.mcap}'")
     ours = run_topics_for(args.topic) or (None, None, None)
     status = args.status_topic or ours[0]
     desc = ours[1:]
     topics = [t for t in (args.topic, status, *desc) if t in channels]
+    checked = kind != IMU_TYPE
     for topic, _log_ns, msg in read_messages(args.mcap, topics=topics):
         if topic == args.topic:
-            st = msg.header.stamp
-            tracker.sample(st.sec + 1e-9 * st.nanosec, msg.accel.linear.z)
+            if not checked:
+                check_imu(msg, args.axis_component, f"--topic: {args.topic!r} in '{args.mcap}'")
+                checked = True
+            tracker.sample(*sample_of(msg, kind, args.axis_component, args.axis_sign))
         elif topic == status:
             tracker.status(P.decode(msg.data))
         elif topic == desc[0]:
@@ -179,7 +225,8 @@ def monitor_live(args, on_passage):
     context = rclpy.context.Context()
     rclpy.init(args=[], context=context)
     overrides = [Parameter("topic", value=args.topic), Parameter("topic_timeout_s", value=args.timeout),
-                 Parameter("min_cycles", value=args.min_cycles), Parameter("bandpass", value=not args.no_bandpass)]
+                 Parameter("min_cycles", value=args.min_cycles), Parameter("bandpass", value=not args.no_bandpass),
+                 Parameter("axis", value=args.axis), Parameter("raw", value=bool(args.raw))]
     if args.status_topic:
         overrides.append(Parameter("status_topic", value=args.status_topic))
     if args.track_type:
@@ -194,7 +241,7 @@ def monitor_live(args, on_passage):
         found = False
         while context.ok():
             executor.spin_once(timeout_sec=0.1)
-            if node.seen and not found:  # the topic's publishers are on the graph: samples from now on
+            if node.sub is not None and node.sub.get_publisher_count() > 0 and not found:  # matched: samples from now on
                 found = True
                 print(f"{node.topic}: {node.count_publishers(node.topic)} publisher(s) found"
                       + (", subscribed best effort" if node.best_effort else ""), flush=True)
@@ -220,29 +267,48 @@ def _run(args) -> int:
     from adm_sim.monitoring.modal_id import IdentifySettings, PassageTracker
 
     check_args(args)
-    settings = IdentifySettings(min_cycles=args.min_cycles, bandpass=not args.no_bandpass)
+    settings = IdentifySettings(min_cycles=args.min_cycles, bandpass=not args.no_bandpass, raw=args.raw)
     reported = []
+    offline = args.mcap is not None or args.csv is not None
 
-    def write(dropped=0):
-        doc = {"passages": [p.to_dict() for p in reported], "topic": args.topic,
-               "source": args.mcap or f"live, ROS_DOMAIN_ID {args.domain_id}", "dropped_samples": dropped}
+    def write(dropped=0, nonfinite=0):
+        doc = {"passages": [p.to_dict() for p in reported], "topic": None if args.csv else args.topic,
+               "axis": args.axis, "source": args.csv or args.mcap or f"live, ROS_DOMAIN_ID {args.domain_id}",
+               "dropped_samples": dropped, "nonfinite_samples": nonfinite}
+        if args.csv:
+            doc["columns"] = {"time": args.time_column, "accel": args.accel_column}
         write_atomic(Path(args.json), lambda tmp: tmp.write_text(json.dumps(doc, indent=1) + "\n"), "--json")
 
     def on_passage(p):
         reported.append(p)
         print(p.line(), flush=True)
-        if args.json is not None and args.mcap is None:  # live: the file follows every passage
+        for w in p.warnings:
+            print(f"warning: {w}", file=sys.stderr, flush=True)
+        if args.json is not None and not offline:  # live: the file follows every passage
             write()
 
-    if args.mcap is not None:
+    if args.csv is not None:
+        from adm_sim.inputs.sensor_csv import read_sensor_csv
+
+        t, a = read_sensor_csv(args.csv, args.time_column, args.accel_column)
+        tracker = PassageTracker(track_type=args.track_type, settings=settings, on_passage=on_passage)
+        for ti, ai in zip(t.tolist(), (args.axis_sign * a).tolist()):
+            tracker.sample(ti, ai)
+        tracker.flush()
+    elif args.mcap is not None:
         tracker = PassageTracker(track_type=args.track_type, settings=settings, on_passage=on_passage)
         monitor_mcap(args, tracker)
     else:
         tracker = monitor_live(args, on_passage).tracker
+    outside = tracker.nonfinite - sum(p.n_nonfinite for p in reported)
+    if outside > 0:
+        print(f"warning: {outside} non-finite samples (NaN or inf) outside every passage excluded", file=sys.stderr,
+              flush=True)
     if args.json is not None:
-        write(tracker.dropped)
+        write(tracker.dropped, tracker.nonfinite)
     n_id = sum(p.identified for p in reported)
     print(f"{len(reported)} passages, {n_id} with the first mode identified"
+          + (f", {tracker.nonfinite} non-finite samples excluded" if tracker.nonfinite else "")
           + (f"; wrote {args.json}" if args.json else ""), flush=True)
     return 0
 

@@ -153,7 +153,7 @@ def test_mcap_of_a_real_crossing(crossing_run, tmp_path):
     assert 0.99 * exact <= p["peak_acc_m_s2"] <= exact
     assert p["level"] == ("above" if p["peak_acc_m_s2"] > 3.5 else "near" if p["peak_acc_m_s2"] > 2.8 else "within")
     assert p["free_decay"]["t_start_s"] >= p["t_train_left_s"]
-    assert f"passage 1 (run 1, mlm_zeta): peak |a| {p['peak_acc_m_s2']:.4f} m/s^2" in res.stdout
+    assert f"passage 1 (run 1, mlm_zeta): dynamic peak |a| {p['peak_acc_m_s2']:.4f} m/s^2" in res.stdout
     assert doc["dropped_samples"] == 0
 
 
@@ -217,7 +217,7 @@ def _refused(res, *words):
 
 
 @pytest.mark.parametrize("case, args, words", [
-    ("no such topic", ["--topic", "/nope"], ["--topic: '/nope' is not in", "AccelStamped topics: /adm/midspan/accel"]),
+    ("no such topic", ["--topic", "/nope"], ["--topic: '/nope' is not in", "AccelStamped and Imu topics: /adm/midspan/accel"]),
     ("another type", ["--topic", "/adm/run/status"], ["has type std_msgs/msg/String, not geometry_msgs/msg/AccelStamped"]),
     ("relative topic", ["--topic", "adm/x"], ["--topic: 'adm/x' is not an absolute topic name"]),
     ("domain id with mcap", ["--domain-id", "5"], ["--domain-id: only used live"]),
@@ -235,7 +235,7 @@ def test_bad_input_mcap(case, args, words, with_accel, tmp_path):
 def test_mcap_without_the_topic(status_only, tmp_path):
     before = sorted(tmp_path.iterdir())
     _refused(monitor("--mcap", status_only, "--json", tmp_path / "p.json"),
-             "'/adm/midspan/accel' is not in", "it holds no AccelStamped topic")
+             "'/adm/midspan/accel' is not in", "it holds no AccelStamped or Imu topic")
     assert sorted(tmp_path.iterdir()) == before
 
 
@@ -311,3 +311,6 @@ def test_live_crossing(crossing_run):
     assert p["samples_published"] == p["n_samples"] and p["samples_lost"] == 0
     assert doc["dropped_samples"] == 0
     assert any(ln.startswith("passage 1 (run 1") for ln in live["lines"]), live["lines"]
+    # no rclpy "offering incompatible QoS ... No messages will be received" beside a monitor that receives
+    assert "incompatible" not in live["stderr"].lower(), live["stderr"]
+    assert p["bridge"] == "B1" and p["offset_m_s2"] == 0.0 and p["signal"] == "dynamic"

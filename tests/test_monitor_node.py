@@ -154,3 +154,100 @@ def test_node_process_bad_input(ros_domain, args, message):  # noqa: F811
     assert res.returncode == 2
     errors = [line for line in res.stderr.splitlines() if line.startswith("error: ")]
     assert len(errors) == 1 and errors[0].startswith(message), res.stderr
+    assert res.stderr.strip().splitlines() == errors, res.stderr  # no [INFO] line before it (issue 38)
+
+
+def imu_msg(t, a):
+    from sensor_msgs.msg import Imu
+
+    m = Imu()
+    ns = int(round(t * 1e9))
+    m.header.stamp.sec, m.header.stamp.nanosec = divmod(ns, 1_000_000_000)
+    m.header.frame_id = "sensor"
+    m.linear_acceleration.z = float(a)
+    return m
+
+
+def test_live_imu_sensor(ctx):
+    """A z-up Imu at 200 Hz with gravity, drift, noise, dropouts in the forced part and in the free
+    decay, live: each passage's dynamic peak within 1 %, f1 within 0.5 %, ζ1 within 5 %."""
+    from sensor_signals import check_passages, sensor_record
+
+    from adm_sim.nodes.monitor_node import QOS_SAMPLES
+
+    rec = sensor_record(200.0, passages=(5.0, 45.0), duration_s=80.0, dropouts=((6.3, 0.05), (50.1, 0.05)))
+    mon = make_monitor(ctx, topic="/sensor/imu")
+    src = __import__("rclpy").create_node("imu_driver", context=ctx)
+    pub = src.create_publisher(type(imu_msg(0, 0)), "/sensor/imu", QOS_SAMPLES)
+    spin_until(ctx, [mon, src], lambda: pub.get_subscription_count() > 0, 10)
+    assert mon.kind == "sensor_msgs/msg/Imu" and not mon.best_effort
+    for i, (ti, ai) in enumerate(zip(rec.t_s, rec.a_m_s2)):
+        pub.publish(imu_msg(ti, ai))
+        if i % 200 == 0:  # keep within the history depth (5000): a live sensor's pace, not a burst
+            spin_until(ctx, [mon, src], lambda i=i: mon.samples >= i - 1000, 10)
+    spin_until(ctx, [mon, src], lambda: mon.samples >= rec.t_s.size, 30)
+    assert mon.samples == rec.t_s.size
+    mon.finish()
+    check_passages(mon.tracker.passages, rec)
+    assert mon.tracker.passages[1].fit.method == "least squares on the samples present"
+    src.destroy_node()
+    mon.destroy_node()
+
+
+def test_node_process_best_effort_sensor_without_qos_warning(ros_domain, monkeypatch):  # noqa: F811
+    """A best-effort sensor: the node subscribes best effort from the start, so rclpy never says
+    'offering incompatible QoS. No messages will be received' (issue 35); the passage is reported."""
+    import signal
+    import subprocess
+    import sys
+
+    import rclpy
+    from rclpy.qos import qos_profile_sensor_data
+
+    proc = subprocess.Popen([sys.executable, "-m", "adm_sim.nodes.monitor_node", "--ros-args", "-p",
+                             "topic:=/sensor/accel", "-p", "quiet_s:=1.0", "-p", "topic_timeout_s:=60.0"],
+                            stderr=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=dict(ros_domain))
+    for key in ("FASTDDS_BUILTIN_TRANSPORTS", "ROS_AUTOMATIC_DISCOVERY_RANGE"):  # this process joins its graph
+        monkeypatch.setenv(key, ros_domain[key])
+    c = rclpy.context.Context()
+    rclpy.init(context=c, domain_id=int(ros_domain.domain_id))
+    try:
+        src = rclpy.create_node("sensor", context=c)
+        pub = src.create_publisher(type(accel_msg(0, 0)), "/sensor/accel", qos_profile_sensor_data)
+        spin_until(c, [src], lambda: pub.get_subscription_count() > 0, 60)
+        assert pub.get_subscription_count() > 0
+        time.sleep(0.5)
+        t = np.arange(0.0, 8.0, 1 / 400)
+        a = 0.002 * np.random.default_rng(1).standard_normal(t.size)
+        a[t >= 2.0] += decay(t[t >= 2.0] - 2.0)
+        for i, (ti, ai) in enumerate(zip(t, a)):
+            pub.publish(accel_msg(ti, ai, "sensor"))
+            if i % 100 == 0:
+                time.sleep(0.01)  # best effort: let the subscriber keep up
+        time.sleep(4.0)  # quiet_s of wall time without samples: the passage is reported
+    finally:
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+        rclpy.try_shutdown(context=c)
+    assert "incompatible" not in err.lower(), err
+    assert "best effort" in err and "passage 1: dynamic peak |a| 1.4" in err and "f1 8.26" in err, err
+
+
+def test_imu_without_linear_acceleration_is_refused(ctx):
+    """An Imu whose ``linear_acceleration_covariance[0]`` is -1 (REP 145: no linear acceleration):
+    the first message ends the monitor with one line naming the topic (exit 2 in ``main``)."""
+    from adm_sim.nodes.monitor_node import QOS_SAMPLES
+
+    mon = make_monitor(ctx, topic="/sensor/imu")
+    src = __import__("rclpy").create_node("imu_driver", context=ctx)
+    pub = src.create_publisher(type(imu_msg(0, 0)), "/sensor/imu", QOS_SAMPLES)
+    spin_until(ctx, [mon, src], lambda: pub.get_subscription_count() > 0, 10)
+    m = imu_msg(0.0, 9.81)
+    m.linear_acceleration_covariance[0] = -1.0
+    pub.publish(m)
+    with pytest.raises(InputError, match=r"topic: '/sensor/imu': the Imu messages carry no linear acceleration "
+                                         r"\(linear_acceleration_covariance\[0\] = -1, REP 145\)"):
+        spin_until(ctx, [mon, src], lambda: False, 10)
+    assert mon.tracker.passages == [] and mon.samples == 0
+    src.destroy_node()
+    mon.destroy_node()

@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from adm_sim.files import OutputSet, check_output_folder, claim_output, input_file, make_output_folder
+from adm_sim.inputs.measured import add_measured_argument
 from adm_sim.cli.sim_commands import add_check_arguments, cmd_check
 from adm_sim.cliutil import (Parser, add_choice, add_dim_grid, add_overwrite, add_progress, add_speeds,
                              add_steps_per_period, check_option, option_help, option_view, progress_callback, run_cli)
@@ -102,10 +103,12 @@ def cmd_calibrate(args):
 
     from adm_calib.calibrate import calibrate  # noqa: PLC0415  scipy (~1.3 s): only this subcommand
 
-    inputs = {"--bridge": args.bridge, "--train": args.train}
+    from adm_sim.inputs.measured import measured_bridge  # noqa: PLC0415  start-up: only this subcommand
+
+    inputs = {"--bridge": args.bridge, "--train": args.train, "--measured": args.measured}
     json_path = claim_output(args.json, "--json", args.force, ".json", inputs) if args.json is not None else None
     plot_path = claim_output(args.plot, "--plot", args.force, ".png", inputs) if args.plot is not None else None
-    bridge = resolve_bridge(args.bridge)
+    bridge, measured = measured_bridge(args, resolve_bridge(args.bridge))  # --measured: n0, zeta of the monitored bridge
     train = load_train(args.train)
     speeds = _speeds(args.speeds)
     options = _options(args)
@@ -121,7 +124,9 @@ def cmd_calibrate(args):
     print(f"wall time      {wall:.2f} s")
     with OutputSet() as outs:  # --json and --plot: both or neither
         if json_path:
-            outs.write(json_path, lambda p: p.write_text(res.to_json() + "\n"), "--json", note=f"wrote {json_path}")
+            text = res.to_json() if measured is None else json.dumps({**json.loads(res.to_json()),
+                                                                       "measured": measured.to_dict()}, indent=1)
+            outs.write(json_path, lambda p: p.write_text(text + "\n"), "--json", note=f"wrote {json_path}")
         if plot_path:
             from adm_calib.plots import plot_calibration  # noqa: PLC0415  start-up: only this subcommand (239 ms)
 
@@ -208,6 +213,22 @@ def _study_train(text, option):
     return _as_option(option, "train", canonical_train_name, text)
 
 
+def _recommend_measured(args):
+    """``--measured``: sets ``args.n0`` to the measured n0 (median f1); exactly one of --n0 and
+    --measured. Returns the :class:`adm_sim.inputs.measured.MeasuredModes` or None."""
+    if args.measured is None:
+        if args.n0 is None:
+            raise InputError("--n0: not given; give the first natural frequency (Hz) or --measured PASSAGES.json")
+        return None
+    if args.n0 is not None:
+        raise InputError(f"--n0: {args.n0!r} given with --measured {args.measured!r}; give one of them")
+    from adm_sim.inputs.measured import read_measured  # noqa: PLC0415  start-up: only this subcommand
+
+    measured = read_measured(args.measured)
+    args.n0 = repr(measured.f1_hz)
+    return measured
+
+
 def cmd_recommend(args):
     from adm_sim.model.bridge import SPAN_RANGE_M  # noqa: PLC0415  start-up: only this subcommand (16 ms)
     from adm_sim.model.plausibility import check_studied_field  # noqa: PLC0415  start-up: only this subcommand (12 ms)
@@ -216,6 +237,7 @@ def cmd_recommend(args):
                                      recommend, span_from_frequency_m)
 
     train = _study_train(args.train, "--train")
+    measured = _recommend_measured(args)  # --measured: n0 from the monitored bridge
     lo_hz = lower_bound_table(args.functions)[train]["mu1"].lower_limit_hz
     try:
         n0 = check_range("--n0", args.n0, "Hz", lo_hz, STUDY_N0_MAX_HZ)
@@ -244,11 +266,15 @@ def cmd_recommend(args):
         warnings.warn(w, PlausibilityWarning, stacklevel=2)
     if args.json:
         d = rec.to_dict()
+        if measured is not None:
+            d["measured"] = measured.to_dict()
         d["study_warnings"] = study_warnings
         d["mu_kg_m"] = mu_kg_m
         d["mass_function_kg_m"] = {m: 1000.0 * v for m, v in rec.mass_function_t_m.items()}
         print(json.dumps(d, indent=2))
     else:
+        if measured is not None:
+            print("\n".join(measured.lines()))
         print(f"dz_LB = {rec.delta_zeta_pct:.4f} %")
         print(f"functions: {FUNCTION_SOURCES[rec.functions]}")
         print(f"mu = {mu_kg_m:g} kg/m ({mu_kg_m / 1000:g} t/m)")
@@ -511,6 +537,7 @@ def build_parser():
                    "(L m, n0 Hz or EJ N m^2, mu kg/m, zeta_pct %% or type=cfb|sc for the Table 2 damping; class=cfb|sc "
                    "classes a bridge of given damping for the lower-bound functions), or a TOML file with these keys")
     c.add_argument("--train", required=True, help="ICE-2, Eurostar, Railjet, ICE-4 or a TOML train file")
+    add_measured_argument(c)
     c.add_argument("--json", help="write the result as JSON to this file")
     c.add_argument("--plot", help="write the Fig. 15 analogue to this PNG file")
     common(c)
@@ -527,7 +554,11 @@ def build_parser():
 
     r = sub.add_parser("recommend", help="dz from the lower-bound functions by the rules of Section 4.3")
     r.add_argument("--train", required=True, help="ICE-2, Eurostar, Railjet or ICE-4")
-    r.add_argument("--n0", required=True, help="first natural frequency (Hz), 2.1 Hz up to the highest n0 of the study")
+    r.add_argument("--n0", default=None, help="first natural frequency (Hz), 2.1 Hz up to the highest n0 of the study "
+                                              "(or --measured)")
+    r.add_argument("--measured", default=None, metavar="PASSAGES.json",
+                   help="the monitor's JSON (monitor.py --json): n0 = the median f1 of its identified passages "
+                        "(at least 3) instead of --n0")
     r.add_argument("--mu", required=True, help=option_help("--mu", "mass per length in kg/m, like the bridge specs "
                                                                    "(Table 1 / Eq. 19 print t/m: 1 t/m = 1000 kg/m); "
                                                                    "printed in both"))

@@ -19,6 +19,7 @@ from adm_sim.errors import InputError
 from adm_sim.cliutil import run_cli
 from adm_sim.fields import FIELDS, check_delta_zeta_pct
 from adm_sim.files import OutputSet, claim_output, mcap_input
+from adm_sim.inputs.measured import add_measured_argument
 from adm_sim.cli.figures import plot_check, plot_sweep
 from adm_sim.limits import ACC_LIMITS_M_S2, TRACK_ALIASES, check_track_type
 from adm_sim.model.where import parse_where, where_text
@@ -133,7 +134,8 @@ def cmd_check(args, damping_provider=None):
     if args.damping in CALIB_DAMPING_METHODS and damping_provider is None:
         raise calib_methods_refusal(args.damping)
     outs = {}
-    inputs = [("--bridge", args.bridge)] + [("--trains", t.strip()) for t in str(args.trains).split(",")]
+    inputs = [("--bridge", args.bridge), ("--measured", getattr(args, "measured", None))] + [
+        ("--trains", t.strip()) for t in str(args.trains).split(",")]
     seen = {}
     for opt, suffix in (("json", None), ("csv", ".csv"), ("plot", ".png"), ("report", ".html")):
         text = getattr(args, opt, None)
@@ -143,6 +145,9 @@ def cmd_check(args, damping_provider=None):
             outs[opt] = claim_output(text, f"--{opt}", args.overwrite, suffix, inputs)
             seen[outs[opt].resolve()] = opt
     bridge = resolve_bridge(args.bridge)
+    from adm_sim.inputs.measured import measured_bridge  # noqa: PLC0415  start-up: only this subcommand
+
+    bridge, measured = measured_bridge(args, bridge)  # --measured: n0, zeta (and EJ) of the monitored bridge
     parse_where(args.where, bridge.span_m)  # refused before any work
     if args.damping_model is not None and args.damping_model not in DAMPING_MODELS:
         raise InputError(f"--damping-model: {args.damping_model!r} is not allowed; allowed {', '.join(DAMPING_MODELS)}")
@@ -182,6 +187,8 @@ def cmd_check(args, damping_provider=None):
         if "json" in outs:
             d = res.to_dict()
             d["wall_time_s"] = wall
+            if measured is not None:
+                d["measured"] = measured.to_dict()
             files.write(outs["json"], lambda p: p.write_text(json.dumps(d, indent=1)), "--json",
                         note=f"wrote {args.json}")
         if "csv" in outs:
@@ -302,6 +309,7 @@ def add_check_arguments(c):
     """The options of the EN 1991-2 check, one definition for ``adm-sim check`` and ``adm-calib check``
     (``--damping lb|vbi`` are computed only by ``adm-calib check``)."""
     c.add_argument("--bridge", default="B1", help="B1..B4, a spec L=15,n0=8.26,mu=19042,zeta_pct=1.85, or a TOML file")
+    add_measured_argument(c)
     c.add_argument("--max-line-speed", type=float, required=True,
                    help=option_help("--max-line-speed", "maximum line speed V; speeds 40 m/s .. 1.2 V are checked"))
     c.add_argument("--trains", default="hslm",

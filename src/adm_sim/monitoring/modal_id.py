@@ -1,7 +1,7 @@
 """Passages of trains in a midspan acceleration record: peak, EN 1990 level, first mode from the free decay.
 
-A monitoring record (``/adm/midspan/accel``, a real accelerometer's ``AccelStamped`` topic, an
-MCAP of either) is cut into *passages*; for each one this module reports the peak ``|a|`` and its
+A monitoring record (``/adm/midspan/accel``, a real accelerometer's ``AccelStamped`` or ``Imu``
+topic, an MCAP of either, a data logger's CSV) is cut into *passages*; for each one this module reports the peak ``|a|`` and its
 time, its level against the deck acceleration limit of EN 1990 A2.4.4.2.1(4)P (3.5 m/s² ballasted,
 5 m/s² direct fastening, :mod:`adm_sim.limits`) and the first bending mode's natural frequency
 ``f1`` and damping ratio ``ζ1`` identified from the free vibration after the train has left.
@@ -10,7 +10,8 @@ Numpy and scipy only (no ROS); the monitor node and ``launch_scripts/monitor.py`
 Passages
 --------
 *From run records* (:class:`PassageTracker` with ``/adm/run/status``): one passage per run, the
-samples whose stamp lies in ``[t0_s, t1_s)`` of the bridge's ``started`` / ``done`` records,
+samples whose stamp lies in ``[t0_s, t1_s)`` of the bridge's ``started`` / ``done`` records (each
+end :data:`STAMP_TOLERANCE_S` early: a first sample stamped ``t0_s`` rounded to the ns is the run's),
 assigned by stamp, not by arrival (a ``done`` may arrive before the last samples). The train has
 left at ``t0_s + (train length + span) / v`` (the latched descriptions); the free decay is taken
 from ``settle_periods`` (3) periods after that. Stamps are in the monitored lane's time (a
@@ -52,11 +53,27 @@ First mode (:func:`identify_first_mode`)
    covariance by first-order propagation. Valid for one dominant mode in the band; two close modes
    beat and are refused by the scatter rule.
 
-A passage whose free decay is too short (fewer than ``min_cycles`` periods), has samples missing
-(a gap of more than 1.5 sample intervals inside the fit window), too noisy
-(amplitude at its start below ``min_snr`` times the residual RMS), not exponential, or whose ζ1
-is not positive or more uncertain than ``max_rel_std`` gets no numbers: ``identified`` false and
-a one-line ``reason``.
+Real sensors (:func:`analyse_passage`)
+--------------------------------------
+* Static offset: the peak and the level are those of the dynamic signal ``a - offset(t)``; the
+  offset (gravity, bias, drift) comes from the quiet signal before and after a passage found in
+  the signal (:func:`static_offset`: the line through the two medians, one median, or the median
+  of the passage's tail), none for the bridge's own topic (run records: the dynamic acceleration)
+  or with ``raw``. Segmentation works on ``|a - trend|`` (:func:`_trend`).
+* Dropouts: a stamp interval above 1.5 sample intervals (:func:`find_gaps`); non-finite samples
+  are excluded, counted and count as dropouts. The fit of step 4 uses the samples present only;
+  for the band-pass each dropout is filled with the first mode fitted to the samples within one
+  period on either side (:func:`_fill_gaps`), then refilled with the fitted mode and fitted again.
+  A dropout longer than ``max_gap_periods`` inside the fit window refuses the passage.
+* Plausibility (:func:`sensor_warnings`): a dynamic peak above 50 m/s² or a static offset near
+  neither 0 nor g is warned with its likely cause (units).
+* A run of a numerical trial (:data:`adm_sim.protocol.TRIAL_PHASES`) has the level
+  :data:`LEVEL_TRIAL`, never compared with the limit.
+
+A passage whose free decay is too short (fewer than ``min_cycles`` periods), has a dropout longer
+than ``max_gap_periods`` periods inside the fit window, too noisy (amplitude at its start below
+``min_snr`` times the residual RMS), not exponential, or whose ζ1 is not positive or more
+uncertain than ``max_rel_std`` gets no numbers: ``identified`` false and a one-line ``reason``.
 """
 
 from __future__ import annotations
@@ -70,10 +87,25 @@ from adm_sim import protocol as P
 from adm_sim.limits import acc_limit_m_s2
 
 __all__ = ["IdentifySettings", "ModalFit", "Passage", "PassageTracker", "acc_level", "analyse_passage",
-           "analyse_record", "identify_first_mode", "run_topics_for", "segment_signal", "uniform_samples"]
+           "analyse_record", "find_gaps", "identify_first_mode", "run_topics_for", "segment_signal", "sensor_warnings",
+           "static_offset", "uniform_samples"]
 
 #: Level words of a peak against the limit: within (<= warn fraction), near (<= limit), above.
 LEVELS = ("within", "near", "above")
+#: Level word of a numerical trial's run (phases :data:`adm_sim.protocol.TRIAL_PHASES`): never compared
+#: with the limit.
+LEVEL_TRIAL = "trial"
+#: A stamp this close below a run's ``t0_s`` belongs to that run (a stamp is ``t0`` rounded to the ns).
+STAMP_TOLERANCE_S = 1e-9
+#: How the free decay was fitted: no dropout in its window, or across dropouts.
+FIT_GAP_FREE = "gap-free"
+FIT_PRESENT = "least squares on the samples present"
+#: Plausibility of a sensor signal (project's choice): a static offset is expected near 0 (a
+#: sensor that removes gravity: within 0.5 m/s²) or near g (one that measures it: within 1 m/s², a
+#: tilt up to about 25 deg); a sensor in g shows 1 at rest, one in mm/s² about 9807.
+G_M_S2 = 9.80665
+OFFSET_NEAR_ZERO_M_S2 = 0.5
+OFFSET_NEAR_G_M_S2 = 1.0
 
 
 @dataclass(frozen=True)
@@ -108,6 +140,16 @@ class IdentifySettings:
         left; the signal: after the log-linear start) when band-passing: the filter's response to
         what came before has decayed to below 1e-3 by then (a start 2.5 periods after an edge
         biases ζ1 by +0.2 %, 4 periods by less than 0.01 %, noise-free).
+    baseline_s : float
+        The static offset is the median of the quiet samples this long before (and after) a passage
+        found in the signal (:func:`static_offset`).
+    raw : bool
+        Keep the raw signal: no static offset removed (the peak then includes gravity and bias).
+    max_gap_periods : float
+        Longest dropout inside the free decay that the fit bridges, in periods of the first mode.
+    trend_s : float
+        Segmentation: the signal's slow trend (gravity, bias, drift) is the median of consecutive
+        blocks of this length, interpolated between their centres.
     """
 
     min_cycles: float = 5.0
@@ -126,6 +168,10 @@ class IdentifySettings:
     merge_gap_s: float = 2.0
     threshold_m_s2: float | None = None
     settle_periods: float = 3.0
+    baseline_s: float = 2.0
+    raw: bool = False
+    max_gap_periods: float = 1.0
+    trend_s: float = 10.0
 
 
 @dataclass(frozen=True)
@@ -136,7 +182,9 @@ class ModalFit:
     standard uncertainties, ``fd_hz`` the damped frequency, ``t_start_s``/``t_end_s`` the fitted
     window, ``n_cycles`` its length in periods, ``snr`` the amplitude at its start over the residual
     RMS, ``amplitude_m_s2`` that amplitude, ``n_samples`` the samples fitted, ``filtered`` whether
-    they were band-passed, ``log_scatter`` the scatter of the log cycle amplitudes.
+    they were band-passed, ``log_scatter`` the scatter of the log cycle amplitudes, ``gaps`` the
+    dropouts inside the window (``(t_s, duration_s, samples_missing)``) and ``method`` how they
+    were bridged (:data:`FIT_GAP_FREE` or :data:`FIT_PRESENT`).
     """
 
     f1_hz: float
@@ -152,6 +200,8 @@ class ModalFit:
     n_samples: int
     filtered: bool
     log_scatter: float
+    gaps: tuple = ()
+    method: str = "gap-free"
 
     @property
     def zeta1_pct(self):
@@ -185,6 +235,13 @@ class Passage:
     run_id: int | None = None
     phase: str | None = None
     info: dict = field(default_factory=dict)
+    offset_m_s2: float = 0.0
+    offset_drift_m_s3: float = 0.0
+    offset_baseline: str = "none"
+    raw_peak_acc_m_s2: float | None = None
+    n_nonfinite: int = 0
+    gaps: tuple = ()
+    warnings: tuple = ()
 
     @property
     def identified(self):
@@ -200,9 +257,17 @@ class Passage:
              "f1_hz": None if f is None else f.f1_hz, "zeta1_pct": None if f is None else f.zeta1_pct,
              "f1_std_hz": None if f is None else f.f1_std_hz,
              "zeta1_std_pct": None if f is None else f.zeta1_std_pct,
+             "signal": "raw" if self.offset_baseline == BASELINE_RAW else "dynamic",
+             "offset_m_s2": self.offset_m_s2, "offset_drift_m_s3": self.offset_drift_m_s3,
+             "offset_baseline": self.offset_baseline, "raw_peak_acc_m_s2": self.raw_peak_acc_m_s2,
+             "nonfinite_samples": self.n_nonfinite,
+             "nonfinite_handling": ("excluded (dropouts)" if self.n_nonfinite and self.n_samples > self.n_nonfinite
+                                    else "passage refused" if self.n_nonfinite else None),
+             "gaps": [_gap_dict(g) for g in self.gaps], "warnings": list(self.warnings),
              "free_decay": None if f is None else {
                  "t_start_s": f.t_start_s, "t_end_s": f.t_end_s, "n_cycles": f.n_cycles, "snr": f.snr,
-                 "fd_hz": f.fd_hz, "n_samples": f.n_samples, "bandpass": f.filtered, "log_scatter": f.log_scatter}}
+                 "fd_hz": f.fd_hz, "n_samples": f.n_samples, "bandpass": f.filtered, "log_scatter": f.log_scatter,
+                 "method": f.method, "gaps": [_gap_dict(g) for g in f.gaps]}}
         d.update(self.info)
         return d
 
@@ -211,14 +276,36 @@ class Passage:
         head = f"passage {self.index}" + ("" if self.run_id is None else f" (run {self.run_id}"
                                           + ("" if self.phase is None else f", {self.phase}") + ")")
         lost = self.info.get("samples_lost")
-        text = (f"{head}: peak |a| {self.peak_acc_m_s2:.4f} m/s^2 at t={self.t_peak_s:.3f} s, {self.level} the "
-                f"{self.limit_m_s2:g} m/s^2 limit (EN 1990 A2.4.4.2.1)"
-                + (f", {lost} of {self.info['samples_published']} samples lost" if lost else ""))
+        if self.level == LEVEL_TRIAL:
+            level = "a numerical trial, not compared with the limit"
+        else:
+            level = f"{self.level} the {self.limit_m_s2:g} m/s^2 limit (EN 1990 A2.4.4.2.1)"
+        kind = "raw" if self.offset_baseline == BASELINE_RAW else "dynamic"
+        offset = (f" (static offset {self.offset_m_s2:.4g} m/s^2 removed, {self.offset_baseline})"
+                  if kind == "dynamic" and self.offset_m_s2 != 0.0 else "")
+        text = (f"{head}: {kind} peak |a| {self.peak_acc_m_s2:.4f} m/s^2 at t={self.t_peak_s:.3f} s{offset}, {level}"
+                + (f", {lost} of {self.info['samples_published']} samples lost" if lost else "")
+                + (f", {self.n_nonfinite} non-finite samples excluded" if self.n_nonfinite else "")
+                + (f", {len(self.gaps)} dropout(s)" if self.gaps else ""))
         f = self.fit
         if f is None:
             return f"{text}; first mode not identified: {self.reason}"
+        how = "" if f.method == FIT_GAP_FREE else f" ({f.method}, across {len(f.gaps)} dropout(s))"
         return (f"{text}; f1 {f.f1_hz:.4f} Hz (u {f.f1_std_hz:.2g} Hz), zeta1 {f.zeta1_pct:.3f} % "
-                f"(u {f.zeta1_std_pct:.2g} %), {f.n_cycles:.1f} cycles of free decay")
+                f"(u {f.zeta1_std_pct:.2g} %), {f.n_cycles:.1f} cycles of free decay{how}")
+
+
+#: ``offset_baseline`` words: where the static offset removed was taken from.
+BASELINE_RAW = "none (raw signal kept)"
+BASELINE_DYNAMIC = "none (the bridge publishes the dynamic acceleration)"
+BASELINE_BEFORE = "median of the quiet signal before the passage"
+BASELINE_BOTH = "medians of the quiet signal before and after the passage, a straight line between them"
+BASELINE_AFTER = "median of the quiet signal after the passage"
+BASELINE_TAIL = "median of the passage's last samples (no quiet signal before or after it)"
+
+
+def _gap_dict(g):
+    return {"t_s": g[0], "duration_s": g[1], "samples_missing": g[2]}
 
 
 class IdentificationError(Exception):
@@ -402,15 +489,58 @@ def identify_first_mode(t_s, a_m_s2, t_free_s=None, settings=None):
         return None, str(exc)
 
 
+def find_gaps(stamps_s, dt_s):
+    """Dropouts in sorted stamps: every interval above 1.5 sample intervals, as
+    ``(t_s, duration_s, samples_missing)`` (``t_s`` the last stamp before it)."""
+    d = np.diff(stamps_s)
+    return tuple((float(stamps_s[i]), float(d[i]), max(int(round(d[i] / dt_s)) - 1, 1))
+                 for i in np.flatnonzero(d > 1.5 * dt_s))
+
+
+def _missing_on_grid(t, gaps, dt):
+    miss = np.zeros(t.size, bool)
+    for t_a, dur, _ in gaps:
+        miss |= (t > t_a + 0.5 * dt) & (t < t_a + dur - 0.5 * dt)
+    return miss
+
+
+def _fill_gaps(t, x, miss, gaps, f_hz, sigma):
+    """``x`` with its dropouts filled by the first mode fitted to the samples present within one
+    period on either side (linear least squares for its two amplitudes and an offset at the damped
+    frequency ``f_hz`` and decay rate ``sigma``), so that the band-pass filter does not ring on the
+    straight line that linear interpolation draws across a gap. The filled points never enter the
+    fit (:func:`_identify` fits the samples present)."""
+    x = x.copy()
+    w, period = 2 * math.pi * f_hz, 1.0 / f_hz
+    for t_a, dur, _ in gaps:
+        inside = miss & (t > t_a) & (t < t_a + dur)
+        near = ~miss & (t >= t_a - period) & (t <= t_a + dur + period)
+        if not inside.any() or near.sum() < 4:
+            continue
+        tc = t_a + 0.5 * dur
+        tt, ti = t[near] - tc, t[inside] - tc
+        E = np.exp(-sigma * tt)
+        A = np.column_stack([E * np.cos(w * tt), E * np.sin(w * tt), np.ones_like(tt)])
+        b1, b2, c = np.linalg.lstsq(A, x[near], rcond=None)[0]
+        x[inside] = np.exp(-sigma * ti) * (b1 * np.cos(w * ti) + b2 * np.sin(w * ti)) + c
+    return x
+
+
 def _identify(t_s, a_m_s2, t_free_s, s):
-    stamps = np.unique(np.asarray(t_s, dtype=float))
-    t, a, dt, _ = uniform_samples(t_s, a_m_s2)
+    t_in = np.asarray(t_s, dtype=float)
+    a_in = np.asarray(a_m_s2, dtype=float)
+    ok = np.isfinite(a_in) & np.isfinite(t_in)
+    if not ok.all():  # non-finite samples are dropouts (counted by analyse_passage)
+        t_in, a_in = t_in[ok], a_in[ok]
+    stamps = np.unique(t_in)
+    t, a, dt, _ = uniform_samples(t_in, a_in)
     if t.size >= 2 and (t[-1] - t[0]) / dt > 4 * t.size:
         raise IdentificationError(f"{t.size} samples spread over {(t[-1] - t[0]) / dt:.0f} sample intervals: "
                                   f"the record is mostly gaps")
-    if t.size < 32 or not np.all(np.isfinite(a)):
-        raise IdentificationError(f"{t.size} samples{'' if np.all(np.isfinite(a)) else ' with non-finite values'}: "
-                                  f"too few to identify the first mode")
+    if t.size < 32:
+        raise IdentificationError(f"{t.size} finite samples: too few to identify the first mode")
+    gaps_all = find_gaps(stamps, dt)
+    miss = _missing_on_grid(t, gaps_all, dt)
     f_lo, f_hi = s.f_range_hz
     f_hi = min(f_hi, 1.0 / (dt * s.min_samples_per_period))  # at least min_samples_per_period per period
     if f_hi <= f_lo:
@@ -418,12 +548,14 @@ def _identify(t_s, a_m_s2, t_free_s, s):
                                   f"samples per period of any mode above {f_lo:g} Hz")
     x = a - np.median(a)
     # 1. where the free vibration is: run records, else after the largest excursion
-    i_peak = int(np.argmax(np.abs(x)))
+    i_peak = int(np.argmax(np.abs(np.where(miss, 0.0, x))))
     i_from = i_peak if t_free_s is None else int(np.searchsorted(t, t_free_s))
     if i_from >= t.size - 16:
         raise IdentificationError("no free vibration recorded after the train left (the record ends "
                                   f"{(t[-1] - t[min(i_from, t.size - 1)]):.3g} s after it)")
     f0 = _spectral_peak_hz(x[i_from:], dt, f_lo, f_hi)
+    if gaps_all:
+        x = _fill_gaps(t, x, miss, gaps_all, f0, 0.0)
     # 2. band-pass over the whole record
     xf = _bandpass(x, dt, f0, s.band_ratio) if s.bandpass else x
     i_end = t.size - (int(round(1.0 / (f0 * dt))) if s.bandpass else 0)
@@ -431,7 +563,7 @@ def _identify(t_s, a_m_s2, t_free_s, s):
     if t_free_s is not None:
         i_from = int(np.searchsorted(t, t_free_s + s.settle_periods / f0))
     pk = _half_cycle_peaks(xf[:i_end], dt, f0)
-    pk = pk[pk >= i_from]
+    pk = pk[(pk >= i_from) & ~miss[pk]]
     min_peaks = max(4, int(math.ceil(2 * s.min_cycles)))
     n_avail = (t[i_end - 1] - t[min(i_from, i_end - 1)]) * f0
     if pk.size < min_peaks or n_avail < s.min_cycles:
@@ -446,8 +578,8 @@ def _identify(t_s, a_m_s2, t_free_s, s):
     tp, ap = t[pk], np.abs(xf[pk])
     if t_free_s is None:
         # the start rule looks at the cycles well above the noise: 5 % of the largest and 3 noise
-        # levels (robust, from the second differences of the raw samples)
-        d2 = np.diff(x, 2)
+        # levels (robust, from the second differences of the raw samples present)
+        d2 = np.diff(x[~miss], 2)
         noise = float(np.median(np.abs(d2 - np.median(d2)))) / 0.6745 / math.sqrt(6.0)
         above = np.flatnonzero(ap >= max(0.05 * ap.max(), 3.0 * noise))
         if above.size < min_peaks:
@@ -468,15 +600,15 @@ def _identify(t_s, a_m_s2, t_free_s, s):
     i0 = pk[j0]
     if t_free_s is None and s.bandpass:  # the filter's memory of the forced vibration
         i0 = pk[min(int(np.searchsorted(pk, i0 + s.settle_periods / (f0 * dt))), pk.size - 1)]
-    # 4. fit, cut where the envelope meets the noise, refit
+    # 4. fit the samples present, cut where the envelope meets the noise, refit
     fit = None
     for _ in range(2):
-        tw, xw = t[i0:i_end] - t[i0], xf[i0:i_end]
+        tw, xw, keep = t[i0:i_end] - t[i0], xf[i0:i_end], ~miss[i0:i_end]
         n_cyc = tw[-1] * f0 if tw.size else 0.0
         if n_cyc < s.min_cycles:
             raise IdentificationError(f"free decay of {n_cyc:.1f} cycles above the noise after the passage "
                                       f"(< {s.min_cycles:g} cycles needed to identify damping)")
-        p, J, r = _fit(tw, xw, f0, sigma0)
+        p, J, r = _fit(tw[keep], xw[keep], f0, sigma0)
         fit = (p, J, r, tw, xw)
         sigma, wd = p[0], abs(p[1])
         amp = math.hypot(p[2], p[3])
@@ -491,6 +623,23 @@ def _identify(t_s, a_m_s2, t_free_s, s):
         f0, sigma0 = wd / (2 * math.pi), sigma
     assert fit is not None
     p, J, r, tw, xw = fit
+    t_a, t_b = t[i0], t[i0] + tw[-1]
+    gaps = tuple(g for g in gaps_all if g[0] + g[1] > t_a and g[0] < t_b)
+    method = FIT_GAP_FREE
+    if gaps:
+        fd_fit = abs(float(p[1])) / (2 * math.pi)
+        g_long = max(gaps, key=lambda g: g[1])
+        if g_long[1] * fd_fit > s.max_gap_periods:
+            raise IdentificationError(f"a dropout of {g_long[1]:.3g} s ({g_long[1] * fd_fit:.2g} periods, "
+                                      f"{g_long[2]} samples) at t={g_long[0]:.3f} s in the free decay: longer than "
+                                      f"the {s.max_gap_periods:g} period the fit bridges")
+        # refill the dropouts with the fitted mode, band-pass again and refit the samples present
+        x = _fill_gaps(t, a - np.median(a), miss, gaps_all, fd_fit, max(float(p[0]), 0.0))
+        xf = _bandpass(x, dt, fd_fit, s.band_ratio) if s.bandpass else x
+        xw, keep = xf[i0:i0 + tw.size], ~miss[i0:i0 + tw.size]
+        p, J, r = _fit(tw[keep], xw[keep], fd_fit, max(float(p[0]), 1e-6 * fd_fit))
+        method = FIT_PRESENT
+    n_fit = int(r.size)
     sigma, wd = float(p[0]), abs(float(p[1]))
     fd = wd / (2 * math.pi)
     amp = math.hypot(p[2], p[3])
@@ -505,12 +654,6 @@ def _identify(t_s, a_m_s2, t_free_s, s):
     if n_cyc < s.min_cycles:
         raise IdentificationError(f"free decay of {n_cyc:.1f} cycles above the noise after the passage "
                                   f"(< {s.min_cycles:g} cycles needed to identify damping)")
-    window = stamps[(stamps >= t[i0] - 0.5 * dt) & (stamps <= t[i0] + tw[-1] + 0.5 * dt)]
-    gaps = np.diff(window) / dt
-    if gaps.size and gaps.max() > 1.5:
-        k = int(np.argmax(gaps))
-        raise IdentificationError(f"samples missing in the free decay (a gap of {gaps[k]:.0f} sample intervals at "
-                                  f"t={window[k]:.3f} s): it is not uniformly sampled")
     if snr < s.min_snr:
         raise IdentificationError(f"signal-to-noise ratio {snr:.3g} at the start of the free decay "
                                   f"(< {s.min_snr:g} needed to identify damping)")
@@ -533,31 +676,120 @@ def _identify(t_s, a_m_s2, t_free_s, s):
                                   f"(> {100 * s.max_rel_std:g} % allowed)")
     return ModalFit(f1_hz=w1 / (2 * math.pi), zeta1=zeta, f1_std_hz=f1_std, zeta1_std=zeta_std, fd_hz=fd,
                     t_start_s=float(t[i0]), t_end_s=float(t[i0] + tw[-1]), n_cycles=n_cyc, snr=float(snr),
-                    amplitude_m_s2=float(amp), n_samples=int(tw.size), filtered=bool(s.bandpass),
-                    log_scatter=float(scatter))
+                    amplitude_m_s2=float(amp), n_samples=n_fit, filtered=bool(s.bandpass),
+                    log_scatter=float(scatter), gaps=gaps, method=method)
 
 
 # ---------------------------------------------------------------------- passages
+def static_offset(t_s, a_m_s2, before=None, after=None, settings=None):
+    """The static part of a passage's signal (gravity, sensor bias, slow drift), to be removed.
+
+    ``before`` and ``after`` are ``(t_s, a_m_s2)`` of the quiet signal on either side of the
+    passage (finite samples; the last / first ``settings.baseline_s`` are used). With at least 16
+    samples on both sides the offset is the straight line through ``(median t, median a)`` of each
+    (a drifting sensor); with one side the median of that side; with neither the median of the
+    passage's last ``baseline_s`` (the end of its free decay, which oscillates about the offset).
+
+    Returns ``(offset_at(t) callable, drift in m/s³, baseline word)``.
+    """
+    s = settings or IdentifySettings()
+    sides = []
+    for side, last in ((before, True), (after, False)):
+        if side is None:
+            sides.append(None)
+            continue
+        ts, xs = (np.asarray(v, dtype=float) for v in side)
+        ok = np.isfinite(xs)
+        ts, xs = ts[ok], xs[ok]
+        if ts.size:
+            sel = ts >= ts.max() - s.baseline_s if last else ts <= ts.min() + s.baseline_s
+            ts, xs = ts[sel], xs[sel]
+        sides.append((float(np.median(ts)), float(np.median(xs))) if ts.size >= 16 else None)
+    b, e = sides
+    if b is not None and e is not None and e[0] > b[0]:
+        slope = (e[1] - b[1]) / (e[0] - b[0])
+        return (lambda t: b[1] + slope * (np.asarray(t, dtype=float) - b[0])), slope, BASELINE_BOTH
+    if b is not None or e is not None:
+        m = (b or e)[1]
+        return (lambda t: np.full(np.shape(t), m)), 0.0, BASELINE_BEFORE if b is not None else BASELINE_AFTER
+    t, a = np.asarray(t_s, dtype=float), np.asarray(a_m_s2, dtype=float)
+    ok = np.isfinite(a)
+    tail = ok & (t >= t[ok].max() - s.baseline_s) if ok.any() else ok
+    m = float(np.median(a[tail])) if tail.any() else 0.0
+    return (lambda t: np.full(np.shape(t), m)), 0.0, BASELINE_TAIL
+
+
+def sensor_warnings(peak_m_s2, offset_m_s2, baseline, label="passage"):
+    """Plausibility of a sensor's passage: a dynamic peak above the bound of
+    :mod:`adm_sim.model.plausibility` (50 m/s²), a static offset near neither 0 nor g; each with
+    the likely cause (units). Returns the warning texts."""
+    from adm_sim.model.plausibility import ROWS  # noqa: PLC0415  light, but only needed here
+
+    out = []
+    bound = ROWS["acceleration"].limits({})[1]
+    if math.isfinite(peak_m_s2) and peak_m_s2 > bound:
+        out.append(f"{label}: dynamic peak {peak_m_s2:.4g} m/s^2 above the {bound:g} m/s^2 no bridge deck reaches: "
+                   f"are the samples in m/s^2 (mm/s^2 are 1000 times larger, cm/s^2 100 times)?")
+    if baseline not in (BASELINE_RAW, BASELINE_DYNAMIC) and math.isfinite(offset_m_s2):
+        off = abs(offset_m_s2)
+        if off > OFFSET_NEAR_ZERO_M_S2 and abs(off - G_M_S2) > OFFSET_NEAR_G_M_S2:
+            out.append(f"{label}: static offset {offset_m_s2:.4g} m/s^2 is near neither 0 (+-{OFFSET_NEAR_ZERO_M_S2:g}) "
+                       f"nor g ({G_M_S2:g} +-{OFFSET_NEAR_G_M_S2:g} m/s^2; the project's bounds): are the samples in "
+                       f"m/s^2 (a sensor in g shows 1 at rest, one in mm/s^2 about 9807)?")
+    return tuple(out)
+
+
 def analyse_passage(t_s, a_m_s2, *, index=1, limit_m_s2=None, track_type="ballasted", warn_fraction=0.8,
-                    t_free_s=None, settings=None, source="signal", run_id=None, phase=None, info=None):
-    """One :class:`Passage` from its samples: peak ``|a|`` and its time, the level against the
-    limit (``limit_m_s2``, else the one of ``track_type``), and the first mode of its free decay."""
+                    t_free_s=None, settings=None, source="signal", run_id=None, phase=None, info=None,
+                    before=None, after=None, dynamic=False):
+    """One :class:`Passage` from its samples: the static offset removed (:func:`static_offset`:
+    from the quiet signal ``before`` / ``after`` it, none when ``dynamic`` (the bridge's own
+    acceleration) or ``settings.raw``), the dynamic peak ``|a - offset|`` and its time, the level
+    against the limit (``limit_m_s2``, else the one of ``track_type``; a numerical trial's phase:
+    :data:`LEVEL_TRIAL`), the first mode of its free decay. Non-finite samples are excluded and
+    counted (they are dropouts); a passage without enough finite samples gets no numbers."""
+    s = settings or IdentifySettings()
     t = np.asarray(t_s, dtype=float)
     a = np.asarray(a_m_s2, dtype=float)
     limit = acc_limit_m_s2(track_type) if limit_m_s2 is None else float(limit_m_s2)
-    if t.size == 0:
+    trial = phase in P.TRIAL_PHASES
+    fin = np.isfinite(a) & np.isfinite(t)
+    n_bad = int(t.size - fin.sum())
+    common = dict(index=index, limit_m_s2=limit, source=source, run_id=run_id, phase=phase, info=dict(info or {}),
+                  n_nonfinite=n_bad)
+    if not fin.any():
         nan = float("nan")
-        return Passage(index=index, t_start_s=nan, t_end_s=nan, peak_acc_m_s2=nan, t_peak_s=nan, limit_m_s2=limit,
-                       level=acc_level(nan, limit, warn_fraction), n_samples=0, fit=None, reason="no samples",
-                       source=source, run_id=run_id, phase=phase, info=dict(info or {}))
-    absa = np.abs(a)
-    i = int(np.nanargmax(absa)) if np.any(np.isfinite(absa)) else 0
-    peak = float(absa[i]) if np.all(np.isfinite(absa)) else float("inf")
-    fit, reason = identify_first_mode(t, a, t_free_s, settings)
-    return Passage(index=index, t_start_s=float(t.min()), t_end_s=float(t.max()), peak_acc_m_s2=peak,
-                   t_peak_s=float(t[i]), limit_m_s2=limit, level=acc_level(peak, limit, warn_fraction),
-                   n_samples=int(t.size), fit=fit, reason=reason, source=source, run_id=run_id, phase=phase,
-                   info=dict(info or {}))
+        tt = t[np.isfinite(t)]
+        reason = "no samples" if t.size == 0 else f"all {t.size} samples are non-finite (NaN or inf)"
+        return Passage(t_start_s=float(tt.min()) if tt.size else nan, t_end_s=float(tt.max()) if tt.size else nan,
+                       peak_acc_m_s2=nan, t_peak_s=nan, level=LEVEL_TRIAL if trial else acc_level(nan, limit),
+                       n_samples=int(t.size), fit=None, reason=reason,
+                       warnings=(f"passage {index}: {reason}; passage refused",) if t.size else (), **common)
+    tf, af = t[fin], a[fin]
+    order = np.argsort(tf, kind="stable")
+    tf, af = tf[order], af[order]
+    if s.raw:
+        off_fn, drift, baseline = (lambda x: np.zeros(np.shape(x))), 0.0, BASELINE_RAW
+    elif dynamic:
+        off_fn, drift, baseline = (lambda x: np.zeros(np.shape(x))), 0.0, BASELINE_DYNAMIC
+    else:
+        off_fn, drift, baseline = static_offset(tf, af, before, after, s)
+    x = af - off_fn(tf)
+    absx = np.abs(x)
+    i = int(np.argmax(absx))
+    peak = float(absx[i])
+    offset = float(off_fn(tf[i]))
+    stamps = np.unique(tf)
+    gaps = find_gaps(stamps, float(np.median(np.diff(stamps)))) if stamps.size > 1 else ()
+    fit, reason = identify_first_mode(tf, x, t_free_s, s)
+    warns = list(sensor_warnings(peak, offset, baseline, f"passage {index}"))
+    if n_bad:
+        warns.append(f"passage {index}: {n_bad} non-finite samples (NaN or inf) excluded; they count as dropouts")
+    return Passage(t_start_s=float(tf[0]), t_end_s=float(tf[-1]), peak_acc_m_s2=peak, t_peak_s=float(tf[i]),
+                   level=LEVEL_TRIAL if trial else acc_level(peak, limit, warn_fraction), n_samples=int(t.size),
+                   fit=fit, reason=reason, offset_m_s2=offset, offset_drift_m_s3=float(drift),
+                   offset_baseline=baseline, raw_peak_acc_m_s2=float(np.max(np.abs(af))), gaps=gaps,
+                   warnings=tuple(warns), **common)
 
 
 def _moving_max(x, n):
@@ -566,18 +798,41 @@ def _moving_max(x, n):
     return maximum_filter1d(x, size=max(1, n), mode="nearest")
 
 
+def _trend(t, a, block_s):
+    """The slow part of a signal: medians of consecutive ``block_s`` blocks, linear between their
+    centres (constant beyond the first and last); a passage's oscillation has its median near the
+    offset, so gravity, bias and drift are followed and the vibration is not."""
+    n = t.size
+    dt = (t[-1] - t[0]) / max(n - 1, 1)
+    nb = max(1, int(round(block_s / dt))) if dt > 0 else n
+    if n < 2 * nb:
+        return np.full(n, np.median(a))
+    k = n // nb
+    blocks = a[:k * nb].reshape(k, nb)
+    tc = t[:k * nb].reshape(k, nb).mean(axis=1)
+    return np.interp(t, tc, np.median(blocks, axis=1))
+
+
 def segment_signal(t_s, a_m_s2, settings=None):
     """Passages in a record without run records: ``[(i_start, i_end), ...]`` (``i_end`` exclusive)
-    into the sorted samples, by the envelope rule of the module docstring."""
+    into the sorted samples, by the envelope rule of the module docstring (of ``|a - trend|``,
+    :func:`_trend`; non-finite samples are left out of the rule)."""
     s = settings or IdentifySettings()
-    t, a, dt, _ = uniform_samples(t_s, a_m_s2)
+    t_all = np.sort(np.asarray(t_s, dtype=float))
+    a_in = np.asarray(a_m_s2, dtype=float)[np.argsort(np.asarray(t_s, dtype=float), kind="stable")]
+    fin = np.isfinite(a_in)
+    t, a, dt, _ = uniform_samples(t_all[fin], a_in[fin])
     if t.size < 4:
         return []
-    x = np.abs(a - np.median(a))
+    x = np.abs(a - _trend(t, a, s.trend_s))
     n_win = max(2, int(round(s.window_s / dt)))
     env = _moving_max(x, n_win)
     n_blocks = max(1, x.size // n_win)
-    noise = float(np.percentile(x[:n_blocks * n_win].reshape(n_blocks, -1).max(axis=1), 10))
+    blocks = x[:n_blocks * n_win].reshape(n_blocks, -1).max(axis=1)
+    # the noise level from blocks of samples present: a dropout's interpolated line has no noise
+    miss = _missing_on_grid(t, find_gaps(np.unique(t_all[fin]), dt), dt)[:n_blocks * n_win]
+    whole = ~miss.reshape(n_blocks, -1).any(axis=1)
+    noise = float(np.percentile(blocks[whole] if whole.any() else blocks, 10))
     trigger = s.threshold_m_s2 if s.threshold_m_s2 is not None else min(s.trigger_snr * noise,
                                                                          s.trigger_fraction * float(x.max()))
     release = min(s.release_snr * noise, trigger)
@@ -591,9 +846,19 @@ def segment_signal(t_s, a_m_s2, settings=None):
         else:
             merged.append([b, e])
     # map back to the caller's samples (uniform_samples may have resampled)
-    order_t = np.sort(np.asarray(t_s, dtype=float))
-    return [(int(np.searchsorted(order_t, t[b])), int(np.searchsorted(order_t, t[e - 1], side="right")))
+    return [(int(np.searchsorted(t_all, t[b])), int(np.searchsorted(t_all, t[e - 1], side="right")))
             for b, e in merged]
+
+
+def _signal_analyses(t, a, segs, settings):
+    """``(t, a, before, after)`` of each segment of sorted samples: the quiet samples on either side
+    (up to the neighbouring passages) for the static offset."""
+    out = []
+    for k, (b, e) in enumerate(segs):
+        lo = segs[k - 1][1] if k else 0
+        hi = segs[k + 1][0] if k + 1 < len(segs) else t.size
+        out.append((t[b:e], a[b:e], (t[lo:b], a[lo:b]), (t[e:hi], a[e:hi])))
+    return out
 
 
 def analyse_record(t_s, a_m_s2, *, limit_m_s2=None, track_type="ballasted", warn_fraction=0.8, settings=None):
@@ -602,9 +867,9 @@ def analyse_record(t_s, a_m_s2, *, limit_m_s2=None, track_type="ballasted", warn
     a = np.asarray(a_m_s2, dtype=float)
     order = np.argsort(t, kind="stable")
     t, a = t[order], a[order]
-    return [analyse_passage(t[b:e], a[b:e], index=k + 1, limit_m_s2=limit_m_s2, track_type=track_type,
-                            warn_fraction=warn_fraction, settings=settings)
-            for k, (b, e) in enumerate(segment_signal(t, a, settings))]
+    return [analyse_passage(tp, ap, index=k + 1, limit_m_s2=limit_m_s2, track_type=track_type,
+                            warn_fraction=warn_fraction, settings=settings, before=bf, after=af)
+            for k, (tp, ap, bf, af) in enumerate(_signal_analyses(t, a, segment_signal(t, a, settings), settings))]
 
 
 # ---------------------------------------------------------------------- incremental: the monitor
@@ -663,19 +928,25 @@ class PassageTracker:
         self.train_length_m: float | None = None
         self.bridge_track: str | None = None
         self.bridge_limit: float | None = None
+        self.bridge_name: str | None = None
         self.seen_records = False
         self.loose_t: list[float] = []
         self.loose_a: list[float] = []
         self.dropped = 0  # samples outside every run (with run records)
+        self.nonfinite = 0  # NaN or infinite samples received (each passage counts its own)
         self.records_expected = False  # live: a publisher of run records is on the graph
         self.last_sample_wall_s = 0.0
         self.completed: set[int] = set()  # run ids reported (a repeated done is ignored)
+        self._reported_until: float | None = None  # signal passages: the last reported one's end stamp
+        self._segmented_n = -1  # samples seen at the last live segmentation
 
     # ------------------------------------------------------------------ inputs
     def bridge_description(self, rec):
         b = rec.get("bridge") or {}
         if "span_m" in b:
             self.span_m = float(b["span_m"])
+        if b.get("name"):
+            self.bridge_name = str(b["name"])
         self.bridge_track = rec.get("track_type") or self.bridge_track
         if rec.get("acc_limit_m_s2") is not None:
             self.bridge_limit = float(rec["acc_limit_m_s2"])
@@ -702,7 +973,7 @@ class PassageTracker:
             self.runs.append(run)
             keep_t, keep_a = [], []
             for t, a in zip(self.loose_t, self.loose_a):  # samples that overtook their started record
-                if t >= run.t0_s:
+                if t >= run.t0_s - STAMP_TOLERANCE_S:
                     self._put(run, t, a)
                 else:
                     keep_t.append(t)
@@ -728,8 +999,10 @@ class PassageTracker:
         """One acceleration sample (stamp in s, m/s²)."""
         t, a = float(t_s), float(a_m_s2)
         self.last_sample_wall_s = wall_s
-        for run in self.runs:
-            if run.t0_s <= t and (run.t1_s is None or t < run.t1_s):
+        if not math.isfinite(a):
+            self.nonfinite += 1
+        for run in self.runs:  # [t0_s, t1_s), a stamp within 1 ns below a boundary on its later side
+            if run.t0_s - STAMP_TOLERANCE_S <= t and (run.t1_s is None or t < run.t1_s - STAMP_TOLERANCE_S):
                 self._put(run, t, a)
                 run.last_wall_s = wall_s
                 break
@@ -737,7 +1010,7 @@ class PassageTracker:
             self.loose_t.append(t)
             self.loose_a.append(a)
         for run in list(self.runs):  # a sample at or after a run's end completes it
-            if run.t1_s is not None and t >= run.t1_s:
+            if run.t1_s is not None and t >= run.t1_s - STAMP_TOLERANCE_S:
                 self._complete(run)
 
     def poll(self, wall_s):
@@ -751,7 +1024,11 @@ class PassageTracker:
             if run.t1_s is not None:
                 self._complete(run)
         if not self.seen_records and self.loose_t and not self.records_expected:
-            self._signal_passages(final=wall_s - self.last_sample_wall_s >= self.quiet_s)
+            final = wall_s - self.last_sample_wall_s >= self.quiet_s
+            n = len(self.loose_t)
+            if final or n != self._segmented_n:  # nothing new: nothing to segment again
+                self._segmented_n = n
+                self._signal_passages(final=final)
 
     def flush(self):
         """Complete everything (end of a recording or of the monitor)."""
@@ -782,11 +1059,12 @@ class PassageTracker:
             return self.bridge_limit, track
         return acc_limit_m_s2(track), track
 
-    def _emit(self, t, a, t_free_s, source, run_id=None, phase=None, info=None):
+    def _emit(self, t, a, t_free_s, source, run_id=None, phase=None, info=None, before=None, after=None):
         limit, track = self._limit()
         p = analyse_passage(t, a, index=len(self.passages) + 1, limit_m_s2=limit, track_type=track,
                             warn_fraction=self.warn_fraction, t_free_s=t_free_s, settings=self.settings,
-                            source=source, run_id=run_id, phase=phase, info={"track_type": track, **(info or {})})
+                            source=source, run_id=run_id, phase=phase, info={"track_type": track, **(info or {})},
+                            before=before, after=after, dynamic=source == "run records")
         self.passages.append(p)
         if self.on_passage is not None:
             self.on_passage(p)
@@ -797,7 +1075,7 @@ class PassageTracker:
         self.completed.add(run.run_id)
         if self.loose_t:  # samples left before this run's end belong to no run
             t = np.asarray(self.loose_t)
-            keep = t >= run.t1_s
+            keep = t >= run.t1_s - STAMP_TOLERANCE_S
             self.dropped += int((~keep).sum())
             self.loose_t = t[keep].tolist()
             self.loose_a = np.asarray(self.loose_a)[keep].tolist()
@@ -806,28 +1084,34 @@ class PassageTracker:
         t_free = None
         if run.speed_m_s and self.span_m is not None and self.train_length_m is not None:
             t_free = run.t0_s + (self.train_length_m + self.span_m) / run.speed_m_s
-        info = {"t_train_left_s": t_free, "samples_published": run.published,
+        info = {"bridge": self.bridge_name, "t_train_left_s": t_free, "samples_published": run.published,
                 "samples_lost": None if run.published is None else max(run.published - len(run.t), 0)}
         self._emit(np.asarray(run.t), np.asarray(run.a), t_free, "run records", run.run_id,
                    self.phases.get(run.run_id), info)
 
     def _signal_passages(self, final):
+        """Segment the samples without a run; report the passages followed by ``quiet_s`` of quiet
+        signal (all at ``final``). The last reported passage stays in the buffer, so the trigger of
+        the next segmentation (``min(trigger_snr σ_n, trigger_fraction max)``) sees it as the
+        segmentation of the whole record would, and is not pulled down to its decaying tail."""
         t, a = np.asarray(self.loose_t), np.asarray(self.loose_a)
         segs = segment_signal(t, a, self.settings)
         order = np.argsort(t, kind="stable")
         t, a = t[order], a[order]
-        done_until = None
-        for b, e in segs:
+        last_b = None
+        for (b, e), (tp, ap, bf, af) in zip(segs, _signal_analyses(t, a, segs, self.settings)):
+            if self._reported_until is not None and t[b] <= self._reported_until:
+                continue  # reported before (its end may move a little as the buffer grows)
             if not final and t[-1] - t[e - 1] < self.quiet_s:
                 break  # may go on
-            self._emit(t[b:e], a[b:e], None, "signal")
-            done_until = e
+            self._emit(tp, ap, None, "signal", before=bf, after=af)
+            self._reported_until, last_b = float(t[e - 1]), b
         if final:
             self.loose_t, self.loose_a = [], []
-        elif done_until is not None or (t.size and t[-1] - t[0] > self.max_buffer_s):
-            # keep some quiet signal for the noise level, drop what was reported or too old
-            start = done_until if done_until is not None else 0
-            keep = t >= max(t[start - 1] if start else t[0], t[-1] - self.max_buffer_s)
+            self._reported_until = None
+        elif last_b is not None or (t.size and t[-1] - t[0] > self.max_buffer_s):
+            # keep the last reported passage and what follows; drop what is older or too old
+            keep = t >= max(t[last_b] if last_b is not None else t[0], t[-1] - self.max_buffer_s)
             self.loose_t, self.loose_a = t[keep].tolist(), a[keep].tolist()
 
 

@@ -1,21 +1,26 @@
-"""Monitor node: the passages of any ``geometry_msgs/AccelStamped`` topic, their EN 1990 level and
-the first mode (f1, ζ1) identified from each free decay.
+"""Monitor node: the passages of any ``geometry_msgs/AccelStamped`` or ``sensor_msgs/Imu`` topic,
+their EN 1990 level and the first mode (f1, ζ1) identified from each free decay.
 
 A thin adapter over :class:`adm_sim.monitoring.modal_id.PassageTracker` (ROS-free): it subscribes to the
-acceleration ``topic`` (ours, ``/adm/midspan/accel``, or a real accelerometer's), to the run
+acceleration ``topic`` (ours, ``/adm/midspan/accel``, or a real accelerometer's; ``axis`` the
+component and its sign, ``z`` up by default, :mod:`adm_sim.monitoring.sensors`), to the run
 records on ``status_topic`` when a graph publishes them (one passage per run, samples assigned by
 stamp) and to the latched bridge and train descriptions (span, train length, track type and
-limit); without run records it segments passages by the signal. ``|a|`` is used, so the sign
-convention of the sensor does not matter. Each passage is logged as one line and, with
-``json_path``, the JSON file (``{"passages": [...]}``, :meth:`adm_sim.monitoring.modal_id.Passage.to_dict`)
-is rewritten after each one (written beside and renamed: always complete).
+limit); without run records it segments passages by the signal and removes each passage's static
+offset (gravity, bias; ``raw`` keeps it). ``|a|`` is used, so the sign convention of the sensor
+does not matter for the peak. Each passage is logged as one line and, with ``json_path``, the JSON
+file (``{"passages": [...]}``, :meth:`adm_sim.monitoring.modal_id.Passage.to_dict`) is rewritten
+after each one (written beside and renamed: always complete).
 
-QoS: the samples RELIABLE, KEEP_LAST 5000 (the depth of the bridge's monitoring topics); when the
-topic's publishers offer only BEST_EFFORT (the sensor-data profile of many drivers) the
-subscription is made again best effort, which a reliable subscription would not match.
+QoS: the sample subscription is made once the topic's publishers are on the graph, with their
+type and reliability: RELIABLE, KEEP_LAST 5000 (the depth of the bridge's monitoring topics), or
+BEST_EFFORT when a publisher offers only that (the sensor-data profile of many drivers; a reliable
+subscription would not match it). A best-effort publisher that joins later switches the
+subscription to best effort (the monitor's own log line, not rclpy's incompatible-QoS warning).
 
-Bad input (exit 2, one line ``error: monitor: ...``): a parameter out of range, a topic that has
-another type than ``AccelStamped``, a topic that no publisher offers within ``topic_timeout_s``.
+Bad input (exit 2, one line ``error: monitor: ...`` and nothing before it): a parameter out of
+range, a topic that has another type than ``AccelStamped`` or ``Imu``, an Imu without the chosen
+axis, a topic that no publisher offers within ``topic_timeout_s``.
 
     python -m adm_sim.nodes.monitor_node --ros-args -p topic:=/adm/midspan/accel -p json_path:=passages.json
 """
@@ -27,20 +32,23 @@ import sys
 import time
 
 from geometry_msgs.msg import AccelStamped
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import Imu
 from std_msgs.msg import String
 
 from adm_sim import protocol as P
 from adm_sim.errors import InputError
 from adm_sim.limits import TRACK_TYPES, check_track_type
 from adm_sim.monitoring.modal_id import IdentifySettings, PassageTracker, run_topics_for
+from adm_sim.monitoring.sensors import ACCEL_TYPE, AXES, IMU_TYPE, SENSOR_TYPES, check_imu, parse_axis, sample_of
 from adm_sim.nodes import common as c
 
 __all__ = ["ACCEL_TYPE", "MONITOR_SPECS", "MonitorNode", "main", "passages_document"]
 
-#: The message type the monitor reads, as the ROS graph and MCAP schemas name it.
-ACCEL_TYPE = "geometry_msgs/msg/AccelStamped"
+#: Message classes of the types the monitor reads.
+SENSOR_CLASSES = {ACCEL_TYPE: AccelStamped, IMU_TYPE: Imu}
 #: Samples: reliable, as deep as the bridge's monitoring history (bursts of whole step blocks).
 QOS_SAMPLES = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=5000, reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.VOLATILE)
@@ -49,7 +57,9 @@ QOS_SAMPLES_BEST_EFFORT = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=5000
                                      durability=DurabilityPolicy.VOLATILE)
 
 MONITOR_SPECS = [
-    c.ParamSpec("topic", P.TOPIC_ACCEL, "", f"the {ACCEL_TYPE} topic to monitor"),
+    c.ParamSpec("topic", P.TOPIC_ACCEL, "", f"the {ACCEL_TYPE} or {IMU_TYPE} topic to monitor"),
+    c.ParamSpec("axis", "z", "", f"the sensor's vertical axis and its sign: {' | '.join(AXES)} (z up)"),
+    c.ParamSpec("raw", False, "", "keep the raw signal: no static offset (gravity, bias) removed"),
     c.ParamSpec("status_topic", "", "", f"run records ({P.TOPIC_STATUS} JSON); empty = the one beside the "
                                         "topic when it ends in /adm/midspan/accel"),
     c.ParamSpec("track_type", "", "", f"limit of EN 1990 A2.4.4.2.1: {' | '.join(TRACK_TYPES)}; empty = the "
@@ -82,7 +92,8 @@ class MonitorNode(c.ParamNodeMixin, Node):
             check_track_type("track_type", track)
         self.topic = self.resolve_topic_name(p["topic"]) if p["topic"] else ""
         if not self.topic:
-            raise InputError("topic: '' is empty; give the AccelStamped topic to monitor")
+            raise InputError("topic: '' is empty; give the AccelStamped or Imu topic to monitor")
+        self.axis, self.sign = parse_axis(p["axis"], "axis")
         self.timeout_s = float(p["topic_timeout_s"])
         self.on_passage = on_passage
         self.json_path = p["json_path"] or None
@@ -91,11 +102,13 @@ class MonitorNode(c.ParamNodeMixin, Node):
 
             claim_output(self.json_path, "json_path", bool(p["overwrite"]), ".json",
                          overwrite_hint="set -p overwrite:=true to replace it")
-        settings = IdentifySettings(min_cycles=float(p["min_cycles"]), bandpass=bool(p["bandpass"]))
+        settings = IdentifySettings(min_cycles=float(p["min_cycles"]), bandpass=bool(p["bandpass"]), raw=bool(p["raw"]))
         self.tracker = PassageTracker(track_type=track, warn_fraction=float(p["warn_fraction"]), settings=settings,
                                       on_passage=self._report, settle_s=float(p["settle_s"]),
                                       quiet_s=float(p["quiet_s"]))
-        self.sub = self.create_subscription(AccelStamped, self.topic, self._on_accel, QOS_SAMPLES)
+        self.sub = None  # made once the topic's publishers (type, reliability) are known: check_topic
+        self.kind = None
+        self.imu_checked = False
         self.best_effort = False
         ours = run_topics_for(self.topic)
         status = p["status_topic"] or (ours[0] if ours else "")
@@ -108,14 +121,17 @@ class MonitorNode(c.ParamNodeMixin, Node):
         self.started = time.monotonic()
         self.seen = False
         self.samples = 0
+        self.status_text = f" with run records on {status}" if status else ""
         self.create_timer(0.2, self._tick)
-        self._log(f"monitoring {self.topic}" + (f" with run records on {status}" if status else ""))
 
     # ------------------------------------------------------------------ callbacks
     def _on_accel(self, msg):
-        t = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec  # the sample's own time
+        if not self.imu_checked:
+            check_imu(msg, self.axis, f"topic: {self.topic!r}")
+            self.imu_checked = True
+        t, a = sample_of(msg, self.kind, self.axis, self.sign)  # the sample's own stamp
         self.samples += 1
-        self.tracker.sample(t, msg.accel.linear.z, time.monotonic())
+        self.tracker.sample(t, a, time.monotonic())
 
     def _on_status(self, msg):
         self.tracker.status(P.decode(msg.data), time.monotonic())
@@ -135,16 +151,23 @@ class MonitorNode(c.ParamNodeMixin, Node):
     # ------------------------------------------------------------------ graph
     def check_topic(self):
         """Raise :class:`InputError` when the topic has another type, or when no publisher offered
-        it within ``topic_timeout_s``; subscribe best effort when its publishers are best effort."""
-        infos = self.get_publishers_info_by_topic(self.topic)  # publishers only (our subscription is on it too)
+        it within ``topic_timeout_s``; subscribe once its publishers are found, with their type and
+        reliability (best effort when one of them offers only that)."""
+        infos = self.get_publishers_info_by_topic(self.topic)  # publishers only
         types = sorted({i.topic_type for i in infos})
         if types:
-            if ACCEL_TYPE not in types:
-                raise InputError(f"topic: {self.topic!r} has type {', '.join(types)}, not {ACCEL_TYPE}; give an "
-                                 f"AccelStamped topic")
+            kinds = [t for t in types if t in SENSOR_TYPES]
+            if not kinds or len(types) > 1:
+                raise InputError(f"topic: {self.topic!r} has type {', '.join(types)}, not {' or '.join(SENSOR_TYPES)}; "
+                                 f"give an AccelStamped or Imu topic")
             if not self.seen:
                 self.seen = True
-                self._match_reliability()
+                self.kind = kinds[0]
+                self.imu_checked = self.kind != IMU_TYPE
+                best = any(i.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT for i in infos)
+                self._subscribe(best)
+                self._log(f"monitoring {self.topic} ({self.kind}, axis {'-' if self.sign < 0 else ''}{self.axis}"
+                          f"{', best effort' if best else ''}){self.status_text}")
         elif not self.seen and time.monotonic() - self.started > self.timeout_s:
             raise InputError(f"topic: {self.topic!r} did not appear within {self.timeout_s:g} s on "
                              f"ROS_DOMAIN_ID {self._domain_id()}; check the name and the domain id")
@@ -155,14 +178,20 @@ class MonitorNode(c.ParamNodeMixin, Node):
         except Exception:  # pragma: no cover - older rclpy
             return "?"
 
-    def _match_reliability(self):
-        infos = self.get_publishers_info_by_topic(self.topic)
-        if infos and all(i.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT for i in infos) \
-                and not self.best_effort:
+    def _subscribe(self, best_effort):
+        if self.sub is not None:
             self.destroy_subscription(self.sub)
-            self.sub = self.create_subscription(AccelStamped, self.topic, self._on_accel, QOS_SAMPLES_BEST_EFFORT)
-            self.best_effort = True
-            self._log(f"{self.topic}: publishers are best effort; subscribed best effort")
+        self.best_effort = bool(best_effort)
+        events = SubscriptionEventCallbacks(incompatible_qos=self._on_incompatible)
+        self.sub = self.create_subscription(SENSOR_CLASSES[self.kind], self.topic, self._on_accel,
+                                            QOS_SAMPLES_BEST_EFFORT if best_effort else QOS_SAMPLES,
+                                            event_callbacks=events)
+
+    def _on_incompatible(self, _status):
+        """A best-effort publisher joined a reliable subscription: subscribe best effort (matches both)."""
+        if not self.best_effort:
+            self._subscribe(True)
+            self._log(f"{self.topic}: a best-effort publisher joined; subscribed best effort")
 
     # ------------------------------------------------------------------ reports
     def _log(self, text):
@@ -190,7 +219,7 @@ class MonitorNode(c.ParamNodeMixin, Node):
 def passages_document(tracker, topic, source):
     """The JSON document of the passages: ``{"passages": [...], "topic", "source", "dropped_samples"}``."""
     return {"passages": [p.to_dict() for p in tracker.passages], "topic": topic, "source": source,
-            "dropped_samples": tracker.dropped}
+            "dropped_samples": tracker.dropped, "nonfinite_samples": tracker.nonfinite}
 
 
 def main(args=None):
@@ -209,12 +238,13 @@ def main(args=None):
         print(f"error: monitor: {' '.join(str(exc).split())}", file=sys.stderr, flush=True)
         code = 2
     finally:
-        if node is not None:
+        if node is not None and code == 0:  # bad input: nothing reported or written after the error line
             try:
                 node.finish()
             except InputError as exc:  # the last JSON could not be written
                 print(f"error: monitor: {exc}", file=sys.stderr, flush=True)
                 code = code or 2
+        if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
         from adm_sim.files import release_all
