@@ -301,11 +301,12 @@ def _scheduler(text):
 
 
 def cmd_study(args):
-    from adm_calib.study import StudySettings, canonical_trains, run_study, select_cases  # noqa: PLC0415  start-up: only this subcommand (370 ms)
+    from adm_calib.study import StudySettings, run_study, select_cases  # noqa: PLC0415  start-up: only this subcommand (370 ms)
+
+    from adm_calib.study.own_train import check_dim_step, study_step_s, study_trains  # noqa: PLC0415  start-up: only this subcommand
 
     out, _ = _out_dir(args.out, "--out", (), True)
-    trains = _once([canonical_trains([t], field="--trains")[0] for t in _list(args.trains, "--trains")],
-                   "--trains", args.trains)
+    trains, files = study_trains(_list(args.trains, "--trains"), "--trains")
     mfs = _once(_mass_functions(args.mass_functions), "--mass-functions", args.mass_functions)
     spans = _spans(args.spans)
     fis = _freq_indices(args.freq_index)
@@ -322,14 +323,16 @@ def cmd_study(args):
     settings = StudySettings(speeds=args.speeds, dim_grid=args.dim_grid, steps_per_period=spp,
                              dense_maxima=args.dense_maxima, refine_speed=args.refine_speed,
                              irregularity=args.irregularity)
-    cases = select_cases(trains, mfs, spans, fis)
+    cases = select_cases(trains, mfs, spans, fis, own=files)
     if not cases:
         raise InputError(f"--spans/--freq-index: the options select no case (spans are the integers "
                          f"4..40 m; --spans {args.spans!r} holds none)")
+    for tf in files.values():  # vehicles the DIM's RK4 step cannot follow: refused before anything is written
+        check_dim_step(tf, study_step_s(cases, spp))
     make_output_folder(out, "--out")
     options = {"trains": trains, "mass_functions": mfs, "spans_m": list(spans), "freq_index": fis,
                "limit": limit, "workers": workers, "scheduler": scheduler, "retry_errors": args.retry_errors,
-               "argv": sys.argv[1:]}
+               "train_files": {n: f.path for n, f in files.items()}, "argv": sys.argv[1:]}
     print(f"study: {len(cases)} cases selected ({len(trains)} trains); results in {Path(args.out) / 'results.jsonl'}",
           flush=True)
 
@@ -340,7 +343,7 @@ def cmd_study(args):
     cb, close = progress_callback("study", None, unit="case", leave=True, mininterval=0.1)  # bar on a terminal
     try:
         run = run_study(args.out, cases, settings=settings, workers=workers, scheduler=scheduler, limit=limit,
-                        progress=cb, retry_errors=args.retry_errors, options=options)
+                        progress=cb, retry_errors=args.retry_errors, options=options, train_files=files)
     except KeyboardInterrupt:
         print("error: interrupted while closing the cluster; rerun the same command to resume", file=sys.stderr)
         return 130
@@ -547,7 +550,9 @@ def build_parser():
     s = sub.add_parser("study", help="the parametric study (Section 3.3) on a dask cluster, resumable")
     s.add_argument("--out", required=True, help="study directory: results.jsonl (one line per case) and study.json; "
                                                 "rerun with the same --out to resume")
-    s.add_argument("--trains", default="ICE-2,Eurostar,Railjet,ICE-4")
+    s.add_argument("--trains", default="ICE-2,Eurostar,Railjet,ICE-4",
+                   help="comma list of ICE-2, Eurostar, Railjet, ICE-4, Eurostar-table and train or vehicle files "
+                        "(.toml; the study records each file's content and SHA-256, docs/own_train.md)")
     s.add_argument("--mass-functions", default="mu1,mu2,mu3,mu4,mu5,mu6", help="Table 1 mass functions")
     s.add_argument("--spans", default="4:40", help=option_help("--spans", "span range lo:hi (integer spans of the "
                                                                           "field), each end"))
