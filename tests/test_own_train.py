@@ -241,3 +241,168 @@ def test_paper_trains_pass_the_step_check_over_the_field():
     assert dt == pytest.approx(1.0 / (9 * 2.1092025439033097 * 16), rel=1e-9)
     for f in sorted((ROOT / "src" / "adm_sim" / "data" / "vehicles").glob("*.toml")):
         ot.check_dim_step(ot.read_train_file(str(f)), dt)
+
+
+# ---------------------------------------------------------------------- 2. the fit of such a study
+@pytest.fixture(scope="module")
+def ice2_file_fit(ice2_file_study, tmp_path_factory):
+    """``adm-calib study-fit`` on the slice study of the ICE-2 vehicle file."""
+    out = tmp_path_factory.mktemp("ice2_file_fit")
+    assert main(["study-fit", "--results", str(ice2_file_study / "results.jsonl"), "--out", str(out)]) == 0
+    return out
+
+
+def _shipped_fit():
+    return st.fit_study(list(_shipped_slice().values()))
+
+
+def test_fit_of_the_file_train_equals_the_built_in_functions(ice2_file_fit):
+    """The functions file's least-squares mu1 row against the fit of the shipped built-in ICE-2 study on
+    the same slice (Appendix B form: a, b, c, d, upper limit, R², residuals) to 1e-9; the
+    conservative row against the linear programme on the shipped cases to 1e-9."""
+    ref = _shipped_fit().fits[("ICE-2", "mu1")]
+    assert ref.fit is not None and len(ref.minima) == 5
+    data = tomllib.loads((ice2_file_fit / "functions_ICE-2.toml").read_text())
+    assert data["format"] == ot.FUNCTIONS_FORMAT and data["train"] == "ICE-2"
+    assert data["train_sha256"] == hashlib.sha256(ICE2_FILE.read_bytes()).hexdigest()
+    assert data["columns"] == list(ot.COLUMNS) and data["exclusion_rule"] == "step2" and data["cases_used"] == 20
+    row = data["least_squares"]["mu1"]
+    c = ref.fit
+    want = [*c.coefficients, c.upper_limit_hz, c.r2, c.max_res_pct, c.min_res_pct]
+    assert np.allclose(row, want, rtol=1e-9, atol=1e-12)
+    from adm_calib.study.conservative import conservative_cubic
+    recs = list(_shipped_slice().values())
+    lp = conservative_cubic([r["n0_hz"] for r in recs], [r["delta_zeta_vbi_pct"] for r in recs])
+    assert np.allclose(data["conservative"]["mu1"][:5], [*lp.coefficients, lp.upper_limit_hz], rtol=1e-9, atol=1e-12)
+    # the study's cases for recommend's warnings: the 20 cases, n0 and dz to 1e-6 as written
+    cases = ot.read_functions(str(ice2_file_fit / "functions_ICE-2.toml")).cases
+    ref_recs = _shipped_slice()
+    assert len(cases) == 20
+    for cs in cases:
+        r = ref_recs[(cs.bridge, "ICE-2")]
+        assert cs.n0_hz == pytest.approx(r["n0_hz"], abs=1e-6)
+        assert cs.delta_zeta_vbi_pct == pytest.approx(r["delta_zeta_vbi_pct"], abs=1e-6)
+
+
+def test_fit_writes_the_figures_and_the_quantities(ice2_file_fit):
+    for png in ("fig16_dz_vs_span.png", "fig18_lower_bounds.png", "fig17_lower_bound_ICE-2.png"):
+        assert (ice2_file_fit / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    text = (ice2_file_fit / "lower_bounds_fit.txt").read_text()
+    # Eq. (1) for the ICE-2 PC bogie: sqrt(2 k_p / m_b) / (2 pi) = 5.84 Hz, as Section 4.2.2 quotes it
+    from adm_sim.model.trains import load_train
+    pc = load_train("ICE-2").vehicle_types["PC"]
+    n_p = math.sqrt(2 * pc.k_p_N_m / pc.m_b_kg) / (2 * math.pi)
+    assert round(n_p, 2) == 5.84
+    assert f"n_p = {n_p:.2f} Hz (Eq. 1)" in text and "Section 4.2.2 quantities of the train file 'ice2_vehicles.toml'" in text
+
+
+def test_section_422_quantities_of_the_example_train():
+    """The example train: the test car's mass on one wheelset, n = sqrt(k/m) / (2 pi); the wagon body on
+    two, sqrt(2 k / m) / (2 pi) (Eq. 1's form); mass = sum of the axle loads / g."""
+    q = ot.quantities_of_file(ot.read_train_file(str(EXAMPLE_FILE)))
+    by = {w.vehicle: w for w in q.wheel_bodies}
+    assert by["test car"].bounce_frequency_hz == pytest.approx(math.sqrt(1595e3 / 5750) / (2 * math.pi), rel=1e-12)
+    assert by["wagon"].bounce_frequency_hz == pytest.approx(math.sqrt(2 * 1.2e6 / 36000) / (2 * math.pi), rel=1e-12)
+    assert q.mass_kg == pytest.approx(5750 + 3 * (36000 + 2 * 1200), rel=1e-9)
+    assert q.vehicle_lengths_m == {"test car": 6.0, "wagon": 14.0} and q.n_axles == 7
+
+
+@pytest.mark.parametrize("kind", ["changed", "damaged-meta"])
+def test_fit_refuses_a_train_file_changed_since_the_study(kind, ice2_file_study, tmp_path, call_main):
+    moved = tmp_path / "in" / "ice2_vehicles.toml"
+    moved.parent.mkdir()
+    if kind == "changed":
+        moved.write_text(ICE2_FILE.read_text() + "# edited after the study\n")
+        line = (f"error: --results: the study in {str(tmp_path / 'study')!r}: train 'ICE-2': the train file "
+                f"{str(moved)!r} has changed since the study (SHA-256 {hashlib.sha256(ICE2_FILE.read_bytes()).hexdigest()[:16]}"
+                f"... then, {hashlib.sha256(moved.read_bytes()).hexdigest()[:16]}... now)")
+        edit = lambda m: m["train_files"]["ICE-2"].update(path=str(moved))  # noqa: E731
+    else:
+        line = "error: --results: the study in"
+        edit = lambda m: m["train_files"]["ICE-2"].update(content=m["train_files"]["ICE-2"]["content"] + " ")  # noqa: E731
+    out = _resume_case(tmp_path, ice2_file_study, edit)
+    before = _snapshot(tmp_path)
+    done = call_main(main, "study-fit", "--results", str(out / "results.jsonl"))
+    assert done.returncode == 2 and done.stdout == ""
+    assert done.stderr.startswith(line) and done.stderr.count("\n") == 1, done.stderr
+    if kind == "damaged-meta":
+        assert "does not hash to its recorded SHA-256" in done.stderr
+    assert _snapshot(tmp_path) == before
+
+
+# ---------------------------------------------------------------------- 3. recommend with the functions file
+def _mu1_kg_m(span_m):
+    """Eq. (19): mu1 = 0.843 L + 10.45 t/m, in kg/m."""
+    return 1000 * (0.843 * span_m + 10.45)
+
+
+def _recommend_json(call_main, fn, n0, span):
+    done = call_main(main, "recommend", "--functions", str(fn), "--train", str(ICE2_FILE), "--n0", str(n0),
+                     "--span", str(span), "--mu", f"{_mu1_kg_m(span):.6f}", "--type", "cfb", "--json")
+    assert done.returncode == 0, done.stderr
+    return json.loads(done.stdout)
+
+
+def test_recommend_with_the_functions_file(ice2_file_fit, call_main):
+    """On mu1 (Eq. 19), Eq. (20) of the slice's least-squares cubic: before its first root above 2.1 Hz
+    (2.386 Hz; the slice's cubic is negative below it) the cubic's value, beyond it 0, to 1e-9 %."""
+    fn = ice2_file_fit / "functions_ICE-2.toml"
+    coef = _shipped_fit().fits[("ICE-2", "mu1")].fit.coefficients
+    roots = np.roots(coef)
+    first = min(r.real for r in roots if abs(r.imag) < 1e-12 and r.real > 2.1)
+    assert first == pytest.approx(2.386, abs=1e-3)
+    d = _recommend_json(call_main, fn, 2.25, 38)  # L = 38 m: the field holds n0 from 2.21 Hz
+    assert d["delta_zeta_lb_pct"] == pytest.approx(float(np.polyval(coef, 2.25)), abs=1e-9)
+    assert d["rule"] == "mu lies on mass function mu1" and d["train"] == "ICE-2" and not d["beyond_root"]
+    assert "least-squares cubics of its own study" in d["functions"]
+    d = _recommend_json(call_main, fn, 3.0, 30)
+    assert d["delta_zeta_lb_pct"] == 0.0 and d["beyond_root"]
+
+
+def test_recommend_warns_with_the_cases_of_its_own_study(ice2_file_fit, tmp_path, call_main):
+    """The warnings read the study's cases from the functions file: with mu1 set to 0.25 % (a constant
+    cubic, no root), they name the slice's cases within 0.5 Hz of n0 below it, found here from the
+    shipped records."""
+    fn = tmp_path / "functions_ICE-2.toml"
+    text = (ice2_file_fit / "functions_ICE-2.toml").read_text()
+    head, rest = text.split("[least_squares]", 1)
+    rest = "\n".join("mu1 = [0.0, 0.0, 0.0, 0.25, inf, 1.0, 0.0, 0.0]" if ln.startswith("mu1 = ") else ln
+                      for ln in rest.split("\n"))
+    fn.write_text(head + "[least_squares]" + rest)
+    d = _recommend_json(call_main, fn, 3.0, 30)
+    assert d["delta_zeta_lb_pct"] == 0.25
+    below = sorted(b for (b, _), r in _shipped_slice().items()
+                   if abs(r["n0_hz"] - 3.0) <= 0.5 and r["delta_zeta_vbi_pct"] < 0.25)
+    assert len(below) >= 3
+    warned = [w for w in d["study_warnings"] if "lie below the returned dz_LB" in w]
+    assert len(warned) == 1 and warned[0].startswith(f"{len(below)} of the ICE-2 mu1 within +/-0.5 Hz")
+    assert all(b + " (" in warned[0] for b in below[:8])
+
+
+@pytest.mark.parametrize("kind", ["other-train", "other-format", "damaged-row", "built-in-train", "not-a-set"])
+def test_recommend_refuses_functions_of_another_train_or_format(kind, ice2_file_fit, tmp_path, call_main):
+    fn = str(ice2_file_fit / "functions_ICE-2.toml")
+    train = str(ICE2_FILE)
+    if kind == "other-train":
+        train = str(EXAMPLE_FILE)
+        line = f"error: --functions: {fn!r} was made for train 'ICE-2' (file 'ice2_vehicles.toml', SHA-256 "
+    elif kind == "other-format":
+        fn = str(ROOT / "src" / "adm_calib" / "data" / "lower_bounds_study.toml")
+        line = f"error: --functions: {fn!r}: format None is not a functions file of one train; allowed format 'adm-calib-train-functions/1'"
+    elif kind == "damaged-row":
+        bad = tmp_path / "f.toml"
+        bad.write_text(Path(fn).read_text().replace("mu1 = [", "mu1 = [1e999, ", 1))
+        fn = str(bad)
+        line = f"error: --functions: {fn!r}: least_squares.mu1: [inf, "
+    elif kind == "built-in-train":
+        train = "ICE-2"
+        line = "error: --train: 'ICE-2' is not a file; with --functions FILE give the train file its functions were made for"
+    else:
+        fn = "paper-functions"
+        line = "error: --functions: 'paper-functions' is not a set or a file; allowed paper, ours, conservative or a functions file"
+    before = _snapshot(tmp_path)
+    done = call_main(main, "recommend", "--functions", fn, "--train", train, "--n0", "3", "--mu", "30000",
+                     "--type", "cfb")
+    assert done.returncode == 2 and done.stdout == ""
+    assert done.stderr.startswith(line) and done.stderr.count("\n") == 1, done.stderr
+    assert _snapshot(tmp_path) == before

@@ -27,6 +27,7 @@ This module holds what a train *file* adds to that:
 from __future__ import annotations
 
 import hashlib
+import json
 import math
 import re
 import tomllib
@@ -237,6 +238,37 @@ def check_resume(meta, result_trains, names, files, out):
                              f"train; allowed that file, or another --out")
 
 
+def study_train_files(results_path, option="--results"):
+    """The train files a study ran (``study.json`` beside ``results_path``), checked for the fit:
+    ``{name: (record, TrainFile)}``; the TrainFile is rebuilt from the recorded content.
+
+    Raises :class:`InputError` (one line) when a recorded content does not hash to its SHA-256 (a
+    damaged ``study.json``) or when the file still at the recorded path has changed since the study
+    (the fit would describe a train that is no longer the file's). A file no longer there is fine:
+    the study's copy is the train.
+    """
+    from adm_calib.study.store import read_meta  # noqa: PLC0415  beside its use
+
+    folder = Path(results_path).parent
+    meta = read_meta(folder)
+    out = {}
+    for name, rec in ((meta or {}).get("train_files") or {}).items():
+        where = f"{option}: the study in {str(folder)!r}: train {name!r}"
+        content, sha = rec.get("content"), rec.get("sha256")
+        if not isinstance(content, str) or not isinstance(sha, str) or sha256_hex(content.encode()) != sha:
+            raise InputError(f"{where}: the recorded file content does not hash to its recorded SHA-256 "
+                             f"{str(sha)[:16]}... (study.json damaged?); allowed study.json as the study wrote it")
+        path = Path(str(rec.get("path", "")))
+        if path.is_file():
+            now = sha256_hex(path.read_bytes())
+            if now != sha:
+                raise InputError(f"{where}: the train file {str(path)!r} has changed since the study (SHA-256 "
+                                 f"{sha[:16]}... then, {now[:16]}... now); allowed the file as the study ran it: "
+                                 f"restore it, or run the study again into another --out")
+        out[name] = (rec, parse_train_text(content, sha, rec.get("path", name), option))
+    return out
+
+
 # ====================================================================== Section 4.2.2 quantities
 @dataclass(frozen=True)
 class WheelBody:
@@ -323,6 +355,137 @@ def quantities_of_file(tf):
     return train_quantities(tf.train)
 
 
+# ====================================================================== the functions file
+#: Format of the functions file ``study-fit`` writes for a train of a file and ``recommend --functions`` reads.
+FUNCTIONS_FORMAT = "adm-calib-train-functions/1"
+#: Columns of a function row (Appendix B: coefficients, upper limit, R², residuals).
+COLUMNS = ("a", "b", "c", "d", "upper_limit_hz", "r2", "max_res_pct", "min_res_pct")
+#: The two sets of a functions file and what ``recommend`` prints for each.
+FUNCTION_SETS = {"least_squares": "least-squares cubic through the interval minima (Section 4.2.1, Appendix B form)",
+                 "conservative": "conservative: the largest cubic below every retained case (linear programme)"}
+
+
+def functions_toml(name, file_record, study_fit, conservative_rows, cases_csv, quantities=None, command="",
+                   study_dir=""):
+    """The functions file of one train of a file: its least-squares functions (Eq. 20 in the form
+    of Appendix B), its conservative bounds, the study's cases (for ``recommend``'s warnings) and
+    the SHA-256 of the train file the study ran."""
+    from adm_calib.lower_bound import LOWER_LIMIT_HZ  # noqa: PLC0415  beside its use
+
+    hi = study_fit.fit_range_hz[1]
+    used = sum(1 for r in study_fit.records_used if r["train"] == name)
+    lines = ["# Lower-bound functions of one train (adm-calib study-fit on a study of its train file), Appendix B form:",
+             "#   delta_zeta(n0) = a n0^3 + b n0^2 + c n0 + d   Eq. (20); delta_zeta in %, n0 in Hz; from 2.1 Hz to the",
+             f"#   first root ('upper limit'), 0 beyond (and above {hi:g} Hz, the end of the fitted range, where no root comes first)",
+             "# read by: adm-calib recommend --functions THIS_FILE --train THE_TRAIN_FILE (the train file's SHA-256 must match)",
+             *([f"# Section 4.2.2 quantities: {q}" for q in quantities.to_text().splitlines()] if quantities else []),
+             f'format = "{FUNCTIONS_FORMAT}"', f"train = {json.dumps(name)}",
+             f'train_sha256 = "{file_record["sha256"]}"', f"train_file = {json.dumps(file_record.get('file_name', ''))}",
+             f"train_kind = {json.dumps(file_record.get('kind', ''))}", f"study = {json.dumps(str(study_dir))}",
+             f"command = {json.dumps(command)}", f'exclusion_rule = "{study_fit.rule}"', f"cases_used = {used}",
+             f"lower_limit_hz = {LOWER_LIMIT_HZ}", f"fit_range_max_hz = {hi}",
+             f"columns = [{', '.join(json.dumps(c) for c in COLUMNS)}]", "", "[least_squares]",
+             f'source = "least-squares cubic through the interval minima, rule {study_fit.rule}"']
+    for (t, m), f in study_fit.fits.items():
+        if t == name and f.fit is not None:
+            c = f.fit
+            vals = [*c.coefficients, c.upper_limit_hz, c.r2, c.max_res_pct, c.min_res_pct]
+            lines.append(f"{m} = [{', '.join(repr(float(v)) for v in vals)}]")
+    lines += ["", "[conservative]", f'source = "linear programme below every retained case, rule {study_fit.rule}"']
+    for r in conservative_rows:
+        if r.train == name:
+            slack = r.fit.delta_zeta_pct - np.polyval(r.fit.coefficients, r.fit.n0_hz)
+            vals = [*r.fit.coefficients, r.fit.upper_limit_hz, float("nan"), float(slack.max()), float(slack.min())]
+            lines.append(f"{r.mass_function} = [{', '.join(repr(float(v)) for v in vals)}]")
+    lines += ["", "[cases]", "# the study's cases with a dz_VBI (adm_calib.recommend_warnings.study_cases_csv): recommend's warnings",
+              f"csv = {json.dumps(cases_csv)}"]
+    return "\n".join(lines) + "\n"
+
+
+@dataclass(frozen=True, repr=False)
+class TrainFunctions:
+    """A functions file read back: ``sets[set_name][mass_function]`` are
+    :class:`adm_calib.reference.LowerBound` s; ``cases`` the study's cases (recommend's warnings)."""
+
+    path: str
+    train: str
+    train_sha256: str
+    train_file: str
+    rule: str
+    sets: dict
+    cases: tuple
+
+    def __repr__(self):
+        return f"TrainFunctions({self.train!r}, {', '.join(f'{k}: {len(v)}' for k, v in self.sets.items())})"
+
+
+def read_functions(text, option="--functions"):
+    """Read a functions file of :func:`functions_toml` (one-line errors naming ``option`` and the file)."""
+    from adm_sim.files import read_text  # noqa: PLC0415  beside its use
+
+    from adm_calib.recommend_warnings import parse_cases  # noqa: PLC0415  as above
+    from adm_calib.reference import LowerBound  # noqa: PLC0415  as above
+    from adm_calib.study.cases import MASS_FUNCTION_NAMES  # noqa: PLC0415  as above
+
+    p = input_file(text, option, "functions file")
+    where = f"{option}: {str(text)!r}"
+    body = read_text(p, f"{option}: functions file")
+    try:
+        data = tomllib.loads(body)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{where}: not valid TOML ({exc}); allowed a functions file of adm-calib study-fit "
+                         f"(format {FUNCTIONS_FORMAT!r})") from None
+    fmt = data.get("format")
+    if fmt != FUNCTIONS_FORMAT:
+        raise InputError(f"{where}: format {fmt!r} is not a functions file of one train; allowed format "
+                         f"{FUNCTIONS_FORMAT!r} (written by adm-calib study-fit beside a study of a train file)")
+    for key in ("train", "train_sha256", "exclusion_rule"):
+        if not isinstance(data.get(key), str):
+            raise InputError(f"{where}: {key}: {data.get(key)!r} is missing or not text")
+    if not re.fullmatch(r"[0-9a-f]{64}", data["train_sha256"]):
+        raise InputError(f"{where}: train_sha256: {data['train_sha256']!r} is not a SHA-256; allowed 64 hex digits")
+    if list(data.get("columns", [])) != list(COLUMNS):
+        raise InputError(f"{where}: columns: {data.get('columns')!r}; allowed {list(COLUMNS)!r}")
+    nums = {}
+    for key in ("lower_limit_hz", "fit_range_max_hz"):
+        v = data.get(key)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not 2.0 <= v <= 21.0:
+            raise InputError(f"{where}: {key}: {v!r} Hz is out of range; allowed a number in [2, 21] Hz")
+        nums[key] = float(v)
+    sets = {}
+    for name in FUNCTION_SETS:
+        tab = data.get(name)
+        if not isinstance(tab, dict):
+            raise InputError(f"{where}: [{name}]: missing; allowed the table study-fit writes")
+        out = {}
+        for m, row in tab.items():
+            if m == "source":
+                continue
+            if m not in MASS_FUNCTION_NAMES:
+                raise InputError(f"{where}: {name}.{m}: unknown mass function; allowed {', '.join(MASS_FUNCTION_NAMES)}")
+            ok = (isinstance(row, list) and len(row) == len(COLUMNS)
+                  and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in row)
+                  and all(math.isfinite(v) for v in row[:4]))
+            if not ok:
+                raise InputError(f"{where}: {name}.{m}: {row!r} is not a function row; allowed {len(COLUMNS)} numbers "
+                                 f"({', '.join(COLUMNS)}), a..d finite")
+            out[m] = LowerBound(train=data["train"], mass_function=m, source=str(tab.get("source", "")),
+                                lower_limit_hz=nums["lower_limit_hz"], fit_range_max_hz=nums["fit_range_max_hz"],
+                                **dict(zip(COLUMNS, (float(v) for v in row))))
+        sets[name] = out
+    csv_text = (data.get("cases") or {}).get("csv")
+    if not isinstance(csv_text, str):
+        raise InputError(f"{where}: cases.csv: missing; allowed the study's cases as study-fit writes them")
+    try:
+        cases = parse_cases(csv_text)
+    except (ValueError, TypeError):
+        raise InputError(f"{where}: cases.csv: not the study's cases (train, mass_function, bridge, n0_hz, "
+                         f"delta_zeta_vbi_pct, excluded, detail)") from None
+    return TrainFunctions(path=str(text), train=data["train"], train_sha256=data["train_sha256"],
+                          train_file=str(data.get("train_file", "")), rule=data["exclusion_rule"], sets=sets,
+                          cases=cases)
+
+
 def safe_name(name):
     """``name`` as a file-name part: letters, digits, ``.``, ``_`` and ``-``; others become ``_``."""
     return re.sub(r"[^A-Za-z0-9_.-]", "_", name)
@@ -330,4 +493,5 @@ def safe_name(name):
 
 __all__ = ["TrainFile", "read_train_file", "parse_train_text", "study_trains", "check_dim_step", "study_step_s",
            "vehicle_eigenvalues", "rk4_gain", "check_resume", "TrainQuantities", "WheelBody", "train_quantities",
-           "train_quantities_of_mapping", "quantities_of_file", "safe_name", "sha256_hex", "check_train_name"]
+           "train_quantities_of_mapping", "quantities_of_file", "safe_name", "sha256_hex", "check_train_name",
+           "study_train_files", "FUNCTIONS_FORMAT", "FUNCTION_SETS", "functions_toml", "read_functions", "TrainFunctions"]
