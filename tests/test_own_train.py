@@ -157,8 +157,9 @@ vehicle = "v"
     ("{t}/loads.toml", LOAD_TRAIN, "error: --trains: '{t}/loads.toml': holds no vehicles (neither "
                                    "[vehicle_types.<NAME>] nor [vehicles.<NAME>]): a load train cannot run the DIM"),
     ("{t}/stiff.toml", _stiff_vehicle(1e10), "error: --trains: '{t}/stiff.toml': vehicle 'v' has a mode of "),
-    ("{t}/named.toml", ICE2_FILE.read_text().replace('paper_train = "ICE-2"\n', ""),
-     "error: --trains: '{t}/named.toml': name: 'ICE-2' is the name of the paper train ICE-2, but the file does not say"),
+    ("{t}/named.toml", ICE2_FILE.read_text().replace('paper_train = "ICE-2"\n', 'paper_train = "Railjet"\n'),
+     "error: --trains: '{t}/named.toml': name: 'ICE-2' is the name of the paper train ICE-2, but the file says it is "
+     "paper_train = 'Railjet'"),
     ("{t}/twice.toml,{t}/twice.toml", ICE2_FILE.read_text(),
      "error: --trains: the file '{t}/twice.toml' is named 'ICE-2' too; allowed each train once"),
     ("ICE-2,{t}/ice2.toml", ICE2_FILE.read_text(), "error: --trains: the file '{t}/ice2.toml' is named 'ICE-2' too"),
@@ -406,3 +407,42 @@ def test_recommend_refuses_functions_of_another_train_or_format(kind, ice2_file_
     assert done.returncode == 2 and done.stdout == ""
     assert done.stderr.startswith(line) and done.stderr.count("\n") == 1, done.stderr
     assert _snapshot(tmp_path) == before
+
+
+def test_section_422_bogie_frequencies_of_the_paper_trains():
+    """Eq. (1) of the four trains' files against the values Section 4.2.2 quotes (to its 0.01 Hz):
+    ICE-2 5.84, Eurostar 3.18, Railjet 5.53, ICE-4 4.78 and 16.52 Hz."""
+    quoted = {"ice2": [5.84], "eurostar": [3.18], "railjet": [5.53], "ice4": [4.78, 16.52]}
+    for stem, values in quoted.items():
+        q = ot.quantities_of_file(ot.read_train_file(str(ROOT / "src" / "adm_sim" / "data" / "trains" / f"{stem}.toml")))
+        got = [w.bounce_frequency_hz for w in q.wheel_bodies]
+        for v in values:
+            assert min(abs(g - v) for g in got) <= 0.005, (stem, v, got)
+
+
+# ---------------------------------------------------------------------- 4. the worked example in results/own_train
+EXAMPLE_DIR = ROOT / "results" / "own_train"
+
+
+def test_worked_example_readme_tables_are_generated():
+    """results/own_train/README.md holds `trains_comparison_markdown` of the shipped example as it is."""
+    fn = ot.read_functions(str(EXAMPLE_DIR / "fit" / "functions_test_car___3_wagons.toml"))
+    meta = json.loads((EXAMPLE_DIR / "example_study" / "study.json").read_text())
+    rec = meta["train_files"]["test car + 3 wagons"]
+    assert rec["sha256"] == hashlib.sha256(EXAMPLE_FILE.read_bytes()).hexdigest() == fn.train_sha256
+    tf = ot.parse_train_text(rec["content"], rec["sha256"], rec["path"])
+    table = ot.trains_comparison_markdown(fn, st.read_results(EXAMPLE_DIR / "example_study" / "results.jsonl.gz").records,
+                                          tf, st.read_results(SHIPPED).records)
+    assert table in (EXAMPLE_DIR / "README.md").read_text()
+
+
+def test_worked_example_functions_are_the_fit_of_its_study():
+    """The shipped functions file is the least-squares fit of the shipped example study (to 1e-12)."""
+    recs = st.read_results(EXAMPLE_DIR / "example_study" / "results.jsonl.gz").records
+    assert len(recs) == 1110
+    fit = st.fit_study(recs, own_trains={"test car + 3 wagons"})
+    fn = ot.read_functions(str(EXAMPLE_DIR / "fit" / "functions_test_car___3_wagons.toml"))
+    for m in st.MASS_FUNCTION_NAMES:
+        c, f = fit.fits[("test car + 3 wagons", m)].fit, fn.sets["least_squares"][m]
+        assert np.allclose([f.a, f.b, f.c, f.d, f.upper_limit_hz, f.r2], [*c.coefficients, c.upper_limit_hz, c.r2],
+                           rtol=1e-12, atol=1e-15)

@@ -31,7 +31,7 @@ import json
 import math
 import re
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -112,7 +112,8 @@ def read_train_file(text, option="--trains"):
 
 def check_train_name(train, where):
     """The train's name as a study train: printable, at most :data:`NAME_MAX_CHARS` characters, and
-    not a paper train's name unless the file says it is that train (``paper_train``)."""
+    not a paper train's name where the file says it is another paper train (``paper_train``). A
+    file named like a paper train is compared with that train's Table B by ``study-fit``."""
     from adm_calib.study.cases import TRAIN_VARIANTS  # noqa: PLC0415  cycle: cases imports nothing of this
     from adm_calib.reference import STUDY_TRAINS  # noqa: PLC0415  as above
 
@@ -122,10 +123,10 @@ def check_train_name(train, where):
                          f"characters without leading or trailing blanks")
     key = re.sub(r"[^a-z0-9]", "", name.lower())
     for t in (*STUDY_TRAINS, *TRAIN_VARIANTS):
-        if re.sub(r"[^a-z0-9]", "", t.lower()) == key and (train.paper_train or "") != (TRAIN_VARIANTS.get(t, t)):
-            raise InputError(f"{where}: name: {name!r} is the name of the paper train {t}, but the file does not "
-                             f"say it is that train (paper_train = {train.paper_train or ''!r}); allowed another "
-                             f"name, or paper_train = {TRAIN_VARIANTS.get(t, t)!r}")
+        if re.sub(r"[^a-z0-9]", "", t.lower()) == key and train.paper_train not in ("", TRAIN_VARIANTS.get(t, t)):
+            raise InputError(f"{where}: name: {name!r} is the name of the paper train {t}, but the file says it is "
+                             f"paper_train = {train.paper_train!r}; allowed another name, or paper_train = "
+                             f"{TRAIN_VARIANTS.get(t, t)!r} (or none)")
     return name
 
 
@@ -293,7 +294,7 @@ class TrainQuantities:
 
     name: str
     wheel_bodies: tuple  # WheelBody, one per distinct (vehicle, body)
-    vehicle_lengths_m: dict  # vehicle -> coupler-to-coupler length (m)
+    vehicle_lengths_m: dict  # car (train file: vehicle type, d) or vehicle (vehicle file: length_m) -> length (m)
     mass_kg: float
     length_m: float  # first to last axle
     n_axles: int
@@ -308,7 +309,7 @@ class TrainQuantities:
         for w in self.wheel_bodies:
             lines.append(f"  {w.vehicle} / {w.body}: m = {w.mass_kg:g} kg on {w.wheelsets} wheelsets, "
                          f"n_p = {w.bounce_frequency_hz:.2f} Hz (Eq. 1)")
-        lines.append("  vehicle lengths: " + ", ".join(f"{v} {d:g} m" for v, d in self.vehicle_lengths_m.items()))
+        lines.append("  car lengths: " + ", ".join(f"{v} {d:g} m" for v, d in self.vehicle_lengths_m.items()))
         return "\n".join(lines)
 
 
@@ -317,16 +318,17 @@ def train_quantities(train):
     each distinct wheel-carrying body with its Eq. (1) frequency, the vehicle lengths, the mass."""
     from adm_sim.model.trains import G_M_S2, vehicle_file_mapping  # noqa: PLC0415  beside its use
 
-    if train.vehicle_types:
-        mapping = vehicle_file_mapping(train)
-    else:
+    if not train.vehicle_types:
         raise InputError("train_quantities: give the mapping of a vehicle file (train_quantities_of_mapping)")
-    return train_quantities_of_mapping(mapping, train, G_M_S2)
+    q = train_quantities_of_mapping(vehicle_file_mapping(train), train, G_M_S2)
+    # a train file's cars have their own length d (Table A1), also inside a Jacobs set
+    cars = dict.fromkeys(c[0] for u in train.units for c in u.cars)
+    return replace(q, vehicle_lengths_m={n: float(train.vehicle_types[n].d_m) for n in cars})
 
 
 def train_quantities_of_mapping(mapping, train, g=9.81):
     """:class:`TrainQuantities` from a vehicle-file mapping (``[vehicles.<NAME>]``) and its train."""
-    bodies, lengths = [], {}
+    bodies, lengths, known = [], {}, set()
     for vname, v in mapping["vehicles"].items():
         lengths[vname] = float(v["length_m"])
         wheel_names = {w["name"] for w in v["wheelsets"]}
@@ -336,11 +338,10 @@ def train_quantities_of_mapping(mapping, train, g=9.81):
                 k, n = seen.get(s["upper"], (0.0, 0))
                 seen[s["upper"]] = (k + float(s["k_N_m"]), n + 1)
         masses = {b["name"]: float(b["mass_kg"]) for b in v["bodies"]}
-        known = set()
         for body, (k, n) in seen.items():
             key = (round(masses[body], 6), n, round(k, 3))
             if key in known:
-                continue  # the same bogie twice in one vehicle
+                continue  # the same bogie again (in this vehicle or an earlier one)
             known.add(key)
             bodies.append(WheelBody(vehicle=vname, body=body, mass_kg=masses[body], wheelsets=n, primary_k_N_m=k))
     mass = float(np.sum(train.axle_loads_n)) / g
@@ -398,8 +399,17 @@ def functions_toml(name, file_record, study_fit, conservative_rows, cases_csv, q
             vals = [*r.fit.coefficients, r.fit.upper_limit_hz, float("nan"), float(slack.max()), float(slack.min())]
             lines.append(f"{r.mass_function} = [{', '.join(repr(float(v)) for v in vals)}]")
     lines += ["", "[cases]", "# the study's cases with a dz_VBI (adm_calib.recommend_warnings.study_cases_csv): recommend's warnings",
-              f"csv = {json.dumps(cases_csv)}"]
+              _toml_text("csv", cases_csv)]
     return "\n".join(lines) + "\n"
+
+
+def _toml_text(key, text):
+    """``key = <text>``: a TOML multi-line literal string (one line of the text per line) where the
+    text allows it, else a basic string."""
+    quotes = "'" * 3
+    if quotes in text or text.endswith("'"):
+        return f"{key} = {json.dumps(text)}"
+    return f"{key} = {quotes}\n{text}{quotes}"
 
 
 @dataclass(frozen=True, repr=False)
@@ -486,6 +496,72 @@ def read_functions(text, option="--functions"):
                           cases=cases)
 
 
+#: n0 (Hz) at which :func:`trains_comparison_markdown` compares the lower bounds.
+COMPARE_N0_HZ = (2.5, 3.0, 4.0, 5.0, 6.0, 8.0, 10.0, 12.0)
+#: Span (m) of the reference bridges of the mass ratio in :func:`trains_comparison_markdown` (the
+#: project's choice, not the paper's: Section 4.2.2 names the ratio, not a bridge).
+MASS_RATIO_SPAN_M = 20.0
+
+
+def trains_comparison_markdown(functions, records, tf, paper_records=None):
+    """Markdown: a train of a file beside the four paper trains.
+
+    ``functions``: its :class:`TrainFunctions`; ``records``: its study's result lines; ``tf``: its
+    :class:`TrainFile`; ``paper_records``: the shipped study's lines (the four trains' Δζ_VBI
+    statistics). Three tables: the Section 4.2.2 quantities (Eq. (1) frequencies of the bodies on
+    wheelsets, their masses and the bridge-to-bogie mass ratio ``mu L / m`` of the Table 1 mass
+    functions mu1 and mu6 at :data:`MASS_RATIO_SPAN_M`, the car lengths, the train's mass per
+    length); the least-squares lower bounds (Eq. 20 as applied) at :data:`COMPARE_N0_HZ` for mu1,
+    mu3, mu4, mu6 (the paper's Tables B1-B4 for the four trains); the Δζ_VBI of the studies.
+    """
+    from adm_sim.model.parametric import mass_function_t_m  # noqa: PLC0415  beside its use
+    from adm_sim.model.trains import load_train  # noqa: PLC0415  as above
+
+    from adm_calib.reference import STUDY_TRAINS, lower_bound_table  # noqa: PLC0415  as above
+
+    L = MASS_RATIO_SPAN_M
+    mu1, mu6 = mass_function_t_m("mu1", L) * 1000.0 * L, mass_function_t_m("mu6", L) * 1000.0 * L
+    rows = [(t, train_quantities(load_train(t))) for t in STUDY_TRAINS] + [(tf.name, quantities_of_file(tf))]
+    out = [f"Section 4.2.2 quantities. n_p: Eq. (1), sqrt(sum k_p / m) / (2 pi) of each distinct body that rests on "
+           f"wheelsets (a bogie on two: sqrt(2 k_p / m_b) / (2 pi)); mass ratio: bridge mass mu L over that body's "
+           f"mass for the heaviest (mu1) and lightest (mu6) mass function of Table 1 at L = {L:g} m (the reference "
+           f"span is the project's choice). Generated by `adm_calib.study.own_train.trains_comparison_markdown`.", "",
+           "| train | body on wheelsets | m (kg) | n_p (Hz) | mu1 L / m | mu6 L / m | car lengths (m) | mass (t/m) |",
+           "|---|---|---|---|---|---|---|---|"]
+    for t, q in rows:
+        cars = ", ".join(f"{k} {v:g}" for k, v in q.vehicle_lengths_m.items())
+        for i, w in enumerate(q.wheel_bodies):
+            out.append(f"| {t if i == 0 else ''} | {w.vehicle} / {w.body} ({w.wheelsets} wheelsets) | {w.mass_kg:.0f} | "
+                       f"{w.bounce_frequency_hz:.2f} | {mu1 / w.mass_kg:.0f} | {mu6 / w.mass_kg:.0f} | "
+                       f"{cars if i == 0 else ''} | {f'{q.mass_per_length_t_m:.3f}' if i == 0 else ''} |")
+    paper = lower_bound_table("paper")
+    n0 = COMPARE_N0_HZ
+    out += ["", f"Lower bounds Δζ_LB (%) as applied (Eq. 20 from 2.1 Hz to the first root, 0 beyond): the paper's "
+                f"Tables B1-B4 for the four trains, the least-squares functions of its own study (rule "
+                f"{functions.rule}) for {tf.name}.", "",
+            "| set | " + " | ".join(f"{x:g} Hz" for x in n0) + " | first root (Hz) |",
+            "|---|" + "---|" * (len(n0) + 1)]
+    for m in ("mu1", "mu3", "mu4", "mu6"):
+        for t in (*STUDY_TRAINS, tf.name):
+            f = paper[t][m] if t in STUDY_TRAINS else functions.sets["least_squares"].get(m)
+            if f is None:
+                continue
+            vals = " | ".join(f"{float(f.value_pct(x)):.3f}" for x in n0)
+            out.append(f"| {t} {m} | {vals} | {f.zero_from_hz:.2f} |")
+    out += ["", "Δζ_VBI of the studies (every case with a Δζ_VBI; the four trains: the shipped study "
+                "results/study; percentiles over the 1110 bridges):", "",
+            "| train | cases with Δζ_VBI | Δζ_VBI < 0 | 10 % | median | 90 % | largest |", "|---|---|---|---|---|---|---|"]
+    groups = {t: [r for r in (paper_records or []) if r["train"] == t] for t in STUDY_TRAINS}
+    groups[tf.name] = [r for r in records if r["train"] == tf.name]
+    for t, recs in groups.items():
+        dz = np.array([r["delta_zeta_vbi_pct"] for r in recs if r.get("delta_zeta_vbi_pct") is not None])
+        if not dz.size:
+            continue
+        p10, p50, p90 = np.percentile(dz, [10, 50, 90])
+        out.append(f"| {t} | {dz.size} | {int((dz < 0).sum())} | {p10:.3f} | {p50:.3f} | {p90:.3f} | {dz.max():.3f} |")
+    return "\n".join(out) + "\n"
+
+
 def safe_name(name):
     """``name`` as a file-name part: letters, digits, ``.``, ``_`` and ``-``; others become ``_``."""
     return re.sub(r"[^A-Za-z0-9_.-]", "_", name)
@@ -494,4 +570,4 @@ def safe_name(name):
 __all__ = ["TrainFile", "read_train_file", "parse_train_text", "study_trains", "check_dim_step", "study_step_s",
            "vehicle_eigenvalues", "rk4_gain", "check_resume", "TrainQuantities", "WheelBody", "train_quantities",
            "train_quantities_of_mapping", "quantities_of_file", "safe_name", "sha256_hex", "check_train_name",
-           "study_train_files", "FUNCTIONS_FORMAT", "FUNCTION_SETS", "functions_toml", "read_functions", "TrainFunctions"]
+           "study_train_files", "trains_comparison_markdown", "FUNCTIONS_FORMAT", "FUNCTION_SETS", "functions_toml", "read_functions", "TrainFunctions"]
