@@ -446,3 +446,26 @@ def test_worked_example_functions_are_the_fit_of_its_study():
         c, f = fit.fits[("test car + 3 wagons", m)].fit, fn.sets["least_squares"][m]
         assert np.allclose([f.a, f.b, f.c, f.d, f.upper_limit_hz, f.r2], [*c.coefficients, c.upper_limit_hz, c.r2],
                            rtol=1e-12, atol=1e-15)
+
+
+def test_dim_step_check_predicts_the_dim_blowing_up():
+    """The check against the DIM itself, on the field's largest step (L = 40 m, lowest n0, 160 km/h):
+    the one-body vehicle with its pitch mode 2 % below the RK4 limit runs (largest deck acceleration
+    0.108 m/s², measured), 2 % above it the run grows without bound (2e7 m/s² measured) and is refused."""
+    from adm_sim.integrate.sweep import run_sweep
+    from adm_sim.model.trains import train_from_mapping
+
+    case = st.select_cases(["ICE-2"], ["mu1"], (40, 40), [1])[0]
+    dt = ot.study_step_s([case])
+    limit_k = (ot.RK4_UNDAMPED_LIMIT / dt) ** 2 * 150000 / 18  # pitch: 18 k / J = (2 sqrt 2 / dt)^2
+    for scale, blows_up in ((0.98, False), (1.02, True)):
+        text = _stiff_vehicle(limit_k * scale)
+        acc = float(run_sweep(case.bridge, train_from_mapping(tomllib.loads(text)), "dim", [160.0]).max_acc_m_s2[0])
+        tf = ot.parse_train_text(text, "x", "stiff.toml")
+        if blows_up:
+            assert acc > 1e3
+            with pytest.raises(InputError, match="cannot follow"):
+                ot.check_dim_step(tf, dt)
+        else:
+            assert acc < 1.0
+            ot.check_dim_step(tf, dt)
