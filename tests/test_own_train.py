@@ -78,7 +78,7 @@ def test_study_records_the_file_content_and_sha256(ice2_file_study):
     data = ICE2_FILE.read_bytes()
     assert rec["sha256"] == hashlib.sha256(data).hexdigest()
     assert rec["content"] == data.decode() and rec["kind"] == "vehicle file"
-    assert rec["path"] == str(ICE2_FILE) and rec["file_name"] == "ice2_vehicles.toml"
+    assert rec["path"] == rec["resolved_path"] == str(ICE2_FILE) and rec["file_name"] == "ice2_vehicles.toml"
 
 
 def _resume_case(tmp_path, study, edit_meta=None):
@@ -317,7 +317,7 @@ def test_fit_refuses_a_train_file_changed_since_the_study(kind, ice2_file_study,
         line = (f"error: --results: the study in {str(tmp_path / 'study')!r}: train 'ICE-2': the train file "
                 f"{str(moved)!r} has changed since the study (SHA-256 {hashlib.sha256(ICE2_FILE.read_bytes()).hexdigest()[:16]}"
                 f"... then, {hashlib.sha256(moved.read_bytes()).hexdigest()[:16]}... now)")
-        edit = lambda m: m["train_files"]["ICE-2"].update(path=str(moved))  # noqa: E731
+        edit = lambda m: m["train_files"]["ICE-2"].update(path=str(moved), resolved_path=str(moved))  # noqa: E731
     else:
         line = "error: --results: the study in"
         edit = lambda m: m["train_files"]["ICE-2"].update(content=m["train_files"]["ICE-2"]["content"] + " ")  # noqa: E731
@@ -469,3 +469,12 @@ def test_dim_step_check_predicts_the_dim_blowing_up():
         else:
             assert acc < 1.0
             ot.check_dim_step(tf, dt)
+
+
+def test_recommend_refuses_a_mass_function_the_study_did_not_run(ice2_file_fit, call_main):
+    """The slice's functions file holds mu1 only: a steel/composite bridge (mu4-mu6) is refused in one line."""
+    done = call_main(main, "recommend", "--functions", str(ice2_file_fit / "functions_ICE-2.toml"), "--train",
+                     str(ICE2_FILE), "--n0", "3", "--span", "30", "--mu", "6000", "--type", "sc")
+    assert done.returncode == 2 and done.stdout == "" and done.stderr.count("\n") == 1
+    assert "has no lower-bound function mu5 for ICE-2 (its study did not run it" in done.stderr
+    assert done.stderr.rstrip().endswith("allowed a bridge whose rule uses mu1")

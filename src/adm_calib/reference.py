@@ -382,6 +382,7 @@ def recommend(train, n0_hz, mu_t_m, bridge_type, *, span_m=None, interpolate=Fal
     InputError
         Unknown train or type, frequency, mass or span outside the validity of the functions.
     """
+    own = table is not None
     t = canonical_train_name(train) if table is None else str(train)
     if bridge_type not in TYPE_MASS_FUNCTIONS:
         raise InputError(f"bridge_type: {bridge_type!r} is not allowed; allowed 'cfb' or 'sc'")
@@ -424,6 +425,10 @@ def recommend(train, n0_hz, mu_t_m, bridge_type, *, span_m=None, interpolate=Fal
         else:
             used, weights = (up,), (1.0,)
             rule = f"mu between {up} and {lo}: next heavier function {up}, safe side (Section 4.3)"
+    if own and any(m not in table for m in used):
+        raise InputError(f"functions: {functions} has no lower-bound function {', '.join(m for m in used if m not in table)} "
+                         f"for {t} (its study did not run it, or it gave fewer than 4 interval minima); allowed a bridge "
+                         f"whose rule uses {', '.join(table)}")
     if any(m not in table for m in used):
         raise InputError(f"functions: {functions!r} has no lower-bound function for {t} "
                          f"{', '.join(m for m in used if m not in table)}")

@@ -62,8 +62,8 @@ class TrainFile:
 
     def record(self):
         """What ``study.json`` keeps of the file (``train_files[name]``)."""
-        return {"path": self.path, "file_name": Path(self.path).name, "sha256": self.sha256, "kind": self.kind,
-                "content": self.content}
+        return {"path": self.path, "resolved_path": str(Path(self.path).resolve()), "file_name": Path(self.path).name,
+                "sha256": self.sha256, "kind": self.kind, "content": self.content}
 
     def __repr__(self):
         return f"TrainFile({self.name!r} from {self.path!r}, sha256 {self.sha256[:12]}...)"
@@ -259,7 +259,7 @@ def study_train_files(results_path, option="--results"):
         if not isinstance(content, str) or not isinstance(sha, str) or sha256_hex(content.encode()) != sha:
             raise InputError(f"{where}: the recorded file content does not hash to its recorded SHA-256 "
                              f"{str(sha)[:16]}... (study.json damaged?); allowed study.json as the study wrote it")
-        path = Path(str(rec.get("path", "")))
+        path = Path(str(rec.get("resolved_path") or rec.get("path", "")))  # a relative path: the study's cwd
         if path.is_file():
             now = sha256_hex(path.read_bytes())
             if now != sha:
