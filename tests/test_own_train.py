@@ -30,7 +30,7 @@ EXAMPLE_FILE = ROOT / "src" / "adm_sim" / "data" / "examples" / "my_vehicle_trai
 SHIPPED = ROOT / "results" / "study" / "results.jsonl.gz"
 SLICE = {"mass_functions": ["mu1"], "spans_m": (21, 40), "freq_indices": [1]}
 SLICE_ARGS = ["--mass-functions", "mu1", "--spans", "21:40", "--freq-index", "1"]
-#: Δζ of the file train against the shipped study (%): the issue's bound; measured 1.3e-14 %.
+#: Δζ of the file train against the shipped study (%): the bound the method must meet; measured 1.3e-14 %.
 DZ_TOL_PCT = 1e-9
 
 
@@ -57,7 +57,7 @@ def _snapshot(folder):
 
 # ---------------------------------------------------------------------- 1. the study of a train file
 def test_vehicle_file_study_reproduces_the_shipped_ice2(ice2_file_study):
-    """Case by case: every status equal, Δζ_VBI within 1e-9 % (the issue's bound), the peaks' speeds equal."""
+    """Case by case: every status equal, Δζ_VBI within 1e-9 % (the required bound), the peaks' speeds equal."""
     ours = st.read_results(ice2_file_study / "results.jsonl").by_key
     ref = _shipped_slice()
     assert set(ours) == set(ref) and len(ours) == 20
