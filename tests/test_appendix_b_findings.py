@@ -175,4 +175,5 @@ def test_recommend_cli_functions(capsys):
     assert main(["recommend", "--train", "ICE-2", "--n0", "6.5", "--mu", "15000", "--type", "cfb",
                  "--functions", "lp"]) == 2
     assert capsys.readouterr().err.splitlines() == [
-        "error: argument --functions: invalid choice: 'lp' (choose from 'paper', 'ours', 'conservative')"]
+        "error: --functions: 'lp' is not a set or a file; allowed paper, ours, conservative or a functions file of "
+        "adm-calib study-fit (functions_<train>.toml)"]

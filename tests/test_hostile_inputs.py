@@ -46,6 +46,9 @@ MARK = "ADM_HOSTILE_CASE"
 TRAIN_TOML = (ROOT / "src" / "adm_sim" / "data" / "examples" / "my_train.toml").read_text()
 BRIDGE_TOML = "L = 15\nn0 = 8.26\nmu = 19042\nzeta_pct = 1.85\n"
 MCAP_MAGIC = b"\x89MCAP0\r\n"
+#: The worked example's functions file and the ICE-2 vehicle file (recommend --functions FILE --train FILE).
+OWN_FUNCTIONS = str(ROOT / "results" / "own_train" / "fit" / "functions_test_car___3_wagons.toml")
+ICE2_VEHICLES = str(ROOT / "src" / "adm_sim" / "data" / "vehicles" / "ice2_vehicles.toml")
 
 CLASSES = {
     "output-is-input": "an output path that is an input file of the same run",
@@ -544,6 +547,20 @@ CASES = [
          "error: interrupted", code=130, setup=_fit_results,
          patches=(_failing("adm_calib.plots", "plot_lower_bounds_train"),)),
     # --- odd inputs: one line, exit 2
+    Case("odd-input", "study-train-hslm", lambda t: CAL + ["study", "--out", f"{t}/st", "--trains", "HSLM-A1"],
+         "error: --trains: 'HSLM-A1' is HSLM-A1, an EN 1991-2 load train (axle loads only, no vehicles)"),
+    Case("odd-input", "study-train-file-without-vehicles",
+         lambda t: CAL + ["study", "--out", f"{t}/st", "--trains", f"{t}/loads.toml"],
+         "error: --trains: '{t}/loads.toml': holds no vehicles", setup=lambda t, ctx: _files(t, loads__toml='name = "x"\n')),
+    Case("odd-input", "recommend-functions-of-another-train",
+         lambda t: CAL + ["recommend", "--functions", OWN_FUNCTIONS, "--train", ICE2_VEHICLES, "--n0", "5", "--mu",
+                          "30000", "--type", "cfb"],
+         "was made for train 'test car + 3 wagons' (file 'my_vehicle_train.toml', SHA-256"),
+    Case("odd-input", "recommend-functions-of-another-format",
+         lambda t: CAL + ["recommend", "--functions", f"{t}/f.toml", "--train", ICE2_VEHICLES, "--n0", "5", "--mu",
+                          "30000", "--type", "cfb"],
+         "error: --functions: '{t}/f.toml': format None is not a functions file of one train",
+         setup=lambda t, ctx: _files(t, f__toml='columns = ["a"]\n')),
     Case("odd-input", "node-params-binary",
          lambda t: [PY, "-m", "adm_sim.nodes.train_node", "--ros-args", "--params-file", f"{t}/p.yaml"],
          "--params-file '{t}/p.yaml': not UTF-8 text (byte 0x80 at offset 128)", ros=True,

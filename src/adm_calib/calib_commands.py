@@ -229,6 +229,38 @@ def _recommend_measured(args):
     return measured
 
 
+def _own_functions(args):
+    """``recommend --functions FILE``: the least-squares functions of a train outside the paper's, from
+    the functions file ``study-fit`` wrote beside its study, for ``--train`` the same train file
+    (same SHA-256); ``{"train", "table", "source", "cases"}``. None for the built-in sets."""
+    from adm_calib.reference import LOWER_BOUND_FILES  # noqa: PLC0415  start-up: only this subcommand (91 ms)
+
+    if args.functions in LOWER_BOUND_FILES:
+        return None
+    text = str(args.functions)
+    if not (text.endswith(".toml") or Path(text).is_file()):
+        raise InputError(f"--functions: {text!r} is not a set or a file; allowed {', '.join(LOWER_BOUND_FILES)} or a "
+                         f"functions file of adm-calib study-fit (functions_<train>.toml)")
+    from adm_calib.study.own_train import read_functions, read_train_file  # noqa: PLC0415  start-up: only with a functions file
+
+    fn = read_functions(text, "--functions")
+    if not fn.sets["least_squares"]:
+        raise InputError(f"--functions: {text!r} holds no least-squares function (too few interval minima in its "
+                         f"study); allowed a functions file with the six mass functions")
+    if not (str(args.train).endswith(".toml") or Path(str(args.train)).is_file()):
+        raise InputError(f"--train: {args.train!r} is not a file; with --functions FILE give the train file its "
+                         f"functions were made for ({fn.train_file!r}, train {fn.train!r})")
+    tf = read_train_file(args.train, "--train")
+    if tf.sha256 != fn.train_sha256:
+        raise InputError(f"--functions: {text!r} was made for train {fn.train!r} (file {fn.train_file!r}, SHA-256 "
+                         f"{fn.train_sha256[:16]}...), not for --train {args.train!r} (train {tf.name!r}, SHA-256 "
+                         f"{tf.sha256[:16]}...); allowed the functions file of that train (adm-calib study-fit on "
+                         f"its study)")
+    source = (f"{fn.train}: least-squares cubics of its own study (Section 4.2.1, rule {fn.rule}; functions file "
+              f"{Path(text).name})")
+    return {"train": fn.train, "table": fn.sets["least_squares"], "source": source, "cases": fn.cases}
+
+
 def cmd_recommend(args):
     from adm_sim.model.bridge import SPAN_RANGE_M  # noqa: PLC0415  start-up: only this subcommand (16 ms)
     from adm_sim.model.plausibility import check_studied_field  # noqa: PLC0415  start-up: only this subcommand (12 ms)
@@ -236,9 +268,10 @@ def cmd_recommend(args):
     from adm_calib.reference import (FUNCTION_SOURCES, STUDY_N0_MAX_HZ, STUDY_SPAN_RANGE_M, lower_bound_table,  # noqa: PLC0415  start-up: only this subcommand (91 ms)
                                      recommend, span_from_frequency_m)
 
-    train = _study_train(args.train, "--train")
+    own = _own_functions(args)  # --functions FILE (a train of a file), else None
+    train = own["train"] if own else _study_train(args.train, "--train")
     measured = _recommend_measured(args)  # --measured: n0 from the monitored bridge
-    lo_hz = lower_bound_table(args.functions)[train]["mu1"].lower_limit_hz
+    lo_hz = next(iter((own["table"] if own else lower_bound_table(args.functions)[train]).values())).lower_limit_hz
     try:
         n0 = check_range("--n0", args.n0, "Hz", lo_hz, STUDY_N0_MAX_HZ)
     except InputError as exc:
@@ -258,10 +291,11 @@ def cmd_recommend(args):
                         names={"span_m": "--span" if span is not None else "span (estimated from --n0)",
                                "n0_hz": "--n0", "mu_kg_m": "--mu", "extrapolate": "--extrapolate"})
     rec = recommend(train, n0, mu_kg_m / 1000.0, args.type, span_m=span, interpolate=args.interpolate,
-                    functions=args.functions, extrapolate=args.extrapolate)
+                    functions=own["source"] if own else args.functions, extrapolate=args.extrapolate,
+                    table=own["table"] if own else None)
     from adm_calib.recommend_warnings import recommendation_warnings  # noqa: PLC0415  start-up: only this subcommand (reads the study's cases)
 
-    study_warnings = recommendation_warnings(rec)
+    study_warnings = recommendation_warnings(rec, cases=own["cases"] if own else None)
     for w in study_warnings:  # one line "warning: ..." on stderr each (run_cli)
         warnings.warn(w, PlausibilityWarning, stacklevel=2)
     if args.json:
@@ -276,7 +310,7 @@ def cmd_recommend(args):
         if measured is not None:
             print("\n".join(measured.lines()))
         print(f"dz_LB = {rec.delta_zeta_pct:.4f} %")
-        print(f"functions: {FUNCTION_SOURCES[rec.functions]}")
+        print(f"functions: {FUNCTION_SOURCES.get(rec.functions, rec.functions)}")
         print(f"mu = {mu_kg_m:g} kg/m ({mu_kg_m / 1000:g} t/m)")
         print(f"rule: {rec.rule}")
         print("mass functions: " + ", ".join(
@@ -327,11 +361,12 @@ def _scheduler(text):
 
 
 def cmd_study(args):
-    from adm_calib.study import StudySettings, canonical_trains, run_study, select_cases  # noqa: PLC0415  start-up: only this subcommand (370 ms)
+    from adm_calib.study import StudySettings, run_study, select_cases  # noqa: PLC0415  start-up: only this subcommand (370 ms)
+
+    from adm_calib.study.own_train import check_dim_step, study_step_s, study_trains  # noqa: PLC0415  start-up: only this subcommand
 
     out, _ = _out_dir(args.out, "--out", (), True)
-    trains = _once([canonical_trains([t], field="--trains")[0] for t in _list(args.trains, "--trains")],
-                   "--trains", args.trains)
+    trains, files = study_trains(_list(args.trains, "--trains"), "--trains")
     mfs = _once(_mass_functions(args.mass_functions), "--mass-functions", args.mass_functions)
     spans = _spans(args.spans)
     fis = _freq_indices(args.freq_index)
@@ -348,14 +383,16 @@ def cmd_study(args):
     settings = StudySettings(speeds=args.speeds, dim_grid=args.dim_grid, steps_per_period=spp,
                              dense_maxima=args.dense_maxima, refine_speed=args.refine_speed,
                              irregularity=args.irregularity)
-    cases = select_cases(trains, mfs, spans, fis)
+    cases = select_cases(trains, mfs, spans, fis, own=files)
     if not cases:
         raise InputError(f"--spans/--freq-index: the options select no case (spans are the integers "
                          f"4..40 m; --spans {args.spans!r} holds none)")
+    for tf in files.values():  # vehicles the DIM's RK4 step cannot follow: refused before anything is written
+        check_dim_step(tf, study_step_s(cases, spp))
     make_output_folder(out, "--out")
     options = {"trains": trains, "mass_functions": mfs, "spans_m": list(spans), "freq_index": fis,
                "limit": limit, "workers": workers, "scheduler": scheduler, "retry_errors": args.retry_errors,
-               "argv": sys.argv[1:]}
+               "train_files": {n: f.path for n, f in files.items()}, "argv": sys.argv[1:]}
     print(f"study: {len(cases)} cases selected ({len(trains)} trains); results in {Path(args.out) / 'results.jsonl'}",
           flush=True)
 
@@ -366,7 +403,7 @@ def cmd_study(args):
     cb, close = progress_callback("study", None, unit="case", leave=True, mininterval=0.1)  # bar on a terminal
     try:
         run = run_study(args.out, cases, settings=settings, workers=workers, scheduler=scheduler, limit=limit,
-                        progress=cb, retry_errors=args.retry_errors, options=options)
+                        progress=cb, retry_errors=args.retry_errors, options=options, train_files=files)
     except KeyboardInterrupt:
         print("error: interrupted while closing the cluster; rerun the same command to resume", file=sys.stderr)
         return 130
@@ -445,7 +482,10 @@ def cmd_study_fit(args):
     from adm_calib import study as st  # noqa: PLC0415  start-up: only this subcommand (370 ms)
     from adm_calib.study.conservative import conservative_markdown, conservative_study, conservative_toml  # noqa: PLC0415  start-up: only this subcommand (261 ms)
 
+    from adm_calib.study import own_train  # noqa: PLC0415  start-up: only this subcommand
+
     res = input_file(args.results, "--results", "results file")
+    own = own_train.study_train_files(res, "--results")  # a train file changed since the study: refused here
     rule = "strict" if args.exclude_flagged else args.exclude
     if args.exclude_flagged and args.exclude not in ("strict", st.DEFAULT_RULE):
         raise InputError(f"--exclude-flagged means --exclude strict; it conflicts with --exclude {args.exclude}")
@@ -459,8 +499,10 @@ def cmd_study_fit(args):
              f"fig16_dz_vs_span{tag}.png", f"fig18_lower_bounds{tag}.png", f"lower_bounds_study{tag}.toml",
              f"appendix_b_comparison{tag}.md", f"fig17_lower_bound_ICE-2_mu3{tag}.png",
              f"conservative_lower_bounds{tag}.md", f"lower_bounds_conservative{tag}.toml"]
-    fig17 = {t: f"fig17_lower_bound_{t}{tag}.png" for t in (*st.STUDY_TRAINS, *st.TRAIN_VARIANTS)}
-    names += list(fig17.values())
+    fig17 = {t: f"fig17_lower_bound_{own_train.safe_name(t)}{tag}.png"
+             for t in dict.fromkeys((*st.STUDY_TRAINS, *st.TRAIN_VARIANTS, *own))}
+    functions = {t: f"functions_{own_train.safe_name(t)}{tag}.toml" for t in own}
+    names += list(fig17.values()) + list(functions.values())
     out, path_list = _out_dir(args.out if args.out is not None else str(res.parent), "--out", names, args.force,
                               inputs={"--results": res})
     paths = dict(zip(names, path_list))
@@ -469,8 +511,11 @@ def cmd_study_fit(args):
         raise InputError(f"--results: {str(res)!r} holds no complete result line")
     _check_fit_records(content.records, "--results", res)
     make_output_folder(out, "--out")
-    fit = st.fit_study(content.records, rule=rule, edges_hz=edges)
+    fit = st.fit_study(content.records, rule=rule, edges_hz=edges, own_trains=own)
     text = fit.to_text()
+    quantities = {t: own_train.quantities_of_file(tf) for t, (_, tf) in own.items()}
+    for t, q in quantities.items():
+        text += f"\nSection 4.2.2 quantities of the train file {own[t][0].get('file_name', '')!r}:\n{q.to_text()}"
     if content.truncated_tail:
         text += f"\n(a truncated last {content.describe_tail()} of the results file was ignored)"
     print(text)
@@ -489,7 +534,8 @@ def cmd_study_fit(args):
         command = (f"adm-calib study-fit --results {res} --exclude {rule} --fit-range-hz {edges[0]:g}:{edges[-1]:g}"
                    + (f" --tag {user_tag}" if user_tag else ""))
         write(names[5], lambda p: p.write_text(fit.to_toml(command=command)))
-        write(names[6], lambda p: p.write_text(st.comparison_markdown(content.records, rule=rule, edges_hz=edges)))
+        write(names[6], lambda p: p.write_text(st.comparison_markdown(content.records, rule=rule, edges_hz=edges,
+                                                                      own_trains=own)))
         rows = conservative_study(fit)
         cons = {(r.train, r.mass_function): r.fit for r in rows}
         if ("ICE-2", "mu3") in fit.fits:
@@ -498,6 +544,13 @@ def cmd_study_fit(args):
         write(names[9], lambda p: p.write_text(conservative_toml(rows, fit, command=command)))
         for t in fit.trains:
             write(fig17[t], lambda p, t=t: plots.plot_lower_bounds_train(fit, t, p, cons))
+        if own:
+            from adm_calib.recommend_warnings import study_cases_csv  # noqa: PLC0415  start-up: only with train files
+
+            for t, (rec, _) in own.items():
+                cases = study_cases_csv([r for r in content.records if r["train"] == t], rule)
+                write(functions[t], lambda p, t=t, rec=rec, cases=cases: p.write_text(own_train.functions_toml(
+                    t, rec, fit, rows, cases, quantities[t], command=command, study_dir=res.parent.resolve())))
     print(f"wrote {len(written)} files to {out}")
     return 0
 
@@ -553,7 +606,8 @@ def build_parser():
     t.set_defaults(func=cmd_table4)
 
     r = sub.add_parser("recommend", help="dz from the lower-bound functions by the rules of Section 4.3")
-    r.add_argument("--train", required=True, help="ICE-2, Eurostar, Railjet or ICE-4")
+    r.add_argument("--train", required=True, help="ICE-2, Eurostar, Railjet or ICE-4; with --functions FILE the "
+                                                   "train or vehicle file of that study")
     r.add_argument("--n0", default=None, help="first natural frequency (Hz), 2.1 Hz up to the highest n0 of the study "
                                               "(or --measured)")
     r.add_argument("--measured", default=None, metavar="PASSAGES.json",
@@ -566,10 +620,12 @@ def build_parser():
     r.add_argument("--span", default=None, help=option_help("--span", "span; estimated from n0 when omitted"))
     r.add_argument("--interpolate", action="store_true",
                    help="interpolate linearly between the adjacent mass functions instead of the safe side")
-    r.add_argument("--functions", choices=("paper", "ours", "conservative"), default="paper",
+    r.add_argument("--functions", default="paper",
                    help="lower-bound functions: paper = Tables B1-B4 (default); ours = re-derived from the "
                         "study shipped in results/study (adm-calib study-fit, least squares as the paper); "
-                        "conservative = the largest cubic below every retained case of that study (linear programme)")
+                        "conservative = the largest cubic below every retained case of that study (linear programme); "
+                        "or FILE, the functions_<train>.toml that study-fit writes for a study of a train file "
+                        "(docs/own_train.md)")
     r.add_argument("--extrapolate", action="store_true",
                    help="answer outside the studied field (span 4..40 m, n0 in the Fig. 8 band, mu within "
                         "Table 1) with a warning instead of refusing (docs/plausibility.md)")
@@ -580,8 +636,8 @@ def build_parser():
     s.add_argument("--out", required=True, help="study directory: results.jsonl (one line per case) and study.json; "
                                                 "rerun with the same --out to resume")
     s.add_argument("--trains", default="ICE-2,Eurostar,Railjet,ICE-4",
-                   help="comma list of the study's trains: ICE-2, Eurostar, Railjet, ICE-4, or Eurostar-table "
-                        "(the Eurostar with Table A1's printed PC 2-8 suspension values) (default the four without it)")
+                   help="comma list of ICE-2, Eurostar, Railjet, ICE-4, Eurostar-table and train or vehicle files "
+                        "(.toml; the study records each file's content and SHA-256, docs/own_train.md)")
     s.add_argument("--mass-functions", default="mu1,mu2,mu3,mu4,mu5,mu6", help="Table 1 mass functions")
     s.add_argument("--spans", default="4:40", help=option_help("--spans", "span range lo:hi (integer spans of the "
                                                                           "field), each end"))

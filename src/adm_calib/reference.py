@@ -347,7 +347,7 @@ class Recommendation:
 
 
 def recommend(train, n0_hz, mu_t_m, bridge_type, *, span_m=None, interpolate=False, functions="paper",
-              extrapolate=False):
+              extrapolate=False, table=None):
     """Additional damping (%) from the lower-bound functions by the rules of Section 4.3.
 
     Parameters
@@ -371,16 +371,23 @@ def recommend(train, n0_hz, mu_t_m, bridge_type, *, span_m=None, interpolate=Fal
     extrapolate : bool
         Accept a span outside the studied 4..40 m (up to the bridge model's 1..150 m): the mass
         functions of Eq. (19) are then extrapolated. The n0 validity of the functions still holds.
+    table : dict, optional
+        ``{mass_function: LowerBound}`` of a train outside the paper's (a functions file of
+        ``adm-calib study-fit``, :func:`adm_calib.study.own_train.read_functions`): used in place of
+        the four trains' sets; ``train`` is then its name as given and ``functions`` the text
+        printed for the set.
 
     Raises
     ------
     InputError
         Unknown train or type, frequency, mass or span outside the validity of the functions.
     """
-    t = canonical_train_name(train)
+    own = table is not None
+    t = canonical_train_name(train) if table is None else str(train)
     if bridge_type not in TYPE_MASS_FUNCTIONS:
         raise InputError(f"bridge_type: {bridge_type!r} is not allowed; allowed 'cfb' or 'sc'")
-    lo_hz = lower_bound_table(functions)[t]["mu1"].lower_limit_hz
+    table = lower_bound_table(functions)[t] if table is None else table
+    lo_hz = next(iter(table.values())).lower_limit_hz
     try:
         n0 = check_range("n0_hz", n0_hz, "Hz", lo_hz, STUDY_N0_MAX_HZ)
     except InputError as exc:
@@ -418,7 +425,10 @@ def recommend(train, n0_hz, mu_t_m, bridge_type, *, span_m=None, interpolate=Fal
         else:
             used, weights = (up,), (1.0,)
             rule = f"mu between {up} and {lo}: next heavier function {up}, safe side (Section 4.3)"
-    table = lower_bound_table(functions)[t]
+    if own and any(m not in table for m in used):
+        raise InputError(f"functions: {functions} has no lower-bound function {', '.join(m for m in used if m not in table)} "
+                         f"for {t} (its study did not run it, or it gave fewer than 4 interval minima); allowed a bridge "
+                         f"whose rule uses {', '.join(table)}")
     if any(m not in table for m in used):
         raise InputError(f"functions: {functions!r} has no lower-bound function for {t} "
                          f"{', '.join(m for m in used if m not in table)}")
@@ -427,7 +437,7 @@ def recommend(train, n0_hz, mu_t_m, bridge_type, *, span_m=None, interpolate=Fal
     beyond = all(n0 >= table[m].zero_from_hz for m in used)
     funcs = ", ".join(f"{m} ({1000 * mus[m]:.0f} kg/m = {mus[m]:.3f} t/m at L={L:g} m): {v:.4f} %"
                       for m, v in zip(used, values))
-    source = FUNCTION_SOURCES[functions]
+    source = FUNCTION_SOURCES.get(functions, functions)
     expl = (f"{source}; {t}, {bridge_type.upper()}, n0={n0:g} Hz, mu={1000 * mu:g} kg/m ({mu:g} t/m), L={L:.3g} m"
             f"{' (estimated from n0 = 97.76 L^-0.9124)' if estimated else ''}; {rule}; {funcs}"
             f"{'; n0 beyond the first root: 0' if beyond else ''}")

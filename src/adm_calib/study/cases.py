@@ -104,7 +104,7 @@ def canonical_trains(names, field="trains"):
 
 
 def select_cases(trains=STUDY_TRAINS, mass_functions=MASS_FUNCTION_NAMES, spans_m=SPAN_RANGE_M,
-                 freq_indices=FREQ_INDICES):
+                 freq_indices=FREQ_INDICES, own=()):
     """The study cases of the field filtered by the arguments, in a fixed order.
 
     Parameters
@@ -117,13 +117,20 @@ def select_cases(trains=STUDY_TRAINS, mass_functions=MASS_FUNCTION_NAMES, spans_
         Inclusive span range (m), within [4, 40].
     freq_indices : sequence of int
         Subset of 1..5 (LB, mid, fit, mid, UB power law of n0, Section 3.1.1).
+    own : collection of str
+        Names in ``trains`` that are trains read from files (:mod:`adm_calib.study.own_train`),
+        taken as they are.
 
     Returns
     -------
     list of StudyCase
         Field order (span, frequency index, mass function), the trains innermost.
     """
-    tr = canonical_trains(trains)
+    tr = []
+    for t in trains:
+        name = t if t in own else canonical_trains([t])[0]
+        if name not in tr:
+            tr.append(name)
     for m in mass_functions:
         if m not in MASS_FUNCTION_NAMES:
             raise InputError(f"mass_functions: {m!r} is unknown; allowed {', '.join(MASS_FUNCTION_NAMES)}")

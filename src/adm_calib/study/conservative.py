@@ -35,6 +35,7 @@ import numpy as np
 from adm_sim.errors import InputError
 
 from adm_calib.lower_bound import LOWER_LIMIT_HZ, first_root_hz, lower_bound_pct
+from adm_calib.study.fit import toml_key
 
 #: Step (Hz) of the scan over the first root.
 ROOT_STEP_HZ = 0.05
@@ -309,7 +310,7 @@ def conservative_toml(rows, study_fit, command=""):
     for r in rows:
         if r.train not in trains:
             trains.append(r.train)
-            lines += ["", f"[tables.{r.train}]", f'source = "linear programme, rule {study_fit.rule}"']
+            lines += ["", f"[tables.{toml_key(r.train)}]", f'source = "linear programme, rule {study_fit.rule}"']
         slack = r.fit.delta_zeta_pct - np.polyval(r.fit.coefficients, r.fit.n0_hz)
         vals = [*r.fit.coefficients, r.fit.upper_limit_hz, float("nan"), float(slack.max()), float(slack.min())]
         lines.append(f"{r.mass_function} = [{', '.join(repr(float(v)) for v in vals)}]")

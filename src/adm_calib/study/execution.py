@@ -24,7 +24,7 @@ from adm_sim.errors import InputError, RunError
 
 from adm_calib.study.cases import WORKER_ENV, StudySettings, _train
 from adm_calib.study.store import (META_FORMAT, RESULTS_NAME, ResultsWriter, _exclusive, _now, _write_meta,
-                                   error_record, read_meta, result_record, versions)
+                                   error_record, read_meta, read_results, result_record, versions)
 
 def run_case(case, settings=StudySettings()):
     """Calibrate one case alone (a batch of one); never raises for errors of the case itself."""
@@ -39,17 +39,18 @@ def make_batches(cases):
     return list(groups.values())
 
 
-def run_batch(cases, settings=StudySettings()):
+def run_batch(cases, settings=StudySettings(), train=None):
     """Calibrate cases of one batch key in lockstep (:func:`adm_calib.calibrate.calibrate_batch`).
 
-    The task run on the workers. Never raises for errors of the cases themselves: if the batch
+    The task run on the workers. ``train``: the :class:`~adm_sim.model.trains.Train` of a train read
+    from a file (:mod:`adm_calib.study.own_train`); None: the built-in train the cases name. Never raises for errors of the cases themselves: if the batch
     fails, every case is tried alone so that only the failing ones become error records.
     """
     from adm_calib.calibrate import calibrate_batch  # noqa: PLC0415  scipy.optimize and scipy.signal, loaded by the workers that calibrate
 
     t0 = time.perf_counter()
     try:
-        train = _train(cases[0].train)
+        train = _train(cases[0].train) if train is None else train
         res = calibrate_batch([c.bridge for c in cases], train, speeds_kmh=settings.speeds_kmh(),
                               options=settings.calibration_options(cases[0].span_m))
         wall = (time.perf_counter() - t0) / len(cases)
@@ -60,7 +61,7 @@ def run_batch(cases, settings=StudySettings()):
         if len(cases) == 1:
             recs = [error_record(cases[0], exc, time.perf_counter() - t0)]
         else:
-            recs = [run_batch([c], settings)[0] for c in cases]
+            recs = [run_batch([c], settings, train)[0] for c in cases]
     for rec in recs:
         rec["host"] = platform.node()
         rec["pid"] = os.getpid()
@@ -236,7 +237,7 @@ def check_scheduler(address, timeout_s=5.0):
 
 
 def run_study(out_dir, cases, *, settings=StudySettings(), workers=2, scheduler=None, limit=None, progress=None,
-              retry_errors=False, options=None, no_worker_wait_s=None):
+              retry_errors=False, options=None, no_worker_wait_s=None, train_files=None):
     """Run the study cases not yet in ``out_dir/results.jsonl`` on a dask cluster.
 
     Parameters
@@ -264,6 +265,11 @@ def run_study(out_dir, cases, *, settings=StudySettings(), workers=2, scheduler=
     no_worker_wait_s : float, optional
         While cases are pending and the scheduler has had no worker for this long (default
         :data:`NO_WORKER_WAIT_S`, 30 s), the study stops (everything finished is kept).
+    train_files : dict, optional
+        ``{name: TrainFile}`` of the trains read from files (:func:`adm_calib.study.own_train.study_trains`):
+        ``study.json`` keeps each file's path, content and SHA-256 (``train_files``); a resume with
+        another file under a recorded name, or with a built-in train where the study ran a file
+        (and the reverse), is refused before anything is written.
 
     Returns
     -------
@@ -292,8 +298,16 @@ def run_study(out_dir, cases, *, settings=StudySettings(), workers=2, scheduler=
             diff = ", ".join(f"{k} {old.get(k)!r} -> {new[k]!r}" for k in new if old.get(k) != new[k])
             raise InputError(f"settings: the study in {str(out)!r} was computed with other settings ({diff}); "
                              f"use another --out")
+        files = dict(train_files or {})
+        if files or (meta or {}).get("train_files"):
+            from adm_calib.study.own_train import check_resume  # noqa: PLC0415  only for studies of train files
+
+            done = {r["train"] for r in read_results(out / RESULTS_NAME, skip_damaged=True).records}
+            check_resume(meta, done, sorted({c.train for c in cases}), files, out)
         if meta is None:
             meta = {"format": META_FORMAT, "created": _now(), "settings": settings.to_dict(), "runs": []}
+        if files:
+            meta.setdefault("train_files", {}).update({n: f.record() for n, f in files.items()})
         with ResultsWriter(out / RESULTS_NAME, drop_errors=retry_errors) as writer:
             pending = [c for c in cases if c.key not in writer.records]
             if limit is not None:
@@ -310,7 +324,8 @@ def run_study(out_dir, cases, *, settings=StudySettings(), workers=2, scheduler=
             try:
                 if pending:
                     _run_on_dask(pending, settings, writer, run, workers, scheduler, progress, entry,
-                                 NO_WORKER_WAIT_S if no_worker_wait_s is None else no_worker_wait_s)
+                                 NO_WORKER_WAIT_S if no_worker_wait_s is None else no_worker_wait_s,
+                                 {n: f.train for n, f in files.items()})
             except KeyboardInterrupt:
                 run.interrupted = True
             except RunError as exc:
@@ -358,7 +373,7 @@ class _WorkerWatch:
 
 
 def _run_on_dask(pending, settings, writer, run, workers, scheduler, progress, entry,
-                 no_worker_wait_s=NO_WORKER_WAIT_S):
+                 no_worker_wait_s=NO_WORKER_WAIT_S, trains=None):
     from distributed import Client, as_completed  # noqa: PLC0415  as dask
 
     cluster = client = None
@@ -387,8 +402,8 @@ def _run_on_dask(pending, settings, writer, run, workers, scheduler, progress, e
         by_future = {}
         for b in batches:
             L, fi = b[0].batch_key[1:]
-            fut = client.submit(run_batch, b, settings, pure=False,
-                                key=f"batch-{b[0].train}-L{L:g}-f{fi}-{os.getpid()}")
+            fut = client.submit(run_batch, b, settings, (trains or {}).get(b[0].train), pure=False,
+                                key=f"batch-{re.sub(r'[^A-Za-z0-9_.-]', '_', b[0].train)}-L{L:g}-f{fi}-{os.getpid()}")
             by_future[fut] = b
             futures.append(fut)
         if progress is not None:

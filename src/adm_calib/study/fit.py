@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import csv
+import json
 import io
 from collections import Counter
 import math
+import re
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -260,14 +262,15 @@ class StudyFit:
                 continue
             if t not in trains:
                 trains.append(t)
-                lines += ["", f"[tables.{t}]", f'source = "study fit, rule {self.rule}"']
+                lines += ["", f"[tables.{toml_key(t)}]", f'source = "study fit, rule {self.rule}"']
             c = f.fit
             vals = [*c.coefficients, c.upper_limit_hz, c.r2, c.max_res_pct, c.min_res_pct]
             lines.append(f"{m} = [{', '.join(repr(float(v)) for v in vals)}]")
         return "\n".join(lines) + "\n"
 
     def to_text(self):
-        head = (f"{'train':9}{'mass':5}{'':6}{'cases':>6}{'pts':>4}{'a':>11}{'b':>11}{'c':>11}{'d':>11}"
+        w = max([9] + [len(t) + 1 for t, _ in self.fits])
+        head = (f"{'train':{w}}{'mass':5}{'':6}{'cases':>6}{'pts':>4}{'a':>11}{'b':>11}{'c':>11}{'d':>11}"
                 f"{'upper Hz':>9}{'R2':>8}{'max res':>9}{'min res':>9}")
         lines = ["Lower-bound functions, Eq. (20): dz = a n0^3 + b n0^2 + c n0 + d (dz in %, n0 in Hz), "
                  "Section 4.2.1; 'paper' = Tables B1-B4", head, "-" * len(head)]
@@ -276,7 +279,7 @@ class StudyFit:
             return f"{a:11.4g}{b:11.4g}{c:11.4g}{d:11.4g}{up:9.2f}{r2:8.4f}{mx:9.4f}{mn:9.4f}"
 
         for (t, m), f in self.fits.items():
-            pre = f"{t:9}{m:5}{'fit':6}{f.n_cases:6d}{len(f.minima):4d}"
+            pre = f"{t:{w}}{m:5}{'fit':6}{f.n_cases:6d}{len(f.minima):4d}"
             if f.fit is None:
                 lines.append(f"{pre}  {f.note}")
             else:
@@ -284,7 +287,7 @@ class StudyFit:
                 lines.append(pre + nums(*c.coefficients, c.upper_limit_hz, c.r2, c.max_res_pct, c.min_res_pct))
             p = f.published
             if p is not None:
-                lines.append(f"{'':14}{'paper':6}{'':10}" + nums(p.a, p.b, p.c, p.d, p.upper_limit_hz, p.r2,
+                lines.append(f"{'':{w + 5}}{'paper':6}{'':10}" + nums(p.a, p.b, p.c, p.d, p.upper_limit_hz, p.r2,
                                                                    p.max_res_pct, p.min_res_pct))
         used = len(self.records_used)
         lines.append(f"cases: {self.n_records} read, {used} used"
@@ -334,7 +337,12 @@ def _exclusion(rec, rule):
     return None
 
 
-def fit_study(records, rule=DEFAULT_RULE, edges_hz=INTERVAL_EDGES_HZ):
+def toml_key(name):
+    """``name`` as a TOML key: bare where it may be (``ICE-2``), else quoted (``"my train"``)."""
+    return name if re.fullmatch(r"[A-Za-z0-9_-]+", name) else json.dumps(name)
+
+
+def fit_study(records, rule=DEFAULT_RULE, edges_hz=INTERVAL_EDGES_HZ, own_trains=()):
     """Lower-bound functions per train and mass function from study records (Section 4.2.1).
 
     Parameters
@@ -347,6 +355,9 @@ def fit_study(records, rule=DEFAULT_RULE, edges_hz=INTERVAL_EDGES_HZ):
     edges_hz : sequence of float
         Interval boundaries (Hz); :func:`fit_edges_hz` gives them for a narrower fit range. The
         fitted functions are 0 above the last one where their cubic has no root before it.
+    own_trains : collection of str
+        Trains read from files by the study (``study.json`` ``train_files``), fitted like the paper
+        trains; lines of any other train are left out (``other_train``).
 
     Returns
     -------
@@ -367,7 +378,7 @@ def fit_study(records, rule=DEFAULT_RULE, edges_hz=INTERVAL_EDGES_HZ):
         for f in case_flags(rec):
             cnt[f] += 1
         why = _exclusion(rec, rule)
-        if why is None and paper_train(rec["train"]) not in STUDY_TRAINS:
+        if why is None and paper_train(rec["train"]) not in STUDY_TRAINS and rec["train"] not in own_trains:
             why = "other_train"
         if why is not None:
             excluded[why] += 1
@@ -405,13 +416,13 @@ def _g(x, fmt="{:.4g}"):
     return "-" if x is None or (isinstance(x, float) and not math.isfinite(x)) else fmt.format(x)
 
 
-def comparison_markdown(records, rule=DEFAULT_RULE, edges_hz=INTERVAL_EDGES_HZ):
+def comparison_markdown(records, rule=DEFAULT_RULE, edges_hz=INTERVAL_EDGES_HZ, own_trains=()):
     """Markdown tables: our fit next to Tables B1-B4 per train, the differences of the lower bounds
     at :data:`COMPARE_N0_HZ`, the cases each flag excludes per set and the effect of each rule.
 
     A variant train (``Eurostar-table``) is compared with its paper train's table."""
     records = list(records)
-    fits = {r: fit_study(records, rule=r, edges_hz=edges_hz) for r in EXCLUSION_RULES}
+    fits = {r: fit_study(records, rule=r, edges_hz=edges_hz, own_trains=own_trains) for r in EXCLUSION_RULES}
     main = fits[rule]
     lo, hi = main.fit_range_hz
     rng = "" if (lo, hi) == (INTERVAL_EDGES_HZ[0], INTERVAL_EDGES_HZ[-1]) else (
