@@ -29,8 +29,8 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 #: the wings and their ranks, lowest first (the README's drawing and docs/architecture.md say the same)
 RANK = {
     "adm_sim": 0,
-    "adm_sim.model": 1, "adm_sim.monitoring": 1, "adm_sim.recording": 1, "adm_sim.processes": 1,
-    "adm_sim.integrate": 2, "adm_sim.inputs": 2,
+    "adm_sim.model": 1, "adm_sim.recording": 1, "adm_sim.processes": 1,
+    "adm_sim.integrate": 2, "adm_sim.inputs": 2, "adm_sim.monitoring": 2,
     "adm_sim.design": 3,
     "adm_sim.cli": 4,
     "adm_calib": 5,
