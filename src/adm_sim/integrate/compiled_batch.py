@@ -59,7 +59,10 @@ def modal_load_table(bridge, ds_m, axle_offsets_m, axle_loads_n, n_steps):
         on = np.flatnonzero((x >= 0.0) & (x <= span))
         if on.size:
             lo, hi = on[0], on[-1] + 1
-            out[r0 + lo:r0 + hi] += loads[i] * np.sin(np.outer(x[lo:hi], j))
+            if bridge.is_continuous:  # the deck's exact mode shapes (adm_sim.model.spans)
+                out[r0 + lo:r0 + hi] += loads[i] * bridge.shapes(x[lo:hi])[0]
+            else:
+                out[r0 + lo:r0 + hi] += loads[i] * np.sin(np.outer(x[lo:hi], j))
     return out
 
 
@@ -80,16 +83,21 @@ class BatchRunner:
     irregularity : adm_sim.model.irregularity.Profile or None
         Track irregularity on the deck under every DIM wheel (Eq. 9 with the profile's terms);
         ``None``: smooth track. The MLM is unaffected.
+    response_m : float or None
+        Where the maxima are taken (m from the left abutment); None: midspan.
     """
 
-    def __init__(self, bridges, train, ds_m, free_vibration_periods=2.0, dense_maxima=False, irregularity=None):
+    def __init__(self, bridges, train, ds_m, free_vibration_periods=2.0, dense_maxima=False, irregularity=None,
+                 response_m=None):
         self.bridges = list(bridges)
         if not self.bridges:
             raise InputError("bridges: need at least one bridge for a batch")
         b0 = self.bridges[0]
         for b in self.bridges[1:]:
-            if (b.span_m, b.n_modes, b.damping_model) != (b0.span_m, b0.n_modes, b0.damping_model):
-                raise InputError(f"bridges: a batch needs one span, mode count and damping model; "
+            deck = (b.spans_m, b.span_EJ_Nm2, b.span_mu_kg_m)  # a continuous deck's shapes are its own
+            if (b.span_m, b.n_modes, b.damping_model) + deck != (b0.span_m, b0.n_modes, b0.damping_model,
+                                                                 b0.spans_m, b0.span_EJ_Nm2, b0.span_mu_kg_m):
+                raise InputError(f"bridges: a batch needs one span (one deck), mode count and damping model; "
                                  f"{b.name or b.describe()} differs from {b0.name or b0.describe()}")
         self.train = train
         self.options = StepOptions(free_vibration_periods=free_vibration_periods,
@@ -99,7 +107,7 @@ class BatchRunner:
         self.ds_m = float(ds_m)
         self.span_m = float(b0.span_m)
         self.n_modes = b0.n_modes
-        self.tables = bridge_tables(self.bridges)
+        self.tables = bridge_tables(self.bridges, response_m)
         self.phi_mid, self.M, self.K = self.tables.phi_mid, self.tables.M, self.tables.K
         self._rows = 0
         self._mlm_rows = 0

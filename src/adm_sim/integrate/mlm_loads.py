@@ -26,9 +26,18 @@ def modal_loads_at(bridge, x_m, loads_n):
     """Modal loads of Eq. (6) for axle positions ``x_m`` (rows, n_axles), shape (rows, n_modes).
 
     One pass per axle over the rows with that axle on the bridge (positions increase along the
-    rows); the rectangle function Gamma is the closed span ``[0, L]``.
+    rows); the rectangle function Gamma is the closed span ``[0, L]`` (a continuous deck: its
+    whole length, its exact mode shapes).
     """
     out = np.zeros((x_m.shape[0], bridge.n_modes))
+    if bridge.is_continuous:
+        for i in range(x_m.shape[1]):
+            x = x_m[:, i]
+            on = np.flatnonzero((x >= 0.0) & (x <= bridge.span_m))
+            if on.size:
+                lo, hi = on[0], on[-1] + 1
+                out[lo:hi] += loads_n[i] * bridge.shapes(x[lo:hi])[0]
+        return out
     j = bridge.mode_numbers * math.pi / bridge.span_m
     for i in range(x_m.shape[1]):
         x = x_m[:, i]

@@ -33,8 +33,8 @@ exactly ``sin(j pi x / L)``, paper Eq. 4). The modal mass ``M_j = sum_i mu_i int
 is integrated per span by Gauss-Legendre quadrature with more points than the shape has half-waves
 (exact to round-off for these smooth integrands).
 
-**Mode count.** The standard's rule (EN 1991-2 6.4.6.3.1 as the paper quotes it: every mode up to
-30 Hz, 1.5 n0 or the third mode, whichever is higher) or an explicit count up to
+**Mode count.** The rule ``adm-sim check`` applies (every mode up to 30 Hz, 1.5 n0 or the third
+mode, whichever is higher; docs/check.md names its clause) or an explicit count up to
 :data:`MAX_MODES`.
 
 Limits: linear elastic, no shear deformation or rotary inertia, rigid point supports, pinned at
@@ -48,10 +48,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from adm_sim.fields import FIELDS
+
 #: Number of spans allowed (1 = the simply supported beam).
-MAX_SPANS = 6
+MAX_SPANS = FIELDS["n_spans"].hi
 #: Largest explicit mode count.
-MAX_MODES = 50
+MAX_MODES = FIELDS["deck_n_modes"].hi
 #: The mode-count rule's frequency floor (Hz) and its factor on n0.
 RULE_FREQ_HZ = 30.0
 RULE_N0_FACTOR = 1.5
@@ -59,8 +61,7 @@ RULE_MIN_MODES = 3
 #: Relative width to which bisection brackets a natural frequency.
 _FREQ_RTOL = 1e-14
 
-RULE_TEXT = ("every mode up to 30 Hz, 1.5 n0 or the third mode, whichever is higher "
-             "(EN 1991-2 6.4.6.3.1 as the paper quotes it)")
+RULE_TEXT = "every mode up to 30 Hz, 1.5 n0 or the third mode, whichever is higher (the rule of adm-sim check)"
 
 
 # ---------------------------------------------------------------------- one span
@@ -181,7 +182,7 @@ def count_below(spans, EJ, mu, omega):
         if i:
             d = diag[i] - off[i - 1] ** 2 / d
         neg += d < 0.0
-    return j0 + neg
+    return int(j0 + neg)
 
 
 def natural_frequencies_rad_s(spans, EJ, mu, n_modes):
@@ -307,4 +308,4 @@ def rule_mode_count(spans_m, EJ_Nm2, mu_kg_m):
     """Modes the rule asks for: every mode up to ``max(30 Hz, 1.5 n0)``, at least three."""
     spans, EJ, mu = (np.atleast_1d(np.asarray(a, dtype=float)) for a in (spans_m, EJ_Nm2, mu_kg_m))
     n0 = natural_frequencies_rad_s(spans, EJ, mu, 1)[0] / (2.0 * math.pi)
-    return max(RULE_MIN_MODES, count_below(spans, EJ, mu, 2.0 * math.pi * rule_limit_hz(n0) * (1.0 + 1e-12)))
+    return max(RULE_MIN_MODES, int(count_below(spans, EJ, mu, 2.0 * math.pi * rule_limit_hz(n0) * (1.0 + 1e-12))))
