@@ -161,11 +161,24 @@ def test_bad_toml_deck(call_main, tmp_path):
         assert len(lines) == 1 and lines[0].startswith(f"error: {line}"), lines
 
 
-def test_exact_method_and_dim_refused_on_a_deck(call_main, tmp_path):
+def test_exact_method_refused_on_a_deck(call_main, tmp_path):
     deck = "spans=15/15,EJ=2e10,mu=15000,zeta_pct=1.5"
     done, out = _sweep(call_main, tmp_path, deck, "--method", "exact")
     assert done.returncode == 2 and not out.exists()
     assert done.stderr.startswith("error: --method: 'exact' is the closed-form MLM envelope of one simply supported span")
-    done, out = _sweep(call_main, tmp_path, deck, "--model", "dim")
-    assert done.returncode == 2 and not out.exists()
-    assert done.stderr.startswith("error: --model: the DIM on a continuous deck (2 spans) is not wired yet")
+
+
+def test_entries_not_wired_refuse_a_deck(call_main, tmp_path):
+    """adm-sim check and adm-calib calibrate take one simply supported span today: a deck is refused in
+    one line naming where continuous decks are taken, exit 2, nothing written."""
+    from adm_calib.calib_commands import main as calib_main
+
+    deck = "spans=15/15,EJ=2e10,mu=15000,zeta_pct=1.5"
+    refusal = (f"error: --bridge: '{deck}' is a continuous deck of 2 spans; this entry takes one simply supported "
+               f"span (allowed: L=..., B1..B4; continuous decks: adm-sim sweep --model mlm (RK4))")
+    for m, argv in ((main, ["check", "--bridge", deck, "--max-line-speed", "200", "--json", str(tmp_path / "c.json")]),
+                    (calib_main, ["calibrate", "--bridge", deck, "--train", "ICE-2", "--json", str(tmp_path / "c.json")])):
+        done = call_main(m, *argv)
+        assert done.returncode == 2
+        assert done.stderr.strip().splitlines() == [refusal]
+        assert list(tmp_path.iterdir()) == []

@@ -139,11 +139,10 @@ def test_compiled_equals_numpy_on_a_continuous_deck():
 
 
 def test_what_is_not_wired_is_refused():
-    """The exact envelope and the DIM refuse a continuous deck with one line naming the allowed choice."""
+    """The exact envelope refuses a continuous deck with one line naming the allowed choice; an RK4 run
+    records one point (no --where deck)."""
     b = Bridge.continuous((15.0, 15.0), 2.0e10, 1.5e4, 0.02)
     with pytest.raises(InputError, match="exact MLM envelope is written for the sine modes.*allowed --method rk4"):
         sweep_exact(b, AXLES, [200.0])
-    with pytest.raises(InputError, match="DIM on a continuous deck .*not wired yet; allowed on continuous decks: mlm"):
-        run_sweep(b, load_train("ICE-2"), "dim", [200.0])
     with pytest.raises(InputError, match="where: 'deck' is not allowed for an RK4 run"):
         run_sweep(b, AXLES, "mlm", [200.0], where="deck")

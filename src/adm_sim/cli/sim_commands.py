@@ -37,7 +37,7 @@ def cmd_sweep(args):
     if json_path is not None and args.plot is not None and json_path.resolve() == Path(args.plot).resolve():
         raise InputError(f"--plot: {args.plot!r} is the --json file; give two different files")
     plot_path = None if args.plot is None else claim_output(args.plot, "--plot", args.overwrite, ".png", inputs)
-    bridge = resolve_bridge(args.bridge)
+    bridge = resolve_bridge(args.bridge, continuous=True)
     train = load_train(args.train)
     speeds = parse_speeds(args.speeds, field="--speeds")
     dz_pct = option_view("--delta-zeta-pct")  # % on the command line, a fraction in the core

@@ -169,9 +169,6 @@ def check_spans_for_train(bridge, train):
 def _response_m(bridge, model, where):
     """The response point of an RK4 sweep (None: midspan) from ``where`` (``"midspan"`` or x in m);
     refuses what the RK4 runs do not take on this bridge."""
-    if bridge.is_continuous and model == "dim":
-        raise InputError(f"model: the DIM on a continuous deck ({len(bridge.spans_m)} spans) is not wired yet; "
-                         f"allowed on continuous decks: mlm", field="model")
     if isinstance(where, str):
         w = where.strip().lower()
         if w == "midspan":

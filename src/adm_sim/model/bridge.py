@@ -595,8 +595,25 @@ def load_bridge_file(path):
     return bridge_from_mapping(data, source=f"bridge file {p.name}", typed=True)
 
 
-def resolve_bridge(text):
-    """A bridge from a CLI/parameter string: a Table 3 name, a ``key=value`` spec or a file."""
+#: Where a continuous deck is taken today (the refusal of every other entry names it).
+CONTINUOUS_WIRED = "adm-sim sweep --model mlm (RK4)"
+
+
+def resolve_bridge(text, continuous=False):
+    """A bridge from a CLI/parameter string: a Table 3 name, a ``key=value`` spec or a file.
+
+    ``continuous``: the caller takes a continuous deck (``spans`` of two or more); without it such a
+    deck is refused with one line naming where continuous decks are taken (:data:`CONTINUOUS_WIRED`).
+    """
+    bridge = _resolve_bridge(text)
+    if bridge.is_continuous and not continuous:
+        raise InputError(f"bridge: {text!r} is a continuous deck of {len(bridge.spans_m)} spans; this entry takes one "
+                         f"simply supported span (allowed: L=..., B1..B4; continuous decks: {CONTINUOUS_WIRED})",
+                         field="bridge")
+    return bridge
+
+
+def _resolve_bridge(text):
     if text.upper() in TABLE3:
         return named_bridge(text)
     if "=" not in text or text.endswith(".toml"):
