@@ -186,3 +186,11 @@ def test_rule_mode_count():
     m2 = deck_modes([5.0, 5.0], [EJ, EJ], [MU, MU], 6)
     n0 = m2.frequencies_hz[0]
     assert rule_mode_count([5.0, 5.0], [EJ, EJ], [MU, MU]) == max(3, int(np.sum(m2.frequencies_hz <= max(30, 1.5 * n0))))
+
+
+def test_phi_alone_equals_the_shapes():
+    """``DeckModes.phi`` (the MLM's loads) equals the first array of ``shapes`` to 1e-14 at random
+    points of a three-span deck, supports included."""
+    m = deck_modes([10.0, 14.0, 12.0], [1.0e10, 2.0e10, 1.5e10], [1.0e4, 1.4e4, 1.2e4], 10)
+    x = np.concatenate([np.random.default_rng(1).uniform(0.0, 36.0, 500), m.supports_m])
+    assert np.abs(m.phi(x) - m.shapes(x)[0]).max() < 1e-14

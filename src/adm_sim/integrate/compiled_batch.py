@@ -27,6 +27,7 @@ import numpy as np
 from adm_sim.integrate import kernels
 from adm_sim.errors import InputError, RunError
 from adm_sim.fields import FIELDS, check_delta_zeta_pct
+from adm_sim.integrate.mlm_loads import deck_modal_loads
 from adm_sim.integrate.rk4_sides import mlm_rk4_coefficients
 from adm_sim.integrate.run_contract import FAILED, RUNNING, AdvancingRun, check_model
 from adm_sim.integrate.step_grid import StepOptions, make_grid, speeds_to_m_s
@@ -44,6 +45,8 @@ def modal_load_table(bridge, ds_m, axle_offsets_m, axle_loads_n, n_steps):
     be on the span.
     """
     s = 0.5 * ds_m * np.arange(0, 2 * n_steps + 1)
+    if bridge.is_continuous:
+        return _deck_load_table(bridge, s, axle_offsets_m, axle_loads_n)
     out = np.zeros((s.size, bridge.n_modes))
     span = bridge.span_m
     j = bridge.mode_numbers * math.pi / span
@@ -59,11 +62,29 @@ def modal_load_table(bridge, ds_m, axle_offsets_m, axle_loads_n, n_steps):
         on = np.flatnonzero((x >= 0.0) & (x <= span))
         if on.size:
             lo, hi = on[0], on[-1] + 1
-            if bridge.is_continuous:  # the deck's exact mode shapes (adm_sim.model.spans)
-                out[r0 + lo:r0 + hi] += loads[i] * bridge.shapes(x[lo:hi])[0]
-            else:
-                out[r0 + lo:r0 + hi] += loads[i] * np.sin(np.outer(x[lo:hi], j))
+            out[r0 + lo:r0 + hi] += loads[i] * np.sin(np.outer(x[lo:hi], j))
     return out
+
+
+def _deck_load_table(bridge, s, axle_offsets_m, axle_loads_n):
+    """:func:`modal_load_table` of a continuous deck: every (row, axle) on the deck gathered, the
+    deck's mode shapes evaluated once for all (:func:`adm_sim.integrate.mlm_loads.deck_modal_loads`)."""
+    span = bridge.span_m
+    rows, xs, ws = [], [], []
+    loads = np.asarray(axle_loads_n, dtype=float)
+    for i, off in enumerate(np.asarray(axle_offsets_m, dtype=float)):
+        r0 = int(np.searchsorted(s, off, side="left"))
+        r1 = min(int(np.searchsorted(s, off + span, side="right")) + 2, s.size)
+        if r0 >= r1:
+            continue
+        x = s[r0:r1] - off
+        on = np.flatnonzero((x >= 0.0) & (x <= span))
+        rows.append(r0 + on)
+        xs.append(x[on])
+        ws.append(np.full(on.size, loads[i]))
+    if not rows:
+        return np.zeros((s.size, bridge.n_modes))
+    return deck_modal_loads(bridge, np.concatenate(rows), np.concatenate(xs), np.concatenate(ws), s.size)
 
 
 class BatchRunner:

@@ -22,6 +22,17 @@ def half_step_positions(ds_m, axle_offsets_m, k0, n_steps):
     return s[:, None] - np.asarray(axle_offsets_m, dtype=float)[None, :]
 
 
+def deck_modal_loads(bridge, rows, x_m, loads_n, n_rows):
+    """Modal loads of Eq. (6) on a continuous deck, shape (n_rows, n_modes): the load ``loads_n[e]``
+    at ``x_m[e]`` (m from the left abutment, on the deck) added to row ``rows[e]``, with the deck's
+    mode shapes evaluated in one call for every entry."""
+    phi = bridge.deck.phi(np.asarray(x_m, dtype=float)) * np.asarray(loads_n, dtype=float)[:, None]
+    out = np.empty((n_rows, bridge.n_modes))
+    for j in range(bridge.n_modes):
+        out[:, j] = np.bincount(rows, weights=phi[:, j], minlength=n_rows)
+    return out
+
+
 def modal_loads_at(bridge, x_m, loads_n):
     """Modal loads of Eq. (6) for axle positions ``x_m`` (rows, n_axles), shape (rows, n_modes).
 
@@ -29,15 +40,10 @@ def modal_loads_at(bridge, x_m, loads_n):
     rows); the rectangle function Gamma is the closed span ``[0, L]`` (a continuous deck: its
     whole length, its exact mode shapes).
     """
-    out = np.zeros((x_m.shape[0], bridge.n_modes))
     if bridge.is_continuous:
-        for i in range(x_m.shape[1]):
-            x = x_m[:, i]
-            on = np.flatnonzero((x >= 0.0) & (x <= bridge.span_m))
-            if on.size:
-                lo, hi = on[0], on[-1] + 1
-                out[lo:hi] += loads_n[i] * bridge.shapes(x[lo:hi])[0]
-        return out
+        rows, axle = np.nonzero((x_m >= 0.0) & (x_m <= bridge.span_m))
+        return deck_modal_loads(bridge, rows, x_m[rows, axle], np.asarray(loads_n, dtype=float)[axle], x_m.shape[0])
+    out = np.zeros((x_m.shape[0], bridge.n_modes))
     j = bridge.mode_numbers * math.pi / bridge.span_m
     for i in range(x_m.shape[1]):
         x = x_m[:, i]

@@ -152,6 +152,19 @@ class DeckModes:
             out[2][sel] = b * b * (-c[..., 0] * sn - c[..., 1] * cs + c[..., 2] * e0 + c[..., 3] * e1)
         return tuple(o.reshape(shape + (self.n_modes,)) for o in out)
 
+    def phi(self, x_m):
+        """The mode shapes alone at abscissae ``x_m`` (n_x,) on the deck ``[0, length]``, shape
+        (n_x, n_modes): :meth:`shapes`' first array, without the derivatives (the MLM's loads)."""
+        x = np.asarray(x_m, dtype=float)
+        span = np.clip(np.searchsorted(self.supports_m, x, side="right") - 1, 0, self.spans_m.size - 1)
+        xi = (x - self.supports_m[span])[:, None]
+        b = self.beta_1_m.T[span]  # (n_x, n_modes)
+        c = self.coef.transpose(1, 0, 2)[span]  # (n_x, n_modes, 4)
+        bx = b * xi
+        e0 = np.exp(-bx)
+        e1 = np.exp(-b * self.spans_m[span][:, None]) / e0  # exp(-beta (L - xi)), one exp fewer
+        return c[..., 0] * np.sin(bx) + c[..., 1] * np.cos(bx) + c[..., 2] * e0 + c[..., 3] * e1
+
     def table(self, points_per_span=256):
         """The shapes as tables on a space grid: ``(x_m, phi, phi_x, phi_xx)``, ``x_m`` (n_x,) the
         supports and ``points_per_span - 1`` equal steps inside every span, the shapes (n_x, n_modes)."""
