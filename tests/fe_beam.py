@@ -122,3 +122,65 @@ def fe_moving_loads(beam, axle_offsets_m, axle_loads_n, speed_m_s, dt_s, t_end_s
         u, v, acc = un, vn, an
         w_out[k], a_out[k] = r @ u, r @ acc
     return t, w_out, a_out
+
+
+def _hermite(beam, x):
+    """Free-DOF rows of the deflection, slope and curvature at x (Hermite cubic of its element)."""
+    rows = np.zeros((3, beam.n_dof_all))
+    e = min(int(np.searchsorted(beam.x, x, side="right")) - 1, beam.x.size - 2)
+    h = beam.x[e + 1] - beam.x[e]
+    s = (x - beam.x[e]) / h
+    rows[0, 2 * e:2 * e + 4] = [1 - 3 * s**2 + 2 * s**3, h * (s - 2 * s**2 + s**3), 3 * s**2 - 2 * s**3, h * (-s**2 + s**3)]
+    rows[1, 2 * e:2 * e + 4] = np.array([-6 * s + 6 * s**2, h * (1 - 4 * s + 3 * s**2), 6 * s - 6 * s**2,
+                                         h * (-2 * s + 3 * s**2)]) / h
+    rows[2, 2 * e:2 * e + 4] = np.array([-6 + 12 * s, h * (-4 + 6 * s), 6 - 12 * s, h * (-2 + 6 * s)]) / h**2
+    return rows[:, beam.free]
+
+
+def fe_moving_masses(beam, axle_offsets_m, axle_loads_n, masses_kg, speed_m_s, dt_s, t_end_s, rayleigh_ab, x_out_m):
+    """Direct Newmark integration of the deck carrying moving masses in permanent contact: each mass
+    m_i rides at ``v t - offset_i`` with its static load P_i and acts on the deck with
+    ``P_i - m_i (w'' t-derivatives along its path) = P_i - m_i (w_tt + 2 v w_xt + v^2 w_xx)``, so the
+    coupled system ``(M + sum m n n^T) u'' + (C + sum 2 m v n n'^T) u' + (K + sum m v^2 n n''^T) u =
+    sum P n`` changes with the positions (assembled and solved at every step). Returns ``(t, w, acc)``
+    at ``x_out_m``."""
+    a_r, b_r = rayleigh_ab
+    M, K = beam.M, beam.K
+    C = a_r * M + b_r * K
+    n_steps = int(round(t_end_s / dt_s))
+    gamma, beta = 0.5, 0.25
+    offs, loads, ms = (np.asarray(a, float) for a in (axle_offsets_m, axle_loads_n, masses_kg))
+    v = speed_m_s
+    r_out = beam.interp_row(x_out_m)
+
+    def matrices(t):
+        Mw, Cw, Kw, f = M.copy(), C.copy(), K.copy(), np.zeros(M.shape[0])
+        for off, p, m in zip(offs, loads, ms):
+            x = v * t - off
+            if not (beam.x[0] <= x <= beam.x[-1]):
+                continue
+            n, n1, n2 = _hermite(beam, x)
+            Mw += m * np.outer(n, n)
+            Cw += 2 * m * v * np.outer(n, n1)
+            Kw += m * v * v * np.outer(n, n2)
+            f += p * n
+        return Mw, Cw, Kw, f
+
+    u = np.zeros(M.shape[0])
+    ud = np.zeros_like(u)
+    Mw, Cw, Kw, f = matrices(0.0)
+    acc = np.linalg.solve(Mw, f - Cw @ ud - Kw @ u)
+    t = np.arange(n_steps + 1) * dt_s
+    w_out, a_out = np.empty(n_steps + 1), np.empty(n_steps + 1)
+    w_out[0], a_out[0] = r_out @ u, r_out @ acc
+    for k in range(1, n_steps + 1):
+        Mw, Cw, Kw, f = matrices(t[k])
+        A = Kw + gamma / (beta * dt_s) * Cw + Mw / (beta * dt_s**2)
+        rhs = (f + Mw @ (u / (beta * dt_s**2) + ud / (beta * dt_s) + (0.5 / beta - 1) * acc)
+               + Cw @ (gamma / (beta * dt_s) * u + (gamma / beta - 1) * ud + dt_s * (0.5 * gamma / beta - 1) * acc))
+        un = np.linalg.solve(A, rhs)
+        an = (un - u) / (beta * dt_s**2) - ud / (beta * dt_s) - (0.5 / beta - 1) * acc
+        ud = ud + dt_s * ((1 - gamma) * acc + gamma * an)
+        u, acc = un, an
+        w_out[k], a_out[k] = r_out @ u, r_out @ acc
+    return t, w_out, a_out
