@@ -182,3 +182,34 @@ def test_entries_not_wired_refuse_a_deck(call_main, tmp_path):
         assert done.returncode == 2
         assert done.stderr.strip().splitlines() == [refusal]
         assert list(tmp_path.iterdir()) == []
+
+
+def test_sweep_modes_and_damping_model(call_main, tmp_path):
+    """``--modes`` and ``--damping-model`` on a sweep: the JSON holds one frequency and modal mass per
+    mode asked (a deck: its first 7 modes; B1: n0 j^2 for j = 1..5), modal damping is zeta on every
+    mode; fewer modes than the deck's rule: a warning naming the rule; out of range: one line, exit 2."""
+    deck = "spans=25/25,EJ=2e10,mu=15000,zeta_pct=1.5"
+    done, out = _sweep(call_main, tmp_path, deck, "--modes", "7", "--damping-model", "modal")
+    assert done.returncode == 0, done.stderr
+    d = json.loads(out.read_text())
+    m = deck_modes([25.0, 25.0], [2e10, 2e10], [15000.0, 15000.0], 7)
+    assert d["frequencies_hz"] == pytest.approx(m.frequencies_hz.tolist(), rel=1e-14)
+    assert d["damping_model"] == "modal" and d["zeta_per_mode_pct"] == pytest.approx([1.5] * 7, rel=1e-14)
+    out.unlink()
+    done, out = _sweep(call_main, tmp_path, "B1", "--modes", "5")
+    assert done.returncode == 0, done.stderr
+    b = named_bridge("B1")
+    assert json.loads(out.read_text())["frequencies_hz"] == pytest.approx([b.n0_hz * j * j for j in range(1, 6)],
+                                                                          rel=1e-12)
+    out.unlink()
+    done, out = _sweep(call_main, tmp_path, deck, "--modes", "3")
+    assert done.returncode == 0
+    assert done.stderr.strip().splitlines() == [
+        "warning: --modes: 3 modes is fewer than the 5 that the rule asks for on this deck (every mode up to 30 Hz, "
+        "1.5 n0 or the third mode, whichever is higher (the rule of adm-sim check))"]
+    out.unlink()
+    for bridge, modes, line in ((deck, "51", "error: --modes: 51 is out of range; allowed integer in [1, 50]"),
+                                ("B1", "21", "error: --modes: 21 is out of range; allowed integer in [1, 20]")):
+        done, out = _sweep(call_main, tmp_path, bridge, "--modes", modes)
+        assert done.returncode == 2 and not out.exists()
+        assert done.stderr.strip().splitlines() == [line]

@@ -25,6 +25,35 @@ from adm_sim.model.where import parse_where, where_text
 from adm_sim.integrate import _jit
 
 
+#: ``--damping-model`` of sweep and check -> ``Bridge.damping_model`` (as adm_sim.design.check.DAMPING_MODELS).
+SWEEP_DAMPING_MODELS = {"rayleigh13": "rayleigh", "modal": "modal"}
+
+
+def _sweep_modes(bridge, modes, damping_model):
+    """The bridge with ``--modes`` and ``--damping-model`` applied (None: the bridge's own). A
+    continuous deck takes up to 50 modes (fewer than its rule asks: a warning naming the rule), one
+    span the registry's ``n_modes`` range."""
+    import dataclasses  # noqa: PLC0415
+    import warnings  # noqa: PLC0415
+
+    kw = {}
+    if damping_model is not None:
+        kw["damping_model"] = SWEEP_DAMPING_MODELS[damping_model]
+    if modes is not None:
+        field = FIELDS["deck_n_modes" if bridge.is_continuous else "n_modes"]
+        kw["n_modes"] = field.check(modes, name="--modes")
+        if bridge.is_continuous:
+            from adm_sim.model.spans import RULE_TEXT, rule_mode_count  # noqa: PLC0415
+
+            need = rule_mode_count(bridge.spans_m, bridge.span_EJ_Nm2, bridge.span_mu_kg_m)
+            if kw["n_modes"] < need:
+                from adm_sim.errors import PlausibilityWarning  # noqa: PLC0415
+
+                warnings.warn(f"--modes: {kw['n_modes']} modes is fewer than the {need} that the rule asks for on this "
+                              f"deck ({RULE_TEXT})", PlausibilityWarning, stacklevel=2)
+    return dataclasses.replace(bridge, **kw) if kw else bridge
+
+
 def cmd_sweep(args):
     from adm_sim.model.bridge import resolve_bridge  # noqa: PLC0415  start-up: only this subcommand (20 ms)
     from adm_sim.integrate.step_grid import StepOptions  # noqa: PLC0415  start-up: only this subcommand (6 ms)
@@ -37,7 +66,7 @@ def cmd_sweep(args):
     if json_path is not None and args.plot is not None and json_path.resolve() == Path(args.plot).resolve():
         raise InputError(f"--plot: {args.plot!r} is the --json file; give two different files")
     plot_path = None if args.plot is None else claim_output(args.plot, "--plot", args.overwrite, ".png", inputs)
-    bridge = resolve_bridge(args.bridge, continuous=True)
+    bridge = _sweep_modes(resolve_bridge(args.bridge, continuous=True), args.modes, args.damping_model)
     train = load_train(args.train)
     speeds = parse_speeds(args.speeds, field="--speeds")
     dz_pct = option_view("--delta-zeta-pct")  # % on the command line, a fraction in the core
@@ -382,6 +411,13 @@ def build_parser():
                    help="RK4 runs (the DIM, MLM --method rk4): compiled (default: the numba kernels, every speed a lane "
                         "of one run) or numpy (the numpy stepper, the reference the kernels are tested against; equal "
                         "to 1e-12)")
+    s.add_argument("--modes", default=None,
+                   help="retained modes (default: the bridge's: 3 for one span, the rule's count for a continuous "
+                        "deck: every mode up to 30 Hz, 1.5 n0 or the third); integer in [1, 20] for one span, [1, 50] "
+                        "for a continuous deck")
+    s.add_argument("--damping-model", choices=tuple(SWEEP_DAMPING_MODELS), default=None,
+                   help="damping per mode: rayleigh13 (Rayleigh anchored at modes 1 and 3) or modal (zeta on every "
+                        "mode); default: the bridge's (rayleigh13 unless its file says modal)")
     s.add_argument("--where", default="midspan",
                    help="midspan (default; a continuous deck: the middle of its longest span), deck (MLM exact: "
                         "anywhere on the deck, with the position) or x=<m> from the left abutment (0 < x < L, L the "
