@@ -26,6 +26,35 @@ from adm_sim.model.where import parse_where, where_text
 from adm_sim.integrate import _jit
 
 
+#: ``--damping-model`` of sweep and check -> ``Bridge.damping_model`` (as adm_sim.design.check.DAMPING_MODELS).
+SWEEP_DAMPING_MODELS = {"rayleigh13": "rayleigh", "modal": "modal"}
+
+
+def _sweep_modes(bridge, modes, damping_model):
+    """The bridge with ``--modes`` and ``--damping-model`` applied (None: the bridge's own). A
+    continuous deck takes up to 50 modes (fewer than its rule asks: a warning naming the rule), one
+    span the registry's ``n_modes`` range."""
+    import dataclasses  # noqa: PLC0415
+    import warnings  # noqa: PLC0415
+
+    kw = {}
+    if damping_model is not None:
+        kw["damping_model"] = SWEEP_DAMPING_MODELS[damping_model]
+    if modes is not None:
+        field = FIELDS["deck_n_modes" if bridge.is_continuous else "n_modes"]
+        kw["n_modes"] = field.check(modes, name="--modes")
+        if bridge.is_continuous:
+            from adm_sim.model.spans import RULE_TEXT, rule_mode_count  # noqa: PLC0415
+
+            need = rule_mode_count(bridge.spans_m, bridge.span_EJ_Nm2, bridge.span_mu_kg_m)
+            if kw["n_modes"] < need:
+                from adm_sim.errors import PlausibilityWarning  # noqa: PLC0415
+
+                warnings.warn(f"--modes: {kw['n_modes']} modes is fewer than the {need} that the rule asks for on this "
+                              f"deck ({RULE_TEXT})", PlausibilityWarning, stacklevel=2)
+    return dataclasses.replace(bridge, **kw) if kw else bridge
+
+
 def cmd_sweep(args):
     from adm_sim.model.bridge import resolve_bridge  # noqa: PLC0415  start-up: only this subcommand (20 ms)
     from adm_sim.integrate.step_grid import StepOptions  # noqa: PLC0415  start-up: only this subcommand (6 ms)
@@ -38,23 +67,26 @@ def cmd_sweep(args):
     if json_path is not None and args.plot is not None and json_path.resolve() == Path(args.plot).resolve():
         raise InputError(f"--plot: {args.plot!r} is the --json file; give two different files")
     plot_path = None if args.plot is None else claim_output(args.plot, "--plot", args.overwrite, ".png", inputs)
-    bridge = resolve_bridge(args.bridge)
+    bridge = _sweep_modes(resolve_bridge(args.bridge, continuous=True), args.modes, args.damping_model)
     train = load_train(args.train)
     speeds = parse_speeds(args.speeds, field="--speeds")
     dz_pct = option_view("--delta-zeta-pct")  # % on the command line, a fraction in the core
     dz = dz_pct.to_core(dz_pct.check(args.delta_zeta_pct, lo_core=-bridge.damping_ratio))  # dz >= -zeta
     opts = StepOptions(steps_per_period=check_option("--steps-per-period", args.steps_per_period))
     where = parse_where(args.where, bridge.span_m)
-    method = args.method or ("exact" if args.model == "mlm" else "rk4")
+    method = args.method or ("exact" if args.model == "mlm" and not bridge.is_continuous else "rk4")
+    if method == "exact" and bridge.is_continuous:
+        raise InputError(f"--method: 'exact' is the closed-form MLM envelope of one simply supported span; a continuous "
+                         f"deck ({len(bridge.spans_m)} spans) runs RK4 (allowed --method rk4)")
     if args.model == "dim" and method == "exact":
         raise InputError("--method: 'exact' is the closed-form MLM envelope; the DIM runs RK4 only (allowed --method rk4)")
     if method == "exact" and args.backend == "numpy":
         raise InputError("--backend: 'numpy' is the RK4 stepper's; the exact MLM envelope has one backend "
                          "(allowed with --method exact: compiled, or give --method rk4)")
     backend = None if method == "exact" else (args.backend or "compiled")
-    if where != "midspan" and method != "exact":
+    if where == "deck" and method != "exact":
         raise InputError(f"--where: {args.where!r} needs the exact MLM envelope (--model mlm --method exact); the RK4 "
-                         f"runs record midspan only (allowed --where midspan)")
+                         f"runs record one point (allowed --where midspan or x=<m>)")
     if method == "exact" and bridge.damping_ratio + dz <= 0.0 and dz == 0.0:  # the bridge's own damping is 0
         raise InputError(f"--bridge: {args.bridge!r} has zeta_pct = 0 % (damping ratio zeta); the exact MLM envelope "
                          f"needs damping > 0 % (give zeta_pct > 0 in the bridge, --delta-zeta-pct > 0, or --method rk4)")
@@ -66,21 +98,27 @@ def cmd_sweep(args):
     zeta = bridge.modal_damping_ratios(dz)
     print(f"damping per mode ({bridge.damping_model}): "
           + ", ".join(f"zeta_{j} = {100 * z:.4g} %" for j, z in enumerate(zeta, start=1)))
+    print("modes: " + ", ".join(f"{f:.4g} Hz ({m / 1000:.5g} t)" for f, m in
+                                zip(bridge.frequencies_hz, bridge.modal_mass_kg)) + " (frequency, modal mass)")
+    if where == "midspan" and bridge.is_continuous:
+        print(f"midspan: x = {bridge.midspan_m:g} m, the middle of the longest span (the first of equal ones)")
     cb, close = progress_callback(f"{args.model.upper()} sweep", None if args.progress is None else args.progress)
     t0 = time.perf_counter()
     try:
         if method == "exact":
             res, env = sweep_exact(bridge, train, speeds, delta_zeta=dz, where=where)
         elif backend == "compiled":
-            res, env = run_sweep_compiled(bridge, train, args.model, speeds, delta_zeta=dz, options=opts, progress=cb), None
+            res, env = run_sweep_compiled(bridge, train, args.model, speeds, delta_zeta=dz, options=opts, progress=cb,
+                                          where=where), None
         else:
-            res, env = run_sweep(bridge, train, args.model, speeds, delta_zeta=dz, options=opts, progress=cb), None
+            res, env = run_sweep(bridge, train, args.model, speeds, delta_zeta=dz, options=opts, progress=cb,
+                                 where=where), None
     finally:
         close()
     wall = time.perf_counter() - t0
     pk = res.peak()
     if env is None:
-        print(f"{args.model.upper()} sweep (RK4): {len(speeds)} speeds {speeds.min():g}..{speeds.max():g} km/h, "
+        print(f"{args.model.upper()} sweep (RK4), {where_text(where)}: {len(speeds)} speeds {speeds.min():g}..{speeds.max():g} km/h, "
               f"{res.n_steps} steps of {res.ds_m * 1000:.2f} mm, maxima at the steps, {backend} backend, {wall:.2f} s")
     else:
         print(f"MLM sweep (exact envelope: closed form, maxima refined by Newton), {where_text(where)}: {len(speeds)} "
@@ -110,8 +148,8 @@ def cmd_sweep(args):
                 out["backend"] = backend
             out["damping_model"] = bridge.damping_model
             out["zeta_per_mode_pct"] = [100 * float(z) for z in zeta]
+            out["where"] = where
             if env is not None:
-                out["where"] = where
                 out["x_acc_m"] = env.x_acc_m.tolist()
                 out["x_disp_m"] = env.x_disp_m.tolist()
                 out["max_disp_midspan_m"] = env.max_disp_midspan_m.tolist()
@@ -367,7 +405,8 @@ def build_parser():
     s = sub.add_parser("sweep", help="max midspan acceleration over a speed range")
     s.add_argument("--bridge", default="B1", help="B1..B4, a spec L=15,n0=8.26,mu=19042,zeta_pct=1.85 (L m, n0 Hz or "
                    "EJ N m^2, mu kg/m, zeta_pct %% or type=cfb|sc for the Table 2 damping; class=cfb|sc classes a bridge "
-                   "of given damping), or a TOML file with these keys")
+                   "of given damping; spans=12/16/12 a continuous deck, EJ and mu then one value or one per span, a/b/c), or a "
+                   "TOML file with these keys (spans = [..] in m)")
     s.add_argument("--train", default="ICE-2", help="ICE-2, Eurostar, Railjet, ICE-4, Eurostar-table, HSLM-A1..A10 (MLM only), or a TOML file")
     add_choice(s, "--model", "mlm (default): moving loads; dim: the detailed vehicles (Detailed Interaction Model)", default="mlm")
     add_speeds(s, "km/h, start:stop:step or a comma list")
@@ -380,8 +419,17 @@ def build_parser():
                    help="RK4 runs (the DIM, MLM --method rk4): compiled (default: the numba kernels, every speed a lane "
                         "of one run) or numpy (the numpy stepper, the reference the kernels are tested against; equal "
                         "to 1e-12)")
+    s.add_argument("--modes", default=None,
+                   help="retained modes (default: the bridge's: 3 for one span, the rule's count for a continuous "
+                        "deck: every mode up to 30 Hz, 1.5 n0 or the third); integer in [1, 20] for one span, [1, 50] "
+                        "for a continuous deck")
+    s.add_argument("--damping-model", choices=tuple(SWEEP_DAMPING_MODELS), default=None,
+                   help="damping per mode: rayleigh13 (Rayleigh anchored at modes 1 and 3) or modal (zeta on every "
+                        "mode); default: the bridge's (rayleigh13 unless its file says modal)")
     s.add_argument("--where", default="midspan",
-                   help="MLM exact: midspan (default), deck (anywhere on the deck, with the position) or x=<m> (0 < x < L)")
+                   help="midspan (default; a continuous deck: the middle of its longest span), deck (MLM exact: "
+                        "anywhere on the deck, with the position) or x=<m> from the left abutment (0 < x < L, L the "
+                        "deck length)")
     _output_options(s, {"json": "write results as JSON", "plot": "write max acceleration vs speed as PNG"},
                     "replace existing --json/--plot files (once the run has finished)")
     s.set_defaults(func=cmd_sweep)

@@ -27,6 +27,7 @@ import numpy as np
 from adm_sim.integrate import kernels
 from adm_sim.errors import InputError, RunError
 from adm_sim.fields import FIELDS, check_delta_zeta_pct
+from adm_sim.integrate.mlm_loads import deck_modal_loads
 from adm_sim.integrate.rk4_sides import mlm_rk4_coefficients
 from adm_sim.integrate.run_contract import FAILED, RUNNING, AdvancingRun, check_model
 from adm_sim.integrate.step_grid import StepOptions, make_grid, speeds_to_m_s
@@ -44,6 +45,8 @@ def modal_load_table(bridge, ds_m, axle_offsets_m, axle_loads_n, n_steps):
     be on the span.
     """
     s = 0.5 * ds_m * np.arange(0, 2 * n_steps + 1)
+    if bridge.is_continuous:
+        return _deck_load_table(bridge, s, axle_offsets_m, axle_loads_n)
     out = np.zeros((s.size, bridge.n_modes))
     span = bridge.span_m
     j = bridge.mode_numbers * math.pi / span
@@ -63,6 +66,27 @@ def modal_load_table(bridge, ds_m, axle_offsets_m, axle_loads_n, n_steps):
     return out
 
 
+def _deck_load_table(bridge, s, axle_offsets_m, axle_loads_n):
+    """:func:`modal_load_table` of a continuous deck: every (row, axle) on the deck gathered, the
+    deck's mode shapes evaluated once for all (:func:`adm_sim.integrate.mlm_loads.deck_modal_loads`)."""
+    span = bridge.span_m
+    rows, xs, ws = [], [], []
+    loads = np.asarray(axle_loads_n, dtype=float)
+    for i, off in enumerate(np.asarray(axle_offsets_m, dtype=float)):
+        r0 = int(np.searchsorted(s, off, side="left"))
+        r1 = min(int(np.searchsorted(s, off + span, side="right")) + 2, s.size)
+        if r0 >= r1:
+            continue
+        x = s[r0:r1] - off
+        on = np.flatnonzero((x >= 0.0) & (x <= span))
+        rows.append(r0 + on)
+        xs.append(x[on])
+        ws.append(np.full(on.size, loads[i]))
+    if not rows:
+        return np.zeros((s.size, bridge.n_modes))
+    return deck_modal_loads(bridge, np.concatenate(rows), np.concatenate(xs), np.concatenate(ws), s.size)
+
+
 class BatchRunner:
     """Lanes of several bridges (same span) under one train, on one space grid.
 
@@ -80,16 +104,21 @@ class BatchRunner:
     irregularity : adm_sim.model.irregularity.Profile or None
         Track irregularity on the deck under every DIM wheel (Eq. 9 with the profile's terms);
         ``None``: smooth track. The MLM is unaffected.
+    response_m : float or None
+        Where the maxima are taken (m from the left abutment); None: midspan.
     """
 
-    def __init__(self, bridges, train, ds_m, free_vibration_periods=2.0, dense_maxima=False, irregularity=None):
+    def __init__(self, bridges, train, ds_m, free_vibration_periods=2.0, dense_maxima=False, irregularity=None,
+                 response_m=None):
         self.bridges = list(bridges)
         if not self.bridges:
             raise InputError("bridges: need at least one bridge for a batch")
         b0 = self.bridges[0]
         for b in self.bridges[1:]:
-            if (b.span_m, b.n_modes, b.damping_model) != (b0.span_m, b0.n_modes, b0.damping_model):
-                raise InputError(f"bridges: a batch needs one span, mode count and damping model; "
+            deck = (b.spans_m, b.span_EJ_Nm2, b.span_mu_kg_m)  # a continuous deck's shapes are its own
+            if (b.span_m, b.n_modes, b.damping_model) + deck != (b0.span_m, b0.n_modes, b0.damping_model,
+                                                                 b0.spans_m, b0.span_EJ_Nm2, b0.span_mu_kg_m):
+                raise InputError(f"bridges: a batch needs one span (one deck), mode count and damping model; "
                                  f"{b.name or b.describe()} differs from {b0.name or b0.describe()}")
         self.train = train
         self.options = StepOptions(free_vibration_periods=free_vibration_periods,
@@ -99,7 +128,7 @@ class BatchRunner:
         self.ds_m = float(ds_m)
         self.span_m = float(b0.span_m)
         self.n_modes = b0.n_modes
-        self.tables = bridge_tables(self.bridges)
+        self.tables = bridge_tables(self.bridges, response_m)
         self.phi_mid, self.M, self.K = self.tables.phi_mid, self.tables.M, self.tables.K
         self._rows = 0
         self._mlm_rows = 0

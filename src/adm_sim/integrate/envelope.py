@@ -194,6 +194,9 @@ def moving_load_envelope(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, *, de
     -------
     Envelope
     """
+    if bridge.is_continuous:
+        raise InputError(f"method: the exact MLM envelope is written for the sine modes of one simply supported "
+                         f"span; a continuous deck ({len(bridge.spans_m)} spans) runs RK4 (allowed --method rk4)", field="method")
     L = bridge.span_m
     where = parse_where(where, L, field="where")
     v_all = speeds_to_m_s(speeds_kmh)

@@ -22,12 +22,27 @@ def half_step_positions(ds_m, axle_offsets_m, k0, n_steps):
     return s[:, None] - np.asarray(axle_offsets_m, dtype=float)[None, :]
 
 
+def deck_modal_loads(bridge, rows, x_m, loads_n, n_rows):
+    """Modal loads of Eq. (6) on a continuous deck, shape (n_rows, n_modes): the load ``loads_n[e]``
+    at ``x_m[e]`` (m from the left abutment, on the deck) added to row ``rows[e]``, with the deck's
+    mode shapes evaluated in one call for every entry."""
+    phi = bridge.deck.phi(np.asarray(x_m, dtype=float)) * np.asarray(loads_n, dtype=float)[:, None]
+    out = np.empty((n_rows, bridge.n_modes))
+    for j in range(bridge.n_modes):
+        out[:, j] = np.bincount(rows, weights=phi[:, j], minlength=n_rows)
+    return out
+
+
 def modal_loads_at(bridge, x_m, loads_n):
     """Modal loads of Eq. (6) for axle positions ``x_m`` (rows, n_axles), shape (rows, n_modes).
 
     One pass per axle over the rows with that axle on the bridge (positions increase along the
-    rows); the rectangle function Gamma is the closed span ``[0, L]``.
+    rows); the rectangle function Gamma is the closed span ``[0, L]`` (a continuous deck: its
+    whole length, its exact mode shapes).
     """
+    if bridge.is_continuous:
+        rows, axle = np.nonzero((x_m >= 0.0) & (x_m <= bridge.span_m))
+        return deck_modal_loads(bridge, rows, x_m[rows, axle], np.asarray(loads_n, dtype=float)[axle], x_m.shape[0])
     out = np.zeros((x_m.shape[0], bridge.n_modes))
     j = bridge.mode_numbers * math.pi / bridge.span_m
     for i in range(x_m.shape[1]):

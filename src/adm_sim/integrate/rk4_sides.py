@@ -97,15 +97,18 @@ class BridgeSide:
         Wheelset masses for the DIM (Eq. 13); ``None`` for the MLM.
     delta_zeta : float or ndarray (n_lanes,)
         Additional damping (fraction) added to the structural damping.
+    response_m : float or None
+        Where the recorded deflection and acceleration are taken (m from the left abutment);
+        None: midspan (:func:`adm_sim.integrate.tables.bridge_tables`).
     """
 
-    def __init__(self, bridge, grid, axle_offsets_m, wheel_mass_kg=None, delta_zeta=0.0):
+    def __init__(self, bridge, grid, axle_offsets_m, wheel_mass_kg=None, delta_zeta=0.0, response_m=None):
         self.bridge = bridge
         self.grid = grid
         self.offsets = np.asarray(axle_offsets_m, dtype=float)
         self.m_w = None if wheel_mass_kg is None else np.asarray(wheel_mass_kg, dtype=float)
         self.v = grid.speeds_m_s[:, None]
-        tables = bridge_tables([bridge])  # the tables of adm_sim.integrate.kernels, one bridge
+        tables = bridge_tables([bridge], response_m)  # the tables of adm_sim.integrate.kernels, one bridge
         self.M = tables.M[0]
         self.K = tables.K[0]
         self.phi_mid = tables.phi_mid

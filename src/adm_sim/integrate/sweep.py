@@ -121,6 +121,9 @@ class SweepResult:
             "max_acc_m_s2": self.max_acc_m_s2.tolist(),
             "max_disp_m": self.max_disp_m.tolist(),
             "peak": None if pk is None else {"speed_kmh": pk["speed_kmh"], "acc_m_s2": pk["acc_m_s2"]},
+            "spans_m": list(self.bridge.spans_m) if self.bridge.is_continuous else [self.bridge.span_m],
+            "frequencies_hz": self.bridge.frequencies_hz.tolist(),
+            "modal_masses_kg": self.bridge.modal_mass_kg.tolist(),
         }
 
     def __repr__(self):
@@ -148,21 +151,51 @@ def sweep_exact(bridge, train, speeds_kmh, delta_zeta=0.0, where="midspan"):
     return res, env
 
 
+def check_spans_for_train(bridge, train):
+    """Refuse a continuous deck with a span shorter than the train's longest axle group (its largest
+    bogie wheelbase ``b_m``; trains given as bare axle loads carry no groups and pass)."""
+    if not bridge.is_continuous:
+        return
+    groups = [vt.b_m for vt in train.vehicle_types.values()]
+    if not groups:
+        return
+    b = max(groups)
+    for i, L in enumerate(bridge.spans_m):
+        if L < b:
+            raise InputError(f"spans[{i}]: {L:g} m is shorter than the longest axle group of {train.name} "
+                             f"(bogie wheelbase {b:g} m); allowed spans >= {b:g} m")
+
+
+def _response_m(bridge, model, where):
+    """The response point of an RK4 sweep (None: midspan) from ``where`` (``"midspan"`` or x in m);
+    refuses what the RK4 runs do not take on this bridge."""
+    if isinstance(where, str):
+        w = where.strip().lower()
+        if w == "midspan":
+            return None
+        raise InputError(f"where: {where!r} is not allowed for an RK4 run; allowed midspan or x=<m> with "
+                         f"0 < x < {bridge.span_m:g} m (deck: the exact MLM envelope, one span only)", field="where")
+    return float(where)
+
+
 #: Backends of a sweep: the compiled kernels (default) and the numpy stepper they are tested against.
 BACKENDS = ("compiled", "numpy")
 
 
-def run_sweep_compiled(bridge, train, model, speeds_kmh, delta_zeta=0.0, options=None, progress=None):
+def run_sweep_compiled(bridge, train, model, speeds_kmh, delta_zeta=0.0, options=None, progress=None,
+                       where="midspan"):
     """:func:`run_sweep` on the compiled kernels: every speed a lane of one
     :class:`adm_sim.integrate.compiled_batch.BatchRun`, on the grid ``run_sweep`` makes (its ``ds`` and
     number of steps), so the maxima equal the numpy stepper's to ~1e-13 relative (the summation
     order of a few small dot products differs; ``tests/test_sweep_backends.py`` holds them to
     1e-12). No histories. ``progress(done_steps, n_steps)`` is called after every block of steps
-    (about 100 per run).
+    (about 100 per run). ``where``: ``"midspan"`` or a position x (m from the left abutment).
     """
     from adm_sim.integrate.compiled_batch import BatchRunner  # noqa: PLC0415  deferred: heavy import (numba, ~0.4 s)
 
     check_model(model, train)
+    check_spans_for_train(bridge, train)
+    response_m = _response_m(bridge, model, where)
     options = options or StepOptions()
     v_kmh = np.atleast_1d(np.asarray(speeds_kmh, dtype=float)).copy()
     v = speeds_to_m_s(v_kmh)
@@ -170,7 +203,8 @@ def run_sweep_compiled(bridge, train, model, speeds_kmh, delta_zeta=0.0, options
     for x in np.unique(dz):
         check_delta_zeta_pct("delta_zeta_pct", 100 * x, bridge.damping_ratio)
     grid = make_grid(bridge, train.length_m, v, options)
-    runner = BatchRunner([bridge], train, grid.ds_m, options.free_vibration_periods, options.dense_maxima)
+    runner = BatchRunner([bridge], train, grid.ds_m, options.free_vibration_periods, options.dense_maxima,
+                         response_m=response_m)
     run = runner.start(model, np.zeros(v.size, dtype=np.int64), v_kmh, dz)
     if run.n_steps != grid.n_steps:  # pragma: no cover - the same make_grid on both sides
         raise RunError(f"compiled sweep: {run.n_steps} steps where the grid has {grid.n_steps}")
@@ -187,7 +221,7 @@ def run_sweep_compiled(bridge, train, model, speeds_kmh, delta_zeta=0.0, options
 
 
 def run_sweep(bridge, train, model, speeds_kmh, delta_zeta=0.0, options=None, histories=False,
-              progress=None):
+              progress=None, where="midspan"):
     """Max midspan acceleration of a bridge under a train for every speed, in one vectorised run.
 
     Parameters
@@ -204,12 +238,17 @@ def run_sweep(bridge, train, model, speeds_kmh, delta_zeta=0.0, options=None, hi
         Keep time histories (memory: ``n_lanes * n_steps`` per quantity).
     progress : callable(done_steps, n_steps) or None
         Called about 100 times during the run.
+    where : "midspan" or float
+        Where the maxima and histories are taken: midspan (a continuous deck: the middle of its
+        longest span, ``bridge.midspan_m``) or a position x (m from the left abutment).
 
     Returns
     -------
     SweepResult
     """
     check_model(model, train)
+    check_spans_for_train(bridge, train)
+    response_m = _response_m(bridge, model, where)
     v = speeds_to_m_s(speeds_kmh)
     dz = np.broadcast_to(np.asarray(delta_zeta, dtype=float), v.shape)
     for x in np.unique(dz):
@@ -221,7 +260,7 @@ def run_sweep(bridge, train, model, speeds_kmh, delta_zeta=0.0, options=None, hi
     if histories and nl * n * (1 + (train.n_axles if dim else 0)) > MAX_HISTORY_VALUES:
         raise InputError(f"histories: {nl} speeds x {n} steps is too much to keep; "
                          f"ask histories for at most a few speeds")
-    b = BridgeSide(bridge, grid, train.axle_offsets_m, train.wheel_mass_kg if dim else None, dz)
+    b = BridgeSide(bridge, grid, train.axle_offsets_m, train.wheel_mass_kg if dim else None, dz, response_m=response_m)
     if dim:
         run = InProcessRun(model, grid, b, train_side=TrainSide(train, grid, bridge.span_m,
                                                                      irregularity=options.irregularity),

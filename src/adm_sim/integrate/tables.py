@@ -139,19 +139,29 @@ def active_units(vehicles, span_m, ds_m, k0, k1):
 
 class BridgeTables(NamedTuple):
     """Modal mass ``M`` (kg) and stiffness ``K`` (N/m) (n_bridges, n_modes) (Eq. 5) and the mode
-    shapes at midspan ``phi_mid`` (n_modes,) of bridges of one span and mode count."""
+    shapes at the response point ``phi_mid`` (n_modes,) of bridges of one span and mode count
+    (midspan, or the point a run asks for)."""
 
     M: np.ndarray
     K: np.ndarray
     phi_mid: np.ndarray
 
 
-def bridge_tables(bridges):
-    """:class:`BridgeTables` of bridges sharing span and mode count."""
+def bridge_tables(bridges, response_m=None):
+    """:class:`BridgeTables` of bridges sharing span and mode count (and, for continuous decks, spans).
+
+    ``response_m``: the response point (m from the left abutment); None: midspan (one span:
+    ``sin(j pi / 2)``; a continuous deck: its mode shapes at ``bridge.midspan_m``).
+    """
     b0 = bridges[0]
+    if response_m is None and not b0.is_continuous:
+        phi = np.sin(b0.mode_numbers * math.pi / 2.0)
+    else:
+        x = b0.midspan_m if response_m is None else float(response_m)
+        phi = np.ascontiguousarray(b0.shapes(np.array([x]))[0][0])
     return BridgeTables(M=np.array([b.modal_mass_kg for b in bridges]),
                         K=np.array([b.modal_stiffness_N_m for b in bridges]),
-                        phi_mid=np.sin(b0.mode_numbers * math.pi / 2.0))
+                        phi_mid=phi)
 
 
 class AxleRows(NamedTuple):

@@ -21,17 +21,19 @@ supports; valid while the retained modes resolve the loading (3 modes by default
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from adm_sim.errors import InputError
+from adm_sim.errors import InputError, PlausibilityWarning
 from adm_sim.files import check_path, read_toml
 from adm_sim.model.parametric import FIELD_SPANS_M, MASS_FUNCTIONS, field_frequencies_hz
 from adm_sim.model.plausibility import check_bridge
-from adm_sim.fields import FIELDS, core
+from adm_sim.fields import FIELDS, check_number, check_range, core
 from adm_sim.fields import view as field_view
 
 #: Allowed input ranges (SI): span, first frequency, modes; the field registry's
@@ -63,6 +65,14 @@ class Bridge:
         Label used in outputs.
     bridge_type : {"cfb", "sc", ""}
         Concrete/filler-beam or steel/composite (Table 2); empty if unknown.
+    spans_m : tuple of float
+        Empty (default): one simply supported span of ``span_m`` with the sine modes of Eq. (4).
+        Otherwise a continuous deck over pinned intermediate supports (:mod:`adm_sim.model.spans`),
+        left to right; ``span_m`` is then the deck length (their sum), ``EJ_Nm2`` and
+        ``mass_per_length_kg_m`` the length-weighted means (labels: the modes use the per-span
+        values). Build it with :meth:`Bridge.continuous`.
+    span_EJ_Nm2, span_mu_kg_m : tuple of float
+        EJ (N m^2) and mu (kg/m) of every span of a continuous deck.
     """
 
     span_m: float
@@ -73,8 +83,14 @@ class Bridge:
     damping_model: str = "rayleigh"
     name: str = ""
     bridge_type: str = ""
+    spans_m: tuple = ()
+    span_EJ_Nm2: tuple = ()
+    span_mu_kg_m: tuple = ()
 
     def __post_init__(self):
+        if self.spans_m:
+            self._check_deck()
+            return
         for name in ("span_m", "EJ_Nm2", "mass_per_length_kg_m", "damping_ratio"):
             core(name).check(getattr(self, name))
         if int(self.n_modes) != self.n_modes or not (N_MODES_RANGE[0] <= self.n_modes <= N_MODES_RANGE[1]):
@@ -84,6 +100,91 @@ class Bridge:
         if self.bridge_type != "":
             core("bridge_type").check(self.bridge_type)
         _check_n0(self.n0_hz, "n0_hz")
+
+    def _check_deck(self):
+        """The checks of a continuous deck (the readers at the edge name the keys as typed)."""
+        n = FIELDS["n_spans"].check(len(self.spans_m), name="spans")
+        lo, hi = FIELDS["deck_spans_m"].range
+        for i, L in enumerate(self.spans_m):
+            check_range(f"spans[{i}]", L, "m", lo, hi)
+        for key, vals, fld in (("EJ", self.span_EJ_Nm2, "EJ_Nm2"), ("mu", self.span_mu_kg_m, "mass_per_length_kg_m")):
+            if len(vals) != n:
+                raise InputError(f"{key}: {len(vals)} values for {n} spans; give one value or one per span")
+            for i, v in enumerate(vals):
+                core(fld).check(v, name=f"{key}[{i}]")
+        core("damping_ratio").check(self.damping_ratio)
+        if self.span_m != math.fsum(self.spans_m):
+            raise InputError(f"span_m: {self.span_m:g} m is not the deck length {math.fsum(self.spans_m):g} m")
+        FIELDS["deck_n_modes"].check(self.n_modes, name="n_modes")
+        core("damping_model").check(self.damping_model)
+        if self.bridge_type != "":
+            core("bridge_type").check(self.bridge_type)
+        _check_n0(self.n0_hz, "n0_hz")
+
+    @classmethod
+    def continuous(cls, spans_m, EJ_Nm2, mass_per_length_kg_m, damping_ratio, n_modes=None, **kw):
+        """A continuous deck of the spans ``spans_m`` (m, left to right, pinned over the supports).
+
+        ``EJ_Nm2`` (N m^2) and ``mass_per_length_kg_m`` (kg/m): one value, or one per span.
+        ``n_modes``: None for the rule of :func:`adm_sim.model.spans.rule_mode_count` (every mode up
+        to 30 Hz, 1.5 n0 or the third, whichever is higher).
+        """
+        spans = tuple(float(x) for x in spans_m)
+        n = len(spans)
+
+        def per_span(v):
+            return tuple(float(x) for x in v) if np.ndim(v) else (float(v),) * n
+
+        EJ, mu = per_span(EJ_Nm2), per_span(mass_per_length_kg_m)
+        if n_modes is None:
+            from adm_sim.model.spans import rule_mode_count  # noqa: PLC0415
+
+            Bridge(span_m=math.fsum(spans), EJ_Nm2=1.0, mass_per_length_kg_m=1.0, damping_ratio=damping_ratio,
+                   spans_m=spans, span_EJ_Nm2=EJ, span_mu_kg_m=mu, n_modes=1)  # checks before the count
+            n_modes = rule_mode_count(spans, EJ, mu)
+            if n_modes > FIELDS["deck_n_modes"].hi:
+                raise InputError(f"n_modes: the rule asks for {n_modes} modes of this deck; at most "
+                                 f"{FIELDS['deck_n_modes'].hi} are allowed (give a stiffer or shorter deck)")
+        L = math.fsum(spans)
+        mean = lambda v: math.fsum(a * b for a, b in zip(v, spans)) / L  # noqa: E731
+        return cls(span_m=L, EJ_Nm2=mean(EJ) if len(set(EJ)) > 1 else EJ[0],
+                   mass_per_length_kg_m=mean(mu) if len(set(mu)) > 1 else mu[0], damping_ratio=damping_ratio,
+                   n_modes=n_modes, spans_m=spans, span_EJ_Nm2=EJ, span_mu_kg_m=mu, **kw)
+
+    @property
+    def is_continuous(self):
+        """True for a deck given by its spans (:mod:`adm_sim.model.spans` modes, even of one span)."""
+        return bool(self.spans_m)
+
+    @functools.cached_property
+    def deck(self):
+        """The exact modes of a continuous deck (:class:`adm_sim.model.spans.DeckModes`), or None."""
+        if not self.spans_m:
+            return None
+        from adm_sim.model.spans import deck_modes  # noqa: PLC0415
+
+        return deck_modes(self.spans_m, self.span_EJ_Nm2, self.span_mu_kg_m, self.n_modes)
+
+    @property
+    def supports_m(self):
+        """Support abscissae from the left abutment (m), shape (n_spans + 1,)."""
+        if not self.spans_m:
+            return np.array([0.0, self.span_m])
+        return np.concatenate([[0.0], np.cumsum(self.spans_m)])
+
+    @property
+    def midspan_m(self):
+        """The response point called midspan (m from the left abutment): L / 2 for one span; for a
+        continuous deck the middle of its longest span (the first of equal ones), the project's choice."""
+        if not self.spans_m:
+            return 0.5 * self.span_m
+        i = int(np.argmax(self.spans_m))
+        return float(self.supports_m[i] + 0.5 * self.spans_m[i])
+
+    @property
+    def frequencies_hz(self):
+        """Natural frequencies of the retained modes (Hz), shape (n_modes,)."""
+        return self.omega_rad_s / (2.0 * math.pi)
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -96,13 +197,18 @@ class Bridge:
         return cls(span_m=L, EJ_Nm2=EJ, mass_per_length_kg_m=mu, damping_ratio=damping_ratio, **kw)
 
     def with_damping(self, damping_ratio):
-        """Copy with another structural damping ratio (fraction)."""
-        return dataclasses.replace(self, damping_ratio=damping_ratio)
+        """Copy with another structural damping ratio (fraction) (a continuous deck keeps its modes)."""
+        out = dataclasses.replace(self, damping_ratio=damping_ratio)
+        if "deck" in self.__dict__:
+            out.__dict__["deck"] = self.__dict__["deck"]
+        return out
 
     # ------------------------------------------------------------------ modal data
     @property
     def n0_hz(self):
-        """First natural frequency (Hz), Eq. (18)."""
+        """First natural frequency (Hz), Eq. (18) (a continuous deck: its first mode)."""
+        if self.spans_m:
+            return float(self.deck.frequencies_hz[0])
         return math.pi / (2.0 * self.span_m**2) * math.sqrt(self.EJ_Nm2 / self.mass_per_length_kg_m)
 
     @property
@@ -112,12 +218,17 @@ class Bridge:
     @property
     def omega_rad_s(self):
         """Circular frequencies omega_j (rad/s), shape (n_modes,)."""
+        if self.spans_m:
+            return self.deck.omega_rad_s
         j = self.mode_numbers
         return (j * math.pi / self.span_m) ** 2 * math.sqrt(self.EJ_Nm2 / self.mass_per_length_kg_m)
 
     @property
     def modal_mass_kg(self):
-        """Modal masses M_j = mu L / 2 (kg), shape (n_modes,)."""
+        """Modal masses M_j = mu L / 2 (kg), shape (n_modes,) (a continuous deck: Eq. (5) with
+        max |phi_j| = 1, :mod:`adm_sim.model.spans`)."""
+        if self.spans_m:
+            return self.deck.modal_mass_kg
         return np.full(self.n_modes, 0.5 * self.mass_per_length_kg_m * self.span_m)
 
     @property
@@ -150,8 +261,11 @@ class Bridge:
         """Mode shapes and their x-derivatives at positions ``x_m``.
 
         Returns ``(phi, phi_x, phi_xx)``, each of shape ``x_m.shape + (n_modes,)``; zero outside
-        ``[0, L]`` (the rectangle function Gamma of Eq. 6).
+        ``[0, L]`` (the rectangle function Gamma of Eq. 6). A continuous deck: its exact modes
+        (:meth:`adm_sim.model.spans.DeckModes.shapes`), x from the left abutment.
         """
+        if self.spans_m:
+            return self.deck.shapes(x_m)
         x = np.asarray(x_m, dtype=float)[..., None]
         k = self.mode_numbers * math.pi / self.span_m
         on = (x >= 0.0) & (x <= self.span_m)
@@ -161,6 +275,14 @@ class Bridge:
 
     def describe(self):
         zeta_pct = 100.0 * self.damping_ratio
+        if self.spans_m:
+            def each(v, scale=1.0, fmt="{:g}"):
+                return fmt.format(v[0] / scale) if len(set(v)) == 1 else "/".join(fmt.format(x / scale) for x in v)
+            f = ", ".join(f"{x:.3f}" for x in self.frequencies_hz)
+            return (f"{self.name or 'bridge'}: continuous deck of {len(self.spans_m)} spans "
+                    f"{'+'.join(f'{x:g}' for x in self.spans_m)} m, mu={each(self.span_mu_kg_m, 1000.0, '{:.3f}')} t/m, "
+                    f"EJ={each(self.span_EJ_Nm2, fmt='{:.4g}')} N m^2, zeta={zeta_pct:.3g} %, {self.n_modes} modes "
+                    f"({self.damping_model}) at {f} Hz")
         return (f"{self.name or 'bridge'}: L={self.span_m:g} m, n0={self.n0_hz:.3f} Hz, "
                 f"mu={self.mass_per_length_kg_m:.6g} kg/m ({self.mass_per_length_kg_m / 1000:.3f} t/m), EJ={self.EJ_Nm2:.4g} N m^2, "
                 f"zeta={zeta_pct:.3g} %, {self.n_modes} modes ({self.damping_model})")
@@ -232,7 +354,10 @@ _SPEC_KEYS = {
     "zeta_pct": "zeta_pct", "zeta": "damping_ratio", "damping_ratio": "damping_ratio",
     "type": "table2_type", "bridge_type": "table2_type", "class": "bridge_class",
     "n_modes": "n_modes", "damping_model": "damping_model", "name": "name",
+    "spans": "deck_spans_m",
 }
+#: The separator of per-span values in a ``key=value`` spec (``spans=12/16/12``).
+SPAN_SEPARATOR = "/"
 #: Keys whose value is text (every other key is a number).
 _TEXT_KEYS = ("type", "bridge_type", "class", "damping_model", "name")
 #: Relative slack on the n0 range for an n0 recomputed from EJ (Eq. 18 round trip).
@@ -292,6 +417,12 @@ def bridge_from_mapping(data, source="bridge", typed=False):
         raise InputError(f"{source}: {given['table2_type']!r} already classes the bridge; drop 'class'")
     if "n0_hz" in vals and "EJ_Nm2" in vals:
         raise InputError(f"{source}: give either n0 (Hz) or EJ (N m^2), not both")
+    if "deck_spans_m" in vals:
+        return _deck_from_mapping(vals, given, where, source, typed)
+    for f in ("EJ_Nm2", "mass_per_length_kg_m"):
+        if f in vals and (isinstance(vals[f], list) or (not typed and SPAN_SEPARATOR in str(vals[f]))):
+            raise InputError(f"{where[f]}: {vals[f]!r} gives one value per span; per-span values need "
+                             f"spans = [..] (m), the spans of a continuous deck")
 
     for need, what in (("span_m", "L (span, m)"), ("mass_per_length_kg_m", "mu (mass per length, kg/m)")):
         if need not in vals:
@@ -332,6 +463,106 @@ def bridge_from_mapping(data, source="bridge", typed=False):
                      f"(N m^2, > {FIELDS['EJ_Nm2'].lo:g})")
 
 
+def _span_values(key, value, source, typed, unit):
+    """The numbers of a per-span key as typed: a TOML list (or one number), or ``a/b/c`` in a spec."""
+    if typed:
+        if isinstance(value, list):
+            return list(value)
+        return [value]
+    text = str(value)
+    return [p.strip() for p in text.split(SPAN_SEPARATOR)]
+
+
+def _deck_from_mapping(vals, given, where, source, typed):
+    """A continuous deck from the keys of :func:`bridge_from_mapping` with ``spans``."""
+    surface = "toml" if typed else "spec"
+    fspans, fcount = FIELDS["deck_spans_m"], FIELDS["n_spans"]
+    key = where["deck_spans_m"]
+    raw = _span_values("spans", vals["deck_spans_m"], source, typed, "m")
+    shown = vals["deck_spans_m"]
+    if not raw or (typed and not isinstance(shown, list)):
+        raise InputError(f"{key}: {shown!r} is not a list of spans; give e.g. spans = [12.0, 16.0, 12.0] (m), "
+                         f"{fcount.lo}..{fcount.hi} spans each in [{fspans.lo:g}, {fspans.hi:g}] m")
+    if not fcount.lo <= len(raw) <= fcount.hi:
+        raise InputError(f"{key}: {len(raw)} spans is out of range; allowed {fcount.lo}..{fcount.hi} spans, "
+                         f"each in [{fspans.lo:g}, {fspans.hi:g}] m")
+    check = check_number if typed else check_range
+    spans = [check(f"{key}[{i}]", v, "m", fspans.lo, fspans.hi) for i, v in enumerate(raw)]
+    if "span_m" in vals:
+        raise InputError(f"{source}: {given['span_m']!r} and 'spans' both give the length; give L for one span "
+                         f"or spans = [..] (m) for a continuous deck")
+    if "table2_type" in vals:
+        raise InputError(f"{where['table2_type']}: the Table 2 damping of a continuous deck needs the length the "
+                         f"standard names for continuous decks, which is not wired; give zeta_pct (%) and "
+                         f"class=cfb|sc")
+    n = len(spans)
+    if n == 1:  # one span: the simply supported beam of today (sine modes, Eq. 4), as if given by L
+        data = {given[f]: (v[0] if isinstance(v, list) and len(v) == 1 else v) for f, v in vals.items()
+                if f != "deck_spans_m"}
+        data["L"] = spans[0]
+        for k in ("EJ", "EJ_Nm2", "mu", "mu_kg_m", "mass_per_length_kg_m"):
+            if not typed and k in data and SPAN_SEPARATOR not in str(data[k]):
+                data[k] = str(data[k])
+        return bridge_from_mapping(data, source=source, typed=typed)
+
+    def per_span(f, what):
+        ws = where[f]
+        items = _span_values(given[f], vals[f], source, typed, "")
+        if len(items) not in (1, n):
+            raise InputError(f"{ws}: {len(items)} values for {n} spans; allowed one value or one per span "
+                             f"({what})")
+        v = field_view(surface, given[f])
+        out = [v.check(x, name=ws if len(items) == 1 else f"{ws}[{i}]", typed=typed) for i, x in enumerate(items)]
+        return out if len(out) == n else out * n
+
+    if "mass_per_length_kg_m" not in vals:
+        raise InputError(f"{source}: missing key mu (mass per length, kg/m; one value or one per span)")
+    mu = per_span("mass_per_length_kg_m", "kg/m")
+    if "zeta_pct" in vals or "damping_ratio" in vals:
+        f = "zeta_pct" if "zeta_pct" in vals else "damping_ratio"
+        zeta = field_view(surface, given[f]).to_core(field_view(surface, given[f]).check(vals[f], name=where[f],
+                                                                                            typed=typed))
+    else:
+        zp = field_view(surface, "zeta_pct")
+        raise InputError(f"{source}: missing damping of the continuous deck: give zeta_pct (%, {zp.lo:g}..{zp.hi:g}) "
+                         f"or zeta (fraction)")
+    kw = dict(name=str(vals.get("name", "")))
+    if "bridge_class" in vals:
+        kw["bridge_type"] = field_view(surface, given["bridge_class"]).check(str(vals["bridge_class"]),
+                                                                            name=where["bridge_class"])
+    if "damping_model" in vals:
+        kw["damping_model"] = field_view(surface, "damping_model").check(str(vals["damping_model"]),
+                                                                        name=where["damping_model"])
+    from adm_sim.model.spans import RULE_TEXT, deck_modes, rule_mode_count  # noqa: PLC0415
+
+    if "EJ_Nm2" in vals:
+        EJ = per_span("EJ_Nm2", "N m^2")
+    elif "n0_hz" in vals:
+        n0 = field_view(surface, given["n0_hz"]).check(vals["n0_hz"], name=where["n0_hz"], typed=typed)
+        f1 = float(deck_modes(spans, [1.0] * n, mu, 1).frequencies_hz[0])  # omega grows as sqrt(EJ)
+        EJ = [(n0 / f1) ** 2] * n
+    else:
+        raise InputError(f"{source}: missing stiffness: give EJ (N m^2, > {FIELDS['EJ_Nm2'].lo:g}; one value or one "
+                         f"per span) or n0 (Hz, {N0_RANGE_HZ[0]:g}..{N0_RANGE_HZ[1]:g}: one EJ for every span)")
+    f1 = float(deck_modes(spans, EJ, mu, 1).frequencies_hz[0])
+    if not _n0_in_range(f1):
+        raise InputError(f"{source}: the deck's first frequency is {f1:.4g} Hz; allowed n0 in "
+                         f"[{N0_RANGE_HZ[0]:g}, {N0_RANGE_HZ[1]:g}] Hz (check EJ and mu)")
+    rule = rule_mode_count(spans, EJ, mu)
+    if "n_modes" in vals:
+        nv = field_view("count", "n_modes")
+        n_modes = nv.check(vals["n_modes"], name=where["n_modes"])
+        if n_modes < rule:
+            warnings.warn(f"{where['n_modes']}: {n_modes} modes is fewer than the {rule} that the rule asks for "
+                          f"on this deck ({RULE_TEXT})", PlausibilityWarning, stacklevel=3)
+    else:
+        n_modes = rule
+        if n_modes > FIELDS["deck_n_modes"].hi:
+            raise InputError(f"{source}: the rule ({RULE_TEXT}) asks for {n_modes} modes of this deck; allowed at "
+                             f"most {FIELDS['deck_n_modes'].hi} (give n_modes)")
+    return Bridge.continuous(spans, EJ, mu, zeta, n_modes=n_modes, **kw)
+
+
 def _plausible(bridge, source, zeta, zeta_in_pct):
     """``bridge``, after the plausibility warnings of :mod:`adm_sim.model.plausibility` (never a refusal)."""
     check_bridge(bridge, source, 100.0 * zeta if zeta_in_pct else None)
@@ -364,8 +595,25 @@ def load_bridge_file(path):
     return bridge_from_mapping(data, source=f"bridge file {p.name}", typed=True)
 
 
-def resolve_bridge(text):
-    """A bridge from a CLI/parameter string: a Table 3 name, a ``key=value`` spec or a file."""
+#: Where a continuous deck is taken today (the refusal of every other entry names it).
+CONTINUOUS_WIRED = "adm-sim sweep --model mlm (RK4)"
+
+
+def resolve_bridge(text, continuous=False):
+    """A bridge from a CLI/parameter string: a Table 3 name, a ``key=value`` spec or a file.
+
+    ``continuous``: the caller takes a continuous deck (``spans`` of two or more); without it such a
+    deck is refused with one line naming where continuous decks are taken (:data:`CONTINUOUS_WIRED`).
+    """
+    bridge = _resolve_bridge(text)
+    if bridge.is_continuous and not continuous:
+        raise InputError(f"bridge: {text!r} is a continuous deck of {len(bridge.spans_m)} spans; this entry takes one "
+                         f"simply supported span (allowed: L=..., B1..B4; continuous decks: {CONTINUOUS_WIRED})",
+                         field="bridge")
+    return bridge
+
+
+def _resolve_bridge(text):
     if text.upper() in TABLE3:
         return named_bridge(text)
     if "=" not in text or text.endswith(".toml"):
