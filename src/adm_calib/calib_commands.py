@@ -360,6 +360,7 @@ def cmd_study(args):
 
 def _check_fit_records(records, option, path):
     """Refuse result lines the fit cannot use as they are: a NaN or text where a number belongs."""
+    from adm_calib.peaks import has_delta_zeta  # noqa: PLC0415  start-up: only this subcommand
     from adm_calib.study import MASS_FUNCTION_NAMES  # noqa: PLC0415  start-up: only this subcommand (370 ms)
 
     for no, rec in enumerate(records, start=1):
@@ -374,7 +375,7 @@ def _check_fit_records(records, option, path):
         if pk is not None and not (isinstance(pk, dict) and all(
                 isinstance(pk.get(k), (int, float)) and not isinstance(pk.get(k), bool) for k in ("speed_kmh", "acc_m_s2"))):
             raise InputError(f"{where}: mlm_peak: {pk!r} must be null or {{speed_kmh (km/h), acc_m_s2 (m/s^2)}}")
-        if status != "ok" or rec.get("delta_zeta_vbi_pct") is None:
+        if not has_delta_zeta(status) or rec.get("delta_zeta_vbi_pct") is None:
             continue  # excluded from the fit (error / no dz), whatever else it holds
         if rec.get("mass_function") not in MASS_FUNCTION_NAMES:
             raise InputError(f"{where}: mass_function: {rec.get('mass_function')!r} is unknown; "

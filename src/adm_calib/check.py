@@ -40,6 +40,9 @@ def calibrated_damping(bridge, train, method, calibrate_options=None):
             raise InputError(f"damping vbi: {train.name} on {bridge.name or 'this bridge'}: no Δζ_VBI "
                              f"({res.status}: {res.message}); use --damping none", field="damping")
         pct = res.delta_zeta_vbi_pct
-        return pct, (f"{train.name}: calibrated Δζ_VBI = {pct:.3f} % (MLM peak {res.mlm_peak.acc_m_s2:.4f} m/s2 "
-                     f"matched to the DIM peak {res.dim_peak.acc_m_s2:.4f} m/s2, Section 4)")
+        note = (f"{train.name}: calibrated Δζ_VBI = {pct:.3f} % (MLM peak {res.mlm_peak.acc_m_s2:.4f} m/s2 "
+                f"matched to the DIM peak {res.dim_peak.acc_m_s2:.4f} m/s2, Section 4)")
+        if not res.determined:
+            note += f"; NOT DETERMINED ({res.status}): {res.advice or res.message}"
+        return pct, note
     raise InputError(f"damping: {method!r} is not one of adm-calib's; allowed {', '.join(CALIB_DAMPING_METHODS)}", field="damping")
