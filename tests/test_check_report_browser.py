@@ -59,11 +59,11 @@ def rendered(tmp_path_factory):
 
 def test_browser_renders_the_verdict(rendered):
     """The rendered text (what a reader sees, after layout) says the verdict and the clause rows
-    with the same numbers as the text output: HSLM-A7 3.3932 m/s² PASS, deflection 3.843 mm."""
+    with the same numbers as the text output: HSLM-A7 3.3932 m/s² PASS, deflection 4.180 mm (Φ3, the default)."""
     text = " ".join(rendered[0].split())
     assert "Verdict: PASS" in text
     assert "peak deck acceleration (HSLM-A7, 238.1 km/h) 3.3932 m/s² 3.5 m/s² PASS" in text
-    assert "vertical deflection under Φ α LM71 3.843 mm L/600 = 25.000 mm PASS" in text
+    assert "vertical deflection under Φ α LM71 4.180 mm L/600 = 25.000 mm PASS" in text
     assert "first lateral frequency 2 Hz >= 1.2 Hz PASS" in text
     assert "not checked" in text.lower()
 

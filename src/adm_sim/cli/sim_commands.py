@@ -162,6 +162,12 @@ def cmd_check(args, damping_provider=None):
 
     mass_bounds, stiffness_bounds = (parse_bounds(getattr(args, k), f"--{k.replace('_', '-')}")
                                      for k in ("mass_bounds", "stiffness_bounds"))
+    ballast = None if args.ballast is None else parse_bounds(f"standard:{args.ballast}", "--ballast")
+    deck_end_height = None
+    if args.deck_end_height is not None:
+        from adm_sim.design.check_sls import check_deck_end_height  # noqa: PLC0415  start-up: only this subcommand
+
+        deck_end_height = check_deck_end_height(args.deck_end_height, "--deck-end-height")
     track = check_track_type("--track", args.track, aliases=True)  # one vocabulary: direct -> direct_fastening
     cb, close = progress_callback("check", None if args.progress is None else args.progress)
     t0 = time.perf_counter()
@@ -171,7 +177,8 @@ def cmd_check(args, damping_provider=None):
                         where=args.where, damping_model=args.damping_model,
                         track_maintenance=args.track_maintenance, alpha=args.alpha,
                         damping_provider=damping_provider, lateral_frequency_hz=args.lateral_frequency,
-                        mass_bounds=mass_bounds, stiffness_bounds=stiffness_bounds)
+                        mass_bounds=mass_bounds, stiffness_bounds=stiffness_bounds,
+                        deck_end_height_m=deck_end_height, ballast=ballast)
     finally:
         close()
     wall = time.perf_counter() - t0
@@ -317,9 +324,10 @@ def add_check_arguments(c):
     c.add_argument("--where", default="deck",
                    help="where the acceleration is taken: deck (default: anywhere on the deck, with the position, "
                         "EN 1990 A2.4.4.2.1), midspan, or x=<m> (0 < x < L)")
-    c.add_argument("--track-maintenance", default="careful",
+    c.add_argument("--track-maintenance", default=None,
                    help="EN 1991-2 6.4.5.2 track maintenance for the LM71 dynamic factor of the 6.4.6.5(3) "
-                        "comparison: careful (Phi2, default) or standard (Phi3)")
+                        "comparison: standard (Phi3 with phi'', the default: 6.4.5.2(3)P, where no dynamic factor "
+                        "is specified) or careful (Phi2 with phi''/2)")
     c.add_argument("--alpha", default="1.0",
                    help="LM71 classification factor alpha, EN 1991-2 6.3.2(3): 0.75, 0.83, 0.91, 1.00 (default), "
                         "1.10, 1.21, 1.33, 1.46")
@@ -334,6 +342,14 @@ def add_check_arguments(c):
                         "--mass-bounds=-0.1,0.15; EN 1991-2 6.4.6.3.2), or standard:B,RHO[,RHO_MAX] for the "
                         "standard's bounds from B kg/m of ballast at RHO kg/m3: the check runs at each, the verdict "
                         "is the envelope")
+    c.add_argument("--ballast", default=None,
+                   help="B,RHO: the ballast in the nominal mass per length (B kg/m at RHO kg/m3); turns the mass "
+                        "bounds of EN 1991-2 6.4.6.3.2 on (lower 1700 kg/m3; upper 2100 kg/m3 and +30 %% depth, the "
+                        "project's choice) unless --mass-bounds is given")
+    c.add_argument("--deck-end-height", default=None,
+                   help="h (m): height from the bearings' axis of rotation to the top of the deck; checks the "
+                        "deck-end displacement delta_H = theta h of EN 1991-2 6.5.4.5.2 (8 / 10 mm); not checked "
+                        "without it")
     c.add_argument("--stiffness-bounds", default=None,
                    help="lower,upper bound of the bending stiffness EJ as fractions of the nominal "
                         "(--stiffness-bounds=-0.1,0; EN 1991-2 6.4.6.3.3)")

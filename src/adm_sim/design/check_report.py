@@ -15,7 +15,9 @@ from pathlib import Path
 
 import numpy as np
 from adm_sim import __version__
+from adm_sim.design.check_defaults import DEFAULTS
 from adm_sim.design.check_text import summary
+from adm_sim.design.design_loads import maintenance_text
 
 _COLORS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
            "#bcbd22", "#17becf", "#393b79", "#637939", "#8c6d31", "#843c39")
@@ -126,9 +128,18 @@ def verdict_rows(res):
         rows.append(("EN 1990 A2.4.4.2.3(1)", "vertical deflection under Φ α LM71", f"{1e3 * s.deflection_m:.3f} mm",
                      f"L/600 = {1e3 * s.deflection_limit_m:.3f} mm", "PASS" if s.deflection_ok else "FAIL"))
         ok = s.end_rotation_ok
-        rows.append(("EN 1990 A2.4.4.2.3", "deck end rotation under Φ α LM71", f"{1e3 * s.end_rotation_rad:.3f} mrad",
+        rows.append(("infrastructure manager's rule (project's choice; not EN 1991-2)",
+                     "deck end rotation under Φ α LM71", f"{1e3 * s.end_rotation_rad:.3f} mrad",
                      "6.5 mrad" if s.track == "ballasted" else "relevant authority",
                      "not judged" if ok is None else ("PASS" if ok else "FAIL")))
+        if s.delta_h_m is None:
+            rows.append(("EN 1991-2 6.5.4.5.2", "deck-end displacement δ_H = θ h", "h not given", "8 / 10 mm",
+                         "not checked"))
+        else:
+            ok8, ok10 = s.delta_h_ok
+            rows.append(("EN 1991-2 6.5.4.5.2", f"deck-end displacement δ_H = θ h (h = {s.deck_end_height_m:g} m)",
+                         f"{1e3 * s.delta_h_m:.3f} mm", "8 / 10 mm",
+                         f"{'PASS' if ok8 else 'FAIL'} / {'PASS' if ok10 else 'FAIL'}"))
         rows.append(("EN 1990 A2.4.4.2.4(3)", "first lateral frequency", "not given" if s.lateral_frequency_hz is None
                      else f"{s.lateral_frequency_hz:g} Hz", ">= 1.2 Hz",
                      "not checked" if s.lateral_ok is None else ("PASS" if s.lateral_ok else "FAIL")))
@@ -145,16 +156,26 @@ def report_html(res, version=None, commit=None):
     inputs = [("bridge", b.describe()), ("maximum line speed V", f"{res.max_line_speed_kmh:g} km/h"),
               ("speeds", f"{res.speeds_kmh[0]:g} .. {res.speeds_kmh[-1]:g} km/h"), ("track", res.track),
               ("damping", res.damping), ("damping model", res.damping_model), ("ζ per mode", zeta),
-              ("modes", ", ".join(str(j) for j in res.modes)), ("track maintenance", res.track_maintenance),
+              ("modes", ", ".join(str(j) for j in res.modes)),
+              ("track maintenance", maintenance_text(res.track_maintenance, res.maintenance_named)),
               ("α", f"{res.alpha:g}"), ("trains", ", ".join(c.name for c in res.trains))]
     near = [(c.name, f"{c.max_acc_m_s2.max():.4f}", f"{c.speeds_kmh[c.i_max]:g}",
              "" if c.x_max_m is None else f"{c.x_max_m:.3f}") for c in res.near_governing()]
     warn = "".join(f"<p class='warn'>The largest acceleration of {_e(', '.join(c.name for c in cs))} lies at the "
                    f"{_e(end)} of the checked range: the resonance may lie outside it.</p>"
                    for end, cs in res.range_end_maxima().items())
-    effects = [(d.effect.label, t.name, f"{d.phi_dyn:.3f}", f"{d.train_static / 1e3:.1f}",
-                f"{d.train_design / 1e3:.1f}", f"{d.lm71_design / 1e3:.1f}", f"{d.ratio:.3f}")
-               for t, d, _ in res.effects_governing()]
+    warn += "".join(f"<p class='warn'>The maximum of {len(items)} governing effect(s) lies at the {_e(end)} of the "
+                    f"checked range ({res.speeds_kmh[-1 if end == 'top' else 0]:g} km/h): "
+                    + _e(", ".join(f"{e['effect']} ({e['train']}, φ'_dyn {e['phi_dyn']:.3f}, ratio {e['ratio']:.3f})"
+                                   for e in items))
+                    + "; φ'_dyn and the ratio may be larger outside it.</p>"
+                    for end, items in res.effects_range_end().items())
+    effects = [(d.effect.label, t.name, f"{d.phi_dyn:.3f}",
+                f"{t.effects.at_speed_kmh[i]:.1f}"
+                + (" (range end)" if d.phi_dyn > 1e-9 and res.speed_end(t.effects.at_speed_kmh[i]) else ""),
+                f"{d.train_static / 1e3:.1f}", f"{d.train_design / 1e3:.1f}", f"{d.lm71_design / 1e3:.1f}",
+                f"{d.ratio:.3f}")
+               for t, d, i in res.effects_governing()]
     parts = [
         "<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
         f"<title>EN 1991-2 dynamic check: {_e(verdict)}</title>",
@@ -171,8 +192,11 @@ def report_html(res, version=None, commit=None):
         _table(("train within 5 % of the governing value", "max acc (m/s²)", "at (km/h)", "x (m)"), near), warn,
         "<h2>Acceleration envelopes over speed</h2>", _svg_envelopes(res),
         "<h2>EN 1991-2 6.4.6.5(3) over the deck</h2>", _svg_effects(res),
-        _table(("effect", "train", "φ'_dyn", "static (kNm, kN)", "design (kNm, kN)", "Φ α LM71 (kNm, kN)", "ratio"),
+        _table(("effect", "train", "φ'_dyn", "at (km/h)", "static (kNm, kN)", "design (kNm, kN)", "Φ α LM71 (kNm, kN)",
+                "ratio"),
                effects),
+        "<h2>Defaults and project choices</h2>",
+        _table(("default", "value", "source", "kind"), [(d.name, d.value, d.source, d.kind) for d in DEFAULTS]),
         "<h2>Not checked</h2>", "<ul>" + "".join(f"<li>{_e(x)}</li>" for x in res.not_checked()) + "</ul>",
         "<h2>Full output</h2>", f"<pre>{_e(summary(res))}</pre>",
         f"<p>adm-sim {_e(version)}, commit {_e(commit)}</p>", "</body></html>"]
