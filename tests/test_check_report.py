@@ -81,4 +81,4 @@ def test_report_cli_and_refusals(tmp_path):
     bad = tmp_path / "r.txt"
     r = subprocess.run(CLI + ["check", "--max-line-speed", "250", "--trains", "HSLM-A7", "--report", str(bad)],
                        capture_output=True, text=True, timeout=600)
-    assert r.returncode == 2 and "must end in .html" in r.stderr and not bad.exists()
+    assert r.returncode == 2 and "must end with .html or .pdf" in r.stderr and not bad.exists()

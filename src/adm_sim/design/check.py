@@ -343,12 +343,9 @@ class CheckResult:
         return label, t, d
 
     def to_dict(self):
-        from adm_sim.design.check_defaults import DEFAULTS  # noqa: PLC0415  it imports this module
-
+        """The result as JSON-ready data (the check's defaults: :func:`adm_sim.design.check_defaults.defaults_dict`)."""
         t, sp, acc = self.governing
-        return {"defaults": [d.to_dict() for d in DEFAULTS],
-                "project_choices": [d.to_dict() for d in DEFAULTS if d.kind != "standard"],
-                "bridge": self.bridge.describe(), "max_line_speed_kmh": self.max_line_speed_kmh,
+        return {"bridge": self.bridge.describe(), "max_line_speed_kmh": self.max_line_speed_kmh,
                 "design_speed_kmh": DESIGN_SPEED_FACTOR * self.max_line_speed_kmh, "track": self.track,
                 "damping": self.damping, "damping_model": self.damping_model,
                 "zeta_per_mode_pct": [100 * z for z in self.bridge.modal_damping_ratios(0.0)],

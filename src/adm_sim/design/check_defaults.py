@@ -82,6 +82,11 @@ def defaults():
     return DEFAULTS
 
 
+def defaults_dict():
+    """``{"defaults": [...], "project_choices": [...]}`` for a check's JSON."""
+    return {"defaults": [d.to_dict() for d in DEFAULTS], "project_choices": [d.to_dict() for d in project_choices()]}
+
+
 def project_choices():
     """The defaults that are the project's choice, not the standard's."""
     return tuple(d for d in DEFAULTS if d.kind == PROJECT)
