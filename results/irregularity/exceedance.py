@@ -11,6 +11,7 @@ ballasted-track limit, EN 1990 A2.4.4.2.1). Prints the markdown table of results
     PYTHONPATH=src .venv/bin/python results/irregularity/exceedance.py
 """
 
+import gzip
 import json
 from pathlib import Path
 
@@ -24,8 +25,6 @@ LIMIT_M_S2 = 3.5
 
 def smooth_rows():
     """The shipped smooth-track study's lines of the same cases (μ2, ICE-2 and Railjet), as :func:`rows`."""
-    import gzip
-
     out = []
     with gzip.open(HERE.parent / "study" / "results.jsonl.gz", "rt") as fh:
         for line in fh:
