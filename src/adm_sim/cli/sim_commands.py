@@ -196,6 +196,14 @@ def cmd_check(args, damping_provider=None):
     if args.damping_model is not None and args.damping_model not in DAMPING_MODELS:
         raise InputError(f"--damping-model: {args.damping_model!r} is not allowed; allowed {', '.join(DAMPING_MODELS)}")
     trains = resolve_trains(trains_spec)
+    if args.irregularity is not None:  # refused before any work, named by its flag
+        from adm_sim.design.check_rough import check_spec  # noqa: PLC0415  start-up: only with --irregularity
+
+        check_spec(args.irregularity, args.seeds, bridge.span_m)
+        if not any(t.units for t in trains):
+            raise InputError(f"--irregularity: the trains checked ({', '.join(t.name for t in trains)}) have no "
+                             f"vehicles; the rough-track DIM needs a real train (add ICE-2, Eurostar, Railjet, ICE-4 or "
+                             f"a .toml train to --trains)")
     if args.comfort and not any(t.units for t in trains):  # comfort is computed for trains with vehicles only
         raise InputError(f"--comfort: the trains checked ({', '.join(t.name for t in trains)}) are load models "
                          f"without vehicles; passenger comfort b_v needs the DIM of a real train (add ICE-2, "
@@ -227,7 +235,8 @@ def cmd_check(args, damping_provider=None):
                         track_maintenance=args.track_maintenance, alpha=args.alpha,
                         damping_provider=damping_provider, lateral_frequency_hz=args.lateral_frequency,
                         mass_bounds=mass_bounds, stiffness_bounds=stiffness_bounds,
-                        deck_end_height_m=deck_end_height, ballast=ballast)
+                        deck_end_height_m=deck_end_height, ballast=ballast, irregularity=args.irregularity,
+                        seeds=args.seeds)
     finally:
         close()
     wall = time.perf_counter() - t0
@@ -427,6 +436,11 @@ def add_check_arguments(c):
                    help=option_help("--modes", "more modes than EN 1990 A2.4.4.2.1 asks for; default: exactly those"))
     c.add_argument("--comfort", action="store_true",
                    help="also run the DIM of the real trains: passenger comfort b_v (EN 1990 A2.4.4.3)")
+    c.add_argument("--irregularity", default=None,
+                   help="beyond the standard: also run the DIM of the real trains on a rough track of this spectrum "
+                        "(german-low, german-high, fra-1..fra-6, iso-a..iso-h[:band=LO:HI]), one profile per seed, "
+                        "midspan acceleration per seed beside the smooth check (docs/irregularities.md)")
+    c.add_argument("--seeds", default="1", help="with --irregularity: the profiles of seeds 1..N (1..20, default 1)")
     c.add_argument("--job", default=None,
                    help="TOML job file: a [job] table with project, structure, element, author, checker, revision, "
                         "date (all required), and optionally bridge and trains (docs/check.md)")

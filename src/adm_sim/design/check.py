@@ -219,6 +219,7 @@ class CheckResult:
     alpha: float = 1.0
     sls: object = None  # adm_sim.design.check_sls.Serviceability (EN 1990 A2.4.4 beside the acceleration)
     bounds: tuple = ()  # ((label, CheckResult), ...): mass and stiffness bounds, EN 1991-2 6.4.6.3.2/3
+    rough: tuple = ()  # adm_sim.design.check_rough.RoughDim per train with vehicles (beyond the standard)
 
     def design_governing(self):
         """Per effect, the train whose EN 1991-2 6.4.6.5(3) design value is largest against
@@ -384,6 +385,7 @@ class CheckResult:
                 "envelope_governing": dict(zip(("case", "train", "speed_kmh", "acc_m_s2"),
                                                (lambda g: (g[0], g[1].name, g[2], g[3]))(self.envelope_governing()))),
                 "not_checked": list(self.not_checked()),
+                "rough_track": [r.to_dict() for r in self.rough],
                 "trains": [c.to_dict() for c in self.trains]}
 
     def write_csv(self, path):
@@ -784,7 +786,7 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
               progress=None, calibrate_options=None, comfort=False, n_modes=None, where="deck",
               damping_model="modal", track_maintenance=None, alpha=1.0, damping_provider=None,
               lateral_frequency_hz=None, mass_bounds=None, stiffness_bounds=None, deck_end_height_m=None,
-              ballast=None):
+              ballast=None, irregularity=None, seeds=1):
     """The dynamic check of ``bridge`` for ``trains`` (see the module doc).
 
     Parameters
@@ -829,6 +831,10 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
         6.4.6.3.2 (a lower mass gives the largest accelerations, a higher one the lowest resonance
         speeds) and 6.4.6.3.3 (stiffness). The check runs at every bound as well and the verdict is
         the envelope; ``bounds`` names each case and which one governs.
+    irregularity, seeds : str, int, optional
+        A random track spectrum (``german-high``, ``fra-6:band=2:80``; no seed) and a seed count:
+        the DIM of every train with vehicles on the profiles of seeds 1..``seeds`` beside the
+        smooth check, beyond the standard (:mod:`adm_sim.design.check_rough`; not in the verdict).
     deck_end_height_m : float, optional
         h (m) from the bearings' axis of rotation to the top of the deck: the deck-end displacement
         δ_H = θ h of EN 1991-2 6.5.4.5.2 is checked (:mod:`adm_sim.design.check_sls`); else listed
@@ -876,6 +882,14 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
     check_hslm_span(bridge.span_m, trains)
     if deck_end_height_m is not None:
         deck_end_height_m = check_deck_end_height(deck_end_height_m)
+    if irregularity is not None:
+        from adm_sim.design.check_rough import check_spec  # noqa: PLC0415  only with a rough track
+
+        irregularity, seeds = check_spec(irregularity, seeds, bridge.span_m)
+        if not any(t.units for t in trains):
+            raise InputError(f"irregularity: the trains checked ({', '.join(t.name for t in trains)}) have no vehicles; "
+                             f"the rough-track DIM needs a real train (ICE-2, Eurostar, Railjet, ICE-4 or a .toml "
+                             f"train)", field="irregularity")
     if mass_bounds is None and ballast is not None:  # the ballast is given: the standard's mass bounds by default
         mass_bounds = ballast if isinstance(ballast, StandardMassBounds) else StandardMassBounds(*map(float, ballast))
     cases = bound_cases(bridge, mass_bounds, stiffness_bounds)
@@ -962,6 +976,12 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
             raise
     sls = serviceability(b, dynamic_factor(b.span_m, track_maintenance), alpha, track, lateral_frequency_hz,
                          deck_end_height_m)
+    rough = ()
+    if irregularity is not None:
+        from adm_sim.design.check_rough import rough_dim  # noqa: PLC0415  only with a rough track
+
+        rough = tuple(rough_dim(b, t, speeds, irregularity, seeds, float(tc.max_acc_m_s2.max()))
+                      for t, tc in zip(trains, out) if t.units)
     t_nominal = time.perf_counter() - t_start
     # the bounds after the nominal bridge: they reuse its static effects (cached; independent of the mass)
     bounds = tuple((label, run_check(bb, max_line_speed_kmh, trains, track=track, damping=damping, step_kmh=step_kmh,
@@ -976,4 +996,4 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
                        timings_s={"damping": t_damp, "envelopes": t_nominal - t_damp,
                                   **({"bounds": time.perf_counter() - t_start - t_nominal} if cases else {})},
                        where=where, damping_model=damping_model, track_maintenance=track_maintenance,
-                       maintenance_named=maintenance_named, alpha=alpha)
+                       maintenance_named=maintenance_named, alpha=alpha, rough=rough)

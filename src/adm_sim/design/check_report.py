@@ -256,6 +256,10 @@ def report_html(res, version=None, commit=None, job=None, sources=None):
         "<h2>Acceleration envelopes over speed</h2>", _svg_envelopes(res),
         "<h2>EN 1991-2 6.4.6.5(3) over the deck</h2>", _svg_effects(res), _table(*tables["effects"]),
         *(["<h2>Mass and stiffness bounds</h2>", _table(*tables["bounds"])] if res.bounds else []),
+        *(["<h2>Rough track (beyond the standard)</h2>", f"<p>{_e(res.rough[0].to_dict()['note'])}</p>",
+           _table(("train", "seed", "max midspan DIM acc (m/s²)", "at (km/h)", "smooth check (m/s²)"),
+                  [(r.train, s, f"{a:.4f}", f"{v:g}", f"{r.smooth_check_m_s2:.4f}") for r in res.rough
+                   for s, a, v in zip(r.seeds, r.max_acc_m_s2, r.at_speed_kmh)])] if res.rough else []),
         "<h2>Defaults and project choices</h2>", _table(*tables["defaults"]),
         "<h2>Not checked</h2>", "<ul>" + "".join(f"<li>{_e(x)}</li>" for x in res.not_checked()) + "</ul>",
         "<h2>Full output</h2>", f"<pre>{_e(summary(res))}</pre>",

@@ -240,6 +240,7 @@ def summary(res):
     lines.extend(comfort_lines(res))
     lines.extend(verdict_lines(res))
     lines.extend(bounds_lines(res))
+    lines.extend(r.line(res.limit_m_s2) for r in res.rough)
     if res.sls is not None:
         lines.extend(res.sls.lines())
     lines.append(res.screening)
