@@ -184,7 +184,8 @@ def test_round_trip(bridge, train, x):
     step = calibration_step(b, t, V)
     target = run_sweep(b, t, "mlm", V, delta_zeta=x, options=step).max_acc_m_s2
     r = calibrate(b, t, V, dim_curve=(V, target), adapted_curve=False)
-    assert r.status == "ok", r.message
+    # B2 x ICE-4: the MLM's largest value lies at 350 km/h, so the value is reported but not determined
+    assert r.status == ("range_end" if (bridge, train) == ("B2", "ICE-4") else "ok"), r.message
     assert r.delta_zeta_vbi == pytest.approx(x, abs=0.005e-2)
     assert r.dim_grid == "given"
 

@@ -18,11 +18,13 @@ import socket
 import subprocess
 import sys
 import time
+from collections import Counter
 from pathlib import Path
 
 import psutil
 import pytest
 
+from adm_calib import peaks as pk
 from adm_calib import study as st
 
 DASK = Path(sys.executable).with_name("dask")
@@ -177,7 +179,7 @@ def test_study_on_scheduler_survives_a_killed_worker(tmp_path):
     recs = content.by_key
     assert set(recs) == set(ref_recs) == {c.key for c in cases}
     for k, r in recs.items():
-        assert r["status"] == ref_recs[k]["status"] == "ok", (k, r.get("message"))
+        assert r["status"] == ref_recs[k]["status"] and pk.has_delta_zeta(r["status"]), (k, r.get("message"))
         assert r["delta_zeta_vbi_pct"] == pytest.approx(ref_recs[k]["delta_zeta_vbi_pct"], abs=1e-9, rel=0), k
     # the lost batches were computed again by the surviving worker
     redone = {(r["span_m"], r["freq_index"]) for r in recs.values() if r["pid"] == worker_pid[survivor_addr]}
@@ -191,5 +193,6 @@ def test_study_on_scheduler_survives_a_killed_worker(tmp_path):
     run = meta["runs"][-1]
     assert run["cluster"]["scheduler"] == addr and run["cluster"]["local"] is False
     assert set(run["cluster"]["workers"]) == set(by_name.values())
-    assert run["completed"] == N_CASES and run["interrupted"] is False and run["statuses"] == {"ok": N_CASES}
+    assert run["completed"] == N_CASES and run["interrupted"] is False and sum(run["statuses"].values()) == N_CASES
+    assert run["statuses"] == dict(Counter(r["status"] for r in recs.values()))  # ok and range_end (L38-f2)
     assert time.monotonic() - t_start < 120

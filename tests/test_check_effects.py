@@ -125,7 +125,7 @@ def test_sampling_step_halved_twice():
 
 
 def test_phi_dd_share_by_maintenance():
-    """Annex C: 1 + φ' + 0.5 φ'' on carefully maintained track (C.1), 1 + φ' + φ'' with standard maintenance (C.2)."""
+    """Annex C (cited by content): 1 + φ' + φ''/2 on carefully maintained track, 1 + φ' + φ'' with standard maintenance."""
     assert phi_dd_factor("careful") == 0.5 and phi_dd_factor("standard") == 1.0
     c = ce.EffectComparison(effect=ce.Effect("M", 7.5), phi_dyn=0.5, phi_dd_factor=1.0, phi_dd=0.2, Phi=1.3,
                             train_static=1e6, lm71_static=2e6)

@@ -45,14 +45,20 @@ def test_report_is_self_contained(page):
 
 def test_report_reads_back_the_verdict_and_the_numbers(page):
     """The verdict and every clause row as the text of the page says them: B1, V = 250 km/h, HSLM-A7
-    3.3932 m/s2 PASS, deflection 3.843 mm against 25 mm, end rotation 0.813 mrad, lateral 2 Hz; the
-    not-checked list; version and commit."""
+    3.3932 m/s2 PASS, deflection 4.180 mm (Φ3, the default) against 25 mm, end rotation 0.884 mrad
+    against the infrastructure manager's 6.5 mrad, δ_H not checked (no h), lateral 2 Hz; the
+    not-checked list; the defaults with their sources; version and commit."""
     res, _, p = page
     text = " ".join(" ".join(p.text).split())
     assert "Verdict: PASS" in text
     assert "EN 1990 A2.4.4.2.1 peak deck acceleration (HSLM-A7, 238.1 km/h) 3.3932 m/s² 3.5 m/s² PASS" in text
-    assert "EN 1990 A2.4.4.2.3(1) vertical deflection under Φ α LM71 3.843 mm L/600 = 25.000 mm PASS" in text
-    assert "deck end rotation under Φ α LM71 0.813 mrad 6.5 mrad PASS" in text
+    assert "EN 1990 A2.4.4.2.3(1) vertical deflection under Φ α LM71 4.180 mm L/600 = 25.000 mm PASS" in text
+    assert ("infrastructure manager's rule (project's choice; not EN 1991-2) deck end rotation under Φ α LM71 "
+            "0.884 mrad 6.5 mrad PASS") in text
+    assert "EN 1991-2 6.5.4.5.2 deck-end displacement δ_H = θ h h not given 8 / 10 mm not checked" in text
+    assert "upper-bound ballast density 2100 kg/m3 saturated dirty ballast; no number found in the standard's " \
+           "text project's choice" in text
+    assert "track maintenance Phi3 and phi'' (standard maintenance, EN 1991-2 6.4.5.2(3)" in text
     assert "first lateral frequency 2 Hz >= 1.2 Hz PASS" in text
     assert "EN 1991-2 6.4.6.5(3) largest train / (Φ α LM71) ratio" in text
     for item in res.not_checked():
@@ -75,4 +81,4 @@ def test_report_cli_and_refusals(tmp_path):
     bad = tmp_path / "r.txt"
     r = subprocess.run(CLI + ["check", "--max-line-speed", "250", "--trains", "HSLM-A7", "--report", str(bad)],
                        capture_output=True, text=True, timeout=600)
-    assert r.returncode == 2 and "must end in .html" in r.stderr and not bad.exists()
+    assert r.returncode == 2 and "must end with .html or .pdf" in r.stderr and not bad.exists()

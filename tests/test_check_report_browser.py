@@ -59,11 +59,11 @@ def rendered(tmp_path_factory):
 
 def test_browser_renders_the_verdict(rendered):
     """The rendered text (what a reader sees, after layout) says the verdict and the clause rows
-    with the same numbers as the text output: HSLM-A7 3.3932 m/s² PASS, deflection 3.843 mm."""
+    with the same numbers as the text output: HSLM-A7 3.3932 m/s² PASS, deflection 4.180 mm (Φ3, the default)."""
     text = " ".join(rendered[0].split())
     assert "Verdict: PASS" in text
     assert "peak deck acceleration (HSLM-A7, 238.1 km/h) 3.3932 m/s² 3.5 m/s² PASS" in text
-    assert "vertical deflection under Φ α LM71 3.843 mm L/600 = 25.000 mm PASS" in text
+    assert "vertical deflection under Φ α LM71 4.180 mm L/600 = 25.000 mm PASS" in text
     assert "first lateral frequency 2 Hz >= 1.2 Hz PASS" in text
     assert "not checked" in text.lower()
 
@@ -83,3 +83,32 @@ def test_browser_png_and_pdf(rendered, tmp_path):
     assert height > 900  # the report is longer than one screen
     assert pdf.startswith(b"%PDF-") and pdf.rstrip().endswith(b"%%EOF")
     assert len(re.findall(rb"/Type\s*/Page(?![a-zA-Z])", pdf)) >= 1
+
+
+PDFTOTEXT = shutil.which("pdftotext")
+
+
+@pytest.mark.skipif(PDFTOTEXT is None, reason="no pdftotext (.ci/install-browser installs Debian's poppler-utils)")
+def test_report_pdf_reads_back_verdict_identification_and_an_effect_row(tmp_path):
+    """`check --report X.pdf` (headless Chromium): the PDF's text, read back with pdftotext, says the
+    verdict, the job's identification and the governing effect rows with their speed."""
+    out = tmp_path / "b1.pdf"
+    js = tmp_path / "b1.json"
+    r = subprocess.run(CLI + ["check", "--bridge", "B1", "--max-line-speed", "250", "--trains", "HSLM-A7",
+                              "--project", "Line A-B", "--structure", "Bridge km 12.4", "--author", "A. Engineer",
+                              "--checker", "B. Checker", "--revision", "C", "--date", "2026-12-06",
+                              "--report", str(out), "--json", str(js)],
+                       capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    assert out.read_bytes()[:5] == b"%PDF-"
+    text = subprocess.run([PDFTOTEXT, "-layout", str(out), "-"], capture_output=True, text=True, timeout=60).stdout
+    flat = " ".join(text.split())
+    assert "Verdict: PASS" in flat
+    for k, v in (("project", "Line A-B"), ("structure", "Bridge km 12.4"), ("author", "A. Engineer"),
+                 ("checker", "B. Checker"), ("revision", "C"), ("date", "2026-12-06"), ("element", "not given")):
+        assert re.search(rf"^\s*{k}\s+{re.escape(v)}\s*$", text, re.M), k
+    import json
+
+    e = max(json.loads(js.read_text())["en1991_2_6_4_6_5_effects"], key=lambda e: e["ratio"])
+    row = f"{e['label']} {e['train']} {e['phi_dyn']:.3f} {e['at_speed_kmh']:.1f}"
+    assert row in flat and f"{e['ratio']:.3f}" in flat

@@ -265,7 +265,7 @@ def cmd_recommend(args):
     from adm_sim.model.bridge import SPAN_RANGE_M  # noqa: PLC0415  start-up: only this subcommand (16 ms)
     from adm_sim.model.plausibility import check_studied_field  # noqa: PLC0415  start-up: only this subcommand (12 ms)
 
-    from adm_calib.reference import (FUNCTION_SOURCES, STUDY_N0_MAX_HZ, STUDY_SPAN_RANGE_M, lower_bound_table,  # noqa: PLC0415  start-up: only this subcommand (91 ms)
+    from adm_calib.reference import (STUDY_N0_MAX_HZ, STUDY_SPAN_RANGE_M, lower_bound_table,  # noqa: PLC0415  start-up: only this subcommand (91 ms)
                                      recommend, span_from_frequency_m)
 
     own = _own_functions(args)  # --functions FILE (a train of a file), else None
@@ -290,26 +290,105 @@ def cmd_recommend(args):
     check_studied_field(span_from_frequency_m(n0) if span is None else span, n0, mu_kg_m, args.extrapolate,
                         names={"span_m": "--span" if span is not None else "span (estimated from --n0)",
                                "n0_hz": "--n0", "mu_kg_m": "--mu", "extrapolate": "--extrapolate"})
+    speeds, speeds_text = _recommend_speeds(args)
+    zeta_arg = None if args.zeta_pct is None else check_option("--zeta-pct", args.zeta_pct)
+    if zeta_arg is None and measured is not None:  # --measured: the monitored bridge's zeta (its stated quantile)
+        zeta_arg = measured.zeta1_pct
     rec = recommend(train, n0, mu_kg_m / 1000.0, args.type, span_m=span, interpolate=args.interpolate,
                     functions=own["source"] if own else args.functions, extrapolate=args.extrapolate,
                     table=own["table"] if own else None)
-    from adm_calib.recommend_warnings import recommendation_warnings  # noqa: PLC0415  start-up: only this subcommand (reads the study's cases)
+    return print_recommendation(args, rec, mu_kg_m, zeta_arg, speeds, speeds_text, own=own, measured=measured)
 
-    study_warnings = recommendation_warnings(rec, cases=own["cases"] if own else None)
+
+def _recommend_speeds(args):
+    """The design speed range of ``recommend`` (km/h): ``--speeds``, or 40 m/s .. 1.2 V from
+    ``--max-line-speed`` (EN 1991-2 6.4.6.2(1), as ``check``), or the study's 160..350 km/h;
+    ``(speeds or None, text)``."""
+    if args.speeds is not None and args.max_line_speed is not None:
+        raise InputError(f"--speeds {args.speeds} and --max-line-speed {args.max_line_speed}: give one design speed "
+                         f"range, not both")
+    if args.max_line_speed is not None:
+        from adm_sim.design.check import check_speeds_kmh  # noqa: PLC0415  start-up: only with this option
+
+        v = _as_option("--max-line-speed", "max_line_speed_kmh", check_speeds_kmh, args.max_line_speed)
+        return v, (f"{v[0]:g}..{v[-1]:g} km/h (40 m/s .. 1.2 V, V = --max-line-speed {args.max_line_speed} km/h, "
+                   f"EN 1991-2 6.4.6.2(1))")
+    if args.speeds is not None:
+        v = _speeds(args.speeds)
+        return v, f"{v[0]:g}..{v[-1]:g} km/h (--speeds {args.speeds})"
+    return None, "160..350 km/h (the study's range, Section 3.3)"
+
+
+def recommendation_zeta(rec, zeta_pct=None, source=None):
+    """ζ (%) of the bridge of a recommendation and its source: the user's (``--zeta-pct``, measured or
+    chosen) or EN 1991-2 Table 6.6's lower limit for its type and span (paper Table 2)."""
+    from adm_sim.model.bridge import eurocode_damping_pct  # noqa: PLC0415  start-up: only this subcommand (16 ms)
+
+    if zeta_pct is not None:
+        return float(zeta_pct), source or "user, --zeta-pct"
+    return (eurocode_damping_pct(rec.span_m, rec.bridge_type),
+            f"EN 1991-2 Table 6.6 lower limit for {rec.bridge_type.upper()}, L = {rec.span_m:.3g} m (paper Table 2)")
+
+
+def verify_recommendation(rec, mu_kg_m, zeta_pct=None, speeds=None, speeds_text="", option="--speeds", train=None,
+                          zeta_source=None):
+    """``recommend --verify``: the calibration of the asked bridge (L, n0, mu, ζ of the
+    recommendation) under its train (:func:`adm_calib.recommend_verify.verify`). A range whose
+    calibration finds no resonance is refused (one line naming ``option``)."""
+    from adm_sim.model.bridge import Bridge  # noqa: PLC0415  start-up: only this subcommand (16 ms)
+    from adm_sim.model.trains import load_train  # noqa: PLC0415  start-up: only this subcommand (47 ms)
+
+    from adm_calib.recommend_verify import verify  # noqa: PLC0415  start-up: only with --verify
+
+    zeta, source = recommendation_zeta(rec, zeta_pct, zeta_source)
+    bridge = Bridge.from_frequency(rec.span_m, rec.n0_hz, mu_kg_m, zeta / 100.0, bridge_type=rec.bridge_type)
+    ver = verify(rec.delta_zeta_pct, bridge, load_train(train or rec.train), speeds, zeta_source=source, speeds_text=speeds_text)
+    r = ver.calibration
+    if r.status in ("no_mlm_peak", "no_resonance_in_range", "grid_too_coarse"):
+        raise InputError(f"{option}: {speeds_text or '160..350 km/h'} cannot show the resonance of {rec.train} on this "
+                         f"bridge ({r.status}: {r.message}); allowed: a range holding an MLM peak, e.g. --speeds "
+                         f"160:420:1")
+    return ver
+
+
+def print_recommendation(args, rec, mu_kg_m, zeta_pct=None, speeds=None, speeds_text="", own=None, measured=None):
+    """Print one recommendation (text or ``--json``) with its conservative verdict and, with
+    ``--verify``, the own calibration beside it. Other options (``--functions``, ``--measured``)
+    reach here through ``args`` and ``rec``."""
+    from adm_calib.recommend_verify import study_verdict  # noqa: PLC0415  start-up: only this subcommand
+    from adm_calib.recommend_warnings import recommendation_warnings  # noqa: PLC0415  start-up: only this subcommand (reads the study's cases)
+    from adm_calib.reference import FUNCTION_SOURCES  # noqa: PLC0415  start-up: only this subcommand (91 ms)
+
+    zeta_source = (f"measured, --measured ({measured.n_used} passages)"
+                   if measured is not None and getattr(args, "zeta_pct", None) is None else None)
+    option = "--max-line-speed" if getattr(args, "max_line_speed", None) is not None else "--speeds"
+    ver = (verify_recommendation(rec, mu_kg_m, zeta_pct, speeds, speeds_text, option,
+                                 train=args.train if own else None, zeta_source=zeta_source)
+           if getattr(args, "verify", False) else None)
+    cases = own["cases"] if own else None  # a train of a file: the cases of its own study
+    verdict = ver.verdict if ver is not None else study_verdict(rec, cases)
+    zeta, zeta_source = recommendation_zeta(rec, zeta_pct, zeta_source)
+    study_warnings = recommendation_warnings(rec, cases=cases)
     for w in study_warnings:  # one line "warning: ..." on stderr each (run_cli)
         warnings.warn(w, PlausibilityWarning, stacklevel=2)
     if args.json:
         d = rec.to_dict()
         if measured is not None:
             d["measured"] = measured.to_dict()
+        d.update(verdict.to_dict())
         d["study_warnings"] = study_warnings
         d["mu_kg_m"] = mu_kg_m
         d["mass_function_kg_m"] = {m: 1000.0 * v for m, v in rec.mass_function_t_m.items()}
+        d["zeta_pct"], d["zeta_source"], d["speeds"] = zeta, zeta_source, speeds_text
+        d["verification"] = None if ver is None else ver.to_dict()
         print(json.dumps(d, indent=2))
     else:
         if measured is not None:
             print("\n".join(measured.lines()))
-        print(f"dz_LB = {rec.delta_zeta_pct:.4f} %")
+        print(f"dz_LB = {rec.delta_zeta_pct:.4f} %  conservative: {str(verdict.conservative).lower()} ({verdict.reason})")
+        if ver is not None:
+            print("\n".join(ver.lines()))
+        print(f"zeta = {zeta:.3f} % ({zeta_source}); design speeds {speeds_text}")
         print(f"functions: {FUNCTION_SOURCES.get(rec.functions, rec.functions)}")
         print(f"mu = {mu_kg_m:g} kg/m ({mu_kg_m / 1000:g} t/m)")
         print(f"rule: {rec.rule}")
@@ -423,6 +502,7 @@ def cmd_study(args):
 
 def _check_fit_records(records, option, path):
     """Refuse result lines the fit cannot use as they are: a NaN or text where a number belongs."""
+    from adm_calib.peaks import has_delta_zeta  # noqa: PLC0415  start-up: only this subcommand
     from adm_calib.study import MASS_FUNCTION_NAMES  # noqa: PLC0415  start-up: only this subcommand (370 ms)
 
     for no, rec in enumerate(records, start=1):
@@ -437,7 +517,7 @@ def _check_fit_records(records, option, path):
         if pk is not None and not (isinstance(pk, dict) and all(
                 isinstance(pk.get(k), (int, float)) and not isinstance(pk.get(k), bool) for k in ("speed_kmh", "acc_m_s2"))):
             raise InputError(f"{where}: mlm_peak: {pk!r} must be null or {{speed_kmh (km/h), acc_m_s2 (m/s^2)}}")
-        if status != "ok" or rec.get("delta_zeta_vbi_pct") is None:
+        if not has_delta_zeta(status) or rec.get("delta_zeta_vbi_pct") is None:
             continue  # excluded from the fit (error / no dz), whatever else it holds
         if rec.get("mass_function") not in MASS_FUNCTION_NAMES:
             raise InputError(f"{where}: mass_function: {rec.get('mass_function')!r} is unknown; "
@@ -629,6 +709,17 @@ def build_parser():
     r.add_argument("--extrapolate", action="store_true",
                    help="answer outside the studied field (span 4..40 m, n0 in the Fig. 8 band, mu within "
                         "Table 1) with a warning instead of refusing (docs/plausibility.md)")
+    r.add_argument("--verify", action="store_true",
+                   help="calibrate dz_VBI of this bridge and train (Section 4, seconds) and print min(dz_LB, dz_VBI) "
+                        "beside the bound with the calibration's status")
+    r.add_argument("--speeds", default=None, help=option_help("--speeds", "design speed range of --verify, "
+                                                                          "start:stop:step (default 160:350:1)"))
+    r.add_argument("--max-line-speed", default=None,
+                   help=option_help("--max-line-speed", "maximum line speed V: design speeds 40 m/s .. 1.2 V "
+                                                        "(instead of --speeds)"))
+    r.add_argument("--zeta-pct", default=None,
+                   help=option_help("--zeta-pct", "the bridge's damping (measured or chosen); default the "
+                                                  "EN 1991-2 Table 6.6 lower limit for --type and the span"))
     r.add_argument("--json", action="store_true", help="print JSON")
     r.set_defaults(func=cmd_recommend)
 

@@ -18,8 +18,14 @@ Steps (Section 4, steps 1-3):
 4. A given speed grid that cannot show the resonance (too coarse, or a range without one) is a
    status of its own (:func:`speed_grid_finding`), not "ok".
 
-Statuses: ``ok``, ``no_mlm_peak``, ``no_dim_peak``, ``not_bracketed``, ``no_match``,
-``grid_too_coarse``, ``no_resonance_in_range``.
+5. A matched Δζ_VBI whose MLM peak or DIM value lies at an end of the speed range, or whose DIM
+   value is no local maximum, is computed but not determined (Section 4, Step 2):
+   :func:`adm_calib.peaks.determination`, statuses ``range_end`` and ``not_associated``, with the
+   advice to extend the speed range.
+
+Statuses (:data:`adm_calib.peaks.STATUSES`): ``ok``, ``no_mlm_peak``, ``no_dim_peak``,
+``not_bracketed``, ``no_match``, ``grid_too_coarse``, ``no_resonance_in_range``, ``range_end``,
+``not_associated``.
 
 DIM speeds (``dim_grid="paper"``, Section 3.3): 5 km/h steps over the range plus the MLM step
 (1 km/h) on ``[v_max - 20, v_max + 5]`` around the MLM peak, all in one run; if the associated DIM
@@ -263,6 +269,8 @@ def calibrate_cases(bridges, train, lanes, speeds_kmh=None, *, options=None, ste
             status, message = s.status, s.message
             if status == "ok":
                 status, message = speed_grid_finding(bridges[c], train, v) or (status, message)
+            if status == "ok":  # Step 2: a matched Δζ_VBI at an end of the range or without a DIM peak
+                status, message = pk.determination(vm[c], mlm[c], mlm_peaks[c], dim_peaks[c]) or (status, message)
         out.append(make_result(bridge=bridges[c], train=train, status=status, message=message, solve=s,
                                mlm_peak=mlm_peaks[c], dim_peak=dim_peaks[c], mlm_curve=(vm[c], mlm[c]),
                                dim_curve=(vd[c], dim[c]), adapted_curve=adapted[c],

@@ -56,6 +56,18 @@ class CalibrationResult:
         return None if self.delta_zeta_vbi is None else 100.0 * self.delta_zeta_vbi
 
     @property
+    def determined(self):
+        """Whether Δζ_VBI is determined: status ``ok`` (a value under another status is reported but
+        not determined, :data:`adm_calib.peaks.UNDETERMINED_STATUSES`)."""
+        return self.status == "ok" and self.delta_zeta_vbi is not None
+
+    @property
+    def advice(self):
+        """The one-line advice of an undetermined Δζ_VBI (the part of the message after "not determined: ")."""
+        head, sep, tail = self.message.partition("not determined: ")
+        return tail if sep else None
+
+    @property
     def zeta_pct(self):
         return 100.0 * self.bridge.damping_ratio
 
@@ -70,6 +82,8 @@ class CalibrationResult:
             "message": self.message,
             "zeta_pct": self.zeta_pct,
             "delta_zeta_vbi_pct": _f(self.delta_zeta_vbi_pct),
+            "delta_zeta_determined": self.determined,
+            "advice": self.advice,
             "delta_zeta_adm_pct": _f(self.delta_zeta_adm_pct),
             "delta_zeta_eada_pct": _f(self.delta_zeta_eada_pct),
             "eada_note": self.eada_note,
@@ -105,6 +119,21 @@ class CalibrationResult:
             }
         return d
 
+    def diagnostic(self):
+        """``(determined, message, {key: text})`` of the ROS calibration's diagnostic status
+        (``/diagnostics``; the node publishes WARN unless determined). An undetermined Δζ_VBI is
+        named so, with its status and advice."""
+        d = self.to_dict(curves=False)
+        if self.determined:
+            message = f"dz_VBI = {d['delta_zeta_vbi_pct']:.4f} %"
+        elif self.delta_zeta_vbi is not None and self.status in pk.UNDETERMINED_STATUSES:
+            message = f"dz_VBI = {d['delta_zeta_vbi_pct']:.4f} % NOT DETERMINED ({self.status}): {self.advice}"
+        else:
+            message = f"{self.status}: {self.message}"
+        keys = ("train", "status", "delta_zeta_determined", "advice", "zeta_pct", "delta_zeta_vbi_pct",
+                "delta_zeta_adm_pct", "delta_zeta_eada_pct", "delta_zeta_lb_pct")
+        return self.determined, message, {k: str(d[k]) for k in keys}
+
     def to_json(self, curves=True, **kw):
         return json.dumps(self.to_dict(curves=curves), indent=kw.pop("indent", 2), **kw)
 
@@ -123,18 +152,24 @@ class CalibrationResult:
                  f"{'' if self.dim_peak.is_local_max or not self.dim_peak.found else '  (not a local maximum)'}",
                  f"adapted MLM    {peak(self.adapted_peak)}"]
         if self.solve is not None and self.solve.delta_zeta is not None:
-            lines.append(f"dz_VBI         {pct(self.delta_zeta_vbi_pct)}  ({self.solve.method}, {self.solve.iterations} iterations, "
-                         f"peak mismatch {100 * self.solve.residual_rel:.2e} %)")
+            mark = "" if self.determined else f"  NOT DETERMINED ({self.status})"
+            lines.append(f"dz_VBI         {pct(self.delta_zeta_vbi_pct)}{mark}  ({self.solve.method}, "
+                         f"{self.solve.iterations} iterations, peak mismatch {100 * self.solve.residual_rel:.2e} %)")
         else:
             lines.append("dz_VBI         n/a")
         lines += [f"dz_ADM         {pct(self.delta_zeta_adm_pct)}  (EN 1991-2 6.4.6.3.1)",
                   f"dz_EADA        {pct(self.delta_zeta_eada_pct)}  ({self.eada_note})",
                   f"dz_LB          {pct(self.delta_zeta_lb_pct)}  ({self.lb_note})",
                   f"zeta           {self.zeta_pct:.3f} %"]
+        if self.status != "ok":
+            lines.append(f"status {self.status}: {pk.STATUSES.get(self.status, self.message)}")
+            if self.advice:
+                lines.append(f"advice: {self.advice}")
+            lines.append("statuses: " + "; ".join(f"{k} = {v}" for k, v in pk.STATUSES.items()))
         return "\n".join(lines)
 
     def __repr__(self):
-        dz = "n/a" if self.delta_zeta_vbi is None else f"{100 * self.delta_zeta_vbi:.4f} %"
+        dz = "n/a" if self.delta_zeta_vbi is None else f"{100 * self.delta_zeta_vbi:.4f} %" + ("" if self.determined else " (not determined)")
         return (f"CalibrationResult({self.bridge.name or 'bridge'} x {self.train_name}, {self.status}, "
                 f"dz_VBI={dz}, MLM {self.mlm_peak!r}, DIM {self.dim_peak!r})")
 

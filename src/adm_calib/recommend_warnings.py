@@ -22,6 +22,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 from importlib import resources
 
+from adm_calib import peaks as pk
 from adm_calib.reference import lower_bound_table
 from adm_calib.study.fit import DEFAULT_RULE, EXCLUSIONS, _exclusion
 
@@ -60,7 +61,7 @@ def study_cases_csv(records, rule=DEFAULT_RULE):
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(_COLUMNS)
     for r in sorted(by_key.values(), key=lambda r: (r["train"], r["mass_function"], r["n0_hz"], r["bridge"])):
-        if r.get("status") != "ok" or r.get("delta_zeta_vbi_pct") is None:
+        if not pk.has_delta_zeta(r.get("status")) or r.get("delta_zeta_vbi_pct") is None:
             continue
         why = _exclusion(r, rule) or ""
         w.writerow([r["train"], r["mass_function"], r["bridge"], f"{r['n0_hz']:.6f}",

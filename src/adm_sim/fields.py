@@ -365,6 +365,7 @@ _FIELDS = [
        lo=100.0, hi=1.0e6),
     _F("damping_ratio", "- (fraction)", float, "structural damping zeta", "bridge",
        *_toml_spec("zeta", "damping_ratio"), *_toml_spec("zeta_pct", unit="%"), _S("ros", "zeta_pct", "%"),
+       _S("cli", "--zeta-pct", "%"),
        lo=0.0, hi=0.20),
     _F("n_modes", "-", int, "retained modes (paper: 3, Section 2.3)", "bridge",
        *_toml_spec("n_modes"), _S("ros", "n_modes"), _S("cli", "--modes"), lo=1, hi=20),

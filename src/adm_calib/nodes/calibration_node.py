@@ -136,15 +136,12 @@ class CalibrationNode(RunDriver):
         return summary
 
     def _publish_result(self, res):
-        d = res.to_dict(curves=False)
         self.publish_recorded(self.pub_result, P.TOPIC_CAL_RESULT, c.json_msg(res.to_dict(curves=True)))
-        ok = res.status == "ok"
+        ok, message, values = res.diagnostic()
         st = DiagnosticStatus(level=DiagnosticStatus.OK if ok else DiagnosticStatus.WARN,
-                              name="adm_calib/calibration: delta_zeta_vbi", hardware_id=d["bridge"],
-                              message=(f"dz_VBI = {d['delta_zeta_vbi_pct']:.4f} %" if ok else f"{res.status}: {res.message}"))
-        st.values = [KeyValue(key=k, value=str(d[k])) for k in
-                     ("train", "status", "zeta_pct", "delta_zeta_vbi_pct", "delta_zeta_adm_pct", "delta_zeta_eada_pct",
-                      "delta_zeta_lb_pct")]
+                              name="adm_calib/calibration: delta_zeta_vbi",
+                              hardware_id=res.bridge.name or res.bridge.describe(), message=message)
+        st.values = [KeyValue(key=k, value=v) for k, v in values.items()]
         arr = DiagnosticArray(status=[st])
         arr.header.stamp.sec, arr.header.stamp.nanosec = divmod(self._clock_ns, 1_000_000_000)
         self.publish_recorded(self.pub_diag, P.TOPIC_DIAGNOSTICS, arr)

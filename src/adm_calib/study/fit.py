@@ -14,6 +14,7 @@ import numpy as np
 
 from adm_sim.errors import InputError
 
+from adm_calib import peaks as pk
 from adm_calib.lower_bound import first_root_hz, lower_bound_pct
 from adm_calib.reference import STUDY_TRAINS, lower_bound_table
 from adm_calib.study.cases import INTERVAL_EDGES_HZ, LOWER_LIMIT_HZ, TRAIN_VARIANTS, paper_train
@@ -174,8 +175,8 @@ def case_flags(rec):
     """The exclusion reasons that apply to one result line (all of them, in rule order)."""
     if rec.get("status") == "error":
         return ["error"]
-    if rec.get("status") != "ok" or rec.get("delta_zeta_vbi_pct") is None:
-        return ["no_dz"]
+    if not pk.has_delta_zeta(rec.get("status")) or rec.get("delta_zeta_vbi_pct") is None:
+        return ["no_dz"]  # range_end / not_associated keep their Δζ_VBI: the rules below exclude them as before
     out = []
     if rec.get("dim_is_local_max") is False:
         out.append("dim_not_local_max")

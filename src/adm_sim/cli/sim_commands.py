@@ -161,6 +161,36 @@ def cmd_sweep(args):
     return 0
 
 
+def _check_job(args):
+    """The job (:class:`adm_sim.inputs.job.Job`: ``--job`` file, the identification options over it)
+    and the bridge and trains specs (the options over the job file's, else B1 and hslm)."""
+    from adm_sim.inputs.job import Job, job_from_options, read_job_file  # noqa: PLC0415  start-up: only this subcommand
+
+    names = ("project", "structure", "element", "author", "checker", "revision", "date")
+    given = job_from_options({k: getattr(args, k, None) for k in names})
+    job = read_job_file(args.job) if getattr(args, "job", None) is not None else Job()
+    job = Job(fields={**job.fields, **given.fields}, bridge=job.bridge, trains=job.trains, path=job.path)
+    bridge = args.bridge if args.bridge is not None else job.bridge if job.bridge is not None else "B1"
+    trains = args.trains if args.trains is not None else job.trains if job.trains is not None else "hslm"
+    return job, bridge, trains
+
+
+def _check_tables(args, inputs):
+    """``--tables DIR``: checked (and its files claimed) before any work; None without it."""
+    text = getattr(args, "tables", None)
+    if text is None:
+        return None
+    from adm_sim.design.check_report import TABLE_NAMES  # noqa: PLC0415  start-up: only this subcommand
+    from adm_sim.files import check_output_folder  # noqa: PLC0415
+
+    names = [f"{n}.csv" for n in TABLE_NAMES]
+    out = check_output_folder(text, "--tables", names, inputs)
+    if out.is_dir():
+        for n in names:
+            claim_output(str(out / n), "--tables", args.overwrite, ".csv", inputs)
+    return out
+
+
 def cmd_check(args, damping_provider=None):
     """EN 1991-2 dynamic check (:mod:`adm_sim.design.check`). ``--damping none|adm`` are the core's;
     ``lb|vbi`` need adm-calib's ``damping_provider`` (``adm-calib check`` passes it) and are refused
@@ -171,25 +201,52 @@ def cmd_check(args, damping_provider=None):
 
     if args.damping in CALIB_DAMPING_METHODS and damping_provider is None:
         raise calib_methods_refusal(args.damping)
+    job, bridge_spec, trains_spec = _check_job(args)
     outs = {}
-    inputs = [("--bridge", args.bridge), ("--measured", getattr(args, "measured", None))] + [
-        ("--trains", t.strip()) for t in str(args.trains).split(",")]
+    inputs = ([("--job", str(job.path))] if job.path is not None else []) + [
+        ("--bridge", bridge_spec if isinstance(bridge_spec, str) else ""),
+        ("--measured", getattr(args, "measured", None))] + [
+        ("--trains", t.strip()) for t in str(trains_spec).split(",")]
     seen = {}
-    for opt, suffix in (("json", None), ("csv", ".csv"), ("plot", ".png"), ("report", ".html")):
+    for opt, suffix in (("json", None), ("csv", ".csv"), ("plot", ".png"), ("report", None)):
         text = getattr(args, opt, None)
         if text is not None:
             if str(text).strip() and Path(text).resolve() in seen:
                 raise InputError(f"--{opt}: {text!r} is the --{seen[Path(text).resolve()]} file; give different files")
             outs[opt] = claim_output(text, f"--{opt}", args.overwrite, suffix, inputs)
+            if opt == "report" and outs[opt].suffix.lower() not in (".html", ".pdf"):
+                raise InputError(f"--report: {text!r} must end with .html or .pdf")
             seen[outs[opt].resolve()] = opt
-    bridge = resolve_bridge(args.bridge)
+    pdf = "report" in outs and outs["report"].suffix.lower() == ".pdf"
+    if pdf:
+        from adm_sim.design.check_report import find_chromium  # noqa: PLC0415  start-up: only this subcommand
+        from adm_sim.errors import RunError  # noqa: PLC0415
+
+        if find_chromium() is None:
+            raise RunError(f"--report {args.report}: no headless Chromium on this machine (chromium not on PATH); "
+                           f"write --report X.html and print it to PDF from a browser")
+    tables = _check_tables(args, inputs)
+    if isinstance(bridge_spec, dict):
+        from adm_sim.model.bridge import bridge_from_mapping  # noqa: PLC0415  start-up: only with a job file
+
+        bridge = bridge_from_mapping(bridge_spec, source=f"--job {job.path}: [bridge]")
+    else:
+        bridge = resolve_bridge(bridge_spec)
     from adm_sim.inputs.measured import measured_bridge  # noqa: PLC0415  start-up: only this subcommand
 
     bridge, measured = measured_bridge(args, bridge)  # --measured: n0, zeta (and EJ) of the monitored bridge
     parse_where(args.where, bridge.span_m)  # refused before any work
     if args.damping_model is not None and args.damping_model not in DAMPING_MODELS:
         raise InputError(f"--damping-model: {args.damping_model!r} is not allowed; allowed {', '.join(DAMPING_MODELS)}")
-    trains = resolve_trains(args.trains)
+    trains = resolve_trains(trains_spec)
+    if args.irregularity is not None:  # refused before any work, named by its flag
+        from adm_sim.design.check_rough import check_spec  # noqa: PLC0415  start-up: only with --irregularity
+
+        check_spec(args.irregularity, args.seeds, bridge.span_m)
+        if not any(t.units for t in trains):
+            raise InputError(f"--irregularity: the trains checked ({', '.join(t.name for t in trains)}) have no "
+                             f"vehicles; the rough-track DIM needs a real train (add ICE-2, Eurostar, Railjet, ICE-4 or "
+                             f"a .toml train to --trains)")
     if args.comfort and not any(t.units for t in trains):  # comfort is computed for trains with vehicles only
         raise InputError(f"--comfort: the trains checked ({', '.join(t.name for t in trains)}) are load models "
                          f"without vehicles; passenger comfort b_v needs the DIM of a real train (add ICE-2, "
@@ -205,6 +262,12 @@ def cmd_check(args, damping_provider=None):
 
     mass_bounds, stiffness_bounds = (parse_bounds(getattr(args, k), f"--{k.replace('_', '-')}")
                                      for k in ("mass_bounds", "stiffness_bounds"))
+    ballast = None if args.ballast is None else parse_bounds(f"standard:{args.ballast}", "--ballast")
+    deck_end_height = None
+    if args.deck_end_height is not None:
+        from adm_sim.design.check_sls import check_deck_end_height  # noqa: PLC0415  start-up: only this subcommand
+
+        deck_end_height = check_deck_end_height(args.deck_end_height, "--deck-end-height")
     track = check_track_type("--track", args.track, aliases=True)  # one vocabulary: direct -> direct_fastening
     cb, close = progress_callback("check", None if args.progress is None else args.progress)
     t0 = time.perf_counter()
@@ -214,11 +277,18 @@ def cmd_check(args, damping_provider=None):
                         where=args.where, damping_model=args.damping_model,
                         track_maintenance=args.track_maintenance, alpha=args.alpha,
                         damping_provider=damping_provider, lateral_frequency_hz=args.lateral_frequency,
-                        mass_bounds=mass_bounds, stiffness_bounds=stiffness_bounds)
+                        mass_bounds=mass_bounds, stiffness_bounds=stiffness_bounds,
+                        deck_end_height_m=deck_end_height, ballast=ballast, irregularity=args.irregularity,
+                        seeds=args.seeds)
     finally:
         close()
     wall = time.perf_counter() - t0
     _check_plausible(res)
+    from adm_sim.inputs.job import input_sources  # noqa: PLC0415  start-up: only this subcommand
+
+    sources = input_sources(bridge_spec, trains_spec, trains)
+    for line in job.lines():
+        print(line)
     print(check_summary(res))
     print(f"{len(trains)} trains, {wall:.2f} s")
     with OutputSet() as files:  # --json, --csv, --plot, --report: all or none
@@ -227,6 +297,11 @@ def cmd_check(args, damping_provider=None):
             d["wall_time_s"] = wall
             if measured is not None:
                 d["measured"] = measured.to_dict()
+            from adm_sim.design.check_defaults import defaults_dict  # noqa: PLC0415  start-up: only with --json
+
+            d.update(defaults_dict())
+            d["job"] = job.to_dict()
+            d["inputs"] = [{"input": k, "value": v, "source": s} for k, v, s in sources]
             files.write(outs["json"], lambda p: p.write_text(json.dumps(d, indent=1)), "--json",
                         note=f"wrote {args.json}")
         if "csv" in outs:
@@ -234,9 +309,18 @@ def cmd_check(args, damping_provider=None):
         if "plot" in outs:
             files.write(outs["plot"], lambda p: plot_check(res, p), "--plot", note=f"wrote {args.plot}")
         if "report" in outs:
-            from adm_sim.design.check_report import write_report  # noqa: PLC0415  start-up: only this subcommand (138 ms)
+            from adm_sim.design.check_report import write_pdf, write_report  # noqa: PLC0415  start-up: only this subcommand (138 ms)
 
-            files.write(outs["report"], lambda p: write_report(res, p), "--report", note=f"wrote {args.report}")
+            write = write_pdf if pdf else write_report
+            files.write(outs["report"], lambda p: write(res, p, job=job, sources=sources), "--report",
+                        note=f"wrote {args.report}")
+        if tables is not None:
+            from adm_sim.design.check_report import write_tables  # noqa: PLC0415  start-up: only this subcommand
+            from adm_sim.files import make_output_folder  # noqa: PLC0415
+
+            make_output_folder(tables, "--tables")
+            write_tables(res, tables, job=job, sources=sources, outs=files)
+            print(f"wrote the tables to {args.tables}")
     return 0
 
 
@@ -346,11 +430,12 @@ def _output_options(parser, outputs, overwrite_help):
 def add_check_arguments(c):
     """The options of the EN 1991-2 check, one definition for ``adm-sim check`` and ``adm-calib check``
     (``--damping lb|vbi`` are computed only by ``adm-calib check``)."""
-    c.add_argument("--bridge", default="B1", help="B1..B4, a spec L=15,n0=8.26,mu=19042,zeta_pct=1.85, or a TOML file")
+    c.add_argument("--bridge", default=None, help="B1..B4 (default B1), a spec L=15,n0=8.26,mu=19042,zeta_pct=1.85, or "
+                                                  "a TOML file; or the job file's bridge")
     add_measured_argument(c)
     c.add_argument("--max-line-speed", type=float, required=True,
                    help=option_help("--max-line-speed", "maximum line speed V; speeds 40 m/s .. 1.2 V are checked"))
-    c.add_argument("--trains", default="hslm",
+    c.add_argument("--trains", default=None,
                    help="comma list: hslm (HSLM-A1..A10), HSLM-Ak, HSLM-B:N=<forces>:d=<spacing m> (spans "
                         "under 7 m; N and d from EN 1991-2 Fig. E.8), ICE-2, Eurostar, Railjet, ICE-4, .toml files")
     c.add_argument("--track", choices=(*ACC_LIMITS_M_S2, *TRACK_ALIASES), default="ballasted",
@@ -363,9 +448,10 @@ def add_check_arguments(c):
     c.add_argument("--where", default="deck",
                    help="where the acceleration is taken: deck (default: anywhere on the deck, with the position, "
                         "EN 1990 A2.4.4.2.1), midspan, or x=<m> (0 < x < L)")
-    c.add_argument("--track-maintenance", default="careful",
+    c.add_argument("--track-maintenance", default=None,
                    help="EN 1991-2 6.4.5.2 track maintenance for the LM71 dynamic factor of the 6.4.6.5(3) "
-                        "comparison: careful (Phi2, default) or standard (Phi3)")
+                        "comparison: standard (Phi3 with phi'', the default: 6.4.5.2(3)P, where no dynamic factor "
+                        "is specified) or careful (Phi2 with phi''/2)")
     c.add_argument("--alpha", default="1.0",
                    help="LM71 classification factor alpha, EN 1991-2 6.3.2(3): 0.75, 0.83, 0.91, 1.00 (default), "
                         "1.10, 1.21, 1.33, 1.46")
@@ -380,6 +466,14 @@ def add_check_arguments(c):
                         "--mass-bounds=-0.1,0.15; EN 1991-2 6.4.6.3.2), or standard:B,RHO[,RHO_MAX] for the "
                         "standard's bounds from B kg/m of ballast at RHO kg/m3: the check runs at each, the verdict "
                         "is the envelope")
+    c.add_argument("--ballast", default=None,
+                   help="B,RHO: the ballast in the nominal mass per length (B kg/m at RHO kg/m3); turns the mass "
+                        "bounds of EN 1991-2 6.4.6.3.2 on (lower 1700 kg/m3; upper 2100 kg/m3 and +30 %% depth, the "
+                        "project's choice) unless --mass-bounds is given")
+    c.add_argument("--deck-end-height", default=None,
+                   help="h (m): height from the bearings' axis of rotation to the top of the deck; checks the "
+                        "deck-end displacement delta_H = theta h of EN 1991-2 6.5.4.5.2 (8 / 10 mm); not checked "
+                        "without it")
     c.add_argument("--stiffness-bounds", default=None,
                    help="lower,upper bound of the bending stiffness EJ as fractions of the nominal "
                         "(--stiffness-bounds=-0.1,0; EN 1991-2 6.4.6.3.3)")
@@ -388,12 +482,28 @@ def add_check_arguments(c):
                    help=option_help("--modes", "more modes than EN 1990 A2.4.4.2.1 asks for; default: exactly those"))
     c.add_argument("--comfort", action="store_true",
                    help="also run the DIM of the real trains: passenger comfort b_v (EN 1990 A2.4.4.3)")
+    c.add_argument("--irregularity", default=None,
+                   help="beyond the standard: also run the DIM of the real trains on a rough track of this spectrum "
+                        "(german-low, german-high, fra-1..fra-6, iso-a..iso-h[:band=LO:HI]), one profile per seed, "
+                        "midspan acceleration per seed beside the smooth check (docs/irregularities.md)")
+    c.add_argument("--seeds", default="1", help="with --irregularity: the profiles of seeds 1..N (1..20, default 1)")
+    c.add_argument("--job", default=None,
+                   help="TOML job file: a [job] table with project, structure, element, author, checker, revision, "
+                        "date (all required), and optionally bridge and trains (docs/check.md)")
+    for name in ("project", "structure", "element", "author", "checker", "revision", "date"):
+        c.add_argument(f"--{name}", default=None,
+                       help=f"the job's {name}, printed on the report's first lines (overrides the job file's)")
+    c.add_argument("--tables", default=None, help="write every table of the report as CSV into this folder "
+                                                 "(job, inputs, verdict, governing, trains, effects, bounds, defaults, "
+                                                 "not_checked)")
     _output_options(c, {"json": "write the verdict and every curve as JSON",
                         "csv": "write every curve as CSV (train, speed, acc and its position, disp, midspan moment, "
                                "zeta per mode)",
                         "plot": "write the acceleration envelopes as PNG",
-                        "report": "write one self-contained HTML page (inline figures, no network): inputs, "
-                                  "verdict per clause, envelopes, governing cases, what is not checked"},
+                        "report": "write the report: X.html one self-contained page (inline figures, no network), "
+                                  "X.pdf the same printed by headless Chromium: identification, inputs and their "
+                                  "sources, verdict per clause, envelopes, governing cases, defaults, what is not "
+                                  "checked"},
                     "replace existing output files (once the check has finished)")
 
 

@@ -61,9 +61,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from adm_sim.design.check_sls import NOT_CHECKED, check_lateral_frequency, serviceability
-from adm_sim.design.design_loads import (CACHE_SIZE, MAINTENANCE, adm_delta_zeta_pct, array_from_key, array_key, check_alpha,
-                                  design_comparison, dynamic_factor, governing, phi_dd_factor, phi_dyn_prime)
+from adm_sim.design.check_sls import NOT_CHECKED, check_deck_end_height, check_lateral_frequency, serviceability
+from adm_sim.design.design_loads import (CACHE_SIZE, DEFAULT_MAINTENANCE, MAINTENANCE, adm_delta_zeta_pct,
+                                         array_from_key, array_key, check_alpha, design_comparison, dynamic_factor,
+                                         governing, maintenance_text, phi_dd_factor, phi_dyn_prime)
 from adm_sim.errors import InputError
 from adm_sim.fields import FIELDS, check_count, check_range
 from adm_sim.model.hslm import (HSLM_A_NAMES, HSLM_A_TABLE, HSLM_B_SYNTAX, hslm_b_axles, hslm_b_spec, hslm_b_train_name,
@@ -213,10 +214,12 @@ class CheckResult:
     timings_s: dict = field(default_factory=dict)
     where: object = "midspan"
     damping_model: str = "modal"
-    track_maintenance: str = "careful"
+    track_maintenance: str = DEFAULT_MAINTENANCE
+    maintenance_named: bool = False  # the user named the track maintenance (else the standard's default)
     alpha: float = 1.0
     sls: object = None  # adm_sim.design.check_sls.Serviceability (EN 1990 A2.4.4 beside the acceleration)
     bounds: tuple = ()  # ((label, CheckResult), ...): mass and stiffness bounds, EN 1991-2 6.4.6.3.2/3
+    rough: tuple = ()  # adm_sim.design.check_rough.RoughDim per train with vehicles (beyond the standard)
 
     def design_governing(self):
         """Per effect, the train whose EN 1991-2 6.4.6.5(3) design value is largest against
@@ -249,7 +252,9 @@ class CheckResult:
 
     def not_checked(self):
         """What this check does not cover, each with its clause (:data:`adm_sim.design.check_sls.NOT_CHECKED`)."""
-        return tuple(x for x in NOT_CHECKED if not (self.bounds and x.startswith("mass and stiffness bounds")))
+        given_h = self.sls is not None and self.sls.deck_end_height_m is not None
+        return tuple(x for x in NOT_CHECKED if not (self.bounds and x.startswith("mass and stiffness bounds"))
+                     and not (given_h and x.startswith("deck-end displacement")))
 
     def near_governing(self, fraction=NEAR_GOVERNING_FRACTION):
         """Every train whose largest acceleration is at least ``1 - fraction`` of the governing one,
@@ -268,6 +273,35 @@ class CheckResult:
                 out["bottom"].append(c)
             elif i == c.speeds_kmh.size - 1:
                 out["top"].append(c)
+        return {k: v for k, v in out.items() if v}
+
+    def speed_end(self, speed_kmh):
+        """``"top"``, ``"bottom"`` or None: whether a speed is the last or the first checked one."""
+        v = self.speeds_kmh
+        return "top" if speed_kmh >= v[-1] - 1e-6 else "bottom" if speed_kmh <= v[0] + 1e-6 else None
+
+    def effects_range_end(self):
+        """The governing effects whose maximum lies at the first or the last checked speed (a resonance
+        may lie outside the range), as the acceleration's :meth:`range_end_maxima`: every governing
+        effect of 6.4.6.5(3) (its φ'_dyn and ratio) and the midspan deflection's φ'_dyn of the train
+        that governs it; ``{"bottom": [...], "top": [...]}`` of ``{effect, train, speed_kmh, phi_dyn,
+        ratio}``, empty ends left out. An effect without a dynamic increment (φ'_dyn = 0: its maximum
+        is the static one, reached at every speed) is not flagged."""
+        out = {"bottom": [], "top": []}
+        for t, d, i in self.effects_governing():
+            v = float(t.effects.at_speed_kmh[i])
+            end = self.speed_end(v) if d.phi_dyn > 1e-9 else None  # no increment: the static maximum, at every speed
+            if end:
+                out[end].append({"effect": d.effect.label, "train": t.name, "speed_kmh": v,
+                                 "phi_dyn": float(d.phi_dyn), "ratio": float(d.ratio)})
+        dg = self.design_governing().get("deflection")
+        if dg is not None:
+            c = next(c for c in self.trains if c.name == dg.train)
+            v = float(c.speeds_kmh[int(np.argmax(c.max_disp_midspan_m))])
+            end = self.speed_end(v)
+            if end:
+                out[end].append({"effect": "midspan deflection", "train": c.name, "speed_kmh": v,
+                                 "phi_dyn": float(dg.phi_dyn_deflection), "ratio": float(dg.ratio_deflection)})
         return {k: v for k, v in out.items() if v}
 
     @property
@@ -310,6 +344,7 @@ class CheckResult:
         return label, t, d
 
     def to_dict(self):
+        """The result as JSON-ready data (the check's defaults: :func:`adm_sim.design.check_defaults.defaults_dict`)."""
         t, sp, acc = self.governing
         return {"bridge": self.bridge.describe(), "max_line_speed_kmh": self.max_line_speed_kmh,
                 "design_speed_kmh": DESIGN_SPEED_FACTOR * self.max_line_speed_kmh, "track": self.track,
@@ -323,16 +358,20 @@ class CheckResult:
                 "near_governing": [{"train": c.name, "acc_m_s2": float(c.max_acc_m_s2.max()),
                                     "speed_kmh": float(c.speeds_kmh[c.i_max])} for c in self.near_governing()],
                 "range_end_maxima": {k: [c.name for c in v] for k, v in self.range_end_maxima().items()},
+                "effects_range_end": self.effects_range_end(),
                 "screening": self.screening, "timings_s": self.timings_s,
-                "track_maintenance": self.track_maintenance, "alpha": self.alpha,
+                "track_maintenance": self.track_maintenance,
+                "track_maintenance_reason": maintenance_text(self.track_maintenance, self.maintenance_named),
+                "alpha": self.alpha,
                 "en1991_2_6_4_6_5_governing": {e: {"train": d.train, "governs": getattr(d, f"governs_{e}"),
                                                    "ratio_train_to_lm71": getattr(d, f"ratio_{e}")}
                                                for e, d in self.design_governing().items()},
                 "en1991_2_6_4_6_5_effects": [
                     {"effect": d.effect.kind, "x_m": d.effect.x_m, "label": d.effect.label, "train": t.name,
-                     "phi_dyn": d.phi_dyn, "phi_dd_factor": d.phi_dd_factor, "train_design": d.train_design,
+                     "at_speed_kmh": float(t.effects.at_speed_kmh[i]),
+                     "at_range_end": self.speed_end(float(t.effects.at_speed_kmh[i])), "phi_dyn": d.phi_dyn, "phi_dd_factor": d.phi_dd_factor, "train_design": d.train_design,
                      "lm71_design": d.lm71_design, "ratio": d.ratio,
-                     "governs": "train" if d.ratio > 1.0 else "LM71"} for t, d, _ in self.effects_governing()],
+                     "governs": "train" if d.ratio > 1.0 else "LM71"} for t, d, i in self.effects_governing()],
                 "effects_modes": None if not self.trains or self.trains[0].effects is None else {
                     "dynamic_modes": self.trains[0].effects.n_modes,
                     "method": "mode-acceleration (exact static effect + dynamic correction of the modes used)"},
@@ -346,6 +385,7 @@ class CheckResult:
                 "envelope_governing": dict(zip(("case", "train", "speed_kmh", "acc_m_s2"),
                                                (lambda g: (g[0], g[1].name, g[2], g[3]))(self.envelope_governing()))),
                 "not_checked": list(self.not_checked()),
+                "rough_track": [r.to_dict() for r in self.rough],
                 "trains": [c.to_dict() for c in self.trains]}
 
     def write_csv(self, path):
@@ -444,10 +484,11 @@ BOUND_RANGES = ((-0.5, 0.0), (0.0, 1.0))
 
 
 #: EN 1991-2 6.4.6.3.2(3) as we read it: the lower bound of mass takes the minimum likely dry clean
-#: ballast density (the NOTE: 1700 kg/m3) at the minimum (design) ballast depth; the upper bound the
-#: maximum saturated density of dirty ballast with an allowance for future track lifts, +30 % depth.
-#: Not checked against a public copy of the clause (none was found); 2100 kg/m3 for saturated dirty
-#: ballast is our reading and can be replaced by a third number of ``standard:B,RHO,RHO_MAX``.
+#: ballast density (the NOTE: 1700 kg/m3, the standard's) at the minimum (design) ballast depth; the
+#: upper bound the maximum saturated density of dirty ballast with an allowance for future track
+#: lifts. The standard's text read here gives no number for these two: 2100 kg/m3 and +30 % depth
+#: are the project's choice, labelled so wherever printed (a third number of
+#: ``standard:B,RHO,RHO_MAX`` replaces the density).
 BALLAST_DENSITY_MIN_KG_M3 = 1700.0
 BALLAST_DENSITY_MAX_KG_M3 = 2100.0
 BALLAST_DEPTH_FACTOR_UPPER = 1.30
@@ -485,8 +526,10 @@ class StandardMassBounds:
         return (lo - self.ballast_kg_m) / m, (hi - self.ballast_kg_m) / m
 
     def labels(self):
-        return (f"ballast {BALLAST_DENSITY_MIN_KG_M3:g} kg/m3 at the design depth",
-                f"ballast {self.density_max_kg_m3:g} kg/m3, depth +{100 * (BALLAST_DEPTH_FACTOR_UPPER - 1):g} %")
+        rho = ("project's choice" if self.density_max_kg_m3 == BALLAST_DENSITY_MAX_KG_M3 else "given")
+        return (f"ballast {BALLAST_DENSITY_MIN_KG_M3:g} kg/m3 (EN 1991-2 6.4.6.3.2) at the design depth",
+                f"ballast {self.density_max_kg_m3:g} kg/m3 ({rho}), depth +{100 * (BALLAST_DEPTH_FACTOR_UPPER - 1):g} % "
+                f"(project's choice)")
 
 
 def _parse_standard_bounds(value, field):
@@ -741,8 +784,9 @@ def _refinement(speeds, acc, extra, vmin, vmax):
 
 def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="none", step_kmh=1.0,
               progress=None, calibrate_options=None, comfort=False, n_modes=None, where="deck",
-              damping_model="modal", track_maintenance="careful", alpha=1.0, damping_provider=None,
-              lateral_frequency_hz=None, mass_bounds=None, stiffness_bounds=None):
+              damping_model="modal", track_maintenance=None, alpha=1.0, damping_provider=None,
+              lateral_frequency_hz=None, mass_bounds=None, stiffness_bounds=None, deck_end_height_m=None,
+              ballast=None, irregularity=None, seeds=1):
     """The dynamic check of ``bridge`` for ``trains`` (see the module doc).
 
     Parameters
@@ -772,9 +816,10 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
         ζ per mode: ζ on every mode (default, what EN 1991-2 6.4.6.3.1 implies) or Rayleigh
         anchored at modes 1 and 3; ``None`` takes the bridge's own ``damping_model``
         ("rayleigh" is rayleigh13).
-    track_maintenance : {"careful", "standard"}
-        Track maintenance for the dynamic factor Φ of LM71 in EN 1991-2 6.4.6.5(3): Φ2 (careful,
-        6.4.5.2(2)) or Φ3 (standard, 6.4.5.2(3)); φ'' of Annex C enters as φ''/2 either way.
+    track_maintenance : {"careful", "standard"} or None
+        ``None``: the default, :data:`~adm_sim.design.design_loads.DEFAULT_MAINTENANCE`. Track maintenance for the dynamic factor Φ of LM71 in EN 1991-2 6.4.6.5(3): Φ2 (careful,
+        6.4.5.2(2), with φ''/2) or Φ3 (standard, 6.4.5.2(3), with φ''; the default: 6.4.5.2(3)P uses
+        Φ3 where no dynamic factor is specified).
     alpha : float
         Classification factor α of LM71 (EN 1991-2 6.3.2(3)).
     lateral_frequency_hz : float, optional
@@ -786,6 +831,17 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
         6.4.6.3.2 (a lower mass gives the largest accelerations, a higher one the lowest resonance
         speeds) and 6.4.6.3.3 (stiffness). The check runs at every bound as well and the verdict is
         the envelope; ``bounds`` names each case and which one governs.
+    irregularity, seeds : str, int, optional
+        A random track spectrum (``german-high``, ``fra-6:band=2:80``; no seed) and a seed count:
+        the DIM of every train with vehicles on the profiles of seeds 1..``seeds`` beside the
+        smooth check, beyond the standard (:mod:`adm_sim.design.check_rough`; not in the verdict).
+    deck_end_height_m : float, optional
+        h (m) from the bearings' axis of rotation to the top of the deck: the deck-end displacement
+        δ_H = θ h of EN 1991-2 6.5.4.5.2 is checked (:mod:`adm_sim.design.check_sls`); else listed
+        as not checked.
+    ballast : (float, float) or StandardMassBounds, optional
+        The ballast in the nominal mass, ``(kg/m, kg/m^3)``: with no ``mass_bounds`` the mass bounds
+        of EN 1991-2 6.4.6.3.2 are checked by default (:class:`StandardMassBounds`).
     damping_provider : callable(bridge, train, method, calibrate_options) -> (pct, note), optional
         Δζ (%) and its sentence for ``lb`` and ``vbi``; adm-calib passes
         :func:`adm_calib.check.calibrated_damping`. The core never imports adm_calib.
@@ -812,6 +868,8 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
     if damping in CALIB_DAMPING_METHODS and damping_provider is None:
         raise calib_methods_refusal(damping)
     speeds = check_speeds_kmh(max_line_speed_kmh, step_kmh)
+    maintenance_named = track_maintenance is not None
+    track_maintenance = DEFAULT_MAINTENANCE if track_maintenance is None else track_maintenance
     if track_maintenance not in MAINTENANCE:
         raise InputError(f"track_maintenance: {track_maintenance!r} is not one of EN 1991-2 6.4.5.2's; allowed "
                          f"{', '.join(MAINTENANCE)} (careful: Φ2, standard: Φ3)", field="track_maintenance")
@@ -822,6 +880,18 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
     if lateral_frequency_hz is not None:
         lateral_frequency_hz = check_lateral_frequency(lateral_frequency_hz)
     check_hslm_span(bridge.span_m, trains)
+    if deck_end_height_m is not None:
+        deck_end_height_m = check_deck_end_height(deck_end_height_m)
+    if irregularity is not None:
+        from adm_sim.design.check_rough import check_spec  # noqa: PLC0415  only with a rough track
+
+        irregularity, seeds = check_spec(irregularity, seeds, bridge.span_m)
+        if not any(t.units for t in trains):
+            raise InputError(f"irregularity: the trains checked ({', '.join(t.name for t in trains)}) have no vehicles; "
+                             f"the rough-track DIM needs a real train (ICE-2, Eurostar, Railjet, ICE-4 or a .toml "
+                             f"train)", field="irregularity")
+    if mass_bounds is None and ballast is not None:  # the ballast is given: the standard's mass bounds by default
+        mass_bounds = ballast if isinstance(ballast, StandardMassBounds) else StandardMassBounds(*map(float, ballast))
     cases = bound_cases(bridge, mass_bounds, stiffness_bounds)
     f_lim = check_frequency_limit_hz(bridge)
     most = FIELDS["n_modes"].hi
@@ -904,7 +974,14 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
         except BaseException:  # an interrupt or a refusal: the trains not yet started are not run
             pool.shutdown(wait=False, cancel_futures=True)
             raise
-    sls = serviceability(b, dynamic_factor(b.span_m, track_maintenance), alpha, track, lateral_frequency_hz)
+    sls = serviceability(b, dynamic_factor(b.span_m, track_maintenance), alpha, track, lateral_frequency_hz,
+                         deck_end_height_m)
+    rough = ()
+    if irregularity is not None:
+        from adm_sim.design.check_rough import rough_dim  # noqa: PLC0415  only with a rough track
+
+        rough = tuple(rough_dim(b, t, speeds, irregularity, seeds, float(tc.max_acc_m_s2.max()))
+                      for t, tc in zip(trains, out) if t.units)
     t_nominal = time.perf_counter() - t_start
     # the bounds after the nominal bridge: they reuse its static effects (cached; independent of the mass)
     bounds = tuple((label, run_check(bb, max_line_speed_kmh, trains, track=track, damping=damping, step_kmh=step_kmh,
@@ -919,4 +996,4 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
                        timings_s={"damping": t_damp, "envelopes": t_nominal - t_damp,
                                   **({"bounds": time.perf_counter() - t_start - t_nominal} if cases else {})},
                        where=where, damping_model=damping_model, track_maintenance=track_maintenance,
-                       alpha=alpha)
+                       maintenance_named=maintenance_named, alpha=alpha, rough=rough)

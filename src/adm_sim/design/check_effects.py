@@ -493,7 +493,7 @@ class EffectComparison:
 
     effect: Effect
     phi_dyn: float
-    phi_dd_factor: float  # r: 1/2 careful, 1 standard maintenance (Annex C (C.1)/(C.2))
+    phi_dd_factor: float  # r: 1/2 careful, 1 standard maintenance (Annex C: 1 + φ' + φ''/2, 1 + φ' + φ'')
     phi_dd: float
     Phi: float
     train_static: float

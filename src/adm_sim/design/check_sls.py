@@ -8,9 +8,15 @@ what it cannot give.
   simply supported span under downward loads lies) and every position of LM71; the influence
   line of the deflection at x is integrated in closed form (point forces) and by the cumulative
   trapezoid rule on 4000 intervals (distributed load; 3e-7 relative on 15 m).
-* End rotation of the deck, EN 1990 A2.4.4.2.3 (EN 1991-2 6.5.4.5.2 as we read it): on ballasted
-  track the rotation at a deck end next to an abutment under Φ x α x LM71 should not exceed
-  6.5e-3 rad (10e-3 rad for the sum at a joint between two decks, not checked: one span).
+* End rotation of the deck under Φ x α x LM71: on ballasted track 6.5e-3 rad at a deck end next to
+  an abutment (10e-3 rad for the sum at a joint between two decks, not checked: one span). This
+  limit is an infrastructure manager's rule that the project applies (:data:`END_ROTATION_SOURCE`),
+  not EN 1991-2 6.5.4.5.2: that clause limits the deck-end displacements (δ_B, δ_H, δ_V), not a
+  rotation.
+* Deck-end displacement δ_H of EN 1991-2 6.5.4.5.2 from the end rotation: ``δ_H = θ h`` with h
+  the height from the bearings' axis of rotation to the top of the deck, given by the user
+  (``--deck-end-height``), compared with the clause's 8 mm and 10 mm (both shown: which one applies
+  depends on the case the clause names); without h it is listed as not checked.
   Rotation at the left end of a point force P at a: ``P a (L - a)(2 L - a) / (6 EJ L)``; of a
   distributed load q over the span ``q L^3 / (24 EJ)``. For direct fastening the limit is the
   relevant authority's: the value is printed, not judged.
@@ -37,8 +43,15 @@ from adm_sim.design.design_loads import LM71_AXLE_LOAD_N, LM71_AXLES_M, LM71_HAL
 
 #: Deflection limit L / this, EN 1990 A2.4.4.2.3(1).
 DEFLECTION_SPAN_RATIO = 600.0
-#: Deck end rotation limit (rad) next to an abutment, ballasted track (EN 1991-2 6.5.4.5.2 as we read it).
+#: Deck end rotation limit (rad) next to an abutment, ballasted track: an infrastructure manager's
+#: rule the project applies, not a limit of EN 1991-2 (:data:`END_ROTATION_SOURCE`).
 END_ROTATION_LIMIT_RAD = 6.5e-3
+END_ROTATION_SOURCE = ("an infrastructure manager's rule applied by the project's choice, not EN 1991-2: "
+                       "6.5.4.5.2 limits the deck-end displacements (delta_B, delta_H, delta_V), not the rotation")
+#: Deck-end displacement limits of δ_H (m), EN 1991-2 6.5.4.5.2 (both shown).
+DELTA_H_LIMITS_M = (8e-3, 10e-3)
+#: Allowed height h (m) from the bearings' axis of rotation to the top of the deck (input sanity range).
+DECK_END_HEIGHT_RANGE_M = (0.0, 10.0)
 #: Lowest first lateral natural frequency (Hz), EN 1990 A2.4.4.2.4(3).
 LATERAL_FREQUENCY_MIN_HZ = 1.2
 #: What this check does not cover, each with its clause.
@@ -53,6 +66,8 @@ NOT_CHECKED = (
     "the N and d of HSLM-B from the span (EN 1991-2 6.4.6.1.1(5), spans under 7 m: give HSLM-B:N=<forces>:d=<m> "
     "read off the standard's figure) and the Annex F screening (when a dynamic analysis is not required)",
     "mass and stiffness bounds (EN 1991-2 6.4.6.3.2, 6.4.6.3.3)",
+    "deck-end displacement delta_H = theta h (EN 1991-2 6.5.4.5.2): give --deck-end-height, the height from the "
+    "bearings' axis of rotation to the top of the deck (m)",
 )
 
 
@@ -131,6 +146,18 @@ class Serviceability:
     deflection_x_m: float
     end_rotation_rad: float  # Φ α LM71
     lateral_frequency_hz: float | None
+    deck_end_height_m: float | None = None  # h, bearings' axis of rotation to the top of the deck
+
+    @property
+    def delta_h_m(self):
+        """δ_H = θ h (m), EN 1991-2 6.5.4.5.2; None without h."""
+        return None if self.deck_end_height_m is None else self.end_rotation_rad * self.deck_end_height_m
+
+    @property
+    def delta_h_ok(self):
+        """``(<= 8 mm, <= 10 mm)`` or None without h."""
+        d = self.delta_h_m
+        return None if d is None else tuple(bool(d <= lim) for lim in DELTA_H_LIMITS_M)
 
     @property
     def deflection_limit_m(self):
@@ -158,11 +185,20 @@ class Serviceability:
                f"(L/{self.span_m / self.deflection_m:.0f})"]
         if self.track == "ballasted":
             out.append(f"deck end rotation under Phi x alpha x LM71: {1e3 * self.end_rotation_rad:.3f} mrad, limit "
-                       f"{1e3 * END_ROTATION_LIMIT_RAD:g} mrad at an abutment, ballasted track (EN 1990 A2.4.4.2.3, "
-                       f"EN 1991-2 6.5.4.5.2): {v(self.end_rotation_ok)}")
+                       f"{1e3 * END_ROTATION_LIMIT_RAD:g} mrad at an abutment, ballasted track ({END_ROTATION_SOURCE}): "
+                       f"{v(self.end_rotation_ok)}")
         else:
             out.append(f"deck end rotation under Phi x alpha x LM71: {1e3 * self.end_rotation_rad:.3f} mrad "
                        f"(direct fastening: the limit is the relevant authority's; not judged)")
+        if self.deck_end_height_m is None:
+            out.append("deck-end displacement delta_H = theta h (EN 1991-2 6.5.4.5.2): not checked (give "
+                       "--deck-end-height, m)")
+        else:
+            ok8, ok10 = self.delta_h_ok
+            out.append(f"deck-end displacement delta_H = theta h = {1e3 * self.end_rotation_rad:.3f} mrad x "
+                       f"{self.deck_end_height_m:g} m = {1e3 * self.delta_h_m:.3f} mm (EN 1991-2 6.5.4.5.2, "
+                       f"h given): limit 8 mm {v(ok8)}, limit 10 mm {v(ok10)} (which limit applies depends on the "
+                       f"case 6.5.4.5.2 names)")
         if self.lateral_frequency_hz is None:
             out.append("lateral frequency (EN 1990 A2.4.4.2.4(3), >= 1.2 Hz): not checked (give "
                        "--lateral-frequency, Hz)")
@@ -175,15 +211,35 @@ class Serviceability:
         return {"deflection_m": self.deflection_m, "deflection_x_m": self.deflection_x_m,
                 "deflection_limit_m": self.deflection_limit_m, "deflection_ok": self.deflection_ok,
                 "end_rotation_rad": self.end_rotation_rad, "end_rotation_limit_rad": END_ROTATION_LIMIT_RAD,
-                "end_rotation_ok": self.end_rotation_ok, "lateral_frequency_hz": self.lateral_frequency_hz,
+                "end_rotation_ok": self.end_rotation_ok, "end_rotation_limit_source": END_ROTATION_SOURCE,
+                "deck_end_height_m": self.deck_end_height_m, "delta_h_m": self.delta_h_m,
+                "delta_h_limits_m": list(DELTA_H_LIMITS_M),
+                "delta_h_ok": None if self.delta_h_ok is None else list(self.delta_h_ok),
+                "delta_h_clause": "EN 1991-2 6.5.4.5.2", "lateral_frequency_hz": self.lateral_frequency_hz,
                 "lateral_ok": self.lateral_ok, "Phi": self.Phi, "alpha": self.alpha}
 
 
-def serviceability(bridge, Phi, alpha, track, lateral_frequency_hz=None):
+def check_deck_end_height(value, field="deck_end_height_m"):
+    """h (m) from the bearings' axis of rotation to the top of the deck: a finite number in
+    (0, 10] m, else one-line InputError naming ``field``."""
+    lo, hi = DECK_END_HEIGHT_RANGE_M
+    try:
+        h = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"{field}: {value!r} is not a height; give the height from the bearings' axis of rotation "
+                         f"to the top of the deck in m, allowed ({lo:g}, {hi:g}] m", field=field) from None
+    if not (np.isfinite(h) and lo < h <= hi):
+        raise InputError(f"{field}: {value!r} m is out of range; allowed ({lo:g}, {hi:g}] m (the height from the "
+                         f"bearings' axis of rotation to the top of the deck)", field=field)
+    return h
+
+
+def serviceability(bridge, Phi, alpha, track, lateral_frequency_hz=None, deck_end_height_m=None):
     """The checks of this module for ``bridge`` with the dynamic factor Φ and classification factor α."""
     w, x = lm71_max_deflection(bridge.span_m, bridge.EJ_Nm2, alpha)
     th = lm71_end_rotation(bridge.span_m, bridge.EJ_Nm2, alpha)
     f = None if lateral_frequency_hz is None else check_lateral_frequency(lateral_frequency_hz)
     return Serviceability(span_m=bridge.span_m, Phi=float(Phi), alpha=float(alpha), track=track,
                           deflection_m=float(Phi) * w, deflection_x_m=x, end_rotation_rad=float(Phi) * th,
-                          lateral_frequency_hz=f)
+                          lateral_frequency_hz=f,
+                          deck_end_height_m=None if deck_end_height_m is None else check_deck_end_height(deck_end_height_m))

@@ -7,6 +7,7 @@ the command prints. Nothing here changes a number.
 from __future__ import annotations
 
 from adm_sim.design.check import MIN_SPEED_M_S, NEAR_GOVERNING_FRACTION, REFINE_STEP_KMH
+from adm_sim.design.design_loads import maintenance_text
 from adm_sim.limits import DESIGN_SPEED_FACTOR
 
 
@@ -50,6 +51,7 @@ def header_lines(res):
             + ("every mode moves the deck)" if res.where != "midspan" else "even modes do not move midspan)"),
             f"acceleration: {where_sentence(res)}",
             damping_model_text(res),
+            f"track maintenance: {maintenance_text(res.track_maintenance, res.maintenance_named)}",
             f"damping: zeta = {100 * b.damping_ratio:.3g} % plus, per train:"]
 
 
@@ -85,7 +87,8 @@ def design_lines(res):
     w = _name_width([c.name for c in res.trains], 14)
     phi = "Phi2 (careful maintenance, 6.4.5.2(2))" if res.track_maintenance == "careful" else \
         "Phi3 (standard maintenance, 6.4.5.2(3))"
-    out = [f"EN 1991-2 6.4.6.5(3), midspan of the simply supported span: (1 + phi'_dyn + phi''/2) x train "
+    dd = "phi''/2" if d0.phi_dd_factor == 0.5 else "phi''"
+    out = [f"EN 1991-2 6.4.6.5(3), midspan of the simply supported span: (1 + phi'_dyn + {dd}) x train "
            f"vs {phi} = {d0.Phi:.3f} x alpha = {d0.alpha:g} x LM71 (6.3.2); phi'' = {d0.phi_dd:.4f} (Annex C, "
            f"v = {res.max_line_speed_kmh:g} km/h); alpha x LM71 static: M {d0.lm71_static_moment_Nm / 1e3:.1f} kNm, "
            f"w {1e3 * d0.lm71_static_deflection_m:.3f} mm",
@@ -114,8 +117,8 @@ def effects_lines(res):
     t0 = gov[0][0]
     d0 = gov[0][1]
     w = _name_width([t.name for t, _, _ in gov], 10)
-    share = "phi''/2 (careful maintenance, Annex C (C.1))" if d0.phi_dd_factor == 0.5 else \
-        "phi'' (standard maintenance, Annex C (C.2))"
+    share = "phi''/2 (careful maintenance, Annex C: 1 + phi' + phi''/2)" if d0.phi_dd_factor == 0.5 else \
+        "phi'' (standard maintenance, Annex C: 1 + phi' + phi'')"
     out = [f"EN 1991-2 6.4.6.5(3), every effect: (1 + phi'_dyn + {share}) x train vs Phi = {d0.Phi:.3f} x alpha "
            f"x LM71 (distributed load on the unfavourable part of each influence line); phi'_dyn by the "
            f"mode-acceleration method: {t0.effects.n_modes} modes dynamic plus the exact static effect "
@@ -124,9 +127,10 @@ def effects_lines(res):
            f"{'Phi LM71':>9s} {'ratio':>6s}",
            f"{'':16s} {'':{w}s} {'(-)':>8s} {'(km/h)':>7s} {'':>9s} {'':>9s} {'':>9s} {'(-)':>6s}"]
     for t, d, i in gov:
+        end = res.speed_end(t.effects.at_speed_kmh[i]) if d.phi_dyn > 1e-9 else None
         out.append(f"{d.effect.label:16s} {t.name:{w}s} {d.phi_dyn:8.3f} {t.effects.at_speed_kmh[i]:7.1f} "
                    f"{d.train_static / 1e3:9.1f} {d.train_design / 1e3:9.1f} {d.lm71_design / 1e3:9.1f} "
-                   f"{d.ratio:6.3f}")
+                   f"{d.ratio:6.3f}" + (f"  at the {end} of the range" if end else ""))
     t, d, _ = max(gov, key=lambda g: g[1].ratio)
     side = "the train" if d.ratio > 1.0 else "Phi x alpha x LM71"
     out.append(f"every effect: governed by {side} (largest ratio {d.ratio:.3f}: {d.effect.label}, {t.name})")
@@ -173,6 +177,26 @@ def verdict_lines(res):
             out.append(f"WARNING: the largest acceleration of {names} lies at the bottom of the checked range, "
                        f"{res.speeds_kmh[0]:g} km/h = {MIN_SPEED_M_S:g} m/s: a resonance lies at or below it, outside the "
                        f"speeds EN 1991-2 6.4.6.2(1) asks for; check the lower speeds with adm-sim sweep")
+    out.extend(effects_range_end_lines(res))
+    return out
+
+
+def effects_range_end_lines(res):
+    """The warning of :func:`verdict_lines` for every governing effect whose maximum lies at an end of
+    the checked speeds (:meth:`adm_sim.design.check.CheckResult.effects_range_end`)."""
+    out = []
+    for end, items in res.effects_range_end().items():
+        names = ", ".join(f"{e['effect']} ({e['train']}, phi'_dyn {e['phi_dyn']:.3f}, ratio {e['ratio']:.3f})"
+                          for e in items)
+        if end == "top":
+            out.append(f"WARNING: the maximum of {len(items)} governing effect(s) lies at the top of the checked range, "
+                       f"{res.speeds_kmh[-1]:g} km/h = 1.2 V: {names}; the resonance may lie above it, so phi'_dyn "
+                       f"and the 6.4.6.5(3) ratio may be larger there; extend the range with a higher "
+                       f"--max-line-speed to see the peak")
+        else:
+            out.append(f"WARNING: the maximum of {len(items)} governing effect(s) lies at the bottom of the checked "
+                       f"range, {res.speeds_kmh[0]:g} km/h = {MIN_SPEED_M_S:g} m/s: {names}; a resonance lies at or "
+                       f"below it, outside the speeds EN 1991-2 6.4.6.2(1) asks for")
     return out
 
 
@@ -197,6 +221,15 @@ def bounds_lines(res):
     return out
 
 
+def defaults_lines():
+    """The check's defaults that are the project's choice, not the standard's (every default with its
+    source: the JSON's ``defaults``, the report, docs/check.md)."""
+    from adm_sim.design.check_defaults import project_choices  # noqa: PLC0415  it imports the check
+
+    return ["project's choices (not the standard's; every default with its clause: --json 'defaults', --report):"] + [
+        f"  {d.name}: {d.value} ({d.source})" for d in project_choices()]
+
+
 def summary(res):
     """Every line ``adm-sim check`` prints for ``res``."""
     lines = header_lines(res)
@@ -207,8 +240,10 @@ def summary(res):
     lines.extend(comfort_lines(res))
     lines.extend(verdict_lines(res))
     lines.extend(bounds_lines(res))
+    lines.extend(r.line(res.limit_m_s2) for r in res.rough)
     if res.sls is not None:
         lines.extend(res.sls.lines())
     lines.append(res.screening)
+    lines.extend(defaults_lines())
     lines.append("not checked: " + "; ".join(res.not_checked()))
     return "\n".join(lines)

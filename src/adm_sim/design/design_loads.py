@@ -7,9 +7,12 @@ the more unfavourable of
 
 for every load effect (here: the midspan bending moment and the midspan deflection of a simply
 supported span; :mod:`adm_sim.design.check_effects` does the moment and shear along the span and the
-reactions). φ''/2 is the carefully maintained track's share (Annex C (C.1), with Φ2); for standard
-maintenance (Φ3) the full φ'' of Annex C (C.2) is used (:func:`phi_dd_factor`). The pieces, each
-with its clause:
+reactions). φ''/2 is the carefully maintained track's share (Annex C's ``1 + φ' + φ''/2``, with
+Φ2); for standard maintenance (Φ3) the full φ'' of Annex C's ``1 + φ' + φ''`` is used
+(:func:`phi_dd_factor`). Annex C's two formulas are cited by their content: the equation numbers
+the standard's text gives them could not be confirmed here. Standard maintenance (Φ3) is the
+default: EN 1991-2 6.4.5.2(3)P uses Φ3 where no dynamic factor is specified
+(:data:`DEFAULT_MAINTENANCE`). The pieces, each with its clause:
 
 * φ'_dyn = max |y_dyn / y_stat| - 1, EN 1991-2 6.4.6.5(3) Eq. (6.14): the dynamic *increment*
   (not the ratio), y_dyn the largest dynamic response of the train over the speeds of the analysis
@@ -82,6 +85,24 @@ LM71_AXLES_M = (-2.4, -0.8, 0.8, 2.4)
 LM71_HALF_WINDOW_M = 3.2
 #: Track maintenance classes of EN 1991-2 6.4.5.2(2)/(3).
 MAINTENANCE = ("careful", "standard")
+#: The default: EN 1991-2 6.4.5.2(3)P, where no dynamic factor is specified Φ3 (standard maintenance) is used.
+DEFAULT_MAINTENANCE = "standard"
+#: Annex C's dynamic factor of a real train per track maintenance, cited by its content (the equation
+#: numbers of the standard's text could not be confirmed here).
+ANNEX_C_FORMULA = {"standard": "1 + phi' + phi''", "careful": "1 + phi' + phi''/2"}
+
+
+def maintenance_text(maintenance, named_by_user):
+    """One line: which Φ and which share of φ'' the check uses, and why (the user named careful
+    maintenance, or the standard's default for no specified dynamic factor)."""
+    if maintenance == "careful":
+        return ("Phi2 and phi''/2 (carefully maintained track, EN 1991-2 6.4.5.2(2); Annex C: "
+                f"{ANNEX_C_FORMULA['careful']}): named with --track-maintenance careful")
+    why = ("named with --track-maintenance standard" if named_by_user else
+           "the default: EN 1991-2 6.4.5.2(3)P uses Phi3 where no dynamic factor is specified; give "
+           "--track-maintenance careful for carefully maintained track (Phi2)")
+    return (f"Phi3 and phi'' (standard maintenance, EN 1991-2 6.4.5.2(3); Annex C: "
+            f"{ANNEX_C_FORMULA['standard']}): {why}")
 
 
 # --------------------------------------------------------------------------- dynamic factors
@@ -126,7 +147,7 @@ def phi3(L_phi_m):
     return min(2.00, max(1.00, 2.16 / d + 0.73))
 
 
-def dynamic_factor(L_phi_m, maintenance="careful"):
+def dynamic_factor(L_phi_m, maintenance=DEFAULT_MAINTENANCE):
     """Φ of EN 1991-2 6.4.5.2: Φ2 for ``"careful"``, Φ3 for ``"standard"`` track maintenance."""
     m = check_choice("maintenance", maintenance, MAINTENANCE)
     return phi2(L_phi_m) if m == "careful" else phi3(L_phi_m)
@@ -204,10 +225,11 @@ def phi_dyn_prime(max_dyn, max_stat):
 
 def phi_dd_factor(maintenance):
     """The share r of φ'' in ``1 + φ'_dyn + r φ''``: EN 1991-2 Annex C gives the dynamic factor of a
-    real train as ``1 + φ' + 0.5 φ''`` for carefully maintained track (C.1) and ``1 + φ' + φ''`` for
-    standard maintenance (C.2); 6.4.6.5(3) Eq. (6.15) writes ``φ''/2``, the careful-track case,
-    the one its Φ2 alternative pairs with. With standard maintenance (Φ3) the full φ'' goes with
-    it, as in (C.2). Returns 0.5 for ``"careful"``, 1.0 for ``"standard"``. An independent public
+    real train as ``1 + φ' + φ''/2`` for carefully maintained track and ``1 + φ' + φ''`` for
+    standard maintenance (cited by content: the equation numbers could not be confirmed here);
+    6.4.6.5(3) Eq. (6.15) writes ``φ''/2``, the careful-track case, the one its Φ2 alternative
+    pairs with. With standard maintenance (Φ3) the full φ'' goes with it, as in ``1 + φ' + φ''``.
+    Returns 0.5 for ``"careful"``, 1.0 for ``"standard"``. An independent public
     implementation pairs them the same way (bacadra/bacadra ``bacadra/bicad/railb/en155.py``, commit
     0399243f: mode 'clea' ``1 + φ' + 0.50 φ''``, mode 'stan' ``1 + φ' + φ''``; tested to 1e-12)."""
     m = check_choice("maintenance", maintenance, MAINTENANCE)
@@ -581,7 +603,7 @@ class DesignComparison:
     @property
     def phi_dd_factor(self):
         """r in ``1 + φ'_dyn + r φ''``: 1/2 for carefully maintained track (6.4.6.5(3) Eq. (6.15),
-        Annex C (C.1)), 1 for standard maintenance (Annex C (C.2))."""
+        Annex C's ``1 + φ' + φ''/2``), 1 for standard maintenance (Annex C's ``1 + φ' + φ''``)."""
         return phi_dd_factor(self.maintenance)
 
     @property
@@ -650,7 +672,7 @@ class DesignComparison:
 
 
 def design_comparison(train, span_m, EJ_Nm2, n0_hz, axle_offsets_m, axle_loads_n, speed_m_s,
-                      phi_dyn_deflection, phi_dyn_moment=None, maintenance="careful", alpha=1.0,
+                      phi_dyn_deflection, phi_dyn_moment=None, maintenance=DEFAULT_MAINTENANCE, alpha=1.0,
                       L_phi_m=None):
     """EN 1991-2 6.4.6.5(3) for the midspan moment and deflection of a simply supported span.
 
@@ -674,7 +696,7 @@ def design_comparison(train, span_m, EJ_Nm2, n0_hz, axle_offsets_m, axle_loads_n
         φ'_dyn of the midspan moment; ``None`` takes the deflection's (an approximation the caller
         should state: it is exact only when one mode carries both responses).
     maintenance : str
-        ``"careful"`` (Φ2, 6.4.5.2(2)) or ``"standard"`` (Φ3, 6.4.5.2(3)).
+        ``"careful"`` (Φ2, 6.4.5.2(2)) or ``"standard"`` (Φ3, 6.4.5.2(3); the default, 6.4.5.2(3)P).
     alpha : float
         Classification factor α of 6.3.2(3).
     L_phi_m : float or None
