@@ -317,8 +317,8 @@ def cmd_study(args):
     if args.irregularity:
         from adm_sim.model.irregularity import parse  # noqa: PLC0415  scipy.interpolate only for rough-track studies
 
-        for span in (4.0, 40.0):  # bad input (spectrum, class, band, file) refused before anything is written
-            parse(args.irregularity, span)
+        for span in (4.0, 40.0):  # bad input (spectrum, class, band, file, slope, curvature) refused before
+            parse(args.irregularity, span)  # anything is written (every selected span below)
     settings = StudySettings(speeds=args.speeds, dim_grid=args.dim_grid, steps_per_period=spp,
                              dense_maxima=args.dense_maxima, refine_speed=args.refine_speed,
                              irregularity=args.irregularity)
@@ -326,6 +326,9 @@ def cmd_study(args):
     if not cases:
         raise InputError(f"--spans/--freq-index: the options select no case (spans are the integers "
                          f"4..40 m; --spans {args.spans!r} holds none)")
+    if args.irregularity:
+        for span in sorted({c.bridge.span_m for c in cases}):  # a random profile differs per deck length
+            parse(args.irregularity, span)
     make_output_folder(out, "--out")
     options = {"trains": trains, "mass_functions": mfs, "spans_m": list(spans), "freq_index": fis,
                "limit": limit, "workers": workers, "scheduler": scheduler, "retry_errors": args.retry_errors,

@@ -17,9 +17,11 @@ Steps (Section 4, steps 1-3):
    acceptance of 0.1 % in the peak value, which is checked.
 4. A given speed grid that cannot show the resonance (too coarse, or a range without one) is a
    status of its own (:func:`speed_grid_finding`), not "ok".
+5. A DIM peak from a run in which a wheel would lift off the rail (a tensile contact force,
+   :mod:`adm_sim.integrate.contact`) breaks the DIM's own assumption: status ``contact_lost``.
 
 Statuses: ``ok``, ``no_mlm_peak``, ``no_dim_peak``, ``not_bracketed``, ``no_match``,
-``grid_too_coarse``, ``no_resonance_in_range``.
+``grid_too_coarse``, ``no_resonance_in_range``, ``contact_lost``.
 
 DIM speeds (``dim_grid="paper"``, Section 3.3): 5 km/h steps over the range plus the MLM step
 (1 km/h) on ``[v_max - 20, v_max + 5]`` around the MLM peak, all in one run; if the associated DIM
@@ -56,7 +58,7 @@ from adm_calib import peaks as pk
 from adm_calib.calibration_options import CalibrationOptions, check_speeds
 from adm_calib.calibration_result import make_result
 from adm_calib.damping_root import solve_delta_zetas
-from adm_calib.lanes import CompiledLanes, HookLanes, ProgressLanes, Requests, SteppedLanes
+from adm_calib.lanes import CompiledLanes, HookLanes, ProgressLanes, Requests, SteppedLanes, contact_loss_at, contact_message
 from adm_calib.speed_grids import (REFINE_COARSE_KMH, dim_refinement, dim_speeds_paper, dim_speeds_window, merge_curve,
                                    relocate_peaks, relocation_speeds, speed_grid_finding)
 
@@ -261,6 +263,9 @@ def calibrate_cases(bridges, train, lanes, speeds_kmh=None, *, options=None, ste
             status, message = "no_dim_peak", dim_peaks[c].reason
         else:
             status, message = s.status, s.message
+            loss = contact_loss_at(lanes, c, dim_peaks[c].speed_kmh)  # the DIM's own assumption broken
+            if status == "ok" and loss is not None:
+                status, message = "contact_lost", contact_message(loss)
             if status == "ok":
                 status, message = speed_grid_finding(bridges[c], train, v) or (status, message)
         out.append(make_result(bridge=bridges[c], train=train, status=status, message=message, solve=s,

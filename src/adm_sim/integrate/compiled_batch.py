@@ -25,6 +25,7 @@ import math
 import numpy as np
 
 from adm_sim.integrate import kernels
+from adm_sim.integrate.contact import ContactCheck
 from adm_sim.errors import InputError, RunError
 from adm_sim.fields import FIELDS, check_delta_zeta_pct
 from adm_sim.integrate.rk4_sides import mlm_rk4_coefficients
@@ -97,6 +98,10 @@ class BatchRunner:
         self.dense_maxima = bool(dense_maxima)
         self.irregularity = irregularity
         self.ds_m = float(ds_m)
+        if irregularity is not None:  # its shortest feature against the space step
+            from adm_sim.model.irregularity import check_step  # noqa: PLC0415  scipy.interpolate only on a rough track
+
+            check_step(irregularity, self.ds_m)
         self.span_m = float(b0.span_m)
         self.n_modes = b0.n_modes
         self.tables = bridge_tables(self.bridges)
@@ -269,6 +274,9 @@ class BatchRun(AdvancingRun):
             n_dof = runner.vehicles().minv_dof.size
             self._u, self._ud = np.zeros((n_dof, n_l)), np.zeros((n_dof, n_l))
             self._lanes = kernels.DimLanes(v[order], self._ho, np.ascontiguousarray(Z[order]))
+        # the DIM's contact check (block order): smallest contact force, first tension
+        self._contact = kernels.Contact(np.full(n_l, np.inf), np.full(n_l, -1, dtype=np.int64),
+                                        np.full(n_l, -1, dtype=np.int64), np.zeros(n_l))
         self._blocks_t = kernels.Blocks(self._block_ptr, self._bcase, self._bsteps)
         self._state = kernels.LaneState(self._q, self._qd, self._u, self._ud, self._amax, self._dmax, self._prev)
         self._start_contract(n_max)
@@ -285,7 +293,7 @@ class BatchRun(AdvancingRun):
             state = (self._q, self._qd)
         else:
             kernels.dim_blocks(self._blocks_t, k0, k1, self._lanes, r.tables, r._axle_rows, r._units, r.vehicles(),
-                               self._state, r.dense_maxima, r._track)
+                               self._state, r.dense_maxima, r._track, self._contact)
             state = (self._q, self._qd, self._u, self._ud)
         self.k = k1
         def names():
@@ -308,3 +316,14 @@ class BatchRun(AdvancingRun):
     @property
     def max_disp_m(self):
         return self._in_lane_order(self._dmax)
+
+    @property
+    def contact(self):
+        """The DIM's contact check in the caller's lane order (:class:`adm_sim.integrate.contact.ContactCheck`);
+        ``None`` for the MLM."""
+        if self.model != "dim":
+            return None
+        c = self._contact
+        return ContactCheck(min_n=self._in_lane_order(c.min_n), first_k=self._in_lane_order(c.first_k),
+                            first_axle=self._in_lane_order(c.first_axle), first_n=self._in_lane_order(c.first_n),
+                            speeds_m_s=self._v.copy(), dt_s=self.runner.ds_m / self._v)

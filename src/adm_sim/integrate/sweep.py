@@ -14,6 +14,7 @@ import numpy as np
 
 from adm_sim.errors import InputError, RunError
 from adm_sim.fields import check_count, check_delta_zeta_pct
+from adm_sim.integrate.contact import CONTACT_LOST, CONTACT_OK
 from adm_sim.integrate.peaks import largest_interior_peak
 from adm_sim.integrate.lockstep_runs import InProcessRun
 from adm_sim.integrate.mlm_loads import mlm_modal_load_table
@@ -79,6 +80,8 @@ class SweepResult:
         Histories (``histories=True``).
     contact_force_n : ndarray (n_lanes, n_steps, n_axles) or None
         DIM wheel-rail contact forces (Eq. 7; zero off the bridge), with histories.
+    contact : adm_sim.integrate.contact.ContactCheck or None
+        DIM: the smallest contact force and the first tension per lane (None for the MLM).
     """
 
     model: str
@@ -95,6 +98,12 @@ class SweepResult:
     midspan_acc_m_s2: np.ndarray | None = field(default=None)
     contact_force_n: np.ndarray | None = field(default=None)
     method: str = "rk4"
+    contact: object = field(default=None)
+
+    @property
+    def status(self):
+        """``"contact_lost"`` when a DIM wheel would lift off at some speed, else ``"ok"``."""
+        return CONTACT_OK if self.contact is None else self.contact.status
 
     def peak(self):
         """``{"speed_kmh", "acc_m_s2", "index"}`` of the peak of the curve, or None.
@@ -121,6 +130,8 @@ class SweepResult:
             "max_acc_m_s2": self.max_acc_m_s2.tolist(),
             "max_disp_m": self.max_disp_m.tolist(),
             "peak": None if pk is None else {"speed_kmh": pk["speed_kmh"], "acc_m_s2": pk["acc_m_s2"]},
+            "status": self.status,
+            **({} if self.contact is None else {"contact": self.contact.to_dict()}),
         }
 
     def __repr__(self):
@@ -129,7 +140,7 @@ class SweepResult:
         how = "exact envelope" if self.method == "exact" else f"{self.n_steps} steps of {self.ds_m * 1000:.2f} mm"
         return (f"SweepResult({self.model.upper()}, {self.bridge.name or 'bridge'} x {self.train_name}, "
                 f"{len(self.speeds_kmh)} speeds {self.speeds_kmh.min():g}..{self.speeds_kmh.max():g} km/h, "
-                f"{where}, {how})")
+                f"{where}, {how}{', CONTACT LOST' if self.status == CONTACT_LOST else ''})")
 
 
 def sweep_exact(bridge, train, speeds_kmh, delta_zeta=0.0, where="midspan"):
@@ -170,7 +181,8 @@ def run_sweep_compiled(bridge, train, model, speeds_kmh, delta_zeta=0.0, options
     for x in np.unique(dz):
         check_delta_zeta_pct("delta_zeta_pct", 100 * x, bridge.damping_ratio)
     grid = make_grid(bridge, train.length_m, v, options)
-    runner = BatchRunner([bridge], train, grid.ds_m, options.free_vibration_periods, options.dense_maxima)
+    runner = BatchRunner([bridge], train, grid.ds_m, options.free_vibration_periods, options.dense_maxima,
+                         irregularity=options.irregularity if model == "dim" else None)
     run = runner.start(model, np.zeros(v.size, dtype=np.int64), v_kmh, dz)
     if run.n_steps != grid.n_steps:  # pragma: no cover - the same make_grid on both sides
         raise RunError(f"compiled sweep: {run.n_steps} steps where the grid has {grid.n_steps}")
@@ -183,7 +195,8 @@ def run_sweep_compiled(bridge, train, model, speeds_kmh, delta_zeta=0.0, options
         raise RunError(run.message)
     return SweepResult(model=model, bridge=bridge, train_name=train.name, speeds_kmh=v_kmh,
                        max_acc_m_s2=run.max_acc_m_s2, max_disp_m=run.max_disp_m,
-                       delta_zeta=np.asarray(delta_zeta, dtype=float), ds_m=grid.ds_m, n_steps=grid.n_steps)
+                       delta_zeta=np.asarray(delta_zeta, dtype=float), ds_m=grid.ds_m, n_steps=grid.n_steps,
+                       contact=run.contact)
 
 
 def run_sweep(bridge, train, model, speeds_kmh, delta_zeta=0.0, options=None, histories=False,
@@ -254,4 +267,4 @@ def run_sweep(bridge, train, model, speeds_kmh, delta_zeta=0.0, options=None, hi
     return SweepResult(model=model, bridge=bridge, train_name=train.name,
                        speeds_kmh=np.atleast_1d(np.asarray(speeds_kmh, dtype=float)).copy(), max_acc_m_s2=run.max_acc_m_s2,
                        max_disp_m=run.max_disp_m, delta_zeta=np.asarray(delta_zeta, dtype=float),
-                       ds_m=grid.ds_m, n_steps=n, **kw)
+                       ds_m=grid.ds_m, n_steps=n, contact=run.contact, **kw)

@@ -233,6 +233,15 @@ def check_response(span_m, max_acc_m_s2, max_disp_m=None, label="result", disp_l
         warn("deflection", f"{disp_label or label}: peak deflection", float(max_disp_m), ctx)
 
 
+def response_warnings(span_m, max_acc_m_s2, max_disp_m=None, label="result", disp_label=None):
+    """The messages :func:`check_response` warns, as a list of one-line strings (for results that
+    carry their warnings: the study's rows, the bridge node's result), without warning."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", PlausibilityWarning)
+        check_response(span_m, max_acc_m_s2, max_disp_m, label, disp_label)
+    return [str(w.message) for w in caught if issubclass(w.category, PlausibilityWarning)]
+
+
 #: How a caller names the three values and the switch that accepts extrapolation: a library caller
 #: by the arguments, the command line (``adm-calib recommend``) by its flags.
 ARGUMENT_NAMES = {"span_m": "span_m", "n0_hz": "n0_hz", "mu_kg_m": "mu_kg_m", "extrapolate": "extrapolate=True"}
