@@ -12,6 +12,8 @@ import shutil
 import warnings
 from pathlib import Path
 
+import numpy as np
+
 from adm_sim.cliutil import run_cli
 from adm_sim.errors import InputError, PlausibilityWarning
 from adm_sim.fields import view
@@ -180,11 +182,20 @@ def check_inputs(bridge=None, train=None, speeds=None, params_file=None, model=N
     tv.update({k: v for k, v in file_values.get("train", {}).items() if k in tv})
     tv.update({k: v for k, v in (("train", train), ("model", model), ("speeds_kmh", speeds)) if v is not None})
     try:
-        t, _ = validate_train(tv)
+        t, lanes_kmh = validate_train(tv)
         if dim:
             check_model("dim", t)
     except InputError as exc:
         raise InputError(f"train node: {exc}") from None
+    # the run's work and steps, as the bridge node will refuse them (adm_sim.limits.check_work), before any process
+    from adm_sim.integrate.step_grid import make_grid  # noqa: PLC0415  start-up: only on this path
+    from adm_sim.nodes.params import step_options  # noqa: PLC0415  the parameter tables load yaml: pre-flight only
+
+    try:
+        make_grid(bridge_from_params(preset, values), t.length_m, np.asarray(lanes_kmh, dtype=float) / 3.6,
+                  step_options(values))
+    except InputError as exc:
+        raise InputError(f"bridge node: {exc}") from None
     return file_values
 
 

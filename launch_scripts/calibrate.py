@@ -30,7 +30,7 @@ from pathlib import Path
 from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, discard_outputs, launch, preflight, release_out,
                          run_graph)
 
-from adm_sim.cliutil import Parser, add_choice, add_domain_id, add_overwrite, progress_bar
+from adm_sim.cliutil import Parser, add_choice, add_domain_id, add_max_work, add_overwrite, progress_bar
 from adm_sim.files import write_atomic
 from adm_sim.model.plausibility import check_response
 from adm_sim.protocol import parse_driver_line
@@ -54,6 +54,7 @@ def parse_args(argv=None):
                     help="run the bridge and train nodes as two processes (default: one process hosting both, "
                          "as ROS composition does; the same nodes, topics and results, the DIM round trips cheaper)")
     add_domain_id(ap)
+    add_max_work(ap)
     ap.add_argument("--quiet", action="store_true", help="no progress bars")
     add_overwrite(ap, "replace the outputs of an earlier run in --out")
     return ap.parse_args_or_exit(argv)

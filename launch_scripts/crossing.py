@@ -29,7 +29,7 @@ import numpy as np
 from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, discard_outputs, launch, preflight, release_out,
                          run_graph)
 
-from adm_sim.cliutil import Parser, add_choice, add_domain_id, add_overwrite
+from adm_sim.cliutil import Parser, add_choice, add_domain_id, add_max_work, add_overwrite
 from adm_sim.model.plausibility import check_response
 from adm_sim.protocol import parse_driver_line
 
@@ -48,6 +48,7 @@ def main(argv=None):
                     help="run the bridge and train nodes as two processes (default: one process hosting both, "
                          "as ROS composition does; the same nodes, topics and results, the DIM round trips cheaper)")
     add_domain_id(ap)
+    add_max_work(ap)
     add_overwrite(ap, "replace the outputs of an earlier run in --out")
     args = ap.parse_args_or_exit(argv)
     return launch(_main, args)

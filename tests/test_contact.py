@@ -144,3 +144,64 @@ def test_a_wave_shorter_than_four_steps_is_refused(tmp_path, b1_ice2):
         assert ir.shortest_wavelength_m(ir.parse(spec, b.span_m)) == math.inf
     with pytest.raises(InputError, match=r"allowed >= 4 steps per wave"):
         run_sweep(b, t, "dim", [300.0], options=StepOptions(steps_per_period=4.0, irregularity=prof))
+
+
+# ---------------------------------------------------------------------- calibration and study
+def test_a_calibration_whose_dim_peak_lost_contact_is_not_ok(b1_ice2):
+    """A 4 mm dip over 1 m (legal) lifts the leading wheel at every speed from 160 km/h (closed form:
+    m_w v^2 r'' = 2003 kg (44.4 m/s)^2 0.079 1/m = 312 kN > 196 kN): the DIM peak comes from such a
+    run, so the calibration is ``contact_lost`` naming it; both lane backends log the same losses."""
+    from adm_calib.calibrate import calibrate
+    from adm_calib.calibration_options import CalibrationOptions
+
+    b, t = b1_ice2
+    prof = ir.parse("joint:at=7:length=1:depth=0.004", b.span_m)
+    opts = CalibrationOptions(step=StepOptions(irregularity=prof))
+    res = calibrate(b, t, np.arange(200.0, 321.0, 1.0), options=opts, adapted_curve=False)
+    assert res.status == "contact_lost"
+    pk = res.dim_peak.speed_kmh
+    assert res.message.startswith(f"the DIM peak at {pk:g} km/h comes from a run in which the wheel of axle 1 would "
+                                  f"lift off the rail (t = ")
+    smooth = calibrate(b, t, np.arange(200.0, 321.0, 1.0), adapted_curve=False)
+    assert smooth.status == "ok"
+
+
+def test_the_lane_backends_log_the_same_contact_losses(b1_ice2):
+    from adm_calib.lanes import CompiledLanes, SteppedLanes, contact_loss_at
+
+    b, t = b1_ice2
+    step = StepOptions(steps_per_period=8.0, irregularity=ir.parse(JOINT, b.span_m))
+    from dataclasses import replace
+
+    from adm_sim.integrate.step_grid import make_grid, speeds_to_m_s
+
+    step = replace(step, ds_m=make_grid(b, t.length_m, speeds_to_m_s(np.array([100.0, 300.0])), step).ds_m)
+    logs = []
+    for cls in (CompiledLanes, SteppedLanes):
+        lanes = cls([b], t, step)
+        lanes.run("dim", [0, 0], [100.0, 300.0])
+        logs.append(lanes.contact_log)
+        assert contact_loss_at(lanes, 0, 100.0) is None
+        assert contact_loss_at(lanes, 0, 300.0)["axle"] == 1
+    assert logs[0].keys() == logs[1].keys() == {0}
+    (a,), (s,) = logs[0][0].values(), logs[1][0].values()
+    assert a["time_s"] == s["time_s"] and a["force_n"] == pytest.approx(s["force_n"], rel=1e-9)
+
+
+def test_study_rows_carry_the_plausibility_warnings():
+    """A DIM peak above 50 m/s² (the audit stored 1.285e11 m/s² with no word) is warned in its row,
+    as adm-sim sweep warns it; a plausible peak gives none."""
+    from types import SimpleNamespace
+
+    from adm_calib.study.store import _KEEP, result_record
+    from adm_calib.study import select_cases
+
+    case = select_cases(["ICE-2"], ["mu3"], (15, 15), [3])[0]
+
+    def record(dim_acc):
+        d = {k: None for k in _KEEP} | {"mlm_peak": {"acc_m_s2": 4.0}, "dim_peak": {"acc_m_s2": dim_acc}}
+        return result_record(case, SimpleNamespace(to_dict=lambda curves=False: d), 1.0)
+
+    assert record(3.5)["warnings"] == []
+    (w,) = record(1.285e11)["warnings"]
+    assert w.startswith("DIM peak: peak acceleration: 1.285e+11 m/s² is outside the plausible range <= 50 m/s²")

@@ -36,7 +36,7 @@ import numpy as np
 
 from adm_sim.files import OutputSet, check_output_folder, claim_output, input_file, make_output_folder
 from adm_sim.cli.sim_commands import add_check_arguments, cmd_check
-from adm_sim.cliutil import (Parser, add_choice, add_dim_grid, add_overwrite, add_progress, add_speeds,
+from adm_sim.cliutil import (Parser, add_choice, add_dim_grid, add_max_work, add_overwrite, add_progress, add_speeds,
                              add_steps_per_period, check_option, option_help, option_view, progress_callback, run_cli)
 from adm_sim.errors import InputError, PlausibilityWarning
 from adm_sim.fields import check_range
@@ -510,6 +510,7 @@ def build_parser():
                              "1 km/h speed grid")
 
     c = sub.add_parser("calibrate", help="calibrate dz_VBI for one bridge and one train")
+    add_max_work(c)
     c.add_argument("--bridge", required=True, help="B1..B4, a spec L=15,n0=8.26,mu=19042,zeta_pct=1.85,class=cfb "
                    "(L m, n0 Hz or EJ N m^2, mu kg/m, zeta_pct %% or type=cfb|sc for the Table 2 damping; class=cfb|sc "
                    "classes a bridge of given damping for the lower-bound functions), or a TOML file with these keys")
@@ -548,6 +549,7 @@ def build_parser():
     r.set_defaults(func=cmd_recommend)
 
     s = sub.add_parser("study", help="the parametric study (Section 3.3) on a dask cluster, resumable")
+    add_max_work(s)
     s.add_argument("--out", required=True, help="study directory: results.jsonl (one line per case) and study.json; "
                                                 "rerun with the same --out to resume")
     s.add_argument("--trains", default="ICE-2,Eurostar,Railjet,ICE-4")

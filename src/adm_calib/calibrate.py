@@ -261,11 +261,10 @@ def calibrate_cases(bridges, train, lanes, speeds_kmh=None, *, options=None, ste
             status, message = "no_mlm_peak", mlm_peaks[c].reason
         elif not dim_peaks[c].found:
             status, message = "no_dim_peak", dim_peaks[c].reason
+        elif (loss := contact_loss_at(lanes, c, dim_peaks[c].speed_kmh)) is not None:
+            status, message = "contact_lost", contact_message(loss)  # the DIM's own assumption broken at its peak
         else:
             status, message = s.status, s.message
-            loss = contact_loss_at(lanes, c, dim_peaks[c].speed_kmh)  # the DIM's own assumption broken
-            if status == "ok" and loss is not None:
-                status, message = "contact_lost", contact_message(loss)
             if status == "ok":
                 status, message = speed_grid_finding(bridges[c], train, v) or (status, message)
         out.append(make_result(bridge=bridges[c], train=train, status=status, message=message, solve=s,

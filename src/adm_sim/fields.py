@@ -532,6 +532,14 @@ def argument_flag(name):
     return flags[0] if len(flags) == 1 else None
 
 
+def count_text(n):
+    """A count for a message: exact below a billion, then 3 significant digits (``9.6e+301``, never
+    a 300-digit number)."""
+    if abs(n) >= 1_000_000_000:
+        return f"{n:.3g}"
+    return f"{n:g}" if isinstance(n, float) else f"{n}"
+
+
 def check_count(name, n, where, given):
     """``n``, a size of one run's input (field ``name`` of group ``limits``), or :class:`InputError`
     refusing it up front, one line naming ``where`` (the flag, parameter or file the user typed),
@@ -539,7 +547,7 @@ def check_count(name, n, where, given):
     allowed at most 20000 speeds (speeds of one run or check; bounded work)``)."""
     f = FIELDS[name]
     if not f.lo <= n <= f.hi:
-        shown = f"{n:g}" if isinstance(n, float) else f"{n}"
+        shown = count_text(n)
         what = f.doc.split(":")[0].split(" (")[0]
         raise InputError(f"{where}: {given} gives {shown} {f.unit}; allowed at most {f.hi:g} {f.unit} "
                          f"({what}; bounded work)", field=where)

@@ -12,7 +12,7 @@ import sys
 import time
 from pathlib import Path
 
-from adm_sim.cliutil import (Parser, add_choice, add_delta_zeta_pct, add_overwrite, add_progress, add_speeds,
+from adm_sim.cliutil import (Parser, add_choice, add_delta_zeta_pct, add_max_work, add_overwrite, add_progress, add_speeds,
                              add_steps_per_period, check_option, option_help, option_view,
                              progress_callback)
 from adm_sim.errors import InputError
@@ -390,6 +390,7 @@ def build_parser():
                         "to 1e-12)")
     s.add_argument("--where", default="midspan",
                    help="MLM exact: midspan (default), deck (anywhere on the deck, with the position) or x=<m> (0 < x < L)")
+    add_max_work(s)
     s.add_argument("--irregularity", default="",
                    help="DIM: track irregularity on the deck, e.g. german-high:seed=3, file=profile.csv, "
                         "joint:at=7:length=1:depth=0.002 (parts joined by +; docs/irregularities.md); default: smooth")

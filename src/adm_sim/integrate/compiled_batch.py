@@ -30,6 +30,7 @@ from adm_sim.errors import InputError, RunError
 from adm_sim.fields import FIELDS, check_delta_zeta_pct
 from adm_sim.integrate.rk4_sides import mlm_rk4_coefficients
 from adm_sim.integrate.run_contract import FAILED, RUNNING, AdvancingRun, check_model
+from adm_sim.limits import check_memory
 from adm_sim.integrate.step_grid import StepOptions, make_grid, speeds_to_m_s
 from adm_sim.integrate.tables import active_units, axle_rows, bridge_tables, vehicle_tables
 
@@ -125,8 +126,28 @@ class BatchRunner:
         return n
 
     # ------------------------------------------------------------------ tables
+    def table_bytes(self, model, n_steps):
+        """Memory (bytes) of the tables a run of ``n_steps`` steps builds: the MLM modal loads
+        ``(2 n + 1) x n_modes``; the DIM axle rows (every axle's mode shapes and slopes and curvatures
+        on its ``2 L / ds + 1`` rows on the bridge, the profile under it) and the Eq. (13) inverses
+        ``n_bridges x (2 n + 1) x n_modes^2``."""
+        rows, nm = 2.0 * n_steps + 1.0, self.n_modes
+        if model == "mlm":
+            return 8.0 * rows * nm
+        n_ax = self.train.n_axles
+        entries = min(rows * n_ax, n_ax * (2.0 * self.span_m / self.ds_m + 1.0))
+        return 8.0 * (entries * (3 * nm + 5) + len(self.bridges) * rows * nm * nm + rows * 2)
+
+    def check_tables(self, model, n_steps):
+        """Refuse (one-line InputError) tables beyond this machine's memory before building them."""
+        check_memory(self.table_bytes(model, n_steps), f"the {model.upper()} tables of {n_steps} steps",
+                     f"large because {n_steps} steps of ds = {self.ds_m * 1e3:.3g} mm x {self.n_modes} modes"
+                     f"{'' if model == 'mlm' else f' x {len(self.bridges)} bridges (Eq. 13 inverses)'}; "
+                     f"fewer modes or fewer steps per period make it smaller")
+
     def _mlm_table(self, n_steps):
         if n_steps > self._mlm_rows:  # mlm_modal_load_table on a grid of n_steps steps, bit for bit
+            self.check_tables("mlm", n_steps)
             self._P = modal_load_table(self.bridges[0], self.ds_m, self.train.axle_offsets_m,
                                        self.train.axle_loads_n, int(n_steps))
             self._mlm_rows = int(n_steps)
@@ -136,6 +157,7 @@ class BatchRunner:
         """The axles on the bridge per half-step row and the active units per step, steps 0..n."""
         if n_steps <= self._rows:
             return
+        self.check_tables("dim", n_steps)
         tr = self.train
         self._axle_rows = axle_rows(self.bridges, tr.axle_offsets_m, self.ds_m, 0, 2 * n_steps + 1,
                                     tr.wheel_mass_kg)

@@ -15,6 +15,7 @@ import numpy as np
 from adm_sim.errors import InputError, RunError
 from adm_sim.fields import check_count, check_delta_zeta_pct
 from adm_sim.integrate.contact import CONTACT_LOST, CONTACT_OK
+from adm_sim.limits import check_memory
 from adm_sim.integrate.peaks import largest_interior_peak
 from adm_sim.integrate.lockstep_runs import InProcessRun
 from adm_sim.integrate.mlm_loads import mlm_modal_load_table
@@ -234,6 +235,11 @@ def run_sweep(bridge, train, model, speeds_kmh, delta_zeta=0.0, options=None, hi
     if histories and nl * n * (1 + (train.n_axles if dim else 0)) > MAX_HISTORY_VALUES:
         raise InputError(f"histories: {nl} speeds x {n} steps is too much to keep; "
                          f"ask histories for at most a few speeds")
+    kept = (2.0 * n + 1.0) * bridge.n_modes * (0 if dim else 1)  # the MLM's modal-load table
+    kept += nl * n * (2 + (train.n_axles if dim else 0)) if histories else 0
+    check_memory(8.0 * kept, f"the {model.upper()} run's tables{' and histories' if histories else ''}",
+                 f"large because {n} steps of ds = {grid.ds_m * 1e3:.3g} mm x {nl} speeds; fewer steps per period "
+                 f"or fewer speeds make it smaller")
     b = BridgeSide(bridge, grid, train.axle_offsets_m, train.wheel_mass_kg if dim else None, dz)
     if dim:
         run = InProcessRun(model, grid, b, train_side=TrainSide(train, grid, bridge.span_m,

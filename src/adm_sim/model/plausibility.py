@@ -97,8 +97,9 @@ class Bound:
 
 
 def _fmt(x):
-    """A number for a message: 4 significant digits, whole numbers from 10^4 on (kg/m)."""
-    return f"{x:.4g}" if abs(x) < 1e4 else f"{x:.0f}"
+    """A number for a message: 4 significant digits, whole numbers from 10^4 to 10^9 (kg/m), powers
+    of ten beyond (a count of 300 digits says nothing)."""
+    return f"{x:.4g}" if abs(x) < 1e4 or abs(x) >= 1e9 else f"{x:.0f}"
 
 
 def _light(ctx):
