@@ -205,3 +205,4 @@ def test_study_rows_carry_the_plausibility_warnings():
     assert record(3.5)["warnings"] == []
     (w,) = record(1.285e11)["warnings"]
     assert w.startswith("DIM peak: peak acceleration: 1.285e+11 m/s² is outside the plausible range <= 50 m/s²")
+
