@@ -53,7 +53,7 @@ def _spawn(src, args, cache):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--baseline", required=True, help="src directory of the baseline checkout")
+    ap.add_argument("--baseline", help="src directory of the baseline checkout (required)")
     ap.add_argument("--span", type=float, default=20.0, help="span in m (default 20)")
     ap.add_argument("--freq-index", type=int, default=3, help="frequency index 1..5 (default 3)")
     ap.add_argument("--rounds", type=int, default=3, help="alternating worker rounds (default 3)")
@@ -63,6 +63,8 @@ def main():
     if args.worker:
         worker(args.span, args.freq_index, args.reps)
         return
+    if args.baseline is None:
+        ap.error("--baseline SRC is required (the src directory of the tree to compare with)")
     trees = {"baseline": args.baseline, "this": HERE_SRC}
     runs = {name: [] for name in trees}
     with tempfile.TemporaryDirectory() as tmp:

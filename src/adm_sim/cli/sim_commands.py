@@ -273,7 +273,7 @@ def cmd_salvage(args):
         from adm_sim.recording.mcap_log import salvage  # noqa: PLC0415  start-up: only this subcommand (28 ms)
     except ImportError as exc:
         raise InputError(f"salvage needs the ROS/MCAP extras ({exc})") from None
-    src = mcap_input(args.src, "salvage SRC")
+    src = mcap_input(args.src, "salvage SRC", damaged_magic=True)  # a damaged magic is what salvage is for
     if Path(args.dst).resolve() == src.resolve():
         raise InputError(f"salvage DST: {args.dst!r} is SRC; give another file")
     dst = claim_output(args.dst, "salvage DST", args.overwrite, ".mcap")
@@ -284,8 +284,8 @@ def cmd_salvage(args):
         print(f"lost: {report['lost_chunks']} of {report['chunks']} chunks were damaged and skipped"
               + (f", {report['orphan_messages']} messages of channels declared in them" if report["orphan_messages"]
                  else ""))
-    for line in report.get("damage", ()):  # each damaged place: offset, topics, messages lost
-        print(f"dropped: {line}")
+    for line in report.get("damage", ()):  # each damaged place: offset, topics, messages lost (or none)
+        print(f"{'damaged' if line.endswith('no message lost') else 'dropped'}: {line}")
     return 0
 
 
