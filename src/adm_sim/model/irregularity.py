@@ -63,8 +63,8 @@ the constant horizontal speed ``v``; the profile is refused beyond
 * a profile's shortest wave against the space step ``ds`` of a run (:func:`check_step`): twice the
   shortest distance between its turning points (the samples' local extrema, swings below
   :data:`MIN_SWING_M` = 0.1 mm ignored, the project's choice) at least
-  :data:`MIN_STEPS_PER_WAVELENGTH` = 4 steps, so the RK4 stage points (half steps) sample every
-  wave at least 8 times. A ramp or a single dip has no such wave; a saw-tooth shorter than the
+  :data:`MIN_STEPS_PER_WAVELENGTH` = 2 steps, so the RK4 stage points (half steps) sample every
+  wave at least 4 times, twice the Nyquist rate. A ramp or a single dip has no such wave; a saw-tooth shorter than the
   step has.
 
 Within these bounds a profile may still be severe enough to lift a wheel off the rail, which the
@@ -231,7 +231,7 @@ MAX_SLOPE = 0.05
 #: Largest |curvature| of a profile (1/m): 1 / (0.46 m tread radius), the project's choice.
 MAX_CURVATURE_1_M = 1.0 / 0.46
 #: Fewest space steps per shortest profile wave (:func:`check_step`), the project's choice.
-MIN_STEPS_PER_WAVELENGTH = 4.0
+MIN_STEPS_PER_WAVELENGTH = 2.0
 #: Smallest swing (m) that makes a turning point of a profile (:func:`shortest_wavelength_m`).
 MIN_SWING_M = 1e-4
 
