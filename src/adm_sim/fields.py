@@ -63,7 +63,8 @@ def _check_range(field, value, unit, lo, hi, lo_open, hi_open):
     except (TypeError, ValueError):
         raise InputError(f"{field}: {value!r} is not a number; allowed {rng}") from None
     if not math.isfinite(x):
-        raise InputError(f"{field}: {value!r} {unit} is not finite; allowed {rng}")
+        unit_text = "" if unit in ("", "-") else f" {unit}"  # '-' (dimensionless) after a value reads as a dash
+        raise InputError(f"{field}: {value!r}{unit_text} is not finite; allowed {rng}")
     bad_lo = lo is not None and (x <= lo if lo_open else x < lo)
     bad_hi = hi is not None and (x >= hi if hi_open else x > hi)
     if bad_lo or bad_hi:
@@ -107,7 +108,7 @@ def check_choice(field, value, allowed):
 
 def _range_text(lo, hi, lo_open, hi_open, unit):
     if lo is None and hi is None:
-        return f"any finite value in {unit}"
+        return "any finite value" + ("" if unit in ("", "-") else f" in {unit}")
     if hi is None:
         return f"{'>' if lo_open else '>='} {lo:g} {unit}"
     if lo is None:

@@ -121,10 +121,14 @@ def set_max_work(flag, value):
 
 def check_work(n_lanes, n_steps, n_modes, why):
     """Refuse a run of ``n_lanes x n_steps x n_modes`` beyond :func:`max_work` before it starts:
-    one-line :class:`InputError` naming the counts, the limit and ``why`` (the inputs that make it large)."""
+    one-line :class:`InputError` naming the counts, the limit and ``why`` (the inputs that make it
+    large: a string, or a callable giving it, called only for a refusal)."""
     work = float(n_lanes) * float(n_steps) * float(n_modes)
+    if work <= MAX_WORK and WORK_ENV not in os.environ:  # the common case: no environment read, no text
+        return work
     limit = max_work()
     if work > limit:
+        why = why() if callable(why) else why
         raise InputError(f"work: {n_lanes} lanes x {_count(n_steps)} steps x {n_modes} modes = {_g(work)} is beyond "
                          f"the work limit {_g(limit)} (the project's choice; raise it with --max-work or "
                          f"{WORK_ENV}); {why}")
