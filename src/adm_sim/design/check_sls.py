@@ -39,6 +39,9 @@ from adm_sim.design.design_loads import LM71_AXLE_LOAD_N, LM71_AXLES_M, LM71_HAL
 DEFLECTION_SPAN_RATIO = 600.0
 #: Deck end rotation limit (rad) next to an abutment, ballasted track (EN 1991-2 6.5.4.5.2 as we read it).
 END_ROTATION_LIMIT_RAD = 6.5e-3
+#: Highest first lateral natural frequency (Hz) a user may give: the project's choice (a span's first
+#: lateral mode lies at a few Hz; 1e9 Hz is a typo, not a bridge).
+LATERAL_FREQUENCY_MAX_HZ = 100.0
 #: Lowest first lateral natural frequency (Hz), EN 1990 A2.4.4.2.4(3).
 LATERAL_FREQUENCY_MIN_HZ = 1.2
 #: What this check does not cover, each with its clause.
@@ -112,9 +115,10 @@ def check_lateral_frequency(value):
     except (TypeError, ValueError):
         raise InputError(f"lateral_frequency: {value!r} is not a frequency; give the first lateral natural "
                          f"frequency of the span in Hz, > 0", field="lateral_frequency") from None
-    if not np.isfinite(f) or f <= 0.0:
-        raise InputError(f"lateral_frequency: {value!r} Hz is not a frequency; allowed (0, inf) Hz "
-                         f"(EN 1990 A2.4.4.2.4(3) asks for at least {LATERAL_FREQUENCY_MIN_HZ:g} Hz)",
+    if not np.isfinite(f) or f <= 0.0 or f > LATERAL_FREQUENCY_MAX_HZ:
+        raise InputError(f"lateral_frequency: {value!r} Hz is not the frequency of a span; allowed (0, "
+                         f"{LATERAL_FREQUENCY_MAX_HZ:g}] Hz (the upper bound is the project's choice: no railway span "
+                         f"sways above it; EN 1990 A2.4.4.2.4(3) asks for at least {LATERAL_FREQUENCY_MIN_HZ:g} Hz)",
                          field="lateral_frequency")
     return f
 
