@@ -564,6 +564,12 @@ CASES = [
          setup=lambda t, ctx: _files(t, p__yaml="bridge:\n  ros__parameters:\n    n_modes: 20\n"
                                                "    steps_per_period: 10000.0\n")),
     # --- track profiles the model cannot represent
+    Case("input-not-regular", "sweep-irregularity-fifo",
+         lambda t: SIM + ["sweep", "--model", "dim", "--irregularity", f"file={t}/p.csv"],
+         "error: irregularity: file = '{t}/p.csv': is a named pipe, not a regular file", setup=_fifo("p.csv")),
+    Case("input-not-regular", "study-irregularity-fifo",
+         lambda t: CAL + ["study", "--out", f"{t}/s", "--spans", "15", "--irregularity", f"file={t}/p.csv"],
+         "is a named pipe, not a regular file", setup=_fifo("p.csv")),
     Case("track-profile", "sweep-alternating-90mm",
          lambda t: SIM + ["sweep", "--model", "dim", "--irregularity", f"file={t}/alt.csv", "--json", f"{t}/r.json"],
          "error: irregularity: file={t}/alt.csv has slope", setup=_profile("alt.csv", "alt")),

@@ -375,7 +375,12 @@ def read_profile(path):
     """A measured profile from a CSV (two columns ``position_m, elevation_m``, a header line
     allowed) or a TOML file (arrays ``position_m`` and ``elevation_m``); elevations up, the
     profile's ``r`` is their negative."""
+    from adm_sim.files import refuse_special  # noqa: PLC0415  the one rule for inputs that are not regular files
+
     p = Path(path)
+    refuse_special(p, f"irregularity: file = {str(path)!r}")  # a fifo is named as one, never opened (no hang)
+    if p.is_dir():
+        raise InputError(f"irregularity: file = {str(path)!r} is a folder; allowed a CSV or TOML profile file")
     if not p.is_file():
         raise InputError(f"irregularity: file = {str(path)!r} does not exist; allowed a CSV or TOML profile file")
     if p.suffix.lower() == ".toml":
