@@ -202,7 +202,7 @@ def _run(call):
         print(f"error: {one_line(cli_message(exc))}", file=sys.stderr)
         return EXIT_INPUT
     except AdmSimError as exc:
-        print(f"error: {one_line(exc)}", file=sys.stderr)
+        print(f"error: {one_line(cli_message(exc))}", file=sys.stderr)
         return EXIT_RUN
     except OSError as exc:  # inputs and outputs are checked first: what is left is the system
         note = address_space_note() if exc.filename is None else ""  # e.g. a library that cannot be mapped
@@ -294,7 +294,7 @@ class Parser(argparse.ArgumentParser):
 
 
 def cli_message(exc):
-    """The message of :class:`InputError` ``exc`` as a command line shows it: a leading library
+    """The message of an :class:`InputError` or :class:`RunError` ``exc`` as a command line shows it: a leading library
     argument (``exc.field``) becomes its flag in the field registry (:func:`adm_sim.fields.argument_flag`)."""
     msg, field = str(exc), getattr(exc, "field", None)
     flag = argument_flag(field)
