@@ -192,9 +192,13 @@ def check_environment(environ=None):
 
 
 def _run(call):
+    stdout = sys.stdout
+    sys.stdout = _NamedStdout(stdout)
     try:
         check_environment()
-        return call()
+        code = call()
+        sys.stdout.flush()  # what the command printed reaches its file here, where a full device is one line
+        return code
     except BrokenPipeError:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return EXIT_OK
@@ -215,6 +219,46 @@ def _run(call):
         what = one_line(exc) or "MemoryError"
         print(f"error: out of memory: {what}{address_space_note()}", file=sys.stderr)
         return EXIT_RUN
+    finally:
+        if isinstance(sys.stdout, _NamedStdout):
+            sys.stdout = stdout
+
+
+class _NamedStdout:
+    """Standard output whose write errors name it: an :class:`OSError` of ``write``/``flush``
+    without a file name (a full device, ``ulimit -f`` under a redirected stdout) gets
+    ``standard output (<its file>)``, so the one ``error:`` line names where it could not write.
+    Everything else is the wrapped stream's."""
+
+    def __init__(self, stream):
+        self._stream = stream
+
+    def _named(self, exc):
+        if exc.filename is None:
+            try:
+                exc.filename = f"standard output ({os.readlink('/proc/self/fd/1')})"
+            except OSError:
+                exc.filename = "standard output"
+        return exc
+
+    def write(self, text):
+        try:
+            return self._stream.write(text)
+        except BrokenPipeError:
+            raise
+        except OSError as exc:
+            raise self._named(exc) from None
+
+    def flush(self):
+        try:
+            return self._stream.flush()
+        except BrokenPipeError:
+            raise
+        except OSError as exc:
+            raise self._named(exc) from None
+
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
 
 
 def address_space_note():
