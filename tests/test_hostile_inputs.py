@@ -249,6 +249,17 @@ def _profile(name, kind):
     return setup
 
 
+def _foreign_mcap(t, ctx):
+    """A recording whose /adm/midspan/accel carries std_msgs/Float64 (the nodes publish AccelStamped)."""
+    from std_msgs.msg import Float64
+
+    from adm_sim.recording.mcap_log import McapRecorder
+
+    with McapRecorder(t / "f.mcap") as rec:
+        for i in range(20):
+            rec.write("/adm/midspan/accel", Float64(data=float(i)), log_time_ns=1000 * i)
+
+
 def _failing(module, name, exc="KeyboardInterrupt"):
     """A patch: ``module.name`` (a writer of one output of the set) replaced by one that writes half
     a file (``p``: the path among its arguments) and then raises ``exc``."""
@@ -571,6 +582,9 @@ CASES = [
     Case("input-not-regular", "study-irregularity-fifo",
          lambda t: CAL + ["study", "--out", f"{t}/s", "--spans", "15", "--irregularity", f"file={t}/p.csv"],
          "is a named pipe, not a regular file", setup=_fifo("p.csv")),
+    Case("damaged-input", "replay-foreign-type", lambda t: REPLAY + [f"{t}/f.mcap", "--rrd", f"{t}/o.rrd"],
+         "error: RUN.mcap: topic '/adm/midspan/accel' in '{t}/f.mcap' has type std_msgs/msg/Float64, not "
+         "geometry_msgs/msg/AccelStamped", setup=_foreign_mcap),
     Case("track-profile", "sweep-alternating-90mm",
          lambda t: SIM + ["sweep", "--model", "dim", "--irregularity", f"file={t}/alt.csv", "--json", f"{t}/r.json"],
          "error: irregularity: file={t}/alt.csv has slope", setup=_profile("alt.csv", "alt")),
