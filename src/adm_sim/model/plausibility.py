@@ -142,8 +142,9 @@ TABLE = (
     Bound("acceleration", "peak deck acceleration", "m/s²", "<= 50 m/s²",
           "about 5 g, ten times the EN 1990 A2.4.4.2.1(4)P limits (3.5 / 5 m/s²); no real deck survives it "
           "(check the damping, mass and frequency)",
-          "adm-sim sweep and check results, adm-calib calibrate and table4 peaks; every run of the driver and "
-          "calibration nodes (and /diagnostics), the crossing.py and calibrate.py summaries",
+          "adm-sim sweep and check results, adm-calib calibrate and table4 peaks, the study's rows (warnings); every "
+          "run of the driver and calibration nodes (and /diagnostics) and the bridge node's done record, the "
+          "crossing.py and calibrate.py summaries",
           lambda c: (None, 50.0)),
     Bound("deflection", "peak midspan deflection", "m", "<= L/100",
           "six times the L/600 of EN 1990 A2.4.4.2.3 and far beyond the small deflections of the linear "
