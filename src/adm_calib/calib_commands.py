@@ -300,6 +300,23 @@ def _scheduler(text):
     return check_scheduler(text)
 
 
+def _check_study_work(cases, settings):
+    """The work of every batch's runs (lanes x steps x modes of each sweep, :func:`adm_sim.limits.check_work`),
+    refused before anything is written, as the workers would refuse it case by case."""
+    from adm_calib.study.cases import _train  # noqa: PLC0415  start-up: only this subcommand
+    from adm_sim.integrate.step_grid import StepOptions, make_grid, speeds_to_m_s  # noqa: PLC0415
+
+    v = speeds_to_m_s(settings.speeds_kmh())
+    opts = StepOptions(**({} if settings.steps_per_period is None else {"steps_per_period": settings.steps_per_period}))
+    trains, seen = {}, set()
+    for c in cases:
+        if c.batch_key in seen:
+            continue
+        seen.add(c.batch_key)
+        t = trains.setdefault(c.train, _train(c.train))
+        make_grid(c.bridge, t.length_m, v, opts)
+
+
 def cmd_study(args):
     from adm_calib.study import StudySettings, canonical_trains, run_study, select_cases  # noqa: PLC0415  start-up: only this subcommand (370 ms)
 
@@ -329,6 +346,7 @@ def cmd_study(args):
     if args.irregularity:
         for span in sorted({c.bridge.span_m for c in cases}):  # a random profile differs per deck length
             parse(args.irregularity, span)
+    _check_study_work(cases, settings)
     make_output_folder(out, "--out")
     options = {"trains": trains, "mass_functions": mfs, "spans_m": list(spans), "freq_index": fis,
                "limit": limit, "workers": workers, "scheduler": scheduler, "retry_errors": args.retry_errors,
