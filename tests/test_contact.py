@@ -206,3 +206,21 @@ def test_study_rows_carry_the_plausibility_warnings():
     (w,) = record(1.285e11)["warnings"]
     assert w.startswith("DIM peak: peak acceleration: 1.285e+11 m/s² is outside the plausible range <= 50 m/s²")
 
+
+
+def test_a_sweep_hook_hands_its_contact_check_to_the_calibration(b1_ice2):
+    """A co-simulated sweep (the ROS calibration node's hook) returns the run's contact check with
+    its maxima; :class:`adm_calib.lanes.HookLanes` logs its losses as the in-process lanes do."""
+    from adm_calib.lanes import HookLanes, SteppedLanes, contact_loss_at
+
+    b, t = b1_ice2
+    step = StepOptions(steps_per_period=8.0, irregularity=ir.parse(JOINT, b.span_m))
+
+    def hook(model, speeds, dz, step):
+        res = run_sweep(b, t, model, speeds, delta_zeta=dz, options=step)
+        return {"max_acc_m_s2": res.max_acc_m_s2, "contact": json.loads(json.dumps(res.contact.to_dict()))}
+
+    lanes, ref = HookLanes(hook, step), SteppedLanes([b], t, step)
+    np.testing.assert_array_equal(lanes.run("dim", [0, 0], [100.0, 300.0]), ref.run("dim", [0, 0], [100.0, 300.0]))
+    assert contact_loss_at(lanes, 0, 100.0) is None
+    assert contact_loss_at(lanes, 0, 300.0) == contact_loss_at(ref, 0, 300.0)

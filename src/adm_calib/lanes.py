@@ -48,15 +48,17 @@ def _groups(case, sweep):
 
 
 def _log_contact(log, case, speeds_kmh, check):
-    """Fold the lanes of ``check`` (:class:`adm_sim.integrate.contact.ContactCheck`) that lost contact into
-    ``log``: case -> {speed rounded to 1e-9 km/h: first loss}; the first loss of a speed stays."""
+    """Fold the lanes of ``check`` (:class:`adm_sim.integrate.contact.ContactCheck`, or its JSON form from
+    a co-simulated run) that lost contact into ``log``: case -> {speed rounded to 1e-9 km/h: first
+    loss}; the first loss of a speed stays."""
     if check is None:
         return
-    for i in np.flatnonzero(check.lost):
+    losses = check["losses"] if isinstance(check, dict) else check.losses()
+    for loss in losses:
+        i = loss["lane"]
         speed = round(float(speeds_kmh[i]), 9)
         log.setdefault(int(case[i]), {}).setdefault(speed, {
-            "speed_kmh": speed, "time_s": float(check.first_k[i] * check.dt_s[i]),
-            "axle": int(check.first_axle[i]) + 1, "force_n": float(check.first_n[i])})
+            "speed_kmh": speed, "time_s": loss["time_s"], "axle": loss["axle"], "force_n": loss["force_n"]})
 
 
 def contact_loss_at(lanes, case, speed_kmh):
@@ -139,14 +141,17 @@ class HookLanes:
     """Lanes of one case through a sweep callable, one call per sweep.
 
     ``sweep(model, speeds_kmh (n,), delta_zeta (n,) or float, step)`` returns the maximum midspan
-    accelerations (m/s^2); if it takes a ``phase`` keyword, it gets the phase of the request. A
-    sweep whose lanes share one damping passes it as a float.
+    accelerations (m/s^2), or a dict of them (``max_acc_m_s2``) and the run's DIM contact check
+    (``contact``, :meth:`adm_sim.integrate.contact.ContactCheck.to_dict`: the ROS calibration node),
+    which goes into :attr:`contact_log`; if it takes a ``phase`` keyword, it gets the phase of the
+    request. A sweep whose lanes share one damping passes it as a float.
     """
 
     name = "hook"
 
     def __init__(self, sweep, step):
         self.sweep, self.step = sweep, step
+        self.contact_log = {}
         try:
             self._phase = "phase" in inspect.signature(sweep).parameters
         except (TypeError, ValueError):  # builtins without a signature
@@ -161,7 +166,11 @@ class HookLanes:
             d = dz[ix]
             d = float(d[0]) if np.all(d == d[0]) else d
             kw = {"phase": phase} if self._phase else {}
-            out[ix] = np.asarray(self.sweep(model, v[ix], d, self.step, **kw), dtype=float)
+            res = self.sweep(model, v[ix], d, self.step, **kw)
+            if isinstance(res, dict):
+                _log_contact(self.contact_log, case[ix], v[ix], res.get("contact"))
+                res = res["max_acc_m_s2"]
+            out[ix] = np.asarray(res, dtype=float)
         return out
 
 

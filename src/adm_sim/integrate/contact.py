@@ -86,10 +86,18 @@ class ContactCheck:
                 f"< 0; {fl['n_lanes_lost']} of {fl['n_lanes']} speeds lost contact); the DIM assumes every wheel "
                 f"stays on the rail, so its results there are not valid")
 
+    def losses(self):
+        """Every lane that lost contact, in lane order: ``{"lane", "speed_kmh", "time_s", "axle", "force_n"}``
+        (``axle`` counted from 1)."""
+        return [{"lane": int(i), "speed_kmh": float(self.speeds_m_s[i] * 3.6),
+                 "time_s": float(self.first_k[i] * self.dt_s[i]), "axle": int(self.first_axle[i]) + 1,
+                 "force_n": float(self.first_n[i])} for i in np.flatnonzero(self.lost)]
+
     def to_dict(self):
-        """The JSON form: status, the first loss (or null) and the smallest force per lane (N)."""
+        """The JSON form: status, the first loss (or null), every lane's loss and the smallest force
+        per lane (N)."""
         m = np.asarray(self.min_n, dtype=float)
-        return {"status": self.status, "first_loss": self.first(),
+        return {"status": self.status, "first_loss": self.first(), "losses": self.losses(),
                 "min_contact_force_n": [None if not np.isfinite(x) else float(x) for x in m]}
 
 
