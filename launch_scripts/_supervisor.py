@@ -7,15 +7,18 @@ The processes are started, watched and stopped by :class:`adm_sim.processes.supe
 
 from __future__ import annotations
 
+import os
 import queue
 import shutil
 import warnings
 from pathlib import Path
 
+import numpy as np
+
 from adm_sim.cliutil import run_cli
 from adm_sim.errors import InputError, PlausibilityWarning
 from adm_sim.fields import view
-from adm_sim.files import check_output_folder, claim_folder, input_file, make_output_folder, release
+from adm_sim.files import FOLDER_LOCK, check_output_folder, claim_folder, input_file, make_output_folder, release
 from adm_sim.processes.dds_env import local_ros_env
 from adm_sim.processes.supervisor import NodeDied, Supervisor, ros_args  # noqa: F401  (used by the scripts)
 from adm_sim.integrate.run_contract import check_model
@@ -180,11 +183,20 @@ def check_inputs(bridge=None, train=None, speeds=None, params_file=None, model=N
     tv.update({k: v for k, v in file_values.get("train", {}).items() if k in tv})
     tv.update({k: v for k, v in (("train", train), ("model", model), ("speeds_kmh", speeds)) if v is not None})
     try:
-        t, _ = validate_train(tv)
+        t, lanes_kmh = validate_train(tv)
         if dim:
             check_model("dim", t)
     except InputError as exc:
         raise InputError(f"train node: {exc}") from None
+    # the run's work and steps, as the bridge node will refuse them (adm_sim.limits.check_work), before any process
+    from adm_sim.integrate.step_grid import make_grid  # noqa: PLC0415  start-up: only on this path
+    from adm_sim.nodes.params import step_options  # noqa: PLC0415  the parameter tables load yaml: pre-flight only
+
+    try:
+        make_grid(bridge_from_params(preset, values), t.length_m, np.asarray(lanes_kmh, dtype=float) / 3.6,
+                  step_options(values))
+    except InputError as exc:
+        raise InputError(f"bridge node: {exc}") from None
     return file_values
 
 
@@ -276,6 +288,58 @@ def discard_outputs(out, created, old=()):
                 (out / f).unlink()
             except OSError:
                 pass
+
+
+def after_node_died(out, started_s=None):
+    """After a node died (a SIGKILL: its ``finally`` blocks never ran, the supervisor has stopped
+    the rest): remove the sidecar lock files (``.<name>.lock``) and temporary files
+    (``.<stem>.tmp-<pid><suffix>``) in ``out`` whose process is gone, and say whether the recording
+    under its final name is whole. Returns the note for the launcher's one error line: ``;
+    <out>/run.mcap is incomplete (...): recover its intact chunks with: adm-sim salvage ...`` or
+    ``; <out>/run.mcap is whole``; empty without a recording of this launch (``started_s``: the
+    launch's start, a recording older than it is an earlier run's)."""
+    out = Path(out)
+    for p in list(out.glob(".*.lock")) + list(out.glob(".*.tmp-*")):
+        if p.name == FOLDER_LOCK:  # the launcher's own claim, released by release_out
+            continue
+        if p.name.endswith(".lock"):
+            try:
+                pid = int(p.read_text().strip() or "0")
+            except (OSError, ValueError):
+                continue
+        else:
+            digits = p.name.split(".tmp-", 1)[1].split(".")[0]
+            pid = int(digits) if digits.isdigit() else 0
+        if pid > 0 and not _alive(pid):
+            try:
+                p.unlink()
+            except OSError:
+                pass
+    mcap = out / "run.mcap"
+    if not mcap.is_file() or (started_s is not None and mcap.stat().st_mtime < started_s):
+        return ""
+    from adm_sim.recording.mcap_log import scan  # noqa: PLC0415  mcap only on this path
+
+    try:
+        found = scan(mcap)
+    except Exception as exc:  # noqa: BLE001  a file the scan cannot read at all is incomplete too
+        why = type(exc).__name__
+    else:
+        if not (found.truncated or found.damaged):
+            return f"; {mcap} is whole"
+        why = f"{len(found.messages)} complete messages, the open chunk lost"
+    return (f"; {mcap} is incomplete (its writer died: {why}): recover its intact chunks with: "
+            f"adm-sim salvage {mcap} OUT.mcap")
+
+
+def _alive(pid):
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
 
 
 #: Process name (log ``logs/bridge_train.log``) of the bridge and train nodes composed in one process.

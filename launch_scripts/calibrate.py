@@ -27,10 +27,10 @@ import sys
 import time
 from pathlib import Path
 
-from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, discard_outputs, launch, preflight, release_out,
-                         run_graph)
+from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, after_node_died, discard_outputs, launch, preflight,
+                         release_out, run_graph)
 
-from adm_sim.cliutil import Parser, add_choice, add_domain_id, add_overwrite, progress_bar
+from adm_sim.cliutil import Parser, add_choice, add_domain_id, add_max_work, add_overwrite, progress_bar
 from adm_sim.files import write_atomic
 from adm_sim.model.plausibility import check_response
 from adm_sim.protocol import parse_driver_line
@@ -54,6 +54,7 @@ def parse_args(argv=None):
                     help="run the bridge and train nodes as two processes (default: one process hosting both, "
                          "as ROS composition does; the same nodes, topics and results, the DIM round trips cheaper)")
     add_domain_id(ap)
+    add_max_work(ap)
     ap.add_argument("--quiet", action="store_true", help="no progress bars")
     add_overwrite(ap, "replace the outputs of an earlier run in --out")
     return ap.parse_args_or_exit(argv)
@@ -156,6 +157,7 @@ def _main(args):
     t_start = time.perf_counter()
     tag = f"{(args.bridge or 'B1')}_{(args.train or 'ICE-2')}".replace("/", "_").replace("=", "").replace(",", "_")
     default_out = ROOT / "runs" / f"calibrate_{tag}_{time.strftime('%Y%m%d-%H%M%S')}"
+    t_launch = time.time()  # a recording older than this is an earlier run's
     out, env, created, old = preflight(args, default_out, dim=True)
     pb, pt, pc = node_params(args, out)
     prog = Progress(args.quiet)
@@ -172,8 +174,9 @@ def _main(args):
         return 130
     except NodeDied as exc:
         prog._close_bar()
+        note = after_node_died(out, t_launch)  # a killed node's locks and temporary files; the recording named
         release_out(out)
-        print(f"error: {exc}", file=sys.stderr)
+        print(f"error: {str(exc).rstrip(': ')}{note}", file=sys.stderr)
         return 1
     finally:
         env.release()

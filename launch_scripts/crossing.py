@@ -26,10 +26,10 @@ import time
 from pathlib import Path
 
 import numpy as np
-from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, discard_outputs, launch, preflight, release_out,
-                         run_graph)
+from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, after_node_died, discard_outputs, launch, preflight,
+                         release_out, run_graph)
 
-from adm_sim.cliutil import Parser, add_choice, add_domain_id, add_overwrite
+from adm_sim.cliutil import Parser, add_choice, add_domain_id, add_max_work, add_overwrite
 from adm_sim.model.plausibility import check_response
 from adm_sim.protocol import parse_driver_line
 
@@ -49,6 +49,7 @@ def main(argv=None):
                     help="run the bridge and train nodes as two processes (default: one process hosting both, "
                          "as ROS composition does; the same nodes, topics and results, the DIM round trips cheaper)")
     add_domain_id(ap)
+    add_max_work(ap)
     add_overwrite(ap, "replace the outputs of an earlier run in --out")
     args = ap.parse_args_or_exit(argv)
     return launch(_main, args)
@@ -56,6 +57,7 @@ def main(argv=None):
 
 def _main(args):
     default_out = ROOT / "runs" / f"crossing_{time.strftime('%Y%m%d-%H%M%S')}"
+    t_launch = time.time()  # a recording older than this is an earlier run's
     out, env, created, old = preflight(args, default_out, model=args.model)
     pb = {"bridge": args.bridge} if args.bridge is not None else {}
     pt = {k: v for k, v in (("train", args.train), ("model", args.model), ("speeds_kmh", args.speeds))
@@ -89,8 +91,9 @@ def _main(args):
         print("error: interrupted (stopped every node; the outputs of this run are removed)", file=sys.stderr)
         return 130
     except NodeDied as exc:
+        note = after_node_died(out, t_launch)  # a killed node's locks and temporary files; the recording named
         release_out(out)
-        print(f"error: {exc}", file=sys.stderr)
+        print(f"error: {str(exc).rstrip(': ')}{note}", file=sys.stderr)
         return 1
     finally:
         env.release()

@@ -288,7 +288,22 @@ def check_readable(path, skip_damaged: bool = False):
         raise _incomplete(path, exc) from None
     if not found.messages:
         raise InputError(f"RUN.mcap: '{path}' holds no message; nothing to replay")
+    check_types(path, found)
     return found
+
+
+def check_types(path, found) -> None:
+    """Refuse, in one line, a recording whose adm-sim topic carries another message type than the
+    nodes publish on it (:data:`adm_sim.protocol.TOPICS`): the replay would fail on its first message."""
+    seen = {}
+    for schema, channel, _msg in found.messages:
+        if channel.id not in seen:
+            seen[channel.id] = (channel.topic, None if schema is None else schema.name)
+    for topic, name in seen.values():
+        want = P.TOPICS.get(topic, (None,))[0]
+        if want is not None and name is not None and name.replace("/msg/", "/") != want.replace("/msg/", "/"):
+            raise InputError(f"RUN.mcap: topic {topic!r} in '{path}' has type {name}, not {want}; a replay takes "
+                             f"the types the adm-sim nodes publish (docs/ros.md, Topics)")
 
 
 def verify_rrd(tmp, final) -> None:

@@ -181,8 +181,10 @@ def test_lm71_deflection_and_end_rotation_by_hand():
 @pytest.mark.parametrize("value,line", [
     ("abc", "error: --lateral-frequency: 'abc' is not a frequency; give the first lateral natural frequency of "
             "the span in Hz, > 0\n"),
-    ("-1", "error: --lateral-frequency: '-1' Hz is not a frequency; allowed (0, inf) Hz (EN 1990 A2.4.4.2.4(3) "
-           "asks for at least 1.2 Hz)\n"),
+    ("-1", "error: --lateral-frequency: '-1' Hz is not the frequency of a span; allowed (0, 100] Hz (the upper bound "
+           "is the project's choice: no railway span sways above it; EN 1990 A2.4.4.2.4(3) asks for at least 1.2 Hz)\n"),
+    ("1e9", "error: --lateral-frequency: '1e9' Hz is not the frequency of a span; allowed (0, 100] Hz (the upper bound "
+            "is the project's choice: no railway span sways above it; EN 1990 A2.4.4.2.4(3) asks for at least 1.2 Hz)\n"),
 ])
 def test_lateral_frequency_bad_input(tmp_path, value, line):
     import subprocess

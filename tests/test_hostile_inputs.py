@@ -59,12 +59,15 @@ CLASSES = {
     "input-not-regular": "an input that is a named pipe or a folder (refused before opening: no hang)",
     "launch-precheck": "launcher values a node would refuse, checked before any process or folder",
     "ros-parameters": "undeclared parameters and duplicate YAML keys at node start-up",
-    "scheduler": "study --scheduler at a closed port, a silent or a foreign server (loopback only)",
+    "scheduler": "study --scheduler at a closed port, a silent or a foreign server (loopback only): exit 1, "
+                 "a server that does not answer",
     "signals": "SIGINT / SIGTERM during the work: error: interrupted, 130, no partial output",
     "damaged-input": "an MCAP cut short, with a damaged chunk, or without messages (no traceback, no empty output)",
     "bounded-work": "more speeds, lanes, trains, axles or train length than one run may take (field registry limits)",
     "output-set": "an interrupt or a refused write while a command writes its outputs: none of the set appears",
     "viewer": "--connect to a closed port, an HTTP or a silent peer, --spawn without a display: exit 1, nothing started",
+    "track-profile": "a track profile the DIM cannot represent (slope, curvature, a wave shorter than the step) at "
+                     "every entry: sweep, study, the train node's parameters",
     "odd-input": "binary text files, names over 255 bytes, a bad NUMBA_NUM_THREADS, a BOM, '=' in a file name, "
                  "zero damping, --comfort without vehicles",
 }
@@ -228,6 +231,36 @@ def _long_train(vehicles):
                         for k in range(0, vehicles, 100))
         _files(t, long__toml=TRAIN_TOML + "\n" + extra)
     return setup
+
+
+def _profile(name, kind):
+    """A profile file every row of which lies within |elevation| <= 0.1 m: ``alt`` +-90 mm alternating
+    every 0.3 mm, ``saw`` a +-99 mm saw-tooth of 2 mm wavelength (issue 38), ``kink`` a 40 mm rise
+    over 1 m (slope 0.04) whose corners no wheel follows, ``wavy`` a 0.2 mm sine of 0.1 m wavelength
+    (legal slope and curvature, shorter than 4 steps of a coarse run)."""
+    def setup(t, ctx):
+        if kind == "alt":
+            rows = [(i * 0.0003, 0.09 if i % 2 == 0 else -0.09) for i in range(50000)]
+        elif kind == "saw":
+            rows = [(i * 0.0005, 0.099 * (2.0 * ((i * 0.0005 / 0.002) % 1.0) - 1.0)) for i in range(30000)]
+        elif kind == "kink":
+            rows = [(i * 0.01, 0.04 * min(max((i * 0.01 - 2.0) / 1.0, 0.0), 1.0)) for i in range(1501)]
+        else:
+            import math
+            rows = [(i * 0.005, 0.0002 * math.sin(2 * math.pi * i * 0.005 / 0.1)) for i in range(3001)]
+        _files(t, **{name.replace(".", "__"): "position_m,elevation_m\n" + "".join(f"{x:.6f},{e:.6f}\n" for x, e in rows)})
+    return setup
+
+
+def _foreign_mcap(t, ctx):
+    """A recording whose /adm/midspan/accel carries std_msgs/Float64 (the nodes publish AccelStamped)."""
+    from std_msgs.msg import Float64
+
+    from adm_sim.recording.mcap_log import McapRecorder
+
+    with McapRecorder(t / "f.mcap") as rec:
+        for i in range(20):
+            rec.write("/adm/midspan/accel", Float64(data=float(i)), log_time_ns=1000 * i)
 
 
 def _failing(module, name, exc="KeyboardInterrupt"):
@@ -521,6 +554,65 @@ CASES = [
          "speeds_kmh: '1:600:0.01' gives 59901 lanes; allowed at most 20000 lanes", ros=True),
     Case("bounded-work", "crossing-speeds", lambda t: CROSS + ["--out", f"{t}/o", "--speeds", "1:600:0.02"],
          "'1:600:0.02' gives 29951", ros=True),
+    Case("bounded-work", "sweep-work-600-lanes-13M-steps",
+         lambda t: SIM + ["sweep", "--bridge", "L=150,n0=0.5,mu=1e5,zeta_pct=1,n_modes=20", "--model", "dim",
+                          "--speeds", "1:600:1", "--json", f"{t}/r.json"],
+         "error: work: 600 lanes x 13.5 M steps x 20 modes = 1.62e+11 is beyond the work limit 1e+10 (the project's "
+         "choice; raise it with --max-work or ADM_SIM_MAX_WORK); large because 600 speeds x"),
+    Case("bounded-work", "sweep-memory-beyond-the-machine",
+         lambda t: SIM + ["sweep", "--bridge", "L=150,n0=0.5,mu=1e5,zeta_pct=1,n_modes=20", "--model", "dim",
+                          "--speeds", "1:600:1", "--max-work", "1e12", "--json", f"{t}/r.json"],
+         "error: memory: the DIM tables of 13465344 steps would take 174 GiB; this machine has"),
+    Case("bounded-work", "sweep-max-work-negative", lambda t: SIM + ["sweep", "--max-work", "-3"],
+         "error: --max-work: '-3' is not allowed; allowed a finite number >= 1"),
+    Case("bounded-work", "sweep-max-work-env-text", lambda t: SIM + ["sweep"],
+         "error: ADM_SIM_MAX_WORK: 'lots' is not allowed; allowed a finite number >= 1", env={"ADM_SIM_MAX_WORK": "lots"}),
+    Case("bounded-work", "check-speed-step-1e-300",
+         lambda t: SIM + ["check", "--max-line-speed", "200", "--speed-step", "1e-300"],
+         "error: --speed-step: 1e-300 km/h from 144 to 240 km/h gives 9.6e+301 speeds; allowed at most 20000 speeds"),
+    Case("bounded-work", "calibrate-work", lambda t: CAL + ["calibrate", "--train", "ICE-2", "--bridge", "L=150,n0=0.5,mu=1e5,zeta_pct=1,n_modes=20",
+                                                            "--speeds", "1:600:1", "--json", f"{t}/c.json"],
+         "error: work: 600 lanes x"),
+    Case("bounded-work", "study-work", lambda t: CAL + ["study", "--out", f"{t}/s", "--speeds", "1:600:1",
+                                                         "--steps-per-period", "10000"],
+         "error: work: 600 lanes x 2.51e+09 steps x 3 modes = 4.51e+12 is beyond the work limit 1e+10"),
+    Case("bounded-work", "crossing-work", lambda t: CROSS + ["--out", f"{t}/o", "--bridge", "B1", "--model", "dim",
+                                                             "--speeds", "1:600:1", "--params-file", f"{t}/p.yaml"],
+         "error: bridge node: work: 600 lanes x", ros=True,
+         setup=lambda t, ctx: _files(t, p__yaml="bridge:\n  ros__parameters:\n    n_modes: 20\n"
+                                               "    steps_per_period: 10000.0\n")),
+    # --- track profiles the model cannot represent
+    Case("input-not-regular", "sweep-irregularity-fifo",
+         lambda t: SIM + ["sweep", "--model", "dim", "--irregularity", f"file={t}/p.csv"],
+         "error: irregularity: file = '{t}/p.csv': is a named pipe, not a regular file", setup=_fifo("p.csv")),
+    Case("input-not-regular", "study-irregularity-fifo",
+         lambda t: CAL + ["study", "--out", f"{t}/s", "--spans", "15", "--irregularity", f"file={t}/p.csv"],
+         "is a named pipe, not a regular file", setup=_fifo("p.csv")),
+    Case("damaged-input", "replay-foreign-type", lambda t: REPLAY + [f"{t}/f.mcap", "--rrd", f"{t}/o.rrd"],
+         "error: RUN.mcap: topic '/adm/midspan/accel' in '{t}/f.mcap' has type std_msgs/msg/Float64, not "
+         "geometry_msgs/msg/AccelStamped", setup=_foreign_mcap),
+    Case("track-profile", "sweep-alternating-90mm",
+         lambda t: SIM + ["sweep", "--model", "dim", "--irregularity", f"file={t}/alt.csv", "--json", f"{t}/r.json"],
+         "error: irregularity: file={t}/alt.csv has slope", setup=_profile("alt.csv", "alt")),
+    Case("track-profile", "sweep-saw-tooth-2mm",
+         lambda t: SIM + ["sweep", "--model", "dim", "--irregularity", f"file={t}/saw.csv"],
+         "allowed |slope| <= 0.05 (the project's small-slope bound", setup=_profile("saw.csv", "saw")),
+    Case("track-profile", "sweep-kink",
+         lambda t: SIM + ["sweep", "--model", "dim", "--irregularity", f"file={t}/kink.csv"],
+         "has curvature", setup=_profile("kink.csv", "kink")),
+    Case("track-profile", "sweep-wave-shorter-than-2-steps",
+         lambda t: SIM + ["sweep", "--model", "dim", "--speeds", "300", "--steps-per-period", "4",
+                          "--irregularity", f"file={t}/w.csv"],
+         "allowed >= 2 steps per wave", setup=_profile("w.csv", "wavy")),
+    Case("track-profile", "sweep-profile-with-mlm",
+         lambda t: SIM + ["sweep", "--model", "mlm", "--irregularity", "german-low"],
+         "error: --irregularity: 'german-low' acts on the DIM's wheels; the MLM has none"),
+    Case("track-profile", "study-alternating-90mm",
+         lambda t: CAL + ["study", "--out", f"{t}/s", "--spans", "15", "--irregularity", f"file={t}/alt.csv"],
+         "has slope", setup=_profile("alt.csv", "alt")),
+    Case("track-profile", "train-node-saw-tooth",
+         node("adm_sim.nodes.train_node", "model:=dim", "irregularity:=file={t}/saw.csv"),
+         "has slope", ros=True, setup=_profile("saw.csv", "saw")),
     # --- output sets: written beside, all renamed at the end, or none
     Case("output-set", "calibrate-json-plot-interrupted-in-plot",
          lambda t: CAL + ["calibrate", "--bridge", "B1", "--train", "ICE-2", "--speeds", "160:350:5", "--json",
@@ -620,21 +712,21 @@ CASES = [
          env={"DISPLAY": "", "WAYLAND_DISPLAY": "", "WAYLAND_SOCKET": ""}),
     Case("scheduler", "closed-port",
          lambda t: CAL + ["study", "--out", f"{t}/st", "--scheduler", "tcp://127.0.0.1:{port}"],
-         "--scheduler: cannot connect to 'tcp://127.0.0.1:{port}'", setup=_closed_port),
+         "--scheduler: cannot connect to 'tcp://127.0.0.1:{port}'", setup=_closed_port, code=1),
     Case("scheduler", "http-server",
          lambda t: CAL + ["study", "--out", f"{t}/st", "--scheduler", "tcp://127.0.0.1:{port}"],
          "is not a dask scheduler (its first bytes b'HTTP/1.1' are not a dask message)",
-         setup=_server(b"HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\n\r\n")),
+         setup=_server(b"HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\n\r\n"), code=1),
     Case("scheduler", "silent-server",
          lambda t: CAL + ["study", "--out", f"{t}/st", "--scheduler", "tcp://127.0.0.1:{port}"],
          "is not a dask scheduler (no dask handshake within 0.5 s)", setup=_server(None),
-         patches=(_shorter_wait("adm_calib.study.execution", "check_scheduler", 5.0, 0.5),)),
+         patches=(_shorter_wait("adm_calib.study.execution", "check_scheduler", 5.0, 0.5),), code=1),
     Case("scheduler", "huge-frame-length",
          lambda t: CAL + ["study", "--out", f"{t}/st", "--scheduler", "tcp://127.0.0.1:{port}"],
-         "is not a dask scheduler", setup=_server(b"\xff" * 64)),
+         "is not a dask scheduler", setup=_server(b"\xff" * 64), code=1),
     Case("scheduler", "existing-study-folder-untouched",
          lambda t: CAL + ["study", "--out", str(t), "--scheduler", "tcp://127.0.0.1:{port}"],
-         "--scheduler: cannot connect", setup=_all(_closed_port, lambda t, ctx: _files(t, results__jsonl=""))),
+         "--scheduler: cannot connect", setup=_all(_closed_port, lambda t, ctx: _files(t, results__jsonl="")), code=1),
 ]
 
 

@@ -37,7 +37,7 @@ import numpy as np
 from adm_sim.files import OutputSet, check_output_folder, claim_output, input_file, make_output_folder
 from adm_sim.inputs.measured import add_measured_argument
 from adm_sim.cli.sim_commands import add_check_arguments, cmd_check
-from adm_sim.cliutil import (Parser, add_choice, add_dim_grid, add_overwrite, add_progress, add_speeds,
+from adm_sim.cliutil import (Parser, add_choice, add_dim_grid, add_max_work, add_overwrite, add_progress, add_speeds,
                              add_steps_per_period, check_option, option_help, option_view, progress_callback, run_cli)
 from adm_sim.errors import InputError, PlausibilityWarning
 from adm_sim.fields import check_range
@@ -439,6 +439,23 @@ def _scheduler(text):
     return check_scheduler(text)
 
 
+def _check_study_work(cases, settings):
+    """The work of every batch's runs (lanes x steps x modes of each sweep, :func:`adm_sim.limits.check_work`),
+    refused before anything is written, as the workers would refuse it case by case."""
+    from adm_calib.study.cases import _train  # noqa: PLC0415  start-up: only this subcommand
+    from adm_sim.integrate.step_grid import StepOptions, make_grid, speeds_to_m_s  # noqa: PLC0415
+
+    v = speeds_to_m_s(settings.speeds_kmh())
+    opts = StepOptions(**({} if settings.steps_per_period is None else {"steps_per_period": settings.steps_per_period}))
+    trains, seen = {}, set()
+    for c in cases:
+        if c.batch_key in seen:
+            continue
+        seen.add(c.batch_key)
+        t = trains.setdefault(c.train, _train(c.train))
+        make_grid(c.bridge, t.length_m, v, opts)
+
+
 def cmd_study(args):
     from adm_calib.study import StudySettings, run_study, select_cases  # noqa: PLC0415  start-up: only this subcommand (370 ms)
 
@@ -457,8 +474,8 @@ def cmd_study(args):
     if args.irregularity:
         from adm_sim.model.irregularity import parse  # noqa: PLC0415  scipy.interpolate only for rough-track studies
 
-        for span in (4.0, 40.0):  # bad input (spectrum, class, band, file) refused before anything is written
-            parse(args.irregularity, span)
+        for span in (4.0, 40.0):  # bad input (spectrum, class, band, file, slope, curvature) refused before
+            parse(args.irregularity, span)  # anything is written (every selected span below)
     settings = StudySettings(speeds=args.speeds, dim_grid=args.dim_grid, steps_per_period=spp,
                              dense_maxima=args.dense_maxima, refine_speed=args.refine_speed,
                              irregularity=args.irregularity)
@@ -468,6 +485,10 @@ def cmd_study(args):
                          f"4..40 m; --spans {args.spans!r} holds none)")
     for tf in files.values():  # vehicles the DIM's RK4 step cannot follow: refused before anything is written
         check_dim_step(tf, study_step_s(cases, spp))
+    if args.irregularity:
+        for span in sorted({c.bridge.span_m for c in cases}):  # a random profile differs per deck length
+            parse(args.irregularity, span)
+    _check_study_work(cases, settings)
     make_output_folder(out, "--out")
     options = {"trains": trains, "mass_functions": mfs, "spans_m": list(spans), "freq_index": fis,
                "limit": limit, "workers": workers, "scheduler": scheduler, "retry_errors": args.retry_errors,
@@ -666,6 +687,7 @@ def build_parser():
                              "1 km/h speed grid")
 
     c = sub.add_parser("calibrate", help="calibrate dz_VBI for one bridge and one train")
+    add_max_work(c)
     c.add_argument("--bridge", required=True, help="B1..B4, a spec L=15,n0=8.26,mu=19042,zeta_pct=1.85,class=cfb "
                    "(L m, n0 Hz or EJ N m^2, mu kg/m, zeta_pct %% or type=cfb|sc for the Table 2 damping; class=cfb|sc "
                    "classes a bridge of given damping for the lower-bound functions), or a TOML file with these keys")
@@ -724,6 +746,7 @@ def build_parser():
     r.set_defaults(func=cmd_recommend)
 
     s = sub.add_parser("study", help="the parametric study (Section 3.3) on a dask cluster, resumable")
+    add_max_work(s)
     s.add_argument("--out", required=True, help="study directory: results.jsonl (one line per case) and study.json; "
                                                 "rerun with the same --out to resume")
     s.add_argument("--trains", default="ICE-2,Eurostar,Railjet,ICE-4",

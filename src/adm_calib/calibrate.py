@@ -17,15 +17,17 @@ Steps (Section 4, steps 1-3):
    acceptance of 0.1 % in the peak value, which is checked.
 4. A given speed grid that cannot show the resonance (too coarse, or a range without one) is a
    status of its own (:func:`speed_grid_finding`), not "ok".
+5. A DIM peak from a run in which a wheel would lift off the rail (a tensile contact force,
+   :mod:`adm_sim.integrate.contact`) breaks the DIM's own assumption: status ``contact_lost``.
 
-5. A matched Δζ_VBI whose MLM peak or DIM value lies at an end of the speed range, or whose DIM
+6. A matched Δζ_VBI whose MLM peak or DIM value lies at an end of the speed range, or whose DIM
    value is no local maximum, is computed but not determined (Section 4, Step 2):
    :func:`adm_calib.peaks.determination`, statuses ``range_end`` and ``not_associated``, with the
    advice to extend the speed range.
 
 Statuses (:data:`adm_calib.peaks.STATUSES`): ``ok``, ``no_mlm_peak``, ``no_dim_peak``,
 ``not_bracketed``, ``no_match``, ``grid_too_coarse``, ``no_resonance_in_range``, ``range_end``,
-``not_associated``.
+``not_associated``, ``contact_lost``.
 
 DIM speeds (``dim_grid="paper"``, Section 3.3): 5 km/h steps over the range plus the MLM step
 (1 km/h) on ``[v_max - 20, v_max + 5]`` around the MLM peak, all in one run; if the associated DIM
@@ -62,7 +64,7 @@ from adm_calib import peaks as pk
 from adm_calib.calibration_options import CalibrationOptions, check_speeds
 from adm_calib.calibration_result import make_result
 from adm_calib.damping_root import solve_delta_zetas
-from adm_calib.lanes import CompiledLanes, HookLanes, ProgressLanes, Requests, SteppedLanes
+from adm_calib.lanes import CompiledLanes, HookLanes, ProgressLanes, Requests, SteppedLanes, contact_loss_at, contact_message
 from adm_calib.speed_grids import (REFINE_COARSE_KMH, dim_refinement, dim_speeds_paper, dim_speeds_window, merge_curve,
                                    relocate_peaks, relocation_speeds, speed_grid_finding)
 
@@ -265,6 +267,8 @@ def calibrate_cases(bridges, train, lanes, speeds_kmh=None, *, options=None, ste
             status, message = "no_mlm_peak", mlm_peaks[c].reason
         elif not dim_peaks[c].found:
             status, message = "no_dim_peak", dim_peaks[c].reason
+        elif (loss := contact_loss_at(lanes, c, dim_peaks[c].speed_kmh)) is not None:
+            status, message = "contact_lost", contact_message(loss)  # the DIM's own assumption broken at its peak
         else:
             status, message = s.status, s.message
             if status == "ok":

@@ -9,6 +9,11 @@ also names its **phase** (what the calibration is doing: ``"mlm"``, ``"dim"``, `
 ``"ladder"``, ``"root"``, ``"check"``, ``"adapted"``, ``"mlm_refine"``, ``"dim_peak_refine"``) so
 that a backend that records or shows its runs (the ROS co-simulation) need not guess it.
 
+Every backend that sees the DIM's contact forces (the compiled and the numpy lanes) keeps a
+``contact_log``: per case, the speeds (km/h) of the DIM lanes in which a wheel would lift off, each
+with its first loss (:meth:`adm_sim.integrate.contact.ContactCheck.first`); a calibration whose DIM peak
+comes from such a lane is not ``ok`` (:func:`contact_loss_at`).
+
 Backends (all give the same numbers: the compiled lanes equal the numpy stepper to ~1e-13
 relative, the co-simulation equals it bit for bit):
 
@@ -25,6 +30,8 @@ import inspect
 
 import numpy as np
 
+from adm_sim.errors import RunError
+from adm_sim.integrate.run_contract import FAILED, RUNNING
 from adm_sim.protocol import CALIBRATION_PHASES
 from adm_sim.integrate.sweep import run_sweep
 
@@ -38,6 +45,34 @@ def _groups(case, sweep):
     for i, key in enumerate(zip(case.tolist(), sweep.tolist())):
         keys.setdefault(key, []).append(i)
     return [(k[0], np.array(ix)) for k, ix in keys.items()]
+
+
+def _log_contact(log, case, speeds_kmh, check):
+    """Fold the lanes of ``check`` (:class:`adm_sim.integrate.contact.ContactCheck`, or its JSON form from
+    a co-simulated run) that lost contact into ``log``: case -> {speed rounded to 1e-9 km/h: first
+    loss}; the first loss of a speed stays."""
+    if check is None:
+        return
+    losses = check["losses"] if isinstance(check, dict) else check.losses()
+    for loss in losses:
+        i = loss["lane"]
+        speed = round(float(speeds_kmh[i]), 9)
+        log.setdefault(int(case[i]), {}).setdefault(speed, {
+            "speed_kmh": speed, "time_s": loss["time_s"], "axle": loss["axle"], "force_n": loss["force_n"]})
+
+
+def contact_loss_at(lanes, case, speed_kmh):
+    """The first loss of contact of a DIM lane of ``case`` at ``speed_kmh`` that ``lanes`` ran (its
+    ``contact_log``), or ``None`` (also for a backend that keeps no log)."""
+    log = getattr(lanes, "contact_log", None) or {}
+    return log.get(int(case), {}).get(round(float(speed_kmh), 9))
+
+
+def contact_message(loss):
+    """One line for a calibration whose DIM peak comes from a lane that lost contact."""
+    return (f"the DIM peak at {loss['speed_kmh']:g} km/h comes from a run in which the wheel of axle {loss['axle']} "
+            f"would lift off the rail (t = {loss['time_s']:.4g} s, contact force {loss['force_n'] / 1e3:.4g} kN < 0); "
+            f"the DIM assumes every wheel stays on the rail")
 
 
 def _lane_arrays(case, speeds_kmh, delta_zeta, sweep):
@@ -67,13 +102,20 @@ class CompiledLanes:
 
         self.runner = BatchRunner(bridges, train, step.ds_m, step.free_vibration_periods, step.dense_maxima,
                                   irregularity=step.irregularity)
+        self.contact_log = {}
 
     def run(self, model, case, speeds_kmh, delta_zeta=0.0, sweep=None, phase=""):
         """Max |midspan acceleration| (m/s^2) of every lane, shape (n_lanes,)."""
         case, v, dz, sw = _lane_arrays(case, speeds_kmh, delta_zeta, sweep)
         if case.size == 0:
             return np.zeros(0)
-        return self.runner.run(model, case, v, dz, sweep=sw)[0]
+        run = self.runner.start(model, case, v, dz, sweep=sw)  # BatchRunner.run, keeping the contact check
+        while run.status == RUNNING:
+            run.advance()
+        if run.status == FAILED:
+            raise RunError(run.message)
+        _log_contact(self.contact_log, case, v, run.contact)
+        return run.max_acc_m_s2
 
 
 class SteppedLanes:
@@ -83,13 +125,15 @@ class SteppedLanes:
 
     def __init__(self, bridges, train, step):
         self.bridges, self.train, self.step = list(bridges), train, step
+        self.contact_log = {}
 
     def run(self, model, case, speeds_kmh, delta_zeta=0.0, sweep=None, phase=""):
         case, v, dz, sw = _lane_arrays(case, speeds_kmh, delta_zeta, sweep)
         out = np.empty(case.size)
         for c, ix in _groups(case, sw):
-            out[ix] = run_sweep(self.bridges[c], self.train, model, v[ix], delta_zeta=dz[ix],
-                                options=self.step).max_acc_m_s2
+            res = run_sweep(self.bridges[c], self.train, model, v[ix], delta_zeta=dz[ix], options=self.step)
+            out[ix] = res.max_acc_m_s2
+            _log_contact(self.contact_log, case[ix], v[ix], res.contact)
         return out
 
 
@@ -97,14 +141,17 @@ class HookLanes:
     """Lanes of one case through a sweep callable, one call per sweep.
 
     ``sweep(model, speeds_kmh (n,), delta_zeta (n,) or float, step)`` returns the maximum midspan
-    accelerations (m/s^2); if it takes a ``phase`` keyword, it gets the phase of the request. A
-    sweep whose lanes share one damping passes it as a float.
+    accelerations (m/s^2), or a dict of them (``max_acc_m_s2``) and the run's DIM contact check
+    (``contact``, :meth:`adm_sim.integrate.contact.ContactCheck.to_dict`: the ROS calibration node),
+    which goes into :attr:`contact_log`; if it takes a ``phase`` keyword, it gets the phase of the
+    request. A sweep whose lanes share one damping passes it as a float.
     """
 
     name = "hook"
 
     def __init__(self, sweep, step):
         self.sweep, self.step = sweep, step
+        self.contact_log = {}
         try:
             self._phase = "phase" in inspect.signature(sweep).parameters
         except (TypeError, ValueError):  # builtins without a signature
@@ -119,7 +166,11 @@ class HookLanes:
             d = dz[ix]
             d = float(d[0]) if np.all(d == d[0]) else d
             kw = {"phase": phase} if self._phase else {}
-            out[ix] = np.asarray(self.sweep(model, v[ix], d, self.step, **kw), dtype=float)
+            res = self.sweep(model, v[ix], d, self.step, **kw)
+            if isinstance(res, dict):
+                _log_contact(self.contact_log, case[ix], v[ix], res.get("contact"))
+                res = res["max_acc_m_s2"]
+            out[ix] = np.asarray(res, dtype=float)
         return out
 
 
@@ -155,6 +206,10 @@ class ProgressLanes:
 
     def __init__(self, lanes, progress):
         self.lanes, self.progress, self.done = lanes, progress, 0
+
+    @property
+    def contact_log(self):
+        return getattr(self.lanes, "contact_log", None)
 
     def run(self, model, case, speeds_kmh, delta_zeta=0.0, sweep=None, phase=""):
         out = self.lanes.run(model, case, speeds_kmh, delta_zeta, sweep, phase)

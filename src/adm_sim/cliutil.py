@@ -22,7 +22,7 @@ from adm_sim.errors import EXIT_INPUT, EXIT_INTERRUPTED, EXIT_OK, EXIT_RUN, AdmS
 from adm_sim.fields import argument_flag, view
 from adm_sim.files import release_all
 from adm_sim.interrupts import armed, raise_interrupt
-from adm_sim.limits import DEFAULT_SPEEDS
+from adm_sim.limits import DEFAULT_SPEEDS, MAX_WORK, WORK_ENV, max_work, set_max_work
 
 
 # ---------------------------------------------------------------------- the runner
@@ -52,6 +52,7 @@ def run_cli(call):
     of this function (the way out of the process) they print ``error: interrupted`` and end the
     process with 130 at once, instead of the default death by the signal (:class:`interrupt_signals`).
     """
+    work_env = os.environ.get(WORK_ENV)  # --max-work holds for this call and what it starts, not after it
     with interrupt_signals() as sigs, plausibility_warnings():
         try:
             code = _run(lambda: _deferring(call, sigs))
@@ -61,6 +62,10 @@ def run_cli(call):
         finally:
             sigs.defer()
             release_all()
+            if work_env is None:
+                os.environ.pop(WORK_ENV, None)
+            else:
+                os.environ[WORK_ENV] = work_env
         if sigs.late and code == EXIT_OK:
             print("error: interrupted", file=sys.stderr)
             code = EXIT_INTERRUPTED
@@ -168,10 +173,12 @@ def _exit_interrupted(signum, frame):
 
 
 def check_environment(environ=None):
-    """Environment variables a run depends on, refused up front like an option: ``NUMBA_NUM_THREADS``
+    """Environment variables a run depends on, refused up front like an option: ``ADM_SIM_MAX_WORK``
+    (the work limit, :func:`adm_sim.limits.max_work`) a number >= 1 when set; ``NUMBA_NUM_THREADS``
     (threads of the compiled kernels; numba itself fails deep inside the first parallel kernel)
     must be an integer >= 1 when set."""
     environ = os.environ if environ is None else environ
+    max_work(environ)  # ADM_SIM_MAX_WORK, when set: a number >= 1
     text = environ.get("NUMBA_NUM_THREADS")
     if text is None:
         return
@@ -185,9 +192,13 @@ def check_environment(environ=None):
 
 
 def _run(call):
+    stdout = sys.stdout
+    sys.stdout = _NamedStdout(stdout)
     try:
         check_environment()
-        return call()
+        code = call()
+        sys.stdout.flush()  # what the command printed reaches its file here, where a full device is one line
+        return code
     except BrokenPipeError:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return EXIT_OK
@@ -195,14 +206,74 @@ def _run(call):
         print(f"error: {one_line(cli_message(exc))}", file=sys.stderr)
         return EXIT_INPUT
     except AdmSimError as exc:
-        print(f"error: {one_line(exc)}", file=sys.stderr)
+        print(f"error: {one_line(cli_message(exc))}", file=sys.stderr)
         return EXIT_RUN
     except OSError as exc:  # inputs and outputs are checked first: what is left is the system
-        print(f"error: {one_line(os_message(exc))}", file=sys.stderr)
+        note = address_space_note() if exc.filename is None else ""  # e.g. a library that cannot be mapped
+        print(f"error: {one_line(os_message(exc))}{note}", file=sys.stderr)
         return EXIT_INPUT if exc.errno == errno.ENAMETOOLONG else EXIT_RUN  # a path the user typed
     except KeyboardInterrupt:
         print("error: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
+    except MemoryError as exc:  # numpy's _ArrayMemoryError included: one line, never a traceback
+        what = one_line(exc) or "MemoryError"
+        print(f"error: out of memory: {what}{address_space_note()}", file=sys.stderr)
+        return EXIT_RUN
+    finally:
+        if isinstance(sys.stdout, _NamedStdout):
+            sys.stdout = stdout
+
+
+class _NamedStdout:
+    """Standard output whose write errors name it: an :class:`OSError` of ``write``/``flush``
+    without a file name (a full device, ``ulimit -f`` under a redirected stdout) gets
+    ``standard output (<its file>)``, so the one ``error:`` line names where it could not write.
+    Everything else is the wrapped stream's."""
+
+    def __init__(self, stream):
+        self._stream = stream
+
+    def _named(self, exc):
+        if exc.filename is None:
+            try:
+                exc.filename = f"standard output ({os.readlink('/proc/self/fd/1')})"
+            except OSError:
+                exc.filename = "standard output"
+        return exc
+
+    def write(self, text):
+        try:
+            return self._stream.write(text)
+        except BrokenPipeError:
+            raise
+        except OSError as exc:
+            raise self._named(exc) from None
+
+    def flush(self):
+        try:
+            return self._stream.flush()
+        except BrokenPipeError:
+            raise
+        except OSError as exc:
+            raise self._named(exc) from None
+
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
+
+
+def address_space_note():
+    """``; the process runs under an address-space limit of N MB (ulimit -v) ...`` when one is set,
+    else empty: the likely cause of a failed allocation or library load."""
+    try:
+        import resource  # noqa: PLC0415  POSIX only
+
+        soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+    except (ImportError, OSError, ValueError):
+        return ""
+    if soft == resource.RLIM_INFINITY:
+        return ""
+    return (f"; the process runs under an address-space limit of {soft / 2**20:.0f} MB (ulimit -v {soft // 1024}), "
+            f"too small for this run: raise it or lift it (ulimit -v unlimited)")
 
 
 def os_message(exc):
@@ -228,6 +299,14 @@ class Parser(argparse.ArgumentParser):
     def __init__(self, *args, name_prog=False, **kwargs):
         super().__init__(*args, **kwargs)
         self.name_prog = name_prog
+
+    def parse_args(self, args=None, namespace=None):
+        """argparse's, then ``--max-work`` (where the command has it) put in force for this process
+        and what it starts (:func:`adm_sim.limits.set_max_work`)."""
+        ns = super().parse_args(args, namespace)
+        if getattr(ns, "max_work", None) is not None:
+            set_max_work("--max-work", ns.max_work)
+        return ns
 
     def add_version(self):
         """``--version``: the program and the one version number of both packages, exit 0."""
@@ -259,7 +338,7 @@ class Parser(argparse.ArgumentParser):
 
 
 def cli_message(exc):
-    """The message of :class:`InputError` ``exc`` as a command line shows it: a leading library
+    """The message of an :class:`InputError` or :class:`RunError` ``exc`` as a command line shows it: a leading library
     argument (``exc.field``) becomes its flag in the field registry (:func:`adm_sim.fields.argument_flag`)."""
     msg, field = str(exc), getattr(exc, "field", None)
     flag = argument_flag(field)
@@ -393,6 +472,13 @@ def add_overwrite(parser, text, force_alias=False):
         parser.add_argument("--overwrite", "--force", dest="force", action="store_true", help=text)
     else:
         parser.add_argument("--overwrite", action="store_true", help=text)
+
+
+def add_max_work(parser):
+    """``--max-work``: the work limit of one run (lanes x steps x modes, :data:`adm_sim.limits.MAX_WORK`)."""
+    parser.add_argument("--max-work", default=None, metavar="N",
+                        help=f"largest work of one run, lanes x steps x modes (default {MAX_WORK:.3g}, the project's "
+                             f"choice; also {WORK_ENV}): larger runs are refused before they start")
 
 
 def add_domain_id(parser, text="ROS_DOMAIN_ID (default: a free one, reserved)"):

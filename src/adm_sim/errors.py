@@ -36,8 +36,12 @@ class InputError(AdmSimError, ValueError):
 
 
 class RunError(AdmSimError, RuntimeError):
-    """A failure that is not bad input (unstable integration, a viewer or node that does not answer):
-    exit code 1."""
+    """A failure that is not bad input (unstable integration, a viewer, node, scheduler or tool that
+    does not answer): exit code 1. ``field`` as :class:`InputError` (a command line shows the flag)."""
+
+    def __init__(self, *args, field=None):
+        super().__init__(*args)
+        self.field = field
 
 
 class PlausibilityWarning(UserWarning):

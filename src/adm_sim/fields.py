@@ -63,7 +63,8 @@ def _check_range(field, value, unit, lo, hi, lo_open, hi_open):
     except (TypeError, ValueError):
         raise InputError(f"{field}: {value!r} is not a number; allowed {rng}") from None
     if not math.isfinite(x):
-        raise InputError(f"{field}: {value!r} {unit} is not finite; allowed {rng}")
+        unit_text = "" if unit in ("", "-") else f" {unit}"  # '-' (dimensionless) after a value reads as a dash
+        raise InputError(f"{field}: {value!r}{unit_text} is not finite; allowed {rng}")
     bad_lo = lo is not None and (x <= lo if lo_open else x < lo)
     bad_hi = hi is not None and (x >= hi if hi_open else x > hi)
     if bad_lo or bad_hi:
@@ -107,7 +108,7 @@ def check_choice(field, value, allowed):
 
 def _range_text(lo, hi, lo_open, hi_open, unit):
     if lo is None and hi is None:
-        return f"any finite value in {unit}"
+        return "any finite value" + ("" if unit in ("", "-") else f" in {unit}")
     if hi is None:
         return f"{'>' if lo_open else '>='} {lo:g} {unit}"
     if lo is None:
@@ -539,6 +540,14 @@ def argument_flag(name):
     return flags[0] if len(flags) == 1 else None
 
 
+def count_text(n):
+    """A count for a message: exact below a billion, then 3 significant digits (``9.6e+301``, never
+    a 300-digit number)."""
+    if abs(n) >= 1_000_000_000:
+        return f"{n:.3g}"
+    return f"{n:g}" if isinstance(n, float) else f"{n}"
+
+
 def check_count(name, n, where, given):
     """``n``, a size of one run's input (field ``name`` of group ``limits``), or :class:`InputError`
     refusing it up front, one line naming ``where`` (the flag, parameter or file the user typed),
@@ -546,7 +555,7 @@ def check_count(name, n, where, given):
     allowed at most 20000 speeds (speeds of one run or check; bounded work)``)."""
     f = FIELDS[name]
     if not f.lo <= n <= f.hi:
-        shown = f"{n:g}" if isinstance(n, float) else f"{n}"
+        shown = count_text(n)
         what = f.doc.split(":")[0].split(" (")[0]
         raise InputError(f"{where}: {given} gives {shown} {f.unit}; allowed at most {f.hi:g} {f.unit} "
                          f"({what}; bounded work)", field=where)

@@ -578,14 +578,29 @@ def claim_folder(out, option, names=(), overwrite=False):
     return old
 
 
-def mcap_input(text, option):
-    """Check an MCAP input before any work: a readable regular file that starts with the MCAP magic."""
+_MCAP_MAGIC = b"\x89MCAP0\r\n"
+
+
+def mcap_input(text, option, damaged_magic=False):
+    """Check an MCAP input before any work: a readable regular file that starts with the MCAP magic.
+
+    A file whose first 8 bytes (the magic) are damaged while the rest reads as MCAP (the closing
+    magic, or the header record after the opening one) is named so and pointed to ``adm-sim
+    salvage``; with ``damaged_magic`` (salvage itself) it is accepted and the scan recovers it."""
     p = input_file(text, option, "MCAP file")
     try:
         with p.open("rb") as f:
-            head = f.read(8)
+            head = f.read(9)
+            size = f.seek(0, 2)
+            f.seek(max(size - 8, 0))
+            tail = f.read(8)
     except OSError as exc:
-        raise InputError(f"{option}: {text!r}: cannot read ({exc.strerror})") from None
-    if head != b"\x89MCAP0\r\n":
+        raise InputError(f"{option}: {text!r}: cannot read ({exc.strerror}; a file that cannot be read)") from None
+    if head[:8] != _MCAP_MAGIC:
+        if tail == _MCAP_MAGIC or head[8:9] == b"\x01":
+            if damaged_magic:
+                return p
+            raise InputError(f"{option}: {text!r} is damaged: its MCAP magic (bytes 0-7) is broken while the rest "
+                             f"reads as MCAP; recover its intact chunks with: adm-sim salvage {text} OUT.mcap")
         raise InputError(f"{option}: {text!r} is not an MCAP file (it does not start with the MCAP magic bytes)")
     return p

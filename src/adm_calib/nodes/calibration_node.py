@@ -58,8 +58,9 @@ class CalibrationNode(RunDriver):
 
     # ------------------------------------------------------------------ co-simulated sweeps
     def sweep(self, model, speeds, dz=0.0, phase=None):
-        """Max midspan acceleration per speed (m/s^2) from one co-simulated run of run phase ``phase``
-        (:data:`adm_sim.protocol.PHASES`), handed on to the run's records and rerun."""
+        """Max midspan acceleration per speed (m/s^2) and the DIM's contact check (``{"max_acc_m_s2",
+        "contact"}``, :class:`adm_calib.lanes.HookLanes`) from one co-simulated run of run phase
+        ``phase`` (:data:`adm_sim.protocol.PHASES`), handed on to the run's records and rerun."""
         dz = np.asarray(dz, dtype=float)
         label = None if phase is None else PHASE_LABELS[phase]
         if dz.ndim == 0 or np.all(dz == dz.flat[0]):
@@ -68,7 +69,7 @@ class CalibrationNode(RunDriver):
         else:
             r = self.request_run(model, np.asarray(speeds, float), delta_zeta=0.0, delta_zeta_lanes=dz, label=label,
                                  phase=phase)
-        return np.asarray(r["max_acc_m_s2"], dtype=float)
+        return {"max_acc_m_s2": np.asarray(r["max_acc_m_s2"], dtype=float), "contact": r.get("contact")}
 
     def _iteration(self, dz, mlm_peak, dim_peak):
         """One trial damping: publish, print and log it (``calibrate``'s ``on_trial``, called after the
@@ -89,10 +90,10 @@ class CalibrationNode(RunDriver):
             self.set_params(P.BRIDGE_NODE, ds_m=step.ds_m, delta_zeta=0.0, delta_zeta_lanes="")
             self._ds_m = step.ds_m
         run_phase = P.CALIBRATION_PHASES[phase]
-        acc = self.sweep(model, speeds, dz, phase=run_phase)
+        res = self.sweep(model, speeds, dz, phase=run_phase)
         if run_phase == P.PHASE_MLM_ZETA and self._auto_monitor:
-            self._monitor_peak(speeds, acc)
-        return acc
+            self._monitor_peak(speeds, res["max_acc_m_s2"])
+        return res
 
     def _monitor_peak(self, speeds, acc):
         """Monitor the MLM peak speed in every later run (when the user set no ``monitor_speed_kmh``)."""

@@ -187,7 +187,9 @@ _HANDSHAKE_KEYS = (b"compression", b"python", b"pickle-protocol")
 
 def check_scheduler(address, timeout_s=5.0):
     """Check that ``address`` (``tcp://host:port``) answers as a dask scheduler, before anything
-    is written; raise :class:`InputError` (one line) otherwise.
+    is written. A malformed address is bad input (:class:`InputError`, exit 2); an address that does
+    not answer as a dask scheduler is a server that does not answer (:class:`RunError`, exit 1, as
+    a viewer that does not answer).
 
     A plain socket with a timeout reads the scheduler's handshake frame: an 8-byte little-endian
     length, at most 1 MiB, then a message holding the handshake keys. A closed port, a silent
@@ -204,9 +206,9 @@ def check_scheduler(address, timeout_s=5.0):
     try:
         sock = socket.create_connection((host, port), timeout=timeout_s)
     except TimeoutError:
-        raise InputError(f"scheduler: {address!r} did not accept a connection within {timeout_s:g} s", field="scheduler") from None
+        raise RunError(f"scheduler: {address!r} did not accept a connection within {timeout_s:g} s", field="scheduler") from None
     except OSError as exc:
-        raise InputError(f"scheduler: cannot connect to {address!r} ({exc.strerror or exc}); "
+        raise RunError(f"scheduler: cannot connect to {address!r} ({exc.strerror or exc}); "
                          f"is a dask scheduler running there?", field="scheduler") from None
     not_dask = f"scheduler: {address!r} is not a dask scheduler"
     with sock:
@@ -217,7 +219,7 @@ def check_scheduler(address, timeout_s=5.0):
             while len(data) < n:
                 chunk = sock.recv(n - len(data))
                 if not chunk:
-                    raise InputError(f"{not_dask} (it closed the connection without the dask handshake)", field="scheduler")
+                    raise RunError(f"{not_dask} (it closed the connection without the dask handshake)", field="scheduler")
                 data += chunk
             return data
 
@@ -225,14 +227,14 @@ def check_scheduler(address, timeout_s=5.0):
             head = recv(8)
             n = int.from_bytes(head, "little")
             if not 0 < n <= 1 << 20:
-                raise InputError(f"{not_dask} (its first bytes {head!r} are not a dask message)", field="scheduler")
+                raise RunError(f"{not_dask} (its first bytes {head!r} are not a dask message)", field="scheduler")
             body = recv(n)
         except TimeoutError:
-            raise InputError(f"{not_dask} (no dask handshake within {timeout_s:g} s)", field="scheduler") from None
+            raise RunError(f"{not_dask} (no dask handshake within {timeout_s:g} s)", field="scheduler") from None
         except OSError as exc:
-            raise InputError(f"{not_dask} ({exc.strerror or exc})", field="scheduler") from None
+            raise RunError(f"{not_dask} ({exc.strerror or exc})", field="scheduler") from None
     if not all(k in body for k in _HANDSHAKE_KEYS):
-        raise InputError(f"{not_dask} (its first message is not the dask handshake)", field="scheduler")
+        raise RunError(f"{not_dask} (its first message is not the dask handshake)", field="scheduler")
     return address
 
 

@@ -28,6 +28,7 @@ from adm_sim.errors import InputError
 from adm_sim.files import refuse_special, write_atomic
 
 from adm_calib.study.cases import case_identity
+from adm_sim.model.plausibility import response_warnings
 
 RESULTS_NAME = "results.jsonl"
 META_NAME = "study.json"
@@ -49,6 +50,9 @@ def result_record(case, result, wall_s):
     rec.update({k: d[k] for k in _KEEP})
     rec["mlm_peak_acc_m_s2"] = None if d["mlm_peak"] is None else d["mlm_peak"]["acc_m_s2"]
     rec["dim_peak_acc_m_s2"] = None if d["dim_peak"] is None else d["dim_peak"]["acc_m_s2"]
+    peaks = [(k, rec[f"{k}_peak_acc_m_s2"]) for k in ("dim", "mlm") if rec[f"{k}_peak_acc_m_s2"] is not None]
+    rec["warnings"] = [w for k, a in peaks  # implausible peaks, as adm-sim sweep warns them
+                       for w in response_warnings(case.bridge.span_m, a, label=f"{k.upper()} peak")]
     rec["wall_s"] = float(wall_s)
     return rec
 

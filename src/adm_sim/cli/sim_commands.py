@@ -12,7 +12,7 @@ import sys
 import time
 from pathlib import Path
 
-from adm_sim.cliutil import (Parser, add_choice, add_delta_zeta_pct, add_overwrite, add_progress, add_speeds,
+from adm_sim.cliutil import (Parser, add_choice, add_delta_zeta_pct, add_max_work, add_overwrite, add_progress, add_speeds,
                              add_steps_per_period, check_option, option_help, option_view,
                              progress_callback)
 from adm_sim.errors import InputError
@@ -72,7 +72,16 @@ def cmd_sweep(args):
     speeds = parse_speeds(args.speeds, field="--speeds")
     dz_pct = option_view("--delta-zeta-pct")  # % on the command line, a fraction in the core
     dz = dz_pct.to_core(dz_pct.check(args.delta_zeta_pct, lo_core=-bridge.damping_ratio))  # dz >= -zeta
-    opts = StepOptions(steps_per_period=check_option("--steps-per-period", args.steps_per_period))
+    profile = None
+    if args.irregularity:
+        if args.model != "dim":
+            raise InputError(f"--irregularity: {args.irregularity!r} acts on the DIM's wheels; the MLM has none "
+                             f"(allowed with --model dim)")
+        from adm_sim.model.irregularity import parse  # noqa: PLC0415  scipy.interpolate only on a rough track
+
+        profile = parse(args.irregularity, bridge.span_m)  # refused beyond the model's slope and curvature
+    opts = StepOptions(steps_per_period=check_option("--steps-per-period", args.steps_per_period),
+                       irregularity=profile)
     where = parse_where(args.where, bridge.span_m)
     method = args.method or ("exact" if args.model == "mlm" and not bridge.is_continuous else "rk4")
     if method == "exact" and bridge.is_continuous:
@@ -136,6 +145,13 @@ def cmd_sweep(args):
         if top > pk["acc_m_s2"]:
             i = int(res.max_acc_m_s2.argmax())
             print(f"note: the largest value {top:.4f} m/s2 lies at the end of the range ({res.speeds_kmh[i]:g} km/h)")
+    if res.contact is not None:  # the DIM's own assumption: every wheel stays on the rail
+        lost = res.contact.message("status contact_lost")
+        if lost is None:
+            fmin = float(res.contact.min_n.min())
+            print(f"status ok: every wheel stays on the rail (smallest contact force {fmin / 1e3:.4g} kN)")
+        else:
+            print(lost)
     ia, idisp = int(res.max_acc_m_s2.argmax()), int(res.max_disp_m.argmax())
     check_response(bridge.span_m, res.max_acc_m_s2[ia], res.max_disp_m[idisp],  # warnings, not refusals
                    f"sweep: at {res.speeds_kmh[ia]:g} km/h", f"sweep: at {res.speeds_kmh[idisp]:g} km/h")
@@ -386,7 +402,7 @@ def cmd_salvage(args):
         from adm_sim.recording.mcap_log import salvage  # noqa: PLC0415  start-up: only this subcommand (28 ms)
     except ImportError as exc:
         raise InputError(f"salvage needs the ROS/MCAP extras ({exc})") from None
-    src = mcap_input(args.src, "salvage SRC")
+    src = mcap_input(args.src, "salvage SRC", damaged_magic=True)  # a damaged magic is what salvage is for
     if Path(args.dst).resolve() == src.resolve():
         raise InputError(f"salvage DST: {args.dst!r} is SRC; give another file")
     dst = claim_output(args.dst, "salvage DST", args.overwrite, ".mcap")
@@ -397,8 +413,8 @@ def cmd_salvage(args):
         print(f"lost: {report['lost_chunks']} of {report['chunks']} chunks were damaged and skipped"
               + (f", {report['orphan_messages']} messages of channels declared in them" if report["orphan_messages"]
                  else ""))
-    for line in report.get("damage", ()):  # each damaged place: offset, topics, messages lost
-        print(f"dropped: {line}")
+    for line in report.get("damage", ()):  # each damaged place: offset, topics, messages lost (or none)
+        print(f"{'damaged' if line.endswith('no message lost') else 'dropped'}: {line}")
     return 0
 
 
@@ -540,6 +556,10 @@ def build_parser():
                    help="midspan (default; a continuous deck: the middle of its longest span), deck (MLM exact: "
                         "anywhere on the deck, with the position) or x=<m> from the left abutment (0 < x < L, L the "
                         "deck length)")
+    add_max_work(s)
+    s.add_argument("--irregularity", default="",
+                   help="DIM: track irregularity on the deck, e.g. german-high:seed=3, file=profile.csv, "
+                        "joint:at=7:length=1:depth=0.002 (parts joined by +; docs/irregularities.md); default: smooth")
     _output_options(s, {"json": "write results as JSON", "plot": "write max acceleration vs speed as PNG"},
                     "replace existing --json/--plot files (once the run has finished)")
     s.set_defaults(func=cmd_sweep)

@@ -52,6 +52,9 @@ END_ROTATION_SOURCE = ("an infrastructure manager's rule applied by the project'
 DELTA_H_LIMITS_M = (8e-3, 10e-3)
 #: Allowed height h (m) from the bearings' axis of rotation to the top of the deck (input sanity range).
 DECK_END_HEIGHT_RANGE_M = (0.0, 10.0)
+#: Highest first lateral natural frequency (Hz) a user may give: the project's choice (a span's first
+#: lateral mode lies at a few Hz; 1e9 Hz is a typo, not a bridge).
+LATERAL_FREQUENCY_MAX_HZ = 100.0
 #: Lowest first lateral natural frequency (Hz), EN 1990 A2.4.4.2.4(3).
 LATERAL_FREQUENCY_MIN_HZ = 1.2
 #: What this check does not cover, each with its clause.
@@ -127,9 +130,10 @@ def check_lateral_frequency(value):
     except (TypeError, ValueError):
         raise InputError(f"lateral_frequency: {value!r} is not a frequency; give the first lateral natural "
                          f"frequency of the span in Hz, > 0", field="lateral_frequency") from None
-    if not np.isfinite(f) or f <= 0.0:
-        raise InputError(f"lateral_frequency: {value!r} Hz is not a frequency; allowed (0, inf) Hz "
-                         f"(EN 1990 A2.4.4.2.4(3) asks for at least {LATERAL_FREQUENCY_MIN_HZ:g} Hz)",
+    if not np.isfinite(f) or f <= 0.0 or f > LATERAL_FREQUENCY_MAX_HZ:
+        raise InputError(f"lateral_frequency: {value!r} Hz is not the frequency of a span; allowed (0, "
+                         f"{LATERAL_FREQUENCY_MAX_HZ:g}] Hz (the upper bound is the project's choice: no railway span "
+                         f"sways above it; EN 1990 A2.4.4.2.4(3) asks for at least {LATERAL_FREQUENCY_MIN_HZ:g} Hz)",
                          field="lateral_frequency")
     return f
 

@@ -261,7 +261,14 @@ def adm_delta_zeta_pct(span_m):
 
 def check_alpha(alpha):
     """The classification factor α if it is one of EN 1991-2 6.3.2(3), else :class:`InputError`."""
-    a = check_range("alpha", alpha, "-")
+    allowed_text = ", ".join(f"{x:.2f}" for x in LM71_ALPHAS)
+    try:
+        a = float(alpha)
+    except (TypeError, ValueError):
+        a = math.nan
+    if isinstance(alpha, bool) or not math.isfinite(a):
+        raise InputError(f"alpha: {alpha!r} is not a number; allowed a classification factor of EN 1991-2 "
+                         f"6.3.2(3): {allowed_text}")
     for allowed in LM71_ALPHAS:
         if abs(a - allowed) < 1e-9:
             return allowed

@@ -25,11 +25,13 @@ import math
 import numpy as np
 
 from adm_sim.integrate import kernels
+from adm_sim.integrate.contact import ContactCheck
 from adm_sim.errors import InputError, RunError
 from adm_sim.fields import FIELDS, check_delta_zeta_pct
 from adm_sim.integrate.mlm_loads import deck_modal_loads
 from adm_sim.integrate.rk4_sides import mlm_rk4_coefficients
 from adm_sim.integrate.run_contract import FAILED, RUNNING, AdvancingRun, check_model
+from adm_sim.limits import check_memory
 from adm_sim.integrate.step_grid import StepOptions, make_grid, speeds_to_m_s
 from adm_sim.integrate.tables import active_units, axle_rows, bridge_tables, vehicle_tables
 
@@ -126,6 +128,10 @@ class BatchRunner:
         self.dense_maxima = bool(dense_maxima)
         self.irregularity = irregularity
         self.ds_m = float(ds_m)
+        if irregularity is not None:  # its shortest feature against the space step
+            from adm_sim.model.irregularity import check_step  # noqa: PLC0415  scipy.interpolate only on a rough track
+
+            check_step(irregularity, self.ds_m)
         self.span_m = float(b0.span_m)
         self.n_modes = b0.n_modes
         self.tables = bridge_tables(self.bridges, response_m)
@@ -149,8 +155,28 @@ class BatchRunner:
         return n
 
     # ------------------------------------------------------------------ tables
+    def table_bytes(self, model, n_steps):
+        """Memory (bytes) of the tables a run of ``n_steps`` steps builds: the MLM modal loads
+        ``(2 n + 1) x n_modes``; the DIM axle rows (every axle's mode shapes and slopes and curvatures
+        on its ``2 L / ds + 1`` rows on the bridge, the profile under it) and the Eq. (13) inverses
+        ``n_bridges x (2 n + 1) x n_modes^2``."""
+        rows, nm = 2.0 * n_steps + 1.0, self.n_modes
+        if model == "mlm":
+            return 8.0 * rows * nm
+        n_ax = self.train.n_axles
+        entries = min(rows * n_ax, n_ax * (2.0 * self.span_m / self.ds_m + 1.0))
+        return 8.0 * (entries * (3 * nm + 5) + len(self.bridges) * rows * nm * nm + rows * 2)
+
+    def check_tables(self, model, n_steps):
+        """Refuse (one-line InputError) tables beyond this machine's memory before building them."""
+        check_memory(self.table_bytes(model, n_steps), f"the {model.upper()} tables of {n_steps} steps",
+                     f"large because {n_steps} steps of ds = {self.ds_m * 1e3:.3g} mm x {self.n_modes} modes"
+                     f"{'' if model == 'mlm' else f' x {len(self.bridges)} bridges (Eq. 13 inverses)'}; "
+                     f"fewer modes or fewer steps per period make it smaller")
+
     def _mlm_table(self, n_steps):
         if n_steps > self._mlm_rows:  # mlm_modal_load_table on a grid of n_steps steps, bit for bit
+            self.check_tables("mlm", n_steps)
             self._P = modal_load_table(self.bridges[0], self.ds_m, self.train.axle_offsets_m,
                                        self.train.axle_loads_n, int(n_steps))
             self._mlm_rows = int(n_steps)
@@ -160,6 +186,7 @@ class BatchRunner:
         """The axles on the bridge per half-step row and the active units per step, steps 0..n."""
         if n_steps <= self._rows:
             return
+        self.check_tables("dim", n_steps)
         tr = self.train
         self._axle_rows = axle_rows(self.bridges, tr.axle_offsets_m, self.ds_m, 0, 2 * n_steps + 1,
                                     tr.wheel_mass_kg)
@@ -298,6 +325,9 @@ class BatchRun(AdvancingRun):
             n_dof = runner.vehicles().minv_dof.size
             self._u, self._ud = np.zeros((n_dof, n_l)), np.zeros((n_dof, n_l))
             self._lanes = kernels.DimLanes(v[order], self._ho, np.ascontiguousarray(Z[order]))
+        # the DIM's contact check (block order): smallest contact force, first tension
+        self._contact = kernels.Contact(np.full(n_l, np.inf), np.full(n_l, -1, dtype=np.int64),
+                                        np.full(n_l, -1, dtype=np.int64), np.zeros(n_l))
         self._blocks_t = kernels.Blocks(self._block_ptr, self._bcase, self._bsteps)
         self._state = kernels.LaneState(self._q, self._qd, self._u, self._ud, self._amax, self._dmax, self._prev)
         self._start_contract(n_max)
@@ -314,7 +344,7 @@ class BatchRun(AdvancingRun):
             state = (self._q, self._qd)
         else:
             kernels.dim_blocks(self._blocks_t, k0, k1, self._lanes, r.tables, r._axle_rows, r._units, r.vehicles(),
-                               self._state, r.dense_maxima, r._track)
+                               self._state, r.dense_maxima, r._track, self._contact)
             state = (self._q, self._qd, self._u, self._ud)
         self.k = k1
         def names():
@@ -337,3 +367,14 @@ class BatchRun(AdvancingRun):
     @property
     def max_disp_m(self):
         return self._in_lane_order(self._dmax)
+
+    @property
+    def contact(self):
+        """The DIM's contact check in the caller's lane order (:class:`adm_sim.integrate.contact.ContactCheck`);
+        ``None`` for the MLM."""
+        if self.model != "dim":
+            return None
+        c = self._contact
+        return ContactCheck(min_n=self._in_lane_order(c.min_n), first_k=self._in_lane_order(c.first_k),
+                            first_axle=self._in_lane_order(c.first_axle), first_n=self._in_lane_order(c.first_n),
+                            speeds_m_s=self._v.copy(), dt_s=self.runner.ds_m / self._v)

@@ -128,6 +128,19 @@ class LaneState(NamedTuple):
     prev: np.ndarray
 
 
+class Contact(NamedTuple):
+    """The DIM's contact check of every lane (block order), updated in place: the smallest
+    wheel-rail contact force of any axle on the bridge at stage 0 of the steps done ``min_n``
+    (N, compression positive; ``inf`` before the first axle enters) and the first tension (the
+    wheel would lift off, which the model excludes): step ``first_k`` (-1: none), axle
+    ``first_axle`` and force ``first_n`` (N) (n_lanes,) each (:func:`contact_forces`)."""
+
+    min_n: np.ndarray
+    first_k: np.ndarray
+    first_axle: np.ndarray
+    first_n: np.ndarray
+
+
 # ---------------------------------------------------------------------- the steps, one helper each
 @njit(cache=True, inline="always")
 def start_step(q, qd, phi_mid, d, vel, sq, sqd):
@@ -272,12 +285,14 @@ def vehicle_accelerations(vehicles, units, a0, a1, su, sud, W, Wd, f, udd, t1, t
 
 
 @njit(cache=True, inline="always")
-def bridge_accelerations(rows, r, cl, Kl, vehicles, sq, sqd, v, Z, f, W, Wd, p, rhs, qdd, t1, t2, t3, track):
+def bridge_accelerations(rows, r, cl, Kl, vehicles, sq, sqd, v, Z, f, W, Wd, p, rhs, qdd, t1, t2, t3, track, g):
     """Train -> bridge (``BridgeSide.take_forces``): interaction ``G = F - F_k1 - F_c1`` (Eq. 7)
     less the wheelset inertia on the profile ``m_w v^2 r''(x)`` (``TrainSide.take_rail_state``;
     ``track``, :class:`Track`) and of the convective terms (Eq. 9), modal load ``p`` (Eq. 14) and
     ``qdd = M_mod^-1 (p - Z qd - K q)`` (Eq. 15) at half-step row ``r``, lane ``b`` on bridge ``cl[b]``
-    with modal stiffness ``Kl[:, b]``; the rail state ``W``, ``Wd`` of the axles on the bridge is cleared (rigid track off the bridge)."""
+    with modal stiffness ``Kl[:, b]``; the rail state ``W``, ``Wd`` of the axles on the bridge is cleared (rigid track off the bridge).
+    ``g`` (n_axles, n_lanes) keeps each axle's load on the bridge less the wheel's inertia but that of
+    the modal accelerations (:func:`contact_forces` completes it)."""
     ptr = rows.ptr
     axle = rows.axle
     phi = rows.phi
@@ -307,6 +322,7 @@ def bridge_accelerations(rows, r, cl, Kl, vehicles, sq, sqd, v, Z, f, W, Wd, p, 
         ce = tc[e]
         for b in range(nb):
             t3[b] = ((fa - f[a, b]) - mwa * (v[b] * v[b]) * ce) - mwa * (2.0 * v[b] * t1[b] + v[b] * v[b] * t2[b])
+            g[a, b] = t3[b]
         for j in range(nm):
             pj = phi[e, j]
             for b in range(nb):
@@ -323,6 +339,44 @@ def bridge_accelerations(rows, r, cl, Kl, vehicles, sq, sqd, v, Z, f, W, Wd, p, 
         for j in range(nm):
             for b in range(nb):
                 qdd[i, b] += rhs[j, b] * minv[cl[b], r, j, i]
+
+
+@njit(cache=True, inline="always")
+def contact_forces(rows, r, k, l0, vehicles, qdd, g, cmin, t1, contact):
+    """Wheel-rail contact force of every axle on the bridge at half-step row ``r`` (stage 0 of step
+    ``k``), ``F_i = G_i - m_w,i w''_i`` (Eq. 7 with the wheel acceleration of Eq. 9: ``g`` from
+    :func:`bridge_accelerations` less ``m_w,i sum_j phi_j(x_i) qdd_j``), compression positive
+    (``InProcessRun.contact_forces_n``). The smallest per lane is folded into ``cmin`` (n_lanes of
+    the block); the first tension of lane ``l0 + b`` is recorded in ``contact`` (:class:`Contact`)."""
+    ptr = rows.ptr
+    axle = rows.axle
+    phi = rows.phi
+    wheel_mass = vehicles.wheel_mass_kg
+    nm, nb = qdd.shape
+    e0 = ptr[r]
+    e1 = ptr[r + 1]
+    for e in range(e0, e1):
+        a = axle[e]
+        for b in range(nb):
+            t1[b] = 0.0
+        for j in range(nm):
+            pj = phi[e, j]
+            for b in range(nb):
+                t1[b] += qdd[j, b] * pj
+        mwa = wheel_mass[a]
+        lost = False
+        for b in range(nb):
+            fc = g[a, b] - mwa * t1[b]
+            t1[b] = fc
+            if fc < 0.0:
+                lost = True
+            cmin[b] = min(cmin[b], fc)
+        if lost:  # rare: the first tension of each lane, at this step and axle
+            for b in range(nb):
+                if t1[b] < 0.0 and contact.first_k[l0 + b] < 0:
+                    contact.first_k[l0 + b] = k
+                    contact.first_axle[l0 + b] = a
+                    contact.first_n[l0 + b] = t1[b]
 
 
 @njit(cache=True, inline="always")
@@ -362,7 +416,7 @@ MLM_CHUNK_LANES = 64
 
 
 @njit(cache=True, nogil=True)
-def dim_blocks(blocks, k0, k1, lanes, bridge, rows, units, vehicles, state, dense, track):
+def dim_blocks(blocks, k0, k1, lanes, bridge, rows, units, vehicles, state, dense, track, contact):
     """DIM (Eqs. 7-17) with one exchange per RK stage, every lane over all its steps.
 
     ``blocks`` (:class:`Blocks`): lanes of one bridge and one step count; consecutive blocks with
@@ -375,9 +429,10 @@ def dim_blocks(blocks, k0, k1, lanes, bridge, rows, units, vehicles, state, dens
     (:class:`adm_sim.integrate.tables.AxleRows` of every half-step row from 0, with ``minv``); ``units``
     (:class:`adm_sim.integrate.tables.ActiveUnits` of every step from 0); ``vehicles``
     (:class:`adm_sim.integrate.tables.VehicleTables`); ``track`` (:class:`Track`) the irregularity under
-    the axles of ``rows`` (zeros: smooth track). A stage is the numpy stepper's, helper by helper:
+    the axles of ``rows`` (zeros: smooth track); ``contact`` (:class:`Contact`) the contact check,
+    updated in place. A stage is the numpy stepper's, helper by helper:
     :func:`rail_state`, :func:`vehicle_accelerations`, :func:`bridge_accelerations`, (stage 0)
-    :func:`midspan_acceleration`, the RK4 bookkeeping of both subsystems; a step starts with
+    :func:`midspan_acceleration` and :func:`contact_forces`, the RK4 bookkeeping of both subsystems; a step starts with
     :func:`start_step` and ends with the maxima (:func:`dense_maxima` with ``dense``).
 
     Resumable: advances every lane from step ``k0`` to ``min(k1, its block's steps)``; ``state``
@@ -439,6 +494,8 @@ def dim_blocks(blocks, k0, k1, lanes, bridge, rows, units, vehicles, state, dens
         W = np.zeros((n_axles, nb))
         Wd = np.zeros((n_axles, nb))
         f = np.zeros((n_axles, nb))
+        g = np.zeros((n_axles, nb))
+        cmin = contact.min_n[l0:l0 + nb].copy()
         t1 = np.zeros(nb)
         t2 = np.zeros(nb)
         t3 = np.zeros(nb)
@@ -457,9 +514,10 @@ def dim_blocks(blocks, k0, k1, lanes, bridge, rows, units, vehicles, state, dens
                 rail_state(rows, r, sq, sqd, vl, W, Wd, t1, t2, t3, track)
                 vehicle_accelerations(vehicles, act_units, a0, a1, su, sud, W, Wd, f, udd, t1, t2, t3)
                 bridge_accelerations(rows, r, cl, Kl, vehicles, sq, sqd, vl, Zb, f, W, Wd, p, rhs, qdd,
-                                     t1, t2, t3, track)
+                                     t1, t2, t3, track, g)
                 if st == 0:
                     midspan_acceleration(qdd, phi_mid, acc0)
+                    contact_forces(rows, r, k, l0, vehicles, qdd, g, cmin, t1, contact)
                 # 4. RK4 bookkeeping of both subsystems (as rk4_sides._Rk4State.push), inline: as a
                 # helper it costs ~20 % of the kernel's time (bench/bench_kernels.py, docs/benchmarks.md)
                 wgt = RK4_W[st]
@@ -522,6 +580,7 @@ def dim_blocks(blocks, k0, k1, lanes, bridge, rows, units, vehicles, state, dens
         state.ud[:, l0:l0 + nb] = ud
         state.max_acc[l0:l0 + nb] = amax
         state.max_disp[l0:l0 + nb] = dmax
+        contact.min_n[l0:l0 + nb] = cmin
 
 
 @njit(cache=True, nogil=True)

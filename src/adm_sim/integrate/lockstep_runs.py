@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from adm_sim.integrate.contact import ContactTracker
 from adm_sim.integrate.dense_output import hermite_max_abs_acc
 from adm_sim.integrate.run_contract import AdvancingRun, SteppedRun, check_model
 
@@ -77,6 +78,7 @@ class _BridgeRun(_Lockstep):
         self._vel_m_s = self._prev = None  # midspan velocity at step k; (d, v, a) at step k - 1
         self.max_acc_m_s2 = np.zeros(grid.n_lanes)
         self.max_disp_m = np.zeros(grid.n_lanes)
+        self._contact = ContactTracker(grid) if model == "dim" else None  # the DIM's contact check
         failure = self._start_step()
         if failure is not None:
             raise ValueError(f"{type(self).__name__}: the bridge side does not start from a finite state: {failure}")
@@ -122,13 +124,23 @@ class _BridgeRun(_Lockstep):
         super()._next_step()
         return self._start_step()
 
+    @property
+    def contact(self):
+        """The DIM's contact check over the steps done (:class:`adm_sim.integrate.contact.ContactCheck`):
+        smallest contact force and first tension per lane; ``None`` for the MLM."""
+        return None if self._contact is None else self._contact.check()
+
     def _forces(self, interaction_n):
         """DIM: advance stage (k, stage) of the bridge with the interaction forces (n_lanes, n_on).
 
         Returns ``(success, message)``.
         """
         self.bridge_side.take_forces(interaction_n)
-        failure = self._take_acc() if self.stage == 0 else None
+        failure = None
+        if self.stage == 0:
+            b = self.bridge_side
+            self._contact.take(self.k, b.last_axles, b.last_contact_n)
+            failure = self._take_acc()
         if failure is None:
             failure = self._next_stage()
         return failure is None, failure
@@ -204,9 +216,7 @@ class InProcessRun(_BridgeRun, AdvancingRun):
         ``F_i = G_i - m_w,i w''(x_i)`` with the rail acceleration under the axle (Eq. 9); DIM.
         Returns ``(idx, F)``: axle indices (n_on,) and forces (n_lanes, n_on) in N.
         """
-        b = self.bridge_side
-        idx = self.axles0
-        return idx, self.interaction0_n - b.m_w[idx] * b.last_wheel_acc
+        return self.axles0, self.bridge_side.last_contact_n
 
 
 class BridgeHalf(_BridgeRun):

@@ -211,6 +211,9 @@ class BridgeSide:
             self.last_acc = qdd @ self.phi_mid
             # wheel (rail) acceleration under the axles, Eq. (9), for contact forces (Eq. 7)
             self.last_wheel_acc = qdd @ phi.T + (0.0 if conv is None else conv)
+            if self.m_w is not None:  # the contact forces F_i = G_i - m_w,i w''_i (Eq. 7), compression positive
+                self.last_axles = idx
+                self.last_contact_n = np.asarray(interaction_n, dtype=float) - self.m_w[idx] * self.last_wheel_acc
         done = self.rk.push(qd, qdd)
         if done:
             self.k += 1
@@ -264,6 +267,10 @@ class TrainSide:
         self.grid = grid
         self.span = float(span_m)
         self.irregularity = irregularity
+        if irregularity is not None:  # its shortest feature against the space step
+            from adm_sim.model.irregularity import check_step  # noqa: PLC0415  scipy.interpolate only on a rough track
+
+            check_step(irregularity, grid.ds_m)
         self.offsets = train.axle_offsets_m
         self.vehicles = vehicle_tables(train)  # the tables of adm_sim.integrate.kernels
         self.n_dof = self.vehicles.minv_dof.size

@@ -24,6 +24,7 @@ import numpy as np
 from adm_sim.integrate._jit import RK4_C  # the RK4 tableau, shared with the numba kernels
 from adm_sim.errors import InputError
 from adm_sim.fields import FIELDS, check_range
+from adm_sim.limits import check_work
 
 SPEED_RANGE_KMH = FIELDS["speeds_kmh"].range
 
@@ -127,4 +128,17 @@ def make_grid(bridge, train_length_m, speeds_m_s, options=None):
         ds = float(v.min()) * t_top / options.steps_per_period
     t1 = 1.0 / bridge.n0_hz
     travel = train_length_m + bridge.span_m + options.free_vibration_periods * t1 * float(v.max())
-    return Grid(speeds_m_s=v, ds_m=ds, n_steps=int(math.ceil(travel / ds)))
+    steps = travel / ds
+
+    def why():  # the inputs that make the run large, for a refusal only
+        if options.ds_m is not None:
+            how = f"ds = {ds * 1e3:.3g} mm given"
+        else:
+            how = (f"ds = {ds * 1e3:.3g} mm from the top mode ({bridge.n_modes} modes, "
+                   f"{bridge.omega_rad_s[-1] / (2 * math.pi):.4g} Hz) at {options.steps_per_period:g} steps per "
+                   f"period and {float(v.min()) * 3.6:g} km/h")
+        return (f"large because {v.size} speeds x ({travel:.4g} m of train, span and free vibration / {how}); "
+                f"fewer speeds, fewer modes or fewer steps per period make it smaller")
+
+    check_work(v.size, steps if steps >= 2**62 else int(math.ceil(steps)), bridge.n_modes, why)
+    return Grid(speeds_m_s=v, ds_m=ds, n_steps=int(math.ceil(steps)))

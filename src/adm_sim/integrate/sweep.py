@@ -14,6 +14,8 @@ import numpy as np
 
 from adm_sim.errors import InputError, RunError
 from adm_sim.fields import check_count, check_delta_zeta_pct
+from adm_sim.integrate.contact import CONTACT_LOST, CONTACT_OK
+from adm_sim.limits import check_memory
 from adm_sim.integrate.peaks import largest_interior_peak
 from adm_sim.integrate.lockstep_runs import InProcessRun
 from adm_sim.integrate.mlm_loads import mlm_modal_load_table
@@ -79,6 +81,8 @@ class SweepResult:
         Histories (``histories=True``).
     contact_force_n : ndarray (n_lanes, n_steps, n_axles) or None
         DIM wheel-rail contact forces (Eq. 7; zero off the bridge), with histories.
+    contact : adm_sim.integrate.contact.ContactCheck or None
+        DIM: the smallest contact force and the first tension per lane (None for the MLM).
     """
 
     model: str
@@ -95,6 +99,12 @@ class SweepResult:
     midspan_acc_m_s2: np.ndarray | None = field(default=None)
     contact_force_n: np.ndarray | None = field(default=None)
     method: str = "rk4"
+    contact: object = field(default=None)
+
+    @property
+    def status(self):
+        """``"contact_lost"`` when a DIM wheel would lift off at some speed, else ``"ok"``."""
+        return CONTACT_OK if self.contact is None else self.contact.status
 
     def peak(self):
         """``{"speed_kmh", "acc_m_s2", "index"}`` of the peak of the curve, or None.
@@ -124,6 +134,8 @@ class SweepResult:
             "spans_m": list(self.bridge.spans_m) if self.bridge.is_continuous else [self.bridge.span_m],
             "frequencies_hz": self.bridge.frequencies_hz.tolist(),
             "modal_masses_kg": self.bridge.modal_mass_kg.tolist(),
+            "status": self.status,
+            **({} if self.contact is None else {"contact": self.contact.to_dict()}),
         }
 
     def __repr__(self):
@@ -132,7 +144,7 @@ class SweepResult:
         how = "exact envelope" if self.method == "exact" else f"{self.n_steps} steps of {self.ds_m * 1000:.2f} mm"
         return (f"SweepResult({self.model.upper()}, {self.bridge.name or 'bridge'} x {self.train_name}, "
                 f"{len(self.speeds_kmh)} speeds {self.speeds_kmh.min():g}..{self.speeds_kmh.max():g} km/h, "
-                f"{where}, {how})")
+                f"{where}, {how}{', CONTACT LOST' if self.status == CONTACT_LOST else ''})")
 
 
 def sweep_exact(bridge, train, speeds_kmh, delta_zeta=0.0, where="midspan"):
@@ -204,7 +216,7 @@ def run_sweep_compiled(bridge, train, model, speeds_kmh, delta_zeta=0.0, options
         check_delta_zeta_pct("delta_zeta_pct", 100 * x, bridge.damping_ratio)
     grid = make_grid(bridge, train.length_m, v, options)
     runner = BatchRunner([bridge], train, grid.ds_m, options.free_vibration_periods, options.dense_maxima,
-                         response_m=response_m)
+                         response_m=response_m, irregularity=options.irregularity if model == "dim" else None)
     run = runner.start(model, np.zeros(v.size, dtype=np.int64), v_kmh, dz)
     if run.n_steps != grid.n_steps:  # pragma: no cover - the same make_grid on both sides
         raise RunError(f"compiled sweep: {run.n_steps} steps where the grid has {grid.n_steps}")
@@ -217,7 +229,8 @@ def run_sweep_compiled(bridge, train, model, speeds_kmh, delta_zeta=0.0, options
         raise RunError(run.message)
     return SweepResult(model=model, bridge=bridge, train_name=train.name, speeds_kmh=v_kmh,
                        max_acc_m_s2=run.max_acc_m_s2, max_disp_m=run.max_disp_m,
-                       delta_zeta=np.asarray(delta_zeta, dtype=float), ds_m=grid.ds_m, n_steps=grid.n_steps)
+                       delta_zeta=np.asarray(delta_zeta, dtype=float), ds_m=grid.ds_m, n_steps=grid.n_steps,
+                       contact=run.contact)
 
 
 def run_sweep(bridge, train, model, speeds_kmh, delta_zeta=0.0, options=None, histories=False,
@@ -260,6 +273,11 @@ def run_sweep(bridge, train, model, speeds_kmh, delta_zeta=0.0, options=None, hi
     if histories and nl * n * (1 + (train.n_axles if dim else 0)) > MAX_HISTORY_VALUES:
         raise InputError(f"histories: {nl} speeds x {n} steps is too much to keep; "
                          f"ask histories for at most a few speeds")
+    kept = (2.0 * n + 1.0) * bridge.n_modes * (0 if dim else 1)  # the MLM's modal-load table
+    kept += nl * n * (2 + (train.n_axles if dim else 0)) if histories else 0
+    check_memory(8.0 * kept, f"the {model.upper()} run's tables{' and histories' if histories else ''}",
+                 f"large because {n} steps of ds = {grid.ds_m * 1e3:.3g} mm x {nl} speeds; fewer steps per period "
+                 f"or fewer speeds make it smaller")
     b = BridgeSide(bridge, grid, train.axle_offsets_m, train.wheel_mass_kg if dim else None, dz, response_m=response_m)
     if dim:
         run = InProcessRun(model, grid, b, train_side=TrainSide(train, grid, bridge.span_m,
@@ -293,4 +311,4 @@ def run_sweep(bridge, train, model, speeds_kmh, delta_zeta=0.0, options=None, hi
     return SweepResult(model=model, bridge=bridge, train_name=train.name,
                        speeds_kmh=np.atleast_1d(np.asarray(speeds_kmh, dtype=float)).copy(), max_acc_m_s2=run.max_acc_m_s2,
                        max_disp_m=run.max_disp_m, delta_zeta=np.asarray(delta_zeta, dtype=float),
-                       ds_m=grid.ds_m, n_steps=n, **kw)
+                       ds_m=grid.ds_m, n_steps=n, contact=run.contact, **kw)

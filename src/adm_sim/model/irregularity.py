@@ -49,6 +49,26 @@ and a joint (a cosine dip of depth ``depth_m`` and length ``length_m`` centred a
 A profile is evaluated through a cubic spline of its samples (:class:`Profile`), which gives
 ``r`` and ``r'`` at any position bit for bit alike for the numpy stepper, the compiled kernels
 and the ROS train node.
+
+What the model can represent (:func:`check_bounds`, every profile at every entry: the CLI, the
+study, the train node's parameters). The wheel is a point on the rail that follows ``r(x)`` at
+the constant horizontal speed ``v``; the profile is refused beyond
+
+* slope ``|r'| <=`` :data:`MAX_SLOPE` = 0.05 (the project's choice: small-slope kinematics, the
+  wheel's path along the rail is longer than ``x`` by ``r'^2 / 2 <= 0.125 %``, which the model
+  ignores);
+* curvature ``|r''| <=`` :data:`MAX_CURVATURE_1_M` = 1 / 0.46 m (the project's choice: a wheel of
+  0.46 m tread radius, a high-speed wheelset's nominal size, cannot follow a dip tighter than its
+  own tread, and a point contact does not see the bump it rides over);
+* a profile's shortest wave against the space step ``ds`` of a run (:func:`check_step`): twice the
+  shortest distance between its turning points (the samples' local extrema, swings below
+  :data:`MIN_SWING_M` = 0.1 mm ignored, the project's choice) at least
+  :data:`MIN_STEPS_PER_WAVELENGTH` = 2 steps, so the RK4 stage points (half steps) sample every
+  wave at least 4 times, twice the Nyquist rate. A ramp or a single dip has no such wave; a saw-tooth shorter than the
+  step has.
+
+Within these bounds a profile may still be severe enough to lift a wheel off the rail, which the
+DIM reports (:mod:`adm_sim.integrate.contact`).
 """
 
 from __future__ import annotations
@@ -206,6 +226,77 @@ class Profile:
         return float(np.sqrt(np.mean(self.r_m ** 2)))
 
 
+#: Largest |slope| of a profile (-), the project's choice (module docstring).
+MAX_SLOPE = 0.05
+#: Largest |curvature| of a profile (1/m): 1 / (0.46 m tread radius), the project's choice.
+MAX_CURVATURE_1_M = 1.0 / 0.46
+#: Fewest space steps per shortest profile wave (:func:`check_step`), the project's choice.
+MIN_STEPS_PER_WAVELENGTH = 2.0
+#: Smallest swing (m) that makes a turning point of a profile (:func:`shortest_wavelength_m`).
+MIN_SWING_M = 1e-4
+
+
+def profile_extremes(profile):
+    """``(max |r'|, x at it, max |r''|, x at it)`` of ``profile``'s spline over its samples and
+    the midpoints between them (m, -, 1/m)."""
+    x = profile.x_m
+    xe = np.empty(2 * x.size - 1)
+    xe[0::2] = x
+    xe[1::2] = 0.5 * (x[1:] + x[:-1])
+    s = np.abs(profile._spline(xe, 1))
+    c = np.abs(profile._spline(xe, 2))
+    i, j = int(np.argmax(s)), int(np.argmax(c))
+    return float(s[i]), float(xe[i]), float(c[j]), float(xe[j])
+
+
+def check_bounds(profile, what="irregularity"):
+    """Refuse a profile the model cannot represent: |slope| > :data:`MAX_SLOPE` or |curvature| >
+    :data:`MAX_CURVATURE_1_M` anywhere (one-line InputError naming the value and where); returns it."""
+    smax, xs, cmax, xc = profile_extremes(profile)
+    if smax > MAX_SLOPE:
+        raise InputError(f"{what}: {profile.description or 'profile'} has slope {smax:.3g} (-) at x = {xs:.4g} m; "
+                         f"allowed |slope| <= {MAX_SLOPE:g} (the project's small-slope bound: the DIM's wheel "
+                         f"follows the rail at constant speed)")
+    if cmax > MAX_CURVATURE_1_M:
+        raise InputError(f"{what}: {profile.description or 'profile'} has curvature {cmax:.3g} 1/m at x = {xc:.4g} m; "
+                         f"allowed |curvature| <= {MAX_CURVATURE_1_M:.3g} 1/m (the project's bound: a 0.46 m wheel "
+                         f"tread follows no tighter dip)")
+    return profile
+
+
+def shortest_wavelength_m(profile):
+    """Twice the shortest distance (m) between the profile's turning points: the local extrema of
+    its samples, each kept only when it differs from the last kept one by at least
+    :data:`MIN_SWING_M` (a hysteresis filter: measurement noise is no wave); ``inf`` with fewer
+    than three turning points (a ramp, a single dip)."""
+    x, r = profile.x_m, profile.r_m
+    d = np.diff(r)
+    turn = np.flatnonzero(d[1:] * d[:-1] < 0.0) + 1  # strict local extrema of the samples
+    kept = [0]
+    for i in turn.tolist() + [r.size - 1]:
+        if abs(r[i] - r[kept[-1]]) >= MIN_SWING_M:
+            if len(kept) > 1 and (r[i] - r[kept[-1]]) * (r[kept[-1]] - r[kept[-2]]) > 0.0:
+                kept[-1] = i  # the same direction goes on: move the turning point
+            else:
+                kept.append(i)
+    if len(kept) < 4:  # start, end and at most one turning point between
+        return math.inf
+    return 2.0 * float(np.min(np.diff(x[kept[1:-1]])))
+
+
+def check_step(profile, ds_m, what="irregularity"):
+    """Refuse a profile whose shortest wave (:func:`shortest_wavelength_m`) spans fewer than
+    :data:`MIN_STEPS_PER_WAVELENGTH` space steps ``ds_m`` of a run (one-line InputError)."""
+    if profile is None:
+        return
+    lam = shortest_wavelength_m(profile)
+    if lam < MIN_STEPS_PER_WAVELENGTH * ds_m:
+        raise InputError(f"{what}: {profile.description or 'profile'} has a wave of {lam:.3g} m (twice the "
+                         f"distance of two turning points), {lam / ds_m:.3g} space steps of ds = {ds_m:.3g} m; "
+                         f"allowed >= {MIN_STEPS_PER_WAVELENGTH:g} steps per wave (the project's bound: a smoother "
+                         f"profile, or more steps_per_period)")
+
+
 def _check_samples(x, r, what):
     if x.ndim != 1 or r.shape != x.shape or x.size < 4:
         raise InputError(f"{what}: positions and elevations must be two columns of equal length >= 4; "
@@ -284,7 +375,12 @@ def read_profile(path):
     """A measured profile from a CSV (two columns ``position_m, elevation_m``, a header line
     allowed) or a TOML file (arrays ``position_m`` and ``elevation_m``); elevations up, the
     profile's ``r`` is their negative."""
+    from adm_sim.files import refuse_special  # noqa: PLC0415  the one rule for inputs that are not regular files
+
     p = Path(path)
+    refuse_special(p, f"irregularity: file = {str(path)!r}")  # a fifo is named as one, never opened (no hang)
+    if p.is_dir():
+        raise InputError(f"irregularity: file = {str(path)!r} is a folder; allowed a CSV or TOML profile file")
     if not p.is_file():
         raise InputError(f"irregularity: file = {str(path)!r} does not exist; allowed a CSV or TOML profile file")
     if p.suffix.lower() == ".toml":
@@ -380,7 +476,7 @@ def parse(text, length_m):
             r = r - ramp(x, at, ln, _float_opt(opts, "height", kind, -0.05, 0.05))
         else:
             r = r - joint(x, at, ln, _float_opt(opts, "depth", kind, 0.0, 0.05))
-    return Profile(x, r, description=text)
+    return check_bounds(Profile(x, r, description=text))
 
 
 def _options(rest, part):

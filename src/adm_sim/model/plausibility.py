@@ -97,8 +97,9 @@ class Bound:
 
 
 def _fmt(x):
-    """A number for a message: 4 significant digits, whole numbers from 10^4 on (kg/m)."""
-    return f"{x:.4g}" if abs(x) < 1e4 else f"{x:.0f}"
+    """A number for a message: 4 significant digits, whole numbers from 10^4 to 10^9 (kg/m), powers
+    of ten beyond (a count of 300 digits says nothing)."""
+    return f"{x:.4g}" if abs(x) < 1e4 or abs(x) >= 1e9 else f"{x:.0f}"
 
 
 def _light(ctx):
@@ -141,8 +142,9 @@ TABLE = (
     Bound("acceleration", "peak deck acceleration", "m/s²", "<= 50 m/s²",
           "about 5 g, ten times the EN 1990 A2.4.4.2.1(4)P limits (3.5 / 5 m/s²); no real deck survives it "
           "(check the damping, mass and frequency)",
-          "adm-sim sweep and check results, adm-calib calibrate and table4 peaks; every run of the driver and "
-          "calibration nodes (and /diagnostics), the crossing.py and calibrate.py summaries",
+          "adm-sim sweep and check results, adm-calib calibrate and table4 peaks, the study's rows (warnings); every "
+          "run of the driver and calibration nodes (and /diagnostics) and the bridge node's done record, the "
+          "crossing.py and calibrate.py summaries",
           lambda c: (None, 50.0)),
     Bound("deflection", "peak midspan deflection", "m", "<= L/100",
           "six times the L/600 of EN 1990 A2.4.4.2.3 and far beyond the small deflections of the linear "
@@ -231,6 +233,15 @@ def check_response(span_m, max_acc_m_s2, max_disp_m=None, label="result", disp_l
     warn("acceleration", f"{label}: peak acceleration", float(max_acc_m_s2), ctx)
     if max_disp_m is not None:
         warn("deflection", f"{disp_label or label}: peak deflection", float(max_disp_m), ctx)
+
+
+def response_warnings(span_m, max_acc_m_s2, max_disp_m=None, label="result", disp_label=None):
+    """The messages :func:`check_response` warns, as a list of one-line strings (for results that
+    carry their warnings: the study's rows, the bridge node's result), without warning."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", PlausibilityWarning)
+        check_response(span_m, max_acc_m_s2, max_disp_m, label, disp_label)
+    return [str(w.message) for w in caught if issubclass(w.category, PlausibilityWarning)]
 
 
 #: How a caller names the three values and the switch that accepts extrapolation: a library caller

@@ -37,6 +37,7 @@ from adm_sim.model.bridge import Bridge, resolve_bridge
 from adm_sim import protocol as P
 from adm_sim.errors import InputError
 from adm_sim.limits import ACC_LIMITS_M_S2, TRACK_TYPES
+from adm_sim.model.plausibility import response_warnings
 from adm_sim.integrate.lockstep_runs import BridgeHalf
 from adm_sim.integrate.mlm_loads import modal_loads_at
 from adm_sim.nodes import common as c
@@ -517,6 +518,13 @@ class BridgeNode(c.LockstepNode):
         vals = {"run_id": r.id, "phase": r.phase, "model": r.model, "max_acc_m_s2": peak,
                 "speed_kmh": float(r.speeds_kmh[i]), "limit_m_s2": r.limit, "track_type": r.track,
                 "step": done, "n_steps": r.grid.n_steps, "final": final}
+        contact = r.run.contact  # the DIM's own assumption: every wheel stays on the rail
+        if contact is not None:
+            vals["contact"] = contact.status
+            lost = contact.message("contact_lost")
+            if lost is not None:
+                st.message += f"; {lost}"
+                st.level = bytes([max(level, 1)])
         st.values = [KeyValue(key=k, value=str(v)) for k, v in vals.items()]
         arr = DiagnosticArray(status=[st])
         arr.header.stamp = c.to_time_msg(self._sim_time(min(done, r.grid.n_steps)))
@@ -574,8 +582,19 @@ class BridgeNode(c.LockstepNode):
             self.pub_result.publish(c.matrix_msg(("quantity:" + ",".join(P.RESULT_ROWS), "lane"), res))
         wall = time.perf_counter() - r.wall0
         # the monitoring of the run again: a client that missed ``started`` can still place its samples
+        extra = {}
+        if ok:  # the contact check (DIM) and the plausibility warnings of the result, as adm-sim sweep prints them
+            if run.contact is not None:
+                extra["contact"] = run.contact.to_dict()
+            ia, idisp = int(np.argmax(run.max_acc_m_s2)), int(np.argmax(run.max_disp_m))
+            extra["warnings"] = response_warnings(r.bridge.span_m, run.max_acc_m_s2[ia], run.max_disp_m[idisp],
+                                                  f"run {r.id}: at {r.speeds_kmh[ia]:g} km/h",
+                                                  f"run {r.id}: at {r.speeds_kmh[idisp]:g} km/h")
+            for w in extra["warnings"] + ([] if run.contact is None or run.contact.first() is None
+                                          else [run.contact.message(f"run {r.id}")]):
+                self.get_logger().warning(w)
         self._status(r.id, P.DONE if ok else P.FAILED, **self._run_info(), **self._monitor_info(), wall_s=wall,
-                     t1_s=t1, message=run.message, samples=dict(r.counts))
+                     t1_s=t1, message=run.message, samples=dict(r.counts), **extra)
         if ok:
             self.get_logger().info(f"run {r.id} done in {wall:.2f} s: "
                                    f"max |a| {np.max(run.max_acc_m_s2):.4f} m/s^2")

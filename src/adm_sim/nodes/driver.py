@@ -362,6 +362,8 @@ class RunDriver(c.NodeBase):
         self.n_runs += 1
         out = {"run_id": run_id, "model": model, "speeds_kmh": res[0], "max_acc_m_s2": res[1],
                "max_disp_m": res[2], "delta_zeta": res[3], "wall_s": wall, "phase": phase}
+        if model == "dim":  # the DIM's contact check, from the bridge's done record (it follows the result)
+            out["contact"] = self._bridge_contact(run_id)
         self.warn_implausible(out)
         i = int(np.argmax(res[1]))
         say("run", run_id=run_id, model=model, state="done", wall_s=round(wall, 3),
@@ -393,6 +395,25 @@ class RunDriver(c.NodeBase):
             arr.header.stamp.sec, arr.header.stamp.nanosec = divmod(self._clock_ns, 1_000_000_000)
             self.pub_plausibility.publish(arr)  # recorded by the driver's own /diagnostics subscription
         return texts
+
+    def _bridge_contact(self, run_id, wait_s=5.0):
+        """The ``contact`` of the bridge's ``done`` record of run ``run_id`` (:meth:`ContactCheck.to_dict
+        <adm_sim.integrate.contact.ContactCheck.to_dict>`), waiting up to ``wait_s`` for it; a lost
+        contact is warned as one line. ``None`` if the record does not come."""
+        t_end = time.monotonic() + wait_s
+        while True:
+            st = self._bridge_status(run_id)
+            if st is not None and st.get("state") == P.DONE:
+                contact = st.get("contact")
+                if contact and contact.get("status") == "contact_lost":
+                    fl = contact["first_loss"]
+                    warnings.warn(f"run {run_id} (DIM): contact lost: the wheel of axle {fl['axle']} would lift off "
+                                  f"the rail at {fl['speed_kmh']:.6g} km/h, t = {fl['time_s']:.4g} s (contact force "
+                                  f"{fl['force_n'] / 1e3:.4g} kN < 0)", PlausibilityWarning, stacklevel=3)
+                return contact
+            if time.monotonic() > t_end:
+                return None
+            self._event.wait(0.05)
 
     def _bridge_status(self, run_id):
         with self._lock:

@@ -1027,6 +1027,10 @@ def salvage(src, dst, overwrite: bool = False, report: dict | None = None) -> in
                                    sequence=message.sequence)
             writer.finish()
         os.replace(tmp, dst)
+    except OSError as exc:  # a full disk, ulimit -f: the file it could not write is dst (its .part)
+        if exc.filename is None:
+            exc.filename = str(dst)
+        raise
     finally:
         if tmp.exists():
             tmp.unlink()
