@@ -17,6 +17,7 @@ from adm_sim.errors import InputError, PlausibilityWarning
 from adm_sim.fields import view
 from adm_sim.files import check_output_folder, claim_folder, input_file, make_output_folder, release
 from adm_sim.processes.dds_env import local_ros_env
+from adm_sim.processes.dds_env import client_export_line  # noqa: F401  (used by the scripts)
 from adm_sim.processes.supervisor import NodeDied, Supervisor, ros_args  # noqa: F401  (used by the scripts)
 from adm_sim.integrate.run_contract import check_model
 

@@ -27,7 +27,7 @@ import sys
 import time
 from pathlib import Path
 
-from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, discard_outputs, launch, preflight, release_out,
+from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, client_export_line, discard_outputs, launch, preflight, release_out,
                          run_graph)
 
 from adm_sim.cliutil import Parser, add_choice, add_domain_id, add_overwrite, progress_bar
@@ -161,7 +161,8 @@ def _main(args):
     prog = Progress(args.quiet)
     try:
         with Supervisor(out / "logs", env=env) as sup:
-            print(f"ROS_DOMAIN_ID={sup.domain_id} (shared memory only); output in {out}", flush=True)
+            print(f"ROS_DOMAIN_ID={sup.domain_id} (this machine only); output in {out}", flush=True)
+            print(f"{client_export_line(sup.env)}  # a ROS 2 client in another shell", flush=True)
             run_graph(sup, args.params_file, pb, pt, "calibration", "adm_calib.nodes.calibration_node", pc,
                       prog.handle, composed=not args.separate_nodes)
     except KeyboardInterrupt:

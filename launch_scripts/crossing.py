@@ -26,7 +26,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, discard_outputs, launch, preflight, release_out,
+from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, client_export_line, discard_outputs, launch, preflight, release_out,
                          run_graph)
 
 from adm_sim.cliutil import Parser, add_choice, add_domain_id, add_overwrite
@@ -66,7 +66,8 @@ def _main(args):
     t0 = time.perf_counter()
     try:
         with Supervisor(out / "logs", env=env) as sup:
-            print(f"ROS_DOMAIN_ID={sup.domain_id} (shared memory only); output in {out}", flush=True)
+            print(f"ROS_DOMAIN_ID={sup.domain_id} (this machine only); output in {out}", flush=True)
+            print(f"{client_export_line(sup.env)}  # a ROS 2 client in another shell", flush=True)
             last = -1
 
             def on_line(line):

@@ -55,7 +55,7 @@ from adm_sim.cliutil import Parser, add_domain_id, add_overwrite, option_help, r
 from adm_sim.errors import InputError, RunError
 from adm_sim.fields import view
 from adm_sim.files import claim_output, mcap_input, write_atomic
-from adm_sim.processes.dds_env import apply_local_ros_env, check_domain_id, clean_dead_shm, record_shm
+from adm_sim.processes.dds_env import apply_local_ros_env, check_domain_id, clean_dead_shm, client_export_line, record_shm
 from adm_sim.recording import rerun_log as rl
 from adm_sim.recording import viewer_process as vp
 
@@ -543,6 +543,7 @@ def _run(args) -> int:
                 vp.stop_viewer(viewer)
             raise
         print(f"ROS_DOMAIN_ID={env.domain_id}", flush=True)
+        print(f"{client_export_line(env)}  # a ROS 2 client in another shell", flush=True)
     if args.rrd and args.via_convert:
         write_atomic(args.rrd, lambda tmp: (convert(args, tmp), verify_rrd(tmp, args.rrd)))  # a failed replay leaves no stub
         print(f"wrote {args.rrd} (rerun mcap convert)")

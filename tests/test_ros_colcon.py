@@ -96,7 +96,7 @@ def test_install_space_layout(install):
         assert (install / pkg / "share" / "ament_index" / "resource_index" / "packages" / pkg).is_file()
         assert (install / pkg / "share" / pkg / "package.xml").is_file()
     share = install / "adm_sim" / "share" / "adm_sim"
-    for src in sorted((ROOT / "ros_ws" / "params").glob("*.yaml")) + [ROOT / "ros_ws" / "dds" / "fastdds_shm_only.xml"]:
+    for src in sorted((ROOT / "ros_ws" / "params").glob("*.yaml")) + [ROOT / "ros_ws" / "dds" / "fastdds_local.xml"]:
         installed = share / src.parent.name / src.name
         assert installed.read_bytes() == src.read_bytes(), installed
 
