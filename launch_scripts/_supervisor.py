@@ -12,7 +12,7 @@ import shutil
 import warnings
 from pathlib import Path
 
-from adm_sim.cliutil import run_cli
+from adm_sim.cliutil import option_help, run_cli
 from adm_sim.errors import InputError, PlausibilityWarning
 from adm_sim.fields import view
 from adm_sim.files import check_output_folder, claim_folder, input_file, make_output_folder, release
@@ -36,6 +36,13 @@ def launch(body, args):
     return run_cli(lambda: body(args))
 
 
+def add_graph_options(parser):
+    """The options every graph launcher shares beside ``--domain-id``: ``--wait-clients``."""
+    parser.add_argument("--wait-clients", default="0", metavar="N", help=option_help(
+        "--wait-clients", "before the first run, wait until N clients opted into the flow control "
+        "(docs/ros.md, 'Flow control'), so that they receive every sample"))
+
+
 def preflight(args, default_out, dim=False, model=None):
     """Everything a launch checks before any process starts, then its output folder, its domain id
     and its viewer.
@@ -54,6 +61,7 @@ def preflight(args, default_out, dim=False, model=None):
     """
 
     domain_id = check_domain_id(args.domain_id)
+    args.wait_clients = view("cli", "--wait-clients").check(args.wait_clients)
     check_viewer(args.spawn, args.connect)
     if args.out is not None and not args.out.strip():
         raise InputError("--out: '' is empty; give a folder or omit --out")

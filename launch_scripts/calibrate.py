@@ -27,7 +27,7 @@ import sys
 import time
 from pathlib import Path
 
-from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, client_export_line, discard_outputs, launch, preflight, release_out,
+from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, add_graph_options, client_export_line, discard_outputs, launch, preflight, release_out,
                          run_graph)
 
 from adm_sim.cliutil import Parser, add_choice, add_domain_id, add_overwrite, progress_bar
@@ -54,6 +54,7 @@ def parse_args(argv=None):
                     help="run the bridge and train nodes as two processes (default: one process hosting both, "
                          "as ROS composition does; the same nodes, topics and results, the DIM round trips cheaper)")
     add_domain_id(ap)
+    add_graph_options(ap)
     ap.add_argument("--quiet", action="store_true", help="no progress bars")
     add_overwrite(ap, "replace the outputs of an earlier run in --out")
     return ap.parse_args_or_exit(argv)
@@ -62,7 +63,8 @@ def parse_args(argv=None):
 def node_params(args, out):
     bridge = {} if args.bridge is None else {"bridge": args.bridge}
     train = {} if args.train is None else {"train": args.train}
-    cal = {"record_path": str(out / "run.mcap"), "summary_path": str(out / "summary.json"), "overwrite": args.overwrite}
+    cal = {"record_path": str(out / "run.mcap"), "summary_path": str(out / "summary.json"), "overwrite": args.overwrite,
+           "wait_clients": args.wait_clients}
     if not args.no_rrd:
         cal["rrd_path"] = str(out / "run.rrd")
     if args.spawn:

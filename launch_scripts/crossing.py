@@ -26,7 +26,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, client_export_line, discard_outputs, launch, preflight, release_out,
+from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, add_graph_options, client_export_line, discard_outputs, launch, preflight, release_out,
                          run_graph)
 
 from adm_sim.cliutil import Parser, add_choice, add_domain_id, add_overwrite
@@ -36,18 +36,20 @@ from adm_sim.protocol import parse_driver_line
 
 def main(argv=None):
     ap = Parser(prog=Path(__file__).name, description=__doc__.split("\n\n")[0])
-    ap.add_argument("--params-file", default=str(PARAMS_DIR / "crossing_b3_300.yaml"))
-    ap.add_argument("--bridge")
-    ap.add_argument("--train")
-    add_choice(ap, "--model")
+    ap.add_argument("--params-file", default=str(PARAMS_DIR / "crossing_b3_300.yaml"),
+                    help="ROS 2 params YAML applied to every node (default ros_ws/params/crossing_b3_300.yaml)")
+    ap.add_argument("--bridge", help="bridge preset for the bridge node (B1..B4, spec or TOML file)")
+    ap.add_argument("--train", help="train name or TOML file for the train node")
+    add_choice(ap, "--model", "dim (vehicles on the deck) or mlm (moving loads); default: the params file's")
     ap.add_argument("--speeds", help="km/h: one speed, a comma list or start:stop:step")
-    ap.add_argument("--out")
-    ap.add_argument("--spawn", action="store_true")
-    ap.add_argument("--connect")
+    ap.add_argument("--out", help="output folder (default runs/crossing_<time>)")
+    ap.add_argument("--spawn", action="store_true", help="spawn a live rerun viewer (127.0.0.1)")
+    ap.add_argument("--connect", help="stream to a running rerun viewer (loopback URL)")
     ap.add_argument("--separate-nodes", action="store_true",
                     help="run the bridge and train nodes as two processes (default: one process hosting both, "
                          "as ROS composition does; the same nodes, topics and results, the DIM round trips cheaper)")
     add_domain_id(ap)
+    add_graph_options(ap)
     add_overwrite(ap, "replace the outputs of an earlier run in --out")
     args = ap.parse_args_or_exit(argv)
     return launch(_main, args)
@@ -60,7 +62,8 @@ def _main(args):
     pt = {k: v for k, v in (("train", args.train), ("model", args.model), ("speeds_kmh", args.speeds))
           if v is not None}
     pd = {"record_path": str(out / "run.mcap"), "rrd_path": str(out / "run.rrd"),
-          "summary_path": str(out / "summary.json"), "rerun_spawn": args.spawn, "overwrite": args.overwrite}
+          "summary_path": str(out / "summary.json"), "rerun_spawn": args.spawn, "overwrite": args.overwrite,
+          "wait_clients": args.wait_clients}
     if args.connect:
         pd["rerun_connect"] = args.connect
     t0 = time.perf_counter()

@@ -105,7 +105,7 @@ class BridgeRunState:
     tick: int                  #: progress every this many steps
     t0: float                  #: sim time at the start (s)
     wall0: float
-    acked: dict                #: recorder -> messages it acknowledged (flow control)
+    acked: dict                #: recorder or opted-in client -> messages it acknowledged (flow control)
     disp: np.ndarray | None = None
     peak: tuple = (-1.0, 0)    #: (exact max |a| of the monitored lane so far, its step)
     counts: dict = dataclasses.field(default_factory=dict)  #: topic -> messages published
@@ -118,6 +118,14 @@ class BridgeRunState:
     forced: bool = False       #: a pause outlasted half the partner timeout: on to the next exchange
     done_step: int = 0
     accel_msg: AccelStamped | None = None  #: the message of the midspan acceleration samples
+    #: acknowledging node -> the topics its count covers, when not every one of
+    #: :data:`adm_sim.protocol.SAMPLE_TOPICS` (a client that reads the acceleration alone)
+    ack_topics: dict = dataclasses.field(default_factory=dict)
+
+    def sent_to(self, name):
+        """Messages published so far on the topics node ``name`` acknowledges."""
+        topics = self.ack_topics.get(name)
+        return self.sent if topics is None else sum(self.counts[t] for t in topics)
 
 
 class BridgeNode(c.LockstepNode):
@@ -257,7 +265,8 @@ class BridgeNode(c.LockstepNode):
 
     # ------------------------------------------------------------------ flow control
     def _recorders(self):
-        """Names of the nodes that acknowledge what they recorded (publishers of ``/adm/run/ack``)."""
+        """Names of the nodes that acknowledge what they received (publishers of ``/adm/run/ack``:
+        the recorders and the clients that opted into the flow control)."""
         return sorted({i.node_namespace.rstrip("/") + "/" + i.node_name
                        for i in self.get_publishers_info_by_topic(self.resolve_topic_name(P.relative(P.TOPIC_ACK)))})
 
@@ -266,6 +275,9 @@ class BridgeNode(c.LockstepNode):
         ack = P.decode(msg.data)
         if r is None or ack.get("node") not in r.acked:
             return
+        topics = ack.get("topics")
+        if topics is not None:  # a client that counts some topics only (checked: the known ones)
+            r.ack_topics[ack["node"]] = tuple(t for t in topics if t in r.counts)
         r.acked[ack["node"]] = max(r.acked[ack["node"]], int(ack["received"]))
         r.ack_wait_since = None
         self._resume()
@@ -274,11 +286,17 @@ class BridgeNode(c.LockstepNode):
         """Whether the run is more than the window ahead of the slowest recorder (with ``pending``
         messages more published)."""
         r = self.run
-        return not r.forced and bool(r.acked) and r.sent + pending - min(r.acked.values()) >= P.FLOW_WINDOW
+        if r.forced or not r.acked:
+            return False
+        if not r.ack_topics:  # recorders only: each counts every topic
+            return r.sent + pending - min(r.acked.values()) >= P.FLOW_WINDOW
+        return any(r.sent_to(n) + pending - a >= P.FLOW_WINDOW for n, a in r.acked.items())
 
     def _all_acked(self):
         r = self.run
-        return not r.acked or min(r.acked.values()) >= r.sent
+        if not r.ack_topics:
+            return not r.acked or min(r.acked.values()) >= r.sent
+        return all(a >= r.sent_to(n) for n, a in r.acked.items())
 
     def _pause(self, what):
         """Wait for the recorders before ``what`` (``step``: the next exchange; ``end``: the result)."""
@@ -332,7 +350,7 @@ class BridgeNode(c.LockstepNode):
                 self.get_logger().warning(
                     f"run {r.id}: recorder '{name}' {'left' if name not in alive else 'acknowledged nothing for'}"
                     f"{'' if name not in alive else f' {0.5 * self.partner.timeout_s:g} s'}; it is no longer waited for "
-                    f"({r.acked[name]} of {r.sent} messages acknowledged)")
+                    f"({r.acked[name]} of {r.sent_to(name)} messages acknowledged)")
                 del r.acked[name]
         r.ack_wait_since = None if not r.acked else time.monotonic()
         self._resume()

@@ -39,6 +39,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.serialization import serialize_message
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension, String
 
+from adm_sim import protocol as P
 from adm_sim.cliutil import one_line_warnings
 from adm_sim.errors import AdmSimError, InputError, PlausibilityWarning, RunError
 from adm_sim.files import release_all
@@ -61,6 +62,53 @@ QOS_MONITOR = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=5000,
 #: Descriptions: latched (transient local), last value only.
 QOS_LATCHED = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                          reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+class FlowClient:
+    """Opt a client node into the bridge's flow control: one call, ``FlowClient(node)``, before the
+    run starts; then ``flow.received()`` in the callback of every message of ``topics``.
+
+    The bridge takes every publisher of ``/adm/run/ack`` at a run's set-up as a node to wait for
+    (docs/ros.md, "Flow control"): it never publishes more than :data:`adm_sim.protocol.FLOW_WINDOW`
+    messages of ``topics`` beyond this client's acknowledgement, and ends the run only once the
+    client has them all. Subscribe to ``topics`` RELIABLE with a history of at least
+    ``FLOW_WINDOW`` (:data:`QOS_MONITOR`). The counting is :class:`adm_sim.protocol.AckCounter`;
+    ``runs`` gives ``run_id -> (received, published)`` of the runs ended.
+
+    Parameters
+    ----------
+    node : rclpy.node.Node
+        The client's node; topics are relative (a namespaced node joins its namespace's graph).
+    topics : sequence of str
+        The topics the client reads, of :data:`adm_sim.protocol.SAMPLE_TOPICS` (default the midspan
+        acceleration).
+    """
+
+    def __init__(self, node, topics=(P.TOPIC_ACCEL,)):
+        self.counter = P.AckCounter(node.get_fully_qualified_name(), topics)
+        self.pub = node.create_publisher(String, P.relative(P.TOPIC_ACK), QOS_CONTROL)
+        node.create_subscription(String, P.relative(P.TOPIC_PROGRESS), self._on_progress, QOS_MONITOR)
+        node.create_subscription(String, P.relative(P.TOPIC_STATUS), self._on_status, QOS_CONTROL)
+
+    @property
+    def runs(self):
+        return self.counter.runs
+
+    def received(self, n=1):
+        """``n`` messages of the counted topics arrived."""
+        self._send(self.counter.count(n))
+
+    def _on_progress(self, msg):
+        self._send(self.counter.final(P.decode(msg.data)))
+
+    def _on_status(self, msg):
+        rec = P.decode(msg.data)
+        if P.is_bridge_start(rec):
+            self.counter.started(rec.get("run_id"))
+
+    def _send(self, rec):
+        if rec is not None:
+            self.pub.publish(String(data=P.encode(rec)))
 
 
 class ExchangeError(RunError):

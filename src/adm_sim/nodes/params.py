@@ -349,6 +349,7 @@ DRIVER_SPECS = [
     ParamSpec("rerun_connect", "", "", "stream to a rerun viewer at this loopback URL"),
     ParamSpec("summary_path", "", "", "JSON summary of the run(s); empty = none"),
     param("run_timeout_s", 900.0),
+    param("wait_clients", 0),
     param("chunk_size", 65536),
     ParamSpec("overwrite", False, "", "replace existing record_path, rrd_path and summary_path files"),
 ]
