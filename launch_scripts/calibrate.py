@@ -27,7 +27,7 @@ import sys
 import time
 from pathlib import Path
 
-from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, add_graph_options, client_export_line, discard_outputs, launch, preflight, release_out,
+from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, add_graph_options, graph_lines, discard_outputs, launch, preflight, release_out,
                          run_graph)
 
 from adm_sim.cliutil import Parser, add_choice, add_domain_id, add_overwrite, progress_bar
@@ -163,10 +163,9 @@ def _main(args):
     prog = Progress(args.quiet)
     try:
         with Supervisor(out / "logs", env=env) as sup:
-            print(f"ROS_DOMAIN_ID={sup.domain_id} (this machine only); output in {out}", flush=True)
-            print(f"{client_export_line(sup.env)}  # a ROS 2 client in another shell", flush=True)
+            graph_lines(sup, out, args.namespace)
             run_graph(sup, args.params_file, pb, pt, "calibration", "adm_calib.nodes.calibration_node", pc,
-                      prog.handle, composed=not args.separate_nodes)
+                      prog.handle, composed=not args.separate_nodes, namespace=args.namespace)
     except KeyboardInterrupt:
         prog._close_bar()
         release_out(out)

@@ -26,7 +26,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, add_graph_options, client_export_line, discard_outputs, launch, preflight, release_out,
+from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, add_graph_options, graph_lines, discard_outputs, launch, preflight, release_out,
                          run_graph)
 
 from adm_sim.cliutil import Parser, add_choice, add_domain_id, add_overwrite
@@ -69,8 +69,7 @@ def _main(args):
     t0 = time.perf_counter()
     try:
         with Supervisor(out / "logs", env=env) as sup:
-            print(f"ROS_DOMAIN_ID={sup.domain_id} (this machine only); output in {out}", flush=True)
-            print(f"{client_export_line(sup.env)}  # a ROS 2 client in another shell", flush=True)
+            graph_lines(sup, out, args.namespace)
             last = -1
 
             def on_line(line):
@@ -85,7 +84,7 @@ def _main(args):
                     print(line, flush=True)
 
             run_graph(sup, args.params_file, pb, pt, "driver", "adm_sim.nodes.driver", pd, on_line,
-                      composed=not args.separate_nodes)
+                      composed=not args.separate_nodes, namespace=args.namespace)
     except KeyboardInterrupt:
         release_out(out)
         discard_outputs(out, created, old)

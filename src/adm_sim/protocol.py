@@ -33,8 +33,11 @@ blueprint's views show, and the timeline names.
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
+
+from adm_sim.errors import InputError
 
 # ---------------------------------------------------------------------- nodes and services
 BRIDGE_NODE = "bridge"
@@ -75,6 +78,27 @@ def relative(name: str) -> str:
     (``/b3/adm/run/status``, ``/b3/clock``, ``/b3/train/start_run``). The names above are those
     of the default namespace; recordings store them so (:mod:`adm_sim.recording.mcap_log`)."""
     return name.lstrip("/")
+
+#: A namespace token (rcl's rule: letters, digits and ``_``, not starting with a digit).
+_NS_TOKEN = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+
+
+def check_namespace(text, option="--namespace"):
+    """``text`` as an absolute ROS 2 namespace (``b3`` -> ``/b3``, ``/site/b3`` kept; ``/`` or empty:
+    the root, ``/``), else :class:`~adm_sim.errors.InputError` naming ``option``, the value and the
+    rule (rcl's: ``/``-separated tokens of letters, digits and ``_``, none starting with a digit,
+    at most 255 characters)."""
+    raw = str(text).strip()
+    if raw in ("", "/"):
+        return "/"
+    ns = raw if raw.startswith("/") else "/" + raw
+    tokens = ns[1:].split("/")
+    if len(ns) > 255 or not all(_NS_TOKEN.fullmatch(t) for t in tokens):
+        raise InputError(f"{option}: {text!r} is not a valid ROS 2 namespace; allowed '/'-separated names of "
+                         f"letters, digits and '_', none starting with a digit or empty (e.g. /b3 or /site_1/b3), "
+                         f"at most 255 characters", field=option)
+    return ns
+
 
 #: Description topic of the ``bridge`` and ``train`` node.
 DESCRIPTION_TOPICS = {BRIDGE_NODE: TOPIC_BRIDGE_DESC, TRAIN_NODE: TOPIC_TRAIN_DESC}
@@ -510,7 +534,7 @@ def is_entity(path: str) -> bool:
 
 
 __all__ = [n for n in dir() if n.isupper() or n in (
-    "relative", "ack_record", "AckCounter", "summary_values", "summary_from_values", "encode", "decode", "setup_record", "ready_record", "ready_error", "is_rejected", "status_record",
+    "relative", "check_namespace", "ack_record", "AckCounter", "summary_values", "summary_from_values", "encode", "decode", "setup_record", "ready_record", "ready_error", "is_rejected", "status_record",
     "is_failure", "is_bridge_start", "progress_record", "bridge_description_record", "train_description_record",
     "driver_line", "parse_driver_line", "request_record", "is_request", "plain_run_phase", "run_tag", "acceleration_path",
     "beam_path", "sweep_curve_path", "sweep_trial_path", "delta_zeta_path", "peak_path", "is_entity")]

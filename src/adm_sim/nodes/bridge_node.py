@@ -65,11 +65,14 @@ def monitor_steps(bridge, grid, lane, every, beam_every):
 
 
 def frame_id(bridge, namespace="/"):
-    """Frame id of a bridge's midspan: ``<bridge>/midspan`` (the bridge's name, else the node's
-    namespace, else ``bridge``), characters outside ``[A-Za-z0-9_]`` replaced by ``_``."""
+    """Frame id of a bridge's midspan: ``<namespace>/<bridge>/midspan`` without the leading ``/``
+    (``b3/B1/midspan`` for the node ``/b3/bridge``; ``B1/midspan`` in the root namespace), the
+    bridge's name (else ``bridge``) with characters outside ``[A-Za-z0-9_]`` replaced by ``_``:
+    two graphs of one preset under two namespaces have distinct frames."""
 
-    name = bridge.name or namespace.strip("/") or "bridge"
-    return re.sub(r"[^A-Za-z0-9_]", "_", name) + "/midspan"
+    name = re.sub(r"[^A-Za-z0-9_]", "_", bridge.name or "bridge")
+    ns = namespace.strip("/")
+    return f"{ns}/{name}/midspan" if ns else f"{name}/midspan"
 
 
 #: The layout labels of the DIM rail state; the forces topic the bridge waits on (relative name).

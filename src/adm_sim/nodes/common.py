@@ -318,6 +318,7 @@ def json_msg(record):
 # ---------------------------------------------------------------------- parameters
 # The specs, the params-file checks and the list helpers are ROS-free (adm_sim.nodes.params);
 # they are imported here for the nodes.
+from adm_sim.nodes.params import unapplied_sections  # noqa: E402
 from adm_sim.nodes.params import (RCLPY_PARAMETERS, ParamSpec, check_params_file,  # noqa: E402,F401
                                   format_float_list, load_params_yaml, param, parse_float_list)
 
@@ -687,10 +688,12 @@ def _run_node(make_node, args, name):
 
 
     argv = sys.argv if args is None else list(args)
+    param_docs = []  # (file, its YAML): every section must reach its node (check_sections_apply)
     try:  # a params file that is not YAML: our line, before rcl prints its own
         for i, a in enumerate(argv[:-1]):
             if a == "--params-file":
                 doc = load_params_yaml(argv[i + 1])
+                param_docs.append((argv[i + 1], doc))
                 shared = doc.get("/**") if isinstance(doc, dict) else None
                 if isinstance(shared, dict) and isinstance(shared.get("ros__parameters"), dict):
                     SHARED_PARAMETER_NAMES.update(shared["ros__parameters"])
@@ -708,6 +711,7 @@ def _run_node(make_node, args, name):
     try:
         made = make_node()
         nodes = list(made) if isinstance(made, tuple) else [made]
+        check_sections_apply(nodes, param_docs)
         node = nodes[0]
         executor = node.make_executor()
         for n in nodes:
@@ -753,6 +757,22 @@ def _run_node(make_node, args, name):
         rclpy.try_shutdown()
         release_all()  # every output this node claimed, however it ended (no stray lock file)
     return code
+
+
+def check_sections_apply(nodes, param_docs):
+    """Refuse (:class:`InputError`, exit 2) a params-file section that names one of ``nodes`` but
+    that rcl does not apply to it: rcl matches sections by fully qualified name, so under
+    ``-r __ns:=/b3`` a section keyed ``bridge`` (read ``/bridge``) would leave the node
+    ``/b3/bridge`` on its defaults without a word."""
+    for node in nodes:
+        fqn = node.get_fully_qualified_name()
+        for path, doc in param_docs:
+            missed = unapplied_sections(doc, fqn)
+            if missed:
+                base = fqn.rsplit("/", 1)[-1]
+                raise InputError(f"--params-file {path!r}: section {missed[0]!r} is not applied to the node {fqn!r} "
+                                 f"(rcl reads it as {('/' + missed[0]).replace('//', '/')!r}); key it {fqn!r} or "
+                                 f"'/**/{base}'")
 
 
 #: How often the composed loop runs the nodes' :meth:`NodeBase.watch` (s).
