@@ -74,6 +74,7 @@ def check_args(args):
     args.exaggeration = view("cli", "--exaggeration").check(args.exaggeration)
     args.rate = view("cli", "--rate").check(args.rate)
     args.wait_subscribers = view("cli", "--wait-subscribers").check(args.wait_subscribers)
+    args.wait_clients = view("cli", "--wait-clients").check(args.wait_clients)
     if args.domain_id is not None:
         args.domain_id = view("cli", "--domain-id").check(args.domain_id)
     if args.republish:  # the transport's range (232 with shared memory only, else 101), an exported id too
@@ -124,6 +125,9 @@ def parse_args(argv=None):
     p.add_argument("--topics", nargs="+", default=None, help="republish only these topics")
     p.add_argument("--wait-subscribers", default="2", metavar="S", help=option_help(
         "--wait-subscribers", "wait up to S s until every republished topic has a subscriber"))
+    p.add_argument("--wait-clients", default="0", metavar="N", help=option_help(
+        "--wait-clients", "--republish: before the first message, wait (up to 600 s) until N clients opted "
+        "into the flow control (docs/recording.md): each gets every sample, at any --rate"))
     args = p.parse_args(argv)
     if args.via_convert and args.rrd is None:
         p.error("--via-convert needs --rrd OUT.rrd")
@@ -437,6 +441,112 @@ class _FlowControl:
                 self.drain(pub, topics[pub])
 
 
+class _ClientFlow:
+    """The bridge's flow control (docs/ros.md, "Flow control") for the clients that opted in: the
+    publishers of ``/adm/run/ack`` when the replay starts. The replay counts what it publishes of
+    each run (from the bridge's ``started`` record on) per topic of
+    :data:`adm_sim.protocol.SAMPLE_TOPICS`, publishes at most :data:`adm_sim.protocol.FLOW_WINDOW`
+    messages beyond a client's acknowledgement (over the topics the client counts, all of them
+    until it names its own), and starts the next run only once every client acknowledged the
+    whole run. A client that acknowledges nothing for ``ack_timeout_s`` is no longer waited for
+    (one ``warning:`` line), as the bridge does."""
+
+    def __init__(self, node, executor, ack_timeout_s: float):
+        from std_msgs.msg import String  # noqa: PLC0415  rclpy (~0.2 s) only when republishing
+
+        from adm_sim.nodes.common import QOS_CONTROL  # noqa: PLC0415  rclpy (~0.2 s) only when republishing
+
+        self.node, self.executor, self.ack_timeout_s = node, executor, ack_timeout_s
+        self.clients: dict = {}  # name -> [acknowledged, topics or None]
+        self.counts = dict.fromkeys(P.SAMPLE_TOPICS, 0)
+        self.total = 0
+        self.since = time.monotonic()
+        node.create_subscription(String, P.relative(P.TOPIC_ACK), self._on_ack, QOS_CONTROL)
+
+    def join(self, want=0, idle=lambda: None, timeout_s=600.0):
+        """Take the publishers of ``/adm/run/ack`` on the graph as the clients to wait for, once
+        there are ``want`` of them (at most ``timeout_s``, then :class:`RunError`)."""
+        t_end = time.monotonic() + timeout_s
+        infos = self.node.get_publishers_info_by_topic(P.TOPIC_ACK)
+        while len(infos) < want:
+            if time.monotonic() > t_end:
+                raise RunError(f"--wait-clients: {want} client(s) asked for, {len(infos)} opted in within "
+                               f"{timeout_s:g} s")
+            idle()
+            self.executor.spin_once(timeout_sec=0.05)
+            infos = self.node.get_publishers_info_by_topic(P.TOPIC_ACK)
+        if want:
+            time.sleep(0.5)  # the clients' own view: their ack publisher matched this replay's subscription
+        self.clients = {i.node_namespace.rstrip("/") + "/" + i.node_name: [0, None] for i in infos}
+        if self.clients:
+            print(f"clients opted in: {', '.join(sorted(self.clients))}", flush=True)
+
+    def _on_ack(self, msg):
+        rec = P.decode(msg.data)
+        c = self.clients.get(rec.get("node"))
+        if c is None:
+            return
+        c[0] = max(c[0], int(rec.get("received", 0)))
+        if rec.get("topics") is not None:
+            c[1] = tuple(t for t in rec["topics"] if t in self.counts)
+        self.since = time.monotonic()
+
+    def _sent_to(self, c):
+        return self.total if c[1] is None else sum(self.counts[t] for t in c[1])
+
+    def _wait(self, lagging):
+        """Spin until no client is ``lagging`` (a predicate of ``(name, client)``)."""
+        self.since = time.monotonic()
+        while True:
+            late = [n for n, c in self.clients.items() if lagging(c)]
+            if not late:
+                return
+            if time.monotonic() - self.since > self.ack_timeout_s:
+                for n in late:
+                    print(f"warning: republish: client '{n}' acknowledged nothing for {self.ack_timeout_s:g} s; "
+                          f"it is no longer waited for", file=sys.stderr, flush=True)
+                    del self.clients[n]
+                return
+            self.executor.spin_once(timeout_sec=0.01)
+
+    def sent(self, topic: str, n_sent: int):
+        """One message of ``topic`` published (``n_sent``: the replay's count so far)."""
+        if not self.clients or topic not in self.counts:
+            return
+        self.counts[topic] += 1
+        self.total += 1
+        if n_sent % P.ACK_EVERY == 0:
+            self.executor.spin_once(timeout_sec=0.0)
+        self._wait(lambda c: self._sent_to(c) - c[0] >= P.FLOW_WINDOW)
+
+    def run_start(self):
+        """Before a run's ``started`` record: every client has the whole run before it."""
+        if self.clients:
+            self._wait(lambda c: c[0] < self._sent_to(c))
+        self.counts = dict.fromkeys(P.SAMPLE_TOPICS, 0)
+        self.total = 0
+        for c in self.clients.values():
+            c[0] = 0
+
+
+def _is_final_diagnostics(data: bytes) -> bool:
+    """Whether a recorded ``/diagnostics`` message is a bridge's final one of a run (value ``final``
+    ``True``): the live bridge latches it."""
+    from diagnostic_msgs.msg import DiagnosticArray  # noqa: PLC0415  rclpy (~0.2 s) only when republishing
+    from rclpy.serialization import deserialize_message  # noqa: PLC0415  rclpy (~0.2 s) only when republishing
+
+    arr = deserialize_message(data, DiagnosticArray)
+    return any(kv.key == "final" and kv.value == "True" for st in arr.status for kv in st.values)
+
+
+def _is_bridge_start(data: bytes) -> bool:
+    from rclpy.serialization import deserialize_message  # noqa: PLC0415  rclpy (~0.2 s) only when republishing
+    from std_msgs.msg import String  # noqa: PLC0415  rclpy (~0.2 s) only when republishing
+
+    text = deserialize_message(data, String).data
+    return text.startswith("{") and P.is_bridge_start(P.decode(text))
+
+
 def republish(args, found) -> int:
     """Publish the recorded topics (``found``: the checked scan of the recording) and /clock in
     simulated time, each with the QoS it was recorded with (descriptions latched again),
@@ -470,8 +580,14 @@ def republish(args, found) -> int:
             record_shm([os.getpid()])
 
     note_shm()
+    from rclpy.executors import SingleThreadedExecutor  # noqa: PLC0415  rclpy (~0.2 s) only when republishing
+
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
     flow = _FlowControl(node)
+    clients = _ClientFlow(node, executor, ack_timeout_s=flow.ack_timeout_s)
     pubs, qos_of, topics = {}, {}, {}
+    diag_final = None  # the latched publisher of the runs' final /diagnostics, as the live bridge's
     sent = 0
     try:
         for schema, ch, _m in items:
@@ -479,6 +595,11 @@ def republish(args, found) -> int:
                 qos_of[ch.id] = _qos_profile(ch.metadata.get("offered_qos_profiles", ""), ch.topic)
                 pubs[ch.id] = node.create_publisher(msg_class(schema.name), ch.topic, qos_of[ch.id])
                 topics[pubs[ch.id]] = ch.topic
+                if ch.topic == P.TOPIC_DIAGNOSTICS:
+                    latched = _qos_profile("", P.TOPIC_BRIDGE_DESC)  # class L: transient local, depth 1
+                    diag_final = node.create_publisher(msg_class(schema.name), ch.topic, latched)
+                    topics[diag_final] = ch.topic
+                    qos_of["diag_final"] = latched
         clock_qos = _qos_profile("", P.TOPIC_CLOCK)
         clock_pub = node.create_publisher(Clock, P.TOPIC_CLOCK, clock_qos)
         topics[clock_pub] = P.TOPIC_CLOCK
@@ -488,7 +609,10 @@ def republish(args, found) -> int:
             time.sleep(0.05)
         for cid, pub in pubs.items():
             flow.add(pub, topics[pub], qos_of[cid])
+        if diag_final is not None:
+            flow.add(diag_final, P.TOPIC_DIAGNOSTICS, qos_of["diag_final"])
         flow.add(clock_pub, P.TOPIC_CLOCK, clock_qos)
+        clients.join(args.wait_clients, note_shm)
         start_wall = time.monotonic()
         start_sim = items[0][2].log_time
         last_clock = None
@@ -505,12 +629,20 @@ def republish(args, found) -> int:
                 clock_pub.publish(clock)
                 flow.sent(clock_pub, P.TOPIC_CLOCK)
                 last_clock = t_ns
-            pub.publish(bytes(message.data))
+            data = bytes(message.data)
+            if channel.topic == P.TOPIC_STATUS and _is_bridge_start(data):
+                clients.run_start()  # the opted-in clients have the run before it whole
+            if channel.topic == P.TOPIC_DIAGNOSTICS and diag_final is not None and _is_final_diagnostics(data):
+                pub = diag_final
+            pub.publish(data)
             flow.sent(pub, channel.topic)
             sent += 1
+            clients.sent(channel.topic, sent)
             note_shm()
+        clients.run_start()  # the last run whole for every opted-in client
         flow.drain_all(topics)  # every reliable message acknowledged before the participant goes away
     finally:
+        executor.remove_node(node)
         node.destroy_node()
         rclpy.try_shutdown(context=context)
     return sent

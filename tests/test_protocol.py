@@ -79,7 +79,7 @@ def test_topic_table_holds_every_topic_the_logger_and_the_recorder_read():
     for name, (typ, qos, _pub) in P.TOPICS.items():
         assert re.fullmatch(r"/[a-z_]+(/[a-z_]+)*", name), name
         assert re.fullmatch(r"[a-z_]+/msg/[A-Za-z0-9]+", typ), typ
-        assert qos in "CXML", (name, qos)
+        assert qos in "CXMLH", (name, qos)
     assert len({n for n in P.TOPICS}) == 20
 
 

@@ -105,7 +105,8 @@ DESCRIPTION_TOPICS = {BRIDGE_NODE: TOPIC_BRIDGE_DESC, TRAIN_NODE: TOPIC_TRAIN_DE
 
 #: Every topic: ``name -> (message type, QoS class, publisher)``; QoS classes: ``C`` control
 #: (reliable, deep), ``X`` exchange (reliable, lockstep), ``M`` monitor (reliable, deepest),
-#: ``L`` latched (transient local, last value).
+#: ``L`` latched (transient local, last value), ``H`` history (transient local, the last
+#: :data:`SUMMARY_HISTORY`).
 TOPICS = {
     TOPIC_SETUP: ("std_msgs/msg/String", "C", TRAIN_NODE),
     TOPIC_READY: ("std_msgs/msg/String", "C", BRIDGE_NODE),
@@ -126,8 +127,11 @@ TOPICS = {
     TOPIC_CAL_ITERATION: ("std_msgs/msg/Float64MultiArray", "C", CALIBRATION_NODE),
     TOPIC_CAL_RESULT: ("std_msgs/msg/String", "L", CALIBRATION_NODE),
     TOPIC_ACK: ("std_msgs/msg/String", "C", f"{DRIVER_NODE} / {CALIBRATION_NODE}"),
-    TOPIC_SUMMARY: ("diagnostic_msgs/msg/DiagnosticStatus", "L", BRIDGE_NODE),
+    TOPIC_SUMMARY: ("diagnostic_msgs/msg/DiagnosticStatus", "H", BRIDGE_NODE),
 }
+#: Passages the per-passage summary keeps for a late or lagging client (QoS class ``H``: transient
+#: local, this history depth).
+SUMMARY_HISTORY = 1000
 
 # ---------------------------------------------------------------------- flow control
 #: Topics whose messages the bridge counts per run (``samples`` of its final progress record and

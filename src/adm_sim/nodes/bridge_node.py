@@ -151,7 +151,7 @@ class BridgeNode(c.LockstepNode):
         self.pub_ready = pub(String, R(P.TOPIC_READY), c.QOS_CONTROL)
         self.pub_result = pub(Float64MultiArray, R(P.TOPIC_RESULT), c.QOS_LATCHED)
         self.pub_status = pub(String, R(P.TOPIC_STATUS), c.QOS_CONTROL)
-        self.pub_summary = pub(DiagnosticStatus, R(P.TOPIC_SUMMARY), c.QOS_LATCHED)
+        self.pub_summary = pub(DiagnosticStatus, R(P.TOPIC_SUMMARY), c.QOS_HISTORY)
         #: monitoring publishers, counted per run (:data:`adm_sim.protocol.SAMPLE_TOPICS`)
         self.pubs = {t: pub(typ, R(t), c.QOS_CONTROL if t == P.TOPIC_DIAGNOSTICS else c.QOS_MONITOR)
                      for t, typ in ((P.TOPIC_CLOCK, Clock), (P.TOPIC_ACCEL, AccelStamped),

@@ -59,6 +59,10 @@ QOS_CONTROL = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
 #: Monitoring streams (midspan, beam, clock, progress): reliable, deep history for recorders.
 QOS_MONITOR = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=5000,
                          reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
+#: The per-passage summary: transient local with a history of :data:`adm_sim.protocol.SUMMARY_HISTORY`
+#: passages, so a client that lags or joins late reads the passages it missed.
+QOS_HISTORY = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=P.SUMMARY_HISTORY,
+                         reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 #: Descriptions: latched (transient local), last value only.
 QOS_LATCHED = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                          reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -78,17 +82,24 @@ class FlowClient:
     Parameters
     ----------
     node : rclpy.node.Node
-        The client's node; topics are relative (a namespaced node joins its namespace's graph).
+        The client's node.
     topics : sequence of str
         The topics the client reads, of :data:`adm_sim.protocol.SAMPLE_TOPICS` (default the midspan
         acceleration).
+    graph : str or None
+        The namespace of the graph (``/b1``: its ``/b1/adm/run/ack``); ``None``: the node's own
+        (relative names).
     """
 
-    def __init__(self, node, topics=(P.TOPIC_ACCEL,)):
+    def __init__(self, node, topics=(P.TOPIC_ACCEL,), graph=None):
         self.counter = P.AckCounter(node.get_fully_qualified_name(), topics)
-        self.pub = node.create_publisher(String, P.relative(P.TOPIC_ACK), QOS_CONTROL)
-        node.create_subscription(String, P.relative(P.TOPIC_PROGRESS), self._on_progress, QOS_MONITOR)
-        node.create_subscription(String, P.relative(P.TOPIC_STATUS), self._on_status, QOS_CONTROL)
+
+        def name(topic):
+            return P.relative(topic) if graph is None else graph.rstrip("/") + topic
+
+        self.pub = node.create_publisher(String, name(P.TOPIC_ACK), QOS_CONTROL)
+        node.create_subscription(String, name(P.TOPIC_PROGRESS), self._on_progress, QOS_MONITOR)
+        node.create_subscription(String, name(P.TOPIC_STATUS), self._on_status, QOS_CONTROL)
 
     @property
     def runs(self):
