@@ -25,7 +25,7 @@ import pytest
 
 from adm_sim import protocol as P
 from adm_sim.recording.mcap_log import read_messages
-from ros_fixtures import ROOT, ros_domain  # noqa: F401
+from ros_fixtures import ROOT, node_procs, ros_domain  # noqa: F401
 from test_ros_client_env import docs_client
 from test_ros_flow import COARSE_PARAMS
 
@@ -160,3 +160,37 @@ def test_opted_in_client_and_monitor_lose_nothing_under_load(tmp_path, ros_domai
                 q.kill()
     got = eval(l_out.strip().splitlines()[-1])  # the subscriber's repr of (name, run_id, final) tuples
     assert [int(rid) for _n, rid, _f in got] == sorted(done) and {f for _n, _r, f in got} == {"True"}, l_out
+
+
+SUMMARIES = r"""
+import rclpy
+from diagnostic_msgs.msg import DiagnosticStatus
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+rclpy.init()
+n = rclpy.create_node("late_summaries")
+got = []
+qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000, reliability=ReliabilityPolicy.RELIABLE,
+                 durability=DurabilityPolicy.TRANSIENT_LOCAL)
+n.create_subscription(DiagnosticStatus, "/adm/run/summary", got.append, qos)
+import time
+end = time.monotonic() + 20
+while len(got) < 3 and time.monotonic() < end:
+    rclpy.spin_once(n, timeout_sec=0.1)
+print([dict((kv.key, kv.value) for kv in s.values)["run_id"] for s in got], flush=True)
+rclpy.try_shutdown()
+"""
+
+
+def test_a_late_client_reads_every_passage_summary(node_procs, ros_domain):
+    """Three runs, then a client joins: the summary's history (TRANSIENT_LOCAL, KEEP_LAST 1000) gives it
+    all three passages, in order (with the depth-1 latching of before it got the last one only)."""
+    from ros_fixtures import driver_node
+
+    node_procs.start("bridge", "adm_sim.nodes.bridge_node", {"bridge": "B1", "steps_per_period": 4.0})
+    node_procs.start("train", "adm_sim.nodes.train_node", {"speeds_kmh": "250,260", "model": "mlm"})
+    with driver_node(ros_domain.domain_id) as d:
+        d.wait_for_graph()
+        ids = [d.request_run()["run_id"] for _ in range(3)]
+        late = subprocess.run([sys.executable, "-c", SUMMARIES], env=dict(ros_domain), capture_output=True,
+                              text=True, timeout=120)
+    assert late.stdout.strip() == repr([str(i) for i in ids]), late.stdout + late.stderr
