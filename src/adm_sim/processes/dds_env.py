@@ -1,8 +1,10 @@
 """Keep every ROS 2 run on this machine and apart from every other run.
 
-* :func:`local_ros_env` returns an environment for a run (or its child processes) with Fast DDS
-  restricted to shared memory (``FASTDDS_BUILTIN_TRANSPORTS=SHM``: no UDP socket at all),
-  ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` and a ``ROS_DOMAIN_ID``: the one asked for, else an
+* :func:`local_ros_env` returns an environment for a run (or its child processes) with
+  ``FASTDDS_BUILTIN_TRANSPORTS=SHM``, ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` (with it,
+  rmw_fastrtps configures its own transports: shared memory and UDPv4, discovery announced to
+  127.0.0.1 only, no multicast; data between processes of this machine over shared memory) and a
+  ``ROS_DOMAIN_ID``: the one asked for, else an
   exported ``ROS_DOMAIN_ID``, else a free id in ``[1, 101]`` reserved with an exclusive
   ``fcntl.flock`` on a lock file under ``/tmp/adm_sim_ros_domains/``; the lock is released when
   the run closes it or dies, so concurrent runs never share an id and a killed run never leaks
