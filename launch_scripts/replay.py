@@ -7,7 +7,7 @@ Usage::
     replay.py RUN.mcap --spawn                  # open a native viewer (bound to 127.0.0.1)
     replay.py RUN.mcap --connect rerun+http://127.0.0.1:9876/proxy
     replay.py RUN.mcap --rrd OUT.rrd --via-convert   # rerun's own MCAP importer instead
-    replay.py RUN.mcap --republish [--domain-id N] [--rate X] [--topics /adm/midspan/accel ...]
+    replay.py RUN.mcap --republish [--domain-id N] [--rate X] [--topics /adm/midspan/accel ...] [--wait-clients N]
 
 The recording is decoded with mcap-ros2-support. The adm-sim topics (runs, midspan acceleration,
 beam, results, calibration) are drawn by :class:`adm_sim.recording.rerun_log.RunLogger` exactly as the
@@ -25,8 +25,12 @@ line ``warning: ...`` on stderr.
 ``rosgraph_msgs/Clock`` on ``/clock`` ahead of each new time stamp, paced at ``--rate`` times
 simulated time (0: as fast as possible). DDS stays on this machine: ``FASTDDS_BUILTIN_TRANSPORTS=SHM``
 unless already set, ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, and ``--domain-id``, else an exported
-``ROS_DOMAIN_ID``, else a free, locked id (printed on the first line); ids up to 232 with shared memory
-only, 101 with a UDP transport. Its writers send a heartbeat every 0.1 s while a sample is not
+``ROS_DOMAIN_ID``, else a free, locked id (printed on the first line, the client's ``export`` line on
+the second); ids up to 232 with shared memory only, 101 with a UDP transport. Clients that opted
+into the flow control (publishers of ``/adm/run/ack``; ``--wait-clients N`` waits for N of them)
+get every sample at any rate: a run's messages stay within ``FLOW_WINDOW`` of each one's
+acknowledgement and the next run starts once each has the whole run. Every run's final
+``/diagnostics`` is published latched, as the live bridge does. Its writers send a heartbeat every 0.1 s while a sample is not
 acknowledged (Fast DDS sends one every 3 s by default, and the replay's end waits for every
 subscriber's acknowledgement, which answers a heartbeat), unless a Fast DDS profile file is
 exported (``FASTRTPS_DEFAULT_PROFILES_FILE`` or ``FASTDDS_DEFAULT_PROFILES_FILE``): then its
