@@ -29,7 +29,7 @@ unless already set, ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, and ``--domain-
 the second); ids up to 232 with shared memory only, 101 with a UDP transport. Clients that opted
 into the flow control (publishers of ``/adm/run/ack``; ``--wait-clients N`` waits for N of them)
 get every sample at any rate: a run's messages stay within ``FLOW_WINDOW`` of each one's
-acknowledgement and the next run starts once each has the whole run. Every run's final
+acknowledgement and its ``done`` comes once each has the whole run. Every run's final
 ``/diagnostics`` is published latched, as the live bridge does. Its writers send a heartbeat every 0.1 s while a sample is not
 acknowledged (Fast DDS sends one every 3 s by default, and the replay's end waits for every
 subscriber's acknowledgement, which answers a heartbeat), unless a Fast DDS profile file is
@@ -451,8 +451,8 @@ class _ClientFlow:
     each run (from the bridge's ``started`` record on) per topic of
     :data:`adm_sim.protocol.SAMPLE_TOPICS`, publishes at most :data:`adm_sim.protocol.FLOW_WINDOW`
     messages beyond a client's acknowledgement (over the topics the client counts, all of them
-    until it names its own), and starts the next run only once every client acknowledged the
-    whole run. A client that acknowledges nothing for ``ack_timeout_s`` is no longer waited for
+    until it names its own), and publishes a run's ``done`` only once every client acknowledged
+    the whole run, as the bridge does. A client that acknowledges nothing for ``ack_timeout_s`` is no longer waited for
     (one ``warning:`` line), as the bridge does."""
 
     def __init__(self, node, executor, ack_timeout_s: float):
@@ -523,10 +523,13 @@ class _ClientFlow:
             self.executor.spin_once(timeout_sec=0.0)
         self._wait(lambda c: self._sent_to(c) - c[0] >= P.FLOW_WINDOW)
 
-    def run_start(self):
-        """Before a run's ``started`` record: every client has the whole run before it."""
+    def run_end(self):
+        """Before a run's ``done`` (or ``failed``) record: every client has the whole run."""
         if self.clients:
             self._wait(lambda c: c[0] < self._sent_to(c))
+
+    def run_start(self):
+        """At a run's ``started`` record: count its messages from 0."""
         self.counts = dict.fromkeys(P.SAMPLE_TOPICS, 0)
         self.total = 0
         for c in self.clients.values():
@@ -543,12 +546,19 @@ def _is_final_diagnostics(data: bytes) -> bool:
     return any(kv.key == "final" and kv.value == "True" for st in arr.status for kv in st.values)
 
 
-def _is_bridge_start(data: bytes) -> bool:
+def _bridge_record(data: bytes) -> str | None:
+    """``started``, ``done`` or ``failed`` when a recorded ``/adm/run/status`` message is the
+    bridge's record of that state, else None."""
     from rclpy.serialization import deserialize_message  # noqa: PLC0415  rclpy (~0.2 s) only when republishing
     from std_msgs.msg import String  # noqa: PLC0415  rclpy (~0.2 s) only when republishing
 
     text = deserialize_message(data, String).data
-    return text.startswith("{") and P.is_bridge_start(P.decode(text))
+    if not text.startswith("{"):
+        return None
+    rec = P.decode(text)
+    if rec.get("node") != P.BRIDGE_NODE or rec.get("state") not in (P.STARTED, P.DONE, P.FAILED):
+        return None
+    return rec["state"]
 
 
 def republish(args, found) -> int:
@@ -634,8 +644,11 @@ def republish(args, found) -> int:
                 flow.sent(clock_pub, P.TOPIC_CLOCK)
                 last_clock = t_ns
             data = bytes(message.data)
-            if channel.topic == P.TOPIC_STATUS and _is_bridge_start(data):
-                clients.run_start()  # the opted-in clients have the run before it whole
+            state = _bridge_record(data) if channel.topic == P.TOPIC_STATUS else None
+            if state in (P.DONE, P.FAILED):
+                clients.run_end()  # as the bridge: a run's done only once the opted-in clients have it whole
+            elif state == P.STARTED:
+                clients.run_start()
             if channel.topic == P.TOPIC_DIAGNOSTICS and diag_final is not None and _is_final_diagnostics(data):
                 pub = diag_final
             pub.publish(data)
@@ -643,7 +656,7 @@ def republish(args, found) -> int:
             sent += 1
             clients.sent(channel.topic, sent)
             note_shm()
-        clients.run_start()  # the last run whole for every opted-in client
+        clients.run_end()  # the last run whole for every opted-in client (a recording cut short)
         flow.drain_all(topics)  # every reliable message acknowledged before the participant goes away
     finally:
         executor.remove_node(node)
