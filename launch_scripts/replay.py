@@ -480,7 +480,7 @@ class _ClientFlow:
             self.executor.spin_once(timeout_sec=0.05)
             infos = self.node.get_publishers_info_by_topic(P.TOPIC_ACK)
         if want:
-            time.sleep(0.5)  # the clients' own view: their ack publisher matched this replay's subscription
+            time.sleep(2.0)  # the clients' own view of this replay (their subscriptions matched) can lag this one
         self.clients = {i.node_namespace.rstrip("/") + "/" + i.node_name: [0, None] for i in infos}
         if self.clients:
             print(f"clients opted in: {', '.join(sorted(self.clients))}", flush=True)

@@ -276,7 +276,9 @@ class RunDriver(c.NodeBase):
                 raise RunError(f"wait_clients: {want} client(s) asked for, {len(self.opted_in_clients())} opted in "
                                f"within run_timeout_s = {timeout_s:g} s")
             self._event.wait(0.05)
-        self._event.wait(0.5)  # the bridge takes them at the run's set-up from its own view of the graph
+        # the bridge takes them at the run's set-up from its own view of the graph, which can lag
+        # this node's by a second or more on a loaded machine
+        self._event.wait(2.0)
         print(f"clients opted in: {', '.join(self.opted_in_clients())}", flush=True)
 
     def _check_alive(self):
