@@ -15,11 +15,13 @@ from pathlib import Path
 
 import numpy as np
 
-from adm_sim.cliutil import run_cli
+from adm_sim.cliutil import option_help, run_cli
 from adm_sim.errors import InputError, PlausibilityWarning
 from adm_sim.fields import view
 from adm_sim.files import FOLDER_LOCK, check_output_folder, claim_folder, input_file, make_output_folder, release
 from adm_sim.processes.dds_env import local_ros_env
+from adm_sim.processes.dds_env import client_export_line  # noqa: F401  (used by the scripts)
+from adm_sim.protocol import check_namespace
 from adm_sim.processes.supervisor import NodeDied, Supervisor, ros_args  # noqa: F401  (used by the scripts)
 from adm_sim.integrate.run_contract import check_model
 
@@ -36,6 +38,17 @@ def launch(body, args):
     130, plausibility warnings one ``warning: ...`` line each; the body's return value is the exit code."""
 
     return run_cli(lambda: body(args))
+
+
+def add_graph_options(parser):
+    """The options every graph launcher shares beside ``--domain-id``: ``--namespace``, ``--wait-clients``."""
+    parser.add_argument("--namespace", default="/", metavar="NS", help=(
+        "start the whole graph (bridge, train, their exchange helpers, the driver or calibration node "
+        "and its recorder) in the ROS 2 namespace NS (e.g. /b3: topics /b3/adm/midspan/accel, /b3/clock, "
+        "frame ids b3/<bridge>/midspan); the params file's sections apply to the namespaced nodes; default /"))
+    parser.add_argument("--wait-clients", default="0", metavar="N", help=option_help(
+        "--wait-clients", "before the first run, wait until N clients opted into the flow control "
+        "(docs/ros.md, 'Flow control'), so that they receive every sample"))
 
 
 def preflight(args, default_out, dim=False, model=None):
@@ -56,6 +69,8 @@ def preflight(args, default_out, dim=False, model=None):
     """
 
     domain_id = check_domain_id(args.domain_id)
+    args.wait_clients = view("cli", "--wait-clients").check(args.wait_clients)
+    args.namespace = check_namespace(args.namespace)
     check_viewer(args.spawn, args.connect)
     if args.out is not None and not args.out.strip():
         raise InputError("--out: '' is empty; give a folder or omit --out")
@@ -353,23 +368,51 @@ def composed_args(params_file, bridge_params, train_params):
                                   **{f"train:{k}": v for k, v in train_params.items()}})
 
 
+def graph_lines(sup, out, namespace):
+    """The launcher's first two lines: the domain id (and namespace) and the client's export line."""
+    where = "" if namespace == "/" else f", namespace {namespace}"
+    print(f"ROS_DOMAIN_ID={sup.domain_id} (this machine only{where}); output in {out}", flush=True)
+    topics = "" if namespace == "/" else f" (topics under {namespace})"
+    print(f"{client_export_line(sup.env)}  # a ROS 2 client in another shell{topics}", flush=True)
+
+
 def run_graph(sup, params_file, bridge_params, train_params, driver, driver_module, driver_params, on_line,
-              composed=False):
+              composed=False, namespace="/"):
     """Start the bridge, train and driver nodes and follow the driver until it exits.
 
     ``composed``: the bridge and train nodes in one process (:mod:`adm_sim.nodes.composed`,
-    process name :data:`COMPOSED`) instead of one each. Every stdout line of the driver goes to
-    ``on_line``. Raises :class:`NodeDied` naming the node when the bridge or the train dies, or
-    when the driver fails.
+    process name :data:`COMPOSED`) instead of one each. ``namespace``: every process is started
+    with ``-r __ns:=<namespace>`` (each node, its exchange helper and the driver's recorder) and
+    the params file's sections keyed by the namespaced node names
+    (:func:`adm_sim.nodes.params.namespaced_params`, a copy in the log folder). Every stdout line
+    of the driver goes to ``on_line``. Raises :class:`NodeDied` naming the node when the bridge or
+    the train dies, or when the driver fails.
     """
-    if composed:
+    ns_args = []
+    if namespace != "/":
+        from adm_sim.nodes.params import namespaced_params  # noqa: PLC0415  the parameter tables load yaml: only here
+
+        if params_file:
+            params_file = namespaced_params(params_file, namespace, sup.log_dir / "params_namespaced.yaml")
+        ns_args = ["-r", f"__ns:={namespace}"]
+    if composed and ns_args:  # rcl's node-prefixed -p cannot name a namespaced node: a second file
+        import yaml  # noqa: PLC0415  only with a namespace
+
+        ns = namespace.rstrip("/")
+        overrides = sup.log_dir / "params_overrides.yaml"
+        overrides.write_text(yaml.safe_dump({f"{ns}/bridge": {"ros__parameters": dict(bridge_params)},
+                                             f"{ns}/train": {"ros__parameters": dict(train_params)}}))
+        args = ros_args(params_file) + ["--params-file", str(overrides)]
+        sup.start(COMPOSED, "adm_sim.nodes.composed", args + ns_args)
+        pair = (COMPOSED,)
+    elif composed:
         sup.start(COMPOSED, "adm_sim.nodes.composed", composed_args(params_file, bridge_params, train_params))
         pair = (COMPOSED,)
     else:
-        sup.start("bridge", "adm_sim.nodes.bridge_node", ros_args(params_file, bridge_params))
-        sup.start("train", "adm_sim.nodes.train_node", ros_args(params_file, train_params))
+        sup.start("bridge", "adm_sim.nodes.bridge_node", ros_args(params_file, bridge_params) + ns_args)
+        sup.start("train", "adm_sim.nodes.train_node", ros_args(params_file, train_params) + ns_args)
         pair = ("bridge", "train")
-    sup.start(driver, driver_module, ros_args(params_file, driver_params), capture=True)
+    sup.start(driver, driver_module, ros_args(params_file, driver_params) + ns_args, capture=True)
     while True:
         try:
             _, line = sup.lines.get(timeout=0.2)

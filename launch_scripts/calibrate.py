@@ -27,8 +27,8 @@ import sys
 import time
 from pathlib import Path
 
-from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, after_node_died, discard_outputs, launch, preflight,
-                         release_out, run_graph)
+from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, add_graph_options, after_node_died, discard_outputs,
+                         graph_lines, launch, preflight, release_out, run_graph)
 
 from adm_sim.cliutil import Parser, add_choice, add_domain_id, add_max_work, add_overwrite, progress_bar
 from adm_sim.files import write_atomic
@@ -55,6 +55,7 @@ def parse_args(argv=None):
                          "as ROS composition does; the same nodes, topics and results, the DIM round trips cheaper)")
     add_domain_id(ap)
     add_max_work(ap)
+    add_graph_options(ap)
     ap.add_argument("--quiet", action="store_true", help="no progress bars")
     add_overwrite(ap, "replace the outputs of an earlier run in --out")
     return ap.parse_args_or_exit(argv)
@@ -63,7 +64,8 @@ def parse_args(argv=None):
 def node_params(args, out):
     bridge = {} if args.bridge is None else {"bridge": args.bridge}
     train = {} if args.train is None else {"train": args.train}
-    cal = {"record_path": str(out / "run.mcap"), "summary_path": str(out / "summary.json"), "overwrite": args.overwrite}
+    cal = {"record_path": str(out / "run.mcap"), "summary_path": str(out / "summary.json"), "overwrite": args.overwrite,
+           "wait_clients": args.wait_clients}
     if not args.no_rrd:
         cal["rrd_path"] = str(out / "run.rrd")
     if args.spawn:
@@ -163,9 +165,9 @@ def _main(args):
     prog = Progress(args.quiet)
     try:
         with Supervisor(out / "logs", env=env) as sup:
-            print(f"ROS_DOMAIN_ID={sup.domain_id} (shared memory only); output in {out}", flush=True)
+            graph_lines(sup, out, args.namespace)
             run_graph(sup, args.params_file, pb, pt, "calibration", "adm_calib.nodes.calibration_node", pc,
-                      prog.handle, composed=not args.separate_nodes)
+                      prog.handle, composed=not args.separate_nodes, namespace=args.namespace)
     except KeyboardInterrupt:
         prog._close_bar()
         release_out(out)

@@ -26,8 +26,8 @@ import time
 from pathlib import Path
 
 import numpy as np
-from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, after_node_died, discard_outputs, launch, preflight,
-                         release_out, run_graph)
+from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, add_graph_options, after_node_died, discard_outputs,
+                         graph_lines, launch, preflight, release_out, run_graph)
 
 from adm_sim.cliutil import Parser, add_choice, add_domain_id, add_max_work, add_overwrite
 from adm_sim.model.plausibility import check_response
@@ -40,9 +40,9 @@ def main(argv=None):
                     help="ROS 2 params YAML applied to every node (default ros_ws/params/crossing_b3_300.yaml)")
     ap.add_argument("--bridge", help="bridge preset for the bridge node (B1..B4, spec or TOML file)")
     ap.add_argument("--train", help="train name or TOML file for the train node")
-    add_choice(ap, "--model", "mlm: moving loads; dim: the detailed vehicles (default: the params file's)")
+    add_choice(ap, "--model", "dim (vehicles on the deck) or mlm (moving loads); default: the params file's")
     ap.add_argument("--speeds", help="km/h: one speed, a comma list or start:stop:step")
-    ap.add_argument("--out", help="output folder (default runs/crossing_<time>/)")
+    ap.add_argument("--out", help="output folder (default runs/crossing_<time>)")
     ap.add_argument("--spawn", action="store_true", help="spawn a live rerun viewer (127.0.0.1)")
     ap.add_argument("--connect", help="stream to a running rerun viewer (loopback URL)")
     ap.add_argument("--separate-nodes", action="store_true",
@@ -50,6 +50,7 @@ def main(argv=None):
                          "as ROS composition does; the same nodes, topics and results, the DIM round trips cheaper)")
     add_domain_id(ap)
     add_max_work(ap)
+    add_graph_options(ap)
     add_overwrite(ap, "replace the outputs of an earlier run in --out")
     args = ap.parse_args_or_exit(argv)
     return launch(_main, args)
@@ -63,13 +64,14 @@ def _main(args):
     pt = {k: v for k, v in (("train", args.train), ("model", args.model), ("speeds_kmh", args.speeds))
           if v is not None}
     pd = {"record_path": str(out / "run.mcap"), "rrd_path": str(out / "run.rrd"),
-          "summary_path": str(out / "summary.json"), "rerun_spawn": args.spawn, "overwrite": args.overwrite}
+          "summary_path": str(out / "summary.json"), "rerun_spawn": args.spawn, "overwrite": args.overwrite,
+          "wait_clients": args.wait_clients}
     if args.connect:
         pd["rerun_connect"] = args.connect
     t0 = time.perf_counter()
     try:
         with Supervisor(out / "logs", env=env) as sup:
-            print(f"ROS_DOMAIN_ID={sup.domain_id} (shared memory only); output in {out}", flush=True)
+            graph_lines(sup, out, args.namespace)
             last = -1
 
             def on_line(line):
@@ -84,7 +86,7 @@ def _main(args):
                     print(line, flush=True)
 
             run_graph(sup, args.params_file, pb, pt, "driver", "adm_sim.nodes.driver", pd, on_line,
-                      composed=not args.separate_nodes)
+                      composed=not args.separate_nodes, namespace=args.namespace)
     except KeyboardInterrupt:
         release_out(out)
         discard_outputs(out, created, old)

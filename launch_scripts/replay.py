@@ -7,7 +7,7 @@ Usage::
     replay.py RUN.mcap --spawn                  # open a native viewer (bound to 127.0.0.1)
     replay.py RUN.mcap --connect rerun+http://127.0.0.1:9876/proxy
     replay.py RUN.mcap --rrd OUT.rrd --via-convert   # rerun's own MCAP importer instead
-    replay.py RUN.mcap --republish [--domain-id N] [--rate X] [--topics /adm/midspan/accel ...]
+    replay.py RUN.mcap --republish [--domain-id N] [--rate X] [--topics /adm/midspan/accel ...] [--wait-clients N]
 
 The recording is decoded with mcap-ros2-support. The adm-sim topics (runs, midspan acceleration,
 beam, results, calibration) are drawn by :class:`adm_sim.recording.rerun_log.RunLogger` exactly as the
@@ -25,8 +25,12 @@ line ``warning: ...`` on stderr.
 ``rosgraph_msgs/Clock`` on ``/clock`` ahead of each new time stamp, paced at ``--rate`` times
 simulated time (0: as fast as possible). DDS stays on this machine: ``FASTDDS_BUILTIN_TRANSPORTS=SHM``
 unless already set, ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, and ``--domain-id``, else an exported
-``ROS_DOMAIN_ID``, else a free, locked id (printed on the first line); ids up to 232 with shared memory
-only, 101 with a UDP transport. Its writers send a heartbeat every 0.1 s while a sample is not
+``ROS_DOMAIN_ID``, else a free, locked id (printed on the first line, the client's ``export`` line on
+the second); ids up to 232 with shared memory only, 101 with a UDP transport. Clients that opted
+into the flow control (publishers of ``/adm/run/ack``; ``--wait-clients N`` waits for N of them)
+get every sample at any rate: a run's messages stay within ``FLOW_WINDOW`` of each one's
+acknowledgement and its ``done`` comes once each has the whole run. Every run's final
+``/diagnostics`` is published latched, as the live bridge does. Its writers send a heartbeat every 0.1 s while a sample is not
 acknowledged (Fast DDS sends one every 3 s by default, and the replay's end waits for every
 subscriber's acknowledgement, which answers a heartbeat), unless a Fast DDS profile file is
 exported (``FASTRTPS_DEFAULT_PROFILES_FILE`` or ``FASTDDS_DEFAULT_PROFILES_FILE``): then its
@@ -55,7 +59,7 @@ from adm_sim.cliutil import Parser, add_domain_id, add_overwrite, option_help, r
 from adm_sim.errors import InputError, RunError
 from adm_sim.fields import view
 from adm_sim.files import claim_output, mcap_input, write_atomic
-from adm_sim.processes.dds_env import apply_local_ros_env, check_domain_id, clean_dead_shm, record_shm
+from adm_sim.processes.dds_env import apply_local_ros_env, check_domain_id, clean_dead_shm, client_export_line, record_shm
 from adm_sim.recording import rerun_log as rl
 from adm_sim.recording import viewer_process as vp
 
@@ -74,6 +78,7 @@ def check_args(args):
     args.exaggeration = view("cli", "--exaggeration").check(args.exaggeration)
     args.rate = view("cli", "--rate").check(args.rate)
     args.wait_subscribers = view("cli", "--wait-subscribers").check(args.wait_subscribers)
+    args.wait_clients = view("cli", "--wait-clients").check(args.wait_clients)
     if args.domain_id is not None:
         args.domain_id = view("cli", "--domain-id").check(args.domain_id)
     if args.republish:  # the transport's range (232 with shared memory only, else 101), an exported id too
@@ -124,6 +129,9 @@ def parse_args(argv=None):
     p.add_argument("--topics", nargs="+", default=None, help="republish only these topics")
     p.add_argument("--wait-subscribers", default="2", metavar="S", help=option_help(
         "--wait-subscribers", "wait up to S s until every republished topic has a subscriber"))
+    p.add_argument("--wait-clients", default="0", metavar="N", help=option_help(
+        "--wait-clients", "--republish: before the first message, wait (up to 600 s) until N clients opted "
+        "into the flow control (docs/recording.md): each gets every sample, at any --rate"))
     args = p.parse_args(argv)
     if args.via_convert and args.rrd is None:
         p.error("--via-convert needs --rrd OUT.rrd")
@@ -452,6 +460,122 @@ class _FlowControl:
                 self.drain(pub, topics[pub])
 
 
+class _ClientFlow:
+    """The bridge's flow control (docs/ros.md, "Flow control") for the clients that opted in: the
+    publishers of ``/adm/run/ack`` when the replay starts. The replay counts what it publishes of
+    each run (from the bridge's ``started`` record on) per topic of
+    :data:`adm_sim.protocol.SAMPLE_TOPICS`, publishes at most :data:`adm_sim.protocol.FLOW_WINDOW`
+    messages beyond a client's acknowledgement (over the topics the client counts, all of them
+    until it names its own), and publishes a run's ``done`` only once every client acknowledged
+    the whole run, as the bridge does. A client that acknowledges nothing for ``ack_timeout_s`` is no longer waited for
+    (one ``warning:`` line), as the bridge does."""
+
+    def __init__(self, node, executor, ack_timeout_s: float):
+        from std_msgs.msg import String  # noqa: PLC0415  rclpy (~0.2 s) only when republishing
+
+        from adm_sim.nodes.common import QOS_CONTROL  # noqa: PLC0415  rclpy (~0.2 s) only when republishing
+
+        self.node, self.executor, self.ack_timeout_s = node, executor, ack_timeout_s
+        self.clients: dict = {}  # name -> [acknowledged, topics or None]
+        self.counts = dict.fromkeys(P.SAMPLE_TOPICS, 0)
+        self.total = 0
+        self.since = time.monotonic()
+        node.create_subscription(String, P.relative(P.TOPIC_ACK), self._on_ack, QOS_CONTROL)
+
+    def join(self, want=0, idle=lambda: None, timeout_s=600.0):
+        """Take the publishers of ``/adm/run/ack`` on the graph as the clients to wait for, once
+        there are ``want`` of them (at most ``timeout_s``, then :class:`RunError`)."""
+        t_end = time.monotonic() + timeout_s
+        infos = self.node.get_publishers_info_by_topic(P.TOPIC_ACK)
+        while len(infos) < want:
+            if time.monotonic() > t_end:
+                raise RunError(f"--wait-clients: {want} client(s) asked for, {len(infos)} opted in within "
+                               f"{timeout_s:g} s")
+            idle()
+            self.executor.spin_once(timeout_sec=0.05)
+            infos = self.node.get_publishers_info_by_topic(P.TOPIC_ACK)
+        if want:
+            time.sleep(2.0)  # the clients' own view of this replay (their subscriptions matched) can lag this one
+        self.clients = {i.node_namespace.rstrip("/") + "/" + i.node_name: [0, None] for i in infos}
+        if self.clients:
+            print(f"clients opted in: {', '.join(sorted(self.clients))}", flush=True)
+
+    def _on_ack(self, msg):
+        rec = P.decode(msg.data)
+        c = self.clients.get(rec.get("node"))
+        if c is None:
+            return
+        c[0] = max(c[0], int(rec.get("received", 0)))
+        if rec.get("topics") is not None:
+            c[1] = tuple(t for t in rec["topics"] if t in self.counts)
+        self.since = time.monotonic()
+
+    def _sent_to(self, c):
+        return self.total if c[1] is None else sum(self.counts[t] for t in c[1])
+
+    def _wait(self, lagging):
+        """Spin until no client is ``lagging`` (a predicate of ``(name, client)``)."""
+        self.since = time.monotonic()
+        while True:
+            late = [n for n, c in self.clients.items() if lagging(c)]
+            if not late:
+                return
+            if time.monotonic() - self.since > self.ack_timeout_s:
+                for n in late:
+                    print(f"warning: republish: client '{n}' acknowledged nothing for {self.ack_timeout_s:g} s; "
+                          f"it is no longer waited for", file=sys.stderr, flush=True)
+                    del self.clients[n]
+                return
+            self.executor.spin_once(timeout_sec=0.01)
+
+    def sent(self, topic: str, n_sent: int):
+        """One message of ``topic`` published (``n_sent``: the replay's count so far)."""
+        if not self.clients or topic not in self.counts:
+            return
+        self.counts[topic] += 1
+        self.total += 1
+        if n_sent % P.ACK_EVERY == 0:
+            self.executor.spin_once(timeout_sec=0.0)
+        self._wait(lambda c: self._sent_to(c) - c[0] >= P.FLOW_WINDOW)
+
+    def run_end(self):
+        """Before a run's ``done`` (or ``failed``) record: every client has the whole run."""
+        if self.clients:
+            self._wait(lambda c: c[0] < self._sent_to(c))
+
+    def run_start(self):
+        """At a run's ``started`` record: count its messages from 0."""
+        self.counts = dict.fromkeys(P.SAMPLE_TOPICS, 0)
+        self.total = 0
+        for c in self.clients.values():
+            c[0] = 0
+
+
+def _is_final_diagnostics(data: bytes) -> bool:
+    """Whether a recorded ``/diagnostics`` message is a bridge's final one of a run (value ``final``
+    ``True``): the live bridge latches it."""
+    from diagnostic_msgs.msg import DiagnosticArray  # noqa: PLC0415  rclpy (~0.2 s) only when republishing
+    from rclpy.serialization import deserialize_message  # noqa: PLC0415  rclpy (~0.2 s) only when republishing
+
+    arr = deserialize_message(data, DiagnosticArray)
+    return any(kv.key == "final" and kv.value == "True" for st in arr.status for kv in st.values)
+
+
+def _bridge_record(data: bytes) -> str | None:
+    """``started``, ``done`` or ``failed`` when a recorded ``/adm/run/status`` message is the
+    bridge's record of that state, else None."""
+    from rclpy.serialization import deserialize_message  # noqa: PLC0415  rclpy (~0.2 s) only when republishing
+    from std_msgs.msg import String  # noqa: PLC0415  rclpy (~0.2 s) only when republishing
+
+    text = deserialize_message(data, String).data
+    if not text.startswith("{"):
+        return None
+    rec = P.decode(text)
+    if rec.get("node") != P.BRIDGE_NODE or rec.get("state") not in (P.STARTED, P.DONE, P.FAILED):
+        return None
+    return rec["state"]
+
+
 def republish(args, found) -> int:
     """Publish the recorded topics (``found``: the checked scan of the recording) and /clock in
     simulated time, each with the QoS it was recorded with (descriptions latched again),
@@ -485,8 +609,14 @@ def republish(args, found) -> int:
             record_shm([os.getpid()])
 
     note_shm()
+    from rclpy.executors import SingleThreadedExecutor  # noqa: PLC0415  rclpy (~0.2 s) only when republishing
+
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
     flow = _FlowControl(node)
+    clients = _ClientFlow(node, executor, ack_timeout_s=flow.ack_timeout_s)
     pubs, qos_of, topics = {}, {}, {}
+    diag_final = None  # the latched publisher of the runs' final /diagnostics, as the live bridge's
     sent = 0
     try:
         for schema, ch, _m in items:
@@ -494,6 +624,11 @@ def republish(args, found) -> int:
                 qos_of[ch.id] = _qos_profile(ch.metadata.get("offered_qos_profiles", ""), ch.topic)
                 pubs[ch.id] = node.create_publisher(msg_class(schema.name), ch.topic, qos_of[ch.id])
                 topics[pubs[ch.id]] = ch.topic
+                if ch.topic == P.TOPIC_DIAGNOSTICS:
+                    latched = _qos_profile("", P.TOPIC_BRIDGE_DESC)  # class L: transient local, depth 1
+                    diag_final = node.create_publisher(msg_class(schema.name), ch.topic, latched)
+                    topics[diag_final] = ch.topic
+                    qos_of["diag_final"] = latched
         clock_qos = _qos_profile("", P.TOPIC_CLOCK)
         clock_pub = node.create_publisher(Clock, P.TOPIC_CLOCK, clock_qos)
         topics[clock_pub] = P.TOPIC_CLOCK
@@ -503,7 +638,10 @@ def republish(args, found) -> int:
             time.sleep(0.05)
         for cid, pub in pubs.items():
             flow.add(pub, topics[pub], qos_of[cid])
+        if diag_final is not None:
+            flow.add(diag_final, P.TOPIC_DIAGNOSTICS, qos_of["diag_final"])
         flow.add(clock_pub, P.TOPIC_CLOCK, clock_qos)
+        clients.join(args.wait_clients, note_shm)
         start_wall = time.monotonic()
         start_sim = items[0][2].log_time
         last_clock = None
@@ -520,12 +658,23 @@ def republish(args, found) -> int:
                 clock_pub.publish(clock)
                 flow.sent(clock_pub, P.TOPIC_CLOCK)
                 last_clock = t_ns
-            pub.publish(bytes(message.data))
+            data = bytes(message.data)
+            state = _bridge_record(data) if channel.topic == P.TOPIC_STATUS else None
+            if state in (P.DONE, P.FAILED):
+                clients.run_end()  # as the bridge: a run's done only once the opted-in clients have it whole
+            elif state == P.STARTED:
+                clients.run_start()
+            if channel.topic == P.TOPIC_DIAGNOSTICS and diag_final is not None and _is_final_diagnostics(data):
+                pub = diag_final
+            pub.publish(data)
             flow.sent(pub, channel.topic)
             sent += 1
+            clients.sent(channel.topic, sent)
             note_shm()
+        clients.run_end()  # the last run whole for every opted-in client (a recording cut short)
         flow.drain_all(topics)  # every reliable message acknowledged before the participant goes away
     finally:
+        executor.remove_node(node)
         node.destroy_node()
         rclpy.try_shutdown(context=context)
     return sent
@@ -558,6 +707,7 @@ def _run(args) -> int:
                 vp.stop_viewer(viewer)
             raise
         print(f"ROS_DOMAIN_ID={env.domain_id}", flush=True)
+        print(f"{client_export_line(env)}  # a ROS 2 client in another shell", flush=True)
     if args.rrd and args.via_convert:
         write_atomic(args.rrd, lambda tmp: (convert(args, tmp), verify_rrd(tmp, args.rrd)))  # a failed replay leaves no stub
         print(f"wrote {args.rrd} (rerun mcap convert)")

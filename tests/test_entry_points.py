@@ -159,15 +159,15 @@ def test_read_only_folder_is_refused_before_any_work(entry, folder, ros_env):
 
 
 def _wait_until_running(p, entry, out, timeout_s=120.0):
-    """Until the work is under way: a launch's graph started (its ``ROS_DOMAIN_ID=`` line and then a
-    line of its driver), a command line's output claimed (its lock file beside the output)."""
+    """Until the work is under way: a launch's graph started (its ``ROS_DOMAIN_ID=`` line, its
+    client ``export`` line, then a line of its driver), a command line's output claimed (its lock file beside the output)."""
     t_end = time.monotonic() + timeout_s
     if entry.ros:
         seen = 0
         while time.monotonic() < t_end and seen < 2:
             line = p.stdout.readline()
             assert line, p.stderr.read()
-            seen += seen > 0 or line.startswith("ROS_DOMAIN_ID=")
+            seen += (seen > 0 and not line.startswith("export ")) or line.startswith("ROS_DOMAIN_ID=")
         return
     lock = out / f".{entry.output}.lock"
     while time.monotonic() < t_end and not lock.exists():

@@ -420,7 +420,9 @@ def library_arguments():
 #: Library arguments with no flag of their own: the command checks them under its flag before the
 #: library sees them (``--damping-model`` speaks rayleigh13|modal, the library rayleigh|modal;
 #: ``--track`` is an argparse choice; ``--lateral-frequency`` is checked first in sim_commands).
-CHECKED_FIRST_BY_THE_COMMAND = {"damping_model", "track", "lateral_frequency"}
+CHECKED_FIRST_BY_THE_COMMAND = {"damping_model", "track", "lateral_frequency",
+                                "method",  # the exact envelope on a deck: `sweep` refuses --method exact first
+                                "irregularity"}  # `check --irregularity` on load trains: named as --irregularity
 
 
 def test_every_library_argument_has_its_flag_in_the_registry():

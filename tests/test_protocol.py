@@ -79,7 +79,7 @@ def test_topic_table_holds_every_topic_the_logger_and_the_recorder_read():
     for name, (typ, qos, _pub) in P.TOPICS.items():
         assert re.fullmatch(r"/[a-z_]+(/[a-z_]+)*", name), name
         assert re.fullmatch(r"[a-z_]+/msg/[A-Za-z0-9]+", typ), typ
-        assert qos in "CXML", (name, qos)
+        assert qos in "CXMLH", (name, qos)
     assert len({n for n in P.TOPICS}) == 20
 
 
@@ -301,3 +301,29 @@ def test_docs_topic_table_matches_the_protocol():
     assert set(topics) == set(P.TOPICS)
     for name, typ in topics.items():
         assert typ.strip().replace("/msg/", "/") == P.TOPICS[name][0].replace("/msg/", "/"), name
+
+
+def test_ack_counter_acknowledges_first_every_window_and_whole():
+    """An opted-in client's acknowledgements: its first message, every ACK_EVERY, and the run's last
+    (the final progress record's count over the client's topics), then it counts from 0 again."""
+    from adm_sim import protocol as P
+
+    c = P.AckCounter("/mon", topics=(P.TOPIC_ACCEL,))
+    acks = [c.count() for _ in range(100)]
+    sent = [a["received"] for a in acks if a is not None]
+    assert sent == [1, 1 + P.ACK_EVERY, 1 + 2 * P.ACK_EVERY, 1 + 3 * P.ACK_EVERY]
+    assert all(a["topics"] == [P.TOPIC_ACCEL] and a["node"] == "/mon" for a in acks if a)
+    samples = {t: 7 for t in P.SAMPLE_TOPICS}
+    samples[P.TOPIC_ACCEL] = 103
+    assert c.final({"run_id": 4, "final": False, "samples": samples}) is None
+    assert c.final({"run_id": 4, "final": True, "samples": samples}) is None  # 100 of 103: not whole
+    assert [c.count() for _ in range(2)] == [None, None]
+    last = c.count()
+    assert last == {"node": "/mon", "run_id": 4, "received": 103, "topics": [P.TOPIC_ACCEL]}
+    assert c.runs == {4: (103, 103)} and c.received == 0
+    assert c.count()["received"] == 1  # the next run's first message
+    c.final({"run_id": 5, "final": True, "samples": samples})
+    c.started(6)  # run 5 never came whole: booked with what came
+    assert c.runs[5] == (1, 103) and c.received == 0
+    with pytest.raises(ValueError, match="allowed a non-empty subset"):
+        P.AckCounter("/mon", topics=("/adm/run/status",))

@@ -98,7 +98,8 @@ def test_channels_carry_offered_qos_profiles_as_rosbag2(recording):
 def test_qos_classes_are_the_nodes_profiles():
     from adm_sim.nodes import common as c
 
-    for cls, profile in (("C", c.QOS_CONTROL), ("X", c.QOS_EXCHANGE), ("M", c.QOS_MONITOR), ("L", c.QOS_LATCHED)):
+    for cls, profile in (("C", c.QOS_CONTROL), ("X", c.QOS_EXCHANGE), ("M", c.QOS_MONITOR), ("L", c.QOS_LATCHED),
+                         ("H", c.QOS_HISTORY)):
         assert QOS_CLASSES[cls] == parse_qos_profiles(qos_profiles_yaml(profile)), cls
 
 

@@ -96,7 +96,7 @@ def test_install_space_layout(install):
         assert (install / pkg / "share" / "ament_index" / "resource_index" / "packages" / pkg).is_file()
         assert (install / pkg / "share" / pkg / "package.xml").is_file()
     share = install / "adm_sim" / "share" / "adm_sim"
-    for src in sorted((ROOT / "ros_ws" / "params").glob("*.yaml")) + [ROOT / "ros_ws" / "dds" / "fastdds_shm_only.xml"]:
+    for src in sorted((ROOT / "ros_ws" / "params").glob("*.yaml")) + [ROOT / "ros_ws" / "dds" / "fastdds_local.xml"]:
         installed = share / src.parent.name / src.name
         assert installed.read_bytes() == src.read_bytes(), installed
 
@@ -172,6 +172,29 @@ def test_nodes_from_install_space_run_the_installed_params(install, ros_domain, 
 
 def test_colcon_is_pinned():
     req = (ROOT / "requirements.txt").read_text().splitlines()
-    for name in ("colcon-core", "colcon-ros", "colcon-python-setup-py"):
+    for name in ("colcon-core", "colcon-ros", "colcon-python-setup-py", "colcon-bash", "colcon-package-information"):
         assert any(line.startswith(f"{name}==") for line in req), name
     assert shutil.which("colcon", path=str(COLCON.parent)) is not None
+
+
+def test_colcon_list_and_graph_show_the_packages_in_order():
+    """``colcon list`` and ``colcon graph`` (colcon-package-information) on the PyPI path."""
+    out = subprocess.run([str(COLCON), "list", "--base-paths", str(ROOT / "ros_ws")], capture_output=True, text=True,
+                         timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert [line.split("\t") for line in out.stdout.splitlines()] == [
+        ["adm_calib", str(ROOT / "ros_ws" / "adm_calib"), "(ros.ament_python)"],
+        ["adm_sim", str(ROOT / "ros_ws" / "adm_sim"), "(ros.ament_python)"]]
+    out = subprocess.run([str(COLCON), "graph", "--base-paths", str(ROOT / "ros_ws")], capture_output=True,
+                         text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert [line.split()[0] for line in out.stdout.splitlines()] == ["adm_sim", "adm_calib"]  # dependency order
+
+
+def test_install_space_has_setup_bash(install):
+    """colcon-bash writes ``install/setup.bash``; sourced in bash it puts the packages on the ament index."""
+    assert (install / "setup.bash").is_file() and (install / "adm_sim" / "share" / "adm_sim" / "package.bash").is_file()
+    out = subprocess.run(["bash", "-c", f'. "{install}/setup.bash" && echo "$AMENT_PREFIX_PATH"'],
+                         capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    assert str(install / "adm_sim") in out.stdout.strip().split(":"), out.stdout

@@ -1,14 +1,16 @@
-"""The shipped Fast DDS profile (ros_ws/dds/fastdds_shm_only.xml) carries messages between two
-processes over shared memory with no builtin (UDP) transport."""
+"""The shipped Fast DDS profile (ros_ws/dds/fastdds_local.xml) lets a client given only the profile
+and the domain id join a graph started as the launchers start theirs (the environment of
+``local_ros_env``: ``FASTDDS_BUILTIN_TRANSPORTS=SHM ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``), and
+opens no UDP socket on another address than 127.0.0.1."""
 
 import os
 import subprocess
 import sys
 from pathlib import Path
 
-from adm_sim.processes.dds_env import reserve_domain_id
+from adm_sim.processes.dds_env import CLIENT_VARIABLES, local_ros_env
 
-PROFILE = Path(__file__).resolve().parents[1] / "ros_ws" / "dds" / "fastdds_shm_only.xml"
+PROFILE = Path(__file__).resolve().parents[1] / "ros_ws" / "dds" / "fastdds_local.xml"
 
 SUB = r"""
 import sys, rclpy
@@ -44,32 +46,39 @@ rclpy.try_shutdown()
 """
 
 
-def test_shm_only_profile_delivers_between_processes():
-    # the profile alone (ROS_AUTOMATIC_DISCOVERY_RANGE would make rmw add its own transports)
-    drop = ("FASTDDS_BUILTIN_TRANSPORTS", "ROS_AUTOMATIC_DISCOVERY_RANGE")
-    env = {k: v for k, v in os.environ.items() if k not in drop}
-    lock = reserve_domain_id()  # a domain id no concurrent run uses
-    env.update(FASTRTPS_DEFAULT_PROFILES_FILE=str(PROFILE), ROS_DOMAIN_ID=str(lock.domain_id))
-    sub = subprocess.Popen([sys.executable, "-c", SUB], env=env, stdout=subprocess.PIPE, text=True)
+def _udp_addresses(pid):
+    """Local addresses (hex ``IP:port`` of /proc/net/udp) of the UDP sockets process ``pid`` holds."""
+    fds = Path(f"/proc/{pid}/fd")
+    inodes = {os.readlink(f).split("[")[1].rstrip("]") for f in fds.iterdir()
+              if os.readlink(f).startswith("socket:[")}
+    found = []
+    for table in ("/proc/net/udp", "/proc/net/udp6"):
+        for line in Path(table).read_text().splitlines()[1:]:
+            cols = line.split()
+            if cols[9] in inodes:
+                found.append(cols[1])
+    return found
+
+
+def test_profile_alone_joins_a_launcher_graph_over_loopback_only():
+    graph = local_ros_env()  # what a launcher starts its nodes with (a reserved domain id)
+    # the client: the profile and the domain id, none of the launcher's discovery variables
+    client = {k: v for k, v in os.environ.items() if k not in CLIENT_VARIABLES}
+    client.update(FASTRTPS_DEFAULT_PROFILES_FILE=str(PROFILE), ROS_DOMAIN_ID=str(graph.domain_id))
+    sub = subprocess.Popen([sys.executable, "-c", SUB], env=client, stdout=subprocess.PIPE, text=True)
     try:
         assert sub.stdout.readline().strip() == "ready"
-        # no UDP socket at all in the subscriber (the builtin UDP transport is off)
-        fds = Path(f"/proc/{sub.pid}/fd")
-        inodes = {os.readlink(f).split("[")[1].rstrip("]") for f in fds.iterdir()
-                  if os.readlink(f).startswith("socket:[")}
-        udp_inodes = set()
-        for table in ("/proc/net/udp", "/proc/net/udp6"):
-            for line in Path(table).read_text().splitlines()[1:]:
-                udp_inodes.add(line.split()[9])
-        assert not inodes & udp_inodes
-        pub = subprocess.run([sys.executable, "-c", PUB], env=env, timeout=60)
+        # every UDP socket of the client is bound to 127.0.0.1 (0100007F in /proc/net/udp)
+        addresses = _udp_addresses(sub.pid)
+        assert addresses and all(a.startswith("0100007F:") for a in addresses), addresses
+        pub = subprocess.run([sys.executable, "-c", PUB], env=graph, timeout=60)
         assert pub.returncode == 0
         out = sub.communicate(timeout=30)[0]
     finally:
         if sub.poll() is None:
             sub.kill()
-        lock.release()
-    assert "sum 499500.0" in out
+        graph.release()
+    assert "sum 499500.0" in out  # 0 + 1 + ... + 999: the message itself
 
 
 # ---------------------------------------------------------------- domain ids

@@ -309,3 +309,36 @@ def c_matrix(msg):
     """A ``Float64MultiArray`` (rows x lanes) as decoded from MCAP."""
     shape = tuple(dim.size for dim in msg.layout.dim)
     return np.asarray(msg.data, dtype=np.float64)[msg.layout.data_offset:].reshape(shape)
+
+
+def test_runs_view_draws_the_en1990_limit_and_the_dim_window_as_points(tmp_path):
+    """The Runs view gets the track's EN 1990 A2.4.4.2.1 limit (+3.5 and -3.5 m/s² for ballasted
+    track) over every run's run time; the DIM sweep, computed on a window of the speed grid
+    (200-204 and 210 km/h here), is drawn as points (SeriesPoints), so no line crosses 205-209 km/h."""
+    from rerun.chunk import RrdReader
+
+    path = tmp_path / "limit.rrd"
+    rl.init_rerun("adm_sim_test", save_path=path, recording_id="limit")
+    viz = rl.RunLogger()
+    viz.bridge_description({"bridge": {"span_m": SPAN_M, "n_modes": 3}, "n0_hz": 8.0, "description": "B1",
+                            "acc_limit_m_s2": 3.5, "track_type": "ballasted"})
+    v = np.array([200.0, 201.0, 202.0, 203.0, 204.0, 210.0])
+    viz.run_started(_status(1, "dim", v.size, 0.0, 200.0, 205.0))
+    viz.accel(0.0, 0.1)
+    viz.flush()
+    viz.run_done(np.vstack([v, 1.0 + 0.001 * v, 1e-3 * np.ones_like(v), np.zeros_like(v)]), P.PHASE_DIM)
+    rl.close_rerun()
+    ents = read_rrd(path)
+    t_end = N_STEPS * DS_M / (205.0 / 3.6)  # the run's end in the monitored lane's time
+    for part, sign in (("limit_upper", 1.0), ("limit_lower", -1.0)):
+        e = ents[f"/runs/acceleration/{part}"]
+        assert e["values"] == [sign * 3.5, sign * 3.5]
+        np.testing.assert_allclose(np.array(e["times"][bp.RUN_TIME]) * 1e-9, [0.0, t_end], rtol=0, atol=1e-9)
+    styles = {}
+    for chunk in RrdReader(path).stream():
+        if chunk.is_static:
+            styles.setdefault(chunk.entity_path, set()).update(chunk.to_record_batch().schema.names)
+    dim = styles["/" + P.sweep_curve_path(P.SWEEP_CURVE_NAMES[P.PHASE_DIM])]
+    assert any("SeriesPoints" in n for n in dim) and not any("SeriesLines" in n for n in dim), dim
+    np.testing.assert_array_equal(ents["/" + P.sweep_curve_path(P.SWEEP_CURVE_NAMES[P.PHASE_DIM])]["times"][bp.SPEED],
+                                  v.astype(int))

@@ -407,6 +407,9 @@ _FIELDS = [
        "run", _S("ros", "partner_timeout_s"), lo=0.5, hi=600.0),
     _F("run_timeout_s", "s", float, "longest a single run may take", "run", _S("ros", "run_timeout_s"),
        lo=1.0, hi=86400.0),
+    _F("wait_clients", "", int, "before the first run, wait until this many clients opted into the flow "
+       "control (publishers of /adm/run/ack beside the run's own recorder)", "run",
+       _S("ros", "wait_clients"), _S("cli", "--wait-clients"), lo=0, hi=100),
     _F("max_line_speed_kmh", "km/h", float, f"maximum line speed V of the EN 1991-2 check "
        f"({CHECK_MIN_SPEED_M_S:g} m/s up to {DESIGN_SPEED_FACTOR:g} V)",
        "run", _S("cli", "--max-line-speed"), lo=3.6 * CHECK_MIN_SPEED_M_S, hi=500.0, lo_open=True),

@@ -33,8 +33,11 @@ blueprint's views show, and the timeline names.
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
+
+from adm_sim.errors import InputError
 
 # ---------------------------------------------------------------------- nodes and services
 BRIDGE_NODE = "bridge"
@@ -76,12 +79,34 @@ def relative(name: str) -> str:
     of the default namespace; recordings store them so (:mod:`adm_sim.recording.mcap_log`)."""
     return name.lstrip("/")
 
+#: A namespace token (rcl's rule: letters, digits and ``_``, not starting with a digit).
+_NS_TOKEN = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+
+
+def check_namespace(text, option="--namespace"):
+    """``text`` as an absolute ROS 2 namespace (``b3`` -> ``/b3``, ``/site/b3`` kept; ``/`` or empty:
+    the root, ``/``), else :class:`~adm_sim.errors.InputError` naming ``option``, the value and the
+    rule (rcl's: ``/``-separated tokens of letters, digits and ``_``, none starting with a digit,
+    at most 255 characters)."""
+    raw = str(text).strip()
+    if raw in ("", "/"):
+        return "/"
+    ns = raw if raw.startswith("/") else "/" + raw
+    tokens = ns[1:].split("/")
+    if len(ns) > 255 or not all(_NS_TOKEN.fullmatch(t) for t in tokens):
+        raise InputError(f"{option}: {text!r} is not a valid ROS 2 namespace; allowed '/'-separated names of "
+                         f"letters, digits and '_', none starting with a digit or empty (e.g. /b3 or /site_1/b3), "
+                         f"at most 255 characters", field=option)
+    return ns
+
+
 #: Description topic of the ``bridge`` and ``train`` node.
 DESCRIPTION_TOPICS = {BRIDGE_NODE: TOPIC_BRIDGE_DESC, TRAIN_NODE: TOPIC_TRAIN_DESC}
 
 #: Every topic: ``name -> (message type, QoS class, publisher)``; QoS classes: ``C`` control
 #: (reliable, deep), ``X`` exchange (reliable, lockstep), ``M`` monitor (reliable, deepest),
-#: ``L`` latched (transient local, last value).
+#: ``L`` latched (transient local, last value), ``H`` history (transient local, the last
+#: :data:`SUMMARY_HISTORY`).
 TOPICS = {
     TOPIC_SETUP: ("std_msgs/msg/String", "C", TRAIN_NODE),
     TOPIC_READY: ("std_msgs/msg/String", "C", BRIDGE_NODE),
@@ -102,8 +127,11 @@ TOPICS = {
     TOPIC_CAL_ITERATION: ("std_msgs/msg/Float64MultiArray", "C", CALIBRATION_NODE),
     TOPIC_CAL_RESULT: ("std_msgs/msg/String", "L", CALIBRATION_NODE),
     TOPIC_ACK: ("std_msgs/msg/String", "C", f"{DRIVER_NODE} / {CALIBRATION_NODE}"),
-    TOPIC_SUMMARY: ("diagnostic_msgs/msg/DiagnosticStatus", "L", BRIDGE_NODE),
+    TOPIC_SUMMARY: ("diagnostic_msgs/msg/DiagnosticStatus", "H", BRIDGE_NODE),
 }
+#: Passages the per-passage summary keeps for a late or lagging client (QoS class ``H``: transient
+#: local, this history depth).
+SUMMARY_HISTORY = 1000
 
 # ---------------------------------------------------------------------- flow control
 #: Topics whose messages the bridge counts per run (``samples`` of its final progress record and
@@ -230,10 +258,76 @@ def summary_from_values(pairs) -> dict:
     return out
 
 
-def ack_record(node, run_id, received):
-    """``/adm/run/ack`` (recorder -> bridge): recorder ``node`` has written ``received`` messages of
-    :data:`SAMPLE_TOPICS` of the current run (``run_id`` once it knows it, else ``None``)."""
-    return {"node": node, "run_id": run_id, "received": int(received)}
+def ack_record(node, run_id, received, topics=None):
+    """``/adm/run/ack`` (recorder or opted-in client -> bridge): node ``node`` has received (a
+    recorder: written) ``received`` messages of the current run (``run_id`` once it knows it, else
+    ``None``) on ``topics`` (``None``: every one of :data:`SAMPLE_TOPICS`; a client counts the
+    topics it reads, e.g. ``[TOPIC_ACCEL]``, default-namespace names)."""
+    rec = {"node": node, "run_id": run_id, "received": int(received)}
+    if topics is not None:
+        rec["topics"] = list(topics)
+    return rec
+
+
+class AckCounter:
+    """When a client that opted into the flow control acknowledges (no ROS; the node side is
+    :class:`adm_sim.nodes.common.FlowClient`).
+
+    The client counts the messages of the current run it receives on ``topics`` (a subset of
+    :data:`SAMPLE_TOPICS`) and acknowledges its first one (so the bridge learns the topics early),
+    then every :data:`ACK_EVERY`, and when it has them all: the run's final ``/adm/progress``
+    record (:meth:`final`) says how many the bridge published. Each call returns the
+    :func:`ack_record` to publish, or ``None``.
+
+    Parameters
+    ----------
+    node : str
+        The client's fully qualified node name (the bridge keys its acknowledgements by it).
+    topics : sequence of str
+        The counted topics (default-namespace names, :data:`SAMPLE_TOPICS`).
+    """
+
+    def __init__(self, node, topics=(TOPIC_ACCEL,)):
+        unknown = [t for t in topics if t not in SAMPLE_TOPICS]
+        if unknown or not topics:
+            raise ValueError(f"topics: {unknown or list(topics)!r}: allowed a non-empty subset of {list(SAMPLE_TOPICS)}")
+        self.node, self.topics = node, tuple(topics)
+        self.received = self.acked = 0
+        self.expected = None  # (run_id, messages on ``topics``) from the run's final progress record
+        self.runs = {}        # run_id -> (received, published) of the runs ended, on ``topics``
+
+    def count(self, n=1):
+        """``n`` messages of ``topics`` received."""
+        self.received += n
+        return self._ack()
+
+    def final(self, record):
+        """A progress record (``/adm/progress``, decoded); the run's final one carries its counts."""
+        if record.get("final") and isinstance(record.get("samples"), dict):
+            self.expected = (record.get("run_id"), sum(int(record["samples"].get(t, 0)) for t in self.topics))
+            return self._ack()
+        return None
+
+    def started(self, run_id):
+        """The bridge's ``started`` of run ``run_id``: a run before it that never came whole (the
+        client lost messages; the bridge stopped waiting for it) is booked with what came."""
+        if self.expected is not None and self.expected[0] != run_id:
+            self.runs[self.expected[0]] = (self.received, self.expected[1])
+            self.received = self.acked = 0
+            self.expected = None
+
+    def _ack(self):
+        whole = self.expected is not None and self.received >= self.expected[1]
+        if not (whole or self.acked == 0 or self.received - self.acked >= ACK_EVERY):
+            return None
+        rid = None if self.expected is None else self.expected[0]
+        rec = ack_record(self.node, rid, self.received, self.topics)
+        self.acked = self.received
+        if whole:  # the run is whole: count the next one from 0
+            self.runs[rid] = (self.received, self.expected[1])
+            self.received = self.acked = 0
+            self.expected = None
+        return rec
 
 
 def request_record(node, run_id, model, phase, label):
@@ -444,7 +538,7 @@ def is_entity(path: str) -> bool:
 
 
 __all__ = [n for n in dir() if n.isupper() or n in (
-    "relative", "ack_record", "summary_values", "summary_from_values", "encode", "decode", "setup_record", "ready_record", "ready_error", "is_rejected", "status_record",
+    "relative", "check_namespace", "ack_record", "AckCounter", "summary_values", "summary_from_values", "encode", "decode", "setup_record", "ready_record", "ready_error", "is_rejected", "status_record",
     "is_failure", "is_bridge_start", "progress_record", "bridge_description_record", "train_description_record",
     "driver_line", "parse_driver_line", "request_record", "is_request", "plain_run_phase", "run_tag", "acceleration_path",
     "beam_path", "sweep_curve_path", "sweep_trial_path", "delta_zeta_path", "peak_path", "is_entity")]

@@ -546,9 +546,9 @@ def build_parser():
                         "of one run) or numpy (the numpy stepper, the reference the kernels are tested against; equal "
                         "to 1e-12)")
     s.add_argument("--modes", default=None,
-                   help="retained modes (default: the bridge's: 3 for one span, the rule's count for a continuous "
-                        "deck: every mode up to 30 Hz, 1.5 n0 or the third); integer in [1, 20] for one span, [1, 50] "
-                        "for a continuous deck")
+                   help=option_help("--modes", "retained modes (default: the bridge's: 3 for one span, the rule's "
+                                               "count for a continuous deck: every mode up to 30 Hz, 1.5 n0 or the "
+                                               "third); a continuous deck takes up to 50; one span"))
     s.add_argument("--damping-model", choices=tuple(SWEEP_DAMPING_MODELS), default=None,
                    help="damping per mode: rayleigh13 (Rayleigh anchored at modes 1 and 3) or modal (zeta on every "
                         "mode); default: the bridge's (rayleigh13 unless its file says modal)")

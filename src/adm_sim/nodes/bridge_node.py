@@ -66,11 +66,14 @@ def monitor_steps(bridge, grid, lane, every, beam_every):
 
 
 def frame_id(bridge, namespace="/"):
-    """Frame id of a bridge's midspan: ``<bridge>/midspan`` (the bridge's name, else the node's
-    namespace, else ``bridge``), characters outside ``[A-Za-z0-9_]`` replaced by ``_``."""
+    """Frame id of a bridge's midspan: ``<namespace>/<bridge>/midspan`` without the leading ``/``
+    (``b3/B1/midspan`` for the node ``/b3/bridge``; ``B1/midspan`` in the root namespace), the
+    bridge's name (else ``bridge``) with characters outside ``[A-Za-z0-9_]`` replaced by ``_``:
+    two graphs of one preset under two namespaces have distinct frames."""
 
-    name = bridge.name or namespace.strip("/") or "bridge"
-    return re.sub(r"[^A-Za-z0-9_]", "_", name) + "/midspan"
+    name = re.sub(r"[^A-Za-z0-9_]", "_", bridge.name or "bridge")
+    ns = namespace.strip("/")
+    return f"{ns}/{name}/midspan" if ns else f"{name}/midspan"
 
 
 #: The layout labels of the DIM rail state; the forces topic the bridge waits on (relative name).
@@ -106,7 +109,7 @@ class BridgeRunState:
     tick: int                  #: progress every this many steps
     t0: float                  #: sim time at the start (s)
     wall0: float
-    acked: dict                #: recorder -> messages it acknowledged (flow control)
+    acked: dict                #: recorder or opted-in client -> messages it acknowledged (flow control)
     disp: np.ndarray | None = None
     peak: tuple = (-1.0, 0)    #: (exact max |a| of the monitored lane so far, its step)
     counts: dict = dataclasses.field(default_factory=dict)  #: topic -> messages published
@@ -119,6 +122,14 @@ class BridgeRunState:
     forced: bool = False       #: a pause outlasted half the partner timeout: on to the next exchange
     done_step: int = 0
     accel_msg: AccelStamped | None = None  #: the message of the midspan acceleration samples
+    #: acknowledging node -> the topics its count covers, when not every one of
+    #: :data:`adm_sim.protocol.SAMPLE_TOPICS` (a client that reads the acceleration alone)
+    ack_topics: dict = dataclasses.field(default_factory=dict)
+
+    def sent_to(self, name):
+        """Messages published so far on the topics node ``name`` acknowledges."""
+        topics = self.ack_topics.get(name)
+        return self.sent if topics is None else sum(self.counts[t] for t in topics)
 
 
 class BridgeNode(c.LockstepNode):
@@ -141,7 +152,7 @@ class BridgeNode(c.LockstepNode):
         self.pub_ready = pub(String, R(P.TOPIC_READY), c.QOS_CONTROL)
         self.pub_result = pub(Float64MultiArray, R(P.TOPIC_RESULT), c.QOS_LATCHED)
         self.pub_status = pub(String, R(P.TOPIC_STATUS), c.QOS_CONTROL)
-        self.pub_summary = pub(DiagnosticStatus, R(P.TOPIC_SUMMARY), c.QOS_LATCHED)
+        self.pub_summary = pub(DiagnosticStatus, R(P.TOPIC_SUMMARY), c.QOS_HISTORY)
         #: monitoring publishers, counted per run (:data:`adm_sim.protocol.SAMPLE_TOPICS`)
         self.pubs = {t: pub(typ, R(t), c.QOS_CONTROL if t == P.TOPIC_DIAGNOSTICS else c.QOS_MONITOR)
                      for t, typ in ((P.TOPIC_CLOCK, Clock), (P.TOPIC_ACCEL, AccelStamped),
@@ -258,7 +269,8 @@ class BridgeNode(c.LockstepNode):
 
     # ------------------------------------------------------------------ flow control
     def _recorders(self):
-        """Names of the nodes that acknowledge what they recorded (publishers of ``/adm/run/ack``)."""
+        """Names of the nodes that acknowledge what they received (publishers of ``/adm/run/ack``:
+        the recorders and the clients that opted into the flow control)."""
         return sorted({i.node_namespace.rstrip("/") + "/" + i.node_name
                        for i in self.get_publishers_info_by_topic(self.resolve_topic_name(P.relative(P.TOPIC_ACK)))})
 
@@ -267,6 +279,9 @@ class BridgeNode(c.LockstepNode):
         ack = P.decode(msg.data)
         if r is None or ack.get("node") not in r.acked:
             return
+        topics = ack.get("topics")
+        if topics is not None:  # a client that counts some topics only (checked: the known ones)
+            r.ack_topics[ack["node"]] = tuple(t for t in topics if t in r.counts)
         r.acked[ack["node"]] = max(r.acked[ack["node"]], int(ack["received"]))
         r.ack_wait_since = None
         self._resume()
@@ -275,11 +290,17 @@ class BridgeNode(c.LockstepNode):
         """Whether the run is more than the window ahead of the slowest recorder (with ``pending``
         messages more published)."""
         r = self.run
-        return not r.forced and bool(r.acked) and r.sent + pending - min(r.acked.values()) >= P.FLOW_WINDOW
+        if r.forced or not r.acked:
+            return False
+        if not r.ack_topics:  # recorders only: each counts every topic
+            return r.sent + pending - min(r.acked.values()) >= P.FLOW_WINDOW
+        return any(r.sent_to(n) + pending - a >= P.FLOW_WINDOW for n, a in r.acked.items())
 
     def _all_acked(self):
         r = self.run
-        return not r.acked or min(r.acked.values()) >= r.sent
+        if not r.ack_topics:
+            return not r.acked or min(r.acked.values()) >= r.sent
+        return all(a >= r.sent_to(n) for n, a in r.acked.items())
 
     def _pause(self, what):
         """Wait for the recorders before ``what`` (``step``: the next exchange; ``end``: the result)."""
@@ -333,7 +354,7 @@ class BridgeNode(c.LockstepNode):
                 self.get_logger().warning(
                     f"run {r.id}: recorder '{name}' {'left' if name not in alive else 'acknowledged nothing for'}"
                     f"{'' if name not in alive else f' {0.5 * self.partner.timeout_s:g} s'}; it is no longer waited for "
-                    f"({r.acked[name]} of {r.sent} messages acknowledged)")
+                    f"({r.acked[name]} of {r.sent_to(name)} messages acknowledged)")
                 del r.acked[name]
         r.ack_wait_since = None if not r.acked else time.monotonic()
         self._resume()

@@ -39,6 +39,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.serialization import serialize_message
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension, String
 
+from adm_sim import protocol as P
 from adm_sim.cliutil import one_line_warnings
 from adm_sim.errors import AdmSimError, InputError, PlausibilityWarning, RunError
 from adm_sim.files import release_all
@@ -58,9 +59,67 @@ QOS_CONTROL = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
 #: Monitoring streams (midspan, beam, clock, progress): reliable, deep history for recorders.
 QOS_MONITOR = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=5000,
                          reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
+#: The per-passage summary: transient local with a history of :data:`adm_sim.protocol.SUMMARY_HISTORY`
+#: passages, so a client that lags or joins late reads the passages it missed.
+QOS_HISTORY = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=P.SUMMARY_HISTORY,
+                         reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 #: Descriptions: latched (transient local), last value only.
 QOS_LATCHED = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                          reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+class FlowClient:
+    """Opt a client node into the bridge's flow control: one call, ``FlowClient(node)``, before the
+    run starts; then ``flow.received()`` in the callback of every message of ``topics``.
+
+    The bridge takes every publisher of ``/adm/run/ack`` at a run's set-up as a node to wait for
+    (docs/ros.md, "Flow control"): it never publishes more than :data:`adm_sim.protocol.FLOW_WINDOW`
+    messages of ``topics`` beyond this client's acknowledgement, and ends the run only once the
+    client has them all. Subscribe to ``topics`` RELIABLE with a history of at least
+    ``FLOW_WINDOW`` (:data:`QOS_MONITOR`). The counting is :class:`adm_sim.protocol.AckCounter`;
+    ``runs`` gives ``run_id -> (received, published)`` of the runs ended.
+
+    Parameters
+    ----------
+    node : rclpy.node.Node
+        The client's node.
+    topics : sequence of str
+        The topics the client reads, of :data:`adm_sim.protocol.SAMPLE_TOPICS` (default the midspan
+        acceleration).
+    graph : str or None
+        The namespace of the graph (``/b1``: its ``/b1/adm/run/ack``); ``None``: the node's own
+        (relative names).
+    """
+
+    def __init__(self, node, topics=(P.TOPIC_ACCEL,), graph=None):
+        self.counter = P.AckCounter(node.get_fully_qualified_name(), topics)
+
+        def name(topic):
+            return P.relative(topic) if graph is None else graph.rstrip("/") + topic
+
+        self.pub = node.create_publisher(String, name(P.TOPIC_ACK), QOS_CONTROL)
+        node.create_subscription(String, name(P.TOPIC_PROGRESS), self._on_progress, QOS_MONITOR)
+        node.create_subscription(String, name(P.TOPIC_STATUS), self._on_status, QOS_CONTROL)
+
+    @property
+    def runs(self):
+        return self.counter.runs
+
+    def received(self, n=1):
+        """``n`` messages of the counted topics arrived."""
+        self._send(self.counter.count(n))
+
+    def _on_progress(self, msg):
+        self._send(self.counter.final(P.decode(msg.data)))
+
+    def _on_status(self, msg):
+        rec = P.decode(msg.data)
+        if P.is_bridge_start(rec):
+            self.counter.started(rec.get("run_id"))
+
+    def _send(self, rec):
+        if rec is not None:
+            self.pub.publish(String(data=P.encode(rec)))
 
 
 class ExchangeError(RunError):
@@ -270,6 +329,7 @@ def json_msg(record):
 # ---------------------------------------------------------------------- parameters
 # The specs, the params-file checks and the list helpers are ROS-free (adm_sim.nodes.params);
 # they are imported here for the nodes.
+from adm_sim.nodes.params import unapplied_sections  # noqa: E402
 from adm_sim.nodes.params import (RCLPY_PARAMETERS, ParamSpec, check_params_file,  # noqa: E402,F401
                                   format_float_list, load_params_yaml, param, parse_float_list)
 
@@ -640,10 +700,12 @@ def _run_node(make_node, args, name):
 
 
     argv = sys.argv if args is None else list(args)
+    param_docs = []  # (file, its YAML): every section must reach its node (check_sections_apply)
     try:  # a params file that is not YAML: our line, before rcl prints its own
         for i, a in enumerate(argv[:-1]):
             if a == "--params-file":
                 doc = load_params_yaml(argv[i + 1])
+                param_docs.append((argv[i + 1], doc))
                 shared = doc.get("/**") if isinstance(doc, dict) else None
                 if isinstance(shared, dict) and isinstance(shared.get("ros__parameters"), dict):
                     SHARED_PARAMETER_NAMES.update(shared["ros__parameters"])
@@ -661,6 +723,7 @@ def _run_node(make_node, args, name):
     try:
         made = make_node()
         nodes = list(made) if isinstance(made, tuple) else [made]
+        check_sections_apply(nodes, param_docs)
         node = nodes[0]
         executor = node.make_executor()
         for n in nodes:
@@ -706,6 +769,22 @@ def _run_node(make_node, args, name):
         rclpy.try_shutdown()
         release_all()  # every output this node claimed, however it ended (no stray lock file)
     return code
+
+
+def check_sections_apply(nodes, param_docs):
+    """Refuse (:class:`InputError`, exit 2) a params-file section that names one of ``nodes`` but
+    that rcl does not apply to it: rcl matches sections by fully qualified name, so under
+    ``-r __ns:=/b3`` a section keyed ``bridge`` (read ``/bridge``) would leave the node
+    ``/b3/bridge`` on its defaults without a word."""
+    for node in nodes:
+        fqn = node.get_fully_qualified_name()
+        for path, doc in param_docs:
+            missed = unapplied_sections(doc, fqn)
+            if missed:
+                base = fqn.rsplit("/", 1)[-1]
+                raise InputError(f"--params-file {path!r}: section {missed[0]!r} is not applied to the node {fqn!r} "
+                                 f"(rcl reads it as {('/' + missed[0]).replace('//', '/')!r}); key it {fqn!r} or "
+                                 f"'/**/{base}'")
 
 
 #: How often the composed loop runs the nodes' :meth:`NodeBase.watch` (s).

@@ -245,12 +245,41 @@ class RunDriver(c.NodeBase):
                 raise InputError(f"{node_name}: {r.reason}")
 
     def wait_for_graph(self, timeout_s=30.0):
-        """Block until both nodes, their services and the result topic are there."""
+        """Block until both nodes, their services and the result topic are there, then until
+        ``wait_clients`` clients opted into the flow control (:meth:`wait_for_clients`)."""
         t_end = time.monotonic() + timeout_s
         while not (self.cli_start.service_is_ready() and self.count_publishers(P.relative(P.TOPIC_RESULT)) > 0):
             if time.monotonic() > t_end:
                 raise RunError(f"bridge/train nodes not found after {timeout_s:g} s")
             self._event.wait(0.05)
+        self.wait_for_clients()
+
+    def opted_in_clients(self):
+        """Fully qualified names of the other nodes that publish ``/adm/run/ack`` (the clients that
+        opted into the flow control, other recorders)."""
+        me = self.get_fully_qualified_name()
+        infos = self.get_publishers_info_by_topic(self.resolve_topic_name(P.relative(P.TOPIC_ACK)))
+        return sorted({i.node_namespace.rstrip("/") + "/" + i.node_name for i in infos} - {me})
+
+    def wait_for_clients(self):
+        """Block until ``wait_clients`` other nodes publish ``/adm/run/ack`` (at most
+        ``run_timeout_s``; then :class:`RunError`), so that they are waited for from the first run."""
+        want = int(self.get_parameter("wait_clients").value)
+        if want <= 0:
+            return
+        print(f"waiting for {want} client(s) to opt into the flow control (publishers of "
+              f"{self.resolve_topic_name(P.relative(P.TOPIC_ACK))})", flush=True)
+        timeout_s = float(self.get_parameter("run_timeout_s").value)
+        t_end = time.monotonic() + timeout_s
+        while len(self.opted_in_clients()) < want:
+            if time.monotonic() > t_end:
+                raise RunError(f"wait_clients: {want} client(s) asked for, {len(self.opted_in_clients())} opted in "
+                               f"within run_timeout_s = {timeout_s:g} s")
+            self._event.wait(0.05)
+        # the bridge takes them at the run's set-up from its own view of the graph, which can lag
+        # this node's by a second or more on a loaded machine
+        self._event.wait(2.0)
+        print(f"clients opted in: {', '.join(self.opted_in_clients())}", flush=True)
 
     def _check_alive(self):
         ns = self.get_namespace()

@@ -72,6 +72,7 @@ MONITOR_SPECS = [
     c.ParamSpec("bandpass", True, "", "band-pass around the FFT peak before the fit"),
     c.ParamSpec("json_path", "", "", "JSON file of the passages, rewritten after each; empty = none"),
     c.ParamSpec("overwrite", False, "", "replace an existing json_path"),
+    c.ParamSpec("flow_control", True, "", "opt into the bridge's flow control on our own topic (no sample lost)"),
 ]
 
 
@@ -118,6 +119,8 @@ class MonitorNode(c.ParamNodeMixin, Node):
         if ours:
             self.create_subscription(String, ours[1], self._on_bridge, c.QOS_LATCHED)
             self.create_subscription(String, ours[2], self._on_train, c.QOS_LATCHED)
+        # opt into the bridge's flow control (adm_sim.nodes.common.FlowClient): the runs wait for this monitor
+        self.flow = c.FlowClient(self, graph=self.topic[:-len(P.TOPIC_ACCEL)]) if ours and p["flow_control"] else None
         self.started = time.monotonic()
         self.seen = False
         self.samples = 0
@@ -131,6 +134,8 @@ class MonitorNode(c.ParamNodeMixin, Node):
             self.imu_checked = True
         t, a = sample_of(msg, self.kind, self.axis, self.sign)  # the sample's own stamp
         self.samples += 1
+        if self.flow is not None:
+            self.flow.received()
         self.tracker.sample(t, a, time.monotonic())
 
     def _on_status(self, msg):

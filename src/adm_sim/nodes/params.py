@@ -194,6 +194,42 @@ def check_params_file(path, specs_by_node, extra_checks=None):
     return values
 
 
+def namespaced_params(path, namespace, dst):
+    """Write ``dst``: the params file ``path`` (checked, keyed by bare node names and ``/**``) with
+    every bare node name keyed by its name in ``namespace`` (``bridge`` -> ``/b3/bridge``), so that
+    rcl applies each section to the namespaced node (it matches a section by the node's fully
+    qualified name: a bare ``bridge`` is ``/bridge`` and would be ignored). Returns ``dst``."""
+    doc = load_params_yaml(path)
+    ns = namespace.rstrip("/")
+    out = {(k if k.startswith("/") else f"{ns}/{k}"): v for k, v in doc.items()}
+    dst.write_text(yaml.safe_dump(out, sort_keys=False))
+    return dst
+
+
+def unapplied_sections(doc, fqn):
+    """The sections of a params file (``doc``) that name node ``fqn``'s own name (its last token)
+    while rcl applies none of them to it: a bare ``bridge`` (rcl reads ``/bridge``) or
+    ``/b1/bridge`` for the node ``/b3/bridge``. Empty when a section does apply to ``fqn`` (its
+    exact name, or a pattern of ``*``/``**`` that matches it, as rcl matches) or none names it."""
+    import re  # noqa: PLC0415  only with a params file
+
+    if not isinstance(doc, dict):
+        return []
+    base = fqn.rsplit("/", 1)[-1]
+
+    def key_re(key):
+        k = key if key.startswith("/") else "/" + key
+        out = ""
+        for part in re.split(r"(/\*\*|\*)", k):
+            out += "(/[^/]+)*" if part == "/**" else "[^/]*" if part == "*" else re.escape(part)
+        return re.compile(out)
+
+    applied = [k for k in doc if isinstance(k, str) and k.rsplit("/", 1)[-1] != "**" and key_re(k).fullmatch(fqn)]
+    named = [k for k in doc if isinstance(k, str) and "*" not in k and k.rsplit("/", 1)[-1] == base
+             and not key_re(k).fullmatch(fqn)]
+    return [] if applied else named
+
+
 def parse_float_list(field, text, unit):
     """Floats from a comma list (``"0.001,0.002"``); empty text gives an empty array."""
     parts = [p.strip() for p in str(text).split(",") if p.strip()]
@@ -349,6 +385,7 @@ DRIVER_SPECS = [
     ParamSpec("rerun_connect", "", "", "stream to a rerun viewer at this loopback URL"),
     ParamSpec("summary_path", "", "", "JSON summary of the run(s); empty = none"),
     param("run_timeout_s", 900.0),
+    param("wait_clients", 0),
     param("chunk_size", 65536),
     ParamSpec("overwrite", False, "", "replace existing record_path, rrd_path and summary_path files"),
 ]

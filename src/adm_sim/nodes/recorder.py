@@ -57,6 +57,12 @@ class RunRecorder:
             from adm_sim.recording.mcap_log import McapRecorder  # noqa: PLC0415  mcap only when recording
 
             self.mcap = McapRecorder(self._beside("record_path"), chunk_size=int(chunk_size), overwrite=True)
+            # log times are sim time (the session's, from 0): the recording's real date is said here
+            now_ns = time.time_ns()
+            self.mcap.write_metadata("recording", {
+                "started_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime(now_ns // 1_000_000_000)),
+                "started_unix_ns": now_ns, "log_time": "sim time: s of the session since its first run started",
+                "header_stamps": "sim time (the monitored lane's), as log_time"})
         self.viz = None  # rerun_log.RunLogger
         self.feed = None  # viewer_feed.ViewerFeed drawing on it
         if "rrd_path" in outputs or rerun_spawn or rerun_connect:

@@ -1,13 +1,18 @@
 """Keep every ROS 2 run on this machine and apart from every other run.
 
-* :func:`local_ros_env` returns an environment for a run (or its child processes) with Fast DDS
-  restricted to shared memory (``FASTDDS_BUILTIN_TRANSPORTS=SHM``: no UDP socket at all),
-  ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` and a ``ROS_DOMAIN_ID``: the one asked for, else an
+* :func:`local_ros_env` returns an environment for a run (or its child processes) with
+  ``FASTDDS_BUILTIN_TRANSPORTS=SHM``, ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` (with it,
+  rmw_fastrtps configures its own transports: shared memory and UDPv4, discovery announced to
+  127.0.0.1 only, no multicast; data between processes of this machine over shared memory) and a
+  ``ROS_DOMAIN_ID``: the one asked for, else an
   exported ``ROS_DOMAIN_ID``, else a free id in ``[1, 101]`` reserved with an exclusive
   ``fcntl.flock`` on a lock file under ``/tmp/adm_sim_ros_domains/``; the lock is released when
   the run closes it or dies, so concurrent runs never share an id and a killed run never leaks
   one. Ids up to 232 are accepted with shared memory only; with a UDP transport 101 is the
   largest id whose ports stay valid.
+* :func:`client_export_line` is the one ``export`` line a ROS 2 client in another shell needs to
+  see a run's graph (the transport, the discovery range and the domain id of the run): every
+  launcher prints it.
 * :func:`cleanup_shm` runs Fast DDS's own ``fastdds shm clean``, which removes the shared-memory
   files (``/dev/shm/fastrtps_*``) of participants that died without cleaning up (a SIGKILL) and
   never those of a live one.
@@ -20,6 +25,7 @@ from __future__ import annotations
 import contextlib
 import fcntl
 import os
+import shlex
 import shutil
 import subprocess
 import sys
@@ -34,7 +40,9 @@ __all__ = [
     "DOMAIN_ID_MAX_UDP",
     "DomainLock",
     "LocalRosEnv",
+    "CLIENT_VARIABLES",
     "cleanup_shm",
+    "client_export_line",
     "fastdds_tool",
     "local_ros_env",
 ]
@@ -234,6 +242,20 @@ def local_ros_env(domain_id: int | None = None, base: dict | None = None) -> Loc
     env.domain_id = chosen
     env.lock = lock
     return env
+
+
+#: The variables a client needs to join a run's graph, in the order of :func:`client_export_line`.
+#: Every participant of a graph needs the same discovery settings: a client with the transport and
+#: the domain id but not the discovery range sees no node of a run (docs/ros.md, "Integrating").
+CLIENT_VARIABLES = ("FASTDDS_BUILTIN_TRANSPORTS", "ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_DOMAIN_ID")
+
+
+def client_export_line(env: Mapping[str, str]) -> str:
+    """The shell line that gives a client in another shell the environment of run ``env`` (a
+    :class:`LocalRosEnv`, or ``os.environ`` after :func:`apply_local_ros_env`):
+    ``export FASTDDS_BUILTIN_TRANSPORTS=SHM ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST ROS_DOMAIN_ID=42``
+    (values shell-quoted where they need it)."""
+    return "export " + " ".join(f"{k}={shlex.quote(str(env[k]))}" for k in CLIENT_VARIABLES)
 
 
 def apply_local_ros_env(domain_id: int | None = None) -> LocalRosEnv:

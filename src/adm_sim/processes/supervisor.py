@@ -2,7 +2,7 @@
 
 Used by the launch scripts and by the tests alike. Every node runs as
 ``python -m <module> --ros-args ...`` in its own process group, under an environment of
-:func:`adm_sim.processes.dds_env.local_ros_env` (shared memory only, a ROS_DOMAIN_ID of its own).
+:func:`adm_sim.processes.dds_env.local_ros_env` (this machine only, a ROS_DOMAIN_ID of its own).
 :class:`Supervisor` reports the first node that dies, stops all of them on exit, Ctrl-C or
 SIGTERM (SIGTERM first so the nodes finish their files, SIGKILL after a grace period) and, when
 a process had to be killed or died by a signal, removes the Fast DDS shared-memory files it left

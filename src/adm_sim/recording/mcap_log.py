@@ -115,6 +115,7 @@ QOS_CLASSES = {
     "X": ("keep_last", 16, "reliable", "volatile"),
     "M": ("keep_last", 5000, "reliable", "volatile"),
     "L": ("keep_last", 1, "reliable", "transient_local"),
+    "H": ("keep_last", 1000, "reliable", "transient_local"),
 }
 #: rclpy's default profile (``depth=10``), for a topic of no known class.
 QOS_DEFAULT = ("keep_last", 10, "reliable", "volatile")

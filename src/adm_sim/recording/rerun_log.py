@@ -430,12 +430,33 @@ class RunLogger:
             rr.log(P.beam_path(r.id, "peak_axles"), rr.Points2D(np.column_stack([ax, k * aw]).reshape(-1, 2),
                                                                 colors=color, radii=0.12), recording=self.rec)
         rr.reset_time(recording=self.rec)
+        self._log_limit(r)
         self._log_sweep(r, phase, kind, v, acc, dz)
         i = int(np.argmax(acc))
         r.row = (f"| {r.id} | {kind}{dz_txt} | {v.size} | {_fmt(v.min())}–{_fmt(v.max())} | "
                  f"{_fmt(r.mon_kmh) if r.mon_kmh else '-'} | {self._sampling(r)} | {acc[i]:.3f} | {v[i]:g} |")
         self._log_run_table()
         return kind
+
+    def _log_limit(self, r: _Run):
+        """The EN 1990 A2.4.4.2.1 limit of the bridge's track (its description's ``acc_limit_m_s2``)
+        as two lines, +limit and -limit, over the run's run time (``runs/acceleration/limit_*``):
+        the samples are signed (z up), the limit bounds their magnitude."""
+        import rerun as rr  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
+
+        limit = float(self._bridge.get("acc_limit_m_s2") or 0.0)
+        if limit <= 0.0 or not np.isfinite(r.t1):
+            return
+        track = str(self._bridge.get("track_type", "")).replace("_", " ")
+        t_run = np.array([0.0, float(r.run_time(r.t1))])
+        t_sim = np.array([r.t0, r.t1])
+        for sign, part in ((1.0, "limit_upper"), (-1.0, "limit_lower")):
+            path = f"{P.ENTITIES['acceleration']}/{part}"
+            self._style(path, name=f"EN 1990 A2.4.4.2.1 limit {'+' if sign > 0 else '-'}{limit:g} m/s² ({track})",
+                        color=(200, 0, 0), width=1.0)
+            rr.send_columns(path, indexes=[rr.TimeColumn(SIM_TIME, duration=t_sim),
+                                           rr.TimeColumn(RUN_TIME, duration=t_run)],
+                            columns=rr.Scalars.columns(scalars=sign * np.full(2, limit)), recording=self.rec)
 
     def _sampling(self, r: _Run) -> str:
         """Monitoring step of a run in the monitored lane's time, and samples per period of the top mode."""
@@ -481,7 +502,9 @@ class RunLogger:
         label = kind + (f" (Δζ {fmt_pct(uniq[0])})" if kind == MLM_ZETA_DZ else "")
         for trials in (False, True) if kind in (DIM, MLM_ZETA_DZ) else (False,):
             path = P.sweep_curve_path(name, trials)
-            self._style(path, name=label, color=_COLORS[kind], width=2.0)
+            # the DIM runs on a window of the speed grid (docs/ros.md): its values as points, so
+            # that no line is drawn across the speeds it did not compute
+            self._style(path, lines=kind != DIM, name=label, color=_COLORS[kind], width=2.0 if kind != DIM else 4.0)
             self._send_curve(path, v, acc)
 
     def _send_curve(self, path, speeds_kmh, max_acc_m_s2):
