@@ -8,6 +8,8 @@ import sys
 
 import pytest
 
+pytest_plugins = ("pytester",)  # tests/test_tiers.py runs the root conftest on a small suite
+
 # Pin BLAS threads before numpy is imported anywhere (numbers and timings stay stable).
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
@@ -19,6 +21,111 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 # No first-run compile notice on stderr in tests (they compare stderr line by line; a fresh clone
 # compiles numba's kernels in whichever test comes first). tests/test_imports.py tests the notice.
 os.environ.setdefault("ADM_SIM_QUIET_COMPILE", "1")
+
+
+# --- tiers: a test that starts a process is marked ``slow`` ---------------------------------------
+# ``pytest -m "not slow"`` is the developer's loop (the numerical and input tests). A test without the
+# marker that starts a child process (subprocess, multiprocessing, os.fork/system/posix_spawn), in its
+# body or in the set-up or tear-down of a fixture it uses, fails with a message naming the test and the
+# process: the process is not started. Marked tests and the collection's own hooks are not watched.
+
+_watched = None  # node id of the unmarked test in its set-up, call or tear-down, else None
+_refused = {}    # node id -> what it tried to start (reported even if the test swallowed the failure)
+
+
+def _refuse(what):
+    nodeid = _watched
+    if nodeid is None:
+        return
+    msg = (f"{nodeid} started a child process ({what}) but is not marked slow: add "
+           "@pytest.mark.slow to the test (or pytestmark = pytest.mark.slow to its file) so that "
+           "'pytest -m \"not slow\"' keeps to the numerical and input tests")
+    _refused.setdefault(nodeid, msg)
+    pytest.fail(msg, pytrace=False)
+
+
+def _describe(args):
+    if isinstance(args, (str, bytes, os.PathLike)):
+        return os.fsdecode(args)[:200]
+    return " ".join(os.fsdecode(a) if isinstance(a, (str, bytes, os.PathLike)) else str(a) for a in args)[:200]
+
+
+_wrapped = []   # (owner, attribute, original): what the guard replaced, put back at the end
+
+
+def _wrap(owner, name, describe):
+    orig = getattr(owner, name)
+
+    def guarded(*args, **kw):
+        if _watched is not None:
+            try:
+                what = describe(*args, **kw)
+            except Exception:  # an unusual call form: name the function alone
+                what = name
+            _refuse(what)
+        return orig(*args, **kw)
+
+    setattr(owner, name, guarded)
+    _wrapped.append((owner, name, orig))
+
+
+def _install_process_guard():
+    """Wrap every way a test can start a process so that :func:`_refuse` is asked first."""
+    import multiprocessing.process  # noqa: PLC0415  only to wrap its start
+
+    if _wrapped:
+        return
+    _wrap(subprocess.Popen, "_execute_child", lambda self, args, *_, **__: f"subprocess: {_describe(args)}")
+    _wrap(multiprocessing.process.BaseProcess, "start",
+          lambda self: f"multiprocessing: {self.name}, target {getattr(self, '_target', None)!r}")
+    _wrap(os, "fork", lambda: "os.fork")
+    _wrap(os, "forkpty", lambda: "os.forkpty")
+    _wrap(os, "system", lambda command: f"os.system: {_describe(command)}")
+    _wrap(os, "posix_spawn", lambda path, argv, *_, **__: f"os.posix_spawn: {_describe(argv)}")
+    _wrap(os, "posix_spawnp", lambda path, argv, *_, **__: f"os.posix_spawnp: {_describe(argv)}")
+
+
+def pytest_unconfigure(config):
+    while _wrapped:
+        owner, name, orig = _wrapped.pop()
+        setattr(owner, name, orig)
+
+
+def _watch(item):
+    global _watched
+    _watched = None if item is None or item.get_closest_marker("slow") else item.nodeid
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_setup(item):
+    _watch(item)
+    yield
+    _watch(None)
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_call(item):
+    _watch(item)
+    yield
+    _watch(None)
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_teardown(item, nextitem):
+    _watch(item)
+    yield
+    _watch(None)
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    report = (yield).get_result()
+    msg = _refused.get(item.nodeid)
+    if msg is not None:
+        if report.passed:  # the test (or a thread of it) caught the failure: it fails all the same
+            report.outcome = "failed"
+            report.longrepr = msg
+        _refused.pop(item.nodeid)
 
 
 # --- optional per-test CPU cost (``ADM_SIM_TEST_CPU_LOG=path``) ----------------------------------
@@ -191,6 +298,7 @@ def _compile_bytecode():
 
 
 def pytest_configure(config):
+    _install_process_guard()
     if _xdist_controller(config) and not config.option.collectonly:
         _compile_bytecode()
         if os.environ.get("ADM_SIM_TEST_PRECOMPILE", "1") != "0" and not _kernels_cached():

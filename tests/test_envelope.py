@@ -295,6 +295,7 @@ def test_where_bad_input():
         moving_load_envelope(bridge, [0.0], [1e5], [200.0], where="x=abc")
 
 
+@pytest.mark.slow
 def test_compiled_kernels_equal_their_python_source():
     """The numba kernels run as plain Python (NUMBA_DISABLE_JIT=1, in a subprocess) give the same
     whole-deck and midspan maxima on a tiny case (two axles, two speeds)."""

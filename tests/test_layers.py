@@ -26,6 +26,7 @@ import collections
 import functools
 import pathlib
 import re
+import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
@@ -216,6 +217,7 @@ def test_only_the_command_layer_draws():
     assert drawers == DRAWING
 
 
+@pytest.mark.slow
 def test_nothing_below_the_nodes_loads_rclpy():
     """The one run-time check beside the static scan: every module of ``adm_sim`` and ``adm_calib``
     outside their ``nodes`` packages, imported together in a fresh interpreter, leaves ``rclpy``

@@ -25,6 +25,7 @@ ROOT = Path(__file__).resolve().parents[1]
 # ---------------------------------------------------------------- layering
 
 
+@pytest.mark.slow
 def test_protocol_and_limits_import_neither_rclpy_nor_rerun():
     code = ("import sys, adm_sim.protocol, adm_sim.limits; "
             "print(sorted(m for m in ('rclpy', 'rerun', 'std_msgs', 'mcap') if m in sys.modules))")

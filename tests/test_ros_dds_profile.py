@@ -6,6 +6,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from adm_sim.processes.dds_env import reserve_domain_id
 
 PROFILE = Path(__file__).resolve().parents[1] / "ros_ws" / "dds" / "fastdds_shm_only.xml"
@@ -44,6 +46,7 @@ rclpy.try_shutdown()
 """
 
 
+@pytest.mark.slow
 def test_shm_only_profile_delivers_between_processes():
     # the profile alone (ROS_AUTOMATIC_DISCOVERY_RANGE would make rmw add its own transports)
     drop = ("FASTDDS_BUILTIN_TRANSPORTS", "ROS_AUTOMATIC_DISCOVERY_RANGE")
@@ -101,6 +104,7 @@ def test_exported_domain_id_is_honoured_and_checked_per_transport():
         assert str(exc.value) == message
 
 
+@pytest.mark.slow
 def test_launchers_refuse_an_exported_domain_id_out_of_range(tmp_path):
     """The launchers read an exported ROS_DOMAIN_ID (they no longer replace it): out of range,
     one line, exit 2, no output folder."""

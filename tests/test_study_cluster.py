@@ -58,6 +58,7 @@ def _faults(env):
     return int(out.stdout.split()[-1])
 
 
+@pytest.mark.slow
 def test_dask_trim_threshold_faults_every_table_in_again_and_the_default_does_not():
     base = {k: v for k, v in os.environ.items() if not k.startswith("MALLOC_")}
     trimmed = _faults({**base, "MALLOC_TRIM_THRESHOLD_": "65536"})

@@ -432,6 +432,7 @@ def test_given_static_loads_must_match_the_weight():
     assert train_from_mapping(data, source="v.toml").axle_loads_n.tolist() == [150e3, 150e3]
 
 
+@pytest.mark.slow
 def test_bad_vehicle_file_on_the_command_line_exits_2(tmp_path):
     """``adm-sim sweep --train bad.toml``: one line ``error: ...`` naming the key, exit 2, nothing written."""
     p = tmp_path / "bad_vehicle.toml"

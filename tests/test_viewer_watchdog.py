@@ -97,6 +97,7 @@ vp.exit_if_abandoned(0)
 """
 
 
+@pytest.mark.slow
 def test_viewer_that_stops_answering_is_given_up(tmp_path):
     """The peer answers the handshake before the run (a viewer), then never again (stopped): the
     flush at the end of the run (``rr.disconnect``, which waits for the viewer for ever) is given
