@@ -94,3 +94,46 @@ def test_unmarked_process_fails_and_is_not_started(pytester):
     assert out.count("is not marked slow: add @pytest.mark.slow") >= 6
     started = sorted(p.name for p in base.glob("*.started"))
     assert started == ["marked.started"], started
+
+
+class _Item:
+    """What the root conftest's ordering reads of a collected test: its file and its ``slow`` mark."""
+
+    def __init__(self, path, k, slow):
+        self.path, self.k, self.slow = path, k, slow
+
+    def get_closest_marker(self, name):
+        return object() if name == "slow" and self.slow else None
+
+
+def _root_conftest():
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("root_conftest_under_test", ROOT / "conftest.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+#: file -> (number of tests, holds a slow test), in collection order
+FILES = {"a": (5, False), "b": (40, True), "c": (3, False), "d": (17, False), "e": (8, True), "f": (30, False),
+         "g": (1, True), "h": (22, False), "i": (12, False)}
+
+
+@pytest.mark.parametrize("workers, expected", [
+    # dealt by hand: the slow files b, e, g, then the others, each to the share with fewest tests so far
+    (1, "b e g a c d f h i"),
+    (2, "b h i  e g a c d f"),      # shares of 74 and 68 tests
+    (3, "b  e d h  g a c f i"),     # shares of 40, 47 and 51 tests
+])
+def test_order_deals_whole_files_slow_first_in_equal_shares(monkeypatch, workers, expected):
+    """xdist's worksteal hands each worker a contiguous share of the list first: the order deals the
+    files whole into one share per worker (the next file to the share with fewest tests), the files
+    holding a ``slow`` test first; within a file, collection order."""
+    items = [_Item(Path(f"tests/test_{name}.py"), k, slow and k % 2 == 0)
+             for name, (n, slow) in FILES.items() for k in range(n)]
+    monkeypatch.setenv("PYTEST_XDIST_WORKER_COUNT", str(workers))
+    _root_conftest().pytest_collection_modifyitems(None, items)
+    order = [it.path.stem[5:] for it in items]
+    assert order == [f for f in expected.split() for _ in range(FILES[f][0])]
+    assert all(items[j].k == items[j - 1].k + 1 for j in range(1, len(items)) if items[j].path == items[j - 1].path)
