@@ -368,6 +368,7 @@ def _no_figures(monkeypatch):
         monkeypatch.setattr(plots, name, empty_png)
 
 
+@pytest.mark.slow
 def test_study_fit_cli_end_to_end(tmp_path, capsys, monkeypatch):
     lbs = lower_bound_table()
     recs = []

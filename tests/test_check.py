@@ -499,6 +499,7 @@ ONE_PC = {"m_c_kg": 33930, "J_c_kgm2": 2.115e6, "m_b_kg": 2373, "J_b_kgm2": 1832
           "b_m": 2.5, "axle_load_kN": 112}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["B1", "B3"])
 def test_comfort_b_v_against_an_independent_integration(tmp_path, name):
     """One ICE-2 passenger car crossing B1 and B3 at 200 and 263 km/h: b_v of the DIM (RK4, 16
@@ -518,6 +519,7 @@ def test_comfort_b_v_against_an_independent_integration(tmp_path, name):
     np.testing.assert_allclose(dim, ref, rtol=5e-4)
 
 
+@pytest.mark.slow
 def test_comfort_b_v_limits_and_convergence():
     """Passenger comfort b_v from the DIM: step-converged (200 and 263 km/h), ~0 on a rigid bridge,
     larger on a light bridge (B3 weighs 0.41 of B1 at the same n0), level by EN 1990 A2.4.4.3 Table
@@ -611,6 +613,7 @@ def test_refusal_comes_before_any_calibration(monkeypatch):
                   damping_provider=calibrated_damping)
 
 
+@pytest.mark.slow
 def test_default_is_modal_damping_b1_250_passes_closed_form():
     """The standard's default, ζ on every mode (EN 1991-2 6.4.6.3.1): B1 at V = 250 km/h with HSLM-A1..A10
     PASSes; the governing HSLM-A7 value 3.3932 m/s2 at 238.1 km/h, x = 6.281 m is checked against the
