@@ -72,12 +72,15 @@ def _wrap(owner, name, describe):
 def _install_process_guard():
     """Wrap every way a test can start a process so that :func:`_refuse` is asked first."""
     import multiprocessing.process  # noqa: PLC0415  only to wrap its start
+    import multiprocessing.util  # noqa: PLC0415  only to wrap its spawn
 
     if _wrapped:
         return
     _wrap(subprocess.Popen, "_execute_child", lambda self, args, *_, **__: f"subprocess: {_describe(args)}")
     _wrap(multiprocessing.process.BaseProcess, "start",
           lambda self: f"multiprocessing: {self.name}, target {getattr(self, '_target', None)!r}")
+    # the helpers multiprocessing starts without a Process (its resource tracker, a forkserver)
+    _wrap(multiprocessing.util, "spawnv_passfds", lambda path, args, *_: f"multiprocessing: {_describe(args)}")
     _wrap(os, "fork", lambda: "os.fork")
     _wrap(os, "forkpty", lambda: "os.forkpty")
     _wrap(os, "system", lambda command: f"os.system: {_describe(command)}")

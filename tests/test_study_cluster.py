@@ -17,7 +17,7 @@ import sys
 import pytest
 
 # skipped without distributed, which is imported by the tests themselves (0.35 s, not at collection)
-pytestmark = pytest.mark.skipif(importlib.util.find_spec("distributed") is None, reason="distributed is not installed")
+pytestmark = [pytest.mark.slow, pytest.mark.skipif(importlib.util.find_spec("distributed") is None, reason="distributed is not installed")]
 
 from adm_calib.study import execution  # noqa: E402
 
