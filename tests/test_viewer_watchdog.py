@@ -73,6 +73,7 @@ def test_init_rerun_refuses_a_closed_port():
         init_rerun("adm_sim_test", connect_url=f"rerun+http://127.0.0.1:{port}/proxy")
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")),
                     reason="a display is there: the viewer would start")
 def test_spawn_without_display_is_one_line():
