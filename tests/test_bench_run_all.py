@@ -50,6 +50,7 @@ def test_each_figure_and_its_baseline_are_read(bench):
     assert [(a, b) for _, a, b in rows] == EXPECTED[bench.name]
 
 
+@pytest.mark.slow  # runs the bench scripts as processes
 def test_the_table_prints_the_ratio_and_names_a_missing_figure():
     calibrate = next(b for b in run_all.BENCHES if b.name == "calibrate")
     core = next(b for b in run_all.BENCHES if b.name == "core")
@@ -112,6 +113,7 @@ def test_baseline_comparison_sets_our_figure_of_each_tree_side_by_side():
     assert rows[1].split(" | ")[1:4] == ["co-simulated: 0.78", "missing", "n/a"]  # ours is A for the graph
 
 
+@pytest.mark.slow  # git starts as a process
 def test_an_unknown_baseline_is_refused_before_any_bench_runs(capsys):
     assert run_all.main(["--only", "irregularity", "--baseline", "no-such-revision-here"]) == 2
     err = capsys.readouterr().err

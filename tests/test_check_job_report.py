@@ -136,3 +136,6 @@ def test_report_must_be_html_or_pdf(tmp_path, call_main):
                      "--report", str(tmp_path / "r.txt"))
     assert done.returncode == 2 and "must end with .html or .pdf" in done.stderr
     assert list(tmp_path.iterdir()) == []
+
+
+pytestmark = pytest.mark.slow  # the module fixture runs the check with its report (git, Chromium)

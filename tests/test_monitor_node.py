@@ -195,6 +195,7 @@ def test_live_imu_sensor(ctx):
     mon.destroy_node()
 
 
+@pytest.mark.slow  # starts the node process
 def test_node_process_best_effort_sensor_without_qos_warning(ros_domain, monkeypatch):  # noqa: F811
     """A best-effort sensor: the node subscribes best effort from the start, so rclpy never says
     'offering incompatible QoS. No messages will be received' (issue 35); the passage is reported."""
