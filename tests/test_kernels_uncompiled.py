@@ -21,8 +21,6 @@ import sys
 import numpy as np
 import pytest
 
-pytestmark = pytest.mark.slow  # every test here starts processes
-
 SCRIPT = r"""
 import json
 import numpy as np
