@@ -106,7 +106,8 @@ def _launch_args(out, **kw):
     from types import SimpleNamespace
 
     base = dict(domain_id=None, spawn=True, connect=None, out=str(out), bridge=None, train=None, speeds=None,
-                params_file=str(ROOT / "ros_ws" / "params" / "crossing_b3_300.yaml"), overwrite=False)
+                params_file=str(ROOT / "ros_ws" / "params" / "crossing_b3_300.yaml"), overwrite=False,
+                wait_clients="0", namespace="/", max_work=None)
     return SimpleNamespace(**(base | kw))
 
 
