@@ -15,19 +15,13 @@ Analysis only (numpy/scipy on top of :mod:`adm_sim`); no ROS import here.
 * :mod:`adm_calib.calib_commands` the ``adm-calib`` command
 """
 
-import importlib
-
 from adm_sim import __version__ as __version__  # one version number for both packages
+from adm_sim import lazy_getattr
 
-#: the public names of the wing and the module that holds each (imported on first use, PEP 562, so
-#: importing the wing stays as cheap as before; docs/python.md lists them)
+#: the public names of the wing and the module that holds each (:func:`adm_sim.lazy_getattr`)
 _HOME = {"CalibrationOptions": "calibration_options", "calibrate_batch": "calibrate", "run_table4": "table4",
          "Table4": "table4", "recommend": "reference", "Recommendation": "reference",
          "lower_bound_for": "reference", "eada_for": "reference", "lower_bound_pct": "lower_bound"}
 __all__ = sorted(_HOME)
 
-
-def __getattr__(name):
-    if name in _HOME:
-        return getattr(importlib.import_module(f"{__name__}.{_HOME[name]}"), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__ = lazy_getattr(__name__, _HOME)

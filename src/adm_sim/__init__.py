@@ -5,6 +5,7 @@ The numerical core (``bridge``, ``trains``, ``step_grid``, ``rk4_sides``, ``lock
 scipy only; the ROS 2 nodes live in :mod:`adm_sim.nodes` and are a thin layer on top.
 """
 
+import importlib as _importlib
 import os as _os
 
 
@@ -35,3 +36,15 @@ __all__ = ["AdmSimError", "InputError", "RunError"]
 #: re-exports it, and ``ros_ws/*/package.xml`` carry its release part (ROS admits only X.Y.Z);
 #: ``tests/test_packaging.py`` checks that they agree.
 __version__ = "0.2.0.dev0"
+
+
+def lazy_getattr(package, homes):
+    """The module ``__getattr__`` (PEP 562) of a wing whose public names live in its modules:
+    ``homes`` maps each name to the module of ``package`` that holds it, imported on first use, so
+    importing the wing stays as cheap as importing its package (docs/python.md lists the names)."""
+    def __getattr__(name):
+        if name in homes:
+            return getattr(_importlib.import_module(f"{package}.{homes[name]}"), name)
+        raise AttributeError(f"module {package!r} has no attribute {name!r}")
+
+    return __getattr__

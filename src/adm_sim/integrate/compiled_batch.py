@@ -52,10 +52,18 @@ def modal_load_table(bridge, ds_m, axle_offsets_m, axle_loads_n, n_steps):
     out = np.zeros((s.size, bridge.n_modes))
     span = bridge.span_m
     j = bridge.mode_numbers * math.pi / span
+    for load, r0, x in _axles_on_deck(s, span, axle_offsets_m, axle_loads_n):
+        out[r0:r0 + x.size] += load * np.sin(np.outer(x, j))
+    return out
+
+
+def _axles_on_deck(s, span, axle_offsets_m, axle_loads_n):
+    """Each axle's rows on the deck, in axle order: ``(load_n, r0, x)`` with ``x = s[r0:r0 + k] - offset``
+    the axle's positions on ``[0, span]`` (the rows are contiguous: ``s`` increases); axles never on
+    the deck are left out. ``s - off >= 0`` exactly where ``s >= off`` (the sign of a rounded
+    difference is exact); the upper end by the test itself on a few rows beyond ``s = off + span``."""
     loads = np.asarray(axle_loads_n, dtype=float)
     for i, off in enumerate(np.asarray(axle_offsets_m, dtype=float)):
-        # s - off >= 0 exactly where s >= off (the sign of a rounded difference is exact); the upper
-        # end by the test itself on a few rows beyond s = off + span
         r0 = int(np.searchsorted(s, off, side="left"))
         r1 = min(int(np.searchsorted(s, off + span, side="right")) + 2, s.size)
         if r0 >= r1:
@@ -63,9 +71,7 @@ def modal_load_table(bridge, ds_m, axle_offsets_m, axle_loads_n, n_steps):
         x = s[r0:r1] - off
         on = np.flatnonzero((x >= 0.0) & (x <= span))
         if on.size:
-            lo, hi = on[0], on[-1] + 1
-            out[r0 + lo:r0 + hi] += loads[i] * np.sin(np.outer(x[lo:hi], j))
-    return out
+            yield loads[i], r0 + on[0], x[on[0]:on[-1] + 1]
 
 
 def _deck_load_table(bridge, s, axle_offsets_m, axle_loads_n):
@@ -73,17 +79,10 @@ def _deck_load_table(bridge, s, axle_offsets_m, axle_loads_n):
     deck's mode shapes evaluated once for all (:func:`adm_sim.integrate.mlm_loads.deck_modal_loads`)."""
     span = bridge.span_m
     rows, xs, ws = [], [], []
-    loads = np.asarray(axle_loads_n, dtype=float)
-    for i, off in enumerate(np.asarray(axle_offsets_m, dtype=float)):
-        r0 = int(np.searchsorted(s, off, side="left"))
-        r1 = min(int(np.searchsorted(s, off + span, side="right")) + 2, s.size)
-        if r0 >= r1:
-            continue
-        x = s[r0:r1] - off
-        on = np.flatnonzero((x >= 0.0) & (x <= span))
-        rows.append(r0 + on)
-        xs.append(x[on])
-        ws.append(np.full(on.size, loads[i]))
+    for load, r0, x in _axles_on_deck(s, span, axle_offsets_m, axle_loads_n):
+        rows.append(r0 + np.arange(x.size))
+        xs.append(x)
+        ws.append(np.full(x.size, load))
     if not rows:
         return np.zeros((s.size, bridge.n_modes))
     return deck_modal_loads(bridge, np.concatenate(rows), np.concatenate(xs), np.concatenate(ws), s.size)
