@@ -34,6 +34,7 @@ from adm_sim.integrate.run_contract import FAILED, RUNNING, AdvancingRun, check_
 from adm_sim.limits import check_memory
 from adm_sim.integrate.step_grid import StepOptions, make_grid, speeds_to_m_s
 from adm_sim.integrate.tables import active_units, axle_rows, bridge_tables, vehicle_tables
+from adm_sim.model.irregularity import check_step  # the profile's shortest feature against ds (scipy loads only when a profile is used)
 
 
 def modal_load_table(bridge, ds_m, axle_offsets_m, axle_loads_n, n_steps):
@@ -128,8 +129,6 @@ class BatchRunner:
         self.irregularity = irregularity
         self.ds_m = float(ds_m)
         if irregularity is not None:  # its shortest feature against the space step
-            from adm_sim.model.irregularity import check_step  # noqa: PLC0415  scipy.interpolate only on a rough track
-
             check_step(irregularity, self.ds_m)
         self.span_m = float(b0.span_m)
         self.n_modes = b0.n_modes

@@ -14,11 +14,13 @@ by the same functions the numpy stepper uses) and, here, :class:`Blocks`, :class
 :class:`MlmLanes`, :class:`LaneState`. A DIM stage calls one helper per numpy step:
 :func:`rail_state` (``BridgeSide.rail_state``), :func:`vehicle_accelerations`
 (``TrainSide.take_rail_state``), :func:`bridge_accelerations` (``BridgeSide.take_forces``),
-:func:`midspan_acceleration`; a step starts with :func:`start_step`, :func:`start_units` and
-ends with the maxima, whose dense part (:func:`dense_maxima`) both kernels share. The RK4
-bookkeeping (``_Rk4State.push``) and the MLM step (``BridgeSide.step_mlm``) stay inline in their
-kernels: as helpers they cost ~20 % and ~6 % of the kernel's time (``bench/bench_kernels.py``,
-``docs/benchmarks.md``).
+:func:`midspan_acceleration`; a step starts with :func:`start_step`, :func:`start_units` and ends
+with the maxima, whose dense part (:func:`dense_maxima`) both kernels share. The DIM's RK4
+bookkeeping (``_Rk4State.push``) stays inline in :func:`dim_blocks`: moved into ``inline="always"``
+helpers (one per subsystem, and the run's set-up and scratch arrays into helpers returning named
+tuples) the kernel ran 5-10 % slower (``bench/bench_kernels.py --baseline``, 2026-12-06), beyond
+the 3 % this project allows. An MLM step is :func:`mlm_step` (``BridgeSide.step_mlm``) then
+:func:`sampled_maxima`, ``inline="always"`` helpers that cost nothing measurable (0.98-1.00x).
 
 One source: without numba the same functions run as plain Python (slow, for debugging;
 ``tests/test_kernels_uncompiled.py``). The numpy stepper stays the reference (the ROS nodes use
@@ -415,6 +417,17 @@ def dense_maxima(k, l0, acc, d, vel, h, amax, prev):
 MLM_CHUNK_LANES = 64
 
 
+@njit(cache=True, inline="always")
+def sampled_maxima(acc, d, amax, dmax):
+    """Fold |acceleration| ``acc`` and |deflection| ``d`` (nb,) of stage 0 into the running maxima
+    (``_BridgeRun``: the sampled maxima of every step)."""
+    for b in range(acc.shape[0]):
+        if abs(acc[b]) > amax[b]:
+            amax[b] = abs(acc[b])
+        if abs(d[b]) > dmax[b]:
+            dmax[b] = abs(d[b])
+
+
 @njit(cache=True, nogil=True)
 def dim_blocks(blocks, k0, k1, lanes, bridge, rows, units, vehicles, state, dense, track, contact):
     """DIM (Eqs. 7-17) with one exchange per RK stage, every lane over all its steps.
@@ -583,6 +596,84 @@ def dim_blocks(blocks, k0, k1, lanes, bridge, rows, units, vehicles, state, dens
         contact.min_n[l0:l0 + nb] = cmin
 
 
+@njit(cache=True, inline="always")
+def mlm_chunk_width(n_lanes):
+    """Lanes per chunk of a block of ``n_lanes``: balanced chunks of at most :data:`MLM_CHUNK_LANES`,
+    rounded up to a multiple of 8."""
+    n_chunks = (n_lanes + MLM_CHUNK_LANES - 1) // MLM_CHUNK_LANES
+    width = (n_lanes + n_chunks - 1) // n_chunks
+    return min((width + 7) // 8 * 8, MLM_CHUNK_LANES)
+
+
+@njit(cache=True, inline="always")
+def mlm_coefficients(lanes, l0, nb, nm):
+    """The chunk's copy ``cf`` (11, n_modes, nb) of ``Z`` and the RK4 recurrence ``ax, axd, bx, bxd,
+    c0, c0d, ch, chd, c1, c1d`` of lanes ``l0 .. l0 + nb - 1`` (:class:`MlmLanes`)."""
+    cf = np.empty((11, nm, nb))
+    for i, arr in enumerate((lanes.Z, lanes.ax, lanes.axd, lanes.bx, lanes.bxd, lanes.c0, lanes.c0d, lanes.ch,
+                             lanes.chd, lanes.c1, lanes.c1d)):
+        for j in range(nm):
+            for b in range(nb):
+                cf[i, j, b] = arr[j, l0 + b]
+    return cf
+
+
+@njit(cache=True, inline="always")
+def mlm_take(state, l0, nb, nm):
+    """The chunk's copies: ``s`` (2, n_modes, nb) of ``q``, ``qd``; ``o`` (5, nb): midspan deflection,
+    velocity, acceleration (zeros) and the running maxima of |acceleration|, |deflection|."""
+    s = np.empty((2, nm, nb))
+    for j in range(nm):
+        for b in range(nb):
+            s[0, j, b] = state.q[j, l0 + b]
+            s[1, j, b] = state.qd[j, l0 + b]
+    o = np.zeros((5, nb))
+    for b in range(nb):
+        o[3, b] = state.max_acc[l0 + b]
+        o[4, b] = state.max_disp[l0 + b]
+    return s, o
+
+
+@njit(cache=True, inline="always")
+def mlm_put(s, o, state, l0):
+    """Write the chunk's state and maxima (:func:`mlm_take`) back at lanes ``l0 ..``."""
+    nm, nb = s.shape[1], s.shape[2]
+    for j in range(nm):
+        for b in range(nb):
+            state.q[j, l0 + b] = s[0, j, b]
+            state.qd[j, l0 + b] = s[1, j, b]
+    for b in range(nb):
+        state.max_acc[l0 + b] = o[3, b]
+        state.max_disp[l0 + b] = o[4, b]
+
+
+@njit(cache=True, inline="always")
+def mlm_step(k, c, P, bridge, cf, s, o):
+    """``BridgeSide.step_mlm`` (Eq. 12) of a chunk on bridge ``c``: midspan deflection, velocity and
+    acceleration at step ``k`` into ``o[0:3]``, then the exact RK4 recurrence with the modal loads of
+    rows 2k, 2k + 1, 2k + 2 of ``P``."""
+    K = bridge.K
+    M = bridge.M
+    phi_mid = bridge.phi_mid
+    nm, nb = s.shape[1], s.shape[2]
+    for b in range(nb):
+        o[0, b] = 0.0
+        o[1, b] = 0.0
+        o[2, b] = 0.0
+    for j in range(nm):
+        p0, ph, p1 = P[2 * k, j], P[2 * k + 1, j], P[2 * k + 2, j]
+        kj, mj, pm = K[c, j], M[c, j], phi_mid[j]
+        for b in range(nb):
+            x = s[0, j, b]
+            xd = s[1, j, b]
+            o[0, b] += x * pm
+            o[1, b] += xd * pm
+            o[2, b] += ((p0 - cf[0, j, b] * xd - kj * x) / mj) * pm
+            s[0, j, b] = cf[1, j, b] * x + cf[3, j, b] * xd + cf[5, j, b] * p0 + cf[7, j, b] * ph + cf[9, j, b] * p1
+            s[1, j, b] = (cf[2, j, b] * x + cf[4, j, b] * xd + cf[6, j, b] * p0 + cf[8, j, b] * ph
+                          + cf[10, j, b] * p1)
+
+
 @njit(cache=True, nogil=True)
 def mlm_blocks(blocks, k0, k1, lanes, bridge, P, state, dense):
     """MLM (Eq. 12) by the exact RK4 recurrence of every lane-mode oscillator.
@@ -590,19 +681,16 @@ def mlm_blocks(blocks, k0, k1, lanes, bridge, P, state, dense):
     ``P`` (2 n + 1, n_modes) modal loads on the half-step grid (shared); ``bridge``
     (:class:`adm_sim.integrate.tables.BridgeTables`); ``lanes`` (:class:`MlmLanes`), ``blocks`` and
     ``state`` as in :func:`dim_blocks` (``state.u``, ``state.ud`` unused). A step is
-    ``BridgeSide.step_mlm`` (inline) then the maxima (:func:`dense_maxima` with ``dense``); resumable as :func:`dim_blocks`.
+    :func:`mlm_step` then the maxima (:func:`sampled_maxima`, :func:`dense_maxima` with ``dense``);
+    resumable as :func:`dim_blocks`.
 
-    Each block advances in chunks of at most :data:`MLM_CHUNK_LANES` lanes (balanced, a multiple of
-    8), each on copies made inside the kernel (its recurrence coefficients ``cf``, its state ``s``,
-    its midspan values and maxima ``o``): arrays the compiler knows to be distinct, so the loop over
-    the chunk's lanes is vectorised (SIMD) with the same operations per lane in the same order (bit
-    for bit the loop over the lanes' own arrays, ~6x faster; ``bench/bench_kernels.py``), and a
-    chunk's arrays stay in the first-level cache (a sweep's 191 lanes as 3 chunks of <= 64:
-    0.74-0.90x the CPU of one block, docs/benchmarks.md).
+    Each block advances in chunks of at most :data:`MLM_CHUNK_LANES` lanes (:func:`mlm_chunk_width`),
+    each on copies made inside the kernel (:func:`mlm_coefficients`, :func:`mlm_take`): arrays the
+    compiler knows to be distinct, so the loop over the chunk's lanes is vectorised (SIMD) with the
+    same operations per lane in the same order (bit for bit the loop over the lanes' own arrays, ~6x
+    faster; ``bench/bench_kernels.py``), and a chunk's arrays stay in the first-level cache (a
+    sweep's 191 lanes as 3 chunks of <= 64: 0.74-0.90x the CPU of one block, docs/benchmarks.md).
     """
-    K = bridge.K
-    M = bridge.M
-    phi_mid = bridge.phi_mid
     nm = P.shape[1]
     block_ptr = blocks.ptr
     for bi in range(block_ptr.shape[0] - 1):
@@ -610,61 +698,17 @@ def mlm_blocks(blocks, k0, k1, lanes, bridge, P, state, dense):
         k_end = min(k1, blocks.steps[bi])
         if k0 >= k_end:
             continue
-        n_chunks = (block_ptr[bi + 1] - block_ptr[bi] + MLM_CHUNK_LANES - 1) // MLM_CHUNK_LANES
-        width = (block_ptr[bi + 1] - block_ptr[bi] + n_chunks - 1) // n_chunks
-        width = min((width + 7) // 8 * 8, MLM_CHUNK_LANES)
+        width = mlm_chunk_width(block_ptr[bi + 1] - block_ptr[bi])
         for l0 in range(block_ptr[bi], block_ptr[bi + 1], width):
             l1 = min(l0 + width, block_ptr[bi + 1])
             nb = l1 - l0
-            # cf[0] Z, cf[1..10] ax, axd, bx, bxd, c0, c0d, ch, chd, c1, c1d (each (n_modes, nb))
-            cf = np.empty((11, nm, nb))
-            for i, arr in enumerate((lanes.Z, lanes.ax, lanes.axd, lanes.bx, lanes.bxd, lanes.c0, lanes.c0d, lanes.ch,
-                                     lanes.chd, lanes.c1, lanes.c1d)):
-                for j in range(nm):
-                    for b in range(nb):
-                        cf[i, j, b] = arr[j, l0 + b]
-            s = np.empty((2, nm, nb))  # q, qd
-            for j in range(nm):
-                for b in range(nb):
-                    s[0, j, b] = state.q[j, l0 + b]
-                    s[1, j, b] = state.qd[j, l0 + b]
-            o = np.zeros((5, nb))  # midspan deflection, velocity, acceleration; max |acc|, max |deflection|
-            for b in range(nb):
-                o[3, b] = state.max_acc[l0 + b]
-                o[4, b] = state.max_disp[l0 + b]
+            cf = mlm_coefficients(lanes, l0, nb, nm)
+            s, o = mlm_take(state, l0, nb, nm)
             hl = lanes.h[l0:l1].copy()
             for k in range(k0, k_end):
-                # BridgeSide.step_mlm (Eq. 12): midspan deflection, velocity and acceleration at step k,
-                # then the exact RK4 recurrence with the modal loads of rows 2k, 2k + 1, 2k + 2 (inline:
-                # as a helper it costs ~6 % with dense maxima, see docs/benchmarks.md)
-                for b in range(nb):
-                    o[0, b] = 0.0
-                    o[1, b] = 0.0
-                    o[2, b] = 0.0
-                for j in range(nm):
-                    p0, ph, p1 = P[2 * k, j], P[2 * k + 1, j], P[2 * k + 2, j]
-                    kj, mj, pm = K[c, j], M[c, j], phi_mid[j]
-                    for b in range(nb):
-                        x = s[0, j, b]
-                        xd = s[1, j, b]
-                        o[0, b] += x * pm
-                        o[1, b] += xd * pm
-                        o[2, b] += ((p0 - cf[0, j, b] * xd - kj * x) / mj) * pm
-                        s[0, j, b] = cf[1, j, b] * x + cf[3, j, b] * xd + cf[5, j, b] * p0 + cf[7, j, b] * ph + cf[9, j, b] * p1
-                        s[1, j, b] = (cf[2, j, b] * x + cf[4, j, b] * xd + cf[6, j, b] * p0 + cf[8, j, b] * ph
-                                      + cf[10, j, b] * p1)
-                # the sampled maxima (stage 0 of every step, _BridgeRun), then the dense ones
-                for b in range(nb):
-                    if abs(o[2, b]) > o[3, b]:
-                        o[3, b] = abs(o[2, b])
-                    if abs(o[0, b]) > o[4, b]:
-                        o[4, b] = abs(o[0, b])
+                mlm_step(k, c, P, bridge, cf, s, o)
+                sampled_maxima(o[2], o[0], o[3], o[4])
                 if dense:
                     dense_maxima(k, l0, o[2], o[0], o[1], hl, o[3], state.prev)
-            for j in range(nm):
-                for b in range(nb):
-                    state.q[j, l0 + b] = s[0, j, b]
-                    state.qd[j, l0 + b] = s[1, j, b]
-            for b in range(nb):
-                state.max_acc[l0 + b] = o[3, b]
-                state.max_disp[l0 + b] = o[4, b]
+            mlm_put(s, o, state, l0)
+

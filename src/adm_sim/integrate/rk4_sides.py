@@ -36,6 +36,7 @@ import numpy as np
 from adm_sim.integrate._jit import RK4_C, RK4_W  # the RK4 tableau, shared with the numba kernels
 from adm_sim.errors import InputError
 from adm_sim.integrate.tables import active_units, axle_rows, bridge_tables, vehicle_tables  # shared with the kernels
+from adm_sim.model.irregularity import check_step  # the profile's shortest feature against ds (scipy loads only when a profile is used)
 
 
 class _Rk4State:
@@ -268,8 +269,6 @@ class TrainSide:
         self.span = float(span_m)
         self.irregularity = irregularity
         if irregularity is not None:  # its shortest feature against the space step
-            from adm_sim.model.irregularity import check_step  # noqa: PLC0415  scipy.interpolate only on a rough track
-
             check_step(irregularity, grid.ds_m)
         self.offsets = train.axle_offsets_m
         self.vehicles = vehicle_tables(train)  # the tables of adm_sim.integrate.kernels
