@@ -28,7 +28,6 @@ from adm_sim.integrate import kernels
 from adm_sim.integrate.contact import ContactCheck
 from adm_sim.errors import InputError, RunError
 from adm_sim.fields import FIELDS, check_delta_zeta_pct
-from adm_sim.integrate.mlm_loads import deck_modal_loads
 from adm_sim.integrate.rk4_sides import mlm_rk4_coefficients
 from adm_sim.integrate.run_contract import FAILED, RUNNING, AdvancingRun, check_model
 from adm_sim.limits import check_memory
@@ -76,17 +75,15 @@ def _axles_on_deck(s, span, axle_offsets_m, axle_loads_n):
 
 
 def _deck_load_table(bridge, s, axle_offsets_m, axle_loads_n):
-    """:func:`modal_load_table` of a continuous deck: every (row, axle) on the deck gathered, the
-    deck's mode shapes evaluated once for all (:func:`adm_sim.integrate.mlm_loads.deck_modal_loads`)."""
-    span = bridge.span_m
-    rows, xs, ws = [], [], []
-    for load, r0, x in _axles_on_deck(s, span, axle_offsets_m, axle_loads_n):
-        rows.append(r0 + np.arange(x.size))
-        xs.append(x)
-        ws.append(np.full(x.size, load))
-    if not rows:
-        return np.zeros((s.size, bridge.n_modes))
-    return deck_modal_loads(bridge, np.concatenate(rows), np.concatenate(xs), np.concatenate(ws), s.size)
+    """:func:`modal_load_table` of a continuous deck: each axle's rows on the deck
+    (:func:`_axles_on_deck`) added in axle order by the compiled
+    :func:`adm_sim.integrate.kernels.add_deck_loads` (the deck's exact mode shapes, entry by entry:
+    no (rows x axles) temporaries)."""
+    out = np.zeros((s.size, bridge.n_modes))
+    shapes = kernels.deck_shapes(bridge.deck)
+    for load, r0, x in _axles_on_deck(s, bridge.span_m, axle_offsets_m, axle_loads_n):
+        kernels.add_deck_loads(out, int(r0), np.ascontiguousarray(x), float(load), shapes)
+    return out
 
 
 class BatchRunner:

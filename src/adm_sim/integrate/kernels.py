@@ -712,3 +712,50 @@ def mlm_blocks(blocks, k0, k1, lanes, bridge, P, state, dense):
                     dense_maxima(k, l0, o[2], o[0], o[1], hl, o[3], state.prev)
             mlm_put(s, o, state, l0)
 
+
+# ---------------------------------------------------------------------- the MLM loads of a continuous deck
+class DeckShapes(NamedTuple):
+    """The mode shapes of a continuous deck as :class:`adm_sim.model.spans.DeckModes` holds them:
+    support abscissae ``supports`` (n_spans + 1,) (m), wave numbers ``beta`` (n_modes, n_spans)
+    (1/m), coefficients ``coef`` (n_modes, n_spans, 4) of ``sin, cos, exp(-beta xi),
+    exp(-beta (L - xi))``, and ``exp_bl = exp(-beta L)`` (n_modes, n_spans) per span."""
+
+    supports: np.ndarray
+    beta: np.ndarray
+    coef: np.ndarray
+    exp_bl: np.ndarray
+
+
+def deck_shapes(modes):
+    """:class:`DeckShapes` of a :class:`adm_sim.model.spans.DeckModes`."""
+    beta = np.ascontiguousarray(modes.beta_1_m, dtype=float)
+    return DeckShapes(np.ascontiguousarray(modes.supports_m, dtype=float), beta,
+                      np.ascontiguousarray(modes.coef, dtype=float), np.exp(-beta * modes.spans_m[None, :]))
+
+
+@njit(cache=True, nogil=True)
+def add_deck_loads(out, r0, x, load, shapes):
+    """Add one axle's modal loads (Eq. 6) ``load * phi_j(x[e])`` to rows ``r0 + e`` of ``out``
+    (n_rows, n_modes), ``x`` (n,) its positions on the deck (m from the left abutment, increasing).
+
+    ``phi_j`` is :meth:`adm_sim.model.spans.DeckModes.phi` entry by entry, the same expression in the
+    same order (``c0 sin(b xi) + c1 cos(b xi) + c2 e^(-b xi) + c3 e^(-b L) / e^(-b xi)``), compiled:
+    no gathered (n, n_modes, 4) temporaries, ``e^(-b L)`` once per span (``shapes.exp_bl``); agrees
+    with it to a few units of round-off (``tests/integrate/test_deck_loads.py``)."""
+    sup = shapes.supports
+    beta = shapes.beta
+    coef = shapes.coef
+    ebl = shapes.exp_bl
+    nm, n_spans = beta.shape
+    i = 0
+    for e in range(x.size):
+        xe = x[e]
+        while i < n_spans - 1 and xe >= sup[i + 1]:  # the span (searchsorted right, clipped)
+            i += 1
+        xi = xe - sup[i]
+        for j in range(nm):
+            bx = beta[j, i] * xi
+            e0 = np.exp(-bx)
+            ph = (coef[j, i, 0] * np.sin(bx) + coef[j, i, 1] * np.cos(bx) + coef[j, i, 2] * e0
+                  + coef[j, i, 3] * (ebl[j, i] / e0))
+            out[r0 + e, j] += ph * load
