@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import AccelStamped
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.serialization import deserialize_message
@@ -99,9 +100,14 @@ def say(kind, **payload):
 class RunDriver(c.NodeBase):
     """Requests runs and records them; see the module docstring."""
 
+    #: Parameters the job reads once, when it starts: a set while the job runs is refused (it
+    #: would change nothing), with the reason (:meth:`lock_reason`).
+    job_parameters = ()
+
     def __init__(self, name=P.DRIVER_NODE, extra_specs=(), **kw):
         super().__init__(name, **kw)
-        self.declare_specs(list(DRIVER_SPECS) + list(extra_specs))
+        self.job_started = False
+        self.declare_specs(list(DRIVER_SPECS) + list(extra_specs), on_set=self._check_set)
         p = self.param_values()
         self.outputs = claim_outputs(p)  # before any file is created (exit 2, one line)
         self.finished = False
@@ -134,6 +140,19 @@ class RunDriver(c.NodeBase):
         self.last_phase = None  # phase of the last run requested (the iterations that follow it)
         self.cli_start = self.create_client(Trigger, P.relative(P.SERVICE_START_RUN))
         self.params = {n: AsyncParameterClient(self, n) for n in (P.BRIDGE_NODE, P.TRAIN_NODE)}
+
+    # ------------------------------------------------------------------ parameters
+    def lock_reason(self):
+        """Why the :attr:`job_parameters` are locked now: the job in progress (and its run)."""
+        run = "" if self._current is None else f"run {self._current[0]} of "
+        return f"{run}its job is in progress ({', '.join(self.job_parameters)}: read once, when it started)"
+
+    def _check_set(self, params):
+        """On-set (after the ranges): refuse a set of a :attr:`job_parameters` while the job runs."""
+        if self.job_started and not self.finished and any(p.name in self.job_parameters for p in params):
+            return SetParametersResult(successful=False, reason=(
+                f"{self.get_name()}: parameters are locked while {self.lock_reason()}"))
+        return SetParametersResult(successful=True)
 
     # ------------------------------------------------------------------ subscriptions
     def _make_cb(self, topic, msg_type):
@@ -523,6 +542,7 @@ class RunDriver(c.NodeBase):
             finally:
                 self.finished = True
 
+        self.job_started = True
         threading.Thread(target=work, name="driver-job", daemon=True).start()
 
     def end(self, executor):
