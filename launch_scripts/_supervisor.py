@@ -14,16 +14,27 @@ import warnings
 from pathlib import Path
 
 import numpy as np
+import yaml
 
+from adm_calib.calibration_options import check_speeds
+from adm_calib.nodes.params import CALIBRATION_SPECS
 from adm_sim.cliutil import option_help, run_cli
 from adm_sim.errors import InputError, PlausibilityWarning
 from adm_sim.fields import view
 from adm_sim.files import FOLDER_LOCK, check_output_folder, claim_folder, input_file, make_output_folder, release
+from adm_sim.integrate.run_contract import check_model
+from adm_sim.integrate.step_grid import make_grid
+from adm_sim.integrate.sweep import parse_speeds
+from adm_sim.model.bridge import resolve_bridge
+from adm_sim.model.trains import load_train
+from adm_sim.nodes.params import (DRIVER_SPECS, TRAIN_SPECS, bridge_from_params, bridge_plausibility, bridge_specs,
+                                   check_params_file, namespaced_params, param, step_options, validate_train)
 from adm_sim.processes.dds_env import local_ros_env
 from adm_sim.processes.dds_env import client_export_line  # noqa: F401  (used by the scripts)
-from adm_sim.protocol import check_namespace
 from adm_sim.processes.supervisor import NodeDied, Supervisor, ros_args  # noqa: F401  (used by the scripts)
-from adm_sim.integrate.run_contract import check_model
+from adm_sim.protocol import check_namespace
+from adm_sim.recording.mcap_log import scan
+from adm_sim.recording.viewer_process import check_loopback, handshake, spawn_viewer
 
 ROOT = Path(__file__).resolve().parents[1]
 PARAMS_DIR = ROOT / "ros_ws" / "params"
@@ -36,7 +47,6 @@ def launch(body, args):
     (:func:`adm_sim.cliutil.run_cli`): bad input ``error: ...`` and 2, a failed run 1, a refused
     write (full disk, ``ulimit -f``, read-only folder) 1, SIGINT/SIGTERM ``error: interrupted`` and
     130, plausibility warnings one ``warning: ...`` line each; the body's return value is the exit code."""
-
     return run_cli(lambda: body(args))
 
 
@@ -67,7 +77,6 @@ def preflight(args, default_out, dim=False, model=None):
     Returns ``(out, env, created, old)``: the folder, the :class:`~adm_sim.processes.dds_env.LocalRosEnv`
     (release it at the end), whether the folder was created here, the earlier outputs in it.
     """
-
     domain_id = check_domain_id(args.domain_id)
     args.wait_clients = view("cli", "--wait-clients").check(args.wait_clients)
     args.namespace = check_namespace(args.namespace)
@@ -98,9 +107,6 @@ def preflight(args, default_out, dim=False, model=None):
 def check_calibration_speeds(text, option):
     """The speeds of a calibration, refused as ``adm-calib calibrate`` refuses them (a speed list
     of at least 3 speeds, each valid): one line naming ``option``."""
-    from adm_calib.calibration_options import check_speeds  # noqa: PLC0415  start-up: only on this path (17 ms)
-    from adm_sim.integrate.sweep import parse_speeds  # noqa: PLC0415  start-up: only on this path (55 ms)
-
     v = parse_speeds(text, field=option)
     try:
         return check_speeds(v)
@@ -112,12 +118,6 @@ def launch_param_specs():
     """``node -> parameter specs`` of every node a launch may start (params files are shared by
     the scripts, so all four nodes are allowed in any of them), and the value checks beyond
     type and range (``(node, name) -> callable``)."""
-    from adm_calib.nodes.params import CALIBRATION_SPECS  # noqa: PLC0415  the parameter tables load yaml (~202 ms): pre-flight only
-    from adm_sim.model.bridge import resolve_bridge  # noqa: PLC0415  start-up: only on this path (56 ms)
-    from adm_sim.nodes.params import DRIVER_SPECS, TRAIN_SPECS, bridge_specs, param  # noqa: PLC0415  the parameter tables load yaml (~218 ms): pre-flight only
-    from adm_sim.integrate.sweep import parse_speeds  # noqa: PLC0415  start-up: only on this path (55 ms)
-    from adm_sim.model.trains import load_train  # noqa: PLC0415  start-up: only on this path (82 ms)
-
     # ranges and choices (track_type, damping_model, model, dim_grid) are the specs' own, from the
     # field registry (adm_sim.fields); what is left needs more than one field
     specs = {
@@ -138,7 +138,6 @@ def launch_param_specs():
 def _given(option, value):
     """``value`` unless it is an empty or blank string (then one line: an empty option never
     falls back to the default)."""
-
     if value is not None and not str(value).strip():
         raise InputError(f"{option}: '' is empty; give a value or omit {option}")
     return value
@@ -158,11 +157,6 @@ def check_inputs(bridge=None, train=None, speeds=None, params_file=None, model=N
 
     Returns ``{node: {name: value}}`` of the params file.
     """
-    from adm_sim.model.bridge import resolve_bridge  # noqa: PLC0415  start-up: only on this path (56 ms)
-    from adm_sim.nodes.params import TRAIN_SPECS, bridge_from_params, bridge_specs, check_params_file, validate_train  # noqa: PLC0415  the parameter tables load yaml (~218 ms): pre-flight only
-    from adm_sim.integrate.sweep import parse_speeds  # noqa: PLC0415  start-up: only on this path (55 ms)
-    from adm_sim.model.trains import load_train  # noqa: PLC0415  start-up: only on this path (82 ms)
-
     bridge, train, speeds = _given("--bridge", bridge), _given("--train", train), _given("--speeds", speeds)
     if bridge is not None:  # refused first; its warnings come once, with the preset below
         with warnings.catch_warnings():
@@ -204,9 +198,6 @@ def check_inputs(bridge=None, train=None, speeds=None, params_file=None, model=N
     except InputError as exc:
         raise InputError(f"train node: {exc}") from None
     # the run's work and steps, as the bridge node will refuse them (adm_sim.limits.check_work), before any process
-    from adm_sim.integrate.step_grid import make_grid  # noqa: PLC0415  start-up: only on this path
-    from adm_sim.nodes.params import step_options  # noqa: PLC0415  the parameter tables load yaml: pre-flight only
-
     try:
         make_grid(bridge_from_params(preset, values), t.length_m, np.asarray(lanes_kmh, dtype=float) / 3.6,
                   step_options(values))
@@ -219,8 +210,6 @@ def warn_bridge_node(preset, values):
     """The plausibility warnings the bridge node will give its start-up values, here, where the
     user sees them (the node's own go to its log): one ``warning: bridge node: <parameter>: ...``
     line each (:func:`adm_sim.nodes.params.bridge_plausibility`)."""
-    from adm_sim.nodes.params import bridge_plausibility  # noqa: PLC0415  the parameter tables load yaml (~218 ms): pre-flight only
-
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", PlausibilityWarning)
         bridge_plausibility(preset, values)
@@ -230,18 +219,14 @@ def warn_bridge_node(preset, values):
 
 def check_domain_id(domain_id):
     """``--domain-id`` in [0, 101] (Fast DDS ports, see :mod:`adm_sim.processes.dds_env`) or None."""
-
     return None if domain_id is None else view("cli", "--domain-id").check(domain_id)
 
 
 def check_viewer(spawn, connect):
     """``--spawn`` and ``--connect`` exclude each other; ``--connect`` is a loopback rerun URL."""
-
     if spawn and connect is not None:
         raise InputError(f"--connect: {connect!r} with --spawn; give --spawn or --connect, not both")
     if connect is not None:
-        from adm_sim.recording.viewer_process import check_loopback  # noqa: PLC0415  start-up: only on this path (12 ms)
-
         try:
             check_loopback(_given("--connect", connect))
         except InputError as exc:
@@ -253,8 +238,6 @@ def viewer_ready(args):
     :class:`~adm_sim.errors.RunError`, one line, exit 1); ``--spawn`` starts the viewer here
     (listening, answering and alive a moment later, or one line with its own last word) and the
     driver streams to it as to ``--connect`` (``args.connect`` is set, ``args.spawn`` cleared)."""
-    from adm_sim.recording.viewer_process import handshake, spawn_viewer  # noqa: PLC0415  start-up: only on this path (12 ms)
-
     if args.connect is not None:
         handshake(args.connect, what="--connect")
     elif args.spawn:
@@ -266,7 +249,6 @@ def check_out(out, inputs=None):
     """The output folder before anything is created (:func:`adm_sim.files.check_output_folder`): not
     a file, in a writable place, and none of its outputs an input of the launch (``inputs``:
     ``{option: path}``)."""
-
     return check_output_folder(out, "--out", OUTPUTS, inputs)
 
 
@@ -278,14 +260,12 @@ def prepare_out(out, overwrite):
 
     Returns ``(created, old)``: whether the folder was created here, and the earlier outputs in it.
     """
-
     created = make_output_folder(out, "--out")
     return created, set(claim_folder(out, "--out", OUTPUTS, overwrite))
 
 
 def release_out(out):
     """Give up the claim of :func:`prepare_out` (its lock file is removed first)."""
-
     release(out)
 
 
@@ -293,7 +273,6 @@ def discard_outputs(out, created, old=()):
     """After an interrupt: remove what the launch wrote (its new outputs and logs; the whole
     folder if the launch created it), so no partial output is left. Earlier outputs (``old``)
     were never replaced (the node renames only at a successful end) and stay."""
-
     if created:
         shutil.rmtree(out, ignore_errors=True)
         return
@@ -333,7 +312,6 @@ def after_node_died(out, started_s=None):
     mcap = out / "run.mcap"
     if not mcap.is_file() or (started_s is not None and mcap.stat().st_mtime < started_s):
         return ""
-    from adm_sim.recording.mcap_log import scan  # noqa: PLC0415  mcap only on this path
 
     try:
         found = scan(mcap)
@@ -390,13 +368,10 @@ def run_graph(sup, params_file, bridge_params, train_params, driver, driver_modu
     """
     ns_args = []
     if namespace != "/":
-        from adm_sim.nodes.params import namespaced_params  # noqa: PLC0415  the parameter tables load yaml: only here
-
         if params_file:
             params_file = namespaced_params(params_file, namespace, sup.log_dir / "params_namespaced.yaml")
         ns_args = ["-r", f"__ns:={namespace}"]
     if composed and ns_args:  # rcl's node-prefixed -p cannot name a namespaced node: a second file
-        import yaml  # noqa: PLC0415  only with a namespace
 
         ns = namespace.rstrip("/")
         overrides = sup.log_dir / "params_overrides.yaml"

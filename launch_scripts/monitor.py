@@ -46,8 +46,14 @@ from pathlib import Path
 from adm_sim import protocol as P
 from adm_sim.cliutil import Parser, add_overwrite, option_view, run_cli
 from adm_sim.errors import InputError
+from adm_sim.fields import view
+from adm_sim.files import claim_output, input_file, mcap_input, write_atomic
+from adm_sim.inputs.sensor_csv import read_sensor_csv
 from adm_sim.limits import TRACK_TYPES
-from adm_sim.monitoring.sensors import AXES, IMU_TYPE, SENSOR_TYPES
+from adm_sim.monitoring.modal_id import IdentifySettings, PassageTracker, run_topics_for
+from adm_sim.monitoring.sensors import AXES, IMU_TYPE, SENSOR_TYPES, check_imu, parse_axis, sample_of
+from adm_sim.processes.dds_env import apply_local_ros_env
+from adm_sim.recording.mcap_log import read_messages
 
 
 def parse_args(argv=None):
@@ -88,10 +94,6 @@ def parse_args(argv=None):
 
 def check_args(args):
     """Every option before anything is read, written or started; raises :class:`InputError`."""
-    from adm_sim.files import claim_output, mcap_input
-
-    from adm_sim.monitoring.sensors import parse_axis
-
     args.axis_component, args.axis_sign = parse_axis(args.axis)
     if args.csv is not None:
         for opt in ("mcap", "domain_id", "passages", "duration", "status_topic"):
@@ -113,8 +115,6 @@ def check_args(args):
     args.timeout = option_view("--timeout").check(args.timeout)
     args.min_cycles = option_view("--min-cycles").check(args.min_cycles)
     if args.csv is not None:
-        from adm_sim.files import input_file
-
         input_file(args.csv, "--csv", "CSV file")
     elif args.mcap is not None:
         for opt in ("domain_id", "passages", "duration"):
@@ -135,8 +135,6 @@ def check_args(args):
 def live_domain_id(given):
     """``--domain-id``, else an exported ``ROS_DOMAIN_ID``, checked against the range of the field
     registry; a live monitor must join an existing graph, so one of them is needed."""
-    from adm_sim.fields import view
-
     if given is not None:
         return view("cli", "--domain-id").check(given)
     exported = os.environ.get("ROS_DOMAIN_ID", "").strip()
@@ -152,8 +150,8 @@ def live_domain_id(given):
 # ---------------------------------------------------------------- MCAP
 def mcap_channels(path):
     """``{topic: schema name}`` of an MCAP's summary; one line when the file has no summary."""
-    from mcap.exceptions import McapError
-    from mcap.reader import make_reader
+    from mcap.exceptions import McapError  # noqa: PLC0415  mcap (32 ms) only when an MCAP is read
+    from mcap.reader import make_reader  # noqa: PLC0415  mcap (32 ms) only when an MCAP is read
 
     with open(path, "rb") as f:
         try:
@@ -183,10 +181,6 @@ def check_mcap_topic(path, topic):
 
 def monitor_mcap(args, tracker):
     """Feed the MCAP's samples and run records to ``tracker`` in log-time order."""
-    from adm_sim.monitoring.modal_id import run_topics_for
-    from adm_sim.monitoring.sensors import check_imu, sample_of
-    from adm_sim.recording.mcap_log import read_messages
-
     channels = check_mcap_topic(args.mcap, args.topic)
     kind = channels[args.topic]
     if args.status_topic is not None and channels.get(args.status_topic) != "std_msgs/msg/String":
@@ -214,12 +208,11 @@ def monitor_mcap(args, tracker):
 # ---------------------------------------------------------------- live
 def monitor_live(args, on_passage):
     """Run the monitor node in this process until ``--passages`` or ``--duration``; returns it."""
-    import rclpy
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.parameter import Parameter
+    import rclpy  # noqa: PLC0415  rclpy (82 ms, the monitor node 230 ms) only live: --help, bad input and MCAP/CSV answer without it
+    from rclpy.executors import SingleThreadedExecutor  # noqa: PLC0415  rclpy (82 ms, the monitor node 230 ms) only live: --help, bad input and MCAP/CSV answer without it
+    from rclpy.parameter import Parameter  # noqa: PLC0415  rclpy (82 ms, the monitor node 230 ms) only live: --help, bad input and MCAP/CSV answer without it
 
-    from adm_sim.processes.dds_env import apply_local_ros_env
-    from adm_sim.nodes.monitor_node import MonitorNode
+    from adm_sim.nodes.monitor_node import MonitorNode  # noqa: PLC0415  rclpy (82 ms, the monitor node 230 ms) only live: --help, bad input and MCAP/CSV answer without it
 
     env = apply_local_ros_env(args.domain_id)
     context = rclpy.context.Context()
@@ -263,9 +256,6 @@ def main(argv=None) -> int:
 
 
 def _run(args) -> int:
-    from adm_sim.files import write_atomic
-    from adm_sim.monitoring.modal_id import IdentifySettings, PassageTracker
-
     check_args(args)
     settings = IdentifySettings(min_cycles=args.min_cycles, bandpass=not args.no_bandpass, raw=args.raw)
     reported = []
@@ -288,8 +278,6 @@ def _run(args) -> int:
             write()
 
     if args.csv is not None:
-        from adm_sim.inputs.sensor_csv import read_sensor_csv
-
         t, a = read_sensor_csv(args.csv, args.time_column, args.accel_column)
         tracker = PassageTracker(track_type=args.track_type, settings=settings, on_passage=on_passage)
         for ti, ai in zip(t.tolist(), (args.axis_sign * a).tolist()):

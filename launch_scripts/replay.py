@@ -62,6 +62,9 @@ from adm_sim.files import claim_output, mcap_input, write_atomic
 from adm_sim.processes.dds_env import apply_local_ros_env, check_domain_id, clean_dead_shm, client_export_line, record_shm
 from adm_sim.recording import rerun_log as rl
 from adm_sim.recording import viewer_process as vp
+from adm_sim.recording.viewer_feed import RunPhases, ViewerFeed, stamp_ns
+from adm_sim.recording.viewer_process import ensure_analytics_disabled, rerun_cli, rerun_cli_env
+from adm_sim.recording.mcap_log import checked_scan, decode_messages, parse_qos_profiles, salvage, sorted_messages, topic_qos
 
 
 def check_args(args):
@@ -205,8 +208,6 @@ def show_in_rerun(args, found, save_path=None) -> dict[str, int]:
 
 
 def _feed_all(args, found, save_path, beat) -> dict[str, int]:
-    from adm_sim.recording.mcap_log import decode_messages, sorted_messages  # noqa: PLC0415  start-up: only on this path (47 ms)
-    from adm_sim.recording.viewer_feed import RunPhases, ViewerFeed, stamp_ns  # noqa: PLC0415  start-up: only on this path (17 ms)
 
     rl.init_rerun("adm_sim_replay", spawn=args.spawn, connect_url=args.connect, save_path=save_path)
     viz = rl.RunLogger(exaggeration=args.exaggeration)
@@ -282,7 +283,6 @@ def check_readable(path, skip_damaged: bool = False):
     chunk's framing, decompression and CRC is checked; with ``skip_damaged`` its intact chunks are
     used and each skipped damage is named on stderr) or that holds no message: a replay of it would
     be an empty recording."""
-    from adm_sim.recording.mcap_log import checked_scan  # noqa: PLC0415  start-up: only on this path (47 ms)
 
     try:
         found = checked_scan(path, skip_damaged, _warn)
@@ -318,7 +318,6 @@ def verify_rrd(tmp, final) -> None:
     """``rerun rrd verify`` of the written recording: rerun's file sink reports a failed write (a
     full disk, a file size limit) only in its own log, so a recording that does not load whole is
     this run's failure (:class:`RunError`), and it is never renamed to its final name."""
-    from adm_sim.recording.viewer_process import rerun_cli, rerun_cli_env  # noqa: PLC0415  start-up: only on this path (17 ms)
 
     try:
         proc = subprocess.run([rerun_cli(), "rrd", "verify", str(tmp)], env=rerun_cli_env(), capture_output=True,
@@ -334,8 +333,6 @@ def verify_rrd(tmp, final) -> None:
 
 
 def convert(args, save_path) -> None:
-    from adm_sim.recording.mcap_log import salvage  # noqa: PLC0415  start-up: only on this path (47 ms)
-    from adm_sim.recording.viewer_process import ensure_analytics_disabled, rerun_cli, rerun_cli_env  # noqa: PLC0415  start-up: only on this path (17 ms)
 
     ensure_analytics_disabled()
     source = Path(args.mcap)
@@ -364,7 +361,6 @@ def _qos_profile(offered: str, topic: str):
     :data:`adm_sim.protocol.TOPICS` (recordings made before channels carried it)."""
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy  # noqa: PLC0415  rclpy (~0.2 s) only when republishing
 
-    from adm_sim.recording.mcap_log import parse_qos_profiles, topic_qos  # noqa: PLC0415  start-up: only on this path (47 ms)
 
     history, depth, reliability, durability = parse_qos_profiles(offered) or topic_qos(topic)
     return QoSProfile(
@@ -576,21 +572,115 @@ def _bridge_record(data: bytes) -> str | None:
     return rec["state"]
 
 
+def _msg_class(schema_name: str):
+    """The message class of a recorded schema name (``pkg/msg/Type`` or ``pkg/Type``)."""
+    pkg, _, name = schema_name.partition("/msg/")
+    if not name:
+        pkg, _, name = schema_name.partition("/")
+    return getattr(importlib.import_module(f"{pkg}.msg"), name)
+
+
+class _ShmNote:
+    """This process's Fast DDS files, noted at most every 0.5 s while it lives (a SIGKILL gives no
+    later chance to name them)."""
+
+    def __init__(self):
+        self.at = 0.0
+
+    def __call__(self):
+        if time.monotonic() - self.at >= 0.5:
+            self.at = time.monotonic()
+            record_shm([os.getpid()])
+
+
+class _Publishers:
+    """The replay's publishers: one per recorded channel with the QoS it was recorded with, the
+    runs' final ``/diagnostics`` latched again (as the live bridge's), and ``/clock``."""
+
+    def __init__(self, node, items):
+        from rosgraph_msgs.msg import Clock  # noqa: PLC0415  rclpy (~0.2 s) only when republishing
+
+        self.Clock = Clock
+        self.pubs, self.qos_of, self.topics = {}, {}, {}
+        self.diag_final = None
+        for schema, ch, _m in items:
+            if ch.id in self.pubs:
+                continue
+            self.qos_of[ch.id] = _qos_profile(ch.metadata.get("offered_qos_profiles", ""), ch.topic)
+            self.pubs[ch.id] = node.create_publisher(_msg_class(schema.name), ch.topic, self.qos_of[ch.id])
+            self.topics[self.pubs[ch.id]] = ch.topic
+            if ch.topic == P.TOPIC_DIAGNOSTICS:
+                latched = _qos_profile("", P.TOPIC_BRIDGE_DESC)  # class L: transient local, depth 1
+                self.diag_final = node.create_publisher(_msg_class(schema.name), ch.topic, latched)
+                self.topics[self.diag_final] = ch.topic
+                self.qos_of["diag_final"] = latched
+        self.clock_qos = _qos_profile("", P.TOPIC_CLOCK)
+        self.clock = node.create_publisher(Clock, P.TOPIC_CLOCK, self.clock_qos)
+        self.topics[self.clock] = P.TOPIC_CLOCK
+
+    def wait_subscribers(self, wait_s, note_shm):
+        """Up to ``wait_s`` for every recorded topic to have a subscriber."""
+        deadline = time.monotonic() + wait_s
+        while time.monotonic() < deadline and any(p.get_subscription_count() == 0 for p in self.pubs.values()):
+            note_shm()
+            time.sleep(0.05)
+
+    def flow_controlled(self, flow):
+        """Register every publisher with the flow control."""
+        for cid, pub in self.pubs.items():
+            flow.add(pub, self.topics[pub], self.qos_of[cid])
+        if self.diag_final is not None:
+            flow.add(self.diag_final, P.TOPIC_DIAGNOSTICS, self.qos_of["diag_final"])
+        flow.add(self.clock, P.TOPIC_CLOCK, self.clock_qos)
+
+    def publish_clock(self, t_ns, flow):
+        clock = self.Clock()
+        clock.clock.sec, clock.clock.nanosec = divmod(t_ns, 1_000_000_000)
+        self.clock.publish(clock)
+        flow.sent(self.clock, P.TOPIC_CLOCK)
+
+
+def _replay_items(args, items, *, out, flow, clients, note_shm) -> int:
+    """Publish ``items`` in their recorded order at ``args.rate`` times sim time (0: as fast as the
+    flow control lets), ``/clock`` before each new stamp; returns the messages published."""
+    sent = 0
+    start_wall = time.monotonic()
+    start_sim = items[0][2].log_time
+    last_clock = None
+    for _schema, channel, message in items:
+        pub = out.pubs[channel.id]
+        t_ns = message.log_time
+        if args.rate > 0:
+            pause = start_wall + (t_ns - start_sim) * 1e-9 / args.rate - time.monotonic()
+            if pause > 0:
+                time.sleep(pause)
+        if t_ns != last_clock:
+            out.publish_clock(t_ns, flow)
+            last_clock = t_ns
+        data = bytes(message.data)
+        state = _bridge_record(data) if channel.topic == P.TOPIC_STATUS else None
+        if state in (P.DONE, P.FAILED):
+            clients.run_end()  # as the bridge: a run's done only once the opted-in clients have it whole
+        elif state == P.STARTED:
+            clients.run_start()
+        if channel.topic == P.TOPIC_DIAGNOSTICS and out.diag_final is not None and _is_final_diagnostics(data):
+            pub = out.diag_final
+        pub.publish(data)
+        flow.sent(pub, channel.topic)
+        sent += 1
+        clients.sent(channel.topic, sent)
+        note_shm()
+    return sent
+
+
 def republish(args, found) -> int:
     """Publish the recorded topics (``found``: the checked scan of the recording) and /clock in
     simulated time, each with the QoS it was recorded with (descriptions latched again),
     flow-controlled; returns messages published."""
 
     import rclpy  # noqa: PLC0415  rclpy (~0.2 s) only when republishing
-    from rosgraph_msgs.msg import Clock  # noqa: PLC0415  rclpy (~0.2 s) only when republishing
+    from rclpy.executors import SingleThreadedExecutor  # noqa: PLC0415  rclpy (~0.2 s) only when republishing
 
-    from adm_sim.recording.mcap_log import sorted_messages  # noqa: PLC0415  start-up: only on this path (47 ms)
-
-    def msg_class(schema_name: str):
-        pkg, _, name = schema_name.partition("/msg/")
-        if not name:
-            pkg, _, name = schema_name.partition("/")
-        return getattr(importlib.import_module(f"{pkg}.msg"), name)
 
     items = [m for m in sorted_messages(found, args.topics) if m[1].topic != P.TOPIC_CLOCK]
     if not items:
@@ -601,78 +691,20 @@ def republish(args, found) -> int:
     with _writer_profile():
         rclpy.init(context=context)
         node = rclpy.create_node("adm_replay", context=context)
-    noted = [0.0]
-
-    def note_shm():  # this process's Fast DDS files, noted while it lives (a SIGKILL gives no later chance)
-        if time.monotonic() - noted[0] >= 0.5:
-            noted[0] = time.monotonic()
-            record_shm([os.getpid()])
-
+    note_shm = _ShmNote()
     note_shm()
-    from rclpy.executors import SingleThreadedExecutor  # noqa: PLC0415  rclpy (~0.2 s) only when republishing
-
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(node)
     flow = _FlowControl(node)
     clients = _ClientFlow(node, executor, ack_timeout_s=flow.ack_timeout_s)
-    pubs, qos_of, topics = {}, {}, {}
-    diag_final = None  # the latched publisher of the runs' final /diagnostics, as the live bridge's
-    sent = 0
     try:
-        for schema, ch, _m in items:
-            if ch.id not in pubs:
-                qos_of[ch.id] = _qos_profile(ch.metadata.get("offered_qos_profiles", ""), ch.topic)
-                pubs[ch.id] = node.create_publisher(msg_class(schema.name), ch.topic, qos_of[ch.id])
-                topics[pubs[ch.id]] = ch.topic
-                if ch.topic == P.TOPIC_DIAGNOSTICS:
-                    latched = _qos_profile("", P.TOPIC_BRIDGE_DESC)  # class L: transient local, depth 1
-                    diag_final = node.create_publisher(msg_class(schema.name), ch.topic, latched)
-                    topics[diag_final] = ch.topic
-                    qos_of["diag_final"] = latched
-        clock_qos = _qos_profile("", P.TOPIC_CLOCK)
-        clock_pub = node.create_publisher(Clock, P.TOPIC_CLOCK, clock_qos)
-        topics[clock_pub] = P.TOPIC_CLOCK
-        deadline = time.monotonic() + args.wait_subscribers
-        while time.monotonic() < deadline and any(p.get_subscription_count() == 0 for p in pubs.values()):
-            note_shm()
-            time.sleep(0.05)
-        for cid, pub in pubs.items():
-            flow.add(pub, topics[pub], qos_of[cid])
-        if diag_final is not None:
-            flow.add(diag_final, P.TOPIC_DIAGNOSTICS, qos_of["diag_final"])
-        flow.add(clock_pub, P.TOPIC_CLOCK, clock_qos)
+        out = _Publishers(node, items)
+        out.wait_subscribers(args.wait_subscribers, note_shm)
+        out.flow_controlled(flow)
         clients.join(args.wait_clients, note_shm)
-        start_wall = time.monotonic()
-        start_sim = items[0][2].log_time
-        last_clock = None
-        for _schema, channel, message in items:
-            pub = pubs[channel.id]
-            t_ns = message.log_time
-            if args.rate > 0:
-                pause = start_wall + (t_ns - start_sim) * 1e-9 / args.rate - time.monotonic()
-                if pause > 0:
-                    time.sleep(pause)
-            if t_ns != last_clock:
-                clock = Clock()
-                clock.clock.sec, clock.clock.nanosec = divmod(t_ns, 1_000_000_000)
-                clock_pub.publish(clock)
-                flow.sent(clock_pub, P.TOPIC_CLOCK)
-                last_clock = t_ns
-            data = bytes(message.data)
-            state = _bridge_record(data) if channel.topic == P.TOPIC_STATUS else None
-            if state in (P.DONE, P.FAILED):
-                clients.run_end()  # as the bridge: a run's done only once the opted-in clients have it whole
-            elif state == P.STARTED:
-                clients.run_start()
-            if channel.topic == P.TOPIC_DIAGNOSTICS and diag_final is not None and _is_final_diagnostics(data):
-                pub = diag_final
-            pub.publish(data)
-            flow.sent(pub, channel.topic)
-            sent += 1
-            clients.sent(channel.topic, sent)
-            note_shm()
+        sent = _replay_items(args, items, out=out, flow=flow, clients=clients, note_shm=note_shm)
         clients.run_end()  # the last run whole for every opted-in client (a recording cut short)
-        flow.drain_all(topics)  # every reliable message acknowledged before the participant goes away
+        flow.drain_all(out.topics)  # every reliable message acknowledged before the participant goes away
     finally:
         executor.remove_node(node)
         node.destroy_node()

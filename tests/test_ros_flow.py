@@ -167,13 +167,15 @@ def P_matrix(msg):
 
 def test_step_messages_counts_what_a_step_publishes():
     """The bridge checks the flow-control window before a DIM step's monitoring (it publishes the
-    rail state first): :meth:`BridgeNode._step_messages` must count exactly the messages
-    :meth:`BridgeNode._step_done` then publishes, so the window is never passed. Checked on every
+    rail state first): :meth:`MonitoringOutput.step_messages` must count exactly the messages
+    :meth:`MonitoringOutput.step_done` then publishes, so the window is never passed. Checked on every
     step of a B1 x ICE-2 run's grid with the automatic decimation, no ROS context needed."""
     from adm_sim.model.bridge import resolve_bridge
-    from adm_sim.limits import ACC_LIMITS_M_S2
     from adm_sim.integrate.lockstep_runs import BridgeHalf
-    from adm_sim.nodes.bridge_node import BridgeNode, BridgeRunState, monitor_steps
+    from adm_sim.nodes.bridge_node import BridgeRunState
+    from adm_sim.nodes.bridge_outputs import MonitoringOutput, monitor_steps
+    from adm_sim.nodes.flow_control import FlowControl
+    from adm_sim.nodes.params import bridge_specs
     from adm_sim.integrate.rk4_sides import BridgeSide
     from adm_sim.integrate.step_grid import StepOptions, make_grid
     from adm_sim.model.trains import load_train
@@ -183,20 +185,18 @@ def test_step_messages_counts_what_a_step_publishes():
     side = BridgeSide(bridge, grid, train.axle_offsets_m, None, 0.0)
     half = BridgeHalf("mlm", grid, side)
     every, beam_every = monitor_steps(bridge, grid, 1, 0, 0)
-    xb = np.linspace(0.0, bridge.span_m, 11)
-    node = BridgeNode.__new__(BridgeNode)  # the run's bookkeeping only: no node, no publishers
-    node.run = BridgeRunState(
+    run = BridgeRunState(
         id=1, model="mlm", phase=P.PHASE_MLM_ZETA, train="ICE-2", grid=grid, run=half, bridge=bridge,
-        speeds_kmh=np.array([250.0, 263.0]), dz=np.zeros(2), lane=1, every=every, beam_every=beam_every,
-        frame="B1/midspan", v_mon=float(grid.speeds_m_s[1]), x_beam=xb, phi_beam=bridge.shapes(xb)[0],
-        limit=ACC_LIMITS_M_S2["ballasted"], track="ballasted", warn=0.8, tick=max(1, grid.n_steps // 100),
-        t0=0.0, wall0=0.0, acked={})
+        speeds_kmh=np.array([250.0, 263.0]), dz=np.zeros(2), flow=FlowControl(()))
+    values = {s.name: s.default for s in bridge_specs(bridge)} | {"monitor_speed_kmh": 263.0, "beam_points": 11}
+    out = MonitoringOutput(run, None, run.flow, values, t0_s=0.0)  # no node, no publishers
+    assert (out.lane, out.every, out.beam_every, out.frame) == (1, every, beam_every, "B1/midspan")
     published = []
-    node._publish = lambda topic, msg, pub=None: published.append(topic)
+    out.publish = lambda topic, msg, pub=None: published.append(topic)
     assert every > 1 and beam_every > every
     acc = np.array([0.1, 0.2])
     for k in range(grid.n_steps):
         before = len(published)
-        node._step_done(k, half.disp_m, acc)
-        assert len(published) - before == node._step_messages(k), k
+        out.step_done(k, half.disp_m, acc)
+        assert len(published) - before == out.step_messages(k), k
     assert len(published) > grid.n_steps // every

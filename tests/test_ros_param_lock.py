@@ -1,5 +1,7 @@
 """Parameters are locked while a run is active, on every lockstep node: a set during a run is
-refused with the node's reason and changes nothing (``LockstepNode.lock_reason``).
+refused with the node's reason and changes nothing (``LockstepNode.lock_reason``); on the
+calibration node, the parameters its job reads once are locked while the job runs
+(``RunDriver.lock_reason``).
 
 The bridge and the train node run in this process on a reserved domain; the train node's
 ``~/start_run`` starts a real run, the bridge takes it up from ``/adm/run/setup``, and the test
@@ -8,6 +10,7 @@ sets a parameter on each while both hold the run.
 
 from __future__ import annotations
 
+import re
 import time
 
 import pytest
@@ -74,3 +77,53 @@ def test_a_set_during_a_run_is_refused_with_the_reason(running, node, name, valu
         assert f"of {bridge.run.grid.n_steps})" in res.reason  # the bridge adds the step it is at
     assert n.get_parameter(name).value == old
     assert (bridge.bridge, train.train) == before  # nothing configured
+
+
+@pytest.fixture
+def calibrating(ros_domain):  # noqa: F811
+    """``(calibration, bridge)`` in this process, the calibration node's job holding its first run."""
+    from adm_calib.nodes.calibration_node import CalibrationNode
+
+    ctx = rclpy.context.Context()
+    rclpy.init(context=ctx, domain_id=int(ros_domain["ROS_DOMAIN_ID"]))
+    bridge = BridgeNode(context=ctx, parameter_overrides=[Parameter("bridge", value="B1")])
+    train = TrainNode(context=ctx, parameter_overrides=[Parameter("model", value="mlm")])
+    cal = CalibrationNode(context=ctx, parameter_overrides=[Parameter("speeds_kmh", value="200:300:10")])
+    ex = SingleThreadedExecutor(context=ctx)
+    for n in (bridge, train, cal):
+        ex.add_node(n)
+    try:
+        cal.begin()  # the job, in its worker thread: the graph, the descriptions, then the first MLM run
+        _until(ex, lambda: (bridge.run is not None and cal._current is not None) or cal.finished,
+               "the calibration's first run", timeout_s=60.0)
+        assert bridge.run is not None, cal.error
+        yield cal, bridge
+    finally:
+        ex.shutdown()
+        for n in (bridge, train, cal):
+            n.destroy_node()
+        rclpy.try_shutdown(context=ctx)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name, value", [("speeds_kmh", "250:300:5"), ("dim_grid", "full")])
+def test_a_set_on_the_calibration_node_during_its_job_is_refused(calibrating, name, value):
+    """The calibration node reads ``speeds_kmh`` and ``dim_grid`` once, when its job starts: a set
+    while the job runs would change nothing, so it is refused with the reason, the value kept."""
+    cal, _bridge = calibrating
+    old = cal.get_parameter(name).value
+    (res,) = cal.set_parameters([Parameter(name, value=value)])
+    assert not res.successful
+    # the run the job waits for (``run 1 of``) is named when the set comes during one
+    assert re.match(r"calibration: parameters are locked while (run \d+ of )?its job is in progress "
+                    r"\(speeds_kmh, dim_grid: read once, when it started\)$", res.reason), res.reason
+    assert cal.get_parameter(name).value == old
+
+
+def test_the_monitor_node_has_no_run_locked_parameters():
+    """The monitor node reads every parameter once, at start-up, and follows no run of its own: it
+    has nothing to lock (no post-set callback), so the lock test above covers bridge, train and
+    calibration, the nodes whose parameters a run reads."""
+    from adm_sim.nodes.monitor_node import MonitorNode
+
+    assert not hasattr(MonitorNode, "lock_reason") and not hasattr(MonitorNode, "job_parameters")

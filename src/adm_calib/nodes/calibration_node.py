@@ -48,6 +48,8 @@ PHASE_LABELS = {phase: P.PHASE_NAMES[phase][1] for phase in P.PHASES}
 class CalibrationNode(RunDriver):
     """Drives MLM and DIM runs and adjusts ``delta_zeta`` on the bridge node."""
 
+    job_parameters = tuple(s.name for s in CALIBRATION_SPECS)  # read once, when the calibration starts
+
     def __init__(self, **kw):
         super().__init__(name=P.CALIBRATION_NODE, extra_specs=CALIBRATION_SPECS, **kw)
         R = P.relative

@@ -1,4 +1,9 @@
-"""Parameters of the calibration node, free of ROS (a launcher checks them before it starts the node)."""
+"""Parameters of the calibration node, free of ROS (a launcher checks them before it starts the node).
+
+It extends :mod:`adm_sim.nodes.params`: the calibration node is a run driver, so it declares the
+core's ``DRIVER_SPECS`` and these specs after them, built with the core's :func:`~adm_sim.nodes.params.param`
+from the one field registry.
+"""
 
 from __future__ import annotations
 

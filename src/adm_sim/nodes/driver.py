@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import AccelStamped
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.serialization import deserialize_message
@@ -99,9 +100,14 @@ def say(kind, **payload):
 class RunDriver(c.NodeBase):
     """Requests runs and records them; see the module docstring."""
 
+    #: Parameters the job reads once, when it starts: a set while the job runs is refused (it
+    #: would change nothing), with the reason (:meth:`lock_reason`).
+    job_parameters = ()
+
     def __init__(self, name=P.DRIVER_NODE, extra_specs=(), **kw):
         super().__init__(name, **kw)
-        self.declare_specs(list(DRIVER_SPECS) + list(extra_specs))
+        self.job_started = False
+        self.declare_specs(list(DRIVER_SPECS) + list(extra_specs), on_set=self._check_set)
         p = self.param_values()
         self.outputs = claim_outputs(p)  # before any file is created (exit 2, one line)
         self.finished = False
@@ -134,6 +140,19 @@ class RunDriver(c.NodeBase):
         self.last_phase = None  # phase of the last run requested (the iterations that follow it)
         self.cli_start = self.create_client(Trigger, P.relative(P.SERVICE_START_RUN))
         self.params = {n: AsyncParameterClient(self, n) for n in (P.BRIDGE_NODE, P.TRAIN_NODE)}
+
+    # ------------------------------------------------------------------ parameters
+    def lock_reason(self):
+        """Why the :attr:`job_parameters` are locked now: the job in progress (and its run)."""
+        run = "" if self._current is None else f"run {self._current[0]} of "
+        return f"{run}its job is in progress ({', '.join(self.job_parameters)}: read once, when it started)"
+
+    def _check_set(self, params):
+        """On-set (after the ranges): refuse a set of a :attr:`job_parameters` while the job runs."""
+        if self.job_started and not self.finished and any(p.name in self.job_parameters for p in params):
+            return SetParametersResult(successful=False, reason=(
+                f"{self.get_name()}: parameters are locked while {self.lock_reason()}"))
+        return SetParametersResult(successful=True)
 
     # ------------------------------------------------------------------ subscriptions
     def _make_cb(self, topic, msg_type):
@@ -327,6 +346,40 @@ class RunDriver(c.NodeBase):
         """
         if phase is not None and phase not in P.PHASES:
             raise InputError(f"phase: {phase!r} is not a run phase; allowed {', '.join(P.PHASES)}")
+        phase = self._set_run_params(model=model, speeds_kmh=speeds_kmh, delta_zeta=delta_zeta,
+                                     delta_zeta_lanes=delta_zeta_lanes, phase=phase)
+        with self._lock:
+            self._result = None
+        self._event.clear()
+        # the run's time counts from the request that started it: the response can come after the
+        # run ended when this node's executor is behind with the monitoring it takes
+        t0, info = self._start_run()
+        run_id, model = int(info["run_id"]), info["model"]
+        self.last_phase = phase
+        lab = label or model.upper()
+        self._current = (run_id, model, f"{lab} run {run_id}")
+        self._run_ids.append(run_id)
+        self.pub_request.publish(c.json_msg(P.request_record(self.get_name(), run_id, model, phase, lab)))
+        say("run", run_id=run_id, model=model, lanes=int(info["lanes"]), state="started", label=lab, phase=phase)
+        res = self._wait_result(run_id, t0)
+        wall = time.perf_counter() - t0
+        if self.rec.attached:
+            self.rec.check_run(run_id, phase, lambda: self._bridge_status(run_id))
+        self._current = None
+        self.n_runs += 1
+        out = {"run_id": run_id, "model": model, "speeds_kmh": res[0], "max_acc_m_s2": res[1],
+               "max_disp_m": res[2], "delta_zeta": res[3], "wall_s": wall, "phase": phase}
+        if model == "dim":  # the DIM's contact check, from the bridge's done record (it follows the result)
+            out["contact"] = self._bridge_contact(run_id)
+        self.warn_implausible(out)
+        i = int(np.argmax(res[1]))
+        say("run", run_id=run_id, model=model, state="done", wall_s=round(wall, 3),
+            max_acc_m_s2=float(res[1][i]), speed_kmh=float(res[0][i]), label=lab, phase=phase)
+        return out
+
+    def _set_run_params(self, *, model, speeds_kmh, delta_zeta, delta_zeta_lanes, phase):
+        """Set the parameters of a run request (:meth:`request_run`) on the train and bridge nodes;
+        returns the run's phase (``phase``, else the one of a plain run of those parameters)."""
         tp, bp = {}, {}
         if model is not None:
             tp["model"] = model
@@ -344,29 +397,27 @@ class RunDriver(c.NodeBase):
         tp["run_phase"] = phase
         self.set_params(P.TRAIN_NODE, **tp)
         self.set_params(P.BRIDGE_NODE, **bp)
-        with self._lock:
-            self._result = None
-        self._event.clear()
-        t_end = time.monotonic() + 15.0
+        return phase
+
+    def _start_run(self, retry_s=15.0):
+        """Call ``~/start_run`` until the train node accepts (it asks to retry while the bridge is
+        not connected yet, at most ``retry_s``); returns ``(time.perf_counter() of the accepted
+        request, {key: value} of its answer)``."""
+        t_end = time.monotonic() + retry_s
         while True:
-            # the run's time counts from the request that started it: the response can come after the
-            # run ended when this node's executor is behind with the monitoring it takes
             t0 = time.perf_counter()
             resp = self._wait_future(self.cli_start.call_async(Trigger.Request()), P.SERVICE_START_RUN)
             if resp.success:
-                break
+                return t0, dict(kv.split("=", 1) for kv in resp.message.split())
             if "retry" not in resp.message or time.monotonic() > t_end:
                 raise RunError(f"{P.SERVICE_START_RUN} refused: {resp.message}")
             self._event.wait(0.1)
-        info = dict(kv.split("=", 1) for kv in resp.message.split())
-        run_id, model = int(info["run_id"]), info["model"]
-        self.last_phase = phase
+
+    def _wait_result(self, run_id, t0):
+        """Block until run ``run_id``'s result (rows :data:`adm_sim.protocol.RESULT_ROWS`) arrives;
+        raises :class:`RunError` when a node reports it failed, a node vanishes or the run takes
+        longer than ``run_timeout_s`` since ``t0`` (``time.perf_counter()``)."""
         timeout = self.get_parameter("run_timeout_s").value
-        lab = label or model.upper()
-        self._current = (run_id, model, f"{lab} run {run_id}")
-        self._run_ids.append(run_id)
-        self.pub_request.publish(c.json_msg(P.request_record(self.get_name(), run_id, model, phase, lab)))
-        say("run", run_id=run_id, model=model, lanes=int(info["lanes"]), state="started", label=lab, phase=phase)
         last_check = time.monotonic()
         while True:
             self._event.wait(0.2)
@@ -377,27 +428,13 @@ class RunDriver(c.NodeBase):
                 self._wait_run_ended(run_id)
                 raise RunError(f"run {run_id} failed on node '{failed[0]['node']}': {failed[0].get('message', '')}")
             if res is not None:
-                break
+                return res
             self._event.clear()
             if time.monotonic() - last_check > 1.0:
                 self._check_alive()
                 last_check = time.monotonic()
             if time.perf_counter() - t0 > timeout:
                 raise RunError(f"run {run_id} took longer than run_timeout_s = {timeout:g} s")
-        wall = time.perf_counter() - t0
-        if self.rec.attached:
-            self.rec.check_run(run_id, phase, lambda: self._bridge_status(run_id))
-        self._current = None
-        self.n_runs += 1
-        out = {"run_id": run_id, "model": model, "speeds_kmh": res[0], "max_acc_m_s2": res[1],
-               "max_disp_m": res[2], "delta_zeta": res[3], "wall_s": wall, "phase": phase}
-        if model == "dim":  # the DIM's contact check, from the bridge's done record (it follows the result)
-            out["contact"] = self._bridge_contact(run_id)
-        self.warn_implausible(out)
-        i = int(np.argmax(res[1]))
-        say("run", run_id=run_id, model=model, state="done", wall_s=round(wall, 3),
-            max_acc_m_s2=float(res[1][i]), speed_kmh=float(res[0][i]), label=lab, phase=phase)
-        return out
 
     def warn_implausible(self, r):
         """The plausibility warnings of run ``r``'s result (:func:`adm_sim.model.plausibility.check_response`,
@@ -505,6 +542,7 @@ class RunDriver(c.NodeBase):
             finally:
                 self.finished = True
 
+        self.job_started = True
         threading.Thread(target=work, name="driver-job", daemon=True).start()
 
     def end(self, executor):

@@ -31,8 +31,10 @@ import json
 import sys
 import time
 
+import rclpy
 from geometry_msgs.msg import AccelStamped
 from rclpy.event_handler import SubscriptionEventCallbacks
+from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu
@@ -40,6 +42,7 @@ from std_msgs.msg import String
 
 from adm_sim import protocol as P
 from adm_sim.errors import InputError
+from adm_sim.files import claim_output, release_all, write_atomic
 from adm_sim.limits import TRACK_TYPES, check_track_type
 from adm_sim.monitoring.modal_id import IdentifySettings, PassageTracker, run_topics_for
 from adm_sim.monitoring.sensors import ACCEL_TYPE, AXES, IMU_TYPE, SENSOR_TYPES, check_imu, parse_axis, sample_of
@@ -99,8 +102,6 @@ class MonitorNode(c.ParamNodeMixin, Node):
         self.on_passage = on_passage
         self.json_path = p["json_path"] or None
         if self.json_path is not None:
-            from adm_sim.files import claim_output
-
             claim_output(self.json_path, "json_path", bool(p["overwrite"]), ".json",
                          overwrite_hint="set -p overwrite:=true to replace it")
         settings = IdentifySettings(min_cycles=float(p["min_cycles"]), bandpass=bool(p["bandpass"]), raw=bool(p["raw"]))
@@ -211,8 +212,6 @@ class MonitorNode(c.ParamNodeMixin, Node):
             self.on_passage(passage)
 
     def write_json(self):
-        from adm_sim.files import write_atomic
-
         doc = passages_document(self.tracker, self.topic, "live")
         write_atomic(self.json_path, lambda tmp: tmp.write_text(json.dumps(doc, indent=1) + "\n"), "json_path")
 
@@ -228,9 +227,6 @@ def passages_document(tracker, topic, source):
 
 
 def main(args=None):
-    import rclpy
-    from rclpy.executors import ExternalShutdownException
-
     rclpy.init(args=args)
     node = None
     code = 0
@@ -252,8 +248,6 @@ def main(args=None):
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
-        from adm_sim.files import release_all
-
         release_all()
     return code
 

@@ -14,6 +14,7 @@ that importing this module leaves ``rclpy`` out.
 from __future__ import annotations
 
 import dataclasses
+import re
 import warnings
 from pathlib import Path
 
@@ -211,7 +212,6 @@ def unapplied_sections(doc, fqn):
     while rcl applies none of them to it: a bare ``bridge`` (rcl reads ``/bridge``) or
     ``/b1/bridge`` for the node ``/b3/bridge``. Empty when a section does apply to ``fqn`` (its
     exact name, or a pattern of ``*``/``**`` that matches it, as rcl matches) or none names it."""
-    import re  # noqa: PLC0415  only with a params file
 
     if not isinstance(doc, dict):
         return []

@@ -1,0 +1,65 @@
+"""The client side of the bridge's flow control: :class:`FlowClient` (docs/ros.md, "Flow control").
+
+The bridge side is :class:`adm_sim.nodes.flow_control.FlowControl`.
+"""
+
+from __future__ import annotations
+
+from std_msgs.msg import String
+
+from adm_sim import protocol as P
+from adm_sim.nodes.qos import QOS_CONTROL, QOS_MONITOR
+
+
+class FlowClient:
+    """Opt a client node into the bridge's flow control: one call, ``FlowClient(node)``, before the
+    run starts; then ``flow.received()`` in the callback of every message of ``topics``.
+
+    The bridge takes every publisher of ``/adm/run/ack`` at a run's set-up as a node to wait for
+    (docs/ros.md, "Flow control"): it never publishes more than :data:`adm_sim.protocol.FLOW_WINDOW`
+    messages of ``topics`` beyond this client's acknowledgement, and ends the run only once the
+    client has them all. Subscribe to ``topics`` RELIABLE with a history of at least
+    ``FLOW_WINDOW`` (:data:`QOS_MONITOR`). The counting is :class:`adm_sim.protocol.AckCounter`;
+    ``runs`` gives ``run_id -> (received, published)`` of the runs ended.
+
+    Parameters
+    ----------
+    node : rclpy.node.Node
+        The client's node.
+    topics : sequence of str
+        The topics the client reads, of :data:`adm_sim.protocol.SAMPLE_TOPICS` (default the midspan
+        acceleration).
+    graph : str or None
+        The namespace of the graph (``/b1``: its ``/b1/adm/run/ack``); ``None``: the node's own
+        (relative names).
+    """
+
+    def __init__(self, node, topics=(P.TOPIC_ACCEL,), graph=None):
+        self.counter = P.AckCounter(node.get_fully_qualified_name(), topics)
+
+        def name(topic):
+            return P.relative(topic) if graph is None else graph.rstrip("/") + topic
+
+        self.pub = node.create_publisher(String, name(P.TOPIC_ACK), QOS_CONTROL)
+        node.create_subscription(String, name(P.TOPIC_PROGRESS), self._on_progress, QOS_MONITOR)
+        node.create_subscription(String, name(P.TOPIC_STATUS), self._on_status, QOS_CONTROL)
+
+    @property
+    def runs(self):
+        return self.counter.runs
+
+    def received(self, n=1):
+        """``n`` messages of the counted topics arrived."""
+        self._send(self.counter.count(n))
+
+    def _on_progress(self, msg):
+        self._send(self.counter.final(P.decode(msg.data)))
+
+    def _on_status(self, msg):
+        rec = P.decode(msg.data)
+        if P.is_bridge_start(rec):
+            self.counter.started(rec.get("run_id"))
+
+    def _send(self, rec):
+        if rec is not None:
+            self.pub.publish(String(data=P.encode(rec)))

@@ -1,0 +1,110 @@
+"""The bridge's side of the flow control of one run: what it published, what each recorder or
+opted-in client acknowledged, and whether the run waits for them (docs/ros.md, "Flow control").
+
+The bridge never publishes more than :data:`adm_sim.protocol.FLOW_WINDOW` messages of the counted
+topics (:data:`adm_sim.protocol.SAMPLE_TOPICS`) beyond the slowest acknowledgement, and ends a run
+only once every acknowledging node has them all. A client's side is
+:class:`adm_sim.nodes.flow_client.FlowClient`. ROS-free: the node publishes, this counts.
+"""
+
+from __future__ import annotations
+
+from adm_sim import protocol as P
+
+#: What a run waits for the recorders' acknowledgement before: the next exchange, or its end.
+PAUSE_STEP, PAUSE_END = "step", "end"
+
+
+class FlowControl:
+    """The counts and acknowledgements of one run.
+
+    Parameters
+    ----------
+    nodes : iterable of str
+        Fully qualified names of the nodes that acknowledge (the publishers of ``/adm/run/ack``
+        at the run's set-up).
+
+    Attributes
+    ----------
+    acked : dict
+        Node -> messages it acknowledged (a node dropped from the flow control leaves it).
+    ack_topics : dict
+        Node -> the topics its count covers, when not every counted topic (a client that reads
+        the acceleration alone).
+    counts : dict
+        Topic -> messages published (the run's ``samples``).
+    sent : int
+        Messages published over every counted topic.
+    paused : str or None
+        :data:`PAUSE_STEP` or :data:`PAUSE_END` while the run waits for the acknowledgements.
+    wait_since : float or None
+        ``time.monotonic()`` since which the run waits with no acknowledgement.
+    forced : bool
+        A pause outlasted half the partner timeout: the run went on to the next exchange.
+    """
+
+    def __init__(self, nodes):
+        self.acked = {n: 0 for n in nodes}
+        self.ack_topics = {}
+        self.counts = {t: 0 for t in P.SAMPLE_TOPICS}
+        self.sent = 0
+        self.paused = None
+        self.wait_since = None
+        self.forced = False
+
+    def count(self, topic):
+        """One message of ``topic`` published."""
+        self.counts[topic] += 1
+        self.sent += 1
+
+    def sent_to(self, name):
+        """Messages published so far on the topics node ``name`` acknowledges."""
+        topics = self.ack_topics.get(name)
+        return self.sent if topics is None else sum(self.counts[t] for t in topics)
+
+    def take(self, ack):
+        """Take an acknowledgement record (:class:`adm_sim.protocol.AckCounter`); returns whether it
+        came from a node this run waits for."""
+        name = ack.get("node")
+        if name not in self.acked:
+            return False
+        topics = ack.get("topics")
+        if topics is not None:  # a client that counts some topics only (checked: the known ones)
+            self.ack_topics[name] = tuple(t for t in topics if t in self.counts)
+        self.acked[name] = max(self.acked[name], int(ack["received"]))
+        self.wait_since = None
+        return True
+
+    def ahead(self, pending=0):
+        """Whether the run is more than the window ahead of the slowest acknowledging node (with
+        ``pending`` messages more published)."""
+        if self.forced or not self.acked:
+            return False
+        if not self.ack_topics:  # recorders only: each counts every topic
+            return self.sent + pending - min(self.acked.values()) >= P.FLOW_WINDOW
+        return any(self.sent_to(n) + pending - a >= P.FLOW_WINDOW for n, a in self.acked.items())
+
+    def all_acked(self):
+        """Whether every acknowledging node has every message published so far."""
+        if not self.ack_topics:
+            return not self.acked or min(self.acked.values()) >= self.sent
+        return all(a >= self.sent_to(n) for n, a in self.acked.items())
+
+    def pause(self, what, now):
+        """Wait for the acknowledgements before ``what`` (:data:`PAUSE_STEP`, :data:`PAUSE_END`)."""
+        self.paused = what
+        if self.wait_since is None:
+            self.wait_since = now
+
+    def drop(self, alive, patience_s, now):
+        """Stop waiting for the nodes not in ``alive`` (they left the graph), or for every node when
+        none acknowledged anything for ``patience_s``. Returns ``[(name, left, acked, sent), ...]``
+        of the nodes dropped (``left``: it left the graph)."""
+        stale = now - self.wait_since > patience_s
+        dropped = []
+        for name in list(self.acked):
+            if name not in alive or stale:
+                dropped.append((name, name not in alive, self.acked[name], self.sent_to(name)))
+                del self.acked[name]
+        self.wait_since = None if not self.acked else now
+        return dropped
