@@ -247,7 +247,9 @@ def cmd_check(args, damping_provider=None):
 
         bridge = bridge_from_mapping(bridge_spec, source=f"--job {job.path}: [bridge]")
     else:
-        bridge = resolve_bridge(bridge_spec)
+        bridge = resolve_bridge(bridge_spec, continuous=True)  # a continuous deck: adm_sim.design.check_deck
+    if bridge.is_continuous:
+        _refuse_on_deck(args, tables)
     from adm_sim.inputs.measured import measured_bridge  # noqa: PLC0415  start-up: only this subcommand
 
     bridge, measured = measured_bridge(args, bridge)  # --measured: n0, zeta (and EJ) of the monitored bridge
@@ -288,14 +290,17 @@ def cmd_check(args, damping_provider=None):
     cb, close = progress_callback("check", None if args.progress is None else args.progress)
     t0 = time.perf_counter()
     try:
-        res = run_check(bridge, args.max_line_speed, trains, track=track, damping=args.damping,
-                        step_kmh=args.speed_step, progress=cb, comfort=args.comfort, n_modes=args.modes,
-                        where=args.where, damping_model=args.damping_model,
-                        track_maintenance=args.track_maintenance, alpha=args.alpha,
-                        damping_provider=damping_provider, lateral_frequency_hz=args.lateral_frequency,
-                        mass_bounds=mass_bounds, stiffness_bounds=stiffness_bounds,
-                        deck_end_height_m=deck_end_height, ballast=ballast, irregularity=args.irregularity,
-                        seeds=args.seeds)
+        if bridge.is_continuous:
+            res = _run_deck_check(args, bridge, trains, track, cb, deck_end_height)
+        else:
+            res = run_check(bridge, args.max_line_speed, trains, track=track, damping=args.damping,
+                            step_kmh=args.speed_step, progress=cb, comfort=args.comfort, n_modes=args.modes,
+                            where=args.where, damping_model=args.damping_model,
+                            track_maintenance=args.track_maintenance, alpha=args.alpha,
+                            damping_provider=damping_provider, lateral_frequency_hz=args.lateral_frequency,
+                            mass_bounds=mass_bounds, stiffness_bounds=stiffness_bounds,
+                            deck_end_height_m=deck_end_height, ballast=ballast, irregularity=args.irregularity,
+                            seeds=args.seeds)
     finally:
         close()
     wall = time.perf_counter() - t0
@@ -305,7 +310,7 @@ def cmd_check(args, damping_provider=None):
     sources = input_sources(bridge_spec, trains_spec, trains)
     for line in job.lines():
         print(line)
-    print(check_summary(res))
+    print(res.summary() if getattr(res, "is_deck", False) else check_summary(res))
     print(f"{len(trains)} trains, {wall:.2f} s")
     with OutputSet() as files:  # --json, --csv, --plot, --report: all or none
         if "json" in outs:
@@ -338,6 +343,40 @@ def cmd_check(args, damping_provider=None):
             write_tables(res, tables, job=job, sources=sources, outs=files)
             print(f"wrote the tables to {args.tables}")
     return 0
+
+
+#: Options of the check not wired for a continuous deck (adm_sim.design.check_deck), with the reason.
+DECK_REFUSED = (("measured", "the monitored bridge's n0 and zeta are of one span"),
+                ("comfort", "the DIM's passenger comfort is not wired for a continuous deck"),
+                ("irregularity", "the rough-track DIM is not wired for a continuous deck"),
+                ("mass_bounds", "mass bounds are not wired for a continuous deck"),
+                ("stiffness_bounds", "stiffness bounds are not wired for a continuous deck"),
+                ("ballast", "mass bounds are not wired for a continuous deck"))
+
+
+def _refuse_on_deck(args, tables):
+    """One line for an option the deck check does not take, before any work."""
+    for key, why in DECK_REFUSED:
+        if getattr(args, key, None) not in (None, False):
+            raise InputError(f"--{key.replace('_', '-')}: {getattr(args, key)!r} is refused on a continuous deck "
+                             f"({why}); omit it")
+    if tables is not None:
+        raise InputError(f"--tables: {args.tables!r}: the report's tables are of one span; on a continuous deck "
+                         f"write --json or --report")
+    if args.damping != "none":
+        raise InputError(f"--damping: {args.damping!r} is not wired for a continuous deck (the Eurocode ADM of EN "
+                         f"1991-2 6.4.6.3.1 and the paper's additional damping are for simply supported spans, our "
+                         f"reading); allowed --damping none")
+
+
+def _run_deck_check(args, bridge, trains, track, progress, deck_end_height):
+    """The check of a continuous deck (:func:`adm_sim.design.check_deck.run_deck_check`)."""
+    from adm_sim.design.check_deck import run_deck_check  # noqa: PLC0415  start-up: only on a continuous deck
+
+    return run_deck_check(bridge, args.max_line_speed, trains, track=track, step_kmh=args.speed_step,
+                          progress=progress, n_modes=args.modes, where=args.where, damping_model=args.damping_model,
+                          track_maintenance=args.track_maintenance, alpha=args.alpha,
+                          lateral_frequency_hz=args.lateral_frequency, deck_end_height_m=deck_end_height)
 
 
 def _check_plausible(res):

@@ -850,6 +850,10 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
     -------
     CheckResult
     """
+    if bridge.is_continuous:
+        raise InputError(f"bridge: {bridge.name or 'the bridge'} is a continuous deck of {len(bridge.spans_m)} spans; "
+                         f"its check is adm_sim.design.check_deck.run_deck_check (adm-sim check takes it)",
+                         field="bridge")
     # numba kernels: a refusal before run_check (trains, bounds, damping) does not wait for them
     from adm_sim.design.check_effects import EffectComparison, lm71_effects, train_effects  # noqa: PLC0415  numba kernels
     from adm_sim.integrate.envelope import (  # noqa: PLC0415  numba kernels
