@@ -55,12 +55,64 @@ def _sweep_modes(bridge, modes, damping_model):
     return dataclasses.replace(bridge, **kw) if kw else bridge
 
 
+def _sweep_method(args, bridge, dz, where):
+    """``(method, backend)`` of the sweep from ``--method``, ``--model`` and ``--backend``; the combinations
+    a method does not take refused in one line, before any work."""
+    method = args.method or ("exact" if args.model == "mlm" and not bridge.is_continuous else "rk4")
+    if method == "exact" and bridge.is_continuous:
+        raise InputError(f"--method: 'exact' is the closed-form MLM envelope of one simply supported span; a continuous "
+                         f"deck ({len(bridge.spans_m)} spans) runs RK4 (allowed --method rk4)")
+    if args.model == "dim" and method == "exact":
+        raise InputError("--method: 'exact' is the closed-form MLM envelope; the DIM runs RK4 only (allowed --method rk4)")
+    if method == "exact" and args.backend == "numpy":
+        raise InputError("--backend: 'numpy' is the RK4 stepper's; the exact MLM envelope has one backend "
+                         "(allowed with --method exact: compiled, or give --method rk4)")
+    backend = None if method == "exact" else (args.backend or "compiled")
+    if where == "deck" and method != "exact":
+        raise InputError(f"--where: {args.where!r} needs the exact MLM envelope (--model mlm --method exact); the RK4 "
+                         f"runs record one point (allowed --where midspan or x=<m>)")
+    if method == "exact" and bridge.damping_ratio + dz <= 0.0 and dz == 0.0:  # the bridge's own damping is 0
+        raise InputError(f"--bridge: {args.bridge!r} has zeta_pct = 0 % (damping ratio zeta); the exact MLM envelope "
+                         f"needs damping > 0 % (give zeta_pct > 0 in the bridge, --delta-zeta-pct > 0, or --method rk4)")
+    if method == "exact":
+        check_delta_zeta_pct("--delta-zeta-pct", args.delta_zeta_pct, bridge.damping_ratio,
+                             positive_for="the exact MLM envelope", remedy=", or --method rk4")
+    return method, backend
+
+
+def _sweep_outputs(args, res, env, bridge, zeta, where, method, backend, wall, json_path, plot_path):
+    """The sweep's plausibility warnings, then ``--json`` and ``--plot`` (both or neither)."""
+    from adm_sim.model.plausibility import check_response  # noqa: PLC0415  start-up: only this subcommand (7 ms)
+
+    ia, idisp = int(res.max_acc_m_s2.argmax()), int(res.max_disp_m.argmax())
+    check_response(bridge.span_m, res.max_acc_m_s2[ia], res.max_disp_m[idisp],  # warnings, not refusals
+                   f"sweep: at {res.speeds_kmh[ia]:g} km/h", f"sweep: at {res.speeds_kmh[idisp]:g} km/h")
+    with OutputSet() as outs:  # --json and --plot: both or neither
+        if json_path is not None:
+            out = res.to_dict()
+            out["wall_time_s"] = wall
+            out["method"] = method
+            if backend is not None:
+                out["backend"] = backend
+            out["damping_model"] = bridge.damping_model
+            out["zeta_per_mode_pct"] = [100 * float(z) for z in zeta]
+            out["where"] = where
+            if env is not None:
+                out["x_acc_m"] = env.x_acc_m.tolist()
+                out["x_disp_m"] = env.x_disp_m.tolist()
+                out["max_disp_midspan_m"] = env.max_disp_midspan_m.tolist()
+                out["max_moment_Nm"] = env.max_moment_Nm.tolist()
+            outs.write(json_path, lambda p: p.write_text(json.dumps(out, indent=1)), "--json",
+                       note=f"wrote {args.json}")
+        if plot_path is not None:
+            outs.write(plot_path, lambda p: plot_sweep(res, p, where=where), "--plot", note=f"wrote {args.plot}")
+
+
 def cmd_sweep(args):
     from adm_sim.model.bridge import resolve_bridge  # noqa: PLC0415  start-up: only this subcommand (20 ms)
     from adm_sim.integrate.step_grid import StepOptions  # noqa: PLC0415  start-up: only this subcommand (6 ms)
     from adm_sim.integrate.sweep import parse_speeds, run_sweep, run_sweep_compiled, sweep_exact  # noqa: PLC0415  start-up: only this subcommand (52 ms)
     from adm_sim.model.trains import load_train  # noqa: PLC0415  start-up: only this subcommand (58 ms)
-    from adm_sim.model.plausibility import check_response  # noqa: PLC0415  start-up: only this subcommand (7 ms)
 
     inputs = {"--train": args.train, "--bridge": args.bridge}
     json_path = None if args.json is None else claim_output(args.json, "--json", args.overwrite, inputs=inputs)
@@ -83,25 +135,7 @@ def cmd_sweep(args):
     opts = StepOptions(steps_per_period=check_option("--steps-per-period", args.steps_per_period),
                        irregularity=profile)
     where = parse_where(args.where, bridge.span_m)
-    method = args.method or ("exact" if args.model == "mlm" and not bridge.is_continuous else "rk4")
-    if method == "exact" and bridge.is_continuous:
-        raise InputError(f"--method: 'exact' is the closed-form MLM envelope of one simply supported span; a continuous "
-                         f"deck ({len(bridge.spans_m)} spans) runs RK4 (allowed --method rk4)")
-    if args.model == "dim" and method == "exact":
-        raise InputError("--method: 'exact' is the closed-form MLM envelope; the DIM runs RK4 only (allowed --method rk4)")
-    if method == "exact" and args.backend == "numpy":
-        raise InputError("--backend: 'numpy' is the RK4 stepper's; the exact MLM envelope has one backend "
-                         "(allowed with --method exact: compiled, or give --method rk4)")
-    backend = None if method == "exact" else (args.backend or "compiled")
-    if where == "deck" and method != "exact":
-        raise InputError(f"--where: {args.where!r} needs the exact MLM envelope (--model mlm --method exact); the RK4 "
-                         f"runs record one point (allowed --where midspan or x=<m>)")
-    if method == "exact" and bridge.damping_ratio + dz <= 0.0 and dz == 0.0:  # the bridge's own damping is 0
-        raise InputError(f"--bridge: {args.bridge!r} has zeta_pct = 0 % (damping ratio zeta); the exact MLM envelope "
-                         f"needs damping > 0 % (give zeta_pct > 0 in the bridge, --delta-zeta-pct > 0, or --method rk4)")
-    if method == "exact":
-        check_delta_zeta_pct("--delta-zeta-pct", args.delta_zeta_pct, bridge.damping_ratio,
-                             positive_for="the exact MLM envelope", remedy=", or --method rk4")
+    method, backend = _sweep_method(args, bridge, dz, where)
     print(bridge.describe())
     print(train.describe())
     zeta = bridge.modal_damping_ratios(dz)
@@ -152,28 +186,7 @@ def cmd_sweep(args):
             print(f"status ok: every wheel stays on the rail (smallest contact force {fmin / 1e3:.4g} kN)")
         else:
             print(lost)
-    ia, idisp = int(res.max_acc_m_s2.argmax()), int(res.max_disp_m.argmax())
-    check_response(bridge.span_m, res.max_acc_m_s2[ia], res.max_disp_m[idisp],  # warnings, not refusals
-                   f"sweep: at {res.speeds_kmh[ia]:g} km/h", f"sweep: at {res.speeds_kmh[idisp]:g} km/h")
-    with OutputSet() as outs:  # --json and --plot: both or neither
-        if json_path is not None:
-            out = res.to_dict()
-            out["wall_time_s"] = wall
-            out["method"] = method
-            if backend is not None:
-                out["backend"] = backend
-            out["damping_model"] = bridge.damping_model
-            out["zeta_per_mode_pct"] = [100 * float(z) for z in zeta]
-            out["where"] = where
-            if env is not None:
-                out["x_acc_m"] = env.x_acc_m.tolist()
-                out["x_disp_m"] = env.x_disp_m.tolist()
-                out["max_disp_midspan_m"] = env.max_disp_midspan_m.tolist()
-                out["max_moment_Nm"] = env.max_moment_Nm.tolist()
-            outs.write(json_path, lambda p: p.write_text(json.dumps(out, indent=1)), "--json",
-                       note=f"wrote {args.json}")
-        if plot_path is not None:
-            outs.write(plot_path, lambda p: plot_sweep(res, p, where=where), "--plot", note=f"wrote {args.plot}")
+    _sweep_outputs(args, res, env, bridge, zeta, where, method, backend, wall, json_path, plot_path)
     return 0
 
 
@@ -207,106 +220,8 @@ def _check_tables(args, inputs):
     return out
 
 
-def cmd_check(args, damping_provider=None):
-    """EN 1991-2 dynamic check (:mod:`adm_sim.design.check`). ``--damping none|adm`` are the core's;
-    ``lb|vbi`` need adm-calib's ``damping_provider`` (``adm-calib check`` passes it) and are refused
-    here, before any work, without one. The core never imports adm_calib."""
-    from adm_sim.model.bridge import resolve_bridge  # noqa: PLC0415  start-up: only this subcommand (20 ms)
-    from adm_sim.design.check import CALIB_DAMPING_METHODS, DAMPING_MODELS, calib_methods_refusal, resolve_trains, run_check  # noqa: PLC0415  start-up: only this subcommand (114 ms)
-    from adm_sim.design.check_text import summary as check_summary  # noqa: PLC0415  start-up: only this subcommand (138 ms)
-
-    if args.damping in CALIB_DAMPING_METHODS and damping_provider is None:
-        raise calib_methods_refusal(args.damping)
-    job, bridge_spec, trains_spec = _check_job(args)
-    outs = {}
-    inputs = ([("--job", str(job.path))] if job.path is not None else []) + [
-        ("--bridge", bridge_spec if isinstance(bridge_spec, str) else ""),
-        ("--measured", getattr(args, "measured", None))] + [
-        ("--trains", t.strip()) for t in str(trains_spec).split(",")]
-    seen = {}
-    for opt, suffix in (("json", None), ("csv", ".csv"), ("plot", ".png"), ("report", None)):
-        text = getattr(args, opt, None)
-        if text is not None:
-            if str(text).strip() and Path(text).resolve() in seen:
-                raise InputError(f"--{opt}: {text!r} is the --{seen[Path(text).resolve()]} file; give different files")
-            outs[opt] = claim_output(text, f"--{opt}", args.overwrite, suffix, inputs)
-            if opt == "report" and outs[opt].suffix.lower() not in (".html", ".pdf"):
-                raise InputError(f"--report: {text!r} must end with .html or .pdf")
-            seen[outs[opt].resolve()] = opt
-    pdf = "report" in outs and outs["report"].suffix.lower() == ".pdf"
-    if pdf:
-        from adm_sim.design.check_report import find_chromium  # noqa: PLC0415  start-up: only this subcommand
-        from adm_sim.errors import RunError  # noqa: PLC0415
-
-        if find_chromium() is None:
-            raise RunError(f"--report {args.report}: no headless Chromium on this machine (chromium not on PATH); "
-                           f"write --report X.html and print it to PDF from a browser")
-    tables = _check_tables(args, inputs)
-    if isinstance(bridge_spec, dict):
-        from adm_sim.model.bridge import bridge_from_mapping  # noqa: PLC0415  start-up: only with a job file
-
-        bridge = bridge_from_mapping(bridge_spec, source=f"--job {job.path}: [bridge]")
-    else:
-        bridge = resolve_bridge(bridge_spec)
-    from adm_sim.inputs.measured import measured_bridge  # noqa: PLC0415  start-up: only this subcommand
-
-    bridge, measured = measured_bridge(args, bridge)  # --measured: n0, zeta (and EJ) of the monitored bridge
-    parse_where(args.where, bridge.span_m)  # refused before any work
-    if args.damping_model is not None and args.damping_model not in DAMPING_MODELS:
-        raise InputError(f"--damping-model: {args.damping_model!r} is not allowed; allowed {', '.join(DAMPING_MODELS)}")
-    trains = resolve_trains(trains_spec)
-    if args.irregularity is not None:  # refused before any work, named by its flag
-        from adm_sim.design.check_rough import check_spec  # noqa: PLC0415  start-up: only with --irregularity
-
-        check_spec(args.irregularity, args.seeds, bridge.span_m)
-        if not any(t.units for t in trains):
-            raise InputError(f"--irregularity: the trains checked ({', '.join(t.name for t in trains)}) have no "
-                             f"vehicles; the rough-track DIM needs a real train (add ICE-2, Eurostar, Railjet, ICE-4 or "
-                             f"a .toml train to --trains)")
-    if args.comfort and not any(t.units for t in trains):  # comfort is computed for trains with vehicles only
-        raise InputError(f"--comfort: the trains checked ({', '.join(t.name for t in trains)}) are load models "
-                         f"without vehicles; passenger comfort b_v needs the DIM of a real train (add ICE-2, "
-                         f"Eurostar, Railjet, ICE-4 or a .toml train to --trains) or omit --comfort")
-    if args.lateral_frequency is not None:
-        from adm_sim.design.check_sls import check_lateral_frequency  # noqa: PLC0415  start-up: only this subcommand (16 ms)
-
-        try:  # refused before any work, named by its flag
-            check_lateral_frequency(args.lateral_frequency)
-        except InputError as exc:
-            raise InputError("--lateral-frequency" + str(exc)[len("lateral_frequency"):]) from None
-    from adm_sim.design.check import parse_bounds  # noqa: PLC0415  start-up: only this subcommand (114 ms)
-
-    mass_bounds, stiffness_bounds = (parse_bounds(getattr(args, k), f"--{k.replace('_', '-')}")
-                                     for k in ("mass_bounds", "stiffness_bounds"))
-    ballast = None if args.ballast is None else parse_bounds(f"standard:{args.ballast}", "--ballast")
-    deck_end_height = None
-    if args.deck_end_height is not None:
-        from adm_sim.design.check_sls import check_deck_end_height  # noqa: PLC0415  start-up: only this subcommand
-
-        deck_end_height = check_deck_end_height(args.deck_end_height, "--deck-end-height")
-    track = check_track_type("--track", args.track, aliases=True)  # one vocabulary: direct -> direct_fastening
-    cb, close = progress_callback("check", None if args.progress is None else args.progress)
-    t0 = time.perf_counter()
-    try:
-        res = run_check(bridge, args.max_line_speed, trains, track=track, damping=args.damping,
-                        step_kmh=args.speed_step, progress=cb, comfort=args.comfort, n_modes=args.modes,
-                        where=args.where, damping_model=args.damping_model,
-                        track_maintenance=args.track_maintenance, alpha=args.alpha,
-                        damping_provider=damping_provider, lateral_frequency_hz=args.lateral_frequency,
-                        mass_bounds=mass_bounds, stiffness_bounds=stiffness_bounds,
-                        deck_end_height_m=deck_end_height, ballast=ballast, irregularity=args.irregularity,
-                        seeds=args.seeds)
-    finally:
-        close()
-    wall = time.perf_counter() - t0
-    _check_plausible(res)
-    from adm_sim.inputs.job import input_sources  # noqa: PLC0415  start-up: only this subcommand
-
-    sources = input_sources(bridge_spec, trains_spec, trains)
-    for line in job.lines():
-        print(line)
-    print(check_summary(res))
-    print(f"{len(trains)} trains, {wall:.2f} s")
+def _write_check_outputs(args, res, outs, pdf, tables, job, sources, measured, wall):
+    """The check's files: ``--json``, ``--csv``, ``--plot``, ``--report`` and ``--tables``, all or none."""
     with OutputSet() as files:  # --json, --csv, --plot, --report: all or none
         if "json" in outs:
             d = res.to_dict()
@@ -332,12 +247,168 @@ def cmd_check(args, damping_provider=None):
                         note=f"wrote {args.report}")
         if tables is not None:
             from adm_sim.design.check_report import write_tables  # noqa: PLC0415  start-up: only this subcommand
-            from adm_sim.files import make_output_folder  # noqa: PLC0415
+            from adm_sim.files import make_output_folder  # noqa: PLC0415  start-up: only with --tables
 
             make_output_folder(tables, "--tables")
             write_tables(res, tables, job=job, sources=sources, outs=files)
             print(f"wrote the tables to {args.tables}")
+
+
+def _check_outputs(args, inputs):
+    """``--json``, ``--csv``, ``--plot``, ``--report`` claimed before any work: ``({option: path}, pdf)``."""
+    outs, seen = {}, {}
+    for opt, suffix in (("json", None), ("csv", ".csv"), ("plot", ".png"), ("report", None)):
+        text = getattr(args, opt, None)
+        if text is not None:
+            if str(text).strip() and Path(text).resolve() in seen:
+                raise InputError(f"--{opt}: {text!r} is the --{seen[Path(text).resolve()]} file; give different files")
+            outs[opt] = claim_output(text, f"--{opt}", args.overwrite, suffix, inputs)
+            if opt == "report" and outs[opt].suffix.lower() not in (".html", ".pdf"):
+                raise InputError(f"--report: {text!r} must end with .html or .pdf")
+            seen[outs[opt].resolve()] = opt
+    pdf = "report" in outs and outs["report"].suffix.lower() == ".pdf"
+    if pdf:
+        from adm_sim.design.check_report import find_chromium  # noqa: PLC0415  start-up: only this subcommand
+        from adm_sim.errors import RunError  # noqa: PLC0415  start-up: only with a PDF report
+
+        if find_chromium() is None:
+            raise RunError(f"--report {args.report}: no headless Chromium on this machine (chromium not on PATH); "
+                           f"write --report X.html and print it to PDF from a browser")
+    return outs, pdf
+
+
+def _check_trains(args, trains_spec, bridge):
+    """The trains of ``--trains``; ``--irregularity`` and ``--comfort`` refused before any work when no train
+    has vehicles, named by their flags."""
+    from adm_sim.design.check import resolve_trains  # noqa: PLC0415  start-up: only this subcommand
+
+    trains = resolve_trains(trains_spec)
+    if args.irregularity is not None:  # refused before any work, named by its flag
+        from adm_sim.design.check_rough import check_spec  # noqa: PLC0415  start-up: only with --irregularity
+
+        check_spec(args.irregularity, args.seeds, bridge.span_m)
+        if not any(t.units for t in trains):
+            raise InputError(f"--irregularity: the trains checked ({', '.join(t.name for t in trains)}) have no "
+                             f"vehicles; the rough-track DIM needs a real train (add ICE-2, Eurostar, Railjet, ICE-4 or "
+                             f"a .toml train to --trains)")
+    if args.comfort and not any(t.units for t in trains):  # comfort is computed for trains with vehicles only
+        raise InputError(f"--comfort: the trains checked ({', '.join(t.name for t in trains)}) are load models "
+                         f"without vehicles; passenger comfort b_v needs the DIM of a real train (add ICE-2, "
+                         f"Eurostar, Railjet, ICE-4 or a .toml train to --trains) or omit --comfort")
+    return trains
+
+
+def cmd_check(args, damping_provider=None):
+    """EN 1991-2 dynamic check (:mod:`adm_sim.design.check`). ``--damping none|adm`` are the core's;
+    ``lb|vbi`` need adm-calib's ``damping_provider`` (``adm-calib check`` passes it) and are refused
+    here, before any work, without one. The core never imports adm_calib."""
+    from adm_sim.model.bridge import resolve_bridge  # noqa: PLC0415  start-up: only this subcommand (20 ms)
+    from adm_sim.design.check import CALIB_DAMPING_METHODS, DAMPING_MODELS, calib_methods_refusal, run_check  # noqa: PLC0415  start-up: only this subcommand (114 ms)
+    from adm_sim.design.check_text import summary as check_summary  # noqa: PLC0415  start-up: only this subcommand (138 ms)
+
+    if args.damping in CALIB_DAMPING_METHODS and damping_provider is None:
+        raise calib_methods_refusal(args.damping)
+    job, bridge_spec, trains_spec = _check_job(args)
+    inputs = ([("--job", str(job.path))] if job.path is not None else []) + [
+        ("--bridge", bridge_spec if isinstance(bridge_spec, str) else ""),
+        ("--measured", getattr(args, "measured", None))] + [
+        ("--trains", t.strip()) for t in str(trains_spec).split(",")]
+    outs, pdf = _check_outputs(args, inputs)
+    tables = _check_tables(args, inputs)
+    if isinstance(bridge_spec, dict):
+        from adm_sim.model.bridge import bridge_from_mapping  # noqa: PLC0415  start-up: only with a job file
+
+        bridge = bridge_from_mapping(bridge_spec, source=f"--job {job.path}: [bridge]")
+    else:
+        bridge = resolve_bridge(bridge_spec, continuous=True)  # a continuous deck: adm_sim.design.check_deck
+    if bridge.is_continuous:
+        _refuse_on_deck(args, tables)
+    from adm_sim.inputs.measured import measured_bridge  # noqa: PLC0415  start-up: only this subcommand
+
+    bridge, measured = measured_bridge(args, bridge)  # --measured: n0, zeta (and EJ) of the monitored bridge
+    parse_where(args.where, bridge.span_m)  # refused before any work
+    if args.damping_model is not None and args.damping_model not in DAMPING_MODELS:
+        raise InputError(f"--damping-model: {args.damping_model!r} is not allowed; allowed {', '.join(DAMPING_MODELS)}")
+    trains = _check_trains(args, trains_spec, bridge)
+    if args.lateral_frequency is not None:
+        from adm_sim.design.check_sls import check_lateral_frequency  # noqa: PLC0415  start-up: only this subcommand (16 ms)
+
+        try:  # refused before any work, named by its flag
+            check_lateral_frequency(args.lateral_frequency)
+        except InputError as exc:
+            raise InputError("--lateral-frequency" + str(exc)[len("lateral_frequency"):]) from None
+    from adm_sim.design.check import parse_bounds  # noqa: PLC0415  start-up: only this subcommand (114 ms)
+
+    mass_bounds, stiffness_bounds = (parse_bounds(getattr(args, k), f"--{k.replace('_', '-')}")
+                                     for k in ("mass_bounds", "stiffness_bounds"))
+    ballast = None if args.ballast is None else parse_bounds(f"standard:{args.ballast}", "--ballast")
+    deck_end_height = None
+    if args.deck_end_height is not None:
+        from adm_sim.design.check_sls import check_deck_end_height  # noqa: PLC0415  start-up: only this subcommand
+
+        deck_end_height = check_deck_end_height(args.deck_end_height, "--deck-end-height")
+    track = check_track_type("--track", args.track, aliases=True)  # one vocabulary: direct -> direct_fastening
+    cb, close = progress_callback("check", None if args.progress is None else args.progress)
+    t0 = time.perf_counter()
+    try:
+        if bridge.is_continuous:
+            res = _run_deck_check(args, bridge, trains, track, cb, deck_end_height)
+        else:
+            res = run_check(bridge, args.max_line_speed, trains, track=track, damping=args.damping,
+                            step_kmh=args.speed_step, progress=cb, comfort=args.comfort, n_modes=args.modes,
+                            where=args.where, damping_model=args.damping_model,
+                            track_maintenance=args.track_maintenance, alpha=args.alpha,
+                            damping_provider=damping_provider, lateral_frequency_hz=args.lateral_frequency,
+                            mass_bounds=mass_bounds, stiffness_bounds=stiffness_bounds,
+                            deck_end_height_m=deck_end_height, ballast=ballast, irregularity=args.irregularity,
+                            seeds=args.seeds)
+    finally:
+        close()
+    wall = time.perf_counter() - t0
+    _check_plausible(res)
+    from adm_sim.inputs.job import input_sources  # noqa: PLC0415  start-up: only this subcommand
+
+    sources = input_sources(bridge_spec, trains_spec, trains)
+    for line in job.lines():
+        print(line)
+    print(res.summary() if getattr(res, "is_deck", False) else check_summary(res))
+    print(f"{len(trains)} trains, {wall:.2f} s")
+    _write_check_outputs(args, res, outs, pdf, tables, job, sources, measured, wall)
     return 0
+
+
+#: Options of the check not wired for a continuous deck (adm_sim.design.check_deck), with the reason.
+DECK_REFUSED = (("measured", "the monitored bridge's n0 and zeta are of one span"),
+                ("comfort", "the DIM's passenger comfort is not wired for a continuous deck"),
+                ("irregularity", "the rough-track DIM is not wired for a continuous deck"),
+                ("mass_bounds", "mass bounds are not wired for a continuous deck"),
+                ("stiffness_bounds", "stiffness bounds are not wired for a continuous deck"),
+                ("ballast", "mass bounds are not wired for a continuous deck"))
+
+
+def _refuse_on_deck(args, tables):
+    """One line for an option the deck check does not take, before any work."""
+    for key, why in DECK_REFUSED:
+        if getattr(args, key, None) not in (None, False):
+            raise InputError(f"--{key.replace('_', '-')}: {getattr(args, key)!r} is refused on a continuous deck "
+                             f"({why}); omit it")
+    if tables is not None:
+        raise InputError(f"--tables: {args.tables!r}: the report's tables are of one span; on a continuous deck "
+                         f"write --json or --report")
+    if args.damping != "none":
+        raise InputError(f"--damping: {args.damping!r} is not wired for a continuous deck (the Eurocode ADM of EN "
+                         f"1991-2 6.4.6.3.1 and the paper's additional damping are for simply supported spans, our "
+                         f"reading); allowed --damping none")
+
+
+def _run_deck_check(args, bridge, trains, track, progress, deck_end_height):
+    """The check of a continuous deck (:func:`adm_sim.design.check_deck.run_deck_check`)."""
+    from adm_sim.design.check_deck import run_deck_check  # noqa: PLC0415  start-up: only on a continuous deck
+
+    return run_deck_check(bridge, args.max_line_speed, trains, track=track, step_kmh=args.speed_step,
+                          progress=progress, n_modes=args.modes, where=args.where, damping_model=args.damping_model,
+                          track_maintenance=args.track_maintenance, alpha=args.alpha,
+                          lateral_frequency_hz=args.lateral_frequency, deck_end_height_m=deck_end_height)
 
 
 def _check_plausible(res):
@@ -446,7 +517,8 @@ def _output_options(parser, outputs, overwrite_help):
 def add_check_arguments(c):
     """The options of the EN 1991-2 check, one definition for ``adm-sim check`` and ``adm-calib check``
     (``--damping lb|vbi`` are computed only by ``adm-calib check``)."""
-    c.add_argument("--bridge", default=None, help="B1..B4 (default B1), a spec L=15,n0=8.26,mu=19042,zeta_pct=1.85, or "
+    c.add_argument("--bridge", default=None, help="B1..B4 (default B1), a spec L=15,n0=8.26,mu=19042,zeta_pct=1.85, a "
+                                                  "continuous deck spans=12/16/12,EJ=..,mu=..,zeta_pct=.. (1-6 spans), or "
                                                   "a TOML file; or the job file's bridge")
     add_measured_argument(c)
     c.add_argument("--max-line-speed", type=float, required=True,

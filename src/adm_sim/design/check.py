@@ -782,78 +782,100 @@ def _refinement(speeds, acc, extra, vmin, vmax):
     return np.setdiff1d(np.round(fine, 6), np.round(speeds, 6))
 
 
-def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="none", step_kmh=1.0,
+def run_check(bridge, max_line_speed_kmh, trains, *, track="ballasted", damping="none", step_kmh=1.0,
               progress=None, calibrate_options=None, comfort=False, n_modes=None, where="deck",
               damping_model="modal", track_maintenance=None, alpha=1.0, damping_provider=None,
               lateral_frequency_hz=None, mass_bounds=None, stiffness_bounds=None, deck_end_height_m=None,
               ballast=None, irregularity=None, seeds=1):
-    """The dynamic check of ``bridge`` for ``trains`` (see the module doc).
+    """The dynamic check of ``bridge`` for ``trains`` (see the module doc); a continuous deck is
+    :func:`adm_sim.design.check_deck.run_deck_check`'s. Every argument after ``trains`` is keyword-only.
 
     Parameters
     ----------
     bridge : adm_sim.model.bridge.Bridge
-        Its ``n_modes`` is replaced by the modes EN 1990 A2.4.4.2.1 asks for.
+        Its ``n_modes`` is replaced by the modes EN 1990 A2.4.4.2.1 asks for (``n_modes``: more, <= 20).
     max_line_speed_kmh : float
-        Maximum line speed V (km/h), > 144 km/h (40 m/s).
+        Maximum line speed V (km/h), > 144 km/h (40 m/s); ``step_kmh`` in (0, 1].
     trains : list of adm_sim.model.trains.Train
-    track : {"ballasted", "direct_fastening"}
-    damping : {"none", "adm", "lb", "vbi"}
-        ``lb`` and ``vbi`` need ``damping_provider``; without one they are refused (InputError)
-        before any work.
-    step_kmh : float
-        Speed step (km/h), (0, 1].
+    track, damping, damping_model, where : str
+        ``ballasted|direct_fastening``; ``none|adm|lb|vbi`` (``lb``, ``vbi`` need ``damping_provider``,
+        callable(bridge, train, method, calibrate_options) -> (pct, note), else refused before any work);
+        ``modal|rayleigh13`` (None: the bridge's own); ``deck`` (EN 1990 A2.4.4.2.1), ``midspan`` or x (m).
+    track_maintenance, alpha : str or None, float
+        ``careful`` (Φ2, φ''/2) or ``standard`` (Φ3, φ''; the default, 6.4.5.2(3)P); α of EN 1991-2 6.3.2(3).
+    comfort : bool
+        The DIM of every train with vehicles: passenger comfort b_v (EN 1990 A2.4.4.3).
+    lateral_frequency_hz, deck_end_height_m : float, optional
+        Checked against 1.2 Hz (EN 1990 A2.4.4.2.4(3)); h for δ_H = θ h (EN 1991-2 6.5.4.5.2).
+    mass_bounds, stiffness_bounds, ballast : optional
+        Fractions ``(lower, upper)`` of EN 1991-2 6.4.6.3.2/3 (lower in [-0.5, 0], upper in [0, 1]), or the
+        ballast ``(kg/m, kg/m^3)`` for the standard's mass bounds; the verdict is then the envelope.
+    irregularity, seeds : str, int, optional
+        A random track spectrum and a seed count: the rough-track DIM beside the check (not in the verdict).
     progress : callable(done, total), optional
         Called once per train.
-    n_modes : int, optional
-        More modes than EN 1990 A2.4.4.2.1 asks for (at least that many, at most 20).
-    comfort : bool
-        Also run the DIM of every train with vehicles over the speeds for the passenger comfort
-        b_v (EN 1990 A2.4.4.3); HSLM trains have no car bodies.
-    where : {"deck", "midspan"} or float or str
-        Where the acceleration is taken: anywhere on the deck (default, EN 1990 A2.4.4.2.1), at
-        midspan, or at a position x (m, 0 < x < L; text ``"x=<m>"`` accepted).
-    damping_model : {"rayleigh13", "modal"} or None
-        ζ per mode: ζ on every mode (default, what EN 1991-2 6.4.6.3.1 implies) or Rayleigh
-        anchored at modes 1 and 3; ``None`` takes the bridge's own ``damping_model``
-        ("rayleigh" is rayleigh13).
-    track_maintenance : {"careful", "standard"} or None
-        ``None``: the default, :data:`~adm_sim.design.design_loads.DEFAULT_MAINTENANCE`. Track maintenance for the dynamic factor Φ of LM71 in EN 1991-2 6.4.6.5(3): Φ2 (careful,
-        6.4.5.2(2), with φ''/2) or Φ3 (standard, 6.4.5.2(3), with φ''; the default: 6.4.5.2(3)P uses
-        Φ3 where no dynamic factor is specified).
-    alpha : float
-        Classification factor α of LM71 (EN 1991-2 6.3.2(3)).
-    lateral_frequency_hz : float, optional
-        First lateral natural frequency of the span (Hz), given by the user, checked against
-        EN 1990 A2.4.4.2.4(3)'s 1.2 Hz (:mod:`adm_sim.design.check_sls`).
-    mass_bounds, stiffness_bounds : (float, float), optional
-        Lower and upper bound of the mass per length and of the bending stiffness as fractions of
-        the nominal value (e.g. ``(-0.10, 0.15)``; lower in [-0.5, 0], upper in [0, 1]), EN 1991-2
-        6.4.6.3.2 (a lower mass gives the largest accelerations, a higher one the lowest resonance
-        speeds) and 6.4.6.3.3 (stiffness). The check runs at every bound as well and the verdict is
-        the envelope; ``bounds`` names each case and which one governs.
-    irregularity, seeds : str, int, optional
-        A random track spectrum (``german-high``, ``fra-6:band=2:80``; no seed) and a seed count:
-        the DIM of every train with vehicles on the profiles of seeds 1..``seeds`` beside the
-        smooth check, beyond the standard (:mod:`adm_sim.design.check_rough`; not in the verdict).
-    deck_end_height_m : float, optional
-        h (m) from the bearings' axis of rotation to the top of the deck: the deck-end displacement
-        δ_H = θ h of EN 1991-2 6.5.4.5.2 is checked (:mod:`adm_sim.design.check_sls`); else listed
-        as not checked.
-    ballast : (float, float) or StandardMassBounds, optional
-        The ballast in the nominal mass, ``(kg/m, kg/m^3)``: with no ``mass_bounds`` the mass bounds
-        of EN 1991-2 6.4.6.3.2 are checked by default (:class:`StandardMassBounds`).
-    damping_provider : callable(bridge, train, method, calibrate_options) -> (pct, note), optional
-        Δζ (%) and its sentence for ``lb`` and ``vbi``; adm-calib passes
-        :func:`adm_calib.check.calibrated_damping`. The core never imports adm_calib.
 
     Returns
     -------
     CheckResult
     """
-    # numba kernels: a refusal before run_check (trains, bounds, damping) does not wait for them
-    from adm_sim.design.check_effects import EffectComparison, lm71_effects, train_effects  # noqa: PLC0415  numba kernels
-    from adm_sim.integrate.envelope import (  # noqa: PLC0415  numba kernels
-        check_frequency_limit_hz, check_mode_count, moving_load_envelope, parse_where)
+    if bridge.is_continuous:
+        raise InputError(f"bridge: {bridge.name or 'the bridge'} is a continuous deck of {len(bridge.spans_m)} spans; "
+                         f"its check is adm_sim.design.check_deck.run_deck_check (adm-sim check takes it)",
+                         field="bridge")
+    where, damping_model = _check_inputs(bridge, damping=damping, damping_provider=damping_provider, where=where,
+                                         damping_model=damping_model, track=track)
+    speeds = check_speeds_kmh(max_line_speed_kmh, step_kmh)
+    inp = _check_more_inputs(bridge, trains, where=where, damping_model=damping_model,
+                             track_maintenance=track_maintenance, alpha=alpha, lateral_frequency_hz=lateral_frequency_hz,
+                             deck_end_height_m=deck_end_height_m, irregularity=irregularity, seeds=seeds)
+    if mass_bounds is None and ballast is not None:  # the ballast is given: the standard's mass bounds by default
+        mass_bounds = ballast if isinstance(ballast, StandardMassBounds) else StandardMassBounds(*map(float, ballast))
+    cases = bound_cases(bridge, mass_bounds, stiffness_bounds)
+    b, f_lim = _check_bridge(bridge, n_modes, inp["damping_model"])
+    t_start = time.perf_counter()
+    dz = [None] * len(trains)  # every refusal before any sweep: load trains (cheap refusals) first
+    for i in sorted(range(len(trains)), key=lambda i: bool(trains[i].units)):
+        dz[i] = delta_zeta_for(b, trains[i], damping, calibrate_options, damping_provider)
+    t_damp = time.perf_counter() - t_start
+    ctx = _TrainContext(bridge=b, speeds=speeds, where=inp["where"], max_line_speed_kmh=float(max_line_speed_kmh),
+                        maintenance=inp["track_maintenance"], alpha=inp["alpha"])
+    out = _run_trains(ctx, trains, dz, comfort, progress)
+    sls = serviceability(b, dynamic_factor(b.span_m, inp["track_maintenance"]), inp["alpha"], track,
+                         inp["lateral_frequency_hz"], inp["deck_end_height_m"])
+    rough = _rough(b, trains, out, speeds, inp)
+    t_nominal = time.perf_counter() - t_start
+    # the bounds after the nominal bridge: they reuse its static effects (cached; independent of the mass)
+    bounds = tuple((label, run_check(bb, max_line_speed_kmh, trains, track=track, damping=damping, step_kmh=step_kmh,
+                                     calibrate_options=calibrate_options, n_modes=n_modes, where=inp["where"],
+                                     damping_model=inp["damping_model"], track_maintenance=inp["track_maintenance"],
+                                     alpha=inp["alpha"], damping_provider=damping_provider,
+                                     lateral_frequency_hz=inp["lateral_frequency_hz"]))
+                   for label, bb in cases)
+    return CheckResult(bridge=b, max_line_speed_kmh=float(max_line_speed_kmh), track=track, damping=damping, sls=sls,
+                       bounds=bounds,
+                       speeds_kmh=speeds, trains=out, modes=tuple(int(j) for j in b.mode_numbers),
+                       f_limit_hz=f_lim, screening=screening(b, float(max_line_speed_kmh)),
+                       timings_s={"damping": t_damp, "envelopes": t_nominal - t_damp,
+                                  **({"bounds": time.perf_counter() - t_start - t_nominal} if cases else {})},
+                       where=inp["where"], damping_model=inp["damping_model"],
+                       track_maintenance=inp["track_maintenance"], maintenance_named=track_maintenance is not None,
+                       alpha=inp["alpha"], rough=rough)
+
+
+def _rough(b, trains, out, speeds, inp):
+    """The rough-track DIM of every train with vehicles (:mod:`adm_sim.design.check_rough`), or ()."""
+    if inp["irregularity"] is None:
+        return ()
+    from adm_sim.design.check_rough import rough_dim  # noqa: PLC0415  only with a rough track
+
+    return tuple(rough_dim(b, t, speeds, inp["irregularity"], inp["seeds"], float(tc.max_acc_m_s2.max()))
+                 for t, tc in zip(trains, out) if t.units)
+
+
+def _check_inputs(bridge, *, damping, damping_provider, where, damping_model, track):
+    """The first refusals of :func:`run_check` (before the speeds): ``(where, damping_model)`` checked."""
+    from adm_sim.integrate.envelope import parse_where  # noqa: PLC0415  numba kernels: refusals before run_check do not wait
 
     if damping_model is None:
         damping_model = {v: k for k, v in DAMPING_MODELS.items()}[bridge.damping_model]
@@ -867,8 +889,12 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
         raise InputError(f"damping: {damping!r} is not allowed; allowed {', '.join(DAMPING_METHODS)}", field="damping")
     if damping in CALIB_DAMPING_METHODS and damping_provider is None:
         raise calib_methods_refusal(damping)
-    speeds = check_speeds_kmh(max_line_speed_kmh, step_kmh)
-    maintenance_named = track_maintenance is not None
+    return where, damping_model
+
+
+def _check_more_inputs(bridge, trains, *, where, damping_model, track_maintenance, alpha, lateral_frequency_hz,
+                       deck_end_height_m, irregularity, seeds):
+    """The refusals of :func:`run_check` after the speeds (maintenance onwards); the checked values as a dict."""
     track_maintenance = DEFAULT_MAINTENANCE if track_maintenance is None else track_maintenance
     if track_maintenance not in MAINTENANCE:
         raise InputError(f"track_maintenance: {track_maintenance!r} is not one of EN 1991-2 6.4.5.2's; allowed "
@@ -890,9 +916,16 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
             raise InputError(f"irregularity: the trains checked ({', '.join(t.name for t in trains)}) have no vehicles; "
                              f"the rough-track DIM needs a real train (ICE-2, Eurostar, Railjet, ICE-4 or a .toml "
                              f"train)", field="irregularity")
-    if mass_bounds is None and ballast is not None:  # the ballast is given: the standard's mass bounds by default
-        mass_bounds = ballast if isinstance(ballast, StandardMassBounds) else StandardMassBounds(*map(float, ballast))
-    cases = bound_cases(bridge, mass_bounds, stiffness_bounds)
+    return {"where": where, "damping_model": damping_model, "track_maintenance": track_maintenance, "alpha": alpha,
+            "lateral_frequency_hz": lateral_frequency_hz, "deck_end_height_m": deck_end_height_m,
+            "irregularity": irregularity, "seeds": seeds}
+
+
+def _check_bridge(bridge, n_modes, damping_model):
+    """The bridge with the modes EN 1990 A2.4.4.2.1 asks for (or ``n_modes``, at least those) and the
+    damping model; and the frequency limit (Hz)."""
+    from adm_sim.integrate.envelope import check_frequency_limit_hz, check_mode_count  # noqa: PLC0415  numba kernels
+
     f_lim = check_frequency_limit_hz(bridge)
     most = FIELDS["n_modes"].hi
     need = min(most, check_mode_count(bridge))
@@ -907,93 +940,94 @@ def run_check(bridge, max_line_speed_kmh, trains, track="ballasted", damping="no
         n_modes = int(x)
     b = dataclasses.replace(bridge, n_modes=need if n_modes is None else n_modes,
                             damping_model=DAMPING_MODELS[damping_model])
-    t_start = time.perf_counter()
-    dz = [None] * len(trains)  # every refusal before any sweep: load trains (cheap refusals) first
-    for i in sorted(range(len(trains)), key=lambda i: bool(trains[i].units)):
-        dz[i] = delta_zeta_for(b, trains[i], damping, calibrate_options, damping_provider)
-    t_damp = time.perf_counter() - t_start
-    lm71_eff = lm71_effects(b.span_m, alpha)
-    vmin, vmax = speeds[0], speeds[-1]
+    return b, f_lim
 
-    def one(t, dz_pct, note):
-        """Every envelope and effect of one train (threads: the numba kernels release the GIL)."""
-        env = moving_load_envelope(b, t.axle_offsets_m, t.axle_loads_n, speeds, delta_zeta=dz_pct / 100.0,
-                                   where=where, keep_intervals=True)
-        extra = np.array([])
-        if _is_hslm(t):  # resonances v = n0 D / i (HSLM-A coach length D, HSLM-B spacing d)
-            D = regular_spacing_m(t.name)
-            i = np.arange(1, 50)
-            extra = 3.6 * b.n0_hz * D / i
-        fine = _refinement(speeds, env.max_acc_m_s2, extra, vmin, vmax)
-        v_all = speeds
-        cols = [env.max_acc_m_s2, env.max_disp_m, env.x_acc_m, env.max_disp_midspan_m, env.max_moment_Nm]
-        lanes = env.intervals  # every lane's coefficients, taken by the effects (not propagated twice)
-        if fine.size:
-            ef = moving_load_envelope(b, t.axle_offsets_m, t.axle_loads_n, fine, delta_zeta=dz_pct / 100.0,
-                                      where=where, keep_intervals=True)
-            v_all = np.concatenate([speeds, fine])
-            order = np.argsort(v_all, kind="stable")
-            v_all = v_all[order]
-            cols = [np.concatenate([c, f])[order] for c, f in zip(cols, [
-                ef.max_acc_m_s2, ef.max_disp_m, ef.x_acc_m, ef.max_disp_midspan_m, ef.max_moment_Nm])]
-            if lanes is not None and ef.intervals is not None:
-                lanes = lanes._replace(P=np.concatenate([lanes.P, ef.intervals.P], axis=1)[:, order],
-                                       H=np.concatenate([lanes.H, ef.intervals.H], axis=1)[:, order])
-            else:
-                lanes = None
-        acc, disp, x_acc, disp_mid, moment = cols
-        y_stat, m_stat = static_midspan_max(b, t.axle_offsets_m, t.axle_loads_n)
-        eff = train_effects(b, t.axle_offsets_m, t.axle_loads_n, v_all, delta_zeta=dz_pct / 100.0, intervals=lanes)
-        tc = TrainCheck(name=t.name, kind="hslm" if _is_hslm(t) else "train", speeds_kmh=v_all,
-                        max_acc_m_s2=acc, max_disp_m=disp, delta_zeta_pct=float(dz_pct),
-                        damping_note=note, static_disp_m=y_stat, static_moment_Nm=m_stat,
-                        x_acc_m=x_acc, max_disp_midspan_m=disp_mid,
-                        max_moment_Nm=moment, zeta=env.zeta, effects=eff)
-        # EN 1991-2 6.4.6.5(3): (1 + phi'_dyn + phi''/2) x train against Phi x alpha x LM71; phi'' at
-        # the maximum line speed (Annex C: the maximum permitted vehicle speed)
-        tc.design = design_comparison(t.name, b.span_m, b.EJ_Nm2, b.n0_hz, t.axle_offsets_m, t.axle_loads_n,
-                                      float(max_line_speed_kmh) / 3.6, phi_dyn_deflection=tc.phi_dyn,
-                                      phi_dyn_moment=tc.phi_dyn_moment, maintenance=track_maintenance, alpha=alpha)
-        tc.effect_design = tuple(
-            EffectComparison(effect=e, phi_dyn=float(ph), phi_dd_factor=phi_dd_factor(track_maintenance),
-                             phi_dd=tc.design.phi_dd, Phi=tc.design.Phi, train_static=float(st), lm71_static=float(lm))
-            for e, ph, st, lm in zip(eff.effects, eff.phi_dyn, eff.static_max, lm71_eff))
-        return tc
 
+@dataclass(frozen=True)
+class _TrainContext:
+    """What every train of one check shares: the bridge, the speeds, where, V, maintenance and α."""
+
+    bridge: object
+    speeds: np.ndarray
+    where: object
+    max_line_speed_kmh: float
+    maintenance: str
+    alpha: float
+
+
+def _run_trains(ctx, trains, dz, comfort, progress):
+    """Every train's :class:`TrainCheck` side by side (threads: the numba kernels release the GIL)."""
     out = []
     with ThreadPoolExecutor(max_workers=CHECK_THREADS) as pool:
-        futures = [pool.submit(one, t, dz_pct, note) for t, (dz_pct, note) in zip(trains, dz)]
+        futures = [pool.submit(_train_check, ctx, t, dz_pct, note) for t, (dz_pct, note) in zip(trains, dz)]
         try:
             for n, (t, fut) in enumerate(zip(trains, futures)):
                 tc = fut.result()
                 if comfort and t.units:  # the DIM, in this thread
-                    tc.comfort_b_v_m_s2 = comfort_b_v(b, t, speeds)
+                    tc.comfort_b_v_m_s2 = comfort_b_v(ctx.bridge, t, ctx.speeds)
                 out.append(tc)
                 if progress is not None:
                     progress(n + 1, len(trains))
         except BaseException:  # an interrupt or a refusal: the trains not yet started are not run
             pool.shutdown(wait=False, cancel_futures=True)
             raise
-    sls = serviceability(b, dynamic_factor(b.span_m, track_maintenance), alpha, track, lateral_frequency_hz,
-                         deck_end_height_m)
-    rough = ()
-    if irregularity is not None:
-        from adm_sim.design.check_rough import rough_dim  # noqa: PLC0415  only with a rough track
+    return out
 
-        rough = tuple(rough_dim(b, t, speeds, irregularity, seeds, float(tc.max_acc_m_s2.max()))
-                      for t, tc in zip(trains, out) if t.units)
-    t_nominal = time.perf_counter() - t_start
-    # the bounds after the nominal bridge: they reuse its static effects (cached; independent of the mass)
-    bounds = tuple((label, run_check(bb, max_line_speed_kmh, trains, track=track, damping=damping, step_kmh=step_kmh,
-                                     calibrate_options=calibrate_options, n_modes=n_modes, where=where,
-                                     damping_model=damping_model, track_maintenance=track_maintenance, alpha=alpha,
-                                     damping_provider=damping_provider, lateral_frequency_hz=lateral_frequency_hz))
-                   for label, bb in cases)
-    return CheckResult(bridge=b, max_line_speed_kmh=float(max_line_speed_kmh), track=track, damping=damping, sls=sls,
-                       bounds=bounds,
-                       speeds_kmh=speeds, trains=out, modes=tuple(int(j) for j in b.mode_numbers),
-                       f_limit_hz=f_lim, screening=screening(b, float(max_line_speed_kmh)),
-                       timings_s={"damping": t_damp, "envelopes": t_nominal - t_damp,
-                                  **({"bounds": time.perf_counter() - t_start - t_nominal} if cases else {})},
-                       where=where, damping_model=damping_model, track_maintenance=track_maintenance,
-                       maintenance_named=maintenance_named, alpha=alpha, rough=rough)
+
+_ENVELOPE_COLUMNS = ("max_acc_m_s2", "max_disp_m", "x_acc_m", "max_disp_midspan_m", "max_moment_Nm")
+
+
+def _train_envelopes(ctx, t, dz_pct):
+    """The envelopes of one train at the check's speeds and its refinement: speeds, columns, lanes, zeta."""
+    from adm_sim.integrate.envelope import moving_load_envelope  # noqa: PLC0415  numba kernels
+
+    b, speeds = ctx.bridge, ctx.speeds
+    env = moving_load_envelope(b, t.axle_offsets_m, t.axle_loads_n, speeds, delta_zeta=dz_pct / 100.0,
+                               where=ctx.where, keep_intervals=True)
+    extra = np.array([])
+    if _is_hslm(t):  # resonances v = n0 D / i (HSLM-A coach length D, HSLM-B spacing d)
+        D = regular_spacing_m(t.name)
+        i = np.arange(1, 50)
+        extra = 3.6 * b.n0_hz * D / i
+    fine = _refinement(speeds, env.max_acc_m_s2, extra, speeds[0], speeds[-1])
+    v_all = speeds
+    cols = [getattr(env, k) for k in _ENVELOPE_COLUMNS]
+    lanes = env.intervals  # every lane's coefficients, taken by the effects (not propagated twice)
+    if fine.size:
+        ef = moving_load_envelope(b, t.axle_offsets_m, t.axle_loads_n, fine, delta_zeta=dz_pct / 100.0,
+                                  where=ctx.where, keep_intervals=True)
+        v_all = np.concatenate([speeds, fine])
+        order = np.argsort(v_all, kind="stable")
+        v_all = v_all[order]
+        cols = [np.concatenate([c, f])[order] for c, f in zip(cols, [getattr(ef, k) for k in _ENVELOPE_COLUMNS])]
+        if lanes is not None and ef.intervals is not None:
+            lanes = lanes._replace(P=np.concatenate([lanes.P, ef.intervals.P], axis=1)[:, order],
+                                   H=np.concatenate([lanes.H, ef.intervals.H], axis=1)[:, order])
+        else:
+            lanes = None
+    return v_all, cols, lanes, env.zeta
+
+
+def _train_check(ctx, t, dz_pct, note):
+    """Every envelope and effect of one train (:class:`TrainCheck`)."""
+    from adm_sim.design.check_effects import EffectComparison, lm71_effects, train_effects  # noqa: PLC0415  numba kernels
+
+    b = ctx.bridge
+    v_all, (acc, disp, x_acc, disp_mid, moment), lanes, zeta = _train_envelopes(ctx, t, dz_pct)
+    y_stat, m_stat = static_midspan_max(b, t.axle_offsets_m, t.axle_loads_n)
+    eff = train_effects(b, t.axle_offsets_m, t.axle_loads_n, v_all, delta_zeta=dz_pct / 100.0, intervals=lanes)
+    tc = TrainCheck(name=t.name, kind="hslm" if _is_hslm(t) else "train", speeds_kmh=v_all,
+                    max_acc_m_s2=acc, max_disp_m=disp, delta_zeta_pct=float(dz_pct),
+                    damping_note=note, static_disp_m=y_stat, static_moment_Nm=m_stat,
+                    x_acc_m=x_acc, max_disp_midspan_m=disp_mid,
+                    max_moment_Nm=moment, zeta=zeta, effects=eff)
+    # EN 1991-2 6.4.6.5(3): (1 + phi'_dyn + phi''/2) x train against Phi x alpha x LM71; phi'' at
+    # the maximum line speed (Annex C: the maximum permitted vehicle speed)
+    tc.design = design_comparison(t.name, b.span_m, b.EJ_Nm2, b.n0_hz, t.axle_offsets_m, t.axle_loads_n,
+                                  ctx.max_line_speed_kmh / 3.6, phi_dyn_deflection=tc.phi_dyn,
+                                  phi_dyn_moment=tc.phi_dyn_moment, maintenance=ctx.maintenance, alpha=ctx.alpha)
+    tc.effect_design = tuple(
+        EffectComparison(effect=e, phi_dyn=float(ph), phi_dd_factor=phi_dd_factor(ctx.maintenance),
+                         phi_dd=tc.design.phi_dd, Phi=tc.design.Phi, train_static=float(st), lm71_static=float(lm))
+        for e, ph, st, lm in zip(eff.effects, eff.phi_dyn, eff.static_max, lm71_effects(b.span_m, ctx.alpha)))
+    return tc

@@ -223,6 +223,8 @@ def report_html(res, version=None, commit=None, job=None, sources=None):
     (:func:`adm_sim.inputs.job.input_sources`) give its identification and the inputs' sources."""
     version = __version__ if version is None else version
     commit = _commit() if commit is None else commit
+    if getattr(res, "is_deck", False):
+        return deck_report_html(res, version, commit, job)
     tables = table_rows(res, job, sources, version, commit)
     verdict = "PASS" if res.passed else "FAIL"
     ident = (job.rows() if job is not None else [(k, "not given") for k in
@@ -264,6 +266,34 @@ def report_html(res, version=None, commit=None, job=None, sources=None):
         "<h2>Not checked</h2>", "<ul>" + "".join(f"<li>{_e(x)}</li>" for x in res.not_checked()) + "</ul>",
         "<h2>Full output</h2>", f"<pre>{_e(summary(res))}</pre>",
         f"<p>adm-sim {_e(version)}, commit {_e(commit)}</p>", "</body></html>"]
+    return "\n".join(parts)
+
+
+def deck_report_html(res, version, commit, job=None):
+    """The page of a continuous deck's check (:class:`adm_sim.design.check_deck.DeckCheckResult`): the
+    identification, the verdict, the spans, the modes, the acceleration per span and the full output."""
+    verdict = "PASS" if res.passed else "FAIL"
+    ident = job.rows() if job is not None else [(k, "not given") for k in ("project", "structure", "element")]
+    b = res.bridge
+    spans = [(i + 1, f"{L:g}", f"{res.bridge.supports_m[i]:g} .. {res.bridge.supports_m[i + 1]:g}",
+              f"{e:.4g}", f"{m:.6g}") for i, (L, e, m) in enumerate(zip(b.spans_m, b.span_EJ_Nm2, b.span_mu_kg_m))]
+    modes = [(j, f"{f:.4f}", f"{m:.6g}") for j, f, m in zip(res.modes, b.frequencies_hz, b.modal_mass_kg)]
+    per_span = [(s + 1, t.name, f"{v:g}", f"{x:.3f}", f"{a:.4f}", "PASS" if a <= res.limit_m_s2 else "FAIL")
+                for s, (t, v, a, x) in enumerate(res.span_governing())]
+    parts = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
+             f"<title>EN 1991-2 dynamic check of a continuous deck: {_e(verdict)}</title>",
+             "<style>body{font-family:sans-serif;margin:2em;max-width:60em}table{border-collapse:collapse}"
+             "td,th{border:1px solid #999;padding:2px 6px;font-size:90%}pre{font-size:75%;white-space:pre-wrap}"
+             "</style></head><body>", "<h1>EN 1991-2 dynamic check of a continuous deck</h1>",
+             '<table id="identification"><tbody>' + "".join(f"<tr><th>{_e(k)}</th><td>{_e(v)}</td></tr>"
+                                                           for k, v in ident) + "</tbody></table>",
+             f'<p id="verdict"><b>Verdict: {verdict}</b></p>', f"<p>adm-sim {_e(version)}, commit {_e(commit)}</p>",
+             "<h2>Spans</h2>", _table(("span", "L (m)", "x (m)", "EJ (N m²)", "μ (kg/m)"), spans),
+             "<h2>Modes used</h2>", _table(("mode", "frequency (Hz)", "modal mass (kg)"), modes),
+             "<h2>Acceleration per span</h2>",
+             _table(("span", "governing train", "speed (km/h)", "x (m)", "max |a| (m/s²)", "verdict"), per_span),
+             "<h2>Acceleration envelopes over speed</h2>", _svg_envelopes(res),
+             "<h2>Full output</h2>", f"<pre>{_e(res.summary())}</pre>", "</body></html>"]
     return "\n".join(parts)
 
 
