@@ -108,7 +108,12 @@ def cmd_calibrate(args):
     inputs = {"--bridge": args.bridge, "--train": args.train, "--measured": args.measured}
     json_path = claim_output(args.json, "--json", args.force, ".json", inputs) if args.json is not None else None
     plot_path = claim_output(args.plot, "--plot", args.force, ".png", inputs) if args.plot is not None else None
-    bridge, measured = measured_bridge(args, resolve_bridge(args.bridge))  # --measured: n0, zeta of the monitored bridge
+    bridge = resolve_bridge(args.bridge, continuous=True)  # a continuous deck: its largest midspan peak
+    if bridge.is_continuous and len(bridge.spans_m) > 1 and args.measured is not None:
+        raise InputError(f"--measured: {args.measured!r} sets n0 and zeta of a simply supported span (EJ from Eq. 18); "
+                         f"--bridge {args.bridge!r} is a continuous deck of {len(bridge.spans_m)} spans: give its "
+                         f"n0 or EJ and zeta_pct in the spec instead")
+    bridge, measured = measured_bridge(args, bridge)  # --measured: n0, zeta of the monitored bridge
     train = load_train(args.train)
     speeds = _speeds(args.speeds)
     options = _options(args)
@@ -465,6 +470,7 @@ def cmd_study(args):
     trains, files = study_trains(_list(args.trains, "--trains"), "--trains")
     mfs = _once(_mass_functions(args.mass_functions), "--mass-functions", args.mass_functions)
     spans = _spans(args.spans)
+    layout = check_option("--spans-layout", args.spans_layout)
     fis = _freq_indices(args.freq_index)
     workers = check_option("--workers", args.workers)
     limit = None if args.limit is None else check_option("--limit", args.limit)
@@ -478,8 +484,8 @@ def cmd_study(args):
             parse(args.irregularity, span)  # anything is written (every selected span below)
     settings = StudySettings(speeds=args.speeds, dim_grid=args.dim_grid, steps_per_period=spp,
                              dense_maxima=args.dense_maxima, refine_speed=args.refine_speed,
-                             irregularity=args.irregularity)
-    cases = select_cases(trains, mfs, spans, fis, own=files)
+                             irregularity=args.irregularity, spans_layout=layout)
+    cases = select_cases(trains, mfs, spans, fis, own=files, spans_layout=layout)
     if not cases:
         raise InputError(f"--spans/--freq-index: the options select no case (spans are the integers "
                          f"4..40 m; --spans {args.spans!r} holds none)")
@@ -490,7 +496,7 @@ def cmd_study(args):
             parse(args.irregularity, span)
     _check_study_work(cases, settings)
     make_output_folder(out, "--out")
-    options = {"trains": trains, "mass_functions": mfs, "spans_m": list(spans), "freq_index": fis,
+    options = {"trains": trains, "mass_functions": mfs, "spans_m": list(spans), "spans_layout": layout, "freq_index": fis,
                "limit": limit, "workers": workers, "scheduler": scheduler, "retry_errors": args.retry_errors,
                "train_files": {n: f.path for n, f in files.items()}, "argv": sys.argv[1:]}
     print(f"study: {len(cases)} cases selected ({len(trains)} trains); results in {Path(args.out) / 'results.jsonl'}",
@@ -690,7 +696,10 @@ def build_parser():
     add_max_work(c)
     c.add_argument("--bridge", required=True, help="B1..B4, a spec L=15,n0=8.26,mu=19042,zeta_pct=1.85,class=cfb "
                    "(L m, n0 Hz or EJ N m^2, mu kg/m, zeta_pct %% or type=cfb|sc for the Table 2 damping; class=cfb|sc "
-                   "classes a bridge of given damping for the lower-bound functions), or a TOML file with these keys")
+                   "classes a bridge of given damping for the lower-bound functions), a continuous deck "
+                   "spans=15/15,n0=8.26,mu=19042,zeta_pct=1.85,class=cfb (the peaks are the largest of the maxima at "
+                   "the middle of every span, MLM and DIM alike; ADM, EADA and the lower bound are not evaluated on "
+                   "a deck), or a TOML file with these keys")
     c.add_argument("--train", required=True, help="ICE-2, Eurostar, Railjet, ICE-4 or a TOML train file")
     add_measured_argument(c)
     c.add_argument("--json", help="write the result as JSON to this file")
@@ -755,6 +764,13 @@ def build_parser():
     s.add_argument("--mass-functions", default="mu1,mu2,mu3,mu4,mu5,mu6", help="Table 1 mass functions")
     s.add_argument("--spans", default="4:40", help=option_help("--spans", "span range lo:hi (integer spans of the "
                                                                           "field), each end"))
+    s.add_argument("--spans-layout", default="1", help=option_help(
+        "--spans-layout", "1 (default): the paper's simply supported spans; N: every case a continuous deck of N "
+        "equal spans of the case's span L (pinned over the supports), each span with the mu of the mass function "
+        "at L (Eq. 19) and EJ from Eq. (18) with L and the case's n0 at L, so the deck's first frequency is that "
+        "n0; damping Table 2 with L the span (Rayleigh at the deck's modes 1 and 3); 3 N modes; dz_VBI matched "
+        "on the largest of the maxima at the middle of every span (MLM and DIM alike); each deck a batch of its "
+        "own"))
     s.add_argument("--freq-index", default="1,2,3,4,5", help=option_help(
         "--freq-index", "n0 per span: 1 = LB ... 3 = fit ... 5 = UB power law; a comma list, each"))
     s.add_argument("--limit", default=None, help=option_help("--limit", "run at most N of the pending cases"))

@@ -198,8 +198,21 @@ def eada_delta_zeta_pct(coach, mass_per_length_kg_m, span_m, n0_hz):
     return 100.0 * mu_1 * r_1 * math.sqrt(r_1**2 + (2.0 * coach.zeta_1) ** 2)
 
 
+#: Why the paper's simplified methods give no value on a continuous deck.
+DECK_NOTE = ("the paper's lower-bound functions (Tables B1-B4) were fitted on simply supported spans "
+             "(Section 3.1), not on continuous decks")
+EADA_DECK_NOTE = "EADA (Eq. 3) is a simply supported span's method: not evaluated on a continuous deck"
+
+
+def _deck_spans(bridge):
+    """The spans of a continuous deck of two or more spans (``spans=A/B``), else None."""
+    return bridge.spans_m if bridge.is_continuous and len(bridge.spans_m) > 1 else None
+
+
 def eada_for(bridge, train):
-    """EADA for a bridge and a train: ``(delta_zeta_pct or None, note)``."""
+    """EADA for a bridge and a train: ``(delta_zeta_pct or None, note)``; None on a continuous deck."""
+    if _deck_spans(bridge):
+        return None, EADA_DECK_NOTE
     key, note = eada_vehicle(train)
     if key is None:
         return None, note
@@ -452,8 +465,13 @@ def lower_bound_for(bridge, train):
 
     Returns ``(pct or None, note)``.
 
-    Never raises for a valid bridge: outside the validity the value is ``None`` with the reason.
+    Never raises for a valid bridge: outside the validity the value is ``None`` with the reason, also
+    on a continuous deck of two or more spans (:data:`DECK_NOTE`; a deck of one span is the simply
+    supported span).
     """
+    if spans := _deck_spans(bridge):
+        return None, (f"lower bound not defined: a continuous deck of {len(spans)} spans "
+                      f"{'/'.join(f'{x:g}' for x in spans)} m; {DECK_NOTE}")
     if bridge.bridge_type not in TYPE_MASS_FUNCTIONS:
         return None, "lower bound not defined: the bridge type (cfb|sc) is unknown"
     if not isinstance(train, str):
@@ -470,5 +488,5 @@ __all__ = [
     "STUDY_TRAINS", "TYPE_MASS_FUNCTIONS", "MASS_FUNCTIONS", "adm_delta_zeta_pct", "HalfCoach", "half_coach",
     "eada_vehicle", "eada_delta_zeta_pct", "eada_for", "LowerBound", "lower_bound_table", "lower_bound",
     "span_from_frequency_m", "Recommendation", "recommend", "lower_bound_for", "canonical_train_name",
-    "first_root_hz", "lower_bound_pct", "LOWER_LIMIT_HZ", "FIT_RANGE_MAX_HZ",
+    "first_root_hz", "lower_bound_pct", "LOWER_LIMIT_HZ", "FIT_RANGE_MAX_HZ", "DECK_NOTE", "EADA_DECK_NOTE",
 ]

@@ -52,7 +52,7 @@ def run_batch(cases, settings=StudySettings(), train=None):
     try:
         train = _train(cases[0].train) if train is None else train
         res = calibrate_batch([c.bridge for c in cases], train, speeds_kmh=settings.speeds_kmh(),
-                              options=settings.calibration_options(cases[0].span_m))
+                              options=settings.calibration_options(cases[0].bridge.span_m))  # the deck's length
         wall = (time.perf_counter() - t0) / len(cases)
         recs = [result_record(c, r, wall) for c, r in zip(cases, res)]
         for rec in recs:
@@ -403,9 +403,10 @@ def _run_on_dask(pending, settings, writer, run, workers, scheduler, progress, e
         batches = sorted(make_batches(pending), key=lambda b: -b[0].bridge.n0_hz)
         by_future = {}
         for b in batches:
-            L, fi = b[0].batch_key[1:]
+            L, fi = b[0].span_m, b[0].freq_index
+            mf = f"-{b[0].mass_function}" if b[0].bridge.is_continuous else ""  # a deck: a batch of one case
             fut = client.submit(run_batch, b, settings, (trains or {}).get(b[0].train), pure=False,
-                                key=f"batch-{re.sub(r'[^A-Za-z0-9_.-]', '_', b[0].train)}-L{L:g}-f{fi}-{os.getpid()}")
+                                key=f"batch-{re.sub(r'[^A-Za-z0-9_.-]', '_', b[0].train)}-L{L:g}-f{fi}{mf}-{os.getpid()}")
             by_future[fut] = b
             futures.append(fut)
         if progress is not None:
