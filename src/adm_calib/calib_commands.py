@@ -40,7 +40,7 @@ from adm_sim.cli.sim_commands import add_check_arguments, cmd_check
 from adm_sim.cliutil import (Parser, add_choice, add_dim_grid, add_max_work, add_overwrite, add_progress, add_speeds,
                              add_steps_per_period, check_option, option_help, option_view, progress_callback, run_cli)
 from adm_sim.errors import InputError, PlausibilityWarning
-from adm_sim.fields import check_range
+from adm_sim.fields import FIELDS, check_range
 from adm_sim.limits import MAX_DELTA_ZETA_PCT
 from adm_sim.integrate.step_grid import StepOptions
 
@@ -273,6 +273,7 @@ def cmd_recommend(args):
     from adm_calib.reference import (STUDY_N0_MAX_HZ, STUDY_SPAN_RANGE_M, lower_bound_table,  # noqa: PLC0415  start-up: only this subcommand (91 ms)
                                      recommend, span_from_frequency_m)
 
+    _recommend_deck(args)  # --deck-spans: refused, or with --extrapolate the longest span with a warning
     own = _own_functions(args)  # --functions FILE (a train of a file), else None
     train = own["train"] if own else _study_train(args.train, "--train")
     measured = _recommend_measured(args)  # --measured: n0 from the monitored bridge
@@ -303,6 +304,37 @@ def cmd_recommend(args):
                     functions=own["source"] if own else args.functions, extrapolate=args.extrapolate,
                     table=own["table"] if own else None)
     return print_recommendation(args, rec, mu_kg_m, zeta_arg, speeds, speeds_text, own=own, measured=measured)
+
+
+def _recommend_deck(args):
+    """``recommend --deck-spans A/B/...``: the paper's functions were fitted on simply supported spans
+    (Section 3.1), so a continuous deck of two or more spans is refused in one line, or with
+    ``--extrapolate`` answered for its longest span with a warning; one span is ``--span``."""
+    from adm_calib.reference import DECK_NOTE  # noqa: PLC0415  start-up: only this subcommand (91 ms)
+
+    text = args.deck_spans
+    if text is None:
+        return
+    each = FIELDS["span_m"]  # a deck's span takes the bridge model's span range (deck_spans_m's, each)
+    spans = [each.check(p.strip(), name="--deck-spans") for p in str(text).split("/")]
+    n_max = FIELDS["n_spans"].hi
+    if len(spans) > n_max:
+        raise InputError(f"--deck-spans: {text!r} names {len(spans)} spans; allowed 1 to {n_max} spans joined by '/' "
+                         f"(e.g. 15/15)")
+    if args.span is not None:
+        raise InputError(f"--deck-spans {text!r} and --span {args.span!r}: give one of them")
+    if len(spans) > 1 and not args.extrapolate:
+        raise InputError(f"--deck-spans: {text!r} is a continuous deck of {len(spans)} spans; {DECK_NOTE}, so no "
+                         f"recommendation (allowed: one span, or --extrapolate for the longest span with a warning; "
+                         f"the deck's own dz_VBI: adm-calib calibrate --bridge spans={text},...)")
+    if len(spans) > 1 and getattr(args, "verify", False):
+        raise InputError(f"--verify: calibrates a simply supported span; --deck-spans {text!r} is a continuous deck "
+                         f"(calibrate it with adm-calib calibrate --bridge spans={text},...)")
+    if len(spans) > 1:
+        warnings.warn(f"--deck-spans {text}: a continuous deck of {len(spans)} spans; {DECK_NOTE}: answered for its "
+                      f"longest span {max(spans):g} m (--extrapolate; results/continuous/README.md compares the "
+                      f"bound with two-span decks)", PlausibilityWarning, stacklevel=2)
+    args.span = repr(max(spans))
 
 
 def _recommend_speeds(args):
@@ -729,6 +761,11 @@ def build_parser():
                                                                    "printed in both"))
     add_choice(r, "--type", "cfb: concrete/filler beam, sc: steel/composite", required=True)
     r.add_argument("--span", default=None, help=option_help("--span", "span; estimated from n0 when omitted"))
+    r.add_argument("--deck-spans", default=None,
+                   help=option_help("--deck-spans", "a continuous deck's spans joined by '/', e.g. 15/15: refused, "
+                                                    "since the lower-bound functions were fitted on simply supported "
+                                                    "spans; with --extrapolate answered for the longest span with a "
+                                                    "warning; one span is --span"))
     r.add_argument("--interpolate", action="store_true",
                    help="interpolate linearly between the adjacent mass functions instead of the safe side")
     r.add_argument("--functions", default="paper",
