@@ -417,27 +417,7 @@ def recommend(train, n0_hz, mu_t_m, bridge_type, *, span_m=None, interpolate=Fal
         L = check_range("span_m", span_m, "m", *(SPAN_RANGE_M if extrapolate else STUDY_SPAN_RANGE_M))
     names = TYPE_MASS_FUNCTIONS[bridge_type]
     mus = {m: mass_function_t_m(m, L) for m in names}
-    heavy, light = mus[names[0]], mus[names[-1]]
-    tol = ON_FUNCTION_RTOL
-    on = [m for m in names if abs(mu - mus[m]) <= tol * mus[m]]
-    if on:
-        used, weights, rule = (on[0],), (1.0,), f"mu lies on mass function {on[0]}"
-    elif mu > heavy:
-        used, weights, rule = (names[0],), (1.0,), (f"mu above the heaviest {bridge_type.upper()} mass function: "
-                                                    f"nearest function {names[0]} (Section 4.3)")
-    elif mu < light:
-        used, weights, rule = (names[-1],), (1.0,), (f"mu below the lightest {bridge_type.upper()} mass function: "
-                                                     f"nearest function {names[-1]} (Section 4.3)")
-    else:
-        i = next(k for k in range(len(names) - 1) if mus[names[k + 1]] <= mu <= mus[names[k]])
-        up, lo = names[i], names[i + 1]
-        if interpolate:
-            w_up = (mu - mus[lo]) / (mus[up] - mus[lo])
-            used, weights = (up, lo), (w_up, 1.0 - w_up)
-            rule = f"mu between {up} and {lo}: linear interpolation in mu (Section 4.3)"
-        else:
-            used, weights = (up,), (1.0,)
-            rule = f"mu between {up} and {lo}: next heavier function {up}, safe side (Section 4.3)"
+    used, weights, rule = _section_43_rule(mu, mus, names, bridge_type, interpolate)
     if own and any(m not in table for m in used):
         raise InputError(f"functions: {functions} has no lower-bound function {', '.join(m for m in used if m not in table)} "
                          f"for {t} (its study did not run it, or it gave fewer than 4 interval minima); allowed a bridge "
@@ -458,6 +438,30 @@ def recommend(train, n0_hz, mu_t_m, bridge_type, *, span_m=None, interpolate=Fal
                           span_estimated=estimated, rule=rule, mass_functions=used, weights=weights,
                           function_values_pct=values, mass_function_t_m=mus, delta_zeta_pct=dz,
                           beyond_root=beyond, explanation=expl, functions=functions)
+
+
+def _section_43_rule(mu, mus, names, bridge_type, interpolate):
+    """The mass functions of Section 4.3 for ``mu`` (t/m) among ``mus`` (t/m at the span, ``names``
+    heavy to light): ``(used, weights, rule)`` - the function ``mu`` lies on (to
+    :data:`ON_FUNCTION_RTOL`), the nearest outside them, else the next heavier (safe side) or the
+    two adjacent ones interpolated linearly in mu."""
+    heavy, light = mus[names[0]], mus[names[-1]]
+    tol = ON_FUNCTION_RTOL
+    on = [m for m in names if abs(mu - mus[m]) <= tol * mus[m]]
+    if on:
+        return (on[0],), (1.0,), f"mu lies on mass function {on[0]}"
+    if mu > heavy:
+        return (names[0],), (1.0,), (f"mu above the heaviest {bridge_type.upper()} mass function: "
+                                     f"nearest function {names[0]} (Section 4.3)")
+    if mu < light:
+        return (names[-1],), (1.0,), (f"mu below the lightest {bridge_type.upper()} mass function: "
+                                      f"nearest function {names[-1]} (Section 4.3)")
+    i = next(k for k in range(len(names) - 1) if mus[names[k + 1]] <= mu <= mus[names[k]])
+    up, lo = names[i], names[i + 1]
+    if interpolate:
+        w_up = (mu - mus[lo]) / (mus[up] - mus[lo])
+        return (up, lo), (w_up, 1.0 - w_up), f"mu between {up} and {lo}: linear interpolation in mu (Section 4.3)"
+    return (up,), (1.0,), f"mu between {up} and {lo}: next heavier function {up}, safe side (Section 4.3)"
 
 
 def lower_bound_for(bridge, train):
