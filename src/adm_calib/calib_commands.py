@@ -702,28 +702,28 @@ def cmd_check_calib(args):
     return cmd_check(args, damping_provider=calibrated_damping)
 
 
-def build_parser():
-    p = Parser(prog="adm-calib", description="Additional-damping calibration (MLM vs DIM) and comparison "
-                                               "with the Eurocode ADM, EADA and the lower-bound functions.")
-    p.add_version()
-    sub = p.add_subparsers(dest="command", required=True)
+def _common(sp):
+    """The options calibrate and table4 share."""
+    add_speeds(sp, "MLM speeds in km/h, start:stop:step", show_default=True)
+    add_dim_grid(sp, "DIM speeds: paper = 5 km/h plus 1 km/h near the MLM peak (Section 3.3); full = all")
+    add_steps_per_period(sp, "integration steps per period of the highest mode (core default 16)")
+    add_progress(sp, negatable=False, text="show progress bars on stderr")
+    add_overwrite(sp, "replace existing output files (only once the new ones are complete)", force_alias=True)
+    _peaks_options(sp)
 
-    def common(sp):
-        add_speeds(sp, "MLM speeds in km/h, start:stop:step", show_default=True)
-        add_dim_grid(sp, "DIM speeds: paper = 5 km/h plus 1 km/h near the MLM peak (Section 3.3); full = all")
-        add_steps_per_period(sp, "integration steps per period of the highest mode (core default 16)")
-        add_progress(sp, negatable=False, text="show progress bars on stderr")
-        add_overwrite(sp, "replace existing output files (only once the new ones are complete)", force_alias=True)
-        peaks_options(sp)
 
-    def peaks_options(sp):
-        sp.add_argument("--dense-maxima", action="store_true",
-                        help="maximum acceleration also between time steps, from the RK4 step's dense output "
-                             "(quintic Hermite); default: at the steps, as the shipped results")
-        sp.add_argument("--refine-speed", action="store_true",
-                        help="refined mode: locate the MLM and the DIM peak to 0.05 km/h; default: the paper's "
-                             "1 km/h speed grid")
+def _peaks_options(sp):
+    """--dense-maxima and --refine-speed (calibrate, table4, study)."""
+    sp.add_argument("--dense-maxima", action="store_true",
+                    help="maximum acceleration also between time steps, from the RK4 step's dense output "
+                         "(quintic Hermite); default: at the steps, as the shipped results")
+    sp.add_argument("--refine-speed", action="store_true",
+                    help="refined mode: locate the MLM and the DIM peak to 0.05 km/h; default: the paper's "
+                         "1 km/h speed grid")
 
+
+def _add_calibrate(sub):
+    """``adm-calib calibrate``."""
     c = sub.add_parser("calibrate", help="calibrate dz_VBI for one bridge and one train")
     add_max_work(c)
     c.add_argument("--bridge", required=True, help="B1..B4, a spec L=15,n0=8.26,mu=19042,zeta_pct=1.85,class=cfb "
@@ -736,18 +736,24 @@ def build_parser():
     add_measured_argument(c)
     c.add_argument("--json", help="write the result as JSON to this file")
     c.add_argument("--plot", help="write the Fig. 15 analogue to this PNG file")
-    common(c)
+    _common(c)
     c.set_defaults(func=cmd_calibrate)
 
+
+def _add_table4(sub):
+    """``adm-calib table4``."""
     t = sub.add_parser("table4", help="Table 4 and Fig. 19 for the bridges B1-B4 and the four trains")
     t.add_argument("--out", default="table4_out", help="output directory (default table4_out)")
     t.add_argument("--bridges", default="B1,B2,B3,B4", help="comma list of B1..B4 (default B1,B2,B3,B4)")
     t.add_argument("--trains", default="ICE-2,Eurostar,Railjet,ICE-4",
                    help="comma list of ICE-2, Eurostar, Railjet, ICE-4 (default all four)")
     t.add_argument("--jobs", default="1", help=option_help("--jobs", "worker processes (default 1)"))
-    common(t)
+    _common(t)
     t.set_defaults(func=cmd_table4)
 
+
+def _add_recommend(sub):
+    """``adm-calib recommend``."""
     r = sub.add_parser("recommend", help="dz from the lower-bound functions by the rules of Section 4.3")
     r.add_argument("--train", required=True, help="ICE-2, Eurostar, Railjet or ICE-4; with --functions FILE the "
                                                    "train or vehicle file of that study")
@@ -791,6 +797,9 @@ def build_parser():
     r.add_argument("--json", action="store_true", help="print JSON")
     r.set_defaults(func=cmd_recommend)
 
+
+def _add_study(sub):
+    """``adm-calib study``."""
     s = sub.add_parser("study", help="the parametric study (Section 3.3) on a dask cluster, resumable")
     add_max_work(s)
     s.add_argument("--out", required=True, help="study directory: results.jsonl (one line per case) and study.json; "
@@ -820,13 +829,16 @@ def build_parser():
     add_dim_grid(s, "DIM speeds: window (default) = the paper's speeds where the associated DIM peak can lie, "
                     "the same results in half the time; paper = the paper's whole grid (Section 3.3); full = all")
     add_steps_per_period(s, "integration steps per period of the highest mode (core default 16)")
-    peaks_options(s)
+    _peaks_options(s)
     s.add_argument("--irregularity", default="", help="track irregularity on every deck (DIM only), e.g. "
                    "german-high:seed=3, fra-6:seed=1, german-low:seed=2:band=2:80, file=profile.csv, "
                    "ramp:at=0:length=3:height=0.002 (parts joined by +); default: smooth track as the paper "
                    "(docs/irregularities.md)")
     s.set_defaults(func=cmd_study, dim_grid="window")
 
+
+def _add_study_fit(sub):
+    """``adm-calib study-fit``."""
     f = sub.add_parser("study-fit", help="lower-bound functions (Section 4.2.1, Tables B1-B4) from study results")
     f.add_argument("--results", required=True, help="results.jsonl of a study")
     f.add_argument("--out", default=None, help="output directory (default: the results' directory)")
@@ -842,10 +854,27 @@ def build_parser():
     add_overwrite(f, "replace existing output files (only once the new ones are complete)", force_alias=True)
     f.set_defaults(func=cmd_study_fit)
 
+
+def _add_check(sub):
+    """``adm-calib check``."""
     k = sub.add_parser("check", help="EN 1991-2 dynamic check as adm-sim check, with all four damping methods "
                                      "(none, adm, lb: the paper's lower bounds, vbi: calibrated Δζ_VBI)")
     add_check_arguments(k)
     k.set_defaults(func=cmd_check_calib)
+
+
+def build_parser():
+    p = Parser(prog="adm-calib", description="Additional-damping calibration (MLM vs DIM) and comparison "
+                                               "with the Eurocode ADM, EADA and the lower-bound functions.")
+    p.add_version()
+    sub = p.add_subparsers(dest="command", required=True)
+
+    _add_calibrate(sub)
+    _add_table4(sub)
+    _add_recommend(sub)
+    _add_study(sub)
+    _add_study_fit(sub)
+    _add_check(sub)
     return p
 
 
