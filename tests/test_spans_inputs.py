@@ -169,15 +169,13 @@ def test_exact_method_refused_on_a_deck(call_main, tmp_path):
 
 
 def test_entries_not_wired_refuse_a_deck(call_main, tmp_path):
-    """adm-sim check and adm-calib calibrate take one simply supported span today: a deck is refused in
-    one line naming where continuous decks are taken, exit 2, nothing written."""
-    from adm_calib.calib_commands import main as calib_main
-
+    """adm-sim check takes one simply supported span today: a deck is refused in one line naming where
+    continuous decks are taken, exit 2, nothing written (adm-calib calibrate takes decks:
+    tests/calib/test_calib_decks.py)."""
     deck = "spans=15/15,EJ=2e10,mu=15000,zeta_pct=1.5"
     refusal = (f"error: --bridge: '{deck}' is a continuous deck of 2 spans; this entry takes one simply supported "
                f"span (allowed: L=..., B1..B4; continuous decks: adm-sim sweep --model mlm (RK4))")
-    for m, argv in ((main, ["check", "--bridge", deck, "--max-line-speed", "200", "--json", str(tmp_path / "c.json")]),
-                    (calib_main, ["calibrate", "--bridge", deck, "--train", "ICE-2", "--json", str(tmp_path / "c.json")])):
+    for m, argv in ((main, ["check", "--bridge", deck, "--max-line-speed", "200", "--json", str(tmp_path / "c.json")]),):
         done = call_main(m, *argv)
         assert done.returncode == 2
         assert done.stderr.strip().splitlines() == [refusal]

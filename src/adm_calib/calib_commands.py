@@ -40,7 +40,7 @@ from adm_sim.cli.sim_commands import add_check_arguments, cmd_check
 from adm_sim.cliutil import (Parser, add_choice, add_dim_grid, add_max_work, add_overwrite, add_progress, add_speeds,
                              add_steps_per_period, check_option, option_help, option_view, progress_callback, run_cli)
 from adm_sim.errors import InputError, PlausibilityWarning
-from adm_sim.fields import check_range
+from adm_sim.fields import FIELDS, check_range
 from adm_sim.limits import MAX_DELTA_ZETA_PCT
 from adm_sim.integrate.step_grid import StepOptions
 
@@ -108,7 +108,12 @@ def cmd_calibrate(args):
     inputs = {"--bridge": args.bridge, "--train": args.train, "--measured": args.measured}
     json_path = claim_output(args.json, "--json", args.force, ".json", inputs) if args.json is not None else None
     plot_path = claim_output(args.plot, "--plot", args.force, ".png", inputs) if args.plot is not None else None
-    bridge, measured = measured_bridge(args, resolve_bridge(args.bridge))  # --measured: n0, zeta of the monitored bridge
+    bridge = resolve_bridge(args.bridge, continuous=True)  # a continuous deck: its largest midspan peak
+    if bridge.is_continuous and len(bridge.spans_m) > 1 and args.measured is not None:
+        raise InputError(f"--measured: {args.measured!r} sets n0 and zeta of a simply supported span (EJ from Eq. 18); "
+                         f"--bridge {args.bridge!r} is a continuous deck of {len(bridge.spans_m)} spans: give its "
+                         f"n0 or EJ and zeta_pct in the spec instead")
+    bridge, measured = measured_bridge(args, bridge)  # --measured: n0, zeta of the monitored bridge
     train = load_train(args.train)
     speeds = _speeds(args.speeds)
     options = _options(args)
@@ -268,6 +273,7 @@ def cmd_recommend(args):
     from adm_calib.reference import (STUDY_N0_MAX_HZ, STUDY_SPAN_RANGE_M, lower_bound_table,  # noqa: PLC0415  start-up: only this subcommand (91 ms)
                                      recommend, span_from_frequency_m)
 
+    _recommend_deck(args)  # --deck-spans: refused, or with --extrapolate the longest span with a warning
     own = _own_functions(args)  # --functions FILE (a train of a file), else None
     train = own["train"] if own else _study_train(args.train, "--train")
     measured = _recommend_measured(args)  # --measured: n0 from the monitored bridge
@@ -298,6 +304,37 @@ def cmd_recommend(args):
                     functions=own["source"] if own else args.functions, extrapolate=args.extrapolate,
                     table=own["table"] if own else None)
     return print_recommendation(args, rec, mu_kg_m, zeta_arg, speeds, speeds_text, own=own, measured=measured)
+
+
+def _recommend_deck(args):
+    """``recommend --deck-spans A/B/...``: the paper's functions were fitted on simply supported spans
+    (Section 3.1), so a continuous deck of two or more spans is refused in one line, or with
+    ``--extrapolate`` answered for its longest span with a warning; one span is ``--span``."""
+    from adm_calib.reference import DECK_NOTE  # noqa: PLC0415  start-up: only this subcommand (91 ms)
+
+    text = args.deck_spans
+    if text is None:
+        return
+    each = FIELDS["span_m"]  # a deck's span takes the bridge model's span range (deck_spans_m's, each)
+    spans = [each.check(p.strip(), name="--deck-spans") for p in str(text).split("/")]
+    n_max = FIELDS["n_spans"].hi
+    if len(spans) > n_max:
+        raise InputError(f"--deck-spans: {text!r} names {len(spans)} spans; allowed 1 to {n_max} spans joined by '/' "
+                         f"(e.g. 15/15)")
+    if args.span is not None:
+        raise InputError(f"--deck-spans {text!r} and --span {args.span!r}: give one of them")
+    if len(spans) > 1 and not args.extrapolate:
+        raise InputError(f"--deck-spans: {text!r} is a continuous deck of {len(spans)} spans; {DECK_NOTE}, so no "
+                         f"recommendation (allowed: one span, or --extrapolate for the longest span with a warning; "
+                         f"the deck's own dz_VBI: adm-calib calibrate --bridge spans={text},...)")
+    if len(spans) > 1 and getattr(args, "verify", False):
+        raise InputError(f"--verify: calibrates a simply supported span; --deck-spans {text!r} is a continuous deck "
+                         f"(calibrate it with adm-calib calibrate --bridge spans={text},...)")
+    if len(spans) > 1:
+        warnings.warn(f"--deck-spans {text}: a continuous deck of {len(spans)} spans; {DECK_NOTE}: answered for its "
+                      f"longest span {max(spans):g} m (--extrapolate; results/continuous/README.md compares the "
+                      f"bound with two-span decks)", PlausibilityWarning, stacklevel=2)
+    args.span = repr(max(spans))
 
 
 def _recommend_speeds(args):
@@ -465,6 +502,7 @@ def cmd_study(args):
     trains, files = study_trains(_list(args.trains, "--trains"), "--trains")
     mfs = _once(_mass_functions(args.mass_functions), "--mass-functions", args.mass_functions)
     spans = _spans(args.spans)
+    layout = check_option("--spans-layout", args.spans_layout)
     fis = _freq_indices(args.freq_index)
     workers = check_option("--workers", args.workers)
     limit = None if args.limit is None else check_option("--limit", args.limit)
@@ -478,8 +516,8 @@ def cmd_study(args):
             parse(args.irregularity, span)  # anything is written (every selected span below)
     settings = StudySettings(speeds=args.speeds, dim_grid=args.dim_grid, steps_per_period=spp,
                              dense_maxima=args.dense_maxima, refine_speed=args.refine_speed,
-                             irregularity=args.irregularity)
-    cases = select_cases(trains, mfs, spans, fis, own=files)
+                             irregularity=args.irregularity, spans_layout=layout)
+    cases = select_cases(trains, mfs, spans, fis, own=files, spans_layout=layout)
     if not cases:
         raise InputError(f"--spans/--freq-index: the options select no case (spans are the integers "
                          f"4..40 m; --spans {args.spans!r} holds none)")
@@ -490,7 +528,7 @@ def cmd_study(args):
             parse(args.irregularity, span)
     _check_study_work(cases, settings)
     make_output_folder(out, "--out")
-    options = {"trains": trains, "mass_functions": mfs, "spans_m": list(spans), "freq_index": fis,
+    options = {"trains": trains, "mass_functions": mfs, "spans_m": list(spans), "spans_layout": layout, "freq_index": fis,
                "limit": limit, "workers": workers, "scheduler": scheduler, "retry_errors": args.retry_errors,
                "train_files": {n: f.path for n, f in files.items()}, "argv": sys.argv[1:]}
     print(f"study: {len(cases)} cases selected ({len(trains)} trains); results in {Path(args.out) / 'results.jsonl'}",
@@ -664,49 +702,58 @@ def cmd_check_calib(args):
     return cmd_check(args, damping_provider=calibrated_damping)
 
 
-def build_parser():
-    p = Parser(prog="adm-calib", description="Additional-damping calibration (MLM vs DIM) and comparison "
-                                               "with the Eurocode ADM, EADA and the lower-bound functions.")
-    p.add_version()
-    sub = p.add_subparsers(dest="command", required=True)
+def _common(sp):
+    """The options calibrate and table4 share."""
+    add_speeds(sp, "MLM speeds in km/h, start:stop:step", show_default=True)
+    add_dim_grid(sp, "DIM speeds: paper = 5 km/h plus 1 km/h near the MLM peak (Section 3.3); full = all")
+    add_steps_per_period(sp, "integration steps per period of the highest mode (core default 16)")
+    add_progress(sp, negatable=False, text="show progress bars on stderr")
+    add_overwrite(sp, "replace existing output files (only once the new ones are complete)", force_alias=True)
+    _peaks_options(sp)
 
-    def common(sp):
-        add_speeds(sp, "MLM speeds in km/h, start:stop:step", show_default=True)
-        add_dim_grid(sp, "DIM speeds: paper = 5 km/h plus 1 km/h near the MLM peak (Section 3.3); full = all")
-        add_steps_per_period(sp, "integration steps per period of the highest mode (core default 16)")
-        add_progress(sp, negatable=False, text="show progress bars on stderr")
-        add_overwrite(sp, "replace existing output files (only once the new ones are complete)", force_alias=True)
-        peaks_options(sp)
 
-    def peaks_options(sp):
-        sp.add_argument("--dense-maxima", action="store_true",
-                        help="maximum acceleration also between time steps, from the RK4 step's dense output "
-                             "(quintic Hermite); default: at the steps, as the shipped results")
-        sp.add_argument("--refine-speed", action="store_true",
-                        help="refined mode: locate the MLM and the DIM peak to 0.05 km/h; default: the paper's "
-                             "1 km/h speed grid")
+def _peaks_options(sp):
+    """--dense-maxima and --refine-speed (calibrate, table4, study)."""
+    sp.add_argument("--dense-maxima", action="store_true",
+                    help="maximum acceleration also between time steps, from the RK4 step's dense output "
+                         "(quintic Hermite); default: at the steps, as the shipped results")
+    sp.add_argument("--refine-speed", action="store_true",
+                    help="refined mode: locate the MLM and the DIM peak to 0.05 km/h; default: the paper's "
+                         "1 km/h speed grid")
 
+
+def _add_calibrate(sub):
+    """``adm-calib calibrate``."""
     c = sub.add_parser("calibrate", help="calibrate dz_VBI for one bridge and one train")
     add_max_work(c)
     c.add_argument("--bridge", required=True, help="B1..B4, a spec L=15,n0=8.26,mu=19042,zeta_pct=1.85,class=cfb "
                    "(L m, n0 Hz or EJ N m^2, mu kg/m, zeta_pct %% or type=cfb|sc for the Table 2 damping; class=cfb|sc "
-                   "classes a bridge of given damping for the lower-bound functions), or a TOML file with these keys")
+                   "classes a bridge of given damping for the lower-bound functions), a continuous deck "
+                   "spans=15/15,n0=8.26,mu=19042,zeta_pct=1.85,class=cfb (the peaks are the largest of the maxima at "
+                   "the middle of every span, MLM and DIM alike; ADM, EADA and the lower bound are not evaluated on "
+                   "a deck), or a TOML file with these keys")
     c.add_argument("--train", required=True, help="ICE-2, Eurostar, Railjet, ICE-4 or a TOML train file")
     add_measured_argument(c)
     c.add_argument("--json", help="write the result as JSON to this file")
     c.add_argument("--plot", help="write the Fig. 15 analogue to this PNG file")
-    common(c)
+    _common(c)
     c.set_defaults(func=cmd_calibrate)
 
+
+def _add_table4(sub):
+    """``adm-calib table4``."""
     t = sub.add_parser("table4", help="Table 4 and Fig. 19 for the bridges B1-B4 and the four trains")
     t.add_argument("--out", default="table4_out", help="output directory (default table4_out)")
     t.add_argument("--bridges", default="B1,B2,B3,B4", help="comma list of B1..B4 (default B1,B2,B3,B4)")
     t.add_argument("--trains", default="ICE-2,Eurostar,Railjet,ICE-4",
                    help="comma list of ICE-2, Eurostar, Railjet, ICE-4 (default all four)")
     t.add_argument("--jobs", default="1", help=option_help("--jobs", "worker processes (default 1)"))
-    common(t)
+    _common(t)
     t.set_defaults(func=cmd_table4)
 
+
+def _add_recommend(sub):
+    """``adm-calib recommend``."""
     r = sub.add_parser("recommend", help="dz from the lower-bound functions by the rules of Section 4.3")
     r.add_argument("--train", required=True, help="ICE-2, Eurostar, Railjet or ICE-4; with --functions FILE the "
                                                    "train or vehicle file of that study")
@@ -720,6 +767,11 @@ def build_parser():
                                                                    "printed in both"))
     add_choice(r, "--type", "cfb: concrete/filler beam, sc: steel/composite", required=True)
     r.add_argument("--span", default=None, help=option_help("--span", "span; estimated from n0 when omitted"))
+    r.add_argument("--deck-spans", default=None,
+                   help=option_help("--deck-spans", "a continuous deck's spans joined by '/', e.g. 15/15: refused, "
+                                                    "since the lower-bound functions were fitted on simply supported "
+                                                    "spans; with --extrapolate answered for the longest span with a "
+                                                    "warning; one span is --span"))
     r.add_argument("--interpolate", action="store_true",
                    help="interpolate linearly between the adjacent mass functions instead of the safe side")
     r.add_argument("--functions", default="paper",
@@ -745,6 +797,9 @@ def build_parser():
     r.add_argument("--json", action="store_true", help="print JSON")
     r.set_defaults(func=cmd_recommend)
 
+
+def _add_study(sub):
+    """``adm-calib study``."""
     s = sub.add_parser("study", help="the parametric study (Section 3.3) on a dask cluster, resumable")
     add_max_work(s)
     s.add_argument("--out", required=True, help="study directory: results.jsonl (one line per case) and study.json; "
@@ -755,6 +810,13 @@ def build_parser():
     s.add_argument("--mass-functions", default="mu1,mu2,mu3,mu4,mu5,mu6", help="Table 1 mass functions")
     s.add_argument("--spans", default="4:40", help=option_help("--spans", "span range lo:hi (integer spans of the "
                                                                           "field), each end"))
+    s.add_argument("--spans-layout", default="1", help=option_help(
+        "--spans-layout", "1 (default): the paper's simply supported spans; N: every case a continuous deck of N "
+        "equal spans of the case's span L (pinned over the supports), each span with the mu of the mass function "
+        "at L (Eq. 19) and EJ from Eq. (18) with L and the case's n0 at L, so the deck's first frequency is that "
+        "n0; damping Table 2 with L the span (Rayleigh at the deck's modes 1 and 3); 3 N modes; dz_VBI matched "
+        "on the largest of the maxima at the middle of every span (MLM and DIM alike); each deck a batch of its "
+        "own"))
     s.add_argument("--freq-index", default="1,2,3,4,5", help=option_help(
         "--freq-index", "n0 per span: 1 = LB ... 3 = fit ... 5 = UB power law; a comma list, each"))
     s.add_argument("--limit", default=None, help=option_help("--limit", "run at most N of the pending cases"))
@@ -767,13 +829,16 @@ def build_parser():
     add_dim_grid(s, "DIM speeds: window (default) = the paper's speeds where the associated DIM peak can lie, "
                     "the same results in half the time; paper = the paper's whole grid (Section 3.3); full = all")
     add_steps_per_period(s, "integration steps per period of the highest mode (core default 16)")
-    peaks_options(s)
+    _peaks_options(s)
     s.add_argument("--irregularity", default="", help="track irregularity on every deck (DIM only), e.g. "
                    "german-high:seed=3, fra-6:seed=1, german-low:seed=2:band=2:80, file=profile.csv, "
                    "ramp:at=0:length=3:height=0.002 (parts joined by +); default: smooth track as the paper "
                    "(docs/irregularities.md)")
     s.set_defaults(func=cmd_study, dim_grid="window")
 
+
+def _add_study_fit(sub):
+    """``adm-calib study-fit``."""
     f = sub.add_parser("study-fit", help="lower-bound functions (Section 4.2.1, Tables B1-B4) from study results")
     f.add_argument("--results", required=True, help="results.jsonl of a study")
     f.add_argument("--out", default=None, help="output directory (default: the results' directory)")
@@ -789,10 +854,27 @@ def build_parser():
     add_overwrite(f, "replace existing output files (only once the new ones are complete)", force_alias=True)
     f.set_defaults(func=cmd_study_fit)
 
+
+def _add_check(sub):
+    """``adm-calib check``."""
     k = sub.add_parser("check", help="EN 1991-2 dynamic check as adm-sim check, with all four damping methods "
                                      "(none, adm, lb: the paper's lower bounds, vbi: calibrated Δζ_VBI)")
     add_check_arguments(k)
     k.set_defaults(func=cmd_check_calib)
+
+
+def build_parser():
+    p = Parser(prog="adm-calib", description="Additional-damping calibration (MLM vs DIM) and comparison "
+                                               "with the Eurocode ADM, EADA and the lower-bound functions.")
+    p.add_version()
+    sub = p.add_subparsers(dest="command", required=True)
+
+    _add_calibrate(sub)
+    _add_table4(sub)
+    _add_recommend(sub)
+    _add_study(sub)
+    _add_study_fit(sub)
+    _add_check(sub)
     return p
 
 

@@ -35,7 +35,7 @@ class CalibrationResult:
     dim_peak: pk.Peak
     adapted_peak: pk.Peak
     solve: DampingSolve | None
-    delta_zeta_adm_pct: float
+    delta_zeta_adm_pct: float | None
     delta_zeta_eada_pct: float | None
     eada_note: str
     delta_zeta_lb_pct: float | None
@@ -157,7 +157,9 @@ class CalibrationResult:
                          f"{self.solve.iterations} iterations, peak mismatch {100 * self.solve.residual_rel:.2e} %)")
         else:
             lines.append("dz_VBI         n/a")
-        lines += [f"dz_ADM         {pct(self.delta_zeta_adm_pct)}  (EN 1991-2 6.4.6.3.1)",
+        adm_note = "EN 1991-2 6.4.6.3.1" if self.delta_zeta_adm_pct is not None else (
+            "EN 1991-2 6.4.6.3.1 is written for a simply supported span: not evaluated on a continuous deck")
+        lines += [f"dz_ADM         {pct(self.delta_zeta_adm_pct)}  ({adm_note})",
                   f"dz_EADA        {pct(self.delta_zeta_eada_pct)}  ({self.eada_note})",
                   f"dz_LB          {pct(self.delta_zeta_lb_pct)}  ({self.lb_note})",
                   f"zeta           {self.zeta_pct:.3f} %"]
@@ -182,12 +184,14 @@ def make_result(*, bridge, train, status, message, solve, mlm_peak, dim_peak, ml
     :class:`~adm_calib.damping_root.DampingSolve` or ``None``.
     """
     adapted = pk.Peak(found=False) if solve is None else solve.adapted_peak
+    # EN 1991-2 6.4.6.3.1 Eq. (6.13) is written for the span of a simply supported bridge: none on a deck
+    adm = None if bridge.is_continuous and len(bridge.spans_m) > 1 else adm_delta_zeta_pct(bridge.span_m)
     eada, eada_note = eada_for(bridge, train)
     lb, lb_note = lower_bound_for(bridge, train)
     return CalibrationResult(
         bridge=bridge, train_name=train.name, status=status, message=message,
         delta_zeta_vbi=None if solve is None else solve.delta_zeta, mlm_peak=mlm_peak, dim_peak=dim_peak,
-        adapted_peak=adapted, solve=solve, delta_zeta_adm_pct=adm_delta_zeta_pct(bridge.span_m),
+        adapted_peak=adapted, solve=solve, delta_zeta_adm_pct=adm,
         delta_zeta_eada_pct=eada, eada_note=eada_note, delta_zeta_lb_pct=lb, lb_note=lb_note,
         mlm_speeds_kmh=mlm_curve[0], mlm_acc_m_s2=mlm_curve[1], dim_speeds_kmh=np.asarray(dim_curve[0], float),
         dim_acc_m_s2=dim_curve[1], adapted_speeds_kmh=adapted_curve[0], adapted_acc_m_s2=adapted_curve[1],

@@ -198,8 +198,21 @@ def eada_delta_zeta_pct(coach, mass_per_length_kg_m, span_m, n0_hz):
     return 100.0 * mu_1 * r_1 * math.sqrt(r_1**2 + (2.0 * coach.zeta_1) ** 2)
 
 
+#: Why the paper's simplified methods give no value on a continuous deck.
+DECK_NOTE = ("the paper's lower-bound functions (Tables B1-B4) were fitted on simply supported spans "
+             "(Section 3.1), not on continuous decks")
+EADA_DECK_NOTE = "EADA (Eq. 3) is a simply supported span's method: not evaluated on a continuous deck"
+
+
+def _deck_spans(bridge):
+    """The spans of a continuous deck of two or more spans (``spans=A/B``), else None."""
+    return bridge.spans_m if bridge.is_continuous and len(bridge.spans_m) > 1 else None
+
+
 def eada_for(bridge, train):
-    """EADA for a bridge and a train: ``(delta_zeta_pct or None, note)``."""
+    """EADA for a bridge and a train: ``(delta_zeta_pct or None, note)``; None on a continuous deck."""
+    if _deck_spans(bridge):
+        return None, EADA_DECK_NOTE
     key, note = eada_vehicle(train)
     if key is None:
         return None, note
@@ -404,27 +417,7 @@ def recommend(train, n0_hz, mu_t_m, bridge_type, *, span_m=None, interpolate=Fal
         L = check_range("span_m", span_m, "m", *(SPAN_RANGE_M if extrapolate else STUDY_SPAN_RANGE_M))
     names = TYPE_MASS_FUNCTIONS[bridge_type]
     mus = {m: mass_function_t_m(m, L) for m in names}
-    heavy, light = mus[names[0]], mus[names[-1]]
-    tol = ON_FUNCTION_RTOL
-    on = [m for m in names if abs(mu - mus[m]) <= tol * mus[m]]
-    if on:
-        used, weights, rule = (on[0],), (1.0,), f"mu lies on mass function {on[0]}"
-    elif mu > heavy:
-        used, weights, rule = (names[0],), (1.0,), (f"mu above the heaviest {bridge_type.upper()} mass function: "
-                                                    f"nearest function {names[0]} (Section 4.3)")
-    elif mu < light:
-        used, weights, rule = (names[-1],), (1.0,), (f"mu below the lightest {bridge_type.upper()} mass function: "
-                                                     f"nearest function {names[-1]} (Section 4.3)")
-    else:
-        i = next(k for k in range(len(names) - 1) if mus[names[k + 1]] <= mu <= mus[names[k]])
-        up, lo = names[i], names[i + 1]
-        if interpolate:
-            w_up = (mu - mus[lo]) / (mus[up] - mus[lo])
-            used, weights = (up, lo), (w_up, 1.0 - w_up)
-            rule = f"mu between {up} and {lo}: linear interpolation in mu (Section 4.3)"
-        else:
-            used, weights = (up,), (1.0,)
-            rule = f"mu between {up} and {lo}: next heavier function {up}, safe side (Section 4.3)"
+    used, weights, rule = _section_43_rule(mu, mus, names, bridge_type, interpolate)
     if own and any(m not in table for m in used):
         raise InputError(f"functions: {functions} has no lower-bound function {', '.join(m for m in used if m not in table)} "
                          f"for {t} (its study did not run it, or it gave fewer than 4 interval minima); allowed a bridge "
@@ -447,13 +440,42 @@ def recommend(train, n0_hz, mu_t_m, bridge_type, *, span_m=None, interpolate=Fal
                           beyond_root=beyond, explanation=expl, functions=functions)
 
 
+def _section_43_rule(mu, mus, names, bridge_type, interpolate):
+    """The mass functions of Section 4.3 for ``mu`` (t/m) among ``mus`` (t/m at the span, ``names``
+    heavy to light): ``(used, weights, rule)`` - the function ``mu`` lies on (to
+    :data:`ON_FUNCTION_RTOL`), the nearest outside them, else the next heavier (safe side) or the
+    two adjacent ones interpolated linearly in mu."""
+    heavy, light = mus[names[0]], mus[names[-1]]
+    tol = ON_FUNCTION_RTOL
+    on = [m for m in names if abs(mu - mus[m]) <= tol * mus[m]]
+    if on:
+        return (on[0],), (1.0,), f"mu lies on mass function {on[0]}"
+    if mu > heavy:
+        return (names[0],), (1.0,), (f"mu above the heaviest {bridge_type.upper()} mass function: "
+                                     f"nearest function {names[0]} (Section 4.3)")
+    if mu < light:
+        return (names[-1],), (1.0,), (f"mu below the lightest {bridge_type.upper()} mass function: "
+                                      f"nearest function {names[-1]} (Section 4.3)")
+    i = next(k for k in range(len(names) - 1) if mus[names[k + 1]] <= mu <= mus[names[k]])
+    up, lo = names[i], names[i + 1]
+    if interpolate:
+        w_up = (mu - mus[lo]) / (mus[up] - mus[lo])
+        return (up, lo), (w_up, 1.0 - w_up), f"mu between {up} and {lo}: linear interpolation in mu (Section 4.3)"
+    return (up,), (1.0,), f"mu between {up} and {lo}: next heavier function {up}, safe side (Section 4.3)"
+
+
 def lower_bound_for(bridge, train):
     """Lower-bound Δζ for a :class:`~adm_sim.model.bridge.Bridge` and a train (name or ``Train``).
 
     Returns ``(pct or None, note)``.
 
-    Never raises for a valid bridge: outside the validity the value is ``None`` with the reason.
+    Never raises for a valid bridge: outside the validity the value is ``None`` with the reason, also
+    on a continuous deck of two or more spans (:data:`DECK_NOTE`; a deck of one span is the simply
+    supported span).
     """
+    if spans := _deck_spans(bridge):
+        return None, (f"lower bound not defined: a continuous deck of {len(spans)} spans "
+                      f"{'/'.join(f'{x:g}' for x in spans)} m; {DECK_NOTE}")
     if bridge.bridge_type not in TYPE_MASS_FUNCTIONS:
         return None, "lower bound not defined: the bridge type (cfb|sc) is unknown"
     if not isinstance(train, str):
@@ -470,5 +492,5 @@ __all__ = [
     "STUDY_TRAINS", "TYPE_MASS_FUNCTIONS", "MASS_FUNCTIONS", "adm_delta_zeta_pct", "HalfCoach", "half_coach",
     "eada_vehicle", "eada_delta_zeta_pct", "eada_for", "LowerBound", "lower_bound_table", "lower_bound",
     "span_from_frequency_m", "Recommendation", "recommend", "lower_bound_for", "canonical_train_name",
-    "first_root_hz", "lower_bound_pct", "LOWER_LIMIT_HZ", "FIT_RANGE_MAX_HZ",
+    "first_root_hz", "lower_bound_pct", "LOWER_LIMIT_HZ", "FIT_RANGE_MAX_HZ", "DECK_NOTE", "EADA_DECK_NOTE",
 ]

@@ -9,10 +9,10 @@ from dataclasses import replace
 
 import numpy as np
 
-from adm_sim.integrate.sweep import sweep_exact
+from adm_sim.integrate.sweep import run_sweep_compiled, sweep_exact
 
 from adm_calib.calibration_options import DEFAULT_SPEEDS_KMH, CalibrationOptions
-from adm_calib.lanes import Requests
+from adm_calib.lanes import Requests, response_points_m
 
 #: A given speed grid is too coarse when its MLM maximum lies more than this fraction below the
 #: maximum over its own range on the 1 km/h grid (exact MLM envelopes of both).
@@ -217,6 +217,16 @@ def relocate_peaks(lanes, model, phase, speeds, curves, peaks, *, resolution_kmh
     return speeds, curves, peaks
 
 
+def _reference_mlm(bridge, train, speeds_kmh):
+    """MLM maxima (m/s^2) at the governing point on the reference grid: the exact envelope of a simply
+    supported span; on a continuous deck (which has no exact envelope) the compiled RK4 sweep at every
+    span's midspan, the largest (:func:`adm_calib.lanes.response_points_m`)."""
+    if not bridge.is_continuous:
+        return sweep_exact(bridge, train, speeds_kmh)[0].max_acc_m_s2
+    return np.max([run_sweep_compiled(bridge, train, "mlm", speeds_kmh, where=x).max_acc_m_s2
+                   for x in response_points_m(bridge)], axis=0)
+
+
 def speed_grid_finding(bridge, train, speeds_kmh):
     """Whether a given MLM speed grid can show the resonance the calibration matches:
     ``None`` or ``(status, message)``.
@@ -237,7 +247,7 @@ def speed_grid_finding(bridge, train, speeds_kmh):
     on_grid = np.isin(np.round(ref, 9), np.round(v, 9))
     if on_grid.all():
         return None
-    acc = sweep_exact(bridge, train, ref)[0].max_acc_m_s2
+    acc = _reference_mlm(bridge, train, ref)
     a_grid = float(acc[on_grid].max())
     inside = (ref >= v.min()) & (ref <= v.max())
     i_in = np.flatnonzero(inside)[np.argmax(acc[inside])]

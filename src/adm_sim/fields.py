@@ -371,9 +371,9 @@ _FIELDS = [
     _F("n_modes", "-", int, "retained modes (paper: 3, Section 2.3)", "bridge",
        *_toml_spec("n_modes"), _S("ros", "n_modes"), _S("cli", "--modes"), lo=1, hi=20),
     _F("deck_spans_m", "m", str, "spans of a continuous deck, left to right (TOML list; spec 12/16/12); each span",
-       "bridge", *_toml_spec("spans"), lo=1.0, hi=150.0),
+       "bridge", *_toml_spec("spans"), _S("cli", "--deck-spans"), lo=1.0, hi=150.0),
     _F("n_spans", "spans", int, "spans of a continuous deck, pinned over the intermediate supports", "bridge",
-       _S("count", "spans"), lo=1, hi=6),
+       _S("count", "spans"), _S("cli", "--spans-layout"), lo=1, hi=6),
     _F("deck_n_modes", "-", int, "retained modes of a continuous deck (default: every mode up to 30 Hz, 1.5 n0 "
        "or the third, whichever is higher)", "bridge", _S("count", "n_modes"), lo=1, hi=50),
     _F("damping_model", "", str, "Rayleigh anchored at modes 1 and 3, or equal modal damping", "bridge",

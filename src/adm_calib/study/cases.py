@@ -12,7 +12,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from adm_sim.model.bridge import parametric_field
+from adm_sim.model.bridge import Bridge, parametric_field
 from adm_sim.errors import InputError
 from adm_sim.fields import check_range
 from adm_sim.limits import DEFAULT_SPEEDS
@@ -29,6 +29,12 @@ FREQ_INDICES = (1, 2, 3, 4, 5)
 REFINED_SPEED_STEP_KMH = 0.05
 #: Spans of the field (m).
 SPAN_RANGE_M = (4, 40)
+#: Span layouts of a study (``--spans-layout``): 1 = the paper's simply supported spans; N = a
+#: continuous deck of N equal spans of the case's span (:func:`deck_case_bridge`).
+SPANS_LAYOUTS = (1, 2, 3, 4, 5, 6)
+#: Modes of a deck case per span: the deck's first three clusters of N modes (N equal spans), the
+#: counterparts of the three modes the paper keeps on a simply supported span (Section 2.3).
+DECK_MODES_PER_SPAN = 3
 #: Shipped variants of the study trains, studied like their paper train and compared with its
 #: Table B (variant -> paper train): ``Eurostar-table`` is Table A1's PC 2-8 column as printed.
 TRAIN_VARIANTS = {"Eurostar-table": "Eurostar"}
@@ -68,7 +74,10 @@ class StudyCase:
 
     @property
     def batch_key(self):
-        """Cases that share a batch: one train and one (span, frequency) pair, so one space step."""
+        """Cases that share a batch: one train and one (span, frequency) pair, so one space step; a
+        continuous deck's case is a batch of its own (a compiled batch holds one deck)."""
+        if self.bridge.is_continuous:
+            return (self.train, self.span_m, self.freq_index, self.mass_function)
         return (self.train, self.span_m, self.freq_index)
 
     def __repr__(self):
@@ -104,7 +113,7 @@ def canonical_trains(names, field="trains"):
 
 
 def select_cases(trains=STUDY_TRAINS, mass_functions=MASS_FUNCTION_NAMES, spans_m=SPAN_RANGE_M,
-                 freq_indices=FREQ_INDICES, own=()):
+                 freq_indices=FREQ_INDICES, own=(), *, spans_layout=1):
     """The study cases of the field filtered by the arguments, in a fixed order.
 
     Parameters
@@ -120,6 +129,9 @@ def select_cases(trains=STUDY_TRAINS, mass_functions=MASS_FUNCTION_NAMES, spans_
     own : collection of str
         Names in ``trains`` that are trains read from files (:mod:`adm_calib.study.own_train`),
         taken as they are.
+    spans_layout : int
+        1: the paper's simply supported spans; 2..6: a continuous deck of that many equal spans of
+        each case's span (:func:`deck_case_bridge`).
 
     Returns
     -------
@@ -140,12 +152,34 @@ def select_cases(trains=STUDY_TRAINS, mass_functions=MASS_FUNCTION_NAMES, spans_
     for fi in freq_indices:
         if fi not in FREQ_INDICES:
             raise InputError(f"freq_index: {fi!r} is out of range; allowed integer in [1, 5]")
+    layout = check_range("spans_layout", spans_layout, "spans", SPANS_LAYOUTS[0], SPANS_LAYOUTS[-1])
+    if int(layout) != layout:
+        raise InputError(f"spans_layout: {spans_layout!r} is not a whole number of spans; allowed integer in "
+                         f"[{SPANS_LAYOUTS[0]}, {SPANS_LAYOUTS[-1]}]")
     mfs, fis = set(mass_functions), set(freq_indices)
     cases = []
     for L, fi, mf, b in _field():
         if mf in mfs and fi in fis and lo <= L <= hi:
+            b = b if layout == 1 else deck_case_bridge(b, int(layout), fi, mf)
             cases.extend(StudyCase(bridge=b, train=t, mass_function=mf, freq_index=fi, span_m=L) for t in tr)
     return cases
+
+
+def deck_case_bridge(bridge, n_spans, freq_index, mass_function):
+    """The continuous deck of a study case: ``n_spans`` equal spans of the field bridge's span L.
+
+    Every span has the field bridge's mu (Table 1, Eq. 19, at L) and EJ (Eq. 18 with L and the n0 of
+    the Section 3.1.1 power law at L), so the deck's first frequency is that n0 (the first mode of
+    equal spans is the simply supported span's, antisymmetric over the supports) and the field
+    bridge is the simply supported span of equal first frequency and equal mass per length. Damping:
+    Table 2 with L the span (not the deck length), Rayleigh anchored at the deck's modes 1 and 3
+    (:meth:`adm_sim.model.bridge.Bridge.modal_damping_ratios`); modes: ``3 n_spans``
+    (:data:`DECK_MODES_PER_SPAN`). Name ``"2x15-f3-mu2"``.
+    """
+    L = float(bridge.span_m)
+    return Bridge.continuous((L,) * n_spans, bridge.EJ_Nm2, bridge.mass_per_length_kg_m, bridge.damping_ratio,
+                             n_modes=DECK_MODES_PER_SPAN * n_spans, damping_model=bridge.damping_model,
+                             name=f"{n_spans}x{L:g}-f{freq_index}-{mass_function}", bridge_type=bridge.bridge_type)
 
 
 @lru_cache(maxsize=1)
@@ -179,7 +213,9 @@ class StudySettings:
     paper's rules. Settings written by a version without these two read as off.
     ``irregularity`` a track profile spec of :func:`adm_sim.model.irregularity.parse` (e.g.
     ``german-high:seed=3``) applied on the deck of every case (DIM only); empty: smooth track,
-    as the paper (and settings written before it existed).
+    as the paper (and settings written before it existed). ``spans_layout`` the cases' decks
+    (:func:`select_cases`): 1, the paper's simply supported spans (and settings written before it
+    existed); N, continuous decks of N equal spans.
     """
 
     speeds: str = DEFAULT_SPEEDS
@@ -188,6 +224,7 @@ class StudySettings:
     dense_maxima: bool = False
     refine_speed: bool = False
     irregularity: str = ""
+    spans_layout: int = 1
 
     def speeds_kmh(self):
         from adm_sim.integrate.sweep import parse_speeds  # noqa: PLC0415  scipy.signal (peaks) only when a study runs
@@ -221,10 +258,15 @@ class StudySettings:
 
 
 def case_identity(bridge, train, mass_function, freq_index):
-    """The identity fields of a result line (SI except ``mu_t_m`` in t/m and ``zeta_pct`` in %)."""
-    return {
+    """The identity fields of a result line (SI except ``mu_t_m`` in t/m and ``zeta_pct`` in %); a
+    continuous deck's also name its spans, length and mode count (``span_m`` is then its span)."""
+    rec = {
         "bridge": bridge.name, "train": train, "span_m": float(bridge.span_m), "n0_hz": float(bridge.n0_hz),
         "mu_t_m": float(bridge.mass_per_length_kg_m) / 1000.0, "mass_function": mass_function,
         "freq_index": int(freq_index), "bridge_type": bridge.bridge_type,
         "zeta_pct": 100.0 * float(bridge.damping_ratio),
     }
+    if bridge.is_continuous:  # span_m: the span the field's laws were applied to; the deck beside it
+        rec.update({"span_m": float(max(bridge.spans_m)), "spans_m": [float(x) for x in bridge.spans_m],
+                    "deck_length_m": float(bridge.span_m), "n_modes": int(bridge.n_modes)})
+    return rec

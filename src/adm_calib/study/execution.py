@@ -52,7 +52,7 @@ def run_batch(cases, settings=StudySettings(), train=None):
     try:
         train = _train(cases[0].train) if train is None else train
         res = calibrate_batch([c.bridge for c in cases], train, speeds_kmh=settings.speeds_kmh(),
-                              options=settings.calibration_options(cases[0].span_m))
+                              options=settings.calibration_options(cases[0].bridge.span_m))  # the deck's length
         wall = (time.perf_counter() - t0) / len(cases)
         recs = [result_record(c, r, wall) for c, r in zip(cases, res)]
         for rec in recs:
@@ -293,31 +293,10 @@ def run_study(out_dir, cases, *, settings=StudySettings(), workers=2, scheduler=
         check_scheduler(scheduler)  # before the folder exists
     out.mkdir(parents=True, exist_ok=True)
     with _exclusive(out):
-        meta = read_meta(out)
-        old = None if meta is None else {**StudySettings().to_dict(), **(meta.get("settings") or {})}
-        if meta is not None and old != settings.to_dict():
-            new = settings.to_dict()
-            diff = ", ".join(f"{k} {old.get(k)!r} -> {new[k]!r}" for k in new if old.get(k) != new[k])
-            raise InputError(f"settings: the study in {str(out)!r} was computed with other settings ({diff}); "
-                             f"use another --out")
         files = dict(train_files or {})
-        if files or (meta or {}).get("train_files"):
-            from adm_calib.study.own_train import check_resume  # noqa: PLC0415  only for studies of train files
-
-            done = {r["train"] for r in read_results(out / RESULTS_NAME, skip_damaged=True).records}
-            check_resume(meta, done, sorted({c.train for c in cases}), files, out)
-        if meta is None:
-            meta = {"format": META_FORMAT, "created": _now(), "settings": settings.to_dict(), "runs": []}
-        if files:
-            meta.setdefault("train_files", {}).update({n: f.record() for n, f in files.items()})
+        meta = _study_meta(out, settings, cases, files)
         with ResultsWriter(out / RESULTS_NAME, drop_errors=retry_errors) as writer:
-            pending = [c for c in cases if c.key not in writer.records]
-            if limit is not None:
-                pending = pending[:int(limit)]
-            run = StudyRun(out_dir=out, selected=len(cases), already_done=len(cases) - len(
-                [c for c in cases if c.key not in writer.records]), submitted=len(pending),
-                dropped_truncated_line=writer.dropped_truncated, dropped_error_lines=writer.dropped_errors,
-                store_notes=list(writer.notes))
+            run, pending = _pending(out, cases, writer, limit)
             entry = {"started": _now(), "finished": None, "options": dict(options or {}), "versions": versions(),
                      "selected": run.selected, "already_done": run.already_done, "submitted": run.submitted}
             meta["runs"].append(entry)
@@ -336,13 +315,52 @@ def run_study(out_dir, cases, *, settings=StudySettings(), workers=2, scheduler=
             finally:
                 run.wall_s = time.perf_counter() - t0
                 run.completed = writer.appended  # the lines this run wrote, whatever interrupted it
-                entry.update({"finished": _now(), "completed": run.completed, "statuses": dict(run.statuses),
-                              "interrupted": run.interrupted, "wall_s": round(run.wall_s, 3),
-                              "dropped_truncated_line": run.dropped_truncated_line,
-                              "store_notes": run.store_notes,
-                              "dropped_error_lines": run.dropped_error_lines})
+                entry.update(_finished(run))
                 _write_meta(out, meta)
     return run
+
+
+def _pending(out, cases, writer, limit):
+    """``(StudyRun, pending cases)``: the cases not in the results ``writer`` holds, the first ``limit``."""
+    pending = [c for c in cases if c.key not in writer.records]
+    if limit is not None:
+        pending = pending[:int(limit)]
+    run = StudyRun(out_dir=out, selected=len(cases), already_done=len(cases) - len(
+        [c for c in cases if c.key not in writer.records]), submitted=len(pending),
+        dropped_truncated_line=writer.dropped_truncated, dropped_error_lines=writer.dropped_errors,
+        store_notes=list(writer.notes))
+    return run, pending
+
+
+def _finished(run):
+    """The fields of a run's ``study.json`` entry once it ends, whatever ended it."""
+    return {"finished": _now(), "completed": run.completed, "statuses": dict(run.statuses),
+            "interrupted": run.interrupted, "wall_s": round(run.wall_s, 3),
+            "dropped_truncated_line": run.dropped_truncated_line, "store_notes": run.store_notes,
+            "dropped_error_lines": run.dropped_error_lines}
+
+
+def _study_meta(out, settings, cases, files):
+    """``study.json`` of ``out`` for this run (held under the study's lock): the one found, checked
+    against ``settings`` and, for studies of train files, against ``files`` (:func:`check_resume`), or
+    a new one; the train files recorded. Refusals are one line before anything is written."""
+    meta = read_meta(out)
+    old = None if meta is None else {**StudySettings().to_dict(), **(meta.get("settings") or {})}
+    if meta is not None and old != settings.to_dict():
+        new = settings.to_dict()
+        diff = ", ".join(f"{k} {old.get(k)!r} -> {new[k]!r}" for k in new if old.get(k) != new[k])
+        raise InputError(f"settings: the study in {str(out)!r} was computed with other settings ({diff}); "
+                         f"use another --out")
+    if files or (meta or {}).get("train_files"):
+        from adm_calib.study.own_train import check_resume  # noqa: PLC0415  cycle: own_train imports the study package
+
+        done = {r["train"] for r in read_results(out / RESULTS_NAME, skip_damaged=True).records}
+        check_resume(meta, done, sorted({c.train for c in cases}), files, out)
+    if meta is None:
+        meta = {"format": META_FORMAT, "created": _now(), "settings": settings.to_dict(), "runs": []}
+    if files:
+        meta.setdefault("train_files", {}).update({n: f.record() for n, f in files.items()})
+    return meta
 
 
 #: How long a study waits while its scheduler has no worker before it stops (exit 1, resumable).
@@ -403,9 +421,10 @@ def _run_on_dask(pending, settings, writer, run, workers, scheduler, progress, e
         batches = sorted(make_batches(pending), key=lambda b: -b[0].bridge.n0_hz)
         by_future = {}
         for b in batches:
-            L, fi = b[0].batch_key[1:]
+            L, fi = b[0].span_m, b[0].freq_index
+            mf = f"-{b[0].mass_function}" if b[0].bridge.is_continuous else ""  # a deck: a batch of one case
             fut = client.submit(run_batch, b, settings, (trains or {}).get(b[0].train), pure=False,
-                                key=f"batch-{re.sub(r'[^A-Za-z0-9_.-]', '_', b[0].train)}-L{L:g}-f{fi}-{os.getpid()}")
+                                key=f"batch-{re.sub(r'[^A-Za-z0-9_.-]', '_', b[0].train)}-L{L:g}-f{fi}{mf}-{os.getpid()}")
             by_future[fut] = b
             futures.append(fut)
         if progress is not None:

@@ -432,35 +432,50 @@ def comparison_markdown(records, rule=DEFAULT_RULE, edges_hz=INTERVAL_EDGES_HZ, 
     out = [f"Exclusion rule of the fits below: **{rule}**.{rng} Differences are ours minus the paper's lower bound "
            f"(Eq. 20 up to the first root, 0 beyond), in % of critical damping.", ""]
     for t in main.trains:
-        rows = [(m, f) for (tt, m), f in main.fits.items() if tt == t]
-        if not rows:
+        out += _train_tables(main, t)
+    out += _flag_table(main, fits)
+    out += _explained_table(main, fits, records, rule)
+    return "\n".join(out) + "\n"
+
+
+def _train_tables(main, t):
+    """:func:`comparison_markdown`'s lines of one train: the coefficients (ours, paper's) per set, then
+    the differences at :data:`COMPARE_N0_HZ`; none for a train without a fitted set."""
+    rows = [(m, f) for (tt, m), f in main.fits.items() if tt == t]
+    if not rows:
+        return []
+    vs = f" (compared with Table B of {paper_train(t)})" if t in TRAIN_VARIANTS else ""
+    out = [f"**{t}**{vs}", "",
+           "| set | | a | b | c | d | upper limit (Hz) | R² | max res (%) | min res (%) | points |",
+           "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for m, f in rows:
+        c, p = f.fit, f.published
+        if c is not None:
+            out.append(f"| {m} | ours | {_g(c.coefficients[0])} | {_g(c.coefficients[1])} | "
+                       f"{_g(c.coefficients[2])} | {_g(c.coefficients[3])} | {_g(c.upper_limit_hz, '{:.2f}')} | "
+                       f"{c.r2:.3f} | {c.max_res_pct:.4f} | {c.min_res_pct:.4f} | {len(f.minima)} |")
+        if p is not None:
+            out.append(f"| | paper | {_g(p.a)} | {_g(p.b)} | {_g(p.c)} | {_g(p.d)} | {p.upper_limit_hz:.2f} | "
+                       f"{p.r2:.3f} | {p.max_res_pct:.4f} | {p.min_res_pct:.4f} | |")
+    out += ["", "| set | " + " | ".join(f"{x:g} Hz" for x in COMPARE_N0_HZ) + " | max abs |",
+            "|---|" + "---|" * (len(COMPARE_N0_HZ) + 1)]
+    for m, _f in rows:
+        d = main.difference_pct((t, m))
+        if d is None:
             continue
-        vs = f" (compared with Table B of {paper_train(t)})" if t in TRAIN_VARIANTS else ""
-        out += [f"**{t}**{vs}", "",
-                "| set | | a | b | c | d | upper limit (Hz) | R² | max res (%) | min res (%) | points |",
-                "|---|---|---|---|---|---|---|---|---|---|---|"]
-        for m, f in rows:
-            c, p = f.fit, f.published
-            if c is not None:
-                out.append(f"| {m} | ours | {_g(c.coefficients[0])} | {_g(c.coefficients[1])} | "
-                           f"{_g(c.coefficients[2])} | {_g(c.coefficients[3])} | {_g(c.upper_limit_hz, '{:.2f}')} | "
-                           f"{c.r2:.3f} | {c.max_res_pct:.4f} | {c.min_res_pct:.4f} | {len(f.minima)} |")
-            if p is not None:
-                out.append(f"| | paper | {_g(p.a)} | {_g(p.b)} | {_g(p.c)} | {_g(p.d)} | {p.upper_limit_hz:.2f} | "
-                           f"{p.r2:.3f} | {p.max_res_pct:.4f} | {p.min_res_pct:.4f} | |")
-        out += ["", "| set | " + " | ".join(f"{x:g} Hz" for x in COMPARE_N0_HZ) + " | max abs |",
-                "|---|" + "---|" * (len(COMPARE_N0_HZ) + 1)]
-        for m, _f in rows:
-            d = main.difference_pct((t, m))
-            if d is None:
-                continue
-            out.append(f"| {m} | " + " | ".join(f"{x:+.3f}" for x in d) + f" | {np.max(np.abs(d)):.3f} |")
-        out.append("")
-    out += ["Cases per set and what each flag concerns (a case can carry both flags); then the largest "
-            "|ours - paper| over 2.5-13 Hz under each rule:", "",
-            "| set | cases | no dz_VBI | DIM value not a local max | MLM max at range end | "
-            + " | ".join(f"max diff, {r}" for r in EXCLUSION_RULES) + " |",
-            "|---|---|---|---|---|" + "---|" * len(EXCLUSION_RULES)]
+        out.append(f"| {m} | " + " | ".join(f"{x:+.3f}" for x in d) + f" | {np.max(np.abs(d)):.3f} |")
+    out.append("")
+    return out
+
+
+def _flag_table(main, fits):
+    """:func:`comparison_markdown`'s table of the cases per set, its flags and the largest difference
+    under each rule."""
+    out = ["Cases per set and what each flag concerns (a case can carry both flags); then the largest "
+           "|ours - paper| over 2.5-13 Hz under each rule:", "",
+           "| set | cases | no dz_VBI | DIM value not a local max | MLM max at range end | "
+           + " | ".join(f"max diff, {r}" for r in EXCLUSION_RULES) + " |",
+           "|---|---|---|---|---|" + "---|" * len(EXCLUSION_RULES)]
     for t in sorted({k[0] for k in main.flags_by_set}, key=_train_order):
         for m in sorted({k[1] for k in main.flags_by_set if k[0] == t}):
             cnt = main.flags_by_set[(t, m)]
@@ -470,13 +485,19 @@ def comparison_markdown(records, rule=DEFAULT_RULE, edges_hz=INTERVAL_EDGES_HZ, 
                 diffs.append("-" if d is None else f"{np.max(np.abs(d)):.3f}")
             out.append(f"| {t} {m} | {cnt['cases']} | {cnt['no_dz'] + cnt['error']} | {cnt['dim_not_local_max']} | "
                        f"{cnt['mlm_max_at_range_end']} | " + " | ".join(diffs) + " |")
-    out += ["", f"Sets whose lower bound differs from the paper's by more than {EXPLAIN_ABOVE_PCT:g} % anywhere in "
-            f"2.5-13 Hz (rule {rule}): where the difference is largest, our interval minimum nearest to that n0 "
-            "(the data point that carries our fit there) with its flags, and the largest difference under the "
-            "other rules:", "",
-            "| set | max diff (%) | at n0 (Hz) | nearest interval minimum | its dz (%) | MLM peak | MLM max at "
-            "range end | " + " | ".join(f"max diff, {r}" for r in EXCLUSION_RULES if r != rule) + " |",
-            "|---|---|---|---|---|---|---|" + "---|" * (len(EXCLUSION_RULES) - 1)]
+    return out
+
+
+def _explained_table(main, fits, records, rule):
+    """:func:`comparison_markdown`'s table of the sets whose bound differs from the paper's by more
+    than :data:`EXPLAIN_ABOVE_PCT`, with the interval minimum that carries the fit there."""
+    out = ["", f"Sets whose lower bound differs from the paper's by more than {EXPLAIN_ABOVE_PCT:g} % anywhere in "
+           f"2.5-13 Hz (rule {rule}): where the difference is largest, our interval minimum nearest to that n0 "
+           "(the data point that carries our fit there) with its flags, and the largest difference under the "
+           "other rules:", "",
+           "| set | max diff (%) | at n0 (Hz) | nearest interval minimum | its dz (%) | MLM peak | MLM max at "
+           "range end | " + " | ".join(f"max diff, {r}" for r in EXCLUSION_RULES if r != rule) + " |",
+           "|---|---|---|---|---|---|---|" + "---|" * (len(EXCLUSION_RULES) - 1)]
     recs = {record_key(r): r for r in records}
     grid = np.linspace(2.5, 13.0, 106)
     for key, f in main.fits.items():
@@ -498,7 +519,7 @@ def comparison_markdown(records, rule=DEFAULT_RULE, edges_hz=INTERVAL_EDGES_HZ, 
                    f"{pmin.delta_zeta_pct:+.3f} | {pk_.get('acc_m_s2', float('nan')):.2f} m/s² at "
                    f"{pk_.get('speed_kmh', float('nan')):g} km/h | {'yes' if rec.get('mlm_max_at_range_end') else 'no'} | "
                    + " | ".join(others) + " |")
-    return "\n".join(out) + "\n"
+    return out
 
 
 # ====================================================================== Table B range check

@@ -37,7 +37,18 @@ from pathlib import Path
 import numpy as np
 
 from adm_sim.errors import InputError
-from adm_sim.files import input_file
+from adm_sim.files import input_file, read_text
+from adm_sim.integrate.step_grid import StepOptions
+from adm_sim.model.hslm import hslm_name
+from adm_sim.model.parametric import mass_function_t_m
+from adm_sim.model.plausibility import check_train as check_plausible
+from adm_sim.model.trains import G_M_S2, load_train, train_from_mapping, vehicle_file_mapping
+
+from adm_calib.lower_bound import LOWER_LIMIT_HZ
+from adm_calib.recommend_warnings import parse_cases
+from adm_calib.reference import STUDY_TRAINS, LowerBound, lower_bound_table
+from adm_calib.study.cases import MASS_FUNCTION_NAMES, TRAIN_VARIANTS, canonical_trains
+from adm_calib.study.store import read_meta
 
 #: Largest |R(z)| accepted (RK4 amplification of an eigenvalue); 1 up to rounding.
 RK4_GAIN_MAX = 1.0 + 1e-9
@@ -75,7 +86,6 @@ def sha256_hex(data):
 
 def parse_train_text(text, sha256, path, option="--trains"):
     """A :class:`TrainFile` from the text of a train or vehicle file (``path`` names it in messages)."""
-    from adm_sim.model.trains import train_from_mapping  # noqa: PLC0415  numpy models: only when a file is read
 
     where = f"{option}: {str(path)!r}"
     try:
@@ -94,8 +104,6 @@ def parse_train_text(text, sha256, path, option="--trains"):
 
 def read_train_file(text, option="--trains"):
     """Read a train or vehicle file once: SHA-256 of its bytes, parsed, checked (one-line errors)."""
-    from adm_sim.files import read_text  # noqa: PLC0415  beside its use
-    from adm_sim.model.plausibility import check_train as check_plausible  # noqa: PLC0415  as above
 
     p = input_file(text, option, "train or vehicle file")
     try:
@@ -114,8 +122,6 @@ def check_train_name(train, where):
     """The train's name as a study train: printable, at most :data:`NAME_MAX_CHARS` characters, and
     not a paper train's name where the file says it is another paper train (``paper_train``). A
     file named like a paper train is compared with that train's Table B by ``study-fit``."""
-    from adm_calib.study.cases import TRAIN_VARIANTS  # noqa: PLC0415  cycle: cases imports nothing of this
-    from adm_calib.reference import STUDY_TRAINS  # noqa: PLC0415  as above
 
     name = str(train.name)
     if not name.strip() or len(name) > NAME_MAX_CHARS or not name.isprintable() or name != name.strip():
@@ -137,9 +143,7 @@ def study_trains(items, option="--trains"):
     A built-in name (ICE-2, Eurostar, Railjet, ICE-4, the variant Eurostar-table) is taken as such;
     an HSLM-A name is refused (a load train: no vehicles, no DIM); anything else is read as a file.
     """
-    from adm_sim.model.hslm import hslm_name  # noqa: PLC0415  beside its use
 
-    from adm_calib.study.cases import canonical_trains  # noqa: PLC0415  cycle: cases imports nothing of this
 
     names, files = [], {}
     for item in items:
@@ -191,7 +195,6 @@ def vehicle_eigenvalues(matrices):
 def study_step_s(cases, steps_per_period=None):
     """Largest DIM time step (s) of the selected cases: their slowest lane takes ``steps_per_period``
     steps per period of the highest retained bridge mode (:func:`adm_sim.integrate.step_grid.make_grid`)."""
-    from adm_sim.integrate.step_grid import StepOptions  # noqa: PLC0415  beside its use
 
     spp = StepOptions.steps_per_period if steps_per_period is None else float(steps_per_period)
     return max(2.0 * math.pi / float(c.bridge.omega_rad_s[-1]) for c in cases) / spp
@@ -248,7 +251,6 @@ def study_train_files(results_path, option="--results"):
     (the fit would describe a train that is no longer the file's). A file no longer there is fine:
     the study's copy is the train.
     """
-    from adm_calib.study.store import read_meta  # noqa: PLC0415  beside its use
 
     folder = Path(results_path).parent
     meta = read_meta(folder)
@@ -316,7 +318,6 @@ class TrainQuantities:
 def train_quantities(train):
     """:class:`TrainQuantities` of a :class:`adm_sim.model.trains.Train` (train or vehicle file):
     each distinct wheel-carrying body with its Eq. (1) frequency, the vehicle lengths, the mass."""
-    from adm_sim.model.trains import G_M_S2, vehicle_file_mapping  # noqa: PLC0415  beside its use
 
     if not train.vehicle_types:
         raise InputError("train_quantities: give the mapping of a vehicle file (train_quantities_of_mapping)")
@@ -371,7 +372,6 @@ def functions_toml(name, file_record, study_fit, conservative_rows, cases_csv, q
     """The functions file of one train of a file: its least-squares functions (Eq. 20 in the form
     of Appendix B), its conservative bounds, the study's cases (for ``recommend``'s warnings) and
     the SHA-256 of the train file the study ran."""
-    from adm_calib.lower_bound import LOWER_LIMIT_HZ  # noqa: PLC0415  beside its use
 
     hi = study_fit.fit_range_hz[1]
     used = sum(1 for r in study_fit.records_used if r["train"] == name)
@@ -431,11 +431,7 @@ class TrainFunctions:
 
 def read_functions(text, option="--functions"):
     """Read a functions file of :func:`functions_toml` (one-line errors naming ``option`` and the file)."""
-    from adm_sim.files import read_text  # noqa: PLC0415  beside its use
 
-    from adm_calib.recommend_warnings import parse_cases  # noqa: PLC0415  as above
-    from adm_calib.reference import LowerBound  # noqa: PLC0415  as above
-    from adm_calib.study.cases import MASS_FUNCTION_NAMES  # noqa: PLC0415  as above
 
     p = input_file(text, option, "functions file")
     where = f"{option}: {str(text)!r}"
@@ -514,10 +510,7 @@ def trains_comparison_markdown(functions, records, tf, paper_records=None):
     length); the least-squares lower bounds (Eq. 20 as applied) at :data:`COMPARE_N0_HZ` for mu1,
     mu3, mu4, mu6 (the paper's Tables B1-B4 for the four trains); the Δζ_VBI of the studies.
     """
-    from adm_sim.model.parametric import mass_function_t_m  # noqa: PLC0415  beside its use
-    from adm_sim.model.trains import load_train  # noqa: PLC0415  as above
 
-    from adm_calib.reference import STUDY_TRAINS, lower_bound_table  # noqa: PLC0415  as above
 
     L = MASS_RATIO_SPAN_M
     mu1, mu6 = mass_function_t_m("mu1", L) * 1000.0 * L, mass_function_t_m("mu6", L) * 1000.0 * L
