@@ -28,7 +28,7 @@ def main(argv=None):
     from adm_calib.study import select_cases
     from adm_sim.integrate.compiled_batch import BatchRunner
     from adm_sim.model.irregularity import parse
-    from adm_sim.model.trains import load_train
+    from adm_sim.inputs.train_files import load_train
 
     bridges = [c.bridge for c in select_cases(["ICE-2"], ["mu1", "mu2", "mu3", "mu4", "mu5", "mu6"], (20, 20), [3])]
     train = load_train("ICE-2")

@@ -99,7 +99,7 @@ def check_calibration_speeds(text, option):
     """The speeds of a calibration, refused as ``adm-calib calibrate`` refuses them (a speed list
     of at least 3 speeds, each valid): one line naming ``option``."""
     from adm_calib.calibration_options import check_speeds  # noqa: PLC0415  start-up: only on this path (17 ms)
-    from adm_sim.integrate.sweep import parse_speeds  # noqa: PLC0415  start-up: only on this path (55 ms)
+    from adm_sim.inputs.speeds import parse_speeds  # noqa: PLC0415  start-up: only on this path (55 ms)
 
     v = parse_speeds(text, field=option)
     try:
@@ -113,10 +113,10 @@ def launch_param_specs():
     the scripts, so all four nodes are allowed in any of them), and the value checks beyond
     type and range (``(node, name) -> callable``)."""
     from adm_calib.nodes.params import CALIBRATION_SPECS  # noqa: PLC0415  the parameter tables load yaml (~202 ms): pre-flight only
-    from adm_sim.model.bridge import resolve_bridge  # noqa: PLC0415  start-up: only on this path (56 ms)
+    from adm_sim.inputs.bridges import resolve_bridge  # noqa: PLC0415  start-up: only on this path (56 ms)
     from adm_sim.nodes.params import DRIVER_SPECS, TRAIN_SPECS, bridge_specs, param  # noqa: PLC0415  the parameter tables load yaml (~218 ms): pre-flight only
-    from adm_sim.integrate.sweep import parse_speeds  # noqa: PLC0415  start-up: only on this path (55 ms)
-    from adm_sim.model.trains import load_train  # noqa: PLC0415  start-up: only on this path (82 ms)
+    from adm_sim.inputs.speeds import parse_speeds  # noqa: PLC0415  start-up: only on this path (55 ms)
+    from adm_sim.inputs.train_files import load_train  # noqa: PLC0415  start-up: only on this path (82 ms)
 
     # ranges and choices (track_type, damping_model, model, dim_grid) are the specs' own, from the
     # field registry (adm_sim.fields); what is left needs more than one field
@@ -158,10 +158,10 @@ def check_inputs(bridge=None, train=None, speeds=None, params_file=None, model=N
 
     Returns ``{node: {name: value}}`` of the params file.
     """
-    from adm_sim.model.bridge import resolve_bridge  # noqa: PLC0415  start-up: only on this path (56 ms)
+    from adm_sim.inputs.bridges import resolve_bridge  # noqa: PLC0415  start-up: only on this path (56 ms)
     from adm_sim.nodes.params import TRAIN_SPECS, bridge_from_params, bridge_specs, check_params_file, validate_train  # noqa: PLC0415  the parameter tables load yaml (~218 ms): pre-flight only
-    from adm_sim.integrate.sweep import parse_speeds  # noqa: PLC0415  start-up: only on this path (55 ms)
-    from adm_sim.model.trains import load_train  # noqa: PLC0415  start-up: only on this path (82 ms)
+    from adm_sim.inputs.speeds import parse_speeds  # noqa: PLC0415  start-up: only on this path (55 ms)
+    from adm_sim.inputs.train_files import load_train  # noqa: PLC0415  start-up: only on this path (82 ms)
 
     bridge, train, speeds = _given("--bridge", bridge), _given("--train", train), _given("--speeds", speeds)
     if bridge is not None:  # refused first; its warnings come once, with the preset below

@@ -17,7 +17,7 @@ from adm_sim.integrate.step_grid import StepOptions
 from adm_sim.integrate.sweep import run_sweep
 from adm_sim.model import irregularity as irr
 from adm_sim.model.bridge import named_bridge
-from adm_sim.model.trains import load_train
+from adm_sim.inputs.train_files import load_train
 
 
 def test_rough_dim_equals_the_numpy_stepper_on_the_same_profiles():

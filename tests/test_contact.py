@@ -23,7 +23,7 @@ from adm_sim.integrate.step_grid import StepOptions
 from adm_sim.integrate.sweep import run_sweep, run_sweep_compiled
 from adm_sim.model import irregularity as ir
 from adm_sim.model.bridge import named_bridge
-from adm_sim.model.trains import load_train
+from adm_sim.inputs.train_files import load_train
 
 COARSE = StepOptions(steps_per_period=8.0)
 JOINT = "joint:at=7:length=1:depth=0.002"  # a 2 mm dip over 1 m: legal (slope 0.0063, curvature 0.045 1/m)

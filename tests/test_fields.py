@@ -186,7 +186,7 @@ def test_launch_script_domain_id_help_and_check_from_the_registry():
 # ---------------------------------------------------------------- one field, three surfaces
 def test_span_out_of_range_same_message_from_toml_cli_and_ros(tmp_path, capsys):
     """span = 200 m as a TOML key, in a --bridge spec on the command line, and as a ROS parameter."""
-    from adm_sim.model.bridge import load_bridge_file
+    from adm_sim.inputs.bridges import load_bridge_file
     from adm_sim.cli.sim_commands import main
 
     toml = tmp_path / "b.toml"
@@ -229,7 +229,7 @@ def test_steps_per_period_same_message_from_cli_ros_and_core(capsys):
 def test_damping_in_percent_and_as_fraction_are_one_field(tmp_path, capsys):
     """zeta_pct = 25 (TOML, %) and the bridge node's zeta_pct; zeta = 0.25 (TOML, fraction): the
     same bound, 20 % = 0.2, converted by the one table."""
-    from adm_sim.model.bridge import load_bridge_file
+    from adm_sim.inputs.bridges import load_bridge_file
 
     pct, frac = tmp_path / "p.toml", tmp_path / "f.toml"
     pct.write_text("L = 15.0\nn0 = 8.0\nmu = 10000.0\nzeta_pct = 25.0\n")

@@ -12,7 +12,7 @@ from adm_sim.integrate.compiled_batch import BatchRunner
 from adm_sim.errors import InputError
 from adm_sim.integrate.step_grid import StepOptions, make_grid, speeds_to_m_s
 from adm_sim.integrate.sweep import run_sweep
-from adm_sim.model.trains import load_train, train_from_mapping
+from adm_sim.inputs.train_files import load_train, train_from_mapping
 
 
 # ---------------------------------------------------------------------- coefficients (sources: docs/irregularities.md)

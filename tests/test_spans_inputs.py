@@ -9,10 +9,11 @@ import numpy as np
 import pytest
 
 from adm_sim.cli.sim_commands import main
-from adm_sim.model.bridge import Bridge, TABLE3, load_bridge_file, named_bridge, parse_bridge_spec, resolve_bridge
+from adm_sim.model.bridge import Bridge, TABLE3, named_bridge
+from adm_sim.inputs.bridges import load_bridge_file, parse_bridge_spec, resolve_bridge
 from adm_sim.integrate.sweep import run_sweep_compiled
 from adm_sim.model.spans import deck_modes
-from adm_sim.model.trains import load_train
+from adm_sim.inputs.train_files import load_train
 
 GOOD = "spans=12/16/12,EJ=2e10,mu=15000/18000/15000,zeta_pct=1.5"
 

@@ -33,8 +33,9 @@ from scipy.integrate import solve_ivp
 
 from adm_sim.model.bridge import Bridge, named_bridge
 from adm_sim.errors import InputError
+from adm_sim.fields import AXLE_LOAD_REL_TOL
 from adm_sim.integrate.sweep import run_sweep, run_sweep_compiled
-from adm_sim.model.trains import load_train, train_from_mapping, vehicle_file_mapping
+from adm_sim.inputs.train_files import load_train, train_from_mapping, vehicle_file_mapping
 from adm_sim.model.vehicles import to_toml
 
 PAPER = {"ICE-2": "ice2", "Eurostar": "eurostar", "Railjet": "railjet", "ICE-4": "ice4"}
@@ -106,15 +107,15 @@ def test_table4_delta_zeta_vbi_unchanged_on_b1():
 
 
 def test_vehicle_file_runs_through_load_train_and_the_checks(tmp_path):
-    """``--train file.toml`` takes a vehicle file (load_train -> train_from_mapping); check_train
+    """``--train file.toml`` takes a vehicle file (load_train -> train_from_mapping); consistency_rows
     skips its units (their loads are checked against statics when loaded)."""
     p = tmp_path / "my_vehicle_train.toml"
     p.write_text(_shipped("railjet").read_text())
     t = load_train(str(p))
     assert t.n_axles == load_train("Railjet").n_axles
-    from adm_sim.model.trains import check_train
+    from adm_sim.model.trains import consistency_rows
 
-    assert all(r.item.startswith("n_p") for r in check_train(t))
+    assert all(r.item.startswith("n_p") for r in consistency_rows(t, rel_tol=AXLE_LOAD_REL_TOL))
 
 
 # ---------------------------------------------------------------------- sprung mass benchmarks

@@ -92,14 +92,14 @@ def _steps_per_period(text):
 
 
 def _speeds(text):
-    from adm_sim.integrate.sweep import parse_speeds  # noqa: PLC0415  start-up: only this subcommand (60 ms)
+    from adm_sim.inputs.speeds import parse_speeds  # noqa: PLC0415  start-up: only this subcommand (60 ms)
 
     return parse_speeds(text, field="--speeds")
 
 
 def cmd_calibrate(args):
-    from adm_sim.model.bridge import resolve_bridge  # noqa: PLC0415  start-up: only this subcommand (16 ms)
-    from adm_sim.model.trains import load_train  # noqa: PLC0415  start-up: only this subcommand (47 ms)
+    from adm_sim.inputs.bridges import resolve_bridge  # noqa: PLC0415  start-up: only this subcommand (16 ms)
+    from adm_sim.inputs.train_files import load_train  # noqa: PLC0415  start-up: only this subcommand (47 ms)
 
     from adm_calib.calibrate import calibrate  # noqa: PLC0415  scipy (~1.3 s): only this subcommand
 
@@ -148,7 +148,7 @@ def _check_plausible(res):
 
 def cmd_table4(args):
     from adm_sim.model.bridge import named_bridge  # noqa: PLC0415  start-up: only this subcommand (16 ms)
-    from adm_sim.model.trains import load_train  # noqa: PLC0415  start-up: only this subcommand (47 ms)
+    from adm_sim.inputs.train_files import load_train  # noqa: PLC0415  start-up: only this subcommand (47 ms)
 
     from adm_calib.plots import plot_total_damping  # noqa: PLC0415  start-up: only this subcommand (239 ms)
     from adm_calib.table4 import run_table4  # noqa: PLC0415  scipy (~1.2 s): only this subcommand
@@ -336,7 +336,7 @@ def verify_recommendation(rec, mu_kg_m, zeta_pct=None, speeds=None, speeds_text=
     recommendation) under its train (:func:`adm_calib.recommend_verify.verify`). A range whose
     calibration finds no resonance is refused (one line naming ``option``)."""
     from adm_sim.model.bridge import Bridge  # noqa: PLC0415  start-up: only this subcommand (16 ms)
-    from adm_sim.model.trains import load_train  # noqa: PLC0415  start-up: only this subcommand (47 ms)
+    from adm_sim.inputs.train_files import load_train  # noqa: PLC0415  start-up: only this subcommand (47 ms)
 
     from adm_calib.recommend_verify import verify  # noqa: PLC0415  start-up: only with --verify
 

@@ -18,7 +18,7 @@ from adm_sim.fields import check_range
 from adm_sim.limits import DEFAULT_SPEEDS
 from adm_sim.model.parametric import FIELD_SPANS_M, MASS_FUNCTIONS
 from adm_sim.integrate.step_grid import StepOptions
-from adm_sim.model.trains import load_train
+from adm_sim.inputs.train_files import load_train
 
 from adm_calib.lower_bound import FIT_RANGE_MAX_HZ, LOWER_LIMIT_HZ  # noqa: F401  (re-exported for the study package)
 from adm_calib.reference import STUDY_TRAINS, canonical_train_name
@@ -190,7 +190,7 @@ class StudySettings:
     irregularity: str = ""
 
     def speeds_kmh(self):
-        from adm_sim.integrate.sweep import parse_speeds  # noqa: PLC0415  scipy.signal (peaks) only when a study runs
+        from adm_sim.inputs.speeds import parse_speeds  # noqa: PLC0415  scipy.signal (peaks) only when a study runs
 
         return parse_speeds(self.speeds)
 

@@ -75,7 +75,7 @@ def sha256_hex(data):
 
 def parse_train_text(text, sha256, path, option="--trains"):
     """A :class:`TrainFile` from the text of a train or vehicle file (``path`` names it in messages)."""
-    from adm_sim.model.trains import train_from_mapping  # noqa: PLC0415  numpy models: only when a file is read
+    from adm_sim.inputs.train_files import train_from_mapping  # noqa: PLC0415  numpy models: only when a file is read
 
     where = f"{option}: {str(path)!r}"
     try:
@@ -95,7 +95,7 @@ def parse_train_text(text, sha256, path, option="--trains"):
 def read_train_file(text, option="--trains"):
     """Read a train or vehicle file once: SHA-256 of its bytes, parsed, checked (one-line errors)."""
     from adm_sim.files import read_text  # noqa: PLC0415  beside its use
-    from adm_sim.model.plausibility import check_train as check_plausible  # noqa: PLC0415  as above
+    from adm_sim.model.plausibility import warn_implausible_train  # noqa: PLC0415  as above
 
     p = input_file(text, option, "train or vehicle file")
     try:
@@ -104,7 +104,7 @@ def read_train_file(text, option="--trains"):
         raise InputError(f"{option}: {str(text)!r}: cannot read ({exc.strerror})") from None
     body = read_text(p, f"{option}: train file")  # UTF-8 (a byte order mark dropped), one line if not
     tf = parse_train_text(body, sha256_hex(data), text, option)
-    check_plausible(tf.train, source=f"train file {p.name}")  # warnings, not refusals
+    warn_implausible_train(tf.train, source=f"train file {p.name}")  # warnings, not refusals
     if not tf.train.units:
         raise InputError(f"{option}: {str(text)!r}: train {tf.name!r} has no vehicles; the DIM cannot run it")
     return tf
@@ -316,7 +316,8 @@ class TrainQuantities:
 def train_quantities(train):
     """:class:`TrainQuantities` of a :class:`adm_sim.model.trains.Train` (train or vehicle file):
     each distinct wheel-carrying body with its Eq. (1) frequency, the vehicle lengths, the mass."""
-    from adm_sim.model.trains import G_M_S2, vehicle_file_mapping  # noqa: PLC0415  beside its use
+    from adm_sim.model.trains import G_M_S2  # noqa: PLC0415  beside its use
+    from adm_sim.inputs.train_files import vehicle_file_mapping  # noqa: PLC0415  beside its use
 
     if not train.vehicle_types:
         raise InputError("train_quantities: give the mapping of a vehicle file (train_quantities_of_mapping)")
@@ -515,7 +516,7 @@ def trains_comparison_markdown(functions, records, tf, paper_records=None):
     mu3, mu4, mu6 (the paper's Tables B1-B4 for the four trains); the Δζ_VBI of the studies.
     """
     from adm_sim.model.parametric import mass_function_t_m  # noqa: PLC0415  beside its use
-    from adm_sim.model.trains import load_train  # noqa: PLC0415  as above
+    from adm_sim.inputs.train_files import load_train  # noqa: PLC0415  as above
 
     from adm_calib.reference import STUDY_TRAINS, lower_bound_table  # noqa: PLC0415  as above
 

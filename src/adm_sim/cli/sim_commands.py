@@ -56,10 +56,11 @@ def _sweep_modes(bridge, modes, damping_model):
 
 
 def cmd_sweep(args):
-    from adm_sim.model.bridge import resolve_bridge  # noqa: PLC0415  start-up: only this subcommand (20 ms)
+    from adm_sim.inputs.bridges import resolve_bridge  # noqa: PLC0415  start-up: only this subcommand (20 ms)
     from adm_sim.integrate.step_grid import StepOptions  # noqa: PLC0415  start-up: only this subcommand (6 ms)
-    from adm_sim.integrate.sweep import parse_speeds, run_sweep, run_sweep_compiled, sweep_exact  # noqa: PLC0415  start-up: only this subcommand (52 ms)
-    from adm_sim.model.trains import load_train  # noqa: PLC0415  start-up: only this subcommand (58 ms)
+    from adm_sim.integrate.sweep import run_sweep, run_sweep_compiled, sweep_exact  # noqa: PLC0415  start-up: only this subcommand (52 ms)
+    from adm_sim.inputs.speeds import parse_speeds  # noqa: PLC0415  start-up: only this subcommand (52 ms)
+    from adm_sim.inputs.train_files import load_train  # noqa: PLC0415  start-up: only this subcommand (58 ms)
     from adm_sim.model.plausibility import check_response  # noqa: PLC0415  start-up: only this subcommand (7 ms)
 
     inputs = {"--train": args.train, "--bridge": args.bridge}
@@ -211,7 +212,7 @@ def cmd_check(args, damping_provider=None):
     """EN 1991-2 dynamic check (:mod:`adm_sim.design.check`). ``--damping none|adm`` are the core's;
     ``lb|vbi`` need adm-calib's ``damping_provider`` (``adm-calib check`` passes it) and are refused
     here, before any work, without one. The core never imports adm_calib."""
-    from adm_sim.model.bridge import resolve_bridge  # noqa: PLC0415  start-up: only this subcommand (20 ms)
+    from adm_sim.inputs.bridges import resolve_bridge  # noqa: PLC0415  start-up: only this subcommand (20 ms)
     from adm_sim.design.check import CALIB_DAMPING_METHODS, DAMPING_MODELS, calib_methods_refusal, resolve_trains, run_check  # noqa: PLC0415  start-up: only this subcommand (114 ms)
     from adm_sim.design.check_text import summary as check_summary  # noqa: PLC0415  start-up: only this subcommand (138 ms)
 
@@ -243,7 +244,7 @@ def cmd_check(args, damping_provider=None):
                            f"write --report X.html and print it to PDF from a browser")
     tables = _check_tables(args, inputs)
     if isinstance(bridge_spec, dict):
-        from adm_sim.model.bridge import bridge_from_mapping  # noqa: PLC0415  start-up: only with a job file
+        from adm_sim.inputs.bridges import bridge_from_mapping  # noqa: PLC0415  start-up: only with a job file
 
         bridge = bridge_from_mapping(bridge_spec, source=f"--job {job.path}: [bridge]")
     else:
@@ -356,7 +357,9 @@ def _check_plausible(res):
 
 
 def cmd_trains(args):
-    from adm_sim.model.trains import TRAIN_NAMES, check_train, load_train  # noqa: PLC0415  start-up: only this subcommand (58 ms)
+    from adm_sim.fields import AXLE_LOAD_REL_TOL  # noqa: PLC0415  start-up: only this subcommand (58 ms)
+    from adm_sim.model.trains import TRAIN_NAMES, consistency_rows  # noqa: PLC0415  start-up: only this subcommand (58 ms)
+    from adm_sim.inputs.train_files import load_train  # noqa: PLC0415  start-up: only this subcommand (58 ms)
 
     if args.train is not None and not args.train.strip():
         raise InputError("--train: '' is empty; give a train name or a TOML train file (or omit --train for all)")
@@ -368,7 +371,7 @@ def cmd_trains(args):
         if t.description:
             print(f"  {t.description}")
         if args.check:
-            for r in check_train(t):
+            for r in consistency_rows(t, rel_tol=AXLE_LOAD_REL_TOL):
                 flag = "ok " if r.ok else "MISMATCH"
                 print(f"  {flag:8s} {r.item:42s} table {r.table_value:9.3f} {r.unit:3s} "
                       f"computed {r.computed_value:9.3f} {r.unit:3s}  ({r.note})")

@@ -7,13 +7,12 @@ RK4 stage), so a co-simulation reproduces these numbers bit for bit.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from adm_sim.errors import InputError, RunError
-from adm_sim.fields import check_count, check_delta_zeta_pct
+from adm_sim.fields import check_delta_zeta_pct
 from adm_sim.integrate.contact import CONTACT_LOST, CONTACT_OK
 from adm_sim.limits import check_memory
 from adm_sim.integrate.peaks import largest_interior_peak
@@ -21,49 +20,9 @@ from adm_sim.integrate.lockstep_runs import InProcessRun
 from adm_sim.integrate.mlm_loads import mlm_modal_load_table
 from adm_sim.integrate.rk4_sides import BridgeSide, TrainSide
 from adm_sim.integrate.run_contract import FAILED, RUNNING, check_model
-from adm_sim.integrate.step_grid import SPEED_RANGE_KMH, StepOptions, make_grid, speeds_to_m_s
+from adm_sim.integrate.step_grid import StepOptions, make_grid, speeds_to_m_s
 
 MAX_HISTORY_VALUES = 300_000_000
-
-
-def parse_speeds(text, ordered=True, field="speeds_kmh"):
-    """Speeds (km/h) from ``"160:350:1"`` (start:stop:step, stop included) or ``"200,250"``.
-
-    Every number must be finite; each speed lies in [1, 600] km/h. With ``ordered`` (every user
-    input) a comma list must increase strictly, because a peak over speed is only meaningful on an
-    ordered grid; lanes of a run (the train node's ``speeds_kmh``, e.g. a damping ladder that
-    repeats its speeds) take ``ordered=False``. ``field`` names the input in messages (the ROS
-    nodes pass their parameter name ``speeds_kmh``).
-    """
-    text = str(text).strip()
-    if ":" in text and "," in text:
-        raise InputError(f"{field}: {text!r} mixes ':' and ','; give start:stop:step or a comma list (km/h)", field=field)
-    try:
-        parts = [float(p) for p in text.replace(":", ",").split(",") if p.strip()]
-    except ValueError:
-        parts = None
-    if not parts or (":" in text and len(parts) not in (2, 3)):
-        raise InputError(f"{field}: {text!r} is not start:stop:step or a comma list (km/h)", field=field)
-    bad = [p for p in parts if not math.isfinite(p)]
-    if bad:
-        raise InputError(f"{field}: {text!r} holds {bad[0]!r}; every speed and step must be a finite number (km/h)", field=field)
-    if ":" in text:
-        a, b, st = parts if len(parts) == 3 else parts + [1.0]
-        if st <= 0 or b < a:
-            raise InputError(f"{field}: {text!r} needs start <= stop and step > 0 (km/h)", field=field)
-        n = int(math.floor((b - a) / st + 1e-9)) + 1
-        check_count("n_speeds" if ordered else "n_lanes", n, field, repr(text))  # before any array
-        v = a + st * np.arange(n)
-    else:
-        check_count("n_speeds" if ordered else "n_lanes", len(parts), field, repr(text))
-        v = np.array(parts)
-        if ordered and np.any(np.diff(v) <= 0):
-            raise InputError(f"{field}: {text!r} must increase strictly (km/h), e.g. 200,250,263", field=field)
-    lo, hi = SPEED_RANGE_KMH
-    out = v[(v < lo) | (v > hi)]
-    if out.size:
-        raise InputError(f"{field}: {text!r} gives {out[0]:g} km/h; allowed speeds in [{lo:g}, {hi:g}] km/h", field=field)
-    return v
 
 
 @dataclass(frozen=True, repr=False)

@@ -33,7 +33,8 @@ from rcl_interfaces.msg import ParameterDescriptor
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64MultiArray, String
 
-from adm_sim.model.bridge import Bridge, resolve_bridge
+from adm_sim.model.bridge import Bridge
+from adm_sim.inputs.bridges import resolve_bridge
 from adm_sim import protocol as P
 from adm_sim.errors import InputError
 from adm_sim.limits import ACC_LIMITS_M_S2, TRACK_TYPES
