@@ -487,5 +487,5 @@ def test_the_delta_zeta_sign_rule_has_one_text(capsys):
 
     with pytest.raises(InputError) as err:  # refused before any kernel is compiled
         moving_load_envelope(named_bridge("B1").with_damping(0.0), [0.0], [1e5], [200.0])
-    assert str(err.value) == ("delta_zeta_pct: zeta + delta_zeta = 0 %; the exact envelope needs damping > 0 % "
-                              "(allowed delta_zeta_pct > 0 %)")
+    assert str(err.value) == ("delta_zeta: zeta + delta_zeta = 0 %; the exact envelope needs damping > 0 % "
+                              "(allowed delta_zeta > 0 - (fraction))")  # the library's own name and unit

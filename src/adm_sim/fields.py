@@ -607,8 +607,18 @@ def check_count(name, n, where, given):
     return n
 
 
-def check_delta_zeta(field, value, damping_ratio, *, pct=False, positive_for=None, remedy=""):
-    """``float(value)``, an additional damping Δζ (a fraction; in % with ``pct``), or
+def delta_zeta_view(name):
+    """The :class:`View` of the additional damping Δζ as a caller names it: a spelling of field
+    ``delta_zeta`` (``--delta-zeta-pct`` in %, the ROS parameters ``delta_zeta`` and
+    ``delta_zeta_lanes`` as fractions), else the core's own (a fraction, library argument ``delta_zeta``)."""
+    f = FIELDS["delta_zeta"]
+    hits = [s for s in f.spellings if s.key == name]
+    return View(f, hits[0]) if hits else f.view()
+
+
+def check_delta_zeta(field, value, damping_ratio, *, pct=None, positive_for=None, remedy=""):
+    """``float(value)``, an additional damping Δζ in the unit of ``field`` (:func:`delta_zeta_view`:
+    ``--delta-zeta-pct`` in %, anything else a fraction; ``pct`` forces % or a fraction), or
     :class:`InputError` naming ``field``: the one check of the Δζ sign rule.
 
     Δζ lies in the registry's ``[-ζ, 0.2]`` (``[-100 ζ, 20] %``): total damping ζ + Δζ >= 0.
@@ -617,7 +627,10 @@ def check_delta_zeta(field, value, damping_ratio, *, pct=False, positive_for=Non
     ``<field>: zeta + delta_zeta = 0 %; <positive_for> needs damping > 0 % (allowed <field> > -1.85 %<remedy>)``.
     ``damping_ratio`` is the bridge's ζ (fraction).
     """
-    v = view("cli", "--delta-zeta-pct") if pct else FIELDS["delta_zeta"].view()
+    if pct is None:
+        v = delta_zeta_view(field)
+    else:
+        v = view("cli", "--delta-zeta-pct") if pct else FIELDS["delta_zeta"].view()
     x = v.check(value, name=field, lo_core=-damping_ratio)
     total = damping_ratio + v.to_core(x)
     if positive_for is not None and total <= 0.0:
@@ -631,7 +644,18 @@ def check_delta_zeta_pct(field, value_pct, damping_ratio, **kw):
     return check_delta_zeta(field, value_pct, damping_ratio, pct=True, **kw)
 
 
+def check_delta_zeta_fraction(name, delta_zeta, damping_ratio, **kw):
+    """A Δζ given as a fraction (the core's unit) checked as the caller names it (``name``): in % for
+    ``--delta-zeta-pct`` (``0.5`` is refused as ``50 %``), a fraction for ``delta_zeta``
+    (:func:`delta_zeta_view`). Returns ``delta_zeta`` itself (no unit round trip), keywords as
+    :func:`check_delta_zeta`. The one check of a sweep's Δζ (:func:`adm_sim.integrate.sweep.lane_damping`)."""
+    v = delta_zeta_view(name)
+    check_delta_zeta(name, v.from_core(delta_zeta), damping_ratio, **kw)
+    return delta_zeta
+
+
 __all__ = ["check_range", "check_number", "check_int", "check_choice", "check_count", "check_delta_zeta", "check_delta_zeta_pct",
+           "check_delta_zeta_fraction", "delta_zeta_view",
            "SCALES", "SURFACES", "Spelling", "Field", "View", "FIELDS", "GROUPS", "VEHICLE_FIELDS",
            "VEHICLE_OPTIONAL", "TRAIN_FILE_KEYS", "COMPOSITION_KEYS", "VEHICLE_KEYS", "VEHICLE_TABLE_KEYS",
            "AXLE_LOAD_REL_TOL", "view", "spellings", "core", "argument_flag"]

@@ -8,6 +8,7 @@ another reason (e.g. an integration that became unstable) with 1, an interrupt w
 from __future__ import annotations
 
 import json
+import math
 import sys
 import time
 from pathlib import Path
@@ -17,7 +18,7 @@ from adm_sim.cliutil import (Parser, add_choice, add_delta_zeta_pct, add_max_wor
                              progress_callback)
 from adm_sim.errors import InputError
 from adm_sim.cliutil import run_cli
-from adm_sim.fields import FIELDS, check_delta_zeta_pct
+from adm_sim.fields import FIELDS
 from adm_sim.files import OutputSet, claim_output, mcap_input
 from adm_sim.inputs.measured import add_measured_argument
 from adm_sim.cli.figures import plot_check, plot_sweep
@@ -55,10 +56,28 @@ def _sweep_modes(bridge, modes, damping_model):
     return dataclasses.replace(bridge, **kw) if kw else bridge
 
 
+#: The option of the additional damping (%); a bad value is refused naming it, in %.
+DZ_OPTION = "--delta-zeta-pct"
+
+
+def _delta_zeta_option(text, bridge):
+    """``--delta-zeta-pct`` as a fraction (the core's unit). Only a value that is no finite number is
+    refused here (naming the option and its range); the range is checked once, by the sweep's own check
+    (:func:`adm_sim.integrate.sweep.lane_damping`) before the sweep prints, in %."""
+    v = option_view(DZ_OPTION)
+    try:
+        x = float(text)
+    except (TypeError, ValueError):
+        x = math.nan
+    if not math.isfinite(x):
+        v.check(text, lo_core=-bridge.damping_ratio)  # raises the option's one line
+    return v.to_core(x)
+
+
 def cmd_sweep(args):
     from adm_sim.inputs.bridges import resolve_bridge  # noqa: PLC0415  start-up: only this subcommand (20 ms)
     from adm_sim.integrate.step_grid import StepOptions  # noqa: PLC0415  start-up: only this subcommand (6 ms)
-    from adm_sim.integrate.sweep import run_sweep, run_sweep_compiled, sweep_exact  # noqa: PLC0415  start-up: only this subcommand (52 ms)
+    from adm_sim.integrate.sweep import lane_damping, run_sweep, run_sweep_compiled, sweep_exact  # noqa: PLC0415  start-up: only this subcommand (52 ms)
     from adm_sim.inputs.speeds import parse_speeds  # noqa: PLC0415  start-up: only this subcommand (52 ms)
     from adm_sim.inputs.train_files import load_train  # noqa: PLC0415  start-up: only this subcommand (58 ms)
     from adm_sim.model.plausibility import check_response  # noqa: PLC0415  start-up: only this subcommand (7 ms)
@@ -71,8 +90,7 @@ def cmd_sweep(args):
     bridge = _sweep_modes(resolve_bridge(args.bridge, continuous=True), args.modes, args.damping_model)
     train = load_train(args.train)
     speeds = parse_speeds(args.speeds, field="--speeds")
-    dz_pct = option_view("--delta-zeta-pct")  # % on the command line, a fraction in the core
-    dz = dz_pct.to_core(dz_pct.check(args.delta_zeta_pct, lo_core=-bridge.damping_ratio))  # dz >= -zeta
+    dz = _delta_zeta_option(args.delta_zeta_pct, bridge)  # its range: lane_damping below
     profile = None
     if args.irregularity:
         if args.model != "dim":
@@ -100,9 +118,8 @@ def cmd_sweep(args):
     if method == "exact" and bridge.damping_ratio + dz <= 0.0 and dz == 0.0:  # the bridge's own damping is 0
         raise InputError(f"--bridge: {args.bridge!r} has zeta_pct = 0 % (damping ratio zeta); the exact MLM envelope "
                          f"needs damping > 0 % (give zeta_pct > 0 in the bridge, --delta-zeta-pct > 0, or --method rk4)")
-    if method == "exact":
-        check_delta_zeta_pct("--delta-zeta-pct", args.delta_zeta_pct, bridge.damping_ratio,
-                             positive_for="the exact MLM envelope", remedy=", or --method rk4")
+    exact = dict(positive_for="the exact MLM envelope", remedy=", or --method rk4") if method == "exact" else {}
+    lane_damping(bridge, dz, (), DZ_OPTION, **exact)  # the one check of Δζ, as typed (%), before any output
     print(bridge.describe())
     print(train.describe())
     zeta = bridge.modal_damping_ratios(dz)
@@ -116,13 +133,13 @@ def cmd_sweep(args):
     t0 = time.perf_counter()
     try:
         if method == "exact":
-            res, env = sweep_exact(bridge, train, speeds, delta_zeta=dz, where=where)
+            res, env = sweep_exact(bridge, train, speeds, delta_zeta=dz, where=where, delta_zeta_name=None)
         elif backend == "compiled":
             res, env = run_sweep_compiled(bridge, train, args.model, speeds, delta_zeta=dz, options=opts, progress=cb,
-                                          where=where), None
+                                          where=where, delta_zeta_name=None), None
         else:
             res, env = run_sweep(bridge, train, args.model, speeds, delta_zeta=dz, options=opts, progress=cb,
-                                 where=where), None
+                                 where=where, delta_zeta_name=None), None
     finally:
         close()
     wall = time.perf_counter() - t0
