@@ -103,7 +103,7 @@ def test_every_ros_parameter_with_a_range_is_its_registry_field():
             assert (s.lo, s.hi) == (v.lo, v.hi), s.name
             assert type(s.default) is v.field.type, s.name
     # what stays outside: paths, switches and URLs of the driver (no range, no unit), and the train
-    # node's track profile spec (checked by adm_sim.model.irregularity.parse)
+    # node's track profile spec (checked by adm_sim.inputs.track_profile.parse_irregularity)
     assert sorted(outside) == ["irregularity", "overwrite", "record_path", "rerun_connect", "rerun_spawn", "rrd_path",
                               "run_phase", "summary_path"]
 

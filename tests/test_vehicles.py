@@ -240,14 +240,14 @@ def test_sprung_mass_vbi2d_ramp(case, c_v, peak_mm, hist_tol):
     output (Newmark at 1 ms, 100 modes): peak within 2e-3 (measured 3.9e-4, 1.3e-3) and the samples
     every 0.1 s within 1 % of the peak (measured 0.17 %, 0.50 %): the shipped solution's own time
     step, as its Newmark scheme at 0.1 ms moves onto this reference (docs/vehicles.md)."""
-    from adm_sim.model.irregularity import parse
+    from adm_sim.inputs.track_profile import parse_irregularity
     from adm_sim.integrate.step_grid import StepOptions
 
     L, EI, m, v = 25.0, 3.5e10 * 1.3901, 18358.0, 25.0
     br = Bridge(span_m=L, EJ_Nm2=EI, mass_per_length_kg_m=m, damping_ratio=0.0, n_modes=N_MODES,
                 damping_model="modal")
     tr = sprung_mass_train(5750.0, 1595e3, c_v)
-    prof = parse(f"ramp:at={L / 3!r}:length={L / 6!r}:height=0.01", L)
+    prof = parse_irregularity(f"ramp:at={L / 3!r}:length={L / 6!r}:height=0.01", L)
     ts, ref = sprung_mass_reference(L, EI, m, 5750.0, 1595e3, c_v, v, N_MODES, ramp=(L / 3, L / 6, 0.01))
     r = run_sweep(br, tr, "dim", [3.6 * v], histories=True, options=StepOptions(irregularity=prof))
     on = r.time_s[0] <= L / v

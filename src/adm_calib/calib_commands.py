@@ -472,10 +472,10 @@ def cmd_study(args):
     spp = None if args.steps_per_period is None else _steps_per_period(args.steps_per_period)
     _speeds(args.speeds)
     if args.irregularity:
-        from adm_sim.model.irregularity import parse  # noqa: PLC0415  scipy.interpolate only for rough-track studies
+        from adm_sim.inputs.track_profile import parse_irregularity  # noqa: PLC0415  scipy.interpolate only for rough-track studies
 
         for span in (4.0, 40.0):  # bad input (spectrum, class, band, file, slope, curvature) refused before
-            parse(args.irregularity, span)  # anything is written (every selected span below)
+            parse_irregularity(args.irregularity, span)  # anything is written (every selected span below)
     settings = StudySettings(speeds=args.speeds, dim_grid=args.dim_grid, steps_per_period=spp,
                              dense_maxima=args.dense_maxima, refine_speed=args.refine_speed,
                              irregularity=args.irregularity)
@@ -487,7 +487,7 @@ def cmd_study(args):
         check_dim_step(tf, study_step_s(cases, spp))
     if args.irregularity:
         for span in sorted({c.bridge.span_m for c in cases}):  # a random profile differs per deck length
-            parse(args.irregularity, span)
+            parse_irregularity(args.irregularity, span)
     _check_study_work(cases, settings)
     make_output_folder(out, "--out")
     options = {"trains": trains, "mass_functions": mfs, "spans_m": list(spans), "freq_index": fis,

@@ -23,7 +23,7 @@ from adm_sim.files import OutputSet, claim_output, mcap_input
 from adm_sim.inputs.measured import add_measured_argument
 from adm_sim.cli.figures import plot_check, plot_sweep
 from adm_sim.limits import ACC_LIMITS_M_S2, TRACK_ALIASES, check_track_type
-from adm_sim.model.where import parse_where, where_text
+from adm_sim.integrate.where import parse_where, where_text
 from adm_sim.integrate import _jit
 
 
@@ -96,9 +96,9 @@ def cmd_sweep(args):
         if args.model != "dim":
             raise InputError(f"--irregularity: {args.irregularity!r} acts on the DIM's wheels; the MLM has none "
                              f"(allowed with --model dim)")
-        from adm_sim.model.irregularity import parse  # noqa: PLC0415  scipy.interpolate only on a rough track
+        from adm_sim.inputs.track_profile import parse_irregularity  # noqa: PLC0415  scipy.interpolate only on a rough track
 
-        profile = parse(args.irregularity, bridge.span_m)  # refused beyond the model's slope and curvature
+        profile = parse_irregularity(args.irregularity, bridge.span_m)  # refused beyond the model's slope and curvature
     opts = StepOptions(steps_per_period=check_option("--steps-per-period", args.steps_per_period),
                        irregularity=profile)
     where = parse_where(args.where, bridge.span_m)

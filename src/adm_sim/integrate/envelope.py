@@ -72,7 +72,7 @@ from adm_sim.integrate._jit import njit  # numba compiles the search loop; witho
 from adm_sim.errors import InputError
 from adm_sim.fields import check_delta_zeta_fraction, check_range
 from adm_sim.integrate.step_grid import speeds_to_m_s
-from adm_sim.model.where import WHERE_KEYWORDS, parse_where, where_text  # noqa: F401  re-exported: the envelope's positions
+from adm_sim.integrate.where import WHERE_KEYWORDS, parse_where, where_text  # noqa: F401  re-exported: the envelope's positions
 
 #: Longest free vibration followed after the last axle has left, in fundamental periods.
 MAX_FREE_PERIODS = 30.0

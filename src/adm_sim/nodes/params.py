@@ -372,9 +372,9 @@ def validate_train(p):
     check_run_phase(p["run_phase"])
     speeds = parse_speeds(p["speeds_kmh"], ordered=False, field="speeds_kmh")  # lanes, not a user's grid
     if p.get("irregularity"):
-        from adm_sim.model.irregularity import parse  # noqa: PLC0415  scipy.interpolate only on a rough track
+        from adm_sim.inputs.track_profile import parse_irregularity  # noqa: PLC0415  scipy.interpolate only on a rough track
 
-        parse(p["irregularity"], 40.0)  # spectrum, class, band, file: refused before a run starts
+        parse_irregularity(p["irregularity"], 40.0)  # spectrum, class, band, file: refused before a run starts
     return train, speeds
 
 
