@@ -14,7 +14,7 @@ import argparse
 import time
 
 from adm_sim.model.bridge import named_bridge
-from adm_sim.model.trains import load_train
+from adm_sim.inputs.train_files import load_train
 
 from adm_calib.calibrate import calibrate
 from adm_calib.table4 import run_table4

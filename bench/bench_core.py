@@ -18,7 +18,7 @@ from scipy.integrate import solve_ivp  # noqa: E402
 from adm_sim.model.bridge import named_bridge  # noqa: E402
 from adm_sim.integrate.step_grid import StepOptions, make_grid  # noqa: E402
 from adm_sim.integrate.sweep import run_sweep  # noqa: E402
-from adm_sim.model.trains import load_train  # noqa: E402
+from adm_sim.inputs.train_files import load_train  # noqa: E402
 
 
 def timed(fn, repeat=1):

@@ -27,8 +27,8 @@ def main(argv=None):
     from adm_calib.calibrate import batch_step
     from adm_calib.study import select_cases
     from adm_sim.integrate.compiled_batch import BatchRunner
-    from adm_sim.model.irregularity import parse
-    from adm_sim.model.trains import load_train
+    from adm_sim.inputs.track_profile import parse_irregularity
+    from adm_sim.inputs.train_files import load_train
 
     bridges = [c.bridge for c in select_cases(["ICE-2"], ["mu1", "mu2", "mu3", "mu4", "mu5", "mu6"], (20, 20), [3])]
     train = load_train("ICE-2")
@@ -36,7 +36,7 @@ def main(argv=None):
     speeds = np.linspace(160.0, 350.0, 8)
     case = np.repeat(np.arange(len(bridges)), speeds.size)
     v = np.tile(speeds, len(bridges))
-    profile = parse("german-high:seed=1", 20.0)
+    profile = parse_irregularity("german-high:seed=1", 20.0)
     runners = {"smooth": BatchRunner(bridges, train, ds), "rough": BatchRunner(bridges, train, ds, irregularity=profile)}
     acc = {}
     for name, r in runners.items():  # warm-up: compile or load, build the tables

@@ -38,7 +38,7 @@ CONFIGS = [("dim", False), ("dim", True), ("mlm", False), ("mlm", True)]
 def _case():
     from adm_calib.calibrate import batch_step
     from adm_calib.study import select_cases
-    from adm_sim.model.trains import load_train
+    from adm_sim.inputs.train_files import load_train
 
     bridges = [c.bridge for c in select_cases(["ICE-2"], ["mu1", "mu2", "mu3", "mu4", "mu5", "mu6"], (20, 20), [3])]
     train = load_train("ICE-2")

@@ -23,7 +23,7 @@ import numpy as np  # noqa: E402
 
 from adm_sim.integrate.sweep import run_sweep_compiled  # noqa: E402
 from adm_sim.model.bridge import Bridge  # noqa: E402
-from adm_sim.model.trains import load_train  # noqa: E402
+from adm_sim.inputs.train_files import load_train  # noqa: E402
 
 EJ, MU, ZETA = 2.0e10, 15000.0, 0.015
 

@@ -68,7 +68,7 @@ FULL_CASES = 4440
 
 
 def _train(name):
-    from adm_sim.model.trains import load_train
+    from adm_sim.inputs.train_files import load_train
 
     return load_train(name)
 

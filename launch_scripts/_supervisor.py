@@ -24,9 +24,9 @@ from adm_sim.fields import view
 from adm_sim.files import FOLDER_LOCK, check_output_folder, claim_folder, input_file, make_output_folder, release
 from adm_sim.integrate.run_contract import check_model
 from adm_sim.integrate.step_grid import make_grid
-from adm_sim.integrate.sweep import parse_speeds
-from adm_sim.model.bridge import resolve_bridge
-from adm_sim.model.trains import load_train
+from adm_sim.inputs.bridges import resolve_bridge
+from adm_sim.inputs.speeds import parse_speeds
+from adm_sim.inputs.train_files import load_train
 from adm_sim.nodes.params import (DRIVER_SPECS, TRAIN_SPECS, bridge_from_params, bridge_plausibility, bridge_specs,
                                    check_params_file, namespaced_params, param, step_options, validate_train)
 from adm_sim.processes.dds_env import local_ros_env

@@ -20,7 +20,7 @@ from adm_sim.integrate.compiled_batch import BatchRunner
 from adm_sim.errors import RunError
 from adm_sim.integrate.step_grid import StepOptions
 from adm_sim.integrate.sweep import run_sweep
-from adm_sim.model.trains import load_train
+from adm_sim.inputs.train_files import load_train
 
 
 def _group(span, fi, mfs=("mu1", "mu2", "mu3", "mu4", "mu5", "mu6"), train="ICE-2"):

@@ -11,7 +11,7 @@ import pytest
 from adm_sim.model.bridge import named_bridge
 from adm_sim.integrate.step_grid import StepOptions
 from adm_sim.integrate.sweep import run_sweep, run_sweep_compiled
-from adm_sim.model.trains import load_train
+from adm_sim.inputs.train_files import load_train
 from adm_calib.calibrate import CalibrationOptions, calibrate, calibration_step
 
 V = np.arange(160.0, 351.0, 1.0)

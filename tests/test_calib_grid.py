@@ -7,7 +7,7 @@ import pytest
 
 from adm_sim.model.bridge import named_bridge
 from adm_sim.integrate.sweep import sweep_exact
-from adm_sim.model.trains import load_train
+from adm_sim.inputs.train_files import load_train
 
 from adm_calib.calibrate import calibrate
 from adm_calib.speed_grids import GRID_RTOL, NO_RESONANCE_FRACTION, speed_grid_finding

@@ -6,7 +6,7 @@ import pytest
 
 from adm_sim.model.bridge import named_bridge
 from adm_sim.errors import InputError
-from adm_sim.model.trains import load_train
+from adm_sim.inputs.train_files import load_train
 from adm_calib import reference as ref
 
 # ---------------------------------------------------------------------- ADM

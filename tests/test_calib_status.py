@@ -18,8 +18,8 @@ import pytest
 from adm_calib import peaks as pk
 from adm_calib.calib_commands import main
 from adm_calib.calibrate import calibrate
-from adm_sim.model.bridge import resolve_bridge
-from adm_sim.model.trains import load_train
+from adm_sim.inputs.bridges import resolve_bridge
+from adm_sim.inputs.train_files import load_train
 
 ROOT = Path(__file__).resolve().parents[1]
 STUDY = ROOT / "results" / "study"

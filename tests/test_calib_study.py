@@ -79,7 +79,7 @@ def _assert_processes_end(procs, timeout=20.0):
 
 # ---------------------------------------------------------------------- study on dask
 def test_tiny_study_equals_in_process_calibrate(tmp_path):
-    from adm_sim.model.trains import load_train
+    from adm_sim.inputs.train_files import load_train
 
     from adm_calib.calibrate import CalibrationOptions, calibrate
     from adm_calib.calibration_options import XTOL_STUDY

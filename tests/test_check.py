@@ -22,7 +22,8 @@ from adm_sim.model.bridge import Bridge, named_bridge
 from adm_sim.integrate.envelope import moving_load_envelope
 from adm_sim.errors import InputError
 from adm_sim.cli.sim_commands import main as sim_main
-from adm_sim.model.trains import load_train, moving_loads
+from adm_sim.model.trains import moving_loads
+from adm_sim.inputs.train_files import load_train
 from analytic import moving_force_modal
 from test_envelope import reference_maxima
 

@@ -12,7 +12,7 @@ from adm_sim.design import check_effects as ce
 from adm_sim.model.bridge import named_bridge
 from adm_sim.design.check import check_speeds_kmh
 from adm_sim.design.design_loads import lm71_midspan, phi_dd_factor
-from adm_sim.model.trains import load_train
+from adm_sim.inputs.train_files import load_train
 from analytic import moving_force_modal
 
 B1 = dataclasses.replace(named_bridge("B1"), damping_model="modal")

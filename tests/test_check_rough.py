@@ -15,9 +15,9 @@ from adm_sim.design import check as ck
 from adm_sim.design.check_rough import BEYOND, rough_dim
 from adm_sim.integrate.step_grid import StepOptions
 from adm_sim.integrate.sweep import run_sweep
-from adm_sim.model import irregularity as irr
+from adm_sim.inputs.track_profile import parse_irregularity
 from adm_sim.model.bridge import named_bridge
-from adm_sim.model.trains import load_train
+from adm_sim.inputs.train_files import load_train
 
 
 def test_rough_dim_equals_the_numpy_stepper_on_the_same_profiles():
@@ -27,7 +27,7 @@ def test_rough_dim_equals_the_numpy_stepper_on_the_same_profiles():
     r = rough_dim(b, t, v, "german-high", 2, 1.0)
     assert r.seeds == (1, 2)
     for s, a, at in zip(r.seeds, r.max_acc_m_s2, r.at_speed_kmh):
-        prof = irr.parse(f"german-high:seed={s}", b.span_m)
+        prof = parse_irregularity(f"german-high:seed={s}", b.span_m)
         ref = run_sweep(b, t, "dim", v, options=StepOptions(irregularity=prof)).max_acc_m_s2
         assert a == pytest.approx(ref.max(), rel=1e-9) and at == v[int(np.argmax(ref))]
     smooth = run_sweep(b, t, "dim", v).max_acc_m_s2.max()

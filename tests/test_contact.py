@@ -21,9 +21,10 @@ from adm_sim.integrate.compiled_batch import BatchRunner
 from adm_sim.integrate.contact import CONTACT_LOST, CONTACT_OK
 from adm_sim.integrate.step_grid import StepOptions
 from adm_sim.integrate.sweep import run_sweep, run_sweep_compiled
+from adm_sim.inputs.track_profile import parse_irregularity
 from adm_sim.model import irregularity as ir
 from adm_sim.model.bridge import named_bridge
-from adm_sim.model.trains import load_train
+from adm_sim.inputs.train_files import load_train
 
 COARSE = StepOptions(steps_per_period=8.0)
 JOINT = "joint:at=7:length=1:depth=0.002"  # a 2 mm dip over 1 m: legal (slope 0.0063, curvature 0.045 1/m)
@@ -53,7 +54,7 @@ def test_compiled_contact_check_equals_the_numpy_stepper(b1_ice2):
     """The kernels' contact forces are the numpy stepper's: same first tension (step, axle),
     force and smallest force per lane to 1e-9 relative, smooth and rough."""
     b, t = b1_ice2
-    for profile in (None, ir.parse(JOINT, b.span_m)):
+    for profile in (None, parse_irregularity(JOINT, b.span_m)):
         opts = StepOptions(steps_per_period=8.0, irregularity=profile)
         ref = run_sweep(b, t, "dim", [100.0, 300.0], options=opts).contact
         got = run_sweep_compiled(b, t, "dim", [100.0, 300.0], options=opts).contact
@@ -68,7 +69,7 @@ def test_a_legal_dip_lifts_the_leading_wheel_where_it_enters(b1_ice2):
     F = F_static - m_w v^2 r''(x) < 0 there); the first tension is at the first step whose front
     lies in the dip, axle 1, with that force within 2 %; at 100 km/h the wheel stays on."""
     b, t = b1_ice2
-    prof = ir.parse(JOINT, b.span_m)
+    prof = parse_irregularity(JOINT, b.span_m)
     res = run_sweep_compiled(b, t, "dim", [100.0, 300.0], options=StepOptions(steps_per_period=8.0, irregularity=prof))
     c = res.contact
     assert res.status == CONTACT_LOST and list(c.lost) == [False, True]
@@ -120,14 +121,14 @@ def test_absurd_profiles_are_refused_by_slope(tmp_path):
     for p in (alt, saw):
         with pytest.raises(InputError, match=r"^irregularity: file=.* has slope [0-9.e+]+ \(-\) at x = .* m; "
                                              r"allowed \|slope\| <= 0.05 \(the project's"):
-            ir.parse(f"file={p}", 15.0)
+            parse_irregularity(f"file={p}", 15.0)
 
 
 def test_a_kink_too_tight_for_a_wheel_is_refused_by_curvature():
     """A 40 mm rise over 1 m (slope 0.04, legal) has kinks: curvature beyond 1 / 0.46 m."""
     with pytest.raises(InputError, match=r"curvature [0-9.]+ 1/m at x = .*allowed \|curvature\| <= 2.17 1/m"):
-        ir.parse("ramp:at=2:length=1:height=0.04", 15.0)
-    ir.parse("ramp:at=2:length=4:height=0.01", 15.0)  # the same shape, gentler: within both bounds
+        parse_irregularity("ramp:at=2:length=1:height=0.04", 15.0)
+    parse_irregularity("ramp:at=2:length=4:height=0.01", 15.0)  # the same shape, gentler: within both bounds
 
 
 def test_a_wave_shorter_than_two_steps_is_refused(tmp_path, b1_ice2):
@@ -135,13 +136,13 @@ def test_a_wave_shorter_than_two_steps_is_refused(tmp_path, b1_ice2):
     cannot resolve it; a ramp or a single dip has no wave (no refusal at any step)."""
     b, t = b1_ice2
     x = np.arange(0.0, 15.0, 0.005)
-    prof = ir.parse(f"file={_write(tmp_path, 'w.csv', x, 0.0002 * np.sin(2 * np.pi * x / 0.1))}", b.span_m)
+    prof = parse_irregularity(f"file={_write(tmp_path, 'w.csv', x, 0.0002 * np.sin(2 * np.pi * x / 0.1))}", b.span_m)
     assert ir.shortest_wavelength_m(prof) == pytest.approx(0.1, rel=0.06)
     with pytest.raises(InputError, match=r"has a wave of 0.1 m .* 1.67 space steps of ds = 0.06 m; allowed >= 2 steps"):
         BatchRunner([b], t, 0.06, irregularity=prof)
     BatchRunner([b], t, 0.04, irregularity=prof)
     for spec in (JOINT, "ramp:at=0:length=3:height=0.002"):
-        assert ir.shortest_wavelength_m(ir.parse(spec, b.span_m)) == math.inf
+        assert ir.shortest_wavelength_m(parse_irregularity(spec, b.span_m)) == math.inf
     with pytest.raises(InputError, match=r"allowed >= 2 steps per wave"):
         run_sweep(b, t, "dim", [300.0], options=StepOptions(steps_per_period=4.0, irregularity=prof))
 
@@ -155,7 +156,7 @@ def test_a_calibration_whose_dim_peak_lost_contact_is_not_ok(b1_ice2):
     from adm_calib.calibration_options import CalibrationOptions
 
     b, t = b1_ice2
-    prof = ir.parse("joint:at=7:length=1:depth=0.004", b.span_m)
+    prof = parse_irregularity("joint:at=7:length=1:depth=0.004", b.span_m)
     opts = CalibrationOptions(step=StepOptions(irregularity=prof))
     res = calibrate(b, t, np.arange(200.0, 321.0, 1.0), options=opts, adapted_curve=False)
     assert res.status == "contact_lost"
@@ -170,7 +171,7 @@ def test_the_lane_backends_log_the_same_contact_losses(b1_ice2):
     from adm_calib.lanes import CompiledLanes, SteppedLanes, contact_loss_at
 
     b, t = b1_ice2
-    step = StepOptions(steps_per_period=8.0, irregularity=ir.parse(JOINT, b.span_m))
+    step = StepOptions(steps_per_period=8.0, irregularity=parse_irregularity(JOINT, b.span_m))
     from dataclasses import replace
 
     from adm_sim.integrate.step_grid import make_grid, speeds_to_m_s
@@ -214,7 +215,7 @@ def test_a_sweep_hook_hands_its_contact_check_to_the_calibration(b1_ice2):
     from adm_calib.lanes import HookLanes, SteppedLanes, contact_loss_at
 
     b, t = b1_ice2
-    step = StepOptions(steps_per_period=8.0, irregularity=ir.parse(JOINT, b.span_m))
+    step = StepOptions(steps_per_period=8.0, irregularity=parse_irregularity(JOINT, b.span_m))
 
     def hook(model, speeds, dz, step):
         res = run_sweep(b, t, model, speeds, delta_zeta=dz, options=step)

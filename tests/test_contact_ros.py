@@ -12,9 +12,9 @@ from ros_fixtures import driver_node, node_procs, ros_domain  # noqa: E402,F401
 from adm_sim.integrate.contact import CONTACT_LOST  # noqa: E402
 from adm_sim.integrate.step_grid import StepOptions  # noqa: E402
 from adm_sim.integrate.sweep import run_sweep  # noqa: E402
-from adm_sim.model.bridge import resolve_bridge  # noqa: E402
-from adm_sim.model.irregularity import parse  # noqa: E402
-from adm_sim.model.trains import load_train  # noqa: E402
+from adm_sim.inputs.bridges import resolve_bridge  # noqa: E402
+from adm_sim.inputs.track_profile import parse_irregularity  # noqa: E402
+from adm_sim.inputs.train_files import load_train  # noqa: E402
 
 STEP = {"steps_per_period": 4.0, "free_vibration_periods": 1.0}
 SPARSE = {"monitor_every_steps": 16, "beam_every_steps": 64}
@@ -32,7 +32,7 @@ def test_cosim_reports_the_contact_loss_of_run_sweep(node_procs, ros_domain, tmp
             r = d.request_run(model="dim", delta_zeta=0.0)
         done = d._bridge_status(r["run_id"])
     ref = run_sweep(bridge, train, "dim", r["speeds_kmh"],
-                    options=StepOptions(**STEP, irregularity=parse(SPEC, bridge.span_m))).contact
+                    options=StepOptions(**STEP, irregularity=parse_irregularity(SPEC, bridge.span_m))).contact
     got = r["contact"]
     assert ref.status == got["status"] == CONTACT_LOST
     assert got["first_loss"] == ref.first()

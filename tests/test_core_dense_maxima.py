@@ -21,7 +21,8 @@ from adm_sim.model.bridge import named_bridge
 from adm_sim.integrate.dense_output import hermite_max_abs_acc
 from adm_sim.integrate.step_grid import StepOptions, make_grid, speeds_to_m_s
 from adm_sim.integrate.sweep import run_sweep
-from adm_sim.model.trains import load_train, moving_loads
+from adm_sim.model.trains import moving_loads
+from adm_sim.inputs.train_files import load_train
 
 from analytic import moving_force_modal
 

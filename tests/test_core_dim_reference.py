@@ -15,7 +15,7 @@ from scipy.integrate import solve_ivp
 from adm_sim.model.bridge import named_bridge
 from adm_sim.integrate.step_grid import StepOptions
 from adm_sim.integrate.sweep import run_sweep
-from adm_sim.model.trains import load_train, train_from_mapping
+from adm_sim.inputs.train_files import load_train, train_from_mapping
 
 
 def _one_vehicle_train():

@@ -9,7 +9,8 @@ from analytic import (moving_force_midspan_deflection, static_midspan_deflection
 from adm_sim.model.bridge import named_bridge
 from adm_sim.integrate.step_grid import StepOptions
 from adm_sim.integrate.sweep import run_sweep
-from adm_sim.model.trains import load_train, moving_loads
+from adm_sim.model.trains import moving_loads
+from adm_sim.inputs.train_files import load_train
 
 ONE_FORCE = moving_loads([0.0], [100e3], "one force")
 

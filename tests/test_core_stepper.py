@@ -16,7 +16,7 @@ from adm_sim.integrate.mlm_loads import half_step_positions, mlm_modal_load_tabl
 from adm_sim.integrate.rk4_sides import BridgeSide, TrainSide
 from adm_sim.integrate.step_grid import StepOptions, make_grid, speeds_to_m_s
 from adm_sim.integrate.sweep import run_sweep
-from adm_sim.model.trains import load_train
+from adm_sim.inputs.train_files import load_train
 
 SPEEDS_KMH = [160.0, 250.0, 350.0]
 DIM_OPTIONS = StepOptions(steps_per_period=4.0, free_vibration_periods=1.0)

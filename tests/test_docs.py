@@ -208,7 +208,7 @@ def test_cli_md_lists_every_option_of_every_command():
 PYTHON_MD = ROOT / "docs" / "python.md"
 EXAMPLE = re.compile(r"```python\n(.*?)```\n+(?:```text\n(.*?)```)?", flags=re.S)
 #: the library wings: each names its public API in ``__all__``
-LIBRARY_WINGS = ("adm_sim", "adm_sim.model", "adm_sim.integrate", "adm_sim.design", "adm_sim.monitoring",
+LIBRARY_WINGS = ("adm_sim", "adm_sim.model", "adm_sim.inputs", "adm_sim.integrate", "adm_sim.design", "adm_sim.monitoring",
                  "adm_calib", "adm_calib.study")
 
 

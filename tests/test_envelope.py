@@ -17,7 +17,7 @@ from adm_sim.model.bridge import named_bridge
 from analytic import moving_forces_modal
 from adm_sim.integrate.envelope import MAX_FREE_PERIODS, check_mode_count, moving_load_envelope
 from adm_sim.errors import InputError
-from adm_sim.model.trains import load_train
+from adm_sim.inputs.train_files import load_train
 
 REL_TOL = 1e-5
 

@@ -103,7 +103,7 @@ def test_every_ros_parameter_with_a_range_is_its_registry_field():
             assert (s.lo, s.hi) == (v.lo, v.hi), s.name
             assert type(s.default) is v.field.type, s.name
     # what stays outside: paths, switches and URLs of the driver (no range, no unit), and the train
-    # node's track profile spec (checked by adm_sim.model.irregularity.parse)
+    # node's track profile spec (checked by adm_sim.inputs.track_profile.parse_irregularity)
     assert sorted(outside) == ["irregularity", "overwrite", "record_path", "rerun_connect", "rerun_spawn", "rrd_path",
                               "run_phase", "summary_path"]
 
@@ -186,7 +186,7 @@ def test_launch_script_domain_id_help_and_check_from_the_registry():
 # ---------------------------------------------------------------- one field, three surfaces
 def test_span_out_of_range_same_message_from_toml_cli_and_ros(tmp_path, capsys):
     """span = 200 m as a TOML key, in a --bridge spec on the command line, and as a ROS parameter."""
-    from adm_sim.model.bridge import load_bridge_file
+    from adm_sim.inputs.bridges import load_bridge_file
     from adm_sim.cli.sim_commands import main
 
     toml = tmp_path / "b.toml"
@@ -229,7 +229,7 @@ def test_steps_per_period_same_message_from_cli_ros_and_core(capsys):
 def test_damping_in_percent_and_as_fraction_are_one_field(tmp_path, capsys):
     """zeta_pct = 25 (TOML, %) and the bridge node's zeta_pct; zeta = 0.25 (TOML, fraction): the
     same bound, 20 % = 0.2, converted by the one table."""
-    from adm_sim.model.bridge import load_bridge_file
+    from adm_sim.inputs.bridges import load_bridge_file
 
     pct, frac = tmp_path / "p.toml", tmp_path / "f.toml"
     pct.write_text("L = 15.0\nn0 = 8.0\nmu = 10000.0\nzeta_pct = 25.0\n")
@@ -487,5 +487,5 @@ def test_the_delta_zeta_sign_rule_has_one_text(capsys):
 
     with pytest.raises(InputError) as err:  # refused before any kernel is compiled
         moving_load_envelope(named_bridge("B1").with_damping(0.0), [0.0], [1e5], [200.0])
-    assert str(err.value) == ("delta_zeta_pct: zeta + delta_zeta = 0 %; the exact envelope needs damping > 0 % "
-                              "(allowed delta_zeta_pct > 0 %)")
+    assert str(err.value) == ("delta_zeta: zeta + delta_zeta = 0 %; the exact envelope needs damping > 0 % "
+                              "(allowed delta_zeta > 0 - (fraction))")  # the library's own name and unit

@@ -272,7 +272,7 @@ def test_study_fit_interrupted_at_a_figure_leaves_no_file_in_the_way(tmp_path, m
 
 # ---------------------------------------------------------------- text inputs and long names
 def test_text_input_with_bom_is_read_and_a_binary_file_is_one_line(tmp_path):
-    from adm_sim.model.bridge import resolve_bridge
+    from adm_sim.inputs.bridges import resolve_bridge
     from adm_sim.files import read_text
 
     body = "L = 15\nn0 = 8.26\nmu = 19042\nzeta_pct = 1.85\n"
@@ -286,7 +286,7 @@ def test_text_input_with_bom_is_read_and_a_binary_file_is_one_line(tmp_path):
 
 
 def test_existing_file_with_equals_in_its_name_is_a_file_not_a_spec(tmp_path, monkeypatch):
-    from adm_sim.model.bridge import resolve_bridge
+    from adm_sim.inputs.bridges import resolve_bridge
 
     monkeypatch.chdir(tmp_path)
     Path("L=15.toml").write_text("L = 20\nn0 = 6\nmu = 15000\nzeta_pct = 2\n")

@@ -12,7 +12,7 @@ from adm_sim.errors import InputError
 from adm_sim.model.bridge import Bridge
 from adm_sim.design.check import resolve_trains, run_check
 from adm_sim.model.hslm import HSLM_A_TABLE, hslm_b_axles, hslm_b_spec, hslm_name
-from adm_sim.model.trains import load_train
+from adm_sim.inputs.train_files import load_train
 
 CLI = [sys.executable, "-m", "adm_sim.cli.sim_commands"]
 

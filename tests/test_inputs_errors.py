@@ -53,7 +53,7 @@ def test_unstable_integration_is_a_run_error_not_bad_input():
     from adm_sim.model.bridge import named_bridge
     from adm_sim.integrate.step_grid import StepOptions
     from adm_sim.integrate.sweep import run_sweep
-    from adm_sim.model.trains import load_train
+    from adm_sim.inputs.train_files import load_train
 
     with np.errstate(all="ignore"), pytest.raises(RunError, match=r"^solution is not finite at step \d+ of \d+"):
         run_sweep(named_bridge("B1"), load_train("ICE-2"), "mlm", [300.0], options=StepOptions(ds_m=5.0))
@@ -87,7 +87,7 @@ def test_checks_return_the_value():
 
 def test_bridge_class_and_type():
     """``type`` gives the Table 2 damping and the class; ``class`` only the class (measured damping kept)."""
-    from adm_sim.model.bridge import parse_bridge_spec
+    from adm_sim.inputs.bridges import parse_bridge_spec
 
     b = parse_bridge_spec("L=15,n0=8.26,mu=19042,zeta_pct=1.2,class=sc")
     assert (b.bridge_type, b.damping_ratio) == ("sc", pytest.approx(0.012, abs=1e-15))

@@ -12,7 +12,7 @@ from hypothesis import HealthCheck, given, settings, strategies as st
 
 from adm_sim.cli.sim_commands import main
 from adm_sim.errors import InputError
-from adm_sim.integrate.sweep import parse_speeds
+from adm_sim.inputs.speeds import parse_speeds
 
 
 NUM = st.one_of(st.floats(allow_nan=True, allow_infinity=True, width=32), st.integers(-10**6, 10**12),

@@ -8,7 +8,7 @@ import pytest
 from adm_calib.calib_commands import main as calib_main
 from adm_sim.cli.sim_commands import main as sim_main
 from adm_sim.errors import InputError
-from adm_sim.integrate.sweep import parse_speeds
+from adm_sim.inputs.speeds import parse_speeds
 
 
 BAD = [

@@ -6,13 +6,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from adm_sim.inputs.track_profile import parse_irregularity
 from adm_sim.model import irregularity as irr
 from adm_sim.model.bridge import Bridge
 from adm_sim.integrate.compiled_batch import BatchRunner
 from adm_sim.errors import InputError
 from adm_sim.integrate.step_grid import StepOptions, make_grid, speeds_to_m_s
 from adm_sim.integrate.sweep import run_sweep
-from adm_sim.model.trains import load_train, train_from_mapping
+from adm_sim.inputs.train_files import load_train, train_from_mapping
 
 
 # ---------------------------------------------------------------------- coefficients (sources: docs/irregularities.md)
@@ -92,12 +93,12 @@ def test_random_profile_pinned_seeded():
 
 def test_defects_closed_form():
     x = np.linspace(0.0, 10.0, 1001)
-    p = irr.parse("ramp:at=2:length=4:height=0.01", 10.0)
+    p = parse_irregularity("ramp:at=2:length=4:height=0.01", 10.0)
     r, s = p.evaluate(np.array([1.0, 4.0, 7.0]))
     # a rising ramp lifts the wheel: r is the downward displacement, r = -elevation
     np.testing.assert_allclose(r, [0.0, -0.005, -0.01], atol=1e-12)
     assert s[1] == pytest.approx(-0.01 / 4, rel=1e-9)
-    rj = irr.parse("joint:at=5:length=2:depth=0.003", 10.0).evaluate(np.array([5.0]))[0]
+    rj = parse_irregularity("joint:at=5:length=2:depth=0.003", 10.0).evaluate(np.array([5.0]))[0]
     assert rj[0] == pytest.approx(0.003, rel=1e-9)  # a dip lowers it
     j = irr.joint(x, 5.0, 2.0, 0.003)
     assert j.min() == pytest.approx(-0.003, rel=1e-12) and j[0] == 0.0 and j[-1] == 0.0
@@ -110,7 +111,7 @@ def test_profile_files(tmp_path):
     csvf.write_text("position_m,elevation_m\n" + "".join(f"{float(a)!r},{float(b)!r}\n" for a, b in zip(x, r)))
     tomlf = tmp_path / "p.toml"
     tomlf.write_text(f"position_m = {x.tolist()!r}\nelevation_m = {r.tolist()!r}\n")
-    a, b = irr.parse(f"file={csvf}", 15.0), irr.parse(f"file={tomlf}", 15.0)
+    a, b = parse_irregularity(f"file={csvf}", 15.0), parse_irregularity(f"file={tomlf}", 15.0)
     np.testing.assert_array_equal(a.r_m, b.r_m)
     assert a.evaluate(np.array([-1.0, 16.0]))[0].tolist() == [0.0, 0.0]  # zero off the file
     np.testing.assert_array_equal(a.r_m, -r)  # elevations up in the file, r = -elevation
@@ -128,17 +129,17 @@ def test_profile_files(tmp_path):
 ])
 def test_bad_specs(spec, match):
     with pytest.raises(InputError, match=match):
-        irr.parse(spec, 15.0)
+        parse_irregularity(spec, 15.0)
 
 
 def test_bad_files(tmp_path):
     f = tmp_path / "p.csv"
     f.write_text("0,0\n1,0.001\n0.5,0\n2,0\n3,0\n")
     with pytest.raises(InputError, match=r"position_m = 0.5 m at row 3 does not increase \(previous 1 m\)"):
-        irr.parse(f"file={f}", 15.0)
+        parse_irregularity(f"file={f}", 15.0)
     f.write_text("0,0\n1,nan\n2,0\n3,0\n")
     with pytest.raises(InputError, match=r"row 2 has position 1.0 m, elevation nan m; allowed finite numbers"):
-        irr.parse(f"file={f}", 15.0)
+        parse_irregularity(f"file={f}", 15.0)
 
 
 @pytest.mark.parametrize("bad", ["fra-9", "iso-z"])
@@ -191,7 +192,7 @@ def test_numpy_and_compiled_agree_with_profile():
     b, tr = _bridge(), load_train("Railjet")
     v = np.array([180.0, 260.0, 340.0])
     ds = _ds(b, tr, v)
-    p = irr.parse("german-high:seed=2+joint:at=7:length=1:depth=0.002", 15.0)
+    p = parse_irregularity("german-high:seed=2+joint:at=7:length=1:depth=0.002", 15.0)
     a = run_sweep(b, tr, "dim", v, options=StepOptions(ds_m=ds, irregularity=p)).max_acc_m_s2
     c = BatchRunner([b], tr, ds, irregularity=p).run("dim", np.zeros(3, int), v)[0]
     smooth = BatchRunner([b], tr, ds).run("dim", np.zeros(3, int), v)[0]
@@ -203,7 +204,7 @@ def test_mlm_ignores_profile():
     b, tr = _bridge(), load_train("ICE-2")
     v = np.array([250.0])
     ds = _ds(b, tr, v)
-    p = irr.parse("fra-6:seed=1", 15.0)
+    p = parse_irregularity("fra-6:seed=1", 15.0)
     a = BatchRunner([b], tr, ds, irregularity=p).run("mlm", np.zeros(1, int), v)[0]
     c = BatchRunner([b], tr, ds).run("mlm", np.zeros(1, int), v)[0]
     np.testing.assert_array_equal(a, c)

@@ -12,11 +12,11 @@ import pytest
 pytest.importorskip("rclpy")
 from ros_fixtures import driver_node, node_procs, ros_domain  # noqa: E402,F401
 
-from adm_sim.model.bridge import resolve_bridge  # noqa: E402
-from adm_sim.model.irregularity import parse  # noqa: E402
+from adm_sim.inputs.bridges import resolve_bridge  # noqa: E402
+from adm_sim.inputs.track_profile import parse_irregularity  # noqa: E402
 from adm_sim.integrate.step_grid import StepOptions  # noqa: E402
 from adm_sim.integrate.sweep import run_sweep  # noqa: E402
-from adm_sim.model.trains import load_train  # noqa: E402
+from adm_sim.inputs.train_files import load_train  # noqa: E402
 
 SPEEDS = "290,320,350"
 STEP = {"steps_per_period": 4.0, "free_vibration_periods": 1.0}
@@ -33,7 +33,7 @@ def test_cosim_on_rough_track_is_run_sweep_bit_for_bit(node_procs, ros_domain):
         d.wait_for_graph()
         r = d.request_run(model="dim", delta_zeta=0.0)
     ref = run_sweep(bridge, train, "dim", r["speeds_kmh"],
-                    options=StepOptions(**STEP, irregularity=parse(SPEC, bridge.span_m)))
+                    options=StepOptions(**STEP, irregularity=parse_irregularity(SPEC, bridge.span_m)))
     smooth = run_sweep(bridge, train, "dim", r["speeds_kmh"], options=StepOptions(**STEP))
     np.testing.assert_array_equal(r["speeds_kmh"], [290.0, 320.0, 350.0])
     np.testing.assert_array_equal(r["max_acc_m_s2"], ref.max_acc_m_s2)

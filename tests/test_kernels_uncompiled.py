@@ -28,7 +28,7 @@ from adm_calib.calibrate import batch_step
 from adm_calib.study import select_cases
 from adm_sim.integrate import kernels
 from adm_sim.integrate.compiled_batch import BatchRunner
-from adm_sim.model.trains import load_train
+from adm_sim.inputs.train_files import load_train
 
 bridges = [c.bridge for c in select_cases(["ICE-2"], ["mu1", "mu6"], (10, 10), [5])]
 train = load_train("ICE-2")

@@ -117,7 +117,7 @@ def passages_json(tmp_path_factory):
     the logger pauses 20 s: no sample), through ``monitor.py --csv ... --json``."""
     from adm_sim.integrate.step_grid import StepOptions
     from adm_sim.integrate.sweep import run_sweep
-    from adm_sim.model.trains import load_train
+    from adm_sim.inputs.train_files import load_train
 
     out = tmp_path_factory.mktemp("measured")
     r = run_sweep(true_bridge(), load_train("ICE-2"), "mlm", list(SPEEDS_KMH),

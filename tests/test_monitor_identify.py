@@ -278,7 +278,7 @@ def test_live_signal_passage_ends_when_the_samples_stop():
 # ---------------------------------------------------------------------- simulated crossings
 @pytest.fixture(scope="module")
 def ice2():
-    from adm_sim.model.trains import load_train
+    from adm_sim.inputs.train_files import load_train
 
     return load_train("ICE-2")
 

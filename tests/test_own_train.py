@@ -207,7 +207,7 @@ def test_vehicle_eigenvalues_of_a_sprung_mass():
     assert np.allclose(lam.real, 0.0, atol=1e-9)
     damped = tomllib.loads(EXAMPLE_FILE.read_text())
     damped["vehicles"]["test car"]["stages"][0]["c_Ns_m"] = 2.0e4
-    from adm_sim.model.trains import train_from_mapping
+    from adm_sim.inputs.train_files import train_from_mapping
     lam = ot.vehicle_eigenvalues(train_from_mapping(damped).unit_matrices(0))
     s = 2.0e4 / (2 * m)
     assert sorted(lam.imag) == pytest.approx([-math.sqrt(k / m - s * s), math.sqrt(k / m - s * s)], rel=1e-12)
@@ -217,7 +217,7 @@ def test_vehicle_eigenvalues_of_a_sprung_mass():
 def test_dim_step_check_at_its_limit():
     """The one-body vehicle's stiffest mode (pitch or bounce, undamped) against the limit
     2 sqrt(2) / (2 pi dt): refused 0.1 % above it, accepted 0.1 % below."""
-    from adm_sim.model.trains import train_from_mapping
+    from adm_sim.inputs.train_files import train_from_mapping
     dt = 3e-3
 
     def top_rad_s(k):
@@ -293,7 +293,7 @@ def test_fit_writes_the_figures_and_the_quantities(ice2_file_fit):
         assert (ice2_file_fit / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     text = (ice2_file_fit / "lower_bounds_fit.txt").read_text()
     # Eq. (1) for the ICE-2 PC bogie: sqrt(2 k_p / m_b) / (2 pi) = 5.84 Hz, as Section 4.2.2 quotes it
-    from adm_sim.model.trains import load_train
+    from adm_sim.inputs.train_files import load_train
     pc = load_train("ICE-2").vehicle_types["PC"]
     n_p = math.sqrt(2 * pc.k_p_N_m / pc.m_b_kg) / (2 * math.pi)
     assert round(n_p, 2) == 5.84
@@ -456,7 +456,7 @@ def test_dim_step_check_predicts_the_dim_blowing_up():
     the one-body vehicle with its pitch mode 2 % below the RK4 limit runs (largest deck acceleration
     0.108 m/s², measured), 2 % above it the run grows without bound (2e7 m/s² measured) and is refused."""
     from adm_sim.integrate.sweep import run_sweep
-    from adm_sim.model.trains import train_from_mapping
+    from adm_sim.inputs.train_files import train_from_mapping
 
     case = st.select_cases(["ICE-2"], ["mu1"], (40, 40), [1])[0]
     dt = ot.study_step_s([case])

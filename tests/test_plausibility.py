@@ -11,10 +11,10 @@ import warnings
 import pytest
 
 from adm_sim.model import plausibility
-from adm_sim.model.bridge import parse_bridge_spec
+from adm_sim.inputs.bridges import parse_bridge_spec
 from adm_sim.errors import InputError, PlausibilityWarning
 from adm_sim.model.plausibility import check_response, check_studied_field
-from adm_sim.model.trains import load_train
+from adm_sim.inputs.train_files import load_train
 from train_files import two_car_train_file as _train_file
 
 #: Relative step from a bound to "just inside" / "just outside".
@@ -109,7 +109,7 @@ def test_fraction_in_pct_field_is_one_warning_with_the_hint():
 
 
 def test_bridge_file_warns_like_the_spec(tmp_path):
-    from adm_sim.model.bridge import load_bridge_file
+    from adm_sim.inputs.bridges import load_bridge_file
 
     p = tmp_path / "b.toml"
     p.write_text("L = 15.0\nn0 = 8.26\nmu = 19042.0\nzeta_pct = 0.0185\n")
@@ -120,7 +120,7 @@ def test_bridge_file_warns_like_the_spec(tmp_path):
 
 def test_named_and_field_bridges_are_silent():
     """The paper's bridges B1-B4 and the field's corners are plausible by construction."""
-    from adm_sim.model.bridge import resolve_bridge
+    from adm_sim.inputs.bridges import resolve_bridge
 
     for name in ("B1", "B2", "B3", "B4"):
         assert _caught(resolve_bridge, name) == []
@@ -230,7 +230,7 @@ def test_checked_in_names_the_node_parameters_and_they_warn(tmp_path):
     them warns, naming the parameter: the bridge node's check (``bridge_plausibility``, as the node
     and the launchers' pre-flight call it) on the B3 preset, and the train node's ``train``
     parameter (``validate_train``) naming a train file; no other row claims a node parameter."""
-    from adm_sim.model.bridge import resolve_bridge
+    from adm_sim.inputs.bridges import resolve_bridge
     from adm_sim.nodes.params import TRAIN_SPECS, bridge_plausibility, bridge_specs, validate_train
 
     claimed = {k for k, r in plausibility.ROWS.items() if "bridge node parameter" in r.checked_in}

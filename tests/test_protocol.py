@@ -213,7 +213,7 @@ def test_deck_acceleration_limits_are_those_of_en_1990_a2_4_4_2_1():
 def test_default_speeds_are_section_3_3():
     v = limits.default_speeds_kmh()
     np.testing.assert_array_equal(v, np.arange(160.0, 351.0, 1.0))  # 160..350 km/h every 1 km/h
-    from adm_sim.integrate.sweep import parse_speeds
+    from adm_sim.inputs.speeds import parse_speeds
 
     np.testing.assert_array_equal(parse_speeds(limits.DEFAULT_SPEEDS), v)
     v[0] = 0.0
@@ -258,8 +258,8 @@ def test_calibration_hands_on_the_phase_of_every_sweep():
     its hook is handed, mapped by ``CALIBRATION_PHASES``, names each call so, and the root is
     Δζ = ζ (3 / 2.4 - 1)."""
     from adm_calib.calibrate import calibrate
-    from adm_sim.model.bridge import resolve_bridge
-    from adm_sim.model.trains import load_train
+    from adm_sim.inputs.bridges import resolve_bridge
+    from adm_sim.inputs.train_files import load_train
 
     bridge, train = resolve_bridge("B1"), load_train("ICE-2")
     zeta = bridge.damping_ratio

@@ -20,7 +20,7 @@ from adm_calib.recommend_verify import Verdict, study_verdict
 from adm_calib.recommend_warnings import StudyCase
 from adm_calib.reference import recommend
 from adm_sim.integrate.sweep import run_sweep
-from adm_sim.model.trains import load_train
+from adm_sim.inputs.train_files import load_train
 
 MATCH_RTOL = 1e-3  # the paper's acceptance of a peak match (Section 4, Step 3)
 

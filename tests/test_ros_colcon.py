@@ -17,10 +17,11 @@ pytest.importorskip("rclpy")
 pytest.importorskip("colcon_ros")
 from ros_fixtures import ROOT, NodeProcs, driver_node, ros_domain  # noqa: E402,F401
 
-from adm_sim.model.bridge import resolve_bridge  # noqa: E402
+from adm_sim.inputs.bridges import resolve_bridge  # noqa: E402
 from adm_sim.integrate.step_grid import StepOptions  # noqa: E402
-from adm_sim.integrate.sweep import parse_speeds, run_sweep  # noqa: E402
-from adm_sim.model.trains import load_train  # noqa: E402
+from adm_sim.integrate.sweep import run_sweep  # noqa: E402
+from adm_sim.inputs.speeds import parse_speeds  # noqa: E402
+from adm_sim.inputs.train_files import load_train  # noqa: E402
 
 COLCON = Path(sys.executable).parent / "colcon"
 

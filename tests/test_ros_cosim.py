@@ -21,10 +21,10 @@ import pytest
 pytest.importorskip("rclpy")
 from ros_fixtures import driver_node, node_procs, ros_domain  # noqa: E402,F401
 
-from adm_sim.model.bridge import resolve_bridge  # noqa: E402
+from adm_sim.inputs.bridges import resolve_bridge  # noqa: E402
 from adm_sim.integrate.step_grid import StepOptions  # noqa: E402
 from adm_sim.integrate.sweep import run_sweep  # noqa: E402
-from adm_sim.model.trains import load_train  # noqa: E402
+from adm_sim.inputs.train_files import load_train  # noqa: E402
 
 SPEEDS = "290,305,320,335,350"
 SPEEDS_KMH = [290.0, 305.0, 320.0, 335.0, 350.0]

@@ -19,12 +19,12 @@ import pytest
 pytest.importorskip("rclpy")
 from ros_fixtures import _HELD, ROOT, NodeProcs, driver_node, node_procs, ros_domain  # noqa: E402,F401
 
-from adm_sim.model.bridge import resolve_bridge  # noqa: E402
+from adm_sim.inputs.bridges import resolve_bridge  # noqa: E402
 from adm_sim.processes.dds_env import local_ros_env  # noqa: E402
 from adm_sim.recording.mcap_log import salvage  # noqa: E402
 from adm_sim.integrate.step_grid import StepOptions  # noqa: E402
 from adm_sim.integrate.sweep import run_sweep  # noqa: E402
-from adm_sim.model.trains import load_train  # noqa: E402
+from adm_sim.inputs.train_files import load_train  # noqa: E402
 
 TIMEOUT_S = 2.0
 #: The partner timeout plus the node's own exit (rclpy and Fast DDS teardown): 2.3-3.2 s quiet, 4.06 s

@@ -170,7 +170,7 @@ def test_step_messages_counts_what_a_step_publishes():
     rail state first): :meth:`MonitoringOutput.step_messages` must count exactly the messages
     :meth:`MonitoringOutput.step_done` then publishes, so the window is never passed. Checked on every
     step of a B1 x ICE-2 run's grid with the automatic decimation, no ROS context needed."""
-    from adm_sim.model.bridge import resolve_bridge
+    from adm_sim.inputs.bridges import resolve_bridge
     from adm_sim.integrate.lockstep_runs import BridgeHalf
     from adm_sim.nodes.bridge_node import BridgeRunState
     from adm_sim.nodes.bridge_outputs import MonitoringOutput, monitor_steps
@@ -178,7 +178,7 @@ def test_step_messages_counts_what_a_step_publishes():
     from adm_sim.nodes.params import bridge_specs
     from adm_sim.integrate.rk4_sides import BridgeSide
     from adm_sim.integrate.step_grid import StepOptions, make_grid
-    from adm_sim.model.trains import load_train
+    from adm_sim.inputs.train_files import load_train
 
     bridge, train = resolve_bridge("B1"), load_train("ICE-2")
     grid = make_grid(bridge, train.length_m, np.array([250.0, 263.0]) / 3.6, StepOptions())

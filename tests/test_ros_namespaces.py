@@ -27,10 +27,10 @@ import pytest
 pytest.importorskip("rclpy")
 from ros_fixtures import driver_node, node_procs, ros_domain  # noqa: E402,F401
 
-from adm_sim.model.bridge import resolve_bridge  # noqa: E402
+from adm_sim.inputs.bridges import resolve_bridge  # noqa: E402
 from adm_sim.integrate.step_grid import StepOptions  # noqa: E402
 from adm_sim.integrate.sweep import run_sweep  # noqa: E402
-from adm_sim.model.trains import load_train  # noqa: E402
+from adm_sim.inputs.train_files import load_train  # noqa: E402
 
 STEP = {"steps_per_period": 4.0, "free_vibration_periods": 1.0}
 ONE_MODE = {"n_modes": 1, "damping_model": "modal"}

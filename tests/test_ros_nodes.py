@@ -49,7 +49,7 @@ def test_descriptors_carry_units_and_ranges(bridge, train):
 def test_preset_gives_defaults(bridge):
     assert bridge.get_parameter("span_m").value == 15.0
     assert bridge.get_parameter("mu_kg_m").value == pytest.approx(19042.0)
-    from adm_sim.model.bridge import resolve_bridge
+    from adm_sim.inputs.bridges import resolve_bridge
 
     assert bridge.bridge == resolve_bridge("B1")  # exactly the preset: no % round trip
 

@@ -193,7 +193,7 @@ def test_crossing_recording_and_its_replay_open_in_the_default_layout(crossing_r
     t = np.array(acc["times"][bp.RUN_TIME]) * 1e-9
     dt = np.diff(t)  # uniform in the monitored lane's time, >= 8 samples per period of mode 3
     np.testing.assert_allclose(dt, dt[0], rtol=1e-6)
-    from adm_sim.model.bridge import resolve_bridge
+    from adm_sim.inputs.bridges import resolve_bridge
 
     b1 = resolve_bridge("B1")
     assert dt[0] <= 2 * np.pi / b1.omega_rad_s[-1] / 8 * (1 + 1e-6)  # times are stored in ns

@@ -13,7 +13,7 @@ from test_spans_mlm import DECKS, as_deck
 from adm_sim.integrate.sweep import run_sweep, run_sweep_compiled
 from adm_sim.model.bridge import Bridge, TABLE3, named_bridge
 from adm_sim.integrate.step_grid import StepOptions
-from adm_sim.model.trains import load_train, train_from_mapping
+from adm_sim.inputs.train_files import load_train, train_from_mapping
 
 
 def test_one_span_through_the_mode_tables_is_todays_dim():

@@ -9,10 +9,12 @@ import numpy as np
 import pytest
 
 from adm_sim.cli.sim_commands import main
-from adm_sim.model.bridge import Bridge, TABLE3, load_bridge_file, named_bridge, parse_bridge_spec, resolve_bridge
+from adm_sim.errors import InputError
+from adm_sim.model.bridge import Bridge, TABLE3, named_bridge
+from adm_sim.inputs.bridges import load_bridge_file, parse_bridge_spec, resolve_bridge
 from adm_sim.integrate.sweep import run_sweep_compiled
 from adm_sim.model.spans import deck_modes
-from adm_sim.model.trains import load_train
+from adm_sim.inputs.train_files import load_train
 
 GOOD = "spans=12/16/12,EJ=2e10,mu=15000/18000/15000,zeta_pct=1.5"
 
@@ -168,18 +170,18 @@ def test_exact_method_refused_on_a_deck(call_main, tmp_path):
     assert done.stderr.startswith("error: --method: 'exact' is the closed-form MLM envelope of one simply supported span")
 
 
-def test_entries_not_wired_refuse_a_deck(call_main, tmp_path):
-    """adm-sim check takes one simply supported span today: a deck is refused in one line naming where
-    continuous decks are taken, exit 2, nothing written (adm-calib calibrate takes decks:
-    tests/calib/test_calib_decks.py)."""
+def test_entries_not_wired_refuse_a_deck():
+    """The ROS graph (bridge node, launch scripts) takes one simply supported span: its reader refuses a
+    deck in one line naming the entries that take continuous decks (adm-sim check takes decks:
+    tests/design/test_check_deck.py; adm-calib calibrate: tests/calib/test_calib_decks.py)."""
     deck = "spans=15/15,EJ=2e10,mu=15000,zeta_pct=1.5"
-    refusal = (f"error: --bridge: '{deck}' is a continuous deck of 2 spans; this entry takes one simply supported "
-               f"span (allowed: L=..., B1..B4; continuous decks: adm-sim sweep --model mlm (RK4))")
-    for m, argv in ((main, ["check", "--bridge", deck, "--max-line-speed", "200", "--json", str(tmp_path / "c.json")]),):
-        done = call_main(m, *argv)
-        assert done.returncode == 2
-        assert done.stderr.strip().splitlines() == [refusal]
-        assert list(tmp_path.iterdir()) == []
+    with pytest.raises(InputError) as exc:
+        resolve_bridge(deck)
+    assert str(exc.value) == (
+        f"bridge: '{deck}' is a continuous deck of 2 spans; this entry takes one simply supported span "
+        f"(allowed: L=..., B1..B4; continuous decks: adm-sim sweep (RK4), adm-sim check, adm-calib calibrate and "
+        f"adm-calib study --spans-layout)")
+    assert resolve_bridge(deck, continuous=True).spans_m == (15.0, 15.0)
 
 
 def test_sweep_modes_and_damping_model(call_main, tmp_path):

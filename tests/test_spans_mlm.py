@@ -10,7 +10,8 @@ from adm_sim.errors import InputError
 from adm_sim.integrate.step_grid import StepOptions
 from adm_sim.integrate.sweep import run_sweep, run_sweep_compiled, sweep_exact
 from adm_sim.model.bridge import Bridge, TABLE3, named_bridge
-from adm_sim.model.trains import load_train, moving_loads
+from adm_sim.model.trains import moving_loads
+from adm_sim.inputs.train_files import load_train
 
 TRAINS = ("ICE-2", "Eurostar", "Railjet", "ICE-4")
 

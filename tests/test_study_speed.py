@@ -21,7 +21,7 @@ from adm_sim.errors import InputError
 from adm_sim.integrate.step_grid import StepOptions, speeds_to_m_s
 from adm_sim.integrate.sweep import run_sweep
 from adm_sim.integrate.tables import _axles_on, axle_rows, small_inverse
-from adm_sim.model.trains import load_train
+from adm_sim.inputs.train_files import load_train
 
 
 def _bridges(train, span, fi, mfs=MASS_FUNCTION_NAMES):

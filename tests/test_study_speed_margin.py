@@ -17,7 +17,7 @@ from adm_sim.integrate.compiled_batch import BatchRunner, modal_load_table
 from adm_sim.integrate.mlm_loads import half_step_positions, modal_loads_at
 from adm_sim.integrate.step_grid import StepOptions
 from adm_sim.integrate.sweep import run_sweep
-from adm_sim.model.trains import load_train
+from adm_sim.inputs.train_files import load_train
 
 
 def _bridges(train, span, fi, mfs=MASS_FUNCTION_NAMES):

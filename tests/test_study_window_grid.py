@@ -20,9 +20,9 @@ from adm_calib import calibrate as cal
 from adm_calib import peaks as pk
 from adm_calib.calibration_options import CalibrationOptions
 from adm_calib.speed_grids import dim_speeds_paper, dim_speeds_window
-from adm_sim.model.bridge import resolve_bridge
+from adm_sim.inputs.bridges import resolve_bridge
 from adm_sim.integrate.step_grid import StepOptions
-from adm_sim.model.trains import load_train
+from adm_sim.inputs.train_files import load_train
 
 COARSE = StepOptions(steps_per_period=6.0, free_vibration_periods=1.0)  # small and fast; the same for both grids
 

@@ -17,7 +17,7 @@ from adm_sim.model.bridge import named_bridge
 from adm_sim.cli.sim_commands import main
 from adm_sim.integrate.step_grid import StepOptions
 from adm_sim.integrate.sweep import BACKENDS, run_sweep, run_sweep_compiled
-from adm_sim.model.trains import load_train
+from adm_sim.inputs.train_files import load_train
 
 COARSE = StepOptions(steps_per_period=8.0)  # half the default step count: the same code, cheaper
 

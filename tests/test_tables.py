@@ -18,7 +18,7 @@ import pytest
 
 from adm_sim.model.bridge import named_bridge
 from adm_sim.integrate.tables import axle_rows, bridge_tables, vehicle_tables
-from adm_sim.model.trains import load_train
+from adm_sim.inputs.train_files import load_train
 
 
 def _dense(ptr, col, val, shape):

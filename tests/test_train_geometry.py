@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from adm_sim.errors import InputError
-from adm_sim.model.trains import load_train, train_from_mapping
+from adm_sim.inputs.train_files import load_train, train_from_mapping
 
 TRAINS = __import__("pathlib").Path(__file__).resolve().parents[1] / "src" / "adm_sim" / "data" / "trains"
 

@@ -33,8 +33,9 @@ from scipy.integrate import solve_ivp
 
 from adm_sim.model.bridge import Bridge, named_bridge
 from adm_sim.errors import InputError
+from adm_sim.fields import AXLE_LOAD_REL_TOL
 from adm_sim.integrate.sweep import run_sweep, run_sweep_compiled
-from adm_sim.model.trains import load_train, train_from_mapping, vehicle_file_mapping
+from adm_sim.inputs.train_files import load_train, train_from_mapping, vehicle_file_mapping
 from adm_sim.model.vehicles import to_toml
 
 PAPER = {"ICE-2": "ice2", "Eurostar": "eurostar", "Railjet": "railjet", "ICE-4": "ice4"}
@@ -106,15 +107,15 @@ def test_table4_delta_zeta_vbi_unchanged_on_b1():
 
 
 def test_vehicle_file_runs_through_load_train_and_the_checks(tmp_path):
-    """``--train file.toml`` takes a vehicle file (load_train -> train_from_mapping); check_train
+    """``--train file.toml`` takes a vehicle file (load_train -> train_from_mapping); consistency_rows
     skips its units (their loads are checked against statics when loaded)."""
     p = tmp_path / "my_vehicle_train.toml"
     p.write_text(_shipped("railjet").read_text())
     t = load_train(str(p))
     assert t.n_axles == load_train("Railjet").n_axles
-    from adm_sim.model.trains import check_train
+    from adm_sim.model.trains import consistency_rows
 
-    assert all(r.item.startswith("n_p") for r in check_train(t))
+    assert all(r.item.startswith("n_p") for r in consistency_rows(t, rel_tol=AXLE_LOAD_REL_TOL))
 
 
 # ---------------------------------------------------------------------- sprung mass benchmarks
@@ -239,14 +240,14 @@ def test_sprung_mass_vbi2d_ramp(case, c_v, peak_mm, hist_tol):
     output (Newmark at 1 ms, 100 modes): peak within 2e-3 (measured 3.9e-4, 1.3e-3) and the samples
     every 0.1 s within 1 % of the peak (measured 0.17 %, 0.50 %): the shipped solution's own time
     step, as its Newmark scheme at 0.1 ms moves onto this reference (docs/vehicles.md)."""
-    from adm_sim.model.irregularity import parse
+    from adm_sim.inputs.track_profile import parse_irregularity
     from adm_sim.integrate.step_grid import StepOptions
 
     L, EI, m, v = 25.0, 3.5e10 * 1.3901, 18358.0, 25.0
     br = Bridge(span_m=L, EJ_Nm2=EI, mass_per_length_kg_m=m, damping_ratio=0.0, n_modes=N_MODES,
                 damping_model="modal")
     tr = sprung_mass_train(5750.0, 1595e3, c_v)
-    prof = parse(f"ramp:at={L / 3!r}:length={L / 6!r}:height=0.01", L)
+    prof = parse_irregularity(f"ramp:at={L / 3!r}:length={L / 6!r}:height=0.01", L)
     ts, ref = sprung_mass_reference(L, EI, m, 5750.0, 1595e3, c_v, v, N_MODES, ramp=(L / 3, L / 6, 0.01))
     r = run_sweep(br, tr, "dim", [3.6 * v], histories=True, options=StepOptions(irregularity=prof))
     on = r.time_s[0] <= L / v

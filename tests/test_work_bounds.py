@@ -23,7 +23,7 @@ from adm_sim.errors import EXIT_RUN, InputError
 from adm_sim.integrate.compiled_batch import BatchRunner
 from adm_sim.integrate.step_grid import make_grid
 from adm_sim.model.bridge import named_bridge
-from adm_sim.model.trains import load_train
+from adm_sim.inputs.train_files import load_train
 
 
 def test_work_is_lanes_times_steps_times_modes(monkeypatch):

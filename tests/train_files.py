@@ -1,4 +1,4 @@
-"""Train files the tests write (the vehicle-type form of :func:`adm_sim.model.trains.train_from_mapping`)."""
+"""Train files the tests write (the vehicle-type form of :func:`adm_sim.inputs.train_files.train_from_mapping`)."""
 
 
 def two_car_train_file(tmp_path, axle_kn=190.0, m_c_kg=40000.0):

@@ -92,14 +92,14 @@ def _steps_per_period(text):
 
 
 def _speeds(text):
-    from adm_sim.integrate.sweep import parse_speeds  # noqa: PLC0415  start-up: only this subcommand (60 ms)
+    from adm_sim.inputs.speeds import parse_speeds  # noqa: PLC0415  start-up: only this subcommand (60 ms)
 
     return parse_speeds(text, field="--speeds")
 
 
 def cmd_calibrate(args):
-    from adm_sim.model.bridge import resolve_bridge  # noqa: PLC0415  start-up: only this subcommand (16 ms)
-    from adm_sim.model.trains import load_train  # noqa: PLC0415  start-up: only this subcommand (47 ms)
+    from adm_sim.inputs.bridges import resolve_bridge  # noqa: PLC0415  start-up: only this subcommand (16 ms)
+    from adm_sim.inputs.train_files import load_train  # noqa: PLC0415  start-up: only this subcommand (47 ms)
 
     from adm_calib.calibrate import calibrate  # noqa: PLC0415  scipy (~1.3 s): only this subcommand
 
@@ -153,7 +153,7 @@ def _check_plausible(res):
 
 def cmd_table4(args):
     from adm_sim.model.bridge import named_bridge  # noqa: PLC0415  start-up: only this subcommand (16 ms)
-    from adm_sim.model.trains import load_train  # noqa: PLC0415  start-up: only this subcommand (47 ms)
+    from adm_sim.inputs.train_files import load_train  # noqa: PLC0415  start-up: only this subcommand (47 ms)
 
     from adm_calib.plots import plot_total_damping  # noqa: PLC0415  start-up: only this subcommand (239 ms)
     from adm_calib.table4 import run_table4  # noqa: PLC0415  scipy (~1.2 s): only this subcommand
@@ -373,7 +373,7 @@ def verify_recommendation(rec, mu_kg_m, zeta_pct=None, speeds=None, speeds_text=
     recommendation) under its train (:func:`adm_calib.recommend_verify.verify`). A range whose
     calibration finds no resonance is refused (one line naming ``option``)."""
     from adm_sim.model.bridge import Bridge  # noqa: PLC0415  start-up: only this subcommand (16 ms)
-    from adm_sim.model.trains import load_train  # noqa: PLC0415  start-up: only this subcommand (47 ms)
+    from adm_sim.inputs.train_files import load_train  # noqa: PLC0415  start-up: only this subcommand (47 ms)
 
     from adm_calib.recommend_verify import verify  # noqa: PLC0415  start-up: only with --verify
 
@@ -510,10 +510,10 @@ def cmd_study(args):
     spp = None if args.steps_per_period is None else _steps_per_period(args.steps_per_period)
     _speeds(args.speeds)
     if args.irregularity:
-        from adm_sim.model.irregularity import parse  # noqa: PLC0415  scipy.interpolate only for rough-track studies
+        from adm_sim.inputs.track_profile import parse_irregularity  # noqa: PLC0415  scipy.interpolate only for rough-track studies
 
         for span in (4.0, 40.0):  # bad input (spectrum, class, band, file, slope, curvature) refused before
-            parse(args.irregularity, span)  # anything is written (every selected span below)
+            parse_irregularity(args.irregularity, span)  # anything is written (every selected span below)
     settings = StudySettings(speeds=args.speeds, dim_grid=args.dim_grid, steps_per_period=spp,
                              dense_maxima=args.dense_maxima, refine_speed=args.refine_speed,
                              irregularity=args.irregularity, spans_layout=layout)
@@ -525,7 +525,7 @@ def cmd_study(args):
         check_dim_step(tf, study_step_s(cases, spp))
     if args.irregularity:
         for span in sorted({c.bridge.span_m for c in cases}):  # a random profile differs per deck length
-            parse(args.irregularity, span)
+            parse_irregularity(args.irregularity, span)
     _check_study_work(cases, settings)
     make_output_folder(out, "--out")
     options = {"trains": trains, "mass_functions": mfs, "spans_m": list(spans), "spans_layout": layout, "freq_index": fis,

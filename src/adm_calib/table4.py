@@ -16,7 +16,7 @@ from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 
 from adm_sim.model.bridge import named_bridge
-from adm_sim.model.trains import load_train
+from adm_sim.inputs.train_files import load_train
 
 from adm_calib.calibrate import calibrate
 from adm_calib.reference import STUDY_TRAINS

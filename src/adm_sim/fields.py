@@ -474,7 +474,8 @@ _FIELDS = [
     _F("J_c_kgm2", "kg m^2", float, "car body pitch inertia", "vehicle", _S("toml", "J_c_kgm2"), lo=1.0, hi=1.0e8),
     _F("m_b_kg", "kg", float, "bogie mass", "vehicle", _S("toml", "m_b_kg"), lo=1.0, hi=1.0e5),
     _F("J_b_kgm2", "kg m^2", float, "bogie pitch inertia", "vehicle", _S("toml", "J_b_kgm2"), lo=1.0, hi=1.0e6),
-    _F("m_w_kg", "kg", float, "wheelset mass", "vehicle", _S("toml", "m_w_kg"), lo=0.0, hi=1.0e4),
+    _F("m_w_kg", "kg", float, "wheelset mass", "vehicle", _S("toml", "m_w_kg"), _S("toml", "wheelsets.mass_kg"),
+       lo=0.0, hi=1.0e4),
     _F("k_s_N_m", "N/m", float, "secondary suspension stiffness", "vehicle", _S("toml", "k_s_N_m"), lo=1.0, hi=1.0e10),
     _F("c_s_Ns_m", "N s/m", float, "secondary suspension damping", "vehicle", _S("toml", "c_s_Ns_m"),
        lo=0.0, hi=1.0e8),
@@ -485,8 +486,24 @@ _FIELDS = [
     _F("r_m", "m", float, "bogie pivot distance (optional)", "vehicle", _S("toml", "r_m"), lo=0.5, hi=60.0),
     _F("b_m", "m", float, "bogie wheelbase", "vehicle", _S("toml", "b_m"), lo=0.5, hi=10.0),
     _F("axle_load_n", "N", float, "static axle load (one value or [front, rear])", "vehicle",
-       _S("toml", "axle_load_kN", "kN"), _S("toml", "axle_loads_kN", "kN"), lo=1000.0, hi=500_000.0),
+       _S("toml", "axle_load_kN", "kN"), _S("toml", "axle_loads_kN", "kN"),
+       _S("toml", "wheelsets.static_load_kN", "kN"), lo=1000.0, hi=500_000.0),
     _F("count", "-", int, "vehicles of one composition entry", "vehicle", _S("toml", "count"), lo=1, hi=100),
+    # -------------------------------------------------------------- vehicle file (bodies, wheelsets, stages)
+    _F("vehicle_length_m", "m", float, "vehicle length, coupler to coupler (vehicle file)", "vehicle",
+       _S("toml", "length_m"), lo=0.0, hi=1000.0),
+    _F("body_mass_kg", "kg", float, "mass of a body: car body, bogie, ... (vehicle file)", "vehicle",
+       _S("toml", "bodies.mass_kg"), lo=1.0, hi=5.0e5),
+    _F("body_pitch_inertia_kgm2", "kg m^2", float, "pitch inertia of a body about its centre of gravity "
+       "(vehicle file; omitted: the body does not pitch)", "vehicle", _S("toml", "bodies.pitch_inertia_kgm2"),
+       lo=1.0, hi=1.0e8),
+    _F("vehicle_x_m", "m", float, "position behind the vehicle's front end: a body's centre of gravity, a "
+       "wheelset, a stage (vehicle file)", "vehicle",
+       _S("toml", "bodies.x_m"), _S("toml", "wheelsets.x_m"), _S("toml", "stages.x_m"), lo=-100.0, hi=1000.0),
+    _F("stage_k_N_m", "N/m", float, "stiffness of a spring-damper stage (vehicle file)", "vehicle",
+       _S("toml", "stages.k_N_m"), lo=1.0, hi=1.0e10),
+    _F("stage_c_Ns_m", "N s/m", float, "damping of a spring-damper stage (vehicle file)", "vehicle",
+       _S("toml", "stages.c_Ns_m"), lo=0.0, hi=1.0e8),
     # -------------------------------------------------------------- bounded work (sizes of one run)
     _F("n_speeds", "speeds", int, "speeds of one run or check: a --speeds grid or list, the check's grid from "
        "--speed-step (memory and time grow with it)", "limits",
@@ -509,6 +526,31 @@ GROUPS = ("bridge", "run", "outputs", "replay", "monitor", "vehicle", "limits")
 VEHICLE_FIELDS = ("m_c_kg", "J_c_kgm2", "m_b_kg", "J_b_kgm2", "m_w_kg", "k_s_N_m", "c_s_Ns_m", "k_p_N_m",
                   "c_p_Ns_m", "d_m", "r_m", "b_m")
 VEHICLE_OPTIONAL = ("r_m",)
+
+# ---------------------------------------------------------------------- train files: keys and tolerances
+# One reader takes both forms of a train file (:mod:`adm_sim.inputs.train_files`): vehicle types of
+# Table A1 (``[vehicle_types.<NAME>]``) or vehicles of bodies, wheelsets and stages (``[vehicles.<NAME>]``).
+#: Top-level keys of a train file, by the table of its form.
+TRAIN_FILE_KEYS = {table: ("name", "description", "source", "paper_train", table, "composition",
+                           "loads_differ_from_masses") for table in ("vehicle_types", "vehicles")}
+#: Keys of a ``[[composition]]`` entry, by form and kind of entry.
+COMPOSITION_KEYS = {"vehicle_types": {"vehicle": ("vehicle", "count"),
+                                      "jacobs_set": ("jacobs_set", "bogies", "axle_loads_kN", "reversed")},
+                    "vehicles": {"vehicle": ("vehicle", "count", "reversed")}}
+#: Keys of a ``[vehicles.<NAME>]`` table.
+VEHICLE_KEYS = ("length_m", "bodies", "wheelsets", "stages")
+#: Keys of the tables of a vehicle: ``(key, toml spelling of its field or None for a name, required)``.
+VEHICLE_TABLE_KEYS = {
+    "bodies": (("name", None, True), ("mass_kg", "bodies.mass_kg", True),
+               ("pitch_inertia_kgm2", "bodies.pitch_inertia_kgm2", False), ("x_m", "bodies.x_m", True)),
+    "wheelsets": (("name", None, True), ("mass_kg", "wheelsets.mass_kg", True), ("x_m", "wheelsets.x_m", True),
+                  ("static_load_kN", "wheelsets.static_load_kN", False)),
+    "stages": (("upper", None, True), ("lower", None, True), ("x_m", "stages.x_m", True),
+               ("k_N_m", "stages.k_N_m", True), ("c_Ns_m", "stages.c_Ns_m", True)),
+}
+#: Largest relative difference between axle loads and the masses they carry times g (both forms;
+#: ``loads_differ_from_masses = true`` lifts it).
+AXLE_LOAD_REL_TOL = 0.005
 
 
 #: ``(surface, key) -> View``: every spelling once (a key is spelled by one field per surface, tested)
@@ -565,8 +607,18 @@ def check_count(name, n, where, given):
     return n
 
 
-def check_delta_zeta(field, value, damping_ratio, *, pct=False, positive_for=None, remedy=""):
-    """``float(value)``, an additional damping Δζ (a fraction; in % with ``pct``), or
+def delta_zeta_view(name):
+    """The :class:`View` of the additional damping Δζ as a caller names it: a spelling of field
+    ``delta_zeta`` (``--delta-zeta-pct`` in %, the ROS parameters ``delta_zeta`` and
+    ``delta_zeta_lanes`` as fractions), else the core's own (a fraction, library argument ``delta_zeta``)."""
+    f = FIELDS["delta_zeta"]
+    hits = [s for s in f.spellings if s.key == name]
+    return View(f, hits[0]) if hits else f.view()
+
+
+def check_delta_zeta(field, value, damping_ratio, *, pct=None, positive_for=None, remedy=""):
+    """``float(value)``, an additional damping Δζ in the unit of ``field`` (:func:`delta_zeta_view`:
+    ``--delta-zeta-pct`` in %, anything else a fraction; ``pct`` forces % or a fraction), or
     :class:`InputError` naming ``field``: the one check of the Δζ sign rule.
 
     Δζ lies in the registry's ``[-ζ, 0.2]`` (``[-100 ζ, 20] %``): total damping ζ + Δζ >= 0.
@@ -575,7 +627,10 @@ def check_delta_zeta(field, value, damping_ratio, *, pct=False, positive_for=Non
     ``<field>: zeta + delta_zeta = 0 %; <positive_for> needs damping > 0 % (allowed <field> > -1.85 %<remedy>)``.
     ``damping_ratio`` is the bridge's ζ (fraction).
     """
-    v = view("cli", "--delta-zeta-pct") if pct else FIELDS["delta_zeta"].view()
+    if pct is None:
+        v = delta_zeta_view(field)
+    else:
+        v = view("cli", "--delta-zeta-pct") if pct else FIELDS["delta_zeta"].view()
     x = v.check(value, name=field, lo_core=-damping_ratio)
     total = damping_ratio + v.to_core(x)
     if positive_for is not None and total <= 0.0:
@@ -589,6 +644,18 @@ def check_delta_zeta_pct(field, value_pct, damping_ratio, **kw):
     return check_delta_zeta(field, value_pct, damping_ratio, pct=True, **kw)
 
 
+def check_delta_zeta_fraction(name, delta_zeta, damping_ratio, **kw):
+    """A Δζ given as a fraction (the core's unit) checked as the caller names it (``name``): in % for
+    ``--delta-zeta-pct`` (``0.5`` is refused as ``50 %``), a fraction for ``delta_zeta``
+    (:func:`delta_zeta_view`). Returns ``delta_zeta`` itself (no unit round trip), keywords as
+    :func:`check_delta_zeta`. The one check of a sweep's Δζ (:func:`adm_sim.integrate.sweep.lane_damping`)."""
+    v = delta_zeta_view(name)
+    check_delta_zeta(name, v.from_core(delta_zeta), damping_ratio, **kw)
+    return delta_zeta
+
+
 __all__ = ["check_range", "check_number", "check_int", "check_choice", "check_count", "check_delta_zeta", "check_delta_zeta_pct",
+           "check_delta_zeta_fraction", "delta_zeta_view",
            "SCALES", "SURFACES", "Spelling", "Field", "View", "FIELDS", "GROUPS", "VEHICLE_FIELDS",
-           "VEHICLE_OPTIONAL", "view", "spellings", "core", "argument_flag"]
+           "VEHICLE_OPTIONAL", "TRAIN_FILE_KEYS", "COMPOSITION_KEYS", "VEHICLE_KEYS", "VEHICLE_TABLE_KEYS",
+           "AXLE_LOAD_REL_TOL", "view", "spellings", "core", "argument_flag"]

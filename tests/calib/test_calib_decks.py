@@ -22,7 +22,7 @@ from adm_sim.integrate.step_grid import StepOptions
 from adm_sim.integrate.sweep import run_sweep_compiled
 from adm_sim.model.bridge import Bridge, eurocode_damping_pct
 from adm_sim.model.parametric import field_frequencies_hz, mass_function_t_m
-from adm_sim.model.trains import load_train
+from adm_sim.inputs.train_files import load_train
 
 from adm_calib.calib_commands import main
 from adm_calib.calibrate import calibrate, calibration_step

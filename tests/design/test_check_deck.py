@@ -18,7 +18,7 @@ from adm_sim.design.deck_statics import ContinuousBeam, DeckEffect, lm71_max, lm
 from adm_sim.design.design_loads import LM71_AXLE_LOAD_N, LM71_AXLES_M, LM71_HALF_WINDOW_M, LM71_UDL_N_M
 from adm_sim.errors import InputError
 from adm_sim.model.bridge import Bridge
-from adm_sim.model.trains import load_train
+from adm_sim.inputs.train_files import load_train
 
 SPANS = (12.0, 16.0, 13.0)
 EJ = (2.0e10, 3.0e10, 2.5e10)

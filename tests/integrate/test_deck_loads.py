@@ -12,7 +12,7 @@ import pytest
 from adm_sim.integrate.compiled_batch import modal_load_table
 from adm_sim.integrate.mlm_loads import half_step_positions, modal_loads_at
 from adm_sim.model.bridge import Bridge
-from adm_sim.model.trains import load_train
+from adm_sim.inputs.train_files import load_train
 
 
 @pytest.mark.parametrize("spans", [(15.0, 15.0), (12.0, 20.0, 12.0), (10.0, 10.0, 10.0, 10.0), (30.0,)])

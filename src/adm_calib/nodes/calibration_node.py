@@ -37,8 +37,8 @@ from adm_sim.nodes import common as c
 from adm_calib.nodes.params import CALIBRATION_SPECS
 from adm_sim.nodes.driver import RunDriver, say
 from adm_sim.integrate.step_grid import StepOptions
-from adm_sim.integrate.sweep import parse_speeds
-from adm_sim.model.trains import load_train
+from adm_sim.inputs.speeds import parse_speeds
+from adm_sim.inputs.train_files import load_train
 
 #: ``@run`` label of each run phase (:data:`adm_sim.protocol.PHASES`).
 PHASE_LABELS = {phase: P.PHASE_NAMES[phase][1] for phase in P.PHASES}

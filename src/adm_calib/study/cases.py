@@ -18,7 +18,7 @@ from adm_sim.fields import check_range
 from adm_sim.limits import DEFAULT_SPEEDS
 from adm_sim.model.parametric import FIELD_SPANS_M, MASS_FUNCTIONS
 from adm_sim.integrate.step_grid import StepOptions
-from adm_sim.model.trains import load_train
+from adm_sim.inputs.train_files import load_train
 
 from adm_calib.lower_bound import FIT_RANGE_MAX_HZ, LOWER_LIMIT_HZ  # noqa: F401  (re-exported for the study package)
 from adm_calib.reference import STUDY_TRAINS, canonical_train_name
@@ -211,7 +211,7 @@ class StudySettings:
     :class:`~adm_sim.integrate.step_grid.StepOptions`); ``refine_speed`` locates both peaks to 0.05 km/h
     (:class:`~adm_calib.calibrate.CalibrationOptions` ``speed_refinement_kmh``). Both off: the
     paper's rules. Settings written by a version without these two read as off.
-    ``irregularity`` a track profile spec of :func:`adm_sim.model.irregularity.parse` (e.g.
+    ``irregularity`` a track profile spec of :func:`adm_sim.inputs.track_profile.parse_irregularity` (e.g.
     ``german-high:seed=3``) applied on the deck of every case (DIM only); empty: smooth track,
     as the paper (and settings written before it existed). ``spans_layout`` the cases' decks
     (:func:`select_cases`): 1, the paper's simply supported spans (and settings written before it
@@ -227,7 +227,7 @@ class StudySettings:
     spans_layout: int = 1
 
     def speeds_kmh(self):
-        from adm_sim.integrate.sweep import parse_speeds  # noqa: PLC0415  scipy.signal (peaks) only when a study runs
+        from adm_sim.inputs.speeds import parse_speeds  # noqa: PLC0415  scipy.signal (peaks) only when a study runs
 
         return parse_speeds(self.speeds)
 
@@ -240,11 +240,11 @@ class StudySettings:
         step = None
         profile = None
         if self.irregularity:
-            from adm_sim.model.irregularity import parse  # noqa: PLC0415  scipy.interpolate only for rough-track studies
+            from adm_sim.inputs.track_profile import parse_irregularity  # noqa: PLC0415  scipy.interpolate only for rough-track studies
 
             if span_m is None:
                 raise ValueError("calibration_options: an irregularity needs the span of the cases")
-            profile = parse(self.irregularity, span_m)
+            profile = parse_irregularity(self.irregularity, span_m)
         if self.steps_per_period is not None or self.dense_maxima or profile is not None:
             spp = StepOptions.steps_per_period if self.steps_per_period is None else self.steps_per_period
             step = StepOptions(steps_per_period=spp,

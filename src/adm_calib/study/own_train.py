@@ -41,8 +41,9 @@ from adm_sim.files import input_file, read_text
 from adm_sim.integrate.step_grid import StepOptions
 from adm_sim.model.hslm import hslm_name
 from adm_sim.model.parametric import mass_function_t_m
-from adm_sim.model.plausibility import check_train as check_plausible
-from adm_sim.model.trains import G_M_S2, load_train, train_from_mapping, vehicle_file_mapping
+from adm_sim.inputs.train_files import load_train, train_from_mapping, vehicle_file_mapping
+from adm_sim.model.plausibility import warn_implausible_train
+from adm_sim.model.trains import G_M_S2
 
 from adm_calib.lower_bound import LOWER_LIMIT_HZ
 from adm_calib.recommend_warnings import parse_cases
@@ -112,7 +113,7 @@ def read_train_file(text, option="--trains"):
         raise InputError(f"{option}: {str(text)!r}: cannot read ({exc.strerror})") from None
     body = read_text(p, f"{option}: train file")  # UTF-8 (a byte order mark dropped), one line if not
     tf = parse_train_text(body, sha256_hex(data), text, option)
-    check_plausible(tf.train, source=f"train file {p.name}")  # warnings, not refusals
+    warn_implausible_train(tf.train, source=f"train file {p.name}")  # warnings, not refusals
     if not tf.train.units:
         raise InputError(f"{option}: {str(text)!r}: train {tf.name!r} has no vehicles; the DIM cannot run it")
     return tf

@@ -26,7 +26,7 @@ from adm_sim.model.bridge import named_bridge
 from adm_sim.design.check import resolve_trains, run_check
 from adm_sim.integrate.step_grid import StepOptions
 from adm_sim.integrate.sweep import run_sweep_compiled, sweep_exact
-from adm_sim.model.trains import load_train
+from adm_sim.inputs.train_files import load_train
 
 
 def _paths():

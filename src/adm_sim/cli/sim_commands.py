@@ -8,6 +8,7 @@ another reason (e.g. an integration that became unstable) with 1, an interrupt w
 from __future__ import annotations
 
 import json
+import math
 import sys
 import time
 from pathlib import Path
@@ -17,12 +18,12 @@ from adm_sim.cliutil import (Parser, add_choice, add_delta_zeta_pct, add_max_wor
                              progress_callback)
 from adm_sim.errors import InputError
 from adm_sim.cliutil import run_cli
-from adm_sim.fields import FIELDS, check_delta_zeta_pct
+from adm_sim.fields import FIELDS
 from adm_sim.files import OutputSet, claim_output, mcap_input
 from adm_sim.inputs.measured import add_measured_argument
 from adm_sim.cli.figures import plot_check, plot_sweep
 from adm_sim.limits import ACC_LIMITS_M_S2, TRACK_ALIASES, check_track_type
-from adm_sim.model.where import parse_where, where_text
+from adm_sim.integrate.where import parse_where, where_text
 from adm_sim.integrate import _jit
 
 
@@ -74,10 +75,29 @@ def _sweep_method(args, bridge, dz, where):
     if method == "exact" and bridge.damping_ratio + dz <= 0.0 and dz == 0.0:  # the bridge's own damping is 0
         raise InputError(f"--bridge: {args.bridge!r} has zeta_pct = 0 % (damping ratio zeta); the exact MLM envelope "
                          f"needs damping > 0 % (give zeta_pct > 0 in the bridge, --delta-zeta-pct > 0, or --method rk4)")
-    if method == "exact":
-        check_delta_zeta_pct("--delta-zeta-pct", args.delta_zeta_pct, bridge.damping_ratio,
-                             positive_for="the exact MLM envelope", remedy=", or --method rk4")
+    from adm_sim.integrate.sweep import lane_damping  # noqa: PLC0415  start-up: only this subcommand (52 ms)
+
+    exact = dict(positive_for="the exact MLM envelope", remedy=", or --method rk4") if method == "exact" else {}
+    lane_damping(bridge, dz, (), DZ_OPTION, **exact)  # the one check of Δζ, as typed (%), before any output
     return method, backend
+
+
+#: The option of the additional damping (%); a bad value is refused naming it, in %.
+DZ_OPTION = "--delta-zeta-pct"
+
+
+def _delta_zeta_option(text, bridge):
+    """``--delta-zeta-pct`` as a fraction (the core's unit). Only a value that is no finite number is
+    refused here (naming the option and its range); the range is checked once, by the sweep's own check
+    (:func:`adm_sim.integrate.sweep.lane_damping`) before the sweep prints, in %."""
+    v = option_view(DZ_OPTION)
+    try:
+        x = float(text)
+    except (TypeError, ValueError):
+        x = math.nan
+    if not math.isfinite(x):
+        v.check(text, lo_core=-bridge.damping_ratio)  # raises the option's one line
+    return v.to_core(x)
 
 
 def _sweep_outputs(args, res, env, bridge, zeta, where, method, backend, wall, json_path, plot_path):
@@ -109,10 +129,11 @@ def _sweep_outputs(args, res, env, bridge, zeta, where, method, backend, wall, j
 
 
 def cmd_sweep(args):
-    from adm_sim.model.bridge import resolve_bridge  # noqa: PLC0415  start-up: only this subcommand (20 ms)
+    from adm_sim.inputs.bridges import resolve_bridge  # noqa: PLC0415  start-up: only this subcommand (20 ms)
     from adm_sim.integrate.step_grid import StepOptions  # noqa: PLC0415  start-up: only this subcommand (6 ms)
-    from adm_sim.integrate.sweep import parse_speeds, run_sweep, run_sweep_compiled, sweep_exact  # noqa: PLC0415  start-up: only this subcommand (52 ms)
-    from adm_sim.model.trains import load_train  # noqa: PLC0415  start-up: only this subcommand (58 ms)
+    from adm_sim.integrate.sweep import run_sweep, run_sweep_compiled, sweep_exact  # noqa: PLC0415  start-up: only this subcommand (52 ms)
+    from adm_sim.inputs.speeds import parse_speeds  # noqa: PLC0415  start-up: only this subcommand (52 ms)
+    from adm_sim.inputs.train_files import load_train  # noqa: PLC0415  start-up: only this subcommand (58 ms)
 
     inputs = {"--train": args.train, "--bridge": args.bridge}
     json_path = None if args.json is None else claim_output(args.json, "--json", args.overwrite, inputs=inputs)
@@ -122,16 +143,15 @@ def cmd_sweep(args):
     bridge = _sweep_modes(resolve_bridge(args.bridge, continuous=True), args.modes, args.damping_model)
     train = load_train(args.train)
     speeds = parse_speeds(args.speeds, field="--speeds")
-    dz_pct = option_view("--delta-zeta-pct")  # % on the command line, a fraction in the core
-    dz = dz_pct.to_core(dz_pct.check(args.delta_zeta_pct, lo_core=-bridge.damping_ratio))  # dz >= -zeta
+    dz = _delta_zeta_option(args.delta_zeta_pct, bridge)  # its range: lane_damping in _sweep_method
     profile = None
     if args.irregularity:
         if args.model != "dim":
             raise InputError(f"--irregularity: {args.irregularity!r} acts on the DIM's wheels; the MLM has none "
                              f"(allowed with --model dim)")
-        from adm_sim.model.irregularity import parse  # noqa: PLC0415  scipy.interpolate only on a rough track
+        from adm_sim.inputs.track_profile import parse_irregularity  # noqa: PLC0415  scipy.interpolate only on a rough track
 
-        profile = parse(args.irregularity, bridge.span_m)  # refused beyond the model's slope and curvature
+        profile = parse_irregularity(args.irregularity, bridge.span_m)  # refused beyond the model's slope and curvature
     opts = StepOptions(steps_per_period=check_option("--steps-per-period", args.steps_per_period),
                        irregularity=profile)
     where = parse_where(args.where, bridge.span_m)
@@ -149,13 +169,13 @@ def cmd_sweep(args):
     t0 = time.perf_counter()
     try:
         if method == "exact":
-            res, env = sweep_exact(bridge, train, speeds, delta_zeta=dz, where=where)
+            res, env = sweep_exact(bridge, train, speeds, delta_zeta=dz, where=where, delta_zeta_name=None)
         elif backend == "compiled":
             res, env = run_sweep_compiled(bridge, train, args.model, speeds, delta_zeta=dz, options=opts, progress=cb,
-                                          where=where), None
+                                          where=where, delta_zeta_name=None), None
         else:
             res, env = run_sweep(bridge, train, args.model, speeds, delta_zeta=dz, options=opts, progress=cb,
-                                 where=where), None
+                                 where=where, delta_zeta_name=None), None
     finally:
         close()
     wall = time.perf_counter() - t0
@@ -302,7 +322,7 @@ def cmd_check(args, damping_provider=None):
     """EN 1991-2 dynamic check (:mod:`adm_sim.design.check`). ``--damping none|adm`` are the core's;
     ``lb|vbi`` need adm-calib's ``damping_provider`` (``adm-calib check`` passes it) and are refused
     here, before any work, without one. The core never imports adm_calib."""
-    from adm_sim.model.bridge import resolve_bridge  # noqa: PLC0415  start-up: only this subcommand (20 ms)
+    from adm_sim.inputs.bridges import resolve_bridge  # noqa: PLC0415  start-up: only this subcommand (20 ms)
     from adm_sim.design.check import CALIB_DAMPING_METHODS, DAMPING_MODELS, calib_methods_refusal, run_check  # noqa: PLC0415  start-up: only this subcommand (114 ms)
     from adm_sim.design.check_text import summary as check_summary  # noqa: PLC0415  start-up: only this subcommand (138 ms)
 
@@ -316,7 +336,7 @@ def cmd_check(args, damping_provider=None):
     outs, pdf = _check_outputs(args, inputs)
     tables = _check_tables(args, inputs)
     if isinstance(bridge_spec, dict):
-        from adm_sim.model.bridge import bridge_from_mapping  # noqa: PLC0415  start-up: only with a job file
+        from adm_sim.inputs.bridges import bridge_from_mapping  # noqa: PLC0415  start-up: only with a job file
 
         bridge = bridge_from_mapping(bridge_spec, source=f"--job {job.path}: [bridge]")
     else:
@@ -427,7 +447,9 @@ def _check_plausible(res):
 
 
 def cmd_trains(args):
-    from adm_sim.model.trains import TRAIN_NAMES, check_train, load_train  # noqa: PLC0415  start-up: only this subcommand (58 ms)
+    from adm_sim.fields import AXLE_LOAD_REL_TOL  # noqa: PLC0415  start-up: only this subcommand (58 ms)
+    from adm_sim.model.trains import TRAIN_NAMES, consistency_rows  # noqa: PLC0415  start-up: only this subcommand (58 ms)
+    from adm_sim.inputs.train_files import load_train  # noqa: PLC0415  start-up: only this subcommand (58 ms)
 
     if args.train is not None and not args.train.strip():
         raise InputError("--train: '' is empty; give a train name or a TOML train file (or omit --train for all)")
@@ -439,7 +461,7 @@ def cmd_trains(args):
         if t.description:
             print(f"  {t.description}")
         if args.check:
-            for r in check_train(t):
+            for r in consistency_rows(t, rel_tol=AXLE_LOAD_REL_TOL):
                 flag = "ok " if r.ok else "MISMATCH"
                 print(f"  {flag:8s} {r.item:42s} table {r.table_value:9.3f} {r.unit:3s} "
                       f"computed {r.computed_value:9.3f} {r.unit:3s}  ({r.note})")

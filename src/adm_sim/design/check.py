@@ -73,7 +73,8 @@ from adm_sim.integrate.peaks import local_maxima  # the project's one peak rule,
 from adm_sim.integrate.lockstep_runs import InProcessRun
 from adm_sim.integrate.rk4_sides import BridgeSide, TrainSide
 from adm_sim.integrate.step_grid import StepOptions, make_grid, speeds_to_m_s
-from adm_sim.model.trains import load_train, moving_loads
+from adm_sim.model.trains import moving_loads
+from adm_sim.inputs.train_files import load_train
 # the speed range (EN 1991-2 6.4.6.2(1)) and the deck acceleration limits (EN 1990 A2.4.4.2.1(4)P)
 from adm_sim.limits import ACC_LIMITS_M_S2, DESIGN_SPEED_FACTOR
 from adm_sim.limits import CHECK_MIN_SPEED_M_S as MIN_SPEED_M_S
@@ -471,7 +472,7 @@ def resolve_trains(spec):
 
 def _load_check_train(name):
     """A train of the check: HSLM-B written ``HSLM-B:N=<n>:d=<m>`` (:func:`adm_sim.model.hslm.hslm_b_spec`), else
-    :func:`adm_sim.model.trains.load_train`."""
+    :func:`adm_sim.inputs.train_files.load_train`."""
     spec = hslm_b_spec(name)  # hslm's refusals carry field "train": resolve_trains names --trains
     if spec is None:
         return load_train(name)

@@ -5,7 +5,7 @@ track; the shipped rough-track runs (results/irregularity/README.md) show the DI
 profile exceeding that MLM in 27-40 % of the cases above 3.5 m/s². ``check --irregularity SPEC
 --seeds N`` therefore runs, for every train with vehicles, the DIM (paper Eqs. 7-17, midspan
 acceleration, compiled lanes) over the check's speeds on N random profiles of one spectrum (seeds
-1..N, :func:`adm_sim.model.irregularity.parse`; pinned to zero at both supports, the approach track
+1..N, :func:`adm_sim.inputs.track_profile.parse_irregularity`; pinned to zero at both supports, the approach track
 smooth) and reports the largest midspan acceleration per seed and over the seeds beside the smooth
 check. It is the project's addition, labelled as beyond the standard, and never changes the verdict.
 """
@@ -18,7 +18,7 @@ import numpy as np
 
 from adm_sim.errors import InputError
 from adm_sim.integrate.step_grid import StepOptions, make_grid, speeds_to_m_s
-from adm_sim.model import irregularity as irr
+from adm_sim.inputs.track_profile import parse_irregularity
 
 #: Most seeds one check runs.
 MAX_SEEDS = 20
@@ -42,7 +42,7 @@ def check_spec(spec, seeds, span_m, field="--irregularity"):
     if not 1 <= n <= MAX_SEEDS:
         raise InputError(f"--seeds: {n} is out of range; allowed 1..{MAX_SEEDS}")
     try:
-        irr.parse(f"{text}:seed=1", span_m)  # an unknown spectrum or band
+        parse_irregularity(f"{text}:seed=1", span_m)  # an unknown spectrum or band
     except InputError as exc:
         raise InputError(f"{field}: {text!r}: {str(exc).removeprefix('irregularity: ')}") from None
     return text, n
@@ -89,7 +89,7 @@ def rough_dim(bridge, train, speeds_kmh, spec, seeds, smooth_check_m_s2, options
     grid = make_grid(bridge, train.length_m, speeds_to_m_s(v_kmh), options)
     acc, at = [], []
     for s in range(1, seeds + 1):
-        prof = irr.parse(f"{spec}:seed={s}", bridge.span_m)
+        prof = parse_irregularity(f"{spec}:seed={s}", bridge.span_m)
         runner = BatchRunner([bridge], train, grid.ds_m, options.free_vibration_periods, options.dense_maxima,
                              irregularity=prof)
         a = np.asarray(runner.run("dim", np.zeros(v_kmh.size, dtype=np.int64), v_kmh, 0.0)[0])

@@ -27,7 +27,7 @@ import numpy as np
 from adm_sim.integrate import kernels
 from adm_sim.integrate.contact import ContactCheck
 from adm_sim.errors import InputError, RunError
-from adm_sim.fields import FIELDS, check_delta_zeta_pct
+from adm_sim.fields import FIELDS
 from adm_sim.integrate.rk4_sides import mlm_rk4_coefficients
 from adm_sim.integrate.run_contract import FAILED, RUNNING, AdvancingRun, check_model
 from adm_sim.limits import check_memory
@@ -233,6 +233,8 @@ class BatchRunner:
         case : array_like of int (n_lanes,)
             Index into ``bridges`` of each lane.
         speeds_kmh, delta_zeta : array_like (n_lanes,) or scalar
+            ``delta_zeta`` (fractions) as checked where the sweep was built
+            (:func:`adm_sim.integrate.sweep.lane_damping`); not checked again here.
         sweep : array_like of int (n_lanes,), optional
             Lanes of one bridge with equal ``sweep`` form one sweep (the fastest of them sets its
             number of steps, as in ``run_sweep``); default: all lanes of a bridge form one sweep.
@@ -295,8 +297,6 @@ class BatchRun(AdvancingRun):
         for c in np.unique(case):
             lanes = case == c
             b = runner.bridges[c]
-            for x in np.unique(dz[lanes]):
-                check_delta_zeta_pct("delta_zeta_pct", 100 * x, b.damping_ratio)
             Z[lanes] = b.modal_damping_Ns_m(dz[lanes])
         self.lane_steps = runner._lane_steps(case, v_kmh, sweep)
         self._case, self._v = case, v

@@ -70,9 +70,9 @@ import numpy as np
 
 from adm_sim.integrate._jit import njit  # numba compiles the search loop; without it the same source runs as plain Python
 from adm_sim.errors import InputError
-from adm_sim.fields import check_delta_zeta_pct, check_range
+from adm_sim.fields import check_delta_zeta_fraction, check_range
 from adm_sim.integrate.step_grid import speeds_to_m_s
-from adm_sim.model.where import WHERE_KEYWORDS, parse_where, where_text  # noqa: F401  re-exported: the envelope's positions
+from adm_sim.integrate.where import WHERE_KEYWORDS, parse_where, where_text  # noqa: F401  re-exported: the envelope's positions
 
 #: Longest free vibration followed after the last axle has left, in fundamental periods.
 MAX_FREE_PERIODS = 30.0
@@ -168,7 +168,8 @@ def deck_positions_m(span_m, n_modes, samples_per_period=4.0):
 
 
 def moving_load_envelope(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, *, delta_zeta=0.0,
-                         samples_per_period=4.0, where="midspan", keep_intervals=False):
+                         samples_per_period=4.0, where="midspan", keep_intervals=False, delta_zeta_name="delta_zeta",
+                         positive_for="the exact envelope", remedy=""):
     """Exact max |acceleration|, |deflection| (at ``where``) and |midspan moment| at every speed.
 
     Parameters
@@ -189,6 +190,10 @@ def moving_load_envelope(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, *, de
     keep_intervals : bool
         Keep the coefficients of every lane and interval in ``Envelope.intervals`` (every mode used:
         not at midspan), for :func:`adm_sim.design.check_effects.train_effects` on the same lanes.
+    delta_zeta_name, positive_for, remedy : str
+        The refusal of ``delta_zeta`` (the closed form needs ζ + Δζ > 0): the caller's name of it
+        (``delta_zeta``, a fraction; ``--delta-zeta-pct``, in %; None: the caller checked it), what
+        needs the damping, a hint (:func:`adm_sim.fields.check_delta_zeta`).
 
     Returns
     -------
@@ -202,8 +207,10 @@ def moving_load_envelope(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, *, de
     v_all = speeds_to_m_s(speeds_kmh)
     ppp = check_range("samples_per_period", samples_per_period, "-", 4.0, 64.0)
     # the closed form divides by the damping at resonance: zeta + delta_zeta > 0
-    dz = check_delta_zeta_pct("delta_zeta_pct", 100.0 * float(delta_zeta), bridge.damping_ratio,
-                              positive_for="the exact envelope") / 100.0
+    if delta_zeta_name is not None:  # None: the caller checked it (adm_sim.integrate.sweep.lane_damping)
+        check_delta_zeta_fraction(delta_zeta_name, float(delta_zeta), bridge.damping_ratio,
+                                  positive_for=positive_for, remedy=remedy)
+    dz = (100.0 * float(delta_zeta)) / 100.0  # through % as before: the envelope's numbers bit for bit
     offs = np.asarray(axle_offsets_m, dtype=float)
     loads = np.asarray(axle_loads_n, dtype=float)
     if offs.ndim != 1 or offs.shape != loads.shape or offs.size == 0:

@@ -7,13 +7,12 @@ RK4 stage), so a co-simulation reproduces these numbers bit for bit.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from adm_sim.errors import InputError, RunError
-from adm_sim.fields import check_count, check_delta_zeta_pct
+from adm_sim.fields import check_delta_zeta_fraction
 from adm_sim.integrate.contact import CONTACT_LOST, CONTACT_OK
 from adm_sim.limits import check_memory
 from adm_sim.integrate.peaks import largest_interior_peak
@@ -21,49 +20,9 @@ from adm_sim.integrate.lockstep_runs import InProcessRun
 from adm_sim.integrate.mlm_loads import mlm_modal_load_table
 from adm_sim.integrate.rk4_sides import BridgeSide, TrainSide
 from adm_sim.integrate.run_contract import FAILED, RUNNING, check_model
-from adm_sim.integrate.step_grid import SPEED_RANGE_KMH, StepOptions, make_grid, speeds_to_m_s
+from adm_sim.integrate.step_grid import StepOptions, make_grid, speeds_to_m_s
 
 MAX_HISTORY_VALUES = 300_000_000
-
-
-def parse_speeds(text, ordered=True, field="speeds_kmh"):
-    """Speeds (km/h) from ``"160:350:1"`` (start:stop:step, stop included) or ``"200,250"``.
-
-    Every number must be finite; each speed lies in [1, 600] km/h. With ``ordered`` (every user
-    input) a comma list must increase strictly, because a peak over speed is only meaningful on an
-    ordered grid; lanes of a run (the train node's ``speeds_kmh``, e.g. a damping ladder that
-    repeats its speeds) take ``ordered=False``. ``field`` names the input in messages (the ROS
-    nodes pass their parameter name ``speeds_kmh``).
-    """
-    text = str(text).strip()
-    if ":" in text and "," in text:
-        raise InputError(f"{field}: {text!r} mixes ':' and ','; give start:stop:step or a comma list (km/h)", field=field)
-    try:
-        parts = [float(p) for p in text.replace(":", ",").split(",") if p.strip()]
-    except ValueError:
-        parts = None
-    if not parts or (":" in text and len(parts) not in (2, 3)):
-        raise InputError(f"{field}: {text!r} is not start:stop:step or a comma list (km/h)", field=field)
-    bad = [p for p in parts if not math.isfinite(p)]
-    if bad:
-        raise InputError(f"{field}: {text!r} holds {bad[0]!r}; every speed and step must be a finite number (km/h)", field=field)
-    if ":" in text:
-        a, b, st = parts if len(parts) == 3 else parts + [1.0]
-        if st <= 0 or b < a:
-            raise InputError(f"{field}: {text!r} needs start <= stop and step > 0 (km/h)", field=field)
-        n = int(math.floor((b - a) / st + 1e-9)) + 1
-        check_count("n_speeds" if ordered else "n_lanes", n, field, repr(text))  # before any array
-        v = a + st * np.arange(n)
-    else:
-        check_count("n_speeds" if ordered else "n_lanes", len(parts), field, repr(text))
-        v = np.array(parts)
-        if ordered and np.any(np.diff(v) <= 0):
-            raise InputError(f"{field}: {text!r} must increase strictly (km/h), e.g. 200,250,263", field=field)
-    lo, hi = SPEED_RANGE_KMH
-    out = v[(v < lo) | (v > hi)]
-    if out.size:
-        raise InputError(f"{field}: {text!r} gives {out[0]:g} km/h; allowed speeds in [{lo:g}, {hi:g}] km/h", field=field)
-    return v
 
 
 @dataclass(frozen=True, repr=False)
@@ -147,20 +106,37 @@ class SweepResult:
                 f"{where}, {how}{', CONTACT LOST' if self.status == CONTACT_LOST else ''})")
 
 
-def sweep_exact(bridge, train, speeds_kmh, delta_zeta=0.0, where="midspan"):
+def sweep_exact(bridge, train, speeds_kmh, delta_zeta=0.0, where="midspan", *, delta_zeta_name="delta_zeta",
+                remedy=""):
     """The MLM sweep by the exact envelope (:func:`adm_sim.integrate.envelope.moving_load_envelope`): the true
     maximum per speed, not the largest RK4 step sample (which sits up to 0.66 % below it on B1 x
     ICE-2 at 16 steps per period). Returns ``(SweepResult, Envelope)``; the result's
     ``max_acc_m_s2`` / ``max_disp_m`` are taken at ``where`` (``"midspan"``, ``"deck"`` or x in m).
+    ``delta_zeta_name``: as :func:`run_sweep`; ``remedy``: text added to the refusal of ζ + Δζ = 0.
     """
     from adm_sim.integrate.envelope import moving_load_envelope  # noqa: PLC0415  numba kernels: only the exact sweep needs them
 
     env = moving_load_envelope(bridge, train.axle_offsets_m, train.axle_loads_n, speeds_kmh,
-                               delta_zeta=delta_zeta, where=where)
+                               delta_zeta=delta_zeta, where=where, delta_zeta_name=delta_zeta_name,
+                               positive_for="the exact MLM envelope", remedy=remedy)
     res = SweepResult(model="mlm", bridge=bridge, train_name=train.name, speeds_kmh=env.speeds_kmh.copy(),
                       max_acc_m_s2=env.max_acc_m_s2, max_disp_m=env.max_disp_m,
                       delta_zeta=np.asarray(delta_zeta, dtype=float), ds_m=0.0, n_steps=0, method="exact")
     return res, env
+
+
+def lane_damping(bridge, delta_zeta, shape, name="delta_zeta", **kw):
+    """The additional damping Δζ of every lane (fractions), ``delta_zeta`` broadcast to ``shape``:
+    the one check of a sweep's Δζ, each distinct value once, the refusal naming ``name`` in its unit
+    (:func:`adm_sim.fields.check_delta_zeta_fraction`: ``delta_zeta`` a fraction, ``--delta-zeta-pct``
+    in %); keywords as :func:`adm_sim.fields.check_delta_zeta`. ``name=None``: the caller has checked
+    ``delta_zeta`` with this function already (the command line, before it prints), not checked again."""
+    dz = np.broadcast_to(np.asarray(delta_zeta, dtype=float), shape)
+    if name is None:  # the caller checked it with this function (a command line, before its first output)
+        return dz
+    for x in np.unique(dz):
+        check_delta_zeta_fraction(name, float(x), bridge.damping_ratio, **kw)
+    return dz
 
 
 def check_spans_for_train(bridge, train):
@@ -195,13 +171,14 @@ BACKENDS = ("compiled", "numpy")
 
 
 def run_sweep_compiled(bridge, train, model, speeds_kmh, delta_zeta=0.0, options=None, progress=None,
-                       where="midspan"):
+                       where="midspan", *, delta_zeta_name="delta_zeta"):
     """:func:`run_sweep` on the compiled kernels: every speed a lane of one
     :class:`adm_sim.integrate.compiled_batch.BatchRun`, on the grid ``run_sweep`` makes (its ``ds`` and
     number of steps), so the maxima equal the numpy stepper's to ~1e-13 relative (the summation
     order of a few small dot products differs; ``tests/test_sweep_backends.py`` holds them to
     1e-12). No histories. ``progress(done_steps, n_steps)`` is called after every block of steps
     (about 100 per run). ``where``: ``"midspan"`` or a position x (m from the left abutment).
+    ``delta_zeta_name``: as :func:`run_sweep`.
     """
     from adm_sim.integrate.compiled_batch import BatchRunner  # noqa: PLC0415  deferred: heavy import (numba, ~0.4 s)
 
@@ -211,9 +188,7 @@ def run_sweep_compiled(bridge, train, model, speeds_kmh, delta_zeta=0.0, options
     options = options or StepOptions()
     v_kmh = np.atleast_1d(np.asarray(speeds_kmh, dtype=float)).copy()
     v = speeds_to_m_s(v_kmh)
-    dz = np.broadcast_to(np.asarray(delta_zeta, dtype=float), v.shape)
-    for x in np.unique(dz):
-        check_delta_zeta_pct("delta_zeta_pct", 100 * x, bridge.damping_ratio)
+    dz = lane_damping(bridge, delta_zeta, v.shape, delta_zeta_name)
     grid = make_grid(bridge, train.length_m, v, options)
     runner = BatchRunner([bridge], train, grid.ds_m, options.free_vibration_periods, options.dense_maxima,
                          response_m=response_m, irregularity=options.irregularity if model == "dim" else None)
@@ -234,7 +209,7 @@ def run_sweep_compiled(bridge, train, model, speeds_kmh, delta_zeta=0.0, options
 
 
 def run_sweep(bridge, train, model, speeds_kmh, delta_zeta=0.0, options=None, histories=False,
-              progress=None, where="midspan"):
+              progress=None, where="midspan", *, delta_zeta_name="delta_zeta"):
     """Max midspan acceleration of a bridge under a train for every speed, in one vectorised run.
 
     Parameters
@@ -254,6 +229,9 @@ def run_sweep(bridge, train, model, speeds_kmh, delta_zeta=0.0, options=None, hi
     where : "midspan" or float
         Where the maxima and histories are taken: midspan (a continuous deck: the middle of its
         longest span, ``bridge.midspan_m``) or a position x (m from the left abutment).
+    delta_zeta_name : str
+        How the caller named ``delta_zeta`` (:func:`lane_damping`): ``"delta_zeta"`` (a fraction) or
+        the command line's ``"--delta-zeta-pct"`` (the refusal in %); None: the caller checked it.
 
     Returns
     -------
@@ -263,9 +241,7 @@ def run_sweep(bridge, train, model, speeds_kmh, delta_zeta=0.0, options=None, hi
     check_spans_for_train(bridge, train)
     response_m = _response_m(bridge, model, where)
     v = speeds_to_m_s(speeds_kmh)
-    dz = np.broadcast_to(np.asarray(delta_zeta, dtype=float), v.shape)
-    for x in np.unique(dz):
-        check_delta_zeta_pct("delta_zeta_pct", 100 * x, bridge.damping_ratio)
+    dz = lane_damping(bridge, delta_zeta, v.shape, delta_zeta_name)
     options = options or StepOptions()
     grid = make_grid(bridge, train.length_m, v, options)
     n, nl = grid.n_steps, grid.n_lanes

@@ -209,7 +209,7 @@ def check_bridge(bridge, source="bridge", zeta_pct_given=None, labels=None):
          100.0 * bridge.damping_ratio, ctx)
 
 
-def check_train(train, source="train"):
+def warn_implausible_train(train, source="train"):
     """Warn about a train read from a file: axle loads and car body masses no rail vehicle has
     (the largest and the smallest axle load, the heaviest car body: at most three lines)."""
     loads_kn = [float(x) / 1000.0 for x in train.axle_loads_n]
@@ -282,7 +282,7 @@ def markdown_table():
             + head.replace("plausible", "field") + rows(FIELD))
 
 
-__all__ = ["PlausibilityWarning", "Bound", "TABLE", "FIELD", "ROWS", "warn", "check_bridge", "check_train",
+__all__ = ["PlausibilityWarning", "Bound", "TABLE", "FIELD", "ROWS", "warn", "check_bridge", "warn_implausible_train",
            "check_response", "check_studied_field", "ARGUMENT_NAMES", "markdown_table", "n0_lb_hz", "n0_ub_hz"]
 
 

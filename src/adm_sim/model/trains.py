@@ -38,29 +38,16 @@ unequal axle loads, enters the static loads only).
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, field
-from importlib import resources
-from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
 from adm_sim.errors import InputError
-from adm_sim.files import check_path, read_toml
-from adm_sim.fields import VEHICLE_FIELDS, VEHICLE_OPTIONAL, check_count
-from adm_sim.fields import view as field_view
-from adm_sim.model.hslm import hslm_axles, hslm_name
-from adm_sim.model.plausibility import check_train as check_plausible
-from adm_sim.model.vehicles import check_file_fields, check_keys, compile_vehicle_file, vehicle_mapping
+from adm_sim.model.vehicles import G_M_S2
 
-G_M_S2 = 9.81  # gravitational acceleration used by the paper (Section 3.2.2)
-
+#: The trains of the paper (Section 3.2), shipped as ``data/trains/*.toml``.
 TRAIN_NAMES = ("ICE-2", "Eurostar", "Railjet", "ICE-4")
-_FILES = {"ice2": "ice2.toml", "eurostar": "eurostar.toml", "railjet": "railjet.toml",
-          "ice4": "ice4.toml", "eurostartable": "eurostar_table.toml"}
-
-# vehicle-type fields of a train file (units and ranges: the field registry, :mod:`adm_sim.fields`)
-_TYPE_FIELDS = VEHICLE_FIELDS
 
 
 @dataclass(frozen=True)
@@ -219,237 +206,84 @@ def moving_loads(axle_offsets_m, axle_loads_n, name="load train"):
                  wheel_mass_kg=np.zeros_like(offs), unit_of_axle=np.full(offs.shape, -1))
 
 
-# ---------------------------------------------------------------------- loading
-def _normalise(name):
-    return "".join(ch for ch in name.lower() if ch.isalnum())
+# ---------------------------------------------------------------------- composition (axle positions)
+def conventional_unit(vt, front_m):
+    """One conventional vehicle of type ``vt`` whose front end is ``front_m`` behind the train's: its
+    pivots at ``(d - r) / 2`` and ``(d + r) / 2`` behind its front end (the documented rule, module
+    docstring). Returns the :class:`Unit` and the front end of the next vehicle (m)."""
+    p1 = front_m + 0.5 * (vt.d_m - vt.r_m)
+    p2 = front_m + 0.5 * (vt.d_m + vt.r_m)
+    loads = vt.axle_load_n if len(vt.axle_load_n) == 2 else vt.axle_load_n * 2
+    unit = Unit(label=vt.name, cars=[(vt.name, (p1, p2))],
+                bogies=[Bogie(vt.name, p1, loads[0]), Bogie(vt.name, p2, loads[1])], car_bogies=[(0, 1)])
+    return unit, front_m + vt.d_m
 
 
-def load_train(name_or_path):
-    """Load a train by name (ICE-2, Eurostar, Railjet, ICE-4, Eurostar-table, HSLM-A1 .. HSLM-A10) or TOML path."""
-    text = str(name_or_path)
-    key = _normalise(text)
-    canonical = hslm_name(text)
-    if canonical is not None:  # EN 1991-2 universal trains HSLM-A1 .. A10 (load trains)
-        return moving_loads(*hslm_axles(canonical), name=canonical)
-    if key in _FILES:
-        data = tomllib.loads(resources.files("adm_sim").joinpath("data/trains", _FILES[key]).read_text())
-        return train_from_mapping(data, source=_FILES[key])
-    p = Path(check_path(text, "train"))
-    if p.suffix == ".toml" or p.is_file():
-        train = train_from_mapping(read_toml(p, "train file"), source=p.name)
-        check_plausible(train, source=f"train file {p.name}")  # warnings, not refusals
-        return train
-    raise InputError(f"train: {text!r} is unknown; allowed {', '.join(TRAIN_NAMES)}, "
-                     f"Eurostar-table, HSLM-A1 .. HSLM-A10, or a .toml train file", field="train")
+def jacobs_unit(cars, bogie_types, loads_n, front_m):
+    """A Jacobs trainset of the vehicle types ``cars`` (front to rear) on ``len(cars) + 1`` bogies of
+    ``bogie_types`` with axle loads ``loads_n`` (N): inner bogies on the joints between cars, the end
+    cars' outer bogies at ``r`` from the joint. Returns the :class:`Unit` and the front end of the
+    next vehicle (m)."""
+    pivots = [front_m + cars[0].d_m - cars[0].r_m]
+    joint = front_m + cars[0].d_m
+    for c in cars[1:]:
+        pivots.append(joint)
+        joint += c.d_m
+    pivots.append(joint - cars[-1].d_m + cars[-1].r_m)
+    unit_cars = [(c.name, (pivots[i], pivots[i + 1])) for i, c in enumerate(cars)]
+    unit = Unit(label="jacobs set", cars=unit_cars,
+                bogies=[Bogie(bt.name, pv, ld) for bt, pv, ld in zip(bogie_types, pivots, loads_n)],
+                car_bogies=[(i, i + 1) for i in range(len(cars))])
+    return unit, joint
 
 
-def _vehicle_type(name, d, source):
-    where = f"{source}: vehicle_types.{name}"
-    if not isinstance(d, dict):
-        raise InputError(f"{where}: {d!r} is not a table; write [vehicle_types.{name}] with its fields")
-    unknown = set(d) - set(_TYPE_FIELDS) - {"axle_load_kN"}
-    if unknown:
-        raise InputError(f"{where}: unknown field(s) {', '.join(sorted(map(str, unknown)))}; allowed "
-                         f"{', '.join(list(_TYPE_FIELDS) + ['axle_load_kN'])}")
-    vals = {}
-    for key in _TYPE_FIELDS:
-        v = field_view("toml", key)
-        if key not in d:
-            if key not in VEHICLE_OPTIONAL:
-                raise InputError(f"{where}.{key}: missing ({v.unit}, allowed [{v.lo:g}, {v.hi:g}])")
-            vals[key] = math.nan
-            continue
-        vals[key] = v.check(d[key], name=f"{where}.{key}", typed=True)
-    axle = field_view("toml", "axle_load_kN")
-    if "axle_load_kN" not in d:
-        raise InputError(f"{where}.axle_load_kN: missing ({axle.unit}, allowed [{axle.lo:g}, {axle.hi:g}])")
-    raw = d["axle_load_kN"]
-    raw = raw if isinstance(raw, list) else [raw]
-    if not 1 <= len(raw) <= 2:
-        raise InputError(f"{where}.axle_load_kN: {raw!r} must be one value or [front, rear] (kN)")
-    loads = tuple(axle.to_core(axle.check(v, name=f"{where}.axle_load_kN", typed=True)) for v in raw)
-    if not math.isnan(vals["r_m"]) and vals["b_m"] >= vals["r_m"]:
-        raise InputError(f"{where}.b_m: bogie wheelbase {vals['b_m']:g} m is not shorter than the pivot distance "
-                         f"r_m {vals['r_m']:g} m: the axles of the two bogies would interleave or coincide; "
-                         f"allowed b_m < r_m")
-    if not math.isnan(vals["r_m"]) and vals["r_m"] + vals["b_m"] >= vals["d_m"]:
-        raise InputError(f"{where}.r_m: {vals['r_m']:g} m plus wheelbase b_m {vals['b_m']:g} m "
-                         f"is not shorter than the vehicle length d_m {vals['d_m']:g} m: axles of coupled "
-                         f"vehicles would coincide or overlap; allowed r_m + b_m < d_m")
-    return VehicleType(name=name, axle_load_n=loads, **vals)
+class AxleRows(NamedTuple):
+    """The axles of a composition in build order (bogie after bogie, front to rear): offsets from the
+    train's front end (m), loads (N), wheelset masses (kg), unit index; lists of n_axles."""
+
+    offsets_m: list
+    loads_n: list
+    wheel_mass_kg: list
+    unit: list
 
 
-#: Keys of a train file and of its composition entries.
-_TRAIN_KEYS = ("name", "description", "source", "paper_train", "vehicle_types", "composition",
-               "loads_differ_from_masses")
-_VEHICLE_ENTRY_KEYS = ("vehicle", "count")
-_JACOBS_ENTRY_KEYS = ("jacobs_set", "bogies", "axle_loads_kN", "reversed")
-#: Largest relative difference between an axle load and the masses it carries times g.
-AXLE_LOAD_REL_TOL = 0.005
-
-
-def _check_loads(train, source):
-    """Refuse axle loads that disagree with the vehicle masses (the MLM and the DIM would carry
-    different trains) beyond :data:`AXLE_LOAD_REL_TOL`."""
-    for row in check_train(train, rel_tol=AXLE_LOAD_REL_TOL):
-        if row.item.startswith("F ") and not row.ok:
-            raise InputError(
-                f"{source}: {row.item}: axle load {row.table_value:.4g} kN disagrees with the masses, "
-                f"{row.note} = {row.computed_value:.4g} kN (allowed within {100 * AXLE_LOAD_REL_TOL:g} %); "
-                f"fix the loads or masses, or set loads_differ_from_masses = true if this is meant")
-
-
-def train_from_mapping(data, source="train"):
-    """Build and validate a :class:`Train` from a parsed TOML mapping.
-
-    Unknown, misspelt and conflicting keys are refused; booleans must be booleans; axle loads must
-    agree with the masses within 0.5 % unless ``loads_differ_from_masses = true``. A mapping with
-    ``[vehicles.<NAME>]`` instead of ``[vehicle_types.<NAME>]`` is a vehicle file of bodies,
-    wheelsets and stages (:func:`adm_sim.model.vehicles.train_from_vehicle_mapping`).
-    """
-    if not isinstance(data, dict):
-        raise InputError(f"{source}: not a table of train fields")
-    if "vehicles" in data and "vehicle_types" not in data:
-        return _train_from_vehicle_file(data, source)
-    differ = check_file_fields(data, _TRAIN_KEYS, source, TRAIN_NAMES)
-    vt_raw = data.get("vehicle_types")
-    if not isinstance(vt_raw, dict) or not vt_raw:
-        raise InputError(f"{source}: missing table [vehicle_types.<NAME>]")
-    types = {n: _vehicle_type(n, d, source) for n, d in vt_raw.items()}
-    comp = data.get("composition")
-    if not isinstance(comp, list) or not comp:
-        raise InputError(f"{source}: missing [[composition]] entries")
-
-    def _type(name, where):
-        if not isinstance(name, str) or name not in types:
-            raise InputError(f"{source}: {where}: vehicle type {name!r} not defined; "
-                             f"defined: {', '.join(types)}")
-        return types[name]
-
-    units, front = [], 0.0  # front: front end of the next vehicle, from the train's front end
-    jacobs = False
-    for n, entry in enumerate(comp):
-        where = f"composition[{n}]"
-        if not isinstance(entry, dict):
-            raise InputError(f"{source}: {where}: not a table")
-        if "vehicle" in entry and "jacobs_set" in entry:
-            raise InputError(f"{source}: {where}: has both 'vehicle' and 'jacobs_set'; give one per entry")
-        if "vehicle" in entry:
-            check_keys(entry, _VEHICLE_ENTRY_KEYS, f"{source}: {where}")
-            vt = _type(entry["vehicle"], where)
-            if math.isnan(vt.r_m):
-                raise InputError(f"{source}: {where}: vehicle type {vt.name!r} has no r_m (m) "
-                                 f"and cannot run as a conventional vehicle")
-            count = entry.get("count", 1)
-            if isinstance(count, str):
-                raise InputError(f"{source}: {where}.count: {count!r} must be an integer without quotes; "
-                                 f"allowed integer in [1, 100]")
-            count = field_view("toml", "count").check(count, name=f"{source}: {where}.count")
-            for _ in range(count):
-                p1 = front + 0.5 * (vt.d_m - vt.r_m)
-                p2 = front + 0.5 * (vt.d_m + vt.r_m)
-                loads = vt.axle_load_n if len(vt.axle_load_n) == 2 else vt.axle_load_n * 2
-                units.append(Unit(label=vt.name, cars=[(vt.name, (p1, p2))],
-                                  bogies=[Bogie(vt.name, p1, loads[0]), Bogie(vt.name, p2, loads[1])],
-                                  car_bogies=[(0, 1)]))
-                front += vt.d_m
-        elif "jacobs_set" in entry:
-            check_keys(entry, _JACOBS_ENTRY_KEYS, f"{source}: {where}")
-            if not isinstance(entry["jacobs_set"], list) or not isinstance(entry.get("bogies", []), list):
-                raise InputError(f"{source}: {where}: 'jacobs_set' and 'bogies' must be lists of vehicle types")
-            if not isinstance(entry.get("axle_loads_kN", []), list):
-                raise InputError(f"{source}: {where}.axle_loads_kN: {entry['axle_loads_kN']!r} must be a list "
-                                 f"of one load per bogie (kN)")
-            jacobs = True
-            cars = [_type(c, where) for c in entry["jacobs_set"]]
-            bogie_types = [_type(b, where) for b in entry.get("bogies", [])]
-            loads_kn = entry.get("axle_loads_kN", [])
-            if len(cars) < 2:
-                raise InputError(f"{source}: {where}.jacobs_set: needs at least 2 cars")
-            if len(bogie_types) != len(cars) + 1 or len(loads_kn) != len(cars) + 1:
-                raise InputError(f"{source}: {where}: 'bogies' and 'axle_loads_kN' need "
-                                 f"len(jacobs_set) + 1 = {len(cars) + 1} entries")
-            axles = field_view("toml", "axle_loads_kN")
-            loads = [axles.to_core(axles.check(v, name=f"{source}: {where}.axle_loads_kN", typed=True))
-                     for v in loads_kn]
-            rev = entry.get("reversed", False)
-            if not isinstance(rev, bool):
-                raise InputError(f"{source}: {where}.reversed: {rev!r} must be true or false")
-            if rev:
-                cars, bogie_types, loads = cars[::-1], bogie_types[::-1], loads[::-1]
-            for end in (cars[0], cars[-1]):
-                if math.isnan(end.r_m):
-                    raise InputError(f"{source}: {where}: end car {end.name!r} needs r_m (m)")
-            pivots = [front + cars[0].d_m - cars[0].r_m]
-            joint = front + cars[0].d_m
-            for c in cars[1:]:
-                pivots.append(joint)
-                joint += c.d_m
-            pivots.append(joint - cars[-1].d_m + cars[-1].r_m)
-            front = joint
-            unit_cars = [(c.name, (pivots[i], pivots[i + 1])) for i, c in enumerate(cars)]
-            units.append(Unit(label="jacobs set", cars=unit_cars,
-                              bogies=[Bogie(bt.name, pv, ld) for bt, pv, ld in zip(bogie_types, pivots, loads)],
-                              car_bogies=[(i, i + 1) for i in range(len(cars))]))
-        else:
-            raise InputError(f"{source}: {where}: needs 'vehicle' or 'jacobs_set' (keys given: "
-                             f"{', '.join(repr(k) for k in entry) or 'none'})")
-
-    offs, loads, mw, owner = [], [], [], []
+def axle_rows(units, types):
+    """The two axles of every bogie of ``units`` at ``pivot -/+ b / 2`` (:class:`AxleRows`)."""
+    rows = AxleRows([], [], [], [])
     for ui, u in enumerate(units):
         for b in u.bogies:
             bt = types[b.type_name]
             for e in (-0.5 * bt.b_m, 0.5 * bt.b_m):
-                offs.append(b.pivot_m + e)
-                loads.append(b.axle_load_n)
-                mw.append(bt.m_w_kg)
-                owner.append(ui)
-    check_count("n_axles", len(offs), f"{source}: composition", f"{len(units)} units")
-    length = max(offs) - min(offs) if offs else 0.0
-    check_count("train_length_m", round(length, 3), f"{source}: composition",
-                f"{len(units)} units, {len(offs)} axles")
-    offs = np.asarray(offs)
-    gaps = np.diff(offs)  # in build order: bogie after bogie, front to rear
-    if np.any(gaps <= 0.0):
-        i = int(np.argmax(gaps <= 0.0))
-        b1, b2 = [b for u in units for b in u.bogies][i // 2], [b for u in units for b in u.bogies][(i + 1) // 2]
-        raise InputError(f"{source}: the axles of bogies {b1.type_name!r} (pivot {b1.pivot_m - offs[0]:.3f} m) and "
-                         f"{b2.type_name!r} (pivot {b2.pivot_m - offs[0]:.3f} m) coincide or interleave "
-                         f"({gaps[i]:.3f} m apart): the wheelbases b_m do not fit between the pivots (d_m, r_m); "
-                         f"allowed axles strictly one after another")
+                rows.offsets_m.append(b.pivot_m + e)
+                rows.loads_n.append(b.axle_load_n)
+                rows.wheel_mass_kg.append(bt.m_w_kg)
+                rows.unit.append(ui)
+    return rows
+
+
+def train_of_units(name, types, units, rows, *, jacobs=False, description="", source="", paper_train=""):
+    """The :class:`Train` of ``units`` of vehicle ``types`` with axles ``rows`` (:func:`axle_rows`):
+    the axles sorted, offsets from the first axle."""
+    offs = np.asarray(rows.offsets_m)
     first = offs.min()
     order = np.argsort(offs, kind="stable")
-    train = Train(name=str(data["name"]), vehicle_types=types, units=tuple(units),
-                 description=str(data.get("description", "")), source=str(data.get("source", source)),
-                 jacobs=jacobs, paper_train=str(data.get("paper_train", "")),
-                 axle_offsets_m=offs[order] - first,
-                 axle_loads_n=np.asarray(loads)[order], wheel_mass_kg=np.asarray(mw)[order],
-                 unit_of_axle=np.asarray(owner)[order])
-    if not differ:
-        _check_loads(train, source)
-    return train
+    return Train(name=name, vehicle_types=types, units=tuple(units), description=description, source=source,
+                 jacobs=jacobs, paper_train=paper_train, axle_offsets_m=offs[order] - first,
+                 axle_loads_n=np.asarray(rows.loads_n)[order], wheel_mass_kg=np.asarray(rows.wheel_mass_kg)[order],
+                 unit_of_axle=np.asarray(rows.unit)[order])
 
 
-def _train_from_vehicle_file(data, source):
-    """A :class:`Train` of a vehicle file (bodies, wheelsets, stages; :mod:`adm_sim.model.vehicles`)."""
-    c = compile_vehicle_file(data, source, paper_trains=TRAIN_NAMES)
+def train_of_vehicles(compiled, name, *, description="", source="", paper_train=""):
+    """The :class:`Train` of a composition of vehicles of bodies, wheelsets and stages
+    (:class:`adm_sim.model.vehicles.CompiledTrain`); each unit carries its Eq. (11) matrices."""
     units = tuple(Unit(label=u.label, cars=u.cars, bogies=[Bogie(n, x, math.nan) for n, x in u.others],
                        car_bogies=[() for _ in u.cars],
                        matrices=VehicleMatrices(M=u.M, K_s=u.K_s, C_s=u.C_s, Lw=u.Lw, k_p=u.k_p, c_p=u.c_p))
-                  for u in c.units)
-    return Train(name=data["name"], vehicle_types={}, units=units, description=str(data.get("description", "")),
-                 source=str(data.get("source", source)), jacobs=any(len(u.cars) > 1 for u in units),
-                 paper_train=str(data.get("paper_train", "")), axle_offsets_m=c.axle_offsets_m,
-                 axle_loads_n=c.axle_loads_n, wheel_mass_kg=c.wheel_mass_kg, unit_of_axle=c.unit_of_axle)
-
-
-def vehicle_file_mapping(train):
-    """The vehicle-file mapping of a train built from vehicle types (:func:`adm_sim.model.vehicles.vehicle_mapping`
-    with its ``paper_train`` and whether its loads differ from its masses); :func:`adm_sim.model.vehicles.to_toml`
-    writes it. The shipped ``data/vehicles/*.toml`` are the paper's trains written so."""
-    differ = any(r.item.startswith("F ") and not r.ok for r in check_train(train, rel_tol=AXLE_LOAD_REL_TOL))
-    paper = train.paper_train or (train.name if train.name in TRAIN_NAMES else "")
-    return vehicle_mapping(train, paper_train=paper, loads_differ=differ)
+                  for u in compiled.units)
+    return Train(name=name, vehicle_types={}, units=units, description=description, source=source,
+                 jacobs=any(len(u.cars) > 1 for u in units), paper_train=paper_train,
+                 axle_offsets_m=compiled.axle_offsets_m, axle_loads_n=compiled.axle_loads_n,
+                 wheel_mass_kg=compiled.wheel_mass_kg, unit_of_axle=compiled.unit_of_axle)
 
 
 # ---------------------------------------------------------------------- vehicle matrices
@@ -512,8 +346,9 @@ class CheckRow:
     note: str = ""
 
 
-def check_train(train, rel_tol=0.005):
-    """Consistency checks of a train's data.
+def consistency_rows(train, rel_tol):
+    """Consistency checks of a train's data (``rel_tol``: the largest relative difference of an axle
+    load from the masses it carries times g, :data:`adm_sim.fields.AXLE_LOAD_REL_TOL` for files).
 
     * Axle loads: F of every bogie against the masses it carries times g. Conventional vehicles:
       ``(m_c + 2 m_b + 4 m_w) g / 4``. Jacobs sets: the set total ``sum F`` against the set's

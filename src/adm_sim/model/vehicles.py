@@ -45,133 +45,36 @@ from typing import NamedTuple
 import numpy as np
 
 from adm_sim.errors import InputError
-from adm_sim.fields import check_int, check_number
 
-G_M_S2 = 9.81  # the paper's g (Section 3.2.2), as adm_sim.model.trains
-
-#: ``key: (unit, lo, hi, required)`` of each table of a vehicle (ranges in SI, closed).
-BODY_KEYS = {"name": ("", None, None, True), "mass_kg": ("kg", 1.0, 5.0e5, True),
-             "pitch_inertia_kgm2": ("kg m^2", 1.0, 1.0e8, False), "x_m": ("m", -100.0, 1000.0, True)}
-WHEELSET_KEYS = {"name": ("", None, None, True), "mass_kg": ("kg", 0.0, 1.0e4, True),
-                 "x_m": ("m", -100.0, 1000.0, True), "static_load_kN": ("kN", 1.0, 500.0, False)}
-STAGE_KEYS = {"upper": ("", None, None, True), "lower": ("", None, None, True),
-              "x_m": ("m", -100.0, 1000.0, True), "k_N_m": ("N/m", 1.0, 1.0e10, True),
-              "c_Ns_m": ("N s/m", 0.0, 1.0e8, True)}
-VEHICLE_KEYS = ("length_m", "bodies", "wheelsets", "stages")
-LENGTH_RANGE_M = (0.0, 1000.0)
-FILE_KEYS = ("name", "description", "source", "paper_train", "vehicles", "composition",
-             "loads_differ_from_masses")
-ENTRY_KEYS = ("vehicle", "count", "reversed")
-#: Largest relative difference between given static loads and the group's weight.
-LOAD_REL_TOL = 0.005
+G_M_S2 = 9.81  # gravitational acceleration used by the paper (Section 3.2.2)
 
 
-def check_keys(d, allowed, where):
-    """Refuse the keys of ``d`` not in ``allowed`` (a misspelt key is never ignored), naming them
-    and the allowed ones after ``where``."""
-    extra = [k for k in d if k not in allowed]
-    if extra:
-        raise InputError(f"{where}: unknown key(s) {', '.join(repr(k) for k in extra)}; "
-                         f"allowed {', '.join(allowed)}")
+class VehicleGroup:
+    """One vehicle definition reduced to local matrices (x from its front), from the checked tables
+    of a vehicle file (:mod:`adm_sim.inputs.train_files`): ``bodies``, ``wheels``, ``stages`` are
+    lists of mappings of the file's keys (SI; ``None`` for an omitted optional key), the stages'
+    bodies and wheelsets named in them. ``where`` names the vehicle in messages.
 
+    Refused here (the model's own conditions): bodies or wheelsets not connected to the rest, two
+    wheelsets at one x or one outside the vehicle, stages that leave a mechanism, a static wheel
+    load that is not positive, static loads given for some wheelsets only.
+    """
 
-def check_file_fields(data, allowed, source, paper_trains=()):
-    """The top-level fields both train file forms share, checked once for both (the form with
-    ``[vehicle_types.<NAME>]`` of :func:`adm_sim.model.trains.train_from_mapping` and the vehicle file of
-    :func:`compile_vehicle_file`): no key outside ``allowed``, a non-empty ``name``, text in
-    ``description``, ``source`` and ``paper_train`` (one of ``paper_trains`` or empty), a boolean
-    ``loads_differ_from_masses``; returns that boolean (default ``False``)."""
-    check_keys(data, allowed, source)
-    if "name" not in data:
-        raise InputError(f"{source}: missing field 'name'")
-    if not isinstance(data["name"], str) or not data["name"].strip():
-        raise InputError(f"{source}: name: {data['name']!r} must be a non-empty string")
-    for key in ("description", "source", "paper_train"):
-        if key in data and not isinstance(data[key], str):
-            raise InputError(f"{source}: {key}: {data[key]!r} must be text in quotes")
-    if data.get("paper_train", "") not in ("",) + tuple(paper_trains):
-        raise InputError(f"{source}: paper_train: {data['paper_train']!r} is not a train of the paper; "
-                         f"allowed {', '.join(paper_trains)} (or omit it)")
-    differ = data.get("loads_differ_from_masses", False)
-    if not isinstance(differ, bool):
-        raise InputError(f"{source}: loads_differ_from_masses: {differ!r} must be true or false")
-    return differ
-
-
-def _table(d, spec, where):
-    """Checked values of one body/wheelset/stage table (``None`` for an omitted optional key)."""
-    if not isinstance(d, dict):
-        raise InputError(f"{where}: {d!r} is not a table; allowed keys {', '.join(spec)}")
-    check_keys(d, tuple(spec), where)
-    out = {}
-    for key, (unit, lo, hi, required) in spec.items():
-        if key not in d:
-            if required:
-                rng = f" ({unit}, allowed [{lo:g}, {hi:g}])" if unit else " (text)"
-                raise InputError(f"{where}.{key}: missing{rng}")
-            out[key] = None
-            continue
-        if not unit:
-            if not isinstance(d[key], str) or not d[key].strip():
-                raise InputError(f"{where}.{key}: {d[key]!r} must be a non-empty name in quotes")
-            out[key] = d[key]
-        else:
-            out[key] = check_number(f"{where}.{key}", d[key], unit, lo, hi)
-    return out
-
-
-class _Group:
-    """One vehicle definition, checked and reduced to local matrices (x from its front)."""
-
-    def __init__(self, name, d, source):
-        where = f"{source}: vehicles.{name}"
-        if not isinstance(d, dict):
-            raise InputError(f"{where}: {d!r} is not a table; write [vehicles.{name}] with "
-                             f"{', '.join(VEHICLE_KEYS)}")
-        check_keys(d, VEHICLE_KEYS, where)
-        self.name = name
-        if "length_m" not in d:
-            raise InputError(f"{where}.length_m: missing (m, allowed [{LENGTH_RANGE_M[0]:g}, {LENGTH_RANGE_M[1]:g}])")
-        self.length_m = check_number(f"{where}.length_m", d["length_m"], "m", *LENGTH_RANGE_M)
-        lists = {}
-        for key in ("bodies", "wheelsets", "stages"):
-            v = d.get(key)
-            if not isinstance(v, list) or not v:
-                raise InputError(f"{where}.{key}: missing or empty; allowed a list of tables "
-                                 f"([[vehicles.{name}.{key}]])")
-            lists[key] = v
-        bodies = [_table(b, BODY_KEYS, f"{where}.bodies[{i}]") for i, b in enumerate(lists["bodies"])]
-        wheels = [_table(w, WHEELSET_KEYS, f"{where}.wheelsets[{i}]") for i, w in enumerate(lists["wheelsets"])]
-        stages = [_table(s, STAGE_KEYS, f"{where}.stages[{i}]") for i, s in enumerate(lists["stages"])]
-        names = [b["name"] for b in bodies] + [w["name"] for w in wheels]
-        dup = sorted({n for n in names if names.count(n) > 1})
-        if dup:
-            raise InputError(f"{where}: name(s) {', '.join(map(repr, dup))} used twice; allowed one name per "
-                             f"body and wheelset")
-        body_ix = {b["name"]: i for i, b in enumerate(bodies)}
-        wheel_ix = {w["name"]: i for i, w in enumerate(wheels)}
-        for i, s in enumerate(stages):
-            if s["upper"] not in body_ix:
-                raise InputError(f"{where}.stages[{i}].upper: {s['upper']!r} is not a body; allowed "
-                                 f"{', '.join(map(repr, body_ix))}")
-            if s["lower"] not in body_ix and s["lower"] not in wheel_ix:
-                raise InputError(f"{where}.stages[{i}].lower: {s['lower']!r} is not a body or wheelset; allowed "
-                                 f"{', '.join(map(repr, list(body_ix) + list(wheel_ix)))}")
-            if s["lower"] == s["upper"]:
-                raise InputError(f"{where}.stages[{i}]: joins body {s['upper']!r} to itself; allowed two "
-                                 f"different bodies, or a body and a wheelset")
-        for w in wheels:
-            n = sum(s["lower"] == w["name"] for s in stages)
-            if n != 1:
-                raise InputError(f"{where}: wheelset {w['name']!r} hangs on {n} stages; allowed exactly 1 "
-                                 f"(stages with lower = {w['name']!r})")
+    def __init__(self, name, length_m, bodies, wheels, stages, where):
+        self.name, self.length_m, self.stages = name, length_m, stages
         self._connected(bodies, wheels, stages, where)
         # DOF order: bodies that carry no wheelset (car bodies) first, then the others, file order each
-        on_wheel = {s["upper"] for s in stages if s["lower"] in wheel_ix}
-        order = [i for i, b in enumerate(bodies) if b["name"] not in on_wheel]
-        order += [i for i, b in enumerate(bodies) if b["name"] in on_wheel]
-        self.bodies = [bodies[i] for i in order]
+        wheel_names = {w["name"] for w in wheels}
+        on_wheel = {s["upper"] for s in stages if s["lower"] in wheel_names}
+        self.bodies = [b for b in bodies if b["name"] not in on_wheel] + [b for b in bodies if b["name"] in on_wheel]
         self.n_cars = sum(b["name"] not in on_wheel for b in bodies)
+        rows = self._assemble({w["name"]: w for w in wheels})
+        self._place_wheels(rows, where)
+        self.loads_n = self._static_loads(where)
+
+    def _assemble(self, wheels):
+        """Mass ``M``, secondary ``K_s``, ``C_s`` (Eq. 11); returns the primary stages
+        ``[(wheelset, Lw row, k, c)]`` sorted by the wheelsets' x."""
         dof = {b["name"]: 2 * k for k, b in enumerate(self.bodies)}
         n = 2 * len(self.bodies)
         xb = {b["name"]: b["x_m"] for b in self.bodies}
@@ -182,13 +85,13 @@ class _Group:
             M[dof[b["name"]] + 1] = math.inf if J is None else J  # no inertia given: the body does not pitch
         K, C = np.zeros((n, n)), np.zeros((n, n))
         rows = []
-        for s in stages:
+        for s in self.stages:
             u, x = s["upper"], s["x_m"]
-            if s["lower"] in wheel_ix:
+            if s["lower"] in wheels:
                 L = np.zeros(n)
                 L[dof[u]] = 1.0
                 L[dof[u] + 1] = x - xb[u]
-                rows.append((wheels[wheel_ix[s["lower"]]], L, s["k_N_m"], s["c_Ns_m"]))
+                rows.append((wheels[s["lower"]], L, s["k_N_m"], s["c_Ns_m"]))
                 continue
             lo = s["lower"]
             L = np.zeros(n)  # relative displacement lower - upper at x
@@ -198,7 +101,12 @@ class _Group:
             L[dof[u] + 1] = -(x - xb[u])
             K += s["k_N_m"] * np.outer(L, L)
             C += s["c_Ns_m"] * np.outer(L, L)
+        self.M, self.K_s, self.C_s = M, K, C
         rows.sort(key=lambda r: r[0]["x_m"])
+        return rows
+
+    def _place_wheels(self, rows, where):
+        """The wheelsets front to rear, one per position, inside the vehicle; ``Lw``, ``k_p``, ``c_p``."""
         xs = [r[0]["x_m"] for r in rows]
         if np.any(np.diff(xs) <= 0.0):
             i = int(np.argmax(np.diff(xs) <= 0.0))
@@ -209,11 +117,15 @@ class _Group:
                 raise InputError(f"{where}: wheelset {r[0]['name']!r} x_m = {r[0]['x_m']:g} m lies outside the "
                                  f"vehicle; allowed [0, length_m = {self.length_m:g}] m")
         self.wheels = [r[0] for r in rows]
-        self.M, self.K_s, self.C_s = M, K, C
         self.Lw = np.array([r[1] for r in rows])
         self.k_p = np.array([r[2] for r in rows])
         self.c_p = np.array([r[3] for r in rows])
-        self.loads_n = self._static_loads(where)
+
+    def points_m(self, body):
+        """x of every stage acting on ``body`` (its extreme points: where comfort is read), or its
+        centre of gravity when no stage acts on it."""
+        pts = [s["x_m"] for s in self.stages if body in (s["upper"], s["lower"])]
+        return pts or [next(b["x_m"] for b in self.bodies if b["name"] == body)]
 
     @staticmethod
     def _connected(bodies, wheels, stages, where):
@@ -289,7 +201,7 @@ class CompiledUnit(NamedTuple):
 
 
 class CompiledTrain(NamedTuple):
-    """A vehicle file compiled (:func:`compile_vehicle_file`); :func:`adm_sim.model.trains.train_from_mapping`
+    """A composition of vehicles (:func:`compose`); :func:`adm_sim.model.trains.train_of_vehicles`
     makes the :class:`~adm_sim.model.trains.Train` of it. Arrays (n_axles,): offsets behind the first
     axle (m), static loads (N), wheelset masses (kg), index of each axle's unit."""
 
@@ -300,94 +212,53 @@ class CompiledTrain(NamedTuple):
     unit_of_axle: np.ndarray
 
 
-def compile_vehicle_file(data, source="vehicle file", paper_trains=()):
-    """A parsed vehicle file (the ``[vehicles.<NAME>]`` schema) checked and compiled to
-    :class:`CompiledTrain`; ``paper_trains``: the names ``paper_train`` may take."""
-    differ = check_file_fields(data, FILE_KEYS, source, paper_trains)
-    raw = data.get("vehicles")
-    if not isinstance(raw, dict) or not raw:
-        raise InputError(f"{source}: vehicles: missing table [vehicles.<NAME>]")
-    groups = {n: _Group(n, d, source) for n, d in raw.items()}
-    if not differ:
-        for g in groups.values():
-            if g.wheels[0]["static_load_kN"] is not None and abs(g.loads_n.sum() - g.weight_n) > LOAD_REL_TOL * g.weight_n:
-                raise InputError(f"{source}: vehicles.{g.name}: static loads sum to {g.loads_n.sum() / 1000:.4g} kN, "
-                                 f"the masses weigh {g.weight_n / 1000:.4g} kN (allowed within "
-                                 f"{100 * LOAD_REL_TOL:g} %); fix them or set loads_differ_from_masses = true")
-    comp = data.get("composition")
-    if not isinstance(comp, list) or not comp:
-        raise InputError(f"{source}: composition: missing [[composition]] entries")
+def compose(groups, entries):
+    """The composition ``entries`` ``[(vehicle name, count, reversed)]`` (front to rear) of the
+    vehicles ``groups`` (:class:`VehicleGroup` by name), coupler to coupler, as a
+    :class:`CompiledTrain`. A reversed vehicle runs rear end first: ``x -> length_m - x``, and its
+    pitch coordinates change sign."""
     units, offs, loads, mw, owner = [], [], [], [], []
     front = 0.0
-    for n, entry in enumerate(comp):
-        where = f"{source}: composition[{n}]"
-        if not isinstance(entry, dict):
-            raise InputError(f"{where}: not a table")
-        check_keys(entry, ENTRY_KEYS, where)
-        name = entry.get("vehicle")
-        if name not in groups:
-            raise InputError(f"{where}.vehicle: {name!r} is not defined; defined: {', '.join(groups)}")
-        count = entry.get("count", 1)
-        if isinstance(count, (str, bool)):
-            raise InputError(f"{where}.count: {count!r} must be an integer without quotes; allowed integer in [1, 100]")
-        count = check_int(f"{where}.count", count, 1, 100)
-        rev = entry.get("reversed", False)
-        if not isinstance(rev, bool):
-            raise InputError(f"{where}.reversed: {rev!r} must be true or false")
+    for name, count, rev in entries:
         g = groups[name]
         for _ in range(count):
-            pos = (lambda x, g=g: front + (g.length_m - x)) if rev else (lambda x: front + x)
-            wheel_order = range(len(g.wheels) - 1, -1, -1) if rev else range(len(g.wheels))
-            perm = np.array(list(wheel_order))
-            cars, others = [], []
-            for k, b in enumerate(g.bodies):
-                pts = [pos(s) for s in _points(raw[name], b["name"])]
-                if k < g.n_cars:
-                    cars.append((b["name"], (min(pts), max(pts))))
-                else:
-                    others.append((b["name"], pos(b["x_m"])))
-            Lw = g.Lw[perm].copy()
-            M = g.M
-            if rev:  # mirror: pitch coordinates change sign
-                flip = np.ones(len(M))
-                flip[1::2] = -1.0
-                Lw = Lw * flip
-                units.append(CompiledUnit(name, cars, others, M, g.K_s * np.outer(flip, flip),
-                                          g.C_s * np.outer(flip, flip), Lw, g.k_p[perm], g.c_p[perm]))
-            else:
-                units.append(CompiledUnit(name, cars, others, M, g.K_s, g.C_s, Lw, g.k_p, g.c_p))
+            units.append(_placed_unit(g, front, rev))
+            perm = range(len(g.wheels) - 1, -1, -1) if rev else range(len(g.wheels))
             for i in perm:
-                offs.append(pos(g.wheels[i]["x_m"]))
+                offs.append(front + (g.length_m - g.wheels[i]["x_m"]) if rev else front + g.wheels[i]["x_m"])
                 loads.append(g.loads_n[i])
                 mw.append(g.wheels[i]["mass_kg"])
                 owner.append(len(units) - 1)
             front += g.length_m
-    from adm_sim.fields import check_count  # noqa: PLC0415  beside its use
-
-    check_count("n_axles", len(offs), f"{source}: composition", f"{len(units)} vehicles")
     offs = np.asarray(offs)
-    check_count("train_length_m", round(float(offs.max() - offs.min()), 3), f"{source}: composition",
-                f"{len(units)} vehicles, {len(offs)} axles")
-    gaps = np.diff(offs)
-    if np.any(gaps <= 0.0):
-        i = int(np.argmax(gaps <= 0.0))
-        raise InputError(f"{source}: composition: axles {i} and {i + 1} are {gaps[i]:.3f} m apart (vehicles "
-                         f"{units[owner[i]].label!r}, {units[owner[i + 1]].label!r}); allowed axles strictly one "
-                         f"after another: check length_m and the wheelsets' x_m")
     return CompiledTrain(units=units, axle_offsets_m=offs - offs[0], axle_loads_n=np.asarray(loads),
                          wheel_mass_kg=np.asarray(mw, dtype=float), unit_of_axle=np.asarray(owner))
 
 
-def _points(d, body):
-    """x of every stage acting on ``body`` (its extreme points: where comfort is read)."""
-    pts = [s["x_m"] for s in d["stages"] if body in (s["upper"], s["lower"])]
-    return pts or [next(b["x_m"] for b in d["bodies"] if b["name"] == body)]
+def _placed_unit(g, front, rev):
+    """Vehicle ``g`` with its front end ``front`` m behind the train's (:class:`CompiledUnit`)."""
+    pos = (lambda x: front + (g.length_m - x)) if rev else (lambda x: front + x)
+    perm = np.array(list(range(len(g.wheels) - 1, -1, -1) if rev else range(len(g.wheels))))
+    cars, others = [], []
+    for k, b in enumerate(g.bodies):
+        pts = [pos(x) for x in g.points_m(b["name"])]
+        if k < g.n_cars:
+            cars.append((b["name"], (min(pts), max(pts))))
+        else:
+            others.append((b["name"], pos(b["x_m"])))
+    Lw = g.Lw[perm].copy()
+    if not rev:
+        return CompiledUnit(g.name, cars, others, g.M, g.K_s, g.C_s, Lw, g.k_p, g.c_p)
+    flip = np.ones(len(g.M))  # mirror: pitch coordinates change sign
+    flip[1::2] = -1.0
+    return CompiledUnit(g.name, cars, others, g.M, g.K_s * np.outer(flip, flip), g.C_s * np.outer(flip, flip),
+                        Lw * flip, g.k_p[perm], g.c_p[perm])
 
 
 # ---------------------------------------------------------------------- the paper's trains as vehicle files
 def _unit_front(train, unit):
-    """Front end of a unit (m from the train's front end, as :func:`adm_sim.model.trains.train_from_mapping`
-    places it) and its coupler-to-coupler length."""
+    """Front end of a unit (m from the train's front end, as :func:`adm_sim.model.trains.conventional_unit`
+    and :func:`adm_sim.model.trains.jacobs_unit` place it) and its coupler-to-coupler length."""
     types = train.vehicle_types
     first = types[unit.cars[0][0]]
     if len(unit.cars) == 1:
@@ -401,7 +272,7 @@ def vehicle_mapping(train, paper_train="", loads_differ=False):
     the secondary and primary stages in the order :func:`adm_sim.model.trains._assemble` sums them, so
     that the file gives the same matrices (to rounding of the positions, ~1e-15 relative).
     ``paper_train``, ``loads_differ``: the file's keys of these names
-    (:func:`adm_sim.model.trains.vehicle_file_mapping` fills them from the train)."""
+    (:func:`adm_sim.inputs.train_files.vehicle_file_mapping` fills them from the train)."""
     types = train.vehicle_types
     vehicles, comp, seen = {}, [], {}
     for unit in train.units:

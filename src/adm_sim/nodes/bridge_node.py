@@ -42,7 +42,8 @@ from adm_sim.integrate.rk4_sides import BridgeSide
 from adm_sim.integrate.run_contract import FAILED, FINISHED, RUNNING
 from adm_sim.integrate.step_grid import Grid, make_grid
 from adm_sim.limits import ACC_LIMITS_M_S2, TRACK_TYPES
-from adm_sim.model.bridge import Bridge, resolve_bridge
+from adm_sim.inputs.bridges import resolve_bridge
+from adm_sim.model.bridge import Bridge
 from adm_sim.model.plausibility import response_warnings
 from adm_sim.nodes import common as c
 from adm_sim.nodes.bridge_outputs import BridgePublishers, MonitoringOutput, frame_id, monitor_steps

@@ -31,8 +31,8 @@ from adm_sim.limits import ACC_LIMITS_M_S2, DEFAULT_SPEEDS, check_track_type
 from adm_sim.model.plausibility import check_bridge
 from adm_sim.integrate.run_contract import check_model
 from adm_sim.integrate.step_grid import StepOptions
-from adm_sim.integrate.sweep import parse_speeds
-from adm_sim.model.trains import load_train
+from adm_sim.inputs.speeds import parse_speeds
+from adm_sim.inputs.train_files import load_train
 
 #: Automatic monitoring decimation: at least this many samples per period of the highest retained
 #: mode, in the monitored lane's time.
@@ -323,7 +323,7 @@ def bridge_plausibility(preset, p, defaults=None):
     the plausible range ...``); a typed ``zeta_pct`` below 0.1 % is named as a fraction typed as
     percent. n0 derived from ``EJ_Nm2`` (``n0_hz`` = 0) is named so. Warnings only, never a refusal;
     ``p`` must have passed :func:`bridge_from_params`. What the preset itself gives (its own
-    warnings came with it, :func:`adm_sim.model.bridge.resolve_bridge`) is not said again: only the
+    warnings came with it, :func:`adm_sim.inputs.bridges.resolve_bridge`) is not said again: only the
     warnings the parameter values add to those of the preset's defaults."""
     d = {sp.name: sp.default for sp in bridge_specs(preset)} if defaults is None else defaults
 
@@ -372,9 +372,9 @@ def validate_train(p):
     check_run_phase(p["run_phase"])
     speeds = parse_speeds(p["speeds_kmh"], ordered=False, field="speeds_kmh")  # lanes, not a user's grid
     if p.get("irregularity"):
-        from adm_sim.model.irregularity import parse  # noqa: PLC0415  scipy.interpolate only on a rough track
+        from adm_sim.inputs.track_profile import parse_irregularity  # noqa: PLC0415  scipy.interpolate only on a rough track
 
-        parse(p["irregularity"], 40.0)  # spectrum, class, band, file: refused before a run starts
+        parse_irregularity(p["irregularity"], 40.0)  # spectrum, class, band, file: refused before a run starts
     return train, speeds
 
 

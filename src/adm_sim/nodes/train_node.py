@@ -26,7 +26,7 @@ from std_srvs.srv import Trigger
 
 from adm_sim import protocol as P
 from adm_sim.errors import InputError
-from adm_sim.model.irregularity import parse as parse_irregularity
+from adm_sim.inputs.track_profile import parse_irregularity
 from adm_sim.nodes import common as c
 from adm_sim.integrate.lockstep_runs import TrainHalf
 from adm_sim.integrate.mlm_loads import half_step_positions
@@ -50,7 +50,7 @@ class TrainRunState:
     train: Train
     v: np.ndarray                 #: (n_lanes,) speeds, m/s
     block: int                    #: MLM steps per axle block
-    irregularity: str = ""        #: track profile spec (:func:`adm_sim.model.irregularity.parse`)
+    irregularity: str = ""        #: track profile spec (:func:`adm_sim.inputs.track_profile.parse_irregularity`)
     grid: Grid | None = None      #: from the bridge's /adm/run/ready
     run: TrainHalf | None = None  #: step, stage, status
 
