@@ -13,7 +13,9 @@ Passages
 samples whose stamp lies in ``[t0_s, t1_s)`` of the bridge's ``started`` / ``done`` records (each
 end :data:`STAMP_TOLERANCE_S` early: a first sample stamped ``t0_s`` rounded to the ns is the run's),
 assigned by stamp, not by arrival (a ``done`` may arrive before the last samples). The train has
-left at ``t0_s + (train length + span) / v`` (the latched descriptions); the free decay is taken
+left at ``t0_s + (train length + deck length) / v`` (the latched descriptions; the deck length is
+``span_m`` of one span, the sum of ``spans_m`` of a continuous deck: the last axle leaves after the
+last span); the free decay is taken
 from ``settle_periods`` (3) periods after that. Stamps are in the monitored lane's time (a
 ``started`` record naming its ``time_lane``), or rescaled to it from the clock lane's.
 
@@ -924,7 +926,7 @@ class PassageTracker:
         self.passages: list[Passage] = []
         self.runs: list[_Run] = []
         self.phases: dict[int, str] = {}
-        self.span_m: float | None = None
+        self.span_m: float | None = None  # the deck length (m): all spans of a continuous deck
         self.train_length_m: float | None = None
         self.bridge_track: str | None = None
         self.bridge_limit: float | None = None
@@ -943,7 +945,9 @@ class PassageTracker:
     # ------------------------------------------------------------------ inputs
     def bridge_description(self, rec):
         b = rec.get("bridge") or {}
-        if "span_m" in b:
+        if b.get("spans_m"):  # a continuous deck: the train leaves after its last span
+            self.span_m = float(math.fsum(float(x) for x in b["spans_m"]))
+        elif "span_m" in b:
             self.span_m = float(b["span_m"])
         if b.get("name"):
             self.bridge_name = str(b["name"])
