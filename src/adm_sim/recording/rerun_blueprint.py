@@ -66,8 +66,8 @@ def default_blueprint(span_m: float | None = None, exaggeration: float = BEAM_EX
     if span_m is not None and span_m > 0:
         bounds = rrb.VisualBounds2D(x_range=[-0.05 * span_m, 1.05 * span_m],
                                     y_range=[-0.1 * span_m, 0.2 * span_m])
-    # the run table has nine columns and a row per run: it gets the full width and half the height
-    # (beside the beam, in 2/5 of the height, its columns and rows were cut)
+    # the run table has nine columns and a row per run (a calibration: about a dozen): it gets the full
+    # width and 3/5 of the height (beside the beam, in 2/5 of it, the rows past the 8th were cut)
     runs = rrb.Vertical(
         rrb.Horizontal(
             rrb.TimeSeriesView(
@@ -79,7 +79,7 @@ def default_blueprint(span_m: float | None = None, exaggeration: float = BEAM_EX
                 origin=e["beam"], visual_bounds=bounds, background=[250, 250, 250]),
             column_shares=[3, 2]),
         rrb.TextDocumentView(name="Runs (monitored lane, sampling, peaks)", origin=e["run_info"]),
-        row_shares=[1, 1], name="Runs")
+        row_shares=[2, 3], name="Runs")
     sweep = rrb.Vertical(
         rrb.TimeSeriesView(
             name="Max deck acceleration [m/s²] vs speed [km/h]: DIM, MLM ζ, MLM ζ+Δζ (timeline speed_kmh)",
