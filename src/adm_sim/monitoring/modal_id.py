@@ -13,7 +13,9 @@ Passages
 samples whose stamp lies in ``[t0_s, t1_s)`` of the bridge's ``started`` / ``done`` records (each
 end :data:`STAMP_TOLERANCE_S` early: a first sample stamped ``t0_s`` rounded to the ns is the run's),
 assigned by stamp, not by arrival (a ``done`` may arrive before the last samples). The train has
-left at ``t0_s + (train length + span) / v`` (the latched descriptions); the free decay is taken
+left at ``t0_s + (train length + deck length) / v`` (the latched descriptions; the deck length is
+``span_m`` of one span, the sum of ``spans_m`` of a continuous deck: the last axle leaves after the
+last span); the free decay is taken
 from ``settle_periods`` (3) periods after that. Stamps are in the monitored lane's time (a
 ``started`` record naming its ``time_lane``), or rescaled to it from the clock lane's.
 
@@ -526,7 +528,24 @@ def _fill_gaps(t, x, miss, gaps, f_hz, sigma):
     return x
 
 
-def _identify(t_s, a_m_s2, t_free_s, s):
+@dataclass
+class _Record:
+    """A passage's record on its uniform grid (internal to :func:`_identify`): times ``t`` (s),
+    acceleration ``a`` (m/s²), step ``dt`` (s), the grid points missing (``miss``), the dropouts
+    (``gaps``: :func:`find_gaps`) and the band ``[f_lo, f_hi]`` (Hz) a mode is looked for in."""
+
+    t: np.ndarray
+    a: np.ndarray
+    dt: float
+    miss: np.ndarray
+    gaps: list
+    f_lo: float
+    f_hi: float
+
+
+def _record(t_s, a_m_s2, s):
+    """The finite samples of a passage on their uniform grid, refused when too few, mostly gaps or
+    too coarse for ``s.min_samples_per_period`` samples per period of any mode of ``s.f_range_hz``."""
     t_in = np.asarray(t_s, dtype=float)
     a_in = np.asarray(a_m_s2, dtype=float)
     ok = np.isfinite(a_in) & np.isfinite(t_in)
@@ -546,24 +565,34 @@ def _identify(t_s, a_m_s2, t_free_s, s):
     if f_hi <= f_lo:
         raise IdentificationError(f"sampling at {1 / dt:.4g} Hz gives fewer than {s.min_samples_per_period:g} "
                                   f"samples per period of any mode above {f_lo:g} Hz")
-    x = a - np.median(a)
-    # 1. where the free vibration is: run records, else after the largest excursion
+    return _Record(t, a, dt, miss, gaps_all, f_lo, f_hi)
+
+
+def _free_vibration(rec, t_free_s):
+    """Step 1, where the free vibration is (run records, else after the largest excursion): the
+    index it starts at, its spectral peak ``f0`` (Hz) and the zero-mean record with its dropouts
+    filled at ``f0``."""
+    t, miss = rec.t, rec.miss
+    x = rec.a - np.median(rec.a)
     i_peak = int(np.argmax(np.abs(np.where(miss, 0.0, x))))
     i_from = i_peak if t_free_s is None else int(np.searchsorted(t, t_free_s))
     if i_from >= t.size - 16:
         raise IdentificationError("no free vibration recorded after the train left (the record ends "
                                   f"{(t[-1] - t[min(i_from, t.size - 1)]):.3g} s after it)")
-    f0 = _spectral_peak_hz(x[i_from:], dt, f_lo, f_hi)
-    if gaps_all:
-        x = _fill_gaps(t, x, miss, gaps_all, f0, 0.0)
-    # 2. band-pass over the whole record
-    xf = _bandpass(x, dt, f0, s.band_ratio) if s.bandpass else x
-    i_end = t.size - (int(round(1.0 / (f0 * dt))) if s.bandpass else 0)
-    # 3. the exponential free decay and the logarithmic decrement
+    f0 = _spectral_peak_hz(x[i_from:], rec.dt, rec.f_lo, rec.f_hi)
+    if rec.gaps:
+        x = _fill_gaps(t, x, miss, rec.gaps, f0, 0.0)
+    return i_from, f0, x
+
+
+def _decay_peaks(rec, xf, *, i_from, i_end, f0, t_free_s, s):
+    """Step 3a, the half-cycle peaks of the free decay (indices into the grid; enough of them, over
+    ``s.min_cycles`` periods, or :class:`IdentificationError`) and the fewest the start rule needs."""
+    t = rec.t
     if t_free_s is not None:
         i_from = int(np.searchsorted(t, t_free_s + s.settle_periods / f0))
-    pk = _half_cycle_peaks(xf[:i_end], dt, f0)
-    pk = pk[(pk >= i_from) & ~miss[pk]]
+    pk = _half_cycle_peaks(xf[:i_end], rec.dt, f0)
+    pk = pk[(pk >= i_from) & ~rec.miss[pk]]
     min_peaks = max(4, int(math.ceil(2 * s.min_cycles)))
     n_avail = (t[i_end - 1] - t[min(i_from, i_end - 1)]) * f0
     if pk.size < min_peaks or n_avail < s.min_cycles:
@@ -575,32 +604,37 @@ def _identify(t_s, a_m_s2, t_free_s, s):
                 + (f", {settle:g} for the band-pass to settle" if settle else "") + ")")
         raise IdentificationError(f"free decay of {max(n_avail, 0.0):.1f} cycles after the passage "
                                   f"(< {s.min_cycles:g} cycles needed to identify damping)")
-    tp, ap = t[pk], np.abs(xf[pk])
-    if t_free_s is None:
-        # the start rule looks at the cycles well above the noise: 5 % of the largest and 3 noise
-        # levels (robust, from the second differences of the raw samples present)
-        d2 = np.diff(x[~miss], 2)
-        noise = float(np.median(np.abs(d2 - np.median(d2)))) / 0.6745 / math.sqrt(6.0)
-        above = np.flatnonzero(ap >= max(0.05 * ap.max(), 3.0 * noise))
-        if above.size < min_peaks:
-            raise IdentificationError(f"signal-to-noise ratio {ap.max() / max(noise, 1e-300):.3g} of the largest "
-                                      f"cycle: too few cycles above 3 noise levels to identify damping")
-        n_top = int(above[-1]) + 1
-        j0, scatter = _decay_start(tp[:n_top], ap[:n_top], min_peaks, s.max_log_scatter,
-                                   noise if not s.bandpass else 0.0)
-        if j0 is None:
-            raise IdentificationError(f"no exponential free decay after the peak (scatter of the log cycle "
-                                      f"amplitudes {scatter:.3f} > {s.max_log_scatter:g}; the record may end "
-                                      f"before the train has left, or two modes beat)")
-    else:
-        j0 = 0
-        scatter = _line(tp, np.log(ap), ap ** 2)[2]
-    slope = _line(tp[j0:], np.log(ap[j0:]), ap[j0:] ** 2)[0]
-    sigma0 = max(-slope, 1e-6 * f0)
-    i0 = pk[j0]
-    if t_free_s is None and s.bandpass:  # the filter's memory of the forced vibration
-        i0 = pk[min(int(np.searchsorted(pk, i0 + s.settle_periods / (f0 * dt))), pk.size - 1)]
-    # 4. fit the samples present, cut where the envelope meets the noise, refit
+    return pk, min_peaks
+
+
+def _decay_onset(rec, x, tp, ap, *, min_peaks, t_free_s, s):
+    """Step 3b, the peak the exponential decay starts at (``j0``, into ``tp``) and the scatter of the
+    log cycle amplitudes: the first peak with run records, else the log-linear rule over the cycles
+    well above the noise (5 % of the largest and 3 noise levels, robust, from the second
+    differences of the raw samples present)."""
+    if t_free_s is not None:
+        return 0, _line(tp, np.log(ap), ap ** 2)[2]
+    d2 = np.diff(x[~rec.miss], 2)
+    noise = float(np.median(np.abs(d2 - np.median(d2)))) / 0.6745 / math.sqrt(6.0)
+    above = np.flatnonzero(ap >= max(0.05 * ap.max(), 3.0 * noise))
+    if above.size < min_peaks:
+        raise IdentificationError(f"signal-to-noise ratio {ap.max() / max(noise, 1e-300):.3g} of the largest "
+                                  f"cycle: too few cycles above 3 noise levels to identify damping")
+    n_top = int(above[-1]) + 1
+    j0, scatter = _decay_start(tp[:n_top], ap[:n_top], min_peaks, s.max_log_scatter,
+                               noise if not s.bandpass else 0.0)
+    if j0 is None:
+        raise IdentificationError(f"no exponential free decay after the peak (scatter of the log cycle "
+                                  f"amplitudes {scatter:.3f} > {s.max_log_scatter:g}; the record may end "
+                                  f"before the train has left, or two modes beat)")
+    return j0, scatter
+
+
+def _fit_decay(rec, xf, *, i0, i_end, f0, sigma0, s):
+    """Step 4, fit the samples present from ``i0``, cut where the envelope meets the noise
+    (``s.end_snr``), refit: ``(p, J, r, tw)`` of the last fit (:func:`_fit`; ``tw`` its times from
+    ``t[i0]``)."""
+    t, miss = rec.t, rec.miss
     fit = None
     for _ in range(2):
         tw, xw, keep = t[i0:i_end] - t[i0], xf[i0:i_end], ~miss[i0:i_end]
@@ -609,7 +643,7 @@ def _identify(t_s, a_m_s2, t_free_s, s):
             raise IdentificationError(f"free decay of {n_cyc:.1f} cycles above the noise after the passage "
                                       f"(< {s.min_cycles:g} cycles needed to identify damping)")
         p, J, r = _fit(tw[keep], xw[keep], f0, sigma0)
-        fit = (p, J, r, tw, xw)
+        fit = (p, J, r, tw)
         sigma, wd = p[0], abs(p[1])
         amp = math.hypot(p[2], p[3])
         rms = float(np.sqrt(np.mean(r ** 2)))
@@ -622,23 +656,34 @@ def _identify(t_s, a_m_s2, t_free_s, s):
         i_end = i0 + max(n_keep, 2)
         f0, sigma0 = wd / (2 * math.pi), sigma
     assert fit is not None
-    p, J, r, tw, xw = fit
+    return fit
+
+
+def _refit_over_gaps(rec, p, tw, *, i0, s):
+    """Step 4b, the dropouts inside the fitted window: none, ``(None, gaps, FIT_GAP_FREE)``; else
+    refill them with the fitted mode, band-pass again and refit the samples present,
+    ``((p, J, r), gaps, FIT_PRESENT)``; a dropout longer than ``s.max_gap_periods`` is refused."""
+    t, miss = rec.t, rec.miss
     t_a, t_b = t[i0], t[i0] + tw[-1]
-    gaps = tuple(g for g in gaps_all if g[0] + g[1] > t_a and g[0] < t_b)
-    method = FIT_GAP_FREE
-    if gaps:
-        fd_fit = abs(float(p[1])) / (2 * math.pi)
-        g_long = max(gaps, key=lambda g: g[1])
-        if g_long[1] * fd_fit > s.max_gap_periods:
-            raise IdentificationError(f"a dropout of {g_long[1]:.3g} s ({g_long[1] * fd_fit:.2g} periods, "
-                                      f"{g_long[2]} samples) at t={g_long[0]:.3f} s in the free decay: longer than "
-                                      f"the {s.max_gap_periods:g} period the fit bridges")
-        # refill the dropouts with the fitted mode, band-pass again and refit the samples present
-        x = _fill_gaps(t, a - np.median(a), miss, gaps_all, fd_fit, max(float(p[0]), 0.0))
-        xf = _bandpass(x, dt, fd_fit, s.band_ratio) if s.bandpass else x
-        xw, keep = xf[i0:i0 + tw.size], ~miss[i0:i0 + tw.size]
-        p, J, r = _fit(tw[keep], xw[keep], fd_fit, max(float(p[0]), 1e-6 * fd_fit))
-        method = FIT_PRESENT
+    gaps = tuple(g for g in rec.gaps if g[0] + g[1] > t_a and g[0] < t_b)
+    if not gaps:
+        return None, gaps, FIT_GAP_FREE
+    fd_fit = abs(float(p[1])) / (2 * math.pi)
+    g_long = max(gaps, key=lambda g: g[1])
+    if g_long[1] * fd_fit > s.max_gap_periods:
+        raise IdentificationError(f"a dropout of {g_long[1]:.3g} s ({g_long[1] * fd_fit:.2g} periods, "
+                                  f"{g_long[2]} samples) at t={g_long[0]:.3f} s in the free decay: longer than "
+                                  f"the {s.max_gap_periods:g} period the fit bridges")
+    x = _fill_gaps(t, rec.a - np.median(rec.a), miss, rec.gaps, fd_fit, max(float(p[0]), 0.0))
+    xf = _bandpass(x, rec.dt, fd_fit, s.band_ratio) if s.bandpass else x
+    xw, keep = xf[i0:i0 + tw.size], ~miss[i0:i0 + tw.size]
+    return _fit(tw[keep], xw[keep], fd_fit, max(float(p[0]), 1e-6 * fd_fit)), gaps, FIT_PRESENT
+
+
+def _modal_fit(rec, fit, tw, *, i0, scatter, gaps, method, s):
+    """Step 5, the fitted mode checked (band, decay, cycles, signal-to-noise) and its standard
+    uncertainties, ``s^2 (J^T J)^-1`` with ``s^2`` from the residual spectrum at ``f_d``."""
+    p, J, r = fit
     n_fit = int(r.size)
     sigma, wd = float(p[0]), abs(float(p[1]))
     fd = wd / (2 * math.pi)
@@ -646,8 +691,8 @@ def _identify(t_s, a_m_s2, t_free_s, s):
     rms = float(np.sqrt(np.mean(r ** 2)))
     n_cyc = float(tw[-1] * fd)
     snr = amp / rms if rms > 0 else float("inf")
-    if not f_lo <= fd <= f_hi:
-        raise IdentificationError(f"the fitted frequency {fd:.4g} Hz is outside [{f_lo:g}, {f_hi:.4g}] Hz")
+    if not rec.f_lo <= fd <= rec.f_hi:
+        raise IdentificationError(f"the fitted frequency {fd:.4g} Hz is outside [{rec.f_lo:g}, {rec.f_hi:.4g}] Hz")
     if sigma <= 0:
         raise IdentificationError(f"the fitted decay rate {sigma:.3g} 1/s is not positive: no damping "
                                   f"can be identified from an amplitude that does not decay")
@@ -657,8 +702,7 @@ def _identify(t_s, a_m_s2, t_free_s, s):
     if snr < s.min_snr:
         raise IdentificationError(f"signal-to-noise ratio {snr:.3g} at the start of the free decay "
                                   f"(< {s.min_snr:g} needed to identify damping)")
-    # 5. uncertainties: s^2 (J^T J)^-1 with s^2 from the residual spectrum at f_d
-    s2 = _noise_variance(r, dt, fd)
+    s2 = _noise_variance(r, rec.dt, fd)
     try:
         cov = s2 * np.linalg.inv(J.T @ J)
     except np.linalg.LinAlgError:
@@ -674,10 +718,35 @@ def _identify(t_s, a_m_s2, t_free_s, s):
     if zeta_std > s.max_rel_std * zeta:
         raise IdentificationError(f"relative standard uncertainty of zeta1 {100 * zeta_std / zeta:.0f} % "
                                   f"(> {100 * s.max_rel_std:g} % allowed)")
+    t = rec.t
     return ModalFit(f1_hz=w1 / (2 * math.pi), zeta1=zeta, f1_std_hz=f1_std, zeta1_std=zeta_std, fd_hz=fd,
                     t_start_s=float(t[i0]), t_end_s=float(t[i0] + tw[-1]), n_cycles=n_cyc, snr=float(snr),
                     amplitude_m_s2=float(amp), n_samples=n_fit, filtered=bool(s.bandpass),
                     log_scatter=float(scatter), gaps=gaps, method=method)
+
+
+def _identify(t_s, a_m_s2, t_free_s, s):
+    """The steps of :func:`identify_first_mode` (numbered as in the module docstring)."""
+    rec = _record(t_s, a_m_s2, s)
+    t, dt = rec.t, rec.dt
+    i_from, f0, x = _free_vibration(rec, t_free_s)
+    # 2. band-pass over the whole record
+    xf = _bandpass(x, dt, f0, s.band_ratio) if s.bandpass else x
+    i_end = t.size - (int(round(1.0 / (f0 * dt))) if s.bandpass else 0)
+    # 3. the exponential free decay and the logarithmic decrement
+    pk, min_peaks = _decay_peaks(rec, xf, i_from=i_from, i_end=i_end, f0=f0, t_free_s=t_free_s, s=s)
+    tp, ap = t[pk], np.abs(xf[pk])
+    j0, scatter = _decay_onset(rec, x, tp, ap, min_peaks=min_peaks, t_free_s=t_free_s, s=s)
+    slope = _line(tp[j0:], np.log(ap[j0:]), ap[j0:] ** 2)[0]
+    sigma0 = max(-slope, 1e-6 * f0)
+    i0 = pk[j0]
+    if t_free_s is None and s.bandpass:  # the filter's memory of the forced vibration
+        i0 = pk[min(int(np.searchsorted(pk, i0 + s.settle_periods / (f0 * dt))), pk.size - 1)]
+    # 4. fit the samples present, cut where the envelope meets the noise, refit
+    p, J, r, tw = _fit_decay(rec, xf, i0=i0, i_end=i_end, f0=f0, sigma0=sigma0, s=s)
+    refit, gaps, method = _refit_over_gaps(rec, p, tw, i0=i0, s=s)
+    # 5. the checks and the uncertainties
+    return _modal_fit(rec, refit or (p, J, r), tw, i0=i0, scatter=scatter, gaps=gaps, method=method, s=s)
 
 
 # ---------------------------------------------------------------------- passages
@@ -924,7 +993,7 @@ class PassageTracker:
         self.passages: list[Passage] = []
         self.runs: list[_Run] = []
         self.phases: dict[int, str] = {}
-        self.span_m: float | None = None
+        self.span_m: float | None = None  # the deck length (m): all spans of a continuous deck
         self.train_length_m: float | None = None
         self.bridge_track: str | None = None
         self.bridge_limit: float | None = None
@@ -943,7 +1012,9 @@ class PassageTracker:
     # ------------------------------------------------------------------ inputs
     def bridge_description(self, rec):
         b = rec.get("bridge") or {}
-        if "span_m" in b:
+        if b.get("spans_m"):  # a continuous deck: the train leaves after its last span
+            self.span_m = float(math.fsum(float(x) for x in b["spans_m"]))
+        elif "span_m" in b:
             self.span_m = float(b["span_m"])
         if b.get("name"):
             self.bridge_name = str(b["name"])

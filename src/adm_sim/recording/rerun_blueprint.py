@@ -7,8 +7,9 @@ Tabs
 ----
 ``Runs``
     Midspan acceleration of every run over ``run_time`` (s since the first axle entered the
-    bridge, in the monitored lane's own time, so that runs overlay); the deflected beam with its
-    supports, fixed bounds and the display exaggeration in the title; the run table.
+    bridge, in the monitored lane's own time, so that runs overlay) beside the deflected beam with
+    its supports, fixed bounds and the display exaggeration in the title; under them, the full
+    width, the run table.
 ``Speed sweep``
     Maximum deck acceleration against train speed on ``speed_kmh``: DIM, MLM ζ and the calibrated
     MLM ζ+Δζ on one plot; every damping trial of the calibration its own series, named by its Δζ.
@@ -65,18 +66,20 @@ def default_blueprint(span_m: float | None = None, exaggeration: float = BEAM_EX
     if span_m is not None and span_m > 0:
         bounds = rrb.VisualBounds2D(x_range=[-0.05 * span_m, 1.05 * span_m],
                                     y_range=[-0.1 * span_m, 0.2 * span_m])
+    # the run table has nine columns and a row per run (a calibration: about a dozen): it gets the full
+    # width and 3/5 of the height (beside the beam, in 2/5 of it, the rows past the 8th were cut)
     runs = rrb.Vertical(
-        rrb.TimeSeriesView(
-            name="Midspan acceleration [m/s²] of every run vs time since train entry [s] (run_time)",
-            origin=e["acceleration"], plot_legend=rrb.PlotLegend(corner="RightTop")),
         rrb.Horizontal(
+            rrb.TimeSeriesView(
+                name="Midspan acceleration [m/s²] of every run vs time since train entry [s] (run_time)",
+                origin=e["acceleration"], plot_legend=rrb.PlotLegend(corner="RightTop")),
             rrb.Spatial2DView(
                 name=f"Deflected beam [m], deflection ×{exaggeration:g}, sag down; a finished run shows "
                      "its largest deflection",
                 origin=e["beam"], visual_bounds=bounds, background=[250, 250, 250]),
-            rrb.TextDocumentView(name="Runs (monitored lane, sampling, peaks)", origin=e["run_info"]),
-            column_shares=[1, 1]),
-        row_shares=[3, 2], name="Runs")
+            column_shares=[3, 2]),
+        rrb.TextDocumentView(name="Runs (monitored lane, sampling, peaks)", origin=e["run_info"]),
+        row_shares=[2, 3], name="Runs")
     sweep = rrb.Vertical(
         rrb.TimeSeriesView(
             name="Max deck acceleration [m/s²] vs speed [km/h]: DIM, MLM ζ, MLM ζ+Δζ (timeline speed_kmh)",

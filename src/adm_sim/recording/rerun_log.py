@@ -50,6 +50,7 @@ __all__ = [
     "RunLogger",
     "fmt_pct",
     "run_kind",
+    "supports_m",
 ]
 
 # ---------------------------------------------------------------- set-up
@@ -215,6 +216,16 @@ class _Run:
         return (np.asarray(t_s, dtype=float) - self.t0) * self.scale
 
 
+def supports_m(bridge: dict) -> list[float]:
+    """Support abscissae (m from the left abutment) of the ``bridge`` record of a bridge description:
+    ``0`` and ``span_m`` for one simply supported span; ``0`` and the running sums of ``spans_m``
+    for a continuous deck (whose ``span_m`` is the deck length, their sum)."""
+    spans = [float(x) for x in bridge.get("spans_m") or ()]
+    if not spans:
+        return [0.0, float(bridge["span_m"])]
+    return [0.0, *np.cumsum(spans).tolist()]
+
+
 class RunLogger:
     """Logs the monitoring stream of an adm-sim session to rerun in the default layout.
 
@@ -274,7 +285,8 @@ class RunLogger:
 
     # ------------------------------------------------------------ descriptions
     def bridge_description(self, desc: dict):
-        """``/adm/bridge/description``: the span fixes the beam view and its supports."""
+        """``/adm/bridge/description``: the deck length (``span_m``) fixes the beam view; a support is
+        drawn at each end and, for a continuous deck, over every intermediate pier (:func:`supports_m`)."""
         import rerun as rr  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
 
         self._bridge = desc
@@ -284,7 +296,7 @@ class RunLogger:
         self._span_m = span
         self.send_blueprint()
         h = 0.04 * span
-        tri = [[[x - h, h * 1.2], [x, 0.0], [x + h, h * 1.2], [x - h, h * 1.2]] for x in (0.0, span)]
+        tri = [[[x - h, h * 1.2], [x, 0.0], [x + h, h * 1.2], [x - h, h * 1.2]] for x in supports_m(desc["bridge"])]
         rr.log(P.beam_path(part="supports"), rr.LineStrips2D(tri, colors=(60, 60, 60), radii=0.02), static=True,
                recording=self.rec)
         rr.log(P.beam_path(part="axis"), rr.LineStrips2D([[[0.0, 0.0], [span, 0.0]]], colors=(180, 180, 180), radii=0.01),

@@ -11,7 +11,11 @@ rclpy messages and mcap-ros2-support's decoded ones work alike; this module impo
 ``t_ns`` is the sim time of the message (``header.stamp`` when it has one, else the time it was
 recorded at; :func:`stamp_ns`). A topic under a namespace (``/b1/adm/midspan/accel``) is drawn as
 the topic it ends with. Each result is drawn for its run (:class:`RunPhases`) with the phase of the
-driver's ``requested`` record of that run id on ``/adm/run/status``.
+driver's ``requested`` record of that run id on ``/adm/run/status``. The driver learns a run's id
+from the bridge's answer to its start request and publishes the record then, which can be after the
+run's result arrived (a short run, a loaded machine: two publishers, no order between them); such a
+result, and what follows it, waits for the record (:meth:`ViewerFeed.feed`), and is drawn with phase
+``unknown`` only when the next run starts or the feed finishes without it.
 """
 
 from __future__ import annotations
@@ -20,8 +24,10 @@ import sys
 from collections import defaultdict
 
 import numpy as np
+import rerun as rr  # loaded only where a feed draws: the recorder with a viewer or an .rrd, replay's rerun path
 
 from adm_sim import protocol as P
+from adm_sim.recording.rerun_log import _part
 from adm_sim.recording.viewer_process import check_viewer  # the viewer handshake (its home)
 
 __all__ = ["RunPhases", "ViewerFeed", "check_viewer", "matrix_of", "stamp_ns"]
@@ -75,6 +81,10 @@ class RunPhases:
             self.pending.append(int(st["run_id"]))
         elif st.get("node") == P.BRIDGE_NODE and P.is_failure(st) and st.get("run_id") in self.pending:
             self.pending.remove(st["run_id"])
+
+    def next_run(self) -> int | None:
+        """The run the next result belongs to (``None``: no announced run waits for one)."""
+        return self.pending[0] if self.pending else None
 
     def result(self) -> tuple[int | None, str]:
         """``(run_id, phase)`` of the next result (``(None, unknown)``: a result of no announced
@@ -132,6 +142,8 @@ class ViewerFeed:
         self.counts: dict[str, int] = defaultdict(int)
         self._deflection = None
         self._accel: dict = defaultdict(lambda: ([], []))  # AccelStamped outside a run: lane -> (t, a)
+        #: draws waiting for the phase of a result's run: [(run_id or None, draw)], in arrival order
+        self._waiting: list = []
         self._series: dict = defaultdict(lambda: defaultdict(lambda: ([], [])))  # topic -> name -> (t, v)
         handlers = {
             P.TOPIC_BRIDGE_DESC: lambda m, t: self.viz.bridge_description(P.decode(m.data)),
@@ -165,7 +177,11 @@ class ViewerFeed:
     # -- the adm-sim topics
     def _status(self, msg, t_s):
         st = P.decode(msg.data)
+        if self._waiting and P.is_bridge_start(st):
+            self._draw_waiting(force=True)  # a later run starts: the waiting result's record did not come
         self.phases.status(st)
+        if self._waiting and P.is_request(st):
+            self._draw_waiting()
         self.viz.run_started(st)
 
     def _run_accel(self, msg, t_s):
@@ -185,12 +201,34 @@ class ViewerFeed:
             self.viz.beam(t_s, self._deflection[0], self._deflection[1], ax[0], ax[1])
 
     def _result(self, msg, t_s):
+        result = matrix_of(msg)
+        run_id = self.phases.next_run()
+        if self._waiting or (run_id is not None and run_id not in self.phases.by_run):
+            self._waiting.append((run_id, lambda: self._draw_result(result)))  # its phase record is still to come
+        else:
+            self._draw_result(result)
+
+    def _draw_result(self, result):
         run_id, phase = self.phases.result()
-        self.viz.run_done(matrix_of(msg), phase, run_id)
+        self.viz.run_done(result, phase, run_id)
 
     def _iteration(self, msg, t_s):
         i, dz_pct, mlm_peak, dim_peak = matrix_of(msg).ravel()[:4]
-        self.viz.iteration(int(i), dz_pct, mlm_peak, dim_peak, self.phases.last)
+        draw = lambda: self.viz.iteration(int(i), dz_pct, mlm_peak, dim_peak, self.phases.last)  # noqa: E731
+        if self._waiting:
+            self._waiting.append((None, draw))  # after the result it follows
+        else:
+            draw()
+
+    def _draw_waiting(self, force: bool = False) -> None:
+        """Draw the waiting results (and what came after them) in order, each once its run's phase
+        record is here; with ``force`` all of them (a run without a record: phase ``unknown``)."""
+        while self._waiting:
+            run_id, draw = self._waiting[0]
+            if not force and run_id is not None and run_id not in self.phases.by_run:
+                return
+            self._waiting.pop(0)
+            draw()
 
     # -- any other topic
     def _generic(self, topic, msg, t_s):
@@ -199,10 +237,6 @@ class ViewerFeed:
             lane[0].append(t_s)
             lane[1].append(msg.accel.linear.z)
         elif hasattr(msg, "status") and hasattr(msg, "header"):  # DiagnosticArray
-            import rerun as rr  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
-
-            from adm_sim.recording.rerun_log import _part  # noqa: PLC0415  start-up: only on this path (28 ms)
-
             rr.set_time(P.SIM_TIME, duration=t_s)
             for st in msg.status:
                 level = {0: "INFO", 1: "WARN", 2: "ERROR", 3: "WARN"}.get(_level(st.level), "INFO")
@@ -229,10 +263,7 @@ class ViewerFeed:
 
     def finish(self) -> None:
         """Flush the logger and send the generic series gathered so far (as columns)."""
-        import rerun as rr  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
-
-        from adm_sim.recording.rerun_log import _part  # noqa: PLC0415  start-up: only on this path (28 ms)
-
+        self._draw_waiting(force=True)
         self.viz.flush()
         for lane, (t, a) in self._accel.items():
             rr.send_columns(f"{P.ENTITIES['topics']}/midspan_acceleration_m_s2/{_part(lane)}",
