@@ -27,6 +27,7 @@ def _group(span, fi, mfs=("mu1", "mu2", "mu3", "mu4", "mu5", "mu6"), train="ICE-
     return [c.bridge for c in select_cases([train], list(mfs), (span, span), [fi])]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("train,span,fi", [("ICE-2", 10, 5), ("Eurostar", 25, 2)])
 def test_batch_lanes_equal_run_sweep(train, span, fi):
     bridges = _group(span, fi, ("mu1", "mu4", "mu6"))
@@ -65,6 +66,7 @@ def test_group_shares_the_step_of_every_case():
 # coarse and fine DIM grid, ladder, root, check); 4 steps per period of the highest mode (the core's
 # default is 16) on both paths: the numpy stepper's cost is its number of steps per sweep, and the
 # comparison holds at any step.
+@pytest.mark.slow
 @pytest.mark.parametrize("train,span,fi,mfs,speeds", [
     ("ICE-2", 40, 1, ("mu1", "mu3", "mu6"), (280, 350)),
     ("ICE-4", 4, 1, ("mu2", "mu5"), (220, 260)),  # the costliest (4 m span: the smallest step)
@@ -111,6 +113,7 @@ def _small_batch(train="Eurostar"):
     return runner, case, speeds, sweep
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("model", ["mlm", "dim"])
 def test_batch_run_in_blocks_equals_one_call_bit_for_bit(model):
     """Advancing 1, 7 and 1000 steps at a time gives exactly what one call over all steps gives;

@@ -118,6 +118,7 @@ def test_bad_input_one_line_exit_2(argv, match, capsys):
     assert re.search(match, err[0]), err[0]
 
 
+@pytest.mark.slow
 def test_bad_input_exit_code_of_the_process():
     p = run_cli("recommend", "--train", "ICE-2", "--n0", "1.0", "--mu", "20000", "--type", "sc")
     assert p.returncode == 2
@@ -126,6 +127,7 @@ def test_bad_input_exit_code_of_the_process():
     assert p.returncode == 2 and p.stderr.count("\n") == 1 and "unknown-train" in p.stderr
 
 
+@pytest.mark.slow
 def test_console_script_installed():
     exe = Path(sys.executable).with_name("adm-calib")
     if not exe.exists():

@@ -91,6 +91,7 @@ def _retained(fit, train, mass_function):
     return x[sel], y[sel]
 
 
+@pytest.mark.slow
 def test_lp_bound_lies_below_every_retained_case(shipped_lp):
     fit, rows = shipped_lp
     assert len(fit.fits) == 24
@@ -108,6 +109,7 @@ def test_lp_bound_lies_below_every_retained_case(shipped_lp):
         assert cf.shift_pct < 1e-6
 
 
+@pytest.mark.slow
 def test_lp_beats_the_least_squares_bound_shifted_below_its_data(shipped_lp):
     """Our least-squares cubic moved down by its smallest residual (Tables B: min res) is a candidate
     of the programme where it is then below every retained case before its root and > 0 at 2.1 Hz:
@@ -129,6 +131,7 @@ def test_lp_beats_the_least_squares_bound_shifted_below_its_data(shipped_lp):
     assert {("Eurostar", "mu1"), ("Eurostar", "mu2"), ("Eurostar", "mu3")} <= set(checked)
 
 
+@pytest.mark.slow
 def test_shipped_conservative_functions_are_the_lp_of_the_shipped_study(shipped_lp):
     _, rows = shipped_lp
     table = lower_bound_table("conservative")

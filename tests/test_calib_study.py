@@ -78,6 +78,7 @@ def _assert_processes_end(procs, timeout=20.0):
 
 
 # ---------------------------------------------------------------------- study on dask
+@pytest.mark.slow
 def test_tiny_study_equals_in_process_calibrate(tmp_path):
     from adm_sim.model.trains import load_train
 
@@ -131,6 +132,7 @@ def test_tiny_study_equals_in_process_calibrate(tmp_path):
     assert meta["settings"] == st.StudySettings().to_dict() and meta["runs"][-1]["versions"]["dask"]
 
 
+@pytest.mark.slow
 def test_resume_after_sigkill_with_truncated_line(tmp_path, capsys):
     """The killed study is a process of its own; the two runs after it (their messages, exit code
     and files are what is checked) call the command's ``main`` in this process."""
@@ -185,6 +187,7 @@ def test_resume_after_sigkill_with_truncated_line(tmp_path, capsys):
     assert res.read_bytes() == final
 
 
+@pytest.mark.slow
 def test_ctrl_c_stops_cleanly_and_keeps_results(tmp_path):
     res = tmp_path / "results.jsonl"
     p = subprocess.Popen(_study_cmd(tmp_path), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
@@ -217,6 +220,7 @@ def test_error_case_is_recorded_not_raised():
     assert (rec["bridge"], rec["train"], rec["mass_function"]) == ("L40-f1-mu6", "no-such-train", "mu6")
 
 
+@pytest.mark.slow
 def test_results_reader_and_guards(tmp_path):
     res = tmp_path / "results.jsonl"
     res.write_text('{"bridge": "a", "train": "ICE-2"}\nnot json\n{"bridge": "b", "train": "ICE-2"}\n')
@@ -246,9 +250,12 @@ def test_select_cases_counts():
     assert {c.bridge.bridge_type for c in sub} == {"sc"}
 
 
-def test_core_imports_stay_light():
+@pytest.mark.slow
+def test_study_imports_neither_dask_nor_matplotlib():
+    """The study's module leaves the cluster and the figures to the commands that use them (rclpy:
+    tests/test_layers.py's ``test_nothing_below_the_nodes_loads_rclpy``)."""
     code = ("import sys, adm_calib.study; "
-            "print(sorted(m for m in ('rclpy', 'dask', 'distributed', 'matplotlib') if m in sys.modules))")
+            "print(sorted(m for m in ('dask', 'distributed', 'matplotlib') if m in sys.modules))")
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert p.returncode == 0 and p.stdout.strip() == "[]", p.stderr
 
@@ -361,6 +368,7 @@ def _no_figures(monkeypatch):
         monkeypatch.setattr(plots, name, empty_png)
 
 
+@pytest.mark.slow
 def test_study_fit_cli_end_to_end(tmp_path, capsys, monkeypatch):
     lbs = lower_bound_table()
     recs = []

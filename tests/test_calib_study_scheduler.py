@@ -28,7 +28,7 @@ from adm_calib import peaks as pk
 from adm_calib import study as st
 
 DASK = Path(sys.executable).with_name("dask")
-pytestmark = pytest.mark.skipif(not DASK.exists(), reason=f"dask CLI not found next to {sys.executable}")
+pytestmark = [pytest.mark.slow, pytest.mark.skipif(not DASK.exists(), reason=f"dask CLI not found next to {sys.executable}")]
 
 SPANS, FREQS, TRAIN = (38, 40), (1, 2), "ICE-2"
 STUDY_ARGS = ["--trains", TRAIN, "--spans", f"{SPANS[0]}:{SPANS[1]}", "--freq-index", ",".join(map(str, FREQS))]

@@ -12,6 +12,8 @@ import pytest
 
 from adm_calib.workers import die_with_parent
 
+pytestmark = pytest.mark.slow  # every test here starts processes
+
 
 def _pool_children(proc):
     try:

@@ -301,6 +301,7 @@ def test_bad_input_cli_lines(args, line, capsys):
     assert err == line and out == ""
 
 
+@pytest.mark.slow
 def test_bad_input_exit_code_of_the_process():
     """One refusal through a real `python -m adm_sim.cli.sim_commands check` process: exit 2, the one
     line on stderr, nothing on stdout (the in-process cases above share its run_cli path)."""
@@ -309,6 +310,7 @@ def test_bad_input_exit_code_of_the_process():
     assert r.stderr == "error: --where: 'top' is not allowed; allowed deck, midspan or x=<position in m> with 0 < x < 15 m\n"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ["lb", "vbi"])
 def test_core_check_refuses_calib_methods(method):
     """`adm-sim check --damping lb|vbi`: one line, exit 2, pointing to adm-calib check (the core does
@@ -345,6 +347,7 @@ def test_calib_check_bad_input_lines(args, line, capsys):
     assert err == line and out == ""
 
 
+@pytest.mark.slow
 def test_calib_check_lb_matches_the_lower_bound():
     """`adm-calib check --damping lb` on B1 with ICE-2: the damping line and the JSON carry the
     lower bound of paper Table 4 (B1 ICE-2, 0.323 %), and the governing acceleration lies below the
@@ -386,6 +389,7 @@ def test_core_api_calib_methods_need_a_provider():
     np.testing.assert_array_equal(got.trains[0].max_acc_m_s2, ref.trains[0].max_acc_m_s2)
 
 
+@pytest.mark.slow
 def test_cli_outputs_and_no_overwrite(tmp_path):
     """Issue 15's case through the command line: B1, V = 250 km/h, HSLM-A7 (and ICE-2), whole deck
     by default, with Rayleigh damping asked for: the maximum 3.568 m/s2 near 238 km/h at about 3L/8 .. 0.42 L, which the brute force
@@ -495,6 +499,7 @@ ONE_PC = {"m_c_kg": 33930, "J_c_kgm2": 2.115e6, "m_b_kg": 2373, "J_b_kgm2": 1832
           "b_m": 2.5, "axle_load_kN": 112}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["B1", "B3"])
 def test_comfort_b_v_against_an_independent_integration(tmp_path, name):
     """One ICE-2 passenger car crossing B1 and B3 at 200 and 263 km/h: b_v of the DIM (RK4, 16
@@ -514,6 +519,7 @@ def test_comfort_b_v_against_an_independent_integration(tmp_path, name):
     np.testing.assert_allclose(dim, ref, rtol=5e-4)
 
 
+@pytest.mark.slow
 def test_comfort_b_v_limits_and_convergence():
     """Passenger comfort b_v from the DIM: step-converged (200 and 263 km/h), ~0 on a rigid bridge,
     larger on a light bridge (B3 weighs 0.41 of B1 at the same n0), level by EN 1990 A2.4.4.3 Table
@@ -555,6 +561,7 @@ def test_more_modes_on_request():
         run_check(b, 250.0, t, n_modes=4.5)
 
 
+@pytest.mark.slow
 def test_core_does_not_import_adm_calib():
     """The core's check and its CLI load without adm_calib, and `adm-sim check` runs without it."""
     code = ("import sys, adm_sim.cli.sim_commands, adm_sim.design.check, adm_sim.integrate.envelope, adm_sim.model.hslm, adm_sim.model.trains\n"
@@ -606,6 +613,7 @@ def test_refusal_comes_before_any_calibration(monkeypatch):
                   damping_provider=calibrated_damping)
 
 
+@pytest.mark.slow
 def test_default_is_modal_damping_b1_250_passes_closed_form():
     """The standard's default, ζ on every mode (EN 1991-2 6.4.6.3.1): B1 at V = 250 km/h with HSLM-A1..A10
     PASSes; the governing HSLM-A7 value 3.3932 m/s2 at 238.1 km/h, x = 6.281 m is checked against the
@@ -734,6 +742,7 @@ def test_standard_mass_bounds_from_the_ballast():
         run_check(b, 250.0, resolve_trains("HSLM-A7"), mass_bounds="standard:20000,2000")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("args,line", [
     (["--mass-bounds", "standard"], "error: --mass-bounds: 'standard' does not give the ballast; write "
                                     "standard:B,RHO[,RHO_MAX] (B the ballast mass per length in the nominal mass, "
@@ -759,6 +768,7 @@ def test_standard_bounds_bad_input(tmp_path, args, line):
     assert r.returncode == 2 and r.stderr == line and not js.exists()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("args,line", [
     (["--mass-bounds=-0.7,0.1"], "error: --mass-bounds: lower bound -0.7 is out of range; allowed [-0.5, 0] "
                                  "(a fraction of the nominal value)\n"),

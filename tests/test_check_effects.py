@@ -178,6 +178,7 @@ def test_lm71_deflection_and_end_rotation_by_hand():
     assert got == pytest.approx(best, rel=1e-6)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("value,line", [
     ("abc", "error: --lateral-frequency: 'abc' is not a frequency; give the first lateral natural frequency of "
             "the span in Hz, > 0\n"),

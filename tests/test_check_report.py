@@ -67,6 +67,7 @@ def test_report_reads_back_the_verdict_and_the_numbers(page):
     assert "HSLM-A1 3.3220 267.7" in text  # within 5 % of the governing value
 
 
+@pytest.mark.slow
 def test_report_cli_and_refusals(tmp_path):
     out = tmp_path / "r.html"
     r = subprocess.run(CLI + ["check", "--max-line-speed", "250", "--trains", "HSLM-A7", "--report", str(out)],

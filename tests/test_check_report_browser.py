@@ -20,9 +20,9 @@ import pytest
 
 CLI = [sys.executable, "-m", "adm_sim.cli.sim_commands"]
 CHROMIUM, DRIVER = shutil.which("chromium"), shutil.which("chromedriver")
-pytestmark = pytest.mark.skipif(CHROMIUM is None or DRIVER is None,
+pytestmark = [pytest.mark.slow, pytest.mark.skipif(CHROMIUM is None or DRIVER is None,
                                 reason="no headless Chromium (.ci/install-browser installs Debian's chromium "
-                                       "and chromium-driver)")
+                                       "and chromium-driver)")]
 
 
 @pytest.fixture(scope="module")

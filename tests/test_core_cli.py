@@ -86,6 +86,7 @@ def test_bad_input_is_one_line_exit_2(args, match, capsys):
     assert "Traceback" not in err and out == ""
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("args,match", [
     (["sweep", "--model", "fem"], "invalid choice: 'fem'"),                                   # the parser's
     (["sweep", "--bridge", "L=15,n0=8,mu=10000,zeta_pct=0"], "the exact MLM envelope needs damping > 0 %"),  # a check's

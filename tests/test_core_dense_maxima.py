@@ -129,6 +129,7 @@ def test_mlm_single_force_single_mode_against_closed_form():
 
 
 # ---------------------------------------------------------------------- DIM, fine-step reference
+@pytest.mark.slow
 def test_dim_dense_maxima_against_fine_step_and_numpy_equals_kernels():
     b, t = named_bridge("B1"), load_train("ICE-2")
     speeds = np.array([200.0, 240.0, 300.0])

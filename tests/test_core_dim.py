@@ -92,6 +92,7 @@ def test_interaction_lowers_the_resonance_peak_b1_ice2():
     assert abs(dim["speed_kmh"] - mlm["speed_kmh"]) <= 5.0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("train_name", ["ICE-2", "Eurostar"])
 def test_contact_forces_balance_the_static_loads(train_name):
     # Eq. (7): averaged over an axle's passage the contact force equals its static load

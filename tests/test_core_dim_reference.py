@@ -17,6 +17,8 @@ from adm_sim.integrate.step_grid import StepOptions
 from adm_sim.integrate.sweep import run_sweep
 from adm_sim.model.trains import load_train, train_from_mapping
 
+pytestmark = pytest.mark.slow  # each test costs seconds of CPU (a monolithic reference solve)
+
 
 def _one_vehicle_train():
     vt = dict(m_c_kg=33930, J_c_kgm2=2.115e6, m_b_kg=2373, J_b_kgm2=1832, m_w_kg=1728,

@@ -93,6 +93,7 @@ def test_lanes_are_independent():
     assert batch[1] == pytest.approx(alone[0], rel=1e-12)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("bridge_name,train_name", [("B1", "ICE-2"), ("B4", "ICE-4")])
 def test_mlm_step_convergence(bridge_name, train_name):
     # Halving the step moves the sweep's peak by < 0.1 %.

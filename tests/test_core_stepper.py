@@ -130,6 +130,7 @@ def test_dim_halves_reproduce_in_process(reference):
     assert_bitwise(bh.max_disp_m, ref.max_disp_m)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("block", [1, 37, 10**7])
 def test_mlm_halves_reproduce_in_process(reference, block):
     """Train half books blocks of axle positions, bridge half steps them (as the two nodes)."""

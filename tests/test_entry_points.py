@@ -114,6 +114,7 @@ def folder(tmp_path):
     return t
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("entry", ENTRIES, ids=[e.name for e in ENTRIES])
 def test_file_size_limit_is_one_line_and_exit_1(entry, folder, ros_env):
     """``ulimit -f 0``: the write is refused by the system (EFBIG), as a full disk (ENOSPC) would be."""
@@ -140,6 +141,7 @@ def _unwritable(t):
     return ro
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("entry", ENTRIES, ids=[e.name for e in ENTRIES])
 def test_read_only_folder_is_refused_before_any_work(entry, folder, ros_env):
     t = folder
@@ -186,6 +188,7 @@ SIGTERM_ENTRIES = [e for e in ENTRIES if e.name != "crossing.py"]
 # `adm-calib calibrate` printed its one line `error: interrupted` and then died by SIGINT (-2), not
 # 130. Not reproduced in 155 runs since (quiet and beside two busy processes); the cause is not
 # found. One rerun keeps a deterministic break failing; the open question is in the closing notes.
+@pytest.mark.slow
 @pytest.mark.flaky(reruns=1)
 @pytest.mark.parametrize("entry", SIGTERM_ENTRIES, ids=[e.name for e in SIGTERM_ENTRIES])
 def test_sigterm_mid_run_is_one_line_and_exit_130(entry, folder, ros_env):
@@ -210,6 +213,7 @@ def test_sigterm_mid_run_is_one_line_and_exit_130(entry, folder, ros_env):
     assert list(out.iterdir()) == []  # no partial output; a launch removes the folder it created
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("argv,prog", [(SIM, "adm-sim"), (CAL, "adm-calib")], ids=["adm-sim", "adm-calib"])
 def test_version_prints_the_one_version_number(argv, prog):
     from adm_sim import __version__

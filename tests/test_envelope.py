@@ -60,6 +60,7 @@ def _short_train():
     return t.axle_offsets_m[:14], t.axle_loads_n[:14]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name,n_modes,speeds", [
     ("B1", 3, np.arange(144.0, 421.0, 23.0)),
     ("B4", 3, np.arange(144.0, 421.0, 23.0)),
@@ -181,6 +182,7 @@ def reference_deck(bridge, offsets, loads, v, which, x_fixed=None, nx=121, per_p
     return best
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name,n_modes,speeds", [
     ("B1", 3, [150.0, 238.0, 265.0, 330.0, 410.0]),
     ("B4", 3, [160.0, 215.0, 290.0, 380.0]),
@@ -252,6 +254,7 @@ def test_midspan_moment_quasi_static_limit():
     assert env.max_moment_Nm[0] == pytest.approx(series, rel=2e-3)  # dynamic part at 5 km/h: < 0.2 %
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("model,expect", [("rayleigh", 3.5684), ("modal", 3.3932)])
 def test_issue_case_b1_v250_deck_fails_where_midspan_passes(model, expect):
     """Issue 15: B1, V = 250 km/h (144 .. 300 km/h), HSLM-A1 .. A10 and the four real trains, 3
@@ -295,6 +298,7 @@ def test_where_bad_input():
         moving_load_envelope(bridge, [0.0], [1e5], [200.0], where="x=abc")
 
 
+@pytest.mark.slow
 def test_compiled_kernels_equal_their_python_source():
     """The numba kernels run as plain Python (NUMBA_DISABLE_JIT=1, in a subprocess) give the same
     whole-deck and midspan maxima on a tiny case (two axles, two speeds)."""

@@ -162,6 +162,7 @@ def test_help_of_every_registry_flag_states_its_range():
             "--speed-step", "--dim-grid", "--model", "--speeds", "--limit", "--type"} <= seen
 
 
+@pytest.mark.slow
 def test_sweep_help_printed_shows_the_registry_range():
     r = subprocess.run([sys.executable, "-m", "adm_sim.cli.sim_commands", "sweep", "--help"], capture_output=True,
                        text=True, timeout=60)

@@ -22,6 +22,7 @@ def _release():
     release_all()
 
 
+@pytest.mark.slow
 def test_claim_is_exclusive_across_processes_and_names_the_holder(tmp_path):
     out = tmp_path / "r.json"
     p = subprocess.Popen([sys.executable, "-c", HOLD, str(out)], stdout=subprocess.PIPE, text=True)
@@ -131,6 +132,7 @@ def test_write_refused_by_the_system_is_one_run_error_naming_the_output(tmp_path
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.slow
 def test_folder_without_room_is_a_failed_run_before_any_work(tmp_path):
     """The probe writes one byte: with ``ulimit -f 0`` (as on a full disk) the output is refused
     before the work, as a failed run (RunError, exit 1), not as bad input."""

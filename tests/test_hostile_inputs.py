@@ -107,6 +107,7 @@ def _all(*setups):
     def setup(t, ctx):
         for s in setups:
             s(t, ctx)
+    setup.starts_process = any(getattr(s, "starts_process", False) for s in setups)
     return setup
 
 
@@ -139,6 +140,7 @@ def _holder(code, *args):
         assert p.stdout.readline().strip() == "held"
         ctx.setdefault("helpers", []).append(p)
         ctx["pid"] = p.pid
+    setup.starts_process = True
     return setup
 
 
@@ -877,7 +879,15 @@ def _run_in_process(case, argv, t, monkeypatch, capfd):
     return Result(code, out, err)
 
 
-@pytest.mark.parametrize("case", CASES, ids=[f"{c.cls}:{c.ident}" for c in CASES])
+def _starts_process(case):
+    """Whether the case runs its entry point as a process or its set-up starts one (a claim holder):
+    such a case is marked ``slow``; the others run in this process, in the developer's loop."""
+    argv = case.argv(Path("/nonexistent/case"))
+    return getattr(case.setup, "starts_process", False) or not _in_process(case, argv)
+
+
+@pytest.mark.parametrize("case", [pytest.param(c, marks=pytest.mark.slow) if _starts_process(c) else c for c in CASES],
+                         ids=[f"{c.cls}:{c.ident}" for c in CASES])
 def test_refused_cleanly(case, tmp_path, ros_env, monkeypatch, capfd, signal_handlers):
     """The case's refusal: in its own process, or (:func:`_in_process`) by its entry point's ``main``
     in this one (then "no process left" means no child of this process is left)."""
@@ -986,6 +996,7 @@ def _computing(p, timeout_s=120.0):
         time.sleep(0.05)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("entry,sig", SIGNAL_CASES,
                          ids=[f"signals:{e.ident}-{signal.Signals(s).name}" for e, s in SIGNAL_CASES])
 def test_interrupted_cleanly(entry, sig, tmp_path, ros_env):

@@ -144,6 +144,7 @@ def test_resonance_speeds_on_b1(name):
     assert found >= 1
 
 
+@pytest.mark.slow
 def test_sweep_cli_accepts_hslm_for_mlm_and_dim_refuses(tmp_path):
     r = subprocess.run(CLI + ["sweep", "--bridge", "B1", "--train", "HSLM-A4", "--model", "mlm", "--speeds", "250:260:5"],
                        capture_output=True, text=True, timeout=300)
@@ -211,6 +212,7 @@ def test_hslm_b_resonance_at_n0_d():
     assert a == pytest.approx(47.7148, rel=1e-3)
 
 
+@pytest.mark.slow
 def test_hslm_b_cli_refusals(tmp_path):
     short = tmp_path / "short.toml"
     short.write_text('name = "short"\nL = 5.0\nn0 = 20.0\nmu = 10000.0\nzeta_pct = 2.0\n')

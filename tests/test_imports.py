@@ -30,6 +30,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.slow  # every test here starts processes
+
 ROOT = Path(__file__).resolve().parents[1]
 
 HEAVY = ("scipy", "scipy.signal", "scipy.stats", "scipy.optimize", "scipy.integrate", "scipy.interpolate",

@@ -172,6 +172,7 @@ def _ds(bridge, train, v):
     return make_grid(bridge, train.length_m, speeds_to_m_s(v), StepOptions(steps_per_period=4.0)).ds_m
 
 
+@pytest.mark.slow
 def test_zero_profile_is_smooth_bit_for_bit():
     b, tr = _bridge(), load_train("ICE-2")
     v = np.array([230.0, 290.0])
@@ -187,6 +188,7 @@ def test_zero_profile_is_smooth_bit_for_bit():
     np.testing.assert_array_equal(c, c0)
 
 
+@pytest.mark.slow
 def test_numpy_and_compiled_agree_with_profile():
     b, tr = _bridge(), load_train("Railjet")
     v = np.array([180.0, 260.0, 340.0])
@@ -222,6 +224,7 @@ def _bounce_vehicle():
                               source="test"), vt
 
 
+@pytest.mark.slow
 def test_harmonic_profile_sprung_mass_steady_state():
     """Contact force of a wheel on a very stiff bridge (n0 = 40 Hz, 60 m) rolling over
     r(x) = a cos(2 pi x / 2.5 m) at 100 km/h against the closed-form steady state of the bounce

@@ -18,6 +18,8 @@ from adm_sim.integrate.step_grid import StepOptions  # noqa: E402
 from adm_sim.integrate.sweep import run_sweep  # noqa: E402
 from adm_sim.model.trains import load_train  # noqa: E402
 
+pytestmark = pytest.mark.slow  # every test here starts processes
+
 SPEEDS = "290,320,350"
 STEP = {"steps_per_period": 4.0, "free_vibration_periods": 1.0}
 SPARSE = {"monitor_every_steps": 16, "beam_every_steps": 64}

@@ -21,6 +21,8 @@ import sys
 import numpy as np
 import pytest
 
+pytestmark = pytest.mark.slow  # every test here starts processes
+
 SCRIPT = r"""
 import json
 import numpy as np

@@ -6,6 +6,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.slow  # every test here starts processes
+
 SCRIPTS = Path(__file__).resolve().parents[1] / "launch_scripts"
 
 

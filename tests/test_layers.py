@@ -24,6 +24,8 @@ import pathlib
 import re
 import shutil
 
+import pytest
+
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 #: the wings and their ranks, lowest first (the README's drawing and docs/architecture.md say the same)
@@ -299,6 +301,7 @@ def test_only_the_command_layer_draws():
     assert drawers == DRAWING
 
 
+@pytest.mark.slow
 def test_nothing_below_the_nodes_loads_rclpy():
     """The one run-time check beside the static scan: every module of ``adm_sim`` and ``adm_calib``
     outside their ``nodes`` packages, imported together in a fresh interpreter, leaves ``rclpy``

@@ -36,10 +36,12 @@ def whole_rrd(tmp_path_factory):
     return path
 
 
+@pytest.mark.slow
 def test_check_rrd_whole(whole_rrd):
     assert check_rrd(whole_rrd) >= 1
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("keep", [0.5, 0.999, 0.01])
 def test_check_rrd_cut(whole_rrd, tmp_path, keep):
     """A file cut at half its length (a frame runs past the end), just before its footer (every
@@ -64,6 +66,7 @@ def _limit(kib):
     return set_limit
 
 
+@pytest.mark.slow
 def test_crossing_under_file_size_limit(tmp_path):
     """``crossing.py`` (B3 x ICE-2, MLM, 300 km/h: run.mcap ~350 KB, run.rrd ~730 KB) under
     ``ulimit -f 600`` (KiB): the MCAP is written whole, the .rrd is cut by the limit. Exit 1, one

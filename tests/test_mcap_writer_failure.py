@@ -13,6 +13,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.slow  # every test here starts processes
+
 pytest.importorskip("mcap")
 pytest.importorskip("std_msgs")
 

@@ -19,6 +19,8 @@ from ros_fixtures import _HELD, ROOT, NodeProcs, ros_domain  # noqa: F401  (fixt
 
 from adm_sim.processes.dds_env import local_ros_env
 
+pytestmark = pytest.mark.slow  # every test here starts processes
+
 SCRIPT = ROOT / "launch_scripts" / "monitor.py"
 KEYS = {"peak_acc_m_s2", "t_peak_s", "level", "f1_hz", "zeta1_pct", "f1_std_hz", "zeta1_std_pct", "identified",
         "reason"}

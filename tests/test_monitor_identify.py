@@ -324,6 +324,7 @@ def test_sweep_stamps_in_the_clock_lane_are_rescaled(record, scale):
     assert p.fit.f1_hz == pytest.approx(F_HZ, rel=1e-4)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("zeta_pct", [0.5, 3.0])
 def test_simulated_dim_crossing_known_damping(ice2, zeta_pct):
     """The same with the Detailed Interaction Model (B3 x ICE-2 at 300 km/h): once the train has

@@ -140,6 +140,7 @@ def test_existing_json_is_refused(ctx, tmp_path):
     assert out.read_text() == "keep"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("args, message", [
     (["-p", "track_type:=gravel"], "error: monitor: track_type: 'gravel' is not allowed"),
     (["-p", "topic_timeout_s:=0.5"], "error: monitor: topic: '/adm/midspan/accel' did not appear within 0.5 s"),

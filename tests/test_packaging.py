@@ -78,6 +78,7 @@ def test_one_version_number():
         assert re.search(r"""version\s*=\s*["']""", setup_py) is None, f"{pkg}/setup.py states a version literal"
 
 
+@pytest.mark.slow
 def test_ros_setup_py_reports_the_package_xml_version():
     """What colcon installs: ``setup.py --version`` of each ROS package gives the release part."""
     release = re.match(r"\d+\.\d+\.\d+", adm_sim.__version__).group(0)
@@ -116,6 +117,7 @@ def test_the_import_scan_sees_a_missing_declaration(tmp_path):
     assert "pandas" not in DISTRIBUTION_OF
 
 
+@pytest.mark.slow
 def test_study_without_dask_says_which_extra(monkeypatch, tmp_path):
     """``adm-calib study`` on a plain install (no [study] extra): one line naming the extra, nothing written."""
     from adm_calib.study import StudySettings, run_study

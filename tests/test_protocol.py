@@ -25,9 +25,12 @@ ROOT = Path(__file__).resolve().parents[1]
 # ---------------------------------------------------------------- layering
 
 
-def test_protocol_and_limits_import_neither_rclpy_nor_rerun():
+@pytest.mark.slow
+def test_protocol_and_limits_import_neither_rerun_nor_mcap():
+    """The recording libraries stay out of the shared tables (that nothing below the nodes loads rclpy
+    is tests/test_layers.py's ``test_nothing_below_the_nodes_loads_rclpy``)."""
     code = ("import sys, adm_sim.protocol, adm_sim.limits; "
-            "print(sorted(m for m in ('rclpy', 'rerun', 'std_msgs', 'mcap') if m in sys.modules))")
+            "print(sorted(m for m in ('rerun', 'mcap', 'mcap_ros2') if m in sys.modules))")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, cwd=ROOT)
     assert r.returncode == 0, r.stderr
     assert r.stdout.strip() == "[]"

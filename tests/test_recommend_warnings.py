@@ -88,6 +88,7 @@ def test_no_warning_where_the_neighbourhood_is_above_the_bound():
     assert recommendation_warnings(rec) == []
 
 
+@pytest.mark.slow
 def test_cli_prints_the_warnings_on_stderr_and_in_json():
     args = CAL + ["recommend", "--train", "Railjet", "--n0", "3.63", "--mu", "41641", "--type", "cfb", "--span", "37"]
     r = subprocess.run(args, capture_output=True, text=True, timeout=120)

@@ -76,6 +76,7 @@ def layout(recording):
 # ---------------------------------------------------------------- QoS in the recording
 
 
+@pytest.mark.slow
 def test_channels_carry_offered_qos_profiles_as_rosbag2(recording):
     """Every channel has ``offered_qos_profiles``; rosbags (a rosbag2 reader) parses it to the QoS
     the nodes offer: descriptions transient local depth 1, monitoring reliable depth 5000."""
@@ -118,6 +119,7 @@ class _FakeLogger:
         return record
 
 
+@pytest.mark.slow
 def test_viewer_feed_routes_each_topic_once_and_names_the_phase(recording):
     """The recorded run fed through ViewerFeed: every acceleration sample reaches the logger with
     its stamp, the result is drawn once with the phase of the driver's request, namespaced topics
@@ -153,6 +155,7 @@ def _damaged(tmp_path, data, edit, name="bad.mcap"):
     return path
 
 
+@pytest.mark.slow
 def test_flipped_byte_in_a_chunk_replay_refuses_or_skips_and_salvage_names_it(tmp_path, layout):
     data, keys, chunks = layout
     start, end, msgs = chunks[len(chunks) // 2]
@@ -183,6 +186,7 @@ def test_flipped_byte_in_a_chunk_replay_refuses_or_skips_and_salvage_names_it(tm
     assert lines[2].startswith("dropped: chunk ") and lines[2].endswith(named)
 
 
+@pytest.mark.slow
 def test_zeroed_block_and_broken_chunk_length_salvage_every_intact_chunk(tmp_path, layout):
     """4 KiB zeroed inside a chunk: that chunk is dropped (named), every chunk after it recovered.
     A chunk's record length flipped: the chunk's own sizes and CRC still hold, nothing is lost, and
@@ -206,6 +210,7 @@ def test_zeroed_block_and_broken_chunk_length_salvage_every_intact_chunk(tmp_pat
         checked_scan(bad)
 
 
+@pytest.mark.slow
 def test_enlarged_records_length_of_a_chunk_jumps_over_nothing(tmp_path, layout):
     """A chunk's compressed-records length enlarged by a flipped bit (+65536; zstd still decompresses
     the frame, whose CRC holds): the chunk is kept and the damage named, and no intact chunk after it
@@ -228,6 +233,7 @@ def test_enlarged_records_length_of_a_chunk_jumps_over_nothing(tmp_path, layout)
 # ---------------------------------------------------------------- property: nothing corrupt, nothing dropped silently
 
 
+@pytest.mark.slow
 def test_flipped_and_zeroed_bytes_never_pass_silently(tmp_path_factory, layout):
     """Bits flipped and runs of 1, 16 or 4096 bytes zeroed at many offsets (half of them at record
     boundaries, where lengths and opcodes live): every message read from the damaged file is one
@@ -287,6 +293,7 @@ def test_flipped_and_zeroed_bytes_never_pass_silently(tmp_path_factory, layout):
 # ---------------------------------------------------------------- an output that is an input
 
 
+@pytest.mark.slow
 def test_replay_refuses_to_write_over_its_input(tmp_path, recording):
     src = tmp_path / "in.mcap"
     src.write_bytes(recording.read_bytes())
@@ -305,6 +312,7 @@ def test_replay_refuses_to_write_over_its_input(tmp_path, recording):
 # ---------------------------------------------------------------- republish: live QoS, no loss
 
 
+@pytest.mark.slow
 def test_republish_latches_the_descriptions_and_loses_nothing_at_rate_0(recording):
     """A subscriber that asks for transient local (a late joiner's QoS) gets the bridge description
     (a volatile publisher would not match it), and a subscriber with the recording's QoS (reliable,
@@ -417,6 +425,7 @@ def _limit_file_size(n_bytes):
     return limit
 
 
+@pytest.mark.slow
 def test_rrd_that_cannot_be_written_whole_fails_the_replay(tmp_path, recording):
     """Under ``ulimit -f 64`` (64 KiB) and on a full 16 KiB tmpfs: rerun's file sink fails (it only
     logs it); replay exits 1 with one ``error:`` line and leaves no .rrd, not even a temporary one."""

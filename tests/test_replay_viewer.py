@@ -23,6 +23,8 @@ pytest.importorskip("mcap")
 from adm_sim.errors import RunError  # noqa: E402
 from adm_sim.recording.viewer_feed import check_viewer  # noqa: E402
 
+pytestmark = pytest.mark.slow  # every test here starts processes
+
 ROOT = Path(__file__).resolve().parents[1]
 PY = sys.executable
 REPLAY = ROOT / "launch_scripts" / "replay.py"

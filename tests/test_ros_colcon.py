@@ -88,6 +88,7 @@ def in_install(install, command):
     return ["sh", "-c", f'. "{install}/setup.sh" && {command}']
 
 
+@pytest.mark.slow
 def test_install_space_layout(install):
     for pkg, exe in (("adm_sim", "bridge_node"), ("adm_sim", "train_node"), ("adm_sim", "driver"),
                      ("adm_calib", "calibration_node")):
@@ -101,6 +102,7 @@ def test_install_space_layout(install):
         assert installed.read_bytes() == src.read_bytes(), installed
 
 
+@pytest.mark.slow
 def test_ament_index_finds_the_packages_after_sourcing(install, ros_domain):
     code = ("from ament_index_python.packages import get_package_share_directory as share; "
             "import pathlib; d = pathlib.Path(share('adm_sim')); print(d); print(share('adm_calib')); "
@@ -113,6 +115,7 @@ def test_ament_index_finds_the_packages_after_sourcing(install, ros_domain):
     assert lines[2] == str(sorted(p.name for p in (ROOT / "ros_ws" / "params").glob("*.yaml")))
 
 
+@pytest.mark.slow
 def test_colcon_test_runs_each_packages_own_tests(colcon_base, ros_domain):
     """``colcon test`` runs the smoke tests in ros_ws/<package>/test against the install space:
     2 per package, all passing (``colcon test-result``)."""
@@ -130,6 +133,7 @@ def test_colcon_test_runs_each_packages_own_tests(colcon_base, ros_domain):
     assert "Summary: 4 tests, 0 errors, 0 failures, 0 skipped" in res.stdout
 
 
+@pytest.mark.slow
 def test_sourced_workspace_imports_the_installed_packages(install, ros_domain):
     out = subprocess.run(in_install(install, f'"{sys.executable}" -c "import adm_sim, adm_calib; '
                                              f'print(adm_sim.__file__); print(adm_calib.__file__)"'),
@@ -140,6 +144,7 @@ def test_sourced_workspace_imports_the_installed_packages(install, ros_domain):
                          / "site-packages" / p / "__init__.py") for p in ("adm_sim", "adm_calib")]
 
 
+@pytest.mark.slow
 def test_node_from_install_space_rejects_bad_parameter(install, ros_domain):
     exe = install / "adm_sim" / "lib" / "adm_sim" / "bridge_node"
     out = subprocess.run(in_install(install, f'"{exe}" --ros-args -p span_m:=-5.0'), capture_output=True,
@@ -148,6 +153,7 @@ def test_node_from_install_space_rejects_bad_parameter(install, ros_domain):
     assert out.stderr.splitlines() == ["error: bridge: span_m: -5 m is out of range; allowed [1, 150] m"]
 
 
+@pytest.mark.slow
 def test_nodes_from_install_space_run_the_installed_params(install, ros_domain, tmp_path):
     """bridge_node and train_node started from the install space with the installed
     sweep_b1_mlm.yaml co-simulate the MLM sweep of the core, bit for bit."""
@@ -170,6 +176,7 @@ def test_nodes_from_install_space_run_the_installed_params(install, ros_domain, 
     assert r["model"] == "mlm"
 
 
+@pytest.mark.slow
 def test_colcon_is_pinned():
     req = (ROOT / "requirements.txt").read_text().splitlines()
     for name in ("colcon-core", "colcon-ros", "colcon-python-setup-py", "colcon-bash", "colcon-package-information"):

@@ -26,6 +26,8 @@ from adm_sim.integrate.step_grid import StepOptions  # noqa: E402
 from adm_sim.integrate.sweep import run_sweep  # noqa: E402
 from adm_sim.model.trains import load_train  # noqa: E402
 
+pytestmark = pytest.mark.slow  # every test here starts processes
+
 SPEEDS = "290,305,320,335,350"
 SPEEDS_KMH = [290.0, 305.0, 320.0, 335.0, 350.0]
 STEP = {"steps_per_period": 4.0, "free_vibration_periods": 1.0}

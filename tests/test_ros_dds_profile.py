@@ -8,6 +8,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from adm_sim.processes.dds_env import CLIENT_VARIABLES, local_ros_env
 
 PROFILE = Path(__file__).resolve().parents[1] / "ros_ws" / "dds" / "fastdds_local.xml"
@@ -60,6 +62,7 @@ def _udp_addresses(pid):
     return found
 
 
+@pytest.mark.slow
 def test_profile_alone_joins_a_launcher_graph_over_loopback_only():
     graph = local_ros_env()  # what a launcher starts its nodes with (a reserved domain id)
     # the client: the profile and the domain id, none of the launcher's discovery variables
@@ -110,6 +113,7 @@ def test_exported_domain_id_is_honoured_and_checked_per_transport():
         assert str(exc.value) == message
 
 
+@pytest.mark.slow
 def test_launchers_refuse_an_exported_domain_id_out_of_range(tmp_path):
     """The launchers read an exported ROS_DOMAIN_ID (they no longer replace it): out of range,
     one line, exit 2, no output folder."""

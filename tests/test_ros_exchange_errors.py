@@ -12,6 +12,7 @@ from adm_sim import protocol as P  # noqa: E402
 from adm_sim.nodes import common as c  # noqa: E402
 
 
+@pytest.mark.slow
 def test_stray_exchange_message_ends_the_node(node_procs, ros_domain):
     """Interaction forces with no DIM run active: the bridge says so in one line and exits 2."""
     from std_msgs.msg import Float64MultiArray

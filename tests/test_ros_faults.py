@@ -26,6 +26,8 @@ from adm_sim.integrate.step_grid import StepOptions  # noqa: E402
 from adm_sim.integrate.sweep import run_sweep  # noqa: E402
 from adm_sim.model.trains import load_train  # noqa: E402
 
+pytestmark = pytest.mark.slow  # every test here starts processes
+
 TIMEOUT_S = 2.0
 #: The partner timeout plus the node's own exit (rclpy and Fast DDS teardown): 2.3-3.2 s quiet, 4.06 s
 #: once in a loaded suite run; a node that never notices its partner gone still fails the bound.

@@ -99,6 +99,7 @@ calibration:
 """
 
 
+@pytest.mark.slow
 def test_no_sample_lost_under_load(tmp_path, ros_domain):
     from ros_fixtures import ROOT
 

@@ -90,6 +90,7 @@ def test_schema_text_is_rosbag2_style():
     assert "/msg/" not in "".join(headers)
 
 
+@pytest.mark.slow
 def test_read_back_with_mcap_ros2(recording):
     got = list(read_messages(recording))
     assert len(got) == 5 * N_STEPS
@@ -110,6 +111,7 @@ def test_read_back_with_mcap_ros2(recording):
     assert by_topic["/clock"][k][1].clock.nanosec == k * DT_NS
 
 
+@pytest.mark.slow
 def test_read_back_with_rosbags_equal_values(recording):
     from rosbags.highlevel import AnyReader
 
@@ -141,6 +143,7 @@ def test_read_back_with_rosbags_equal_values(recording):
     assert n == 5 * N_STEPS
 
 
+@pytest.mark.slow
 def test_metadata_written(recording):
     from mcap.reader import make_reader
 
@@ -240,6 +243,7 @@ while True:
 """
 
 
+@pytest.mark.slow
 def test_sigkill_mid_run_is_salvaged(tmp_path):
     from rosbags.highlevel import AnyReader
 
@@ -273,6 +277,7 @@ def test_sigkill_mid_run_is_salvaged(tmp_path):
         assert [m.metadata for m in make_reader(f).iter_metadata()] == [{"model": "DIM"}]
 
 
+@pytest.mark.slow
 def test_salvage_errors_and_cli(tmp_path, recording, capsys):
     with pytest.raises(InputError, match=r"src: MCAP file '.*missing\.mcap' does not exist"):
         salvage(tmp_path / "missing.mcap", tmp_path / "o.mcap")
@@ -306,6 +311,7 @@ def _rerun_env():
     return rerun_cli_env()
 
 
+@pytest.mark.slow
 def test_rerun_mcap_convert_and_verify(recording, tmp_path):
     out = tmp_path / "conv.rrd"
     env = _rerun_env()
@@ -339,6 +345,7 @@ def _entity_rows(rrd: Path) -> dict[str, int]:
     return rows
 
 
+@pytest.mark.slow
 def test_run_logger_writes_a_verified_rrd(tmp_path):
     from adm_sim.recording import rerun_log as rl
 
@@ -414,6 +421,7 @@ def test_run_logger_gives_a_sample_that_comes_before_its_runs_start_to_that_run(
 # ---------------------------------------------------------------- replay
 
 
+@pytest.mark.slow
 def test_replay_writes_rrd(recording, tmp_path):
     out = tmp_path / "replay.rrd"
     proc = subprocess.run([PY, str(REPLAY), str(recording), "--rrd", str(out)],
@@ -429,6 +437,7 @@ def test_replay_writes_rrd(recording, tmp_path):
     assert again.returncode == 2 and again.stderr.startswith("error: ")
 
 
+@pytest.mark.slow
 def test_replay_republishes_in_sim_time(recording):
     import rclpy
     from geometry_msgs.msg import AccelStamped
@@ -483,6 +492,7 @@ def test_replay_republishes_in_sim_time(recording):
 # ---------------------------------------------------------------- environment
 
 
+@pytest.mark.slow
 def test_local_env_locks_distinct_domain_ids():
     with ros_env.local_ros_env() as a, ros_env.local_ros_env() as b:
         assert a["FASTDDS_BUILTIN_TRANSPORTS"] == os.environ.get("FASTDDS_BUILTIN_TRANSPORTS",
@@ -529,6 +539,7 @@ def _data_segments_locked_by(pid: int) -> set[str]:
             if e.name.endswith("_el") and "port" not in e.name and e.inode() in inodes}
 
 
+@pytest.mark.slow
 def test_cleanup_shm_removes_only_dead_process_files():
     """``fastdds shm clean`` (through cleanup_shm) removes the segment a SIGKILLed participant
     left and keeps the live one's."""
@@ -562,12 +573,6 @@ def test_cleanup_shm_removes_only_dead_process_files():
                 p.wait(timeout=10)
                 p.stdout.close()
             ros_env.cleanup_shm()
-
-
-def test_core_does_not_import_rclpy():
-    code = ("import sys, adm_sim.model.bridge, adm_sim.model.trains, adm_sim.integrate.lockstep_runs, adm_sim.integrate.sweep, "
-            "adm_sim.processes.dds_env; assert 'rclpy' not in sys.modules, 'rclpy imported'")
-    assert subprocess.run([PY, "-c", code], timeout=60).returncode == 0
 
 
 def test_domain_ids_are_not_reused_straight_away():
@@ -616,6 +621,7 @@ def _chunks(data):
     return out
 
 
+@pytest.mark.slow
 def test_damaged_chunk_is_skipped_and_counted(tmp_path):
     """One chunk's compressed bytes flipped: salvage recovers every other chunk (the count is the
     file's messages minus those of that chunk, counted by a parser written from the spec), reports
@@ -664,6 +670,7 @@ def test_damaged_chunk_is_skipped_and_counted(tmp_path):
                                      f"dropped: {line}" for line in damage]
 
 
+@pytest.mark.slow
 def test_replay_of_a_file_without_messages_is_an_error(tmp_path):
     from mcap.writer import Writer
 

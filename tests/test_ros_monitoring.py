@@ -16,6 +16,8 @@ import pytest
 pytest.importorskip("rclpy")
 from ros_fixtures import driver_node, node_procs, ros_domain  # noqa: E402,F401
 
+pytestmark = pytest.mark.slow  # every test here starts processes
+
 MONITOR = r'''
 import json, sys, rclpy
 from rclpy.qos import QoSProfile, ReliabilityPolicy, HistoryPolicy

@@ -32,6 +32,8 @@ from adm_sim.integrate.step_grid import StepOptions  # noqa: E402
 from adm_sim.integrate.sweep import run_sweep  # noqa: E402
 from adm_sim.model.trains import load_train  # noqa: E402
 
+pytestmark = pytest.mark.slow  # every test here starts processes
+
 STEP = {"steps_per_period": 4.0, "free_vibration_periods": 1.0}
 ONE_MODE = {"n_modes": 1, "damping_model": "modal"}
 PAIRS = {"/b1": ("B1", "200,250,290"), "/b3": ("B3", "230,300,350")}

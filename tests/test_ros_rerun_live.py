@@ -21,6 +21,9 @@ import rerun_cli
 from rrd_views import check_recording, view_entities
 
 from adm_sim.recording.viewer_process import free_port, wait_for_port
+import pytest
+
+pytestmark = pytest.mark.slow  # every test here starts processes
 
 ROOT = Path(__file__).resolve().parents[1]
 RECEIVER = Path(rerun_cli.__file__).with_name("rerun")

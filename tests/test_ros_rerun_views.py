@@ -177,6 +177,7 @@ def crossing_run(tmp_path_factory):
     return out
 
 
+@pytest.mark.slow
 def test_crossing_recording_and_its_replay_open_in_the_default_layout(crossing_run, tmp_path):
     live, blue = check_recording(crossing_run / "run.rrd")
     replayed = tmp_path / "replay.rrd"
@@ -228,6 +229,7 @@ def _without_phases(src: Path, dst: Path) -> int:
     return dropped
 
 
+@pytest.mark.slow
 def test_replay_of_a_recording_without_phases_shows_phase_unknown(crossing_run, tmp_path):
     """A recording made before the phase travelled (no ``requested`` record) still replays: exit 0,
     one warning line, the sweep under ``sweep/curves/unknown`` with the live values of ``MLM_zeta``."""
@@ -248,6 +250,7 @@ def test_replay_of_a_recording_without_phases_shows_phase_unknown(crossing_run, 
                                   live["/runs/acceleration/run_01"]["values"])
 
 
+@pytest.mark.slow
 def test_calibration_recording_every_view_has_data_and_monitors_the_peak(calibration_launch, tmp_path):
     """A small co-simulated calibration (B3 x ICE-2, coarse steps; conftest's ``calibration_launch``,
     whose numbers test_ros_cosim.py checks): the recording as a user opens it."""

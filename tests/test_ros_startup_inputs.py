@@ -16,6 +16,7 @@ ROOT = Path(__file__).resolve().parents[1]
 SCRIPTS = ROOT / "launch_scripts"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("yaml_text, line", [
     ("bridge:\n  ros__parameters:\n    span: 20.0\n",
      "bridge.ros__parameters.span: unknown parameter; allowed EJ_Nm2, beam_every_steps, beam_points, bridge, "
@@ -46,6 +47,7 @@ def test_launch_checks_params_file_before_start(yaml_text, line, tmp_path, launc
     check_launch("calibrate.py", yaml_text, line, tmp_path, launcher)
 
 
+@pytest.mark.slow
 def test_crossing_checks_params_file_too(tmp_path):
     """The launch script's own process (the cases above call ``calibrate.py``'s ``main`` in this one)."""
     def process(script, argv):
@@ -83,6 +85,7 @@ def test_shipped_params_files_pass_the_check():
         check_inputs(params_file=path)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("module, args, line", [
     ("adm_sim.nodes.bridge_node", ["-p", "span_m:=-5.0"],
      "error: bridge: span_m: -5 m is out of range; allowed [1, 150] m"),
@@ -110,6 +113,7 @@ def test_node_started_by_hand_with_bad_parameter(module, args, line):
         assert r.stderr.splitlines() == [line]
 
 
+@pytest.mark.slow
 def test_node_warns_in_one_line_and_runs_on(tmp_path):
     """A bridge node started with an implausible but allowed bridge (a damping typed as a fraction
     into the % key, docs/plausibility.md) prints the CLIs' one-line warning with its name, as its
@@ -138,6 +142,7 @@ def test_node_warns_in_one_line_and_runs_on(tmp_path):
     assert not any("PlausibilityWarning" in line or ".py:" in line for line in lines), lines
 
 
+@pytest.mark.slow
 def test_node_started_by_hand_with_malformed_params_file(tmp_path):
     bad = tmp_path / "bad.yaml"
     bad.write_text("train:\n  ros__parameters:\n    model: [\n")

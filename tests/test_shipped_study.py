@@ -39,6 +39,7 @@ def test_shipped_study_is_complete(shipped):
 
 # the shipped study ran on the paper's DIM grid; one batch on it, two on the study's default window
 # grid (the same results by construction, tests/test_study_window_grid.py)
+@pytest.mark.slow
 @pytest.mark.parametrize("train,span,fi,grid", [("ICE-2", 5, 2, "paper"), ("Railjet", 38, 4, "window"),
                                                 ("Eurostar", 14, 3, "window")])
 def test_shipped_batches_recompute(shipped, train, span, fi, grid):

@@ -21,6 +21,8 @@ pytest.importorskip("mcap")
 from adm_sim.processes import dds_env  # noqa: E402
 from adm_sim.processes.supervisor import Supervisor  # noqa: E402
 
+pytestmark = pytest.mark.slow  # every test here starts processes
+
 ROOT = Path(__file__).resolve().parents[1]
 PY = sys.executable
 REPLAY = ROOT / "launch_scripts" / "replay.py"

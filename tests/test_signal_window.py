@@ -67,6 +67,7 @@ def _run(sig, wait_for, exit_s):
     return p.returncode, err
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
 def test_signal_after_run_cli_returned(sig):
     """On the way out (run_cli returned, the process not yet gone): 130 and one line."""
@@ -76,6 +77,7 @@ def test_signal_after_run_cli_returned(sig):
     assert err.splitlines() == ["error: interrupted"], err
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
 def test_signal_as_the_work_ends(sig):
     """Signalled the moment the work printed its last line: the signal lands in the end of the
@@ -122,6 +124,7 @@ sys.exit(run_cli(work))
 """
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("landings", [1, 3])
 def test_signal_landing_in_a_weakref_callback_still_interrupts_once(landings):
     env = dict(os.environ, PYTHONPATH=str(ROOT / "src"))

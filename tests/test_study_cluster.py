@@ -17,7 +17,7 @@ import sys
 import pytest
 
 # skipped without distributed, which is imported by the tests themselves (0.35 s, not at collection)
-pytestmark = pytest.mark.skipif(importlib.util.find_spec("distributed") is None, reason="distributed is not installed")
+pytestmark = [pytest.mark.slow, pytest.mark.skipif(importlib.util.find_spec("distributed") is None, reason="distributed is not installed")]
 
 from adm_calib.study import execution  # noqa: E402
 
@@ -58,6 +58,7 @@ def _faults(env):
     return int(out.stdout.split()[-1])
 
 
+@pytest.mark.slow
 def test_dask_trim_threshold_faults_every_table_in_again_and_the_default_does_not():
     base = {k: v for k, v in os.environ.items() if not k.startswith("MALLOC_")}
     trimmed = _faults({**base, "MALLOC_TRIM_THRESHOLD_": "65536"})

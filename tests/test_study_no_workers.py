@@ -13,7 +13,7 @@ import time
 import pytest
 
 # skipped without distributed, which is imported by the tests themselves (0.35 s, not at collection)
-pytestmark = pytest.mark.skipif(importlib.util.find_spec("distributed") is None, reason="distributed is not installed")
+pytestmark = [pytest.mark.slow, pytest.mark.skipif(importlib.util.find_spec("distributed") is None, reason="distributed is not installed")]
 
 from adm_calib import study as st  # noqa: E402
 from adm_calib.calib_commands import main  # noqa: E402

@@ -20,6 +20,8 @@ import pytest
 
 from adm_sim.processes.supervisor import Supervisor
 
+pytestmark = pytest.mark.slow  # every test here starts processes
+
 
 class _SignalledInsidePoll:
     """A process whose ``poll`` takes a lock, receives SIGTERM, and only then releases the lock,

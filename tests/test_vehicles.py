@@ -195,6 +195,7 @@ def vbi2d_smooth_reference(c_v):
     return ts, ref
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("c_v, peak_mm", [(0.0, 0.41866), (4.0e5, 0.41890)], ids=["undamped", "damped"])
 def test_sprung_mass_vbi2d_verification_set(c_v, peak_mm):
     """VBI-2D's set (smooth profile): the DIM's midspan deflection history equals the analytical
@@ -227,6 +228,7 @@ VBI2D_SHIPPED = {
 }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case, c_v, peak_mm, hist_tol", [("RampOn", 0.0, 0.46703, 5e-5), ("DampOn", 4.0e5, 0.46198, 2e-4)],
                          ids=["ramp-undamped", "ramp-damped"])
 def test_sprung_mass_vbi2d_ramp(case, c_v, peak_mm, hist_tol):
@@ -272,6 +274,7 @@ def test_sprung_mass_vbi2d_smooth_against_shipped_output():
     assert np.abs(1e3 * ref[::100] - np.array(samples)).max() <= 1.5e-3 * peak
 
 
+@pytest.mark.slow
 def test_sprung_mass_yang_yau_1997():
     """Yang & Yau (1997) / Biggs (1964): beam n1 = 4.78 Hz (omega_1 = 30.02 rad/s), vehicle 2.65 Hz
     (16.66 rad/s), v = 100 km/h. The DIM's peak midspan deflection (2.4083 mm) equals the reference
@@ -293,6 +296,7 @@ def test_sprung_mass_yang_yau_1997():
     assert d.max() / mlm.midspan_disp_m[0][on].max() == pytest.approx(1.0045, abs=5e-4)
 
 
+@pytest.mark.slow
 def test_stiff_suspension_is_a_moving_mass():
     """k_V = 1e9 N/m (the oscillator at 66 Hz, above the modes that matter): the DIM's peak equals
     the moving mass's (contact held, inertia and convective terms; 2.4257 mm, 1.2 % above the moving
@@ -432,6 +436,7 @@ def test_given_static_loads_must_match_the_weight():
     assert train_from_mapping(data, source="v.toml").axle_loads_n.tolist() == [150e3, 150e3]
 
 
+@pytest.mark.slow
 def test_bad_vehicle_file_on_the_command_line_exits_2(tmp_path):
     """``adm-sim sweep --train bad.toml``: one line ``error: ...`` naming the key, exit 2, nothing written."""
     p = tmp_path / "bad_vehicle.toml"

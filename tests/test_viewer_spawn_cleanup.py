@@ -25,6 +25,8 @@ import pytest
 from adm_sim.errors import InputError, RunError
 from adm_sim.recording import viewer_process as vp
 
+pytestmark = pytest.mark.slow  # every test here starts processes
+
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPTS = ROOT / "launch_scripts"
 

@@ -73,6 +73,7 @@ def test_init_rerun_refuses_a_closed_port():
         init_rerun("adm_sim_test", connect_url=f"rerun+http://127.0.0.1:{port}/proxy")
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")),
                     reason="a display is there: the viewer would start")
 def test_spawn_without_display_is_one_line():
@@ -97,6 +98,7 @@ vp.exit_if_abandoned(0)
 """
 
 
+@pytest.mark.slow
 def test_viewer_that_stops_answering_is_given_up(tmp_path):
     """The peer answers the handshake before the run (a viewer), then never again (stopped): the
     flush at the end of the run (``rr.disconnect``, which waits for the viewer for ever) is given
