@@ -26,22 +26,24 @@ os.environ.setdefault("ADM_SIM_QUIET_COMPILE", "1")
 # --- tiers: a test that starts a process is marked ``slow`` ---------------------------------------
 # ``pytest -m "not slow"`` is the developer's loop (the numerical and input tests). A test without the
 # marker that starts a child process (subprocess, multiprocessing, os.fork/system/posix_spawn), in its
-# body or in the set-up or tear-down of a fixture it uses, fails with a message naming the test and the
-# process: the process is not started. Marked tests and the collection's own hooks are not watched.
+# body, in a thread of it, or in the set-up or tear-down of a fixture it uses, fails with a message
+# naming the test and the process. The start itself is never refused: the guard only records it, and
+# the test's report is failed after the phase ends (``pytest_runtest_makereport``). Raising inside
+# the call that starts the process would land in whatever thread made it (a dask cluster starting its
+# workers, a launcher's reader thread), and a test waiting on that thread could hang its worker.
+# Marked tests and the collection's own hooks are not watched.
 
 _watched = None  # node id of the unmarked test in its set-up, call or tear-down, else None
-_refused = {}    # node id -> what it tried to start (reported even if the test swallowed the failure)
+_started = {}    # node id -> the first process it started while unmarked
 
 
-def _refuse(what):
+def _record(what):
     nodeid = _watched
     if nodeid is None:
         return
-    msg = (f"{nodeid} started a child process ({what}) but is not marked slow: add "
-           "@pytest.mark.slow to the test (or pytestmark = pytest.mark.slow to its file) so that "
-           "'pytest -m \"not slow\"' keeps to the numerical and input tests")
-    _refused.setdefault(nodeid, msg)
-    pytest.fail(msg, pytrace=False)
+    _started.setdefault(nodeid, (f"{nodeid} started a child process ({what}) but is not marked slow: add "
+                                 "@pytest.mark.slow to the test (or pytestmark = pytest.mark.slow to its file) "
+                                 "so that 'pytest -m \"not slow\"' keeps to the numerical and input tests"))
 
 
 def _describe(args):
@@ -62,7 +64,7 @@ def _wrap(owner, name, describe):
                 what = describe(*args, **kw)
             except Exception:  # an unusual call form: name the function alone
                 what = name
-            _refuse(what)
+            _record(what)
         return orig(*args, **kw)
 
     setattr(owner, name, guarded)
@@ -70,7 +72,7 @@ def _wrap(owner, name, describe):
 
 
 def _install_process_guard():
-    """Wrap every way a test can start a process so that :func:`_refuse` is asked first."""
+    """Wrap every way a test can start a process so that :func:`_record` sees it first."""
     import multiprocessing.process  # noqa: PLC0415  only to wrap its start
     import multiprocessing.util  # noqa: PLC0415  only to wrap its spawn
 
@@ -122,13 +124,17 @@ def pytest_runtest_teardown(item, nextitem):
 
 @pytest.hookimpl(hookwrapper=True)
 def pytest_runtest_makereport(item, call):
+    """The phase that started a process unmarked fails (a passed set-up becomes an error, a passed
+    call or tear-down a failure); a phase that failed already carries the message as a section."""
     report = (yield).get_result()
-    msg = _refused.get(item.nodeid)
-    if msg is not None:
-        if report.passed:  # the test (or a thread of it) caught the failure: it fails all the same
-            report.outcome = "failed"
-            report.longrepr = msg
-        _refused.pop(item.nodeid)
+    msg = _started.pop(item.nodeid, None)
+    if msg is None:
+        return
+    if report.passed:
+        report.outcome = "failed"
+        report.longrepr = msg
+    else:
+        report.sections.append(("slow marker", msg))
 
 
 # --- optional per-test CPU cost (``ADM_SIM_TEST_CPU_LOG=path``) ----------------------------------

@@ -21,6 +21,7 @@ SPARSE = {"monitor_every_steps": 16, "beam_every_steps": 64}
 SPEC = "joint:at=6:length=1:depth=0.002"
 
 
+@pytest.mark.slow
 def test_cosim_reports_the_contact_loss_of_run_sweep(node_procs, ros_domain, tmp_path):
     node_procs.start("bridge_train", "adm_sim.nodes.composed",
                      {"bridge:bridge": "B3", **{f"bridge:{k}": v for k, v in {**STEP, **SPARSE}.items()},

@@ -180,6 +180,7 @@ def test_help_parser_reads_aliases_and_continuation_lines():
                                   "--long-option-name": "first part second part", "--bare": ""}
 
 
+@pytest.mark.slow
 def test_cli_md_lists_every_option_of_every_command():
     """docs/cli.md has a section per subcommand and launch script and a row for each of its options,
     and no row for an option that is gone; every option has a help text. The failure names the
@@ -225,6 +226,7 @@ def run_examples(text):
     return [(code, shown, out) for (code, shown), out in zip(blocks, printed, strict=True)]
 
 
+@pytest.mark.slow
 def test_python_md_examples_run_and_print_what_the_page_shows():
     """A sweep, a calibration, a check and the study's fit, as a researcher types them: each runs
     and prints exactly the output the page shows below it, and the page's B1 x ICE-2 numbers are the

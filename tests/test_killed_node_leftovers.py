@@ -37,6 +37,7 @@ def _mcap(path, n=300):
             rec.write("/adm/progress", m, log_time_ns=1000 * i)
 
 
+@pytest.mark.slow
 def test_leftovers_of_a_dead_node_go_and_the_recording_is_named(tmp_path):
     from _supervisor import after_node_died
 
@@ -58,6 +59,7 @@ def test_leftovers_of_a_dead_node_go_and_the_recording_is_named(tmp_path):
     assert after_node_died(tmp_path, started_s=time.time() + 60) == ""  # an earlier run's recording: not named
 
 
+@pytest.mark.slow
 def test_sigkilled_calibration_node_leaves_nothing_but_a_named_recording(tmp_path):
     from adm_sim.processes.dds_env import clean_dead_shm, local_ros_env, record_shm
 

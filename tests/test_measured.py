@@ -145,6 +145,7 @@ def passages_json(tmp_path_factory):
     return js
 
 
+@pytest.mark.slow
 def test_monitored_bridge_to_its_check(passages_json, call_main, tmp_path):
     """The check of B1 --measured: its governing acceleration within 2 % of the check of the true
     bridge (the design B1 differs by far more), the measured values said in the text and the JSON."""
@@ -215,6 +216,7 @@ def test_calibrate_and_check_refuse_a_bad_file_before_any_work(command, tmp_path
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_calibrate_the_measured_bridge(passages_json, call_main, tmp_path):
     """``adm-calib calibrate --measured``: the calibration of the bridge spec with the measured n0
     and ζ, to the last digit, and the measured values in its JSON."""

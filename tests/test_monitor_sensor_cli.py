@@ -41,6 +41,7 @@ def check_doc(doc, rec):
     assert ps[1]["free_decay"]["gaps"][0]["t_s"] == pytest.approx(50.1, abs=0.01)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("fs", [200.0, 500.0])
 def test_csv_of_a_data_logger(fs, tmp_path):
     """Semicolon separated, other column names, an extra column, empty cells (lost samples)."""
@@ -88,6 +89,7 @@ def write_imu_mcap(path, t_s, a_m_s2, topic="/sensor/imu", covariance=None):
     return path
 
 
+@pytest.mark.slow
 def test_mcap_of_an_imu_mounted_z_down(tmp_path):
     rec = sensor_record(200.0, dropouts=DROPOUTS)
     mcap = write_imu_mcap(tmp_path / "imu.mcap", rec.t_s, rec.a_m_s2)
@@ -112,6 +114,7 @@ def _refused(res, *words):
         assert w in lines[0], lines[0]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("text, args, words", [
     ("t,b\n0,1\n1,2\n", [], ["has no column 'a' (--accel-column); its columns: 't', 'b'"]),
     ("t,a\n0,1\n1,2\n", ["--time-column", "time"], ["has no column 'time' (--time-column)"]),
@@ -131,10 +134,12 @@ def test_bad_csv(text, args, words, tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["in.csv"]
 
 
+@pytest.mark.slow
 def test_column_option_without_csv(tmp_path):
     _refused(monitor("--mcap", tmp_path / "x.mcap", "--accel-column", "a"), "--accel-column: only used with --csv")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("cov, words", [
     ([-1.0] + [0.0] * 8, ["carry no linear acceleration (linear_acceleration_covariance[0] = -1, REP 145)"]),
     ([0.1, 0, 0, 0, 0.1, 0, 0, 0, -1.0], ["mark axis z as absent (linear_acceleration_covariance[8] = -1)",

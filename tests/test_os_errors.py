@@ -15,6 +15,7 @@ import pytest
 SIM = [sys.executable, "-m", "adm_sim.cli.sim_commands"]
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full")
 @pytest.mark.parametrize("argv", [["bridges"], ["bridges", "--field"], ["trains"]])
 def test_stdout_on_a_full_device_is_named(argv):
@@ -26,6 +27,7 @@ def test_stdout_on_a_full_device_is_named(argv):
     assert "Exception ignored" not in r.stderr
 
 
+@pytest.mark.slow
 def test_salvage_beyond_ulimit_f_names_its_output(tmp_path):
     pytest.importorskip("rclpy")
     from std_msgs.msg import Float64MultiArray

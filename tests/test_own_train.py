@@ -58,6 +58,7 @@ def _snapshot(folder):
 
 
 # ---------------------------------------------------------------------- 1. the study of a train file
+@pytest.mark.slow
 def test_vehicle_file_study_reproduces_the_shipped_ice2(ice2_file_study):
     """Case by case: every status equal, Δζ_VBI within 1e-9 % (the required bound), the peaks' speeds equal."""
     ours = st.read_results(ice2_file_study / "results.jsonl").by_key
@@ -75,6 +76,7 @@ def test_vehicle_file_study_reproduces_the_shipped_ice2(ice2_file_study):
     assert worst <= DZ_TOL_PCT
 
 
+@pytest.mark.slow
 def test_study_records_the_file_content_and_sha256(ice2_file_study):
     meta = json.loads((ice2_file_study / "study.json").read_text())
     rec = meta["train_files"]["ICE-2"]
@@ -94,6 +96,7 @@ def _resume_case(tmp_path, study, edit_meta=None):
     return out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["changed-file", "built-in-for-file", "file-for-built-in"])
 def test_resume_with_another_train_is_refused_and_nothing_written(kind, ice2_file_study, tmp_path, call_main):
     other = tmp_path / "in" / "ice2_vehicles.toml"
@@ -260,6 +263,7 @@ def _shipped_fit():
     return st.fit_study(list(_shipped_slice().values()))
 
 
+@pytest.mark.slow
 def test_fit_of_the_file_train_equals_the_built_in_functions(ice2_file_fit):
     """The functions file's least-squares mu1 row against the fit of the shipped built-in ICE-2 study on
     the same slice (Appendix B form: a, b, c, d, upper limit, R², residuals) to 1e-9; the
@@ -288,6 +292,7 @@ def test_fit_of_the_file_train_equals_the_built_in_functions(ice2_file_fit):
         assert cs.delta_zeta_vbi_pct == pytest.approx(r["delta_zeta_vbi_pct"], abs=1e-6)
 
 
+@pytest.mark.slow
 def test_fit_writes_the_figures_and_the_quantities(ice2_file_fit):
     for png in ("fig16_dz_vs_span.png", "fig18_lower_bounds.png", "fig17_lower_bound_ICE-2.png"):
         assert (ice2_file_fit / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -311,6 +316,7 @@ def test_section_422_quantities_of_the_example_train():
     assert q.vehicle_lengths_m == {"test car": 6.0, "wagon": 14.0} and q.n_axles == 7
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["changed", "damaged-meta"])
 def test_fit_refuses_a_train_file_changed_since_the_study(kind, ice2_file_study, tmp_path, call_main):
     moved = tmp_path / "in" / "ice2_vehicles.toml"
@@ -347,6 +353,7 @@ def _recommend_json(call_main, fn, n0, span):
     return json.loads(done.stdout)
 
 
+@pytest.mark.slow
 def test_recommend_with_the_functions_file(ice2_file_fit, call_main):
     """On mu1 (Eq. 19), Eq. (20) of the slice's least-squares cubic: before its first root above 2.1 Hz
     (2.386 Hz; the slice's cubic is negative below it) the cubic's value, beyond it 0, to 1e-9 %."""
@@ -363,6 +370,7 @@ def test_recommend_with_the_functions_file(ice2_file_fit, call_main):
     assert d["delta_zeta_lb_pct"] == 0.0 and d["beyond_root"]
 
 
+@pytest.mark.slow
 def test_recommend_warns_with_the_cases_of_its_own_study(ice2_file_fit, tmp_path, call_main):
     """The warnings read the study's cases from the functions file: with mu1 set to 0.25 % (a constant
     cubic, no root), they name the slice's cases within 0.5 Hz of n0 below it, found here from the
@@ -383,6 +391,7 @@ def test_recommend_warns_with_the_cases_of_its_own_study(ice2_file_fit, tmp_path
     assert all(b + " (" in warned[0] for b in below[:8])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["other-train", "other-format", "damaged-row", "built-in-train", "not-a-set"])
 def test_recommend_refuses_functions_of_another_train_or_format(kind, ice2_file_fit, tmp_path, call_main):
     fn = str(ice2_file_fit / "functions_ICE-2.toml")
@@ -474,6 +483,7 @@ def test_dim_step_check_predicts_the_dim_blowing_up():
             ot.check_dim_step(tf, dt)
 
 
+@pytest.mark.slow
 def test_recommend_refuses_a_mass_function_the_study_did_not_run(ice2_file_fit, call_main):
     """The slice's functions file holds mu1 only: a steel/composite bridge (mu4-mu6) is refused in one line."""
     done = call_main(main, "recommend", "--functions", str(ice2_file_fit / "functions_ICE-2.toml"), "--train",

@@ -39,6 +39,7 @@ def export_env(line):
     return dict(w.split("=", 1) for w in words[1:])
 
 
+@pytest.mark.slow
 def test_docs_client_with_the_printed_environment_alone_gets_every_sample(tmp_path):
     client_py = tmp_path / "minimal_client.py"
     client_py.write_text(docs_client())

@@ -143,6 +143,7 @@ def _check(tmp_path, tag, client_out, done, below):
         assert p["samples_lost"] in ((0, 1) if rid in below else (0,)), (tag, rid, p["samples_lost"], below)
 
 
+@pytest.mark.slow
 def test_opted_in_client_and_monitor_lose_nothing_under_load(tmp_path, ros_domain):
     env = dict(ros_domain)
     hogs = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(2)]
@@ -214,6 +215,7 @@ rclpy.try_shutdown()
 """
 
 
+@pytest.mark.slow
 def test_a_late_client_reads_every_passage_summary(node_procs, ros_domain):
     """Three runs, then a client joins: the summary's history (TRANSIENT_LOCAL, KEEP_LAST 1000) gives it
     all three passages, in order (with the depth-1 latching of before it got the last one only)."""

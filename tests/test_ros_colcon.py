@@ -184,6 +184,7 @@ def test_colcon_is_pinned():
     assert shutil.which("colcon", path=str(COLCON.parent)) is not None
 
 
+@pytest.mark.slow
 def test_colcon_list_and_graph_show_the_packages_in_order():
     """``colcon list`` and ``colcon graph`` (colcon-package-information) on the PyPI path."""
     out = subprocess.run([str(COLCON), "list", "--base-paths", str(ROOT / "ros_ws")], capture_output=True, text=True,
@@ -198,6 +199,7 @@ def test_colcon_list_and_graph_show_the_packages_in_order():
     assert [line.split()[0] for line in out.stdout.splitlines()] == ["adm_sim", "adm_calib"]  # dependency order
 
 
+@pytest.mark.slow
 def test_install_space_has_setup_bash(install):
     """colcon-bash writes ``install/setup.bash``; sourced in bash it puts the packages on the ament index."""
     assert (install / "setup.bash").is_file() and (install / "adm_sim" / "share" / "adm_sim" / "package.bash").is_file()

@@ -119,6 +119,7 @@ def _count(data, pos):
     return sum(1 for r in _inner_records(raw) if hasattr(r, "channel_id"))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("part,words", [
     ("magic", "is damaged: its MCAP magic (bytes 0-7) is broken while the rest reads as MCAP; recover its intact "
               "chunks with: adm-sim salvage"),

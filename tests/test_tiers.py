@@ -2,9 +2,11 @@
 
 The root ``conftest.py`` and ``pyproject.toml`` (copied as they are) run a small suite
 in a fresh pytest process: each way of starting a process from an unmarked test (subprocess in its
-body, multiprocessing, ``os.fork``, ``os.system``, a fixture's set-up, a failure the test swallows)
-must fail that test with the message, and must not start the process (a marker file the child would
-write stays absent); a test marked ``slow`` starts its process, and a numerical test passes.
+body, multiprocessing, ``os.fork``, ``os.system``, a fixture's set-up, a thread of the test that the
+test waits on) must fail that test with the message once it ends. The start itself is never refused
+(a marker file each child writes is there): a refusal raised in the thread that starts the process
+left a test waiting on that thread asleep for good. A test marked ``slow`` starts its process and
+passes, and a numerical test passes.
 """
 
 from __future__ import annotations
@@ -18,8 +20,10 @@ ROOT = Path(__file__).resolve().parents[1]
 SUITE = '''
 import multiprocessing
 import os
+import queue
 import subprocess
 import sys
+import threading
 
 import pytest
 
@@ -61,11 +65,15 @@ def test_fixture(server):
     pass
 
 
-def test_swallowed(tmp_path):
-    try:
-        subprocess.run([*TOUCH, str(tmp_path.parent / "swallowed.started")])
-    except BaseException:
-        pass
+def test_thread(tmp_path):
+    done = queue.Queue()
+
+    def start():
+        subprocess.run([*TOUCH, str(tmp_path.parent / "thread.started")], check=True)
+        done.put("started")
+
+    threading.Thread(target=start, daemon=True).start()
+    assert done.get(timeout=120) == "started"  # the thread was not interrupted: no wait for ever
 
 
 @pytest.mark.slow
@@ -79,21 +87,23 @@ def test_numbers():
 
 
 @pytest.mark.slow
-def test_unmarked_process_fails_and_is_not_started(pytester):
+def test_unmarked_process_fails_after_the_test_never_in_its_thread(pytester):
     pytester.makeconftest((ROOT / "conftest.py").read_text())
     pytester.makepyprojecttoml((ROOT / "pyproject.toml").read_text())  # the marker's registration
     pytester.makepyfile(test_suite=SUITE)
     base = pytester.path / "tmp"
-    r = pytester.runpytest_subprocess("-p", "no:cacheprovider", f"--basetemp={base}", "-rfE")
+    r = pytester.runpytest_subprocess("-p", "no:cacheprovider", f"--basetemp={base}", "-rfE", timeout=600)
     out = r.stdout.str()
     r.assert_outcomes(passed=2, failed=5, errors=1)
     for name, what in [("test_subprocess", "subprocess: "), ("test_multiprocessing", "multiprocessing: "),
                        ("test_fork", "os.fork"), ("test_system", "os.system: touch"),
-                       ("test_fixture", "subprocess: "), ("test_swallowed", "subprocess: ")]:
+                       ("test_fixture", "subprocess: "), ("test_thread", "subprocess: ")]:
         assert f"test_suite.py::{name} started a child process ({what}" in out, (name, out)
+    assert "ERROR test_suite.py::test_fixture" in out, out  # the set-up that started it errs
     assert out.count("is not marked slow: add @pytest.mark.slow") >= 6
     started = sorted(p.name for p in base.glob("*.started"))
-    assert started == ["marked.started"], started
+    assert started == ["fixture.started", "marked.started", "mp.started", "subprocess.started", "system.started",
+                       "thread.started"], started
 
 
 class _Item:

@@ -80,6 +80,7 @@ def _under_address_space(kib):
     return limit
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kib,code,words", [
     (400_000, 0, "status ok: every wheel stays on the rail"),  # spun forever in OpenBLAS's start-up before
     (300_000, 1, "error: out of memory: Unable to allocate"),
