@@ -313,9 +313,15 @@ def test_a_signal_while_claiming_leaves_no_lock_file(tmp_path, monkeypatch, wher
     """Ctrl-C arriving between the lock file's creation and the record of its claim (sent from
     inside ``os.open`` as it returns, or from inside ``flock``): it is raised once the claim is
     recorded, and the runner's release (here ``files.release``) removes the file; before, a signal
-    there left the lock file behind (seen under load with SIGTERM, once per ~50 runs)."""
+    there left the lock file behind (seen under load with SIGTERM, once per ~50 runs).
+
+    The signal goes to the main thread itself (``pthread_kill``), which holds it blocked there, so it
+    is delivered when the claim unblocks it, every time. Sent to the process (``os.kill``), the system
+    may hand it to another thread (xdist's), whose handler call reaches the main thread a moment later,
+    after the claim and sometimes after the test: the interrupt then escaped and killed the worker."""
     import fcntl
     import signal
+    import threading
 
     from adm_sim import files
 
@@ -326,7 +332,8 @@ def test_a_signal_while_claiming_leaves_no_lock_file(tmp_path, monkeypatch, wher
         result = real(*args)
         if not sent and (where == "flock" or str(args[0]).endswith(".lock")):  # once, the lock's own call
             sent.append(signal.SIGINT)  # raise_interrupt turns it into KeyboardInterrupt
-            os.kill(os.getpid(), signal.SIGINT)
+            assert signal.SIGINT in signal.pthread_sigmask(signal.SIG_BLOCK, []), "not held back"
+            signal.pthread_kill(threading.main_thread().ident, signal.SIGINT)
         return result
 
     from adm_sim.interrupts import raise_interrupt
@@ -338,6 +345,7 @@ def test_a_signal_while_claiming_leaves_no_lock_file(tmp_path, monkeypatch, wher
         with pytest.raises(KeyboardInterrupt):
             claim_output(str(out), "--json", suffix=".json")
         monkeypatch.undo()
+        assert sent == [signal.SIGINT]
         assert claimed(out) and lock_path(out).exists()  # the claim was made whole, then interrupted
     finally:
         monkeypatch.undo()
