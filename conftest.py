@@ -8,7 +8,7 @@ import sys
 
 import pytest
 
-pytest_plugins = ("pytester",)  # tests/test_tiers.py runs the root conftest on a small suite
+pytest_plugins = ("pytester",)  # tests/house/test_tiers.py runs the root conftest on a small suite
 
 # Pin BLAS threads before numpy is imported anywhere (numbers and timings stay stable).
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
@@ -19,7 +19,7 @@ os.environ.setdefault("FASTDDS_BUILTIN_TRANSPORTS", "SHM")
 os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 os.environ.setdefault("MPLBACKEND", "Agg")
 # No first-run compile notice on stderr in tests (they compare stderr line by line; a fresh clone
-# compiles numba's kernels in whichever test comes first). tests/test_imports.py tests the notice.
+# compiles numba's kernels in whichever test comes first). tests/house/test_imports.py tests the notice.
 os.environ.setdefault("ADM_SIM_QUIET_COMPILE", "1")
 
 

@@ -21,8 +21,8 @@ kernels: as helpers they cost ~20 % and ~6 % of the kernel's time (``bench/bench
 ``docs/benchmarks.md``).
 
 One source: without numba the same functions run as plain Python (slow, for debugging;
-``tests/test_kernels_uncompiled.py``). The numpy stepper stays the reference (the ROS nodes use
-it); ``tests/test_batch.py`` holds the two together to 1e-12 relative.
+``tests/integrate/test_kernels_uncompiled.py``). The numpy stepper stays the reference (the ROS nodes use
+it); ``tests/integrate/test_batch.py`` holds the two together to 1e-12 relative.
 """
 
 from __future__ import annotations
