@@ -8,6 +8,8 @@ import sys
 
 import pytest
 
+pytest_plugins = ("pytester",)  # tests/house/test_tiers.py runs the root conftest on a small suite
+
 # Pin BLAS threads before numpy is imported anywhere (numbers and timings stay stable).
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
@@ -17,8 +19,122 @@ os.environ.setdefault("FASTDDS_BUILTIN_TRANSPORTS", "SHM")
 os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 os.environ.setdefault("MPLBACKEND", "Agg")
 # No first-run compile notice on stderr in tests (they compare stderr line by line; a fresh clone
-# compiles numba's kernels in whichever test comes first). tests/test_imports.py tests the notice.
+# compiles numba's kernels in whichever test comes first). tests/house/test_imports.py tests the notice.
 os.environ.setdefault("ADM_SIM_QUIET_COMPILE", "1")
+
+
+# --- tiers: a test that starts a process is marked ``slow`` ---------------------------------------
+# ``pytest -m "not slow"`` is the developer's loop (the numerical and input tests). A test without the
+# marker that starts a child process (subprocess, multiprocessing, os.fork/system/posix_spawn), in its
+# body, in a thread of it, or in the set-up or tear-down of a fixture it uses, fails with a message
+# naming the test and the process. The start itself is never refused: the guard only records it, and
+# the test's report is failed after the phase ends (``pytest_runtest_makereport``). Raising inside
+# the call that starts the process would land in whatever thread made it (a dask cluster starting its
+# workers, a launcher's reader thread), and a test waiting on that thread could hang its worker.
+# Marked tests and the collection's own hooks are not watched.
+
+_watched = None  # node id of the unmarked test in its set-up, call or tear-down, else None
+_started = {}    # node id -> the first process it started while unmarked
+
+
+def _record(what):
+    nodeid = _watched
+    if nodeid is None:
+        return
+    _started.setdefault(nodeid, (f"{nodeid} started a child process ({what}) but is not marked slow: add "
+                                 "@pytest.mark.slow to the test (or pytestmark = pytest.mark.slow to its file) "
+                                 "so that 'pytest -m \"not slow\"' keeps to the numerical and input tests"))
+
+
+def _describe(args):
+    if isinstance(args, (str, bytes, os.PathLike)):
+        return os.fsdecode(args)[:200]
+    return " ".join(os.fsdecode(a) if isinstance(a, (str, bytes, os.PathLike)) else str(a) for a in args)[:200]
+
+
+_wrapped = []   # (owner, attribute, original): what the guard replaced, put back at the end
+
+
+def _wrap(owner, name, describe):
+    orig = getattr(owner, name)
+
+    def guarded(*args, **kw):
+        if _watched is not None:
+            try:
+                what = describe(*args, **kw)
+            except Exception:  # an unusual call form: name the function alone
+                what = name
+            _record(what)
+        return orig(*args, **kw)
+
+    setattr(owner, name, guarded)
+    _wrapped.append((owner, name, orig))
+
+
+def _install_process_guard():
+    """Wrap every way a test can start a process so that :func:`_record` sees it first."""
+    import multiprocessing.process  # noqa: PLC0415  only to wrap its start
+    import multiprocessing.util  # noqa: PLC0415  only to wrap its spawn
+
+    if _wrapped:
+        return
+    _wrap(subprocess.Popen, "_execute_child", lambda self, args, *_, **__: f"subprocess: {_describe(args)}")
+    _wrap(multiprocessing.process.BaseProcess, "start",
+          lambda self: f"multiprocessing: {self.name}, target {getattr(self, '_target', None)!r}")
+    # the helpers multiprocessing starts without a Process (its resource tracker, a forkserver)
+    _wrap(multiprocessing.util, "spawnv_passfds", lambda path, args, *_: f"multiprocessing: {_describe(args)}")
+    _wrap(os, "fork", lambda: "os.fork")
+    _wrap(os, "forkpty", lambda: "os.forkpty")
+    _wrap(os, "system", lambda command: f"os.system: {_describe(command)}")
+    _wrap(os, "posix_spawn", lambda path, argv, *_, **__: f"os.posix_spawn: {_describe(argv)}")
+    _wrap(os, "posix_spawnp", lambda path, argv, *_, **__: f"os.posix_spawnp: {_describe(argv)}")
+
+
+def pytest_unconfigure(config):
+    while _wrapped:
+        owner, name, orig = _wrapped.pop()
+        setattr(owner, name, orig)
+
+
+def _watch(item):
+    global _watched
+    _watched = None if item is None or item.get_closest_marker("slow") else item.nodeid
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_setup(item):
+    _watch(item)
+    yield
+    _watch(None)
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_call(item):
+    _watch(item)
+    yield
+    _watch(None)
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_teardown(item, nextitem):
+    _watch(item)
+    yield
+    _watch(None)
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    """The phase that started a process unmarked fails (a passed set-up becomes an error, a passed
+    call or tear-down a failure); a phase that failed already carries the message as a section."""
+    report = (yield).get_result()
+    msg = _started.pop(item.nodeid, None)
+    if msg is None:
+        return
+    if report.passed:
+        report.outcome = "failed"
+        report.longrepr = msg
+    else:
+        report.sections.append(("slow marker", msg))
 
 
 # --- optional per-test CPU cost (``ADM_SIM_TEST_CPU_LOG=path``) ----------------------------------
@@ -45,100 +161,32 @@ if _CPU_LOG:
 
 
 # --- the suite on two workers (``python -m pytest -n 2``, .ci/run) --------------------------------
-# Three things decide how long the suite takes on this 2-core machine, more than any one test:
+# Public pytest and xdist options only:
 #
-# 1. Numba compiles each kernel on its first call and keeps it in ``src/adm_sim/__pycache__``. In a
-#    fresh clone that is about 35 s of CPU, paid by every process that calls a kernel before the
-#    cache holds it: both workers at once, and every command-line subprocess a test starts early.
-#    So the controller compiles the kernels once, before the workers start, on both cores in parallel
-#    (``adm-sim compile``'s code paths, split in two), and every later process loads the cache.
-# 2. The order work is handed out: xdist hands it out in collection order, so a slow file that
-#    comes last is the tail of the run. Files are ordered by their measured cost, the costliest
-#    first (``_FILE_CPU_S``; a file not in the table comes after them, alphabetically).
-# 3. A module-scoped fixture (a crossing recorded through the ROS graph, a table of calibrations)
-#    is built once per worker that runs one of its tests. Scheduling by group (``--dist loadgroup``)
-#    keeps every test that uses a costly module-scoped fixture of its file on one worker, and every
-#    test that uses a session fixture of ``tests/conftest.py`` (in any file) on one worker; the
-#    other tests are still handed out one by one.
+# 1. ``--dist worksteal`` (``addopts`` in pyproject.toml): each worker starts with its share of the
+#    tests (a contiguous run of the list) and, when it runs dry, takes the later half of what another
+#    still has queued. A file mostly stays on one worker (its module fixtures are built once), and no cost
+#    table is needed to keep a worker from idling at the end.
+# 2. The order (``pytest_collection_modifyitems``): the files are dealt into one share per worker,
+#    of about equal numbers of tests, and in each share the files that hold ``slow`` tests (processes,
+#    waits on the ROS graph) come first. So each worker starts on its costly files, and the end of the
+#    run, where the workers steal from each other's tails, is made of short tests. Files stay whole:
+#    a module-scoped fixture is built once.
+# 3. A session fixture that starts processes (a recorded crossing, a calibration launch) is built
+#    once per run, not once per worker (tests/conftest.py, ``once_per_run``: the recipe of xdist's
+#    documentation, a file lock in the folder the workers share).
+# 4. Numba compiles each kernel on its first call and keeps it in ``src/adm_sim/integrate/__pycache__``.
+#    In a fresh clone that is about 35 s of CPU, paid by every process that calls a kernel before
+#    the cache holds it: both workers at once, and every command-line subprocess a test starts
+#    early. So the controller compiles the kernels once, before the workers start, on both cores
+#    in parallel (``adm-sim compile``'s code paths, split in two), and every later process loads
+#    the cache.
 
 ROOT = os.path.dirname(os.path.abspath(__file__))
 
-#: CPU seconds of each test file run alone (cache warm, ``ADM_SIM_TEST_CPU_LOG``), measured on the
-#: 2-core machine of docs/benchmarks.md ("Test suite"); used only to order the files, costliest first.
-_FILE_CPU_S = {
-    "test_ros_cosim.py": 29,   # with the session's calibration launch (~17 s, shared with test_ros_rerun_views.py)
-    "test_batch.py": 21,       # 81, then 54, before the batch/numpy comparisons ran at 4 steps per period
-    "test_hostile_inputs.py": 50,
-    "test_ros_rerun_views.py": 32,
-    "test_ros_faults.py": 30,
-    "test_calib_study.py": 19,
-    "test_replay_integrity.py": 22,
-    "test_monitor_cli.py": 18,
-    "test_imports.py": 14,
-    "test_entry_points.py": 9,
-    "test_calib_study_scheduler.py": 10,
-    "test_ros_colcon.py": 20,
-    "test_ros_startup_inputs.py": 5,
-    "test_appendix_b_findings.py": 12,
-    "test_monitor_identify.py": 10,
-    "test_paper_findings.py": 8,
-    "test_check_effects.py": 8,
-    "test_monitor_node.py": 7,
-    "test_sweep_backends.py": 8,
-    "test_ros_rerun_live.py": 6,
-    "test_ros_monitoring.py": 6,
-    "test_ros_logging.py": 7,
-    "test_kernels_uncompiled.py": 3,
-    "test_inputs_cli.py": 5,
-    "test_ros_nodes.py": 4,
-    "test_calib_workers.py": 4,
-    "test_ros_dds_profile.py": 4,
-    "test_ros_exchange_errors.py": 3,
-    "test_lint.py": 12,        # 2 s was ruff alone; mypy over the core: 65 s of wall in the whole suite at load 8-11
-    # Files added since the table above, estimated from the whole suite at load 8-11 (-n 2,
-    # --durations; wall divided by 3, the ratio of wall to CPU of the tests above at that load):
-    "test_check.py": 38,
-    "test_core_dim.py": 6,     # 59 before its limiting cases ran on the compiled sweep
-    "test_envelope.py": 18,
-    "test_calib_conservative.py": 6,  # the LP re-solved for 10 of the shipped study's 24 sets
-    "test_ros_flow.py": 100,   # ~44 s of CPU with its two busy processes, 70-80 s of wall at load 4-8: first, not a tail
-    "test_calib_calibrate.py": 12,  # 20 before its hooks ran the compiled sweep
-    "test_check_report_browser.py": 16,
-    "test_core_dense_maxima.py": 11,
-    "test_calib_cli.py": 4,
-    "test_core_cli.py": 3,
-    "test_files.py": 1,
-    "test_check_report.py": 7,
-    "test_ros_namespaces.py": 6,
-    "test_irregularity_ros.py": 6,
-    "test_core_dim_reference.py": 6,
-    "test_irregularity.py": 7,
-    "test_launch_inputs.py": 2,
-    "test_launch_plausibility.py": 2,
-    "test_layers.py": 2,
-    "test_vehicles.py": 17,
-}
-
 
 def _xdist_controller(config):
-    return bool(getattr(config.option, "numprocesses", None)) and not hasattr(config, "workerinput")
-
-
-def _default_dist(config):
-    """No ``--dist`` on the command line: this file's choice (loadgroup) applies."""
-    return not any(a.startswith(("--dist", "-d")) for a in config.invocation_params.args)
-
-
-def pytest_cmdline_main(config):
-    if _xdist_controller(config) and _default_dist(config):
-        config.option.dist = "loadgroup"
-        config.option.loadscopereorder = False  # keep the collection's order (costliest first)
-    elif hasattr(config, "workerinput") and _default_dist(config):
-        # A worker parses the command line again and does not see the controller's choice above:
-        # without this it would not name its tests' groups (xdist appends ``@group`` to a test's id
-        # only when ``loadgroup`` is set on the worker) and every test would be scheduled alone,
-        # each worker building every module fixture it meets.
-        config.option.loadgroup = True
+    return bool(config.getoption("numprocesses", None)) and not hasattr(config, "workerinput")
 
 
 _COMPILE_PARTS = (
@@ -154,6 +202,7 @@ _COMPILE_PROBE = (
     "    if name.startswith(tuple(sys.argv[1:])):\n"
     "        run()\n"
 )
+_KERNEL_DIR = os.path.join(ROOT, "src", "adm_sim", "integrate")
 
 
 def _precompile_kernels():
@@ -172,9 +221,9 @@ def _precompile_kernels():
 def _kernels_cached():
     """True when numba's index of both kernel modules is newer than their source (nothing to compile)."""
     for mod in ("kernels", "envelope"):
-        src = os.path.join(ROOT, "src", "adm_sim", f"{mod}.py")
-        idx = glob.glob(os.path.join(ROOT, "src", "adm_sim", "__pycache__", f"{mod}.*.nbi"))
-        if not idx or min(os.path.getmtime(i) for i in idx) < os.path.getmtime(src):
+        src = os.path.join(_KERNEL_DIR, f"{mod}.py")
+        idx = glob.glob(os.path.join(_KERNEL_DIR, "__pycache__", f"{mod}.*.nbi"))
+        if not os.path.exists(src) or not idx or min(os.path.getmtime(i) for i in idx) < os.path.getmtime(src):
             return False
     return True
 
@@ -191,64 +240,28 @@ def _compile_bytecode():
 
 
 def pytest_configure(config):
-    if _xdist_controller(config) and not config.option.collectonly:
+    _install_process_guard()
+    if _xdist_controller(config) and not config.getoption("collectonly"):
         _compile_bytecode()
         if os.environ.get("ADM_SIM_TEST_PRECOMPILE", "1") != "0" and not _kernels_cached():
             _precompile_kernels()
 
 
-#: Module-scoped fixtures too cheap to keep their file on one worker (by name, or file::name): a ROS
-#: domain reservation (a lock file), a folder of small input files, a bridge and a train, imported
-#: launch scripts. Grouping by the first made test_hostile_inputs.py (118 tests, about 70 s of CPU)
-#: one work unit.
-_CHEAP_MODULE_FIXTURES = {"ros_env", "inputs", "test_calib_grid.py::b1_ice2", "test_monitor_identify.py::ice2",
-                          "test_launch_plausibility.py::scripts"}
-
-
-def _group_of(item):
-    """The xdist group a test must join so that a fixture it needs is built once: the name of a
-    session fixture of ``tests/conftest.py`` in its closure (a recorded crossing, a calibration
-    launch: its users in every file share it), else its file's name if it uses a module-scoped
-    fixture of its own file, else None (handed out alone)."""
-    info = getattr(item, "_fixtureinfo", None)
-    if info is None:
-        return None
-    shared, own = [], False
-    for name in info.names_closure:
-        defs = info.name2fixturedefs.get(name)
-        if not defs or defs[-1].scope not in ("module", "package", "session"):
-            continue
-        where = defs[-1].baseid.split("::")[0]
-        if name in _CHEAP_MODULE_FIXTURES or f"{os.path.basename(where)}::{name}" in _CHEAP_MODULE_FIXTURES:
-            continue
-        if where.endswith(".py"):
-            own = own or item.nodeid.startswith(where)
-        elif defs[-1].scope == "session" and os.path.basename(where) == "tests":
-            shared.append(name)
-    if shared:
-        return "shared:" + min(shared)
-    return os.path.basename(str(item.path)) if own else None
-
-
-@pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config, items):
-    rank = {name: k for k, name in enumerate(sorted(_FILE_CPU_S, key=lambda n: -_FILE_CPU_S[n]))}
-    items.sort(key=lambda it: (rank.get(os.path.basename(str(it.path)), len(rank)), str(it.path)))
-    if getattr(config.option, "loadgroup", False):  # set on the workers by xdist under --dist loadgroup
-        try:
-            from _pytest.nodeid import NodeId  # noqa: PLC0415  pytest 9's structured test id; only under xdist
-        except ImportError:  # pytest 8: xdist's own renaming of ``item._nodeid`` works
-            NodeId = None  # noqa: N806
-
-        for it in items:
-            mark = it.get_closest_marker("xdist_group")
-            if mark is None and (group := _group_of(it)) is not None:
-                it.add_marker(pytest.mark.xdist_group(group))
-                mark = it.get_closest_marker("xdist_group")
-            if mark is not None and NodeId is not None and "@" not in it.nodeid:
-                # Name the group in the test's id (``<id>@<group>``, what the controller schedules
-                # by), as xdist's loadgroup does after this hook: it sets ``item._nodeid``, which
-                # pytest 9 no longer reads (the id is ``item._id``), so without this every test
-                # was scheduled alone and each worker built every module fixture it met.
-                name = mark.args[0] if mark.args else mark.kwargs.get("name", "default")
-                it._id = NodeId.parse(f"{it.nodeid}@{name}")
+    """Deal the files into one share per worker (``--dist worksteal`` hands each worker one
+    contiguous share of the list first), of about equal numbers of tests, the files holding ``slow``
+    tests first in each share; files stay whole and in collection order otherwise. Without xdist:
+    one share, the ``slow`` files first."""
+    files = {}
+    for it in items:
+        files.setdefault(it.path, []).append(it)
+    slow = [f for f in files.values() if any(it.get_closest_marker("slow") for it in f)]
+    fast = [f for f in files.values() if not any(it.get_closest_marker("slow") for it in f)]
+    n = max(1, int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1")))
+    shares = [[[], [], 0] for _ in range(n)]  # (slow files, other files, number of tests)
+    for kind, group in ((0, slow), (1, fast)):
+        for f in group:
+            share = min(shares, key=lambda s: s[2])
+            share[kind].append(f)
+            share[2] += len(f)
+    items[:] = [it for s in shares for f in s[0] + s[1] for it in f]

@@ -26,7 +26,7 @@ from adm_calib.calibrate import calibrate  # noqa: E402
 from adm_sim.model.bridge import Bridge, eurocode_damping_pct  # noqa: E402
 from adm_sim.inputs.train_files import load_train  # noqa: E402
 
-#: Railjet on an 8.6 m steel span (a held-out bridge of tests/test_recommend_verify.py).
+#: Railjet on an 8.6 m steel span (a held-out bridge of tests/calib/test_recommend_verify.py).
 CASE = {"train": "Railjet", "n0": 13.0, "mu": 9000.0, "type": "sc", "span": 8.6}
 
 

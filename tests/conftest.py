@@ -3,7 +3,9 @@ imported into several modules is a new fixture in each)."""
 
 from __future__ import annotations
 
+import fcntl
 import importlib
+import os
 import signal
 import subprocess
 import sys
@@ -66,11 +68,34 @@ def launcher(monkeypatch, capfd):
     return run
 
 
+def once_per_run(tmp_path_factory, name, build):
+    """``build(folder)`` once per run, not once per xdist worker: the recipe of xdist's documentation
+    ("Making session-scoped fixtures execute only once"). Under ``-n`` the first worker to ask builds
+    into the folder every worker of this run shares, under a file lock, and marks it done; the other
+    waits on the lock and reads the same folder. Without xdist it is a plain ``mktemp``. Returns
+    ``build``'s result (built anew by a worker whose sibling's build failed)."""
+    if os.environ.get("PYTEST_XDIST_WORKER") is None:
+        return build(tmp_path_factory.mktemp(name))
+    shared = tmp_path_factory.getbasetemp().parent  # .../pytest-N: this run's, common to its workers
+    folder, done = shared / name, shared / f"{name}.done"
+    with open(shared / f"{name}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not done.exists():
+            folder.mkdir(exist_ok=True)
+            result = build(folder)
+            done.write_text(str(result))
+        return Path(done.read_text())
+
+
 @pytest.fixture(scope="session")
 def recording(tmp_path_factory):
     """``run.mcap`` of one crossing (B3, ICE-2, MLM at 300 km/h) recorded by ``launch_scripts/crossing.py``,
-    once per session; the tests read it and write only into their own folders."""
-    out = tmp_path_factory.mktemp("crossing") / "run"
+    once per run (:func:`once_per_run`); the tests read it and write only into their own folders."""
+    return once_per_run(tmp_path_factory, "crossing", _record_crossing)
+
+
+def _record_crossing(folder):
+    out = folder / "run"
     r = subprocess.run([sys.executable, str(ROOT / "launch_scripts" / "crossing.py"), "--bridge", "B3", "--train",
                         "ICE-2", "--model", "mlm", "--speeds", "300", "--out", str(out)],
                        capture_output=True, text=True, timeout=300)
@@ -89,13 +114,16 @@ CALIBRATION_PARAMS = ("bridge:\n  ros__parameters:\n    bridge: B3\n    steps_pe
 @pytest.fixture(scope="session")
 def calibration_launch(tmp_path_factory):
     """The output folder (``summary.json``, ``run.mcap``, ``run.rrd``) of ``launch_scripts/calibrate.py``
-    (the bridge and train nodes in one process, the calibration node in another) on the small case above, run once per
-    session on its own ROS domain: ``test_ros_cosim.py`` checks its numbers against the in-process
-    calibration, ``test_ros_rerun_views.py`` its recording as a user opens it. The tests read it and
-    write only into their own folders."""
+    (the bridge and train nodes in one process, the calibration node in another) on the small case
+    above, launched once per run (:func:`once_per_run`) on its own ROS domain: ``test_ros_cosim.py``
+    checks its numbers against the in-process calibration, ``test_ros_rerun_views.py`` its recording
+    as a user opens it. The tests read it and write only into their own folders."""
+    return once_per_run(tmp_path_factory, "calibration", _launch_calibration)
+
+
+def _launch_calibration(base):
     from adm_sim.processes.dds_env import local_ros_env
 
-    base = tmp_path_factory.mktemp("calibration")
     params = base / "case.yaml"
     params.write_text(CALIBRATION_PARAMS)
     out = base / "out"

@@ -6,7 +6,7 @@ the same bridges), the DIM peak on rough track (associated with the MLM peak, Se
 against the MLM peak at the bridge's own damping (Δζ = 0; the MLM has no wheels, so it is the
 smooth-track MLM of the shipped study), split by the MLM peak below and at or above 3.5 m/s² (the
 ballasted-track limit, EN 1990 A2.4.4.2.1). Prints the markdown table of results/irregularity/README.md
-(tests/test_irregularity_framing.py keeps the two equal):
+(tests/model/test_irregularity_framing.py keeps the two equal):
 
     PYTHONPATH=src .venv/bin/python results/irregularity/exceedance.py
 """

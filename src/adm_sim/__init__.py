@@ -34,7 +34,7 @@ from adm_sim.errors import AdmSimError, InputError, RunError  # noqa: E402  afte
 __all__ = ["AdmSimError", "InputError", "RunError"]
 #: The one version number of adm-sim: ``pyproject.toml`` reads it (``dynamic``), :mod:`adm_calib`
 #: re-exports it, and ``ros_ws/*/package.xml`` carry its release part (ROS admits only X.Y.Z);
-#: ``tests/test_packaging.py`` checks that they agree.
+#: ``tests/house/test_packaging.py`` checks that they agree.
 __version__ = "0.2.0.dev0"
 
 

@@ -9,7 +9,7 @@ specs, ``damping_ratio`` a fraction in the core; axle loads in kN in train files
 
 Every message about a bad value is built here (:meth:`View.check`): the name as typed, the value,
 the unit and the allowed range, one line, :class:`~adm_sim.errors.InputError` (exit 2). The table of
-every field and its spellings: docs/fields.md (checked against :data:`FIELDS` by tests/test_fields.py).
+every field and its spellings: docs/fields.md (checked against :data:`FIELDS` by tests/inputs/test_fields.py).
 
 The checks every loader uses (:func:`check_range`, :func:`check_number`, :func:`check_int`,
 :func:`check_choice`) live here too, at the top: a field's check is one of them with the field's

@@ -12,7 +12,7 @@ a second per path) and compiles nothing.
 
 The tiny cases are the commands' own code paths (:func:`adm_sim.integrate.sweep.sweep_exact`,
 :func:`adm_sim.integrate.sweep.run_sweep_compiled`, :func:`adm_sim.design.check.run_check`), not hand-built
-signatures, so a kernel whose arguments change is still compiled here; ``tests/test_imports.py``
+signatures, so a kernel whose arguments change is still compiled here; ``tests/house/test_imports.py``
 checks that a sweep and a check after :func:`compile_kernels` add no signature to any kernel.
 """
 

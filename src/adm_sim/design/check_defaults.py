@@ -2,7 +2,7 @@
 project's choice where the standard's text read here gives no number.
 
 One list (:data:`DEFAULTS`) that the text output, the JSON (``defaults``), the report and
-docs/check.md ("Defaults and their sources") all show; ``tests/test_check_defaults.py`` pins every
+docs/check.md ("Defaults and their sources") all show; ``tests/design/test_check_defaults.py`` pins every
 value against the code that applies it and keeps the docs table equal to this list.
 """
 

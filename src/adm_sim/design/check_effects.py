@@ -23,7 +23,7 @@ every position of the first axle on a grid of ``L / samples_per_span`` plus ever
 axle crosses a support or a section (either side of it, where the static effect has its kinks and
 jumps), and over 1.25 fundamental periods of the free vibration after the last axle has left. The
 static effects are piecewise linear in the load position, so their maxima over these points are
-exact; the dynamic part is sampled (``tests/test_check_effects.py`` halves the step: 2e-4).
+exact; the dynamic part is sampled (``tests/design/test_check_effects.py`` halves the step: 2e-4).
 
 Sections: x/L = 0, 0.1, ..., 1 for the shear (the ends are the support reactions R_A and R_B),
 0.1 .. 0.9 for the moment (zero at the supports).
@@ -59,7 +59,7 @@ MOMENT_SECTIONS = tuple(np.round(np.linspace(0.1, 0.9, 9), 10))
 FREE_PERIODS = 1.25
 #: Pass 1 (speeds 1 km/h apart): uniform samples per span; pass 2 refines the speeds near those whose
 #: pass-1 maximum of any effect is within COARSE_MARGIN of that effect's largest (sampling lowers a maximum by less
-#: than 1 % at 20 per span on B1, see tests/test_check_effects.py).
+#: than 1 % at 20 per span on B1, see tests/design/test_check_effects.py).
 COARSE_SAMPLES_PER_SPAN = 20
 COARSE_MARGIN = 0.015
 #: Pass 1 takes speeds at least this far apart (km/h); pass 2 every speed within it of a candidate.

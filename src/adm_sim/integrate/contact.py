@@ -15,7 +15,7 @@ smallest force and the first tension (step, axle, force): a run with a tension h
 :data:`CONTACT_LOST`. Off the bridge the track is rigid and smooth and the units rest, so the
 static load holds there.
 
-Limiting case (``tests/test_contact.py``): at low speed on a smooth track ``F_i`` tends to the
+Limiting case (``tests/integrate/test_contact.py``): at low speed on a smooth track ``F_i`` tends to the
 static axle load ``F_static,i``.
 """
 

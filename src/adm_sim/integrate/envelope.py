@@ -37,7 +37,7 @@ Where (``where=``):
   Convergence rule: the iteration stops when both steps are below 1e-12 (relative to the
   interval length and to L) or after :data:`NEWTON_ITERATIONS_2D`; the value is then exact to
   round-off and the position to about 1e-6 L (the maximum is flat in x: a position error d costs
-  only ``|a_xx| d^2 / 2``). ``tests/test_envelope.py`` checks both against an independent brute
+  only ``|a_xx| d^2 / 2``). ``tests/integrate/test_envelope.py`` checks both against an independent brute
   force (closed form per axle, dense t and x grids, zooming grids): values to 1e-9, positions to
   1e-4 L (B1, B4; 3 and 5 modes); 4 and 16 samples per period agree to 1e-10 and 1e-6 L.
 

@@ -23,8 +23,8 @@ the 3 % this project allows. An MLM step is :func:`mlm_step` (``BridgeSide.step_
 :func:`sampled_maxima`, ``inline="always"`` helpers that cost nothing measurable (0.98-1.00x).
 
 One source: without numba the same functions run as plain Python (slow, for debugging;
-``tests/test_kernels_uncompiled.py``). The numpy stepper stays the reference (the ROS nodes use
-it); ``tests/test_batch.py`` holds the two together to 1e-12 relative.
+``tests/integrate/test_kernels_uncompiled.py``). The numpy stepper stays the reference (the ROS nodes use
+it); ``tests/integrate/test_batch.py`` holds the two together to 1e-12 relative.
 """
 
 from __future__ import annotations

@@ -6,7 +6,7 @@ an *interior local maximum* of the curve ``a(v)`` of maximum midspan acceleratio
 * higher than its neighbours on both sides; a plateau of equal samples counts once, at its middle
   sample (the left one of two): the rule of :func:`scipy.signal.find_peaks`, written here in a few
   lines of Python (:func:`_local_maxima_1d`, :func:`_prominences`) that give the same indices and
-  prominences bit for bit (``tests/test_core_peaks.py`` compares them), because importing
+  prominences bit for bit (``tests/integrate/test_core_peaks.py`` compares them), because importing
   ``scipy.signal`` costs about 1 s at the start of every command;
 * never the first or the last speed of the range (its true maximum may lie outside the range);
 * not a ripple: its prominence is at least ``min_prominence_rel`` times its value (default

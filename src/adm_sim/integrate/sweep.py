@@ -175,7 +175,7 @@ def run_sweep_compiled(bridge, train, model, speeds_kmh, delta_zeta=0.0, options
     """:func:`run_sweep` on the compiled kernels: every speed a lane of one
     :class:`adm_sim.integrate.compiled_batch.BatchRun`, on the grid ``run_sweep`` makes (its ``ds`` and
     number of steps), so the maxima equal the numpy stepper's to ~1e-13 relative (the summation
-    order of a few small dot products differs; ``tests/test_sweep_backends.py`` holds them to
+    order of a few small dot products differs; ``tests/integrate/test_sweep_backends.py`` holds them to
     1e-12). No histories. ``progress(done_steps, n_steps)`` is called after every block of steps
     (about 100 per run). ``where``: ``"midspan"`` or a position x (m from the left abutment).
     ``delta_zeta_name``: as :func:`run_sweep`.

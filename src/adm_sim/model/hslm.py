@@ -22,7 +22,7 @@ That is 4 + 2 + 2 (N + 1) + 2 + 4 = 2N + 14 axles, the regular spacing D that dr
 resonances ``v = n0 D / i``, and a first-to-last axle distance of 2 x 18.7625 + (N + 2) D =
 375.5 .. 398.5 m, inside the 400 m of EN 1991-2 Annex E. The layout agrees to 1e-12 m on every
 axle of A1 .. A10 with independent public implementations (Karoumi's ``HSLMA.m``, KTH; caldintav's
-``a01 .. a10.def``, UPM; SincBridgeDynamics.jl ``A_1 .. A_10``); ``tests/test_hslm.py`` holds
+``a01 .. a10.def``, UPM; SincBridgeDynamics.jl ``A_1 .. A_10``); ``tests/model/test_hslm.py`` holds
 that table as literals.
 
 HSLM-B (EN 1991-2 6.4.6.1.1, for simply supported spans below 7 m): N point forces of 170 kN at a

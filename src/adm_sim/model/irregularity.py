@@ -15,7 +15,7 @@ wheel moving at speed ``v``). The MLM carries no wheel and is unaffected.
 
 Sign. Inputs are elevations (up): a measured file's ``elevation_m``, a ramp's ``height`` (rising
 by ``height`` m) and a joint's ``depth`` (a dip). They enter as ``r = -elevation``, so a 10 mm ramp
-lifts the wheel by 10 mm (VBI-2D's verification case with the 10 mm ramp, ``tests/test_vehicles.py``).
+lifts the wheel by 10 mm (VBI-2D's verification case with the 10 mm ramp, ``tests/model/test_vehicles.py``).
 A random profile is symmetric in distribution; its ``r`` is the harmonic sum as generated.
 
 Where the profile lives. The model of the paper has a rigid, smooth track off the bridge (a unit
@@ -43,7 +43,7 @@ implementations.
 Random profiles: the spectral representation (sum of harmonics with independent uniform random
 phases, ``a_k = sqrt(2 S(Omega_k) dOmega)``), ``Omega_k`` the midpoints of equal bins over the
 wavelength band; the seed fixes the phases. The profile's Welch PSD averaged over seeds matches
-``S`` within 15 % over the band (``tests/test_irregularity.py``).
+``S`` within 15 % over the band (``tests/model/test_irregularity.py``).
 
 Discrete defects: a ramp (linear rise ``height_m`` over ``length_m`` from ``at_m``, then level)
 and a joint (a cosine dip of depth ``depth_m`` and length ``length_m`` centred at ``at_m``).
