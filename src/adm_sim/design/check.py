@@ -199,8 +199,24 @@ class TrainCheck:
                 "phi_dyn": self.phi_dyn, "comfort": self.comfort_dict(), "curve": curve}
 
 
+class AccelerationVerdict:
+    """The acceleration verdict shared by the check of one span (:class:`CheckResult`) and of a continuous
+    deck (:class:`adm_sim.design.check_deck.DeckCheckResult`): both hold ``trains`` (each with
+    ``max_acc_m_s2``, ``speeds_kmh``, ``i_max``) and ``track``."""
+
+    @property
+    def limit_m_s2(self):
+        return ACC_LIMITS_M_S2[self.track]
+
+    @property
+    def governing(self):
+        """(train check, speed km/h, acceleration m/s^2) of the largest acceleration."""
+        t = max(self.trains, key=lambda c: c.max_acc_m_s2.max())
+        return t, float(t.speeds_kmh[t.i_max]), float(t.max_acc_m_s2.max())
+
+
 @dataclass
-class CheckResult:
+class CheckResult(AccelerationVerdict):
     """Verdict of the dynamic check and every curve behind it."""
 
     bridge: object
@@ -241,15 +257,6 @@ class CheckResult:
             out.append((t, t.effect_design[i], i))
         return out
 
-    @property
-    def limit_m_s2(self):
-        return ACC_LIMITS_M_S2[self.track]
-
-    @property
-    def governing(self):
-        """(train check, speed km/h, acceleration m/s^2) of the largest acceleration."""
-        t = max(self.trains, key=lambda c: c.max_acc_m_s2.max())
-        return t, float(t.speeds_kmh[t.i_max]), float(t.max_acc_m_s2.max())
 
     def not_checked(self):
         """What this check does not cover, each with its clause (:data:`adm_sim.design.check_sls.NOT_CHECKED`)."""

@@ -47,7 +47,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from adm_sim.design.check import DAMPING_MODELS, _refinement, check_speeds_kmh
+from adm_sim.design.check import DAMPING_MODELS, AccelerationVerdict, _refinement, check_speeds_kmh
 from adm_sim.design.check_effects import EffectComparison
 from adm_sim.design.check_sls import (DELTA_H_LIMITS_M, END_ROTATION_LIMIT_RAD, END_ROTATION_SOURCE,
                                       LATERAL_FREQUENCY_MIN_HZ, check_deck_end_height, check_lateral_frequency)
@@ -337,7 +337,7 @@ def _golden_max(f, a, b, tol):
 
 
 @dataclass
-class DeckCheckResult:
+class DeckCheckResult(AccelerationVerdict):
     """Verdict of the deck check and every curve behind it."""
 
     bridge: object
@@ -363,15 +363,6 @@ class DeckCheckResult:
     is_deck: bool = True
     bounds: tuple = ()
     rough: tuple = ()
-
-    @property
-    def limit_m_s2(self):
-        return ACC_LIMITS_M_S2[self.track]
-
-    @property
-    def governing(self):
-        t = max(self.trains, key=lambda c: c.max_acc_m_s2.max())
-        return t, float(t.speeds_kmh[t.i_max]), float(t.max_acc_m_s2.max())
 
     @property
     def passed(self):
