@@ -6,6 +6,7 @@ start (replay) and after the launcher's end (supervisor), while those of a live 
 the same domain stay.
 """
 
+import fcntl
 import os
 import signal
 import subprocess
@@ -26,6 +27,19 @@ pytestmark = pytest.mark.slow  # every test here starts processes
 ROOT = Path(__file__).resolve().parents[2]
 PY = sys.executable
 REPLAY = ROOT / "launch_scripts" / "replay.py"
+
+
+@pytest.fixture(autouse=True)
+def one_probe_at_a_time(tmp_path_factory):
+    """The tests of this file one at a time across xdist workers: Fast DDS's port semaphores (e.g.
+    ``sem.fastrtps_port7000_mutex``) are shared by participants of every domain, so a probe of a test
+    running on the other worker can hold one at this test's clean and die before its check, which
+    then sees a file that is stale but was rightly kept (seen in a fresh-clone suite under
+    ``--dist worksteal``)."""
+    lock = tmp_path_factory.getbasetemp().parent / "adm_sim_test_shm_cleanup.lock"  # shared by the workers
+    with open(lock, "w") as fh:
+        fcntl.flock(fh, fcntl.LOCK_EX)
+        yield
 
 _PROBE = """
 import rclpy, sys, time
