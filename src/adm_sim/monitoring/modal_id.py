@@ -1065,6 +1065,22 @@ class PassageTracker:
                 n = [v for k, v in counts.items() if str(k).endswith("midspan/accel")]
                 run.published = int(n[0]) if len(n) == 1 else None
             run.t1_s = float(rec["t1_s"]) if rec.get("t1_s") is not None else self._last_t1(run)
+            self._rehome_beyond_end(run)
+
+    def _rehome_beyond_end(self, run):
+        """Samples that reached a run while its end was unknown but are stamped at or after it belong to
+        a later run: a replay's (or a loaded graph's) sample and record publishers have no order between
+        them, so the next run's samples can arrive before this run's ``done``. They are fed again (the
+        first of them completes this run)."""
+        raw = [run.t0_s + (s - run.t0_s) / run.scale for s in run.t]  # back to stamps (see _put)
+        end = run.t1_s - STAMP_TOLERANCE_S
+        cut = next((i for i, t in enumerate(raw) if t >= end), None)
+        if cut is None:
+            return
+        moved = list(zip(raw[cut:], run.a[cut:]))
+        del run.t[cut:], run.a[cut:]
+        for t, a in moved:
+            self.sample(t, a, run.last_wall_s)
 
     def sample(self, t_s, a_m_s2, wall_s=0.0):
         """One acceleration sample (stamp in s, m/s²)."""
@@ -1072,7 +1088,9 @@ class PassageTracker:
         self.last_sample_wall_s = wall_s
         if not math.isfinite(a):
             self.nonfinite += 1
-        for run in self.runs:  # [t0_s, t1_s), a stamp within 1 ns below a boundary on its later side
+        # [t0_s, t1_s), a stamp within 1 ns below a boundary on its later side; the latest run first, so a
+        # sample of a run whose started record is in does not go to an earlier run whose done is not yet
+        for run in sorted(self.runs, key=lambda r: r.t0_s, reverse=True):
             if run.t0_s - STAMP_TOLERANCE_S <= t and (run.t1_s is None or t < run.t1_s - STAMP_TOLERANCE_S):
                 self._put(run, t, a)
                 run.last_wall_s = wall_s
