@@ -34,6 +34,7 @@ pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 
 LATCHED = r"""
 import rclpy
+from rclpy.executors import ExternalShutdownException
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 rclpy.init()
@@ -45,7 +46,7 @@ n.create_subscription(DiagnosticArray, "/diagnostics", lambda m: got.extend(
      dict((kv.key, kv.value) for kv in s.values).get("final")) for s in m.status), qos)
 try:
     rclpy.spin(n)
-except KeyboardInterrupt:
+except (KeyboardInterrupt, ExternalShutdownException):  # SIGINT: either, by where it lands
     pass
 print(repr(got), flush=True)
 """
@@ -159,6 +160,7 @@ def test_opted_in_client_and_monitor_lose_nothing_under_load(tmp_path, ros_domai
                             "--domain-id", str(ros_domain.domain_id), "--wait-clients", "2"],
                            env=env, capture_output=True, text=True, timeout=900, cwd=ROOT)
         print(f"main job with the client and the monitor opted in, two busy processes: {time.monotonic() - t0:.1f} s")
+        print(p.stdout, p.stderr)  # shown on a failure: the job's view of the clients and its warnings
         assert p.returncode == 0, p.stderr
         done = {}
         for _t, _ns, m in read_messages(cal / "run.mcap", topics=[P.TOPIC_STATUS]):
@@ -192,6 +194,7 @@ def test_opted_in_client_and_monitor_lose_nothing_under_load(tmp_path, ros_domai
         for q in procs:
             if q.poll() is None:
                 q.kill()
+    assert l_out.strip(), l_err
     got = eval(l_out.strip().splitlines()[-1])  # the subscriber's repr of (name, run_id, final) tuples
     assert [int(rid) for _n, rid, _f in got] == sorted(done) and {f for _n, _r, f in got} == {"True"}, l_out
 

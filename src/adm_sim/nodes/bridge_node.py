@@ -171,7 +171,7 @@ class BridgeNode(c.LockstepNode):
         self.pub_ready.publish(c.json_msg(P.ready_record(
             r.id, ds_m=grid.ds_m, n_steps=grid.n_steps, span_m=r.bridge.span_m, n_lanes=grid.n_lanes,
             t0_s=self.t_offset_s)))
-        self._status(r.id, P.STARTED, **r.info(), **r.monitor.info())
+        self._status(r.id, P.STARTED, **r.info(), **r.monitor.info(), flow_nodes=sorted(r.flow.acked))
         self.get_logger().info(f"run {r.id}: {r.model.upper()} {r.bridge.describe()}, "
                                f"{grid.n_lanes} lanes, {grid.n_steps} steps of {grid.ds_m * 1000:.2f} mm")
         self._ask_partner()
