@@ -23,8 +23,8 @@ class FlowClient:
     ``runs`` gives ``run_id -> (received, published)`` of the runs ended.
 
     The client opts in (creates its ``/adm/run/ack`` publisher, which the bridge and the launchers'
-    ``--wait-clients`` look for) once each of the node's subscriptions to ``topics``, and its own one
-    to ``/adm/progress``, is matched with a publisher: a client the bridge waits for from a run's
+    ``--wait-clients`` look for) once each of the node's subscriptions to ``topics`` is matched
+    with a publisher: a client the bridge waits for from a run's
     first sample is one that can receive it (on a loaded machine discovery can match the
     subscriptions seconds after the node appeared). ``opted_in`` says whether it has.
 
@@ -47,7 +47,7 @@ class FlowClient:
             return P.relative(topic) if graph is None else graph.rstrip("/") + topic
 
         self.node, self.pub, self._ack_topic = node, None, name(P.TOPIC_ACK)
-        self._wanted = {node.resolve_topic_name(name(t)) for t in (*topics, P.TOPIC_PROGRESS)}
+        self._wanted = {node.resolve_topic_name(name(t)) for t in topics}
         node.create_subscription(String, name(P.TOPIC_PROGRESS), self._on_progress, QOS_MONITOR)
         node.create_subscription(String, name(P.TOPIC_STATUS), self._on_status, QOS_CONTROL)
         self._timer = node.create_timer(0.05, self._opt_in)
@@ -64,7 +64,7 @@ class FlowClient:
         """Create the acknowledgement publisher once every subscription to the counted topics has
         a matched publisher."""
         subs = [s for s in self.node.subscriptions if s.topic_name in self._wanted]
-        if self.pub is None and subs and all(s.get_publisher_count() > 0 for s in subs):
+        if self.pub is None and all(s.get_publisher_count() > 0 for s in subs):
             self.pub = self.node.create_publisher(String, self._ack_topic, QOS_CONTROL)
             self._timer.cancel()
             self.node.destroy_timer(self._timer)
