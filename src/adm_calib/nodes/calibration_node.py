@@ -119,7 +119,7 @@ class CalibrationNode(RunDriver):
         self.wait_for_graph()
         bd = self.description(P.BRIDGE_NODE)
         td = self.description(P.TRAIN_NODE)
-        bridge = Bridge(**bd["bridge"])
+        bridge = Bridge(**P.bridge_fields(bd["bridge"]))
         train = load_train(td["train"])
         st = bd["step"]
         base = StepOptions(steps_per_period=st["steps_per_period"], free_vibration_periods=st["free_vibration_periods"],
