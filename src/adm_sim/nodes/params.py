@@ -273,7 +273,8 @@ def bridge_specs(preset):
         return format_float_list(values) if preset.is_continuous else ""
 
     return [
-        S("span_m", float(preset.span_m), "span L of one simply supported span (spans_m empty)"),
+        S("span_m", float(max(preset.spans_m) if preset.is_continuous else preset.span_m),
+          "span L of one simply supported span (spans_m empty; a deck preset: its longest span)"),
         S("spans_m", per_span(preset.spans_m), "spans of a continuous deck, left to right, comma list of 2 to "
           f"{fields.FIELDS['n_spans'].hi} spans (one value: the simply supported span of that length); empty = one "
           "span of span_m"),
@@ -346,7 +347,7 @@ def _span_from_params(preset, p, d, specs):
         else preset
     kw = {}
     for name in ("span_m", "mu_kg_m", "zeta_pct"):
-        if p[name] != d[name]:
+        if p[name] != d[name] or (name == "span_m" and preset.is_continuous):
             view = specs[name].view
             kw[view.field.name] = view.to_core(view.check(p[name], name=name))
     if p["n_modes"] != d["n_modes"] or preset.is_continuous:  # one span: the registry's n_modes range
