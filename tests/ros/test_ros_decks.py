@@ -302,3 +302,34 @@ def test_launchers_refuse_a_bad_deck_in_one_line(launcher, tmp_path, script):
         lines = stderr.strip().splitlines()
         assert code == 2 and len(lines) == 1 and lines[0].startswith(line), (argv, stderr)
         assert "Traceback" not in stderr and not out.exists()
+
+
+@pytest.mark.slow
+def test_calibrate_launch_on_a_deck_is_the_in_process_calibration(tmp_path):
+    """``calibrate.py --bridge spans=15/15,...`` (240..300 km/h every 3 km/h, the coarse steps): the
+    calibration node rebuilds the deck from the bridge's description record and its Δζ, status and
+    peaks equal the in-process calibration of the reader's deck through the numpy stepper (the
+    co-simulation's runs) bit for bit; the summary names the deck's spans, frequencies and modal masses."""
+    from adm_calib.calibrate import CalibrationOptions, calibrate
+
+    params = tmp_path / "deck.yaml"
+    params.write_text("bridge:\n  ros__parameters:\n    steps_per_period: 4.0\n    free_vibration_periods: 1.0\n")
+    out = tmp_path / "cal"
+    r = subprocess.run([sys.executable, str(ROOT / "launch_scripts" / "calibrate.py"), "--params-file", str(params),
+                        "--bridge", DECK_SPEC, "--speeds", "240:300:3", "--out", str(out), "--quiet", "--no-rrd"],
+                       capture_output=True, text=True, timeout=300, cwd=ROOT)
+    assert r.returncode == 0, r.stderr[-3000:]
+    got = json.loads((out / "summary.json").read_text())
+    deck, ice2 = resolve_bridge(DECK_SPEC, continuous=True), load_train("ICE-2")
+
+    def numpy_sweep(model, speeds, dz, step, phase):
+        return run_sweep(deck, ice2, model, speeds, delta_zeta=dz, options=step).max_acc_m_s2
+
+    ref = calibrate(deck, ice2, np.arange(240.0, 301.0, 3.0),
+                    options=CalibrationOptions(dim_grid="window", step=StepOptions(**STEP)), sweep=numpy_sweep).to_dict()
+    assert got["status"] == ref["status"] and got["bridge_description"] == deck.describe()
+    assert got["delta_zeta_vbi_pct"] == ref["delta_zeta_vbi_pct"] is not None
+    assert got["mlm_peak"] == ref["mlm_peak"] and got["dim_peak"] == ref["dim_peak"]
+    assert got["spans_m"] == [15.0, 15.0] and got["supports_m"] == [0.0, 15.0, 30.0]
+    assert got["frequencies_hz"] == deck.frequencies_hz.tolist()
+    assert got["modal_masses_kg"] == deck.modal_mass_kg.tolist()

@@ -134,6 +134,9 @@ class CalibrationNode(RunDriver):
         res = calibrate(bridge, train, v, options=opt, sweep=self._hook, on_trial=self._iteration)
         self._publish_result(res)
         summary = res.to_dict(curves=True)
+        # the bridge the graph ran: its spans (a continuous deck), supports, frequencies and modal masses
+        summary.update({k: bd.get(k) for k in ("supports_m", "frequencies_hz", "modal_masses_kg")},
+                       spans_m=list(bridge.spans_m))
         summary["co_simulation"] = {"runs": self.n_runs, "delta_zeta_trials": self.iteration,
                                     "incomplete_runs": self.incomplete}
         return summary
