@@ -424,6 +424,9 @@ _FIELDS = [
     _F("track_maintenance", "", str, "EN 1991-2 6.4.5.2 track maintenance of the LM71 dynamic factor: careful "
        "(Phi2) or standard (Phi3)", "run", _S("cli", "--track-maintenance")),
     _F("alpha", "-", str, "LM71 classification factor alpha, one of EN 1991-2 6.3.2(3)", "run", _S("cli", "--alpha")),
+    _F("response_m", "m", float, "where the bridge node takes its midspan topics and a run's maxima, from the left "
+       "abutment (0 < x < L, the deck's length)", "run", _S("ros", "response_m", special=((0.0, "midspan"),)),
+       lo=0.001, hi=900.0),
     _F("where", "", str, "where the acceleration is taken: deck, midspan or x=<m> with 0 < x < L", "run",
        _S("cli", "--where")),
     _F("scheduler", "", str, "address of a running dask scheduler on this machine (tcp://127.0.0.1:PORT)", "run",

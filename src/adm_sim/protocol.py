@@ -363,17 +363,21 @@ def progress_record(run_id, model, step, n_steps, sim_time_s, samples=None):
 
 
 def bridge_description_record(bridge, description, n0_hz, step, delta_zeta, delta_zeta_lanes, track_type,
-                              acc_limit_m_s2, supports_m=(), frequencies_hz=(), modal_masses_kg=()):
+                              acc_limit_m_s2, supports_m=(), frequencies_hz=(), modal_masses_kg=(), response_m=0.0,
+                              midspan_m=None):
     """``/adm/bridge/description`` (latched): ``bridge`` the exact fields of :class:`adm_sim.model.bridge.Bridge`
     (:func:`bridge_fields` of it rebuilds it: ``Bridge(**bridge_fields(record["bridge"]))``; a continuous
     deck's ``spans_m``, ``span_EJ_Nm2``, ``span_mu_kg_m`` are lists, empty for one span), ``description``
     its one-line text, ``n0_hz``, the support abscissae ``supports_m`` (m from the left abutment, both
     abutments and every pier), the natural frequencies ``frequencies_hz`` and modal masses
-    ``modal_masses_kg`` of the retained modes, ``step`` the step settings (``steps_per_period,
+    ``modal_masses_kg`` of the retained modes, the bridge node's ``response_m`` (where the midspan topics
+    and a run's maxima are taken, m from the left abutment; 0: at ``midspan_m``, the middle of one span
+    or of a deck's longest span), ``step`` the step settings (``steps_per_period,
     free_vibration_periods, ds_m``), the Δζ parameters (fraction; ``delta_zeta_lanes`` a comma
     list), the track type and its limit (m/s²)."""
     return {"bridge": bridge, "description": description, "n0_hz": n0_hz, "supports_m": _list(supports_m),
-            "frequencies_hz": _list(frequencies_hz), "modal_masses_kg": _list(modal_masses_kg), "step": step,
+            "frequencies_hz": _list(frequencies_hz), "modal_masses_kg": _list(modal_masses_kg),
+            "response_m": response_m, "midspan_m": midspan_m, "step": step,
             "delta_zeta": delta_zeta, "delta_zeta_lanes": delta_zeta_lanes, "track_type": track_type,
             "acc_limit_m_s2": acc_limit_m_s2}
 

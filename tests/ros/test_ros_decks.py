@@ -122,6 +122,12 @@ def test_deck_parameters_on_a_span_preset_and_the_description(bridge_b1):
     # (the sine of each span, max 1), to the quadrature's round-off
     assert rec["modal_masses_kg"][0] == pytest.approx(0.5 * B1.mass_per_length_kg_m * 30.0, rel=1e-12)
     assert Bridge(**P.bridge_fields(rec["bridge"])) == deck
+    # the monitor's passage: the train leaves after the last span (the deck's length, not a span's)
+    from adm_sim.monitoring.modal_id import PassageTracker
+
+    tracker = PassageTracker()
+    tracker.bridge_description(rec)
+    assert tracker.span_m == 30.0
     (res,) = bridge_b1.set_parameters([Parameter("spans_m", value="")])
     assert res.successful and bridge_b1.bridge == B1
     assert sent[-1]["bridge"]["spans_m"] == [] and sent[-1]["supports_m"] == [0.0, 15.0]
@@ -159,6 +165,8 @@ def test_per_span_values_and_n0_on_a_deck(bridge_deck):
     ("bridge_deck", "spans_m", "10,10,10", "span_mu_kg_m: '19042.0,19042.0' gives 2 values for 3 spans; allowed one "
                                            "value or one per span (kg/m)"),
     ("bridge_deck", "mu_kg_m", 20000.0, "mu_kg_m: 20000.0 kg/m and span_mu_kg_m = '19042.0,19042.0' both give the mass"),
+    ("bridge_deck", "response_m", 40.0, "response_m: 40 m is off the deck; allowed 0 (midspan) or 0 < x < 30 m"),
+    ("bridge_deck", "response_m", -1.0, "response_m: -1 m is out of range; allowed 0 (midspan) or [0.001, 900] m"),
     ("bridge_deck", "n_modes", 21, "n_modes: 21 is out of range; allowed integer in [1, 20]"),
     ("bridge_deck", "spans_m", "", "span_EJ_Nm2: '26670000000.0,26670000000.0' gives one value per span; per-span "
                                    "values need spans_m"),
@@ -307,9 +315,10 @@ def test_launchers_refuse_a_bad_deck_in_one_line(launcher, tmp_path, script):
 @pytest.mark.slow
 def test_calibrate_launch_on_a_deck_is_the_in_process_calibration(tmp_path):
     """``calibrate.py --bridge spans=15/15,...`` (240..300 km/h every 3 km/h, the coarse steps): the
-    calibration node rebuilds the deck from the bridge's description record and its Δζ, status and
-    peaks equal the in-process calibration of the reader's deck through the numpy stepper (the
-    co-simulation's runs) bit for bit; the summary names the deck's spans, frequencies and modal masses."""
+    calibration node rebuilds the deck from the bridge's description record, runs every sweep at the
+    middle of each span (the bridge's ``response_m``) and takes the larger maxima, so its Δζ, status
+    and peaks equal ``adm-calib calibrate``'s on the numpy stepper bit for bit (the compiled kernels:
+    to the root tolerance's digits); the summary names the deck's spans, frequencies and modal masses."""
     from adm_calib.calibrate import CalibrationOptions, calibrate
 
     params = tmp_path / "deck.yaml"
@@ -322,14 +331,16 @@ def test_calibrate_launch_on_a_deck_is_the_in_process_calibration(tmp_path):
     got = json.loads((out / "summary.json").read_text())
     deck, ice2 = resolve_bridge(DECK_SPEC, continuous=True), load_train("ICE-2")
 
-    def numpy_sweep(model, speeds, dz, step, phase):
-        return run_sweep(deck, ice2, model, speeds, delta_zeta=dz, options=step).max_acc_m_s2
-
+    # adm-calib calibrate's numbers on the numpy stepper: each sweep at the middle of either span, the larger
     ref = calibrate(deck, ice2, np.arange(240.0, 301.0, 3.0),
-                    options=CalibrationOptions(dim_grid="window", step=StepOptions(**STEP)), sweep=numpy_sweep).to_dict()
+                    options=CalibrationOptions(dim_grid="window", step=StepOptions(**STEP)), backend="numpy").to_dict()
     assert got["status"] == ref["status"] and got["bridge_description"] == deck.describe()
     assert got["delta_zeta_vbi_pct"] == ref["delta_zeta_vbi_pct"] is not None
     assert got["mlm_peak"] == ref["mlm_peak"] and got["dim_peak"] == ref["dim_peak"]
+    assert got["co_simulation"]["runs"] % 2 == 0  # two runs (one per span's middle) for every sweep
+    compiled = calibrate(deck, ice2, np.arange(240.0, 301.0, 3.0),
+                         options=CalibrationOptions(dim_grid="window", step=StepOptions(**STEP)))
+    assert f"{got['delta_zeta_vbi_pct']:.4f}" == f"{100 * compiled.delta_zeta_vbi:.4f}"
     assert got["spans_m"] == [15.0, 15.0] and got["supports_m"] == [0.0, 15.0, 30.0]
     assert got["frequencies_hz"] == deck.frequencies_hz.tolist()
     assert got["modal_masses_kg"] == deck.modal_mass_kg.tolist()

@@ -152,6 +152,7 @@ class BridgeNode(c.LockstepNode):
                     "span_EJ_Nm2": list(b.span_EJ_Nm2), "span_mu_kg_m": list(b.span_mu_kg_m)},
             description=b.describe(), n0_hz=b.n0_hz, supports_m=b.supports_m.tolist(),
             frequencies_hz=b.frequencies_hz.tolist(), modal_masses_kg=b.modal_mass_kg.tolist(),
+            response_m=p["response_m"], midspan_m=b.midspan_m,
             step={"steps_per_period": p["steps_per_period"], "free_vibration_periods": p["free_vibration_periods"],
                   "ds_m": p["ds_m"]},
             delta_zeta=p["delta_zeta"], delta_zeta_lanes=p["delta_zeta_lanes"],
@@ -191,7 +192,8 @@ class BridgeNode(c.LockstepNode):
         dz = lanes if lanes.size else p["delta_zeta"]
         dim = cfg["model"] == "dim"
         side = BridgeSide(bridge, grid, np.asarray(cfg["axle_offsets_m"], dtype=float),
-                          np.asarray(cfg["wheel_mass_kg"], dtype=float) if dim else None, dz)
+                          np.asarray(cfg["wheel_mass_kg"], dtype=float) if dim else None, dz,
+                          response_m=p["response_m"] or None)
         half = BridgeHalf(cfg["model"], grid, side)
         phase = cfg.get("phase") or P.plain_run_phase(cfg["model"], p["delta_zeta"], p["delta_zeta_lanes"])
         r = BridgeRunState(

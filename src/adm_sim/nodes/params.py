@@ -292,6 +292,8 @@ def bridge_specs(preset):
         S("n_modes", int(preset.n_modes), "retained modes (paper: 3, Section 2.3; a continuous deck: fewer than "
           "its rule asks for gives a warning)"),
         S("damping_model", preset.damping_model, "rayleigh (modes 1 and 3) | modal"),
+        S("response_m", 0.0, "where the midspan topics and the run's maxima are taken, from the left abutment; "
+          "0 = midspan (one span: L/2; a continuous deck: the middle of its longest span, the first of equal ones)"),
         S("delta_zeta", 0.0, "additional damping for every lane (fraction; zeta + delta_zeta >= 0)"),
         S("delta_zeta_lanes", "",
           "per-lane additional damping, comma list with one value per speed lane; empty = delta_zeta"),
@@ -332,6 +334,12 @@ def bridge_from_params(preset, p, defaults=None):
                 raise InputError(f"{name}: {p[name]!r} gives one value per span; per-span values need spans_m "
                                  f"(m), the spans of a continuous deck")
         b = _span_from_params(preset, p, d, specs)
+    x = p["response_m"]
+    if x != 0.0:
+        specs["response_m"].check(x)
+        if not 0.0 < x < b.span_m:
+            raise InputError(f"response_m: {x:g} m is off the deck; allowed 0 (midspan) or 0 < x < {b.span_m:g} m "
+                             f"(the deck's length)")
     check_delta_zeta("delta_zeta", p["delta_zeta"], b.damping_ratio)
     for x in parse_float_list("delta_zeta_lanes", p["delta_zeta_lanes"], "- (fraction)"):
         check_delta_zeta("delta_zeta_lanes", x, b.damping_ratio)
