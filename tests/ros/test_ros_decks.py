@@ -104,6 +104,23 @@ def test_deck_preset_gives_the_per_span_defaults(bridge_deck):
     assert bridge_deck.get_parameter("span_m").value == 15.0 and bridge_deck.get_parameter("n_modes").value == 3
 
 
+def test_deck_preset_from_a_bridge_file(ctx, tmp_path):
+    """A TOML deck file as the preset (``--bridge deck.toml``): the file's deck, its per-span values
+    the parameters' defaults."""
+    from adm_sim.inputs.bridges import load_bridge_file
+    from adm_sim.nodes.bridge_node import BridgeNode
+
+    f = tmp_path / "deck.toml"
+    f.write_text("spans = [12.0, 16.0, 12.0]\nEJ = 2.0e10\nmu = [15000.0, 18000.0, 15000.0]\nzeta_pct = 1.5\n")
+    node = BridgeNode(context=ctx, parameter_overrides=[Parameter("bridge", value=str(f))])
+    try:
+        assert node.bridge == load_bridge_file(f) and node.bridge.spans_m == (12.0, 16.0, 12.0)
+        assert node.get_parameter("span_mu_kg_m").value == "15000.0,18000.0,15000.0"
+        assert node.get_parameter("span_m").value == 16.0
+    finally:
+        node.destroy_node()
+
+
 def test_deck_parameters_on_a_span_preset_and_the_description(bridge_b1):
     """``spans_m = 15,15`` on preset B1: B1's EJ, mu and damping on two spans; the description record
     carries the spans, the supports, the frequencies and the modal masses (the deck's own numbers),
