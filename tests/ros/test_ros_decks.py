@@ -145,6 +145,8 @@ def test_deck_parameters_on_a_span_preset_and_the_description(bridge_b1):
     tracker = PassageTracker()
     tracker.bridge_description(rec)
     assert tracker.span_m == 30.0
+    (res,) = bridge_b1.set_parameters([Parameter("spans_m", value="15")])  # one span: B1 itself (sine modes)
+    assert res.successful and bridge_b1.bridge == B1 and not bridge_b1.bridge.is_continuous
     (res,) = bridge_b1.set_parameters([Parameter("spans_m", value="")])
     assert res.successful and bridge_b1.bridge == B1
     assert sent[-1]["bridge"]["spans_m"] == [] and sent[-1]["supports_m"] == [0.0, 15.0]
@@ -218,8 +220,8 @@ def test_deck_of_more_modes_than_the_node_takes_is_refused_at_start(ctx):
 # ---------------------------------------------------------------- lockstep runs through the graph
 @pytest.mark.slow
 def test_deck_runs_through_the_graph_equal_the_core(node_procs, ros_domain):
-    """Bridge and train nodes in two processes, preset B1: an MLM run of B1 (one span, as before),
-    then ``spans_m = 15,15`` set over the parameter service (a bad deck refused there first), then an
+    """Bridge and train nodes in two processes, preset B1: an MLM run of B1 (one span, as before) and
+    one at ``response_m = 5`` (``run_sweep``'s ``where``), then ``spans_m = 15,15`` set over the parameter service (a bad deck refused there first), then an
     MLM and a DIM run of the deck: each equals ``run_sweep`` bit for bit (maxima of acceleration and
     deflection at both speeds) and the compiled kernels to 1e-10 relative."""
     node_procs.start("bridge", "adm_sim.nodes.bridge_node", {"bridge": "B1", **STEP, **SPARSE})
@@ -231,6 +233,12 @@ def test_deck_runs_through_the_graph_equal_the_core(node_procs, ros_domain):
         ref = run_sweep(B1, ice2, "mlm", SPEEDS_KMH, options=opts)
         np.testing.assert_array_equal(r["max_acc_m_s2"], ref.max_acc_m_s2)
         np.testing.assert_array_equal(r["max_disp_m"], ref.max_disp_m)
+        # the response point of one span: run_sweep's where, bit for bit
+        d.set_params("bridge", response_m=5.0)
+        r = d.request_run(model="mlm")
+        ref = run_sweep(B1, ice2, "mlm", SPEEDS_KMH, options=opts, where=5.0)
+        np.testing.assert_array_equal(r["max_acc_m_s2"], ref.max_acc_m_s2)
+        d.set_params("bridge", response_m=0.0)
         with pytest.raises(InputError, match=r"^bridge: spans_m\[1\]: 200 m is out of range; allowed \[1, 150\] m"):
             d.set_params("bridge", spans_m="15,200")
         d.set_params("bridge", spans_m="15,15")
