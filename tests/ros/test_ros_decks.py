@@ -135,9 +135,13 @@ def test_deck_parameters_on_a_span_preset_and_the_description(bridge_b1):
     assert rec["bridge"]["spans_m"] == [15.0, 15.0] and rec["supports_m"] == [0.0, 15.0, 30.0]
     assert rec["frequencies_hz"] == deck.frequencies_hz.tolist()
     assert rec["modal_masses_kg"] == deck.modal_mass_kg.tolist()
-    # the exact modes: the modal mass of a deck of equal spans is mu L_deck / 2 for its first mode
-    # (the sine of each span, max 1), to the quadrature's round-off
+    # closed forms of two equal spans: mode 1 is each span's sine (n0 of B1, modal mass mu L_deck / 2),
+    # mode 2 each span clamped-pinned (beta L = 3.9266..., the root of tan x = tanh x), mode 3 each span's
+    # second sine (4 n0, modal mass mu L_deck / 2 again); to the bisection's and the quadrature's round-off
+    n0 = B1.n0_hz
+    assert rec["frequencies_hz"] == pytest.approx([n0, (3.926602312047919 / np.pi) ** 2 * n0, 4.0 * n0], rel=1e-12)
     assert rec["modal_masses_kg"][0] == pytest.approx(0.5 * B1.mass_per_length_kg_m * 30.0, rel=1e-12)
+    assert rec["modal_masses_kg"][2] == pytest.approx(0.5 * B1.mass_per_length_kg_m * 30.0, rel=1e-12)
     assert Bridge(**P.bridge_fields(rec["bridge"])) == deck
     # the monitor's passage: the train leaves after the last span (the deck's length, not a span's)
     from adm_sim.monitoring.modal_id import PassageTracker
@@ -309,6 +313,18 @@ def test_crossing_runs_a_deck_given_as_its_bridge(tmp_path):
         frames += 1
     assert frames >= 10
     np.testing.assert_array_equal(_apexes(out / "run.rrd"), [[0.0, 0.0], [15.0, 0.0], [30.0, 0.0]])
+
+
+def test_shipped_deck_params_file_is_the_deck(monkeypatch):
+    """ros_ws/params/crossing_deck_2x15.yaml passes the launchers' check and gives two spans of B1."""
+    monkeypatch.syspath_prepend(str(ROOT / "launch_scripts"))
+    import _supervisor
+
+    from adm_sim.nodes.params import bridge_from_params, bridge_specs
+
+    values = _supervisor.check_inputs(params_file=str(ROOT / "ros_ws" / "params" / "crossing_deck_2x15.yaml"))
+    p = {s.name: s.default for s in bridge_specs(B1)} | {k: v for k, v in values["bridge"].items() if k != "bridge"}
+    assert bridge_from_params(B1, p) == b1_deck()
 
 
 @pytest.mark.parametrize("script", ["crossing.py", "calibrate.py"])
