@@ -48,11 +48,11 @@ def monitor_steps(bridge, grid, lane, every, beam_every):
 def beam_grid_m(bridge, n_points):
     """The abscissae (m from the left abutment) of the deflected beam on the beam topic, shape (n,).
 
-    One span: ``n_points`` equal steps over ``[0, L]`` (``np.linspace``). A continuous deck: the
-    ``n_points - 1`` intervals spread over the spans by length (at least one per span, the larger
-    remainders first), each span's points equally spaced from its left support, and every support
-    one of the points (its abscissa exactly :attr:`Bridge.supports_m`): the deflection line passes
-    through the piers at zero.
+    One span: ``n_points`` points in equal steps over ``[0, L]`` (``np.linspace``). A continuous deck:
+    the ``n_points - 1`` intervals spread over the spans by length (the larger remainders first), at
+    least one per span (so a deck of more spans than intervals gets its supports alone), each span's
+    points equally spaced from its left support, and every support one of the points (its abscissa
+    exactly :attr:`Bridge.supports_m`): the deflection line passes through the piers at zero.
     """
     if not bridge.is_continuous:
         return np.linspace(0.0, bridge.span_m, int(n_points))
