@@ -24,11 +24,10 @@ from adm_sim.fields import view
 from adm_sim.files import FOLDER_LOCK, check_output_folder, claim_folder, input_file, make_output_folder, release
 from adm_sim.integrate.run_contract import check_model
 from adm_sim.integrate.step_grid import make_grid
-from adm_sim.inputs.bridges import resolve_bridge
 from adm_sim.inputs.speeds import parse_speeds
 from adm_sim.inputs.train_files import load_train
-from adm_sim.nodes.params import (DRIVER_SPECS, TRAIN_SPECS, bridge_from_params, bridge_plausibility, bridge_specs,
-                                   check_params_file, namespaced_params, param, step_options, validate_train)
+from adm_sim.nodes.params import (DRIVER_SPECS, TRAIN_SPECS, bridge_from_params, bridge_plausibility, bridge_preset,
+                                   bridge_specs, check_params_file, namespaced_params, param, step_options, validate_train)
 from adm_sim.processes.dds_env import local_ros_env
 from adm_sim.processes.dds_env import client_export_line  # noqa: F401  (used by the scripts)
 from adm_sim.processes.supervisor import NodeDied, Supervisor, ros_args  # noqa: F401  (used by the scripts)
@@ -121,13 +120,13 @@ def launch_param_specs():
     # ranges and choices (track_type, damping_model, model, dim_grid) are the specs' own, from the
     # field registry (adm_sim.fields); what is left needs more than one field
     specs = {
-        "bridge": [param("bridge", "B1", "preset")] + bridge_specs(resolve_bridge("B1")),
+        "bridge": [param("bridge", "B1", "preset")] + bridge_specs(bridge_preset("B1")),
         "train": list(TRAIN_SPECS),
         "calibration": list(DRIVER_SPECS) + list(CALIBRATION_SPECS),
         "driver": list(DRIVER_SPECS),
     }
     checks = {
-        ("bridge", "bridge"): resolve_bridge,
+        ("bridge", "bridge"): bridge_preset,
         ("train", "train"): load_train,
         ("train", "speeds_kmh"): lambda v: parse_speeds(v, ordered=False, field="speeds_kmh"),
         ("calibration", "speeds_kmh"): lambda v: check_calibration_speeds(v, "speeds_kmh"),
@@ -161,7 +160,7 @@ def check_inputs(bridge=None, train=None, speeds=None, params_file=None, model=N
     if bridge is not None:  # refused first; its warnings come once, with the preset below
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", PlausibilityWarning)
-            resolve_bridge(bridge)
+            bridge_preset(bridge)
     if train is not None:  # refused first; its warnings come once, with the train node's values below
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", PlausibilityWarning)
@@ -179,7 +178,7 @@ def check_inputs(bridge=None, train=None, speeds=None, params_file=None, model=N
         file_values = check_params_file(params_file, *launch_param_specs())
     # the bridge node: its preset, then every numeric value against it
     bv = dict(file_values.get("bridge", {}))
-    preset = resolve_bridge(bridge if bridge is not None else bv.get("bridge", "B1"))
+    preset = bridge_preset(bridge if bridge is not None else bv.get("bridge", "B1"))
     values = {s.name: s.default for s in bridge_specs(preset)}
     values.update({k: v for k, v in bv.items() if k in values})
     try:

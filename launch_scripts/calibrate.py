@@ -38,7 +38,7 @@ from adm_sim.protocol import parse_driver_line
 
 def parse_args(argv=None):
     ap = Parser(prog=Path(__file__).name, description=__doc__.split("\n\n")[0])
-    ap.add_argument("--bridge", help="bridge preset for the bridge node (B1..B4, spec or TOML file)")
+    ap.add_argument("--bridge", help="bridge preset for the bridge node (B1..B4, spec, a continuous deck spans=15/15,... or TOML file)")
     ap.add_argument("--train", help="train name or TOML file for the train node")
     ap.add_argument("--speeds", help="MLM speed range, start:stop:step (km/h)")
     add_choice(ap, "--dim-grid", "DIM speeds of the calibration node (default: the params file's, window): window = "

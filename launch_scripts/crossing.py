@@ -38,7 +38,7 @@ def main(argv=None):
     ap = Parser(prog=Path(__file__).name, description=__doc__.split("\n\n")[0])
     ap.add_argument("--params-file", default=str(PARAMS_DIR / "crossing_b3_300.yaml"),
                     help="ROS 2 params YAML applied to every node (default ros_ws/params/crossing_b3_300.yaml)")
-    ap.add_argument("--bridge", help="bridge preset for the bridge node (B1..B4, spec or TOML file)")
+    ap.add_argument("--bridge", help="bridge preset for the bridge node (B1..B4, spec, a continuous deck spans=15/15,... or TOML file)")
     ap.add_argument("--train", help="train name or TOML file for the train node")
     add_choice(ap, "--model", "dim (vehicles on the deck) or mlm (moving loads); default: the params file's")
     ap.add_argument("--speeds", help="km/h: one speed, a comma list or start:stop:step")

@@ -357,11 +357,12 @@ _FIELDS = [
        _S("cli", "--span", lo=4.0, hi=40.0), _S("cli", "--spans", lo=4.0, hi=40.0),  # the studied spans
        lo=1.0, hi=150.0),
     _F("EJ_Nm2", "N m^2", float, "bending stiffness EJ (Eq. 18 gives n0 from it)", "bridge",
-       *_toml_spec("EJ", "EJ_Nm2"), _S("ros", "EJ_Nm2", lo=1.0, hi=1.0e14), lo=0.0, lo_open=True),
+       *_toml_spec("EJ", "EJ_Nm2"), _S("ros", "EJ_Nm2", lo=1.0, hi=1.0e14),
+       _S("ros", "span_EJ_Nm2", lo=1.0, hi=1.0e14, many=True), lo=0.0, lo_open=True),
     _F("n0_hz", "Hz", float, "first natural frequency n0 (EJ from Eq. 18)", "bridge",
        *_toml_spec("n0", "n0_hz"), _S("ros", "n0_hz", special=((0.0, "from EJ_Nm2"),)), lo=0.5, hi=100.0),
     _F("mass_per_length_kg_m", "kg/m", float, "mass per length mu", "bridge",
-       *_toml_spec("mu", "mu_kg_m", "mass_per_length_kg_m"), _S("ros", "mu_kg_m"),
+       *_toml_spec("mu", "mu_kg_m", "mass_per_length_kg_m"), _S("ros", "mu_kg_m"), _S("ros", "span_mu_kg_m", many=True),
        _S("cli", "--mu", lo=500.0, hi=100_000.0),  # recommend: the 0.5-100 t/m of the lower-bound rules
        lo=100.0, hi=1.0e6),
     _F("damping_ratio", "- (fraction)", float, "structural damping zeta", "bridge",
@@ -371,7 +372,7 @@ _FIELDS = [
     _F("n_modes", "-", int, "retained modes (paper: 3, Section 2.3)", "bridge",
        *_toml_spec("n_modes"), _S("ros", "n_modes"), _S("cli", "--modes"), lo=1, hi=20),
     _F("deck_spans_m", "m", str, "spans of a continuous deck, left to right (TOML list; spec 12/16/12); each span",
-       "bridge", *_toml_spec("spans"), _S("cli", "--deck-spans"), lo=1.0, hi=150.0),
+       "bridge", *_toml_spec("spans"), _S("cli", "--deck-spans"), _S("ros", "spans_m", many=True), lo=1.0, hi=150.0),
     _F("n_spans", "spans", int, "spans of a continuous deck, pinned over the intermediate supports", "bridge",
        _S("count", "spans"), _S("cli", "--spans-layout"), lo=1, hi=6),
     _F("deck_n_modes", "-", int, "retained modes of a continuous deck (default: every mode up to 30 Hz, 1.5 n0 "
@@ -423,6 +424,9 @@ _FIELDS = [
     _F("track_maintenance", "", str, "EN 1991-2 6.4.5.2 track maintenance of the LM71 dynamic factor: careful "
        "(Phi2) or standard (Phi3)", "run", _S("cli", "--track-maintenance")),
     _F("alpha", "-", str, "LM71 classification factor alpha, one of EN 1991-2 6.3.2(3)", "run", _S("cli", "--alpha")),
+    _F("response_m", "m", float, "where the bridge node takes its midspan topics and a run's maxima, from the left "
+       "abutment (0 < x < L, the deck's length)", "run", _S("ros", "response_m", special=((0.0, "midspan"),)),
+       lo=0.001, hi=900.0),
     _F("where", "", str, "where the acceleration is taken: deck, midspan or x=<m> with 0 < x < L", "run",
        _S("cli", "--where")),
     _F("scheduler", "", str, "address of a running dask scheduler on this machine (tcp://127.0.0.1:PORT)", "run",

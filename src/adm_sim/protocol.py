@@ -363,14 +363,29 @@ def progress_record(run_id, model, step, n_steps, sim_time_s, samples=None):
 
 
 def bridge_description_record(bridge, description, n0_hz, step, delta_zeta, delta_zeta_lanes, track_type,
-                              acc_limit_m_s2):
+                              acc_limit_m_s2, supports_m=(), frequencies_hz=(), modal_masses_kg=(), response_m=0.0,
+                              midspan_m=None):
     """``/adm/bridge/description`` (latched): ``bridge`` the exact fields of :class:`adm_sim.model.bridge.Bridge`
-    (``Bridge(**record["bridge"])`` rebuilds it), ``description`` its one-line text, ``n0_hz``, ``step``
-    the step settings (``steps_per_period, free_vibration_periods, ds_m``), the Δζ parameters
-    (fraction; ``delta_zeta_lanes`` a comma list), the track type and its limit (m/s²)."""
-    return {"bridge": bridge, "description": description, "n0_hz": n0_hz, "step": step,
+    (:func:`bridge_fields` of it rebuilds it: ``Bridge(**bridge_fields(record["bridge"]))``; a continuous
+    deck's ``spans_m``, ``span_EJ_Nm2``, ``span_mu_kg_m`` are lists, empty for one span), ``description``
+    its one-line text, ``n0_hz``, the support abscissae ``supports_m`` (m from the left abutment, both
+    abutments and every pier), the natural frequencies ``frequencies_hz`` and modal masses
+    ``modal_masses_kg`` of the retained modes, the bridge node's ``response_m`` (where the midspan topics
+    and a run's maxima are taken, m from the left abutment; 0: at ``midspan_m``, the middle of one span
+    or of a deck's longest span), ``step`` the step settings (``steps_per_period,
+    free_vibration_periods, ds_m``), the Δζ parameters (fraction; ``delta_zeta_lanes`` a comma
+    list), the track type and its limit (m/s²)."""
+    return {"bridge": bridge, "description": description, "n0_hz": n0_hz, "supports_m": _list(supports_m),
+            "frequencies_hz": _list(frequencies_hz), "modal_masses_kg": _list(modal_masses_kg),
+            "response_m": response_m, "midspan_m": midspan_m, "step": step,
             "delta_zeta": delta_zeta, "delta_zeta_lanes": delta_zeta_lanes, "track_type": track_type,
             "acc_limit_m_s2": acc_limit_m_s2}
+
+
+def bridge_fields(bridge):
+    """The keyword arguments of ``Bridge`` from the ``bridge`` of a bridge description record (its
+    per-span lists as tuples, as the frozen dataclass holds them)."""
+    return {k: tuple(v) if isinstance(v, list) else v for k, v in bridge.items()}
 
 
 def train_description_record(train, name, description, length_m, n_axles, model, speeds_kmh):
@@ -539,6 +554,7 @@ def is_entity(path: str) -> bool:
 
 __all__ = [n for n in dir() if n.isupper() or n in (
     "relative", "check_namespace", "ack_record", "AckCounter", "summary_values", "summary_from_values", "encode", "decode", "setup_record", "ready_record", "ready_error", "is_rejected", "status_record",
-    "is_failure", "is_bridge_start", "progress_record", "bridge_description_record", "train_description_record",
+    "is_failure", "is_bridge_start", "progress_record", "bridge_description_record", "bridge_fields",
+    "train_description_record",
     "driver_line", "parse_driver_line", "request_record", "is_request", "plain_run_phase", "run_tag", "acceleration_path",
     "beam_path", "sweep_curve_path", "sweep_trial_path", "delta_zeta_path", "peak_path", "is_entity")]

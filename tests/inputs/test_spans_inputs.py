@@ -171,16 +171,17 @@ def test_exact_method_refused_on_a_deck(call_main, tmp_path):
 
 
 def test_entries_not_wired_refuse_a_deck():
-    """The ROS graph (bridge node, launch scripts) takes one simply supported span: its reader refuses a
-    deck in one line naming the entries that take continuous decks (adm-sim check takes decks:
-    tests/design/test_check_deck.py; adm-calib calibrate: tests/calib/test_calib_decks.py)."""
+    """A caller that takes one simply supported span (``resolve_bridge``'s default) refuses a deck in
+    one line naming the entries that take continuous decks: every entry that reads a bridge (adm-sim
+    check: tests/design/test_check_deck.py; adm-calib calibrate: tests/calib/test_calib_decks.py; the
+    ROS graph: tests/ros/test_ros_decks.py)."""
     deck = "spans=15/15,EJ=2e10,mu=15000,zeta_pct=1.5"
     with pytest.raises(InputError) as exc:
         resolve_bridge(deck)
     assert str(exc.value) == (
         f"bridge: '{deck}' is a continuous deck of 2 spans; this entry takes one simply supported span "
-        f"(allowed: L=..., B1..B4; continuous decks: adm-sim sweep (RK4), adm-sim check, adm-calib calibrate and "
-        f"adm-calib study --spans-layout)")
+        f"(allowed: L=..., B1..B4; continuous decks: adm-sim sweep (RK4), adm-sim check, adm-calib calibrate, "
+        f"adm-calib study --spans-layout and the ROS graph (the bridge node, crossing.py, calibrate.py))")
     assert resolve_bridge(deck, continuous=True).spans_m == (15.0, 15.0)
 
 

@@ -21,7 +21,8 @@ SCRIPTS = ROOT / "launch_scripts"
     ("bridge:\n  ros__parameters:\n    span: 20.0\n",
      "bridge.ros__parameters.span: unknown parameter; allowed EJ_Nm2, beam_every_steps, beam_points, bridge, "
      "damping_model, delta_zeta, delta_zeta_lanes, ds_m, free_vibration_periods, monitor_every_steps, "
-     "monitor_speed_kmh, mu_kg_m, n0_hz, n_modes, partner_timeout_s, span_m, start_type_description_service, "
+     "monitor_speed_kmh, mu_kg_m, n0_hz, n_modes, partner_timeout_s, response_m, span_EJ_Nm2, span_m, span_mu_kg_m, "
+     "spans_m, start_type_description_service, "
      "steps_per_period, track_type, use_sim_time, warn_fraction, zeta_pct"),
     ("bridge:\n  ros__parameters:\n    span_m: -5.0\n",
      "bridge: span_m: -5 m is out of range; allowed [1, 150] m"),

@@ -31,6 +31,7 @@ from std_msgs.msg import Float64MultiArray, String
 
 from adm_calib import peaks as pk
 from adm_calib.calibrate import CalibrationOptions, calibrate, calibration_step
+from adm_calib.lanes import response_points_m
 from adm_sim import protocol as P
 from adm_sim.model.bridge import Bridge
 from adm_sim.nodes import common as c
@@ -84,7 +85,11 @@ class CalibrationNode(RunDriver):
             ratio=mlm_peak / dim_peak, phase=self.last_phase)
 
     def _hook(self, model, speeds, dz, step, phase):
-        """``calibrate``'s sweep hook: one co-simulated run on the calibration's space step.
+        """``calibrate``'s sweep hook: one co-simulated run on the calibration's space step per
+        governing point (:func:`adm_calib.lanes.response_points_m`: midspan of one span, the middle of
+        every span of a continuous deck, each set as the bridge's ``response_m``), the largest
+        maxima of them, as the in-process lanes take them; the DIM's contact check is the first run's
+        (the forces do not depend on the point).
 
         ``phase`` comes with the lanes from the calibration (:mod:`adm_calib.lanes`) and names the run.
         """
@@ -92,7 +97,16 @@ class CalibrationNode(RunDriver):
             self.set_params(P.BRIDGE_NODE, ds_m=step.ds_m, delta_zeta=0.0, delta_zeta_lanes="")
             self._ds_m = step.ds_m
         run_phase = P.CALIBRATION_PHASES[phase]
-        res = self.sweep(model, speeds, dz, phase=run_phase)
+        res = None
+        for x in self._points:
+            if self._response != x:
+                self.set_params(P.BRIDGE_NODE, response_m=x)
+                self._response = x
+            r = self.sweep(model, speeds, dz, phase=run_phase)
+            if res is None:
+                res = r
+            else:
+                res["max_acc_m_s2"] = np.maximum(res["max_acc_m_s2"], r["max_acc_m_s2"])
         if run_phase == P.PHASE_MLM_ZETA and self._auto_monitor:
             self._monitor_peak(speeds, res["max_acc_m_s2"])
         return res
@@ -119,7 +133,7 @@ class CalibrationNode(RunDriver):
         self.wait_for_graph()
         bd = self.description(P.BRIDGE_NODE)
         td = self.description(P.TRAIN_NODE)
-        bridge = Bridge(**bd["bridge"])
+        bridge = Bridge(**P.bridge_fields(bd["bridge"]))
         train = load_train(td["train"])
         st = bd["step"]
         base = StepOptions(steps_per_period=st["steps_per_period"], free_vibration_periods=st["free_vibration_periods"],
@@ -128,12 +142,18 @@ class CalibrationNode(RunDriver):
         opt = CalibrationOptions(dim_grid=p["dim_grid"], step=base)
         v = parse_speeds(p["speeds_kmh"], field="speeds_kmh")
         self._n_speeds, self._ds_m = v.size, None
+        # the governing points (0 = midspan of one span); the bridge's response_m as it is until set
+        self._points = [0.0 if x is None else x for x in response_points_m(bridge)]
+        self._response = bd.get("response_m")
         self._auto_monitor = self._user_monitor_speed() <= 0.0
         say("calibration", bridge=bridge.describe(), train=train.name, speeds=len(v),
             ds_m=calibration_step(bridge, train, v, opt).ds_m)
         res = calibrate(bridge, train, v, options=opt, sweep=self._hook, on_trial=self._iteration)
         self._publish_result(res)
         summary = res.to_dict(curves=True)
+        # the bridge the graph ran: its spans (a continuous deck), supports, frequencies and modal masses
+        summary.update({k: bd.get(k) for k in ("supports_m", "frequencies_hz", "modal_masses_kg")},
+                       spans_m=list(bridge.spans_m))
         summary["co_simulation"] = {"runs": self.n_runs, "delta_zeta_trials": self.iteration,
                                     "incomplete_runs": self.incomplete}
         return summary

@@ -42,7 +42,8 @@ SPAN_SEPARATOR = "/"
 #: Keys whose value is text (every other key is a number).
 _TEXT_KEYS = ("type", "bridge_type", "class", "damping_model", "name")
 #: Where a continuous deck is taken today (the refusal of every other entry names it).
-CONTINUOUS_WIRED = "adm-sim sweep (RK4), adm-sim check, adm-calib calibrate and adm-calib study --spans-layout"
+CONTINUOUS_WIRED = ("adm-sim sweep (RK4), adm-sim check, adm-calib calibrate, adm-calib study --spans-layout and the "
+                    "ROS graph (the bridge node, crossing.py, calibrate.py)")
 
 
 class _Given:

@@ -42,14 +42,13 @@ from adm_sim.integrate.rk4_sides import BridgeSide
 from adm_sim.integrate.run_contract import FAILED, FINISHED, RUNNING
 from adm_sim.integrate.step_grid import Grid, make_grid
 from adm_sim.limits import ACC_LIMITS_M_S2, TRACK_TYPES
-from adm_sim.inputs.bridges import resolve_bridge
 from adm_sim.model.bridge import Bridge
 from adm_sim.model.plausibility import response_warnings
 from adm_sim.nodes import common as c
 from adm_sim.nodes.bridge_outputs import BridgePublishers, MonitoringOutput, frame_id, monitor_steps
 from adm_sim.nodes.flow_control import PAUSE_END, PAUSE_STEP, FlowControl
-from adm_sim.nodes.params import (MONITOR_SAMPLES_PER_PERIOD, bridge_from_params, bridge_plausibility, bridge_specs,
-                                   step_options)
+from adm_sim.nodes.params import (MONITOR_SAMPLES_PER_PERIOD, bridge_from_params, bridge_plausibility,
+                                   bridge_preset, bridge_specs, step_options)
 
 __all__ = ["TRACK_TYPES", "MONITOR_SAMPLES_PER_PERIOD", "monitor_steps", "frame_id", "bridge_specs", "BridgeNode",
            "BridgeRunState", "main"]
@@ -92,9 +91,10 @@ class BridgeNode(c.LockstepNode):
         super().__init__(P.BRIDGE_NODE, **kw)
 
         self.declare_parameter("bridge", "B1", ParameterDescriptor(
-            description="preset (B1..B4, spec 'L=15,n0=8.26,mu=19042,zeta_pct=1.85' or TOML file) giving the "
-                        "defaults of the numeric parameters", read_only=True))
-        self.preset = resolve_bridge(self.get_parameter("bridge").value)
+            description="preset (B1..B4, spec 'L=15,n0=8.26,mu=19042,zeta_pct=1.85' or "
+                        "'spans=15/15,EJ=2.7e10,mu=19042,zeta_pct=1.5', or TOML file) giving the defaults of the "
+                        "numeric parameters (a continuous deck: spans_m, span_EJ_Nm2, span_mu_kg_m)", read_only=True))
+        self.preset = bridge_preset(self.get_parameter("bridge").value)
         specs = bridge_specs(self.preset)
         self._preset_defaults = {s.name: s.default for s in specs}
         self.bridge = self.declare_run_parameters(specs)  # validates the startup values
@@ -148,8 +148,11 @@ class BridgeNode(c.LockstepNode):
         self.pub_desc.publish(c.json_msg(P.bridge_description_record(
             bridge={"span_m": b.span_m, "EJ_Nm2": b.EJ_Nm2, "mass_per_length_kg_m": b.mass_per_length_kg_m,
                     "damping_ratio": b.damping_ratio, "n_modes": b.n_modes, "damping_model": b.damping_model,
-                    "name": b.name, "bridge_type": b.bridge_type},
-            description=b.describe(), n0_hz=b.n0_hz,
+                    "name": b.name, "bridge_type": b.bridge_type, "spans_m": list(b.spans_m),
+                    "span_EJ_Nm2": list(b.span_EJ_Nm2), "span_mu_kg_m": list(b.span_mu_kg_m)},
+            description=b.describe(), n0_hz=b.n0_hz, supports_m=b.supports_m.tolist(),
+            frequencies_hz=b.frequencies_hz.tolist(), modal_masses_kg=b.modal_mass_kg.tolist(),
+            response_m=p["response_m"], midspan_m=b.midspan_m,
             step={"steps_per_period": p["steps_per_period"], "free_vibration_periods": p["free_vibration_periods"],
                   "ds_m": p["ds_m"]},
             delta_zeta=p["delta_zeta"], delta_zeta_lanes=p["delta_zeta_lanes"],
@@ -189,7 +192,8 @@ class BridgeNode(c.LockstepNode):
         dz = lanes if lanes.size else p["delta_zeta"]
         dim = cfg["model"] == "dim"
         side = BridgeSide(bridge, grid, np.asarray(cfg["axle_offsets_m"], dtype=float),
-                          np.asarray(cfg["wheel_mass_kg"], dtype=float) if dim else None, dz)
+                          np.asarray(cfg["wheel_mass_kg"], dtype=float) if dim else None, dz,
+                          response_m=p["response_m"] or None)
         half = BridgeHalf(cfg["model"], grid, side)
         phase = cfg.get("phase") or P.plain_run_phase(cfg["model"], p["delta_zeta"], p["delta_zeta_lanes"])
         r = BridgeRunState(

@@ -45,6 +45,28 @@ def monitor_steps(bridge, grid, lane, every, beam_every):
     return int(every), int(beam_every)
 
 
+def beam_grid_m(bridge, n_points):
+    """The abscissae (m from the left abutment) of the deflected beam on the beam topic, shape (n,).
+
+    One span: ``n_points`` points in equal steps over ``[0, L]`` (``np.linspace``). A continuous deck:
+    the ``n_points - 1`` intervals spread over the spans by length (the larger remainders first), at
+    least one per span (so a deck of more spans than intervals gets its supports alone), each span's
+    points equally spaced from its left support, and every support one of the points (its abscissa
+    exactly :attr:`Bridge.supports_m`): the deflection line passes through the piers at zero.
+    """
+    if not bridge.is_continuous:
+        return np.linspace(0.0, bridge.span_m, int(n_points))
+    spans, sup = np.asarray(bridge.spans_m, dtype=float), bridge.supports_m
+    share = (int(n_points) - 1) * spans / spans.sum()
+    parts = np.maximum(1, np.floor(share).astype(int))
+    for i in np.argsort(-(share - np.floor(share)), kind="stable"):
+        if parts.sum() >= int(n_points) - 1:
+            break
+        parts[i] += 1
+    xs = [sup[i] + spans[i] * np.arange(k) / k for i, k in enumerate(parts)]
+    return np.concatenate(xs + [sup[-1:]])
+
+
 def frame_id(bridge, namespace="/"):
     """Frame id of a bridge's midspan: ``<namespace>/<bridge>/midspan`` without the leading ``/``
     (``b3/B1/midspan`` for the node ``/b3/bridge``; ``B1/midspan`` in the root namespace), the
@@ -111,7 +133,7 @@ class MonitoringOutput:
         self.frame = frame_id(bridge, namespace)
         self.v_mon = float(grid.speeds_m_s[self.lane])  #: the monitored lane's speed (m/s): sim time runs in its time
         self.t0 = t0_s
-        self.x_beam = np.linspace(0.0, bridge.span_m, int(p["beam_points"]))
+        self.x_beam = beam_grid_m(bridge, int(p["beam_points"]))
         self.phi_beam = bridge.shapes(self.x_beam)[0]
         self.track = p["track_type"]
         self.limit = ACC_LIMITS_M_S2[self.track]  #: EN 1990 A2.4.4.2.1 limit (m/s^2)

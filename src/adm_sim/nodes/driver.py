@@ -501,7 +501,9 @@ class RunDriver(c.NodeBase):
         r = self.request_run()
         bd = self.description("bridge")
         summary = {"run_id": r["run_id"], "model": r["model"], "bridge": bd["description"],
-                   "span_m": bd["bridge"]["span_m"],
+                   "span_m": bd["bridge"]["span_m"], "spans_m": bd["bridge"].get("spans_m", []),
+                   "supports_m": bd.get("supports_m"), "frequencies_hz": bd.get("frequencies_hz"),
+                   "modal_masses_kg": bd.get("modal_masses_kg"),
                    "train": self.description("train")["name"], "speeds_kmh": r["speeds_kmh"].tolist(),
                    "max_acc_m_s2": r["max_acc_m_s2"].tolist(), "max_disp_m": r["max_disp_m"].tolist(),
                    "wall_s": r["wall_s"], "phase": r["phase"], "samples": self.rec.recorded.get(r["run_id"]),

@@ -23,14 +23,16 @@ import yaml
 
 from adm_sim import fields
 from adm_sim import protocol as P
-from adm_sim.model.bridge import Bridge
+from adm_sim.model.bridge import N0_RANGE_HZ, Bridge
 from adm_sim.errors import InputError, PlausibilityWarning
 from adm_sim.files import read_text, refuse_special
 from adm_sim.fields import check_delta_zeta, check_range, view
 from adm_sim.limits import ACC_LIMITS_M_S2, DEFAULT_SPEEDS, check_track_type
 from adm_sim.model.plausibility import check_bridge
+from adm_sim.model.spans import RULE_TEXT, deck_modes, rule_mode_count
 from adm_sim.integrate.run_contract import check_model
 from adm_sim.integrate.step_grid import StepOptions
+from adm_sim.inputs.bridges import resolve_bridge
 from adm_sim.inputs.speeds import parse_speeds
 from adm_sim.inputs.train_files import load_train
 
@@ -250,17 +252,48 @@ def step_options(p):
                        ds_m=p["ds_m"] if p["ds_m"] > 0.0 else None)
 
 
+def bridge_preset(text):
+    """The bridge node's preset of parameter ``bridge`` (:func:`adm_sim.inputs.bridges.resolve_bridge`: a
+    Table 3 name, a spec or a TOML file, a continuous deck included); raises :class:`InputError`
+    (one line) for what it refuses and for a deck of more modes than the node's ``n_modes`` takes."""
+    preset = resolve_bridge(text, continuous=True)
+    n = fields.view("ros", "n_modes")
+    if preset.n_modes > n.hi:
+        raise InputError(f"bridge: {text!r} keeps {preset.n_modes} modes; the bridge node takes n_modes in "
+                         f"[{n.lo}, {n.hi}] (give n_modes={n.hi} or fewer in the bridge; the rule: {RULE_TEXT})",
+                         field="bridge")
+    return preset
+
+
 def bridge_specs(preset):
     """Parameter specs of the bridge node; numeric defaults from the preset bridge."""
     S = param
+
+    def per_span(values):
+        return format_float_list(values) if preset.is_continuous else ""
+
     return [
-        S("span_m", float(preset.span_m)),
-        S("EJ_Nm2", float(preset.EJ_Nm2), "bending stiffness EJ (used when n0_hz is 0)"),
-        S("n0_hz", 0.0, "first natural frequency n0; 0 = from EJ_Nm2, else EJ from Eq. (18)"),
-        S("mu_kg_m", float(preset.mass_per_length_kg_m)),
+        S("span_m", float(max(preset.spans_m) if preset.is_continuous else preset.span_m),
+          "span L of one simply supported span (spans_m empty; a deck preset: its longest span)"),
+        S("spans_m", per_span(preset.spans_m), "spans of a continuous deck, left to right, comma list of 2 to "
+          f"{fields.FIELDS['n_spans'].hi} spans (one value: the simply supported span of that length); empty = one "
+          "span of span_m"),
+        S("EJ_Nm2", float(preset.EJ_Nm2), "bending stiffness EJ (used when n0_hz is 0; a deck: of every span "
+          "when span_EJ_Nm2 is empty)"),
+        S("span_EJ_Nm2", per_span(preset.span_EJ_Nm2), "EJ of each span of the deck (spans_m), one value or one per "
+          "span (used when n0_hz is 0); empty = EJ_Nm2"),
+        S("n0_hz", 0.0, "first natural frequency n0; 0 = from EJ_Nm2, else EJ from Eq. (18) (a deck: one EJ for "
+          "every span that gives the deck's first frequency n0)"),
+        S("mu_kg_m", float(preset.mass_per_length_kg_m), "mass per length mu (a deck: of every span when "
+          "span_mu_kg_m is empty)"),
+        S("span_mu_kg_m", per_span(preset.span_mu_kg_m), "mu of each span of the deck (spans_m), one value or one "
+          "per span; empty = mu_kg_m"),
         S("zeta_pct", view("ros", "zeta_pct").from_core(preset.damping_ratio)),
-        S("n_modes", int(preset.n_modes)),
+        S("n_modes", int(preset.n_modes), "retained modes (paper: 3, Section 2.3; a continuous deck: fewer than "
+          "its rule asks for gives a warning)"),
         S("damping_model", preset.damping_model, "rayleigh (modes 1 and 3) | modal"),
+        S("response_m", 0.0, "where the midspan topics and the run's maxima are taken, from the left abutment; "
+          "0 = midspan (one span: L/2; a continuous deck: the middle of its longest span, the first of equal ones)"),
         S("delta_zeta", 0.0, "additional damping for every lane (fraction; zeta + delta_zeta >= 0)"),
         S("delta_zeta_lanes", "",
           "per-lane additional damping, comma list with one value per speed lane; empty = delta_zeta"),
@@ -276,7 +309,8 @@ def bridge_specs(preset):
           f"{MONITOR_SAMPLES_PER_PERIOD} samples per period of the highest mode at the monitored speed"),
         S("beam_every_steps", 0, f"decimation of {P.TOPIC_CLOCK}, {P.BEAM_NS}/* and {P.TOPIC_STATE} (every "
           "lane); 0 = auto: 4 x the monitoring step"),
-        S("beam_points", 21, f"points along the span on {P.TOPIC_BEAM}"),
+        S("beam_points", 21, f"points along the deck on {P.TOPIC_BEAM} (a continuous deck: spread over the spans by "
+          "length, every support one of them)"),
         S("partner_timeout_s", 5.0, "error when the train node sends nothing for this long during a run"),
     ]
 
@@ -291,25 +325,115 @@ def bridge_from_params(preset, p, defaults=None):
     """
     specs = {s.name: s for s in bridge_specs(preset)}
     d = {n: s.default for n, s in specs.items()} if defaults is None else defaults
-    kw = {}
-    for name in ("span_m", "mu_kg_m", "zeta_pct", "n_modes"):
-        if p[name] != d[name]:
-            view = specs[name].view
-            kw[view.field.name] = view.to_core(view.check(p[name], name=name))
-    if p["EJ_Nm2"] != d["EJ_Nm2"]:  # the core's range (> 0); the parameter's is narrower
-        kw["EJ_Nm2"] = specs["EJ_Nm2"].view.field.check(p["EJ_Nm2"], name="EJ_Nm2")
-    kw["damping_model"] = specs["damping_model"].view.check(p["damping_model"])
-    b = dataclasses.replace(preset, **kw)
-    if p["n0_hz"] != 0.0:
-        n0 = specs["n0_hz"].view.field.check(p["n0_hz"], name="n0_hz")
-        b = Bridge.from_frequency(b.span_m, n0, b.mass_per_length_kg_m, b.damping_ratio, n_modes=b.n_modes,
-                                  damping_model=b.damping_model, name=b.name, bridge_type=b.bridge_type)
+    spans = _span_list(p, "spans_m")
+    if spans:
+        b = _deck_from_params(preset, p, d, specs, spans)
+    else:
+        for name in ("span_EJ_Nm2", "span_mu_kg_m"):
+            if str(p[name]).strip():
+                raise InputError(f"{name}: {p[name]!r} gives one value per span; per-span values need spans_m "
+                                 f"(m), the spans of a continuous deck")
+        b = _span_from_params(preset, p, d, specs)
+    x = p["response_m"]
+    if x != 0.0:
+        specs["response_m"].check(x)
+        if not 0.0 < x < b.span_m:
+            raise InputError(f"response_m: {x:g} m is off the deck; allowed 0 (midspan) or 0 < x < {b.span_m:g} m "
+                             f"(the deck's length)")
     check_delta_zeta("delta_zeta", p["delta_zeta"], b.damping_ratio)
     for x in parse_float_list("delta_zeta_lanes", p["delta_zeta_lanes"], "- (fraction)"):
         check_delta_zeta("delta_zeta_lanes", x, b.damping_ratio)
     check_track_type("track_type", p["track_type"])
     step_options(p)
     return b
+
+
+def _span_from_params(preset, p, d, specs):
+    """One simply supported span: ``preset`` (its one span, or a deck's length and mean EJ and mu
+    when ``spans_m`` was emptied) with the changed fields."""
+    base = dataclasses.replace(preset, spans_m=(), span_EJ_Nm2=(), span_mu_kg_m=()) if preset.is_continuous \
+        else preset
+    kw = {}
+    for name in ("span_m", "mu_kg_m", "zeta_pct"):
+        if p[name] != d[name] or (name == "span_m" and preset.is_continuous):
+            view = specs[name].view
+            kw[view.field.name] = view.to_core(view.check(p[name], name=name))
+    if p["n_modes"] != d["n_modes"] or preset.is_continuous:  # one span: the registry's n_modes range
+        kw["n_modes"] = fields.FIELDS["n_modes"].check(p["n_modes"], name="n_modes")
+    if p["EJ_Nm2"] != d["EJ_Nm2"]:  # the core's range (> 0); the parameter's is narrower
+        kw["EJ_Nm2"] = specs["EJ_Nm2"].view.field.check(p["EJ_Nm2"], name="EJ_Nm2")
+    kw["damping_model"] = specs["damping_model"].view.check(p["damping_model"])
+    b = dataclasses.replace(base, **kw)
+    if p["n0_hz"] != 0.0:
+        n0 = specs["n0_hz"].view.field.check(p["n0_hz"], name="n0_hz")
+        b = Bridge.from_frequency(b.span_m, n0, b.mass_per_length_kg_m, b.damping_ratio, n_modes=b.n_modes,
+                                  damping_model=b.damping_model, name=b.name, bridge_type=b.bridge_type)
+    return b
+
+
+def _span_list(p, name):
+    """The comma list of parameter ``name`` as text items (empty: none)."""
+    return [x.strip() for x in str(p[name]).split(",") if x.strip()]
+
+
+def _per_span_values(p, name, scalar, n, specs, d):
+    """One value per span of ``name`` (``span_EJ_Nm2``, ``span_mu_kg_m``): its list (one value or one
+    per span, each in the parameter's range) or, when empty, the scalar parameter ``scalar`` for every
+    span; a changed scalar beside a list is refused (the same quantity given twice)."""
+    items = _span_list(p, name)
+    if not items:
+        v = specs[scalar].view
+        x = v.field.check(p[scalar], name=scalar) if scalar == "EJ_Nm2" else v.check(p[scalar], name=scalar)
+        return [float(x)] * n
+    if p[scalar] != d[scalar]:
+        raise InputError(f"{scalar}: {p[scalar]!r} {specs[scalar].unit} and {name} = {p[name]!r} both give the "
+                         f"{specs[scalar].view.field.doc} "
+                         f"of the deck; give {scalar} for every span or {name} per span (the other as its default)")
+    if len(items) not in (1, n):
+        raise InputError(f"{name}: {p[name]!r} gives {len(items)} values for {n} spans; allowed one value or one "
+                         f"per span ({specs[name].unit})")
+    v = specs[name].view
+    out = [float(v.check(x, name=name if len(items) == 1 else f"{name}[{i}]")) for i, x in enumerate(items)]
+    return out * n if len(out) == 1 else out
+
+
+def _deck_from_params(preset, p, d, specs, items):
+    """The continuous deck of ``spans_m`` (``items``, its comma list as text; :meth:`Bridge.continuous`);
+    one span in ``spans_m``: the simply supported span of that length (as ``spans = [15]`` in a
+    bridge file). Every refusal names the parameter, the value, the unit and the range."""
+    fspans, fcount = fields.FIELDS["deck_spans_m"], fields.FIELDS["n_spans"]
+    if not fcount.lo <= len(items) <= fcount.hi:
+        raise InputError(f"spans_m: {p['spans_m']!r} gives {len(items)} spans; allowed {fcount.lo}..{fcount.hi} "
+                         f"spans, each in [{fspans.lo:g}, {fspans.hi:g}] m")
+    spans = [check_range(f"spans_m[{i}]" if len(items) > 1 else "spans_m", x, "m", fspans.lo, fspans.hi)
+             for i, x in enumerate(items)]
+    if p["span_m"] != d["span_m"]:
+        raise InputError(f"span_m: {p['span_m']!r} m and spans_m = {p['spans_m']!r} both give the length; give "
+                         f"span_m for one span (spans_m empty) or spans_m for a continuous deck")
+    n = len(spans)
+    mu = _per_span_values(p, "span_mu_kg_m", "mu_kg_m", n, specs, d)
+    zv = specs["zeta_pct"].view
+    zeta = zv.to_core(zv.check(p["zeta_pct"], name="zeta_pct")) if p["zeta_pct"] != d["zeta_pct"] \
+        else preset.damping_ratio
+    damping_model = specs["damping_model"].view.check(p["damping_model"])
+    kw = dict(damping_model=damping_model, name=preset.name, bridge_type=preset.bridge_type)
+    if p["n0_hz"] != 0.0:  # one EJ for every span: omega grows as sqrt(EJ)
+        n0 = specs["n0_hz"].view.field.check(p["n0_hz"], name="n0_hz")
+        f1 = float(deck_modes(spans, [1.0] * n, mu, 1).frequencies_hz[0])
+        EJ = [(n0 / f1) ** 2] * n
+    else:
+        EJ = _per_span_values(p, "span_EJ_Nm2", "EJ_Nm2", n, specs, d)
+    if n == 1:
+        n_modes = fields.FIELDS["n_modes"].check(p["n_modes"], name="n_modes")
+        return Bridge(span_m=spans[0], EJ_Nm2=EJ[0], mass_per_length_kg_m=mu[0], damping_ratio=zeta,
+                      n_modes=n_modes, **kw)
+    n_modes = specs["n_modes"].view.check(p["n_modes"], name="n_modes")  # the node's range, decks too
+    f1 = float(deck_modes(spans, EJ, mu, 1).frequencies_hz[0])
+    lo, hi = N0_RANGE_HZ
+    if not lo <= f1 <= hi:
+        raise InputError(f"spans_m: the deck's first frequency is {f1:.4g} Hz with spans_m = {p['spans_m']!r}; "
+                         f"allowed n0 in [{lo:g}, {hi:g}] Hz (check span_EJ_Nm2 / EJ_Nm2 and span_mu_kg_m / mu_kg_m)")
+    return Bridge.continuous(spans, EJ, mu, zeta, n_modes=n_modes, **kw)
 
 
 #: How the bridge node's parameters name the quantities of the plausibility table.
@@ -334,7 +458,13 @@ def bridge_plausibility(preset, p, defaults=None):
             labels["n0"] = "n0 (from EJ_Nm2 and mu_kg_m)"
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", PlausibilityWarning)
-            check_bridge(b, "bridge", zeta_pct_given=float(values["zeta_pct"]), labels=labels)
+            if b.is_continuous:  # as a bridge file's deck: the mode count against the rule
+                need = rule_mode_count(b.spans_m, b.span_EJ_Nm2, b.span_mu_kg_m)
+                if b.n_modes < need:
+                    warnings.warn(f"n_modes: {b.n_modes} modes is fewer than the {need} that the rule asks for on "
+                                  f"this deck ({RULE_TEXT})", PlausibilityWarning, stacklevel=2)
+            else:
+                check_bridge(b, "bridge", zeta_pct_given=float(values["zeta_pct"]), labels=labels)
         return [str(w.message) for w in caught if issubclass(w.category, PlausibilityWarning)]
 
     preset_said = set(said({**p, **d}))
