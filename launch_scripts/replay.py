@@ -54,17 +54,19 @@ import threading
 import time
 from pathlib import Path
 
+from mcap.reader import make_reader
+
 from adm_sim import protocol as P
 from adm_sim.cliutil import Parser, add_domain_id, add_overwrite, option_help, run_cli
 from adm_sim.errors import InputError, RunError
 from adm_sim.fields import view
 from adm_sim.files import claim_output, mcap_input, write_atomic
 from adm_sim.processes.dds_env import apply_local_ros_env, check_domain_id, clean_dead_shm, client_export_line, record_shm
-from adm_sim.recording import rerun_log as rl
 from adm_sim.recording import viewer_process as vp
-from adm_sim.recording.viewer_feed import RunPhases, ViewerFeed, stamp_ns
+from adm_sim.recording.mcap_qos import parse_qos_profiles, topic_qos
+from adm_sim.recording.mcap_read import checked_scan, decode_messages, sorted_messages
+from adm_sim.recording.mcap_salvage import salvage
 from adm_sim.recording.viewer_process import ensure_analytics_disabled, rerun_cli, rerun_cli_env
-from adm_sim.recording.mcap_log import checked_scan, decode_messages, parse_qos_profiles, salvage, sorted_messages, topic_qos
 
 
 def check_args(args):
@@ -208,11 +210,19 @@ def show_in_rerun(args, found, save_path=None) -> dict[str, int]:
 
 
 def _feed_all(args, found, save_path, beat) -> dict[str, int]:
+    """Log the recording into rerun through the live driver's feed; ``beat``: ``[time of the last
+    progress, the feed]`` for :func:`show_in_rerun`'s watch."""
+    import rerun as rr  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
+
+    from adm_sim.recording import rerun_log as rl  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
+    from adm_sim.recording.viewer_feed import RunPhases, ViewerFeed, stamp_ns  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
 
     rl.init_rerun("adm_sim_replay", spawn=args.spawn, connect_url=args.connect, save_path=save_path)
     viz = rl.RunLogger(exaggeration=args.exaggeration)
     viz.send_blueprint()
-    _log_metadata(args.mcap)
+    table = _metadata_table(args.mcap)
+    if table is not None:  # outside the default views
+        rr.log(P.ENTITIES["metadata"], rr.TextDocument(table, media_type=rr.MediaType.MARKDOWN), static=True)
     feed = ViewerFeed(viz, RunPhases(f"RUN.mcap: '{args.mcap}'"))
     beat[1:] = [feed]
     messages = decode_messages(sorted_messages(found), args.mcap)  # damage was named by check_readable
@@ -225,11 +235,9 @@ def _feed_all(args, found, save_path, beat) -> dict[str, int]:
     return dict(feed.counts)
 
 
-def _log_metadata(path: Path) -> None:
-    """The MCAP's metadata records as a table (``metadata``), outside the default views."""
-    import rerun as rr  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
-    from mcap.reader import make_reader  # noqa: PLC0415  mcap/rosbags only when a log is read or written
-
+def _metadata_table(path: Path) -> str | None:
+    """The MCAP's metadata records as a Markdown table (logged to ``metadata``), or None when it has
+    none or they cannot be read (they are optional decoration)."""
     info = {}
     with open(path, "rb") as f:
         try:
@@ -237,11 +245,11 @@ def _log_metadata(path: Path) -> None:
                 for k, v in meta.metadata.items():
                     info[f"{meta.name}.{k}"] = v
         except Exception:  # metadata are optional decoration
-            return
-    if info:
-        rows = "\n".join(f"| {k} | {v} |" for k, v in info.items())
-        rr.log(P.ENTITIES["metadata"], rr.TextDocument(f"| key | value |\n|---|---|\n{rows}\n",
-                                           media_type=rr.MediaType.MARKDOWN), static=True)
+            return None
+    if not info:
+        return None
+    rows = "\n".join(f"| {k} | {v} |" for k, v in info.items())
+    return f"| key | value |\n|---|---|\n{rows}\n"
 
 
 def _status_first(messages):

@@ -3,8 +3,8 @@
 The one name to import the MCAP log by; each concern has its own module of the recording wing:
 
 ========================================  ==========================================================
-:mod:`adm_sim.recording.mcap_schema`      schemas (rosbags' ROS 2 Jazzy type store) and the QoS
-                                          metadata of a channel (:data:`QOS_CLASSES`)
+:mod:`adm_sim.recording.mcap_schema`      schemas (rosbags' ROS 2 Jazzy type store)
+:mod:`adm_sim.recording.mcap_qos`         the QoS metadata of a channel (:data:`QOS_CLASSES`)
 :mod:`adm_sim.recording.mcap_write`       :class:`McapRecorder`, the writer a SIGKILL leaves readable
 :mod:`adm_sim.recording.mcap_records`     the records of a file read byte by byte (chunks, CRCs)
 :mod:`adm_sim.recording.mcap_scan`        :func:`scan`: every record checked, each damage named
@@ -41,8 +41,8 @@ from adm_sim.recording.mcap_records import inner_records as _inner_records  # no
 from adm_sim.recording.mcap_records import parse_chunk as _parse_chunk  # noqa: F401  the integrity tests' name
 from adm_sim.recording.mcap_salvage import salvage
 from adm_sim.recording.mcap_scan import Damage, Scan, scan
-from adm_sim.recording.mcap_schema import (QOS_CLASSES, QOS_DEFAULT, message_definition, parse_qos_profiles,
-                                           qos_profiles_yaml, topic_qos, type_name)
+from adm_sim.recording.mcap_qos import QOS_CLASSES, QOS_DEFAULT, parse_qos_profiles, qos_profiles_yaml, topic_qos
+from adm_sim.recording.mcap_schema import message_definition, type_name
 from adm_sim.recording.mcap_write import DEFAULT_CHUNK_SIZE, McapRecorder
 
 __all__ = [

@@ -1,8 +1,8 @@
 """Write ROS 2 messages into an MCAP file that a killed writer leaves readable: :class:`McapRecorder`.
 
 Files follow the ROS 2 profile that rosbag2 writes (https://mcap.dev/spec/registry): profile
-``ros2``, schema encoding ``ros2msg``, message encoding ``cdr``; schemas and channel QoS from
-:mod:`adm_sim.recording.mcap_schema`. Serialisation is rosbags' (``Typestore.serialize_cdr``
+``ros2``, schema encoding ``ros2msg``, message encoding ``cdr``; schemas from
+:mod:`adm_sim.recording.mcap_schema`, channel QoS from :mod:`adm_sim.recording.mcap_qos`. Serialisation is rosbags' (``Typestore.serialize_cdr``
 reading the rclpy message by attribute): its CDR has exact lengths, whereas rclpy's
 ``serialize_message`` reports rmw_fastrtps' *estimated* size, up to 8 bytes too long for an empty
 ``float64[]``, which rosbags refuses.
@@ -24,7 +24,8 @@ import numpy as np
 from mcap.writer import CompressionType, Writer
 
 from adm_sim.errors import InputError, RunError
-from adm_sim.recording.mcap_schema import message_definition, qos_profiles_yaml, topic_qos, type_name, typestore
+from adm_sim.recording.mcap_qos import qos_profiles_yaml, topic_qos
+from adm_sim.recording.mcap_schema import message_definition, type_name, typestore
 
 __all__ = ["DEFAULT_CHUNK_SIZE", "McapRecorder"]
 
