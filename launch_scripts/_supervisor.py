@@ -32,7 +32,7 @@ from adm_sim.processes.dds_env import local_ros_env
 from adm_sim.processes.dds_env import client_export_line  # noqa: F401  (used by the scripts)
 from adm_sim.processes.supervisor import NodeDied, Supervisor, ros_args  # noqa: F401  (used by the scripts)
 from adm_sim.protocol import check_namespace
-from adm_sim.recording.mcap_log import scan
+from adm_sim.recording.mcap_scan import scan
 from adm_sim.recording.viewer_process import check_loopback, handshake, spawn_viewer
 
 ROOT = Path(__file__).resolve().parents[1]

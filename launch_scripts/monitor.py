@@ -43,6 +43,9 @@ import sys
 import time
 from pathlib import Path
 
+from mcap.exceptions import McapError
+from mcap.reader import make_reader
+
 from adm_sim import protocol as P
 from adm_sim.cliutil import Parser, add_overwrite, option_view, run_cli
 from adm_sim.errors import InputError
@@ -53,7 +56,7 @@ from adm_sim.limits import TRACK_TYPES
 from adm_sim.monitoring.modal_id import IdentifySettings, PassageTracker, run_topics_for
 from adm_sim.monitoring.sensors import AXES, IMU_TYPE, SENSOR_TYPES, check_imu, parse_axis, sample_of
 from adm_sim.processes.dds_env import apply_local_ros_env
-from adm_sim.recording.mcap_log import read_messages
+from adm_sim.recording.mcap_read import read_messages
 
 
 def parse_args(argv=None):
@@ -150,9 +153,6 @@ def live_domain_id(given):
 # ---------------------------------------------------------------- MCAP
 def mcap_channels(path):
     """``{topic: schema name}`` of an MCAP's summary; one line when the file has no summary."""
-    from mcap.exceptions import McapError  # noqa: PLC0415  mcap (32 ms) only when an MCAP is read
-    from mcap.reader import make_reader  # noqa: PLC0415  mcap (32 ms) only when an MCAP is read
-
     with open(path, "rb") as f:
         try:
             summary = make_reader(f).get_summary()

@@ -38,7 +38,8 @@ DISTRIBUTION_OF = {
 }
 #: optional features: the import is allowed to come from this extra only
 EXTRA_OF = {"dask": "study", "distributed": "study"}
-FIRST_PARTY = {"adm_sim", "adm_calib", "_supervisor"}
+#: the project's own imports: its packages and the launch scripts' shared modules (``_supervisor``, ``_republish``)
+FIRST_PARTY = {"adm_sim", "adm_calib"} | {p.stem for p in (ROOT / "launch_scripts").glob("_*.py")}
 
 
 def _name(requirement):

@@ -101,7 +101,7 @@ _TOPIC_OR_ENTITY = re.compile(
     r"""(?:runs|sweep|calibration)/(?:acceleration|beam|info|curves|trials|delta_zeta_pct|peak_m_s2|result)"""
     r"""[^"']*|(?:topics|diagnostics|metadata)/[^"']*)\1""")
 #: Literals that only look like one: an example in an error message (not a topic of the graph).
-_NOT_A_NAME = {("src/adm_sim/recording/mcap_log.py", "'/adm/x'")}
+_NOT_A_NAME = {("src/adm_sim/recording/mcap_write.py", "'/adm/x'")}
 
 
 def test_no_topic_name_or_entity_path_is_written_outside_the_protocol():

@@ -25,6 +25,8 @@ the timeline it needs in its title.
 
 from __future__ import annotations
 
+import rerun.blueprint as rrb
+
 __all__ = ["BEAM_EXAGGERATION", "ENTITIES", "TABS", "TIMELINES", "default_blueprint", "tab_timeline"]
 
 # timeline names and entity roots: one home, the ROS-free protocol (re-exported here for the views)
@@ -57,8 +59,6 @@ def default_blueprint(span_m: float | None = None, exaggeration: float = BEAM_EX
     active_tab : str
         Tab shown first (one of :data:`TABS`); the time panel opens on its timeline.
     """
-    import rerun.blueprint as rrb  # noqa: PLC0415  rerun only when a blueprint is sent
-
     if active_tab not in TABS:
         raise ValueError(f"active_tab: {active_tab!r} is not one of {', '.join(TABS)}")
     e = ENTITIES

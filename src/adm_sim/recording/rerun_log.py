@@ -37,6 +37,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import rerun as rr
 
 from adm_sim import protocol as P  # topics, records, phases, entity paths, timelines
 from adm_sim.errors import InputError
@@ -81,8 +82,6 @@ def init_rerun(app_id: str, spawn: bool = False, connect_url: str | None = None,
 
     With no sink at all the data are buffered in memory (``rr.init`` default behaviour).
     """
-    import rerun as rr  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
-
     ensure_analytics_disabled()
     sinks: list = []
     if spawn and connect_url is not None:
@@ -123,8 +122,6 @@ def close_rerun(recording=None, watch_viewer: bool = False) -> bool:
     given up with one ``warning:`` line instead of a hang (returns ``False``; the process should
     then end with :func:`~adm_sim.recording.viewer_process.exit_if_abandoned`).
     """
-    import rerun as rr  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
-
     url, _VIEWER_URL[0] = _VIEWER_URL[0], None
     if not watch_viewer or url is None:
         rr.disconnect(recording=recording)
@@ -133,8 +130,6 @@ def close_rerun(recording=None, watch_viewer: bool = False) -> bool:
 
 
 def _part(label) -> str:
-    import rerun as rr  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
-
     return rr.escape_entity_path_part(str(label))
 
 
@@ -263,8 +258,6 @@ class RunLogger:
     # ------------------------------------------------------------ helpers
     def _style(self, path, lines=True, name=None, color=None, width=None, visible=None):
         """Name, colour and width of a series (static, once per entity)."""
-        import rerun as rr  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
-
         if path in self._styled:
             return
         self._styled.add(path)
@@ -276,9 +269,6 @@ class RunLogger:
 
     def send_blueprint(self, active_tab: str = "Runs"):
         """Send the default blueprint (again, e.g. once the span is known)."""
-        import rerun as rr  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
-
-
         rr.send_blueprint(bp.default_blueprint(self._span_m, self.exaggeration, active_tab), make_active=True,
                           make_default=True, recording=self.rec)
         self.blueprint_sent = True
@@ -287,8 +277,6 @@ class RunLogger:
     def bridge_description(self, desc: dict):
         """``/adm/bridge/description``: the deck length (``span_m``) fixes the beam view; a support is
         drawn at each end and, for a continuous deck, over every intermediate pier (:func:`supports_m`)."""
-        import rerun as rr  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
-
         self._bridge = desc
         span = float(desc.get("bridge", {}).get("span_m", 0.0)) or None
         if span is None or span == self._span_m:
@@ -335,8 +323,6 @@ class RunLogger:
 
     def flush(self):
         """Log the buffered samples of every announced run; keep those of runs not yet announced."""
-        import rerun as rr  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
-
         if not self.runs:
             return
         latest = self.runs[-1].t0
@@ -408,8 +394,6 @@ class RunLogger:
         run the result belongs to (default the last announced one). Returns the run's kind
         (:func:`run_kind`), ``None`` if the run was never announced.
         """
-        import rerun as rr  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
-
         self.flush()
         res = np.asarray(result, dtype=float)
         runs = [r for r in self.runs if run_id is None or r.id == int(run_id)]
@@ -454,8 +438,6 @@ class RunLogger:
         """The EN 1990 A2.4.4.2.1 limit of the bridge's track (its description's ``acc_limit_m_s2``)
         as two lines, +limit and -limit, over the run's run time (``runs/acceleration/limit_*``):
         the samples are signed (z up), the limit bounds their magnitude."""
-        import rerun as rr  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
-
         limit = float(self._bridge.get("acc_limit_m_s2") or 0.0)
         if limit <= 0.0 or not np.isfinite(r.t1):
             return
@@ -481,8 +463,6 @@ class RunLogger:
         return f"{dt * 1e3:.2f} | {per}"
 
     def _log_run_table(self):
-        import rerun as rr  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
-
         b = self._bridge.get("description", "")
         t = self._train.get("name", self._train.get("train", ""))
         head = f"**{b}**  \n**train** {t}\n\n" if b or t else ""
@@ -520,8 +500,6 @@ class RunLogger:
             self._send_curve(path, v, acc)
 
     def _send_curve(self, path, speeds_kmh, max_acc_m_s2):
-        import rerun as rr  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
-
         v = np.asarray(speeds_kmh, dtype=float)
         order = np.argsort(v, kind="stable")
         rr.send_columns(path, indexes=[rr.TimeColumn(P.SPEED, sequence=np.rint(v[order]).astype(np.int64))],
@@ -532,8 +510,6 @@ class RunLogger:
     def iteration(self, i: int, delta_zeta_pct: float, mlm_peak_m_s2: float, dim_peak_m_s2: float, phase: str):
         """``/adm/calibration/iteration``: one trial damping of the run of ``phase`` it came from
         (``bracketing``: points, ``root_search``: lines, handed on by the caller like the run's)."""
-        import rerun as rr  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
-
         kind = run_kind(phase)
         bracketing = phase == P.PHASE_BRACKETING
         color = _COLORS[kind]
@@ -551,8 +527,6 @@ class RunLogger:
 
     def calibration_result(self, d: dict):
         """``/adm/calibration/result`` (``CalibrationResult.to_dict()``) as a markdown table."""
-        import rerun as rr  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
-
         units = {"zeta_pct": "%", "delta_zeta_vbi_pct": "%", "delta_zeta_adm_pct": "%", "delta_zeta_eada_pct": "%",
                  "delta_zeta_lb_pct": "%"}
         rows = []

@@ -24,8 +24,10 @@ import sys
 from collections import defaultdict
 
 import numpy as np
+import rerun as rr
 
 from adm_sim import protocol as P
+from adm_sim.recording.rerun_log import _part
 from adm_sim.recording.viewer_process import check_viewer  # the viewer handshake (its home)
 
 __all__ = ["RunPhases", "ViewerFeed", "check_viewer", "matrix_of", "stamp_ns"]
@@ -235,10 +237,6 @@ class ViewerFeed:
             lane[0].append(t_s)
             lane[1].append(msg.accel.linear.z)
         elif hasattr(msg, "status") and hasattr(msg, "header"):  # DiagnosticArray
-            import rerun as rr  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
-
-            from adm_sim.recording.rerun_log import _part  # noqa: PLC0415  start-up: only on this path (28 ms)
-
             rr.set_time(P.SIM_TIME, duration=t_s)
             for st in msg.status:
                 level = {0: "INFO", 1: "WARN", 2: "ERROR", 3: "WARN"}.get(_level(st.level), "INFO")
@@ -265,10 +263,6 @@ class ViewerFeed:
 
     def finish(self) -> None:
         """Flush the logger and send the generic series gathered so far (as columns)."""
-        import rerun as rr  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
-
-        from adm_sim.recording.rerun_log import _part  # noqa: PLC0415  start-up: only on this path (28 ms)
-
         self._draw_waiting(force=True)
         self.viz.flush()
         for lane, (t, a) in self._accel.items():
