@@ -814,7 +814,7 @@ def _add_study(sub):
         "--spans-layout", "1 (default): the paper's simply supported spans; N: every case a continuous deck of N "
         "equal spans of the case's span L (pinned over the supports), each span with the mu of the mass function "
         "at L (Eq. 19) and EJ from Eq. (18) with L and the case's n0 at L, so the deck's first frequency is that "
-        "n0; damping Table 2 with L the span (Rayleigh at the deck's modes 1 and 3); 3 N modes; dz_VBI matched "
+        "n0; damping Table 2 with L the span, the longest (Rayleigh at the deck's modes 1 and 3); 3 N modes; dz_VBI matched "
         "on the largest of the maxima at the middle of every span (MLM and DIM alike); each deck a batch of its "
         "own"))
     s.add_argument("--freq-index", default="1,2,3,4,5", help=option_help(

@@ -69,6 +69,9 @@ class Bridge:
         values). Build it with :meth:`Bridge.continuous`.
     span_EJ_Nm2, span_mu_kg_m : tuple of float
         EJ (N m^2) and mu (kg/m) of every span of a continuous deck.
+    damping_source : str
+        Where ``damping_ratio`` comes from, as the readers found it (a label for the outputs, like
+        ``name``; empty: as given). A continuous deck damped by type: :func:`deck_damping_pct`.
     """
 
     span_m: float
@@ -82,6 +85,7 @@ class Bridge:
     spans_m: tuple = ()
     span_EJ_Nm2: tuple = ()
     span_mu_kg_m: tuple = ()
+    damping_source: str = ""
 
     def __post_init__(self):
         if self.spans_m:
@@ -293,6 +297,33 @@ def eurocode_damping_pct(span_m, bridge_type):
     if bridge_type == "cfb":
         return 1.5 + 0.07 * (20.0 - L) if L < 20.0 else 1.5
     core("bridge_type").check(bridge_type)
+
+
+#: The length L that Table 6.6 is read with on a continuous deck, and why. EN 1991-2's wording for
+#: continuous decks could not be checked here (docs/check.md lists the searches), so the rule is
+#: the project's choice: the longest span. Table 6.6 does not increase with L, so the longest span
+#: gives the lowest of the spans' values: the conservative choice (the mean span or the shortest
+#: span would give as much or more damping).
+DECK_DAMPING_LENGTH_RULE = ("L the longest span: the project's choice, the conservative one (Table 6.6 does not "
+                            "increase with L, so the longest span gives the lowest of the spans' values); the "
+                            "standard's wording of L for continuous decks could not be checked here")
+
+
+def deck_damping_length_m(spans_m):
+    """L (m) of EN 1991-2 Table 6.6 for a continuous deck of spans ``spans_m`` (m): the longest span
+    (:data:`DECK_DAMPING_LENGTH_RULE`); one span: the span."""
+    return max(float(x) for x in spans_m)
+
+
+def deck_damping_pct(spans_m, bridge_type):
+    """Lower-limit structural damping (%) of EN 1991-2 Table 6.6 (paper Table 2) for a continuous deck:
+    :func:`eurocode_damping_pct` at :func:`deck_damping_length_m` (the longest span, the project's
+    choice, :data:`DECK_DAMPING_LENGTH_RULE`). Returns ``(damping_pct, L_m, source_text)``."""
+    L = deck_damping_length_m(spans_m)
+    pct = eurocode_damping_pct(L, bridge_type)
+    text = (f"EN 1991-2 Table 6.6 lower limit for {bridge_type.upper()} (paper Table 2) with L = {L:g} m, "
+            f"{DECK_DAMPING_LENGTH_RULE}")
+    return pct, L, text
 
 
 # ---------------------------------------------------------------------- named bridges (Table 3)
