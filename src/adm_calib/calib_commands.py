@@ -559,6 +559,20 @@ def cmd_study(args):
     return 130 if run.interrupted else 0
 
 
+def _refuse_deck_study(records, option, path):
+    """Refuse a study of continuous decks (``--spans-layout`` N > 1): the paper's lower-bound functions
+    are fitted to simply supported spans (Section 4.2.1), so a fit of deck results would be given their
+    meaning without their basis."""
+    decks = [r for r in records if len(r.get("spans_m") or ()) > 1]
+    if decks:
+        n = sorted({len(r["spans_m"]) for r in decks})
+        raise InputError(f"{option}: {str(path)!r} is a study of continuous decks ({len(decks)} of {len(records)} "
+                         f"records, {'/'.join(map(str, n))} spans, e.g. {decks[0]['bridge']}): the paper's lower-bound "
+                         f"functions (Section 4.2.1) are fitted to simply supported spans; allowed a study of simply "
+                         f"supported spans (adm-calib study --spans-layout 1); a deck study is compared with the "
+                         f"functions by results/continuous/run_field.py")
+
+
 def _check_fit_records(records, option, path):
     """Refuse result lines the fit cannot use as they are: a NaN or text where a number belongs."""
     from adm_calib.peaks import has_delta_zeta  # noqa: PLC0415  start-up: only this subcommand
@@ -649,6 +663,7 @@ def cmd_study_fit(args):
     if not content.records:
         raise InputError(f"--results: {str(res)!r} holds no complete result line")
     _check_fit_records(content.records, "--results", res)
+    _refuse_deck_study(content.records, "--results", res)
     make_output_folder(out, "--out")
     fit = st.fit_study(content.records, rule=rule, edges_hz=edges, own_trains=own)
     text = fit.to_text()
