@@ -267,7 +267,6 @@ def _own_functions(args):
 
 
 def cmd_recommend(args):
-    from adm_sim.model.bridge import SPAN_RANGE_M  # noqa: PLC0415  start-up: only this subcommand (16 ms)
     from adm_sim.model.plausibility import check_studied_field  # noqa: PLC0415  start-up: only this subcommand (12 ms)
 
     from adm_calib.reference import (STUDY_N0_MAX_HZ, STUDY_SPAN_RANGE_M, lower_bound_table,  # noqa: PLC0415  start-up: only this subcommand (91 ms)
@@ -284,7 +283,7 @@ def cmd_recommend(args):
         raise InputError(f"{exc} (validity of the lower-bound functions: {lo_hz:g} Hz up to the highest "
                          f"frequency of the studied bridges, Section 4.2.2)") from None
     mu_kg_m = _recommend_mu_kg_m(args.mu)
-    span_range = SPAN_RANGE_M if args.extrapolate else STUDY_SPAN_RANGE_M  # beyond 4..40 m: warned below
+    span_range = FIELDS["span_m"].range if args.extrapolate else STUDY_SPAN_RANGE_M  # beyond 4..40 m: warned below
     span_view = option_view("--span")  # the studied spans; with --extrapolate the bridge's
     span = None if args.span is None else (span_view.field.check(args.span, name="--span") if args.extrapolate
                                            else span_view.check(args.span))

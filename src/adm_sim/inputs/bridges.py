@@ -18,13 +18,31 @@ import warnings
 from pathlib import Path
 
 from adm_sim.errors import InputError, PlausibilityWarning
-from adm_sim.fields import FIELDS, check_number, check_range
+from adm_sim.fields import FIELDS, check_number, check_range, core
 from adm_sim.fields import view as field_view
 from adm_sim.files import check_path, read_toml
-from adm_sim.model.bridge import (N0_RANGE_HZ, TABLE3, Bridge, deck_damping_pct, eurocode_damping_pct, n0_in_range,
-                                  named_bridge)
+from adm_sim.model.bridge import TABLE3, Bridge, deck_damping_pct, eurocode_damping_pct, named_bridge
 from adm_sim.model.plausibility import check_bridge
 from adm_sim.model.spans import RULE_TEXT, deck_modes, rule_mode_count
+
+#: The n0 range (Hz) a bridge may have: the field registry's, named for the messages.
+N0_RANGE_HZ = FIELDS["n0_hz"].range
+#: Relative slack on the n0 range for an n0 recomputed from EJ (Eq. 18 round trip).
+_N0_RTOL = 1e-12
+
+
+def n0_in_range(n0):
+    """n0 (Hz) within :data:`N0_RANGE_HZ`, allowing the rounding of the Eq. 18 round trip."""
+    lo, hi = N0_RANGE_HZ
+    return lo * (1.0 - _N0_RTOL) <= n0 <= hi * (1.0 + _N0_RTOL)
+
+
+def check_n0(n0, name="n0_hz"):
+    """A computed first frequency (Hz) in the registry's range, else its one-line refusal naming ``name``."""
+    if not n0_in_range(n0):
+        core("n0_hz").check(n0, name=name)
+    return n0
+
 
 #: Spec / file keys -> quantity. ``type`` (alias ``bridge_type``) gives the Table 2 damping and the
 #: class; ``class`` only classes the bridge (cfb|sc) for the lower-bound functions.

@@ -31,6 +31,7 @@ from adm_sim.limits import ACC_LIMITS_M_S2, DEFAULT_SPEEDS, check_track_type
 from adm_sim.model.plausibility import check_bridge
 from adm_sim.integrate.run_contract import check_model
 from adm_sim.integrate.step_grid import StepOptions
+from adm_sim.inputs.bridges import check_n0
 from adm_sim.inputs.speeds import parse_speeds
 from adm_sim.inputs.train_files import load_train
 
@@ -304,6 +305,7 @@ def bridge_from_params(preset, p, defaults=None):
         n0 = specs["n0_hz"].view.field.check(p["n0_hz"], name="n0_hz")
         b = Bridge.from_frequency(b.span_m, n0, b.mass_per_length_kg_m, b.damping_ratio, n_modes=b.n_modes,
                                   damping_model=b.damping_model, name=b.name, bridge_type=b.bridge_type)
+    check_n0(b.n0_hz)  # span, EJ and mu together: their n0 in the registry's range
     check_delta_zeta("delta_zeta", p["delta_zeta"], b.damping_ratio)
     for x in parse_float_list("delta_zeta_lanes", p["delta_zeta_lanes"], "- (fraction)"):
         check_delta_zeta("delta_zeta_lanes", x, b.damping_ratio)
