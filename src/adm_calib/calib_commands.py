@@ -267,7 +267,6 @@ def _own_functions(args):
 
 
 def cmd_recommend(args):
-    from adm_sim.model.bridge import SPAN_RANGE_M  # noqa: PLC0415  start-up: only this subcommand (16 ms)
     from adm_sim.model.plausibility import check_studied_field  # noqa: PLC0415  start-up: only this subcommand (12 ms)
 
     from adm_calib.reference import (STUDY_N0_MAX_HZ, STUDY_SPAN_RANGE_M, lower_bound_table,  # noqa: PLC0415  start-up: only this subcommand (91 ms)
@@ -284,7 +283,7 @@ def cmd_recommend(args):
         raise InputError(f"{exc} (validity of the lower-bound functions: {lo_hz:g} Hz up to the highest "
                          f"frequency of the studied bridges, Section 4.2.2)") from None
     mu_kg_m = _recommend_mu_kg_m(args.mu)
-    span_range = SPAN_RANGE_M if args.extrapolate else STUDY_SPAN_RANGE_M  # beyond 4..40 m: warned below
+    span_range = FIELDS["span_m"].range if args.extrapolate else STUDY_SPAN_RANGE_M  # beyond 4..40 m: warned below
     span_view = option_view("--span")  # the studied spans; with --extrapolate the bridge's
     span = None if args.span is None else (span_view.field.check(args.span, name="--span") if args.extrapolate
                                            else span_view.check(args.span))
@@ -559,6 +558,20 @@ def cmd_study(args):
     return 130 if run.interrupted else 0
 
 
+def _refuse_deck_study(records, option, path):
+    """Refuse a study of continuous decks (``--spans-layout`` N > 1): the paper's lower-bound functions
+    are fitted to simply supported spans (Section 4.2.1), so a fit of deck results would be given their
+    meaning without their basis."""
+    decks = [r for r in records if len(r.get("spans_m") or ()) > 1]
+    if decks:
+        n = sorted({len(r["spans_m"]) for r in decks})
+        raise InputError(f"{option}: {str(path)!r} is a study of continuous decks ({len(decks)} of {len(records)} "
+                         f"records, {'/'.join(map(str, n))} spans, e.g. {decks[0]['bridge']}): the paper's lower-bound "
+                         f"functions (Section 4.2.1) are fitted to simply supported spans; allowed a study of simply "
+                         f"supported spans (adm-calib study --spans-layout 1); a deck study is compared with the "
+                         f"functions by results/continuous/run_field.py")
+
+
 def _check_fit_records(records, option, path):
     """Refuse result lines the fit cannot use as they are: a NaN or text where a number belongs."""
     from adm_calib.peaks import has_delta_zeta  # noqa: PLC0415  start-up: only this subcommand
@@ -649,6 +662,7 @@ def cmd_study_fit(args):
     if not content.records:
         raise InputError(f"--results: {str(res)!r} holds no complete result line")
     _check_fit_records(content.records, "--results", res)
+    _refuse_deck_study(content.records, "--results", res)
     make_output_folder(out, "--out")
     fit = st.fit_study(content.records, rule=rule, edges_hz=edges, own_trains=own)
     text = fit.to_text()
@@ -814,7 +828,7 @@ def _add_study(sub):
         "--spans-layout", "1 (default): the paper's simply supported spans; N: every case a continuous deck of N "
         "equal spans of the case's span L (pinned over the supports), each span with the mu of the mass function "
         "at L (Eq. 19) and EJ from Eq. (18) with L and the case's n0 at L, so the deck's first frequency is that "
-        "n0; damping Table 2 with L the span (Rayleigh at the deck's modes 1 and 3); 3 N modes; dz_VBI matched "
+        "n0; damping Table 2 with L the span, the longest (Rayleigh at the deck's modes 1 and 3); 3 N modes; dz_VBI matched "
         "on the largest of the maxima at the middle of every span (MLM and DIM alike); each deck a batch of its "
         "own"))
     s.add_argument("--freq-index", default="1,2,3,4,5", help=option_help(

@@ -59,8 +59,7 @@ from importlib import resources
 
 import numpy as np
 
-from adm_sim.fields import view
-from adm_sim.model.bridge import SPAN_RANGE_M
+from adm_sim.fields import FIELDS, view
 from adm_sim.design.design_loads import adm_delta_zeta_pct  # noqa: F401  (the Eurocode ADM lives in the core; re-exported)
 from adm_sim.errors import InputError
 from adm_sim.fields import check_range
@@ -72,6 +71,8 @@ from adm_calib.lower_bound import FIT_RANGE_MAX_HZ, LOWER_LIMIT_HZ, first_root_h
 STUDY_TRAINS = ("ICE-2", "Eurostar", "Railjet", "ICE-4")
 #: Mass functions per bridge type, heaviest first (Table 1).
 TYPE_MASS_FUNCTIONS = {"cfb": ("mu1", "mu2", "mu3"), "sc": ("mu4", "mu5", "mu6")}
+#: Spans a bridge may have (m), the field registry's range of ``span_m``.
+SPAN_RANGE_M = FIELDS["span_m"].range
 #: Spans of the parametric field (m), Section 3.1.1.
 STUDY_SPAN_RANGE_M = (view("cli", "--span").lo, view("cli", "--span").hi)  # the field registry's
 #: Highest first frequency of the parametric field: upper bound n0 = 113.1 L^-0.8312 at L = 4 m.

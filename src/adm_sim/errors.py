@@ -1,9 +1,11 @@
 """Exception root of the project and the exit codes of its command lines.
 
-:class:`AdmSimError` is the root. It has two branches:
+:class:`AdmSimError` is the root. It has three branches:
 
 * :class:`InputError`: bad user input (CLI option, input file, ROS parameter). The message names
   what the user typed, the value, the unit and the allowed range. Exit code 2.
+* :class:`ModelError`: a value that breaks an invariant of the model (not finite, not positive):
+  the model's own guard behind the readers. Exit code 1.
 * :class:`RunError`: a failure that is not bad input (an integration that became unstable, a
   viewer or a node that does not answer). Exit code 1.
 
@@ -42,6 +44,14 @@ class RunError(AdmSimError, RuntimeError):
     def __init__(self, *args, field=None):
         super().__init__(*args)
         self.field = field
+
+
+class ModelError(AdmSimError, ValueError):
+    """A value that breaks a physical invariant of the model (a length, stiffness or mass that is not
+    finite and positive, a damping ratio outside [0, 1), a mode count below 1, per-span lists of
+    different lengths). The readers refuse what a user typed before it reaches the model, with the
+    field registry's ranges and the user's own names (exit 2); this is the model's own guard, met
+    only by a caller that skipped them: exit code 1."""
 
 
 class PlausibilityWarning(UserWarning):

@@ -148,3 +148,29 @@ def test_cli_refusals(call_main, tmp_path):
     r = call_main(main, "calibrate", "--bridge", "spans=15/15,n0=8.26,mu=19042,zeta_pct=1.85", "--train", "ICE-2",
                   "--measured", str(tmp_path / "m.json"))
     assert r.returncode == 2 and "--measured" in r.stderr and "continuous deck of 2 spans" in r.stderr
+
+
+def test_study_fit_refuses_a_deck_study(call_main, tmp_path):
+    """study-fit on a study of continuous decks (the shipped 2-span field, 200 of its lines) is refused in
+    one line with the reason (the paper's functions are for simply supported spans), exit 2, nothing
+    written; the same records as single spans pass the rule."""
+    import json
+    from pathlib import Path
+
+    src = Path(__file__).resolve().parents[2] / "results" / "continuous" / "study" / "results.jsonl"
+    lines = src.read_text().splitlines()[:200]
+    res = tmp_path / "results.jsonl"
+    res.write_text("\n".join(lines) + "\n")
+    out = tmp_path / "fit"
+    r = call_main(main, "study-fit", "--results", str(res), "--out", str(out))
+    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+    assert r.stderr.startswith(f"error: --results: '{res}' is a study of continuous decks (200 of 200 records, 2 "
+                               f"spans, e.g. 2x8-f3-mu1): the paper's lower-bound functions (Section 4.2.1) are "
+                               f"fitted to simply supported spans")
+    assert not out.exists() and sorted(p.name for p in tmp_path.iterdir()) == ["results.jsonl"]
+    from adm_calib.calib_commands import _refuse_deck_study
+
+    single = [json.loads(x) for x in lines]
+    for rec in single:  # the same records as simply supported spans (no spans_m, or one span) pass
+        rec["spans_m"] = [rec["span_m"]] if rec["freq_index"] % 2 else None
+    _refuse_deck_study(single, "--results", res)

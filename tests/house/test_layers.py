@@ -216,6 +216,17 @@ def test_modules_form_no_circle_and_no_arrow_runs_up():
     assert "launch_scripts._supervisor" in graph["launch_scripts.calibrate"]
 
 
+def test_the_model_knows_no_input_rules():
+    """Issue 34, "inputs out of the physics": no module of the model wing imports the field registry
+    (adm_sim.fields) or a reader (adm_sim.inputs); the model checks its invariants only (finite,
+    positive, counts: adm_sim.errors.ModelError), the readers apply the registry's ranges."""
+    graph = module_graph()
+    model = [m for m in graph if layer(m) == "adm_sim.model"]
+    assert "adm_sim.model.bridge" in model and "adm_sim.model.spans" in model
+    bad = sorted((m, d) for m in model for d in graph[m] if d == "adm_sim.fields" or d.startswith("adm_sim.inputs"))
+    assert bad == []
+
+
 def test_the_scan_finds_a_circle_closed_inside_a_function():
     graph = {"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}, "e": set()}
     assert circles(graph) == [["a", "b", "c"]]

@@ -130,7 +130,7 @@ BAD = [
     ("spans=15/15,EJ=-2e10,mu=15000,zeta_pct=1.5", "error: bridge spec.EJ: -2e+10 N m^2 is out of range; allowed > 0 N m^2"),
     ("spans=15/15,EJ=2e10,mu=15000,zeta_pct=1.5,n_modes=51",
      "error: bridge spec.n_modes: 51 is out of range; allowed integer in [1, 50]"),
-    ("spans=15/15,EJ=2e10,mu=15000,type=cfb", "error: bridge spec.type: the Table 2 damping of a continuous deck"),
+    ("spans=15/15,EJ=2e10,mu=15000,type=steel", "error: bridge spec.type: 'steel' is not allowed; allowed 'cfb' or 'sc'"),
     ("L=30,spans=15/15,EJ=2e10,mu=15000,zeta_pct=1.5", "error: bridge spec: 'L' and 'spans' both give the length"),
     ("L=15,EJ=2e10/3e10,mu=15000,zeta_pct=1.5",
      "error: bridge spec.EJ: '2e10/3e10' gives one value per span; per-span values need spans = [..] (m)"),

@@ -66,6 +66,18 @@ def test_clamped_count_against_the_clamped_roots():
         assert clamped_count(lam_) == sum(r < lam_ for r in roots)
 
 
+def test_two_equal_spans_against_a_printed_table():
+    """Two equal spans: the symmetric modes are the clamped-hinged span's. W. T. Thomson, Theory of
+    Vibration with Applications (Taylor & Francis, 2010), Table 9.5-1, row "Clamped-hinged", prints
+    (beta l)^2 = 15.4, 50.0 (and 104.0 for the third: the exact 104.25 rounds to 104.2, so the
+    table's third entry is not held to its printed digits here), and row "Simply supported" 9.87 and
+    39.5 for the antisymmetric modes; the deck's modes 1-4 match them to the printed digits."""
+    m = deck_modes([15.0, 15.0], [EJ, EJ], [MU, MU], 4)
+    bl2 = lam(m) ** 2
+    assert round(bl2[0], 2) == 9.87 and round(bl2[2], 1) == 39.5  # simply supported row
+    assert round(bl2[1], 1) == 15.4 and round(bl2[3], 1) == 50.0  # clamped-hinged row
+
+
 def test_two_equal_spans_closed_form():
     """Two equal spans: the antisymmetric modes are the single span's (beta L = k pi), the
     symmetric ones the pinned-clamped span's, tan l = tanh l (beta L = 3.9266, 7.0686), to 1e-12."""

@@ -172,7 +172,8 @@ def deck_case_bridge(bridge, n_spans, freq_index, mass_function):
     the Section 3.1.1 power law at L), so the deck's first frequency is that n0 (the first mode of
     equal spans is the simply supported span's, antisymmetric over the supports) and the field
     bridge is the simply supported span of equal first frequency and equal mass per length. Damping:
-    Table 2 with L the span (not the deck length), Rayleigh anchored at the deck's modes 1 and 3
+    Table 2 with L the span (not the deck length; the spans are equal, so L is the longest span, the rule
+    of :func:`adm_sim.model.bridge.deck_damping_pct`), Rayleigh anchored at the deck's modes 1 and 3
     (:meth:`adm_sim.model.bridge.Bridge.modal_damping_ratios`); modes: ``3 n_spans``
     (:data:`DECK_MODES_PER_SPAN`). Name ``"2x15-f3-mu2"``.
     """

@@ -338,7 +338,7 @@ def cmd_check(args, damping_provider=None):
     if isinstance(bridge_spec, dict):
         from adm_sim.inputs.bridges import bridge_from_mapping  # noqa: PLC0415  start-up: only with a job file
 
-        bridge = bridge_from_mapping(bridge_spec, source=f"--job {job.path}: [bridge]")
+        bridge = bridge_from_mapping(bridge_spec, source=f"--job {job.path}: [bridge]", typed=True)
     else:
         bridge = resolve_bridge(bridge_spec, continuous=True)  # a continuous deck: adm_sim.design.check_deck
     if bridge.is_continuous:

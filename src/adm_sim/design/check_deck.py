@@ -372,6 +372,11 @@ class DeckCheckResult(AccelerationVerdict):
     def where_text(self):
         return "every span (grid)" if self.where == "deck" else "every midspan"
 
+    @property
+    def damping_source(self):
+        """Where ζ comes from: the reader's label on the bridge, else "as given"."""
+        return self.bridge.damping_source or "as given"
+
     def span_governing(self):
         """Per span: (train check, speed km/h, acceleration m/s^2, x m) of its largest acceleration."""
         out = []
@@ -425,8 +430,8 @@ class DeckCheckResult(AccelerationVerdict):
                f"acceleration: {self.where_text}: the largest |a| over {POINTS_PER_SPAN - 1} points per span (equal "
                f"intervals, the midspan among them), moving loads on the deck's exact modes, RK4 at "
                f"{STEPS_PER_PERIOD:g} steps per period of the top mode (maxima at the steps)",
-               f"damping: zeta = {100 * b.damping_ratio:.3g} % ({self.damping_model}; zeta per mode "
-               f"{self.trains[0].zeta_text()} %), no additional damping",
+               f"damping: zeta = {100 * b.damping_ratio:.3g} % ({self.damping_source}; {self.damping_model}; zeta "
+               f"per mode {self.trains[0].zeta_text()} %), no additional damping",
                f"track maintenance: {maintenance_text(self.track_maintenance, self.maintenance_named)}",
                f"determinant length L_Phi = {self.L_phi_m:.3f} m ({LPHI_SOURCE}); Phi = {self.Phi:.3f}, "
                f"phi'' = {self.phi_dd:.4f} (Annex C, v = {self.max_line_speed_kmh:g} km/h, n0 = {b.n0_hz:.3f} Hz)"]
@@ -487,6 +492,7 @@ class DeckCheckResult(AccelerationVerdict):
                 "supports_m": b.supports_m.tolist(), "max_line_speed_kmh": self.max_line_speed_kmh,
                 "design_speed_kmh": DESIGN_SPEED_FACTOR * self.max_line_speed_kmh, "track": self.track,
                 "damping": self.damping, "damping_model": self.damping_model, "where": self.where,
+                "zeta_pct": 100.0 * b.damping_ratio, "damping_source": self.damping_source,
                 "limit_m_s2": self.limit_m_s2, "modes": list(self.modes),
                 "frequencies_hz": b.frequencies_hz.tolist(), "modal_masses_kg": b.modal_mass_kg.tolist(),
                 "rule_modes": self.rule_modes, "L_phi_m": self.L_phi_m, "L_phi_source": LPHI_SOURCE,

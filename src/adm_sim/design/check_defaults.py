@@ -51,6 +51,9 @@ DEFAULTS = (
     Default("modes", "every mode up to max(30 Hz, 1.5 n0, n3)", "EN 1990 A2.4.4.2.1", STANDARD),
     Default("damping per mode", "zeta on every mode (modal)",
             "the project's reading of EN 1991-2 6.4.6.3.1 (one zeta per bridge, Table 6.6)", PROJECT),
+    Default("Table 6.6 length L of a continuous deck", "the longest span (conservative: Table 6.6 does not increase "
+            "with L)", "EN 1991-2 6.4.6.3.1, Table 6.6; its wording of L for continuous decks could not be checked "
+            "here", PROJECT),
     Default("additional damping", "none", "--damping; EN 1991-2 6.4.6.3.1 allows the ADM for L < 30 m", PROJECT),
     Default("classification factor alpha", "1.00", "EN 1991-2 6.3.2(3)", STANDARD),
     Default("determinant length L_Phi", "the span", "EN 1991-2 Table 6.2, case 5.1", STANDARD),

@@ -7,7 +7,8 @@ refuses the rest with one line naming the key as typed, the value, the unit and 
 Keys (SI units): ``L`` (m), ``n0`` (Hz) or ``EJ`` (N m^2), ``mu`` (kg/m), and the damping as exactly
 one of ``zeta_pct`` (%), ``zeta`` (fraction) or ``type=cfb|sc`` (EN 1991-2 Table 6.6 / paper Table 2
 damping, which also classes the bridge); ``spans`` (m, a TOML list or ``12/16/12`` in a spec) makes a
-continuous deck (:mod:`adm_sim.model.spans`).
+continuous deck (:mod:`adm_sim.model.spans`), whose ``type`` damping is Table 6.6 with L the longest
+span (:func:`adm_sim.model.bridge.deck_damping_pct`, the project's choice).
 """
 
 from __future__ import annotations
@@ -17,12 +18,31 @@ import warnings
 from pathlib import Path
 
 from adm_sim.errors import InputError, PlausibilityWarning
-from adm_sim.fields import FIELDS, check_number, check_range
+from adm_sim.fields import FIELDS, check_number, check_range, core
 from adm_sim.fields import view as field_view
 from adm_sim.files import check_path, read_toml
-from adm_sim.model.bridge import N0_RANGE_HZ, TABLE3, Bridge, eurocode_damping_pct, n0_in_range, named_bridge
+from adm_sim.model.bridge import TABLE3, Bridge, deck_damping_pct, eurocode_damping_pct, named_bridge
 from adm_sim.model.plausibility import check_bridge
 from adm_sim.model.spans import RULE_TEXT, deck_modes, rule_mode_count
+
+#: The n0 range (Hz) a bridge may have: the field registry's, named for the messages.
+N0_RANGE_HZ = FIELDS["n0_hz"].range
+#: Relative slack on the n0 range for an n0 recomputed from EJ (Eq. 18 round trip).
+_N0_RTOL = 1e-12
+
+
+def n0_in_range(n0):
+    """n0 (Hz) within :data:`N0_RANGE_HZ`, allowing the rounding of the Eq. 18 round trip."""
+    lo, hi = N0_RANGE_HZ
+    return lo * (1.0 - _N0_RTOL) <= n0 <= hi * (1.0 + _N0_RTOL)
+
+
+def check_n0(n0, name="n0_hz"):
+    """A computed first frequency (Hz) in the registry's range, else its one-line refusal naming ``name``."""
+    if not n0_in_range(n0):
+        core("n0_hz").check(n0, name=name)
+    return n0
+
 
 #: Spec / file keys -> quantity. ``type`` (alias ``bridge_type``) gives the Table 2 damping and the
 #: class; ``class`` only classes the bridge (cfb|sc) for the lower-bound functions.
@@ -198,10 +218,6 @@ def _deck_spans(g):
     if "span_m" in g:
         raise InputError(f"{g.source}: {g.given['span_m']!r} and 'spans' both give the length; give L for one span "
                          f"or spans = [..] (m) for a continuous deck")
-    if "table2_type" in g:
-        raise InputError(f"{g.where('table2_type')}: the Table 2 damping of a continuous deck needs the length the "
-                         f"standard names for continuous decks, which is not wired; give zeta_pct (%) and "
-                         f"class=cfb|sc")
     return spans
 
 
@@ -263,14 +279,20 @@ def _deck_from_mapping(g):
     if "mass_per_length_kg_m" not in g:
         raise InputError(f"{g.source}: missing key mu (mass per length, kg/m; one value or one per span)")
     mu = _per_span(g, "mass_per_length_kg_m", len(spans), "kg/m")
-    zeta = g.damping_ratio()
-    if zeta is None:
-        zp = field_view(g.surface, "zeta_pct")
-        raise InputError(f"{g.source}: missing damping of the continuous deck: give zeta_pct (%, {zp.lo:g}..{zp.hi:g}) "
-                         f"or zeta (fraction)")
     kw = dict(name=str(g.vals.get("name", "")))
-    if "bridge_class" in g:
-        kw["bridge_type"] = g.text("bridge_class")
+    for f in ("table2_type", "bridge_class"):
+        if f in g:
+            kw["bridge_type"] = g.text(f)
+    zeta = g.damping_ratio()
+    if zeta is None and "table2_type" in g:
+        pct, _, kw["damping_source"] = deck_damping_pct(spans, kw["bridge_type"])
+        zeta = pct / 100.0
+    elif zeta is None:
+        zp = field_view(g.surface, "zeta_pct")
+        raise InputError(f"{g.source}: missing damping of the continuous deck: give zeta_pct (%, {zp.lo:g}..{zp.hi:g}), "
+                         f"zeta (fraction) or type=cfb|sc (EN 1991-2 Table 6.6 with L the longest span)")
+    else:
+        kw["damping_source"] = f"the user's value ({g.given['zeta_pct' if 'zeta_pct' in g else 'damping_ratio']})"
     if "damping_model" in g:
         kw["damping_model"] = g.text("damping_model", "damping_model")
     EJ = _deck_stiffness(g, spans, mu)

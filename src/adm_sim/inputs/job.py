@@ -32,6 +32,7 @@ from pathlib import Path
 
 from adm_sim.errors import InputError
 from adm_sim.files import input_file, read_toml
+from adm_sim.model.bridge import DECK_DAMPING_LENGTH_RULE
 
 #: The identification fields, in the order the report prints them.
 JOB_FIELDS = ("project", "structure", "element", "author", "checker", "revision", "date")
@@ -150,6 +151,9 @@ def zeta_source(bridge_spec):
             how = "the bridge spec"
     if keys & {"zeta", "zeta_pct", "damping_ratio"}:
         return f"user ({how})"
+    if "spans" in keys:
+        return (f"EN 1991-2 Table 6.6 lower limit by type (paper Table 2) with {DECK_DAMPING_LENGTH_RULE}, "
+                f"default")
     return "EN 1991-2 Table 6.6 lower limit by type and span (paper Table 2), default"
 
 

@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from adm_sim.errors import InputError
+from adm_sim.fields import core
 from adm_sim.files import input_file, read_text
 
 __all__ = ["F1_SPREAD_MAX", "MIN_PASSAGES", "MeasuredModes", "ZETA_QUANTILE", "ZETA_SPREAD_MAX", "apply_measured",
@@ -171,6 +172,8 @@ def apply_measured(text, bridge, option="--measured"):
 
     m = read_measured(text, option)
     try:
+        core("n0_hz").check(m.f1_hz)  # the registry's ranges; the model checks only its invariants
+        core("damping_ratio").check(m.zeta1_pct / 100.0)
         measured = Bridge.from_frequency(bridge.span_m, m.f1_hz, bridge.mass_per_length_kg_m, m.zeta1_pct / 100.0,
                                          n_modes=bridge.n_modes, damping_model=bridge.damping_model,
                                          name=f"{bridge.name or 'bridge'} (measured)", bridge_type=bridge.bridge_type)

@@ -23,7 +23,7 @@ import yaml
 
 from adm_sim import fields
 from adm_sim import protocol as P
-from adm_sim.model.bridge import N0_RANGE_HZ, Bridge
+from adm_sim.model.bridge import Bridge
 from adm_sim.errors import InputError, PlausibilityWarning
 from adm_sim.files import read_text, refuse_special
 from adm_sim.fields import check_delta_zeta, check_range, view
@@ -32,7 +32,7 @@ from adm_sim.model.plausibility import check_bridge
 from adm_sim.model.spans import RULE_TEXT, deck_modes, rule_mode_count
 from adm_sim.integrate.run_contract import check_model
 from adm_sim.integrate.step_grid import StepOptions
-from adm_sim.inputs.bridges import resolve_bridge
+from adm_sim.inputs.bridges import N0_RANGE_HZ, check_n0, resolve_bridge
 from adm_sim.inputs.speeds import parse_speeds
 from adm_sim.inputs.train_files import load_train
 
@@ -368,6 +368,7 @@ def _span_from_params(preset, p, d, specs):
         n0 = specs["n0_hz"].view.field.check(p["n0_hz"], name="n0_hz")
         b = Bridge.from_frequency(b.span_m, n0, b.mass_per_length_kg_m, b.damping_ratio, n_modes=b.n_modes,
                                   damping_model=b.damping_model, name=b.name, bridge_type=b.bridge_type)
+    check_n0(b.n0_hz)  # span, EJ and mu together: their n0 in the registry's range
     return b
 
 
@@ -416,7 +417,8 @@ def _deck_from_params(preset, p, d, specs, items):
     zeta = zv.to_core(zv.check(p["zeta_pct"], name="zeta_pct")) if p["zeta_pct"] != d["zeta_pct"] \
         else preset.damping_ratio
     damping_model = specs["damping_model"].view.check(p["damping_model"])
-    kw = dict(damping_model=damping_model, name=preset.name, bridge_type=preset.bridge_type)
+    source = preset.damping_source if p["zeta_pct"] == d["zeta_pct"] else "the bridge node's parameter zeta_pct"
+    kw = dict(damping_model=damping_model, name=preset.name, bridge_type=preset.bridge_type, damping_source=source)
     if p["n0_hz"] != 0.0:  # one EJ for every span: omega grows as sqrt(EJ)
         n0 = specs["n0_hz"].view.field.check(p["n0_hz"], name="n0_hz")
         f1 = float(deck_modes(spans, [1.0] * n, mu, 1).frequencies_hz[0])
@@ -425,8 +427,9 @@ def _deck_from_params(preset, p, d, specs, items):
         EJ = _per_span_values(p, "span_EJ_Nm2", "EJ_Nm2", n, specs, d)
     if n == 1:
         n_modes = fields.FIELDS["n_modes"].check(p["n_modes"], name="n_modes")
-        return Bridge(span_m=spans[0], EJ_Nm2=EJ[0], mass_per_length_kg_m=mu[0], damping_ratio=zeta,
-                      n_modes=n_modes, **kw)
+        b = Bridge(span_m=spans[0], EJ_Nm2=EJ[0], mass_per_length_kg_m=mu[0], damping_ratio=zeta, n_modes=n_modes, **kw)
+        check_n0(b.n0_hz)  # span, EJ and mu together: their n0 in the registry's range
+        return b
     n_modes = specs["n_modes"].view.check(p["n_modes"], name="n_modes")  # the node's range, decks too
     f1 = float(deck_modes(spans, EJ, mu, 1).frequencies_hz[0])
     lo, hi = N0_RANGE_HZ
