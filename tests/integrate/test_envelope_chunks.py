@@ -65,9 +65,10 @@ def test_chunks_equal_the_whole_bit_for_bit(bridge_name, n_modes, train_name, wh
 
 
 def test_estimate_for_20000_speeds_is_one_chunk_and_the_results():
-    """ICE-2 on B1, whole deck, 20000 speeds: the estimate is one chunk (at most CHUNK_BYTES) plus the
-    results (14 doubles a speed), under 70 MiB; the whole computation at once would be 20000 lanes of
-    lane_bytes, 687 MiB (tracemalloc saw 774 MiB before the chunks). Kept coefficients add
+    """ICE-2 on B1, whole deck, 20000 speeds: the estimate is one chunk (1109 speeds, at most
+    CHUNK_BYTES) plus the results (14 doubles a speed), 66.1 MiB, under 70 MiB (tracemalloc: 65.4 MiB
+    of numpy arrays); at once it would be 20000 lanes of lane_bytes, 1154 MiB (tracemalloc saw 774 MiB
+    of numpy arrays before the chunks, beside the numba kernels' own). Kept coefficients add
     2 x 16 K n_modes bytes a speed, exactly."""
     b, t = named_bridge("B1"), load_train("ICE-2")
     K, nm, nq, npos = _events(b, t), 3, 4, env.deck_positions_m(b.span_m, 3).size
@@ -78,7 +79,7 @@ def test_estimate_for_20000_speeds_is_one_chunk_and_the_results():
     assert est == pytest.approx(env.chunk_lanes(K, nm, nq, npos) * per_lane + 20000 * 8 * 14)
     assert env.CHUNK_BYTES - per_lane < est - 20000 * 8 * 14 <= env.CHUNK_BYTES
     assert est < 70 * 2**20
-    assert 20000 * per_lane > 680 * 2**20
+    assert env.chunk_lanes(K, nm, nq, npos) == 1109 and 20000 * per_lane > 1150 * 2**20
     kept = env.envelope_bytes(20000, K, nm, nq, npos, keep_intervals=True)
     assert kept - est == 20000 * 32 * K * nm
 

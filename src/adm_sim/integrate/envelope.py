@@ -54,6 +54,11 @@ its decaying bound drops below the largest value found at an event instant (at m
 search in numpy, per-interval array operations, cost 2.6-5 s for the 14-train bench case instead
 of 0.4 s CPU).
 
+Memory: the lanes (speeds) are independent, so they are computed in chunks of :func:`chunk_lanes`
+speeds (:data:`CHUNK_BYTES` of coefficients, bounds and search lists), the same numbers bit for bit
+whatever the chunk (``tests/integrate/test_envelope_chunks.py``); :func:`envelope_bytes` (one chunk, the
+results, the coefficients kept for the effects) is checked against the memory available first.
+
 Modes: EN 1990 A2.4.4.2.1 asks for every mode up to the larger of 30 Hz, 1.5 n0 and the third
 mode's frequency (:func:`check_mode_count`). Damping per mode: ``bridge.modal_damping_ratios``
 (Rayleigh anchored at modes 1 and 3, or equal ``"modal"`` damping, see :mod:`adm_sim.model.bridge`).
@@ -82,10 +87,11 @@ NEWTON_ITERATIONS = 8
 #: Largest number of joint (t, x) Newton iterations of the whole-deck refinement.
 NEWTON_ITERATIONS_2D = 16
 #: Memory budget of one chunk of speeds (bytes, :func:`chunk_lanes`): the exact envelope's coefficients
-#: grow as speeds x events x modes (ICE-2 on B1, every mode to 30 Hz, 20000 speeds: about 1 GB at
-#: once), so the speeds are taken a chunk at a time. 64 MiB keeps every bench and check case of today
-#: (277 speeds) in one chunk, and a chunk's fixed cost (a few dozen numpy calls) is then far below its
-#: search.
+#: grow as speeds x events x modes (ICE-2 on B1, whole deck, 20000 speeds: 774 MiB at once, 65 MiB in
+#: chunks, tracemalloc), so the speeds are taken a chunk at a time. 64 MiB (about 1100 speeds of that
+#: case) keeps every bench and check case of today (277 speeds) in one chunk, and a chunk's fixed cost
+#: (a few dozen numpy calls) is then far below its search (the 20000 speeds took 3.6 s CPU in chunks
+#: against 5.0 s at once).
 CHUNK_BYTES = 64 * 2**20
 #: Deck candidates of the search per event and deck position, for the memory estimate (measured: at
 #: most 0.19 on B1 and B4, 3 and 8 modes, HSLM-A1..A10 and ICE-2, 277 speeds; :func:`lane_bytes`).
