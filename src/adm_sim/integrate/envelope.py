@@ -651,22 +651,58 @@ def _search_kernel(pairs, iv, qs, mx):
     (pruned again against the risen best before each pair), refine every sampled local maximum of
     every quantity that can reach its best by Newton (in t, or jointly in (t, x) on the deck);
     ``mx.best``, ``mx.when`` and ``mx.xat`` (quantities, lanes) in place. Returns the number of
-    refinements and of deck candidates. The per-pair steps are helpers (0.998x the CPU of the kernel in
-    one piece, bench/bench_envelope.py's case); the per-sample body stays: as helpers it cost 2.6-2.8x."""
+    refinements and of deck candidates.
+
+    One function of 125 lines (issue 34 asks for 80 at most), by measurement: with its per-pair steps
+    in helpers (the work arrays, the active quantities, the pair's start, the last sample, the deck
+    refinement) bench/bench_envelope.py took 1.090x the CPU of this form (B1 x HSLM-A1..A10 + ICE-2,
+    277 speeds, midspan, deck and x = 5 m; 4 alternating rounds, every number bit for bit; 0.997-1.01x
+    when both ran in one process, but the bench's separate processes are what a user runs); with the
+    per-sample body in ``inline="always"`` helpers too, 2.6-2.8x."""
     kk, ll, m = pairs.k, pairs.l, pairs.m
-    ca1, ca2, cd1, cd2, T, t0 = iv.acc_c1, iv.acc_c2, iv.disp_c1, iv.disp_c2, iv.T, iv.t0
+    ca1, ca2, cd1, cd2, Om, lam, T, t0 = iv.acc_c1, iv.acc_c2, iv.disp_c1, iv.disp_c2, iv.Om, iv.lam, iv.T, iv.t0
     fam, deck, npos, W, xp, odd, kw, span, hx = qs.fam, qs.deck, qs.npos, qs.W, qs.xp, qs.odd, qs.kw, qs.span_m, qs.hx_m
     bound, curv, best, when, xat = mx.bound, mx.curv, mx.best, mx.when, mx.xat
-    nm, nq = iv.lam.size, fam.size
-    refined, nc = 0, 0
-    ya, va, vd, r1, r2, e1, e2, active, slack, cf, ci, sx = _scratch(nq, nm, W.shape[1])
+    nm = lam.size
+    nq = fam.size
+    pmax = W.shape[1]
+    refined = 0
+    ya = np.zeros((nq, 3, pmax))
+    va = np.empty(nm)
+    vd = np.empty(nm)
+    r1 = np.empty(nm, dtype=np.complex128)
+    r2 = np.empty(nm, dtype=np.complex128)
+    e1 = np.empty(nm, dtype=np.complex128)
+    e2 = np.empty(nm, dtype=np.complex128)
+    active = np.zeros(nq, dtype=np.bool_)
+    slack = np.zeros(nq)
+    cf = np.empty((1024, 5))
+    ci = np.empty((1024, 4), dtype=np.int64)
+    nc = 0
+    sx = np.zeros((2, 3))  # x-curvature slack hx^2/8 sum_j k_j^2 |v_j| of the last three samples (per family)
     for p in range(kk.size):
         k, l = kk[p], ll[p]
-        need_a, need_d = _pair_needs(k, l, fam, bound, best, active)
+        need_a = False
+        need_d = False
+        for q in range(nq):
+            active[q] = bound[q, k, l] > best[q, l]
+            if active[q]:
+                if fam[q] == 0:
+                    need_a = True
+                else:
+                    need_d = True
         if not (need_a or need_d):
             continue
         T_ = T[k, l]
-        h = _pair_start(k, l, m[p], iv, curv, slack, r1, r2, e1, e2)
+        h = T_ / m[p]
+        om = Om[l]
+        for q in range(nq):
+            slack[q] = curv[q, k, l] * h * h / 4.0
+        for j in range(nm):
+            r1[j] = cmath.exp(1j * om[j] * h)
+            r2[j] = cmath.exp(lam[j] * h)
+            e1[j] = 1.0
+            e2[j] = 1.0
         for i in range(m[p] + 1):
             sx[0, 0], sx[0, 1], sx[1, 0], sx[1, 1] = sx[0, 1], sx[0, 2], sx[1, 1], sx[1, 2]
             sx[0, 2] = 0.0
@@ -690,6 +726,8 @@ def _search_kernel(pairs, iv, qs, mx):
                     o = 0.0
                     e = 0.0
                     if deck[q]:
+                        o = 0.0
+                        e = 0.0
                         for j in range(nm):
                             if odd[j]:
                                 o += W[q, pp, j] * v[j]
@@ -721,91 +759,25 @@ def _search_kernel(pairs, iv, qs, mx):
                                 cf, ci, nc = _push(cf, ci, nc, y1, y1 + s1, (i - 1) * h, h, T_, q, pp, k, l)
                         else:
                             refined += _refine_t(q, pp, (i - 1) * h, h, T_, k, l, iv, qs, mx)
-        r, cf, ci, nc = _last_sample(m[p] * h, h, k, l, active, slack, sx, ya, cf, ci, nc, iv, qs, mx)
-        refined += r
-    return refined + _refine_candidates(cf, ci, nc, iv, qs, mx), nc
-
-
-@njit(cache=True, nogil=True)
-def _scratch(nq, nm, pmax):
-    """The work arrays of :func:`_search_kernel`: the last three samples of every quantity and
-    position ``ya`` (quantities, 3, positions), the modal values ``va``, ``vd``, the one-step factors
-    ``r1``, ``r2`` and running powers ``e1``, ``e2`` (modes), ``active`` and ``slack`` (quantities), the
-    deck candidates ``cf`` (1024, 5) and ``ci`` (1024, 4), and the x-curvature slack hx^2/8 sum_j k_j^2
-    |v_j| of the last three samples ``sx`` (family, 3)."""
-    return (np.zeros((nq, 3, pmax)), np.empty(nm), np.empty(nm), np.empty(nm, dtype=np.complex128),
-            np.empty(nm, dtype=np.complex128), np.empty(nm, dtype=np.complex128), np.empty(nm, dtype=np.complex128),
-            np.zeros(nq, dtype=np.bool_), np.zeros(nq), np.empty((1024, 5)), np.empty((1024, 4), dtype=np.int64),
-            np.zeros((2, 3)))
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _pair_needs(k, l, fam, bound, best, active):
-    """Which quantities the pair (interval ``k``, lane ``l``) can still raise (``active``, in place),
-    and whether any of them is an acceleration or a deflection."""
-    need_a = False
-    need_d = False
-    for q in range(fam.size):
-        active[q] = bound[q, k, l] > best[q, l]
-        if active[q]:
-            if fam[q] == 0:
-                need_a = True
-            else:
-                need_d = True
-    return need_a, need_d
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _pair_start(k, l, m, iv, curv, slack, r1, r2, e1, e2):
-    """Start the ``m`` samples of interval ``k``, lane ``l``: the curvature slack ``curv h^2 / 4`` of
-    every quantity, the one-step factors ``r1 = e^(i Om h)``, ``r2 = e^(lam h)`` and the running
-    powers ``e1 = e2 = 1`` of every mode (in place); returns the step ``h``."""
-    h = iv.T[k, l] / m
-    om = iv.Om[l]
-    for q in range(slack.size):
-        slack[q] = curv[q, k, l] * h * h / 4.0
-    for j in range(iv.lam.size):
-        r1[j] = cmath.exp(1j * om[j] * h)
-        r2[j] = cmath.exp(iv.lam[j] * h)
-        e1[j] = 1.0
-        e2[j] = 1.0
-    return h
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _last_sample(t, h, k, l, active, slack, sx, ya, cf, ci, nc, iv, qs, mx):
-    """The last sample of a pair (time ``t`` of interval ``k``, lane ``l``): each of its values that is
-    not below the one before and can still reach the best is refined by Newton in t now (one
-    position), or, on the deck, kept as a candidate when also not below its neighbours in x.
-    Returns ``(refinements, cf, ci, nc)``."""
-    refined = 0
-    fam, deck, npos, best, T_ = qs.fam, qs.deck, qs.npos, mx.best, iv.T[k, l]
-    for q in range(fam.size):
-        if not active[q]:
-            continue
-        for pp in range(npos[q]):
-            s2 = slack[q] + (sx[fam[q], 2] if deck[q] else 0.0)
-            if ya[q, 2, pp] >= ya[q, 1, pp] and ya[q, 2, pp] + s2 >= best[q, l]:
-                if deck[q]:
-                    if _x_local(ya, q, 2, pp, npos[q]):
-                        cf, ci, nc = _push(cf, ci, nc, ya[q, 2, pp], ya[q, 2, pp] + s2, t, h, T_, q, pp, k, l)
-                else:
-                    refined += _refine_t(q, pp, t, h, T_, k, l, iv, qs, mx)
-    return refined, cf, ci, nc
-
-
-@njit(cache=True, nogil=True)
-def _refine_candidates(cf, ci, nc, iv, qs, mx):
-    """The deck candidates, deferred until every pair is sampled (the best is then near the maximum),
-    refined jointly in (t, x), the largest sample first, each only if it can still reach the best;
-    returns the number of refinements."""
-    refined = 0
+        for q in range(nq):  # the last sample
+            if not active[q]:
+                continue
+            for pp in range(npos[q]):
+                s2 = slack[q] + (sx[fam[q], 2] if deck[q] else 0.0)
+                if ya[q, 2, pp] >= ya[q, 1, pp] and ya[q, 2, pp] + s2 >= best[q, l]:
+                    if deck[q]:
+                        if _x_local(ya, q, 2, pp, npos[q]):
+                            cf, ci, nc = _push(cf, ci, nc, ya[q, 2, pp], ya[q, 2, pp] + s2, m[p] * h, h, T_, q, pp, k, l)
+                    else:
+                        refined += _refine_t(q, pp, m[p] * h, h, T_, k, l, iv, qs, mx)
+    # deck candidates, deferred until every pair is sampled (the best is then near the maximum), the
+    # largest sample first
     for c in np.argsort(-cf[:nc, 0]):
         q, pp, k, l = ci[c, 0], ci[c, 1], ci[c, 2], ci[c, 3]
-        if cf[c, 1] < mx.best[q, l]:
+        if cf[c, 1] < best[q, l]:
             continue
         refined += _refine_deck(q, pp, cf[c, 2], cf[c, 3], cf[c, 4], k, l, iv, qs, mx)
-    return refined
+    return refined, nc
 
 
 @njit(cache=True, nogil=True)
