@@ -20,7 +20,6 @@ by block of steps.
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 
@@ -31,6 +30,7 @@ from adm_sim.fields import FIELDS
 from adm_sim.integrate.rk4_sides import mlm_rk4_coefficients
 from adm_sim.integrate.run_contract import FAILED, RUNNING, AdvancingRun, check_model
 from adm_sim.limits import check_memory
+from adm_sim.integrate.mlm_loads import axles_on_deck, span_load_table
 from adm_sim.integrate.step_grid import StepOptions, make_grid, speeds_to_m_s
 from adm_sim.integrate.tables import active_units, axle_rows, bridge_tables, vehicle_tables
 from adm_sim.model.irregularity import check_step  # the profile's shortest feature against ds (scipy loads only when a profile is used)
@@ -49,39 +49,17 @@ def modal_load_table(bridge, ds_m, axle_offsets_m, axle_loads_n, n_steps):
     s = 0.5 * ds_m * np.arange(0, 2 * n_steps + 1)
     if bridge.is_continuous:
         return _deck_load_table(bridge, s, axle_offsets_m, axle_loads_n)
-    out = np.zeros((s.size, bridge.n_modes))
-    span = bridge.span_m
-    j = bridge.mode_numbers * math.pi / span
-    for load, r0, x in _axles_on_deck(s, span, axle_offsets_m, axle_loads_n):
-        out[r0:r0 + x.size] += load * np.sin(np.outer(x, j))
-    return out
-
-
-def _axles_on_deck(s, span, axle_offsets_m, axle_loads_n):
-    """Each axle's rows on the deck, in axle order: ``(load_n, r0, x)`` with ``x = s[r0:r0 + k] - offset``
-    the axle's positions on ``[0, span]`` (the rows are contiguous: ``s`` increases); axles never on
-    the deck are left out. ``s - off >= 0`` exactly where ``s >= off`` (the sign of a rounded
-    difference is exact); the upper end by the test itself on a few rows beyond ``s = off + span``."""
-    loads = np.asarray(axle_loads_n, dtype=float)
-    for i, off in enumerate(np.asarray(axle_offsets_m, dtype=float)):
-        r0 = int(np.searchsorted(s, off, side="left"))
-        r1 = min(int(np.searchsorted(s, off + span, side="right")) + 2, s.size)
-        if r0 >= r1:
-            continue
-        x = s[r0:r1] - off
-        on = np.flatnonzero((x >= 0.0) & (x <= span))
-        if on.size:
-            yield loads[i], r0 + on[0], x[on[0]:on[-1] + 1]
+    return span_load_table(bridge, s, axle_offsets_m, axle_loads_n)
 
 
 def _deck_load_table(bridge, s, axle_offsets_m, axle_loads_n):
     """:func:`modal_load_table` of a continuous deck: each axle's rows on the deck
-    (:func:`_axles_on_deck`) added in axle order by the compiled
+    (:func:`adm_sim.integrate.mlm_loads.axles_on_deck`) added in axle order by the compiled
     :func:`adm_sim.integrate.kernels.add_deck_loads` (the deck's exact mode shapes, entry by entry:
     no (rows x axles) temporaries)."""
     out = np.zeros((s.size, bridge.n_modes))
     shapes = kernels.deck_shapes(bridge.deck)
-    for load, r0, x in _axles_on_deck(s, bridge.span_m, axle_offsets_m, axle_loads_n):
+    for load, r0, x in axles_on_deck(s, bridge.span_m, axle_offsets_m, axle_loads_n):
         kernels.add_deck_loads(out, int(r0), np.ascontiguousarray(x), float(load), shapes)
     return out
 
@@ -154,7 +132,13 @@ class BatchRunner:
         """Memory (bytes) of the tables a run of ``n_steps`` steps builds: the MLM modal loads
         ``(2 n + 1) x n_modes``; the DIM axle rows (every axle's mode shapes and slopes and curvatures
         on its ``2 L / ds + 1`` rows on the bridge, the profile under it) and the Eq. (13) inverses
-        ``n_bridges x (2 n + 1) x n_modes^2``."""
+        ``n_bridges x (2 n + 1) x n_modes^2``.
+
+        Built whole, not per block of steps: a runner builds them once, for its longest run, and every
+        later run of the runner reads the same rows again (a calibration's MLM and DIM runs, each Δζ
+        of its root search, every phase of a study batch), so tables made per block would be made
+        again for every run; the MLM table itself is built axle by axle
+        (:func:`adm_sim.integrate.mlm_loads.span_load_table`, no rows x axles temporary)."""
         rows, nm = 2.0 * n_steps + 1.0, self.n_modes
         if model == "mlm":
             return 8.0 * rows * nm

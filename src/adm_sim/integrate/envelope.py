@@ -54,6 +54,11 @@ its decaying bound drops below the largest value found at an event instant (at m
 search in numpy, per-interval array operations, cost 2.6-5 s for the 14-train bench case instead
 of 0.4 s CPU).
 
+Memory: the lanes (speeds) are independent, so they are computed in chunks of :func:`chunk_lanes`
+speeds (:data:`CHUNK_BYTES` of coefficients, bounds and search lists), the same numbers bit for bit
+whatever the chunk (``tests/integrate/test_envelope_chunks.py``); :func:`envelope_bytes` (one chunk, the
+results, the coefficients kept for the effects) is checked against the memory available first.
+
 Modes: EN 1990 A2.4.4.2.1 asks for every mode up to the larger of 30 Hz, 1.5 n0 and the third
 mode's frequency (:func:`check_mode_count`). Damping per mode: ``bridge.modal_damping_ratios``
 (Rayleigh anchored at modes 1 and 3, or equal ``"modal"`` damping, see :mod:`adm_sim.model.bridge`).
@@ -71,6 +76,7 @@ import numpy as np
 from adm_sim.integrate._jit import njit  # numba compiles the search loop; without it the same source runs as plain Python
 from adm_sim.errors import InputError
 from adm_sim.fields import check_delta_zeta_fraction, check_range
+from adm_sim.limits import check_memory
 from adm_sim.integrate.step_grid import speeds_to_m_s
 from adm_sim.integrate.where import WHERE_KEYWORDS, parse_where, where_text  # noqa: F401  re-exported: the envelope's positions
 
@@ -80,6 +86,18 @@ MAX_FREE_PERIODS = 30.0
 NEWTON_ITERATIONS = 8
 #: Largest number of joint (t, x) Newton iterations of the whole-deck refinement.
 NEWTON_ITERATIONS_2D = 16
+#: Memory budget of one chunk of speeds (bytes, :func:`chunk_lanes`): the exact envelope's coefficients
+#: grow as speeds x events x modes (ICE-2 on B1, whole deck, 20000 speeds: 774 MiB at once, 65 MiB in
+#: chunks, tracemalloc), so the speeds are taken a chunk at a time. 64 MiB (about 1100 speeds of that
+#: case) keeps every bench and check case of today (277 speeds) in one chunk, and a chunk's fixed cost
+#: (a few dozen numpy calls) is then far below its search (the 20000 speeds took 3.6 s CPU in chunks
+#: against 5.0 s at once).
+CHUNK_BYTES = 64 * 2**20
+#: Deck candidates of the search per event and deck position, for the memory estimate (measured: at
+#: most 0.19 on B1 and B4, 3 and 8 modes, HSLM-A1..A10 and ICE-2, 277 speeds; :func:`lane_bytes`).
+CANDIDATES_PER_EVENT = 0.25
+
+
 def check_frequency_limit_hz(bridge):
     """Highest frequency to include (Hz): max(30 Hz, 1.5 n0, n3), EN 1990 A2.4.4.2.1."""
     return max(30.0, 1.5 * bridge.n0_hz, 9.0 * bridge.n0_hz)
@@ -172,6 +190,10 @@ def moving_load_envelope(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, *, de
                          positive_for="the exact envelope", remedy=""):
     """Exact max |acceleration|, |deflection| (at ``where``) and |midspan moment| at every speed.
 
+    The speeds are computed in chunks of :func:`chunk_lanes` lanes (:data:`CHUNK_BYTES`), each lane
+    as if alone, so the result is the same bit for bit whatever the chunk; the memory of the whole
+    run (:func:`envelope_bytes`) is checked against this machine's before anything is allocated.
+
     Parameters
     ----------
     bridge : adm_sim.model.bridge.Bridge
@@ -199,6 +221,36 @@ def moving_load_envelope(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, *, de
     -------
     Envelope
     """
+    L, where, v_all, ppp, dz, offs, loads = _checked_inputs(bridge, axle_offsets_m, axle_loads_n, speeds_kmh,
+                                                           delta_zeta, samples_per_period, where, delta_zeta_name,
+                                                           positive_for, remedy)
+    md = _modes(bridge, where, dz)
+    bps, G = _events(offs, loads, L, md.jj, md.mass[0])  # equal modal masses mu L / 2
+    G = G * (md.mass[0] / md.mass)
+    quants = _quantities(bridge, where, md, ppp)
+    keep = keep_intervals and md.keep.all()
+    nq, pmax = len(quants), max(len(x) for _, _, x, _ in quants)
+    check_memory(envelope_bytes(v_all.size, bps.size, md.jj.size, nq, pmax, keep),
+                 f"the exact envelope of {v_all.size} speeds{' with its coefficients kept' if keep else ''}",
+                 f"large because {v_all.size} speeds x {bps.size} axle events x {md.jj.size} modes; "
+                 f"fewer speeds{' or no kept coefficients' if keep else ''} make it smaller")
+    res = _chunked_lanes(v_all, L, md, bps, G, ppp, quants, keep)
+    q_mid = 1 if where == "midspan" else 3
+    zeta_used = tuple(float(z) for z in np.ravel(md.zeta_all))
+    kept = LaneIntervals(P=res["P"], H=res["H"], zeta=zeta_used) if keep else None
+    return Envelope(speeds_kmh=np.atleast_1d(np.asarray(speeds_kmh, dtype=float)).copy(),
+                    max_acc_m_s2=res["best"][0], max_disp_m=res["best"][1], t_acc_s=res["when"][0],
+                    t_disp_s=res["when"][1], x_acc_m=res["xat"][0], x_disp_m=res["xat"][1],
+                    max_moment_Nm=res["best"][2], t_moment_s=res["when"][2],
+                    max_disp_midspan_m=res["best"][q_mid].copy(), where=where,
+                    modes=tuple(int(j) for j in bridge.mode_numbers), zeta=zeta_used, refined=res["refined"],
+                    intervals=kept)
+
+
+def _checked_inputs(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, delta_zeta, samples_per_period, where,
+                    delta_zeta_name, positive_for, remedy):
+    """The inputs of :func:`moving_load_envelope` checked (one-line :class:`InputError` otherwise):
+    ``(L, where, speeds in m/s, samples per period, Δζ, axle offsets, axle loads)``."""
     if bridge.is_continuous:
         raise InputError(f"method: the exact MLM envelope is written for the sine modes of one simply supported "
                          f"span; a continuous deck ({len(bridge.spans_m)} spans) runs RK4 (allowed --method rk4)", field="method")
@@ -215,44 +267,108 @@ def moving_load_envelope(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, *, de
     loads = np.asarray(axle_loads_n, dtype=float)
     if offs.ndim != 1 or offs.shape != loads.shape or offs.size == 0:
         raise InputError("axles: offsets (m) and loads (N) need the same non-zero length")
+    return L, where, v_all, ppp, dz, offs, loads
+
+
+class _Modes(NamedTuple):
+    """The modes of the search (every mode, or the odd ones at midspan) and their constants."""
+
+    keep: np.ndarray  #: (all modes,) bool: the mode is searched
+    jj: np.ndarray  #: (modes,) mode numbers
+    s: np.ndarray  #: (modes,) sin(j pi / 2)
+    s_mid: np.ndarray  #: (modes,) sin(j pi / 2), exactly 0 for even modes
+    om: np.ndarray  #: (modes,) natural circular frequencies (rad/s)
+    zeta_all: np.ndarray  #: (all modes,) damping ratios with Δζ (fractions)
+    zeta: np.ndarray  #: (modes,)
+    mass: np.ndarray  #: (modes,) modal masses (kg)
+    lam: np.ndarray  #: (modes,) complex eigenvalues (1/s)
+
+
+def _modes(bridge, where, dz):
+    """:class:`_Modes` of ``bridge`` at ``where`` with the additional damping ``dz`` (fraction)."""
     jall = bridge.mode_numbers
     s_all = np.sin(jall * np.pi / 2.0)
     keep = np.abs(s_all) > 0.5 if where == "midspan" else np.ones(jall.size, dtype=bool)
     jj, s = jall[keep], s_all[keep]
-    s_mid = np.where(np.abs(s) > 0.5, s, 0.0)  # exactly 0 for even modes
     om = bridge.omega_rad_s[keep]
     zeta_all = np.asarray(bridge.modal_damping_ratios(dz))
     zeta = zeta_all[keep]
-    mass = bridge.modal_mass_kg[keep]
     lam = -zeta * om + 1j * om * np.sqrt(1.0 - zeta**2)
-    bps, G = _events(offs, loads, L, jj, mass[0])  # equal modal masses mu L / 2
-    G = G * (mass[0] / mass)
+    return _Modes(keep=keep, jj=jj, s=s, s_mid=np.where(np.abs(s) > 0.5, s, 0.0), om=om, zeta_all=zeta_all,
+                  zeta=zeta, mass=bridge.modal_mass_kg[keep], lam=lam)
+
+
+def _quantities(bridge, where, md, ppp):
+    """The searched quantities: ``(family 0 = acceleration / 1 = deflection, weights (positions, modes),
+    positions, deck?)``; the moment and (but at midspan) the midspan deflection third and fourth."""
+    L = bridge.span_m
+    jj, s, s_mid = md.jj, md.s, md.s_mid
     kw = jj * np.pi / L
     moment_w = bridge.EJ_Nm2 * kw**2 * s_mid
-    # quantities: (family 0 = acceleration / 1 = deflection, weights (positions, modes), positions, deck?)
     if where == "midspan":
-        quants = [(0, s[None, :], [0.5 * L], False), (1, s[None, :], [0.5 * L], False),
-                  (1, moment_w[None, :], [0.5 * L], False)]
-    elif where == "deck":
+        return [(0, s[None, :], [0.5 * L], False), (1, s[None, :], [0.5 * L], False),
+                (1, moment_w[None, :], [0.5 * L], False)]
+    if where == "deck":
         xg = deck_positions_m(L, int(jj.max()), ppp)
         shapes = np.sin(np.outer(xg, kw))
-        quants = [(0, shapes, xg, True), (1, shapes, xg, True), (1, moment_w[None, :], [0.5 * L], False),
-                  (1, s_mid[None, :], [0.5 * L], False)]
-    else:
-        sx = np.sin(kw * where)
-        quants = [(0, sx[None, :], [where], False), (1, sx[None, :], [where], False),
-                  (1, moment_w[None, :], [0.5 * L], False), (1, s_mid[None, :], [0.5 * L], False)]
+        return [(0, shapes, xg, True), (1, shapes, xg, True), (1, moment_w[None, :], [0.5 * L], False),
+                (1, s_mid[None, :], [0.5 * L], False)]
+    sx = np.sin(kw * where)
+    return [(0, sx[None, :], [where], False), (1, sx[None, :], [where], False),
+            (1, moment_w[None, :], [0.5 * L], False), (1, s_mid[None, :], [0.5 * L], False)]
 
-    res = _all_lanes(v_all, L, jj, om, zeta, lam, bps, G, ppp, quants)
-    q_mid = 1 if where == "midspan" else 3
-    zeta_used = tuple(float(z) for z in np.ravel(zeta_all))
-    kept = LaneIntervals(P=res["P"], H=res["H"], zeta=zeta_used) if keep_intervals and keep.all() else None
-    return Envelope(speeds_kmh=np.atleast_1d(np.asarray(speeds_kmh, dtype=float)).copy(),
-                    max_acc_m_s2=res["best"][0], max_disp_m=res["best"][1], t_acc_s=res["when"][0],
-                    t_disp_s=res["when"][1], x_acc_m=res["xat"][0], x_disp_m=res["xat"][1],
-                    max_moment_Nm=res["best"][2], t_moment_s=res["when"][2],
-                    max_disp_midspan_m=res["best"][q_mid].copy(), where=where,
-                    modes=tuple(int(j) for j in jall), zeta=zeta_used, refined=res["refined"], intervals=kept)
+
+def lane_bytes(n_events, n_modes, n_quantities, n_positions):
+    """Peak memory of one lane (speed) in a chunk of :func:`_all_lanes` (bytes): the four coefficient
+    arrays (acceleration and deflection, forced and free) ``4 x 16 K n_modes``, the bounds of the
+    value and of the curvature ``2 x 8 K n_quantities``, the interval starts and lengths ``2 x 8 K``,
+    the largest temporaries (the ratio of the bounds ``8 K n_quantities``, the pair lists and their
+    order, at most ``8 x 8 K``), the per-mode rows (``24 x 16 n_modes``), and the search's deck
+    candidates (:data:`CANDIDATES_PER_EVENT` per event and position, 72 bytes each, up to three times
+    over while their list doubles); ``K = n_events``."""
+    K, nm, nq = float(n_events), float(n_modes), float(n_quantities)
+    candidates = CANDIDATES_PER_EVENT * K * float(n_positions) * 72.0 * 3.0
+    return 64.0 * K * nm + 16.0 * K * nq + 16.0 * K + 8.0 * K * nq + 64.0 * K + 24.0 * 16.0 * nm + candidates
+
+
+def chunk_lanes(n_events, n_modes, n_quantities, n_positions):
+    """Lanes per chunk: as many as fit :data:`CHUNK_BYTES` (:func:`lane_bytes` each), at least one."""
+    return max(1, int(CHUNK_BYTES // lane_bytes(n_events, n_modes, n_quantities, n_positions)))
+
+
+def envelope_bytes(n_lanes, n_events, n_modes, n_quantities, n_positions, keep_intervals=False):
+    """Peak memory of :func:`moving_load_envelope` on ``n_lanes`` speeds (bytes): one chunk
+    (:func:`chunk_lanes` lanes of :func:`lane_bytes`), the results of every lane (best, time,
+    position of each quantity), and with ``keep_intervals`` the kept coefficients of every lane
+    (``2 x 16 K n_modes`` each, :class:`LaneIntervals`)."""
+    chunk = min(int(n_lanes), chunk_lanes(n_events, n_modes, n_quantities, n_positions))
+    out = float(n_lanes) * 8.0 * (3.0 * n_quantities + 2.0)
+    kept = float(n_lanes) * 32.0 * float(n_events) * float(n_modes) if keep_intervals else 0.0
+    return chunk * lane_bytes(n_events, n_modes, n_quantities, n_positions) + out + kept
+
+
+def _chunked_lanes(v_all, L, md, bps, G, ppp, quants, keep):
+    """:func:`_all_lanes` on chunks of :func:`chunk_lanes` speeds, the results put together: the same
+    as on every lane at once, bit for bit (every lane's propagation, bounds and search are its own)."""
+    nl, nm, nq = v_all.size, md.jj.size, len(quants)
+    width = chunk_lanes(bps.size, nm, nq, max(len(x) for _, _, x, _ in quants))
+    if width >= nl:
+        return _all_lanes(v_all, L, md.jj, md.om, md.zeta, md.lam, bps, G, ppp, quants)
+    res = {"best": np.empty((nq, nl)), "when": np.empty((nq, nl)), "xat": np.empty((nq, nl)), "refined": 0, "candidates": 0,
+           "P": np.empty((bps.size, nl, nm), dtype=complex) if keep else None,
+           "H": np.empty((bps.size, nl, nm), dtype=complex) if keep else None}
+    for a in range(0, nl, width):
+        b = min(nl, a + width)
+        part = _all_lanes(v_all[a:b], L, md.jj, md.om, md.zeta, md.lam, bps, G, ppp, quants)
+        for key in ("best", "when", "xat"):
+            res[key][:, a:b] = part[key]
+        res["refined"] += part["refined"]
+        res["candidates"] = max(res["candidates"], part["candidates"])
+        if keep:
+            res["P"][:, a:b] = part["P"]
+            res["H"][:, a:b] = part["H"]
+        del part  # before the next chunk is allocated
+    return res
 
 
 class Intervals(NamedTuple):
@@ -363,8 +479,9 @@ def _all_lanes(v, L, jj, om, zeta, lam, bps, G, ppp, quants):
     order = np.argsort(-ratio[kk, ll], kind="stable")
     f_lane = np.maximum(np.abs(lam).max(), Om.max(1)) / (2.0 * np.pi)  # fastest component per lane
     m = np.ceil(T[kk[order], ll[order]] * f_lane[ll[order]] * ppp).astype(np.int64) + 1
-    refined = _search_kernel(Pairs(k=kk[order], l=ll[order], m=m), iv, qs, mx)
-    return {"best": best, "when": when, "xat": xat, "refined": int(refined), "P": P, "H": H}
+    refined, candidates = _search_kernel(Pairs(k=kk[order], l=ll[order], m=m), iv, qs, mx)
+    return {"best": best, "when": when, "xat": xat, "refined": int(refined), "candidates": int(candidates),
+            "P": P, "H": H}
 
 
 @njit(cache=True, nogil=True)
@@ -534,7 +651,14 @@ def _search_kernel(pairs, iv, qs, mx):
     (pruned again against the risen best before each pair), refine every sampled local maximum of
     every quantity that can reach its best by Newton (in t, or jointly in (t, x) on the deck);
     ``mx.best``, ``mx.when`` and ``mx.xat`` (quantities, lanes) in place. Returns the number of
-    refinements."""
+    refinements and of deck candidates.
+
+    One function of 125 lines (issue 34 asks for 80 at most), by measurement: with its per-pair steps
+    in helpers (the work arrays, the active quantities, the pair's start, the last sample, the deck
+    refinement) bench/bench_envelope.py took 1.090x the CPU of this form (B1 x HSLM-A1..A10 + ICE-2,
+    277 speeds, midspan, deck and x = 5 m; 4 alternating rounds, every number bit for bit; 0.997-1.01x
+    when both ran in one process, but the bench's separate processes are what a user runs); with the
+    per-sample body in ``inline="always"`` helpers too, 2.6-2.8x."""
     kk, ll, m = pairs.k, pairs.l, pairs.m
     ca1, ca2, cd1, cd2, Om, lam, T, t0 = iv.acc_c1, iv.acc_c2, iv.disp_c1, iv.disp_c2, iv.Om, iv.lam, iv.T, iv.t0
     fam, deck, npos, W, xp, odd, kw, span, hx = qs.fam, qs.deck, qs.npos, qs.W, qs.xp, qs.odd, qs.kw, qs.span_m, qs.hx_m
@@ -653,7 +777,7 @@ def _search_kernel(pairs, iv, qs, mx):
         if cf[c, 1] < best[q, l]:
             continue
         refined += _refine_deck(q, pp, cf[c, 2], cf[c, 3], cf[c, 4], k, l, iv, qs, mx)
-    return refined
+    return refined, nc
 
 
 @njit(cache=True, nogil=True)
@@ -713,4 +837,5 @@ def _refine_deck(q, pp, t, h, T_, k, l, iv, qs, mx):
 
 
 __all__ = ["Envelope", "LaneIntervals", "moving_load_envelope", "check_mode_count", "check_frequency_limit_hz",
-           "parse_where", "where_text", "deck_positions_m", "MAX_FREE_PERIODS", "WHERE_KEYWORDS"]
+           "parse_where", "where_text", "deck_positions_m", "MAX_FREE_PERIODS", "WHERE_KEYWORDS", "CHUNK_BYTES",
+           "lane_bytes", "chunk_lanes", "envelope_bytes"]

@@ -208,6 +208,16 @@ def run_sweep_compiled(bridge, train, model, speeds_kmh, delta_zeta=0.0, options
                        contact=run.contact)
 
 
+def sweep_bytes(model, n_steps, n_lanes, n_modes, n_axles, histories):
+    """Memory of the tables and histories of :func:`run_sweep` (bytes): the MLM's modal-load table
+    ``(2 n + 1) x n_modes`` (built axle by axle on one span, :func:`adm_sim.integrate.mlm_loads.span_load_table`),
+    and with ``histories`` the times, deflections and accelerations ``n_lanes x n_steps`` each and the
+    DIM's contact forces ``n_lanes x n_steps x n_axles``, in doubles."""
+    kept = (2.0 * n_steps + 1.0) * n_modes * (0 if model == "dim" else 1)
+    kept += float(n_lanes) * n_steps * (3 + (n_axles if model == "dim" else 0)) if histories else 0.0
+    return 8.0 * kept
+
+
 def run_sweep(bridge, train, model, speeds_kmh, delta_zeta=0.0, options=None, histories=False,
               progress=None, where="midspan", *, delta_zeta_name="delta_zeta"):
     """Max midspan acceleration of a bridge under a train for every speed, in one vectorised run.
@@ -223,7 +233,9 @@ def run_sweep(bridge, train, model, speeds_kmh, delta_zeta=0.0, options=None, hi
         Additional damping (fraction) on top of ``bridge.damping_ratio``.
     options : StepOptions, optional
     histories : bool
-        Keep time histories (memory: ``n_lanes * n_steps`` per quantity).
+        Keep time histories (memory: ``n_lanes * n_steps`` per quantity, the times included). They are
+        the result, so they are allocated whole, once, in the layout they are returned in (no
+        transposed copy at the end), not in chunks; :data:`MAX_HISTORY_VALUES` caps them.
     progress : callable(done_steps, n_steps) or None
         Called about 100 times during the run.
     where : "midspan" or float
@@ -249,9 +261,8 @@ def run_sweep(bridge, train, model, speeds_kmh, delta_zeta=0.0, options=None, hi
     if histories and nl * n * (1 + (train.n_axles if dim else 0)) > MAX_HISTORY_VALUES:
         raise InputError(f"histories: {nl} speeds x {n} steps is too much to keep; "
                          f"ask histories for at most a few speeds")
-    kept = (2.0 * n + 1.0) * bridge.n_modes * (0 if dim else 1)  # the MLM's modal-load table
-    kept += nl * n * (2 + (train.n_axles if dim else 0)) if histories else 0
-    check_memory(8.0 * kept, f"the {model.upper()} run's tables{' and histories' if histories else ''}",
+    check_memory(sweep_bytes(model, n, nl, bridge.n_modes, train.n_axles, histories),
+                 f"the {model.upper()} run's tables{' and histories' if histories else ''}",
                  f"large because {n} steps of ds = {grid.ds_m * 1e3:.3g} mm x {nl} speeds; fewer steps per period "
                  f"or fewer speeds make it smaller")
     b = BridgeSide(bridge, grid, train.axle_offsets_m, train.wheel_mass_kg if dim else None, dz, response_m=response_m)
@@ -262,28 +273,27 @@ def run_sweep(bridge, train, model, speeds_kmh, delta_zeta=0.0, options=None, hi
     else:
         run = InProcessRun(model, grid, b, dense_maxima=options.dense_maxima,
                            modal_loads=mlm_modal_load_table(bridge, grid, train.axle_offsets_m, train.axle_loads_n))
-    acc = np.empty((n, nl)) if histories else None
-    disp = np.empty((n, nl)) if histories else None
-    forces = np.zeros((n, nl, train.n_axles), dtype=np.float64) if (histories and dim) else None
+    acc = np.empty((nl, n)) if histories else None  # (lanes, steps): the layout of the result
+    disp = np.empty((nl, n)) if histories else None
+    forces = np.zeros((nl, n, train.n_axles), dtype=np.float64) if (histories and dim) else None
     tick = max(1, n // 100)
     for k in range(n):
         if disp is not None:
-            disp[k] = run.disp_m
+            disp[:, k] = run.disp_m
         if run.step() is not None:
             raise RunError(run.message)
         if acc is not None:
-            acc[k] = run.acc_m_s2
+            acc[:, k] = run.acc_m_s2
         if forces is not None:
             idx, f = run.contact_forces_n()
             if len(idx):
-                forces[k][:, idx] = f
+                forces[:, k][:, idx] = f
         if progress is not None and (k % tick == 0 or k == n - 1):
             progress(k + 1, n)
     kw = {}
     if histories:
-        kw = dict(time_s=np.outer(1.0 / v, np.arange(n) * grid.ds_m), midspan_disp_m=disp.T.copy(),
-                  midspan_acc_m_s2=acc.T.copy(),
-                  contact_force_n=None if forces is None else forces.transpose(1, 0, 2).copy())
+        kw = dict(time_s=np.outer(1.0 / v, np.arange(n) * grid.ds_m), midspan_disp_m=disp, midspan_acc_m_s2=acc,
+                  contact_force_n=forces)
     return SweepResult(model=model, bridge=bridge, train_name=train.name,
                        speeds_kmh=np.atleast_1d(np.asarray(speeds_kmh, dtype=float)).copy(), max_acc_m_s2=run.max_acc_m_s2,
                        max_disp_m=run.max_disp_m, delta_zeta=np.asarray(delta_zeta, dtype=float),
