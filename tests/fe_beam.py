@@ -10,6 +10,8 @@ Nothing here comes from :mod:`adm_sim`.
 
 from __future__ import annotations
 
+import bisect
+
 import numpy as np
 import scipy.linalg
 
@@ -39,6 +41,7 @@ class FEBeam:
             el_EJ += [e] * n_el
             el_mu += [m] * n_el
         self.x = np.array(nodes)
+        self._nodes = self.x.tolist()  # for bisect in load_vector
         n = 2 * self.x.size
         K, M = np.zeros((n, n)), np.zeros((n, n))
         for e in range(self.x.size - 1):
@@ -62,14 +65,17 @@ class FEBeam:
     def load_vector(self, x_load, forces):
         """Consistent nodal loads (free DOFs) of point forces ``forces`` at ``x_load`` (off deck: none)."""
         f = np.zeros(self.n_dof_all)
+        x = self.x
         for xp, p in zip(x_load, forces):
-            if not (self.x[0] <= xp <= self.x[-1]):
+            if not (x[0] <= xp <= x[-1]):
                 continue
-            e = min(int(np.searchsorted(self.x, xp, side="right")) - 1, self.x.size - 2)
-            h = self.x[e + 1] - self.x[e]
-            s = (xp - self.x[e]) / h
-            N = np.array([1 - 3 * s**2 + 2 * s**3, h * (s - 2 * s**2 + s**3), 3 * s**2 - 2 * s**3, h * (-s**2 + s**3)])
-            f[2 * e:2 * e + 4] += p * N
+            e = min(bisect.bisect_right(self._nodes, xp) - 1, x.size - 2)  # np.searchsorted(x, xp, "right") - 1
+            h = x[e + 1] - x[e]
+            s = (xp - x[e]) / h
+            f[2 * e] += p * (1 - 3 * s**2 + 2 * s**3)
+            f[2 * e + 1] += p * (h * (s - 2 * s**2 + s**3))
+            f[2 * e + 2] += p * (3 * s**2 - 2 * s**3)
+            f[2 * e + 3] += p * (h * (-s**2 + s**3))
         return f[self.free]
 
     def deflection_at(self, u_free, x):
@@ -102,7 +108,10 @@ def fe_moving_loads(beam, axle_offsets_m, axle_loads_n, speed_m_s, dt_s, t_end_s
     n_steps = int(round(t_end_s / dt_s))
     gamma, beta = 0.5, 0.25
     Keff = K + gamma / (beta * dt_s) * C + M / (beta * dt_s**2)
-    lu = scipy.linalg.lu_factor(Keff)
+    lu, piv = scipy.linalg.lu_factor(Keff)
+    # LAPACK's getrs, as scipy.linalg.lu_solve calls it, without that wrapper's per-call checks
+    # (the same arithmetic; the loop below runs some 10^4-10^5 times)
+    getrs = scipy.linalg.get_lapack_funcs("getrs", (lu,))
     offs, loads = np.asarray(axle_offsets_m, float), np.asarray(axle_loads_n, float)
     r = beam.interp_row(x_out_m)
     u = np.zeros(M.shape[0])
@@ -112,12 +121,14 @@ def fe_moving_loads(beam, axle_offsets_m, axle_loads_n, speed_m_s, dt_s, t_end_s
     t = np.arange(n_steps + 1) * dt_s
     w_out, a_out = np.empty(n_steps + 1), np.empty(n_steps + 1)
     w_out[0], a_out[0] = r @ u, r @ acc
+    bdt2, bdt, c_acc = beta * dt_s**2, beta * dt_s, 0.5 / beta - 1  # Newmark's constants, once
+    g_bdt, c_v, c_a = gamma / (beta * dt_s), gamma / beta - 1, dt_s * (0.5 * gamma / beta - 1)
     for k in range(1, n_steps + 1):
         f = beam.load_vector(speed_m_s * t[k] - offs, loads)
-        rhs = (f + M @ (u / (beta * dt_s**2) + v / (beta * dt_s) + (0.5 / beta - 1) * acc)
-               + C @ (gamma / (beta * dt_s) * u + (gamma / beta - 1) * v + dt_s * (0.5 * gamma / beta - 1) * acc))
-        un = scipy.linalg.lu_solve(lu, rhs)
-        an = (un - u) / (beta * dt_s**2) - v / (beta * dt_s) - (0.5 / beta - 1) * acc
+        rhs = f + M @ (u / bdt2 + v / bdt + c_acc * acc) + C @ (g_bdt * u + c_v * v + c_a * acc)
+        un, info = getrs(lu, piv, rhs)
+        assert info == 0
+        an = (un - u) / bdt2 - v / bdt - c_acc * acc
         vn = v + dt_s * ((1 - gamma) * acc + gamma * an)
         u, v, acc = un, vn, an
         w_out[k], a_out[k] = r @ u, r @ acc
