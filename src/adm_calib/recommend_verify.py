@@ -21,6 +21,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
+from adm_calib.calibrate import calibrate
 from adm_calib.recommend_warnings import NEIGHBOURHOOD_HZ, neighbourhood
 
 #: Tolerance (%-points) of "Δζ_VBI at least the bound": the calibration's printed digits.
@@ -122,8 +123,6 @@ def verify(bound_pct, bridge, train, speeds_kmh=None, *, zeta_source="", speeds_
     -------
     Verification
     """
-    from adm_calib.calibrate import calibrate  # noqa: PLC0415  scipy (~1.3 s): only when verifying
-
     t0 = time.perf_counter()
     res = calibrate(bridge, train, speeds_kmh, options=options, adapted_curve=False)
     t_cal = time.perf_counter() - t0

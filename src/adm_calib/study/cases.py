@@ -18,8 +18,11 @@ from adm_sim.fields import check_range
 from adm_sim.limits import DEFAULT_SPEEDS
 from adm_sim.model.parametric import FIELD_SPANS_M, MASS_FUNCTIONS
 from adm_sim.integrate.step_grid import StepOptions
+from adm_sim.inputs.speeds import parse_speeds
+from adm_sim.inputs.track_profile import parse_irregularity
 from adm_sim.inputs.train_files import load_train
 
+from adm_calib.calibration_options import XTOL_STUDY, CalibrationOptions
 from adm_calib.lower_bound import FIT_RANGE_MAX_HZ, LOWER_LIMIT_HZ  # noqa: F401  (re-exported for the study package)
 from adm_calib.reference import STUDY_TRAINS, canonical_train_name
 
@@ -227,21 +230,14 @@ class StudySettings:
     spans_layout: int = 1
 
     def speeds_kmh(self):
-        from adm_sim.inputs.speeds import parse_speeds  # noqa: PLC0415  scipy.signal (peaks) only when a study runs
-
         return parse_speeds(self.speeds)
 
     def calibration_options(self, span_m=None):
         """The calibration options; with an irregularity, ``span_m`` (the cases' span) sets the
         deck the profile is generated on."""
-        from adm_calib.calibrate import CalibrationOptions  # noqa: PLC0415  scipy.optimize only when a study runs
-        from adm_calib.calibration_options import XTOL_STUDY  # noqa: PLC0415
-
         step = None
         profile = None
         if self.irregularity:
-            from adm_sim.inputs.track_profile import parse_irregularity  # noqa: PLC0415  scipy.interpolate only for rough-track studies
-
             if span_m is None:
                 raise ValueError("calibration_options: an irregularity needs the span of the cases")
             profile = parse_irregularity(self.irregularity, span_m)

@@ -22,6 +22,7 @@ from pathlib import Path
 
 from adm_sim.errors import InputError, RunError
 
+from adm_calib.calibrate import calibrate_batch
 from adm_calib.study.cases import WORKER_ENV, StudySettings, _train
 from adm_calib.study.store import (META_FORMAT, RESULTS_NAME, ResultsWriter, _exclusive, _now, _write_meta,
                                    error_record, read_meta, read_results, result_record, versions)
@@ -46,8 +47,6 @@ def run_batch(cases, settings=StudySettings(), train=None):
     from a file (:mod:`adm_calib.study.own_train`); None: the built-in train the cases name. Never raises for errors of the cases themselves: if the batch
     fails, every case is tried alone so that only the failing ones become error records.
     """
-    from adm_calib.calibrate import calibrate_batch  # noqa: PLC0415  scipy.optimize and scipy.signal, loaded by the workers that calibrate
-
     t0 = time.perf_counter()
     try:
         train = _train(cases[0].train) if train is None else train

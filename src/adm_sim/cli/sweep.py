@@ -22,6 +22,7 @@ from adm_sim.fields import FIELDS
 from adm_sim.files import OutputSet, claim_output
 from adm_sim.inputs.bridges import resolve_bridge
 from adm_sim.inputs.speeds import parse_speeds
+from adm_sim.inputs.track_profile import parse_irregularity
 from adm_sim.inputs.train_files import load_train
 from adm_sim.integrate.step_grid import StepOptions
 from adm_sim.integrate.sweep import lane_damping, run_sweep, run_sweep_compiled, sweep_exact
@@ -135,8 +136,6 @@ def run(args):
         if args.model != "dim":
             raise InputError(f"--irregularity: {args.irregularity!r} acts on the DIM's wheels; the MLM has none "
                              f"(allowed with --model dim)")
-        from adm_sim.inputs.track_profile import parse_irregularity  # noqa: PLC0415  scipy.interpolate only on a rough track
-
         profile = parse_irregularity(args.irregularity, bridge.span_m)  # refused beyond the model's slope and curvature
     opts = StepOptions(steps_per_period=check_option("--steps-per-period", args.steps_per_period),
                        irregularity=profile)
