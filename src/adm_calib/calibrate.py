@@ -143,14 +143,15 @@ def calibrate_cases(bridges, train, lanes, speeds_kmh=None, *, options=None, ste
     mlm = _mlm_step(lanes, v, len(bridges), opt)
     timings["mlm_sweep"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    dim = _dim_step(lanes, v, mlm, opt, dim_curves)
+    dim = _dim_step(lanes, v, mlm, opt=opt, dim_curves=dim_curves)
     timings["dim_sweep"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    solves, adapted = _solve_step(lanes, v, mlm, dim.peaks, [b.damping_ratio for b in bridges], opt,
+    solves, adapted = _solve_step(lanes, v, mlm, dim.peaks, zetas=[b.damping_ratio for b in bridges], opt=opt,
                                   adapted_curve=adapted_curve, on_trial=on_trial)
     timings["solve"] = time.perf_counter() - t0
     per_case = _per_case(timings, len(bridges))
-    return [make_result(bridge=b, train=train, **_status(lanes, v, c, b, train, mlm, dim, solves[c]), solve=solves[c],
+    return [make_result(bridge=b, train=train, **_status(lanes, v, c, bridge=b, train=train, mlm=mlm, dim=dim, solve=solves[c]),
+                        solve=solves[c],
                         mlm_peak=mlm.peaks[c], dim_peak=dim.peaks[c], mlm_curve=(mlm.speeds[c], mlm.acc[c]),
                         dim_curve=(dim.speeds[c], dim.acc[c]), adapted_curve=adapted[c],
                         dim_grid="given" if dim_curves is not None else opt.dim_grid, dim_refined=dim.refined[c],
@@ -180,7 +181,7 @@ def _mlm_step(lanes, v, n, opt):
     sampled_peaks = list(mlm_peaks)  # on the MLM grid: the DIM grid and the association use these
     vm = [v] * n
     if opt.speed_refinement_kmh is not None:
-        vm, mlm, mlm_peaks = relocate_peaks(lanes, "mlm", "mlm_refine", vm, mlm, mlm_peaks,
+        vm, mlm, mlm_peaks = relocate_peaks(lanes, "mlm", "mlm_refine", speeds=vm, curves=mlm, peaks=mlm_peaks,
                                              resolution_kmh=opt.speed_refinement_kmh)
     return _MlmCurves(vm, mlm, mlm_peaks, sampled_peaks)
 
@@ -232,13 +233,14 @@ class _DimCurves:
         """The DIM peak of case ``c`` associated with its sampled MLM peak (:func:`adm_calib.peaks.associate_peak`)."""
         opt = self.opt
         self.peaks[c] = pk.associate_peak(self.speeds[c], self.acc[c], self.sampled[c].speed_kmh,
-                                          opt.association_window_kmh, opt.min_prominence_rel)
+                                          opt.association_window_kmh, min_prominence_rel=opt.min_prominence_rel)
 
     def complete_undecided(self, lanes, cases):
         """Run the rest of the paper grid for the window-grid cases whose association is not certain."""
         opt = self.opt
         todo = [c for c in cases if self.missing[c] is not None and self.missing[c].size and not pk.association_decided(
-            self.speeds[c], self.acc[c], self.sampled[c].speed_kmh, opt.association_window_kmh, opt.min_prominence_rel)]
+            self.speeds[c], self.acc[c], self.sampled[c].speed_kmh, opt.association_window_kmh,
+            min_prominence_rel=opt.min_prominence_rel)]
         req = Requests()
         for c in todo:
             req.add(c, self.missing[c])
@@ -266,7 +268,7 @@ class _DimCurves:
                 self.associate(c)
 
 
-def _dim_step(lanes, v, mlm, opt, dim_curves=None):
+def _dim_step(lanes, v, mlm, *, opt, dim_curves=None):
     """Step 2: the DIM curves (run, or ``dim_curves`` given), the association with the sampled MLM peak,
     the refinements, in the refined mode the DIM peak located between its grid neighbours
     (``"dim_peak_refine"``); a window grid's curve does not reach the ends of the range, so its peak's
@@ -281,7 +283,8 @@ def _dim_step(lanes, v, mlm, opt, dim_curves=None):
     if not (opt.dim_grid == "full" or given):
         dim.refine(lanes, v, found)
     if opt.speed_refinement_kmh is not None and not given:
-        dim.speeds, dim.acc, dim.peaks = relocate_peaks(lanes, "dim", "dim_peak_refine", dim.speeds, dim.acc, dim.peaks,
+        dim.speeds, dim.acc, dim.peaks = relocate_peaks(lanes, "dim", "dim_peak_refine", speeds=dim.speeds,
+                                                        curves=dim.acc, peaks=dim.peaks,
                                                         resolution_kmh=opt.speed_refinement_kmh)
     for c in range(len(found)):
         if dim.missing[c] is not None and dim.peaks[c].found:
@@ -303,7 +306,7 @@ def _relocation_windows(v, mlm, dim_peaks, opt):
     return windows
 
 
-def _solve_step(lanes, v, mlm, dim_peaks, zetas, opt, *, adapted_curve=False, on_trial=None):
+def _solve_step(lanes, v, mlm, dim_peaks, *, zetas, opt, adapted_curve=False, on_trial=None):
     """Step 3: the damping ladder (bracket), then every root together (:func:`solve_delta_zetas`: phases
     ``"ladder"``, ``"root"``, ``"check"``); with ``adapted_curve`` the MLM at ``zeta + Δζ_VBI`` over every
     speed (``"adapted"``). ``(solves, adapted curves)``, one each per case."""
@@ -329,7 +332,7 @@ def _solve_step(lanes, v, mlm, dim_peaks, zetas, opt, *, adapted_curve=False, on
     return solves, adapted
 
 
-def _status(lanes, v, c, bridge, train, mlm, dim, solve):
+def _status(lanes, v, c, *, bridge, train, mlm, dim, solve):
     """``{"status", "message"}`` of case ``c``: no MLM peak, no DIM peak, a wheel off the rail at the DIM
     peak, else the root finder's, then a grid that cannot show the resonance and Step 2's determination."""
     if not mlm.peaks[c].found:

@@ -44,7 +44,7 @@ class Verdict:
 def study_verdict(rec, cases=None, half_width_hz=NEIGHBOURHOOD_HZ):
     """:class:`Verdict` of a :class:`adm_calib.reference.Recommendation` from the shipped study's
     cases near it (same train and mass function(s), n0 within ``half_width_hz``)."""
-    near = neighbourhood(rec.train, rec.mass_functions, rec.n0_hz, cases, half_width_hz)
+    near = neighbourhood(rec.train, rec.mass_functions, rec.n0_hz, cases=cases, half_width_hz=half_width_hz)
     where = (f"{rec.train} {'/'.join(rec.mass_functions)} within +/-{half_width_hz:g} Hz of n0 = {rec.n0_hz:g} Hz")
     if not near:
         return Verdict(False, f"no study case of {where}: nothing shows the bound holds here; run --verify", "study")

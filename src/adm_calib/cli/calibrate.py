@@ -67,8 +67,10 @@ def calibration_options(args):
 def run(args):
     """Calibrate, print the result, write ``--json`` and ``--plot`` (both or neither)."""
     inputs = {"--bridge": args.bridge, "--train": args.train, "--measured": args.measured}
-    json_path = claim_output(args.json, "--json", args.force, ".json", inputs) if args.json is not None else None
-    plot_path = claim_output(args.plot, "--plot", args.force, ".png", inputs) if args.plot is not None else None
+    json_path = (claim_output(args.json, "--json", args.force, suffix=".json", inputs=inputs) if args.json is not None
+                 else None)
+    plot_path = (claim_output(args.plot, "--plot", args.force, suffix=".png", inputs=inputs) if args.plot is not None
+                 else None)
     bridge = resolve_bridge(args.bridge, continuous=True)  # a continuous deck: its largest midspan peak
     if bridge.is_continuous and len(bridge.spans_m) > 1 and args.measured is not None:
         raise InputError(f"--measured: {args.measured!r} sets n0 and zeta of a simply supported span (EJ from Eq. 18); "

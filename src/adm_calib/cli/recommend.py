@@ -143,7 +143,7 @@ def run(args):
     measured = _recommend_measured(args)  # --measured: n0 from the monitored bridge
     lo_hz = next(iter((own["table"] if own else lower_bound_table(args.functions)[train]).values())).lower_limit_hz
     try:
-        n0 = check_range("--n0", args.n0, "Hz", lo_hz, STUDY_N0_MAX_HZ)
+        n0 = check_range("--n0", args.n0, "Hz", lo=lo_hz, hi=STUDY_N0_MAX_HZ)
     except InputError as exc:
         raise InputError(f"{exc} (validity of the lower-bound functions: {lo_hz:g} Hz up to the highest "
                          f"frequency of the studied bridges, Section 4.2.2)") from None

@@ -64,13 +64,13 @@ def _check_fit_records(records, option, path):
             value = rec.get(key)
             if isinstance(value, str) or value is None:
                 raise InputError(f"{where}: {key}: {value!r} is not a number ({unit})")
-            check_range(f"{where}: {key}", value, unit, lo, hi, lo_open=lo is not None)
+            check_range(f"{where}: {key}", value, unit, lo=lo, hi=hi, lo_open=lo is not None)
         # a calibration's Δζ lies in (-ζ, 20 %] (ζ + Δζ > 0, the bracketing ladder's top); where the
         # record does not carry ζ, in [-20 %, 20 %]
         zeta = rec.get("zeta_pct")
         known = isinstance(zeta, (int, float)) and not isinstance(zeta, bool) and zeta > 0
         check_range(f"{where}: delta_zeta_vbi_pct", rec["delta_zeta_vbi_pct"], "%",
-                    -float(zeta) if known else -MAX_DELTA_ZETA_PCT, MAX_DELTA_ZETA_PCT, lo_open=known)
+                    lo=-float(zeta) if known else -MAX_DELTA_ZETA_PCT, hi=MAX_DELTA_ZETA_PCT, lo_open=known)
 
 
 def _fit_range_hz(text):
@@ -149,7 +149,7 @@ def run(args):
         rows = conservative_study(fit)
         cons = {(r.train, r.mass_function): r.fit for r in rows}
         if ("ICE-2", "mu3") in fit.fits:
-            write(names[7], lambda p: plots.plot_lower_bound_set(fit, "ICE-2", "mu3", p, cons))
+            write(names[7], lambda p: plots.plot_lower_bound_set(fit, "ICE-2", "mu3", p, conservative=cons))
         write(names[8], lambda p: p.write_text(conservative_markdown(rows, fit)))
         write(names[9], lambda p: p.write_text(conservative_toml(rows, fit, command=command)))
         for t in fit.trains:
@@ -158,6 +158,7 @@ def run(args):
             for t, (rec, _) in own.items():
                 cases = study_cases_csv([r for r in content.records if r["train"] == t], rule)
                 write(functions[t], lambda p, t=t, rec=rec, cases=cases: p.write_text(own_train.functions_toml(
-                    t, rec, fit, rows, cases, quantities[t], command=command, study_dir=res.parent.resolve())))
+                    t, rec, fit, rows, cases_csv=cases, quantities=quantities[t], command=command,
+                    study_dir=res.parent.resolve())))
     print(f"wrote {len(written)} files to {out}")
     return 0

@@ -155,7 +155,7 @@ def select_cases(trains=STUDY_TRAINS, mass_functions=MASS_FUNCTION_NAMES, spans_
     for fi in freq_indices:
         if fi not in FREQ_INDICES:
             raise InputError(f"freq_index: {fi!r} is out of range; allowed integer in [1, 5]")
-    layout = check_range("spans_layout", spans_layout, "spans", SPANS_LAYOUTS[0], SPANS_LAYOUTS[-1])
+    layout = check_range("spans_layout", spans_layout, "spans", lo=SPANS_LAYOUTS[0], hi=SPANS_LAYOUTS[-1])
     if int(layout) != layout:
         raise InputError(f"spans_layout: {spans_layout!r} is not a whole number of spans; allowed integer in "
                          f"[{SPANS_LAYOUTS[0]}, {SPANS_LAYOUTS[-1]}]")

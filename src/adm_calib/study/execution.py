@@ -303,9 +303,10 @@ def run_study(out_dir, cases, *, settings=StudySettings(), workers=2, scheduler=
             t0 = time.perf_counter()
             try:
                 if pending:
-                    _run_on_dask(pending, settings, writer, run, workers, scheduler, progress, entry,
-                                 NO_WORKER_WAIT_S if no_worker_wait_s is None else no_worker_wait_s,
-                                 {n: f.train for n, f in files.items()})
+                    _run_on_dask(pending, settings, writer, run=run, workers=workers, scheduler=scheduler,
+                                 progress=progress, entry=entry,
+                                 no_worker_wait_s=NO_WORKER_WAIT_S if no_worker_wait_s is None else no_worker_wait_s,
+                                 trains={n: f.train for n, f in files.items()})
             except KeyboardInterrupt:
                 run.interrupted = True
             except RunError as exc:
@@ -354,7 +355,7 @@ def _study_meta(out, settings, cases, files):
         from adm_calib.study.own_train import check_resume  # noqa: PLC0415  cycle: own_train imports the study package
 
         done = {r["train"] for r in read_results(out / RESULTS_NAME, skip_damaged=True).records}
-        check_resume(meta, done, sorted({c.train for c in cases}), files, out)
+        check_resume(meta, done, names=sorted({c.train for c in cases}), files=files, out=out)
     if meta is None:
         meta = {"format": META_FORMAT, "created": _now(), "settings": settings.to_dict(), "runs": []}
     if files:
@@ -391,7 +392,7 @@ class _WorkerWatch:
                            f"{self.submitted} submitted cases finished and are kept; start workers for it")
 
 
-def _run_on_dask(pending, settings, writer, run, workers, scheduler, progress, entry,
+def _run_on_dask(pending, settings, writer, *, run, workers, scheduler, progress, entry,
                  no_worker_wait_s=NO_WORKER_WAIT_S, trains=None):
     from distributed import Client, as_completed  # noqa: PLC0415  as dask
 

@@ -98,7 +98,7 @@ def _sweep_outputs(args, res, *, env, bridge, zeta, where, method, backend, wall
     """The sweep's plausibility warnings, then ``--json`` and ``--plot`` (both or neither)."""
     ia, idisp = int(res.max_acc_m_s2.argmax()), int(res.max_disp_m.argmax())
     check_response(bridge.span_m, res.max_acc_m_s2[ia], res.max_disp_m[idisp],  # warnings, not refusals
-                   f"sweep: at {res.speeds_kmh[ia]:g} km/h", f"sweep: at {res.speeds_kmh[idisp]:g} km/h")
+                   label=f"sweep: at {res.speeds_kmh[ia]:g} km/h", disp_label=f"sweep: at {res.speeds_kmh[idisp]:g} km/h")
     with OutputSet() as outs:  # --json and --plot: both or neither
         if json_path is not None:
             out = res.to_dict()
@@ -126,7 +126,8 @@ def run(args):
     json_path = None if args.json is None else claim_output(args.json, "--json", args.overwrite, inputs=inputs)
     if json_path is not None and args.plot is not None and json_path.resolve() == Path(args.plot).resolve():
         raise InputError(f"--plot: {args.plot!r} is the --json file; give two different files")
-    plot_path = None if args.plot is None else claim_output(args.plot, "--plot", args.overwrite, ".png", inputs)
+    plot_path = None if args.plot is None else claim_output(args.plot, "--plot", args.overwrite, suffix=".png",
+                                                            inputs=inputs)
     bridge = _sweep_modes(resolve_bridge(args.bridge, continuous=True), args.modes, args.damping_model)
     train = load_train(args.train)
     speeds = parse_speeds(args.speeds, field="--speeds")
