@@ -13,6 +13,7 @@ import argparse
 import errno
 import importlib
 import os
+import resource
 import signal
 import sys
 import threading
@@ -266,10 +267,8 @@ def address_space_note():
     """``; the process runs under an address-space limit of N MB (ulimit -v) ...`` when one is set,
     else empty: the likely cause of a failed allocation or library load."""
     try:
-        import resource  # noqa: PLC0415  POSIX only
-
         soft, _ = resource.getrlimit(resource.RLIMIT_AS)
-    except (ImportError, OSError, ValueError):
+    except (OSError, ValueError):
         return ""
     if soft == resource.RLIM_INFINITY:
         return ""

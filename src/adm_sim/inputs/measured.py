@@ -34,6 +34,7 @@ import numpy as np
 
 from adm_sim.errors import InputError
 from adm_sim.files import input_file, read_text
+from adm_sim.model.bridge import Bridge
 
 __all__ = ["F1_SPREAD_MAX", "MIN_PASSAGES", "MeasuredModes", "ZETA_QUANTILE", "ZETA_SPREAD_MAX", "apply_measured",
            "read_measured"]
@@ -167,8 +168,6 @@ def read_measured(text, option="--measured"):
 def apply_measured(text, bridge, option="--measured"):
     """``(measured bridge, MeasuredModes)``: ``bridge`` with n0 and ζ from the monitor's JSON
     ``text`` and EJ from n0 and its μ (Eq. (18), :meth:`adm_sim.model.bridge.Bridge.from_frequency`)."""
-    from adm_sim.model.bridge import Bridge  # noqa: PLC0415  start-up: the parsers import this module
-
     m = read_measured(text, option)
     try:
         measured = Bridge.from_frequency(bridge.span_m, m.f1_hz, bridge.mass_per_length_kg_m, m.zeta1_pct / 100.0,
