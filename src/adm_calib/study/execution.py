@@ -303,10 +303,9 @@ def run_study(out_dir, cases, *, settings=StudySettings(), workers=2, scheduler=
             t0 = time.perf_counter()
             try:
                 if pending:
-                    _run_on_dask(pending, settings, writer, run=run, workers=workers, scheduler=scheduler,
-                                 progress=progress, entry=entry,
-                                 no_worker_wait_s=NO_WORKER_WAIT_S if no_worker_wait_s is None else no_worker_wait_s,
-                                 trains={n: f.train for n, f in files.items()})
+                    wait_s = NO_WORKER_WAIT_S if no_worker_wait_s is None else no_worker_wait_s
+                    _run_on_dask(pending, settings, writer, run=run, workers=workers, scheduler=scheduler, progress=progress,
+                                 entry=entry, no_worker_wait_s=wait_s, trains={n: f.train for n, f in files.items()})
             except KeyboardInterrupt:
                 run.interrupted = True
             except RunError as exc:
