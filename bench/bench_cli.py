@@ -15,10 +15,14 @@ first ``check`` and the first DIM sweep after it, against warm runs of the same 
 second fresh copy, the first ``check`` without the compile step (it compiles on first use and
 says so on stderr).
 
+``--startup``: the start of both programs instead, where no work is done: ``--help``, a refusal of bad
+input (exit 2) and a subcommand's ``--help`` (:data:`STARTUP`), best of ``--repeat`` per tree, the trees
+alternating; each program imports only the module of the subcommand it runs.
+
 A baseline tree is any checkout of the project, e.g. ``git archive 4810c5f | tar -x -C /tmp/base``.
 Asserts nothing about time.
 
-Run: .venv/bin/python bench/bench_cli.py --baseline /tmp/base [--repeat 5] [--first-run]
+Run: .venv/bin/python bench/bench_cli.py --baseline /tmp/base [--repeat 5] [--first-run | --startup]
 """
 
 from __future__ import annotations
@@ -41,11 +45,25 @@ COMMANDS = {
     "check B1": ["check", "--bridge", "B1", "--max-line-speed", "300"],
 }
 
+#: The start of a command where it does no work: (program, argv, exit code).
+STARTUP = {
+    "adm-sim --help": ("adm-sim", ["--help"], 0),
+    "adm-sim sweep --speeds x": ("adm-sim", ["sweep", "--speeds", "x"], 2),
+    "adm-calib --help": ("adm-calib", ["--help"], 0),
+    "adm-sim sweep --help": ("adm-sim", ["sweep", "--help"], 0),
+    "adm-sim check --help": ("adm-sim", ["check", "--help"], 0),
+    "adm-calib calibrate --help": ("adm-calib", ["calibrate", "--help"], 0),
+    "adm-calib recommend --n0 x": ("adm-calib", ["recommend", "--train", "ICE-2", "--n0", "x", "--mu", "15000",
+                                                 "--type", "cfb"], 2),
+}
+#: The entry module of each program (what its console script imports).
+ENTRY = {"adm-sim": "adm_sim.cli.sim_commands", "adm-calib": "adm_calib.calib_commands"}
 
-def adm_sim_script(python):
-    """The ``adm-sim`` console script beside the interpreter (what the user types), else ``-m``."""
-    script = Path(python).with_name("adm-sim")
-    return [str(script)] if script.exists() else [python, "-m", "adm_sim.cli.sim_commands"]
+
+def adm_sim_script(python, program="adm-sim"):
+    """The console script of ``program`` beside the interpreter (what the user types), else ``-m``."""
+    script = Path(python).with_name(program)
+    return [str(script)] if script.exists() else [python, "-m", ENTRY[program]]
 
 
 def _children_cpu_s():
@@ -86,6 +104,24 @@ def copy_src(dst):
     return Path(dst)
 
 
+def startup(trees, python, repeat):
+    """Best wall time and best CPU time (user + system, s) per (start-up case, tree), the trees alternating
+    run by run; the exit code of each run checked."""
+    best, best_cpu = {}, {}
+    for name, (program, argv, code) in STARTUP.items():
+        for _ in range(repeat):
+            for t in trees:
+                env = dict(os.environ, PYTHONPATH=str(Path(t) / "src"))
+                c0, t0 = _children_cpu_s(), time.perf_counter()
+                p = subprocess.run(adm_sim_script(python, program) + argv, env=env, cwd=t, capture_output=True)
+                wall, cpu = time.perf_counter() - t0, _children_cpu_s() - c0
+                if p.returncode != code:
+                    raise SystemExit(f"error: {program} {' '.join(argv)} in {t} exited {p.returncode}, not {code}")
+                best[name, t] = min(best.get((name, t), wall), wall)
+                best_cpu[name, t] = min(best_cpu.get((name, t), cpu), cpu)
+    return best, best_cpu
+
+
 def first_run(python, repeat):
     with tempfile.TemporaryDirectory(prefix="adm-first-") as d1, tempfile.TemporaryDirectory(prefix="adm-first-") as d2:
         fresh = copy_src(d1)
@@ -112,6 +148,7 @@ def main():
     ap.add_argument("--python", default=sys.executable, help="interpreter of the environment (default: this one)")
     ap.add_argument("--only", choices=tuple(COMMANDS), action="append", help="time only these commands")
     ap.add_argument("--first-run", action="store_true", help="time the first run from a fresh copy instead")
+    ap.add_argument("--startup", action="store_true", help="time the start of both programs (--help, a refusal)")
     args = ap.parse_args()
     print(f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, load {os.getloadavg()[0]:.2f}, "
           f"{os.cpu_count()} CPUs, {args.python}")
@@ -119,6 +156,19 @@ def main():
         first_run(args.python, args.repeat)
         return 0
     trees = [ROOT] + ([Path(args.baseline).resolve()] if args.baseline else [])
+    if args.startup:
+        best, best_cpu = startup(trees, args.python, args.repeat)
+        print(f"start-up, whole process, best of {args.repeat} (s); this = {ROOT}, baseline = {args.baseline}")
+        for what, table in (("wall time", best), ("CPU time (user + system)", best_cpu)):
+            print(f"{what:28s} {'this':>8s}" + (f" {'baseline':>9s} {'baseline / this':>16s}" if args.baseline else ""))
+            for name in STARTUP:
+                line = f"{name:28s} {table[name, ROOT]:8.3f}"
+                if args.baseline:
+                    b = table[name, trees[1]]
+                    line += f" {b:9.3f} {b / table[name, ROOT]:15.2f}x"
+                print(line)
+        print(f"load after: {os.getloadavg()[0]:.2f}")
+        return 0
     names = args.only or list(COMMANDS)
     times, cpu = side_by_side(trees, args.python, args.repeat, names)
     print(f"whole process, warm, {args.repeat} runs each (s); this = {ROOT}, baseline = {args.baseline}")

@@ -54,6 +54,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import replace
+from typing import NamedTuple
 
 import numpy as np
 
@@ -137,12 +138,41 @@ def calibrate_cases(bridges, train, lanes, speeds_kmh=None, *, options=None, ste
     opt = options or CalibrationOptions()
     v = check_speeds(speeds_kmh)
     step = step or batch_step(bridges, train, v, opt)
-    n = len(bridges)
-    given = dim_curves is not None
     timings = {}
-
-    # step 1: MLM over every speed
     t0 = time.perf_counter()
+    mlm = _mlm_step(lanes, v, len(bridges), opt)
+    timings["mlm_sweep"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    dim = _dim_step(lanes, v, mlm, opt=opt, dim_curves=dim_curves)
+    timings["dim_sweep"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    solves, adapted = _solve_step(lanes, v, mlm, dim.peaks, zetas=[b.damping_ratio for b in bridges], opt=opt,
+                                  adapted_curve=adapted_curve, on_trial=on_trial)
+    timings["solve"] = time.perf_counter() - t0
+    per_case = _per_case(timings, len(bridges))
+    return [make_result(bridge=b, train=train, **_status(lanes, v, c, bridge=b, train=train, mlm=mlm, dim=dim, solve=solves[c]),
+                        solve=solves[c],
+                        mlm_peak=mlm.peaks[c], dim_peak=dim.peaks[c], mlm_curve=(mlm.speeds[c], mlm.acc[c]),
+                        dim_curve=(dim.speeds[c], dim.acc[c]), adapted_curve=adapted[c],
+                        dim_grid="given" if dim_curves is not None else opt.dim_grid, dim_refined=dim.refined[c],
+                        ds_m=step.ds_m, timings_s=per_case)
+            for c, b in enumerate(bridges)]
+
+
+class _MlmCurves(NamedTuple):
+    """Step 1 of every case: the MLM speeds and maxima, the MLM peak (refined in the refined mode) and the
+    peak as sampled on the MLM grid (the DIM grid and the association use it)."""
+
+    speeds: list
+    acc: list
+    peaks: list
+    sampled: list
+
+
+def _mlm_step(lanes, v, n, opt):
+    """Step 1: one MLM request, every case x every speed (phase ``"mlm"``), the MLM peak of each case
+    (:func:`adm_calib.peaks.find_peak`); in the refined mode each peak located between its grid
+    neighbours (``"mlm_refine"``, :func:`~adm_calib.speed_grids.relocate_peaks`)."""
     req = Requests()
     for c in range(n):
         req.add(c, v)
@@ -151,93 +181,137 @@ def calibrate_cases(bridges, train, lanes, speeds_kmh=None, *, options=None, ste
     sampled_peaks = list(mlm_peaks)  # on the MLM grid: the DIM grid and the association use these
     vm = [v] * n
     if opt.speed_refinement_kmh is not None:
-        vm, mlm, mlm_peaks = relocate_peaks(lanes, "mlm", "mlm_refine", vm, mlm, mlm_peaks,
+        vm, mlm, mlm_peaks = relocate_peaks(lanes, "mlm", "mlm_refine", speeds=vm, curves=mlm, peaks=mlm_peaks,
                                              resolution_kmh=opt.speed_refinement_kmh)
-    timings["mlm_sweep"] = time.perf_counter() - t0
+    return _MlmCurves(vm, mlm, mlm_peaks, sampled_peaks)
 
-    # step 1-2: DIM on the paper's grid, association, refinement where the DIM value lies on the coarse grid
-    t0 = time.perf_counter()
-    if given:
+
+class _DimCurves:
+    """Step 2 of every case: the DIM speeds and maxima, the associated DIM peak, whether the curve was
+    refined, and for the window grid the paper speeds not run yet (``missing``; None: the curve holds
+    the whole paper grid). Built by :meth:`run` (or :meth:`given`), completed in place."""
+
+    def __init__(self, speeds, acc, missing, sampled, opt):
+        n = len(speeds)
+        self.speeds, self.acc, self.missing, self.sampled, self.opt = speeds, acc, missing, sampled, opt
+        self.peaks = [pk.Peak(found=False, reason="no MLM peak to associate with")] * n
+        self.refined = [False] * n
+
+    @classmethod
+    def given(cls, dim_curves, sampled, opt):
+        """Per case a target curve ``(speeds_kmh, max_acc_m_s2)`` instead of the DIM, sorted by speed."""
         vd, dim = [], []
         for curve in dim_curves:
             s, a = (np.asarray(x, dtype=float) for x in curve)
             order = np.argsort(s)
             vd.append(s[order])
             dim.append(a[order])
-    else:
+        return cls(vd, dim, [None] * len(vd), sampled, opt)
+
+    @classmethod
+    def run(cls, lanes, v, sampled, opt):
+        """One DIM request (phase ``"dim"``) over every case's Section 3.3 speeds: the paper grid, all
+        speeds (``full``), or the part of the paper grid where the associated peak can lie (``window``)."""
+        n = len(sampled)
         vd = [v if opt.dim_grid == "full" else dim_speeds_paper(v, p.speed_kmh if p.found else None, opt)
-              for p in sampled_peaks]
+              for p in sampled]
         run_v = list(vd)
         if opt.dim_grid == "window":  # the paper's speeds where the associated peak can lie
-            for c, p in enumerate(sampled_peaks):
+            for c, p in enumerate(sampled):
                 vd[c], run_v[c] = dim_speeds_window(vd[c], p.speed_kmh, opt) if p.found else (vd[c][:0], vd[c][:0])
         req = Requests()
         for c in range(n):
             req.add(c, run_v[c])
         dim = [acc[:vd[c].size] for c, acc in enumerate(req.run(lanes, "dim", "dim"))]
-    dim_peaks = [pk.Peak(found=False, reason="no MLM peak to associate with")] * n
-    refined = [False] * n
-    # window grid: the paper speeds not run yet, per case (None: the curve holds the whole paper grid)
-    missing = [None] * n
-    if opt.dim_grid == "window" and not given:
-        missing = [np.setdiff1d(dim_speeds_paper(v, p.speed_kmh, opt), vd[c]) if p.found else None
-                   for c, p in enumerate(sampled_peaks)]
+        missing = [None] * n
+        if opt.dim_grid == "window":
+            missing = [np.setdiff1d(dim_speeds_paper(v, p.speed_kmh, opt), vd[c]) if p.found else None
+                       for c, p in enumerate(sampled)]
+        return cls(vd, dim, missing, sampled, opt)
 
-    def associate(c):
-        return pk.associate_peak(vd[c], dim[c], sampled_peaks[c].speed_kmh, opt.association_window_kmh,
-                                 opt.min_prominence_rel)
+    def associate(self, c):
+        """The DIM peak of case ``c`` associated with its sampled MLM peak (:func:`adm_calib.peaks.associate_peak`)."""
+        opt = self.opt
+        self.peaks[c] = pk.associate_peak(self.speeds[c], self.acc[c], self.sampled[c].speed_kmh,
+                                          opt.association_window_kmh, min_prominence_rel=opt.min_prominence_rel)
 
-    def complete_undecided(cases):
+    def complete_undecided(self, lanes, cases):
         """Run the rest of the paper grid for the window-grid cases whose association is not certain."""
-        todo = [c for c in cases if missing[c] is not None and missing[c].size and not pk.association_decided(
-            vd[c], dim[c], sampled_peaks[c].speed_kmh, opt.association_window_kmh, opt.min_prominence_rel)]
+        opt = self.opt
+        todo = [c for c in cases if self.missing[c] is not None and self.missing[c].size and not pk.association_decided(
+            self.speeds[c], self.acc[c], self.sampled[c].speed_kmh, opt.association_window_kmh,
+            min_prominence_rel=opt.min_prominence_rel)]
         req = Requests()
         for c in todo:
-            req.add(c, missing[c])
+            req.add(c, self.missing[c])
         for c, acc in zip(todo, req.run(lanes, "dim", "dim_refine")):
-            vd[c], dim[c] = merge_curve(vd[c], dim[c], missing[c], acc)
-            missing[c] = None
+            self.speeds[c], self.acc[c] = merge_curve(self.speeds[c], self.acc[c], self.missing[c], acc)
+            self.missing[c] = None
 
-    complete_undecided([c for c in range(n) if mlm_peaks[c].found])
-    for c in range(n):
-        if mlm_peaks[c].found:
-            dim_peaks[c] = associate(c)
-    for round_ in range(2):
-        if opt.dim_grid == "full" or given:
-            break
-        req, which = Requests(), []
-        for c in range(n):
-            extra = dim_refinement(v, vd[c], dim_peaks[c]) if mlm_peaks[c].found else None
-            if extra is not None and (round_ == 0 or refined[c]):
-                req.add(c, extra)
-                which.append((c, extra))
-        if not which:
-            break
-        for (c, extra), acc in zip(which, req.run(lanes, "dim", "dim_refine")):
-            vd[c], dim[c] = merge_curve(vd[c], dim[c], extra, acc)
-            refined[c] = True
-        complete_undecided([c for c, _ in which])
-        for c, _ in which:
-            dim_peaks[c] = associate(c)
+    def refine(self, lanes, v, found):
+        """At most two refinement requests (``"dim_refine"``) where the associated value lies on the coarse
+        grid (:func:`~adm_calib.speed_grids.dim_refinement`); the second for the cases refined by the first."""
+        for round_ in range(2):
+            req, which = Requests(), []
+            for c in range(len(found)):
+                extra = dim_refinement(v, self.speeds[c], self.peaks[c]) if found[c] else None
+                if extra is not None and (round_ == 0 or self.refined[c]):
+                    req.add(c, extra)
+                    which.append((c, extra))
+            if not which:
+                break
+            for (c, extra), acc in zip(which, req.run(lanes, "dim", "dim_refine")):
+                self.speeds[c], self.acc[c] = merge_curve(self.speeds[c], self.acc[c], extra, acc)
+                self.refined[c] = True
+            self.complete_undecided(lanes, [c for c, _ in which])
+            for c, _ in which:
+                self.associate(c)
+
+
+def _dim_step(lanes, v, mlm, *, opt, dim_curves=None):
+    """Step 2: the DIM curves (run, or ``dim_curves`` given), the association with the sampled MLM peak,
+    the refinements, in the refined mode the DIM peak located between its grid neighbours
+    (``"dim_peak_refine"``); a window grid's curve does not reach the ends of the range, so its peak's
+    ``max_at_range_end`` is unknown (None)."""
+    given = dim_curves is not None
+    dim = _DimCurves.given(dim_curves, mlm.sampled, opt) if given else _DimCurves.run(lanes, v, mlm.sampled, opt)
+    found = [p.found for p in mlm.peaks]
+    dim.complete_undecided(lanes, [c for c in range(len(found)) if found[c]])
+    for c in range(len(found)):
+        if found[c]:
+            dim.associate(c)
+    if not (opt.dim_grid == "full" or given):
+        dim.refine(lanes, v, found)
     if opt.speed_refinement_kmh is not None and not given:
-        vd, dim, dim_peaks = relocate_peaks(lanes, "dim", "dim_peak_refine", vd, dim, dim_peaks,
-                                             resolution_kmh=opt.speed_refinement_kmh)
-    for c in range(n):  # a window grid's curve does not reach the ends of the range: the flag is unknown
-        if missing[c] is not None and dim_peaks[c].found:
-            dim_peaks[c] = replace(dim_peaks[c], max_at_range_end=None)
-    timings["dim_sweep"] = time.perf_counter() - t0
+        dim.speeds, dim.acc, dim.peaks = relocate_peaks(lanes, "dim", "dim_peak_refine", speeds=dim.speeds,
+                                                        curves=dim.acc, peaks=dim.peaks,
+                                                        resolution_kmh=opt.speed_refinement_kmh)
+    for c in range(len(found)):
+        if dim.missing[c] is not None and dim.peaks[c].found:
+            dim.peaks[c] = replace(dim.peaks[c], max_at_range_end=None)
+    return dim
 
-    # step 3: damping ladder (bracket), then all roots together
-    t0 = time.perf_counter()
-    todo = [mlm_peaks[c].found and dim_peaks[c].found for c in range(n)]
-    windows = [relocation_speeds(vm[c], mlm_peaks[c], opt) if todo[c] else None for c in range(n)]
-    if opt.speed_refinement_kmh is not None:  # the MLM grid's window plus the finest pass around the peak
-        for c in range(n):
-            if windows[c] is not None:
-                w = windows[c]
+
+def _relocation_windows(v, mlm, dim_peaks, opt):
+    """The speeds re-evaluated at each trial damping, per case (None: nothing to solve); in the refined
+    mode the MLM grid's window plus the finest pass around the refined peak."""
+    windows = [relocation_speeds(mlm.speeds[c], p, opt) if p.found and dim_peaks[c].found else None
+               for c, p in enumerate(mlm.peaks)]
+    if opt.speed_refinement_kmh is not None:
+        for c, w in enumerate(windows):
+            if w is not None:
                 keep = np.isin(np.round(w, 9), np.round(v, 9)) | (
-                    np.abs(w - mlm_peaks[c].speed_kmh) <= REFINE_COARSE_KMH + 1e-9)
+                    np.abs(w - mlm.peaks[c].speed_kmh) <= REFINE_COARSE_KMH + 1e-9)
                 windows[c] = w[keep]
+    return windows
+
+
+def _solve_step(lanes, v, mlm, dim_peaks, *, zetas, opt, adapted_curve=False, on_trial=None):
+    """Step 3: the damping ladder (bracket), then every root together (:func:`solve_delta_zetas`: phases
+    ``"ladder"``, ``"root"``, ``"check"``); with ``adapted_curve`` the MLM at ``zeta + Δζ_VBI`` over every
+    speed (``"adapted"``). ``(solves, adapted curves)``, one each per case."""
+    n = len(mlm.peaks)
+    windows = _relocation_windows(v, mlm, dim_peaks, opt)
 
     def evaluate(requests, phase):
         r = Requests()
@@ -245,42 +319,44 @@ def calibrate_cases(bridges, train, lanes, speeds_kmh=None, *, options=None, ste
             r.add(c, np.tile(windows[c], dz.size), np.repeat(dz, windows[c].size))
         return [acc.reshape(dz.size, windows[c].size) for (c, dz), acc in zip(requests, r.run(lanes, "mlm", phase))]
 
-    solves = solve_delta_zetas(evaluate, windows, [p.speed_kmh for p in mlm_peaks],
-                               [p.acc_m_s2 for p in dim_peaks], [b.damping_ratio for b in bridges],
-                               options=opt, on_trial=on_trial)
+    solves = solve_delta_zetas(evaluate, windows, peak_speeds_kmh=[p.speed_kmh for p in mlm.peaks],
+                               targets_m_s2=[p.acc_m_s2 for p in dim_peaks], zetas=zetas, options=opt,
+                               on_trial=on_trial)
     adapted = [(np.zeros(0), np.zeros(0))] * n
     if adapted_curve:
         req, which = Requests(), [c for c in range(n) if solves[c] is not None and solves[c].delta_zeta is not None]
         for c in which:
-            req.add(c, vm[c], solves[c].delta_zeta)
+            req.add(c, mlm.speeds[c], solves[c].delta_zeta)
         for c, acc in zip(which, req.run(lanes, "mlm", "adapted")):
-            adapted[c] = (vm[c], acc)
-    timings["solve"] = time.perf_counter() - t0
+            adapted[c] = (mlm.speeds[c], acc)
+    return solves, adapted
 
+
+def _status(lanes, v, c, *, bridge, train, mlm, dim, solve):
+    """``{"status", "message"}`` of case ``c``: no MLM peak, no DIM peak, a wheel off the rail at the DIM
+    peak, else the root finder's, then a grid that cannot show the resonance and Step 2's determination."""
+    if not mlm.peaks[c].found:
+        status, message = "no_mlm_peak", mlm.peaks[c].reason
+    elif not dim.peaks[c].found:
+        status, message = "no_dim_peak", dim.peaks[c].reason
+    elif (loss := contact_loss_at(lanes, c, dim.peaks[c].speed_kmh)) is not None:
+        status, message = "contact_lost", contact_message(loss)  # the DIM's own assumption broken at its peak
+    else:
+        status, message = solve.status, solve.message
+        if status == "ok":
+            status, message = speed_grid_finding(bridge, train, v) or (status, message)
+        if status == "ok":  # Step 2: a matched Δζ_VBI at an end of the range or without a DIM peak
+            status, message = (pk.determination(mlm.speeds[c], mlm.acc[c], mlm.peaks[c], dim.peaks[c])
+                               or (status, message))
+    return {"status": status, "message": message}
+
+
+def _per_case(timings, n):
+    """The batch's phase times divided by its size (and the size, for a batch of more than one)."""
     per_case = {k: t / n for k, t in timings.items()}
     if n > 1:
         per_case["batch_size"] = n
-    out = []
-    for c in range(n):
-        s = solves[c]
-        if not mlm_peaks[c].found:
-            status, message = "no_mlm_peak", mlm_peaks[c].reason
-        elif not dim_peaks[c].found:
-            status, message = "no_dim_peak", dim_peaks[c].reason
-        elif (loss := contact_loss_at(lanes, c, dim_peaks[c].speed_kmh)) is not None:
-            status, message = "contact_lost", contact_message(loss)  # the DIM's own assumption broken at its peak
-        else:
-            status, message = s.status, s.message
-            if status == "ok":
-                status, message = speed_grid_finding(bridges[c], train, v) or (status, message)
-            if status == "ok":  # Step 2: a matched Δζ_VBI at an end of the range or without a DIM peak
-                status, message = pk.determination(vm[c], mlm[c], mlm_peaks[c], dim_peaks[c]) or (status, message)
-        out.append(make_result(bridge=bridges[c], train=train, status=status, message=message, solve=s,
-                               mlm_peak=mlm_peaks[c], dim_peak=dim_peaks[c], mlm_curve=(vm[c], mlm[c]),
-                               dim_curve=(vd[c], dim[c]), adapted_curve=adapted[c],
-                               dim_grid="given" if given else opt.dim_grid, dim_refined=refined[c], ds_m=step.ds_m,
-                               timings_s=per_case))
-    return out
+    return per_case
 
 
 BACKENDS = ("compiled", "numpy")

@@ -20,6 +20,8 @@ from __future__ import annotations
 from adm_sim.design.check import CALIB_DAMPING_METHODS
 from adm_sim.errors import InputError
 
+from adm_calib.calibrate import calibrate
+from adm_calib.recommend_verify import verify
 from adm_calib.reference import lower_bound_for
 
 
@@ -33,8 +35,6 @@ def calibrated_damping(bridge, train, method, calibrate_options=None):
         if not train.units:
             return pct, f"{train.name}: lower bound {pct:.3f} % ({note})"
         # the bridge's own calibration beside the bound: min(bound, Δζ_VBI) holds (adm_calib.recommend_verify)
-        from adm_calib.recommend_verify import verify  # noqa: PLC0415  scipy.optimize, lb only
-
         ver = verify(pct, bridge, train, options=calibrate_options)
         vbi = "n/a" if ver.vbi_pct is None else f"{ver.vbi_pct:.3f} %"
         return ver.verified_pct, (f"{train.name}: min(lower bound {pct:.3f} %, own dz_VBI {vbi}, calibration status "
@@ -43,9 +43,6 @@ def calibrated_damping(bridge, train, method, calibrate_options=None):
     if method == "vbi":
         if not train.units:
             raise InputError(f"damping vbi: {train.name!r} has no vehicles; Δζ_VBI needs the DIM", field="damping")
-        # scipy.optimize (the root solve of the calibration): loaded only when vbi is asked for
-        from adm_calib.calibrate import calibrate  # noqa: PLC0415  scipy.optimize, vbi only
-
         res = calibrate(bridge, train, options=calibrate_options, adapted_curve=False)
         if res.delta_zeta_vbi is None:
             raise InputError(f"damping vbi: {train.name} on {bridge.name or 'this bridge'}: no Δζ_VBI "

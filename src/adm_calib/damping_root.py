@@ -49,7 +49,7 @@ def _ladder(zeta):
     return np.array(neg + pos)
 
 
-def solve_delta_zetas(evaluate, windows, peak_speeds_kmh, targets_m_s2, zetas, *, options=None, on_trial=None):
+def solve_delta_zetas(evaluate, windows, *, peak_speeds_kmh, targets_m_s2, zetas, options=None, on_trial=None):
     """Δζ of every case such that its re-located MLM peak equals its target (Step 3), all together.
 
     The one root finder of the project. For case ``c``:
@@ -83,79 +83,106 @@ def solve_delta_zetas(evaluate, windows, peak_speeds_kmh, targets_m_s2, zetas, *
     """
     opt = options or CalibrationOptions()
     half = (opt.relocation_window_kmh, opt.relocation_window_kmh)
-    n = len(windows)
-    todo = [c for c in range(n) if windows[c] is not None]
-    out = [None] * n
-
-    def peak(c, acc):
-        return pk.window_max(windows[c], acc, peak_speeds_kmh[c], half)[1]
-
-    def trial(c, dz, value):
-        if on_trial is not None:
-            on_trial(c, float(dz), float(value), float(targets_m_s2[c]))
-
-    ladders = {c: _ladder(zetas[c]) for c in todo}
-    known = {}  # (case, dz) -> maxima over the case's window: every damping is run once
-
-    def run(requests, phase):
-        """Maxima of each ``(case, dz)``: the known ones as they are, the others in one request."""
-        todo_ = [(c, dz) for c, dz in requests if (c, dz) not in known]
-        if todo_:
-            for (c, dz), acc in zip(todo_, evaluate([(c, np.array([dz])) for c, dz in todo_], phase)):
-                known[(c, dz)] = acc[0]
-                trial(c, dz, peak(c, acc[0]))
-        return [known[(c, dz)] for c, dz in requests]
-
-    brackets = {}
-    for c, ladder, values in _ladder_values(evaluate, todo, ladders, peak, opt.ladder_first_stage,
-                                            lambda c, v: v / targets_m_s2[c] - 1.0, known):
-        for dz, value in zip(ladder, values):
-            trial(c, dz, value)
-        fl = values / targets_m_s2[c] - 1.0
-        b = ladder_bracket(ladder, fl)
-        if isinstance(b, DampingSolve):  # not bracketed
-            out[c] = b
-            continue
-        i, lo, hi = b
-        brackets[c] = (lo, hi, (lo if fl[i] == 0.0 else hi) if (fl[i] == 0.0 or fl[i + 1] == 0.0) else None)
-    roots, iters, calls = {}, {}, {}
-    for c, (_lo, _hi, exact) in brackets.items():
-        if exact is not None:
-            roots[c], iters[c], calls[c] = exact, 0, 0
-    open_ = [c for c in brackets if brackets[c][2] is None]
-    if open_:
-        from scipy.optimize import elementwise  # noqa: PLC0415  scipy.optimize (~0.3-1 s) when a root is searched, not at a node's start
-
-        def f(x, idx):
-            x = np.atleast_1d(x)
-            idx = np.broadcast_to(np.atleast_1d(idx), x.shape)
-            cs, dzs = [int(c) for c in idx.ravel()], [float(dz) for dz in x.ravel()]
-            vals = [peak(c, acc) for c, acc in zip(cs, run(list(zip(cs, dzs)), "root"))]
-            return (np.array(vals) / np.array([targets_m_s2[c] for c in cs]) - 1.0).reshape(x.shape)
-
-        res = elementwise.find_root(
-            f, (np.array([brackets[c][0] for c in open_]), np.array([brackets[c][1] for c in open_])),
-            args=(np.array(open_),),
-            tolerances=dict(xatol=opt.xtol, xrtol=4 * np.finfo(float).eps, fatol=0.0, frtol=0.0))
-        for k, c in enumerate(open_):
-            roots[c], iters[c], calls[c] = float(res.x[k]), int(res.nit[k]), int(res.nfev[k])
+    trials = _Trials(evaluate, windows, peak_speeds_kmh, targets_m_s2, half=half, on_trial=on_trial)
+    todo = [c for c in range(len(windows)) if windows[c] is not None]
+    out = [None] * len(windows)
+    brackets, unbracketed = _bracket_roots(trials, todo, {c: _ladder(zetas[c]) for c in todo}, opt)
+    for c, solve in unbracketed.items():
+        out[c] = solve
+    roots = _find_roots(trials, brackets, opt)  # {case: (root, iterations, function calls)}
     order = sorted(roots)
-    for c, acc in zip(order, run([(c, roots[c]) for c in order], "check")):
-        lo, hi, exact = brackets[c]
-        out[c] = finish_solve(roots[c], windows[c], acc, peak_speeds_kmh[c], targets_m_s2[c], bracket=(lo, hi),
-                              iterations=iters[c], calls=calls[c], options=opt, method="exact" if exact is not None else "find_root")
+    for c, acc in zip(order, trials.run([(c, roots[c][0]) for c in order], "check")):
+        (lo, hi, exact), (root, iterations, calls) = brackets[c], roots[c]
+        out[c] = finish_solve(root, windows[c], acc, peak_speed_kmh=peak_speeds_kmh[c],
+                              target_acc_m_s2=targets_m_s2[c], bracket=(lo, hi), iterations=iterations, calls=calls,
+                              options=opt, method="exact" if exact is not None else "find_root")
     return out
 
 
-def _ladder_values(evaluate, todo, ladders, peak, first_stage, ratio, known):
+class _Trials:
+    """The trial dampings of one solve: each ``(case, dz)`` evaluated once (``known``: its MLM maxima over
+    the case's window), its re-located MLM peak, and the ``on_trial`` report."""
+
+    def __init__(self, evaluate, windows, peak_speeds_kmh, targets_m_s2, *, half, on_trial):
+        self.evaluate, self.windows, self.half, self.on_trial = evaluate, windows, half, on_trial
+        self.peak_speeds_kmh, self.targets_m_s2 = peak_speeds_kmh, targets_m_s2
+        self.known = {}  # (case, dz) -> maxima over the case's window: every damping is run once
+
+    def peak(self, c, acc):
+        """The re-located MLM peak of case ``c`` (m/s^2) from its maxima ``acc`` over its window."""
+        return pk.window_max(self.windows[c], acc, self.peak_speeds_kmh[c], self.half)[1]
+
+    def report(self, c, dz, value):
+        if self.on_trial is not None:
+            self.on_trial(c, float(dz), float(value), float(self.targets_m_s2[c]))
+
+    def run(self, requests, phase):
+        """Maxima of each ``(case, dz)``: the known ones as they are, the others in one request."""
+        todo = [(c, dz) for c, dz in requests if (c, dz) not in self.known]
+        if todo:
+            for (c, dz), acc in zip(todo, self.evaluate([(c, np.array([dz])) for c, dz in todo], phase)):
+                self.known[(c, dz)] = acc[0]
+                self.report(c, dz, self.peak(c, acc[0]))
+        return [self.known[(c, dz)] for c, dz in requests]
+
+
+def _bracket_roots(trials, todo, ladders, opt):
+    """The bracket of every case from its damping ladder (:func:`ladder_bracket`): ``({case: (lo, hi,
+    exact root or None)}, {case: DampingSolve of a case not bracketed})``."""
+    brackets, unbracketed = {}, {}
+    for c, ladder, values in _ladder_values(trials, todo, ladders, first_stage=opt.ladder_first_stage):
+        for dz, value in zip(ladder, values):
+            trials.report(c, dz, value)
+        fl = values / trials.targets_m_s2[c] - 1.0
+        b = ladder_bracket(ladder, fl)
+        if isinstance(b, DampingSolve):  # not bracketed
+            unbracketed[c] = b
+            continue
+        i, lo, hi = b
+        brackets[c] = (lo, hi, (lo if fl[i] == 0.0 else hi) if (fl[i] == 0.0 or fl[i + 1] == 0.0) else None)
+    return brackets, unbracketed
+
+
+def _find_roots(trials, brackets, opt):
+    """The root of every bracketed case: a ladder point where ``f_c = 0``, else all open brackets together by
+    :func:`scipy.optimize.elementwise.find_root` to ``xtol``; ``{case: (root, iterations, function calls)}``."""
+    roots = {c: (exact, 0, 0) for c, (_lo, _hi, exact) in brackets.items() if exact is not None}
+    open_ = [c for c in brackets if brackets[c][2] is None]
+    if not open_:
+        return roots
+    from scipy.optimize import elementwise  # noqa: PLC0415  scipy.optimize (~0.3-1 s) when a root is searched, not at a node's start
+
+    def f(x, idx):
+        x = np.atleast_1d(x)
+        idx = np.broadcast_to(np.atleast_1d(idx), x.shape)
+        cs, dzs = [int(c) for c in idx.ravel()], [float(dz) for dz in x.ravel()]
+        vals = [trials.peak(c, acc) for c, acc in zip(cs, trials.run(list(zip(cs, dzs)), "root"))]
+        return (np.array(vals) / np.array([trials.targets_m_s2[c] for c in cs]) - 1.0).reshape(x.shape)
+
+    res = elementwise.find_root(
+        f, (np.array([brackets[c][0] for c in open_]), np.array([brackets[c][1] for c in open_])),
+        args=(np.array(open_),),
+        tolerances=dict(xatol=opt.xtol, xrtol=4 * np.finfo(float).eps, fatol=0.0, frtol=0.0))
+    for k, c in enumerate(open_):
+        roots[c] = (float(res.x[k]), int(res.nit[k]), int(res.nfev[k]))
+    return roots
+
+
+def _ladder_values(trials, todo, ladders, *, first_stage):
     """The re-located MLM peak over each case's ladder: ``(case, ladder, values)`` per case; the
-    maxima of every damping run go into ``known`` (``{(case, dz): maxima}``, run once).
+    maxima of every damping run go into ``trials.known`` (``{(case, dz): maxima}``, run once).
 
     ``first_stage`` None: the whole ladder of every case in one request. Else the dampings up to
     ``first_stage`` first; the rest only for the cases whose values change sign nowhere in that
-    part (``ratio(case, values)`` is the function whose sign changes). :func:`ladder_bracket` takes the first sign change, which depends on the ladder up to it
-    alone, so both give the same bracket (the returned ladder is then the part that was run).
+    part (``value / target - 1`` is the function whose sign changes). :func:`ladder_bracket` takes the first sign
+    change, which depends on the ladder up to it alone, so both give the same bracket (the returned
+    ladder is then the part that was run).
     """
+    evaluate, peak, known = trials.evaluate, trials.peak, trials.known
+
+    def ratio(c, v):
+        return v / trials.targets_m_s2[c] - 1.0
+
     def values(c, dzs, acc):
         known.update({(c, float(dz)): row for dz, row in zip(dzs, acc)})
         return np.array([peak(c, row) for row in acc])
@@ -203,7 +230,8 @@ def solve_delta_zeta(mlm_eval, peak_speed_kmh, speed_window_kmh, target_acc_m_s2
         return [np.asarray(mlm_eval(np.tile(w, dz.size), np.repeat(dz, w.size)), float).reshape(dz.size, w.size)
                 for _, dz in requests]
 
-    return solve_delta_zetas(evaluate, [w], [peak_speed_kmh], [target_acc_m_s2], [zeta], options=options)[0]
+    return solve_delta_zetas(evaluate, [w], peak_speeds_kmh=[peak_speed_kmh], targets_m_s2=[target_acc_m_s2], zetas=[zeta],
+                             options=options)[0]
 
 
 def ladder_bracket(ladder, fl):
@@ -222,7 +250,7 @@ def ladder_bracket(ladder, fl):
     return i, float(ladder[i]), float(ladder[i + 1])
 
 
-def finish_solve(root, w, acc_root, peak_speed_kmh, target_acc_m_s2, *, bracket, iterations, calls, options,
+def finish_solve(root, w, acc_root, *, peak_speed_kmh, target_acc_m_s2, bracket, iterations, calls, options,
                  method="find_root"):
     """Check the root: re-located MLM peak at ``zeta + root`` against the target (Step 3's 0.1 %)."""
     opt = options

@@ -34,7 +34,7 @@ __all__ = ["ASSOCIATION_WINDOW_KMH", "MIN_PROMINENCE_REL", "RANGE_END_RTOL", "ST
 ASSOCIATION_WINDOW_KMH = (20.0, 10.0)
 
 
-def associate_peak(speeds_kmh, acc_m_s2, ref_speed_kmh, window_kmh=ASSOCIATION_WINDOW_KMH,
+def associate_peak(speeds_kmh, acc_m_s2, ref_speed_kmh, window_kmh=ASSOCIATION_WINDOW_KMH, *,
                    min_prominence_rel=MIN_PROMINENCE_REL):
     """The point of a (DIM) curve associated with a reference (MLM) peak speed.
 
@@ -68,7 +68,7 @@ def associate_peak(speeds_kmh, acc_m_s2, ref_speed_kmh, window_kmh=ASSOCIATION_W
                 reason=f"no local maximum in the window [{lo:g}, {hi:g}] km/h: largest value in it")
 
 
-def association_decided(speeds_kmh, acc_m_s2, ref_speed_kmh, window_kmh=ASSOCIATION_WINDOW_KMH,
+def association_decided(speeds_kmh, acc_m_s2, ref_speed_kmh, window_kmh=ASSOCIATION_WINDOW_KMH, *,
                         min_prominence_rel=MIN_PROMINENCE_REL):
     """Whether :func:`associate_peak` on this part of a curve gives what it gives on the whole curve.
 

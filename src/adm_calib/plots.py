@@ -167,7 +167,7 @@ def _draw_set(ax, study_fit, train, m, n0, conservative=None):
     _legend(ax, fontsize=6)
 
 
-def plot_lower_bound_set(study_fit, train, mass_function, path, conservative=None):
+def plot_lower_bound_set(study_fit, train, mass_function, path, *, conservative=None):
     """Analogue of Fig. 17: one set with its interval minima, our fit, the published function and
     (optional) the conservative bound."""
     plt = _pyplot()

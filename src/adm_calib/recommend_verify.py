@@ -21,6 +21,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
+from adm_calib.calibrate import calibrate
 from adm_calib.recommend_warnings import NEIGHBOURHOOD_HZ, neighbourhood
 
 #: Tolerance (%-points) of "Δζ_VBI at least the bound": the calibration's printed digits.
@@ -43,7 +44,7 @@ class Verdict:
 def study_verdict(rec, cases=None, half_width_hz=NEIGHBOURHOOD_HZ):
     """:class:`Verdict` of a :class:`adm_calib.reference.Recommendation` from the shipped study's
     cases near it (same train and mass function(s), n0 within ``half_width_hz``)."""
-    near = neighbourhood(rec.train, rec.mass_functions, rec.n0_hz, cases, half_width_hz)
+    near = neighbourhood(rec.train, rec.mass_functions, rec.n0_hz, cases=cases, half_width_hz=half_width_hz)
     where = (f"{rec.train} {'/'.join(rec.mass_functions)} within +/-{half_width_hz:g} Hz of n0 = {rec.n0_hz:g} Hz")
     if not near:
         return Verdict(False, f"no study case of {where}: nothing shows the bound holds here; run --verify", "study")
@@ -122,8 +123,6 @@ def verify(bound_pct, bridge, train, speeds_kmh=None, *, zeta_source="", speeds_
     -------
     Verification
     """
-    from adm_calib.calibrate import calibrate  # noqa: PLC0415  scipy (~1.3 s): only when verifying
-
     t0 = time.perf_counter()
     res = calibrate(bridge, train, speeds_kmh, options=options, adapted_curve=False)
     t_cal = time.perf_counter() - t0

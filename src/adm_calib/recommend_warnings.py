@@ -93,7 +93,7 @@ def study_cases():
     return parse_cases(resources.files("adm_calib").joinpath(CASES_FILE).read_text())
 
 
-def neighbourhood(train, mass_functions, n0_hz, cases=None, half_width_hz=NEIGHBOURHOOD_HZ):
+def neighbourhood(train, mass_functions, n0_hz, *, cases=None, half_width_hz=NEIGHBOURHOOD_HZ):
     """Cases of ``train`` and ``mass_functions`` with ``|n0_i - n0| <= half_width_hz``, by n0."""
     cases = study_cases() if cases is None else cases
     out = [c for c in cases if c.train == train and c.mass_function in mass_functions
@@ -112,7 +112,7 @@ def recommendation_warnings(rec, cases=None, half_width_hz=NEIGHBOURHOOD_HZ):
     :class:`adm_calib.reference.Recommendation`: the neighbouring study cases (same train and mass
     function(s), n0 within ``half_width_hz``) with Δζ_VBI < 0, and those below the returned Δζ_LB.
     Empty when there are none."""
-    near = neighbourhood(rec.train, rec.mass_functions, rec.n0_hz, cases, half_width_hz)
+    near = neighbourhood(rec.train, rec.mass_functions, rec.n0_hz, cases=cases, half_width_hz=half_width_hz)
     where = (f"{rec.train} {'/'.join(rec.mass_functions)} within +/-{half_width_hz:g} Hz of n0 = {rec.n0_hz:g} Hz "
              f"({len(near)} study cases)")
     out = []

@@ -27,7 +27,7 @@ def _fine_step(speeds):
     return float(np.median(d)) if d.size else 1.0
 
 
-def _grid_between(lo, hi, step, vmin, vmax):
+def _grid_between(lo, hi, step, *, vmin, vmax):
     lo, hi = max(lo, vmin), min(hi, vmax)
     if hi < lo:
         return np.zeros(0)
@@ -44,11 +44,11 @@ def dim_speeds_paper(speeds_kmh, mlm_peak_kmh, options=None):
     opt = options or CalibrationOptions()
     v = np.asarray(speeds_kmh, dtype=float)
     vmin, vmax, fine = float(v.min()), float(v.max()), _fine_step(v)
-    coarse = _grid_between(vmin, vmax, max(opt.dim_coarse_step_kmh, fine), vmin, vmax)
+    coarse = _grid_between(vmin, vmax, max(opt.dim_coarse_step_kmh, fine), vmin=vmin, vmax=vmax)
     parts = [coarse, [vmax]]
     if mlm_peak_kmh is not None:
         parts.append(_grid_between(mlm_peak_kmh - opt.dim_refine_kmh[0], mlm_peak_kmh + opt.dim_refine_kmh[1],
-                                   fine, vmin, vmax))
+                                   fine, vmin=vmin, vmax=vmax))
     return _merge(*parts)
 
 
@@ -111,7 +111,7 @@ def dim_refinement(v, vd, dim_peak):
     gaps = [vd[i] - vd[i - 1] if i > 0 else 0.0, vd[i + 1] - vd[i] if i + 1 < vd.size else 0.0]
     if max(gaps) <= fine + 1e-9:
         return None
-    extra = _grid_between(dim_peak.speed_kmh - 5.0, dim_peak.speed_kmh + 5.0, fine, v.min(), v.max())
+    extra = _grid_between(dim_peak.speed_kmh - 5.0, dim_peak.speed_kmh + 5.0, fine, vmin=v.min(), vmax=v.max())
     extra = np.setdiff1d(np.round(extra, 9), vd)
     return extra if extra.size else None
 
@@ -139,7 +139,7 @@ def _grid(lo, hi, step):
     return np.round(lo + step * np.arange(n + 1), 9)
 
 
-def refine_peaks(lanes, model, phase, curves, intervals, *, resolution_kmh):
+def refine_peaks(lanes, model, phase, *, curves, intervals, resolution_kmh):
     """Peaks located to ``resolution_kmh`` on their intervals by extra lanes, all cases together.
 
     For each case ``c`` with an interval ``(lo, hi)`` (the neighbours of its peak on the sampled
@@ -202,11 +202,12 @@ def _neighbours(v, i):
     return float(v[max(i - 1, 0)]), float(v[min(i + 1, v.size - 1)])
 
 
-def relocate_peaks(lanes, model, phase, speeds, curves, peaks, *, resolution_kmh):
+def relocate_peaks(lanes, model, phase, *, speeds, curves, peaks, resolution_kmh):
     """Every found peak located to ``resolution_kmh`` between its sampled neighbours
     (:func:`refine_peaks`); returns the merged speeds, curves and the relocated peaks (lists)."""
     ivs = [_neighbours(speeds[c], p.index) if p.found else None for c, p in enumerate(peaks)]
-    merged, best = refine_peaks(lanes, model, phase, list(zip(speeds, curves)), ivs, resolution_kmh=resolution_kmh)
+    merged, best = refine_peaks(lanes, model, phase, curves=list(zip(speeds, curves)), intervals=ivs,
+                                resolution_kmh=resolution_kmh)
     speeds, curves, peaks = list(speeds), list(curves), list(peaks)
     for c, (vc, ac) in enumerate(merged):
         speeds[c], curves[c] = vc, ac

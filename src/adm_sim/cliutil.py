@@ -11,7 +11,9 @@ from __future__ import annotations
 
 import argparse
 import errno
+import importlib
 import os
+import resource
 import signal
 import sys
 import threading
@@ -265,10 +267,8 @@ def address_space_note():
     """``; the process runs under an address-space limit of N MB (ulimit -v) ...`` when one is set,
     else empty: the likely cause of a failed allocation or library load."""
     try:
-        import resource  # noqa: PLC0415  POSIX only
-
         soft, _ = resource.getrlimit(resource.RLIMIT_AS)
-    except (ImportError, OSError, ValueError):
+    except (OSError, ValueError):
         return ""
     if soft == resource.RLIM_INFINITY:
         return ""
@@ -335,6 +335,35 @@ class Parser(argparse.ArgumentParser):
             return self.parse_args(args, namespace)
         except InputError as exc:
             self.exit(EXIT_INPUT, f"error: {one_line(exc)}\n")
+
+
+def add_commands(parser, commands, *, dest, command=None):
+    """The subcommands of ``parser`` from ``commands``, ``(name, module, help)`` each in the order of ``--help``:
+    each module holds ``add_arguments(parser)`` and ``run(args)``. Only the module of ``command`` is imported
+    and gets its options (None: every module, for the documentation), so ``--help``, ``--version`` and a
+    refusal of one subcommand do not import the others; ``args.func`` is the chosen module's ``run``."""
+    sub = parser.add_subparsers(dest=dest, required=True)
+    for name, module, text in commands:
+        sp = sub.add_parser(name, help=text)
+        if command is None or command == name:
+            mod = importlib.import_module(module)
+            mod.add_arguments(sp)
+            sp.set_defaults(func=mod.run)
+    return sub
+
+
+def command_named(argv):
+    """The subcommand ``argv`` names: its first item that is no option (the programs' own options, ``--help``
+    and ``--version``, take no value), or ``""`` when there is none."""
+    return next((a for a in argv if not a.startswith("-")), "")
+
+
+def run_command(build_parser, argv=None):
+    """Parse ``argv`` (default ``sys.argv[1:]``) with ``build_parser(command)``, the parser of the subcommand
+    it names, and run that subcommand: its exit code. The work of :func:`run_cli`."""
+    argv = sys.argv[1:] if argv is None else list(argv)
+    args = build_parser(command_named(argv)).parse_args(argv)
+    return args.func(args)
 
 
 def cli_message(exc):

@@ -168,7 +168,7 @@ def test_study_fit_refuses_a_deck_study(call_main, tmp_path):
                                f"spans, e.g. 2x8-f3-mu1): the paper's lower-bound functions (Section 4.2.1) are "
                                f"fitted to simply supported spans")
     assert not out.exists() and sorted(p.name for p in tmp_path.iterdir()) == ["results.jsonl"]
-    from adm_calib.calib_commands import _refuse_deck_study
+    from adm_calib.cli.study_fit import _refuse_deck_study
 
     single = [json.loads(x) for x in lines]
     for rec in single:  # the same records as simply supported spans (no spans_m, or one span) pass

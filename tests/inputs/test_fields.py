@@ -247,9 +247,10 @@ def test_damping_in_percent_and_as_fraction_are_one_field(tmp_path, capsys):
 SURFACES = [*(ROOT / "src" / "adm_sim").glob("model/bridge.py"), ROOT / "src/adm_sim/model/trains.py",
             ROOT / "src/adm_sim/integrate/step_grid.py", ROOT / "src/adm_sim/integrate/run_contract.py",
             ROOT / "src/adm_sim/integrate/rk4_sides.py", ROOT / "src/adm_sim/integrate/sweep.py", ROOT / "src/adm_sim/limits.py",
-            ROOT / "src/adm_sim/cli/sim_commands.py", ROOT / "src/adm_sim/cliutil.py", ROOT / "src/adm_sim/design/check.py",
+            *sorted((ROOT / "src/adm_sim/cli").glob("*.py")), ROOT / "src/adm_sim/cliutil.py", ROOT / "src/adm_sim/design/check.py",
             ROOT / "src/adm_sim/integrate/compiled_batch.py", ROOT / "src/adm_sim/processes/dds_env.py",
             *sorted((ROOT / "src/adm_sim/nodes").glob("*.py")), ROOT / "src/adm_calib/calib_commands.py",
+            *sorted((ROOT / "src/adm_calib/cli").glob("*.py")),
             *sorted((ROOT / "src/adm_calib/nodes").glob("*.py")),
             *sorted((ROOT / "launch_scripts").glob("*.py"))]
 CHECKS = {"check_range", "check_number", "check_int", "check_choice", "ParamSpec"}

@@ -632,7 +632,7 @@ CASES = [
     # the process: the way out of a real process after the interrupt (the rest in this process)
     Case("output-set", "sweep-json-plot-interrupted-in-plot",
          lambda t: SIM + ["sweep", "--speeds", "200:300:5", "--json", f"{t}/r.json", "--plot", f"{t}/r.png"],
-         "error: interrupted", code=130, patches=(_failing("adm_sim.cli.sim_commands", "plot_sweep"),), process=True),
+         "error: interrupted", code=130, patches=(_failing("adm_sim.cli.figures", "plot_sweep"),), process=True),
     Case("output-set", "check-four-outputs-interrupted-in-report",
          lambda t: SIM + ["check", "--max-line-speed", "160", "--trains", "HSLM-A1", "--json", f"{t}/c.json",
                           "--csv", f"{t}/c.csv", "--plot", f"{t}/c.png", "--report", f"{t}/c.html"],

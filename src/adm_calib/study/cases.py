@@ -18,8 +18,11 @@ from adm_sim.fields import check_range
 from adm_sim.limits import DEFAULT_SPEEDS
 from adm_sim.model.parametric import FIELD_SPANS_M, MASS_FUNCTIONS
 from adm_sim.integrate.step_grid import StepOptions
+from adm_sim.inputs.speeds import parse_speeds
+from adm_sim.inputs.track_profile import parse_irregularity
 from adm_sim.inputs.train_files import load_train
 
+from adm_calib.calibration_options import XTOL_STUDY, CalibrationOptions
 from adm_calib.lower_bound import FIT_RANGE_MAX_HZ, LOWER_LIMIT_HZ  # noqa: F401  (re-exported for the study package)
 from adm_calib.reference import STUDY_TRAINS, canonical_train_name
 
@@ -152,7 +155,7 @@ def select_cases(trains=STUDY_TRAINS, mass_functions=MASS_FUNCTION_NAMES, spans_
     for fi in freq_indices:
         if fi not in FREQ_INDICES:
             raise InputError(f"freq_index: {fi!r} is out of range; allowed integer in [1, 5]")
-    layout = check_range("spans_layout", spans_layout, "spans", SPANS_LAYOUTS[0], SPANS_LAYOUTS[-1])
+    layout = check_range("spans_layout", spans_layout, "spans", lo=SPANS_LAYOUTS[0], hi=SPANS_LAYOUTS[-1])
     if int(layout) != layout:
         raise InputError(f"spans_layout: {spans_layout!r} is not a whole number of spans; allowed integer in "
                          f"[{SPANS_LAYOUTS[0]}, {SPANS_LAYOUTS[-1]}]")
@@ -228,21 +231,14 @@ class StudySettings:
     spans_layout: int = 1
 
     def speeds_kmh(self):
-        from adm_sim.inputs.speeds import parse_speeds  # noqa: PLC0415  scipy.signal (peaks) only when a study runs
-
         return parse_speeds(self.speeds)
 
     def calibration_options(self, span_m=None):
         """The calibration options; with an irregularity, ``span_m`` (the cases' span) sets the
         deck the profile is generated on."""
-        from adm_calib.calibrate import CalibrationOptions  # noqa: PLC0415  scipy.optimize only when a study runs
-        from adm_calib.calibration_options import XTOL_STUDY  # noqa: PLC0415
-
         step = None
         profile = None
         if self.irregularity:
-            from adm_sim.inputs.track_profile import parse_irregularity  # noqa: PLC0415  scipy.interpolate only for rough-track studies
-
             if span_m is None:
                 raise ValueError("calibration_options: an irregularity needs the span of the cases")
             profile = parse_irregularity(self.irregularity, span_m)

@@ -22,6 +22,7 @@ from pathlib import Path
 
 from adm_sim.errors import InputError, RunError
 
+from adm_calib.calibrate import calibrate_batch
 from adm_calib.study.cases import WORKER_ENV, StudySettings, _train
 from adm_calib.study.store import (META_FORMAT, RESULTS_NAME, ResultsWriter, _exclusive, _now, _write_meta,
                                    error_record, read_meta, read_results, result_record, versions)
@@ -46,8 +47,6 @@ def run_batch(cases, settings=StudySettings(), train=None):
     from a file (:mod:`adm_calib.study.own_train`); None: the built-in train the cases name. Never raises for errors of the cases themselves: if the batch
     fails, every case is tried alone so that only the failing ones become error records.
     """
-    from adm_calib.calibrate import calibrate_batch  # noqa: PLC0415  scipy.optimize and scipy.signal, loaded by the workers that calibrate
-
     t0 = time.perf_counter()
     try:
         train = _train(cases[0].train) if train is None else train
@@ -304,9 +303,9 @@ def run_study(out_dir, cases, *, settings=StudySettings(), workers=2, scheduler=
             t0 = time.perf_counter()
             try:
                 if pending:
-                    _run_on_dask(pending, settings, writer, run, workers, scheduler, progress, entry,
-                                 NO_WORKER_WAIT_S if no_worker_wait_s is None else no_worker_wait_s,
-                                 {n: f.train for n, f in files.items()})
+                    wait_s = NO_WORKER_WAIT_S if no_worker_wait_s is None else no_worker_wait_s
+                    _run_on_dask(pending, settings, writer, run=run, workers=workers, scheduler=scheduler, progress=progress,
+                                 entry=entry, no_worker_wait_s=wait_s, trains={n: f.train for n, f in files.items()})
             except KeyboardInterrupt:
                 run.interrupted = True
             except RunError as exc:
@@ -355,7 +354,7 @@ def _study_meta(out, settings, cases, files):
         from adm_calib.study.own_train import check_resume  # noqa: PLC0415  cycle: own_train imports the study package
 
         done = {r["train"] for r in read_results(out / RESULTS_NAME, skip_damaged=True).records}
-        check_resume(meta, done, sorted({c.train for c in cases}), files, out)
+        check_resume(meta, done, names=sorted({c.train for c in cases}), files=files, out=out)
     if meta is None:
         meta = {"format": META_FORMAT, "created": _now(), "settings": settings.to_dict(), "runs": []}
     if files:
@@ -392,7 +391,7 @@ class _WorkerWatch:
                            f"{self.submitted} submitted cases finished and are kept; start workers for it")
 
 
-def _run_on_dask(pending, settings, writer, run, workers, scheduler, progress, entry,
+def _run_on_dask(pending, settings, writer, *, run, workers, scheduler, progress, entry,
                  no_worker_wait_s=NO_WORKER_WAIT_S, trains=None):
     from distributed import Client, as_completed  # noqa: PLC0415  as dask
 

@@ -220,7 +220,7 @@ def check_dim_step(tf, dt_s, option="--trains"):
 
 
 # ====================================================================== resuming a study
-def check_resume(meta, result_trains, names, files, out):
+def check_resume(meta, result_trains, *, names, files, out):
     """Refuse a resumed study whose trains are not the ones it ran (before anything is written).
 
     ``meta``: the study's ``study.json`` (or None); ``result_trains``: the train names that have
@@ -368,7 +368,7 @@ FUNCTION_SETS = {"least_squares": "least-squares cubic through the interval mini
                  "conservative": "conservative: the largest cubic below every retained case (linear programme)"}
 
 
-def functions_toml(name, file_record, study_fit, conservative_rows, cases_csv, quantities=None, command="",
+def functions_toml(name, file_record, study_fit, conservative_rows, *, cases_csv, quantities=None, command="",
                    study_dir=""):
     """The functions file of one train of a file: its least-squares functions (Eq. 20 in the form
     of Appendix B), its conservative bounds, the study's cases (for ``recommend``'s warnings) and

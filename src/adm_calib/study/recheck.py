@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from adm_calib import peaks as pk
+from adm_calib.calibrate import batch_step
 from adm_calib.study.cases import StudySettings, _train, select_cases
 from adm_calib.study.store import read_results, record_key
 
@@ -48,8 +49,6 @@ def range_end_recheck(records, settings=StudySettings(), rtol=pk.RANGE_END_RTOL,
         ``peak_matches``: the recomputed MLM peak equals the shipped one (speed, and value to 1e-9).
     """
     from adm_sim.integrate.compiled_batch import BatchRunner  # noqa: PLC0415  numba kernels, only for the re-check
-
-    from adm_calib.calibrate import batch_step  # noqa: PLC0415  scipy.optimize and scipy.signal, only for the re-check
 
     by_key = {record_key(r): r for r in records}
     groups = {}

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from adm_sim.integrate.where import where_text
+
 
 def plot_sweep(result, path, limit=3.5, where="midspan"):
     """A sweep's maximum acceleration against speed, its peak and the EN 1990 limit, as a PNG."""
@@ -25,8 +27,6 @@ def plot_sweep(result, path, limit=3.5, where="midspan"):
                 label=f"peak {pk['acc_m_s2']:.3f} m/s² at {pk['speed_kmh']:g} km/h")
     ax.axhline(limit, color="0.5", ls="--", lw=1, label=f"EN 1990 A2 ballasted limit {limit} m/s²")
     ax.set_xlabel("speed (km/h)")
-    from adm_sim.integrate.envelope import where_text  # noqa: PLC0415  numba kernels of the envelope: adm-sim starts without them
-
     ax.set_ylabel({"deck": "max |deck acceleration| (m/s²)", "midspan": "max |midspan acceleration| (m/s²)"}.get(
         where, f"max |acceleration| at {where_text(where)} (m/s²)"))
     zeta = "/".join(f"{100 * z:.3g}" for z in np.ravel(result.bridge.modal_damping_ratios(result.delta_zeta)))

@@ -35,6 +35,7 @@ import numpy as np
 from adm_sim.errors import InputError
 from adm_sim.fields import core
 from adm_sim.files import input_file, read_text
+from adm_sim.model.bridge import Bridge
 
 __all__ = ["F1_SPREAD_MAX", "MIN_PASSAGES", "MeasuredModes", "ZETA_QUANTILE", "ZETA_SPREAD_MAX", "apply_measured",
            "read_measured"]
@@ -168,8 +169,6 @@ def read_measured(text, option="--measured"):
 def apply_measured(text, bridge, option="--measured"):
     """``(measured bridge, MeasuredModes)``: ``bridge`` with n0 and ζ from the monitor's JSON
     ``text`` and EJ from n0 and its μ (Eq. (18), :meth:`adm_sim.model.bridge.Bridge.from_frequency`)."""
-    from adm_sim.model.bridge import Bridge  # noqa: PLC0415  start-up: the parsers import this module
-
     m = read_measured(text, option)
     try:
         core("n0_hz").check(m.f1_hz)  # the registry's ranges; the model checks only its invariants
