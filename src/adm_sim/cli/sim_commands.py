@@ -17,7 +17,7 @@ from adm_sim.cliutil import (Parser, add_choice, add_delta_zeta_pct, add_max_wor
                              add_steps_per_period, check_option, option_help, option_view,
                              progress_callback)
 from adm_sim.errors import InputError
-from adm_sim.cliutil import run_cli
+from adm_sim.cliutil import freeze_at_exit, run_cli
 from adm_sim.fields import FIELDS
 from adm_sim.files import OutputSet, claim_output, mcap_input
 from adm_sim.inputs.measured import add_measured_argument
@@ -688,6 +688,8 @@ def main(argv=None):
         args = build_parser().parse_args(argv)
         return args.func(args)
 
+    if argv is None:  # the process's own command line: its exit skips the last garbage collections
+        freeze_at_exit()
     return run_cli(work)
 
 
