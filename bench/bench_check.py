@@ -7,14 +7,24 @@ here the core's RK4 MLM run lane by lane).
 
 Prints times and ratios measured in this run; asserts nothing about time. The loop baseline runs on
 every ``--every``-th speed for all trains and is scaled to all speeds (said in the output).
-Run: .venv/bin/python bench/bench_check.py [--every 12]
+Run: .venv/bin/python bench/bench_check.py [--every 12] [--baseline ROOT [--repeat 3]]
 
-``--compare SRC`` prints the whole check with the standard's mass bounds and the HTML report before
-(the ``src`` directory SRC of another tree, e.g. a detached worktree of the main branch or
-``git archive <commit> src | tar -x``) and after (this tree) side by side with their ratio: each in its
-own process, warmed up, alternating, best of ``--repeat``; the check's phases (nominal bridge, bounds)
-from its own timers and the report alone. CPU time is the measure on a shared machine (wall time
-includes whatever else runs); NaN where only wall time exists.
+``--baseline ROOT`` sets this tree beside a baseline tree (another checkout, e.g. a worktree of the main
+branch at the branch point: ``git worktree add --detach /tmp/base <commit>``; its ``src`` or ROOT itself
+when it is a ``src`` directory), in one run, the trees alternating, best of ``--repeat``, with the ratios
+this / baseline:
+
+* the command a user types, as a whole process (interpreter start, imports, numba's cached kernels, the
+  check, the report written): ``adm-sim check --bridge B1 --max-line-speed 350 --trains
+  hslm,ICE-2,Eurostar,Railjet,ICE-4 --mass-bounds=standard:4000,2000 --report X.html`` (the target:
+  3 s), and the same without the bounds; one untimed run of each per tree first (numba's cache, the
+  bytecode: the runs write ``__pycache__`` as a user's install does, whatever
+  ``PYTHONDONTWRITEBYTECODE`` says);
+* in process, warmed up (each tree in its own process): the whole check, with the bounds and the HTML
+  report, the bounds alone, the report alone, and the check's own phase timers.
+
+CPU time (user + system, with the threads and children) is the measure on a shared machine; wall time is
+what the user waits, and holds only on a quiet one (NaN where only wall time exists).
 """
 
 import os
@@ -25,8 +35,10 @@ import argparse  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
 import pathlib  # noqa: E402
+import resource  # noqa: E402
 import subprocess  # noqa: E402
 import sys  # noqa: E402
+import tempfile  # noqa: E402
 import time  # noqa: E402
 
 import numpy as np  # noqa: E402
@@ -81,54 +93,98 @@ def worker(repeat):
     print(json.dumps(out))
 
 
-def compare(baseline_src, repeat, rounds=2):
-    """Before (``baseline_src``) and after (this tree) side by side, alternating ``rounds`` times."""
-    here = str(pathlib.Path(__file__).resolve().parents[1] / "src")
-    trees = {"before": str(pathlib.Path(baseline_src).resolve()), "after": here}
+#: The command of the target (issue 36), its options after ``adm-sim check``; ``{report}`` a temporary file.
+COMMAND = ["--bridge", "B1", "--max-line-speed", f"{V_LINE_KMH:g}", "--trains", TRAINS,
+           f"--mass-bounds={STANDARD_BOUNDS}", "--report", "{report}", "--overwrite"]
+
+
+def src_of(root):
+    """The ``src`` directory of a checkout ``root`` (or ``root`` itself when it holds ``adm_sim``)."""
+    root = pathlib.Path(root).resolve()
+    return root if (root / "adm_sim").is_dir() else root / "src"
+
+
+def whole_process(src, argv, report):
+    """Wall and CPU time (s; user + system of the process and its threads) of ``adm-sim check argv`` as a
+    user runs it, importing ``src``; one line of error and exit on a failure."""
+    env = dict(os.environ, PYTHONPATH=str(src), OPENBLAS_NUM_THREADS="1")
+    env.pop("PYTHONDONTWRITEBYTECODE", None)  # a user's install keeps its bytecode
+    argv = ["check"] + [a.replace("{report}", str(report)) for a in argv]
+    script = pathlib.Path(sys.executable).with_name("adm-sim")
+    cmd = [str(script)] if script.exists() else [sys.executable, "-m", "adm_sim.cli.sim_commands"]
+    r0, t0 = resource.getrusage(resource.RUSAGE_CHILDREN), time.perf_counter()
+    p = subprocess.run(cmd + argv, env=env, capture_output=True, text=True)
+    wall, r1 = time.perf_counter() - t0, resource.getrusage(resource.RUSAGE_CHILDREN)
+    if p.returncode != 0:
+        raise SystemExit(f"error: adm-sim {' '.join(argv)} with {src} exited {p.returncode}: {p.stderr.strip()[-300:]}")
+    return [wall, (r1.ru_utime + r1.ru_stime) - (r0.ru_utime + r0.ru_stime)]
+
+
+def _keep_best(best, key, v):
+    old = best.get(key, [math.inf, math.inf])
+    best[key] = [min(old[0], v[0]), v[1] if math.isnan(v[1]) else min(old[1], v[1])]
+
+
+def compare(baseline, repeat, in_process=True):
+    """This tree beside ``baseline`` (a checkout or its src), the trees alternating ``repeat`` times."""
+    trees = {"baseline": src_of(baseline), "this": src_of(pathlib.Path(__file__).resolve().parents[1])}
+    commands = {"cli_bounds": COMMAND, "cli": [a for a in COMMAND if not a.startswith("--mass-bounds")]}
     best = {k: {} for k in trees}
-    for _ in range(rounds):
-        for name, src in trees.items():
-            env = dict(os.environ, PYTHONPATH=src)
-            r = subprocess.run([sys.executable, __file__, "--worker", "--repeat", str(repeat)], env=env,
-                               capture_output=True, text=True, check=True)
-            got = json.loads(r.stdout.strip().splitlines()[-1])
-            for k, v in got.items():
-                if isinstance(v, list):
-                    old = best[name].get(k, [math.inf, math.inf])
-                    best[name][k] = [min(old[0], v[0]), v[1] if math.isnan(v[1]) else min(old[1], v[1])]
-                else:
-                    best[name][k] = v
+    with tempfile.TemporaryDirectory(prefix="bench-check-") as tmp:
+        report = pathlib.Path(tmp) / "report.html"
+        for src in trees.values():  # warm-up: numba's cache, the bytecode
+            for argv in commands.values():
+                whole_process(src, argv, report)
+        for _ in range(repeat):
+            for name, src in trees.items():
+                for key, argv in commands.items():
+                    _keep_best(best[name], key, whole_process(src, argv, report))
+                if not in_process:
+                    continue
+                env = dict(os.environ, PYTHONPATH=str(src))
+                r = subprocess.run([sys.executable, __file__, "--worker", "--repeat", "1"], env=env,
+                                   capture_output=True, text=True, check=True)
+                for k, v in json.loads(r.stdout.strip().splitlines()[-1]).items():
+                    if isinstance(v, list):
+                        _keep_best(best[name], k, v)
+                    else:
+                        best[name][k] = v
     print(f"B1, {TRAINS}, V = {V_LINE_KMH:g} km/h (144 .. 420 km/h), every effect and the SLS; load average "
-          f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} cores; wall / CPU s, best of {rounds} x {repeat}, "
-          f"before = {trees['before']}, after = {here}")
-    print(f"{'':58s} {'before':>17s} {'after':>17s} {'after / before':>17s}")
-    for k, what in (("check", "whole check"),
-                    ("bounds_report", f"whole check, mass bounds {STANDARD_BOUNDS}, HTML report"),
+          f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} cores; wall / CPU s, best of {repeat}, trees alternating; "
+          f"baseline = {trees['baseline']}, this = {trees['this']}")
+    print(f"{'':62s} {'baseline':>17s} {'this':>17s} {'this / baseline':>17s}")
+    for k, what in (("cli_bounds", f"adm-sim check ... --mass-bounds={STANDARD_BOUNDS} --report X.html"),
+                    ("cli", "adm-sim check ... --report X.html (no bounds)"),
+                    ("check", "in process, warm: whole check"),
+                    ("bounds_report", "  whole check, mass bounds, HTML report"),
                     ("bounds", "  the check with the mass bounds alone"),
                     ("phase_nominal", "    of which the nominal bridge (wall)"),
                     ("phase_bounds", "    of which the two bounds (wall)"),
                     ("report", "  the HTML report alone")):
-        if k not in best["before"]:  # a baseline older than this row
+        if k not in best["baseline"] or k not in best["this"]:
             continue
-        b, a = best["before"][k], best["after"][k]
-        target = "  (target <= 3 s)" if k in ("check", "bounds_report") else ""
-        print(f"{what:58s} {b[0]:7.3f} / {b[1]:7.3f} {a[0]:7.3f} / {a[1]:7.3f} {a[0] / b[0]:7.3f} / "
+        b, a = best["baseline"][k], best["this"][k]
+        target = "  (target <= 3 s)" if k == "cli_bounds" else ""
+        print(f"{what:62s} {b[0]:7.3f} / {b[1]:7.3f} {a[0]:7.3f} / {a[1]:7.3f} {a[0] / b[0]:7.3f} / "
               f"{a[1] / b[1]:7.3f}{target}")
     for name in trees:
-        print(f"{name}: envelope {best[name]['envelope']}; report {best[name]['report_kib']:.0f} KiB")
+        if "envelope" in best[name]:
+            print(f"{name}: envelope {best[name]['envelope']}; report {best[name]['report_kib']:.0f} KiB")
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--every", type=int, default=12, help="loop baseline on every n-th speed (scaled to all)")
     ap.add_argument("--repeat", type=int, default=3)
-    ap.add_argument("--compare", metavar="SRC", help="before/after against the src directory of another tree")
+    ap.add_argument("--baseline", "--compare", metavar="ROOT", dest="baseline",
+                    help="this tree beside another checkout (or its src directory), whole process and in process")
+    ap.add_argument("--no-in-process", action="store_true", help="with --baseline: the whole process alone")
     ap.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.worker:
         return worker(args.repeat)
-    if args.compare:
-        return compare(args.compare, args.repeat)
+    if args.baseline:
+        return compare(args.baseline, args.repeat, in_process=not args.no_in_process)
     bridge = named_bridge("B1")
     trains = resolve_trains(TRAINS)
     speeds = np.arange(144.0, 421.0, 1.0)

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import sys
 
-from adm_sim.cliutil import Parser, add_commands, run_cli, run_command
+from adm_sim.cliutil import Parser, add_commands, freeze_at_exit, run_cli, run_command
 
 #: ``(name, module, help)`` of every subcommand, in the order of ``adm-sim --help``.
 COMMANDS = (
@@ -36,6 +36,8 @@ def build_parser(command=None):
 
 
 def main(argv=None):
+    if argv is None:  # the process's own command line: its exit skips the last garbage collections
+        freeze_at_exit()
     return run_cli(lambda: run_command(build_parser, argv))
 
 

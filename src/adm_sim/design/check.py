@@ -840,35 +840,66 @@ def run_check(bridge, max_line_speed_kmh, trains, *, track="ballasted", damping=
     if mass_bounds is None and ballast is not None:  # the ballast is given: the standard's mass bounds by default
         mass_bounds = ballast if isinstance(ballast, StandardMassBounds) else StandardMassBounds(*map(float, ballast))
     cases = bound_cases(bridge, mass_bounds, stiffness_bounds)
-    b, f_lim = _check_bridge(bridge, n_modes, inp["damping_model"])
+    # the nominal bridge, then every bound: its modes and the trains' damping (every refusal before any sweep)
+    checked = [_check_bridge(bb, n_modes, inp["damping_model"]) for bb in [bridge, *(bb for _, bb in cases)]]
     t_start = time.perf_counter()
-    dz = [None] * len(trains)  # every refusal before any sweep: load trains (cheap refusals) first
+    jobs = [_case_job(c, trains, damping, calibrate_options, damping_provider, speeds, max_line_speed_kmh, inp)
+            for c in checked]
+    t_damp = time.perf_counter() - t_start
+    outs, t_done = _run_cases(jobs, trains, comfort, progress)  # one pool: the bounds' trains follow the nominal's
+    maint, lat, alpha = inp["track_maintenance"], inp["lateral_frequency_hz"], inp["alpha"]
+
+    def sls_of(b, deck_end_height_m):
+        return serviceability(b, dynamic_factor(b.span_m, maint), alpha, track, lat, deck_end_height_m)
+
+    # a bound's result is what its own check gives: every option named, no bounds, comfort or rough track
+    bounds = tuple((label, _result(job, outs[i], track=track, damping=damping, inp=inp, maintenance_named=True,
+                                   sls=sls_of(job.bridge, None),
+                                   timings_s={"damping": job.t_damping_s, "envelopes": t_done[i] - t_done[i - 1]}))
+                   for i, ((label, _), job) in enumerate(zip(cases, jobs[1:]), start=1))
+    timings = {"damping": t_damp, "envelopes": t_done[0] - t_start - t_damp,
+               **({"bounds": t_done[-1] - t_done[0]} if cases else {})}
+    return _result(jobs[0], outs[0], track=track, damping=damping, inp=inp,
+                   sls=sls_of(jobs[0].bridge, inp["deck_end_height_m"]), bounds=bounds,
+                   maintenance_named=track_maintenance is not None, timings_s=timings,
+                   rough=_rough(jobs[0].bridge, trains, outs[0], speeds, inp))
+
+
+@dataclass(frozen=True)
+class _CaseJob:
+    """One bridge of a check (the nominal or a bound): its train context, limits and every train's Δζ."""
+
+    ctx: object  # _TrainContext
+    f_limit_hz: float
+    dz: list  # (Δζ %, note) per train
+    t_damping_s: float
+
+    @property
+    def bridge(self):
+        return self.ctx.bridge
+
+
+def _case_job(checked, trains, damping, calibrate_options, damping_provider, speeds, max_line_speed_kmh, inp):
+    """The :class:`_CaseJob` of a bridge ``checked`` = (bridge with its modes, frequency limit): Δζ of every
+    train, the load trains (cheap refusals) first."""
+    b, f_lim = checked
+    t0 = time.perf_counter()
+    dz = [None] * len(trains)
     for i in sorted(range(len(trains)), key=lambda i: bool(trains[i].units)):
         dz[i] = delta_zeta_for(b, trains[i], damping, calibrate_options, damping_provider)
-    t_damp = time.perf_counter() - t_start
     ctx = _TrainContext(bridge=b, speeds=speeds, where=inp["where"], max_line_speed_kmh=float(max_line_speed_kmh),
                         maintenance=inp["track_maintenance"], alpha=inp["alpha"])
-    out = _run_trains(ctx, trains, dz, comfort, progress)
-    sls = serviceability(b, dynamic_factor(b.span_m, inp["track_maintenance"]), inp["alpha"], track,
-                         inp["lateral_frequency_hz"], inp["deck_end_height_m"])
-    rough = _rough(b, trains, out, speeds, inp)
-    t_nominal = time.perf_counter() - t_start
-    # the bounds after the nominal bridge: they reuse its static effects (cached; independent of the mass)
-    bounds = tuple((label, run_check(bb, max_line_speed_kmh, trains, track=track, damping=damping, step_kmh=step_kmh,
-                                     calibrate_options=calibrate_options, n_modes=n_modes, where=inp["where"],
-                                     damping_model=inp["damping_model"], track_maintenance=inp["track_maintenance"],
-                                     alpha=inp["alpha"], damping_provider=damping_provider,
-                                     lateral_frequency_hz=inp["lateral_frequency_hz"]))
-                   for label, bb in cases)
-    return CheckResult(bridge=b, max_line_speed_kmh=float(max_line_speed_kmh), track=track, damping=damping, sls=sls,
-                       bounds=bounds,
-                       speeds_kmh=speeds, trains=out, modes=tuple(int(j) for j in b.mode_numbers),
-                       f_limit_hz=f_lim, screening=screening(b, float(max_line_speed_kmh)),
-                       timings_s={"damping": t_damp, "envelopes": t_nominal - t_damp,
-                                  **({"bounds": time.perf_counter() - t_start - t_nominal} if cases else {})},
-                       where=inp["where"], damping_model=inp["damping_model"],
-                       track_maintenance=inp["track_maintenance"], maintenance_named=track_maintenance is not None,
-                       alpha=inp["alpha"], rough=rough)
+    return _CaseJob(ctx=ctx, f_limit_hz=f_lim, dz=dz, t_damping_s=time.perf_counter() - t0)
+
+
+def _result(job, out, *, track, damping, inp, sls, maintenance_named, timings_s, bounds=(), rough=()):
+    """The :class:`CheckResult` of one bridge of a check (:class:`_CaseJob`) and its trains' checks ``out``."""
+    b, V = job.bridge, job.ctx.max_line_speed_kmh
+    return CheckResult(bridge=b, max_line_speed_kmh=V, track=track, damping=damping, sls=sls, bounds=bounds,
+                       speeds_kmh=job.ctx.speeds, trains=out, modes=tuple(int(j) for j in b.mode_numbers),
+                       f_limit_hz=job.f_limit_hz, screening=screening(b, V), timings_s=timings_s,
+                       where=inp["where"], damping_model=inp["damping_model"], track_maintenance=inp["track_maintenance"],
+                       maintenance_named=maintenance_named, alpha=inp["alpha"], rough=rough)
 
 
 def _rough(b, trains, out, speeds, inp):
@@ -963,23 +994,29 @@ class _TrainContext:
     alpha: float
 
 
-def _run_trains(ctx, trains, dz, comfort, progress):
-    """Every train's :class:`TrainCheck` side by side (threads: the numba kernels release the GIL)."""
-    out = []
+def _run_cases(jobs, trains, comfort, progress):
+    """Every train's :class:`TrainCheck` on every bridge of ``jobs`` (the nominal first, then the bounds), in
+    one pool of threads (the numba kernels release the GIL; a bound's trains start while the nominal's last
+    ones run; the results do not depend on the order). The comfort DIM and ``progress`` are the nominal
+    bridge's. Returns the checks per job and the time (``time.perf_counter``) each job's last train ended."""
+    outs, done = [[] for _ in jobs], [0.0] * len(jobs)
     with ThreadPoolExecutor(max_workers=CHECK_THREADS) as pool:
-        futures = [pool.submit(_train_check, ctx, t, dz_pct, note) for t, (dz_pct, note) in zip(trains, dz)]
+        futures = [[pool.submit(_train_check, job.ctx, t, dz_pct, note) for t, (dz_pct, note) in zip(trains, job.dz)]
+                   for job in jobs]
         try:
-            for n, (t, fut) in enumerate(zip(trains, futures)):
-                tc = fut.result()
-                if comfort and t.units:  # the DIM, in this thread
-                    tc.comfort_b_v_m_s2 = comfort_b_v(ctx.bridge, t, ctx.speeds)
-                out.append(tc)
-                if progress is not None:
-                    progress(n + 1, len(trains))
+            for i, job in enumerate(jobs):
+                for n, (t, fut) in enumerate(zip(trains, futures[i])):
+                    tc = fut.result()
+                    if i == 0 and comfort and t.units:  # the DIM, in this thread
+                        tc.comfort_b_v_m_s2 = comfort_b_v(job.bridge, t, job.ctx.speeds)
+                    outs[i].append(tc)
+                    if i == 0 and progress is not None:
+                        progress(n + 1, len(trains))
+                done[i] = time.perf_counter()
         except BaseException:  # an interrupt or a refusal: the trains not yet started are not run
             pool.shutdown(wait=False, cancel_futures=True)
             raise
-    return out
+    return outs, done
 
 
 _ENVELOPE_COLUMNS = ("max_acc_m_s2", "max_disp_m", "x_acc_m", "max_disp_midspan_m", "max_moment_Nm")

@@ -43,6 +43,7 @@ import functools
 import math
 from dataclasses import dataclass
 from functools import cached_property
+from typing import NamedTuple
 
 import numpy as np
 
@@ -358,8 +359,59 @@ def train_effects(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, delta_zeta=0
     -------
     EffectsResult
     """
-    L, EJ = bridge.span_m, bridge.EJ_Nm2
+    L = bridge.span_m
     effects = effects_of(L) if effects is None else list(effects)
+    lanes = _lanes(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, delta_zeta, effects, intervals)
+    WT = np.ascontiguousarray(lanes.W)  # (modes, effects)
+    # free vibration after the last exit: q = Im[H_K e^(lam t)], static part zero (every speed, cheap)
+    T1 = 2.0 * np.pi / lanes.om[0]
+    t_free = np.linspace(0.0, FREE_PERIODS * T1, 64)
+    qf = (lanes.H[-1][None] * np.exp(lanes.lam[None, None, :] * t_free[:, None, None])).imag  # (t, lanes, modes)
+    free = np.abs(qf @ lanes.W).max(0)  # (lanes, effects)
+    # pass 1: speeds at least COARSE_STEP_KMH apart, coarse positions; pass 2: fine positions at every
+    # speed within COARSE_STEP_KMH of a pass-1 speed whose value of some effect is within COARSE_MARGIN
+    # of that effect's largest
+    kmh = 3.6 * lanes.v
+    sel = _coarse_speeds(kmh)
+    coarse, _ = _scan_lanes(lanes, sel, WT, COARSE_SAMPLES_PER_SPAN, static_correction)
+    coarse = np.maximum(coarse, free[sel])
+    cand = sel[(coarse >= (1.0 - COARSE_MARGIN) * coarse.max(0)[None, :]).any(1)]
+    keep = np.nonzero((np.abs(kmh[:, None] - kmh[cand][None, :]) <= COARSE_STEP_KMH + 1e-9).any(1))[0]
+    fine, static_max = _scan_lanes(lanes, keep, WT, samples_per_span, static_correction)
+    best = free.copy()
+    best[sel] = np.maximum(best[sel], coarse)
+    best[keep] = np.maximum(best[keep], fine)
+    i = best.argmax(0)
+    dyn_max = best[i, np.arange(len(effects))]
+    at = 3.6 * lanes.v[i]
+    return EffectsResult(effects=effects, static_max=static_max, dynamic_max=dyn_max, at_speed_kmh=at,
+                         n_modes=int(lanes.jj.size), static_correction=bool(static_correction), span_m=float(L))
+
+
+class _Lanes(NamedTuple):
+    """What :func:`train_effects` samples: the bridge's modes, the axles, every lane's closed-form
+    coefficients ``P``, ``H`` (K, lanes, modes) and the modal weights ``W`` (modes, effects)."""
+
+    L: float
+    effects: list
+    offs: np.ndarray
+    loads: np.ndarray
+    v: np.ndarray  #: (lanes,) m/s
+    jj: np.ndarray
+    om: np.ndarray
+    lam: np.ndarray
+    W: np.ndarray
+    squares: bool
+    bps: np.ndarray
+    Gk: np.ndarray  #: (K, modes) modal force per mass at each interval start
+    P: np.ndarray
+    H: np.ndarray
+
+
+def _lanes(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, delta_zeta, effects, intervals):
+    """The modes, axles, weights and every lane's coefficients (:class:`_Lanes`): ``intervals`` when
+    they were computed with the same damping ratio of every mode, else propagated from event to event."""
+    L, EJ = bridge.span_m, bridge.EJ_Nm2
     offs = np.asarray(axle_offsets_m, dtype=float)
     loads = np.asarray(axle_loads_n, dtype=float)
     v = np.atleast_1d(np.asarray(speeds_kmh, dtype=float)) / 3.6
@@ -370,75 +422,64 @@ def train_effects(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, delta_zeta=0
     lam = -zeta * om + 1j * om * np.sqrt(1.0 - zeta**2)
     W = modal_weights(effects, L, EJ, jj)  # (modes, effects)
     squares = _modes_are_squares(jj, lam)
-
     bps, G = _events(offs, loads, L, jj, mass[0])
     G = G * (mass[0] / mass)
     Gk = G * np.exp(1j * np.pi * np.outer(bps, jj) / L)  # modal force per mass at each interval start
+    if (intervals is not None and tuple(float(z) for z in zeta) == tuple(intervals.zeta)
+            and intervals.P.shape == (bps.size, v.size, jj.size)):
+        P, H = intervals.P, intervals.H
+    else:
+        P, H = _propagate(Gk, bps, v, jj, om, zeta, lam, L)
+    return _Lanes(L=L, effects=effects, offs=offs, loads=loads, v=v, jj=jj, om=om, lam=lam, W=W, squares=squares,
+                  bps=bps, Gk=Gk, P=P, H=H)
 
-    def samples(n_per_span):
-        """Positions, their interval, offset in it, e^(i Om tau), the static part and its maximum."""
-        k_of, ds, E1, infl = _sample_statics(effects, L, offs, loads, bps, jj, n_per_span)
-        k_of, ds, E1 = np.array(k_of), np.array(ds), np.array(E1)  # writable: the kernel's compiled types
-        q_stat = (Gk[k_of] * E1).imag / om**2  # q_j^stat at every sample
-        base = infl - q_stat @ W if static_correction else np.zeros_like(infl)
-        return k_of, ds, E1, np.ascontiguousarray(base), np.abs(infl).max(0)
 
-    T1 = 2.0 * np.pi / om[0]
-    t_free = np.linspace(0.0, FREE_PERIODS * T1, 64)
+def _propagate(Gk, bps, v, jj, om, zeta, lam, L):
+    """``P``, ``H`` (K, lanes, modes) of every lane, from event to event (the closed form of
+    :mod:`adm_sim.integrate.envelope`)."""
     Om = jj[None, :] * np.pi * v[:, None] / L  # (lanes, modes)
     dyn = 1.0 / (om**2 - Om**2 + 2j * zeta * om * Om)
     K = bps.size
-    if (intervals is not None and tuple(float(z) for z in zeta) == tuple(intervals.zeta)
-            and intervals.P.shape == (K, v.size, jj.size)):
-        P, H = intervals.P, intervals.H
-    else:
-        P = Gk[:, None, :] * dyn[None]  # (K, lanes, modes)
-        H = np.empty_like(P)
-        q = np.zeros((v.size, jj.size))
-        dq = np.zeros_like(q)
-        for k in range(K):
-            p = P[k]
-            hi = q - p.imag
-            H[k] = (dq - Om * p.real - lam.real * hi) / lam.imag + 1j * hi
-            if k < K - 1:
-                T = (bps[k + 1] - bps[k]) / v[:, None]
-                eW = np.exp(1j * Om * T)
-                eL = np.exp(lam * T)
-                q = (p * eW).imag + (H[k] * eL).imag
-                dq = (1j * Om * p * eW).imag + (lam * H[k] * eL).imag
-    WT = np.ascontiguousarray(W)  # (modes, effects)
-    # free vibration after the last exit: q = Im[H_K e^(lam t)], static part zero (every speed, cheap)
-    qf = (H[K - 1][None] * np.exp(lam[None, None, :] * t_free[:, None, None])).imag  # (t, lanes, modes)
-    free = np.abs(qf @ W).max(0)  # (lanes, effects)
-    # pass 1: speeds at least COARSE_STEP_KMH apart, coarse positions; pass 2: fine positions at every
-    # speed within COARSE_STEP_KMH of a pass-1 speed whose value of some effect is within COARSE_MARGIN
-    # of that effect's largest
-    kmh = 3.6 * v
+    P = Gk[:, None, :] * dyn[None]  # (K, lanes, modes)
+    H = np.empty_like(P)
+    q = np.zeros((v.size, jj.size))
+    dq = np.zeros_like(q)
+    for k in range(K):
+        p = P[k]
+        hi = q - p.imag
+        H[k] = (dq - Om * p.real - lam.real * hi) / lam.imag + 1j * hi
+        if k < K - 1:
+            T = (bps[k + 1] - bps[k]) / v[:, None]
+            eW = np.exp(1j * Om * T)
+            eL = np.exp(lam * T)
+            q = (p * eW).imag + (H[k] * eL).imag
+            dq = (1j * Om * p * eW).imag + (lam * H[k] * eL).imag
+    return P, H
+
+
+def _coarse_speeds(kmh):
+    """Indices (sorted) of the speeds of pass 1: in increasing speed, each at least COARSE_STEP_KMH above
+    the last one taken."""
     sel, last = [], -np.inf
     for i in np.argsort(kmh, kind="stable"):
         if kmh[i] >= last + COARSE_STEP_KMH - 1e-9:
             sel.append(i)
             last = kmh[i]
-    sel = np.sort(np.asarray(sel, dtype=np.int64))
-    k_of, ds, E1, base, _ = samples(COARSE_SAMPLES_PER_SPAN)
-    coarse = np.zeros((sel.size, len(effects)))
-    _scan(k_of, ds, E1, np.ascontiguousarray(P[:, sel]), np.ascontiguousarray(H[:, sel]), lam, v[sel], WT, base,
-          coarse, squares)
-    coarse = np.maximum(coarse, free[sel])
-    cand = sel[(coarse >= (1.0 - COARSE_MARGIN) * coarse.max(0)[None, :]).any(1)]
-    keep = np.nonzero((np.abs(kmh[:, None] - kmh[cand][None, :]) <= COARSE_STEP_KMH + 1e-9).any(1))[0]
-    k_of, ds, E1, base, static_max = samples(samples_per_span)
-    fine = np.zeros((keep.size, len(effects)))
-    _scan(k_of, ds, E1, np.ascontiguousarray(P[:, keep]), np.ascontiguousarray(H[:, keep]), lam, v[keep], WT,
-          base, fine, squares)
-    best = free.copy()
-    best[sel] = np.maximum(best[sel], coarse)
-    best[keep] = np.maximum(best[keep], fine)
-    i = best.argmax(0)
-    dyn_max = best[i, np.arange(len(effects))]
-    at = 3.6 * v[i]
-    return EffectsResult(effects=effects, static_max=static_max, dynamic_max=dyn_max, at_speed_kmh=at,
-                         n_modes=int(jj.size), static_correction=bool(static_correction), span_m=float(L))
+    return np.sort(np.asarray(sel, dtype=np.int64))
+
+
+def _scan_lanes(lanes, idx, WT, n_per_span, static_correction):
+    """Largest |effect| (len(idx), effects) over the samples of ``n_per_span`` per span (:func:`_positions`)
+    of the lanes ``idx``, and the largest static value of every effect over the same samples."""
+    k_of, ds, E1, infl = _sample_statics(lanes.effects, lanes.L, lanes.offs, lanes.loads, lanes.bps, lanes.jj,
+                                         n_per_span)
+    k_of, ds, E1 = np.array(k_of), np.array(ds), np.array(E1)  # writable: the kernel's compiled types
+    q_stat = (lanes.Gk[k_of] * E1).imag / lanes.om**2  # q_j^stat at every sample
+    base = infl - q_stat @ lanes.W if static_correction else np.zeros_like(infl)
+    out = np.zeros((idx.size, len(lanes.effects)))
+    _scan(k_of, ds, E1, np.ascontiguousarray(lanes.P[:, idx]), np.ascontiguousarray(lanes.H[:, idx]), lanes.lam,
+          lanes.v[idx], WT, np.ascontiguousarray(base), out, lanes.squares)
+    return out, np.abs(infl).max(0)
 
 
 # ---------------------------------------------------------------------- LM71 per effect

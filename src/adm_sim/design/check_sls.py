@@ -34,12 +34,13 @@ numpy only; no ROS.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
 
 from adm_sim.errors import InputError
-from adm_sim.design.design_loads import LM71_AXLE_LOAD_N, LM71_AXLES_M, LM71_HALF_WINDOW_M, LM71_UDL_N_M
+from adm_sim.design.design_loads import CACHE_SIZE, LM71_AXLE_LOAD_N, LM71_AXLES_M, LM71_HALF_WINDOW_M, LM71_UDL_N_M
 
 #: Deflection limit L / this, EN 1990 A2.4.4.2.3(1).
 DEFLECTION_SPAN_RATIO = 600.0
@@ -87,8 +88,10 @@ def _deflection_influence(L, EJ, x, u):
     return np.where((u >= 0.0) & (u <= L), w, 0.0)
 
 
+@functools.lru_cache(maxsize=CACHE_SIZE)
 def lm71_max_deflection(span_m, EJ_Nm2, alpha=1.0, n_grid=2000):
-    """Largest deflection (m) anywhere on the span under α x LM71 and the section x (m) where it occurs."""
+    """Largest deflection (m) anywhere on the span under α x LM71 and the section x (m) where it occurs.
+    Cached (floats in, floats out): a mass bound of the check has the nominal bridge's span and EJ."""
     c, P, hw, q = _lm71_group()
     L, EJ = span_m, EJ_Nm2
     u = np.linspace(0.0, L, 4001)
@@ -104,9 +107,10 @@ def lm71_max_deflection(span_m, EJ_Nm2, alpha=1.0, n_grid=2000):
     return alpha * best, at
 
 
+@functools.lru_cache(maxsize=CACHE_SIZE)
 def lm71_end_rotation(span_m, EJ_Nm2, alpha=1.0, n_grid=4000):
     """Largest end rotation (rad) of the span under α x LM71 (the distributed load on the whole span
-    outside the 6.4 m window of the axles)."""
+    outside the 6.4 m window of the axles). Cached, as :func:`lm71_max_deflection`."""
     c, P, hw, q = _lm71_group()
     L, EJ = span_m, EJ_Nm2
 

@@ -1,0 +1,37 @@
+"""The trains of the nominal bridge and of every bound run in one pool of threads
+(:func:`adm_sim.design.check._run_cases`): each bound's result is, number for number, the check of that
+bound's bridge run on its own, and the order the trains finish in changes nothing."""
+
+import json
+
+import numpy as np
+
+from adm_sim.design.check import resolve_trains, run_check
+from adm_sim.model.bridge import named_bridge
+
+
+def _numbers(res):
+    """Every number and text of a check's JSON but its timings (bit for bit: JSON writes floats exactly)."""
+    d = res.to_dict()
+    d.pop("timings_s")
+    return json.dumps(d, sort_keys=True, default=lambda o: o.tolist() if isinstance(o, np.ndarray) else repr(o))
+
+
+def test_bounds_equal_their_own_checks():
+    """B1, HSLM-A7 and ICE-2 at V = 200 km/h, mass bounds -10 %/+15 % and a stiffness bound -10 %: every
+    bound's result equals run_check of its bridge (with the options a bound is checked with: the
+    maintenance named, no further bounds), bit for bit; the nominal equals the check without bounds."""
+    trains = resolve_trains("HSLM-A7,ICE-2")
+    res = run_check(named_bridge("B1"), 200.0, trains, mass_bounds=(-0.1, 0.15), stiffness_bounds=(-0.1, 0.0))
+    assert [label.split(" (")[0] for label, _ in res.bounds] == [
+        "mass lower bound -10 %", "mass upper bound +15 %", "stiffness lower bound -10 %"]
+    for label, got in res.bounds:
+        alone = run_check(got.bridge, 200.0, trains, track_maintenance=res.track_maintenance, alpha=res.alpha,
+                          where=res.where, damping_model="modal")
+        assert _numbers(got) == _numbers(alone), label
+    # the bounds move the answer (the test would not see a bound computed on the nominal bridge)
+    acc = [float(r.trains[0].max_acc_m_s2.max()) for _, r in res.bounds]
+    assert len(set(acc)) == 3 and float(res.trains[0].max_acc_m_s2.max()) not in acc
+    nominal = run_check(named_bridge("B1"), 200.0, trains)
+    d, n = json.loads(_numbers(res)), json.loads(_numbers(nominal))
+    assert d["trains"] == n["trains"] and d["governing"] == n["governing"]
