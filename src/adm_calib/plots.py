@@ -12,6 +12,8 @@ import math
 
 import numpy as np
 
+from adm_sim.cli.figures import pyplot
+
 from adm_calib.reference import adm_delta_zeta_pct, lower_bound_table
 from adm_calib.study.cases import INTERVAL_EDGES_HZ, LOWER_LIMIT_HZ, MASS_FUNCTION_NAMES, STUDY_TRAINS, paper_train
 
@@ -19,18 +21,9 @@ APPROACHES = ("VBI", "LB", "ADM", "EADA")
 COLOURS = {"VBI": "tab:blue", "LB": "tab:orange", "ADM": "gold", "EADA": "tab:purple"}
 
 
-def _pyplot():
-    import matplotlib  # noqa: PLC0415  matplotlib loads only when a figure is drawn
-
-    matplotlib.use("Agg", force=True)
-    import matplotlib.pyplot as plt  # noqa: PLC0415  after the Agg backend is chosen
-
-    return plt
-
-
 def plot_calibration(result, path):
     """Write the Fig. 15 analogue of a :class:`~adm_calib.calibration_result.CalibrationResult` to ``path``."""
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(8, 4.5))
     zeta = result.zeta_pct
     ax.plot(result.mlm_speeds_kmh, result.mlm_acc_m_s2, color="tab:red", lw=1.2, label=f"MLM, zeta={zeta:.2f} %")
@@ -59,7 +52,7 @@ def plot_total_damping(table, path):
     Grey bars: structural damping zeta; coloured bars on top: Δζ of each approach (drawn downwards
     when negative); "n/a" where the approach is undefined.
     """
-    plt = _pyplot()
+    plt = pyplot()
     trains = table.trains
     bridges = table.bridges
     ncol = min(2, len(trains))
@@ -102,7 +95,7 @@ _MF_COLOURS = {"mu1": "#4b0082", "mu2": "#8a2be2", "mu3": "#c39bd3",
 
 def plot_dz_vs_span(records, path):
     """Analogue of Fig. 16: Δζ_VBI against span per train with the Eurocode ADM curve."""
-    plt = _pyplot()
+    plt = pyplot()
     fig, axes = plt.subplots(2, 2, figsize=(11, 7.5), sharex=True, squeeze=False)
     L = np.linspace(4.0, 40.0, 361)
     adm = [adm_delta_zeta_pct(x) for x in L]
@@ -170,7 +163,7 @@ def _draw_set(ax, study_fit, train, m, n0, conservative=None):
 def plot_lower_bound_set(study_fit, train, mass_function, path, *, conservative=None):
     """Analogue of Fig. 17: one set with its interval minima, our fit, the published function and
     (optional) the conservative bound."""
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(7, 4.5))
     _draw_set(ax, study_fit, train, mass_function, np.linspace(LOWER_LIMIT_HZ, 21.0, 400), conservative)
     ax.set_xlabel("n0 (Hz)")
@@ -182,7 +175,7 @@ def plot_lower_bound_set(study_fit, train, mass_function, path, *, conservative=
 
 def plot_lower_bounds_train(study_fit, train, path, conservative=None):
     """Fig. 17 analogue for the six mass functions of one train (optional: the conservative bounds)."""
-    plt = _pyplot()
+    plt = pyplot()
     fig, axes = plt.subplots(2, 3, figsize=(13, 7.5), sharex=True, squeeze=False)
     n0 = np.linspace(LOWER_LIMIT_HZ, 21.0, 400)
     for ax, m in zip(axes.flat, MASS_FUNCTION_NAMES):
@@ -199,7 +192,7 @@ def plot_lower_bounds_train(study_fit, train, path, conservative=None):
 
 def plot_lower_bounds(study_fit, path):
     """Analogue of Fig. 18: fitted (solid) and published (dashed) lower bounds per train."""
-    plt = _pyplot()
+    plt = pyplot()
     fig, axes = plt.subplots(2, 2, figsize=(11, 7.5), sharex=True, squeeze=False)
     n0 = np.linspace(LOWER_LIMIT_HZ, 21.0, 400)
     pub = lower_bound_table()

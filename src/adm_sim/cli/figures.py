@@ -12,13 +12,19 @@ import numpy as np
 from adm_sim.integrate.where import where_text
 
 
-def plot_sweep(result, path, limit=3.5, where="midspan"):
-    """A sweep's maximum acceleration against speed, its peak and the EN 1990 limit, as a PNG."""
+def pyplot():
+    """``matplotlib.pyplot`` on the Agg backend (files only, no display), loaded at the first figure."""
     import matplotlib  # noqa: PLC0415  matplotlib loads only when a figure is drawn
 
-    matplotlib.use("Agg")
+    matplotlib.use("Agg", force=True)
     import matplotlib.pyplot as plt  # noqa: PLC0415  after the Agg backend is chosen
 
+    return plt
+
+
+def plot_sweep(result, path, limit=3.5, where="midspan"):
+    """A sweep's maximum acceleration against speed, its peak and the EN 1990 limit, as a PNG."""
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(7, 4))
     ax.plot(result.speeds_kmh, result.max_acc_m_s2, lw=1.5, label=result.model.upper())
     pk = result.peak()
@@ -41,11 +47,7 @@ def plot_sweep(result, path, limit=3.5, where="midspan"):
 
 def plot_check(result, path):
     """The check's envelopes (one curve per train), the limit and the governing case, as a PNG."""
-    import matplotlib  # noqa: PLC0415  matplotlib loads only when a figure is drawn
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt  # noqa: PLC0415  after the Agg backend is chosen
-
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(9, 5))
     for i, c in enumerate(result.trains):
         ls = "-" if c.kind == "hslm" else "--"

@@ -73,6 +73,7 @@ from adm_sim.integrate.peaks import local_maxima  # the project's one peak rule,
 from adm_sim.integrate.lockstep_runs import InProcessRun
 from adm_sim.integrate.rk4_sides import BridgeSide, TrainSide
 from adm_sim.integrate.step_grid import StepOptions, make_grid, speeds_to_m_s
+from adm_sim.integrate.where import parse_where, where_text
 from adm_sim.model.trains import moving_loads
 from adm_sim.inputs.train_files import load_train
 # the speed range (EN 1991-2 6.4.6.2(1)) and the deck acceleration limits (EN 1990 A2.4.4.2.1(4)P)
@@ -314,7 +315,6 @@ class CheckResult(AccelerationVerdict):
 
     @property
     def where_text(self):
-        from adm_sim.integrate.envelope import where_text  # noqa: PLC0415  numba: envelope loads its kernels; a result means it is loaded
 
         return where_text(self.where)
 
@@ -914,8 +914,6 @@ def _rough(b, trains, out, speeds, inp):
 
 def _check_inputs(bridge, *, damping, damping_provider, where, damping_model, track):
     """The first refusals of :func:`run_check` (before the speeds): ``(where, damping_model)`` checked."""
-    from adm_sim.integrate.envelope import parse_where  # noqa: PLC0415  numba kernels: refusals before run_check do not wait
-
     if damping_model is None:
         damping_model = {v: k for k, v in DAMPING_MODELS.items()}[bridge.damping_model]
     if damping_model not in DAMPING_MODELS:

@@ -39,6 +39,7 @@ numpy only; no ROS.
 
 from __future__ import annotations
 
+import csv
 import dataclasses
 import math
 import time
@@ -517,8 +518,6 @@ class DeckCheckResult(AccelerationVerdict):
     def write_csv(self, path):
         """Every curve in long format: train, speed_kmh, span, max_acc_m_s2, x_acc_m, max_acc_midspan_m_s2,
         max_disp_midspan_m."""
-        import csv  # noqa: PLC0415  only with --csv
-
         with open(path, "w", newline="") as fh:
             w = csv.writer(fh)
             w.writerow(["train", "speed_kmh", "span", "max_acc_m_s2", "x_acc_m", "max_acc_midspan_m_s2",

@@ -9,12 +9,17 @@ the :class:`adm_sim.design.check.CheckResult`.
 
 from __future__ import annotations
 
+import csv
 import html
+import io
+import shutil
 import subprocess
+import tempfile
 from pathlib import Path
 
 import numpy as np
 from adm_sim import __version__
+from adm_sim.errors import RunError
 from adm_sim.design.check_defaults import DEFAULTS
 from adm_sim.design.check_text import summary
 from adm_sim.design.design_loads import maintenance_text
@@ -196,9 +201,6 @@ def table_rows(res, job=None, sources=None, version=None, commit=None):
 def write_tables(res, folder, job=None, sources=None, outs=None, option="--tables"):
     """Every table of :func:`table_rows` as ``<folder>/<name>.csv`` (UTF-8), through ``outs``
     (an :class:`adm_sim.files.OutputSet`: all or none) when given."""
-    import csv  # noqa: PLC0415  only with --tables
-    import io  # noqa: PLC0415
-
     written = []
     for name, (header, rows) in table_rows(res, job, sources).items():
         buf = io.StringIO()
@@ -308,8 +310,6 @@ CHROMIUM_NAMES = ("chromium", "chromium-browser", "google-chrome")
 
 def find_chromium():
     """The path of a Chromium that can print to PDF, or None."""
-    import shutil  # noqa: PLC0415
-
     return next((p for p in map(shutil.which, CHROMIUM_NAMES) if p), None)
 
 
@@ -322,10 +322,6 @@ def write_pdf(res, path, job=None, sources=None, chromium=None, timeout_s=180.0)
     RunError
         No Chromium, or Chromium failed (its last line).
     """
-    import tempfile  # noqa: PLC0415
-
-    from adm_sim.errors import RunError  # noqa: PLC0415
-
     exe = chromium or find_chromium()
     if exe is None:
         raise RunError(f"--report {path}: no headless Chromium on this machine ({', '.join(CHROMIUM_NAMES)} not on "
