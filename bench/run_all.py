@@ -86,6 +86,13 @@ BENCHES = (
         Row("DIM batch on a rough track (German high), 48 lanes, s CPU",
             "rough track", r"German high, s1\s+" + NUMBER + " s",
             "smooth track", r"smooth track\s+" + NUMBER + " s", "<= 1.2x", ours="a"),)),
+    Bench("spans", ("bench_spans.py",), (
+        Row("MLM sweep of a 2 x 15 m continuous deck, 191 speeds, ns per lane-step-mode",
+            "2 x 15 m deck", r"^MLM 2x15\s.*?" + NUMBER + " ns per lane-step-mode",
+            "one 30 m span", r"^MLM 1x30\s.*?" + NUMBER + " ns per lane-step-mode", "<= 2x", ours="a"),
+        Row("DIM sweep of a 2 x 15 m continuous deck (ICE-2), 39 speeds, ns per lane-step-mode",
+            "2 x 15 m deck", r"^DIM 2x15\s.*?" + NUMBER + " ns per lane-step-mode",
+            "one 30 m span", r"^DIM 1x30\s.*?" + NUMBER + " ns per lane-step-mode", "<= 2x", ours="a"))),
     Bench("ros", ("bench_ros.py", "--models", "mlm,dim"), (
         Row("MLM sweep over ROS 2 (bridge and train nodes), 191 lanes, s",
             "co-simulated", r"^MLM\s+\S+s\s+" + NUMBER + "s",
