@@ -29,6 +29,12 @@ OUTPUTS = {
               "whole check with mass bounds -10 %/+15 % (three bridges):       2.000 /   1.900 s\n"
               "per-speed per-train RK4 loop:                          2,103.6 /   421.2 s (84 runs measured)\n"),
     "irregularity": "  smooth track      0.068 s\n  German high, s1   0.071 s   ratio rough/smooth 1.044 (target <= 1.2)\n",
+    "spans": ("MLM 1x30          191 speeds   3126 steps  3 modes   0.005 s    2.47 ns per lane-step-mode\n"
+              "MLM 2x15          191 speeds   4717 steps  3 modes   0.007 s    2.50 ns per lane-step-mode\n"
+              "MLM 1x30 tables   191 speeds   3126 steps  3 modes   0.005 s    2.70 ns per lane-step-mode\n"
+              "DIM 1x30           39 speeds   3126 steps  3 modes   0.042 s  107.00 ns per lane-step-mode\n"
+              "DIM 2x15           39 speeds   4717 steps  3 modes   0.079 s  132.00 ns per lane-step-mode\n"
+              "DIM 1x30 tables    39 speeds   3126 steps  3 modes   0.043 s  118.66 ns per lane-step-mode\n"),
     "ros": ("MLM co-simulation CPU a round trip (last run): bridge_train 180000 us\n"
             "model  in-process    co-sim   ratio  target\n"
             "MLM         0.33s     0.78s   2.36x      3x   10460            6\n"
@@ -40,7 +46,8 @@ OUTPUTS = {
 }
 #: (A, B) per row, as the lines above give them
 EXPECTED = {"calibrate": [(4.55, 0.182)], "core": [(114.6, 0.26)], "kernels": [(3.892, 0.1389), (0.65, 0.0065)],
-            "check": [(421.2, 0.998)], "irregularity": [(0.071, 0.068)], "ros": [(0.78, 0.33), (30.7, 3.9)],
+            "check": [(421.2, 0.998)], "irregularity": [(0.071, 0.068)],
+            "spans": [(2.5, 2.47), (132.0, 107.0)], "ros": [(0.78, 0.33), (30.7, 3.9)],
             "study": [(3.3, 0.104), (49.4, 32.0)]}
 
 
