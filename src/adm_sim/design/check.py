@@ -215,6 +215,18 @@ class AccelerationVerdict:
         t = max(self.trains, key=lambda c: c.max_acc_m_s2.max())
         return t, float(t.speeds_kmh[t.i_max]), float(t.max_acc_m_s2.max())
 
+    def range_end_maxima(self):
+        """``{"bottom": [...], "top": [...]}``: the trains whose largest acceleration lies at the first
+        or the last checked speed (a resonance may lie outside the range); empty ends left out."""
+        out = {"bottom": [], "top": []}
+        for c in self.trains:
+            i = c.i_max
+            if i == 0:
+                out["bottom"].append(c)
+            elif i == c.speeds_kmh.size - 1:
+                out["top"].append(c)
+        return {k: v for k, v in out.items() if v}
+
 
 @dataclass
 class CheckResult(AccelerationVerdict):
@@ -271,18 +283,6 @@ class CheckResult(AccelerationVerdict):
         top = self.governing[2]
         near = [c for c in self.trains if c.max_acc_m_s2.max() >= (1.0 - fraction) * top]
         return sorted(near, key=lambda c: -c.max_acc_m_s2.max())
-
-    def range_end_maxima(self):
-        """``{"bottom": [...], "top": [...]}``: the trains whose largest acceleration lies at the first
-        or the last checked speed (a resonance may lie outside the range); empty ends left out."""
-        out = {"bottom": [], "top": []}
-        for c in self.trains:
-            i = c.i_max
-            if i == 0:
-                out["bottom"].append(c)
-            elif i == c.speeds_kmh.size - 1:
-                out["top"].append(c)
-        return {k: v for k, v in out.items() if v}
 
     def speed_end(self, speed_kmh):
         """``"top"``, ``"bottom"`` or None: whether a speed is the last or the first checked one."""

@@ -402,16 +402,6 @@ class DeckCheckResult(AccelerationVerdict):
         t, v, a = self.governing
         return "nominal", t, v, a
 
-    def range_end_maxima(self):
-        out = {"bottom": [], "top": []}
-        for c in self.trains:
-            i = c.i_max
-            if i == 0:
-                out["bottom"].append(c)
-            elif i == c.speeds_kmh.size - 1:
-                out["top"].append(c)
-        return {k: v for k, v in out.items() if v}
-
     def modes_text(self):
         f = self.bridge.frequencies_hz
         return ", ".join(f"{j} ({x:.3f} Hz)" for j, x in zip(self.modes, f))
