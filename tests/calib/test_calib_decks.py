@@ -148,6 +148,16 @@ def test_cli_refusals(call_main, tmp_path):
     r = call_main(main, "calibrate", "--bridge", "spans=15/15,n0=8.26,mu=19042,zeta_pct=1.85", "--train", "ICE-2",
                   "--measured", str(tmp_path / "m.json"))
     assert r.returncode == 2 and "--measured" in r.stderr and "continuous deck of 2 spans" in r.stderr
+    # a span shorter than the train's longest axle group: refused before any run, nothing written
+    r = call_main(main, "calibrate", "--bridge", "spans=15/2,n0=8.26,mu=19042,zeta_pct=1.85", "--train", "ICE-2",
+                  "--json", str(tmp_path / "c.json"))
+    assert r.returncode == 2 and r.stdout == "" and not (tmp_path / "c.json").exists()
+    assert r.stderr.splitlines() == ["error: spans[1]: 2 m is shorter than the longest axle group of ICE-2 (bogie "
+                                     "wheelbase 3 m); allowed spans >= 3 m"]
+    r = call_main(main, "calibrate", "--bridge", "spans=15/15,n0=8.26,mu=19042,zeta_pct=1.85,n_modes=51", "--train",
+                  "ICE-2")
+    assert r.returncode == 2 and r.stderr.splitlines() == ["error: bridge spec.n_modes: 51 is out of range; allowed "
+                                                           "integer in [1, 50]"]
 
 
 def test_study_fit_refuses_a_deck_study(call_main, tmp_path):

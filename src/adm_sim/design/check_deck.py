@@ -155,7 +155,8 @@ def deck_modes_for(bridge, n_modes):
     except (TypeError, ValueError):
         n = math.nan
     if not (math.isfinite(n) and n == int(n) and fld.lo <= n <= fld.hi):
-        raise InputError(f"n_modes: {n_modes!r} is out of range; allowed an integer in [{fld.lo}, {fld.hi}] (the "
+        shown = f"{n:g}" if math.isfinite(n) else repr(n_modes)  # --modes arrives as a float: 51, not 51.0
+        raise InputError(f"n_modes: {shown} is out of range; allowed an integer in [{fld.lo}, {fld.hi}] (the "
                          f"rule asks for {need} on this deck: {RULE_TEXT})", field="n_modes")
     n = int(n)
     if n < need:
