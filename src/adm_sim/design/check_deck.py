@@ -404,8 +404,9 @@ class DeckCheckResult(AccelerationVerdict):
         return "nominal", t, v, a
 
     def modes_text(self):
-        f = self.bridge.frequencies_hz
-        return ", ".join(f"{j} ({x:.3f} Hz)" for j, x in zip(self.modes, f))
+        b = self.bridge
+        return ", ".join(f"{j} ({x:.3f} Hz, {m / 1000:.5g} t)" for j, x, m in zip(self.modes, b.frequencies_hz,
+                                                                                 b.modal_mass_kg))
 
     def lines(self):
         """Every line ``adm-sim check`` prints for a deck."""
