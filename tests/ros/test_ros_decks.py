@@ -299,6 +299,24 @@ def test_deck_of_22_modes_runs_through_the_graph_equal_the_core(node_procs, ros_
     assert all(p.poll() is None for p in node_procs.procs.values())
 
 
+@pytest.mark.slow
+def test_train_node_refuses_a_run_on_a_span_shorter_than_its_axle_groups(node_procs, ros_domain):
+    """A deck with a 2.5 m span under ICE-2 (bogie wheelbase 3 m), given to the bridge node directly
+    (no launcher checked it): the train node refuses the run in one line naming the span, the train
+    and the allowed lengths, as ``adm-sim sweep`` does; both nodes keep running."""
+    from adm_sim.errors import RunError
+
+    node_procs.start("bridge", "adm_sim.nodes.bridge_node",
+                     {"bridge": "spans=15/2.5,EJ=2.667e10,mu=19042,zeta_pct=1.85", **STEP, **SPARSE})
+    node_procs.start("train", "adm_sim.nodes.train_node", {"speeds_kmh": "250,300"})
+    with driver_node(ros_domain.domain_id) as d:
+        d.wait_for_graph()
+        with pytest.raises(RunError, match=r"start_run refused: spans\[1\]: 2.5 m is shorter than the longest axle "
+                                           r"group of ICE-2 \(bogie wheelbase 3 m\); allowed spans >= 3 m$"):
+            d.request_run(model="mlm")
+    assert all(p.poll() is None for p in node_procs.procs.values())
+
+
 # ---------------------------------------------------------------- the launchers
 PARAMS = ("bridge:\n  ros__parameters:\n    steps_per_period: 4.0\n    free_vibration_periods: 1.0\n"
           "    beam_every_steps: 32\ntrain:\n  ros__parameters:\n    train: ICE-2\n    model: mlm\n")
