@@ -8,7 +8,8 @@ same index, so its step is shorter: the ratios are printed per run and per lane-
 Also the single span through the deck's mode tables (spans = (30,)) against its sine path, the same
 numbers by another road: the cost of the tables alone.
 
-Prints times and ratios measured in this run; asserts nothing about time.
+Prints times (the best of ROUNDS alternating rounds) and ratios measured in this run; asserts
+nothing about time.
 Run: .venv/bin/python bench/bench_spans.py
 """
 
@@ -28,13 +29,23 @@ from adm_sim.inputs.train_files import load_train  # noqa: E402
 EJ, MU, ZETA = 2.0e10, 15000.0, 0.015
 
 
-def timed(fn, repeat=2):
-    best, out = math.inf, None
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        out = fn()
-        best = min(best, time.perf_counter() - t0)
-    return best, out
+#: Rounds per case (the MLM's sweeps of 10-20 ms: three times as many); the cases alternate within a round (single, deck, tables, single, ...), so a change
+#: of load on the shared machine falls on every case alike, and the best of the rounds is kept.
+ROUNDS = 5
+
+
+def timed_rounds(fns, rounds=ROUNDS):
+    """``{name: (best wall time s, result)}`` of the callables ``fns`` (``{name: fn}``), run in
+    alternation ``rounds`` times."""
+    best = {name: (math.inf, None) for name in fns}
+    for _ in range(rounds):
+        for name, fn in fns.items():
+            t0 = time.perf_counter()
+            out = fn()
+            t = time.perf_counter() - t0
+            if t < best[name][0]:
+                best[name] = (t, out)
+    return best
 
 
 def main():
@@ -50,10 +61,10 @@ def main():
         run_sweep_compiled(b, train, "dim", [200.0])
     rows = []
     for model, speeds in (("mlm", np.arange(160.0, 350.0 + 1e-9, 1.0)), ("dim", np.arange(160.0, 350.0 + 1e-9, 5.0))):
-        res = {}
+        res = timed_rounds({b.name: (lambda b=b: run_sweep_compiled(b, train, model, speeds))
+                            for b in (single, deck, tables)}, rounds=3 * ROUNDS if model == "mlm" else ROUNDS)
         for b in (single, deck, tables):
-            t, r = timed(lambda b=b: run_sweep_compiled(b, train, model, speeds))
-            res[b.name] = (t, r)
+            t, r = res[b.name]
             per = t / (speeds.size * r.n_steps * b.n_modes) * 1e9
             rows.append((model, b.name, speeds.size, r.n_steps, b.n_modes, t, per))
             print(f"{model.upper()} {b.name:12s} {speeds.size:4d} speeds {r.n_steps:6d} steps {b.n_modes:2d} modes "

@@ -24,6 +24,7 @@ from adm_sim.fields import view
 from adm_sim.files import FOLDER_LOCK, check_output_folder, claim_folder, input_file, make_output_folder, release
 from adm_sim.integrate.run_contract import check_model
 from adm_sim.integrate.step_grid import make_grid
+from adm_sim.integrate.sweep import check_spans_for_train
 from adm_sim.inputs.speeds import parse_speeds
 from adm_sim.inputs.train_files import load_train
 from adm_sim.nodes.params import (DRIVER_SPECS, TRAIN_SPECS, bridge_from_params, bridge_plausibility, bridge_preset,
@@ -198,8 +199,9 @@ def check_inputs(bridge=None, train=None, speeds=None, params_file=None, model=N
         raise InputError(f"train node: {exc}") from None
     # the run's work and steps, as the bridge node will refuse them (adm_sim.limits.check_work), before any process
     try:
-        make_grid(bridge_from_params(preset, values), t.length_m, np.asarray(lanes_kmh, dtype=float) / 3.6,
-                  step_options(values))
+        b = bridge_from_params(preset, values)
+        check_spans_for_train(b, t)  # a deck's span shorter than the train's longest axle group, as adm-sim sweep
+        make_grid(b, t.length_m, np.asarray(lanes_kmh, dtype=float) / 3.6, step_options(values))
     except InputError as exc:
         raise InputError(f"bridge node: {exc}") from None
     return file_values

@@ -77,6 +77,9 @@ class CalibrationResult:
         d = {
             "bridge": self.bridge.name or self.bridge.describe(),
             "bridge_description": self.bridge.describe(),
+            "spans_m": list(self.bridge.spans_m) if self.bridge.is_continuous else [self.bridge.span_m],
+            "frequencies_hz": self.bridge.frequencies_hz.tolist(),
+            "modal_masses_kg": self.bridge.modal_mass_kg.tolist(),
             "train": self.train_name,
             "status": self.status,
             "message": self.message,
@@ -145,7 +148,11 @@ class CalibrationResult:
         def peak(p):
             return "none" if not p.found else f"{p.acc_m_s2:.4f} m/s^2 at {p.speed_kmh:g} km/h"
 
-        lines = [f"{self.bridge.describe()}", f"train {self.train_name}; status {self.status}: {self.message}",
+        b = self.bridge
+        lines = [f"{b.describe()}",
+                 "modes: " + ", ".join(f"{f:.4g} Hz ({m / 1000:.5g} t)" for f, m in
+                                       zip(b.frequencies_hz, b.modal_mass_kg)) + " (frequency, modal mass)",
+                 f"train {self.train_name}; status {self.status}: {self.message}",
                  f"MLM peak       {peak(self.mlm_peak)}"
                  f"{'  (largest MLM value at an end of the speed range)' if self.mlm_peak.max_at_range_end else ''}",
                  f"DIM peak       {peak(self.dim_peak)}"

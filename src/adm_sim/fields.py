@@ -370,13 +370,15 @@ _FIELDS = [
        _S("cli", "--zeta-pct", "%"),
        lo=0.0, hi=0.20),
     _F("n_modes", "-", int, "retained modes (paper: 3, Section 2.3)", "bridge",
-       *_toml_spec("n_modes"), _S("ros", "n_modes"), _S("cli", "--modes"), lo=1, hi=20),
+       *_toml_spec("n_modes"), _S("cli", "--modes"), lo=1, hi=20),
     _F("deck_spans_m", "m", str, "spans of a continuous deck, left to right (TOML list; spec 12/16/12); each span",
        "bridge", *_toml_spec("spans"), _S("cli", "--deck-spans"), _S("ros", "spans_m", many=True), lo=1.0, hi=150.0),
     _F("n_spans", "spans", int, "spans of a continuous deck, pinned over the intermediate supports", "bridge",
        _S("count", "spans"), _S("cli", "--spans-layout"), lo=1, hi=6),
     _F("deck_n_modes", "-", int, "retained modes of a continuous deck (default: every mode up to 30 Hz, 1.5 n0 "
-       "or the third, whichever is higher)", "bridge", _S("count", "n_modes"), lo=1, hi=50),
+       "or the third, whichever is higher)", "bridge", _S("count", "n_modes"),
+       _S("ros", "n_modes"),  # the bridge node: one range for both; one span is held to n_modes' by the node's reader
+       lo=1, hi=50),
     _F("damping_model", "", str, "Rayleigh anchored at modes 1 and 3, or equal modal damping", "bridge",
        *_toml_spec("damping_model"), _S("ros", "damping_model"), choices=("rayleigh", "modal")),
     _F("bridge_type", "", str, "concrete/filler beam or steel/composite (Table 2 damping and class)", "bridge",

@@ -13,6 +13,7 @@ Limiting cases with an independent answer:
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -148,6 +149,16 @@ def test_cli_refusals(call_main, tmp_path):
     r = call_main(main, "calibrate", "--bridge", "spans=15/15,n0=8.26,mu=19042,zeta_pct=1.85", "--train", "ICE-2",
                   "--measured", str(tmp_path / "m.json"))
     assert r.returncode == 2 and "--measured" in r.stderr and "continuous deck of 2 spans" in r.stderr
+    # a span shorter than the train's longest axle group: refused before any run, nothing written
+    r = call_main(main, "calibrate", "--bridge", "spans=15/2,n0=8.26,mu=19042,zeta_pct=1.85", "--train", "ICE-2",
+                  "--json", str(tmp_path / "c.json"))
+    assert r.returncode == 2 and r.stdout == "" and not (tmp_path / "c.json").exists()
+    assert r.stderr.splitlines() == ["error: spans[1]: 2 m is shorter than the longest axle group of ICE-2 (bogie "
+                                     "wheelbase 3 m); allowed spans >= 3 m"]
+    r = call_main(main, "calibrate", "--bridge", "spans=15/15,n0=8.26,mu=19042,zeta_pct=1.85,n_modes=51", "--train",
+                  "ICE-2")
+    assert r.returncode == 2 and r.stderr.splitlines() == ["error: bridge spec.n_modes: 51 is out of range; allowed "
+                                                           "integer in [1, 50]"]
 
 
 def test_study_fit_refuses_a_deck_study(call_main, tmp_path):
@@ -174,3 +185,25 @@ def test_study_fit_refuses_a_deck_study(call_main, tmp_path):
     for rec in single:  # the same records as simply supported spans (no spans_m, or one span) pass
         rec["spans_m"] = [rec["span_m"]] if rec["freq_index"] % 2 else None
     _refuse_deck_study(single, "--results", res)
+
+
+def test_calibrate_prints_and_writes_the_deck_modes(call_main, tmp_path):
+    """``adm-calib calibrate --json`` on a deck holds ``spans_m``, ``frequencies_hz`` and
+    ``modal_masses_kg``, one entry per mode used, equal to the deck's exact modes (issue 37 item 1:
+    with every result and in every JSON); the printed result names them on its ``modes:`` line.
+    Two symmetric 15 m spans at n0 = 8.26 Hz: f1 = n0 (each span a sine, to 1e-12) and the first
+    modal mass is mu L_deck / 2 (sine shapes scaled to 1: 19042 x 30 / 2 = 285630 kg, to 1e-10)."""
+    spec = "spans=15/15,n0=8.26,mu=19042,zeta_pct=1.85"
+    out = tmp_path / "c.json"
+    r = call_main(main, "calibrate", "--bridge", spec, "--train", "ICE-2", "--speeds", "240:300:3", "--json", str(out))
+    assert r.returncode == 0, r.stderr
+    d = json.loads(out.read_text())
+    b = Bridge.continuous((15.0, 15.0), 1.0, 19042.0, 0.0185, n_modes=3)  # EJ scales the frequencies alone
+    assert d["spans_m"] == [15.0, 15.0] and len(d["frequencies_hz"]) == len(d["modal_masses_kg"]) == 3
+    assert d["frequencies_hz"][0] == pytest.approx(8.26, rel=1e-12)
+    ratio = np.asarray(d["frequencies_hz"]) / d["frequencies_hz"][0]
+    np.testing.assert_allclose(ratio, b.frequencies_hz[:3] / b.frequencies_hz[0], rtol=1e-12)
+    assert d["modal_masses_kg"][0] == pytest.approx(19042.0 * 30.0 / 2.0, rel=1e-10)
+    np.testing.assert_allclose(d["modal_masses_kg"], b.modal_mass_kg[:3], rtol=1e-10)
+    line = next(s for s in r.stdout.splitlines() if s.startswith("modes: "))
+    assert line.startswith("modes: 8.26 Hz (285.63 t), 12.9") and line.endswith("(frequency, modal mass)")

@@ -11,13 +11,16 @@ import pytest
 import scipy.integrate
 import scipy.optimize
 
+from adm_sim.design.check import run_check
+from adm_sim.design.check_text import summary
 from adm_sim.design.check_deck import axle_group_m, deck_effects, determinant_length_m, run_deck_check
 from adm_sim.design.check_effects import Effect, lm71_effect_max
 from adm_sim.design.deck_dynamics import deck_sweep, modal_weights
 from adm_sim.design.deck_statics import ContinuousBeam, DeckEffect, lm71_max, lm71_value
 from adm_sim.design.design_loads import LM71_AXLE_LOAD_N, LM71_AXLES_M, LM71_HALF_WINDOW_M, LM71_UDL_N_M
 from adm_sim.errors import InputError
-from adm_sim.model.bridge import Bridge
+from adm_sim.model.bridge import Bridge, named_bridge
+from adm_sim.model.trains import moving_loads
 from adm_sim.inputs.train_files import load_train
 
 SPANS = (12.0, 16.0, 13.0)
@@ -214,6 +217,9 @@ def test_deck_check_names_spans_modes_and_every_effect():
     deck = Bridge.continuous([12.0, 16.0], 2.5e10, 15000.0, 0.02, name="D2")
     res = run_deck_check(deck, 250, [load_train("HSLM-A1")])
     text = res.summary()
+    f, m = deck.frequencies_hz, deck.modal_mass_kg
+    assert f"modes: 1 ({f[0]:.3f} Hz, {m[0] / 1000:.5g} t), 2 ({f[1]:.3f} Hz, {m[1] / 1000:.5g} t)" in text
+    assert d_modes_equal(res.to_dict(), deck)
     assert "spans 1..2 = 12+16 m" in text and "modes: 1 (" in text
     assert "hogging M support 1" in text and "reaction support 2" in text
     assert "Figs. 6.9/6.10): not applicable" in text
@@ -222,3 +228,24 @@ def test_deck_check_names_spans_modes_and_every_effect():
     assert len(d["en1991_2_6_4_6_5_effects"]) == len(deck_effects(ContinuousBeam([12.0, 16.0], 2.5e10)))
     assert d["L_phi_m"] == pytest.approx(max(1.2 * 14.0, 16.0))
     assert all(e["ratio"] > 0 for e in d["en1991_2_6_4_6_5_effects"])
+
+
+def d_modes_equal(d, bridge):
+    """The JSON's frequencies and modal masses are the bridge's, one per mode used (exact: tolist)."""
+    return (d["frequencies_hz"] == bridge.frequencies_hz.tolist() and d["modal_masses_kg"] == bridge.modal_mass_kg.tolist()
+            and len(d["frequencies_hz"]) == len(d["modes"]))
+
+
+def test_one_span_check_names_every_mode_and_its_modal_mass():
+    """Issue 37 item 1 on the single-span check: the text's ``modes:`` line and the JSON carry each
+    mode's frequency and modal mass. B1 (L = 15 m, n0 = 8.262 Hz, mu = 19042 kg/m): f_j = j^2 n0,
+    modal mass mu L / 2 = 142815 kg for every sine mode (closed forms, to 1e-12)."""
+    b1 = named_bridge("B1")
+    res = run_check(b1, 250.0, [moving_loads([0.0], [100e3], name="one axle")])
+    d = res.to_dict()
+    assert d["spans_m"] == [15.0] and d_modes_equal(d, b1)
+    np.testing.assert_allclose(d["frequencies_hz"], [b1.n0_hz * j * j for j in (1, 2, 3)], rtol=1e-12)
+    np.testing.assert_allclose(d["modal_masses_kg"], [19042.0 * 15.0 / 2.0] * 3, rtol=1e-12)
+    line = next(s for s in summary(res).splitlines() if s.startswith("modes: "))
+    assert line.startswith("modes: 1 (8.262 Hz, 142.81 t), 2 (33.049 Hz, 142.81 t), 3 (74.359 Hz, 142.81 t) "
+                           "(frequency, modal mass; EN 1990 A2.4.4.2.1")

@@ -144,6 +144,7 @@ def test_bad_deck_is_one_line_exit_2_nothing_written(call_main, tmp_path, spec, 
     done, out = _sweep(call_main, tmp_path, spec)
     assert done.returncode == 2
     assert not out.exists() and list(tmp_path.iterdir()) == []
+    assert done.stdout == ""  # refused before the first line of output (the axle group too)
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith(line), lines
     assert "Traceback" not in done.stderr

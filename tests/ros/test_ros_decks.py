@@ -190,7 +190,9 @@ def test_per_span_values_and_n0_on_a_deck(bridge_deck):
     ("bridge_deck", "mu_kg_m", 20000.0, "mu_kg_m: 20000.0 kg/m and span_mu_kg_m = '19042.0,19042.0' both give the mass"),
     ("bridge_deck", "response_m", 40.0, "response_m: 40 m is off the deck; allowed 0 (midspan) or 0 < x < 30 m"),
     ("bridge_deck", "response_m", -1.0, "response_m: -1 m is out of range; allowed 0 (midspan) or [0.001, 900] m"),
-    ("bridge_deck", "n_modes", 21, "n_modes: 21 is out of range; allowed integer in [1, 20]"),
+    ("bridge_deck", "n_modes", 51, "n_modes: 51 is out of range; allowed integer in [1, 50]"),
+    ("bridge_deck", "n_modes", 0, "n_modes: 0 is out of range; allowed integer in [1, 50]"),
+    ("bridge_b1", "n_modes", 21, "n_modes: 21 is out of range; allowed integer in [1, 20]"),  # one span: as before
     ("bridge_deck", "spans_m", "", "span_EJ_Nm2: '26670000000.0,26670000000.0' gives one value per span; per-span "
                                    "values need spans_m"),
 ])
@@ -205,20 +207,33 @@ def test_bad_deck_parameters_are_refused_in_one_line(request, fixture, name, val
     assert node.get_parameter(name).value == old and node.bridge is old_bridge
 
 
-def test_deck_of_more_modes_than_the_node_takes_is_refused_at_start(ctx):
-    """Six 30 m spans at n0 = 1.6 Hz: the rule keeps 22 modes; the node's n_modes takes 20 at most:
-    one line at start-up naming the preset, the count and the range (never a run with fewer modes)."""
+#: Six 30 m spans at n0 = 1.6 Hz: the rule (every mode up to 30 Hz, 1.5 n0 or the third) keeps 22 modes.
+DECK22_SPEC = "spans=30/30/30/30/30/30,n0=1.6,mu=10000,zeta_pct=1"
+
+
+def test_deck_of_more_than_20_modes_starts_with_the_rules_count(ctx):
+    """The node takes a deck of up to 50 modes (the registry's deck_n_modes, as ``adm-sim sweep``): the
+    22-mode deck starts with its rule's 22 modes, the reader's deck exactly; n_modes set to 50 is
+    taken, 51 refused in one line; one span stays at most 20 (checked above)."""
     from adm_sim.nodes.bridge_node import BridgeNode
 
-    spec = "spans=30/30/30/30/30/30,n0=1.6,mu=10000,zeta_pct=1"
-    with pytest.raises(InputError) as exc:
-        BridgeNode(context=ctx, parameter_overrides=[Parameter("bridge", value=spec)])
-    assert str(exc.value).startswith(f"bridge: '{spec}' keeps 22 modes; the bridge node takes n_modes in [1, 20]")
-    # with n_modes given in the spec it runs, with a warning naming the rule
-    with pytest.warns(Warning, match="n_modes: 20 modes is fewer than the 22 that the rule asks for"):
-        node = BridgeNode(context=ctx, parameter_overrides=[Parameter("bridge", value=spec + ",n_modes=20")])
-    assert node.bridge.n_modes == 20 and node.bridge.is_continuous
-    node.destroy_node()
+    node = BridgeNode(context=ctx, parameter_overrides=[Parameter("bridge", value=DECK22_SPEC)])
+    try:
+        deck = resolve_bridge(DECK22_SPEC, continuous=True)
+        assert deck.n_modes == 22 and node.bridge == deck
+        assert node.get_parameter("n_modes").value == 22
+        (res,) = node.set_parameters([Parameter("n_modes", value=50)])
+        assert res.successful, res.reason
+        assert node.bridge.n_modes == 50 and node.bridge.frequencies_hz.size == 50
+        np.testing.assert_array_equal(node.bridge.frequencies_hz[:22], deck.frequencies_hz)
+        (res,) = node.set_parameters([Parameter("n_modes", value=51)])
+        assert not res.successful and res.reason.startswith("n_modes: 51 is out of range; allowed integer in [1, 50]")
+        assert node.bridge.n_modes == 50
+    finally:
+        node.destroy_node()
+    # more than 50 in the spec: the reader's refusal, before any node
+    with pytest.raises(InputError, match=r"^bridge spec\.n_modes: 51 is out of range; allowed integer in \[1, 50\]$"):
+        BridgeNode(context=ctx, parameter_overrides=[Parameter("bridge", value=DECK22_SPEC + ",n_modes=51")])
 
 
 # ---------------------------------------------------------------- lockstep runs through the graph
@@ -260,6 +275,45 @@ def test_deck_runs_through_the_graph_equal_the_core(node_procs, ros_domain):
         desc = d.description("bridge")
         assert desc["bridge"]["spans_m"] == [15.0, 15.0] and desc["supports_m"] == [0.0, 15.0, 30.0]
         assert desc["frequencies_hz"] == deck.frequencies_hz.tolist()
+    assert all(p.poll() is None for p in node_procs.procs.values())
+
+
+@pytest.mark.slow
+def test_deck_of_22_modes_runs_through_the_graph_equal_the_core(node_procs, ros_domain):
+    """The six-span deck whose rule keeps 22 modes (more than the 20 the node took before): MLM and
+    DIM runs through the graph (bridge and train nodes in two processes) equal ``run_sweep`` of the
+    reader's deck bit for bit; the description record carries the 22 frequencies."""
+    node_procs.start("bridge", "adm_sim.nodes.bridge_node", {"bridge": DECK22_SPEC, **STEP, **SPARSE})
+    node_procs.start("train", "adm_sim.nodes.train_node", {"speeds_kmh": "250,300"})
+    deck, ice2, opts = resolve_bridge(DECK22_SPEC, continuous=True), load_train("ICE-2"), StepOptions(**STEP)
+    assert deck.n_modes == 22
+    with driver_node(ros_domain.domain_id) as d:
+        d.wait_for_graph()
+        for model in ("mlm", "dim"):
+            r = d.request_run(model=model)
+            ref = run_sweep(deck, ice2, model, SPEEDS_KMH, options=opts)
+            np.testing.assert_array_equal(r["max_acc_m_s2"], ref.max_acc_m_s2, err_msg=model)
+            np.testing.assert_array_equal(r["max_disp_m"], ref.max_disp_m, err_msg=model)
+        desc = d.description("bridge")
+        assert desc["frequencies_hz"] == deck.frequencies_hz.tolist() and len(desc["frequencies_hz"]) == 22
+    assert all(p.poll() is None for p in node_procs.procs.values())
+
+
+@pytest.mark.slow
+def test_train_node_refuses_a_run_on_a_span_shorter_than_its_axle_groups(node_procs, ros_domain):
+    """A deck with a 2.5 m span under ICE-2 (bogie wheelbase 3 m), given to the bridge node directly
+    (no launcher checked it): the train node refuses the run in one line naming the span, the train
+    and the allowed lengths, as ``adm-sim sweep`` does; both nodes keep running."""
+    from adm_sim.errors import RunError
+
+    node_procs.start("bridge", "adm_sim.nodes.bridge_node",
+                     {"bridge": "spans=15/2.5,EJ=2.667e10,mu=19042,zeta_pct=1.85", **STEP, **SPARSE})
+    node_procs.start("train", "adm_sim.nodes.train_node", {"speeds_kmh": "250,300"})
+    with driver_node(ros_domain.domain_id) as d:
+        d.wait_for_graph()
+        with pytest.raises(RunError, match=r"start_run refused: spans\[1\]: 2.5 m is shorter than the longest axle "
+                                           r"group of ICE-2 \(bogie wheelbase 3 m\); allowed spans >= 3 m$"):
+            d.request_run(model="mlm")
     assert all(p.poll() is None for p in node_procs.procs.values())
 
 
@@ -335,10 +389,20 @@ def test_launchers_refuse_a_bad_deck_in_one_line(launcher, tmp_path, script):
     cases = [
         (["--bridge", "spans=15/x,EJ=2e10,mu=15000,zeta_pct=1.5"],
          "error: bridge spec.spans[1]: 'x' is not a number; allowed [1, 150] m"),
-        (["--bridge", "spans=30/30/30/30/30/30,n0=1.6,mu=10000,zeta_pct=1"],
-         "error: --bridge: 'spans=30/30/30/30/30/30,n0=1.6,mu=10000,zeta_pct=1' keeps 22 modes; the bridge node takes "
-         "n_modes in [1, 20]"),
+        (["--bridge", DECK22_SPEC + ",n_modes=51"], "error: bridge spec.n_modes: 51 is out of range; allowed integer "
+                                                    "in [1, 50]"),
     ]
+    modes = tmp_path / "modes.yaml"
+    modes.write_text('bridge:\n  ros__parameters:\n    spans_m: "15,15"\n    n_modes: 51\n')
+    cases.append((["--params-file", str(modes)], f"error: --params-file {str(modes)!r}: bridge: n_modes: 51 is out of "
+                                                 "range; allowed integer in [1, 50]"))
+    cases.append((["--bridge", "spans=15/2.5,EJ=2e10,mu=15000,zeta_pct=1.5", "--train", "ICE-2"],
+                  "error: bridge node: spans[1]: 2.5 m is shorter than the longest axle group of ICE-2 (bogie wheelbase "
+                  "3 m); allowed spans >= 3 m"))
+    one = tmp_path / "one.yaml"
+    one.write_text("bridge:\n  ros__parameters:\n    n_modes: 21\n")
+    cases.append((["--params-file", str(one)], "error: bridge node: n_modes: 21 is out of range; allowed integer in "
+                                               "[1, 20]"))
     bad = tmp_path / "bad.yaml"
     bad.write_text('bridge:\n  ros__parameters:\n    spans_m: "15,200"\n')
     cases.append((["--params-file", str(bad)], "error: bridge node: spans_m[1]: 200 m is out of range; allowed [1, 150] m"))

@@ -40,7 +40,8 @@ def test_descriptors_carry_units_and_ranges(bridge, train):
     z = bridge.describe_parameter("zeta_pct")
     assert "[%]" in z.description and z.additional_constraints == "0 <= zeta_pct <= 20 %"
     assert bridge.describe_parameter("bridge").read_only
-    assert bridge.describe_parameter("n_modes").additional_constraints == "1 <= n_modes <= 20 -"
+    # one range for a span and a deck (a deck takes 50); one simply supported span is held to 20 on set
+    assert bridge.describe_parameter("n_modes").additional_constraints == "1 <= n_modes <= 50 -"
     # ranges are checked by the nodes' on-set callback (the core's wording), not by rclpy
     assert not d.floating_point_range and not bridge.describe_parameter("n_modes").integer_range
     assert "km/h" in train.describe_parameter("speeds_kmh").description
@@ -58,7 +59,8 @@ def test_preset_gives_defaults(bridge):
     ("span_m", -5.0, ["span_m", "-5", "m", "[1, 150]"]),
     ("zeta_pct", 25.0, ["zeta_pct", "25", "%", "[0, 20]"]),
     ("zeta_pct", -1.0, ["zeta_pct", "-1", "%", "[0, 20]"]),
-    ("n_modes", 0, ["n_modes", "0", "[1, 20]"]),
+    ("n_modes", 0, ["n_modes", "0", "[1, 50]"]),
+    ("n_modes", 21, ["n_modes", "21", "[1, 20]"]),  # B1 is one simply supported span
     ("delta_zeta", -0.05, ["delta_zeta", "-0.05", "fraction", "[-0.0185, 0.2]"]),
     ("n0_hz", 0.2, ["n0_hz", "0.2", "Hz", "[0.5, 100]"]),
     ("track_type", "gravel", ["track_type", "gravel", "ballasted", "direct_fastening"]),

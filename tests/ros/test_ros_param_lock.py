@@ -46,7 +46,8 @@ def running(ros_domain):  # noqa: F811
         ex.add_node(n)
     try:
         _until(ex, lambda: train.count_subscribers(P.relative(P.TOPIC_SETUP)) > 0
-               and train.count_publishers(P.relative(P.TOPIC_RAIL)) > 0, "the bridge node's entities")
+               and train.count_publishers(P.relative(P.TOPIC_RAIL)) > 0
+               and train._bridge_desc is not None, "the bridge node's entities and its description")
         response = train._on_start(Trigger.Request(), Trigger.Response())
         assert response.success, response.message
         _until(ex, lambda: bridge.run is not None, "the bridge to take up the run")

@@ -93,7 +93,9 @@ def test_shipped_params_files_pass_the_check():
     ("adm_sim.nodes.bridge_node", ["-p", "zeta_pct:=25.0"],
      "error: bridge: zeta_pct: 25 % is out of range; allowed [0, 20] %"),
     ("adm_sim.nodes.bridge_node", ["-p", "n_modes:=0"],
-     "error: bridge: n_modes: 0 is out of range; allowed integer in [1, 20]"),
+     "error: bridge: n_modes: 0 is out of range; allowed integer in [1, 50]"),
+    ("adm_sim.nodes.bridge_node", ["-p", "n_modes:=21"],  # B1, one simply supported span: 20 at most
+     "error: bridge: n_modes: 21 is out of range; allowed integer in [1, 20]"),
     ("adm_sim.nodes.bridge_node", ["-p", "bridge:=B9"],
      None),  # the preset's own message (checked below)
     ("adm_sim.nodes.train_node", ["-p", "mlm_block_steps:=0"],

@@ -19,6 +19,7 @@ from adm_sim.inputs.bridges import resolve_bridge
 from adm_sim.inputs.measured import add_measured_argument, measured_bridge
 from adm_sim.inputs.train_files import load_train
 from adm_sim.integrate.step_grid import StepOptions
+from adm_sim.integrate.sweep import check_spans_for_train
 from adm_sim.model.plausibility import check_response
 
 from adm_calib import plots
@@ -78,6 +79,7 @@ def run(args):
                          f"n0 or EJ and zeta_pct in the spec instead")
     bridge, measured = measured_bridge(args, bridge)  # --measured: n0, zeta of the monitored bridge
     train = load_train(args.train)
+    check_spans_for_train(bridge, train)  # a deck's span shorter than the train's longest axle group
     speeds = speeds_option(args.speeds)
     options = calibration_options(args)
     cb, close = progress_callback(f"calibrate {bridge.name or 'bridge'} x {train.name}", args.progress, unit=" runs")

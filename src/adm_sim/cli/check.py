@@ -285,7 +285,8 @@ def add_arguments(c):
                         "(--stiffness-bounds=-0.1,0; EN 1991-2 6.4.6.3.3)")
     c.add_argument("--speed-step", type=float, default=1.0, help=option_help("--speed-step", "speed step"))
     c.add_argument("--modes", type=float,
-                   help=option_help("--modes", "more modes than EN 1990 A2.4.4.2.1 asks for; default: exactly those"))
+                   help=option_help("--modes", "more modes than EN 1990 A2.4.4.2.1 asks for; default: exactly those; "
+                                               f"a continuous deck takes up to {FIELDS['deck_n_modes'].hi}; one span"))
     c.add_argument("--comfort", action="store_true",
                    help="also run the DIM of the real trains: passenger comfort b_v (EN 1990 A2.4.4.3)")
     c.add_argument("--irregularity", default=None,

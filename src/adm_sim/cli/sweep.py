@@ -25,7 +25,7 @@ from adm_sim.inputs.speeds import parse_speeds
 from adm_sim.inputs.track_profile import parse_irregularity
 from adm_sim.inputs.train_files import load_train
 from adm_sim.integrate.step_grid import StepOptions
-from adm_sim.integrate.sweep import lane_damping, run_sweep, run_sweep_compiled, sweep_exact
+from adm_sim.integrate.sweep import check_spans_for_train, lane_damping, run_sweep, run_sweep_compiled, sweep_exact
 from adm_sim.integrate.where import parse_where, where_text
 from adm_sim.model.plausibility import check_response
 from adm_sim.model.spans import RULE_TEXT, rule_mode_count
@@ -130,6 +130,7 @@ def run(args):
                                                             inputs=inputs)
     bridge = _sweep_modes(resolve_bridge(args.bridge, continuous=True), args.modes, args.damping_model)
     train = load_train(args.train)
+    check_spans_for_train(bridge, train)  # before the first line of output
     speeds = parse_speeds(args.speeds, field="--speeds")
     dz = _delta_zeta_option(args.delta_zeta_pct, bridge)  # its range: lane_damping in _sweep_method
     profile = None

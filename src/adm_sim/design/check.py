@@ -359,6 +359,8 @@ class CheckResult(AccelerationVerdict):
                 "damping": self.damping, "damping_model": self.damping_model,
                 "zeta_per_mode_pct": [100 * z for z in self.bridge.modal_damping_ratios(0.0)],
                 "where": self.where, "limit_m_s2": self.limit_m_s2, "modes": list(self.modes),
+                "spans_m": [self.bridge.span_m], "frequencies_hz": self.bridge.frequencies_hz.tolist(),
+                "modal_masses_kg": self.bridge.modal_mass_kg.tolist(),
                 "f_limit_hz": self.f_limit_hz,
                 "governing": {"train": t.name, "speed_kmh": sp, "acc_m_s2": acc, "x_m": t.x_max_m,
                               "where": self.where, "zeta_per_mode_pct": [100 * z for z in t.zeta]},

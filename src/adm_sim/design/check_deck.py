@@ -155,7 +155,8 @@ def deck_modes_for(bridge, n_modes):
     except (TypeError, ValueError):
         n = math.nan
     if not (math.isfinite(n) and n == int(n) and fld.lo <= n <= fld.hi):
-        raise InputError(f"n_modes: {n_modes!r} is out of range; allowed an integer in [{fld.lo}, {fld.hi}] (the "
+        shown = f"{n:g}" if math.isfinite(n) else repr(n_modes)  # --modes arrives as a float: 51, not 51.0
+        raise InputError(f"n_modes: {shown} is out of range; allowed an integer in [{fld.lo}, {fld.hi}] (the "
                          f"rule asks for {need} on this deck: {RULE_TEXT})", field="n_modes")
     n = int(n)
     if n < need:
@@ -403,8 +404,9 @@ class DeckCheckResult(AccelerationVerdict):
         return "nominal", t, v, a
 
     def modes_text(self):
-        f = self.bridge.frequencies_hz
-        return ", ".join(f"{j} ({x:.3f} Hz)" for j, x in zip(self.modes, f))
+        b = self.bridge
+        return ", ".join(f"{j} ({x:.3f} Hz, {m / 1000:.5g} t)" for j, x, m in zip(self.modes, b.frequencies_hz,
+                                                                                 b.modal_mass_kg))
 
     def lines(self):
         """Every line ``adm-sim check`` prints for a deck."""

@@ -46,7 +46,9 @@ def header_lines(res):
             f"{res.max_line_speed_kmh:g} km/h, "
             f"EN 1991-2 6.4.6.2), {v.size} speeds at <= 1 km/h, refined at {REFINE_STEP_KMH:g} km/h "
             f"around every resonance",
-            f"modes: {', '.join(str(j) for j in res.modes)} (EN 1990 A2.4.4.2.1: at least all modes up to "
+            "modes: " + ", ".join(f"{j} ({f:.3f} Hz, {m / 1000:.5g} t)" for j, f, m in
+                                  zip(res.modes, b.frequencies_hz, b.modal_mass_kg))
+            + " (frequency, modal mass; EN 1990 A2.4.4.2.1: at least all modes up to "
             f"max(30 Hz, 1.5 n0, n3) = {res.f_limit_hz:.1f} Hz; "
             + ("every mode moves the deck)" if res.where != "midspan" else "even modes do not move midspan)"),
             f"acceleration: {where_sentence(res)}",

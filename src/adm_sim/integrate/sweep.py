@@ -142,13 +142,18 @@ def lane_damping(bridge, delta_zeta, shape, name="delta_zeta", **kw):
 def check_spans_for_train(bridge, train):
     """Refuse a continuous deck with a span shorter than the train's longest axle group (its largest
     bogie wheelbase ``b_m``; trains given as bare axle loads carry no groups and pass)."""
-    if not bridge.is_continuous:
-        return
+    if bridge.is_continuous:
+        check_span_lengths(bridge.spans_m, train)
+
+
+def check_span_lengths(spans_m, train):
+    """:func:`check_spans_for_train` of the spans ``spans_m`` (m) of a deck (where only its spans are
+    at hand: the bridge's description record in the train node)."""
     groups = [vt.b_m for vt in train.vehicle_types.values()]
     if not groups:
         return
     b = max(groups)
-    for i, L in enumerate(bridge.spans_m):
+    for i, L in enumerate(spans_m):
         if L < b:
             raise InputError(f"spans[{i}]: {L:g} m is shorter than the longest axle group of {train.name} "
                              f"(bogie wheelbase {b:g} m); allowed spans >= {b:g} m")

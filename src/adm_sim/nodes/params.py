@@ -289,8 +289,9 @@ def bridge_specs(preset):
         S("span_mu_kg_m", per_span(preset.span_mu_kg_m), "mu of each span of the deck (spans_m), one value or one "
           "per span; empty = mu_kg_m"),
         S("zeta_pct", view("ros", "zeta_pct").from_core(preset.damping_ratio)),
-        S("n_modes", int(preset.n_modes), "retained modes (paper: 3, Section 2.3; a continuous deck: fewer than "
-          "its rule asks for gives a warning)"),
+        S("n_modes", int(preset.n_modes), "retained modes (paper: 3, Section 2.3; one simply supported span: "
+          f"{fields.FIELDS['n_modes'].view().range_text()}; a continuous deck: fewer than its rule asks for gives a "
+          "warning)"),
         S("damping_model", preset.damping_model, "rayleigh (modes 1 and 3) | modal"),
         S("response_m", 0.0, "where the midspan topics and the run's maxima are taken, from the left abutment; "
           "0 = midspan (one span: L/2; a continuous deck: the middle of its longest span, the first of equal ones)"),

@@ -1,7 +1,9 @@
 """Train node: the vehicles (:class:`adm_sim.integrate.rk4_sides.TrainSide`) in lockstep with the bridge node.
 
-A run starts with the ``~/start_run`` service (std_srvs/Trigger): the node validates its
-parameters, publishes the run set-up (``/adm/run/setup``: speeds, axle offsets, loads and wheelset
+A run starts with the ``~/start_run`` service (std_srvs/Trigger): once the bridge node is
+connected and its description has arrived (before that: "retry"), the node validates its
+parameters and the train on the bridge's spans (a continuous deck's span shorter than the train's
+longest axle group is refused, as ``adm-sim sweep`` refuses it), publishes the run set-up (``/adm/run/setup``: speeds, axle offsets, loads and wheelset
 masses) and waits for the bridge's grid (``/adm/run/ready``). Then
 
 * DIM: for every RK4 stage it answers the rail state under its axles (``/adm/exchange/rail``)
@@ -34,6 +36,7 @@ from adm_sim.nodes.params import TRAIN_SPECS, check_run_phase, validate_train  #
 from adm_sim.integrate.rk4_sides import TrainSide
 from adm_sim.integrate.run_contract import FINISHED
 from adm_sim.integrate.step_grid import Grid, speeds_to_m_s
+from adm_sim.integrate.sweep import check_span_lengths
 from adm_sim.model.trains import Train
 
 #: The layout labels of the DIM interaction forces; the rail topic the train waits on (relative name).
@@ -114,13 +117,16 @@ class TrainNode(c.LockstepNode):
             return response
         missing = [t for t, n in ((P.TOPIC_SETUP, self.count_subscribers(P.relative(P.TOPIC_SETUP))),
                                   (P.TOPIC_RAIL, self.count_publishers(P.relative(P.TOPIC_RAIL)))) if n == 0]
-        if missing:
+        if missing or self._bridge_desc is None:
             response.success = False
-            response.message = f"bridge node not connected yet (nothing on {', '.join(missing)}); retry"
+            response.message = (f"bridge node not connected yet (nothing on "
+                                f"{', '.join(missing or [P.TOPIC_BRIDGE_DESC])}); retry")
             return response
         p = self.param_values()
         try:
             train, speeds = self._validate(p)
+            # a deck's span shorter than the train's longest axle group, as adm-sim sweep refuses it
+            check_span_lengths(((self._bridge_desc or {}).get("bridge") or {}).get("spans_m") or (), train)
         except InputError as exc:
             response.success, response.message = False, str(exc)
             return response
