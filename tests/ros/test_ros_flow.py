@@ -224,11 +224,13 @@ def under_load(tmp_path_factory):
         live = _wait_lines(procs[0], len(done))
         _wait_passages(base / "passages_live.json", len(done))
         _stop(procs)
+        print(f"both clients stopped: {time.monotonic() - t0:.1f} s after the main job's start")
 
         q = subprocess.run([sys.executable, str(ROOT / "launch_scripts" / "crossing.py"), "--bridge", "B1",
                             "--train", "ICE-2", "--model", "mlm", "--speeds", "160:350:10", "--out", str(cross)]
                            + common, env=env, capture_output=True, text=True, timeout=600, cwd=ROOT)
         assert q.returncode == 0, q.stderr
+        print(f"crossing sweep, two busy processes: {time.monotonic() - t0:.1f} s after the main job's start")
 
         # the same clients on a replay of the main job's recording at --rate 0
         procs = list(_clients(base, env, "replay"))
@@ -242,6 +244,8 @@ def under_load(tmp_path_factory):
         replay = _wait_lines(procs[0], len(done))
         _wait_passages(base / "passages_replay.json", len(done))
         _, _, latched_out = _stop(procs)
+        print(f"replay at --rate 0 to both clients, two busy processes: {time.monotonic() - t0:.1f} s after the main "
+              "job's start")
     finally:
         for h in hogs:
             h.kill()
