@@ -139,7 +139,9 @@ def pytest_runtest_makereport(item, call):
 
 # --- optional per-test CPU cost (``ADM_SIM_TEST_CPU_LOG=path``) ----------------------------------
 # Wall time on a shared machine says little; the CPU a test costs (this process and the children
-# it waited for) does. Each test appends "nodeid<TAB>cpu_s<TAB>wall_s" to the file named; the
+# it waited for) does. Each test appends "nodeid<TAB>cpu_s<TAB>wall_s<TAB>worker<TAB>start_s" (the xdist
+# worker, "main" without one; the start in seconds since the epoch, for a timeline of the workers:
+# idle gaps, waits on a shared fixture, the tail) to the file named; the
 # numbers in docs/benchmarks.md ("Test suite") were gathered this way.
 _CPU_LOG = os.environ.get("ADM_SIM_TEST_CPU_LOG")
 
@@ -154,10 +156,11 @@ if _CPU_LOG:
 
     @pytest.hookimpl(hookwrapper=True)
     def pytest_runtest_protocol(item, nextitem):
-        c0, t0 = _cpu_s(), time.perf_counter()
+        c0, t0, start = _cpu_s(), time.perf_counter(), time.time()
         yield
         with open(_CPU_LOG, "a") as fh:
-            fh.write(f"{item.nodeid}\t{_cpu_s() - c0:.3f}\t{time.perf_counter() - t0:.3f}\n")
+            fh.write(f"{item.nodeid}\t{_cpu_s() - c0:.3f}\t{time.perf_counter() - t0:.3f}\t"
+                     f"{os.environ.get('PYTEST_XDIST_WORKER', 'main')}\t{start:.3f}\n")
 
 
 # --- the suite on two workers (``python -m pytest -n 2``, .ci/run) --------------------------------

@@ -38,14 +38,20 @@ class NodeProcs(Supervisor):
 _HELD = []
 
 
-@pytest.fixture
-def ros_domain():
-    """A ROS_DOMAIN_ID no other test of this session used, and the environment for child processes."""
+def held_domain():
+    """A ROS_DOMAIN_ID no other test of this session used (held to the session's end), and the
+    environment for child processes; for a fixture of wider scope than :func:`ros_domain`."""
     env = local_ros_env()
     _HELD.append(env)
     env["OPENBLAS_NUM_THREADS"] = "1"
     env["PYTHONUNBUFFERED"] = "1"
-    yield env
+    return env
+
+
+@pytest.fixture
+def ros_domain():
+    """A ROS_DOMAIN_ID no other test of this session used, and the environment for child processes."""
+    yield held_domain()
 
 
 @pytest.fixture

@@ -82,6 +82,21 @@ def test_too_short_a_free_decay_gives_no_number():
     json.dumps(d)
 
 
+def test_a_record_shorter_than_the_band_pass_trim_gives_no_number():
+    """43 samples at 400 Hz (0.1 s, less than the band-pass's last period the decay is read without):
+    what a best-effort subscriber beside busy processes kept of a passage once. No free decay is left
+    to read: the reason says 0 cycles (before, the trimmed end was an index from the end of the
+    record, and the monitor node ended on an IndexError)."""
+    t = 5.6975 + np.arange(43) / 400
+    a = decay(t - 2.0, zeta=0.01, phase=0.0) + 0.002 * np.random.default_rng(1).standard_normal(t.size)
+    assert identify_first_mode(t, a) == (
+        None, "free decay of 0.0 cycles after the passage (< 5 cycles needed to identify damping)")
+    fit, reason = identify_first_mode(t, a, 5.7)
+    assert fit is None and reason.startswith("free vibration of 0.3 cycles recorded after the train left")
+    p = analyse_passage(t, a)
+    assert not p.identified and p.reason.startswith("free decay of 0.0 cycles")
+
+
 def test_noise_too_strong_gives_no_number():
     t = np.arange(0.0, 6.0, 1 / 600)
     a = decay(t, amp=0.02) + 0.05 * np.random.default_rng(1).standard_normal(t.size)

@@ -436,7 +436,9 @@ def _identify(t_s, a_m_s2, t_free_s, s):
     i_from, f0, x = _free_vibration(rec, t_free_s)
     # 2. band-pass over the whole record
     xf = _bandpass(x, dt, f0, s.band_ratio) if s.bandpass else x
-    i_end = t.size - (int(round(1.0 / (f0 * dt))) if s.bandpass else 0)
+    # the band-pass's last period is left out; a record shorter than that period has no free decay to
+    # read (at least one sample kept, so that the count of cycles below is 0, not an index from the end)
+    i_end = max(1, t.size - (int(round(1.0 / (f0 * dt))) if s.bandpass else 0))
     # 3. the exponential free decay and the logarithmic decrement
     pk, min_peaks = _decay_peaks(rec, xf, i_from=i_from, i_end=i_end, f0=f0, t_free_s=t_free_s, s=s)
     tp, ap = t[pk], np.abs(xf[pk])
