@@ -57,7 +57,9 @@ def uniform_samples(t_s, a_m_s2):
 
 
 def _spectral_peak_hz(x, dt, f_lo, f_hi):
-    """Frequency of the largest peak of the Hann-windowed, 8x zero-padded spectrum in [f_lo, f_hi]."""
+    """Frequency of the largest peak of the Hann-windowed, 8x zero-padded spectrum in [f_lo, f_hi]
+    (within half a bin of the band); refused when the band's largest value is at its edge on the flank
+    of a larger peak outside it (there the parabola's vertex lay bins away, even below 0 Hz)."""
     n = x.size
     nfft = 1 << int(math.ceil(math.log2(8 * n)))
     spec = np.abs(np.fft.rfft((x - x.mean()) * np.hanning(n), nfft))
@@ -67,7 +69,11 @@ def _spectral_peak_hz(x, dt, f_lo, f_hi):
         raise IdentificationError(f"no frequency in [{f_lo:g}, {f_hi:g}] Hz is resolved by {n} samples at "
                                   f"{1 / dt:g} Hz")
     i = band[np.argmax(spec[band])]
+    if 0 < i < spec.size - 1 and max(spec[i - 1], spec[i + 1]) > spec[i]:  # on the flank of a peak outside
+        raise IdentificationError(f"no spectral peak in [{f_lo:g}, {f_hi:.4g}] Hz: the spectrum rises beyond the "
+                                  f"band's edge at {f[i]:.4g} Hz (a mode or a swing outside the band)")
     if 0 < i < spec.size - 1 and spec[i - 1] > 0 and spec[i + 1] > 0 and spec[i] > 0:
+        # a local maximum: the parabola's vertex is within half a bin of it
         y0, y1, y2 = np.log(spec[i - 1:i + 2])
         den = y0 - 2 * y1 + y2
         shift = 0.5 * (y0 - y2) / den if den < 0 else 0.0
