@@ -152,3 +152,17 @@ def test_all_samples_on_one_stamp_gives_a_reason():
     t = np.full(50, 3.0)
     p = analyse_passage(t, decay(np.arange(50) / 600))
     assert not p.identified and p.reason == "1 finite samples: too few to identify the first mode"
+
+
+@pytest.mark.parametrize("fd_rad_s", [0.0, float("nan"), 2 * math.pi * 700.0])
+def test_refit_across_a_dropout_refuses_a_frequency_no_band_pass_fits(fd_rad_s):
+    """The refit across dropouts fills the gaps and band-passes around the fitted frequency: one of
+    0 Hz (a division by zero before), not a number (scipy's ValueError before) or above what the
+    sampling allows (refused by the dropout rule before) is refused with the band in the reason."""
+    t, a = clean()
+    keep = np.ones(t.size, bool)
+    keep[1800:1805] = False
+    rec = modal_fit._record(t[keep], a[keep], IdentifySettings())
+    p = np.array([1.0, fd_rad_s, 1.0, 0.0, 0.0])
+    with pytest.raises(modal_fit.IdentificationError, match=r"the fitted frequency .* Hz is outside \[0.5, 75\] Hz"):
+        modal_fit._refit_over_gaps(rec, p, t[600:3000] - t[600], i0=600, s=IdentifySettings())

@@ -379,6 +379,8 @@ def _refit_over_gaps(rec, p, tw, *, i0, s):
     if not gaps:
         return None, gaps, FIT_GAP_FREE
     fd_fit = abs(float(p[1])) / (2 * math.pi)
+    if not 0.0 < fd_fit < 0.45 * s.band_ratio / rec.dt:  # no gap filling nor band-pass can be made around it
+        raise IdentificationError(f"the fitted frequency {fd_fit:.4g} Hz is outside [{rec.f_lo:g}, {rec.f_hi:.4g}] Hz")
     g_long = max(gaps, key=lambda g: g[1])
     if g_long[1] * fd_fit > s.max_gap_periods:
         raise IdentificationError(f"a dropout of {g_long[1]:.3g} s ({g_long[1] * fd_fit:.2g} periods, "
