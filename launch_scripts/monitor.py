@@ -32,7 +32,9 @@ Bad input, one line ``error: ...`` and exit 2, nothing written: an option out of
 id out of range, an MCAP that is not one, a topic the MCAP does not hold or that has another type,
 a live topic that no publisher offers within ``--timeout`` seconds or that has another type, an Imu
 without the chosen axis, a CSV file without the named columns or with times that do not increase,
-a JSON file that exists (without ``--overwrite``).
+an MCAP whose topic has a stamp that does not increase (a duplicate or going back: the sample is
+named), a JSON file that exists (without ``--overwrite``). Live, such a sample is refused and the
+monitor goes on (one ``warning:`` line where a stretch of them starts and one where it ends).
 """
 
 from __future__ import annotations
@@ -54,7 +56,7 @@ from adm_sim.files import claim_output, input_file, mcap_input, write_atomic
 from adm_sim.inputs.sensor_csv import read_sensor_csv
 from adm_sim.limits import TRACK_TYPES
 from adm_sim.monitoring.modal_id import IdentifySettings, PassageTracker, run_topics_for
-from adm_sim.monitoring.sensors import AXES, IMU_TYPE, SENSOR_TYPES, check_imu, parse_axis, sample_of
+from adm_sim.monitoring.sensors import AXES, IMU_TYPE, SENSOR_TYPES, check_imu, parse_axis, sample_of, stamp_order
 from adm_sim.processes.dds_env import apply_local_ros_env
 from adm_sim.recording.mcap_read import read_messages
 
@@ -190,12 +192,20 @@ def monitor_mcap(args, tracker):
     desc = ours[1:]
     topics = [t for t in (args.topic, status, *desc) if t in channels]
     checked = kind != IMU_TYPE
+    n, last = 0, None
     for topic, _log_ns, msg in read_messages(args.mcap, topics=topics):
         if topic == args.topic:
             if not checked:
                 check_imu(msg, args.axis_component, f"--topic: {args.topic!r} in '{args.mcap}'")
                 checked = True
-            tracker.sample(*sample_of(msg, kind, args.axis_component, args.axis_sign))
+            t, a = sample_of(msg, kind, args.axis_component, args.axis_sign)
+            n += 1
+            why = stamp_order(t, n, last, n - 1)
+            if why is not None:
+                raise InputError(f"--topic: {args.topic!r} in '{args.mcap}': {why} (samples counted from 1 in log "
+                                 f"time order); stamps must strictly increase")
+            last = t
+            tracker.sample(t, a)
         elif topic == status:
             tracker.status(P.decode(msg.data))
         elif topic == desc[0]:
@@ -226,7 +236,8 @@ def monitor_live(args, on_passage):
         overrides.append(Parameter("track_type", value=args.track_type))
     node = None
     try:
-        node = MonitorNode(on_passage=on_passage, quiet=True, context=context, parameter_overrides=overrides)
+        node = MonitorNode(on_passage=on_passage, quiet=True, context=context, parameter_overrides=overrides,
+                           on_warning=lambda w: print(f"warning: {w}", file=sys.stderr, flush=True))
         print(f"ROS_DOMAIN_ID={env.domain_id} (shared memory only); subscribed to {node.topic}", flush=True)
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(node)
@@ -260,6 +271,7 @@ def _run(args) -> int:
     settings = IdentifySettings(min_cycles=args.min_cycles, bandpass=not args.no_bandpass, raw=args.raw)
     reported = []
     offline = args.mcap is not None or args.csv is not None
+    refused = 0  # live: samples refused for their stamps
 
     def write(dropped=0, nonfinite=0):
         doc = {"passages": [p.to_dict() for p in reported], "topic": None if args.csv else args.topic,
@@ -287,7 +299,8 @@ def _run(args) -> int:
         tracker = PassageTracker(track_type=args.track_type, settings=settings, on_passage=on_passage)
         monitor_mcap(args, tracker)
     else:
-        tracker = monitor_live(args, on_passage).tracker
+        node = monitor_live(args, on_passage)
+        tracker, refused = node.tracker, node.refused_samples
     outside = tracker.nonfinite - sum(p.n_nonfinite for p in reported)
     if outside > 0:
         print(f"warning: {outside} non-finite samples (NaN or inf) outside every passage excluded", file=sys.stderr,
@@ -297,6 +310,7 @@ def _run(args) -> int:
     n_id = sum(p.identified for p in reported)
     print(f"{len(reported)} passages, {n_id} with the first mode identified"
           + (f", {tracker.nonfinite} non-finite samples excluded" if tracker.nonfinite else "")
+          + (f", {refused} samples refused for their stamps" if refused else "")
           + (f"; wrote {args.json}" if args.json else ""), flush=True)
     return 0
 
