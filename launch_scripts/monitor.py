@@ -34,7 +34,7 @@ a live topic that no publisher offers within ``--timeout`` seconds or that has a
 without the chosen axis, a CSV file without the named columns or with times that do not increase,
 an MCAP whose topic has a stamp that does not increase (a duplicate or going back: the sample is
 named), a JSON file that exists (without ``--overwrite``). Live, such a sample is refused and the
-monitor goes on (one ``warning:`` line where a stretch of them starts and one where it ends).
+monitor goes on (the node's warning where a stretch of them starts and one where it ends).
 """
 
 from __future__ import annotations
@@ -55,8 +55,9 @@ from adm_sim.fields import view
 from adm_sim.files import claim_output, input_file, mcap_input, write_atomic
 from adm_sim.inputs.sensor_csv import read_sensor_csv
 from adm_sim.limits import TRACK_TYPES
+from adm_sim.monitoring import sensors
 from adm_sim.monitoring.modal_id import IdentifySettings, PassageTracker, run_topics_for
-from adm_sim.monitoring.sensors import AXES, IMU_TYPE, SENSOR_TYPES, check_imu, parse_axis, sample_of, stamp_order
+from adm_sim.monitoring.sensors import AXES, IMU_TYPE, SENSOR_TYPES, check_imu, parse_axis, sample_of
 from adm_sim.processes.dds_env import apply_local_ros_env
 from adm_sim.recording.mcap_read import read_messages
 
@@ -200,7 +201,7 @@ def monitor_mcap(args, tracker):
                 checked = True
             t, a = sample_of(msg, kind, args.axis_component, args.axis_sign)
             n += 1
-            why = stamp_order(t, n, last, n - 1)
+            why = sensors.stamp_order(t, n, last, n - 1)
             if why is not None:
                 raise InputError(f"--topic: {args.topic!r} in '{args.mcap}': {why} (samples counted from 1 in log "
                                  f"time order); stamps must strictly increase")
@@ -236,8 +237,7 @@ def monitor_live(args, on_passage):
         overrides.append(Parameter("track_type", value=args.track_type))
     node = None
     try:
-        node = MonitorNode(on_passage=on_passage, quiet=True, context=context, parameter_overrides=overrides,
-                           on_warning=lambda w: print(f"warning: {w}", file=sys.stderr, flush=True))
+        node = MonitorNode(on_passage=on_passage, quiet=True, context=context, parameter_overrides=overrides)
         print(f"ROS_DOMAIN_ID={env.domain_id} (shared memory only); subscribed to {node.topic}", flush=True)
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(node)
@@ -271,7 +271,6 @@ def _run(args) -> int:
     settings = IdentifySettings(min_cycles=args.min_cycles, bandpass=not args.no_bandpass, raw=args.raw)
     reported = []
     offline = args.mcap is not None or args.csv is not None
-    refused = 0  # live: samples refused for their stamps
 
     def write(dropped=0, nonfinite=0):
         doc = {"passages": [p.to_dict() for p in reported], "topic": None if args.csv else args.topic,
@@ -299,8 +298,7 @@ def _run(args) -> int:
         tracker = PassageTracker(track_type=args.track_type, settings=settings, on_passage=on_passage)
         monitor_mcap(args, tracker)
     else:
-        node = monitor_live(args, on_passage)
-        tracker, refused = node.tracker, node.refused_samples
+        tracker = monitor_live(args, on_passage).tracker
     outside = tracker.nonfinite - sum(p.n_nonfinite for p in reported)
     if outside > 0:
         print(f"warning: {outside} non-finite samples (NaN or inf) outside every passage excluded", file=sys.stderr,
@@ -310,7 +308,6 @@ def _run(args) -> int:
     n_id = sum(p.identified for p in reported)
     print(f"{len(reported)} passages, {n_id} with the first mode identified"
           + (f", {tracker.nonfinite} non-finite samples excluded" if tracker.nonfinite else "")
-          + (f", {refused} samples refused for their stamps" if refused else "")
           + (f"; wrote {args.json}" if args.json else ""), flush=True)
     return 0
 
