@@ -290,3 +290,23 @@ def test_samples_whose_stamps_do_not_increase_are_refused(ctx):
     assert got[0].fit == ref[0].fit and got[0].peak_acc_m_s2 == ref[0].peak_acc_m_s2
     for mon in mons:
         mon.destroy_node()
+
+
+def test_a_new_bridge_starts_the_stamp_order_again(ctx):
+    """A bridge started again stamps from 0 s: its ``started`` run record (t0_s 0 below the last
+    stamp taken) starts the order again, so its samples are taken, not refused."""
+    from std_msgs.msg import String
+
+    from adm_sim import protocol as P
+
+    mon = make_monitor(ctx, topic="/sensor/accel")
+    mon.kind, mon.imu_checked = "geometry_msgs/msg/AccelStamped", True
+    t = np.arange(0.0, 2.0, 1 / 400)
+    for ti in t:
+        mon._on_accel(accel_msg(ti, 0.0, "sensor"))
+    mon._on_status(String(data=P.encode(P.status_record("bridge", 1, "started", t0_s=0.0))))
+    for ti in t[:100]:
+        mon._on_accel(accel_msg(ti, 0.0, "sensor"))
+    assert mon.refused_samples == 0 and mon.last_stamp[1] == t.size + 100
+    assert mon.last_stamp[0] == pytest.approx(t[99], abs=1e-9)
+    mon.destroy_node()

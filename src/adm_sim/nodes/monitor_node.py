@@ -23,7 +23,8 @@ range, a topic that has another type than ``AccelStamped`` or ``Imu``, an Imu wi
 axis, a topic that no publisher offers within ``topic_timeout_s``. A sample whose stamp does not
 come after the last one taken (a duplicate, or time going back) is refused and the node goes on: one
 warning naming the topic and the sample (counted from 1 as received) where such a stretch starts,
-one where it ends.
+one where it ends; a bridge's ``started`` run record earlier than the last stamp (a new bridge's
+sim time) starts the order again.
 
     python -m adm_sim.nodes.monitor_node --ros-args -p topic:=/adm/midspan/accel -p json_path:=passages.json
 """
@@ -169,7 +170,12 @@ class MonitorNode(c.ParamNodeMixin, Node):
         return False
 
     def _on_status(self, msg):
-        self.tracker.status(P.decode(msg.data), time.monotonic())
+        rec = P.decode(msg.data)
+        last = self.last_stamp[0]
+        if (rec.get("node") == "bridge" and rec.get("state") == "started" and last is not None
+                and float(rec.get("t0_s", last)) < last):  # sim time started again (a new bridge)
+            self.last_stamp = (None, self.samples)
+        self.tracker.status(rec, time.monotonic())
 
     def _on_bridge(self, msg):
         self.tracker.bridge_description(P.decode(msg.data))
