@@ -33,7 +33,7 @@ id out of range, an MCAP that is not one, a topic the MCAP does not hold or that
 a live topic that no publisher offers within ``--timeout`` seconds or that has another type, an Imu
 without the chosen axis, a CSV file without the named columns or with times that do not increase,
 an MCAP whose topic has a stamp that does not increase (a duplicate or going back: the sample is
-named), a JSON file that exists (without ``--overwrite``). Live, such a sample is refused and the
+named; a bridge's ``started`` record earlier than the last stamp starts the order again), a JSON file that exists (without ``--overwrite``). Live, such a sample is refused and the
 monitor goes on (the node's warning where a stretch of them starts and one where it ends).
 """
 
@@ -208,7 +208,11 @@ def monitor_mcap(args, tracker):
             last = t
             tracker.sample(t, a)
         elif topic == status:
-            tracker.status(P.decode(msg.data))
+            rec = P.decode(msg.data)
+            if (last is not None and rec.get("node") == "bridge" and rec.get("state") == "started"
+                    and float(rec.get("t0_s", last)) < last):
+                last = None  # sim time started again (a new bridge): a new stamp order
+            tracker.status(rec)
         elif topic == desc[0]:
             tracker.bridge_description(P.decode(msg.data))
         elif topic == desc[1]:
