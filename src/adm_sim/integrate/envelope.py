@@ -570,13 +570,37 @@ def _eval(c1, c2, w, om, lam, tau, n):
 
 
 @njit(cache=True, nogil=True)
-def _newton(c1, c2, w, om, lam, x, lo, hi):
-    """Local extremum of the function of (c1, c2, w) near x inside [lo, hi] (Newton on its derivative)."""
+def _derivative_coefficients(c1, c2, om, lam, n, a, b):
+    """``a_j = c1_j (i om_j)^n``, ``b_j = c2_j lam_j^n``: the coefficients of the n-th derivative, formed as
+    :func:`_eval` forms them (the same complex powers, so the same bits)."""
+    for j in range(c1.size):
+        z = 1j * om[j]
+        a[j] = c1[j] * z**n
+        b[j] = c2[j] * lam[j] ** n
+
+
+@njit(cache=True, nogil=True)
+def _newton(c1, c2, w, om, lam, x, lo, hi, work):
+    """Local extremum of the function of (c1, c2, w) near x inside [lo, hi] (Newton on its derivative).
+
+    The same numbers as Newton on :func:`_eval` (n = 2, then 1, at each x), bit for bit: the derivative
+    coefficients are formed once (``work`` (4, modes) complex, overwritten) instead of at every
+    iteration, and the two derivatives share their exponentials; each term is still
+    ``w_j Im[(c1_j (i om_j)^n) e^(i om_j x) + (c2_j lam_j^n) e^(lam_j x)]``, summed in mode order."""
+    a1, b1, a2, b2 = work[0], work[1], work[2], work[3]
+    _derivative_coefficients(c1, c2, om, lam, 1, a1, b1)
+    _derivative_coefficients(c1, c2, om, lam, 2, a2, b2)
     for _ in range(NEWTON_ITERATIONS):
-        g2 = _eval(c1, c2, w, om, lam, x, 2)
+        g1 = 0.0
+        g2 = 0.0
+        for j in range(c1.size):
+            e1 = cmath.exp(1j * om[j] * x)
+            e2 = cmath.exp(lam[j] * x)
+            g2 += w[j] * (a2[j] * e1 + b2[j] * e2).imag
+            g1 += w[j] * (a1[j] * e1 + b1[j] * e2).imag
         if g2 == 0.0:
             break
-        x = min(hi, max(lo, x - _eval(c1, c2, w, om, lam, x, 1) / g2))
+        x = min(hi, max(lo, x - g1 / g2))
     return x, abs(_eval(c1, c2, w, om, lam, x, 0))
 
 
@@ -676,6 +700,7 @@ def _search_kernel(pairs, iv, qs, mx):
     e2 = np.empty(nm, dtype=np.complex128)
     active = np.zeros(nq, dtype=np.bool_)
     slack = np.zeros(nq)
+    work = np.empty((4, nm), dtype=np.complex128)
     cf = np.empty((1024, 5))
     ci = np.empty((1024, 4), dtype=np.int64)
     nc = 0
@@ -758,7 +783,7 @@ def _search_kernel(pairs, iv, qs, mx):
                             if _x_local(ya, q, 1, pp, npos[q]):
                                 cf, ci, nc = _push(cf, ci, nc, y1, y1 + s1, (i - 1) * h, h, T_, q, pp, k, l)
                         else:
-                            refined += _refine_t(q, pp, (i - 1) * h, h, T_, k, l, iv, qs, mx)
+                            refined += _refine_t(q, pp, (i - 1) * h, h, T_, k, l, iv, qs, mx, work)
         for q in range(nq):  # the last sample
             if not active[q]:
                 continue
@@ -769,7 +794,7 @@ def _search_kernel(pairs, iv, qs, mx):
                         if _x_local(ya, q, 2, pp, npos[q]):
                             cf, ci, nc = _push(cf, ci, nc, ya[q, 2, pp], ya[q, 2, pp] + s2, m[p] * h, h, T_, q, pp, k, l)
                     else:
-                        refined += _refine_t(q, pp, m[p] * h, h, T_, k, l, iv, qs, mx)
+                        refined += _refine_t(q, pp, m[p] * h, h, T_, k, l, iv, qs, mx, work)
     # deck candidates, deferred until every pair is sampled (the best is then near the maximum), the
     # largest sample first
     for c in np.argsort(-cf[:nc, 0]):
@@ -803,12 +828,13 @@ def _push(cf, ci, nc, y, bound, t, h, T_, q, pp, k, l):
 
 
 @njit(cache=True, nogil=True)
-def _refine_t(q, pp, x, h, T_, k, l, iv, qs, mx):
+def _refine_t(q, pp, x, h, T_, k, l, iv, qs, mx, work):
     """Refine a candidate of quantity ``q`` at position ``pp`` (one position, not the deck) at time ``x``
-    of interval ``k``, lane ``l`` (step ``h``, length ``T_``) by Newton in t; into ``mx`` in place."""
+    of interval ``k``, lane ``l`` (step ``h``, length ``T_``) by Newton in t; into ``mx`` in place
+    (``work``: :func:`_newton`'s)."""
     c1 = iv.acc_c1[k, l] if qs.fam[q] == 0 else iv.disp_c1[k, l]
     c2 = iv.acc_c2[k, l] if qs.fam[q] == 0 else iv.disp_c2[k, l]
-    x, y = _newton(c1, c2, qs.W[q, pp], iv.Om[l], iv.lam, x, max(0.0, x - h), min(T_, x + h))
+    x, y = _newton(c1, c2, qs.W[q, pp], iv.Om[l], iv.lam, x, max(0.0, x - h), min(T_, x + h), work)
     if y > mx.best[q, l]:
         mx.best[q, l] = y
         mx.when[q, l] = iv.t0[k, l] + x
