@@ -11,12 +11,11 @@ from __future__ import annotations
 
 import json
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
+from train_files import short_ice2_file
 
-import adm_sim
 from adm_sim.cli.sim_commands import main
 from adm_sim.errors import InputError
 from adm_sim.integrate.compiled_batch import BatchRunner
@@ -52,11 +51,7 @@ def test_contact_force_at_low_speed_is_the_static_axle_load(tmp_path):
     tolerance 0.3 %), and no lift-off (status ok). The train is ICE-2 with 2 of its 12 passenger
     cars (Loc + 2 PC + Loc, both vehicle types, 16 axles): 11195 steps instead of 39463."""
     b = named_bridge("B1")
-    ice2 = (Path(adm_sim.__file__).parent / "data" / "trains" / "ice2.toml").read_text(encoding="utf-8")
-    assert ice2.count("count = 12\n") == 1
-    short = tmp_path / "ice2_short.toml"
-    short.write_text(ice2.replace("count = 12\n", "count = 2\n").replace('name = "ICE-2"', 'name = "ICE-2 short"'))
-    t = load_train(str(short))
+    t = load_train(str(short_ice2_file(tmp_path)))
     assert t.n_axles == 16 and set(t.axle_loads_n) == {196e3, 112e3}
     res = run_sweep(b, t, "dim", [20.0], options=COARSE, histories=True)
     F = res.contact_force_n[0]  # (n_steps, n_axles), 0 off the bridge
