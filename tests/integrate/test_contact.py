@@ -182,20 +182,32 @@ def test_a_calibration_whose_dim_peak_lost_contact_is_not_ok(b1_ice2):
     assert smooth.status == "ok"
 
 
-def test_the_lane_backends_log_the_same_contact_losses(b1_ice2):
-    from adm_calib.lanes import CompiledLanes, SteppedLanes, contact_loss_at
-
-    b, t = b1_ice2
-    step = StepOptions(steps_per_period=8.0, irregularity=parse_irregularity(JOINT, b.span_m))
+@pytest.fixture(scope="module")
+def stepped_joint(b1_ice2, joint_dim):
+    """``(lanes, maxima)``: adm_calib's numpy-stepper lanes run once over the 2 mm dip (B1 x ICE-2,
+    100 and 300 km/h, the joint_dim step with its ds_m made explicit, as the compiled lanes need it),
+    for the tests that read its maxima and its contact log (they only read them)."""
     from dataclasses import replace
 
+    from adm_calib.lanes import SteppedLanes
     from adm_sim.integrate.step_grid import make_grid, speeds_to_m_s
 
+    b, t = b1_ice2
+    step = joint_dim[0]
     step = replace(step, ds_m=make_grid(b, t.length_m, speeds_to_m_s(np.array([100.0, 300.0])), step).ds_m)
+    lanes = SteppedLanes([b], t, step)
+    return lanes, lanes.run("dim", [0, 0], [100.0, 300.0])
+
+
+def test_the_lane_backends_log_the_same_contact_losses(b1_ice2, stepped_joint):
+    from adm_calib.lanes import CompiledLanes, contact_loss_at
+
+    b, t = b1_ice2
+    stepped = stepped_joint[0]
+    compiled = CompiledLanes([b], t, stepped.step)
+    compiled.run("dim", [0, 0], [100.0, 300.0])
     logs = []
-    for cls in (CompiledLanes, SteppedLanes):
-        lanes = cls([b], t, step)
-        lanes.run("dim", [0, 0], [100.0, 300.0])
+    for lanes in (compiled, stepped):
         logs.append(lanes.contact_log)
         assert contact_loss_at(lanes, 0, 100.0) is None
         assert contact_loss_at(lanes, 0, 300.0)["axle"] == 1
@@ -224,13 +236,14 @@ def test_study_rows_carry_the_plausibility_warnings():
 
 
 
-def test_a_sweep_hook_hands_its_contact_check_to_the_calibration(b1_ice2, joint_dim):
+def test_a_sweep_hook_hands_its_contact_check_to_the_calibration(joint_dim, stepped_joint):
     """A co-simulated sweep (the ROS calibration node's hook) returns the run's contact check with
-    its maxima; :class:`adm_calib.lanes.HookLanes` logs its losses as the in-process lanes do."""
-    from adm_calib.lanes import HookLanes, SteppedLanes, contact_loss_at
+    its maxima; :class:`adm_calib.lanes.HookLanes` logs its losses as the in-process lanes do (the
+    numpy-stepper lanes of :func:`stepped_joint`, run on their own)."""
+    from adm_calib.lanes import HookLanes, contact_loss_at
 
-    b, t = b1_ice2
     step, shared = joint_dim
+    ref, ref_max = stepped_joint
 
     def hook(model, speeds, dz, step_):
         # the very call run_sweep(b, t, model, speeds, delta_zeta=dz, options=step_): the shared run's
@@ -239,7 +252,7 @@ def test_a_sweep_hook_hands_its_contact_check_to_the_calibration(b1_ice2, joint_
         res = shared
         return {"max_acc_m_s2": res.max_acc_m_s2, "contact": json.loads(json.dumps(res.contact.to_dict()))}
 
-    lanes, ref = HookLanes(hook, step), SteppedLanes([b], t, step)
-    np.testing.assert_array_equal(lanes.run("dim", [0, 0], [100.0, 300.0]), ref.run("dim", [0, 0], [100.0, 300.0]))
+    lanes = HookLanes(hook, step)
+    np.testing.assert_array_equal(lanes.run("dim", [0, 0], [100.0, 300.0]), ref_max)
     assert contact_loss_at(lanes, 0, 100.0) is None
     assert contact_loss_at(lanes, 0, 300.0) == contact_loss_at(ref, 0, 300.0)
