@@ -11,8 +11,9 @@ once untimed (numba compile or cache load), then ``--reps`` timed repetitions, t
 configurations interleaved; times are CPU seconds of the worker (``time.process_time``: on a
 shared 2-core machine the wall clock also counts the other processes). With ``--baseline SRC`` (e.g. another checkout's ``src``) the
 baseline's and this tree's workers alternate for ``--rounds`` rounds (first one, then the other); the bench prints the min
-time of each (over all rounds and repetitions), the ratio this/baseline and whether the per-lane
-maxima of both are equal bit for bit (``np.array_equal``). numba's cache goes to a temporary
+time of each (over all rounds and repetitions), the ratio this/baseline, the median over the rounds
+of each round's ratio (each tree's best repetition in that round: the two met the same load) and
+whether the per-lane maxima of both are equal bit for bit (``np.array_equal``). numba's cache goes to a temporary
 directory, so no other checkout is written to. ``--numpy`` also times the numpy stepper
 (:func:`adm_sim.integrate.sweep.run_sweep`, one sweep per bridge) on the DIM and MLM lanes once, in process.
 """
@@ -117,8 +118,9 @@ def main():
         if "baseline" in best:
             same = all(np.array_equal(np.array(r[key][f]), np.array(runs["baseline"][0][key][f]))
                        for rs in runs.values() for r in rs for f in ("acc", "disp"))
+            per_round = [min(t[key]["times"]) / min(b[key]["times"]) for t, b in zip(runs["this"], runs["baseline"])]
             line += (f"  baseline {best['baseline']:.4f} s  this/baseline {best['this'] / best['baseline']:.3f}"
-                     f"  maxima bit for bit equal: {same}")
+                     f"  median of rounds {float(np.median(per_round)):.3f}  maxima bit for bit equal: {same}")
         print(line)
     if args.numpy:
         sys.path.insert(0, HERE_SRC)

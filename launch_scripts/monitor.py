@@ -42,7 +42,6 @@ from __future__ import annotations
 import json
 import os
 import sys
-import time
 from pathlib import Path
 
 from mcap.exceptions import McapError
@@ -58,7 +57,6 @@ from adm_sim.limits import TRACK_TYPES
 from adm_sim.monitoring import sensors
 from adm_sim.monitoring.modal_id import IdentifySettings, PassageTracker, run_topics_for
 from adm_sim.monitoring.sensors import AXES, IMU_TYPE, SENSOR_TYPES, check_imu, parse_axis, sample_of
-from adm_sim.processes.dds_env import apply_local_ros_env
 from adm_sim.recording.mcap_read import read_messages
 
 
@@ -220,51 +218,6 @@ def monitor_mcap(args, tracker):
     tracker.flush()
 
 
-# ---------------------------------------------------------------- live
-def monitor_live(args, on_passage):
-    """Run the monitor node in this process until ``--passages`` or ``--duration``; returns it."""
-    import rclpy  # noqa: PLC0415  rclpy (82 ms, the monitor node 230 ms) only live: --help, bad input and MCAP/CSV answer without it
-    from rclpy.executors import SingleThreadedExecutor  # noqa: PLC0415  rclpy (82 ms, the monitor node 230 ms) only live: --help, bad input and MCAP/CSV answer without it
-    from rclpy.parameter import Parameter  # noqa: PLC0415  rclpy (82 ms, the monitor node 230 ms) only live: --help, bad input and MCAP/CSV answer without it
-
-    from adm_sim.nodes.monitor_node import MonitorNode  # noqa: PLC0415  rclpy (82 ms, the monitor node 230 ms) only live: --help, bad input and MCAP/CSV answer without it
-
-    env = apply_local_ros_env(args.domain_id)
-    context = rclpy.context.Context()
-    rclpy.init(args=[], context=context)
-    overrides = [Parameter("topic", value=args.topic), Parameter("topic_timeout_s", value=args.timeout),
-                 Parameter("min_cycles", value=args.min_cycles), Parameter("bandpass", value=not args.no_bandpass),
-                 Parameter("axis", value=args.axis), Parameter("raw", value=bool(args.raw))]
-    if args.status_topic:
-        overrides.append(Parameter("status_topic", value=args.status_topic))
-    if args.track_type:
-        overrides.append(Parameter("track_type", value=args.track_type))
-    node = None
-    try:
-        node = MonitorNode(on_passage=on_passage, quiet=True, context=context, parameter_overrides=overrides)
-        print(f"ROS_DOMAIN_ID={env.domain_id} (shared memory only); subscribed to {node.topic}", flush=True)
-        executor = SingleThreadedExecutor(context=context)
-        executor.add_node(node)
-        t_end = None if args.duration is None else time.monotonic() + args.duration
-        found = False
-        while context.ok():
-            executor.spin_once(timeout_sec=0.1)
-            if node.sub is not None and node.sub.get_publisher_count() > 0 and not found:  # matched: samples from now on
-                found = True
-                print(f"{node.topic}: {node.count_publishers(node.topic)} publisher(s) found"
-                      + (", subscribed best effort" if node.best_effort else ""), flush=True)
-            if args.passages is not None and len(node.tracker.passages) >= args.passages:
-                break
-            if t_end is not None and time.monotonic() >= t_end:
-                node.finish()
-                break
-        return node
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown(context=context)
-
-
 # ---------------------------------------------------------------- main
 def main(argv=None) -> int:
     return run_cli(lambda: _run(parse_args(argv)))
@@ -302,6 +255,8 @@ def _run(args) -> int:
         tracker = PassageTracker(track_type=args.track_type, settings=settings, on_passage=on_passage)
         monitor_mcap(args, tracker)
     else:
+        from _monitor_live import monitor_live  # noqa: PLC0415  rclpy and the monitor node (~0.3 s) only live: --help, bad input and MCAP/CSV answer without them
+
         tracker = monitor_live(args, on_passage).tracker
     outside = tracker.nonfinite - sum(p.n_nonfinite for p in reported)
     if outside > 0:

@@ -53,7 +53,6 @@ import threading
 import time
 from pathlib import Path
 
-from mcap.reader import make_reader
 
 from adm_sim import protocol as P
 from adm_sim.cliutil import Parser, add_domain_id, add_overwrite, option_help, run_cli
@@ -208,60 +207,12 @@ def show_in_rerun(args, found, save_path=None) -> dict[str, int]:
 
 
 def _feed_all(args, found, save_path, beat) -> dict[str, int]:
-    """Log the recording into rerun through the live driver's feed; ``beat``: ``[time of the last
-    progress, the feed]`` for :func:`show_in_rerun`'s watch."""
-    import rerun as rr  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
+    """Log the recording into rerun (:func:`_replay_feed.feed_all`), its reader's failures on a
+    cut-short file named as ``RUN.mcap``'s."""
+    from _replay_feed import feed_all  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd: --help, bad input and --republish answer without it
 
-    from adm_sim.recording import rerun_log as rl  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
-    from adm_sim.recording.viewer_feed import RunPhases, ViewerFeed, stamp_ns  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or an .rrd
-
-    rl.init_rerun("adm_sim_replay", spawn=args.spawn, connect_url=args.connect, save_path=save_path)
-    viz = rl.RunLogger(exaggeration=args.exaggeration)
-    viz.send_blueprint()
-    table = _metadata_table(args.mcap)
-    if table is not None:  # outside the default views
-        rr.log(P.ENTITIES["metadata"], rr.TextDocument(table, media_type=rr.MediaType.MARKDOWN), static=True)
-    feed = ViewerFeed(viz, RunPhases(f"RUN.mcap: '{args.mcap}'"))
-    beat[1:] = [feed]
     messages = decode_messages(sorted_messages(found), args.mcap)  # damage was named by check_readable
-    for topic, log_time_ns, msg in _status_first(_guarded(messages, args.mcap)):
-        feed(topic, msg, stamp_ns(msg, log_time_ns))
-        beat[0] = time.monotonic()
-    feed.finish()
-    beat[0] = time.monotonic()
-    rl.close_rerun()
-    return dict(feed.counts)
-
-
-def _metadata_table(path: Path) -> str | None:
-    """The MCAP's metadata records as a Markdown table (logged to ``metadata``), or None when it has
-    none or they cannot be read (they are optional decoration)."""
-    info = {}
-    with open(path, "rb") as f:
-        try:
-            for meta in make_reader(f).iter_metadata():
-                for k, v in meta.metadata.items():
-                    info[f"{meta.name}.{k}"] = v
-        except Exception:  # metadata are optional decoration
-            return None
-    if not info:
-        return None
-    rows = "\n".join(f"| {k} | {v} |" for k, v in info.items())
-    return f"| key | value |\n|---|---|\n{rows}\n"
-
-
-def _status_first(messages):
-    """``messages`` in log-time order with, among those of one log time, the run's opening topics
-    first: the recorder writes in order of receipt, and the first monitoring sample of a run (step
-    0) carries the same sim time as its ``started`` status, from another publisher."""
-    group, t_group = [], None
-    for item in messages:
-        if item[1] != t_group and group:
-            yield from sorted(group, key=lambda m: m[0] not in P.OPENING_TOPICS)  # stable: receipt order otherwise
-            group = []
-        group.append(item)
-        t_group = item[1]
-    yield from sorted(group, key=lambda m: m[0] not in P.OPENING_TOPICS)
+    return feed_all(args, _guarded(messages, args.mcap), save_path, beat)
 
 
 def _incomplete(path, exc) -> InputError:

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from adm_calib import peaks
 from adm_calib.reference import lower_bound_table
 from adm_calib.study import read_results, select_cases
 
@@ -31,7 +32,11 @@ SEED_HEADING = "## Seed 2 against seed 1 over the whole mu2 set"
 
 
 def dz(rec):
-    return rec.get("delta_zeta_vbi_pct") if rec.get("status") == "ok" else None
+    """The line's Δζ_VBI where it has one (``ok``, or ``range_end`` / ``not_associated``: computed, not
+    determined; lines written before those statuses said ``ok`` for all of them), else ``None``; a
+    ``contact_lost`` line counts as none (its DIM peak breaks the DIM's assumption; the study's fit
+    leaves it out too)."""
+    return rec.get("delta_zeta_vbi_pct") if peaks.has_delta_zeta(rec.get("status")) else None
 
 
 def main():

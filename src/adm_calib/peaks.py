@@ -134,6 +134,8 @@ STATUSES = {
     "grid_too_coarse": "the speed grid misses the resonance (exact MLM envelope)",
     "no_resonance_in_range": "the speed range holds no resonance (exact MLM envelope)",
     **UNDETERMINED_STATUSES,
+    "contact_lost": "a wheel's contact force turns tensile in the DIM run of the peak: the DIM's assumption "
+                    "that the wheels never leave the rail is broken, so its peak is no reference",
 }
 #: Headroom (km/h) the advice adds beyond the end of the range where the resonance lies.
 EXTEND_BY_KMH = 70.0

@@ -119,6 +119,17 @@ def test_resume_with_another_train_is_refused_and_nothing_written(kind, ice2_fil
     assert _snapshot(out) == before
 
 
+def test_study_of_a_train_file_checks_the_files_work(tmp_path, call_main):
+    """The study's work check before anything is written takes a train read from a file from that file
+    (it looked the file's train name up among the built-in trains and refused every train file:
+    "train: 'test car + 3 wagons' is unknown"); here it refuses the work itself, naming it."""
+    out = tmp_path / "study"
+    done = call_main(main, "study", "--out", str(out), "--trains", str(EXAMPLE_FILE), *SLICE_ARGS, "--max-work", "1")
+    assert done.returncode == 2 and done.stdout == ""
+    assert done.stderr.startswith("error: work: 191 lanes x ") and " is beyond the work limit 1 " in done.stderr
+    assert done.stderr.count("\n") == 1 and not out.exists()
+
+
 LOAD_TRAIN = 'name = "loads"\n[[axles]]\nx_m = 0.0\nload_kN = 170.0\n'
 
 

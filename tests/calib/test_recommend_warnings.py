@@ -30,16 +30,17 @@ def test_packaged_cases_are_the_shipped_study():
     text = study_cases_csv(read_results(SHIPPED).records)
     assert resources.files("adm_calib").joinpath(CASES_FILE).read_text() == text
     cases = parse_cases(text)
-    assert len(cases) == 4438  # 4440 cases, 2 without a dz_VBI
-    assert sum(1 for c in cases if c.excluded) == 99  # rule step2: the DIM value is not a local maximum
+    assert len(cases) == 4394  # 4440 cases, 2 without a dz_VBI, 44 whose DIM peak lost wheel-rail contact
+    assert sum(1 for c in cases if c.excluded) == 98  # rule step2: the DIM value is not a local maximum
 
 
 def test_excluded_below_the_conservative_bound():
-    """31 excluded cases below the conservative bound where it is positive (the largest gap ICE-2
+    """30 excluded cases below the conservative bound where it is positive (the largest gap ICE-2
     L13-f3-mu6: -0.51 % against 1.42 %), 29 more negative beyond its root; all excluded by the
-    local-maximum rule."""
+    local-maximum rule (the 31st of the first run, Railjet L23-f1-mu6, is contact_lost since the rerun
+    of 2026-12-07 and no longer among the cases)."""
     rows = excluded_below_bound()
-    assert len(rows) == 31
+    assert len(rows) == 30
     assert len(excluded_negative_beyond_root()) == 29
     assert {c.excluded for c, _ in rows} == {"dim_not_local_max"}
     worst = min(rows, key=lambda r: r[0].delta_zeta_vbi_pct - r[1])

@@ -9,8 +9,10 @@
   dense maximum (2 % allowed, 0.97 % measured) and above it only by RK4's own error and the dense
   grid's (0.1 % allowed, 0.072 % measured);
 * ``adm-sim sweep``'s compiled RK4 at the middle of the longest span against the same reference;
-* the whole check on every layout: finite results, the spans, modes and effects named, L_Phi of
-  Table 6.2 as quoted (k = 1.3, 1.4, 1.5, 1.5), the damping of Table 6.6 at the longest span.
+* the check's set-up on every layout: the rule's modes and their frequencies, L_Phi of Table 6.2 as
+  quoted (k = 1.3, 1.4, 1.5, 1.5), the effects named, the damping of Table 6.6 at the longest span;
+* the whole check on the largest layout (six spans, 84 effects): finite results, and that set-up is
+  what it reports.
 """
 
 import math
@@ -21,9 +23,9 @@ from scipy.integrate import solve_ivp
 
 from test_check_deck import fe_lm71
 
-from adm_sim.design.check_deck import deck_effects, run_deck_check
+from adm_sim.design.check_deck import deck_effects, deck_modes_for, determinant_length_m, run_deck_check
 from adm_sim.design.deck_dynamics import deck_sweep
-from adm_sim.design.deck_statics import ContinuousBeam, DeckEffect, lm71_max
+from adm_sim.design.deck_statics import ContinuousBeam, DeckEffect, beam_of, lm71_max
 from adm_sim.inputs.bridges import parse_bridge_spec
 from adm_sim.inputs.train_files import load_train
 from adm_sim.model.bridge import Bridge, eurocode_damping_pct
@@ -143,14 +145,40 @@ def _dense_point_acc(bridge, v_m_s, t_end_s, x_m):
     return float(np.abs(phi_x @ ((P - Z[:, None] * qd - K[:, None] * q) / M[:, None])).max())
 
 
-@pytest.mark.slow
-@pytest.mark.parametrize("n", sorted(LAYOUTS))
-def test_whole_check_on_every_layout(n):
+def _deck(n):
     spans = LAYOUTS[n]
-    spec = f"spans={'/'.join(f'{s:g}' for s in spans)},EJ=2.2e10,mu=14000,type=sc"
-    deck = parse_bridge_spec(spec)
+    return parse_bridge_spec(f"spans={'/'.join(f'{s:g}' for s in spans)},EJ=2.2e10,mu=14000,type=sc")
+
+
+@pytest.mark.parametrize("n", sorted(LAYOUTS))
+def test_check_set_up_on_every_layout(n):
+    """What the check takes from the layout before its sweeps, by the functions run_deck_check calls:
+    the rule's modes with the model's frequencies, L_Phi of Table 6.2 as quoted (k = 1.3, 1.4, 1.5,
+    1.5), the effects of 6.4.6.5(3) named per span and support, Table 6.6's damping at the longest
+    span. The whole check (its LM71 search over every effect, the sweep, the serviceability limits)
+    runs on the largest layout below: about 3-6 s of CPU per layout, mostly the LM71 search."""
+    spans = LAYOUTS[n]
+    deck = _deck(n)
     assert deck.damping_ratio == pytest.approx(eurocode_damping_pct(max(spans), "sc") / 100.0, rel=1e-15)
-    res = run_deck_check(deck, 160, [load_train("HSLM-A1")])
+    assert deck.damping_source.startswith(f"EN 1991-2 Table 6.6 lower limit for SC (paper Table 2) with "
+                                          f"L = {max(spans):g} m")
+    b, need = deck_modes_for(deck, None)
+    assert need == rule_mode_count(spans, (2.2e10,) * n, (14000.0,) * n) and b.n_modes == need
+    ref = deck_modes(spans, (2.2e10,) * n, (14000.0,) * n, need).frequencies_hz
+    np.testing.assert_allclose(b.frequencies_hz, ref, rtol=1e-14)
+    assert determinant_length_m(spans) == pytest.approx(max(K_TABLE_6_2[n] * sum(spans) / n, max(spans)), rel=1e-15)
+    labels = [e.label for e in deck_effects(beam_of(b))]
+    assert len(labels) == (n + 1) + (n - 1) + 9 * n + 2 * n + n == len(set(labels))
+    assert f"hogging M support {n - 1}" in labels and f"w midspan {n}" in labels and f"reaction support {n}" in labels
+
+
+@pytest.mark.slow
+def test_whole_check_on_the_largest_layout():
+    """The whole check (run_deck_check) on six spans, 84 effects: finite results, and the set-up of
+    :func:`test_check_set_up_on_every_layout` is what it reports."""
+    n = 6
+    spans = LAYOUTS[n]
+    res = run_deck_check(_deck(n), 160, [load_train("HSLM-A1")])
     d = res.to_dict()
     assert d["spans_m"] == list(spans) and len(d["per_span_governing"]) == n
     need = rule_mode_count(spans, (2.2e10,) * n, (14000.0,) * n)
@@ -159,7 +187,7 @@ def test_whole_check_on_every_layout(n):
     assert d["frequencies_hz"] == pytest.approx(ref.tolist(), rel=1e-14)
     assert d["L_phi_m"] == pytest.approx(max(K_TABLE_6_2[n] * sum(spans) / n, max(spans)), rel=1e-15)
     effects = d["en1991_2_6_4_6_5_effects"]
-    assert len(effects) == len(deck_effects(ContinuousBeam(spans, (2.2e10,) * n)))
+    assert len(effects) == len(deck_effects(ContinuousBeam(spans, (2.2e10,) * n))) == 84
     assert all(math.isfinite(e["ratio"]) and e["ratio"] > 0 for e in effects)
     tr = d["trains"][0]
     assert all(math.isfinite(p["max_acc_m_s2"]) and p["max_acc_m_s2"] > 0 for p in tr["per_span"])

@@ -93,9 +93,11 @@ def _scheduler(text):
     return check_scheduler(text)
 
 
-def _check_study_work(cases, settings):
+def _check_study_work(cases, settings, files=None):
     """The work of every batch's runs (lanes x steps x modes of each sweep, :func:`adm_sim.limits.check_work`),
-    refused before anything is written, as the workers would refuse it case by case."""
+    refused before anything is written, as the workers would refuse it case by case. ``files``: the trains
+    read from files (``{name: TrainFile}``), whose names are no built-in train's."""
+    files = files or {}
     v = speeds_to_m_s(settings.speeds_kmh())
     opts = StepOptions(**({} if settings.steps_per_period is None else {"steps_per_period": settings.steps_per_period}))
     trains, seen = {}, set()
@@ -103,7 +105,9 @@ def _check_study_work(cases, settings):
         if c.batch_key in seen:
             continue
         seen.add(c.batch_key)
-        t = trains.setdefault(c.train, _train(c.train))
+        if c.train not in trains:
+            trains[c.train] = files[c.train].train if c.train in files else _train(c.train)
+        t = trains[c.train]
         make_grid(c.bridge, t.length_m, v, opts)
 
 
@@ -135,7 +139,7 @@ def run(args):
     if args.irregularity:
         for span in sorted({c.bridge.span_m for c in cases}):  # a random profile differs per deck length
             parse_irregularity(args.irregularity, span)
-    _check_study_work(cases, settings)
+    _check_study_work(cases, settings, files)
     make_output_folder(out, "--out")
     options = {"trains": trains, "mass_functions": mfs, "spans_m": list(spans), "spans_layout": layout, "freq_index": fis,
                "limit": limit, "workers": workers, "scheduler": scheduler, "retry_errors": args.retry_errors,

@@ -21,6 +21,7 @@
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import sys
 
@@ -53,26 +54,23 @@ def notice_given():
 
 
 def numba_available():
-    """Whether numba is installed (else :func:`njit` leaves functions as plain Python)."""
-    try:
-        import numba  # noqa: F401, PLC0415  numba loads only when asked for
-    except ImportError:  # pragma: no cover - numba is a declared dependency
-        return False
-    return True
+    """Whether numba is installed (else :func:`njit` leaves functions as plain Python); found
+    without importing it."""
+    return importlib.util.find_spec("numba") is not None
 
 
 def njit(*args, **kwargs):
     """``numba.njit`` if numba is installed, else the identity decorator (same arguments)."""
     try:
-        from numba import njit as numba_njit  # noqa: PLC0415  numba loads only with the kernels that need it
+        import numba.core.event  # noqa: PLC0415  numba loads only with the kernels that need it
     except ImportError:  # pragma: no cover - numba is a declared dependency
         if args and callable(args[0]):
             return args[0]
         return lambda f: f
-    _listen_for_compiles()
+    _listen_for_compiles(numba.core.event)
     if args and callable(args[0]):
-        return _cache_may_fail(numba_njit(*args, **kwargs))
-    decorate = numba_njit(*args, **kwargs)
+        return _cache_may_fail(numba.njit(*args, **kwargs))
+    decorate = numba.njit(*args, **kwargs)
     return lambda f: _cache_may_fail(decorate(f))
 
 
@@ -92,15 +90,15 @@ def _cache_may_fail(dispatcher):
     return dispatcher
 
 
-def _listen_for_compiles():
-    """Register (once) the numba event listener that prints :data:`COMPILE_NOTICE`.
+def _listen_for_compiles(event):
+    """Register (once) the numba event listener that prints :data:`COMPILE_NOTICE` (``event``:
+    the module ``numba.core.event``).
 
     numba fires ``numba:compile`` only when it compiles, after a cache miss (loading a cached kernel
     fires nothing), so the line appears exactly when a user waits for the compiler.
     """
     if _LISTENERS:
         return
-    from numba.core import event  # noqa: PLC0415  numba loads only with the kernels that need it
 
     class _CompileNotice(event.Listener):
         def on_start(self, ev):

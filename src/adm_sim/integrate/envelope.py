@@ -570,13 +570,37 @@ def _eval(c1, c2, w, om, lam, tau, n):
 
 
 @njit(cache=True, nogil=True)
-def _newton(c1, c2, w, om, lam, x, lo, hi):
-    """Local extremum of the function of (c1, c2, w) near x inside [lo, hi] (Newton on its derivative)."""
+def _derivative_coefficients(c1, c2, om, lam, n, a, b):
+    """``a_j = c1_j (i om_j)^n``, ``b_j = c2_j lam_j^n``: the coefficients of the n-th derivative, formed as
+    :func:`_eval` forms them (the same complex powers, so the same bits)."""
+    for j in range(c1.size):
+        z = 1j * om[j]
+        a[j] = c1[j] * z**n
+        b[j] = c2[j] * lam[j] ** n
+
+
+@njit(cache=True, nogil=True)
+def _newton(c1, c2, w, om, lam, x, lo, hi, work):
+    """Local extremum of the function of (c1, c2, w) near x inside [lo, hi] (Newton on its derivative).
+
+    The same numbers as Newton on :func:`_eval` (n = 2, then 1, at each x), bit for bit: the derivative
+    coefficients are formed once (``work`` (4, modes) complex, overwritten) instead of at every
+    iteration, and the two derivatives share their exponentials; each term is still
+    ``w_j Im[(c1_j (i om_j)^n) e^(i om_j x) + (c2_j lam_j^n) e^(lam_j x)]``, summed in mode order."""
+    a1, b1, a2, b2 = work[0], work[1], work[2], work[3]
+    _derivative_coefficients(c1, c2, om, lam, 1, a1, b1)
+    _derivative_coefficients(c1, c2, om, lam, 2, a2, b2)
     for _ in range(NEWTON_ITERATIONS):
-        g2 = _eval(c1, c2, w, om, lam, x, 2)
+        g1 = 0.0
+        g2 = 0.0
+        for j in range(c1.size):
+            e1 = cmath.exp(1j * om[j] * x)
+            e2 = cmath.exp(lam[j] * x)
+            g2 += w[j] * (a2[j] * e1 + b2[j] * e2).imag
+            g1 += w[j] * (a1[j] * e1 + b1[j] * e2).imag
         if g2 == 0.0:
             break
-        x = min(hi, max(lo, x - _eval(c1, c2, w, om, lam, x, 1) / g2))
+        x = min(hi, max(lo, x - g1 / g2))
     return x, abs(_eval(c1, c2, w, om, lam, x, 0))
 
 
@@ -647,63 +671,28 @@ def _newton2(c1, c2, om, lam, kw, t, x, tlo, thi, xlo, xhi, t_scale, x_scale):
 
 @njit(cache=True, nogil=True)
 def _search_kernel(pairs, iv, qs, mx):
-    """Sample every (interval, lane) pair of ``pairs`` (:class:`Pairs`) that can still hold a maximum
-    (pruned again against the risen best before each pair), refine every sampled local maximum of
-    every quantity that can reach its best by Newton (in t, or jointly in (t, x) on the deck);
-    ``mx.best``, ``mx.when`` and ``mx.xat`` (quantities, lanes) in place. Returns the number of
-    refinements and of deck candidates.
-
-    One function of 125 lines (issue 34 asks for 80 at most), by measurement: with its per-pair steps
-    in helpers (the work arrays, the active quantities, the pair's start, the last sample, the deck
-    refinement) bench/bench_envelope.py took 1.090x the CPU of this form (B1 x HSLM-A1..A10 + ICE-2,
-    277 speeds, midspan, deck and x = 5 m; 4 alternating rounds, every number bit for bit; 0.997-1.01x
-    when both ran in one process, but the bench's separate processes are what a user runs); with the
-    per-sample body in ``inline="always"`` helpers too, 2.6-2.8x."""
-    kk, ll, m = pairs.k, pairs.l, pairs.m
-    ca1, ca2, cd1, cd2, Om, lam, T, t0 = iv.acc_c1, iv.acc_c2, iv.disp_c1, iv.disp_c2, iv.Om, iv.lam, iv.T, iv.t0
+    """Sample every (interval, lane) pair of ``pairs`` (:class:`Pairs`) that can still hold a maximum (pruned
+    again against the risen best before each pair, :func:`_start_pair`), refine every sampled local maximum
+    of every quantity that can reach its best by Newton (in t at once; jointly in (t, x) on the deck, deferred
+    to :func:`_refine_candidates`); ``mx.best``, ``mx.when`` and ``mx.xat`` (quantities, lanes) in place.
+    Returns the number of refinements and of deck candidates. The per-sample body stays in this loop; the
+    steps per pair are ``inline="always"`` helpers (as plain calls 1.10x the CPU, inlined 0.99-1.01x)."""
+    ca1, ca2, cd1, cd2, T, t0 = iv.acc_c1, iv.acc_c2, iv.disp_c1, iv.disp_c2, iv.T, iv.t0
     fam, deck, npos, W, xp, odd, kw, span, hx = qs.fam, qs.deck, qs.npos, qs.W, qs.xp, qs.odd, qs.kw, qs.span_m, qs.hx_m
-    bound, curv, best, when, xat = mx.bound, mx.curv, mx.best, mx.when, mx.xat
-    nm = lam.size
-    nq = fam.size
-    pmax = W.shape[1]
-    refined = 0
-    ya = np.zeros((nq, 3, pmax))
-    va = np.empty(nm)
-    vd = np.empty(nm)
-    r1 = np.empty(nm, dtype=np.complex128)
-    r2 = np.empty(nm, dtype=np.complex128)
-    e1 = np.empty(nm, dtype=np.complex128)
-    e2 = np.empty(nm, dtype=np.complex128)
-    active = np.zeros(nq, dtype=np.bool_)
-    slack = np.zeros(nq)
-    cf = np.empty((1024, 5))
-    ci = np.empty((1024, 4), dtype=np.int64)
-    nc = 0
+    best, when, xat, nm, nq, refined = mx.best, mx.when, mx.xat, iv.lam.size, qs.fam.size, 0
+    ya, va, vd, active, slack = np.zeros((nq, 3, W.shape[1])), np.empty(nm), np.empty(nm), np.zeros(nq, np.bool_), np.zeros(nq)
+    r1, r2, e1, e2, work = (np.empty(nm, np.complex128), np.empty(nm, np.complex128), np.empty(nm, np.complex128),
+                            np.empty(nm, np.complex128), np.empty((4, nm), np.complex128))
     sx = np.zeros((2, 3))  # x-curvature slack hx^2/8 sum_j k_j^2 |v_j| of the last three samples (per family)
-    for p in range(kk.size):
-        k, l = kk[p], ll[p]
-        need_a = False
-        need_d = False
-        for q in range(nq):
-            active[q] = bound[q, k, l] > best[q, l]
-            if active[q]:
-                if fam[q] == 0:
-                    need_a = True
-                else:
-                    need_d = True
+    cf, ci, nc = np.empty((1024, 5)), np.empty((1024, 4), dtype=np.int64), 0
+    for p in range(pairs.k.size):
+        k, l, m = pairs.k[p], pairs.l[p], pairs.m[p]
+        need_a, need_d = _start_pair(k, l, m, iv, qs, mx, active, slack, r1, r2, e1, e2)
         if not (need_a or need_d):
             continue
         T_ = T[k, l]
-        h = T_ / m[p]
-        om = Om[l]
-        for q in range(nq):
-            slack[q] = curv[q, k, l] * h * h / 4.0
-        for j in range(nm):
-            r1[j] = cmath.exp(1j * om[j] * h)
-            r2[j] = cmath.exp(lam[j] * h)
-            e1[j] = 1.0
-            e2[j] = 1.0
-        for i in range(m[p] + 1):
+        h = T_ / m
+        for i in range(m + 1):
             sx[0, 0], sx[0, 1], sx[1, 0], sx[1, 1] = sx[0, 1], sx[0, 2], sx[1, 1], sx[1, 2]
             sx[0, 2] = 0.0
             sx[1, 2] = 0.0
@@ -726,8 +715,6 @@ def _search_kernel(pairs, iv, qs, mx):
                     o = 0.0
                     e = 0.0
                     if deck[q]:
-                        o = 0.0
-                        e = 0.0
                         for j in range(nm):
                             if odd[j]:
                                 o += W[q, pp, j] * v[j]
@@ -743,10 +730,7 @@ def _search_kernel(pairs, iv, qs, mx):
                     if y > best[q, l]:
                         best[q, l] = y
                         when[q, l] = t0[k, l] + i * h
-                        if deck[q] and abs(o + e) < abs(o - e):
-                            xat[q, l] = span - xp[q, pp]
-                        else:
-                            xat[q, l] = xp[q, pp]
+                        xat[q, l] = span - xp[q, pp] if deck[q] and abs(o + e) < abs(o - e) else xp[q, pp]
                 if i == 0:
                     continue
                 # sample i-1 is a local maximum (the first sample compares with its right side only)
@@ -758,26 +742,73 @@ def _search_kernel(pairs, iv, qs, mx):
                             if _x_local(ya, q, 1, pp, npos[q]):
                                 cf, ci, nc = _push(cf, ci, nc, y1, y1 + s1, (i - 1) * h, h, T_, q, pp, k, l)
                         else:
-                            refined += _refine_t(q, pp, (i - 1) * h, h, T_, k, l, iv, qs, mx)
-        for q in range(nq):  # the last sample
-            if not active[q]:
-                continue
-            for pp in range(npos[q]):
-                s2 = slack[q] + (sx[fam[q], 2] if deck[q] else 0.0)
-                if ya[q, 2, pp] >= ya[q, 1, pp] and ya[q, 2, pp] + s2 >= best[q, l]:
-                    if deck[q]:
-                        if _x_local(ya, q, 2, pp, npos[q]):
-                            cf, ci, nc = _push(cf, ci, nc, ya[q, 2, pp], ya[q, 2, pp] + s2, m[p] * h, h, T_, q, pp, k, l)
-                    else:
-                        refined += _refine_t(q, pp, m[p] * h, h, T_, k, l, iv, qs, mx)
-    # deck candidates, deferred until every pair is sampled (the best is then near the maximum), the
-    # largest sample first
+                            refined += _refine_t(q, pp, (i - 1) * h, h, T_, k, l, iv, qs, mx, work)
+        r, cf, ci, nc = _last_sample(k, l, m, h, iv, qs, mx, ya, sx, active, slack, work, cf, ci, nc)
+        refined += r
+    return refined + _refine_candidates(cf, ci, nc, iv, qs, mx), nc
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _start_pair(k, l, m, iv, qs, mx, active, slack, r1, r2, e1, e2):
+    """The quantities whose bound over interval ``k`` of lane ``l`` still reaches their best (``active``)
+    and whether the acceleration and the deflection are needed; when one is, the slack of each quantity
+    over a step ``h = T / m`` and the exponentials of the first sample and of one step (in ``slack``, ``e1``, ``e2``, ``r1``, ``r2``)."""
+    need_a = False
+    need_d = False
+    for q in range(qs.fam.size):
+        active[q] = mx.bound[q, k, l] > mx.best[q, l]
+        if active[q]:
+            if qs.fam[q] == 0:
+                need_a = True
+            else:
+                need_d = True
+    if not (need_a or need_d):
+        return need_a, need_d
+    h = iv.T[k, l] / m
+    om, lam = iv.Om[l], iv.lam
+    for q in range(qs.fam.size):
+        slack[q] = mx.curv[q, k, l] * h * h / 4.0
+    for j in range(lam.size):
+        r1[j] = cmath.exp(1j * om[j] * h)
+        r2[j] = cmath.exp(lam[j] * h)
+        e1[j] = 1.0
+        e2[j] = 1.0
+    return need_a, need_d
+
+
+@njit(cache=True, nogil=True)
+def _refine_candidates(cf, ci, nc, iv, qs, mx):
+    """Refine the deck candidates (:func:`_push`), deferred until every pair is sampled (the best is then
+    near the maximum), the largest sample first, each only if its bound still reaches the best; returns
+    the number refined."""
+    refined = 0
     for c in np.argsort(-cf[:nc, 0]):
         q, pp, k, l = ci[c, 0], ci[c, 1], ci[c, 2], ci[c, 3]
-        if cf[c, 1] < best[q, l]:
+        if cf[c, 1] < mx.best[q, l]:
             continue
         refined += _refine_deck(q, pp, cf[c, 2], cf[c, 3], cf[c, 4], k, l, iv, qs, mx)
-    return refined, nc
+    return refined
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _last_sample(k, l, m, h, iv, qs, mx, ya, sx, active, slack, work, cf, ci, nc):
+    """The last sample ``m`` of the pair (interval ``k``, lane ``l``, step ``h``) judged as a local maximum
+    (its left side only) as :func:`_search_kernel` judges the others; returns the refinements and the deck
+    candidates ``cf, ci, nc`` (:func:`_push`)."""
+    best, fam, deck, npos, T_ = mx.best, qs.fam, qs.deck, qs.npos, iv.T[k, l]
+    refined = 0
+    for q in range(fam.size):
+        if not active[q]:
+            continue
+        for pp in range(npos[q]):
+            s2 = slack[q] + (sx[fam[q], 2] if deck[q] else 0.0)
+            if ya[q, 2, pp] >= ya[q, 1, pp] and ya[q, 2, pp] + s2 >= best[q, l]:
+                if deck[q]:
+                    if _x_local(ya, q, 2, pp, npos[q]):
+                        cf, ci, nc = _push(cf, ci, nc, ya[q, 2, pp], ya[q, 2, pp] + s2, m * h, h, T_, q, pp, k, l)
+                else:
+                    refined += _refine_t(q, pp, m * h, h, T_, k, l, iv, qs, mx, work)
+    return refined, cf, ci, nc
 
 
 @njit(cache=True, nogil=True)
@@ -803,12 +834,13 @@ def _push(cf, ci, nc, y, bound, t, h, T_, q, pp, k, l):
 
 
 @njit(cache=True, nogil=True)
-def _refine_t(q, pp, x, h, T_, k, l, iv, qs, mx):
+def _refine_t(q, pp, x, h, T_, k, l, iv, qs, mx, work):
     """Refine a candidate of quantity ``q`` at position ``pp`` (one position, not the deck) at time ``x``
-    of interval ``k``, lane ``l`` (step ``h``, length ``T_``) by Newton in t; into ``mx`` in place."""
+    of interval ``k``, lane ``l`` (step ``h``, length ``T_``) by Newton in t; into ``mx`` in place
+    (``work``: :func:`_newton`'s)."""
     c1 = iv.acc_c1[k, l] if qs.fam[q] == 0 else iv.disp_c1[k, l]
     c2 = iv.acc_c2[k, l] if qs.fam[q] == 0 else iv.disp_c2[k, l]
-    x, y = _newton(c1, c2, qs.W[q, pp], iv.Om[l], iv.lam, x, max(0.0, x - h), min(T_, x + h))
+    x, y = _newton(c1, c2, qs.W[q, pp], iv.Om[l], iv.lam, x, max(0.0, x - h), min(T_, x + h), work)
     if y > mx.best[q, l]:
         mx.best[q, l] = y
         mx.when[q, l] = iv.t0[k, l] + x

@@ -14,13 +14,15 @@ by the same functions the numpy stepper uses) and, here, :class:`Blocks`, :class
 :class:`MlmLanes`, :class:`LaneState`. A DIM stage calls one helper per numpy step:
 :func:`rail_state` (``BridgeSide.rail_state``), :func:`vehicle_accelerations`
 (``TrainSide.take_rail_state``), :func:`bridge_accelerations` (``BridgeSide.take_forces``),
-:func:`midspan_acceleration`; a step starts with :func:`start_step`, :func:`start_units` and ends
-with the maxima, whose dense part (:func:`dense_maxima`) both kernels share. The DIM's RK4
-bookkeeping (``_Rk4State.push``) stays inline in :func:`dim_blocks`: moved into ``inline="always"``
-helpers (one per subsystem, and the run's set-up and scratch arrays into helpers returning named
-tuples) the kernel ran 5-10 % slower (``bench/bench_kernels.py --baseline``, 2026-12-06), beyond
-the 3 % this project allows. An MLM step is :func:`mlm_step` (``BridgeSide.step_mlm``) then
-:func:`sampled_maxima`, ``inline="always"`` helpers that cost nothing measurable (0.98-1.00x).
+:func:`midspan_acceleration`, :func:`contact_forces`, and :func:`rk4_push` (``_Rk4State.push``) for
+each subsystem; a step starts with :func:`start_step`, :func:`start_units` and ends with the maxima
+(:func:`sampled_maxima`, :func:`dense_maxima`), which both kernels share; a run's set-up is
+:func:`same_steps_run`, :func:`lane_tables`, :func:`scratch` and its end :func:`put_lanes`. An MLM
+step is :func:`mlm_step` (``BridgeSide.step_mlm``) then the maxima. Every helper is
+``inline="always"``: numba splices it into the kernel before compiling, so a helper costs no call,
+and the work arrays stay the kernel's own, which keeps the loops over lanes vectorised (against
+the DIM kernel written in one piece, ``bench/bench_kernels.py --baseline``: no slow-down beyond the
+noise of the bench, the maxima bit for bit equal; the CHANGELOG has the figures).
 
 One source: without numba the same functions run as plain Python (slow, for debugging;
 ``tests/integrate/test_kernels_uncompiled.py``). The numpy stepper stays the reference (the ROS nodes use
@@ -428,25 +430,113 @@ def sampled_maxima(acc, d, amax, dmax):
             dmax[b] = abs(d[b])
 
 
+@njit(cache=True, inline="always")
+def same_steps_run(blocks, bi):
+    """End ``be`` of the run of blocks ``bi .. be - 1`` that have block ``bi``'s number of steps (the
+    bridges of one span in a batch, as a rule): :func:`dim_blocks` advances them as one."""
+    n_blocks = blocks.ptr.shape[0] - 1
+    be = bi + 1
+    while be < n_blocks and blocks.steps[be] == blocks.steps[bi]:
+        be += 1
+    return be
+
+
+@njit(cache=True, inline="always")
+def lane_tables(blocks, bi, be, lanes, bridge):
+    """Per lane of the blocks ``bi .. be - 1`` (n_lanes of the run, from lane ``blocks.ptr[bi]``): the
+    bridge ``cl``, its modal stiffness ``Kl`` (n_modes, n_lanes), speed ``vl``, time step ``hl`` and
+    modal damping ``Zl`` (n_modes, n_lanes), copies laid out lane-innermost."""
+    l0 = blocks.ptr[bi]
+    nb = blocks.ptr[be] - l0
+    nm = bridge.K.shape[1]
+    cl = np.empty(nb, np.int64)
+    for g in range(bi, be):
+        for b in range(blocks.ptr[g] - l0, blocks.ptr[g + 1] - l0):
+            cl[b] = blocks.case[g]
+    Kl = np.empty((nm, nb))
+    Zl = np.empty((nm, nb))
+    for j in range(nm):
+        for b in range(nb):
+            Kl[j, b] = bridge.K[cl[b], j]
+            Zl[j, b] = lanes.Z[l0 + b, j]
+    return cl, Kl, lanes.v[l0:l0 + nb].copy(), lanes.h[l0:l0 + nb].copy(), Zl
+
+
+@njit(cache=True, inline="always")
+def scratch(n, nb):
+    """Five zeroed work arrays (n, nb) of one subsystem: its stage state ``sx``, ``sxd``, the RK4
+    sums ``ax``, ``axd`` and the stage derivative ``sxdd``."""
+    return np.zeros((n, nb)), np.zeros((n, nb)), np.zeros((n, nb)), np.zeros((n, nb)), np.zeros((n, nb))
+
+
+@njit(cache=True, inline="always")
+def rk4_push(st, i0, i1, h, x, xd, sx, sxd, sxdd, ax, axd):
+    """RK4 bookkeeping of rows ``i0 .. i1 - 1`` of one subsystem at stage ``st`` (``_Rk4State.push``):
+    the weighted sums ``ax``, ``axd`` take the stage derivative ``(sxd, sxdd)``; then the next
+    stage's state ``sx``, ``sxd`` or, after stage 3, the step's new state ``x``, ``xd`` (n, n_lanes)."""
+    nb = h.shape[0]
+    wgt = RK4_W[st]
+    cst = RK4_C[st + 1] if st < 3 else 0.0
+    for i in range(i0, i1):
+        for b in range(nb):
+            if st == 0:
+                ax[i, b] = wgt * sxd[i, b]
+                axd[i, b] = wgt * sxdd[i, b]
+            else:
+                ax[i, b] = ax[i, b] + wgt * sxd[i, b]
+                axd[i, b] = axd[i, b] + wgt * sxdd[i, b]
+        if st < 3:
+            for b in range(nb):
+                cc = cst * h[b]
+                x_new = x[i, b] + cc * sxd[i, b]
+                sxd[i, b] = xd[i, b] + cc * sxdd[i, b]
+                sx[i, b] = x_new
+        else:
+            for b in range(nb):
+                x[i, b] = x[i, b] + h[b] * ax[i, b]
+                xd[i, b] = xd[i, b] + h[b] * axd[i, b]
+
+
+@njit(cache=True, inline="always")
+def rk4_push_units(st, vehicles, units, a0, a1, h, u, ud, su, sud, udd, au, aud):
+    """:func:`rk4_push` of the degrees of freedom of the active units ``units[a0:a1]``."""
+    dof0 = vehicles.unit_dof0
+    ndof = vehicles.unit_ndof
+    for ia in range(a0, a1):
+        un = units[ia]
+        rk4_push(st, dof0[un], dof0[un] + ndof[un], h, u, ud, su, sud, udd, au, aud)
+
+
+@njit(cache=True, inline="always")
+def put_lanes(state, contact, l0, q, qd, u, ud, amax, dmax, cmin):
+    """Write a run's state, maxima and smallest contact force back at lanes ``l0 ..``."""
+    nb = amax.shape[0]
+    state.q[:, l0:l0 + nb] = q
+    state.qd[:, l0:l0 + nb] = qd
+    state.u[:, l0:l0 + nb] = u
+    state.ud[:, l0:l0 + nb] = ud
+    state.max_acc[l0:l0 + nb] = amax
+    state.max_disp[l0:l0 + nb] = dmax
+    contact.min_n[l0:l0 + nb] = cmin
+
+
 @njit(cache=True, nogil=True)
 def dim_blocks(blocks, k0, k1, lanes, bridge, rows, units, vehicles, state, dense, track, contact):
     """DIM (Eqs. 7-17) with one exchange per RK stage, every lane over all its steps.
 
-    ``blocks`` (:class:`Blocks`): lanes of one bridge and one step count; consecutive blocks with
-    the same step count (the bridges of one span in a batch, as a rule) advance together, innermost,
-    each lane with its own bridge's modal stiffness and Eq. (13) inverses, so every inner loop runs
-    over one long run of contiguous lanes (SIMD; per lane the same operations in the same order as
-    block by block, so bit for bit the same maxima, ~2.4x faster for 6 bridges x 8 speeds,
-    ``bench/bench_kernels.py``); ``lanes``
-    (:class:`DimLanes`); ``bridge`` (:class:`adm_sim.integrate.tables.BridgeTables`); ``rows``
-    (:class:`adm_sim.integrate.tables.AxleRows` of every half-step row from 0, with ``minv``); ``units``
-    (:class:`adm_sim.integrate.tables.ActiveUnits` of every step from 0); ``vehicles``
-    (:class:`adm_sim.integrate.tables.VehicleTables`); ``track`` (:class:`Track`) the irregularity under
-    the axles of ``rows`` (zeros: smooth track); ``contact`` (:class:`Contact`) the contact check,
-    updated in place. A stage is the numpy stepper's, helper by helper:
-    :func:`rail_state`, :func:`vehicle_accelerations`, :func:`bridge_accelerations`, (stage 0)
-    :func:`midspan_acceleration` and :func:`contact_forces`, the RK4 bookkeeping of both subsystems; a step starts with
-    :func:`start_step` and ends with the maxima (:func:`dense_maxima` with ``dense``).
+    ``blocks`` (:class:`Blocks`); ``lanes`` (:class:`DimLanes`); ``bridge``
+    (:class:`adm_sim.integrate.tables.BridgeTables`); ``rows`` (:class:`adm_sim.integrate.tables.AxleRows` of
+    every half-step row from 0, with ``minv``); ``units`` (:class:`adm_sim.integrate.tables.ActiveUnits` of
+    every step from 0); ``vehicles`` (:class:`adm_sim.integrate.tables.VehicleTables`); ``track``
+    (:class:`Track`, zeros: smooth); ``contact`` (:class:`Contact`), updated in place. Consecutive
+    blocks with the same step count (:func:`same_steps_run`) advance together, innermost, each lane
+    with its own bridge's stiffness and Eq. (13) inverses (:func:`lane_tables`): every inner loop
+    runs over one long run of contiguous lanes (SIMD; per lane the same operations in the same order
+    as block by block, ~2.4x faster for 6 bridges x 8 speeds, ``bench/bench_kernels.py``). A stage is
+    the numpy stepper's, helper by helper: :func:`rail_state`, :func:`vehicle_accelerations`,
+    :func:`bridge_accelerations`, (stage 0) :func:`midspan_acceleration` and :func:`contact_forces`,
+    then :func:`rk4_push` of both subsystems; a step starts with :func:`start_step` and ends with the
+    maxima (:func:`sampled_maxima`, :func:`dense_maxima` with ``dense``).
 
     Resumable: advances every lane from step ``k0`` to ``min(k1, its block's steps)``; ``state``
     (:class:`LaneState`) is updated in place, so chunks give bit for bit what one call gives.
@@ -454,146 +544,51 @@ def dim_blocks(blocks, k0, k1, lanes, bridge, rows, units, vehicles, state, dens
     nm = bridge.K.shape[1]
     n_dof = vehicles.minv_dof.shape[0]
     n_axles = vehicles.axle_load_n.shape[0]
-    phi_mid = bridge.phi_mid
     act_ptr = units.ptr
     act_units = units.units
-    unit_dof0 = vehicles.unit_dof0
-    unit_ndof = vehicles.unit_ndof
-    block_ptr = blocks.ptr
-    n_blocks = block_ptr.shape[0] - 1
+    n_blocks = blocks.ptr.shape[0] - 1
     be = 0
     while be < n_blocks:
-        # a run of consecutive blocks with the same number of steps (the bridges of a batch, as a
-        # rule) advances as one: longer loops over lanes (bench/bench_kernels.py, docs/benchmarks.md)
         bi = be
-        be = bi + 1
-        while be < n_blocks and blocks.steps[be] == blocks.steps[bi]:
-            be += 1
-        l0 = block_ptr[bi]
-        nb = block_ptr[be] - l0
+        be = same_steps_run(blocks, bi)
+        l0 = blocks.ptr[bi]
+        nb = blocks.ptr[be] - l0
         k_end = min(k1, blocks.steps[bi])
         if k0 >= k_end:
             continue
-        cl = np.empty(nb, np.int64)
-        for g in range(bi, be):
-            for b in range(block_ptr[g] - l0, block_ptr[g + 1] - l0):
-                cl[b] = blocks.case[g]
-        Kl = np.empty((nm, nb))
-        for j in range(nm):
-            for b in range(nb):
-                Kl[j, b] = bridge.K[cl[b], j]
-        vl = lanes.v[l0:l0 + nb].copy()
-        hl = lanes.h[l0:l0 + nb].copy()
-        Zb = np.empty((nm, nb))
-        for j in range(nm):
-            for b in range(nb):
-                Zb[j, b] = lanes.Z[l0 + b, j]
+        cl, Kl, vl, hl, Zl = lane_tables(blocks, bi, be, lanes, bridge)
         q = state.q[:, l0:l0 + nb].copy()
         qd = state.qd[:, l0:l0 + nb].copy()
-        sq = np.zeros((nm, nb))
-        sqd = np.zeros((nm, nb))
-        aq = np.zeros((nm, nb))
-        aqd = np.zeros((nm, nb))
-        qdd = np.zeros((nm, nb))
-        p = np.zeros((nm, nb))
-        rhs = np.zeros((nm, nb))
         u = state.u[:, l0:l0 + nb].copy()
         ud = state.ud[:, l0:l0 + nb].copy()
-        su = np.zeros((n_dof, nb))
-        sud = np.zeros((n_dof, nb))
-        au = np.zeros((n_dof, nb))
-        aud = np.zeros((n_dof, nb))
-        udd = np.zeros((n_dof, nb))
-        W = np.zeros((n_axles, nb))
-        Wd = np.zeros((n_axles, nb))
-        f = np.zeros((n_axles, nb))
-        g = np.zeros((n_axles, nb))
-        cmin = contact.min_n[l0:l0 + nb].copy()
-        t1 = np.zeros(nb)
-        t2 = np.zeros(nb)
-        t3 = np.zeros(nb)
-        acc0 = np.zeros(nb)
-        d = np.zeros(nb)
-        vel = np.zeros(nb)
         amax = state.max_acc[l0:l0 + nb].copy()
         dmax = state.max_disp[l0:l0 + nb].copy()
+        cmin = contact.min_n[l0:l0 + nb].copy()
+        sq, sqd, aq, aqd, qdd = scratch(nm, nb)
+        su, sud, au, aud, udd = scratch(n_dof, nb)
+        W, Wd, f, g = np.zeros((n_axles, nb)), np.zeros((n_axles, nb)), np.zeros((n_axles, nb)), np.zeros((n_axles, nb))
+        p, rhs = np.zeros((nm, nb)), np.zeros((nm, nb))
+        t1, t2, t3, acc0, d, vel = np.zeros(nb), np.zeros(nb), np.zeros(nb), np.zeros(nb), np.zeros(nb), np.zeros(nb)
         for k in range(k0, k_end):
             a0 = act_ptr[k]
             a1 = act_ptr[k + 1]
-            start_step(q, qd, phi_mid, d, vel, sq, sqd)
+            start_step(q, qd, bridge.phi_mid, d, vel, sq, sqd)
             start_units(vehicles, act_units, a0, a1, u, ud, su, sud)
             for st in range(4):
                 r = 2 * k + STAGE_ROW[st]
                 rail_state(rows, r, sq, sqd, vl, W, Wd, t1, t2, t3, track)
                 vehicle_accelerations(vehicles, act_units, a0, a1, su, sud, W, Wd, f, udd, t1, t2, t3)
-                bridge_accelerations(rows, r, cl, Kl, vehicles, sq, sqd, vl, Zb, f, W, Wd, p, rhs, qdd,
+                bridge_accelerations(rows, r, cl, Kl, vehicles, sq, sqd, vl, Zl, f, W, Wd, p, rhs, qdd,
                                      t1, t2, t3, track, g)
                 if st == 0:
-                    midspan_acceleration(qdd, phi_mid, acc0)
+                    midspan_acceleration(qdd, bridge.phi_mid, acc0)
                     contact_forces(rows, r, k, l0, vehicles, qdd, g, cmin, t1, contact)
-                # 4. RK4 bookkeeping of both subsystems (as rk4_sides._Rk4State.push), inline: as a
-                # helper it costs ~20 % of the kernel's time (bench/bench_kernels.py, docs/benchmarks.md)
-                wgt = RK4_W[st]
-                for j in range(nm):
-                    for b in range(nb):
-                        if st == 0:
-                            aq[j, b] = wgt * sqd[j, b]
-                            aqd[j, b] = wgt * qdd[j, b]
-                        else:
-                            aq[j, b] = aq[j, b] + wgt * sqd[j, b]
-                            aqd[j, b] = aqd[j, b] + wgt * qdd[j, b]
-                for ia in range(a0, a1):
-                    un = act_units[ia]
-                    for dd in range(unit_dof0[un], unit_dof0[un] + unit_ndof[un]):
-                        for b in range(nb):
-                            if st == 0:
-                                au[dd, b] = wgt * sud[dd, b]
-                                aud[dd, b] = wgt * udd[dd, b]
-                            else:
-                                au[dd, b] = au[dd, b] + wgt * sud[dd, b]
-                                aud[dd, b] = aud[dd, b] + wgt * udd[dd, b]
-                if st < 3:
-                    cst = RK4_C[st + 1]
-                    for j in range(nm):
-                        for b in range(nb):
-                            cc = cst * hl[b]
-                            x_new = q[j, b] + cc * sqd[j, b]
-                            sqd[j, b] = qd[j, b] + cc * qdd[j, b]
-                            sq[j, b] = x_new
-                    for ia in range(a0, a1):
-                        un = act_units[ia]
-                        for dd in range(unit_dof0[un], unit_dof0[un] + unit_ndof[un]):
-                            for b in range(nb):
-                                cc = cst * hl[b]
-                                x_new = u[dd, b] + cc * sud[dd, b]
-                                sud[dd, b] = ud[dd, b] + cc * udd[dd, b]
-                                su[dd, b] = x_new
-                else:
-                    for j in range(nm):
-                        for b in range(nb):
-                            q[j, b] = q[j, b] + hl[b] * aq[j, b]
-                            qd[j, b] = qd[j, b] + hl[b] * aqd[j, b]
-                    for ia in range(a0, a1):
-                        un = act_units[ia]
-                        for dd in range(unit_dof0[un], unit_dof0[un] + unit_ndof[un]):
-                            for b in range(nb):
-                                u[dd, b] = u[dd, b] + hl[b] * au[dd, b]
-                                ud[dd, b] = ud[dd, b] + hl[b] * aud[dd, b]
-            # the sampled maxima (stage 0 of every step, _BridgeRun), then the dense ones
-            for b in range(nb):
-                if abs(acc0[b]) > amax[b]:
-                    amax[b] = abs(acc0[b])
-                if abs(d[b]) > dmax[b]:
-                    dmax[b] = abs(d[b])
+                rk4_push(st, 0, nm, hl, q, qd, sq, sqd, qdd, aq, aqd)
+                rk4_push_units(st, vehicles, act_units, a0, a1, hl, u, ud, su, sud, udd, au, aud)
+            sampled_maxima(acc0, d, amax, dmax)
             if dense:
                 dense_maxima(k, l0, acc0, d, vel, hl, amax, state.prev)
-        state.q[:, l0:l0 + nb] = q
-        state.qd[:, l0:l0 + nb] = qd
-        state.u[:, l0:l0 + nb] = u
-        state.ud[:, l0:l0 + nb] = ud
-        state.max_acc[l0:l0 + nb] = amax
-        state.max_disp[l0:l0 + nb] = dmax
-        contact.min_n[l0:l0 + nb] = cmin
+        put_lanes(state, contact, l0, q, qd, u, ud, amax, dmax, cmin)
 
 
 @njit(cache=True, inline="always")

@@ -7,7 +7,8 @@ spectral peak, 2. the band-pass, 3. the half-cycle peaks and the start of the ex
 (the logarithmic decrement), 4. the least-squares fit of a decaying sinusoid (across dropouts:
 :func:`_refit_over_gaps`), 5. the checks and the standard uncertainties. A passage that gives no
 mode raises :class:`IdentificationError` inside this module; :func:`identify_first_mode` returns its
-one-line reason instead.
+one-line reason instead. The steps that call scipy (the band-pass, the peaks, the least-squares fit,
+the noise variance) are :mod:`adm_sim.monitoring.decay_signal`'s, loaded with the first analysis.
 """
 
 from __future__ import annotations
@@ -81,25 +82,6 @@ def _spectral_peak_hz(x, dt, f_lo, f_hi):
     return float(f[i])
 
 
-def _bandpass(x, dt, f_hz, ratio):
-    from scipy.signal import butter, sosfiltfilt  # noqa: PLC0415  deferred: scipy.signal costs ~1.5 s to import
-
-    nyq = 0.5 / dt
-    lo, hi = f_hz / ratio, min(f_hz * ratio, 0.9 * nyq)
-    sos = butter(2, [lo / nyq, hi / nyq], btype="bandpass", output="sos")
-    return sosfiltfilt(sos, x, padlen=min(x.size - 1, 3 * int(round(1.0 / (f_hz * dt)))))
-
-
-def _half_cycle_peaks(x, dt, f_hz):
-    """Indices of the extrema of ``x`` (maxima and minima, about one per half period)."""
-    from scipy.signal import find_peaks  # noqa: PLC0415  deferred: scipy.signal costs ~1.5 s to import
-
-    dist = max(1, int(0.7 / (f_hz * dt)))  # one maximum and one minimum per period
-    up, _ = find_peaks(x, distance=dist)
-    down, _ = find_peaks(-x, distance=dist)
-    return np.sort(np.concatenate([up, down]))
-
-
 def _line(tp, y, w):
     """Weighted straight line through ``(tp, y)``: ``(slope, intercept, weighted RMS scatter)``."""
     W = w.sum()
@@ -129,51 +111,20 @@ def _decay_start(tp, ap, min_peaks, max_scatter, noise):
 
 
 # ---------------------------------------------------------------------- the fit
-def _model(p, t):
-    sigma, wd, b1, b2, c = p
-    e = np.exp(-sigma * t)
-    return e * (b1 * np.cos(wd * t) + b2 * np.sin(wd * t)) + c
-
-
-def _jac(p, t):
-    sigma, wd, b1, b2, _ = p
-    e = np.exp(-sigma * t)
-    cw, sw = np.cos(wd * t), np.sin(wd * t)
-    osc = b1 * cw + b2 * sw
-    return np.column_stack([-t * e * osc, e * t * (-b1 * sw + b2 * cw), e * cw, e * sw, np.ones_like(t)])
-
-
 def _fit(t, x, f0_hz, sigma0):
-    """Least-squares fit of the decaying sinusoid; returns ``(params, jacobian, residuals)``."""
-    from scipy.optimize import least_squares  # noqa: PLC0415  deferred: scipy.optimize costs ~1 s to import
-
-    wd0 = 2 * math.pi * f0_hz
-    E = np.exp(-sigma0 * t)
-    A = np.column_stack([E * np.cos(wd0 * t), E * np.sin(wd0 * t), np.ones_like(t)])
-    b1, b2, c = np.linalg.lstsq(A, x, rcond=None)[0]
-    p0 = np.array([sigma0, wd0, b1, b2, c])
-    res = least_squares(lambda p: _model(p, t) - x, p0, jac=lambda p: _jac(p, t), method="lm",
-                        x_scale="jac", xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=2000)
+    """Least-squares fit of the decaying sinusoid (:func:`adm_sim.monitoring.decay_signal.fit_decay`);
+    returns ``(params, jacobian, residuals)``."""
+    res = _signal().fit_decay(t, x, f0_hz, sigma0)
     if not res.success:
         raise IdentificationError(f"the decaying-sinusoid fit did not converge ({res.message})")
     return res.x, res.jac, res.fun
 
 
-def _noise_variance(r, dt, fd_hz):
-    """``S_r(f_d) f_s / 2``: the residuals' variance as seen at the mode's frequency (Welch PSD,
-    one-sided, averaged over ``f_d`` ± 20 %); the plain variance when too few samples."""
-    from scipy.signal import welch  # noqa: PLC0415  deferred: scipy.signal costs ~1.5 s to import
+def _signal():
+    """:mod:`adm_sim.monitoring.decay_signal`, the steps that call scipy.signal and scipy.optimize."""
+    from adm_sim.monitoring import decay_signal  # noqa: PLC0415  scipy.signal (~1.5 s) and scipy.optimize (~1 s) when a free decay is analysed, not when a monitor starts
 
-    n = r.size
-    nper = max(16, min(n, int(round(8.0 / (fd_hz * dt)))))  # about 8 periods per segment
-    if n < 2 * nper:
-        return float(np.mean(r ** 2))
-    f, S = welch(r, fs=1.0 / dt, nperseg=nper, detrend="constant")
-    band = (f >= fd_hz / 1.2) & (f <= fd_hz * 1.2)
-    if not band.any():
-        band = np.zeros_like(f, dtype=bool)
-        band[np.argmin(np.abs(f - fd_hz))] = True
-    return float(S[band].mean() * 0.5 / dt)
+    return decay_signal
 
 
 def identify_first_mode(t_s, a_m_s2, t_free_s=None, settings=None):
@@ -301,7 +252,7 @@ def _decay_peaks(rec, xf, *, i_from, i_end, f0, t_free_s, s):
     t = rec.t
     if t_free_s is not None:
         i_from = int(np.searchsorted(t, t_free_s + s.settle_periods / f0))
-    pk = _half_cycle_peaks(xf[:i_end], rec.dt, f0)
+    pk = _signal().half_cycle_peaks(xf[:i_end], rec.dt, f0)
     pk = pk[(pk >= i_from) & ~rec.miss[pk]]
     min_peaks = max(4, int(math.ceil(2 * s.min_cycles)))
     n_avail = (t[i_end - 1] - t[min(i_from, i_end - 1)]) * f0
@@ -387,7 +338,7 @@ def _refit_over_gaps(rec, p, tw, *, i0, s):
                                   f"{g_long[2]} samples) at t={g_long[0]:.3f} s in the free decay: longer than "
                                   f"the {s.max_gap_periods:g} period the fit bridges")
     x = _fill_gaps(t, rec.a - np.median(rec.a), miss, rec.gaps, fd_fit, max(float(p[0]), 0.0))
-    xf = _bandpass(x, rec.dt, fd_fit, s.band_ratio) if s.bandpass else x
+    xf = _signal().bandpass(x, rec.dt, fd_fit, s.band_ratio) if s.bandpass else x
     xw, keep = xf[i0:i0 + tw.size], ~miss[i0:i0 + tw.size]
     return _fit(tw[keep], xw[keep], fd_fit, max(float(p[0]), 1e-6 * fd_fit)), gaps, FIT_PRESENT
 
@@ -414,7 +365,7 @@ def _modal_fit(rec, fit, tw, *, i0, scatter, gaps, method, s):
     if snr < s.min_snr:
         raise IdentificationError(f"signal-to-noise ratio {snr:.3g} at the start of the free decay "
                                   f"(< {s.min_snr:g} needed to identify damping)")
-    s2 = _noise_variance(r, rec.dt, fd)
+    s2 = _signal().noise_variance(r, rec.dt, fd)
     try:
         cov = s2 * np.linalg.inv(J.T @ J)
     except np.linalg.LinAlgError:
@@ -443,7 +394,7 @@ def _identify(t_s, a_m_s2, t_free_s, s):
     t, dt = rec.t, rec.dt
     i_from, f0, x = _free_vibration(rec, t_free_s)
     # 2. band-pass over the whole record
-    xf = _bandpass(x, dt, f0, s.band_ratio) if s.bandpass else x
+    xf = _signal().bandpass(x, dt, f0, s.band_ratio) if s.bandpass else x
     # the band-pass's last period is left out; a record shorter than that period has no free decay to
     # read (at least one sample kept, so that the count of cycles below is 0, not an index from the end)
     i_end = max(1, t.size - (int(round(1.0 / (f0 * dt))) if s.bandpass else 0))

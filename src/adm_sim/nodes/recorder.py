@@ -63,18 +63,12 @@ class RunRecorder:
                 "started_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime(now_ns // 1_000_000_000)),
                 "started_unix_ns": now_ns, "log_time": "sim time: s of the session since its first run started",
                 "header_stamps": "sim time (the monitored lane's), as log_time"})
-        self.viz = None  # rerun_log.RunLogger
-        self.feed = None  # viewer_feed.ViewerFeed drawing on it
+        self.feed = None  # recording.live_viewer.LiveViewer
         if "rrd_path" in outputs or rerun_spawn or rerun_connect:
-            from adm_sim.recording import rerun_log  # noqa: PLC0415  rerun only with a viewer or .rrd
+            from adm_sim.recording.live_viewer import LiveViewer  # noqa: PLC0415  rerun (~0.9 s) only with a viewer or .rrd
 
-            rerun_log.init_rerun("adm_sim", spawn=bool(rerun_spawn), connect_url=rerun_connect or None,
-                                 save_path=self._beside("rrd_path") if "rrd_path" in outputs else None, overwrite=True)
-            self.viz = rerun_log.RunLogger()
-            self.viz.send_blueprint()  # sent again with the beam bounds once the span is known
-            from adm_sim.recording.viewer_feed import RunPhases, ViewerFeed  # noqa: PLC0415  with rerun_log
-
-            self.feed = ViewerFeed(self.viz, RunPhases("the live run"))
+            self.feed = LiveViewer(save_path=self._beside("rrd_path") if "rrd_path" in outputs else None,
+                                   spawn=rerun_spawn, connect_url=rerun_connect)
         self.recorded = {}    # run_id -> {topic: received} of the runs received whole
         self.incomplete = []  # runs not received whole: {"run_id", "phase", "missing": {topic: n}}
         self._reset_counts()
@@ -85,7 +79,7 @@ class RunRecorder:
     @property
     def attached(self):
         """Whether anything is recorded (then the bridge waits for this recorder)."""
-        return self.mcap is not None or self.viz is not None
+        return self.mcap is not None or self.feed is not None
 
     # ------------------------------------------------------------------ messages
     def log_time_ns(self, msg):
@@ -236,19 +230,12 @@ class RunRecorder:
                     errors.append(exc)
                     self._beside_files.pop("record_path", None)  # the writer removed its file
         if self.feed is not None:
-            from adm_sim.recording import rerun_log  # noqa: PLC0415  rerun only with a viewer or .rrd
-
             with self.feed_lock:
-                try:
-                    self.feed.finish()
-                finally:
-                    rerun_log.close_rerun(watch_viewer=True)  # a viewer that stopped answering: one warning
+                self.feed.close()  # a viewer that stopped answering: one warning
         tmp = self._beside_files.get("rrd_path")
         if keep and tmp is not None:
-            from adm_sim.recording.rrd_check import check_rrd  # noqa: PLC0415  rerun only with a .rrd
-
             try:
-                check_rrd(tmp, self.outputs["rrd_path"], option="rrd_path")
+                self.feed.check_file(tmp, self.outputs["rrd_path"])
             except RunError as exc:
                 errors.append(exc)
                 tmp.unlink(missing_ok=True)
