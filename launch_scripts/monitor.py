@@ -32,7 +32,9 @@ Bad input, one line ``error: ...`` and exit 2, nothing written: an option out of
 id out of range, an MCAP that is not one, a topic the MCAP does not hold or that has another type,
 a live topic that no publisher offers within ``--timeout`` seconds or that has another type, an Imu
 without the chosen axis, a CSV file without the named columns or with times that do not increase,
-a JSON file that exists (without ``--overwrite``).
+an MCAP whose topic has a stamp that does not increase (a duplicate or going back: the sample is
+named; a bridge's ``started`` record earlier than the last stamp starts the order again), a JSON file that exists (without ``--overwrite``). Live, such a sample is refused and the
+monitor goes on (the node's warning where a stretch of them starts and one where it ends).
 """
 
 from __future__ import annotations
@@ -52,6 +54,7 @@ from adm_sim.fields import view
 from adm_sim.files import claim_output, input_file, mcap_input, write_atomic
 from adm_sim.inputs.sensor_csv import read_sensor_csv
 from adm_sim.limits import TRACK_TYPES
+from adm_sim.monitoring import sensors
 from adm_sim.monitoring.modal_id import IdentifySettings, PassageTracker, run_topics_for
 from adm_sim.monitoring.sensors import AXES, IMU_TYPE, SENSOR_TYPES, check_imu, parse_axis, sample_of
 from adm_sim.recording.mcap_read import read_messages
@@ -188,14 +191,26 @@ def monitor_mcap(args, tracker):
     desc = ours[1:]
     topics = [t for t in (args.topic, status, *desc) if t in channels]
     checked = kind != IMU_TYPE
+    n, last = 0, None
     for topic, _log_ns, msg in read_messages(args.mcap, topics=topics):
         if topic == args.topic:
             if not checked:
                 check_imu(msg, args.axis_component, f"--topic: {args.topic!r} in '{args.mcap}'")
                 checked = True
-            tracker.sample(*sample_of(msg, kind, args.axis_component, args.axis_sign))
+            t, a = sample_of(msg, kind, args.axis_component, args.axis_sign)
+            n += 1
+            why = sensors.stamp_order(t, n, last, n - 1)
+            if why is not None:
+                raise InputError(f"--topic: {args.topic!r} in '{args.mcap}': {why} (samples counted from 1 in log "
+                                 f"time order); stamps must strictly increase")
+            last = t
+            tracker.sample(t, a)
         elif topic == status:
-            tracker.status(P.decode(msg.data))
+            rec = P.decode(msg.data)
+            if (last is not None and rec.get("node") == "bridge" and rec.get("state") == "started"
+                    and float(rec.get("t0_s", last)) < last):
+                last = None  # sim time started again (a new bridge): a new stamp order
+            tracker.status(rec)
         elif topic == desc[0]:
             tracker.bridge_description(P.decode(msg.data))
         elif topic == desc[1]:

@@ -69,14 +69,15 @@ def test_csv_of_a_data_logger(fs, tmp_path):
     assert f"3 passages, 3 with the first mode identified, {n_bad} non-finite samples excluded" in res.stdout
 
 
-def write_imu_mcap(path, t_s, a_m_s2, topic="/sensor/imu", covariance=None):
-    """Imu messages, the sensor mounted z down (``linear_acceleration.z`` = -a), x and y noise."""
+def write_imu_mcap(path, t_s, a_m_s2, topic="/sensor/imu", covariance=None, log_s=None):
+    """Imu messages, the sensor mounted z down (``linear_acceleration.z`` = -a), x and y noise; logged
+    at their stamps, or at ``log_s`` (a recorder's receive times)."""
     from sensor_msgs.msg import Imu
 
     from adm_sim.recording.mcap_log import McapRecorder
 
     with McapRecorder(path) as rec:
-        for t, a in zip(t_s, a_m_s2):
+        for i, (t, a) in enumerate(zip(t_s, a_m_s2)):
             m = Imu()
             ns = int(round(t * 1e9))
             m.header.stamp.sec, m.header.stamp.nanosec = divmod(ns, 1_000_000_000)
@@ -85,7 +86,7 @@ def write_imu_mcap(path, t_s, a_m_s2, topic="/sensor/imu", covariance=None):
             m.linear_acceleration.x = 0.01
             if covariance is not None:
                 m.linear_acceleration_covariance = covariance
-            rec.write(topic, m, ns)
+            rec.write(topic, m, ns if log_s is None else int(round(log_s[i] * 1e9)))
     return path
 
 
@@ -149,4 +150,23 @@ def test_imu_without_the_axis(cov, words, tmp_path):
     t = np.arange(0.0, 1.0, 0.01)
     mcap = write_imu_mcap(tmp_path / "imu.mcap", t, np.zeros(t.size), covariance=cov)
     _refused(monitor("--mcap", mcap, "--topic", "/sensor/imu", "--json", tmp_path / "p.json"), *words)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["imu.mcap"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("stamp_6, words", [
+    (0.04, "sample 6 stamped 0.040000000 s repeats the stamp of sample 5 (0.040000000 s)"),
+    (0.035, "sample 6 stamped 0.035000000 s goes back 0.005 s from sample 5 (0.040000000 s)"),
+])
+def test_mcap_stamps_that_do_not_increase(stamp_6, words, tmp_path):
+    """An MCAP whose sixth sample repeats the fifth's stamp or goes back is refused as a CSV is: one
+    line naming the topic, the file and the sample, exit 2, nothing written (logged in the order
+    received, 10 ms apart)."""
+    log = np.arange(0.0, 1.0, 0.01)
+    t = log.copy()
+    t[5] = stamp_6
+    mcap = write_imu_mcap(tmp_path / "imu.mcap", t, np.zeros(t.size), log_s=log)
+    _refused(monitor("--mcap", mcap, "--topic", "/sensor/imu", "--json", tmp_path / "p.json"),
+             f"error: --topic: '/sensor/imu' in '{mcap}': {words} (samples counted from 1 in log time order); "
+             f"stamps must strictly increase")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["imu.mcap"]

@@ -253,3 +253,60 @@ def test_imu_without_linear_acceleration_is_refused(ctx):
     assert mon.tracker.passages == [] and mon.samples == 0
     src.destroy_node()
     mon.destroy_node()
+
+
+def test_samples_whose_stamps_do_not_increase_are_refused(ctx):
+    """Live, a duplicate stamp and a clock stepping back 0.1 s (10 samples) are refused, one warning
+    naming the topic and the sample where each stretch starts and one where it ends; the monitor goes
+    on and the passage has the numbers of the clean stream, exactly."""
+    from rclpy.parameter import Parameter
+
+    from adm_sim.nodes.monitor_node import MonitorNode
+
+    t = np.arange(0.0, 8.0, 1 / 400)
+    a = 0.002 * np.random.default_rng(1).standard_normal(t.size)
+    a[t >= 2.0] += decay(t[t >= 2.0] - 2.0)
+    bad = [(ti, ai) for ti, ai in zip(t[:301], a[:301])] + [(t[300], a[300] + 5.0)]  # sample 302: a duplicate
+    bad += [(ti, ai) for ti, ai in zip(t[301:500], a[301:500])] + [(ti - 0.1, 9.0) for ti in t[500:510]]
+    bad += [(ti, ai) for ti, ai in zip(t[500:], a[500:])]
+    warnings = []
+    mons = [MonitorNode(context=ctx, parameter_overrides=[Parameter("topic", value="/sensor/accel")], **kw)
+            for kw in ({"on_warning": warnings.append}, {})]
+    for mon, stream in zip(mons, (bad, list(zip(t, a)))):
+        mon.kind, mon.imu_checked = "geometry_msgs/msg/AccelStamped", True
+        for ti, ai in stream:
+            mon._on_accel(accel_msg(ti, ai, "sensor"))
+        mon.finish()
+    assert mons[0].refused_samples == 11 and mons[1].refused_samples == 0
+    assert warnings == [
+        "/sensor/accel: sample 302 stamped 0.750000000 s repeats the stamp of sample 301 (0.750000000 s): refused, "
+        "with every sample until the stamps pass 0.750000000 s (stamps must strictly increase)",
+        "/sensor/accel: samples 302 to 302 refused (stamps not after 0.750000000 s); taken again from sample 303",
+        "/sensor/accel: sample 502 stamped 1.150000000 s goes back 0.0975 s from sample 501 (1.247500000 s): "
+        "refused, with every sample until the stamps pass 1.247500000 s (stamps must strictly increase)",
+        "/sensor/accel: samples 502 to 511 refused (stamps not after 1.247500000 s); taken again from sample 512"]
+    got, ref = (m.tracker.passages for m in mons)
+    assert len(got) == len(ref) == 1 and ref[0].identified
+    assert got[0].fit == ref[0].fit and got[0].peak_acc_m_s2 == ref[0].peak_acc_m_s2
+    for mon in mons:
+        mon.destroy_node()
+
+
+def test_a_new_bridge_starts_the_stamp_order_again(ctx):
+    """A bridge started again stamps from 0 s: its ``started`` run record (t0_s 0 below the last
+    stamp taken) starts the order again, so its samples are taken, not refused."""
+    from std_msgs.msg import String
+
+    from adm_sim import protocol as P
+
+    mon = make_monitor(ctx, topic="/sensor/accel")
+    mon.kind, mon.imu_checked = "geometry_msgs/msg/AccelStamped", True
+    t = np.arange(0.0, 2.0, 1 / 400)
+    for ti in t:
+        mon._on_accel(accel_msg(ti, 0.0, "sensor"))
+    mon._on_status(String(data=P.encode(P.status_record("bridge", 1, "started", t0_s=0.0))))
+    for ti in t[:100]:
+        mon._on_accel(accel_msg(ti, 0.0, "sensor"))
+    assert mon.refused_samples == 0 and mon.last_stamp[1] == t.size + 100
+    assert mon.last_stamp[0] == pytest.approx(t[99], abs=1e-9)
+    mon.destroy_node()

@@ -58,7 +58,9 @@ def uniform_samples(t_s, a_m_s2):
 
 
 def _spectral_peak_hz(x, dt, f_lo, f_hi):
-    """Frequency of the largest peak of the Hann-windowed, 8x zero-padded spectrum in [f_lo, f_hi]."""
+    """Frequency of the largest peak of the Hann-windowed, 8x zero-padded spectrum in [f_lo, f_hi]
+    (within half a bin of the band); refused when the band's largest value is at its edge on the flank
+    of a larger peak outside it (there the parabola's vertex lay bins away, even below 0 Hz)."""
     n = x.size
     nfft = 1 << int(math.ceil(math.log2(8 * n)))
     spec = np.abs(np.fft.rfft((x - x.mean()) * np.hanning(n), nfft))
@@ -68,7 +70,11 @@ def _spectral_peak_hz(x, dt, f_lo, f_hi):
         raise IdentificationError(f"no frequency in [{f_lo:g}, {f_hi:g}] Hz is resolved by {n} samples at "
                                   f"{1 / dt:g} Hz")
     i = band[np.argmax(spec[band])]
+    if 0 < i < spec.size - 1 and max(spec[i - 1], spec[i + 1]) > spec[i]:  # on the flank of a peak outside
+        raise IdentificationError(f"no spectral peak in [{f_lo:g}, {f_hi:.4g}] Hz: the spectrum rises beyond the "
+                                  f"band's edge at {f[i]:.4g} Hz (a mode or a swing outside the band)")
     if 0 < i < spec.size - 1 and spec[i - 1] > 0 and spec[i + 1] > 0 and spec[i] > 0:
+        # a local maximum: the parabola's vertex is within half a bin of it
         y0, y1, y2 = np.log(spec[i - 1:i + 2])
         den = y0 - 2 * y1 + y2
         shift = 0.5 * (y0 - y2) / den if den < 0 else 0.0
@@ -324,6 +330,8 @@ def _refit_over_gaps(rec, p, tw, *, i0, s):
     if not gaps:
         return None, gaps, FIT_GAP_FREE
     fd_fit = abs(float(p[1])) / (2 * math.pi)
+    if not 0.0 < fd_fit < 0.45 * s.band_ratio / rec.dt:  # no gap filling nor band-pass can be made around it
+        raise IdentificationError(f"the fitted frequency {fd_fit:.4g} Hz is outside [{rec.f_lo:g}, {rec.f_hi:.4g}] Hz")
     g_long = max(gaps, key=lambda g: g[1])
     if g_long[1] * fd_fit > s.max_gap_periods:
         raise IdentificationError(f"a dropout of {g_long[1]:.3g} s ({g_long[1] * fd_fit:.2g} periods, "

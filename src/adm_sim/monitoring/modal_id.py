@@ -33,7 +33,12 @@ out), plus ``settle_periods`` when band-passed.
 First mode (:func:`identify_first_mode`)
 ----------------------------------------
 1. Frequency start value: the peak of the Hann-windowed, zero-padded FFT of the free decay in
-   ``f_range_hz`` (parabolic interpolation on the log magnitude).
+   ``f_range_hz`` (parabolic interpolation on the log magnitude, within half a bin of the peak); a
+   band whose largest value is at its edge, on the flank of a larger peak outside it (a slow swing,
+   a mode above what the sampling resolves), has no peak and is refused. Samples are sorted by
+   stamp, a repeated stamp keeps its first sample, and stamps that scatter by more than 1 % of
+   the median interval are interpolated linearly onto a grid at that interval
+   (:func:`uniform_samples`).
 2. Optional band-pass (default on): zero-phase 2nd-order Butterworth (``sosfiltfilt``) over
    ``[f/2, 2 f]`` (``band_ratio``), applied to the whole passage so the decay window does not start
    at a filter edge; one period at the end of the window is dropped, ``settle_periods`` at its

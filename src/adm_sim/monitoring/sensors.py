@@ -5,7 +5,8 @@
 REP 103; ``-z`` for a sensor mounted z down, ``x``, ``y`` for another mounting), times its sign.
 An Imu that carries no linear acceleration (REP 145: ``linear_acceleration_covariance[0] = -1``) or
 whose covariance marks the chosen axis as absent (its diagonal entry negative) is refused.
-Messages are read by attribute (rclpy messages and mcap-ros2-support's decoded ones alike).
+Messages are read by attribute (rclpy messages and mcap-ros2-support's decoded ones alike). Stamps
+must strictly increase (:func:`stamp_order` says why a sample's does not).
 """
 
 from __future__ import annotations
@@ -52,6 +53,16 @@ def check_imu(msg, component, where):
         raise InputError(f"{where}: the Imu messages mark axis {component} as absent "
                          f"(linear_acceleration_covariance[{k}] = {cov[k]:g}); choose another with --axis "
                          f"({', '.join(AXES)})")
+
+
+def stamp_order(t_s, index, last_s, last_index):
+    """None when sample ``index`` (stamp ``t_s``, s) comes after sample ``last_index`` (``last_s``);
+    else the one-line words of why not (a duplicate stamp, or time going back): the monitor reads a
+    sensor's stamps as strictly increasing (a data logger's CSV: :mod:`adm_sim.inputs.sensor_csv`)."""
+    if last_s is None or t_s > last_s:
+        return None
+    how = "repeats the stamp of" if t_s == last_s else f"goes back {last_s - t_s:.9g} s from"
+    return f"sample {index} stamped {t_s:.9f} s {how} sample {last_index} ({last_s:.9f} s)"
 
 
 def sample_of(msg, type_name, component, sign):

@@ -20,7 +20,11 @@ subscription to best effort (the monitor's own log line, not rclpy's incompatibl
 
 Bad input (exit 2, one line ``error: monitor: ...`` and nothing before it): a parameter out of
 range, a topic that has another type than ``AccelStamped`` or ``Imu``, an Imu without the chosen
-axis, a topic that no publisher offers within ``topic_timeout_s``.
+axis, a topic that no publisher offers within ``topic_timeout_s``. A sample whose stamp does not
+come after the last one taken (a duplicate, or time going back) is refused and the node goes on: one
+warning naming the topic and the sample (counted from 1 as received) where such a stretch starts,
+one where it ends; a bridge's ``started`` run record earlier than the last stamp (a new bridge's
+sim time) starts the order again.
 
     python -m adm_sim.nodes.monitor_node --ros-args -p topic:=/adm/midspan/accel -p json_path:=passages.json
 """
@@ -45,7 +49,8 @@ from adm_sim.errors import InputError
 from adm_sim.files import claim_output, release_all, write_atomic
 from adm_sim.limits import TRACK_TYPES, check_track_type
 from adm_sim.monitoring.modal_id import IdentifySettings, PassageTracker, run_topics_for
-from adm_sim.monitoring.sensors import ACCEL_TYPE, AXES, IMU_TYPE, SENSOR_TYPES, check_imu, parse_axis, sample_of
+from adm_sim.monitoring.sensors import (ACCEL_TYPE, AXES, IMU_TYPE, SENSOR_TYPES, check_imu, parse_axis, sample_of,
+                                        stamp_order)
 from adm_sim.nodes import common as c
 
 __all__ = ["ACCEL_TYPE", "MONITOR_SPECS", "MonitorNode", "main", "passages_document"]
@@ -83,12 +88,14 @@ class MonitorNode(c.ParamNodeMixin, Node):
     """Subscribes, tracks passages, reports them; see the module docstring.
 
     ``on_passage`` (optional) is called with every :class:`adm_sim.monitoring.modal_id.Passage` after it is
-    logged; ``quiet``: log nothing (the launcher prints the lines itself, on stdout).
+    logged; ``quiet``: log nothing (the launcher prints the lines itself, on stdout); ``on_warning``
+    (optional) takes the warnings (a sample refused for its stamp) instead of the ROS logger.
     """
 
-    def __init__(self, on_passage=None, quiet=False, **kw):
+    def __init__(self, on_passage=None, quiet=False, on_warning=None, **kw):
         super().__init__("monitor", **kw)
         self.quiet = quiet
+        self.on_warning = on_warning
         self.declare_specs(MONITOR_SPECS)
         p = self.param_values()
         track = p["track_type"] or None
@@ -125,6 +132,9 @@ class MonitorNode(c.ParamNodeMixin, Node):
         self.started = time.monotonic()
         self.seen = False
         self.samples = 0
+        self.last_stamp = (None, 0)  # stamp (s) and number of the last sample taken
+        self.refusing = None  # the first sample of a stretch refused for its stamp
+        self.refused_samples = 0
         self.status_text = f" with run records on {status}" if status else ""
         self.create_timer(0.2, self._tick)
 
@@ -137,10 +147,35 @@ class MonitorNode(c.ParamNodeMixin, Node):
         self.samples += 1
         if self.flow is not None:
             self.flow.received()
+        if self._stamp_refused(t):
+            return
         self.tracker.sample(t, a, time.monotonic())
 
+    def _stamp_refused(self, t):
+        """A sample whose stamp does not come after the last one taken is refused (counted in
+        :attr:`refused_samples`); one warning where a stretch of them starts, one where it ends."""
+        why = stamp_order(t, self.samples, self.last_stamp[0], self.last_stamp[1])
+        if why is not None:
+            if self.refusing is None:
+                self.refusing = self.samples
+                self._warn(f"{self.topic}: {why}: refused, with every sample until the stamps pass "
+                           f"{self.last_stamp[0]:.9f} s (stamps must strictly increase)")
+            self.refused_samples += 1
+            return True
+        if self.refusing is not None:
+            self._warn(f"{self.topic}: samples {self.refusing} to {self.samples - 1} refused (stamps not after "
+                       f"{self.last_stamp[0]:.9f} s); taken again from sample {self.samples}")
+            self.refusing = None
+        self.last_stamp = (t, self.samples)
+        return False
+
     def _on_status(self, msg):
-        self.tracker.status(P.decode(msg.data), time.monotonic())
+        rec = P.decode(msg.data)
+        last = self.last_stamp[0]
+        if (rec.get("node") == "bridge" and rec.get("state") == "started" and last is not None
+                and float(rec.get("t0_s", last)) < last):  # sim time started again (a new bridge)
+            self.last_stamp = (None, self.samples)
+        self.tracker.status(rec, time.monotonic())
 
     def _on_bridge(self, msg):
         self.tracker.bridge_description(P.decode(msg.data))
@@ -203,6 +238,12 @@ class MonitorNode(c.ParamNodeMixin, Node):
     def _log(self, text):
         if not self.quiet:
             self.get_logger().info(text)
+
+    def _warn(self, text):
+        if self.on_warning is not None:
+            self.on_warning(text)
+        else:
+            self.get_logger().warning(text)
 
     def _report(self, passage):
         self._log(passage.line())
