@@ -207,8 +207,7 @@ def monitor_mcap(args, tracker):
             tracker.sample(t, a)
         elif topic == status:
             rec = P.decode(msg.data)
-            if (last is not None and rec.get("node") == "bridge" and rec.get("state") == "started"
-                    and float(rec.get("t0_s", last)) < last):
+            if sensors.restarts_stamp_order(rec, last):
                 last = None  # sim time started again (a new bridge): a new stamp order
             tracker.status(rec)
         elif topic == desc[0]:

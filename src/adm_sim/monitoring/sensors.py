@@ -65,6 +65,14 @@ def stamp_order(t_s, index, last_s, last_index):
     return f"sample {index} stamped {t_s:.9f} s {how} sample {last_index} ({last_s:.9f} s)"
 
 
+def restarts_stamp_order(record, last_s):
+    """Whether a run record (a decoded status message) starts the stamp order again: a bridge's
+    ``started`` record whose ``t0_s`` lies before the last stamp taken ``last_s`` (s), i.e. a new bridge
+    whose sim time starts again."""
+    return (last_s is not None and record.get("node") == "bridge" and record.get("state") == "started"
+            and float(record.get("t0_s", last_s)) < last_s)
+
+
 def sample_of(msg, type_name, component, sign):
     """``(stamp in s, acceleration in m/s²)`` of one sensor message."""
     return stamp_s(msg), sign * float(getattr(vector_of(msg, type_name), component))

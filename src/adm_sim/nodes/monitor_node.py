@@ -49,8 +49,8 @@ from adm_sim.errors import InputError
 from adm_sim.files import claim_output, release_all, write_atomic
 from adm_sim.limits import TRACK_TYPES, check_track_type
 from adm_sim.monitoring.modal_id import IdentifySettings, PassageTracker, run_topics_for
-from adm_sim.monitoring.sensors import (ACCEL_TYPE, AXES, IMU_TYPE, SENSOR_TYPES, check_imu, parse_axis, sample_of,
-                                        stamp_order)
+from adm_sim.monitoring.sensors import (ACCEL_TYPE, AXES, IMU_TYPE, SENSOR_TYPES, check_imu, parse_axis,
+                                        restarts_stamp_order, sample_of, stamp_order)
 from adm_sim.nodes import common as c
 
 __all__ = ["ACCEL_TYPE", "MONITOR_SPECS", "MonitorNode", "main", "passages_document"]
@@ -171,9 +171,7 @@ class MonitorNode(c.ParamNodeMixin, Node):
 
     def _on_status(self, msg):
         rec = P.decode(msg.data)
-        last = self.last_stamp[0]
-        if (rec.get("node") == "bridge" and rec.get("state") == "started" and last is not None
-                and float(rec.get("t0_s", last)) < last):  # sim time started again (a new bridge)
+        if restarts_stamp_order(rec, self.last_stamp[0]):  # sim time started again (a new bridge)
             self.last_stamp = (None, self.samples)
         self.tracker.status(rec, time.monotonic())
 
