@@ -350,13 +350,14 @@ def test_calib_check_bad_input_lines(args, line, capsys):
 
 
 @pytest.mark.slow
-def test_calib_check_lb_matches_the_lower_bound():
+def test_calib_check_lb_matches_the_lower_bound(call_main):
     """`adm-calib check --damping lb` on B1 with ICE-2: the damping line and the JSON carry the
     lower bound of paper Table 4 (B1 ICE-2, 0.323 %), and the governing acceleration lies below the
-    undamped `adm-sim check` one (more damping, same loads)."""
+    undamped `adm-sim check` one (more damping, same loads). Both commands' ``main`` in this process
+    (each as a process: test_core_check_refuses_calib_methods, test_cli_outputs_and_no_overwrite)."""
     base = ["check", "--bridge", "B1", "--max-line-speed", "250", "--trains", "ICE-2", "--speed-step", "1"]
-    r_lb = run(*base, "--damping", "lb", cli=CALIB_CLI)
-    r_none = run(*base)
+    r_lb = call_main(calib_main, *base, "--damping", "lb")
+    r_none = call_main(sim_main, *base)
     assert r_lb.returncode == 0 and r_none.returncode == 0, r_lb.stderr + r_none.stderr
 
     def governing_acc(out):
