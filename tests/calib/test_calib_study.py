@@ -19,7 +19,6 @@ import pytest
 from scipy.optimize import brentq
 
 from adm_calib import study as st
-from adm_calib.study import conservative
 from adm_calib.study.store import _exclusive
 from adm_calib.calib_commands import main
 from adm_calib.reference import lower_bound_table, span_from_frequency_m
@@ -357,13 +356,18 @@ def test_interval_minima_edges_and_ties():
 
 
 def _no_figures(monkeypatch):
-    """study-fit without the conservative bound's linear programmes and with empty figure files."""
+    """study-fit without the conservative bound's linear programmes and with empty figure files.
+
+    ``conservative_study`` is replaced where the command looks it up, in ``adm_calib.cli.study_fit``
+    (which imports the name): replaced in ``adm_calib.study.conservative`` it took effect only when
+    the command module was first imported after the patch, and then stayed for the rest of the run."""
     from adm_calib import plots
+    from adm_calib.cli import study_fit
 
     def empty_png(*args, **kwargs):
         next(a for a in args if isinstance(a, Path)).write_bytes(b"")
 
-    monkeypatch.setattr(conservative, "conservative_study", lambda fit: [])
+    monkeypatch.setattr(study_fit, "conservative_study", lambda fit: [])
     for name in ("plot_dz_vs_span", "plot_lower_bounds", "plot_lower_bound_set", "plot_lower_bounds_train"):
         monkeypatch.setattr(plots, name, empty_png)
 

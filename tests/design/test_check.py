@@ -350,13 +350,14 @@ def test_calib_check_bad_input_lines(args, line, capsys):
 
 
 @pytest.mark.slow
-def test_calib_check_lb_matches_the_lower_bound():
+def test_calib_check_lb_matches_the_lower_bound(call_main):
     """`adm-calib check --damping lb` on B1 with ICE-2: the damping line and the JSON carry the
     lower bound of paper Table 4 (B1 ICE-2, 0.323 %), and the governing acceleration lies below the
-    undamped `adm-sim check` one (more damping, same loads)."""
+    undamped `adm-sim check` one (more damping, same loads). Both commands' ``main`` in this process
+    (each as a process: test_core_check_refuses_calib_methods, test_cli_outputs_and_no_overwrite)."""
     base = ["check", "--bridge", "B1", "--max-line-speed", "250", "--trains", "ICE-2", "--speed-step", "1"]
-    r_lb = run(*base, "--damping", "lb", cli=CALIB_CLI)
-    r_none = run(*base)
+    r_lb = call_main(calib_main, *base, "--damping", "lb")
+    r_none = call_main(sim_main, *base)
     assert r_lb.returncode == 0 and r_none.returncode == 0, r_lb.stderr + r_none.stderr
 
     def governing_acc(out):
@@ -392,12 +393,14 @@ def test_core_api_calib_methods_need_a_provider():
 
 
 @pytest.mark.slow
-def test_cli_outputs_and_no_overwrite(tmp_path):
+def test_cli_outputs_and_no_overwrite(tmp_path, call_main):
     """Issue 15's case through the command line: B1, V = 250 km/h, HSLM-A7 (and ICE-2), whole deck
     by default, with Rayleigh damping asked for: the maximum 3.568 m/s2 near 238 km/h at about 3L/8 .. 0.42 L, which the brute force
     of tests/integrate/test_envelope.py confirms, exceeds 3.5 m/s2: FAIL, and the JSON names the governing
     train, speed and position; zeta per mode of Rayleigh damping anchored at modes 1 and 3 is
-    zeta (a / 2 omega_j + b omega_j / 2) with omega_j ~ j^2: 1, 0.625, 1 times 1.85 %."""
+    zeta (a / 2 omega_j + b omega_j / 2) with omega_j ~ j^2: 1, 0.625, 1 times 1.85 %. The first
+    run is the command's own process; the midspan run and the refusals after it call its ``main``
+    in this process."""
     js, cs, png = tmp_path / "c.json", tmp_path / "c.csv", tmp_path / "c.png"
     r = run("check", "--bridge", "B1", "--max-line-speed", "250", "--trains", "HSLM-A7,ICE-2",
             "--damping-model", "rayleigh13", "--json", str(js), "--csv", str(cs), "--plot", str(png))
@@ -423,15 +426,16 @@ def test_cli_outputs_and_no_overwrite(tmp_path):
     data = png.read_bytes()  # a PNG of 9 x 5 in at 120 dpi (adm_sim.cli.figures.plot_check)
     assert data[:8] == b"\x89PNG\r\n\x1a\n"
     assert (int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big")) == (1080, 600)
-    r = run("check", "--bridge", "B1", "--max-line-speed", "250", "--trains", "HSLM-A7", "--where", "midspan",
-            "--damping-model", "modal")
+    r = call_main(sim_main, "check", "--bridge", "B1", "--max-line-speed", "250", "--trains", "HSLM-A7", "--where",
+                  "midspan", "--damping-model", "modal")
+    assert r.returncode == 0, r.stderr
     verdict = next(line for line in r.stdout.splitlines() if line.startswith("governing:"))
     assert "max midspan acceleration" in verdict and "PASS" in verdict and "damping model modal" in verdict
     before = js.read_text()
-    r = run("check", "--max-line-speed", "250", "--trains", "HSLM-A1", "--json", str(js))
+    r = call_main(sim_main, "check", "--max-line-speed", "250", "--trains", "HSLM-A1", "--json", str(js))
     assert r.returncode == 2 and r.stderr == f"error: --json: {str(js)!r} exists; use --overwrite to replace it\n"
     assert js.read_text() == before
-    r = run("check", "--max-line-speed", "250", "--trains", "HSLM-A1", "--csv", str(tmp_path / "x.txt"))
+    r = call_main(sim_main, "check", "--max-line-speed", "250", "--trains", "HSLM-A1", "--csv", str(tmp_path / "x.txt"))
     assert r.returncode == 2 and "must end in .csv" in r.stderr
 
 

@@ -50,6 +50,18 @@ def test_hogging_lm71_against_the_stiffness_method(n):
     assert m.sign == -1  # hogging
 
 
+def _modal_loads(deck, n_modes, v_m_s, t_s):
+    """The modal loads of the train at the times ``t_s`` (n_t,), shape (n_modes, n_t): per time, the
+    sum over the axles on the deck of load x mode shape (the right-hand sides' ``load(t)`` at every
+    time at once; equal to it up to the order of the sum over axles)."""
+    x = v_m_s * np.asarray(t_s)[:, None] - OFFSETS  # (n_t, n_axles)
+    on = (x >= 0.0) & (x <= deck.length_m)
+    rows, axles = np.nonzero(on)
+    P = np.zeros((x.shape[0], n_modes))
+    np.add.at(P, rows, LOADS[axles][:, None] * deck.phi(x[on]))
+    return P.T
+
+
 def _dense_midspan_acc(bridge, v_m_s, t_end_s):
     """Largest |acceleration| at every midspan, the modal equations integrated by DOP853."""
     d = bridge.deck
@@ -75,7 +87,7 @@ def _dense_midspan_acc(bridge, v_m_s, t_end_s):
     sol = solve_ivp(rhs, (0.0, t[-1]), np.zeros(2 * bridge.n_modes), method="DOP853", rtol=1e-10, atol=1e-14,
                     t_eval=t, max_step=top_T / 8)
     q, qd = sol.y[:bridge.n_modes], sol.y[bridge.n_modes:]
-    P = np.array([load(s) for s in t]).T
+    P = _modal_loads(d, bridge.n_modes, v_m_s, t)
     qdd = (P - Z[:, None] * qd - K[:, None] * q) / M[:, None]
     return np.abs(phi_mid @ qdd).max(1)
 
@@ -141,7 +153,7 @@ def _dense_point_acc(bridge, v_m_s, t_end_s, x_m):
     sol = solve_ivp(rhs, (0.0, t[-1]), np.zeros(2 * bridge.n_modes), method="DOP853", rtol=1e-10, atol=1e-14,
                     t_eval=t, max_step=top_T / 8)
     q, qd = sol.y[:bridge.n_modes], sol.y[bridge.n_modes:]
-    P = np.array([load(s) for s in t]).T
+    P = _modal_loads(d, bridge.n_modes, v_m_s, t)
     return float(np.abs(phi_x @ ((P - Z[:, None] * qd - K[:, None] * q) / M[:, None])).max())
 
 
