@@ -1,7 +1,8 @@
 """Every sample arrives: the flow control under load, for the recorder and for opted-in clients, live
 and in a replay at ``--rate 0``; per-run sample counts, trials never above WARN, the per-passage summary.
 
-Two busy processes hog both cores while, back to back (one module fixture, :func:`under_load`):
+Two busy processes hog both cores while, one after the other (one module fixture, :func:`under_load`;
+2. on a domain of its own, while the clients of 1. stop and those of 3. start):
 
 1. the main job (``launch_scripts/calibrate.py``, B1 x ICE-2, on a narrower speed range than the
    default so that the suite stays short) runs with two clients opted into the flow control (the
@@ -209,20 +210,20 @@ def _stop(procs):
 
 @pytest.fixture(scope="module")
 def under_load(tmp_path_factory):
-    """The three launches of the module docstring beside two busy processes, on one domain of their
-    own; what the tests read: the output folders (``cal``, ``cross``), the runs' ``done`` records of
+    """The three launches of the module docstring beside two busy processes, the main job and its
+    replay on one domain of their own, the sweep on another; what the tests read: the output folders (``cal``, ``cross``), the runs' ``done`` records of
     the main job, the minimal client's output and the monitor's passages file of the live run and of
     the replay (``live``, ``replay``: ``(client stdout, passages path)``), the latched subscriber's
     ``(stdout, stderr)``."""
     base = tmp_path_factory.mktemp("under_load")
-    domain = held_domain()
+    domain, sweep_domain = held_domain(), held_domain()
     env = dict(domain)
     common = ["--domain-id", str(domain.domain_id)]
     cal, cross = base / "cal", base / "cross"
     params = base / "b1_ice2_coarse.yaml"
     params.write_text(COARSE_PARAMS)
     hogs = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(2)]
-    procs = []
+    procs, others = [], []
     try:
         procs = list(_clients(base, env, "live"))
         t0 = time.monotonic()
@@ -235,22 +236,26 @@ def under_load(tmp_path_factory):
         assert p.returncode == 0, p.stderr
         done, _started = _runs(cal / "run.mcap")
         assert len(done) >= 5
+        # the sweep on a domain of its own (its recorder the only client there), while the main job's
+        # clients finish and stop and the replay's clients start on the main job's domain
+        sweep = subprocess.Popen([sys.executable, str(ROOT / "launch_scripts" / "crossing.py"), "--bridge", "B1",
+                                  "--train", "ICE-2", "--model", "mlm", "--speeds", SWEEP_SPEEDS, "--out", str(cross),
+                                  "--domain-id", str(sweep_domain.domain_id)], env=dict(sweep_domain),
+                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+        others.append(sweep)
         live = _wait_lines(procs[0], len(done))
         _wait_passages(base / "passages_live.json", len(done))
         _stop(procs)
         print(f"both clients stopped: {time.monotonic() - t0:.1f} s after the main job's start")
-
-        q = subprocess.run([sys.executable, str(ROOT / "launch_scripts" / "crossing.py"), "--bridge", "B1",
-                            "--train", "ICE-2", "--model", "mlm", "--speeds", SWEEP_SPEEDS, "--out", str(cross)]
-                           + common, env=env, capture_output=True, text=True, timeout=600, cwd=ROOT)
-        assert q.returncode == 0, q.stderr
-        print(f"crossing sweep, two busy processes: {time.monotonic() - t0:.1f} s after the main job's start")
 
         # the same clients on a replay of the main job's recording at --rate 0
         procs = list(_clients(base, env, "replay"))
         latched = subprocess.Popen([sys.executable, "-c", LATCHED], env=env, stdout=subprocess.PIPE,
                                    stderr=subprocess.PIPE, text=True)
         procs.append(latched)
+        _q_out, q_err = sweep.communicate(timeout=600)
+        assert sweep.returncode == 0, q_err
+        print(f"crossing sweep, two busy processes: {time.monotonic() - t0:.1f} s after the main job's start")
         r = subprocess.run([sys.executable, str(ROOT / "launch_scripts" / "replay.py"), str(cal / "run.mcap"),
                             "--republish", "--rate", "0", "--wait-clients", "2"] + common,
                            env=env, capture_output=True, text=True, timeout=900)
@@ -265,7 +270,7 @@ def under_load(tmp_path_factory):
         for h in hogs:
             h.kill()
             h.wait()
-        for proc in procs:
+        for proc in procs + others:
             if proc.poll() is None:
                 proc.kill()
                 proc.communicate()
