@@ -29,6 +29,7 @@ from std_msgs.msg import String
 from adm_sim import protocol as P
 from adm_sim.errors import InputError, RunError
 from adm_sim.nodes.common import QOS_CONTROL
+from adm_sim.nodes.flow_client import named_publishers
 from adm_sim.processes.dds_env import clean_dead_shm, record_shm
 from adm_sim.recording.mcap_qos import parse_qos_profiles, topic_qos
 from adm_sim.recording.mcap_read import sorted_messages
@@ -118,17 +119,18 @@ class _ClientFlow:
         """Take the publishers of ``/adm/run/ack`` on the graph as the clients to wait for, once
         there are ``want`` of them (at most ``timeout_s``, then :class:`RunError`)."""
         t_end = time.monotonic() + timeout_s
-        infos = self.node.get_publishers_info_by_topic(P.TOPIC_ACK)
-        while len(infos) < want:
+        names = named_publishers(self.node.get_publishers_info_by_topic(P.TOPIC_ACK))
+        while len(names) < want:  # by name: a publisher whose node name is not discovered yet does not count
             if time.monotonic() > t_end:
-                raise RunError(f"--wait-clients: {want} client(s) asked for, {len(infos)} opted in within "
+                raise RunError(f"--wait-clients: {want} client(s) asked for, {len(names)} opted in within "
                                f"{timeout_s:g} s")
             idle()
             self.executor.spin_once(timeout_sec=0.05)
-            infos = self.node.get_publishers_info_by_topic(P.TOPIC_ACK)
+            names = named_publishers(self.node.get_publishers_info_by_topic(P.TOPIC_ACK))
         if want:
             time.sleep(2.0)  # the clients' own view of this replay (their subscriptions matched) can lag this one
-        self.clients = {i.node_namespace.rstrip("/") + "/" + i.node_name: [0, None] for i in infos}
+            names = named_publishers(self.node.get_publishers_info_by_topic(P.TOPIC_ACK))  # as the graph is now
+        self.clients = {n: [0, None] for n in names}
         if self.clients:
             print(f"clients opted in: {', '.join(sorted(self.clients))}", flush=True)
 

@@ -71,25 +71,24 @@ def test_cosim_reproduces_run_sweep(node_procs, ros_domain):
         assert [requested[rid]["phase"] for rid in sorted(requested)] == [
             P.PHASE_MLM_ZETA, P.PHASE_DIM, P.PHASE_MLM_ZETA_DZ, P.PHASE_BRACKETING, P.PHASE_MLM_ZETA_DZ]
         assert max(requested) == last["run_id"] and last["phase"] == P.PHASE_MLM_ZETA_DZ
+        check_wrong_lane_count_is_reported(d, model="mlm", dz=0.004)
+    assert all(p.poll() is None for p in node_procs.procs.values())
 
 
-def test_wrong_lane_count_is_reported(node_procs, ros_domain):
-    """A bad run request fails with the bridge's reason and both nodes stay up."""
+def check_wrong_lane_count_is_reported(d, model, dz):
+    """A bad run request fails with the bridge's reason and both nodes stay up; the run after the
+    refused one is the core's run, bit for bit (as in test_ros_colcon.py). Checked on the graph of
+    :func:`test_cosim_reproduces_run_sweep` (its last settings: ``model``, the bridge's ``dz``), whose
+    nodes are then seen alive: a graph of its own cost a test two more node processes."""
     from adm_sim.nodes.driver import RunError
 
-    node_procs.start("bridge", "adm_sim.nodes.bridge_node", {"bridge": "B3", **STEP, **SPARSE})
-    node_procs.start("train", "adm_sim.nodes.train_node", {"speeds_kmh": "250,300", "model": "mlm"})
-    with driver_node(ros_domain.domain_id) as d:
-        d.wait_for_graph()
-        with pytest.raises(RunError, match="delta_zeta_lanes: 3 values for 2 speed lanes"):
-            d.request_run(delta_zeta_lanes=[0.0, 0.01, 0.02])
-        r = d.request_run(delta_zeta_lanes=[])
-        # the run after the refused one is the core's run, bit for bit (as in test_ros_colcon.py)
-        ref = run_sweep(resolve_bridge("B3"), load_train("ICE-2"), "mlm", [250.0, 300.0], options=StepOptions(**STEP))
-        np.testing.assert_array_equal(r["speeds_kmh"], [250.0, 300.0])
-        np.testing.assert_array_equal(r["max_acc_m_s2"], ref.max_acc_m_s2)
-        np.testing.assert_array_equal(r["max_disp_m"], ref.max_disp_m)
-    assert all(p.poll() is None for p in node_procs.procs.values())
+    with pytest.raises(RunError, match=f"delta_zeta_lanes: 3 values for {len(SPEEDS_KMH)} speed lanes"):
+        d.request_run(delta_zeta_lanes=[0.0, 0.01, 0.02])
+    r = d.request_run(delta_zeta_lanes=[])
+    ref = reference(model, dz)
+    np.testing.assert_array_equal(r["speeds_kmh"], SPEEDS_KMH)
+    np.testing.assert_array_equal(r["max_acc_m_s2"], ref.max_acc_m_s2)
+    np.testing.assert_array_equal(r["max_disp_m"], ref.max_disp_m)
 
 
 def test_calibrate_launch_matches_in_process_calibration(calibration_launch):

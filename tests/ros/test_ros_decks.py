@@ -275,7 +275,23 @@ def test_deck_runs_through_the_graph_equal_the_core(node_procs, ros_domain):
         desc = d.description("bridge")
         assert desc["bridge"]["spans_m"] == [15.0, 15.0] and desc["supports_m"] == [0.0, 15.0, 30.0]
         assert desc["frequencies_hz"] == deck.frequencies_hz.tolist()
+        check_train_node_refuses_a_span_shorter_than_its_axle_groups(d)
     assert all(p.poll() is None for p in node_procs.procs.values())
+
+
+def check_train_node_refuses_a_span_shorter_than_its_axle_groups(d):
+    """A deck with a 2.5 m span under ICE-2 (bogie wheelbase 3 m), given to the bridge node directly
+    (``spans_m`` set over its parameter service: no launcher checked it): the train node refuses the
+    run in one line naming the span, the train and the allowed lengths, as ``adm-sim sweep`` does;
+    both nodes keep running (the caller's last assertion). On the graph of
+    :func:`test_deck_runs_through_the_graph_equal_the_core`: a graph of its own cost a test two more
+    node processes."""
+    from adm_sim.errors import RunError
+
+    d.set_params("bridge", spans_m="15,2.5")
+    with pytest.raises(RunError, match=r"start_run refused: spans\[1\]: 2.5 m is shorter than the longest axle "
+                                       r"group of ICE-2 \(bogie wheelbase 3 m\); allowed spans >= 3 m$"):
+        d.request_run(model="mlm")
 
 
 @pytest.mark.slow
@@ -296,24 +312,6 @@ def test_deck_of_22_modes_runs_through_the_graph_equal_the_core(node_procs, ros_
             np.testing.assert_array_equal(r["max_disp_m"], ref.max_disp_m, err_msg=model)
         desc = d.description("bridge")
         assert desc["frequencies_hz"] == deck.frequencies_hz.tolist() and len(desc["frequencies_hz"]) == 22
-    assert all(p.poll() is None for p in node_procs.procs.values())
-
-
-@pytest.mark.slow
-def test_train_node_refuses_a_run_on_a_span_shorter_than_its_axle_groups(node_procs, ros_domain):
-    """A deck with a 2.5 m span under ICE-2 (bogie wheelbase 3 m), given to the bridge node directly
-    (no launcher checked it): the train node refuses the run in one line naming the span, the train
-    and the allowed lengths, as ``adm-sim sweep`` does; both nodes keep running."""
-    from adm_sim.errors import RunError
-
-    node_procs.start("bridge", "adm_sim.nodes.bridge_node",
-                     {"bridge": "spans=15/2.5,EJ=2.667e10,mu=19042,zeta_pct=1.85", **STEP, **SPARSE})
-    node_procs.start("train", "adm_sim.nodes.train_node", {"speeds_kmh": "250,300"})
-    with driver_node(ros_domain.domain_id) as d:
-        d.wait_for_graph()
-        with pytest.raises(RunError, match=r"start_run refused: spans\[1\]: 2.5 m is shorter than the longest axle "
-                                           r"group of ICE-2 \(bogie wheelbase 3 m\); allowed spans >= 3 m$"):
-            d.request_run(model="mlm")
     assert all(p.poll() is None for p in node_procs.procs.values())
 
 
@@ -419,31 +417,34 @@ def test_launchers_refuse_a_bad_deck_in_one_line(launcher, tmp_path, script):
 
 @pytest.mark.slow
 def test_calibrate_launch_on_a_deck_is_the_in_process_calibration(tmp_path):
-    """``calibrate.py --bridge spans=15/15,...`` (240..300 km/h every 3 km/h, the coarse steps): the
+    """``calibrate.py --bridge spans=15/15,...`` (255..279 km/h every 3 km/h, the coarse steps): the
     calibration node rebuilds the deck from the bridge's description record, runs every sweep at the
     middle of each span (the bridge's ``response_m``) and takes the larger maxima, so its Δζ, status
     and peaks equal ``adm-calib calibrate``'s on the numpy stepper bit for bit (the compiled kernels:
-    to the root tolerance's digits); the summary names the deck's spans, frequencies and modal masses."""
+    to the root tolerance's digits); the summary names the deck's spans, frequencies and modal masses.
+    The range holds the deck's resonance inside (MLM peak 261 km/h, DIM 261 km/h: every phase runs,
+    Δζ is found) and starts at 255 km/h, not 240: the slowest speed sets the step, and the numpy
+    reference runs every DIM lane (3.7 s for 240..300, 1.5 s here)."""
     from adm_calib.calibrate import CalibrationOptions, calibrate
 
     params = tmp_path / "deck.yaml"
     params.write_text("bridge:\n  ros__parameters:\n    steps_per_period: 4.0\n    free_vibration_periods: 1.0\n")
     out = tmp_path / "cal"
     r = subprocess.run([sys.executable, str(ROOT / "launch_scripts" / "calibrate.py"), "--params-file", str(params),
-                        "--bridge", DECK_SPEC, "--speeds", "240:300:3", "--out", str(out), "--quiet", "--no-rrd"],
+                        "--bridge", DECK_SPEC, "--speeds", "255:279:3", "--out", str(out), "--quiet", "--no-rrd"],
                        capture_output=True, text=True, timeout=300, cwd=ROOT)
     assert r.returncode == 0, r.stderr[-3000:]
     got = json.loads((out / "summary.json").read_text())
     deck, ice2 = resolve_bridge(DECK_SPEC, continuous=True), load_train("ICE-2")
 
     # adm-calib calibrate's numbers on the numpy stepper: each sweep at the middle of either span, the larger
-    ref = calibrate(deck, ice2, np.arange(240.0, 301.0, 3.0),
+    ref = calibrate(deck, ice2, np.arange(255.0, 280.0, 3.0),
                     options=CalibrationOptions(dim_grid="window", step=StepOptions(**STEP)), backend="numpy").to_dict()
     assert got["status"] == ref["status"] and got["bridge_description"] == deck.describe()
     assert got["delta_zeta_vbi_pct"] == ref["delta_zeta_vbi_pct"] is not None
     assert got["mlm_peak"] == ref["mlm_peak"] and got["dim_peak"] == ref["dim_peak"]
     assert got["co_simulation"]["runs"] % 2 == 0  # two runs (one per span's middle) for every sweep
-    compiled = calibrate(deck, ice2, np.arange(240.0, 301.0, 3.0),
+    compiled = calibrate(deck, ice2, np.arange(255.0, 280.0, 3.0),
                          options=CalibrationOptions(dim_grid="window", step=StepOptions(**STEP)))
     assert f"{got['delta_zeta_vbi_pct']:.4f}" == f"{100 * compiled.delta_zeta_vbi:.4f}"
     assert got["spans_m"] == [15.0, 15.0] and got["supports_m"] == [0.0, 15.0, 30.0]

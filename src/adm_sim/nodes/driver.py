@@ -38,6 +38,7 @@ from adm_sim import protocol as P
 from adm_sim.errors import AdmSimError, InputError, PlausibilityWarning, RunError  # RunError: a run failed or its partners went away
 from adm_sim.files import claim_output, release, write_atomic
 from adm_sim.nodes import common as c
+from adm_sim.nodes.flow_client import named_publishers
 from adm_sim.nodes.params import DRIVER_SPECS
 from adm_sim.nodes.recorder import RunRecorder
 from adm_sim.model.plausibility import check_response
@@ -278,7 +279,7 @@ class RunDriver(c.NodeBase):
         opted into the flow control, other recorders)."""
         me = self.get_fully_qualified_name()
         infos = self.get_publishers_info_by_topic(self.resolve_topic_name(P.relative(P.TOPIC_ACK)))
-        return sorted({i.node_namespace.rstrip("/") + "/" + i.node_name for i in infos} - {me})
+        return [n for n in named_publishers(infos) if n != me]  # a node not yet known by name is not counted
 
     def wait_for_clients(self):
         """Block until ``wait_clients`` other nodes publish ``/adm/run/ack`` (at most

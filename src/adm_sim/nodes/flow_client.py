@@ -10,6 +10,18 @@ from std_msgs.msg import String
 from adm_sim import protocol as P
 from adm_sim.nodes.qos import QOS_CONTROL, QOS_MONITOR
 
+#: What rmw reports as a publisher's node name and namespace while the node's name has not been
+#: discovered yet (it comes on a topic of its own, after the endpoint itself).
+NODE_NAME_UNKNOWN, NODE_NAMESPACE_UNKNOWN = "_NODE_NAME_UNKNOWN_", "_NODE_NAMESPACE_UNKNOWN_"
+
+
+def named_publishers(infos):
+    """Fully qualified node names of ``infos`` (``Node.get_publishers_info_by_topic``), leaving out
+    the publishers whose node name is not known yet: an acknowledgement carries its node's real
+    name, so a client taken as ``_NODE_NAME_UNKNOWN_`` would be waited for in vain."""
+    return sorted({i.node_namespace.rstrip("/") + "/" + i.node_name for i in infos
+                   if i.node_name != NODE_NAME_UNKNOWN and i.node_namespace != NODE_NAMESPACE_UNKNOWN})
+
 
 class FlowClient:
     """Opt a client node into the bridge's flow control: one call, ``FlowClient(node)``, before the
