@@ -628,11 +628,14 @@ def _newton(c1, c2, w, om, lam, x, lo, hi, work):
 @njit(cache=True, nogil=True)
 def _field(c1, c2, om, lam, kw, t, x):
     """F = sum_j sin(k_j x) g_j(t) and its derivatives (F, F_t, F_x, F_tt, F_tx, F_xx), with
-    g_j(t) = Im[c1_j e^(i om_j t) + c2_j e^(lam_j t)]."""
+    g_j(t) = Im[c1_j e^(i om_j t) + c2_j e^(lam_j t)]. ``e^(i om_j t)`` is taken as ``cos + i sin`` of
+    ``om_j t``: what ``cmath.exp`` returns for the argument ``(i om_j) t = 0 + i om_j t`` (``e^0 cos``,
+    ``e^0 sin``, ``e^0 = 1`` exactly; t >= 0), bit for bit, without its real exponential."""
     F = Ft = Fx = Ftt = Ftx = Fxx = 0.0
     for j in range(c1.size):
         z = 1j * om[j]
-        z1 = c1[j] * cmath.exp(z * t)
+        wt = om[j] * t
+        z1 = c1[j] * complex(math.cos(wt), math.sin(wt))
         z2 = c2[j] * cmath.exp(lam[j] * t)
         g0 = (z1 + z2).imag
         g1 = (z1 * z + z2 * lam[j]).imag
@@ -650,10 +653,10 @@ def _field(c1, c2, om, lam, kw, t, x):
 
 
 @njit(cache=True, nogil=True)
-def _newton2(c1, c2, om, lam, kw, t, x, tlo, thi, xlo, xhi, t_scale, x_scale):
+def _newton2(c1, c2, om, lam, kw, t, x, start, tlo, thi, xlo, xhi, t_scale, x_scale):
     """Joint (t, x) Newton on grad F = 0 towards the local maximum of |F| inside the box (see the
-    module doc); returns (t, x, |F|), never lower than the start."""
-    F, Ft, Fx, Ftt, Ftx, Fxx = _field(c1, c2, om, lam, kw, t, x)
+    module doc), from ``start`` = :func:`_field` at (t, x); returns (t, x, |F|), never lower than the start."""
+    F, Ft, Fx, Ftt, Ftx, Fxx = start
     for _ in range(NEWTON_ITERATIONS_2D):
         sg = 1.0 if F >= 0.0 else -1.0  # maximise sg F: its Hessian must be negative definite
         gt, gx, a, b, c = sg * Ft, sg * Fx, sg * Ftt, sg * Ftx, sg * Fxx
@@ -878,9 +881,12 @@ def _refine_deck(q, pp, t, h, T_, k, l, iv, qs, mx):
     om, lam, kw, span, hx = iv.Om[l], iv.lam, qs.kw, qs.span_m, qs.hx_m
     best, when, xat, t0 = mx.best, mx.when, mx.xat, iv.t0
     xs = qs.xp[q, pp]
-    if abs(_field(c1, c2, om, lam, kw, t, span - xs)[0]) > abs(_field(c1, c2, om, lam, kw, t, xs)[0]):
+    start = _field(c1, c2, om, lam, kw, t, xs)  # the field at the side taken is Newton's start, not computed twice
+    mirror = _field(c1, c2, om, lam, kw, t, span - xs)
+    if abs(mirror[0]) > abs(start[0]):
         xs = span - xs
-    t, xs, y = _newton2(c1, c2, om, lam, kw, t, xs, max(0.0, t - h), min(T_, t + h), max(0.0, xs - 2.0 * hx),
+        start = mirror
+    t, xs, y = _newton2(c1, c2, om, lam, kw, t, xs, start, max(0.0, t - h), min(T_, t + h), max(0.0, xs - 2.0 * hx),
                         min(span, xs + 2.0 * hx), max(T_, 1e-300), span)
     if y > best[q, l]:
         best[q, l] = y
