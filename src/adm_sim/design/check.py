@@ -997,12 +997,18 @@ class _TrainContext:
 def _run_cases(jobs, trains, comfort, progress):
     """Every train's :class:`TrainCheck` on every bridge of ``jobs`` (the nominal first, then the bounds), in
     one pool of threads (the numba kernels release the GIL; a bound's trains start while the nominal's last
-    ones run; the results do not depend on the order). The comfort DIM and ``progress`` are the nominal
-    bridge's. Returns the checks per job and the time (``time.perf_counter``) each job's last train ended."""
+    ones run; the results do not depend on the order). Each bridge's trains start longest first (most
+    axles: the most events and effect samples), so that the pool ends on short trains and no thread waits
+    long for the other's last one. The comfort DIM and ``progress`` are the nominal bridge's, in the
+    order of ``trains``. Returns the checks per job and the time (``time.perf_counter``) each job's last
+    train ended."""
     outs, done = [[] for _ in jobs], [0.0] * len(jobs)
+    longest_first = sorted(range(len(trains)), key=lambda n: -np.size(trains[n].axle_offsets_m))
     with ThreadPoolExecutor(max_workers=CHECK_THREADS) as pool:
-        futures = [[pool.submit(_train_check, job.ctx, t, dz_pct, note) for t, (dz_pct, note) in zip(trains, job.dz)]
-                   for job in jobs]
+        futures = []
+        for job in jobs:
+            started = {n: pool.submit(_train_check, job.ctx, trains[n], *job.dz[n]) for n in longest_first}
+            futures.append([started[n] for n in range(len(trains))])
         try:
             for i, job in enumerate(jobs):
                 for n, (t, fut) in enumerate(zip(trains, futures[i])):
