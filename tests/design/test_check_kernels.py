@@ -284,6 +284,7 @@ def test_effects_on_the_envelope_lanes_equal_their_own(delta_zeta):
                                                               delta_zeta=delta_zeta + 0.001).dynamic_max)
 
 
+@pytest.mark.slow  # compiles the former kernel (about 2 s of CPU)
 @pytest.mark.parametrize("bridge_name,n_modes,damping_model,trains", [
     ("B1", 3, "modal", "HSLM-A1,ICE-2,Railjet"), ("B4", 5, "rayleigh", "HSLM-A7,ICE-4")])
 def test_effect_scan_equals_the_scan_that_stepped_at_every_sample(monkeypatch, bridge_name, n_modes, damping_model,

@@ -625,17 +625,24 @@ def _newton(c1, c2, w, om, lam, x, lo, hi, work):
     return x, abs(_eval(c1, c2, w, om, lam, x, 0))
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _cis(om, t):
+    """``cmath.exp(1j * om * t)``, bit for bit, without its real exponential: the argument is the product
+    ``(0 + i om)(t + 0 i) = (0 t - om 0) + i (0 0 + om t)``, so ``cmath.exp`` returns ``e^(+-0) cos(0 + om t)``
+    and ``e^(+-0) sin(0 + om t)`` with ``e^(+-0) = 1`` exactly; ``0.0 + om t`` keeps the sign of a zero
+    as the product's imaginary part does (om, t finite)."""
+    y = 0.0 + om * t
+    return complex(math.cos(y), math.sin(y))
+
+
 @njit(cache=True, nogil=True)
 def _field(c1, c2, om, lam, kw, t, x):
     """F = sum_j sin(k_j x) g_j(t) and its derivatives (F, F_t, F_x, F_tt, F_tx, F_xx), with
-    g_j(t) = Im[c1_j e^(i om_j t) + c2_j e^(lam_j t)]. ``e^(i om_j t)`` is taken as ``cos + i sin`` of
-    ``om_j t``: what ``cmath.exp`` returns for the argument ``(i om_j) t = 0 + i om_j t`` (``e^0 cos``,
-    ``e^0 sin``, ``e^0 = 1`` exactly; t >= 0), bit for bit, without its real exponential."""
+    g_j(t) = Im[c1_j e^(i om_j t) + c2_j e^(lam_j t)] (``e^(i om_j t)``: :func:`_cis`)."""
     F = Ft = Fx = Ftt = Ftx = Fxx = 0.0
     for j in range(c1.size):
         z = 1j * om[j]
-        wt = om[j] * t
-        z1 = c1[j] * complex(math.cos(wt), math.sin(wt))
+        z1 = c1[j] * _cis(om[j], t)
         z2 = c2[j] * cmath.exp(lam[j] * t)
         g0 = (z1 + z2).imag
         g1 = (z1 * z + z2 * lam[j]).imag
