@@ -41,7 +41,9 @@ def test_bounds_equal_their_own_checks():
 def test_each_bridge_starts_its_longest_trains_first(monkeypatch):
     """HSLM-A7 (40 axles), ICE-2 (56), HSLM-A1 (50) at V = 200 km/h with mass bounds, on one thread (the
     order the pool starts them in): each bridge runs ICE-2, HSLM-A1, HSLM-A7, the nominal first; the
-    results and the progress stay in the order of the trains given, the same numbers as on two threads."""
+    results stay in the order of the trains given, the progress counts 1 .. 3, the same numbers as on two
+    threads. (An interrupt in the first train started ends the check before the others start:
+    tests/design/test_check.py::test_interrupted_check_runs_no_train_not_yet_started.)"""
     trains = resolve_trains("HSLM-A7,ICE-2,HSLM-A1")
     assert [np.size(t.axle_offsets_m) for t in trains] == [40, 56, 50]
     two = run_check(named_bridge("B1"), 200.0, trains, mass_bounds=(-0.1, 0.15))
