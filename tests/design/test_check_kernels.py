@@ -6,8 +6,15 @@ the effects) with every operation of every value kept in the same order. Their u
 the former code bit for bit on inputs captured from a real run (B1, 3 modes, the first 8 axles of ICE-2 and
 HSLM-A7, a few speeds, the whole deck), and the compiled kernels the uncompiled ones to 1e-13 relative (the
 compiled and the Python complex exponential may differ in the last bit).
+
+The scan then took the exponentials of each distinct step once per lane (:func:`adm_sim.design.check_effects._step_plan`)
+instead of at every sample where the step changes: the kernel before that, compiled, must equal the new one,
+compiled, bit for bit, on whole trains.
 """
 
+import dataclasses
+
+import numba
 import numpy as np
 import pytest
 
@@ -70,6 +77,66 @@ def _scan_before(k_of, ds, E1, P, H, lam, v, W, base, best, squares):
                 y = abs(y)
                 if y > best[l, e]:
                     best[l, e] = y
+
+
+@numba.njit(nogil=True)
+def _scan_steps_each_sample(k_of, ds, E1, P, H, lam, v, WT, base, best, squares):
+    """best[l, e] = max over samples i of |base[i, e] + sum_j WT[j, e] q_j(i, l)|, with
+    q_j = Im[P[k, l, j] E1[i, j]] + Im[H[k, l, j] e^(lam_j ds_i / v_l)], k = k_of[i]. Along the
+    samples of one interval e^(lam tau) is advanced by multiplication where the step repeats
+    (``squares``: :func:`_exp_modes`). The sum over the modes runs for all effects at once (a loop over
+    the effects innermost, contiguous in ``WT`` (modes, effects), which the compiler vectorises); every
+    effect's sum is still ``base + w_1 q_1 + w_2 q_2 + ...`` in that order."""
+    ns = k_of.size
+    nm = lam.size
+    ne = WT.shape[1]
+    eLr = np.empty(nm)
+    eLi = np.empty(nm)
+    sr = np.empty(nm)
+    si = np.empty(nm)
+    qd = np.empty(nm)
+    y = np.empty(ne)
+    top = np.empty(ne)
+    for l in range(v.size):
+        inv_v = 1.0 / v[l]
+        last_k = -1
+        last_ds = 0.0
+        last_h = -1.0
+        for e in range(ne):
+            top[e] = best[l, e]
+        for i in range(ns):
+            k = k_of[i]
+            d = ds[i]
+            if k != last_k:
+                _EXP_MODES(lam, d * inv_v, squares, eLr, eLi)
+                last_h = -1.0
+            else:
+                h = d - last_ds
+                if abs(h - last_h) > 1e-12 * (1.0 + abs(h)):
+                    _EXP_MODES(lam, h * inv_v, squares, sr, si)
+                    last_h = h
+                for j in range(nm):
+                    r = eLr[j] * sr[j] - eLi[j] * si[j]
+                    eLi[j] = eLr[j] * si[j] + eLi[j] * sr[j]
+                    eLr[j] = r
+            last_k = k
+            last_ds = d
+            for j in range(nm):
+                p = P[k, l, j]
+                e1 = E1[i, j]
+                hh = H[k, l, j]
+                qd[j] = p.real * e1.imag + p.imag * e1.real + hh.real * eLi[j] + hh.imag * eLr[j]
+            for e in range(ne):
+                y[e] = base[i, e]
+            for j in range(nm):
+                w = qd[j]
+                for e in range(ne):
+                    y[e] += WT[j, e] * w
+            for e in range(ne):
+                a = abs(y[e])
+                top[e] = a if a > top[e] else top[e]
+        for e in range(ne):
+            best[l, e] = top[e]
 
 
 def _prepare_before(iv, qs):
@@ -160,8 +227,6 @@ def small_cases():
 
 
 def test_effect_scan_equals_its_former_form(monkeypatch, small_cases):
-    import dataclasses
-
     for b, offs, loads in small_cases:
         b3 = dataclasses.replace(b, n_modes=3, damping_model="modal")
         calls = _captured(monkeypatch, ce, "_scan",
@@ -217,3 +282,31 @@ def test_effects_on_the_envelope_lanes_equal_their_own(delta_zeta):
                              intervals=lanes)
     assert np.array_equal(other.dynamic_max, ce.train_effects(b, t.axle_offsets_m, t.axle_loads_n, v_all[order],
                                                               delta_zeta=delta_zeta + 0.001).dynamic_max)
+
+
+@pytest.mark.slow  # compiles the former kernel (about 2 s of CPU)
+@pytest.mark.parametrize("bridge_name,n_modes,damping_model,trains", [
+    ("B1", 3, "modal", "HSLM-A1,ICE-2,Railjet"), ("B4", 5, "rayleigh", "HSLM-A7,ICE-4")])
+def test_effect_scan_equals_the_scan_that_stepped_at_every_sample(monkeypatch, bridge_name, n_modes, damping_model,
+                                                                    trains):
+    """Whole trains, the coarse and the fine pass, 40 speeds and three refinement speeds; one ζ on every
+    mode (the exponentials as powers) and Rayleigh damping (one exponential per mode): the scan that takes
+    each distinct step's exponentials once equals, compiled, the former one, compiled, bit for bit. The
+    plan's steps are each sample's own step (``ds_i - ds_(i-1)``, every bit) and few: at most 100 per pass."""
+    b = dataclasses.replace(named_bridge(bridge_name), n_modes=n_modes, damping_model=damping_model)
+    speeds = np.concatenate([np.linspace(144.0, 420.0, 40), [238.1, 238.2, 301.05]])
+    for t in resolve_trains(trains):
+        calls = _captured(monkeypatch, ce, "_scan",
+                          lambda: ce.train_effects(b, t.axle_offsets_m, t.axle_loads_n, speeds))
+        assert len(calls) == 2
+        for k_of, ds, E1, P, H, lam, v, WT, base, best, squares in calls:
+            assert squares == (damping_model == "modal")
+            new, old = best.copy(), best.copy()
+            ce._scan(k_of, ds, E1, P, H, lam, v, WT, base, new, squares)
+            _scan_steps_each_sample(k_of, ds, E1, P, H, lam, v, WT, base, old, squares)
+            assert np.array_equal(new, old), t.name
+            plan, steps = ce._step_plan(k_of, ds)
+            taken = np.nonzero(plan >= 0)[0]
+            assert np.array_equal(steps[plan[taken]].view(np.int64), (ds[taken] - ds[taken - 1]).view(np.int64))
+            assert np.all(k_of[plan == -2][1:] != k_of[np.nonzero(plan == -2)[0][1:] - 1])
+            assert steps.size == np.unique(steps.view(np.int64)).size <= 100 < taken.size

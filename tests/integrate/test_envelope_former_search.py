@@ -8,9 +8,14 @@ Python with the former Newton, must give the same maxima, times, positions and c
 as plain Python, bit for bit, on inputs captured from real runs (B1, the first 8 axles of ICE-2 and
 HSLM-A7, a few speeds, the whole deck, midspan and x = 4 m); the compiled search the same values as the
 uncompiled one to 1e-13 relative (the compiled and the Python complex powers may differ in the last bit).
+The whole-deck refinement (:func:`adm_sim.integrate.envelope._refine_deck`) starts Newton from the field it
+has already evaluated at the side it takes, and :func:`adm_sim.integrate.envelope._field` takes
+``e^(i om t)`` as ``cos + i sin``: its former form, compiled, must give the same maxima, times and
+positions bit for bit on every candidate of the captured searches and on random ones.
 """
 
-import cmath  # noqa: F401  the former code's
+import cmath  # the former code's
+import math
 
 import numba
 import numpy as np
@@ -38,6 +43,91 @@ def _newton_before(c1, c2, w, om, lam, x, lo, hi):
 
 
 _NEWTON_BEFORE = numba.njit(_newton_before)  # compiled as the module compiles its own
+
+
+@numba.njit
+def _field_before(c1, c2, om, lam, kw, t, x):
+    """F = sum_j sin(k_j x) g_j(t) and its derivatives (F, F_t, F_x, F_tt, F_tx, F_xx), with
+    g_j(t) = Im[c1_j e^(i om_j t) + c2_j e^(lam_j t)]."""
+    F = Ft = Fx = Ftt = Ftx = Fxx = 0.0
+    for j in range(c1.size):
+        z = 1j * om[j]
+        z1 = c1[j] * cmath.exp(z * t)
+        z2 = c2[j] * cmath.exp(lam[j] * t)
+        g0 = (z1 + z2).imag
+        g1 = (z1 * z + z2 * lam[j]).imag
+        g2 = (z1 * z * z + z2 * lam[j] * lam[j]).imag
+        k = kw[j]
+        s = math.sin(k * x)
+        c = math.cos(k * x)
+        F += s * g0
+        Ft += s * g1
+        Ftt += s * g2
+        Fx += k * c * g0
+        Ftx += k * c * g1
+        Fxx -= k * k * s * g0
+    return F, Ft, Fx, Ftt, Ftx, Fxx
+
+
+@numba.njit
+def _newton2_before(c1, c2, om, lam, kw, t, x, tlo, thi, xlo, xhi, t_scale, x_scale):
+    """Joint (t, x) Newton on grad F = 0 towards the local maximum of |F| inside the box (see the
+    module doc); returns (t, x, |F|), never lower than the start."""
+    F, Ft, Fx, Ftt, Ftx, Fxx = _field_before(c1, c2, om, lam, kw, t, x)
+    for _ in range(env.NEWTON_ITERATIONS_2D):
+        sg = 1.0 if F >= 0.0 else -1.0  # maximise sg F: its Hessian must be negative definite
+        gt, gx, a, b, c = sg * Ft, sg * Fx, sg * Ftt, sg * Ftx, sg * Fxx
+        t_stuck = (t <= tlo and gt < 0.0) or (t >= thi and gt > 0.0)
+        det = a * c - b * b
+        if not t_stuck and a < 0.0 and det > 0.0:
+            dt = -(c * gt - b * gx) / det
+            dx = -(a * gx - b * gt) / det
+        else:
+            dt = -gt / a if (not t_stuck and a < 0.0) else 0.0
+            dx = -gx / c if c < 0.0 else 0.0
+        if dt == 0.0 and dx == 0.0:
+            break
+        y0 = abs(F)
+        ok = False
+        tn, xn = t, x
+        Fn = Ftn = Fxn = Fttn = Ftxn = Fxxn = 0.0
+        for _h in range(6):  # a step that lowers |F| is halved
+            tn = min(thi, max(tlo, t + dt))
+            xn = min(xhi, max(xlo, x + dx))
+            Fn, Ftn, Fxn, Fttn, Ftxn, Fxxn = _field_before(c1, c2, om, lam, kw, tn, xn)
+            if abs(Fn) >= y0:
+                ok = True
+                break
+            dt *= 0.5
+            dx *= 0.5
+        if not ok:
+            break
+        step_t, step_x = abs(tn - t), abs(xn - x)
+        t, x = tn, xn
+        F, Ft, Fx, Ftt, Ftx, Fxx = Fn, Ftn, Fxn, Fttn, Ftxn, Fxxn
+        if step_t <= 1e-12 * t_scale and step_x <= 1e-12 * x_scale:
+            break
+    return t, x, abs(F)
+
+
+@numba.njit
+def _refine_deck_before(q, pp, t, h, T_, k, l, iv, qs, mx):
+    """Refine a deck candidate of quantity ``q`` at time ``t`` of interval ``k``, lane ``l`` (step ``h``,
+    length ``T_``) and position x_p or L - x_p (the larger) jointly in (t, x); into ``mx`` in place."""
+    c1 = iv.acc_c1[k, l] if qs.fam[q] == 0 else iv.disp_c1[k, l]
+    c2 = iv.acc_c2[k, l] if qs.fam[q] == 0 else iv.disp_c2[k, l]
+    om, lam, kw, span, hx = iv.Om[l], iv.lam, qs.kw, qs.span_m, qs.hx_m
+    best, when, xat, t0 = mx.best, mx.when, mx.xat, iv.t0
+    xs = qs.xp[q, pp]
+    if abs(_field_before(c1, c2, om, lam, kw, t, span - xs)[0]) > abs(_field_before(c1, c2, om, lam, kw, t, xs)[0]):
+        xs = span - xs
+    t, xs, y = _newton2_before(c1, c2, om, lam, kw, t, xs, max(0.0, t - h), min(T_, t + h),
+                               max(0.0, xs - 2.0 * hx), min(span, xs + 2.0 * hx), max(T_, 1e-300), span)
+    if y > best[q, l]:
+        best[q, l] = y
+        when[q, l] = t0[k, l] + t
+        xat[q, l] = xs
+    return 1
 
 
 def _refine_t_before(q, pp, x, h, T_, k, l, iv, qs, mx):
@@ -247,3 +337,58 @@ def test_search_equals_its_former_form(searches, monkeypatch):
             np.testing.assert_allclose(getattr(compiled, name), getattr(after, name), rtol=1e-13, atol=0)
         refined += r_after[0]
     assert len(searches) == 6 and refined > 100  # the refinements ran, deck and one-position alike
+
+
+@pytest.mark.slow  # compiles the former refinement and runs it on every candidate (about 5 s of CPU)
+def test_deck_refinement_equals_its_former_form(searches):
+    """Every deck interval of the captured searches, every lane, both deck quantities and positions, starts
+    across the interval (the ends included, where Newton pushes against a time bound), each from a best
+    of zero (the refinement always lands) and from the search's best (it lands only when it rises): the new
+    refinement, compiled, gives the same maxima, times and positions as the former one, bit for bit; and
+    the field itself the same six values at random (t, x) on random coefficients."""
+    n = 0
+    for _, iv, qs, mx0 in searches:
+        if not qs.deck.any():
+            continue
+        K, nl, _ = iv.acc_c1.shape
+        for k in range(K - 1):
+            for l in range(nl):
+                T_ = iv.T[k, l]
+                h = T_ / 4.0
+                for q in np.nonzero(qs.deck)[0]:
+                    for pp in range(qs.npos[q]):
+                        for t in (0.0, 0.3 * h, 2.0 * h, T_):
+                            for start in (np.zeros_like(mx0.best), mx0.best):
+                                new, old = (env.Maxima(np.array(start), np.zeros_like(start), np.zeros_like(start),
+                                                       mx0.bound, mx0.curv) for _ in range(2))
+                                env._refine_deck(q, pp, t, h, T_, k, l, iv, qs, new)
+                                _refine_deck_before(q, pp, t, h, T_, k, l, iv, qs, old)
+                                for a, b in zip(new[:3], old[:3]):
+                                    assert np.array_equal(a, b), (k, l, q, pp, t)
+                                n += 1
+    assert n > 2000
+    rng = np.random.default_rng(11)
+    for _ in range(2000):
+        c = rng.normal(size=(4, 3))
+        c1, c2 = c[0] + 1j * c[1], c[2] + 1j * c[3]
+        om, kw = np.array([30.0, 60.0, 90.0]) * rng.uniform(0.5, 2.0), np.pi * np.arange(1, 4) / 15.0
+        lam = np.array([-0.5 + 40j, -2.0 + 160j, -4.5 + 360j])
+        t, x = rng.uniform(0.0, 0.5), rng.uniform(0.0, 15.0)
+        assert env._field(c1, c2, om, lam, kw, t, x) == _field_before(c1, c2, om, lam, kw, t, x)
+
+
+@numba.njit
+def _cexp_i(om, t):
+    return cmath.exp(1j * om * t)
+
+
+def test_cis_is_the_complex_exponential_bit_for_bit():
+    """``_cis(om, t)`` against ``cmath.exp(1j * om * t)``, both compiled: every bit of both parts, the signs
+    of zeros too (t = +0 and -0), on 10000 random (om, t) over the ranges of the search."""
+    rng = np.random.default_rng(5)
+    cases = [(30.0, 0.0), (30.0, -0.0), (1e-3, 1e-300)]
+    cases += list(zip(rng.uniform(1.0, 2000.0, 10000), rng.uniform(0.0, 5.0, 10000)))
+    for om, t in cases:
+        a, b = env._cis(om, t), _cexp_i(om, t)
+        for x, y in ((a.real, b.real), (a.imag, b.imag)):
+            assert x == y and math.copysign(1.0, x) == math.copysign(1.0, y), (om, t)

@@ -997,21 +997,26 @@ class _TrainContext:
 def _run_cases(jobs, trains, comfort, progress):
     """Every train's :class:`TrainCheck` on every bridge of ``jobs`` (the nominal first, then the bounds), in
     one pool of threads (the numba kernels release the GIL; a bound's trains start while the nominal's last
-    ones run; the results do not depend on the order). The comfort DIM and ``progress`` are the nominal
-    bridge's. Returns the checks per job and the time (``time.perf_counter``) each job's last train ended."""
-    outs, done = [[] for _ in jobs], [0.0] * len(jobs)
+    ones run; the results do not depend on the order). Each bridge's trains start longest first (most
+    axles: the most events and effect samples), so that the pool ends on short trains and no thread waits
+    long for the other's last one; they are collected in that order too, so that a train that fails or is
+    interrupted ends the check while the trains after it wait (not run). The comfort DIM and ``progress``
+    (a count) are the nominal bridge's. Returns the checks per job, in the order of ``trains``, and the
+    time (``time.perf_counter``) each job's last train ended."""
+    outs, done = [[None] * len(trains) for _ in jobs], [0.0] * len(jobs)
+    longest_first = sorted(range(len(trains)), key=lambda n: -np.size(trains[n].axle_offsets_m))
     with ThreadPoolExecutor(max_workers=CHECK_THREADS) as pool:
-        futures = [[pool.submit(_train_check, job.ctx, t, dz_pct, note) for t, (dz_pct, note) in zip(trains, job.dz)]
+        futures = [{n: pool.submit(_train_check, job.ctx, trains[n], *job.dz[n]) for n in longest_first}
                    for job in jobs]
         try:
             for i, job in enumerate(jobs):
-                for n, (t, fut) in enumerate(zip(trains, futures[i])):
-                    tc = fut.result()
-                    if i == 0 and comfort and t.units:  # the DIM, in this thread
-                        tc.comfort_b_v_m_s2 = comfort_b_v(job.bridge, t, job.ctx.speeds)
-                    outs[i].append(tc)
+                for count, n in enumerate(longest_first, start=1):
+                    tc = futures[i][n].result()
+                    if i == 0 and comfort and trains[n].units:  # the DIM, in this thread
+                        tc.comfort_b_v_m_s2 = comfort_b_v(job.bridge, trains[n], job.ctx.speeds)
+                    outs[i][n] = tc
                     if i == 0 and progress is not None:
-                        progress(n + 1, len(trains))
+                        progress(count, len(trains))
                 done[i] = time.perf_counter()
         except BaseException:  # an interrupt or a refusal: the trains not yet started are not run
             pool.shutdown(wait=False, cancel_futures=True)

@@ -424,6 +424,26 @@ class Pairs(NamedTuple):
     m: np.ndarray
 
 
+def interval_exponentials(Om, lam, T, lengths):
+    """``(e^(i Om T_k), e^(lam T_k))``, each (lanes, modes), of every interval ``k`` of ``lengths`` (m), in order,
+    ``T`` (intervals, lanes) the intervals' durations ``lengths[k] / v``. The exponentials are most of the
+    propagation's cost and a train's intervals have few lengths (its axle spacings and the span: 14 to 28 of
+    71 to 127 on B1 for HSLM-A1..A10 and the four real trains), so an interval as long as one before it, the
+    same bits of ``lengths[k]`` and hence of ``T[k]``, takes the exponentials computed for that one: the
+    same function of the same values, the same bits. Each is kept until the last interval of its length
+    (no more than the coefficients the propagation fills)."""
+    left = dict(zip(*np.unique(lengths, return_counts=True)))
+    seen = {}
+    for k, d in enumerate(lengths):
+        ex = seen.pop(d, None)
+        if ex is None:
+            ex = (np.exp(1j * Om * T[k][:, None]), np.exp(lam * T[k][:, None]))
+        left[d] -= 1
+        if left[d]:
+            seen[d] = ex
+        yield ex
+
+
 def _all_lanes(v, L, jj, om, zeta, lam, bps, G, ppp, quants):
     """Propagate every lane from event to event, then search the maxima (see the module doc)."""
     nl = v.size
@@ -434,17 +454,18 @@ def _all_lanes(v, L, jj, om, zeta, lam, bps, G, ppp, quants):
     P = G[:, None, :] * np.exp(1j * np.pi * np.outer(bps, jj) / L)[:, None, :] * dyn[None]  # (K, lanes, modes)
     H = np.empty_like(P)
     T = np.empty((K, nl))
-    T[:-1] = np.diff(bps)[:, None] / v[None, :]
+    lengths = np.diff(bps)
+    T[:-1] = lengths[:, None] / v[None, :]
     t0 = bps[:, None] / v[None, :]  # (K, lanes) start time of every interval
     q = np.zeros((nl, nm))
     dq = np.zeros((nl, nm))
+    steps = interval_exponentials(Om, lam, T, lengths)
     for k in range(K):
         p = P[k]
         hi = q - p.imag
         H[k] = (dq - Om * p.real - lam.real * hi) / lam.imag + 1j * hi
         if k < K - 1:
-            eW = np.exp(1j * Om * T[k][:, None])
-            eL = np.exp(lam * T[k][:, None])
+            eW, eL = next(steps)
             q = (p * eW).imag + (H[k] * eL).imag
             dq = (1j * Om * p * eW).imag + (lam * H[k] * eL).imag
     # acceleration (2nd derivative) and deflection of every mode as Im[c1 e^(i Om tau) + c2 e^(lam tau)]
@@ -604,14 +625,24 @@ def _newton(c1, c2, w, om, lam, x, lo, hi, work):
     return x, abs(_eval(c1, c2, w, om, lam, x, 0))
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _cis(om, t):
+    """``cmath.exp(1j * om * t)``, bit for bit, without its real exponential: the argument is the product
+    ``(0 + i om)(t + 0 i) = (0 t - om 0) + i (0 0 + om t)``, so ``cmath.exp`` returns ``e^(+-0) cos(0 + om t)``
+    and ``e^(+-0) sin(0 + om t)`` with ``e^(+-0) = 1`` exactly; ``0.0 + om t`` keeps the sign of a zero
+    as the product's imaginary part does (om, t finite)."""
+    y = 0.0 + om * t
+    return complex(math.cos(y), math.sin(y))
+
+
 @njit(cache=True, nogil=True)
 def _field(c1, c2, om, lam, kw, t, x):
     """F = sum_j sin(k_j x) g_j(t) and its derivatives (F, F_t, F_x, F_tt, F_tx, F_xx), with
-    g_j(t) = Im[c1_j e^(i om_j t) + c2_j e^(lam_j t)]."""
+    g_j(t) = Im[c1_j e^(i om_j t) + c2_j e^(lam_j t)] (``e^(i om_j t)``: :func:`_cis`)."""
     F = Ft = Fx = Ftt = Ftx = Fxx = 0.0
     for j in range(c1.size):
         z = 1j * om[j]
-        z1 = c1[j] * cmath.exp(z * t)
+        z1 = c1[j] * _cis(om[j], t)
         z2 = c2[j] * cmath.exp(lam[j] * t)
         g0 = (z1 + z2).imag
         g1 = (z1 * z + z2 * lam[j]).imag
@@ -629,10 +660,10 @@ def _field(c1, c2, om, lam, kw, t, x):
 
 
 @njit(cache=True, nogil=True)
-def _newton2(c1, c2, om, lam, kw, t, x, tlo, thi, xlo, xhi, t_scale, x_scale):
+def _newton2(c1, c2, om, lam, kw, t, x, start, tlo, thi, xlo, xhi, t_scale, x_scale):
     """Joint (t, x) Newton on grad F = 0 towards the local maximum of |F| inside the box (see the
-    module doc); returns (t, x, |F|), never lower than the start."""
-    F, Ft, Fx, Ftt, Ftx, Fxx = _field(c1, c2, om, lam, kw, t, x)
+    module doc), from ``start`` = :func:`_field` at (t, x); returns (t, x, |F|), never lower than the start."""
+    F, Ft, Fx, Ftt, Ftx, Fxx = start
     for _ in range(NEWTON_ITERATIONS_2D):
         sg = 1.0 if F >= 0.0 else -1.0  # maximise sg F: its Hessian must be negative definite
         gt, gx, a, b, c = sg * Ft, sg * Fx, sg * Ftt, sg * Ftx, sg * Fxx
@@ -857,9 +888,12 @@ def _refine_deck(q, pp, t, h, T_, k, l, iv, qs, mx):
     om, lam, kw, span, hx = iv.Om[l], iv.lam, qs.kw, qs.span_m, qs.hx_m
     best, when, xat, t0 = mx.best, mx.when, mx.xat, iv.t0
     xs = qs.xp[q, pp]
-    if abs(_field(c1, c2, om, lam, kw, t, span - xs)[0]) > abs(_field(c1, c2, om, lam, kw, t, xs)[0]):
+    start = _field(c1, c2, om, lam, kw, t, xs)  # the field at the side taken is Newton's start, not computed twice
+    mirror = _field(c1, c2, om, lam, kw, t, span - xs)
+    if abs(mirror[0]) > abs(start[0]):
         xs = span - xs
-    t, xs, y = _newton2(c1, c2, om, lam, kw, t, xs, max(0.0, t - h), min(T_, t + h), max(0.0, xs - 2.0 * hx),
+        start = mirror
+    t, xs, y = _newton2(c1, c2, om, lam, kw, t, xs, start, max(0.0, t - h), min(T_, t + h), max(0.0, xs - 2.0 * hx),
                         min(span, xs + 2.0 * hx), max(T_, 1e-300), span)
     if y > best[q, l]:
         best[q, l] = y
