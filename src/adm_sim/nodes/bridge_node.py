@@ -46,6 +46,7 @@ from adm_sim.model.bridge import Bridge
 from adm_sim.model.plausibility import response_warnings
 from adm_sim.nodes import common as c
 from adm_sim.nodes.bridge_outputs import BridgePublishers, MonitoringOutput, frame_id, monitor_steps
+from adm_sim.nodes.flow_client import named_publishers
 from adm_sim.nodes.flow_control import PAUSE_END, PAUSE_STEP, FlowControl
 from adm_sim.nodes.params import (MONITOR_SAMPLES_PER_PERIOD, bridge_from_params, bridge_plausibility,
                                    bridge_preset, bridge_specs, step_options)
@@ -296,9 +297,9 @@ class BridgeNode(c.LockstepNode):
     # ------------------------------------------------------------------ flow control
     def _recorders(self):
         """Names of the nodes that acknowledge what they received (publishers of ``/adm/run/ack``:
-        the recorders and the clients that opted into the flow control)."""
-        return sorted({i.node_namespace.rstrip("/") + "/" + i.node_name
-                       for i in self.get_publishers_info_by_topic(self.resolve_topic_name(P.relative(P.TOPIC_ACK)))})
+        the recorders and the clients that opted into the flow control), those known by name only: an
+        acknowledgement carries its node's real name, so one not yet named would be waited for in vain."""
+        return named_publishers(self.get_publishers_info_by_topic(self.resolve_topic_name(P.relative(P.TOPIC_ACK))))
 
     def _on_ack(self, msg):
         if self.run is not None and self.run.flow.take(P.decode(msg.data)):
