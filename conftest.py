@@ -242,8 +242,27 @@ def _compile_bytecode():
         compileall.compile_dir(os.path.join(ROOT, folder), quiet=1, workers=1)
 
 
+def _warm_font_cache():
+    """Build matplotlib's font list once, before any test runs, when it is not there (a fresh machine).
+
+    matplotlib builds it at its first font lookup and runs ``fc-list`` to do so: in whichever test
+    plots first, which the process guard above then reports as that test starting a process. The
+    cache's folder is matplotlib's own rule (``MPLCONFIGDIR``, else ``$XDG_CACHE_HOME`` or ``~/.cache``,
+    then ``matplotlib``); when in doubt the list is built (about a second, once)."""
+    if importlib.util.find_spec("matplotlib") is None:
+        return
+    folder = os.environ.get("MPLCONFIGDIR") or os.path.join(
+        os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache"), "matplotlib")
+    if glob.glob(os.path.join(folder, "fontlist-v*.json")):
+        return
+    subprocess.run([sys.executable, "-c", "import matplotlib.font_manager"], cwd=ROOT, stdin=subprocess.DEVNULL,
+                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=False)
+
+
 def pytest_configure(config):
     _install_process_guard()
+    if not hasattr(config, "workerinput") and not config.getoption("collectonly"):
+        _warm_font_cache()  # the controller of an xdist run, or the one process of a plain run
     if _xdist_controller(config) and not config.getoption("collectonly"):
         _compile_bytecode()
         if os.environ.get("ADM_SIM_TEST_PRECOMPILE", "1") != "0" and not _kernels_cached():

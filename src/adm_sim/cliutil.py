@@ -216,6 +216,23 @@ def check_environment(environ=None):
                          f"compiled kernels), or unset it")
 
 
+def caused_by_interrupt(exc):
+    """Whether ``exc`` was raised *from* a ``KeyboardInterrupt`` (its ``__cause__`` chain holds one).
+
+    A library that turns whatever its initialisation raised into its own error does so: a Ctrl-C
+    landing in the first import of ``scipy.optimize`` (a pybind11 module) comes out as
+    ``ImportError: initialization failed`` whose direct cause is the ``KeyboardInterrupt``. That is
+    the interrupt, not a bug. Only the explicit cause counts: an error raised while an interrupt was
+    being handled (``__context__`` alone) stays a bug."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__
+    return False
+
+
 def _run(call):
     stdout = sys.stdout
     sys.stdout = _NamedStdout(stdout)
@@ -244,6 +261,11 @@ def _run(call):
         what = one_line(exc) or "MemoryError"
         print(f"error: out of memory: {what}{address_space_note()}", file=sys.stderr)
         return EXIT_RUN
+    except Exception as exc:
+        if not caused_by_interrupt(exc):
+            raise  # a bug keeps its traceback
+        print("error: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
     finally:
         if isinstance(sys.stdout, _NamedStdout):
             sys.stdout = stdout

@@ -41,6 +41,33 @@ def test_run_cli_keeps_a_bug_a_bug():
         run_cli(lambda: 1 / 0)
 
 
+def _import_failed(cause, explicit=True):
+    """An ``ImportError`` as a pybind11 module's failed initialisation raises it: ``raise ... from cause``
+    (``explicit``), or raised while ``cause`` was being handled (its context only)."""
+    def call():
+        try:
+            raise cause
+        except BaseException as exc:
+            if explicit:
+                raise ImportError("initialization failed") from exc
+            raise ImportError("initialization failed")  # noqa: B904  the context only, on purpose
+    return call
+
+
+def test_run_cli_an_error_raised_from_an_interrupt_is_the_interrupt(capsys):
+    """A Ctrl-C landing in a library's first import (seen in CI: SIGINT within ``scipy.optimize``'s
+    import, ``ImportError: initialization failed`` from the ``KeyboardInterrupt``): 130, one line."""
+    assert run_cli(_import_failed(KeyboardInterrupt())) == 130
+    assert capsys.readouterr().err == "error: interrupted\n"
+
+
+@pytest.mark.parametrize("cause,explicit", [(ZeroDivisionError("x"), True), (KeyboardInterrupt(), False)],
+                         ids=["from-a-bug", "during-an-interrupt-not-from-it"])
+def test_run_cli_an_error_not_caused_by_an_interrupt_stays_a_bug(cause, explicit):
+    with pytest.raises(ImportError):
+        run_cli(_import_failed(cause, explicit))
+
+
 def test_classes():
     assert issubclass(InputError, AdmSimError) and issubclass(InputError, ValueError)
     assert issubclass(RunError, AdmSimError) and issubclass(RunError, RuntimeError)

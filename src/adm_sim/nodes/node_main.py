@@ -10,7 +10,7 @@ import rclpy
 from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException
 
-from adm_sim.cliutil import one_line_warnings
+from adm_sim.cliutil import caused_by_interrupt, one_line_warnings
 from adm_sim.errors import AdmSimError, InputError
 from adm_sim.files import release_all
 from adm_sim.nodes.param_node import SHARED_PARAMETER_NAMES
@@ -69,8 +69,8 @@ def _run_node(make_node, args, name):
         print(f"error: {name}: {exc}", file=sys.stderr, flush=True)
         report_failure(nodes, str(exc))
         return 2 if isinstance(exc, InputError) else 1  # the CLIs' mapping (adm_sim.cliutil.run_cli)
-    except Exception:
-        if rclpy.ok():
+    except Exception as exc:
+        if rclpy.ok() and not caused_by_interrupt(exc):  # e.g. a Ctrl-C within a library's first import
             raise
         return 130  # shut down (SIGINT/SIGTERM) while a callback was publishing
     finally:
