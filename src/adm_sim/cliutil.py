@@ -91,10 +91,12 @@ def run_cli(call):
                 os.environ.pop(WORK_ENV, None)
             else:
                 os.environ[WORK_ENV] = work_env
-        if sigs.late and code == EXIT_OK:
-            print("error: interrupted", file=sys.stderr)
-            code = EXIT_INTERRUPTED
-        return code
+    # read once the block has ended: a signal up to its end marks it (the exit handlers then stand);
+    # read within the block, one landing between that reading and the end was lost (a run ended 0)
+    if sigs.late and code == EXIT_OK:
+        print("error: interrupted", file=sys.stderr)
+        code = EXIT_INTERRUPTED
+    return code
 
 
 def _deferring(call, sigs):
