@@ -302,8 +302,15 @@ class BridgeNode(c.LockstepNode):
         return named_publishers(self.get_publishers_info_by_topic(self.resolve_topic_name(P.relative(P.TOPIC_ACK))))
 
     def _on_ack(self, msg):
-        if self.run is not None and self.run.flow.take(P.decode(msg.data)):
+        r = self.run
+        if r is None:
+            return
+        ack = P.decode(msg.data)
+        if r.flow.take(ack):
             self._resume()
+        elif r.flow.join(ack, r.id):  # a client the bridge's view of the graph showed too late
+            self.get_logger().info(f"run {r.id}: '{ack['node']}' joined the flow control at its acknowledgement "
+                                   f"of {r.flow.joined[ack['node']]} of {r.flow.sent} messages")
 
     def _pause(self, what):
         """Wait for the recorders before ``what`` (``step``: the next exchange; ``end``: the result)."""

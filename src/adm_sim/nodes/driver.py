@@ -297,7 +297,8 @@ class RunDriver(c.NodeBase):
                                f"within run_timeout_s = {timeout_s:g} s")
             self._event.wait(0.05)
         # the bridge takes them at the run's set-up from its own view of the graph, which can lag
-        # this node's by a second or more on a loaded machine
+        # this node's by a second or more on a loaded machine (one it misses then joins at its first
+        # acknowledgement of the run, FlowControl.join; the wait keeps that the exception)
         self._event.wait(2.0)
         print(f"clients opted in: {', '.join(self.opted_in_clients())}", flush=True)
 

@@ -27,7 +27,8 @@ class FlowClient:
     """Opt a client node into the bridge's flow control: one call, ``FlowClient(node)``, before the
     run starts; then ``flow.received()`` in the callback of every message of ``topics``.
 
-    The bridge takes every publisher of ``/adm/run/ack`` at a run's set-up as a node to wait for
+    The bridge takes every publisher of ``/adm/run/ack`` at a run's set-up as a node to wait for,
+    and one its view of the graph missed then at its first acknowledgement of the run
     (docs/ros.md, "Flow control"): it never publishes more than :data:`adm_sim.protocol.FLOW_WINDOW`
     messages of ``topics`` beyond this client's acknowledgement, and ends the run only once the
     client has them all. Subscribe to ``topics`` RELIABLE with a history of at least

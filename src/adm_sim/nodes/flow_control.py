@@ -28,6 +28,8 @@ class FlowControl:
     ----------
     acked : dict
         Node -> messages it acknowledged (a node dropped from the flow control leaves it).
+    joined : dict
+        Node -> its count when it joined during the run (:meth:`join`).
     ack_topics : dict
         Node -> the topics its count covers, when not every counted topic (a client that reads
         the acceleration alone).
@@ -45,6 +47,9 @@ class FlowControl:
 
     def __init__(self, nodes):
         self.acked = {n: 0 for n in nodes}
+        self.joined = {}     # node -> its count when it joined by acknowledging (:meth:`join`)
+        self._unseen = set()  # joined, not yet on the bridge's view of the graph
+        self._dropped = set()
         self.ack_topics = {}
         self.counts = {t: 0 for t in P.SAMPLE_TOPICS}
         self.sent = 0
@@ -75,6 +80,23 @@ class FlowControl:
         self.wait_since = None
         return True
 
+    def join(self, ack, run_id):
+        """Take a node that acknowledges run ``run_id`` without having been on the bridge's view of
+        the graph at the run's set-up: discovery on a loaded machine can show a client to the bridge
+        seconds after it opted in (and after a launcher's ``--wait-clients`` saw it), and a client
+        acknowledges its first sample of a run at once, while its queue (at least
+        :data:`adm_sim.protocol.FLOW_WINDOW`) still holds every sample. From then on the run waits for
+        it as for the others. An acknowledgement of another run, of a node already waited for, or of
+        one dropped in this run joins nothing. Returns whether the node joined."""
+        name = ack.get("node")
+        if not name or ack.get("run_id") != run_id or name in self.acked or name in self._dropped:
+            return False
+        self.acked[name] = 0
+        self._unseen.add(name)
+        self.take(ack)
+        self.joined[name] = self.acked[name]
+        return True
+
     def ahead(self, pending=0):
         """Whether the run is more than the window ahead of the slowest acknowledging node (with
         ``pending`` messages more published)."""
@@ -101,10 +123,13 @@ class FlowControl:
         none acknowledged anything for ``patience_s``. Returns ``[(name, left, acked, sent), ...]``
         of the nodes dropped (``left``: it left the graph)."""
         stale = now - self.wait_since > patience_s
+        self._unseen -= set(alive)  # a node that joined counts as on the graph until the bridge has seen it
         dropped = []
         for name in list(self.acked):
-            if name not in alive or stale:
-                dropped.append((name, name not in alive, self.acked[name], self.sent_to(name)))
+            left = name not in alive and name not in self._unseen
+            if left or stale:
+                dropped.append((name, left, self.acked[name], self.sent_to(name)))
                 del self.acked[name]
+                self._dropped.add(name)
         self.wait_since = None if not self.acked else now
         return dropped
