@@ -21,11 +21,12 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 
 #: The command: its work prints 'done' and returns; then 'returned' once run_cli is back, and a
-#: slow way out (threads joined, modules torn down). The way out lasts 3 s: a signal that reaches
+#: slow way out (threads joined, modules torn down). The way out lasts EXIT_S: a signal that reaches
 #: the interpreter's own finalization (after Python's handlers are gone) is a death by it, which no
 #: Python code can prevent; a loaded machine delays the test's signal by seconds (a run of the suite
-#: at load 10-16 took 3.4 s to deliver it, past a 3 s way out). The signal ends the sleep, so a long
-#: way out costs nothing when the signal is on time.
+#: at load 10-16 took 3.4 s to deliver it, past a 3 s way out). The signal ends the way out (short
+#: sleeps: Python runs a handler between them, where a signal taken just before one long sleep
+#: began waited for its end, about 1 run in 200), so a long way out costs nothing when the signal is on time.
 EXIT_S = 20.0
 #: The command starts as a terminal starts it, SIGINT raising KeyboardInterrupt: a run of the suite
 #: in the background of a non-interactive shell (``pytest ... &``) hands its children SIGINT
@@ -42,8 +43,9 @@ def work():
 
 code = run_cli(work)
 print("returned", flush=True)
-if code == 0:
-    time.sleep(float(sys.argv[1]))
+if code == 0:  # in short sleeps: a signal taken just before a long sleep began would wait for its end
+    for _ in range(int(float(sys.argv[1]) / 0.05)):
+        time.sleep(0.05)
 sys.exit(code)
 """
 
