@@ -25,6 +25,8 @@ import shutil
 
 import pytest
 
+from source_trees import tree, tree_of_text
+
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 
 #: the wings and their ranks, lowest first (the README's drawing and docs/architecture.md say the same)
@@ -81,7 +83,7 @@ _NAMES_OF_TEXT = {}
 def _parsed(path, text):
     if text not in _NAMES_OF_TEXT:  # a text that does not parse raises here, naming this path
         names = []
-        for node in ast.walk(ast.parse(text, filename=str(path))):
+        for node in ast.walk(tree_of_text(text, str(path))):
             if isinstance(node, ast.Import):
                 names += (a.name for a in node.names)
             elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
@@ -285,7 +287,7 @@ def test_architecture_table_is_the_measured_one():
 
 def module_row(path):
     """The row of docs/architecture.md's module table for ``path``: the first sentence of its docstring."""
-    doc = (ast.get_docstring(ast.parse(path.read_text(encoding="utf-8"))) or "").split("\n\n")[0].replace("\n", " ")
+    doc = (ast.get_docstring(tree(path)) or "").split("\n\n")[0].replace("\n", " ")
     first = re.split(r"(?<=[a-z)`]\.)\s", doc)[0].rstrip(".").replace("``", "`")
     wing = layer(module_name(path))
     return f"| `{path.relative_to(ROOT)}` | {wing} ({RANK.get(wing, '?')}) | {first} |"
