@@ -2,9 +2,9 @@
 
 Every case runs one entry point as a user would (``adm-sim``, ``adm-calib``, ``replay.py``,
 ``crossing.py``, ``calibrate.py``, a node started by hand) in a fresh folder: a process of its own
-for signals, cases that set the environment and at least one plain case per entry point (each node
-one); the other refusals call the entry point's ``main(argv)`` in this process (:func:`_in_process`;
-a node on rclpy's default context in the case's ROS domain).
+for signals and at least one plain case per entry point (each node one); the other refusals call
+the entry point's ``main(argv)`` in this process (:func:`_in_process`; a node on rclpy's default
+context in the case's ROS domain, the environment of a case set for the call).
 It asserts the properties every refusal must have, whatever the class:
 
 * the exit code (2 for bad input, 130 for an interrupt);
@@ -728,7 +728,7 @@ CASES = [
          patches=(_shorter_wait("adm_sim.recording.viewer_process", "handshake", 5.0, 0.5),)),
     Case("viewer", "crossing-spawn-no-display", lambda t: CROSS + ["--out", f"{t}/o", "--spawn"],
          "error: --spawn: the rerun viewer exited at once (exit status 1: ", code=1, ros=True,
-         env={"DISPLAY": "", "WAYLAND_DISPLAY": "", "WAYLAND_SOCKET": ""}),
+         env={"DISPLAY": "", "WAYLAND_DISPLAY": "", "WAYLAND_SOCKET": ""}, process=True),
     Case("scheduler", "closed-port",
          lambda t: CAL + ["study", "--out", f"{t}/st", "--scheduler", "tcp://127.0.0.1:{port}"],
          "--scheduler: cannot connect to 'tcp://127.0.0.1:{port}'", setup=_closed_port, code=1),
@@ -835,12 +835,14 @@ def _entry_of(argv):
 
 def _in_process(case, argv):
     """Whether the case calls its entry point's ``main`` in this process: an ``adm-sim``,
-    ``adm-calib``, ``replay.py``, ``crossing.py``, ``calibrate.py`` or node refusal, unless it sets
-    the environment (read at start-up) or is kept as a process (:attr:`Case.process`: each of these
-    entry points, each node included, keeps at least one plain case, ``output-set`` one: exit code,
-    one stderr line, the way out of a real process; the launchers' silent viewer at its shipped
-    wait)."""
-    return not case.process and not case.env and _entry_of(argv)[0] in IN_PROCESS
+    ``adm-calib``, ``replay.py``, ``crossing.py``, ``calibrate.py`` or node refusal, unless it is
+    kept as a process (:attr:`Case.process`: each of these entry points, each node included, keeps
+    at least one plain case, ``output-set`` one: exit code, one stderr line, the way out of a real
+    process; the launchers' silent viewer at its shipped wait; a viewer spawned without a display).
+    A case that sets the environment sets it in this one for the call: the variables of the table
+    are read when the command runs (``adm_sim.cliutil.check_environment``, first in ``run_cli``),
+    not at start-up."""
+    return not case.process and _entry_of(argv)[0] in IN_PROCESS
 
 
 def _patched_argv(argv, patches):
@@ -894,6 +896,8 @@ def _run_in_process(case, argv, t, monkeypatch, capfd, ros_env):
     if module in NODE_MODULES:
         for k, v in ros_env.items():
             monkeypatch.setenv(k, v)
+    for k, v in case.env.items():
+        monkeypatch.setenv(k, v)
     main = importlib.import_module(module).main
     monkeypatch.chdir(t)
     capfd.readouterr()
