@@ -886,31 +886,43 @@ def _run_in_process(case, argv, t, monkeypatch, capfd, ros_env):
     (stdout and stderr read at the file descriptors: a line written past ``sys.stderr`` or by rcl
     counts too). A node runs in the case's ROS environment (its own domain, shared memory only) on
     rclpy's default context, which its ``main`` shuts down however it ends; the signal handlers
-    rclpy's init installed are taken out after it, as this process had them before."""
+    rclpy's init installed are taken out after it, as this process had them before. A node that
+    took its input would wait for a run for good: after :attr:`Case.timeout_s` (the bound of a
+    case's process) an alarm raises ``TimeoutError`` in it, and the test fails instead of hanging."""
     import importlib
 
     module, args = _entry_of(argv)
     monkeypatch.syspath_prepend(str(ROOT / "launch_scripts"))
     for patch in case.patches:
         _apply(patch, monkeypatch.setattr)
-    if module in NODE_MODULES:
+    node = module in NODE_MODULES
+    if node:  # the variables local_ros_env set (the domain, shared memory, localhost)
         for k, v in ros_env.items():
-            monkeypatch.setenv(k, v)
+            if os.environ.get(k) != v:
+                monkeypatch.setenv(k, v)
     for k, v in case.env.items():
         monkeypatch.setenv(k, v)
     main = importlib.import_module(module).main
     monkeypatch.chdir(t)
     capfd.readouterr()
+    if node:
+        def overdue(signum, frame):
+            raise TimeoutError(f"{module}: no refusal within {case.timeout_s} s")
+
+        alarm = signal.signal(signal.SIGALRM, overdue)
+        signal.setitimer(signal.ITIMER_REAL, case.timeout_s)
     try:
         code = main(args)
     except SystemExit as exc:
         code = exc.code
     finally:
-        if module in NODE_MODULES:
+        if node:
             import rclpy
 
-            assert not rclpy.ok(), "the node's main left rclpy's default context running"
+            signal.setitimer(signal.ITIMER_REAL, 0.0)
+            signal.signal(signal.SIGALRM, alarm)
             rclpy.signals.uninstall_signal_handlers()
+            assert not rclpy.ok(), "the node's main left rclpy's default context running"
     out, err = capfd.readouterr()
     return Result(code, out, err)
 
