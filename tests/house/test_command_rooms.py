@@ -9,6 +9,8 @@ from pathlib import Path
 
 import pytest
 
+from source_trees import tree
+
 ROOT = Path(__file__).resolve().parents[2]
 FILES = sorted((ROOT / "src" / "adm_sim" / "cli").glob("*.py")) + sorted((ROOT / "src" / "adm_calib").rglob("*.py"))
 ALL_SRC = sorted((ROOT / "src").rglob("*.py"))
@@ -17,8 +19,7 @@ MAX_LINES = 80
 
 def long_functions(path, limit=MAX_LINES):
     """``(name, lines)`` of every function of ``path`` longer than ``limit`` lines (docstring included)."""
-    tree = ast.parse(path.read_text(encoding="utf-8"))
-    return [(n.name, n.end_lineno - n.lineno + 1) for n in ast.walk(tree)
+    return [(n.name, n.end_lineno - n.lineno + 1) for n in ast.walk(tree(path))
             if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef)) and n.end_lineno - n.lineno + 1 > limit]
 
 

@@ -1,9 +1,9 @@
 """Commands start fast: each command imports only the heavy modules its work uses.
 
 Every case runs in a fresh process that has imported nothing of the project and none of
-:data:`HEAVY` (a child forked from :data:`FORK_SERVER`, an interpreter that started as a probe's
-own would and imported only the standard library and numpy, which every command imports first;
-it checks that of itself before serving), imports a command module and, for a subcommand, runs it
+:data:`HEAVY` (a child forked from the server of tests/probe_server.py, an interpreter that started
+as a probe's own would and imported only the standard library and numpy, which every command
+imports first; it checks that of itself before serving), imports a command module and, for a subcommand, runs it
 on a small case; then it lists which of :data:`HEAVY` were imported. The test asserts which are absent (and, for the numerical paths,
 that the one they need is present, so the probe can fail both ways), not a time: times are in
 ``bench/bench_cli.py`` and docs/benchmarks.md. What each heavy module costs at the start of a
@@ -21,14 +21,11 @@ from __future__ import annotations
 
 import json
 import os
-import select
-import signal
-import subprocess
-import sys
-import tempfile
 from pathlib import Path
 
 import pytest
+
+from probe_server import ProbeServer
 
 pytestmark = pytest.mark.slow  # every test here starts processes
 
@@ -53,97 +50,21 @@ print(json.dumps({"rc": rc, "loaded": [h for h in json.loads(sys.argv[3]) if h i
 """
 
 
-#: Serves probes: for each request line (code, argv, environment, working directory, output files)
-#: a child is forked that runs the code as ``python -c code *argv`` would, as ``__main__``, and its
-#: exit code is answered. The server itself imports the standard library and numpy only and
-#: refuses to serve if any heavy module or any module of the project is loaded: a child starts as
-#: a fresh probe interpreter would, less ~0.2 s of CPU (start-up and numpy) each.
-FORK_SERVER = """
-import json, os, sys, traceback, types
-import numpy
-bad = [m for m in sys.modules if m in json.loads(sys.argv[1]) or m.split('.')[0] in ('adm_sim', 'adm_calib')]
-print(json.dumps(bad), flush=True)
-for line in sys.stdin:
-    req = json.loads(line)
-    pid = os.fork()
-    if pid == 0:
-        code = 1
-        try:
-            os.dup2(os.open(os.devnull, os.O_RDONLY), 0)
-            os.dup2(os.open(req["stdout"], os.O_WRONLY | os.O_CREAT | os.O_TRUNC), 1)
-            os.dup2(os.open(req["stderr"], os.O_WRONLY | os.O_CREAT | os.O_TRUNC), 2)
-            os.environ.clear()
-            os.environ.update(req["env"])
-            os.chdir(req["cwd"])
-            sys.argv = ["-c", *req["argv"]]
-            main = types.ModuleType("__main__")
-            sys.modules["__main__"] = main
-            exec(compile(req["code"], "<string>", "exec"), main.__dict__)
-            code = 0
-        except SystemExit as exc:
-            code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
-        except BaseException:
-            traceback.print_exc()
-        finally:  # the end of an interpreter: non-daemon threads joined, atexit handlers run
-            try:
-                if "threading" in sys.modules:
-                    sys.modules["threading"]._shutdown()
-                import atexit
-                atexit._run_exitfuncs()
-                sys.stdout.flush()
-                sys.stderr.flush()
-            finally:
-                os._exit(code)
-    print(json.dumps(os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1])), flush=True)
-"""
-
-_server = None
+#: Probes run in forked children of a server that imported the standard library and numpy only
+#: (tests/probe_server.py: it refuses to serve with any of :data:`HEAVY` or of the project loaded).
+_SERVER = ProbeServer(HEAVY, ROOT / "src")
 
 
 @pytest.fixture(scope="module", autouse=True)
 def _stop_fork_server():
     yield
-    global _server
-    if _server is not None:
-        _server.stdin.close()
-        try:
-            _server.wait(timeout=30)
-        except subprocess.TimeoutExpired:
-            os.killpg(_server.pid, signal.SIGKILL)
-            _server.wait(timeout=10)
-        _server = None
-
-
-def _answer(timeout):
-    ready, _, _ = select.select([_server.stdout], [], [], timeout)
-    if not ready:
-        os.killpg(_server.pid, signal.SIGKILL)   # the server and a probe still running
-        pytest.fail(f"no answer from the probe server within {timeout} s")
-    return json.loads(_server.stdout.readline())
+    _SERVER.stop()
 
 
 def probe(code, *argv, env, cwd=None, timeout=600):
     """``python -c code *argv`` with ``env`` (its PYTHONPATH must be this checkout's src) in a
     forked child of the probe server: ``CompletedProcess`` with the exit code and the output."""
-    global _server
-    assert env["PYTHONPATH"] == str(ROOT / "src")
-    if _server is None:
-        _server = subprocess.Popen([sys.executable, "-c", FORK_SERVER, json.dumps(HEAVY)], stdin=subprocess.PIPE,
-                                   stdout=subprocess.PIPE, text=True, env=dict(os.environ, PYTHONPATH=env["PYTHONPATH"]),
-                                   start_new_session=True)
-        bad = _answer(120)
-        if bad:
-            os.killpg(_server.pid, signal.SIGKILL)
-            _server.wait(timeout=10)
-            _server = None
-            pytest.fail(f"the probe server started with heavy or project modules loaded: {bad}")
-    with tempfile.TemporaryDirectory() as d:
-        out, err = Path(d) / "stdout", Path(d) / "stderr"
-        _server.stdin.write(json.dumps({"code": code, "argv": list(argv), "env": env, "cwd": str(cwd or os.getcwd()),
-                                        "stdout": str(out), "stderr": str(err)}) + "\n")
-        _server.stdin.flush()
-        rc = _answer(timeout)
-        return subprocess.CompletedProcess([sys.executable, "-c", code, *argv], rc, out.read_text(), err.read_text())
+    return _SERVER.probe(code, *argv, env=env, cwd=cwd, timeout=timeout)
 
 
 def test_the_probe_server_gives_a_fresh_process():
@@ -205,7 +126,11 @@ def test_compiled_paths_load_numba_and_nothing_else_heavy(argv):
 
 
 def test_numpy_backend_sweep_does_not_start_numbas_cpu_target():
-    got = loaded("adm_sim.cli.sim_commands", ["sweep", "--model", "dim", "--speeds", "250,300", "--backend", "numpy"])
+    """The numpy stepper (two speeds, the coarsest step the sweep takes: 4 steps per period of the
+    highest mode) runs without numba's CPU target: what a run imports does not depend on its step,
+    and at the default step the stepper's work was ~1.4 s of the probe's ~2 s of CPU."""
+    got = loaded("adm_sim.cli.sim_commands", ["sweep", "--model", "dim", "--speeds", "250,300", "--steps-per-period", "4",
+                                              "--backend", "numpy"])
     assert got.isdisjoint(NEVER) and "scipy.linalg" not in got, got
 
 

@@ -3,7 +3,9 @@
 A launch script imports rerun (~0.9 s), rclpy (~0.2 s) and scipy.signal (~1.5 s) only on the path
 that uses them: rerun when a replay draws (``--rrd``, ``--spawn``, ``--connect``), rclpy when it
 republishes or a monitor subscribes live, scipy when a passage is analysed. Each case runs the
-script's ``main(argv)`` in a fresh process and lists which of those modules were imported; it also
+script's ``main(argv)`` in a fresh process (a forked child of tests/probe_server.py's server, which
+imported the standard library and numpy only and none of these) and lists which of those modules
+were imported; it also
 runs a replay that republishes (refused at ``--topics`` after rclpy loaded, before any participant
 is created) and one that draws, so the probe can fail both ways.
 """
@@ -12,11 +14,11 @@ from __future__ import annotations
 
 import json
 import os
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
+
+from probe_server import ProbeServer
 
 pytestmark = pytest.mark.slow  # every test here starts a process
 
@@ -37,12 +39,21 @@ print(json.dumps({"rc": rc, "err": err.getvalue(), "loaded": [w for w in json.lo
 """
 
 
+_SERVER = ProbeServer(WATCHED, ROOT / "src")
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _stop_probe_server():
+    yield
+    _SERVER.stop()
+
+
 def run_probe(script, argv, cwd):
     """``(exit code, stderr, watched modules loaded)`` of ``launch_scripts/<script>.py``'s ``main(argv)``."""
     env = dict(os.environ, PYTHONPATH=str(ROOT / "src"), FASTDDS_BUILTIN_TRANSPORTS="SHM",
                ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", RUST_LOG="off")
-    p = subprocess.run([sys.executable, "-c", PROBE, str(ROOT / "launch_scripts"), script, json.dumps(argv),
-                        json.dumps(WATCHED)], capture_output=True, text=True, timeout=300, cwd=cwd, env=env)
+    p = _SERVER.probe(PROBE, str(ROOT / "launch_scripts"), script, json.dumps(argv), json.dumps(WATCHED), env=env,
+                      cwd=cwd, timeout=300)
     assert p.returncode == 0, p.stderr
     out = json.loads(p.stdout.strip().splitlines()[-1])
     return out["rc"], out["err"], set(out["loaded"])

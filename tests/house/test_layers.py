@@ -19,12 +19,13 @@ from __future__ import annotations
 
 import ast
 import collections
-import functools
 import pathlib
 import re
 import shutil
 
 import pytest
+
+from source_trees import tree, tree_of_text
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 
@@ -73,21 +74,29 @@ def source_files(root=ROOT):
     return sorted((root / "src").rglob("*.py")) + sorted((root / "launch_scripts").glob("*.py"))
 
 
-@functools.cache
+#: ``{source text: the module names its imports name}``: a text is parsed once per process, also when
+#: a copy of the tree holds it under another path (the planted-import scan reads every file anew
+#: and parses only the one it changed).
+_NAMES_OF_TEXT = {}
+
+
 def _parsed(path, text):
-    names = []
-    for node in ast.walk(ast.parse(text, filename=str(path))):
-        if isinstance(node, ast.Import):
-            names += (a.name for a in node.names)
-        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
-            # ``from adm_sim import recording`` imports the subpackage: count the names too
-            names.append(node.module)
-            names += (f"{node.module}.{a.name}" for a in node.names)
-    return tuple(names)
+    if text not in _NAMES_OF_TEXT:  # a text that does not parse raises here, naming this path
+        names = []
+        for node in ast.walk(tree_of_text(text, str(path))):
+            if isinstance(node, ast.Import):
+                names += (a.name for a in node.names)
+            elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+                # ``from adm_sim import recording`` imports the subpackage: count the names too
+                names.append(node.module)
+                names += (f"{node.module}.{a.name}" for a in node.names)
+        _NAMES_OF_TEXT[text] = tuple(names)
+    return _NAMES_OF_TEXT[text]
 
 
 def _imports(path):
-    """Every module name an import of ``path`` names (parsed once per text: several scans read it)."""
+    """Every module name an import of ``path`` names (read each time; parsed once per text: several
+    scans read it)."""
     return _parsed(path, path.read_text(encoding="utf-8"))
 
 
@@ -278,7 +287,7 @@ def test_architecture_table_is_the_measured_one():
 
 def module_row(path):
     """The row of docs/architecture.md's module table for ``path``: the first sentence of its docstring."""
-    doc = (ast.get_docstring(ast.parse(path.read_text(encoding="utf-8"))) or "").split("\n\n")[0].replace("\n", " ")
+    doc = (ast.get_docstring(tree(path)) or "").split("\n\n")[0].replace("\n", " ")
     first = re.split(r"(?<=[a-z)`]\.)\s", doc)[0].rstrip(".").replace("``", "`")
     wing = layer(module_name(path))
     return f"| `{path.relative_to(ROOT)}` | {wing} ({RANK.get(wing, '?')}) | {first} |"

@@ -21,6 +21,8 @@ from pathlib import Path
 
 import pytest
 
+from source_trees import tree
+
 import adm_calib
 import adm_sim
 
@@ -51,7 +53,7 @@ def _third_party_imports(paths, root=ROOT):
     """First file importing each top-level module that is neither standard library nor ours."""
     found = {}
     for path in paths:
-        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        for node in ast.walk(tree(path)):
             if isinstance(node, ast.Import):
                 names = [a.name for a in node.names]
             elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:

@@ -92,7 +92,10 @@ def test_unmarked_process_fails_after_the_test_never_in_its_thread(pytester):
     pytester.makepyprojecttoml((ROOT / "pyproject.toml").read_text())  # the marker's registration
     pytester.makepyfile(test_suite=SUITE)
     base = pytester.path / "tmp"
-    r = pytester.runpytest_subprocess("-p", "no:cacheprovider", f"--basetemp={base}", "-rfE", timeout=600)
+    # without hypothesis' plugin: the small suite has no property-based test, and importing hypothesis
+    # was ~1.2 s of the fresh pytest's ~2 s of CPU
+    r = pytester.runpytest_subprocess("-p", "no:cacheprovider", "-p", "no:hypothesispytest", f"--basetemp={base}",
+                                      "-rfE", timeout=600)
     out = r.stdout.str()
     r.assert_outcomes(passed=2, failed=5, errors=1)
     for name, what in [("test_subprocess", "subprocess: "), ("test_multiprocessing", "multiprocessing: "),

@@ -19,6 +19,8 @@ from pathlib import Path
 
 import pytest
 
+from source_trees import tree, tree_of_text
+
 from adm_sim import fields
 from adm_sim.errors import InputError
 
@@ -280,7 +282,7 @@ def range_literals(source, filename="<test>"):
     """``(line, text)`` of every check of a registry name by hand (``check_range("span_m", ...)``,
     ``ParamSpec("zeta_pct", ...)``) and every literal pair equal to a registry range."""
     names, ranges, hits = _registry_names(), _ranges(), []
-    for node in ast.walk(ast.parse(source, filename=filename)):
+    for node in ast.walk(tree_of_text(source, filename)):
         if isinstance(node, ast.Call):
             fn = node.func.attr if isinstance(node.func, ast.Attribute) else getattr(node.func, "id", "")
             if fn in CHECKS and node.args and isinstance(node.args[0], ast.Constant) and node.args[0].value in names:
@@ -400,7 +402,7 @@ def library_arguments():
     ``FIELDS["x"].check(..., argument=True)``); flags (``--x``) and non-literal names left out."""
     out: dict = {}
     for path in sorted((ROOT / "src").rglob("*.py")):
-        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        for node in ast.walk(tree(path)):
             if not isinstance(node, ast.Call):
                 continue
             kw = {k.arg: k.value for k in node.keywords}

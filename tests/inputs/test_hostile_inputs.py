@@ -2,8 +2,9 @@
 
 Every case runs one entry point as a user would (``adm-sim``, ``adm-calib``, ``replay.py``,
 ``crossing.py``, ``calibrate.py``, a node started by hand) in a fresh folder: a process of its own
-for nodes, signals, cases that set the environment and at least one plain case per entry point;
-the other refusals call the entry point's ``main(argv)`` in this process (:func:`_in_process`).
+for signals and at least one plain case per entry point (each node one); the other refusals call
+the entry point's ``main(argv)`` in this process (:func:`_in_process`; a node on rclpy's default
+context in the case's ROS domain, the environment of a case set for the call).
 It asserts the properties every refusal must have, whatever the class:
 
 * the exit code (2 for bad input, 130 for an interrupt);
@@ -373,14 +374,14 @@ CASES = [
     # --- existing outputs
     Case("output-exists", "driver-record-path", node("adm_sim.nodes.driver", "record_path:=keep.mcap"),
          "error: driver: record_path: 'keep.mcap' exists; set -p overwrite:=true to replace it",
-         setup=_existing("keep.mcap"), ros=True),
+         setup=_existing("keep.mcap"), ros=True, process=True),
     Case("output-exists", "driver-rrd-path", node("adm_sim.nodes.driver", "rrd_path:=keep.rrd"),
          "rrd_path: 'keep.rrd' exists; set -p overwrite:=true", setup=_existing("keep.rrd"), ros=True),
     Case("output-exists", "driver-summary-path", node("adm_sim.nodes.driver", "summary_path:=keep.json"),
          "summary_path: 'keep.json' exists", setup=_existing("keep.json"), ros=True),
     Case("output-exists", "calibration-node-record-path",
          node("adm_calib.nodes.calibration_node", "record_path:=keep.mcap"),
-         "error: calibration: record_path: 'keep.mcap' exists", setup=_existing("keep.mcap"), ros=True),
+         "error: calibration: record_path: 'keep.mcap' exists", setup=_existing("keep.mcap"), ros=True, process=True),
     Case("output-exists", "driver-record-path-txt", node("adm_sim.nodes.driver", "record_path:=keep.txt"),
          "record_path: 'keep.txt' must end in .mcap", setup=_existing("keep.txt"), ros=True),
     Case("output-exists", "driver-two-outputs-one-file",
@@ -511,9 +512,9 @@ CASES = [
          "--train: '' is empty", ros=True),
     # --- ROS parameters at node start-up
     Case("ros-parameters", "bridge-undeclared", node("adm_sim.nodes.bridge_node", "span:=20.0"),
-         "error: bridge: span: unknown parameter of node 'bridge'; allowed EJ_Nm2", ros=True),
+         "error: bridge: span: unknown parameter of node 'bridge'; allowed EJ_Nm2", ros=True, process=True),
     Case("ros-parameters", "train-undeclared", node("adm_sim.nodes.train_node", "trian:=ICE-2"),
-         "error: train: trian: unknown parameter of node 'train'", ros=True),
+         "error: train: trian: unknown parameter of node 'train'", ros=True, process=True),
     Case("ros-parameters", "driver-undeclared", node("adm_sim.nodes.driver", "record:=x.mcap"),
          "error: driver: record: unknown parameter of node 'driver'", ros=True),
     Case("ros-parameters", "node-params-duplicate-key",
@@ -727,7 +728,7 @@ CASES = [
          patches=(_shorter_wait("adm_sim.recording.viewer_process", "handshake", 5.0, 0.5),)),
     Case("viewer", "crossing-spawn-no-display", lambda t: CROSS + ["--out", f"{t}/o", "--spawn"],
          "error: --spawn: the rerun viewer exited at once (exit status 1: ", code=1, ros=True,
-         env={"DISPLAY": "", "WAYLAND_DISPLAY": "", "WAYLAND_SOCKET": ""}),
+         env={"DISPLAY": "", "WAYLAND_DISPLAY": "", "WAYLAND_SOCKET": ""}, process=True),
     Case("scheduler", "closed-port",
          lambda t: CAL + ["study", "--out", f"{t}/st", "--scheduler", "tcp://127.0.0.1:{port}"],
          "--scheduler: cannot connect to 'tcp://127.0.0.1:{port}'", setup=_closed_port, code=1),
@@ -815,7 +816,11 @@ def _cleanup(ctx):
 #: in the table and the module that holds the ``main`` its console script or ``__main__`` calls.
 ENTRY_MODULES = [(SIM, "adm_sim.cli.sim_commands"), (CAL, "adm_calib.calib_commands"), (REPLAY, "replay"),
                  (CALIB, "calibrate"), (CROSS, "crossing")]
-IN_PROCESS = {"adm_sim.cli.sim_commands", "adm_calib.calib_commands", "replay", "crossing", "calibrate"}
+#: The nodes started by hand (``python -m <module> --ros-args ...``): their ``main(args)`` is the one
+#: ``__main__`` calls (``sys.exit(main())``), the arguments after the module's name.
+NODE_MODULES = {"adm_sim.nodes.driver", "adm_sim.nodes.bridge_node", "adm_sim.nodes.train_node",
+                "adm_calib.nodes.calibration_node"}
+IN_PROCESS = {"adm_sim.cli.sim_commands", "adm_calib.calib_commands", "replay", "crossing", "calibrate"} | NODE_MODULES
 
 
 def _entry_of(argv):
@@ -823,16 +828,21 @@ def _entry_of(argv):
     for prefix, module in ENTRY_MODULES:
         if argv[:len(prefix)] == prefix:
             return module, argv[len(prefix):]
+    if argv[:2] == [PY, "-m"] and argv[2] in NODE_MODULES:
+        return argv[2], argv[3:]
     return None, argv
 
 
 def _in_process(case, argv):
     """Whether the case calls its entry point's ``main`` in this process: an ``adm-sim``,
-    ``adm-calib``, ``replay.py``, ``crossing.py`` or ``calibrate.py`` refusal, unless it sets the
-    environment (read at start-up) or is kept as a process (:attr:`Case.process`: each of these
-    entry points keeps at least one plain case, ``output-set`` one: exit code, one stderr line, the
-    way out of a real process; the launchers' silent viewer at its shipped wait)."""
-    return not case.process and not case.env and _entry_of(argv)[0] in IN_PROCESS
+    ``adm-calib``, ``replay.py``, ``crossing.py``, ``calibrate.py`` or node refusal, unless it is
+    kept as a process (:attr:`Case.process`: each of these entry points, each node included, keeps
+    at least one plain case, ``output-set`` one: exit code, one stderr line, the way out of a real
+    process; the launchers' silent viewer at its shipped wait; a viewer spawned without a display).
+    A case that sets the environment sets it in this one for the call: the variables of the table
+    are read when the command runs (``adm_sim.cliutil.check_environment``, first in ``run_cli``),
+    not at start-up."""
+    return not case.process and _entry_of(argv)[0] in IN_PROCESS
 
 
 def _patched_argv(argv, patches):
@@ -871,22 +881,48 @@ class Result:
     stderr: str
 
 
-def _run_in_process(case, argv, t, monkeypatch, capfd):
+def _run_in_process(case, argv, t, monkeypatch, capfd, ros_env):
     """The entry point's ``main(argv)`` in this process, in folder ``t``, as its process would call it
-    (stdout and stderr read at the file descriptors: a line written past ``sys.stderr`` counts too)."""
+    (stdout and stderr read at the file descriptors: a line written past ``sys.stderr`` or by rcl
+    counts too). A node runs in the case's ROS environment (its own domain, shared memory only) on
+    rclpy's default context, which its ``main`` shuts down however it ends; the signal handlers
+    rclpy's init installed are taken out after it, as this process had them before. A node that
+    took its input would wait for a run for good: after :attr:`Case.timeout_s` (the bound of a
+    case's process) an alarm raises ``TimeoutError`` in it, and the test fails instead of hanging."""
     import importlib
 
     module, args = _entry_of(argv)
     monkeypatch.syspath_prepend(str(ROOT / "launch_scripts"))
     for patch in case.patches:
         _apply(patch, monkeypatch.setattr)
+    node = module in NODE_MODULES
+    if node:  # the variables local_ros_env set (the domain, shared memory, localhost)
+        for k, v in ros_env.items():
+            if os.environ.get(k) != v:
+                monkeypatch.setenv(k, v)
+    for k, v in case.env.items():
+        monkeypatch.setenv(k, v)
     main = importlib.import_module(module).main
     monkeypatch.chdir(t)
     capfd.readouterr()
+    if node:
+        def overdue(signum, frame):
+            raise TimeoutError(f"{module}: no refusal within {case.timeout_s} s")
+
+        alarm = signal.signal(signal.SIGALRM, overdue)
+        signal.setitimer(signal.ITIMER_REAL, case.timeout_s)
     try:
         code = main(args)
     except SystemExit as exc:
         code = exc.code
+    finally:
+        if node:
+            import rclpy
+
+            signal.setitimer(signal.ITIMER_REAL, 0.0)
+            signal.signal(signal.SIGALRM, alarm)
+            rclpy.signals.uninstall_signal_handlers()
+            assert not rclpy.ok(), "the node's main left rclpy's default context running"
     out, err = capfd.readouterr()
     return Result(code, out, err)
 
@@ -913,7 +949,7 @@ def test_refused_cleanly(case, tmp_path, ros_env, monkeypatch, capfd, signal_han
         before = snapshot(t)
         if _in_process(case, argv):
             kids = set(_children())
-            r = _run_in_process(case, argv, t, monkeypatch, capfd)
+            r = _run_in_process(case, argv, t, monkeypatch, capfd, ros_env)
             left = sorted(set(_children()) - kids)
         else:
             marker = uuid.uuid4().hex
