@@ -160,7 +160,7 @@ def test_nodes_from_install_space_run_the_installed_params(install, ros_domain, 
     sweep_b1_mlm.yaml co-simulate the MLM sweep of the core, bit for bit. The bridge publishes its
     monitoring every 16th step and the beam and clock every 64th (``-p`` after the file; outputs
     only, the result is of every step): the in-process driver receives and deserialises what is
-    published, about 1.5 s of CPU for the automatic decimation's every 4th step of 191 lanes' run."""
+    published, about 1.5 s of CPU for the automatic decimation's every 3rd step of the run."""
     params = install / "adm_sim" / "share" / "adm_sim" / "params" / "sweep_b1_mlm.yaml"
     sparse = {"bridge_node": " -p monitor_every_steps:=16 -p beam_every_steps:=64", "train_node": ""}
     procs = NodeProcs(ros_domain, tmp_path)
