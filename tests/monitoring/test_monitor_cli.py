@@ -1,6 +1,8 @@
 """``launch_scripts/monitor.py`` end to end: a real crossing's MCAP, synthetic recordings (a sensor
 topic without run records, a free decay too short), live on a ROS 2 graph, and every bad input
-(one line ``error: ...``, exit 2, nothing written)."""
+(one line ``error: ...``, exit 2, nothing written). The real crossing's recording, the restarted
+bridge's and the live tests run the command's own process; the synthetic recordings and the
+refusals of bad options and files run its ``main`` in this process (:func:`monitor_here`)."""
 
 from __future__ import annotations
 
@@ -35,6 +37,18 @@ TRAIN = {"train": "ICE-2", "model": "mlm", "speeds_kmh": "263"}
 def monitor(*args, env=None, timeout=180):
     return subprocess.run([sys.executable, str(SCRIPT), *map(str, args)], capture_output=True, text=True,
                           timeout=timeout, cwd=ROOT, env=env)
+
+
+def monitor_here(launcher, *args):
+    """``monitor.py``'s ``main`` in this process (conftest's ``launcher``: exit code, stdout and
+    stderr read at the file descriptors), as :func:`monitor` gives them. For the refusals: they end
+    in the argument and file checks, where a process of their own cost 0.17 s of CPU each (its
+    start-up) for 0.01 s of checking; and for the synthetic recordings (the analysis under test, not
+    the process; 1 s of start-up each, scipy's import the most of it). The real crossing's recording,
+    the live tests and the restarted bridge's (whose stderr must stay empty: in this process a Python
+    warning would be pytest's, not the stream's) run the command's process."""
+    code, out, err = launcher(SCRIPT, [str(a) for a in args])
+    return subprocess.CompletedProcess(["monitor.py", *map(str, args)], code, out, err)
 
 
 def decay(t, amp=2.0, f_hz=8.26, zeta=0.01):
@@ -159,7 +173,7 @@ def test_mcap_of_a_real_crossing(crossing_run, tmp_path):
     assert doc["dropped_samples"] == 0
 
 
-def test_mcap_sensor_topic_without_run_records(tmp_path):
+def test_mcap_sensor_topic_without_run_records(tmp_path, launcher):
     """A foreign topic, no run records: two passages found by the signal, each identified."""
     fs = 400
     t = np.arange(0.0, 60.0, 1 / fs)
@@ -169,7 +183,7 @@ def test_mcap_sensor_topic_without_run_records(tmp_path):
         a[on] += decay(t[on] - t0, amp)
     path = write_mcap(tmp_path / "sensor.mcap", zip(t, a), topic="/sensor/accel")
     out = tmp_path / "p.json"
-    res = monitor("--mcap", path, "--topic", "/sensor/accel", "--json", out)
+    res = monitor_here(launcher, "--mcap", path, "--topic", "/sensor/accel", "--json", out)
     assert res.returncode == 0, res.stderr
     ps = json.loads(out.read_text())["passages"]
     assert [p["source"] for p in ps] == ["signal", "signal"]
@@ -179,7 +193,7 @@ def test_mcap_sensor_topic_without_run_records(tmp_path):
         assert p["zeta1_pct"] == pytest.approx(1.0, rel=0.02)
 
 
-def test_mcap_too_short_a_free_decay_is_said_per_passage(tmp_path):
+def test_mcap_too_short_a_free_decay_is_said_per_passage(tmp_path, launcher):
     """A run whose record ends 2 periods after the train left: no number, the reason instead."""
     fs = 400
     t = np.arange(0.0, 2.0 / 8.26, 1 / fs)
@@ -188,7 +202,7 @@ def test_mcap_too_short_a_free_decay_is_said_per_passage(tmp_path):
                (0.0, st, {"node": "bridge", "run_id": 1, "state": "done", "t0_s": 0.0, "t1_s": float(t[-1]) + 1 / fs})]
     path = write_mcap(tmp_path / "short.mcap", zip(t, decay(t)), records)
     out = tmp_path / "p.json"
-    res = monitor("--mcap", path, "--json", out)
+    res = monitor_here(launcher, "--mcap", path, "--json", out)
     assert res.returncode == 0, res.stderr
     (p,) = json.loads(out.read_text())["passages"]
     assert p["identified"] is False
@@ -227,38 +241,38 @@ def _refused(res, *words):
     ("timeout", ["--timeout", "-1"], ["--timeout: -1 s is out of range"]),
     ("min cycles", ["--min-cycles", "1"], ["--min-cycles: 1 periods is out of range; allowed [2, 1000]"]),
 ])
-def test_bad_input_mcap(case, args, words, with_accel, tmp_path):
+def test_bad_input_mcap(case, args, words, with_accel, tmp_path, launcher):
     out = tmp_path / "p.json"
     before = sorted(tmp_path.iterdir())
-    _refused(monitor("--mcap", with_accel, *args, "--json", out), *words)
+    _refused(monitor_here(launcher, "--mcap", with_accel, *args, "--json", out), *words)
     assert sorted(tmp_path.iterdir()) == before
 
 
-def test_mcap_without_the_topic(status_only, tmp_path):
+def test_mcap_without_the_topic(status_only, tmp_path, launcher):
     before = sorted(tmp_path.iterdir())
-    _refused(monitor("--mcap", status_only, "--json", tmp_path / "p.json"),
+    _refused(monitor_here(launcher, "--mcap", status_only, "--json", tmp_path / "p.json"),
              "'/adm/midspan/accel' is not in", "it holds no AccelStamped or Imu topic")
     assert sorted(tmp_path.iterdir()) == before
 
 
-def test_not_an_mcap(tmp_path):
+def test_not_an_mcap(tmp_path, launcher):
     bad = tmp_path / "run.mcap"
     bad.write_text("hello\n")
-    _refused(monitor("--mcap", bad, "--json", tmp_path / "p.json"), "--mcap:", "is not an MCAP file")
+    _refused(monitor_here(launcher, "--mcap", bad, "--json", tmp_path / "p.json"), "--mcap:", "is not an MCAP file")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run.mcap"]
 
 
-def test_json_is_not_overwritten(with_accel, tmp_path):
+def test_json_is_not_overwritten(with_accel, tmp_path, launcher):
     out = tmp_path / "p.json"
     out.write_text("keep\n")
-    _refused(monitor("--mcap", with_accel, "--json", out), "--json:", "exists; use --overwrite")
+    _refused(monitor_here(launcher, "--mcap", with_accel, "--json", out), "--json:", "exists; use --overwrite")
     assert out.read_text() == "keep\n"
 
 
 @pytest.mark.parametrize("value, words", [("300", "--domain-id: 300 is out of range"),
                                           ("x", "--domain-id: 'x' is not an integer")])
-def test_bad_domain_id(value, words, tmp_path):
-    _refused(monitor("--domain-id", value, "--json", tmp_path / "p.json"), words)
+def test_bad_domain_id(value, words, tmp_path, launcher):
+    _refused(monitor_here(launcher, "--domain-id", value, "--json", tmp_path / "p.json"), words)
     assert list(tmp_path.iterdir()) == []
 
 

@@ -27,6 +27,16 @@ def monitor(*args, timeout=300):
                           timeout=timeout, cwd=ROOT)
 
 
+def monitor_here(launcher, *args):
+    """``monitor.py``'s ``main`` in this process (conftest's ``launcher``: exit code, stdout and
+    stderr read at the file descriptors), as :func:`monitor` gives them. For the refusals: they end
+    in the argument and file checks, where a process of their own cost about 0.2 s of CPU each (its
+    start-up); and for the Imu record's second reading (its first runs the command's process, as
+    the CSV records do)."""
+    code, out, err = launcher(SCRIPT, [str(a) for a in args])
+    return subprocess.CompletedProcess(["monitor.py", *map(str, args)], code, out, err)
+
+
 def check_doc(doc, rec):
     ps = doc["passages"]
     assert len(ps) == len(rec.passages)
@@ -91,7 +101,7 @@ def write_imu_mcap(path, t_s, a_m_s2, topic="/sensor/imu", covariance=None, log_
 
 
 @pytest.mark.slow
-def test_mcap_of_an_imu_mounted_z_down(tmp_path):
+def test_mcap_of_an_imu_mounted_z_down(tmp_path, launcher):
     rec = sensor_record(200.0, dropouts=DROPOUTS)
     mcap = write_imu_mcap(tmp_path / "imu.mcap", rec.t_s, rec.a_m_s2)
     out = tmp_path / "p.json"
@@ -100,8 +110,10 @@ def test_mcap_of_an_imu_mounted_z_down(tmp_path):
     doc = json.loads(out.read_text())
     check_doc(doc, rec)
     assert doc["axis"] == "-z" and res.stderr == ""
-    # the same file read z up: the offset is -g, the dynamic numbers the same (|a|)
-    res = monitor("--mcap", mcap, "--topic", "/sensor/imu", "--json", tmp_path / "up.json")
+    # the same file read z up: the offset is -g, the dynamic numbers the same (|a|); the command's
+    # main in this process (the file's process is the run above)
+    res = monitor_here(launcher, "--mcap", mcap, "--topic", "/sensor/imu", "--json", tmp_path / "up.json")
+    assert res.returncode == 0, res.stderr
     up = json.loads((tmp_path / "up.json").read_text())["passages"]
     assert [p["offset_m_s2"] for p in up] == pytest.approx([-p["offset_m_s2"] for p in doc["passages"]])
     assert [p["peak_acc_m_s2"] for p in up] == pytest.approx([p["peak_acc_m_s2"] for p in doc["passages"]])
@@ -128,16 +140,16 @@ def _refused(res, *words):
     ("t,a\n0,1\n1,2\n", ["--axis", "up"], ["--axis: 'up' is not an axis; allowed z, -z, x, -x, y, -y"]),
     ("t,a\n0,1\n1,2\n", ["--status-topic", "/s"], ["--status-topic: not used with --csv"]),
 ])
-def test_bad_csv(text, args, words, tmp_path):
+def test_bad_csv(text, args, words, tmp_path, launcher):
     csv = tmp_path / "in.csv"
     csv.write_text(text)
-    _refused(monitor("--csv", csv, *args, "--json", tmp_path / "p.json"), "error: --", *words)
+    _refused(monitor_here(launcher, "--csv", csv, *args, "--json", tmp_path / "p.json"), "error: --", *words)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["in.csv"]
 
 
 @pytest.mark.slow
-def test_column_option_without_csv(tmp_path):
-    _refused(monitor("--mcap", tmp_path / "x.mcap", "--accel-column", "a"), "--accel-column: only used with --csv")
+def test_column_option_without_csv(tmp_path, launcher):
+    _refused(monitor_here(launcher, "--mcap", tmp_path / "x.mcap", "--accel-column", "a"), "--accel-column: only used with --csv")
 
 
 @pytest.mark.slow
@@ -146,10 +158,10 @@ def test_column_option_without_csv(tmp_path):
     ([0.1, 0, 0, 0, 0.1, 0, 0, 0, -1.0], ["mark axis z as absent (linear_acceleration_covariance[8] = -1)",
                                           "--axis"]),
 ])
-def test_imu_without_the_axis(cov, words, tmp_path):
+def test_imu_without_the_axis(cov, words, tmp_path, launcher):
     t = np.arange(0.0, 1.0, 0.01)
     mcap = write_imu_mcap(tmp_path / "imu.mcap", t, np.zeros(t.size), covariance=cov)
-    _refused(monitor("--mcap", mcap, "--topic", "/sensor/imu", "--json", tmp_path / "p.json"), *words)
+    _refused(monitor_here(launcher, "--mcap", mcap, "--topic", "/sensor/imu", "--json", tmp_path / "p.json"), *words)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["imu.mcap"]
 
 
@@ -158,7 +170,7 @@ def test_imu_without_the_axis(cov, words, tmp_path):
     (0.04, "sample 6 stamped 0.040000000 s repeats the stamp of sample 5 (0.040000000 s)"),
     (0.035, "sample 6 stamped 0.035000000 s goes back 0.005 s from sample 5 (0.040000000 s)"),
 ])
-def test_mcap_stamps_that_do_not_increase(stamp_6, words, tmp_path):
+def test_mcap_stamps_that_do_not_increase(stamp_6, words, tmp_path, launcher):
     """An MCAP whose sixth sample repeats the fifth's stamp or goes back is refused as a CSV is: one
     line naming the topic, the file and the sample, exit 2, nothing written (logged in the order
     received, 10 ms apart)."""
@@ -166,7 +178,7 @@ def test_mcap_stamps_that_do_not_increase(stamp_6, words, tmp_path):
     t = log.copy()
     t[5] = stamp_6
     mcap = write_imu_mcap(tmp_path / "imu.mcap", t, np.zeros(t.size), log_s=log)
-    _refused(monitor("--mcap", mcap, "--topic", "/sensor/imu", "--json", tmp_path / "p.json"),
+    _refused(monitor_here(launcher, "--mcap", mcap, "--topic", "/sensor/imu", "--json", tmp_path / "p.json"),
              f"error: --topic: '/sensor/imu' in '{mcap}': {words} (samples counted from 1 in log time order); "
              f"stamps must strictly increase")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["imu.mcap"]

@@ -95,7 +95,7 @@ def test_calibrate_launch_matches_in_process_calibration(calibration_launch):
     """launch_scripts/calibrate.py (the bridge and train nodes in one process, the calibration node in
     another) gives the Δζ of adm_calib.calibrate.
 
-    The launch is conftest's ``calibration_launch`` (B3 x ICE-2, 230..290 km/h every 2 km/h, 4 steps
+    The launch is conftest's ``calibration_launch`` (B3 x ICE-2, 250..290 km/h every 2 km/h, 4 steps
     per period, one period of free vibration), run once for this test and the recording test of
     test_ros_rerun_views.py; the fixture asserts that its stdout printed the iterations and the result."""
     import json
@@ -117,7 +117,7 @@ def test_calibrate_launch_matches_in_process_calibration(calibration_launch):
         return r.max_acc_m_s2
 
     # the calibration node's default DIM grid is the window grid: the reference runs the same grid
-    ref = calibrate(resolve_bridge("B3"), load_train("ICE-2"), np.arange(230.0, 291.0, 2.0),
+    ref = calibrate(resolve_bridge("B3"), load_train("ICE-2"), np.arange(250.0, 291.0, 2.0),
                     options=CalibrationOptions(dim_grid="window", step=StepOptions(**STEP)), sweep=numpy_sweep).to_dict()
     assert got["status"] == ref["status"]
     for key in ("delta_zeta_vbi_pct", "delta_zeta_adm_pct", "delta_zeta_eada_pct", "delta_zeta_lb_pct"):
@@ -127,7 +127,7 @@ def test_calibrate_launch_matches_in_process_calibration(calibration_launch):
     # (adm-calib calibrate) prints the same Δζ (four decimals in percent, the root tolerance's digits)
     assert got["delta_zeta_vbi_pct"] == ref["delta_zeta_vbi_pct"]
     b3 = resolve_bridge("B3")
-    compiled = calibrate(b3, load_train("ICE-2"), np.arange(230.0, 291.0, 2.0),
+    compiled = calibrate(b3, load_train("ICE-2"), np.arange(250.0, 291.0, 2.0),
                          options=CalibrationOptions(step=StepOptions(**STEP)))
     assert f"{got['delta_zeta_vbi_pct']:.4f}" == f"{100 * compiled.delta_zeta_vbi:.4f}"
     assert got["dim_grid"] == "window" and compiled.to_dict()["dim_grid"] == "paper"
@@ -137,7 +137,7 @@ def test_calibrate_launch_matches_in_process_calibration(calibration_launch):
     from adm_sim.recording.mcap_log import read_messages
 
     ice2 = load_train("ICE-2")
-    step = calibration_step(b3, ice2, np.arange(230.0, 291.0, 2.0), CalibrationOptions(step=StepOptions(**STEP)))
+    step = calibration_step(b3, ice2, np.arange(250.0, 291.0, 2.0), CalibrationOptions(step=StepOptions(**STEP)))
     started, results = [], []
     for topic, _ns, msg in read_messages(out / "run.mcap", topics=["/adm/run/status", "/adm/run/result"]):
         if topic == "/adm/run/result":   # Float64MultiArray, rows speed_kmh, max_acc_m_s2, max_disp_m, delta_zeta
@@ -167,7 +167,7 @@ def test_calibrate_launch_matches_in_process_calibration(calibration_launch):
         np.testing.assert_array_equal(dz, dz_ref)
         np.testing.assert_array_equal(acc, ref_run.max_acc_m_s2, err_msg=f"run {s['run_id']} {s['model']}")
         np.testing.assert_array_equal(disp, ref_run.max_disp_m, err_msg=f"run {s['run_id']} {s['model']}")
-    np.testing.assert_array_equal(results[0][0], np.arange(230.0, 291.0, 2.0))
+    np.testing.assert_array_equal(results[0][0], np.arange(250.0, 291.0, 2.0))
     assert (out / "run.rrd").read_bytes()[:4] == b"RRF2"
 
 

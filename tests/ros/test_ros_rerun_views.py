@@ -267,7 +267,7 @@ def test_calibration_recording_every_view_has_data_and_monitors_the_peak(calibra
     started = [json.loads(m.data) for _t, _ns, m in read_messages(out / "run.mcap", topics=["/adm/run/status"])]
     started = [s for s in started if s["node"] == "bridge" and s["state"] == "started"]
     assert len(started) == summary["co_simulation"]["runs"]
-    assert started[0]["monitor_speed_kmh"] == 230.0
+    assert started[0]["monitor_speed_kmh"] == 250.0  # the first lane of conftest's CALIBRATION_SPEEDS
     assert {s["monitor_speed_kmh"] for s in started[1:]} == {summary["mlm_peak"]["speed_kmh"]}
     # one entity per trial damping, as many as the calibration's iterations
     trials = [p for p in ents if re.fullmatch(r"/sweep/trials/(bracketing|root_search)/\d\d", p)]
