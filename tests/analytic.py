@@ -37,23 +37,28 @@ def moving_force_modal(bridge, force_n, speed_m_s, t_s):
         C2 = (zeta * om * C1 - A * Om) / wd
 
         def forced(tt):
+            # each sine, cosine and exponential once: q and q' share them (the same values as each
+            # written out in both, at half the cost of the transcendental functions)
             e = np.exp(-zeta * om * tt)
-            q = A * np.sin(Om * tt) + B * np.cos(Om * tt) + e * (C1 * np.cos(wd * tt) + C2 * np.sin(wd * tt))
-            qd = (A * Om * np.cos(Om * tt) - B * Om * np.sin(Om * tt)
-                  + e * ((-zeta * om * C1 + wd * C2) * np.cos(wd * tt) + (-zeta * om * C2 - wd * C1) * np.sin(wd * tt)))
-            return q, qd
+            so, co = np.sin(Om * tt), np.cos(Om * tt)
+            sw, cw = np.sin(wd * tt), np.cos(wd * tt)
+            q = A * so + B * co + e * (C1 * cw + C2 * sw)
+            qd = (A * Om * co - B * Om * so
+                  + e * ((-zeta * om * C1 + wd * C2) * cw + (-zeta * om * C2 - wd * C1) * sw))
+            return q, qd, so
 
         q, qd, f = out[0, j - 1], out[1, j - 1], out[2, j - 1]
         on = (t >= 0) & (t <= t_exit)
-        q[on], qd[on] = forced(t[on])
-        f[on] = force_n / m * np.sin(Om * t[on])
-        qe, qde = forced(np.array(t_exit))
+        q[on], qd[on], so = forced(t[on])
+        f[on] = force_n / m * so
+        qe, qde, _ = forced(np.array(t_exit))
         off = t > t_exit
         tau = t[off] - t_exit
         e = np.exp(-zeta * om * tau)
         c1, c2 = qe, (qde + zeta * om * qe) / wd
-        q[off] = e * (c1 * np.cos(wd * tau) + c2 * np.sin(wd * tau))
-        qd[off] = e * ((-zeta * om * c1 + wd * c2) * np.cos(wd * tau) + (-zeta * om * c2 - wd * c1) * np.sin(wd * tau))
+        sw, cw = np.sin(wd * tau), np.cos(wd * tau)
+        q[off] = e * (c1 * cw + c2 * sw)
+        qd[off] = e * ((-zeta * om * c1 + wd * c2) * cw + (-zeta * om * c2 - wd * c1) * sw)
     return out[0], out[1], out[2]
 
 

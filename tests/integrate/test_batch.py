@@ -107,10 +107,11 @@ def test_calibrate_batch_reproduces_calibrate(train, span, fi, mfs, speeds):
 def _small_batch(train="Eurostar"):
     bridges = _group(25, 2, ("mu1", "mu6"), train)
     tr = load_train(train)
-    # 8 steps per period (half the core's default): advancing one step at a time is a Python call per
-    # step, and the blocks must equal one call at any step
+    # 4 steps per period (a quarter of the core's default, the step of the calibrations above):
+    # advancing one step at a time is a Python call per step, and the blocks must equal one call at
+    # any step
     runner = BatchRunner(bridges, tr, batch_step(bridges, tr, options=CalibrationOptions(
-        step=StepOptions(steps_per_period=8.0))).ds_m)
+        step=StepOptions(steps_per_period=4.0))).ds_m)
     case = np.repeat([0, 1], 3)
     speeds = np.tile([180.0, 250.0, 320.0], 2)
     sweep = np.array([0, 0, 1, 0, 1, 1])  # two sweeps per bridge: lanes of different step counts

@@ -242,24 +242,43 @@ def _signed_pieces(beam, effect):
 
 
 def _partial_integral(beam, effect, pieces, lo, hi, sign):
-    """Integral of the influence line over [lo, hi] (arrays) restricted to the pieces of ``sign``."""
+    """Integral of the influence line over [lo, hi] (arrays) restricted to the pieces of ``sign`` (+1 or
+    -1, or an array of them, one per interval: intervals of both signs in one call, each summed exactly
+    as it would be alone).
+
+    Each interval's sum runs over the pieces in order, adding a whole piece's integral or the
+    Gauss-Legendre integral of the part of it the interval covers; the lines at the points of every
+    part, of all pieces, are evaluated in one call first (a value at a point does not depend on the
+    other points of the call), the sums then add them in the order of the pieces."""
     ends, integ, sgn = pieces
     lo = np.clip(np.asarray(lo, dtype=float), ends[0], ends[-1])
     hi = np.clip(np.asarray(hi, dtype=float), ends[0], ends[-1])
-    out = np.zeros(lo.shape)
+    sign = np.broadcast_to(np.asarray(sign), lo.shape)
     g, w = _GAUSS
-    for p in np.flatnonzero(sgn == sign):
+    steps = []  # (intervals of the piece's sign, whole-piece mask among them, part mask, index of its points)
+    points, n_points = [], 0
+    for p in np.flatnonzero(sgn != 0):
+        mine = sign == sgn[p]
+        if not mine.any():
+            continue
         a, b = ends[p], ends[p + 1]
         c0, c1 = np.maximum(lo, a), np.minimum(hi, b)
         full = (c0 <= a) & (c1 >= b)
-        out += np.where(full, integ[p], 0.0)
-        part = (c1 > c0) & ~full
-        if part.any():
+        part = (c1 > c0) & ~full & mine
+        k = int(np.count_nonzero(part))
+        if k:
             m = 0.5 * (c0[part] + c1[part])
             h = 0.5 * (c1[part] - c0[part])
-            pts = m[:, None] + h[:, None] * g[None, :]
-            vals = beam.line(effect, pts.ravel()).reshape(pts.shape)
-            out[part] += (vals * w[None, :]).sum(1) * h
+            points.append(m[:, None] + h[:, None] * g[None, :])
+        steps.append((p, mine, full[mine], part, slice(n_points, n_points + k), h if k else None))
+        n_points += k
+    vals = beam.line(effect, np.concatenate(points).ravel()).reshape(-1, g.size) if points else None
+    out = np.zeros(lo.shape)
+    for p, mine, full, part, rows, h in steps:
+        # only the intervals of this piece's sign take its integral (the others' sums are left untouched)
+        out[mine] += np.where(full, integ[p], 0.0)
+        if h is not None:
+            out[part] += (vals[rows] * w[None, :]).sum(1) * h
     return out
 
 
@@ -277,12 +296,13 @@ class LM71Max:
 def lm71_value(beam, effect, centre_m, sign, pieces=None):
     """The effect of LM71 (α = 1) with the group centred at ``centre_m`` (array), the distributed load on
     the parts of the line of ``sign`` outside the window: the signed value (times ``sign``: >= 0 when it
-    acts that way)."""
+    acts that way). ``sign`` is +1 or -1, or an array of them, one per centre (both signs in one call)."""
     pieces = signed_pieces(beam, effect) if pieces is None else pieces
     d = np.atleast_1d(np.asarray(centre_m, dtype=float))
+    sign = np.broadcast_to(np.asarray(sign), d.shape)
     c = np.asarray(LM71_AXLES_M)
     pts = LM71_AXLE_LOAD_N * beam.line(effect, (d[:, None] + c[None, :]).ravel()).reshape(d.size, c.size).sum(1)
-    total = float(pieces[1][pieces[2] == sign].sum())
+    total = np.where(sign == 1, float(pieces[1][pieces[2] == 1].sum()), float(pieces[1][pieces[2] == -1].sum()))
     gap = _partial_integral(beam, effect, pieces, d - LM71_HALF_WINDOW_M, d + LM71_HALF_WINDOW_M, sign)
     return sign * (pts + LM71_UDL_N_M * (total - gap))
 
@@ -294,6 +314,10 @@ def lm71_max(beam, effect, alpha=1.0):
 
 @functools.lru_cache(maxsize=512)
 def _lm71_max(beam, effect, alpha):
+    """Both signs on the grid in one evaluation, then the eight zooms (the four best grid points of
+    each sign) in lockstep: one evaluation per zoom level for all of them. Every value is the one
+    the search point by point (:func:`zoom_max` per best point and sign) computes, bit for bit
+    (tests/design/test_deck_statics_former.py keeps that form and compares)."""
     pieces = signed_pieces(beam, effect)
     c = np.asarray(LM71_AXLES_M)
     hw = LM71_HALF_WINDOW_M
@@ -302,17 +326,21 @@ def _lm71_max(beam, effect, alpha):
     ends = pieces[0]
     cand = np.concatenate([grid, (ends[:, None] - c[None, :]).ravel(), ends - hw, ends + hw])
     cand = np.unique(np.clip(cand, lo, hi))
-    best = None
-    for sign in (1, -1):
-        vals = lm71_value(beam, effect, cand, sign, pieces)
+    signs = (1, -1)
+    both = lm71_value(beam, effect, np.concatenate([cand, cand]), np.repeat(signs, cand.size), pieces)
+    starts = []  # (sign, grid index, value there, zoom interval) in the order of the search point by point
+    for k, sign in enumerate(signs):
+        vals = both[k * cand.size:(k + 1) * cand.size]
         for i in np.argsort(vals)[-4:]:  # zoom in around the best grid points
-            a = cand[max(i - 1, 0)]
-            b = cand[min(i + 1, cand.size - 1)]
-            x, fx = zoom_max(lambda t: lm71_value(beam, effect, t, sign, pieces), a, b)
-            if fx < vals[i]:
-                x, fx = float(cand[i]), float(vals[i])
-            if best is None or fx > best.value:
-                best = LM71Max(value=fx, sign=sign, centre_m=float(x))
+            starts.append((sign, i, vals[i], (cand[max(i - 1, 0)], cand[min(i + 1, cand.size - 1)])))
+    zoomed = zoom_max_many(lambda t, s: lm71_value(beam, effect, t, s, pieces), [z[3] for z in starts],
+                           [z[0] for z in starts])
+    best = None
+    for (sign, i, v, _), (x, fx) in zip(starts, zoomed):
+        if fx < v:
+            x, fx = float(cand[i]), float(v)
+        if best is None or fx > best.value:
+            best = LM71Max(value=fx, sign=sign, centre_m=float(x))
     return LM71Max(value=alpha * best.value, sign=best.sign, centre_m=best.centre_m)
 
 
@@ -326,6 +354,32 @@ def zoom_max(f, a, b, n=41, tol=1e-9):
         if x[1] - x[0] <= tol:
             return float(x[i]), float(v[i])
         a, b = x[max(i - 1, 0)], x[min(i + 1, n - 1)]
+
+
+def zoom_max_many(f, intervals, tags, n=41, tol=1e-9):
+    """:func:`zoom_max` of several intervals at once: ``f(x, tag)`` takes the points of every interval
+    still zooming and the tag of each point (``tags``: one per interval, e.g. the sign of the effect),
+    one call per level instead of one per level and interval. Each interval follows the very steps
+    of :func:`zoom_max` (its points, its best one, its end), so with an ``f`` whose values at a point do
+    not depend on the other points of the call it returns what ``zoom_max`` returns for each:
+    a list of (x, f(x))."""
+    ab = [(a, b) for a, b in intervals]
+    out = [None] * len(ab)
+    live = list(range(len(ab)))
+    while live:
+        xs = [np.linspace(*ab[j], n) for j in live]
+        v = f(np.concatenate(xs), np.repeat([tags[j] for j in live], n))
+        still = []
+        for k, (j, x) in enumerate(zip(live, xs)):
+            vj = v[k * n:(k + 1) * n]
+            i = int(np.argmax(vj))
+            if x[1] - x[0] <= tol:
+                out[j] = (float(x[i]), float(vj[i]))
+            else:
+                ab[j] = (x[max(i - 1, 0)], x[min(i + 1, n - 1)])
+                still.append(j)
+        live = still
+    return out
 
 
 def beam_of(bridge):
