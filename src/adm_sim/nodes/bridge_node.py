@@ -306,7 +306,7 @@ class BridgeNode(c.LockstepNode):
         if r is None:
             return
         ack = P.decode(msg.data)
-        if r.flow.take(ack):
+        if r.flow.take(ack, time.monotonic()):
             self._resume()
         elif r.flow.join(ack, r.id):  # a client the bridge's view of the graph showed too late
             self.get_logger().info(f"run {r.id}: '{ack['node']}' joined the flow control at its acknowledgement "
@@ -327,12 +327,12 @@ class BridgeNode(c.LockstepNode):
         flow = r.flow
         if flow.paused == PAUSE_END:
             if flow.all_acked():
-                flow.paused = None
+                flow.unpause()
                 self._publish_end()
             return
         if flow.ahead():
             return
-        flow.paused = None
+        flow.unpause()
         self._go_on()
 
     def _check_recorders(self):
@@ -345,7 +345,8 @@ class BridgeNode(c.LockstepNode):
         if flow.paused == PAUSE_STEP and time.monotonic() - r.rx_at > patience_s:
             # the train waits too: go on to the next exchange (at most one MLM block beyond the
             # window; the recorders' queues hold it) rather than let the train's partner watch fire
-            flow.forced, flow.paused = True, None
+            flow.forced = True
+            flow.unpause()
             self._go_on()
             return
         if flow.wait_since is None:

@@ -40,7 +40,8 @@ class FlowControl:
     paused : str or None
         :data:`PAUSE_STEP` or :data:`PAUSE_END` while the run waits for the acknowledgements.
     wait_since : float or None
-        ``time.monotonic()`` since which the run waits with no acknowledgement.
+        ``time.monotonic()`` since which the run waits with no acknowledgement (the pause's start
+        or its last acknowledgement).
     forced : bool
         A pause outlasted half the partner timeout: the run went on to the next exchange.
     """
@@ -67,9 +68,13 @@ class FlowControl:
         topics = self.ack_topics.get(name)
         return self.sent if topics is None else sum(self.counts[t] for t in topics)
 
-    def take(self, ack):
-        """Take an acknowledgement record (:class:`adm_sim.protocol.AckCounter`); returns whether it
-        came from a node this run waits for."""
+    def take(self, ack, now=None):
+        """Take an acknowledgement record (:class:`adm_sim.protocol.AckCounter`) received at ``now``
+        (``time.monotonic()``); returns whether it came from a node this run waits for. During a pause
+        the patience of :meth:`drop` counts again from ``now``: a node that acknowledged part of what
+        it waits for and then nothing is dropped after the patience, as one that never acknowledged
+        (the pause's clock stopped at such an acknowledgement once, and a run whose recorder missed
+        its last messages waited for it without end)."""
         name = ack.get("node")
         if name not in self.acked:
             return False
@@ -77,7 +82,7 @@ class FlowControl:
         if topics is not None:  # a client that counts some topics only (checked: the known ones)
             self.ack_topics[name] = tuple(t for t in topics if t in self.counts)
         self.acked[name] = max(self.acked[name], int(ack["received"]))
-        self.wait_since = None
+        self.wait_since = now if self.paused is not None and now is not None else None
         return True
 
     def join(self, ack, run_id):
@@ -118,6 +123,11 @@ class FlowControl:
         if self.wait_since is None:
             self.wait_since = now
 
+    def unpause(self):
+        """The pause is over: the next one's patience starts when it starts."""
+        self.paused = None
+        self.wait_since = None
+
     def drop(self, alive, patience_s, now):
         """Stop waiting for the nodes not in ``alive`` (they left the graph), or for every node when
         none acknowledged anything for ``patience_s``. Returns ``[(name, left, acked, sent), ...]``
@@ -131,5 +141,6 @@ class FlowControl:
                 dropped.append((name, left, self.acked[name], self.sent_to(name)))
                 del self.acked[name]
                 self._dropped.add(name)
-        self.wait_since = None if not self.acked else now
+        if dropped:  # the patience of those left starts again; else it runs on (checked every turn)
+            self.wait_since = None if not self.acked else now
         return dropped

@@ -1,5 +1,12 @@
-"""A client the bridge's view of the graph showed too late joins the flow control at its first
-acknowledgement of the run (:meth:`adm_sim.nodes.flow_control.FlowControl.join`).
+"""The bridge's flow control, counting alone (:class:`adm_sim.nodes.flow_control.FlowControl`).
+
+A run's end waits for its recorders' acknowledgements with a patience that counts from the last one:
+a recorder that acknowledged part of the run and then nothing is dropped after it (the clock once
+stopped at such an acknowledgement, and ``calibrate.py`` with thinned monitoring hung after a run,
+about 1 launch in 20 beside two busy processes).
+
+A client the bridge's view of the graph showed too late joins the flow control at its first
+acknowledgement of the run (:meth:`FlowControl.join`).
 
 Seen once under two busy processes: a monitor started beside ``calibrate.py --wait-clients 1`` was on
 the launcher's view of the graph, and 2 s later still not on the bridge's; run 1 did not wait for it and
@@ -65,3 +72,32 @@ def test_a_joined_client_counts_as_on_the_graph_until_the_bridge_sees_it():
     assert flow.drop(alive={REC, MON}, patience_s=5.0, now=2.0) == []  # seen
     flow.pause("step", now=2.0)
     assert flow.drop(alive={REC}, patience_s=5.0, now=3.0) == [(MON, True, 0, 10)]  # then gone: left
+
+
+def test_the_end_waits_for_a_partial_acknowledgement_no_longer_than_the_patience():
+    """At the run's end the recorder has 990 of 1000 messages and acknowledges them at t = 10 s, then
+    nothing: it is dropped at the first check more than the patience (5 s) after that acknowledgement,
+    not before; had it acknowledged them all, the end would be free at once."""
+    flow = FlowControl([REC])
+    _publish(flow, 1000)
+    flow.pause("end", now=9.0)
+    flow.take(P.ack_record(REC, 7, 990), now=10.0)
+    assert not flow.all_acked() and flow.wait_since == 10.0
+    assert flow.drop(alive={REC}, patience_s=5.0, now=14.9) == []
+    assert flow.drop(alive={REC}, patience_s=5.0, now=15.1) == [(REC, False, 990, 1000)]
+    assert flow.all_acked()  # nobody left to wait for: the run ends
+
+
+def test_a_pause_s_patience_starts_with_the_pause():
+    """An acknowledgement while the run is not paused, or before an earlier pause ended, does not start
+    the next pause's clock early."""
+    flow = FlowControl([REC])
+    _publish(flow, 600)
+    flow.pause("step", now=1.0)
+    flow.take(P.ack_record(REC, 2, 100), now=2.0)
+    flow.unpause()
+    assert flow.wait_since is None
+    flow.take(P.ack_record(REC, 2, 200), now=3.0)  # not paused: no clock
+    assert flow.wait_since is None
+    flow.pause("end", now=20.0)
+    assert flow.drop(alive={REC}, patience_s=5.0, now=24.0) == []
