@@ -22,7 +22,7 @@ from adm_sim import protocol as P
 from adm_sim.limits import ACC_LIMITS_M_S2
 from adm_sim.nodes.messages import json_msg, matrix_msg, to_time_msg
 from adm_sim.nodes.params import MONITOR_SAMPLES_PER_PERIOD
-from adm_sim.nodes.qos import QOS_CONTROL, QOS_HISTORY, QOS_LATCHED, QOS_MONITOR
+from adm_sim.nodes.qos import QOS_HISTORY, QOS_LATCHED, QOS_MONITOR
 
 #: The monitoring topics and their message types (each counted, :data:`adm_sim.protocol.SAMPLE_TOPICS`).
 MONITORING_TYPES = ((P.TOPIC_CLOCK, Clock), (P.TOPIC_ACCEL, AccelStamped), (P.TOPIC_STATE, Float64MultiArray),
@@ -95,9 +95,10 @@ class BridgePublishers:
         R, pub = P.relative, node.create_publisher
         self.result = pub(Float64MultiArray, R(P.TOPIC_RESULT), QOS_LATCHED)
         self.summary = pub(DiagnosticStatus, R(P.TOPIC_SUMMARY), QOS_HISTORY)
-        #: monitoring publishers, counted per run (:data:`adm_sim.protocol.SAMPLE_TOPICS`)
-        self.topics = {t: pub(typ, R(t), QOS_CONTROL if t == P.TOPIC_DIAGNOSTICS else QOS_MONITOR)
-                       for t, typ in MONITORING_TYPES}
+        #: monitoring publishers, counted per run (:data:`adm_sim.protocol.SAMPLE_TOPICS`): each with a
+        #: history of at least the flow-control window, /diagnostics too (its 100 a run can make up most
+        #: of a window when the other topics are thinned: with KEEP_LAST 100 a lagging recorder lost them)
+        self.topics = {t: pub(typ, R(t), QOS_MONITOR) for t, typ in MONITORING_TYPES}
         #: the run's final /diagnostics, latched (a late joiner gets the last verdict)
         self.diag_final = pub(DiagnosticArray, R(P.TOPIC_DIAGNOSTICS), QOS_LATCHED)
 

@@ -130,8 +130,8 @@ class RunDriver(c.NodeBase):
         self.recorder = self.rec.mcap  # McapRecorder (or None)
         for topic, typ in RECORDED:
             qos = c.QOS_LATCHED if topic.endswith("description") else (
-                c.QOS_CONTROL if topic in (P.TOPIC_RESULT, P.TOPIC_STATUS, P.TOPIC_DIAGNOSTICS, P.TOPIC_SUMMARY)
-                else c.QOS_MONITOR)
+                c.QOS_CONTROL if topic in (P.TOPIC_RESULT, P.TOPIC_STATUS, P.TOPIC_SUMMARY)
+                else c.QOS_MONITOR)  # every counted topic (/diagnostics included) at least the flow window deep
             # taken serialised: the MCAP file gets the bytes as they came, the rest the message
             self.create_subscription(typ, P.relative(topic), self._make_cb(topic, typ), qos, raw=True)
         #: the driver's ``requested`` records (the run id with its phase); its own subscription records them
