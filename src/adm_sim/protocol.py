@@ -122,7 +122,7 @@ TOPICS = {
     TOPIC_PROGRESS: ("std_msgs/msg/String", "M", BRIDGE_NODE),
     TOPIC_BRIDGE_DESC: ("std_msgs/msg/String", "L", BRIDGE_NODE),
     TOPIC_TRAIN_DESC: ("std_msgs/msg/String", "L", TRAIN_NODE),
-    TOPIC_DIAGNOSTICS: ("diagnostic_msgs/msg/DiagnosticArray", "C", f"{BRIDGE_NODE}, {CALIBRATION_NODE}"),
+    TOPIC_DIAGNOSTICS: ("diagnostic_msgs/msg/DiagnosticArray", "M", f"{BRIDGE_NODE}, {CALIBRATION_NODE}"),
     TOPIC_CLOCK: ("rosgraph_msgs/msg/Clock", "M", BRIDGE_NODE),
     TOPIC_CAL_ITERATION: ("std_msgs/msg/Float64MultiArray", "C", CALIBRATION_NODE),
     TOPIC_CAL_RESULT: ("std_msgs/msg/String", "L", CALIBRATION_NODE),
