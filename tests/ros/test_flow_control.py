@@ -31,40 +31,40 @@ def _publish(flow, n, topic=P.TOPIC_ACCEL):
 def test_a_client_acknowledging_this_run_joins_and_is_waited_for():
     flow = FlowControl([REC])
     _publish(flow, 40)
-    flow.take(P.ack_record(REC, 3, 40))
-    assert flow.join(P.ack_record(MON, 3, 1, topics=[P.TOPIC_ACCEL]), run_id=3)
-    assert flow.joined == {MON: 1} and flow.acked == {REC: 40, MON: 1}
+    flow.take(P.ack_record(REC, 3, 40), now=1.0)
+    assert flow.join(P.ack_record(MON, 3, 1, topics=[P.TOPIC_ACCEL]), run_id=3, now=1.0)
+    assert flow.acked == {REC: 40, MON: 1}
     assert flow.ack_topics == {MON: (P.TOPIC_ACCEL,)}
     # the recorder keeps up; the client's lag alone now holds the run back
     _publish(flow, P.FLOW_WINDOW - 40)
-    flow.take(P.ack_record(REC, 3, P.FLOW_WINDOW))
+    flow.take(P.ack_record(REC, 3, P.FLOW_WINDOW), now=2.0)
     assert flow.sent_to(MON) - flow.acked[MON] == P.FLOW_WINDOW - 1
     assert not flow.ahead()
     assert flow.ahead(pending=1)  # one more message: 512 beyond the client's count
     assert not flow.all_acked()
-    flow.take(P.ack_record(MON, 3, P.FLOW_WINDOW, topics=[P.TOPIC_ACCEL]))
+    flow.take(P.ack_record(MON, 3, P.FLOW_WINDOW, topics=[P.TOPIC_ACCEL]), now=3.0)
     assert not flow.ahead(pending=1) and flow.all_acked()
 
 
 def test_no_join_for_another_run_a_known_node_or_one_dropped():
     flow = FlowControl([REC])
-    assert not flow.join(P.ack_record(MON, 2, 5), run_id=3)      # the run before
-    assert not flow.join(P.ack_record(MON, None, 5), run_id=3)   # a client that does not know the run yet
-    assert not flow.join(P.ack_record(REC, 3, 5), run_id=3)      # already waited for
-    assert flow.acked == {REC: 0} and flow.joined == {}
-    assert flow.join(P.ack_record(MON, 3, 0), run_id=3)
+    assert not flow.join(P.ack_record(MON, 2, 5), run_id=3, now=0.0)      # the run before
+    assert not flow.join(P.ack_record(MON, None, 5), run_id=3, now=0.0)   # a client that does not know the run yet
+    assert not flow.join(P.ack_record(REC, 3, 5), run_id=3, now=0.0)      # already waited for
+    assert flow.acked == {REC: 0}
+    assert flow.join(P.ack_record(MON, 3, 0), run_id=3, now=0.0)
     _publish(flow, 10)
     flow.pause("step", now=0.0)
     dropped = flow.drop(alive={REC, MON}, patience_s=1.0, now=2.0)  # nothing acknowledged for 2 s
     assert [d[0] for d in dropped] == [REC, MON]
-    assert not flow.join(P.ack_record(MON, 3, 10), run_id=3)     # dropped in this run: stays out
+    assert not flow.join(P.ack_record(MON, 3, 10), run_id=3, now=3.0)     # dropped in this run: stays out
 
 
 def test_a_joined_client_counts_as_on_the_graph_until_the_bridge_sees_it():
     """The bridge's view that missed the client at set-up may still miss it at the next check: the
     client is not dropped as 'left' then; once seen, leaving the graph drops it."""
     flow = FlowControl([REC])
-    assert flow.join(P.ack_record(MON, 1, 0), run_id=1)
+    assert flow.join(P.ack_record(MON, 1, 0), run_id=1, now=0.0)
     _publish(flow, 10)
     flow.pause("step", now=0.0)
     assert flow.drop(alive={REC}, patience_s=5.0, now=1.0) == []  # not yet seen: kept
@@ -101,3 +101,15 @@ def test_a_pause_s_patience_starts_with_the_pause():
     assert flow.wait_since is None
     flow.pause("end", now=20.0)
     assert flow.drop(alive={REC}, patience_s=5.0, now=24.0) == []
+
+
+def test_a_join_during_a_pause_keeps_the_patience_running():
+    """A client that joins while the run waits at its end is waited for with the same patience as the
+    others: its acknowledgement restarts the clock (it acknowledged something), it does not stop it."""
+    flow = FlowControl([REC])
+    _publish(flow, 100)
+    flow.pause("end", now=0.0)
+    assert flow.join(P.ack_record(MON, 4, 60), run_id=4, now=1.0)
+    assert flow.wait_since == 1.0
+    dropped = flow.drop(alive={REC}, patience_s=5.0, now=6.5)  # nothing more from either for 5.5 s
+    assert [(d[0], d[1]) for d in dropped] == [(REC, False), (MON, False)]

@@ -305,12 +305,12 @@ class BridgeNode(c.LockstepNode):
         r = self.run
         if r is None:
             return
-        ack = P.decode(msg.data)
-        if r.flow.take(ack, time.monotonic()):
+        ack, now = P.decode(msg.data), time.monotonic()
+        if r.flow.take(ack, now):
             self._resume()
-        elif r.flow.join(ack, r.id):  # a client the bridge's view of the graph showed too late
+        elif r.flow.join(ack, r.id, now):  # a client the bridge's view of the graph showed too late
             self.get_logger().info(f"run {r.id}: '{ack['node']}' joined the flow control at its acknowledgement "
-                                   f"of {r.flow.joined[ack['node']]} of {r.flow.sent} messages")
+                                   f"of {r.flow.acked[ack['node']]} of {r.flow.sent} messages")
 
     def _pause(self, what):
         """Wait for the recorders before ``what`` (``step``: the next exchange; ``end``: the result)."""

@@ -28,8 +28,6 @@ class FlowControl:
     ----------
     acked : dict
         Node -> messages it acknowledged (a node dropped from the flow control leaves it).
-    joined : dict
-        Node -> its count when it joined during the run (:meth:`join`).
     ack_topics : dict
         Node -> the topics its count covers, when not every counted topic (a client that reads
         the acceleration alone).
@@ -48,8 +46,7 @@ class FlowControl:
 
     def __init__(self, nodes):
         self.acked = {n: 0 for n in nodes}
-        self.joined = {}     # node -> its count when it joined by acknowledging (:meth:`join`)
-        self._unseen = set()  # joined, not yet on the bridge's view of the graph
+        self._unseen = set()  # joined (:meth:`join`), not yet on the bridge's view of the graph
         self._dropped = set()
         self.ack_topics = {}
         self.counts = {t: 0 for t in P.SAMPLE_TOPICS}
@@ -68,7 +65,7 @@ class FlowControl:
         topics = self.ack_topics.get(name)
         return self.sent if topics is None else sum(self.counts[t] for t in topics)
 
-    def take(self, ack, now=None):
+    def take(self, ack, now):
         """Take an acknowledgement record (:class:`adm_sim.protocol.AckCounter`) received at ``now``
         (``time.monotonic()``); returns whether it came from a node this run waits for. During a pause
         the patience of :meth:`drop` counts again from ``now``: a node that acknowledged part of what
@@ -82,11 +79,11 @@ class FlowControl:
         if topics is not None:  # a client that counts some topics only (checked: the known ones)
             self.ack_topics[name] = tuple(t for t in topics if t in self.counts)
         self.acked[name] = max(self.acked[name], int(ack["received"]))
-        self.wait_since = now if self.paused is not None and now is not None else None
+        self.wait_since = None if self.paused is None else now
         return True
 
-    def join(self, ack, run_id):
-        """Take a node that acknowledges run ``run_id`` without having been on the bridge's view of
+    def join(self, ack, run_id, now):
+        """Take a node that acknowledges run ``run_id`` (at ``now``, as :meth:`take`) without having been on the bridge's view of
         the graph at the run's set-up: discovery on a loaded machine can show a client to the bridge
         seconds after it opted in (and after a launcher's ``--wait-clients`` saw it), and a client
         acknowledges its first sample of a run at once, while its queue (at least
@@ -98,9 +95,7 @@ class FlowControl:
             return False
         self.acked[name] = 0
         self._unseen.add(name)
-        self.take(ack)
-        self.joined[name] = self.acked[name]
-        return True
+        return self.take(ack, now)
 
     def ahead(self, pending=0):
         """Whether the run is more than the window ahead of the slowest acknowledging node (with
