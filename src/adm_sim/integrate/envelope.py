@@ -852,12 +852,16 @@ def _x_local(ya, q, row, pp, n):
 @njit(cache=True, nogil=True)
 def _push(cf, ci, nc, y, bound, t, h, T_, q, pp, k, l):
     """Append a deck candidate (sample, value bound, time in the interval, step, interval length;
-    quantity, position index, interval, lane), doubling the storage when full."""
+    quantity, position index, interval, lane), doubling the storage when full (copied element by element:
+    a slice assignment would compile numba's shape-mismatch error, about 5 s of the first compile)."""
     if nc == cf.shape[0]:
         cf2 = np.empty((2 * nc, 5))
         ci2 = np.empty((2 * nc, 4), dtype=np.int64)
-        cf2[:nc] = cf
-        ci2[:nc] = ci
+        for r in range(nc):
+            for c in range(5):
+                cf2[r, c] = cf[r, c]
+            for c in range(4):
+                ci2[r, c] = ci[r, c]
         cf, ci = cf2, ci2
     cf[nc, 0], cf[nc, 1], cf[nc, 2], cf[nc, 3], cf[nc, 4] = y, bound, t, h, T_
     ci[nc, 0], ci[nc, 1], ci[nc, 2], ci[nc, 3] = q, pp, k, l

@@ -508,16 +508,27 @@ def rk4_push_units(st, vehicles, units, a0, a1, h, u, ud, su, sud, udd, au, aud)
 
 
 @njit(cache=True, inline="always")
+def _put_columns(dst, src, l0):
+    """``dst[:, l0:l0 + n] = src`` (n = ``src.shape[1]``), element by element."""
+    for i in range(src.shape[0]):
+        for b in range(src.shape[1]):
+            dst[i, l0 + b] = src[i, b]
+
+
+@njit(cache=True, inline="always")
 def put_lanes(state, contact, l0, q, qd, u, ud, amax, dmax, cmin):
-    """Write a run's state, maxima and smallest contact force back at lanes ``l0 ..``."""
+    """Write a run's state, maxima and smallest contact force back at lanes ``l0 ..``. Element by element:
+    a slice assignment would compile numba's shape-mismatch error (its string formatting, about 5 s of
+    the first compile) for copies whose shapes match by construction."""
     nb = amax.shape[0]
-    state.q[:, l0:l0 + nb] = q
-    state.qd[:, l0:l0 + nb] = qd
-    state.u[:, l0:l0 + nb] = u
-    state.ud[:, l0:l0 + nb] = ud
-    state.max_acc[l0:l0 + nb] = amax
-    state.max_disp[l0:l0 + nb] = dmax
-    contact.min_n[l0:l0 + nb] = cmin
+    _put_columns(state.q, q, l0)
+    _put_columns(state.qd, qd, l0)
+    _put_columns(state.u, u, l0)
+    _put_columns(state.ud, ud, l0)
+    for b in range(nb):
+        state.max_acc[l0 + b] = amax[b]
+        state.max_disp[l0 + b] = dmax[b]
+        contact.min_n[l0 + b] = cmin[b]
 
 
 @njit(cache=True, nogil=True)
