@@ -308,8 +308,8 @@ def _step_plan(k_of, ds):
         last_k = k
         last_ds = d
     # distinct by their bits, not by value, in the order first taken: a linear search among the few
-    # found so far (np.unique and np.searchsorted give the same steps sorted, and cost about 3 s of the
-    # first compile; the order of ``steps`` changes no number)
+    # found so far (np.unique and np.searchsorted give the same steps sorted, and cost 3-6 s of the first
+    # compile; the order of ``steps`` changes no number)
     taken = hs[:n].view(np.int64)
     bits = np.empty(n, np.int64)
     where = np.empty(n, np.int64)
