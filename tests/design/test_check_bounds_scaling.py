@@ -47,6 +47,7 @@ def _kappa(res, r):
     return ("mass", km) if km != 1.0 else ("stiffness", ks)
 
 
+@pytest.mark.slow  # with the module fixture checked (two checks with four bounds): 2.1-2.6 s of CPU a damping model
 def test_every_bound_is_the_nominal_bridge_at_mapped_speeds(checked):
     res = checked
     assert [label.split(" (")[0] for label, _ in res.bounds] == [
@@ -78,6 +79,7 @@ def test_every_bound_is_the_nominal_bridge_at_mapped_speeds(checked):
             assert c.speeds_kmh[i] * speed_factor == pytest.approx(env.speeds_kmh[i], rel=1e-15)
 
 
+@pytest.mark.slow  # reads the module fixture checked (its cost counts here)
 def test_every_effect_of_every_bound_is_the_nominal_one_at_mapped_speeds(checked, monkeypatch):
     """φ'_dyn of the moment and shear at every section and the reactions (EN 1991-2 6.4.6.5(3)): the
     forces do not scale (mass or stiffness), so the largest dynamic value of every effect is the nominal

@@ -5,10 +5,14 @@ bound's bridge run on its own, and the order the trains finish in changes nothin
 import json
 
 import numpy as np
+import pytest
 
 import adm_sim.design.check as chk
 from adm_sim.design.check import resolve_trains, run_check
 from adm_sim.model.bridge import named_bridge
+
+#: each test runs several checks with bounds (2.0 s of CPU each): slow (docs/testing.md)
+pytestmark = pytest.mark.slow
 
 
 def _numbers(res):

@@ -21,6 +21,7 @@ from adm_sim.inputs.train_files import load_train
 from train_files import short_ice2_file
 
 
+@pytest.mark.slow  # the numpy DIM on rough profiles: 2.2 s of CPU
 def test_rough_dim_equals_the_numpy_stepper_on_the_same_profiles(tmp_path):
     """The ICE-2 with 2 of its 12 passenger cars (both locomotives, both car types): the equality of
     the compiled lanes and the numpy stepper on one profile holds vehicle by vehicle and step by step,

@@ -45,6 +45,7 @@ def joint_dim(b1_ice2):
     return step, run_sweep(b, t, "dim", [100.0, 300.0], options=step)
 
 
+@pytest.mark.slow  # 11195 DIM steps on the numpy stepper: 4.2 s of CPU
 def test_contact_force_at_low_speed_is_the_static_axle_load(tmp_path):
     """Limiting case v -> 0: F_i = F_static,i for every axle on the bridge at every step (measured
     within 0.089 % at 20 km/h on B1, the same for the whole ICE-2 and for the short one run here;
@@ -64,6 +65,7 @@ def test_contact_force_at_low_speed_is_the_static_axle_load(tmp_path):
     assert res.to_dict()["status"] == "ok"
 
 
+@pytest.mark.slow  # with joint_dim (the numpy DIM over the dip): 5.1 s of CPU
 def test_compiled_contact_check_equals_the_numpy_stepper(b1_ice2, joint_dim, tmp_path):
     """The kernels' contact forces are the numpy stepper's: same first tension (step, axle),
     force and smallest force per lane to 1e-9 relative, smooth and rough. Rough: the whole ICE-2
@@ -203,6 +205,7 @@ def stepped_joint(b1_ice2, joint_dim):
     return lanes, lanes.run("dim", [0, 0], [100.0, 300.0])
 
 
+@pytest.mark.slow  # with stepped_joint (numpy-stepper lanes): 5.3 s of CPU
 def test_the_lane_backends_log_the_same_contact_losses(b1_ice2, stepped_joint):
     from adm_calib.lanes import CompiledLanes, contact_loss_at
 
@@ -240,6 +243,7 @@ def test_study_rows_carry_the_plausibility_warnings():
 
 
 
+@pytest.mark.slow  # reads joint_dim and stepped_joint (module fixtures: their cost counts here)
 def test_a_sweep_hook_hands_its_contact_check_to_the_calibration(joint_dim, stepped_joint):
     """A co-simulated sweep (the ROS calibration node's hook) returns the run's contact check with
     its maxima; :class:`adm_calib.lanes.HookLanes` logs its losses as the in-process lanes do (the

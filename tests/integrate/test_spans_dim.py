@@ -79,6 +79,7 @@ def _short_moving_masses():
     return train_from_mapping(data, source="moving masses")
 
 
+@pytest.mark.slow  # the monolithic reference: 5.5 s of CPU
 def test_dim_against_a_direct_fe_integration_with_moving_masses():
     """The DIM (numpy stepper, exact modes, 8 RK4 steps per period of the highest) of 8 moving masses
     of 3.7-4.8 t with their static loads (the locomotive and a car of ICE-2 reduced to their wheelsets)

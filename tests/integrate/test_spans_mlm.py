@@ -88,6 +88,7 @@ def _fe(deck, speed_kmh, t, sub=4):
     return wf[::sub][:t.size], af[::sub][:t.size]
 
 
+@pytest.mark.slow  # the direct FE references: 3.0-3.9 s of CPU a deck
 @pytest.mark.parametrize("deck", list(DECKS))
 def test_mlm_against_a_direct_fe_integration(deck):
     """Four axles of 170 kN at 250 km/h over a two-span and a three-span deck (2 % Rayleigh damping

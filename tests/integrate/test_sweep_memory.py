@@ -36,7 +36,9 @@ def test_span_load_table_equals_every_position_at_once(bridge_name, train_name, 
     assert np.count_nonzero(table) > 0.5 * table.size
 
 
-@pytest.mark.parametrize("model,train_name", [("mlm", "ICE-2"), ("dim", "ICE-2"), ("dim", "Railjet")])
+# the DIM cases trace every allocation of the numpy DIM (4.9 and 7.9 s of CPU): slow (docs/testing.md)
+@pytest.mark.parametrize("model,train_name", [("mlm", "ICE-2"), pytest.param("dim", "ICE-2", marks=pytest.mark.slow),
+                                              pytest.param("dim", "Railjet", marks=pytest.mark.slow)])
 def test_sweep_peak_is_its_estimate(model, train_name):
     """Peak / estimate at 5 steps per period (the DIM's cost is its number of steps): measured 1.08
     (DIM ICE-2), 1.07 (DIM Railjet), 1.09 (MLM ICE-2); at 8 steps per period 1.05, 1.05, 1.08. At 4

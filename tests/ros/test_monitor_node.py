@@ -62,6 +62,7 @@ def accel_msg(t, a, frame="b1/midspan"):
     return m
 
 
+@pytest.mark.slow  # in-process nodes, records of several runs: 2.5 s of CPU
 def test_passage_per_run_from_records(ctx, tmp_path):
     from std_msgs.msg import String
 
@@ -169,6 +170,7 @@ def imu_msg(t, a):
     return m
 
 
+@pytest.mark.slow  # in-process nodes, a 200 Hz Imu stream: 4.4 s of CPU
 def test_live_imu_sensor(ctx):
     """A z-up Imu at 200 Hz with gravity, drift, noise, dropouts in the forced part and in the free
     decay, live: each passage's dynamic peak within 1 %, f1 within 0.5 %, ζ1 within 5 %."""
