@@ -54,3 +54,34 @@ def test_client_opts_in_once_its_subscriptions_are_matched(ros_domain):
         assert [s.get_publisher_count() for s in accel] == [1]
     finally:
         rclpy.try_shutdown(context=ctx)
+
+
+@pytest.mark.slow
+def test_monitor_node_opts_in_only_once_it_subscribes_to_the_acceleration(ros_domain):
+    """The monitor node makes its acceleration subscription only once it has seen the topic's publishers
+    (their type and reliability), after its ``FlowClient``. The client then had no subscription to the
+    acceleration, took "every subscription matched" as true and opted in at once, so a run that started
+    before the monitor subscribed lost all its samples for the monitor (run 1, 521 of 521, in one
+    fresh-clone suite beside two busy processes). Now it opts in only once the node subscribes and the
+    subscription is matched."""
+    from rclpy.parameter import Parameter
+
+    from adm_sim.nodes.monitor_node import MonitorNode
+
+    ctx = rclpy.context.Context()
+    rclpy.init(context=ctx, domain_id=int(ros_domain["ROS_DOMAIN_ID"]))
+    try:
+        ex = SingleThreadedExecutor(context=ctx)
+        mon = MonitorNode(context=ctx, parameter_overrides=[Parameter("topic", value=P.TOPIC_ACCEL)])
+        source = rclpy.create_node("opt_in_source", context=ctx)
+        ex.add_node(mon)
+        ex.add_node(source)
+        # no publisher of the acceleration: the monitor has not subscribed, so it has not opted in
+        assert not _spin_until(ex, lambda: mon.flow.opted_in, 1.0)
+        assert mon.sub is None and _ack_publishers(source) == []
+        source.create_publisher(AccelStamped, P.TOPIC_ACCEL, QOS_MONITOR)
+        assert _spin_until(ex, lambda: mon.flow.opted_in, 10.0)
+        assert mon.sub is not None and mon.sub.get_publisher_count() == 1
+        assert _spin_until(ex, lambda: _ack_publishers(source) == ["monitor"], 10.0), _ack_publishers(source)
+    finally:
+        rclpy.try_shutdown(context=ctx)

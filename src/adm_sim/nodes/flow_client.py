@@ -36,8 +36,8 @@ class FlowClient:
     ``runs`` gives ``run_id -> (received, published)`` of the runs ended.
 
     The client opts in (creates its ``/adm/run/ack`` publisher, which the bridge and the launchers'
-    ``--wait-clients`` look for) once each of the node's subscriptions to ``topics`` is matched
-    with a publisher: a client the bridge waits for from a run's
+    ``--wait-clients`` look for) once the node subscribes to each of ``topics`` (made before or after
+    this call) and each of those subscriptions is matched with a publisher: a client the bridge waits for from a run's
     first sample is one that can receive it (on a loaded machine discovery can match the
     subscriptions seconds after the node appeared). ``opted_in`` says whether it has.
 
@@ -74,10 +74,12 @@ class FlowClient:
         return self.pub is not None
 
     def _opt_in(self):
-        """Create the acknowledgement publisher once every subscription to the counted topics has
-        a matched publisher."""
+        """Create the acknowledgement publisher once the node subscribes to every counted topic and
+        each of those subscriptions has a matched publisher. A node that subscribes after this call
+        (the monitor node subscribes once it has seen the topic's publishers) is not opted in before."""
         subs = [s for s in self.node.subscriptions if s.topic_name in self._wanted]
-        if self.pub is None and all(s.get_publisher_count() > 0 for s in subs):
+        if (self.pub is None and {s.topic_name for s in subs} == self._wanted
+                and all(s.get_publisher_count() > 0 for s in subs)):
             self.pub = self.node.create_publisher(String, self._ack_topic, QOS_CONTROL)
             self._timer.cancel()
             self.node.destroy_timer(self._timer)
