@@ -37,9 +37,9 @@ class FlowClient:
 
     The client opts in (creates its ``/adm/run/ack`` publisher, which the bridge and the launchers'
     ``--wait-clients`` look for) once the node subscribes to each of ``topics`` (made before or after
-    this call) and each of those subscriptions is matched with a publisher: a client the bridge waits for from a run's
-    first sample is one that can receive it (on a loaded machine discovery can match the
-    subscriptions seconds after the node appeared). ``opted_in`` says whether it has.
+    this call) and each of those subscriptions is matched with a publisher: a client the bridge waits
+    for from a run's first sample is one that can receive it (on a loaded machine discovery can match
+    the subscriptions seconds after the node appeared). ``opted_in`` says whether it has.
 
     Parameters
     ----------
