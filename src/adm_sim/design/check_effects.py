@@ -48,7 +48,7 @@ from typing import NamedTuple
 import numpy as np
 
 from adm_sim.integrate._jit import njit
-from adm_sim.integrate.envelope import _events, interval_exponentials
+from adm_sim.integrate.envelope import _events, propagate
 from adm_sim.design.design_loads import (CACHE_SIZE, LM71_AXLE_LOAD_N, LM71_AXLES_M, LM71_HALF_WINDOW_M, LM71_UDL_N_M,
                                   array_from_key, array_key, phi_dyn_prime, read_only)
 
@@ -486,26 +486,12 @@ def _lanes(bridge, axle_offsets_m, axle_loads_n, speeds_kmh, delta_zeta, effects
 
 def _propagate(Gk, bps, v, jj, om, zeta, lam, L):
     """``P``, ``H`` (K, lanes, modes) of every lane, from event to event (the closed form of
-    :mod:`adm_sim.integrate.envelope`; the exponentials of equal intervals computed once,
-    :func:`adm_sim.integrate.envelope.interval_exponentials`)."""
+    :mod:`adm_sim.integrate.envelope`, its :func:`~adm_sim.integrate.envelope.propagate`)."""
     Om = jj[None, :] * np.pi * v[:, None] / L  # (lanes, modes)
     dyn = 1.0 / (om**2 - Om**2 + 2j * zeta * om * Om)
-    K = bps.size
     P = Gk[:, None, :] * dyn[None]  # (K, lanes, modes)
-    H = np.empty_like(P)
-    q = np.zeros((v.size, jj.size))
-    dq = np.zeros_like(q)
     lengths = np.diff(bps)
-    steps = interval_exponentials(Om, lam, lengths[:, None] / v[None, :], lengths)
-    for k in range(K):
-        p = P[k]
-        hi = q - p.imag
-        H[k] = (dq - Om * p.real - lam.real * hi) / lam.imag + 1j * hi
-        if k < K - 1:
-            eW, eL = next(steps)
-            q = (p * eW).imag + (H[k] * eL).imag
-            dq = (1j * Om * p * eW).imag + (lam * H[k] * eL).imag
-    return P, H
+    return P, propagate(P, Om, lam, lengths[:, None] / v[None, :], lengths)
 
 
 def _coarse_speeds(kmh):

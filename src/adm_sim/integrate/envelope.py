@@ -444,6 +444,27 @@ def interval_exponentials(Om, lam, T, lengths):
         yield ex
 
 
+def propagate(P, Om, lam, T, lengths):
+    """``H`` (K, lanes, modes), the free part of every interval from event to event (see the module doc):
+    at the start of interval ``k`` the free part takes what the forced part ``Im[P_k e^(i Om tau)]``
+    leaves of q and q', both zero before the first event, and both are carried to the next event over
+    ``T[k]`` (s, (intervals, lanes)) with :func:`interval_exponentials` of ``lengths`` (m). One loop for
+    the envelope and the effects (:mod:`adm_sim.design.check_effects`): the same operations, the same bits."""
+    H = np.empty_like(P)
+    q = np.zeros(P.shape[1:])
+    dq = np.zeros(P.shape[1:])
+    steps = interval_exponentials(Om, lam, T, lengths)
+    for k in range(P.shape[0]):
+        p = P[k]
+        hi = q - p.imag
+        H[k] = (dq - Om * p.real - lam.real * hi) / lam.imag + 1j * hi
+        if k < P.shape[0] - 1:
+            eW, eL = next(steps)
+            q = (p * eW).imag + (H[k] * eL).imag
+            dq = (1j * Om * p * eW).imag + (lam * H[k] * eL).imag
+    return H
+
+
 def _all_lanes(v, L, jj, om, zeta, lam, bps, G, ppp, quants):
     """Propagate every lane from event to event, then search the maxima (see the module doc)."""
     nl = v.size
@@ -452,22 +473,11 @@ def _all_lanes(v, L, jj, om, zeta, lam, bps, G, ppp, quants):
     dyn = 1.0 / (om**2 - Om**2 + 2j * zeta * om * Om)
     K = bps.size  # intervals k = 0..K-2 between breakpoints, K-1 = free vibration
     P = G[:, None, :] * np.exp(1j * np.pi * np.outer(bps, jj) / L)[:, None, :] * dyn[None]  # (K, lanes, modes)
-    H = np.empty_like(P)
     T = np.empty((K, nl))
     lengths = np.diff(bps)
     T[:-1] = lengths[:, None] / v[None, :]
     t0 = bps[:, None] / v[None, :]  # (K, lanes) start time of every interval
-    q = np.zeros((nl, nm))
-    dq = np.zeros((nl, nm))
-    steps = interval_exponentials(Om, lam, T, lengths)
-    for k in range(K):
-        p = P[k]
-        hi = q - p.imag
-        H[k] = (dq - Om * p.real - lam.real * hi) / lam.imag + 1j * hi
-        if k < K - 1:
-            eW, eL = next(steps)
-            q = (p * eW).imag + (H[k] * eL).imag
-            dq = (1j * Om * p * eW).imag + (lam * H[k] * eL).imag
+    H = propagate(P, Om, lam, T, lengths)
     # acceleration (2nd derivative) and deflection of every mode as Im[c1 e^(i Om tau) + c2 e^(lam tau)]
     fams = ((P * (1j * Om) ** 2, H * lam**2), (P, H))
     nq = len(quants)
