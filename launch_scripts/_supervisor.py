@@ -51,7 +51,14 @@ def launch(body, args):
 
 
 def add_graph_options(parser):
-    """The options every graph launcher shares beside ``--domain-id``: ``--namespace``, ``--wait-clients``."""
+    """The options every graph launcher shares beside ``--domain-id``: the viewer (``--spawn``,
+    ``--connect``), ``--separate-nodes``, ``--namespace``, ``--wait-clients``."""
+    parser.add_argument("--spawn", action="store_true", help="spawn a live rerun viewer (127.0.0.1)")
+    parser.add_argument("--connect", help="stream to a running rerun viewer (loopback URL)")
+    parser.add_argument("--separate-nodes", action="store_true",
+                        help="run the bridge and train nodes as two processes (default: one process hosting both, "
+                             "as ROS composition does; the same nodes, topics and results, the DIM round trips "
+                             "cheaper)")
     parser.add_argument("--namespace", default="/", metavar="NS", help=(
         "start the whole graph (bridge, train, their exchange helpers, the driver or calibration node "
         "and its recorder) in the ROS 2 namespace NS (e.g. /b3: topics /b3/adm/midspan/accel, /b3/clock, "

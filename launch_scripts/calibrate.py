@@ -47,12 +47,7 @@ def parse_args(argv=None):
     ap.add_argument("--params-file", default=str(PARAMS_DIR / "b1_ice2.yaml"),
                     help="ROS 2 params YAML applied to every node (default ros_ws/params/b1_ice2.yaml)")
     ap.add_argument("--out", help="output folder")
-    ap.add_argument("--spawn", action="store_true", help="spawn a live rerun viewer (127.0.0.1)")
-    ap.add_argument("--connect", help="stream to a running rerun viewer (loopback URL)")
     ap.add_argument("--no-rrd", action="store_true", help="do not write run.rrd")
-    ap.add_argument("--separate-nodes", action="store_true",
-                    help="run the bridge and train nodes as two processes (default: one process hosting both, "
-                         "as ROS composition does; the same nodes, topics and results, the DIM round trips cheaper)")
     add_domain_id(ap)
     add_max_work(ap)
     add_graph_options(ap)

@@ -43,11 +43,6 @@ def main(argv=None):
     add_choice(ap, "--model", "dim (vehicles on the deck) or mlm (moving loads); default: the params file's")
     ap.add_argument("--speeds", help="km/h: one speed, a comma list or start:stop:step")
     ap.add_argument("--out", help="output folder (default runs/crossing_<time>)")
-    ap.add_argument("--spawn", action="store_true", help="spawn a live rerun viewer (127.0.0.1)")
-    ap.add_argument("--connect", help="stream to a running rerun viewer (loopback URL)")
-    ap.add_argument("--separate-nodes", action="store_true",
-                    help="run the bridge and train nodes as two processes (default: one process hosting both, "
-                         "as ROS composition does; the same nodes, topics and results, the DIM round trips cheaper)")
     add_domain_id(ap)
     add_max_work(ap)
     add_graph_options(ap)
