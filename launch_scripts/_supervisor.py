@@ -10,6 +10,7 @@ from __future__ import annotations
 import os
 import queue
 import shutil
+import sys
 import warnings
 from pathlib import Path
 
@@ -29,9 +30,8 @@ from adm_sim.inputs.speeds import parse_speeds
 from adm_sim.inputs.train_files import load_train
 from adm_sim.nodes.params import (DRIVER_SPECS, TRAIN_SPECS, bridge_from_params, bridge_plausibility, bridge_preset,
                                    bridge_specs, check_params_file, namespaced_params, param, step_options, validate_train)
-from adm_sim.processes.dds_env import local_ros_env
-from adm_sim.processes.dds_env import client_export_line  # noqa: F401  (used by the scripts)
-from adm_sim.processes.supervisor import NodeDied, Supervisor, ros_args  # noqa: F401  (used by the scripts)
+from adm_sim.processes.dds_env import client_export_line, local_ros_env
+from adm_sim.processes.supervisor import NodeDied, Supervisor, ros_args
 from adm_sim.protocol import check_namespace
 from adm_sim.recording.mcap_scan import scan
 from adm_sim.recording.viewer_process import check_loopback, handshake, spawn_viewer
@@ -352,6 +352,35 @@ def composed_args(params_file, bridge_params, train_params):
     (``-p bridge:ds_m:=0.05``), so neither takes the other's."""
     return ros_args(params_file, {**{f"bridge:{k}": v for k, v in bridge_params.items()},
                                   **{f"train:{k}": v for k, v in train_params.items()}})
+
+
+def supervise_graph(out, env, created, old, t_launch, start, on_stop=None):
+    """``start(sup)`` under a :class:`Supervisor` logging to ``out/logs``, and the ending every graph
+    launcher shares: on an interrupt the outputs of this run removed (:func:`discard_outputs`), one line,
+    130; when a node dies its leftovers cleaned and the recording named (:func:`after_node_died`), one
+    line, 1; else ``None``. Either way the domain id is given back, ``on_stop()`` runs (a progress bar
+    closed) and the output folder's claim is released. ``out``, ``env``, ``created``, ``old``: what
+    :func:`preflight` returned; ``t_launch``: the launch's start (``time.time()``)."""
+    code = None
+    try:
+        with Supervisor(out / "logs", env=env) as sup:
+            start(sup)
+    except KeyboardInterrupt:
+        code, line = 130, "interrupted (stopped every node; the outputs of this run are removed)"
+    except NodeDied as exc:
+        code, line = 1, str(exc).rstrip(": ")
+    finally:
+        env.release()
+    if on_stop is not None:
+        on_stop()
+    if code == 1:
+        line += after_node_died(out, t_launch)  # a killed node's locks and temporary files; the recording named
+    release_out(out)
+    if code == 130:
+        discard_outputs(out, created, old)
+    if code is not None:
+        print(f"error: {line}", file=sys.stderr)
+    return code
 
 
 def graph_lines(sup, out, namespace):

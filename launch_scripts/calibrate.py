@@ -27,8 +27,8 @@ import sys
 import time
 from pathlib import Path
 
-from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, add_graph_options, after_node_died, discard_outputs,
-                         graph_lines, launch, preflight, release_out, run_graph)
+from _supervisor import (PARAMS_DIR, ROOT, add_graph_options, graph_lines, launch, preflight, run_graph,
+                         supervise_graph)
 
 from adm_sim.cliutil import Parser, add_choice, add_domain_id, add_max_work, add_overwrite, progress_bar
 from adm_sim.files import write_atomic
@@ -158,27 +158,14 @@ def _main(args):
     out, env, created, old = preflight(args, default_out, dim=True)
     pb, pt, pc = node_params(args, out)
     prog = Progress(args.quiet)
-    try:
-        with Supervisor(out / "logs", env=env) as sup:
-            graph_lines(sup, out, args.namespace)
-            run_graph(sup, args.params_file, pb, pt, "calibration", "adm_calib.nodes.calibration_node", pc,
-                      prog.handle, composed=not args.separate_nodes, namespace=args.namespace)
-    except KeyboardInterrupt:
-        prog._close_bar()
-        release_out(out)
-        discard_outputs(out, created, old)
-        print("error: interrupted (stopped every node; the outputs of this run are removed)", file=sys.stderr)
-        return 130
-    except NodeDied as exc:
-        prog._close_bar()
-        note = after_node_died(out, t_launch)  # a killed node's locks and temporary files; the recording named
-        release_out(out)
-        print(f"error: {str(exc).rstrip(': ')}{note}", file=sys.stderr)
-        return 1
-    finally:
-        env.release()
-    prog._close_bar()
-    release_out(out)
+    def start(sup):
+        graph_lines(sup, out, args.namespace)
+        run_graph(sup, args.params_file, pb, pt, "calibration", "adm_calib.nodes.calibration_node", pc,
+                  prog.handle, composed=not args.separate_nodes, namespace=args.namespace)
+
+    code = supervise_graph(out, env, created, old, t_launch, start, on_stop=prog._close_bar)
+    if code is not None:
+        return code
     summary = json.loads((out / "summary.json").read_text())
     summary["wall_s"] = time.perf_counter() - t_start
     write_atomic(out / "summary.json", lambda tmp: tmp.write_text(json.dumps(summary, indent=2) + "\n"))

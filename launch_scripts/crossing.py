@@ -26,8 +26,8 @@ import time
 from pathlib import Path
 
 import numpy as np
-from _supervisor import (PARAMS_DIR, ROOT, NodeDied, Supervisor, add_graph_options, after_node_died, discard_outputs,
-                         graph_lines, launch, preflight, release_out, run_graph)
+from _supervisor import (PARAMS_DIR, ROOT, add_graph_options, graph_lines, launch, preflight, run_graph,
+                         supervise_graph)
 
 from adm_sim.cliutil import Parser, add_choice, add_domain_id, add_max_work, add_overwrite
 from adm_sim.model.plausibility import check_response
@@ -64,37 +64,27 @@ def _main(args):
     if args.connect:
         pd["rerun_connect"] = args.connect
     t0 = time.perf_counter()
-    try:
-        with Supervisor(out / "logs", env=env) as sup:
-            graph_lines(sup, out, args.namespace)
-            last = -1
+    last = -1
 
-            def on_line(line):
-                nonlocal last
-                kind, d = parse_driver_line(line)
-                if kind == "progress":
-                    pct = int(100 * d["step"] / d["n_steps"])
-                    if pct >= last + 10:
-                        print(f"  step {d['step']:>7} / {d['n_steps']}  sim time {d['sim_time_s']:.3f} s", flush=True)
-                        last = pct
-                elif kind is None:
-                    print(line, flush=True)
+    def on_line(line):
+        nonlocal last
+        kind, d = parse_driver_line(line)
+        if kind == "progress":
+            pct = int(100 * d["step"] / d["n_steps"])
+            if pct >= last + 10:
+                print(f"  step {d['step']:>7} / {d['n_steps']}  sim time {d['sim_time_s']:.3f} s", flush=True)
+                last = pct
+        elif kind is None:
+            print(line, flush=True)
 
-            run_graph(sup, args.params_file, pb, pt, "driver", "adm_sim.nodes.driver", pd, on_line,
-                      composed=not args.separate_nodes, namespace=args.namespace)
-    except KeyboardInterrupt:
-        release_out(out)
-        discard_outputs(out, created, old)
-        print("error: interrupted (stopped every node; the outputs of this run are removed)", file=sys.stderr)
-        return 130
-    except NodeDied as exc:
-        note = after_node_died(out, t_launch)  # a killed node's locks and temporary files; the recording named
-        release_out(out)
-        print(f"error: {str(exc).rstrip(': ')}{note}", file=sys.stderr)
-        return 1
-    finally:
-        env.release()
-    release_out(out)
+    def start(sup):
+        graph_lines(sup, out, args.namespace)
+        run_graph(sup, args.params_file, pb, pt, "driver", "adm_sim.nodes.driver", pd, on_line,
+                  composed=not args.separate_nodes, namespace=args.namespace)
+
+    code = supervise_graph(out, env, created, old, t_launch, start)
+    if code is not None:
+        return code
     s = json.loads((out / "summary.json").read_text())
     warn_implausible(s)
     print(f"{s['bridge']}\ntrain {s['train']}, {s['model'].upper()}: run {s['run_id']} in {s['wall_s']:.2f} s")
