@@ -13,6 +13,7 @@ import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 
+from adm_sim.nodes.common import stopped_by_signal
 from adm_sim.nodes.monitor_node import MonitorNode
 from adm_sim.processes.dds_env import apply_local_ros_env
 
@@ -40,7 +41,12 @@ def monitor_live(args, on_passage):
         t_end = None if args.duration is None else time.monotonic() + args.duration
         found = False
         while context.ok():
-            executor.spin_once(timeout_sec=0.1)
+            try:
+                executor.spin_once(timeout_sec=0.1)
+            except Exception as exc:
+                if not stopped_by_signal(exc, context):
+                    raise
+                raise KeyboardInterrupt from exc  # Ctrl-C shut rclpy down under the executor: the interrupt
             if node.sub is not None and node.sub.get_publisher_count() > 0 and not found:  # matched: samples from now on
                 found = True
                 print(f"{node.topic}: {node.count_publishers(node.topic)} publisher(s) found"

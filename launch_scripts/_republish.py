@@ -28,7 +28,7 @@ from std_msgs.msg import String
 
 from adm_sim import protocol as P
 from adm_sim.errors import InputError, RunError
-from adm_sim.nodes.common import QOS_CONTROL
+from adm_sim.nodes.common import QOS_CONTROL, stopped_by_signal
 from adm_sim.nodes.flow_client import named_publishers
 from adm_sim.processes.dds_env import clean_dead_shm, record_shm
 from adm_sim.recording.mcap_qos import parse_qos_profiles, topic_qos
@@ -332,6 +332,10 @@ def republish(args, found, writer_profile) -> int:
         sent = _replay_items(args, items, out=out, flow=flow, clients=clients, note_shm=note_shm)
         clients.run_end()  # the last run whole for every opted-in client (a recording cut short)
         flow.drain_all(out.topics)  # every reliable message acknowledged before the participant goes away
+    except Exception as exc:
+        if not stopped_by_signal(exc, context):
+            raise
+        raise KeyboardInterrupt from exc  # Ctrl-C shut rclpy down under the executor: the interrupt
     finally:
         executor.remove_node(node)
         node.destroy_node()

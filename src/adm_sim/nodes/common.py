@@ -23,7 +23,7 @@ from adm_sim.nodes.flow_client import FlowClient
 from adm_sim.nodes.messages import (float64_data, json_msg, matrix_from_msg, matrix_msg, matrix_step,
                                     to_time_msg)
 from adm_sim.nodes.node_base import LockstepNode, NodeBase
-from adm_sim.nodes.node_main import check_sections_apply, run_node
+from adm_sim.nodes.node_main import check_sections_apply, run_node, stopped_by_signal
 from adm_sim.nodes.param_node import SHARED_PARAMETER_NAMES, ParamNodeMixin
 from adm_sim.nodes.params import ParamSpec, format_float_list, param, parse_float_list
 from adm_sim.nodes.qos import QOS_CONTROL, QOS_EXCHANGE, QOS_HISTORY, QOS_LATCHED, QOS_MONITOR
@@ -31,5 +31,5 @@ from adm_sim.nodes.qos import QOS_CONTROL, QOS_EXCHANGE, QOS_HISTORY, QOS_LATCHE
 __all__ = ["EventsExecutor", "ExchangeError", "ExchangeLane", "ExchangeWriter", "PartnerWatch", "check_step",
            "pack", "parse_cdr", "unpack", "FlowClient", "float64_data", "json_msg", "matrix_from_msg",
            "matrix_msg", "matrix_step", "to_time_msg", "LockstepNode", "NodeBase", "check_sections_apply",
-           "run_node", "SHARED_PARAMETER_NAMES", "ParamNodeMixin", "ParamSpec", "format_float_list", "param",
+           "run_node", "stopped_by_signal", "SHARED_PARAMETER_NAMES", "ParamNodeMixin", "ParamSpec", "format_float_list", "param",
            "parse_float_list", "QOS_CONTROL", "QOS_EXCHANGE", "QOS_HISTORY", "QOS_LATCHED", "QOS_MONITOR"]

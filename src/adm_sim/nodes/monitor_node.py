@@ -277,6 +277,9 @@ def main(args=None):
     except InputError as exc:
         print(f"error: monitor: {' '.join(str(exc).split())}", file=sys.stderr, flush=True)
         code = 2
+    except Exception as exc:
+        if not c.stopped_by_signal(exc):  # else Ctrl-C shut rclpy down under the executor: the same stop
+            raise
     finally:
         if node is not None and code == 0:  # bad input: nothing reported or written after the error line
             try:

@@ -18,6 +18,16 @@ from adm_sim.nodes.params import load_params_yaml, unapplied_sections
 from adm_sim.recording.viewer_process import exit_if_abandoned
 
 
+def stopped_by_signal(exc, context=None):
+    """Whether ``exc`` is only the trace of a stop by SIGINT or SIGTERM, not a bug: raised *from* a
+    ``KeyboardInterrupt`` (:func:`adm_sim.cliutil.caused_by_interrupt`, e.g. a Ctrl-C within a library's
+    first import), or raised once the signal's handler had shut ``context`` (default: rclpy's) down. The
+    handler does that from another thread; when it lands while an executor builds its next wait set,
+    rclpy raises a ``RuntimeError`` of the invalid context instead of ``ExternalShutdownException``
+    (ros2/rclpy#398), and a callback publishing at that moment fails the same way."""
+    return not rclpy.ok(context=context) or caused_by_interrupt(exc)
+
+
 def run_node(make_node, args=None, name="node"):
     """The ``main`` of every node: init, spin until finished, one-line errors and warnings, clean shutdown.
 
@@ -70,9 +80,9 @@ def _run_node(make_node, args, name):
         report_failure(nodes, str(exc))
         return 2 if isinstance(exc, InputError) else 1  # the CLIs' mapping (adm_sim.cliutil.run_cli)
     except Exception as exc:
-        if rclpy.ok() and not caused_by_interrupt(exc):  # e.g. a Ctrl-C within a library's first import
+        if not stopped_by_signal(exc):
             raise
-        return 130  # shut down (SIGINT/SIGTERM) while a callback was publishing
+        return 130  # shut down (SIGINT/SIGTERM) under the executor or a publishing callback
     finally:
         for node in nodes:
             node.close()
