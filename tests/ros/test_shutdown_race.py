@@ -42,6 +42,16 @@ def _run(code, env, cwd):
                           text=True, timeout=120)
 
 
+def _interrupted(script_name, argv, env, cwd):
+    """``launch_scripts/<script_name> argv`` under the race: the interrupt's one line and exit 130."""
+    script = ROOT / "launch_scripts" / script_name
+    code = (f"import runpy, sys\nsys.argv = {[str(script), *argv]!r}\nsys.path.insert(0, {str(script.parent)!r})\n"
+            f"runpy.run_path({str(script)!r}, run_name='__main__')\n")
+    r = _run(code, env, cwd)
+    assert r.returncode == 130, r.stderr
+    assert re.fullmatch(r"error: interrupted[^\n]*\n", r.stderr), r.stderr
+
+
 def test_stopped_by_signal_is_true_only_after_a_shutdown_or_an_interrupt(ros_domain):  # noqa: F811
     """The test the nodes apply to an executor's error: a bug while the context is up, the stop once it is
     shut down, and an error raised from a KeyboardInterrupt always the stop."""
@@ -84,25 +94,11 @@ def test_monitor_node_stops_cleanly(ros_domain, tmp_path):  # noqa: F811
 @pytest.mark.slow
 def test_live_monitor_command_reports_the_interrupt(ros_domain, tmp_path):  # noqa: F811
     """``launch_scripts/monitor.py`` live: the interrupt's one line and exit 130, as on any Ctrl-C."""
-    script = ROOT / "launch_scripts" / "monitor.py"
-    code = ("import runpy, sys\n"
-            f"sys.argv = [{str(script)!r}, '--domain-id', {str(ros_domain.domain_id)!r}, '--duration', '30']\n"
-            f"sys.path.insert(0, {str(script.parent)!r})\n"
-            f"runpy.run_path({str(script)!r}, run_name='__main__')\n")
-    r = _run(code, ros_domain, tmp_path)
-    assert r.returncode == 130, r.stderr
-    assert re.fullmatch(r"error: interrupted[^\n]*\n", r.stderr), r.stderr
+    _interrupted("monitor.py", ["--domain-id", str(ros_domain.domain_id), "--duration", "30"], ros_domain, tmp_path)
 
 
 @pytest.mark.slow
 def test_replay_republish_reports_the_interrupt(recording, ros_domain, tmp_path):  # noqa: F811
     """``launch_scripts/replay.py --republish`` waiting for a client: the interrupt's one line and exit 130."""
-    script = ROOT / "launch_scripts" / "replay.py"
-    code = ("import runpy, sys\n"
-            f"sys.argv = [{str(script)!r}, {str(recording)!r}, '--republish', '--rate', '0', '--wait-clients', '1',"
-            f" '--domain-id', {str(ros_domain.domain_id)!r}]\n"
-            f"sys.path.insert(0, {str(script.parent)!r})\n"
-            f"runpy.run_path({str(script)!r}, run_name='__main__')\n")
-    r = _run(code, ros_domain, tmp_path)
-    assert r.returncode == 130, r.stderr
-    assert re.fullmatch(r"error: interrupted[^\n]*\n", r.stderr), r.stderr
+    _interrupted("replay.py", [str(recording), "--republish", "--rate", "0", "--wait-clients", "1", "--domain-id",
+                               str(ros_domain.domain_id)], ros_domain, tmp_path)
