@@ -31,5 +31,6 @@ from adm_sim.nodes.qos import QOS_CONTROL, QOS_EXCHANGE, QOS_HISTORY, QOS_LATCHE
 __all__ = ["EventsExecutor", "ExchangeError", "ExchangeLane", "ExchangeWriter", "PartnerWatch", "check_step",
            "pack", "parse_cdr", "unpack", "FlowClient", "float64_data", "json_msg", "matrix_from_msg",
            "matrix_msg", "matrix_step", "to_time_msg", "LockstepNode", "NodeBase", "check_sections_apply",
-           "run_node", "stopped_by_signal", "SHARED_PARAMETER_NAMES", "ParamNodeMixin", "ParamSpec", "format_float_list", "param",
-           "parse_float_list", "QOS_CONTROL", "QOS_EXCHANGE", "QOS_HISTORY", "QOS_LATCHED", "QOS_MONITOR"]
+           "run_node", "stopped_by_signal", "SHARED_PARAMETER_NAMES", "ParamNodeMixin", "ParamSpec",
+           "format_float_list", "param", "parse_float_list", "QOS_CONTROL", "QOS_EXCHANGE", "QOS_HISTORY",
+           "QOS_LATCHED", "QOS_MONITOR"]
