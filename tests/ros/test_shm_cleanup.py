@@ -198,5 +198,10 @@ def test_clean_dead_shm_keeps_files_of_live_processes(tmp_path):
         finally:
             p.kill()
             p.communicate(timeout=10)
-        removed, _ = dds_env.clean_dead_shm()
-        assert removed >= 2 and _forgotten(mine, p.pid) == set()
+        dds_env.clean_dead_shm()
+        # dead: its data segment is gone and nothing stale is left. The effect is checked, not this call's
+        # count of removed files: a launcher on another xdist worker cleans first thing at its start, and
+        # can remove the probe's files between the kill and this call (seen under ``-n 3``: 0 removed here)
+        segment = {n for n in mine if n.startswith("fastrtps_") and len(n) == 25}
+        assert segment and not any(os.path.exists(f"/dev/shm/{n}") for n in segment)
+        assert _forgotten(mine, p.pid) == set()
