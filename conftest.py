@@ -163,7 +163,7 @@ if _CPU_LOG:
                      f"{os.environ.get('PYTEST_XDIST_WORKER', 'main')}\t{start:.3f}\n")
 
 
-# --- the suite on three workers (``python -m pytest -n 3``, .ci/run; docs/testing.md says why) -----
+# --- the suite on two workers (``python -m pytest -n 2``, .ci/run) --------------------------------
 # Public pytest and xdist options only:
 #
 # 1. ``--dist worksteal`` (``addopts`` in pyproject.toml): each worker starts with its share of the
@@ -180,7 +180,7 @@ if _CPU_LOG:
 #    documentation, a file lock in the folder the workers share).
 # 4. Numba compiles each kernel on its first call and keeps it in ``src/adm_sim/integrate/__pycache__``.
 #    In a fresh clone that is about 35 s of CPU, paid by every process that calls a kernel before
-#    the cache holds it: every worker at once, and every command-line subprocess a test starts
+#    the cache holds it: both workers at once, and every command-line subprocess a test starts
 #    early. So the controller compiles the kernels once, before the workers start, on both cores
 #    in parallel (``adm-sim compile``'s code paths, split in two), and every later process loads
 #    the cache.

@@ -68,7 +68,7 @@ def test_readme_is_a_front_door():
     lines = (ROOT / "README.md").read_text(encoding="utf-8").splitlines()
     assert len(lines) <= 150, f"README.md has {len(lines)} lines; at most 150"
     first = lines[:40]
-    test_cmd = ".ci/install-browser && python3.11 -m venv .venv && .venv/bin/pip install -q -r requirements.txt && .venv/bin/python -m pytest -n 3"
+    test_cmd = ".ci/install-browser && python3.11 -m venv .venv && .venv/bin/pip install -q -r requirements.txt && .venv/bin/python -m pytest -n 2"
     assert f"    {MAIN_JOB}" in first and f"    {test_cmd}" in first
     start = lines.index("## Set-up: two commands")
     end = next(i for i in range(start + 1, len(lines)) if lines[i].startswith("## "))
@@ -79,7 +79,7 @@ def test_readme_is_a_front_door():
 def test_readme_test_command_is_what_ci_runs():
     readme = (ROOT / "README.md").read_text()
     ci = (ROOT / ".ci" / "run").read_text()
-    test_cmd = ".ci/install-browser && python3.11 -m venv .venv && .venv/bin/pip install -q -r requirements.txt && .venv/bin/python -m pytest -n 3"
+    test_cmd = ".ci/install-browser && python3.11 -m venv .venv && .venv/bin/pip install -q -r requirements.txt && .venv/bin/python -m pytest -n 2"
     assert f"\n    {test_cmd}\n" in readme
     assert [line for line in ci.splitlines() if line.startswith(".ci/install-browser")] == [test_cmd]
 
