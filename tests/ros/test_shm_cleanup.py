@@ -88,6 +88,12 @@ def _own_files(pid):
     return {e.name for e in os.scandir("/dev/shm") if e.name.startswith("fastrtps_") and e.inode() in inodes}
 
 
+def _data_segments(names):
+    """Of ``names``, the data segments (``fastrtps_`` and 16 hex digits): each one process's own, on its
+    domain alone, unlike the port files every domain's participants share."""
+    return {n for n in names if n.startswith("fastrtps_") and len(n) == 25}
+
+
 def _wait(pred, timeout=60.0, what="condition"):
     t_end = time.monotonic() + timeout
     while not pred():
@@ -142,7 +148,7 @@ def test_sigkill_of_replay_republish_leaves_nothing_after_the_next_start(recordi
             victim.wait(timeout=10)
             # its data segment is left behind (a live peer may still map it until it notices the death:
             # then it is not stale yet, and its note is kept for a later clean)
-            assert any(n.startswith("fastrtps_") and len(n) == 25 and os.path.exists(f"/dev/shm/{n}") for n in theirs)
+            assert any(os.path.exists(f"/dev/shm/{n}") for n in _data_segments(theirs))
             # the next start of a replay cleans what the killed one left
             # (no subscriber: no wait for one; the clean comes first, at the start)
             r = subprocess.run([PY, str(REPLAY), str(recording), "--republish", "--rate", "0", "--topics",
@@ -177,7 +183,7 @@ def test_sigkill_of_a_supervised_node_is_cleaned_at_the_launcher_end(tmp_path):
         assert _stale(theirs)                    # SIGKILL leaves them ...
     assert _forgotten(theirs, p.pid) == set()    # ... the supervisor's end removes them
     # (its own data segment at least: the probe was alone on its domain, so nothing else mapped it)
-    segments = {n for n in theirs if n.startswith("fastrtps_") and len(n) == 25}
+    segments = _data_segments(theirs)
     assert segments and not any(os.path.exists(f"/dev/shm/{n}") for n in segments)
     # its note is closed, or keeps only what a live process still used at the clean (a port file of
     # its domain that a participant of a parallel test maps, seen once in a CI run), for a later clean
@@ -202,6 +208,6 @@ def test_clean_dead_shm_keeps_files_of_live_processes(tmp_path):
         # dead: its data segment is gone and nothing stale is left. The effect is checked, not this call's
         # count of removed files: a launcher on another xdist worker cleans first thing at its start, and
         # can remove the probe's files between the kill and this call (seen under ``-n 3``: 0 removed here)
-        segment = {n for n in mine if n.startswith("fastrtps_") and len(n) == 25}
-        assert segment and not any(os.path.exists(f"/dev/shm/{n}") for n in segment)
+        segments = _data_segments(mine)
+        assert segments and not any(os.path.exists(f"/dev/shm/{n}") for n in segments)
         assert _forgotten(mine, p.pid) == set()
