@@ -192,20 +192,38 @@ def test_a_calibration_whose_dim_peak_lost_contact_is_not_ok(b1_ice2):
 def stepped_joint(b1_ice2, joint_dim):
     """``(lanes, maxima)``: adm_calib's numpy-stepper lanes run once over the 2 mm dip (B1 x ICE-2,
     100 and 300 km/h, the joint_dim step with its ds_m made explicit, as the compiled lanes need it),
-    for the tests that read its maxima and its contact log (they only read them)."""
+    for the tests that read its maxima and its contact log (they only read them).
+
+    SteppedLanes' own code runs (grouping, response points, the contact log); its one run_sweep call,
+    ``run_sweep(b, t, "dim", [100, 300], delta_zeta=[0, 0], options=<that step>, where="midspan")``,
+    is served by the run of ``joint_dim`` (checked by its arguments), not a second integration of the
+    same 8296 steps. Measured once with the real run_sweep: that call's result equals joint_dim's bit for
+    bit (max acceleration, max deflection, n_steps, ds_m, every field of the contact check), and the ds_m
+    make_grid gives (the step this fixture used before) is joint_dim's ds_m."""
     from dataclasses import replace
 
-    from adm_calib.lanes import SteppedLanes
-    from adm_sim.integrate.step_grid import make_grid, speeds_to_m_s
+    import adm_calib.lanes as lanes_mod
 
     b, t = b1_ice2
-    step = joint_dim[0]
-    step = replace(step, ds_m=make_grid(b, t.length_m, speeds_to_m_s(np.array([100.0, 300.0])), step).ds_m)
-    lanes = SteppedLanes([b], t, step)
-    return lanes, lanes.run("dim", [0, 0], [100.0, 300.0])
+    step0, res = joint_dim
+    step = replace(step0, ds_m=res.ds_m)
+    calls = []
+
+    def the_joint_dim_run(bridge, train, model, v, delta_zeta=0.0, options=None, where="midspan"):
+        assert bridge is b and train is t and (model, where, options) == ("dim", "midspan", step)
+        assert list(v) == [100.0, 300.0] and np.all(np.asarray(delta_zeta) == 0.0)
+        calls.append(model)
+        return res
+
+    lanes = lanes_mod.SteppedLanes([b], t, step)
+    with pytest.MonkeyPatch.context() as m:
+        m.setattr(lanes_mod, "run_sweep", the_joint_dim_run)
+        maxima = lanes.run("dim", [0, 0], [100.0, 300.0])
+    assert calls == ["dim"]
+    return lanes, maxima
 
 
-@pytest.mark.slow  # with stepped_joint (numpy-stepper lanes): 5.3 s of CPU
+@pytest.mark.slow  # with stepped_joint, i.e. joint_dim (the numpy DIM over the dip): 5 s of CPU run alone
 def test_the_lane_backends_log_the_same_contact_losses(b1_ice2, stepped_joint):
     from adm_calib.lanes import CompiledLanes, contact_loss_at
 
@@ -247,7 +265,8 @@ def test_study_rows_carry_the_plausibility_warnings():
 def test_a_sweep_hook_hands_its_contact_check_to_the_calibration(joint_dim, stepped_joint):
     """A co-simulated sweep (the ROS calibration node's hook) returns the run's contact check with
     its maxima; :class:`adm_calib.lanes.HookLanes` logs its losses as the in-process lanes do (the
-    numpy-stepper lanes of :func:`stepped_joint`, run on their own)."""
+    numpy-stepper lanes of :func:`stepped_joint`, which fold the same run into their log through
+    their own code: the ContactCheck itself, where the hook hands over its JSON form)."""
     from adm_calib.lanes import HookLanes, contact_loss_at
 
     step, shared = joint_dim

@@ -87,7 +87,12 @@ def _monolithic_midspan_acc(bridge, train, speed_kmh, t_eval):
 FINE = StepOptions(steps_per_period=32)
 
 
-@pytest.mark.parametrize("bridge_name,speed_kmh", [("B3", 268.0), ("B1", 200.0)])
+# One case: faults injected into the reference (error / peak, tolerance 1e-3) are each caught by
+# B3 at 268 km/h with a wider margin than by B1 at 200 km/h, which was dropped: no convective terms
+# 5.6e-2 (B1 9.1e-3), no centripetal term 2.9e-2 (5.6e-3), no Eq. (13) modified mass 2.3e-1 (1.1e-1),
+# no v w' term 1.9e-2 (4.2e-3), c_p x1.2 2.2e-2 (8.6e-3), c_s x1.2 2.6e-3 (1.0e-3), bridge damping
+# x1.2 4.7e-2 (8.0e-2, the one fault B1 shows more, still caught 47x over by B3).
+@pytest.mark.parametrize("bridge_name,speed_kmh", [("B3", 268.0)])
 def test_dim_matches_monolithic_reference(bridge_name, speed_kmh):
     b, tr = named_bridge(bridge_name), _one_vehicle_train()
     r = run_sweep(b, tr, "dim", [speed_kmh], histories=True, options=FINE)
