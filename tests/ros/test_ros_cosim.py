@@ -9,8 +9,10 @@ computed once per module (:func:`reference`): the two graphs below, two processe
 held to the same runs. The bridge nodes here publish the monitoring topics every 16th step and
 the beam and clock every 64th (:data:`SPARSE`: the in-process driver receives and deserialises
 each message, 1.4 s of CPU a DIM run at every step, 0.35 s thinned); the results are of every
-step whatever is published, and the same exactness with every step published is the
-calibration launch's (its runs, DIM included, bit for bit below).
+step whatever is published. The calibration launch below is thinned too (every 4th step, conftest's
+``CALIBRATION_PARAMS``); the same exactness with every step published, DIM included, is the deck
+calibration launch's in test_ros_decks.py (automatic decimation: every step at 4 steps per period;
+its status, Δζ and both peaks equal the numpy reference's bit for bit).
 """
 
 import functools
@@ -96,8 +98,9 @@ def test_calibrate_launch_matches_in_process_calibration(calibration_launch):
     another) gives the Δζ of adm_calib.calibrate.
 
     The launch is conftest's ``calibration_launch`` (B3 x ICE-2, 250..290 km/h every 2 km/h, 4 steps
-    per period, one period of free vibration), run once for this test and the recording test of
-    test_ros_rerun_views.py; the fixture asserts that its stdout printed the iterations and the result."""
+    per period, one period of free vibration, monitoring every 4th step), run once for this test and
+    the recording test of test_ros_rerun_views.py; the fixture asserts that its stdout printed the
+    iterations and the result."""
     import json
 
     from adm_calib.calibrate import CalibrationOptions, calibrate

@@ -209,10 +209,13 @@ def _wait_passages(path, n, timeout_s=60.0):
 
 
 def _stop(procs):
-    out = []
+    """SIGINT to every process still running first (they shut down side by side), then each one's
+    ``(stdout, stderr)``, in the order of ``procs`` (killed after 60 s)."""
     for p in procs:
         if p.poll() is None:
             p.send_signal(signal.SIGINT)
+    out = []
+    for p in procs:
         try:
             o, e = p.communicate(timeout=60)
         except subprocess.TimeoutExpired:
@@ -273,6 +276,9 @@ def under_load(tmp_path_factory):
         latched = subprocess.Popen([sys.executable, "-c", LATCHED], env=env, stdout=subprocess.PIPE,
                                    stderr=subprocess.PIPE, text=True)
         procs.append(latched)
+        # --wait-subscribers at its default (2 s, never satisfied here: the clients read a few of the
+        # recorded topics) is what gives the latched subscriber time to match before the second run's
+        # final status: with 0 it missed run 1's final status under this load (1 run in 3)
         r = subprocess.run([sys.executable, str(ROOT / "launch_scripts" / "replay.py"), str(cal / "run.mcap"),
                             "--republish", "--rate", "0", "--wait-clients", "2"] + common,
                            env=env, capture_output=True, text=True, timeout=900)
