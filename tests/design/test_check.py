@@ -105,6 +105,8 @@ def test_phi_dyn_eq_6_14_against_the_closed_form():
     b = named_bridge("B1")
     F = 1e5
     y_stat = static_midspan_max_m(b, np.array([0.0]), np.array([F]))
+    # the static deflection against the beam formula: this test holds that check (a separate test made
+    # the same call and assertion)
     assert y_stat == pytest.approx(F * b.span_m**3 / (48 * b.EJ_Nm2), rel=3e-3)
     slow = moving_load_envelope(b, [0.0], [F], [5.0])
     tc = TrainCheck(name="one axle", kind="train", speeds_kmh=slow.speeds_kmh, max_acc_m_s2=slow.max_acc_m_s2,
@@ -122,13 +124,6 @@ def test_phi_dyn_eq_6_14_against_the_closed_form():
         ref = max(ref, np.abs(mid @ q).max())
     assert c.phi_dyn == pytest.approx(ref / y_stat - 1.0, abs=1e-4)
     assert 0.05 < c.phi_dyn < 0.5  # a single force on B1 below its first resonance (v/n0 L ~ 0.67)
-
-
-def test_static_deflection_against_beam_formula():
-    """One axle: the 3-mode static maximum equals F L^3 / (48 EJ) within 0.3 % (truncation)."""
-    b = named_bridge("B1")
-    w = static_midspan_max_m(b, np.array([0.0]), np.array([1e5]))
-    assert w == pytest.approx(1e5 * b.span_m**3 / (48 * b.EJ_Nm2), rel=3e-3)
 
 
 def test_static_modal_moment_and_deflection_closed_form():
@@ -506,12 +501,19 @@ ONE_PC = {"m_c_kg": 33930, "J_c_kgm2": 2.115e6, "m_b_kg": 2373, "J_b_kgm2": 1832
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", ["B1", "B3"])
+@pytest.mark.parametrize("name", ["B3"])
 def test_comfort_b_v_against_an_independent_integration(tmp_path, name):
-    """One ICE-2 passenger car crossing B1 and B3 at 200 and 263 km/h: b_v of the DIM (RK4, 16
-    steps per period, velocities differenced over the step) equals the coupled bridge-vehicle ODE
-    written out in this file and integrated by scipy's DOP853 (rtol 1e-10) to 5e-4 (measured:
-    <= 8e-5; 1e-5 at 64 steps per period)."""
+    """One ICE-2 passenger car crossing B3 at 200 and 263 km/h: b_v of the DIM (RK4, 16 steps per
+    period, velocities differenced over the step) equals the coupled bridge-vehicle ODE written out
+    in this file and integrated by scipy's DOP853 (rtol 1e-10) to 5e-4 (measured: <= 8e-5; 1e-5 at
+    64 steps per period).
+
+    B3 only (B1 dropped: same code path, and B3 sees more): each of five bugs injected into the
+    reference (wheel mass dropped, no contact-force feedback, convective terms dropped, bogie pitch
+    inertia x2, bridge damping x1.5) moves it from B3's b_v by more than 5e-4 at one speed at least
+    (the least: 6.2e-4, the pitch inertia at 263 km/h); on B1 two of them stay below 5e-4 (the
+    convective terms 3.8e-4, the pitch inertia 2.5e-4). B1's b_v is held to its step convergence
+    in test_comfort_b_v_limits_and_convergence."""
     from adm_sim.design.check import comfort_b_v
 
     f = tmp_path / "one_pc.toml"

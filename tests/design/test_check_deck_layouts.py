@@ -3,12 +3,14 @@
 
 * one LM71 effect per layout (the hogging moment over the first intermediate support) against the
   stiffness-method reference of tests/design/test_check_deck.py (fe_lm71), to 1e-6;
-* the sweep's midspan accelerations against the same moving loads on the same modes integrated by
-  scipy's DOP853 (rtol 1e-10) and read on a time grid 8 times finer than the sweep's steps: the sweep
-  reads its maxima at its RK4 steps (24 per period of the top mode), so it may lie a little below the
-  dense maximum (2 % allowed, 0.97 % measured) and above it only by RK4's own error and the dense
-  grid's (0.1 % allowed, 0.072 % measured);
-* ``adm-sim sweep``'s compiled RK4 at the middle of the longest span against the same reference;
+* on the dynamic layouts (3, 5 and 6 spans, ``DYNAMIC_LAYOUTS``), the sweep's midspan accelerations
+  against the same moving loads on the same modes integrated by scipy's DOP853 (rtol 1e-10) and read
+  on a time grid 8 times finer than the sweep's steps: the sweep reads its maxima at its RK4 steps
+  (24 per period of the top mode), so it may lie a little below the dense maximum (2 % allowed,
+  0.97 % measured) and above it only by RK4's own error and the dense grid's (0.1 % allowed, 0.072 %
+  measured);
+* on the same layouts, ``adm-sim sweep``'s compiled RK4 at the middle of the longest span against the
+  same reference;
 * the check's set-up on every layout: the rule's modes and their frequencies, L_Phi of Table 6.2 as
   quoted (k = 1.3, 1.4, 1.5, 1.5), the effects named, the damping of Table 6.6 at the longest span;
 * the whole check on the largest layout (six spans, 84 effects): finite results, and that set-up is
@@ -34,6 +36,13 @@ from adm_sim.model.spans import deck_modes, rule_mode_count
 LAYOUTS = {3: (11.0, 15.0, 12.0), 4: (10.0, 13.0, 13.0, 10.0), 5: (9.0, 12.0, 14.0, 12.0, 9.0),
            6: (10.0, 11.0, 12.0, 12.0, 11.0, 10.0)}
 K_TABLE_6_2 = {3: 1.3, 4: 1.4, 5: 1.5, 6: 1.5}
+#: The layouts of the two dynamic tests (the static ones take every layout). deck_sweep and the
+#: compiled deck loads loop over spans and modes alike, with no branch on the number of spans. 4 spans
+#: (4 modes, symmetric, two equal longest spans) is left out: 6 spans is symmetric with 4 modes too,
+#: and 4 spans' sweep errors against the dense reference (-0.51 .. -0.01 %) lay inside those of the
+#: layouts kept: 5 spans -0.52 .. +0.072 % (nearest the upper bound), 6 spans -0.97 % (nearest the
+#: lower bound) .. +0.02 %, 3 spans -0.13 .. +0.05 %.
+DYNAMIC_LAYOUTS = (3, 5, 6)
 #: a short train of two bogie pairs (m, N): cheap for the dense reference
 OFFSETS = np.array([0.0, 2.5, 17.5, 20.0, 24.0, 26.5, 41.5, 44.0])
 LOADS = np.full(OFFSETS.size, 170e3)
@@ -92,10 +101,11 @@ def _dense_midspan_acc(bridge, v_m_s, t_end_s):
     return np.abs(phi_mid @ qdd).max(1)
 
 
-@pytest.mark.parametrize("n", [pytest.param(n, marks=[] if n == 5 else [pytest.mark.slow]) for n in sorted(LAYOUTS)])
+@pytest.mark.parametrize("n", [pytest.param(n, marks=[] if n == 5 else [pytest.mark.slow]) for n in DYNAMIC_LAYOUTS])
 def test_sweep_midspans_against_a_dense_integration(n):
     """Measured (sweep / dense - 1 per midspan, 180 and 270 km/h): -0.97 % .. +0.072 %; about 4 s per
-    layout, so one layout (5 spans) runs in the developer loop, the rest in the slow tier."""
+    layout, so one layout (5 spans) runs in the developer loop, the rest of ``DYNAMIC_LAYOUTS`` in
+    the slow tier."""
     spans = LAYOUTS[n]
     deck = Bridge.continuous(spans, 2.2e10, 14000.0, 0.02, damping_model="modal")
     beam = ContinuousBeam(spans, (2.2e10,) * n)
@@ -110,12 +120,13 @@ def test_sweep_midspans_against_a_dense_integration(n):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("n", sorted(LAYOUTS))
-def test_adm_sim_sweep_on_every_layout(n):
-    """``adm-sim sweep``'s compiled RK4 (adm_sim.integrate.sweep.run_sweep_compiled) on every layout,
-    read at the middle of the longest span with its dense maxima (the cubic between steps): finite,
-    and equal to the DOP853 reference at that point to 0.2 % (RK4 at 16 steps per period; measured
-    -0.18 %, -0.14 %, -0.18 %, -0.09 % for 3, 4, 5, 6 spans at 250 km/h)."""
+@pytest.mark.parametrize("n", DYNAMIC_LAYOUTS)
+def test_adm_sim_sweep_on_the_dynamic_layouts(n):
+    """``adm-sim sweep``'s compiled RK4 (adm_sim.integrate.sweep.run_sweep_compiled) on the dynamic
+    layouts (``DYNAMIC_LAYOUTS``: 4 spans left out, as there), read at the middle of the longest span
+    with its dense maxima (the cubic between steps): finite, and equal to the DOP853 reference at that
+    point to 0.2 % (RK4 at 16 steps per period; measured -0.18 %, -0.18 %, -0.09 % for 3, 5, 6 spans
+    at 250 km/h; -0.14 % on 4 spans when it ran)."""
     from adm_sim.integrate.step_grid import StepOptions
     from adm_sim.integrate.sweep import run_sweep_compiled
     from adm_sim.model.trains import moving_loads
