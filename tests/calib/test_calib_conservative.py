@@ -70,13 +70,15 @@ LP_SETS = (("ICE-2", "mu6"), ("Eurostar", "mu1"), ("Eurostar", "mu2"), ("Eurosta
            ("Railjet", "mu1"), ("ICE-4", "mu1"), ("ICE-4", "mu2"), ("ICE-4", "mu4"), ("ICE-4", "mu6"))
 
 
-@pytest.fixture(scope="module")
+# session scope (and for shipped_lp): with --dist worksteal a worker can come back to this module after
+# others, and a module-scoped fixture is then built again (7 s); the tests only read them
+@pytest.fixture(scope="session")
 def shipped_fit():
     content = st.read_results(SHIPPED)
     return st.fit_study(content.records, rule=st.DEFAULT_RULE)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def shipped_lp(shipped_fit):
     some = dataclasses.replace(shipped_fit, fits={k: v for k, v in shipped_fit.fits.items() if k in LP_SETS})
     return shipped_fit, conservative_study(some)

@@ -38,7 +38,10 @@ SLICE_ARGS = ["--mass-functions", "mu1", "--spans", "21:40", "--freq-index", "1"
 DZ_TOL_PCT = 1e-9
 
 
-@pytest.fixture(scope="module")
+# session scope (and for ice2_file_fit): with --dist worksteal a worker can come back to this module
+# after others, and a module-scoped fixture is then built again; the tests only read these folders
+# (those that change a study change a copy, _resume_case)
+@pytest.fixture(scope="session")
 def ice2_file_study(tmp_path_factory):
     """The slice studied with the ICE-2 vehicle file (one worker), as ``adm-calib study`` runs it."""
     out = tmp_path_factory.mktemp("ice2_file") / "study"
@@ -271,7 +274,7 @@ def test_paper_trains_pass_the_step_check_over_the_field():
 
 
 # ---------------------------------------------------------------------- 2. the fit of such a study
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def ice2_file_fit(ice2_file_study, tmp_path_factory):
     """``adm-calib study-fit`` on the slice study of the ICE-2 vehicle file."""
     out = tmp_path_factory.mktemp("ice2_file_fit")

@@ -21,7 +21,9 @@ REPRODUCED = ("ICE-2", "Eurostar", "Railjet")
 SLIGHT_PCT = 0.1
 
 
-@pytest.fixture(scope="module")
+# session scope: with --dist worksteal a worker can come back to this module after others, and a
+# module-scoped fixture is then built again (3 s); the tests only read the table
+@pytest.fixture(scope="session")
 def table():
     return run_table4()
 

@@ -100,7 +100,10 @@ def _wait_line(lines, seen, words, timeout_s):
     return None
 
 
-@pytest.fixture(scope="module")
+# session scope: with --dist worksteal a worker can come back to this module after others, and a
+# module-scoped fixture is then run again (a crossing, 13 s); the tests only read the run folder
+# and what the monitor did, and the processes have ended when it returns
+@pytest.fixture(scope="session")
 def crossing_run(tmp_path_factory):
     """One crossing on a domain of its own, monitored live: ``monitor.py --passages 1`` and the bridge
     and train node processes start, and once the monitor has subscribed and found the bridge's

@@ -4,8 +4,8 @@ crossings with known damping, the passages of a record, the refusals.
 Tolerances: closed form (a decaying sinusoid plus white noise) f1 to 1e-4 and ζ1 to 1 % relative,
 and the stated standard uncertainties within a factor 1.5 of the scatter over 30 noise draws;
 simulated MLM crossings of B1 x ICE-2 (resonance, 263 km/h) with ζ 0.5..3 % and 30 periods of free
-vibration, and DIM crossings of B3 x ICE-2: f1 within 0.5 % of n0 and ζ1 within 5 % of mode 1's
-damping ratio (measured: within 5e-5 and 0.5 %, both models; 0.02 % for ζ 2-3 % MLM).
+vibration, and a DIM crossing of B3 x ICE-2 (ζ 0.5 %): f1 within 0.5 % of n0 and ζ1 within 5 % of
+mode 1's damping ratio (measured: within 5e-5 and 0.5 %, both models; 0.02 % for ζ 2-3 % MLM).
 """
 
 from __future__ import annotations
@@ -340,10 +340,15 @@ def test_sweep_stamps_in_the_clock_lane_are_rescaled(record, scale):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("zeta_pct", [0.5, 3.0])
+@pytest.mark.parametrize("zeta_pct", [0.5])
 def test_simulated_dim_crossing_known_damping(ice2, zeta_pct):
     """The same with the Detailed Interaction Model (B3 x ICE-2 at 300 km/h): once the train has
-    left, the bridge vibrates alone (measured: f1 within 5e-5 of n0, ζ1 within 0.5 %)."""
+    left, the bridge vibrates alone (measured: f1 within 5e-5 of n0, ζ1 within 0.5 %).
+
+    ζ = 0.5 % only: a coupling left over after the train has gone would bias ζ1 most at the lowest
+    damping (about 6 times as strongly, relative, as at 3 %); both fits were gap-free over ~25
+    cycles, ζ1 -0.46/-0.47 % off at 0.5 % and -0.02/-0.01 % at 3 % (bound 5 %). Identification at
+    ζ = 3 % is held by test_simulated_crossing_known_damping[3.0] (MLM)."""
     from adm_sim.model.bridge import named_bridge
     from adm_sim.integrate.step_grid import StepOptions
     from adm_sim.integrate.sweep import run_sweep
