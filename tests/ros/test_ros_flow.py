@@ -209,13 +209,10 @@ def _wait_passages(path, n, timeout_s=60.0):
 
 
 def _stop(procs):
-    """SIGINT to every process still running first (they shut down side by side), then each one's
-    ``(stdout, stderr)``, in the order of ``procs`` (killed after 60 s)."""
+    out = []
     for p in procs:
         if p.poll() is None:
             p.send_signal(signal.SIGINT)
-    out = []
-    for p in procs:
         try:
             o, e = p.communicate(timeout=60)
         except subprocess.TimeoutExpired:
