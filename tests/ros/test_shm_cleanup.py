@@ -94,6 +94,12 @@ def _data_segments(names):
     return {n for n in names if n.startswith("fastrtps_") and len(n) == 25}
 
 
+def _data_segments_gone(names):
+    """``names`` hold a data segment (:func:`_data_segments`), and none of them is left in /dev/shm."""
+    segments = _data_segments(names)
+    return bool(segments) and not any(os.path.exists(f"/dev/shm/{n}") for n in segments)
+
+
 def _wait(pred, timeout=60.0, what="condition"):
     t_end = time.monotonic() + timeout
     while not pred():
@@ -183,8 +189,7 @@ def test_sigkill_of_a_supervised_node_is_cleaned_at_the_launcher_end(tmp_path):
         assert _stale(theirs)                    # SIGKILL leaves them ...
     assert _forgotten(theirs, p.pid) == set()    # ... the supervisor's end removes them
     # (its own data segment at least: the probe was alone on its domain, so nothing else mapped it)
-    segments = _data_segments(theirs)
-    assert segments and not any(os.path.exists(f"/dev/shm/{n}") for n in segments)
+    assert _data_segments_gone(theirs)
     # its note is closed, or keeps only what a live process still used at the clean (a port file of
     # its domain that a participant of a parallel test maps, seen once in a CI run), for a later clean
     dds_env.clean_dead_shm()
@@ -208,6 +213,5 @@ def test_clean_dead_shm_keeps_files_of_live_processes(tmp_path):
         # dead: its data segment is gone and nothing stale is left. The effect is checked, not this call's
         # count of removed files: a launcher on another xdist worker cleans first thing at its start, and
         # can remove the probe's files between the kill and this call (seen under ``-n 3``: 0 removed here)
-        segments = _data_segments(mine)
-        assert segments and not any(os.path.exists(f"/dev/shm/{n}") for n in segments)
+        assert _data_segments_gone(mine)
         assert _forgotten(mine, p.pid) == set()
