@@ -6,6 +6,7 @@ time; the same value set again is not warned again; a plausible preset is not wa
 In-process nodes on an isolated context.
 """
 
+import time
 import warnings
 
 import numpy as np
@@ -71,7 +72,8 @@ def test_run_time_set_warned_once(ctx):
 def test_driver_warns_about_a_run_result_once(ros_domain):
     """A run's result no real deck survives (4174 m/s², 0.07 m on a 4 m span): one warning per
     bound, and one WARN status per warning on /diagnostics, carrying the run id."""
-    from diagnostic_msgs.msg import DiagnosticStatus
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+    from rclpy.serialization import deserialize_message
 
     from adm_sim.nodes.driver import DIAG_PLAUSIBILITY
     from ros_fixtures import driver_node
@@ -86,10 +88,34 @@ def test_driver_warns_about_a_run_result_once(ros_domain):
         assert said == texts and [t.split(" is outside")[0] for t in texts] == [
             "run 7 (DIM) at 300 km/h: peak acceleration: 4174 m/s²", "run 7 (DIM) at 300 km/h: peak deflection: 0.07 m"]
         assert len(sent) == 1
-        st = sent[0].status
+        st = deserialize_message(sent[0], DiagnosticArray).status  # published as the bytes it records
         assert [s.message for s in st] == texts
         assert {s.level for s in st} == {DiagnosticStatus.WARN} and {s.name for s in st} == {DIAG_PLAUSIBILITY}
         assert [(kv.key, kv.value) for kv in st[0].values] == [("run_id", "7")]
         r.update(max_acc_m_s2=np.array([1.0, 2.6]), max_disp_m=np.array([0.001, 0.003]))
         assert _said(lambda: d.warn_implausible(r)) == ([], [])
         assert len(sent) == 1
+
+
+def test_driver_records_its_own_status_once_as_published(ros_domain, tmp_path):
+    """The driver's own WARN status is in its MCAP as soon as it is published, before the driver's
+    own /diagnostics subscription (which records the bridge's statuses) hands it back, and that echo
+    is recognised by its bytes and not written again."""
+    from adm_sim.nodes.driver import DIAG_PLAUSIBILITY
+    from adm_sim.recording.mcap_log import read_messages
+    from ros_fixtures import driver_node
+
+    mcap = tmp_path / "own.mcap"
+    with driver_node(ros_domain.domain_id, record_path=str(mcap)) as d:
+        d._desc["bridge"] = {"bridge": {"span_m": 4.0}}
+        r = {"run_id": 3, "model": "mlm", "speeds_kmh": np.array([300.0]), "max_acc_m_s2": np.array([4173.5]),
+             "max_disp_m": np.array([0.07])}
+        texts, _ = _said(lambda: d.warn_implausible(r))
+        assert d.rec.mcap.message_count == 1  # written as published (nothing else is on this domain)
+        t_end = time.monotonic() + 10.0
+        while d._own and time.monotonic() < t_end:
+            time.sleep(0.02)
+        assert not d._own  # the echo came back and was matched to it
+        d.rec.finish(keep=True)
+    st = [s for _t, _ns, m in read_messages(mcap, topics=["/diagnostics"]) for s in m.status]
+    assert [(s.name, s.message) for s in st] == [(DIAG_PLAUSIBILITY, t) for t in texts] and len(texts) == 2

@@ -159,6 +159,11 @@ def test_calibrate_launch_matches_in_process_calibration(calibration_launch):
     assert [s["run_id"] for s in requested] == [s["run_id"] for s in started]
     assert {s["node"] for s in requested} == {P.CALIBRATION_NODE}
     assert [s["model"] for s in requested] == [s["model"] for s in started]
+    # the calibration node's own verdict on /diagnostics, recorded once as it was published (its own
+    # /diagnostics subscription, which records the bridge's statuses, hands it back and is not written)
+    verdicts = [st for _t, _ns, m in read_messages(out / "run.mcap", topics=[P.TOPIC_DIAGNOSTICS])
+                for st in m.status if st.name == "adm_calib/calibration: delta_zeta_vbi"]
+    assert [st.hardware_id for st in verdicts] == ["B3"]
     models = [s["model"] for s in started]
     assert models[:2] == ["mlm", "dim"] and set(models[2:]) == {"mlm"}
     # run k of the launch is run k of the in-process reference (the same phases in the same order,

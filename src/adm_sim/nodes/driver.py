@@ -21,6 +21,7 @@ import sys
 import threading
 import time
 import warnings
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -29,7 +30,7 @@ from geometry_msgs.msg import AccelStamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
-from rclpy.serialization import deserialize_message
+from rclpy.serialization import deserialize_message, serialize_message
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64MultiArray, String
 from std_srvs.srv import Trigger
@@ -50,6 +51,8 @@ RECORDED = [(P.TOPIC_CLOCK, Clock), (P.TOPIC_ACCEL, AccelStamped), (P.TOPIC_STAT
             (P.TOPIC_DIAGNOSTICS, DiagnosticArray), (P.TOPIC_RESULT, Float64MultiArray), (P.TOPIC_STATUS, String),
             (P.TOPIC_SUMMARY, DiagnosticStatus), (P.TOPIC_BRIDGE_DESC, String), (P.TOPIC_TRAIN_DESC, String)]
 
+#: The topics of :data:`RECORDED`.
+RECORDED_TOPICS = frozenset(topic for topic, _type in RECORDED)
 
 #: ``/diagnostics`` status name of the plausibility warnings of a run's result (:meth:`RunDriver.warn_implausible`).
 DIAG_PLAUSIBILITY = "adm_sim/driver: plausibility of the result"
@@ -121,6 +124,10 @@ class RunDriver(c.NodeBase):
         self._clock_ns = 0
         self._desc = {}
         self._current = None  # (run_id, model, lane label)
+        #: CDR bytes of this node's own publications on the topics it records, each written as it was
+        #: published (:meth:`publish_recorded`) and not yet seen back on the node's own subscription
+        self._own = Counter()
+        self._own_lock = threading.Lock()
         self.n_runs = 0
         self._run_ids = []  # the runs requested, in order
         self._last_rx = time.monotonic()
@@ -134,7 +141,7 @@ class RunDriver(c.NodeBase):
                 else c.QOS_MONITOR)  # every counted topic (/diagnostics included) at least the flow window deep
             # taken serialised: the MCAP file gets the bytes as they came, the rest the message
             self.create_subscription(typ, P.relative(topic), self._make_cb(topic, typ), qos, raw=True)
-        #: the driver's ``requested`` records (the run id with its phase); its own subscription records them
+        #: the driver's ``requested`` records (the run id with its phase), recorded as published
         self.pub_request = self.create_publisher(String, P.relative(P.TOPIC_STATUS), c.QOS_CONTROL)
         #: the plausibility verdict of a run's result (:meth:`warn_implausible`)
         self.pub_plausibility = self.create_publisher(DiagnosticArray, P.relative(P.TOPIC_DIAGNOSTICS), c.QOS_CONTROL)
@@ -172,7 +179,8 @@ class RunDriver(c.NodeBase):
             if isinstance(msg, Clock):
                 self._clock_ns = self.rec.clock_ns = msg.clock.sec * 1_000_000_000 + msg.clock.nanosec
             try:
-                self.rec.write(topic, msg, self.rec.log_time_ns(msg), serialized=data)
+                if not self._own_echo(data):  # this node's own message is written once, as published
+                    self.rec.write(topic, msg, self.rec.log_time_ns(msg), serialized=data)
             except RunError as exc:  # a refused write (full disk, ulimit -f): the run's failure
                 self.recorder_failed(exc)
                 return
@@ -184,12 +192,34 @@ class RunDriver(c.NodeBase):
         return cb
 
     def publish_recorded(self, pub, topic, msg):
-        """Publish and record one of the driver's own messages at the current sim time."""
-        pub.publish(msg)
+        """Record one of the driver's own messages at the current sim time, then publish it.
+
+        It is written here, not when the node's own subscription of ``topic`` (if it records that
+        topic) hands it back: the recording does not depend on that echo, which can come after the
+        run's result or, under load, not before the file is closed; the echo is not written a second
+        time (:meth:`_own_echo`). The bytes published are the bytes recorded."""
+        data = serialize_message(msg)
+        if topic in RECORDED_TOPICS:
+            with self._own_lock:
+                self._own[data] += 1
         try:
-            self.rec.write(topic, msg, self._clock_ns)
+            self.rec.write(topic, msg, self._clock_ns, serialized=data)
         except RunError as exc:
             raise self._named(exc) from None
+        pub.publish(data)
+
+    def _own_echo(self, data):
+        """Whether ``data`` (a message taken by a recording subscription) is one of this node's own
+        publications, written already by :meth:`publish_recorded` (each is matched once)."""
+        if not self._own:
+            return False
+        with self._own_lock:
+            if self._own[data] <= 0:
+                return False
+            self._own[data] -= 1
+            if not self._own[data]:
+                del self._own[data]
+            return True
 
     def _named(self, exc):
         """``exc`` (a recorder's failure) as the failure of the run it hit: the current run, else
@@ -361,7 +391,9 @@ class RunDriver(c.NodeBase):
         lab = label or model.upper()
         self._current = (run_id, model, f"{lab} run {run_id}")
         self._run_ids.append(run_id)
-        self.pub_request.publish(c.json_msg(P.request_record(self.get_name(), run_id, model, phase, lab)))
+        request = c.json_msg(P.request_record(self.get_name(), run_id, model, phase, lab))
+        self.publish_recorded(self.pub_request, P.TOPIC_STATUS, request)
+        self._take_status(request)  # kept as the subscription keeps every status record
         say("run", run_id=run_id, model=model, lanes=int(info["lanes"]), state="started", label=lab, phase=phase)
         res = self._wait_result(run_id, t0)
         wall = time.perf_counter() - t0
@@ -461,7 +493,7 @@ class RunDriver(c.NodeBase):
                   for text in texts]
             arr = DiagnosticArray(status=st)
             arr.header.stamp.sec, arr.header.stamp.nanosec = divmod(self._clock_ns, 1_000_000_000)
-            self.pub_plausibility.publish(arr)  # recorded by the driver's own /diagnostics subscription
+            self.publish_recorded(self.pub_plausibility, P.TOPIC_DIAGNOSTICS, arr)
         return texts
 
     def _bridge_contact(self, run_id, wait_s=5.0):
