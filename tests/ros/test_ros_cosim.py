@@ -161,8 +161,10 @@ def test_calibrate_launch_matches_in_process_calibration(calibration_launch):
     assert [s["model"] for s in requested] == [s["model"] for s in started]
     # the calibration node's own verdict on /diagnostics, recorded once as it was published (its own
     # /diagnostics subscription, which records the bridge's statuses, hands it back and is not written)
+    from adm_calib.nodes.calibration_node import DIAG_VERDICT
+
     verdicts = [st for _t, _ns, m in read_messages(out / "run.mcap", topics=[P.TOPIC_DIAGNOSTICS])
-                for st in m.status if st.name == "adm_calib/calibration: delta_zeta_vbi"]
+                for st in m.status if st.name == DIAG_VERDICT]
     assert [st.hardware_id for st in verdicts] == ["B3"]
     models = [s["model"] for s in started]
     assert models[:2] == ["mlm", "dim"] and set(models[2:]) == {"mlm"}

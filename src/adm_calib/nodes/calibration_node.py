@@ -41,6 +41,8 @@ from adm_sim.integrate.step_grid import StepOptions
 from adm_sim.inputs.speeds import parse_speeds
 from adm_sim.inputs.train_files import load_train
 
+#: ``/diagnostics`` status name of the calibration's verdict (its Δζ of every method; docs/ros.md, "Topics").
+DIAG_VERDICT = "adm_calib/calibration: delta_zeta_vbi"
 #: ``@run`` label of each run phase (:data:`adm_sim.protocol.PHASES`).
 PHASE_LABELS = {phase: P.PHASE_NAMES[phase][1] for phase in P.PHASES}
 
@@ -162,7 +164,7 @@ class CalibrationNode(RunDriver):
         self.publish_recorded(self.pub_result, P.TOPIC_CAL_RESULT, c.json_msg(res.to_dict(curves=True)))
         ok, message, values = res.diagnostic()
         st = DiagnosticStatus(level=DiagnosticStatus.OK if ok else DiagnosticStatus.WARN,
-                              name="adm_calib/calibration: delta_zeta_vbi",
+                              name=DIAG_VERDICT,
                               hardware_id=res.bridge.name or res.bridge.describe(), message=message)
         st.values = [KeyValue(key=k, value=v) for k, v in values.items()]
         arr = DiagnosticArray(status=[st])
